@@ -1,0 +1,15 @@
+/* tvpal_crc32c.h: CRC-32C (Castagnoli), the checksum of every tvpal record.
+ *
+ * Same polynomial as iSCSI/ext4/btrfs (reflected 0x82F63B78); the check value
+ * of "123456789" is 0xE3069283.  Incremental: crc = tvpal_crc32c(crc, p, n)
+ * starting from crc = 0.
+ */
+#ifndef TVPAL_CRC32C_H
+#define TVPAL_CRC32C_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+uint32_t tvpal_crc32c(uint32_t crc, const void *data, size_t len);
+
+#endif

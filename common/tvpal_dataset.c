@@ -1,0 +1,162 @@
+/* tvpal_dataset.c: dataset directory access (see tvpal_dataset.h). */
+#define _GNU_SOURCE
+#include "tvpal_dataset.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const char axis_name[3] = {'x', 'y', 'z'};
+
+char *tvpal_shard_filename(const char *dir, uint32_t rank, unsigned axis)
+{
+    char *p;
+    if (asprintf(&p, "%s/node-%u/axis-%c.tvps", dir, rank, axis_name[axis]) < 0)
+        return NULL;
+    return p;
+}
+
+int tvpal_dataset_open(struct tvpal_dataset **out, const char *dir,
+                       struct tvpal_diag *diag)
+{
+    struct tvpal_diag d = {{0}};
+    char *path = NULL;
+    int rc;
+    struct tvpal_dataset *ds = calloc(1, sizeof *ds);
+    if (!ds || !(ds->dir = strdup(dir))) {
+        free(ds);
+        return TVPAL_E_NOMEM;
+    }
+    if (asprintf(&path, "%s/manifest.txt", dir) < 0) {
+        rc = TVPAL_E_NOMEM;
+        goto err;
+    }
+    rc = tvpal_manifest_load(path, &ds->m, &d);
+    if (rc < 0) {
+        tvpal_diag_set(diag, rc, "%s: %s", path, d.msg);
+        goto err;
+    }
+    for (unsigned a = 0; a < 3; a++) {
+        ds->shards[a] = calloc(ds->m.nodes, sizeof *ds->shards[a]);
+        if (!ds->shards[a]) {
+            rc = TVPAL_E_NOMEM;
+            goto err;
+        }
+        for (uint32_t r = 0; r < ds->m.nodes; r++) {
+            free(path);
+            path = tvpal_shard_filename(dir, r, a);
+            if (!path) {
+                rc = TVPAL_E_NOMEM;
+                goto err;
+            }
+            d.msg[0] = 0;
+            rc = tvpal_shard_open(&ds->shards[a][r], path, &d);
+            if (rc < 0) {
+                tvpal_diag_set(diag, rc, "%s: %s%s%s", path,
+                               tvpal_strerror(rc), d.msg[0] ? ": " : "",
+                               d.msg);
+                goto err;
+            }
+            const struct tvpal_shard_header *h =
+                tvpal_shard_hdr(ds->shards[a][r]);
+            if (memcmp(h->dims, ds->m.dims, sizeof h->dims) ||
+                h->steps != ds->m.steps || h->window != ds->m.window ||
+                h->nodes != ds->m.nodes || h->rank != r || h->axis != a) {
+                rc = tvpal_diag_set(diag, TVPAL_E_MISMATCH,
+                                    "%s: header (dims %ux%ux%u, steps %u, "
+                                    "window %u, node %u of %u, axis %u) does "
+                                    "not match the manifest", path,
+                                    h->dims[0], h->dims[1], h->dims[2],
+                                    h->steps, h->window, h->rank, h->nodes,
+                                    h->axis);
+                goto err;
+            }
+            ds->axis_bytes[a] += h->file_bytes;
+        }
+    }
+    free(path);
+    *out = ds;
+    return 0;
+err:
+    free(path);
+    tvpal_dataset_close(ds);
+    return rc;
+}
+
+void tvpal_dataset_close(struct tvpal_dataset *ds)
+{
+    if (!ds)
+        return;
+    for (unsigned a = 0; a < 3; a++) {
+        if (ds->shards[a])
+            for (uint32_t r = 0; r < ds->m.nodes; r++)
+                tvpal_shard_close(ds->shards[a][r]);
+        free(ds->shards[a]);
+    }
+    tvpal_manifest_clear(&ds->m);
+    free(ds->dir);
+    free(ds);
+}
+
+struct tvpal_volreader {
+    struct tvpal_dataset *ds;
+    unsigned axis;
+    struct tvpal_slab **slabs;
+};
+
+int tvpal_volreader_create(struct tvpal_volreader **out,
+                           struct tvpal_dataset *ds, unsigned axis)
+{
+    struct tvpal_volreader *r = calloc(1, sizeof *r);
+    if (!r)
+        return TVPAL_E_NOMEM;
+    r->ds = ds;
+    r->axis = axis;
+    r->slabs = calloc(ds->m.nodes, sizeof *r->slabs);
+    if (!r->slabs) {
+        free(r);
+        return TVPAL_E_NOMEM;
+    }
+    for (uint32_t k = 0; k < ds->m.nodes; k++) {
+        int rc = tvpal_slab_create(&r->slabs[k], ds->shards[axis][k]);
+        if (rc < 0) {
+            tvpal_volreader_free(r);
+            return rc;
+        }
+    }
+    *out = r;
+    return 0;
+}
+
+void tvpal_volreader_free(struct tvpal_volreader *r)
+{
+    if (!r)
+        return;
+    for (uint32_t k = 0; k < r->ds->m.nodes; k++)
+        tvpal_slab_free(r->slabs[k]);
+    free(r->slabs);
+    free(r);
+}
+
+int tvpal_volreader_read(struct tvpal_volreader *r, uint32_t t, float *vol,
+                         struct tvpal_diag *diag)
+{
+    for (uint32_t k = 0; k < r->ds->m.nodes; k++) {
+        struct tvpal_diag d = {{0}};
+        int rc = tvpal_slab_seek(r->slabs[k], t, &d);
+        if (rc < 0)
+            return tvpal_diag_set(diag, rc, "%s: %s",
+                                  tvpal_shard_path(r->ds->shards[r->axis][k]),
+                                  d.msg[0] ? d.msg : tvpal_strerror(rc));
+        tvpal_slab_scatter(r->slabs[k], t, vol);
+    }
+    return 0;
+}
+
+uint64_t tvpal_volreader_bytes_read(const struct tvpal_volreader *r)
+{
+    uint64_t b = 0;
+    for (uint32_t k = 0; k < r->ds->m.nodes; k++)
+        b += tvpal_slab_bytes_read(r->slabs[k]);
+    return b;
+}

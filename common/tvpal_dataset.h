@@ -1,0 +1,40 @@
+/* tvpal_dataset.h: an encoded dataset directory as a whole (for the tools
+ * that see all nodes' shards: decode, info, report).  A player rank opens
+ * only its own node's shards with tvpal_shard.h. */
+#ifndef TVPAL_DATASET_H
+#define TVPAL_DATASET_H
+
+#include <stdint.h>
+
+#include "tvpal_error.h"
+#include "tvpal_manifest.h"
+#include "tvpal_shard.h"
+
+struct tvpal_dataset {
+    char *dir;
+    struct tvpal_manifest m;
+    struct tvpal_shard **shards[3];   /* [axis][rank], m.nodes each */
+    uint64_t axis_bytes[3];           /* total shard file bytes per axis */
+};
+
+/* Path of node r's shard of an axis under dir (malloc'ed; caller frees). */
+char *tvpal_shard_filename(const char *dir, uint32_t rank, unsigned axis);
+
+/* Opens dir/manifest.txt and every shard, checking that they agree.  On
+ * error, diag starts with the path of the file at fault. */
+int tvpal_dataset_open(struct tvpal_dataset **out, const char *dir,
+                       struct tvpal_diag *diag);
+void tvpal_dataset_close(struct tvpal_dataset *ds);  /* NULL is a no-op */
+
+/* Decoder of whole volumes along one axis: one slab per shard. */
+struct tvpal_volreader;
+int tvpal_volreader_create(struct tvpal_volreader **out,
+                           struct tvpal_dataset *ds, unsigned axis);
+void tvpal_volreader_free(struct tvpal_volreader *r);
+/* Decodes timestep t into vol (nx*ny*nz floats, x fastest).  Sequential
+ * calls read one record per shard; a jump reads at most N. */
+int tvpal_volreader_read(struct tvpal_volreader *r, uint32_t t, float *vol,
+                         struct tvpal_diag *diag);
+uint64_t tvpal_volreader_bytes_read(const struct tvpal_volreader *r);
+
+#endif

@@ -1,0 +1,80 @@
+/* tvpal_dct.c: DCT-II by matrix product.  For n <= 16 a direct n x n product
+ * per voxel is as fast as a fast algorithm and vectorizes across voxels, which
+ * is the dimension we batch over. */
+#include "tvpal_dct.h"
+
+#include <math.h>
+#include <pthread.h>
+
+static double mat_d[TVPAL_NMAX + 1][TVPAL_NMAX * TVPAL_NMAX];
+static float mat_f[TVPAL_NMAX + 1][TVPAL_NMAX * TVPAL_NMAX];
+static pthread_once_t mat_once = PTHREAD_ONCE_INIT;
+
+static void mat_init(void)
+{
+    for (unsigned n = 1; n <= TVPAL_NMAX; n++)
+        for (unsigned u = 0; u < n; u++) {
+            double a = sqrt((u == 0 ? 1.0 : 2.0) / n);
+            for (unsigned x = 0; x < n; x++) {
+                double v = a * cos((2.0 * x + 1.0) * u * M_PI / (2.0 * n));
+                mat_d[n][u * n + x] = v;
+                mat_f[n][u * n + x] = (float)v;
+            }
+        }
+}
+
+const double *tvpal_dct_matrix(unsigned n)
+{
+    if (n < 1 || n > TVPAL_NMAX)
+        return NULL;
+    pthread_once(&mat_once, mat_init);
+    return mat_d[n];
+}
+
+const float *tvpal_dct_matrix_f(unsigned n)
+{
+    if (n < 1 || n > TVPAL_NMAX)
+        return NULL;
+    pthread_once(&mat_once, mat_init);
+    return mat_f[n];
+}
+
+void tvpal_dct_forward_f(unsigned n, const float *in, float *out,
+                         size_t count, size_t stride)
+{
+    const float *m = tvpal_dct_matrix_f(n);
+    for (unsigned u = 0; u < n; u++) {
+        float *o = out + (size_t)u * stride;
+        const float *row = m + u * n;
+        for (size_t v = 0; v < count; v++)
+            o[v] = 0.0f;
+        for (unsigned x = 0; x < n; x++) {
+            const float w = row[x];
+            const float *src = in + (size_t)x * stride;
+            for (size_t v = 0; v < count; v++)
+                o[v] += w * src[v];
+        }
+    }
+}
+
+void tvpal_dct_forward(unsigned n, const double *in, double *out)
+{
+    const double *m = tvpal_dct_matrix(n);
+    for (unsigned u = 0; u < n; u++) {
+        double s = 0.0;
+        for (unsigned x = 0; x < n; x++)
+            s += m[u * n + x] * in[x];
+        out[u] = s;
+    }
+}
+
+void tvpal_dct_inverse(unsigned n, const double *in, double *out)
+{
+    const double *m = tvpal_dct_matrix(n);
+    for (unsigned x = 0; x < n; x++) {
+        double s = 0.0;
+        for (unsigned u = 0; u < n; u++)
+            s += m[u * n + x] * in[u];
+        out[x] = s;
+    }
+}

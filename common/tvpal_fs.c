@@ -1,0 +1,155 @@
+/* tvpal_fs.c: file-system helpers (see tvpal_fs.h). */
+#define _GNU_SOURCE
+#include "tvpal_fs.h"
+
+#include <dirent.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+int tvpal_mkdirs(const char *path)
+{
+    char *p = strdup(path);
+    if (!p)
+        return TVPAL_E_NOMEM;
+    int rc = 0;
+    for (char *s = p + 1;; s++) {
+        if (*s == '/' || *s == 0) {
+            char c = *s;
+            *s = 0;
+            if (mkdir(p, 0755) < 0 && errno != EEXIST) {
+                rc = TVPAL_E_WRITE;
+                break;
+            }
+            *s = c;
+            if (!c)
+                break;
+        }
+    }
+    free(p);
+    return rc;
+}
+
+int tvpal_rmtree(const char *path)
+{
+    struct stat st;
+    if (lstat(path, &st) < 0)
+        return errno == ENOENT ? 0 : TVPAL_E_SYS;
+    if (!S_ISDIR(st.st_mode))
+        return unlink(path) < 0 ? TVPAL_E_SYS : 0;
+    DIR *d = opendir(path);
+    if (!d)
+        return TVPAL_E_SYS;
+    int rc = 0;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
+            continue;
+        char *sub;
+        if (asprintf(&sub, "%s/%s", path, e->d_name) < 0) {
+            rc = TVPAL_E_NOMEM;
+            break;
+        }
+        rc = tvpal_rmtree(sub);
+        free(sub);
+        if (rc < 0)
+            break;
+    }
+    closedir(d);
+    if (rc == 0 && rmdir(path) < 0)
+        rc = TVPAL_E_SYS;
+    return rc;
+}
+
+int tvpal_write_file_atomic(const char *path, const void *data, size_t len)
+{
+    char *tmp;
+    if (asprintf(&tmp, "%s.tmp", path) < 0)
+        return TVPAL_E_NOMEM;
+    int rc = 0;
+    int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd < 0) {
+        free(tmp);
+        return TVPAL_E_OPEN;
+    }
+    const char *p = data;
+    while (len) {
+        ssize_t k = write(fd, p, len);
+        if (k < 0) {
+            if (errno == EINTR)
+                continue;
+            rc = TVPAL_E_WRITE;
+            break;
+        }
+        p += k;
+        len -= (size_t)k;
+    }
+    if (rc == 0 && fsync(fd) < 0)
+        rc = TVPAL_E_WRITE;
+    if (close(fd) < 0 && rc == 0)
+        rc = TVPAL_E_WRITE;
+    if (rc == 0 && rename(tmp, path) < 0)
+        rc = TVPAL_E_WRITE;
+    if (rc < 0)
+        unlink(tmp);
+    free(tmp);
+    return rc;
+}
+
+int tvpal_read_file(const char *path, char **out, size_t *len)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return TVPAL_E_OPEN;
+    char *buf = NULL;
+    size_t n = 0, cap = 0;
+    int rc = 0;
+    for (;;) {
+        if (cap - n < 4096) {
+            cap = cap ? cap * 2 : 8192;
+            char *nb = realloc(buf, cap);
+            if (!nb) {
+                rc = TVPAL_E_NOMEM;
+                break;
+            }
+            buf = nb;
+        }
+        size_t k = fread(buf + n, 1, cap - n - 1, f);
+        n += k;
+        if (k == 0) {
+            if (ferror(f))
+                rc = TVPAL_E_READ;
+            break;
+        }
+    }
+    fclose(f);
+    if (rc < 0) {
+        free(buf);
+        return rc;
+    }
+    buf[n] = 0;
+    *out = buf;
+    if (len)
+        *len = n;
+    return 0;
+}
+
+int tvpal_fsync_dir(const char *path)
+{
+    int fd = open(path, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (fd < 0)
+        return TVPAL_E_OPEN;
+    int rc = fsync(fd) < 0 ? TVPAL_E_WRITE : 0;
+    close(fd);
+    return rc;
+}
+
+int tvpal_exists(const char *path)
+{
+    struct stat st;
+    return lstat(path, &st) == 0;
+}

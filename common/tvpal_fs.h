@@ -1,0 +1,27 @@
+/* tvpal_fs.h: file-system helpers for all-or-nothing outputs. */
+#ifndef TVPAL_FS_H
+#define TVPAL_FS_H
+
+#include <stddef.h>
+
+#include "tvpal_error.h"
+
+/* mkdir -p (mode 0755).  0 or TVPAL_E_WRITE. */
+int tvpal_mkdirs(const char *path);
+
+/* Removes a directory tree (files, subdirectories).  Missing is fine. */
+int tvpal_rmtree(const char *path);
+
+/* Writes len bytes to path atomically: path.tmp, fsync, rename. */
+int tvpal_write_file_atomic(const char *path, const void *data, size_t len);
+
+/* Reads a whole small file into a malloc'ed, NUL-terminated buffer. */
+int tvpal_read_file(const char *path, char **out, size_t *len);
+
+/* fsync of a directory, so that renames in it are durable. */
+int tvpal_fsync_dir(const char *path);
+
+/* Does path exist (any type)? */
+int tvpal_exists(const char *path);
+
+#endif

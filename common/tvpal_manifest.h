@@ -1,0 +1,49 @@
+/* tvpal_manifest.h: the dataset's human-readable manifest (manifest.txt).
+ *
+ * Lines of "key = value"; '#' starts a comment.  Keys that repeat (source)
+ * keep their order.  Unknown keys are ignored on load, so later versions may
+ * add keys; a missing required key is an error naming it.
+ */
+#ifndef TVPAL_MANIFEST_H
+#define TVPAL_MANIFEST_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "tvpal_error.h"
+#include "tvpal_raw.h"
+
+#define TVPAL_HIST_BINS 64
+
+struct tvpal_manifest {
+    uint32_t dims[3];
+    enum tvpal_type type;
+    int big_endian;
+    uint32_t steps, window, nodes;
+    double value_min, value_max;          /* of the source, after NaN policy */
+    uint64_t histogram[TVPAL_HIST_BINS];  /* linear bins over [min, max] */
+    int has_nan_as;
+    double nan_as;
+    uint64_t nonfinite;                   /* values replaced by nan_as */
+    int single_file;                      /* one input holding all steps */
+    uint64_t source_bytes;
+    char *encoder;                        /* owned strings (may be NULL) */
+    char *options;
+    size_t nsources;
+    char **sources;                       /* owned, nsources entries */
+};
+
+/* Frees the owned strings and zeroes m. */
+void tvpal_manifest_clear(struct tvpal_manifest *m);
+
+/* Renders m as text into a malloc'ed string (*out owned by the caller). */
+int tvpal_manifest_format(const struct tvpal_manifest *m, char **out);
+
+/* Parses path into m (cleared first); diag names the line or key at fault. */
+int tvpal_manifest_load(const char *path, struct tvpal_manifest *m,
+                        struct tvpal_diag *diag);
+
+/* Appends a copy of src to m->sources. */
+int tvpal_manifest_add_source(struct tvpal_manifest *m, const char *src);
+
+#endif

@@ -1,0 +1,446 @@
+/* tvpal_quant.c: Lloyd-Max and uniform scalar quantizers (see tvpal_quant.h). */
+#include "tvpal_quant.h"
+#include "tvpal_error.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Iteration limits: Lloyd converges linearly; past ~60 iterations the gain is
+ * far below what the float decoder table can represent. */
+#define LLOYD_MAX_ITER 60
+#define LLOYD_REL_TOL 1e-7
+
+struct tvpal_quantws {
+    size_t capacity;
+    size_t n;
+    uint32_t *keys, *tmp;   /* radix sort buffers */
+    float *s;               /* sorted samples */
+    double *p1, *p2;        /* prefix sums of (s - mean) and its square, n+1 */
+    double mean;
+    size_t distinct;
+};
+
+int tvpal_quantws_create(struct tvpal_quantws **out, size_t capacity)
+{
+    struct tvpal_quantws *ws = calloc(1, sizeof *ws);
+    if (!ws)
+        return TVPAL_E_NOMEM;
+    size_t cap = capacity ? capacity : 1;
+    ws->capacity = capacity;
+    ws->keys = malloc(cap * sizeof *ws->keys);
+    ws->tmp = malloc(cap * sizeof *ws->tmp);
+    ws->s = malloc(cap * sizeof *ws->s);
+    ws->p1 = malloc((cap + 1) * sizeof *ws->p1);
+    ws->p2 = malloc((cap + 1) * sizeof *ws->p2);
+    if (!ws->keys || !ws->tmp || !ws->s || !ws->p1 || !ws->p2) {
+        tvpal_quantws_free(ws);
+        return TVPAL_E_NOMEM;
+    }
+    *out = ws;
+    return 0;
+}
+
+void tvpal_quantws_free(struct tvpal_quantws *ws)
+{
+    if (!ws)
+        return;
+    free(ws->keys);
+    free(ws->tmp);
+    free(ws->s);
+    free(ws->p1);
+    free(ws->p2);
+    free(ws);
+}
+
+/* Order-preserving map float -> uint32 (finite values). */
+static inline uint32_t float_key(float f)
+{
+    uint32_t u;
+    memcpy(&u, &f, 4);
+    return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+}
+
+static inline float key_float(uint32_t k)
+{
+    uint32_t u = (k & 0x80000000u) ? (k & 0x7FFFFFFFu) : ~k;
+    float f;
+    memcpy(&f, &u, 4);
+    return f;
+}
+
+/* LSD radix sort, 3 passes of 11 bits; a pass whose digit is the same for all
+ * keys is skipped (common: coefficient values often share exponent bits). */
+static void radix_sort(uint32_t *keys, uint32_t *tmp, size_t n)
+{
+    size_t hist[3][2048];
+    memset(hist, 0, sizeof hist);
+    for (size_t i = 0; i < n; i++) {
+        uint32_t k = keys[i];
+        hist[0][k & 0x7FF]++;
+        hist[1][(k >> 11) & 0x7FF]++;
+        hist[2][k >> 22]++;
+    }
+    uint32_t *src = keys, *dst = tmp;
+    for (int pass = 0; pass < 3; pass++) {
+        unsigned shift = 11u * (unsigned)pass;
+        size_t *h = hist[pass];
+        uint32_t first = (src[0] >> shift) & 0x7FF;
+        if (h[first] == n)
+            continue;
+        size_t sum = 0;
+        for (int b = 0; b < 2048; b++) {
+            size_t c = h[b];
+            h[b] = sum;
+            sum += c;
+        }
+        for (size_t i = 0; i < n; i++) {
+            uint32_t k = src[i];
+            dst[h[(k >> shift) & 0x7FF]++] = k;
+        }
+        uint32_t *t = src;
+        src = dst;
+        dst = t;
+    }
+    if (src != keys)
+        memcpy(keys, src, n * sizeof *keys);
+}
+
+int tvpal_quantws_load(struct tvpal_quantws *ws, const float *x, size_t n)
+{
+    if (n > ws->capacity)
+        return TVPAL_E_INVAL;
+    ws->n = n;
+    ws->distinct = 0;
+    ws->mean = 0.0;
+    if (n == 0)
+        return 0;
+    double sum = 0.0;
+    for (size_t i = 0; i < n; i++) {
+        ws->keys[i] = float_key(x[i]);
+        sum += x[i];
+    }
+    radix_sort(ws->keys, ws->tmp, n);
+    double mean = sum / (double)n;
+    ws->mean = mean;
+    double a1 = 0.0, a2 = 0.0;
+    size_t distinct = 0;
+    uint32_t prev = ~ws->keys[0];
+    ws->p1[0] = 0.0;
+    ws->p2[0] = 0.0;
+    for (size_t i = 0; i < n; i++) {
+        uint32_t k = ws->keys[i];
+        distinct += (k != prev);
+        prev = k;
+        float f = key_float(k);
+        ws->s[i] = f;
+        double c = (double)f - mean;
+        a1 += c;
+        a2 += c * c;
+        ws->p1[i + 1] = a1;
+        ws->p2[i + 1] = a2;
+    }
+    ws->distinct = distinct;
+    return 0;
+}
+
+size_t tvpal_quantws_distinct(const struct tvpal_quantws *ws)
+{
+    return ws->distinct;
+}
+
+/* First index i in [lo, n) with s[i] >= t (n if none). */
+static size_t lower_bound(const float *s, size_t lo, size_t n, double t)
+{
+    size_t len = n - lo;
+    while (len > 0) {
+        size_t half = len >> 1;
+        if ((double)s[lo + half] < t) {
+            lo += half + 1;
+            len -= half + 1;
+        } else {
+            len = half;
+        }
+    }
+    return lo;
+}
+
+/* Sum of squared deviations of s[a..b) from level y (centred coordinate). */
+static inline double cell_sse(const struct tvpal_quantws *ws, size_t a,
+                              size_t b, double yc)
+{
+    double cnt = (double)(b - a);
+    double s1 = ws->p1[b] - ws->p1[a];
+    double s2 = ws->p2[b] - ws->p2[a];
+    double d = s2 - 2.0 * yc * s1 + cnt * yc * yc;
+    return d > 0.0 ? d : 0.0;
+}
+
+/* First index i in [lo, n) with s[i] >= t, searched outward from hint (the
+ * answer of the previous Lloyd iteration, usually within a few places). */
+static size_t gallop(const float *s, size_t lo, size_t n, double t,
+                     size_t hint)
+{
+    if (hint < lo)
+        hint = lo;
+    if (hint >= n)
+        hint = n;
+    if (hint < n && (double)s[hint] < t) {
+        /* answer in (hint, n]: gallop right */
+        size_t step = 1, a = hint + 1;
+        while (a + step < n && (double)s[a + step - 1] < t) {
+            a += step;
+            step <<= 1;
+        }
+        size_t b = a + step < n ? a + step : n;
+        return lower_bound(s, a, b, t);
+    }
+    /* answer in [lo, hint]: gallop left */
+    size_t step = 1, b = hint;
+    while (b > lo + step && (double)s[b - step] >= t) {
+        b -= step;
+        step <<= 1;
+    }
+    size_t a = b > lo + step ? b - step : lo;
+    return lower_bound(s, a, b, t);
+}
+
+/* Nearest-neighbour partition of the sorted samples for levels y (centred,
+ * sorted): bnd[0] = 0, bnd[L] = n, cell i = [bnd[i], bnd[i+1]).  With
+ * use_hint, bnd holds the previous partition on entry.  Returns the total
+ * squared error. */
+static double partition(const struct tvpal_quantws *ws, const double *y,
+                        unsigned L, size_t *bnd, int use_hint)
+{
+    const double mean = ws->mean;
+    size_t lo = 0;
+    double d = 0.0;
+    bnd[0] = 0;
+    for (unsigned i = 1; i < L; i++) {
+        double t = 0.5 * (y[i - 1] + y[i]) + mean;
+        lo = use_hint ? gallop(ws->s, lo, ws->n, t, bnd[i])
+                      : lower_bound(ws->s, lo, ws->n, t);
+        bnd[i] = lo;
+    }
+    bnd[L] = ws->n;
+    for (unsigned i = 0; i < L; i++)
+        d += cell_sse(ws, bnd[i], bnd[i + 1], y[i]);
+    return d;
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static void finish(const struct tvpal_quantws *ws, const double *yc,
+                   unsigned L, struct tvpal_quant *q)
+{
+    size_t bnd[TVPAL_LEVELS_MAX + 1];
+    double d = partition(ws, yc, L, bnd, 0);
+    q->nlevels = L;
+    for (unsigned i = 0; i < L; i++) {
+        q->level[i] = yc[i] + ws->mean;
+        q->count[i] = bnd[i + 1] - bnd[i];
+    }
+    for (unsigned i = 0; i + 1 < L; i++)
+        q->thresh[i] = 0.5 * (q->level[i] + q->level[i + 1]);
+    q->mse = ws->n ? d / (double)ws->n : 0.0;
+}
+
+/* Lloyd iterations from y (centred, sorted, L entries); y is overwritten with
+ * the best levels seen.  Returns the best total squared error. */
+static double lloyd(const struct tvpal_quantws *ws, double *y, unsigned L)
+{
+    size_t bnd[TVPAL_LEVELS_MAX + 1];
+    double best[TVPAL_LEVELS_MAX];
+    double sse[TVPAL_LEVELS_MAX];
+    double best_d = DBL_MAX, prev_d = DBL_MAX;
+
+    for (int it = 0;; it++) {
+        double d = partition(ws, y, L, bnd, it > 0);
+        if (d < best_d) {
+            best_d = d;
+            memcpy(best, y, L * sizeof *y);
+        }
+        if (d <= 0.0 || it >= LLOYD_MAX_ITER ||
+            (prev_d - d) <= LLOYD_REL_TOL * prev_d)
+            break;
+        prev_d = d;
+
+        /* Centroid condition. */
+        unsigned nempty = 0;
+        for (unsigned i = 0; i < L; i++) {
+            size_t a = bnd[i], b = bnd[i + 1];
+            if (b > a) {
+                y[i] = (ws->p1[b] - ws->p1[a]) / (double)(b - a);
+                sse[i] = cell_sse(ws, a, b, y[i]);
+            } else {
+                sse[i] = -1.0;
+                nempty++;
+            }
+        }
+        /* Empty cells: each splits the cell of largest distortion at its
+         * centroid into two halves, each at its own centroid. */
+        for (unsigned i = 0; i < L && nempty; i++) {
+            if (sse[i] >= 0.0)
+                continue;
+            unsigned w = L;
+            double wmax = 0.0;
+            for (unsigned j = 0; j < L; j++)
+                if (sse[j] > wmax) {
+                    wmax = sse[j];
+                    w = j;
+                }
+            if (w == L)
+                break; /* every cell is exact: nothing left to split */
+            size_t a = bnd[w], b = bnd[w + 1];
+            size_t p = lower_bound(ws->s, a, b, y[w] + ws->mean);
+            if (p <= a || p >= b)
+                break; /* cannot happen with sse > 0; be safe */
+            double lo = (ws->p1[p] - ws->p1[a]) / (double)(p - a);
+            double hi = (ws->p1[b] - ws->p1[p]) / (double)(b - p);
+            y[w] = lo;
+            y[i] = hi;
+            sse[w] = cell_sse(ws, a, p, lo);
+            sse[i] = cell_sse(ws, p, b, hi);
+            /* The split cells' bounds are only used for later splits of the
+             * same cell this iteration; mark w as done to keep bnd valid. */
+            sse[w] = 0.0;
+            sse[i] = 0.0;
+            nempty--;
+        }
+        qsort(y, L, sizeof *y, cmp_double);
+    }
+    memcpy(y, best, L * sizeof *y);
+    return best_d;
+}
+
+static void fit_exact(const struct tvpal_quantws *ws, struct tvpal_quant *q)
+{
+    double y[TVPAL_LEVELS_MAX];
+    unsigned L = 0;
+    for (size_t i = 0; i < ws->n; i++)
+        if (i == 0 || ws->s[i] != ws->s[i - 1])
+            y[L++] = (double)ws->s[i] - ws->mean;
+    finish(ws, y, L, q);
+}
+
+static void uniform_levels(const struct tvpal_quantws *ws, unsigned L,
+                           double *y)
+{
+    double lo = ws->s[0], hi = ws->s[ws->n - 1];
+    double w = (hi - lo) / L;
+    for (unsigned i = 0; i < L; i++)
+        y[i] = lo + (i + 0.5) * w - ws->mean;
+}
+
+void tvpal_quant_fit_uniform(struct tvpal_quantws *ws, unsigned levels,
+                             struct tvpal_quant *q)
+{
+    double y[TVPAL_LEVELS_MAX];
+    if (levels < 1)
+        levels = 1;
+    if (levels > TVPAL_LEVELS_MAX)
+        levels = TVPAL_LEVELS_MAX;
+    if (ws->n == 0) {
+        y[0] = 0.0;
+        finish(ws, y, 1, q);
+        return;
+    }
+    uniform_levels(ws, levels, y);
+    finish(ws, y, levels, q);
+}
+
+void tvpal_quant_fit_from(struct tvpal_quantws *ws, const double *start,
+                          unsigned levels, struct tvpal_quant *q)
+{
+    double y[TVPAL_LEVELS_MAX];
+    for (unsigned i = 0; i < levels; i++)
+        y[i] = start[i] - ws->mean;
+    lloyd(ws, y, levels);
+    finish(ws, y, levels, q);
+}
+
+void tvpal_quant_fit_lloyd(struct tvpal_quantws *ws, unsigned levels,
+                           struct tvpal_quant *q)
+{
+    double yu[TVPAL_LEVELS_MAX], yq[TVPAL_LEVELS_MAX];
+    const size_t n = ws->n;
+    if (levels < 1)
+        levels = 1;
+    if (levels > TVPAL_LEVELS_MAX)
+        levels = TVPAL_LEVELS_MAX;
+    if (n == 0) {
+        yu[0] = 0.0;
+        finish(ws, yu, 1, q);
+        return;
+    }
+    if (ws->distinct <= levels) {
+        fit_exact(ws, q);
+        return;
+    }
+    uniform_levels(ws, levels, yu);
+    double du = lloyd(ws, yu, levels);
+    /* Quantile start: level i is the mean of the i-th equal-count block. */
+    for (unsigned i = 0; i < levels; i++) {
+        size_t a = n * i / levels, b = n * (i + 1) / levels;
+        yq[i] = b > a ? (ws->p1[b] - ws->p1[a]) / (double)(b - a) : 0.0;
+    }
+    double dq = lloyd(ws, yq, levels);
+    finish(ws, dq < du ? yq : yu, levels, q);
+}
+
+unsigned tvpal_quant_code(const struct tvpal_quant *q, double v)
+{
+    unsigned lo = 0, hi = q->nlevels - 1; /* number of thresholds <= v */
+    while (lo < hi) {
+        unsigned mid = (lo + hi) / 2;
+        if (v >= q->thresh[mid])
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+double tvpal_quant_mse(const struct tvpal_quant *q, const float *x, size_t n)
+{
+    double d = 0.0;
+    for (size_t i = 0; i < n; i++) {
+        double e = (double)x[i] - q->level[tvpal_quant_code(q, x[i])];
+        d += e * e;
+    }
+    return n ? d / (double)n : 0.0;
+}
+
+void tvpal_qcoder_init(struct tvpal_qcoder *c, const struct tvpal_quant *q,
+                       unsigned bits)
+{
+    unsigned P = 1u << bits;
+    c->bits = bits;
+    for (unsigned i = 0; i + 1 < P; i++)
+        c->th[i] = (i + 1 < q->nlevels) ? (float)q->thresh[i] : INFINITY;
+}
+
+void tvpal_qcoder_pack(const struct tvpal_qcoder *c, const float *x, size_t n,
+                       uint8_t *idx)
+{
+    enum { B = 64 };
+    const unsigned bits = c->bits;
+    const float *th = c->th;
+    unsigned code[B];
+    for (size_t v0 = 0; v0 < n; v0 += B) {
+        size_t m = n - v0 < B ? n - v0 : B;
+        const float *xb = x + v0;
+        for (size_t i = 0; i < m; i++)
+            code[i] = 0;
+        for (unsigned step = (1u << bits) >> 1; step; step >>= 1)
+            for (size_t i = 0; i < m; i++)
+                code[i] += (xb[i] >= th[code[i] + step - 1]) ? step : 0;
+        for (size_t i = 0; i < m; i++)
+            idx[v0 + i] = (uint8_t)((idx[v0 + i] << bits) | code[i]);
+    }
+}

@@ -1,0 +1,47 @@
+/* tvpal_swcode.h: encoding of one slice-window (paper, section III.C).
+ *
+ * Input: the L time samples (L = window length, 1..16) of each of the nvox
+ * voxels of one slice.  Output: one 8-bit index per voxel and the decoder
+ * table: table[j * 256 + i] is the value of index i at timestep j of the
+ * window, i.e. the mean original value at timestep j of the voxels holding
+ * index i.  An index no voxel holds gets the inverse DCT of its dequantized
+ * coefficients, so every table entry is a sensible value.
+ *
+ * Steps: orthonormal DCT-II along time per voxel; mean and variance of each
+ * coefficient over the slice; 8 bits allocated by variance; one Lloyd-Max
+ * quantizer per coefficient that got bits (a coefficient with 0 bits is
+ * reconstructed by its slice mean); the codes concatenated into the index,
+ * coefficient 0 in the high bits.  Deterministic.
+ */
+#ifndef TVPAL_SWCODE_H
+#define TVPAL_SWCODE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "tvpal_dct.h"
+
+#define TVPAL_INDEX_BITS 8
+#define TVPAL_TABLE_ENTRIES 256
+
+/* What the encoder decided for one slice-window (informational). */
+struct tvpal_swinfo {
+    uint8_t bits[TVPAL_NMAX];   /* bits per coefficient, sum 8 or 0 */
+    unsigned used;              /* distinct indices held by voxels */
+};
+
+/* Workspace for slices of up to max_vox voxels and windows up to max_len.
+ * One per thread; owned by the caller; free(NULL) is a no-op. */
+struct tvpal_swenc;
+int tvpal_swenc_create(struct tvpal_swenc **out, size_t max_vox,
+                       unsigned max_len);
+void tvpal_swenc_free(struct tvpal_swenc *e);
+
+/* samples[j * nvox + v]: sample j (< len) of voxel v (< nvox), finite.
+ * Writes idx[0..nvox-1] and table[0..len*256-1]; info may be NULL.
+ * Returns 0 or TVPAL_E_INVAL (sizes beyond the workspace). */
+int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
+                       size_t nvox, unsigned len, uint8_t *idx, float *table,
+                       struct tvpal_swinfo *info);
+
+#endif
