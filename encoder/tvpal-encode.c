@@ -1,0 +1,929 @@
+/* tvpal-encode: encodes a time series of raw volumes into a tvpal dataset
+ * (paper section III; format: common/FORMAT.md).
+ *
+ * Streaming: timestep t + N - 1 is read when the records of step t are
+ * built, so memory holds N float volumes (a ring) plus the records of one
+ * step, never T.  Output goes to OUTDIR.partial/ and is renamed to OUTDIR
+ * only when complete; a checkpoint written after every step lets a rerun of
+ * the same command continue an interrupted job.
+ */
+#define _GNU_SOURCE
+#include "tvpal_cli.h"
+#include "tvpal_crc32c.h"
+#include "tvpal_dataset.h"
+#include "tvpal_error.h"
+#include "tvpal_format.h"
+#include "tvpal_fs.h"
+#include "tvpal_manifest.h"
+#include "tvpal_raw.h"
+#include "tvpal_shard.h"
+#include "tvpal_swcode.h"
+#include "tvpal_window.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <getopt.h>
+#include <limits.h>
+#include <math.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#define PROG "tvpal-encode"
+#define FINE_BINS 65536u /* source histogram keyed by the top 16 float bits */
+
+static void usage(FILE *f)
+{
+    fprintf(f,
+"Usage: " PROG " --dims NXxNYxNZ [options] -o OUTDIR INPUT...\n"
+"Encode a time series of raw volumes (one file per timestep, in time order,\n"
+"or one file holding all timesteps with --steps) into a tvpal dataset: for\n"
+"each axis, 8-bit indexed slices with per-window decoder tables.\n"
+"\n"
+"Input:\n"
+"  -d, --dims NXxNYxNZ    volume size, x fastest (required)\n"
+"  -t, --type TYPE        f32 (default), f64, u8, u16, i16\n"
+"  -e, --endian ORDER     little (default) or big\n"
+"  -s, --steps T          INPUT is one file holding T timesteps\n"
+"      --nan-as VALUE     replace NaN and infinite values by VALUE\n"
+"                         (default: refuse them, naming file and timestep)\n"
+"Encoding:\n"
+"  -w, --window N         timesteps per DCT window, 1..16 (default 4;\n"
+"                         N = 1 is the plain 8-bit Lloyd-Max baseline)\n"
+"  -k, --nodes K          split every axis into K slabs, one per node,\n"
+"                         written to OUTDIR/node-R/ (default 1)\n"
+"  -j, --threads J        worker threads (default: all cores)\n"
+"Output:\n"
+"  -o, --output OUTDIR    dataset directory (must not exist)\n"
+"  -f, --force            replace an existing OUTDIR\n"
+"  -q, --quiet            no progress output\n"
+"  -h, --help             this help\n"
+"  -V, --version          version\n"
+"\n"
+"An interrupted run leaves OUTDIR.partial/; running the same command again\n"
+"continues it.  Exit status: 0 success, 1 failure, 2 bad input or usage.\n");
+}
+
+/* ------------------------------------------------------------ diagnostics */
+
+static char *g_partial; /* removed on fatal input errors */
+
+static void msg(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+static void msg(const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    fputs(PROG ": ", stderr);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
+}
+
+static void die_usage(const char *fmt, ...) __attribute__((format(printf, 1, 2), noreturn));
+static void die_usage(const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    fputs(PROG ": ", stderr);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
+    exit(TVPAL_EXIT_USAGE);
+}
+
+/* Fatal error after output was started: nothing partial may stay behind
+ * when the input is at fault (a rerun would fail the same way). */
+static void die_input(const char *fmt, ...) __attribute__((format(printf, 1, 2), noreturn));
+static void die_input(const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    fputs(PROG ": ", stderr);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
+    if (g_partial)
+        tvpal_rmtree(g_partial);
+    exit(TVPAL_EXIT_USAGE);
+}
+
+/* ------------------------------------------------------------------ state */
+
+struct opts {
+    uint32_t dims[3];
+    enum tvpal_type type;
+    int big_endian;
+    uint32_t window, nodes, steps_single, threads;
+    int has_nan_as;
+    double nan_as;
+    const char *outdir;
+    int force, quiet;
+    char **inputs;
+    int ninputs;
+};
+
+struct shardjob {
+    unsigned axis;
+    uint32_t rank;
+    struct tvpal_shard_header h;
+    struct tvpal_shardw *w;
+    unsigned char *rec;      /* record buffer */
+    uint64_t rec_cap;
+    uint64_t payload;        /* bytes of chunks this step */
+    uint32_t nchunks;
+};
+
+struct slicejob {
+    struct shardjob *sj;
+    uint32_t slice;
+    uint32_t len;
+    uint64_t off;            /* chunk offset in sj->rec */
+};
+
+struct stats {
+    double vmin, vmax;
+    uint64_t nonfinite;
+    uint64_t *fine;          /* FINE_BINS */
+    uint32_t loaded;         /* timesteps accounted in the stats */
+};
+
+static uint32_t fine_bin(float f)
+{
+    uint32_t u;
+    memcpy(&u, &f, 4);
+    u = (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+    return u >> 16;
+}
+
+static float fine_bin_value(uint32_t b)
+{
+    uint32_t k = (b << 16) | 0x8000u, u;
+    u = (k & 0x80000000u) ? (k & 0x7FFFFFFFu) : ~k;
+    float f;
+    memcpy(&f, &u, 4);
+    return f;
+}
+
+/* ------------------------------------------------------------- input I/O */
+
+static size_t g_nvox;
+static int g_nthreads = 1;
+static uint64_t **g_fine_local; /* per-thread source histograms */
+
+/* Reads timestep t of the source into dst (converted), accounting stats
+ * when t is not yet in them. */
+static void load_step(const struct opts *o, uint32_t t, void *raw, float *dst,
+                      struct stats *st)
+{
+    const size_t esz = tvpal_type_size(o->type);
+    const size_t bytes = g_nvox * esz;
+    const char *path = o->steps_single ? o->inputs[0] : o->inputs[t];
+    off_t off = o->steps_single ? (off_t)t * (off_t)bytes : 0;
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0)
+        die_input("%s: cannot open: %s", path, strerror(errno));
+    size_t got = 0;
+    while (got < bytes) {
+        ssize_t k = pread(fd, (char *)raw + got, bytes - got,
+                          off + (off_t)got);
+        if (k < 0 && errno == EINTR)
+            continue;
+        if (k <= 0) {
+            close(fd);
+            die_input("%s: timestep %u: %s", path, t,
+                      k < 0 ? strerror(errno)
+                            : "file shrank while encoding (truncated)");
+        }
+        got += (size_t)k;
+    }
+    close(fd);
+    /* Conversion and statistics in parallel over contiguous chunks; the
+     * first bad element is the lowest index any chunk reports. */
+    const int stats = t >= st->loaded;
+    size_t bad = SIZE_MAX, nrep = 0;
+    int rc_all = 0;
+    double lo = st->vmin, hi = st->vmax;
+#ifdef _OPENMP
+#pragma omp parallel reduction(min : lo, bad) reduction(max : hi) reduction(+ : nrep) reduction(min : rc_all)
+#endif
+    {
+        int id = 0, nt = 1;
+#ifdef _OPENMP
+        id = omp_get_thread_num();
+        nt = omp_get_num_threads();
+#endif
+        size_t a = g_nvox * (size_t)id / (size_t)nt;
+        size_t b = g_nvox * (size_t)(id + 1) / (size_t)nt;
+        size_t mybad = 0, myrep = 0;
+        int rc = tvpal_raw_convert((const char *)raw + a * esz, o->type,
+                                   o->big_endian, b - a, dst + a,
+                                   o->has_nan_as ? &o->nan_as : NULL, &mybad,
+                                   &myrep);
+        if (rc < 0) {
+            rc_all = rc < rc_all ? rc : rc_all;
+            bad = a + mybad;
+        } else if (stats) {
+            uint64_t *fine = g_fine_local[id];
+            nrep += myrep;
+            for (size_t i = a; i < b; i++) {
+                float v = dst[i];
+                lo = v < lo ? v : lo;
+                hi = v > hi ? v : hi;
+                fine[fine_bin(v)]++;
+            }
+        }
+    }
+    if (rc_all < 0) {
+        size_t x = bad % o->dims[0], y = bad / o->dims[0] % o->dims[1],
+               z = bad / o->dims[0] / o->dims[1];
+        if (rc_all == TVPAL_E_NAN)
+            die_input("%s: timestep %u: NaN or infinite value at voxel "
+                      "(%zu,%zu,%zu); expected finite values (use --nan-as "
+                      "VALUE to replace them)", path, t, x, y, z);
+        die_input("%s: timestep %u: value at voxel (%zu,%zu,%zu) exceeds "
+                  "the supported magnitude %g", path, t, x, y, z,
+                  TVPAL_VALUE_MAX);
+    }
+    if (!stats)
+        return;
+    for (int id = 0; id < g_nthreads; id++)
+        for (uint32_t k = 0; k < FINE_BINS; k++) {
+            st->fine[k] += g_fine_local[id][k];
+            g_fine_local[id][k] = 0;
+        }
+    st->nonfinite += nrep;
+    st->vmin = lo;
+    st->vmax = hi;
+    st->loaded = t + 1;
+}
+
+/* ------------------------------------------------------------- checkpoint */
+
+/* Identity of the job: options and inputs (path, size, mtime).  A partial
+ * output is resumed only by the same job. */
+static char *fingerprint(const struct opts *o)
+{
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    if (!f)
+        return NULL;
+    fprintf(f, "dims=%ux%ux%u type=%s endian=%s window=%u nodes=%u "
+            "steps=%u nan_as=%s%.17g", o->dims[0], o->dims[1], o->dims[2],
+            tvpal_type_name(o->type), o->big_endian ? "big" : "little",
+            o->window, o->nodes, o->steps_single,
+            o->has_nan_as ? "" : "none:", o->has_nan_as ? o->nan_as : 0.0);
+    for (int i = 0; i < o->ninputs; i++) {
+        struct stat st;
+        if (stat(o->inputs[i], &st) < 0)
+            memset(&st, 0, sizeof st);
+        fprintf(f, " %s:%lld:%lld.%09ld", o->inputs[i],
+                (long long)st.st_size, (long long)st.st_mtim.tv_sec,
+                st.st_mtim.tv_nsec);
+    }
+    fclose(f);
+    return buf;
+}
+
+static int checkpoint_save(const char *dir, const char *fp, uint32_t done,
+                           const struct stats *st)
+{
+    char *buf = NULL, *path = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    if (!f)
+        return TVPAL_E_NOMEM;
+    fprintf(f, "fingerprint %s\ndone %u\nloaded %u\nmin %a\nmax %a\n"
+            "nonfinite %llu\n", fp, done, st->loaded, st->vmin, st->vmax,
+            (unsigned long long)st->nonfinite);
+    for (uint32_t b = 0; b < FINE_BINS; b++)
+        if (st->fine[b])
+            fprintf(f, "bin %u %llu\n", b, (unsigned long long)st->fine[b]);
+    fclose(f);
+    int rc = TVPAL_E_NOMEM;
+    if (asprintf(&path, "%s/checkpoint", dir) >= 0) {
+        rc = tvpal_write_file_atomic(path, buf, len);
+        free(path);
+    }
+    free(buf);
+    return rc;
+}
+
+/* Returns steps done (0 when there is nothing usable to resume). */
+static uint32_t checkpoint_load(const char *dir, const char *fp,
+                                struct stats *st)
+{
+    char *path = NULL, *text = NULL;
+    uint32_t done = 0;
+    if (asprintf(&path, "%s/checkpoint", dir) < 0)
+        return 0;
+    if (tvpal_read_file(path, &text, NULL) < 0) {
+        free(path);
+        return 0;
+    }
+    free(path);
+    char *save = NULL;
+    char *line = strtok_r(text, "\n", &save);
+    if (!line || strncmp(line, "fingerprint ", 12) || strcmp(line + 12, fp))
+        goto out;
+    unsigned d = 0, l = 0;
+    unsigned long long nf = 0;
+    double lo, hi;
+    if (!(line = strtok_r(NULL, "\n", &save)) || sscanf(line, "done %u", &d) != 1 ||
+        !(line = strtok_r(NULL, "\n", &save)) || sscanf(line, "loaded %u", &l) != 1 ||
+        !(line = strtok_r(NULL, "\n", &save)) || sscanf(line, "min %la", &lo) != 1 ||
+        !(line = strtok_r(NULL, "\n", &save)) || sscanf(line, "max %la", &hi) != 1 ||
+        !(line = strtok_r(NULL, "\n", &save)) ||
+        sscanf(line, "nonfinite %llu", &nf) != 1)
+        goto out;
+    memset(st->fine, 0, FINE_BINS * sizeof *st->fine);
+    while ((line = strtok_r(NULL, "\n", &save))) {
+        unsigned b;
+        unsigned long long c;
+        if (sscanf(line, "bin %u %llu", &b, &c) != 2 || b >= FINE_BINS)
+            goto out;
+        st->fine[b] = c;
+    }
+    st->vmin = lo;
+    st->vmax = hi;
+    st->nonfinite = nf;
+    st->loaded = l;
+    done = d;
+out:
+    free(text);
+    return done;
+}
+
+/* ---------------------------------------------------------------- encoding */
+
+/* Copies slice s of the given axis, timesteps t..t+len-1, from the ring into
+ * samples (time-major, w*h per step). */
+static void gather(const struct opts *o, float *const *ring, unsigned axis,
+                   uint32_t s, uint32_t t, uint32_t len, float *samples)
+{
+    const size_t nx = o->dims[0], ny = o->dims[1], nz = o->dims[2];
+    for (uint32_t j = 0; j < len; j++) {
+        const float *vol = ring[(t + j) % o->window];
+        float *out = samples + (size_t)j * (g_nvox / (axis == 0 ? nx : axis == 1 ? ny : nz));
+        switch (axis) {
+        case 0:
+            for (size_t z = 0; z < nz; z++)
+                for (size_t y = 0; y < ny; y++)
+                    out[y + ny * z] = vol[s + nx * (y + ny * z)];
+            break;
+        case 1:
+            for (size_t z = 0; z < nz; z++)
+                memcpy(out + nx * z, vol + nx * (s + ny * z),
+                       nx * sizeof *out);
+            break;
+        default:
+            memcpy(out, vol + nx * ny * (size_t)s, nx * ny * sizeof *out);
+            break;
+        }
+    }
+}
+
+/* Creates (start = 0) or resumes the shard writers; reports and returns
+ * < 0 on the first failure. */
+static int open_writers(struct shardjob *sj, uint32_t nshard,
+                        const char *partial, uint32_t start)
+{
+    for (uint32_t q = 0; q < nshard; q++) {
+        struct shardjob *j = &sj[q];
+        struct tvpal_diag d = {{0}};
+        char *path = tvpal_shard_filename(partial, j->rank, j->axis);
+        int rc;
+        if (!path)
+            return TVPAL_E_NOMEM;
+        if (start)
+            rc = tvpal_shardw_resume(&j->w, path, &j->h, start, &d);
+        else
+            rc = tvpal_shardw_create(&j->w, path, &j->h);
+        if (rc < 0)
+            msg("%s: cannot %s: %s%s%s%s", path, start ? "resume" : "create",
+                tvpal_strerror(rc), d.msg[0] ? " (" : "", d.msg,
+                d.msg[0] ? ")" : "");
+        if (rc < 0 && start)
+            msg("starting the job over");
+        free(path);
+        if (rc < 0)
+            return rc;
+    }
+    return 0;
+}
+
+
+int main(int argc, char **argv)
+{
+    struct opts o = {.type = TVPAL_F32, .window = 4, .nodes = 1};
+    int have_dims = 0;
+    static const struct option lopts[] = {
+        {"dims", required_argument, 0, 'd'},
+        {"type", required_argument, 0, 't'},
+        {"endian", required_argument, 0, 'e'},
+        {"steps", required_argument, 0, 's'},
+        {"nan-as", required_argument, 0, 'N'},
+        {"window", required_argument, 0, 'w'},
+        {"nodes", required_argument, 0, 'k'},
+        {"threads", required_argument, 0, 'j'},
+        {"output", required_argument, 0, 'o'},
+        {"force", no_argument, 0, 'f'},
+        {"quiet", no_argument, 0, 'q'},
+        {"help", no_argument, 0, 'h'},
+        {"version", no_argument, 0, 'V'},
+        {0, 0, 0, 0}};
+    int c;
+    struct tvpal_diag diag = {{0}};
+    while ((c = getopt_long(argc, argv, "d:t:e:s:w:k:j:o:fqhV", lopts, NULL)) != -1) {
+        switch (c) {
+        case 'd':
+            if (tvpal_dims_parse(optarg, o.dims, &diag) < 0)
+                die_usage("--dims: %s", diag.msg);
+            have_dims = 1;
+            break;
+        case 't':
+            if (tvpal_type_parse(optarg, &o.type) < 0)
+                die_usage("--type \"%s\": expected f32, f64, u8, u16 or i16",
+                          optarg);
+            break;
+        case 'e':
+            if (strcmp(optarg, "little") && strcmp(optarg, "big"))
+                die_usage("--endian \"%s\": expected little or big", optarg);
+            o.big_endian = !strcmp(optarg, "big");
+            break;
+        case 's':
+            if (tvpal_parse_u32(optarg, 1, UINT32_MAX, &o.steps_single) < 0)
+                die_usage("--steps \"%s\": expected a whole number >= 1",
+                          optarg);
+            break;
+        case 'N':
+            if (tvpal_parse_double(optarg, &o.nan_as) < 0 ||
+                fabs(o.nan_as) > TVPAL_VALUE_MAX)
+                die_usage("--nan-as \"%s\": expected a finite number", optarg);
+            o.has_nan_as = 1;
+            break;
+        case 'w':
+            if (tvpal_parse_u32(optarg, 1, TVPAL_NMAX, &o.window) < 0)
+                die_usage("--window \"%s\": expected a whole number from 1 "
+                          "to %d", optarg, TVPAL_NMAX);
+            break;
+        case 'k':
+            if (tvpal_parse_u32(optarg, 1, UINT32_MAX, &o.nodes) < 0)
+                die_usage("--nodes \"%s\": expected a whole number >= 1",
+                          optarg);
+            break;
+        case 'j':
+            if (tvpal_parse_u32(optarg, 1, 1024, &o.threads) < 0)
+                die_usage("--threads \"%s\": expected 1..1024", optarg);
+            break;
+        case 'o':
+            o.outdir = optarg;
+            break;
+        case 'f':
+            o.force = 1;
+            break;
+        case 'q':
+            o.quiet = 1;
+            break;
+        case 'h':
+            usage(stdout);
+            return 0;
+        case 'V':
+            printf(PROG " " PACKAGE_VERSION " (format %u)\n",
+                   TVPAL_FORMAT_VERSION);
+            return 0;
+        default:
+            fprintf(stderr, "Try '" PROG " --help'.\n");
+            return TVPAL_EXIT_USAGE;
+        }
+    }
+    if (!have_dims)
+        die_usage("--dims NXxNYxNZ is required (try --help)");
+    if (!o.outdir || !*o.outdir)
+        die_usage("-o OUTDIR is required (try --help)");
+    o.inputs = argv + optind;
+    o.ninputs = argc - optind;
+    if (o.ninputs < 1)
+        die_usage("no INPUT files given (one raw file per timestep)");
+    if (o.steps_single && o.ninputs != 1)
+        die_usage("--steps T takes exactly one INPUT holding all T timesteps "
+                  "(%d given)", o.ninputs);
+    for (unsigned a = 0; a < 3; a++)
+        if (o.nodes > o.dims[a])
+            die_usage("--nodes %u: larger than the %c axis (%u slices); "
+                      "expected at most %u", o.nodes, "xyz"[a], o.dims[a],
+                      o.dims[0] < o.dims[1] ? (o.dims[0] < o.dims[2] ? o.dims[0] : o.dims[2])
+                                            : (o.dims[1] < o.dims[2] ? o.dims[1] : o.dims[2]));
+    if (strchr(o.outdir, '\n'))
+        die_usage("-o: a newline in the path is not supported");
+
+    g_nvox = (size_t)o.dims[0] * o.dims[1] * o.dims[2];
+    const size_t esz = tvpal_type_size(o.type);
+    const uint64_t step_bytes = (uint64_t)g_nvox * esz;
+    const uint32_t T = o.steps_single ? o.steps_single : (uint32_t)o.ninputs;
+    const uint32_t N = o.window;
+
+    /* Inputs: absolute paths (the manifest must name them from anywhere),
+     * regular readable files of the expected size. */
+    char **abs_inputs = calloc((size_t)o.ninputs, sizeof *abs_inputs);
+    if (!abs_inputs)
+        die_usage("out of memory");
+    for (int i = 0; i < o.ninputs; i++) {
+        struct stat st;
+        const char *p = o.inputs[i];
+        if (strchr(p, '\n'))
+            die_usage("%s: a newline in a file name is not supported", p);
+        if (stat(p, &st) < 0)
+            die_usage("%s: cannot read input: %s", p, strerror(errno));
+        if (!S_ISREG(st.st_mode))
+            die_usage("%s: not a regular file", p);
+        if (access(p, R_OK) < 0)
+            die_usage("%s: cannot read input: %s", p, strerror(errno));
+        uint64_t want = o.steps_single ? step_bytes * T : step_bytes;
+        if ((uint64_t)st.st_size != want)
+            die_usage("%s: size is %lld bytes; expected %llu (%ux%ux%u %s%s%s)",
+                      p, (long long)st.st_size, (unsigned long long)want,
+                      o.dims[0], o.dims[1], o.dims[2], tvpal_type_name(o.type),
+                      o.steps_single ? " x " : "",
+                      o.steps_single ? "--steps" : "");
+        abs_inputs[i] = realpath(p, NULL);
+        if (!abs_inputs[i])
+            die_usage("%s: %s", p, strerror(errno));
+    }
+    o.inputs = abs_inputs;
+
+    /* Output directories. */
+    char *partial = NULL;
+    if (asprintf(&partial, "%s.partial", o.outdir) < 0)
+        die_usage("out of memory");
+    if (tvpal_exists(o.outdir) && !o.force)
+        die_usage("%s: output already exists (use --force to replace it)",
+                  o.outdir);
+    {
+        /* Never replace a directory holding an input (inputs stay intact). */
+        char *out_abs = realpath(o.outdir, NULL);
+        if (out_abs) {
+            size_t n = strlen(out_abs);
+            for (int i = 0; i < o.ninputs; i++)
+                if (!strncmp(o.inputs[i], out_abs, n) && o.inputs[i][n] == '/')
+                    die_usage("%s: input %s lies inside the output directory; "
+                              "refusing to replace it", o.outdir, o.inputs[i]);
+            free(out_abs);
+        }
+    }
+
+    char *fp = fingerprint(&o);
+    struct stats st = {.vmin = INFINITY, .vmax = -INFINITY};
+    st.fine = calloc(FINE_BINS, sizeof *st.fine);
+    if (!fp || !st.fine)
+        die_usage("out of memory");
+    uint32_t start = 0;
+    if (tvpal_exists(partial)) {
+        start = checkpoint_load(partial, fp, &st);
+        if (start == 0) {
+            if (tvpal_rmtree(partial) < 0)
+                die_usage("%s: cannot remove stale partial output", partial);
+            st.vmin = INFINITY;
+            st.vmax = -INFINITY;
+            st.loaded = 0;
+            memset(st.fine, 0, FINE_BINS * sizeof *st.fine);
+        }
+    }
+    for (uint32_t r = 0; r < o.nodes; r++) {
+        char *nd;
+        if (asprintf(&nd, "%s/node-%u", partial, r) < 0 || tvpal_mkdirs(nd) < 0)
+            die_usage("%s: cannot create output directory: %s", partial,
+                      strerror(errno));
+        free(nd);
+    }
+    g_partial = start ? NULL : partial; /* keep a resumable job on errors */
+
+    /* Shards and their writers. */
+    const uint32_t nshard = 3 * o.nodes;
+    struct shardjob *sj = calloc(nshard, sizeof *sj);
+    if (!sj)
+        die_usage("out of memory");
+    size_t max_slice_vox = 0;
+    size_t max_jobs = 0;
+    for (unsigned a = 0; a < 3; a++) {
+        uint32_t n, w, h;
+        tvpal_axis_geometry(o.dims, a, &n, &w, &h);
+        if ((size_t)w * h > max_slice_vox)
+            max_slice_vox = (size_t)w * h;
+        max_jobs += n;
+        for (uint32_t r = 0; r < o.nodes; r++) {
+            struct shardjob *j = &sj[a * o.nodes + r];
+            j->axis = a;
+            j->rank = r;
+            j->h = (struct tvpal_shard_header){
+                .version = TVPAL_FORMAT_VERSION, .steps = T, .window = N,
+                .nodes = o.nodes, .rank = r, .axis = a, .slice_w = w,
+                .slice_h = h, .table_format = TVPAL_TABLE_F32};
+            memcpy(j->h.dims, o.dims, sizeof o.dims);
+            tvpal_slab_range(n, o.nodes, r, &j->h.slice_begin,
+                             &j->h.slice_count);
+            /* Largest record: every slice of the slab with a full window. */
+            j->rec_cap = tvpal_round_up(TVPAL_RECORD_HEADER_BYTES +
+                                            (uint64_t)j->h.slice_count *
+                                                tvpal_chunk_bytes(N, w, h),
+                                        TVPAL_ALIGN);
+            j->rec = malloc(j->rec_cap);
+            if (!j->rec)
+                die_usage("out of memory");
+        }
+    }
+    while (open_writers(sj, nshard, partial, start) < 0) {
+        /* A partial output that does not verify is started over. */
+        for (uint32_t q = 0; q < nshard; q++) {
+            tvpal_shardw_free(sj[q].w);
+            sj[q].w = NULL;
+        }
+        if (!start)
+            die_input("%s: cannot create the output files", partial);
+        start = 0;
+        st.vmin = INFINITY;
+        st.vmax = -INFINITY;
+        st.loaded = 0;
+        st.nonfinite = 0;
+        memset(st.fine, 0, FINE_BINS * sizeof *st.fine);
+        tvpal_rmtree(partial);
+        for (uint32_t r = 0; r < o.nodes; r++) {
+            char *nd;
+            if (asprintf(&nd, "%s/node-%u", partial, r) < 0 ||
+                tvpal_mkdirs(nd) < 0)
+                die_usage("%s: cannot create output directory: %s", partial,
+                          strerror(errno));
+            free(nd);
+        }
+        g_partial = partial;
+    }
+
+    /* Threads and their workspaces. */
+    int nthreads = 1;
+#ifdef _OPENMP
+    if (o.threads)
+        omp_set_num_threads((int)o.threads);
+    nthreads = omp_get_max_threads();
+#endif
+    g_nthreads = nthreads;
+    g_fine_local = calloc((size_t)nthreads, sizeof *g_fine_local);
+    for (int i = 0; g_fine_local && i < nthreads; i++)
+        if (!(g_fine_local[i] = calloc(FINE_BINS, sizeof(uint64_t))))
+            die_usage("out of memory");
+    struct tvpal_swenc **enc = calloc((size_t)nthreads, sizeof *enc);
+    float **samples = calloc((size_t)nthreads, sizeof *samples);
+    float **tables = calloc((size_t)nthreads, sizeof *tables);
+    struct slicejob *jobs = calloc(max_jobs, sizeof *jobs);
+    float **ring = calloc(N, sizeof *ring);
+    void *raw = malloc(step_bytes);
+    if (!enc || !samples || !tables || !jobs || !ring || !raw)
+        die_usage("out of memory");
+    for (int i = 0; i < nthreads; i++) {
+        if (tvpal_swenc_create(&enc[i], max_slice_vox, N) < 0 ||
+            !(samples[i] = malloc(max_slice_vox * N * sizeof(float))) ||
+            !(tables[i] = malloc(N * 256 * sizeof(float))))
+            die_usage("out of memory");
+    }
+    for (uint32_t i = 0; i < N; i++)
+        if (!(ring[i] = malloc(g_nvox * sizeof(float))))
+            die_usage("out of memory for %u timesteps of %zu voxels", N,
+                      g_nvox);
+
+    const int tty = isatty(STDERR_FILENO);
+    const double t0 = tvpal_now();
+    double last_report = t0;
+    uint32_t loaded = start;
+    const char *fault = getenv("TVPAL_ENCODE_FAULT_AFTER");
+    const long fault_after = fault ? atol(fault) : -1;
+    if (start && !o.quiet)
+        msg("resuming %s at timestep %u of %u", partial, start, T);
+
+    for (uint32_t t = start; t < T; t++) {
+        uint32_t need = t + N < T ? t + N : T;
+        while (loaded < need) {
+            load_step(&o, loaded, raw, ring[loaded % N], &st);
+            loaded++;
+        }
+        /* Every slice of every shard whose window starts at t. */
+        size_t njobs = 0;
+        for (uint32_t q = 0; q < nshard; q++) {
+            struct shardjob *j = &sj[q];
+            uint64_t off = TVPAL_RECORD_HEADER_BYTES;
+            j->nchunks = 0;
+            for (uint32_t k = 0; k < j->h.slice_count; k++) {
+                uint32_t s = j->h.slice_begin + k;
+                if (!tvpal_window_starts(s, t, N))
+                    continue;
+                uint32_t len = tvpal_window_len(s, t, N, T);
+                jobs[njobs++] = (struct slicejob){j, s, len, off};
+                off += tvpal_chunk_bytes(len, j->h.slice_w, j->h.slice_h);
+                j->nchunks++;
+            }
+            j->payload = off - TVPAL_RECORD_HEADER_BYTES;
+        }
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 1)
+#endif
+        for (size_t i = 0; i < njobs; i++) {
+            int tid = 0;
+#ifdef _OPENMP
+            tid = omp_get_thread_num();
+#endif
+            const struct slicejob *jb = &jobs[i];
+            const struct shardjob *j = jb->sj;
+            const size_t nvox = (size_t)j->h.slice_w * j->h.slice_h;
+            unsigned char *chunk = j->rec + jb->off;
+            struct tvpal_swinfo info;
+            gather(&o, ring, j->axis, jb->slice, t, jb->len, samples[tid]);
+            tvpal_swenc_encode(enc[tid], samples[tid], nvox, jb->len,
+                               chunk + TVPAL_CHUNK_HEADER_BYTES +
+                                   (size_t)jb->len * 1024,
+                               tables[tid], &info);
+            tvpal_store_f32le(tables[tid], chunk + TVPAL_CHUNK_HEADER_BYTES,
+                              (size_t)jb->len * 256);
+            struct tvpal_chunk_header ch = {
+                .slice = jb->slice, .wstart = t, .wlen = jb->len,
+                .w = j->h.slice_w, .h = j->h.slice_h, .used = info.used};
+            memcpy(ch.bits, info.bits, sizeof ch.bits);
+            tvpal_chunk_header_encode(&ch, chunk);
+            /* Zero the index padding so output bytes are deterministic. */
+            size_t ib = TVPAL_CHUNK_HEADER_BYTES + (size_t)jb->len * 1024 + nvox;
+            size_t cb = tvpal_chunk_bytes(jb->len, j->h.slice_w, j->h.slice_h);
+            memset(chunk + ib, 0, cb - ib);
+        }
+        for (uint32_t q = 0; q < nshard; q++) {
+            struct shardjob *j = &sj[q];
+            uint64_t bytes = tvpal_record_seal(j->rec, t, j->axis, j->nchunks,
+                                               j->payload);
+            int rc = tvpal_shardw_append(j->w, j->rec, bytes);
+            if (rc < 0) {
+                msg("%s/node-%u/axis-%c.tvps: %s: %s", partial, j->rank,
+                    "xyz"[j->axis], tvpal_strerror(rc), strerror(errno));
+                return TVPAL_EXIT_FAIL;
+            }
+        }
+        if (checkpoint_save(partial, fp, t + 1, &st) < 0) {
+            msg("%s/checkpoint: cannot write: %s", partial, strerror(errno));
+            return TVPAL_EXIT_FAIL;
+        }
+        g_partial = NULL; /* from now on a rerun resumes */
+        if (fault_after >= 0 && (long)(t + 1) >= fault_after)
+            raise(SIGKILL); /* test hook: simulate an interruption */
+
+        double now = tvpal_now();
+        if (!o.quiet && (t + 1 == T || now - last_report >= (tty ? 0.2 : 30.0))) {
+            char line[256];
+            double el = now - t0;
+            double done = (double)(t + 1 - start);
+            double rate = done * (double)g_nvox / (el > 0 ? el : 1e-9) / 1e6;
+            double eta = el / done * (double)(T - t - 1);
+            tvpal_progress_format(line, sizeof line, t + 1, T, "steps", rate,
+                                  "Mvox-steps/s", eta, tty ? 30 : 0);
+            if (tty)
+                fprintf(stderr, "\r%s\033[K%s", line, t + 1 == T ? "\n" : "");
+            else
+                fprintf(stderr, PROG ": %s\n", line);
+            last_report = now;
+        }
+    }
+    const double t_encode = tvpal_now() - t0;
+
+    /* Finish shards, then the manifest; rename into place last. */
+    uint64_t total_bytes = 0;
+    for (uint32_t q = 0; q < nshard; q++) {
+        int rc = tvpal_shardw_finish(sj[q].w);
+        sj[q].w = NULL;
+        if (rc < 0) {
+            msg("%s/node-%u/axis-%c.tvps: cannot finish: %s", partial,
+                sj[q].rank, "xyz"[sj[q].axis], tvpal_strerror(rc));
+            return TVPAL_EXIT_FAIL;
+        }
+    }
+    struct tvpal_manifest m = {0};
+    memcpy(m.dims, o.dims, sizeof o.dims);
+    m.type = o.type;
+    m.big_endian = o.big_endian;
+    m.steps = T;
+    m.window = N;
+    m.nodes = o.nodes;
+    m.value_min = st.vmin;
+    m.value_max = st.vmax;
+    m.has_nan_as = o.has_nan_as;
+    m.nan_as = o.nan_as;
+    m.nonfinite = st.nonfinite;
+    m.single_file = o.steps_single != 0;
+    m.source_bytes = step_bytes * T;
+    for (uint32_t b = 0; b < FINE_BINS; b++) {
+        if (!st.fine[b])
+            continue;
+        double v = fine_bin_value(b);
+        double span = st.vmax - st.vmin;
+        int bin = span > 0 ? (int)((v - st.vmin) / span * TVPAL_HIST_BINS) : 0;
+        bin = bin < 0 ? 0 : bin >= TVPAL_HIST_BINS ? TVPAL_HIST_BINS - 1 : bin;
+        m.histogram[bin] += st.fine[b];
+    }
+    char optstr[256];
+    snprintf(optstr, sizeof optstr, "--dims %ux%ux%u --type %s --endian %s "
+             "--window %u --nodes %u%s", o.dims[0], o.dims[1], o.dims[2],
+             tvpal_type_name(o.type), o.big_endian ? "big" : "little", N,
+             o.nodes, o.steps_single ? " --steps" : "");
+    if (o.steps_single)
+        snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
+                 " %u", T);
+    if (o.has_nan_as)
+        snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
+                 " --nan-as %.17g", o.nan_as);
+    m.encoder = strdup(PROG " " PACKAGE_VERSION);
+    m.options = strdup(optstr);
+    for (int i = 0; i < o.ninputs; i++)
+        if (tvpal_manifest_add_source(&m, o.inputs[i]) < 0)
+            die_usage("out of memory");
+    char *text = NULL;
+    if (!m.encoder || !m.options || tvpal_manifest_format(&m, &text) < 0)
+        die_usage("out of memory");
+    for (int r = -1; r < (int)o.nodes; r++) {
+        char *path;
+        int ok = r < 0 ? asprintf(&path, "%s/manifest.txt", partial)
+                       : asprintf(&path, "%s/node-%d/manifest.txt", partial, r);
+        if (ok < 0 || tvpal_write_file_atomic(path, text, strlen(text)) < 0) {
+            msg("%s: cannot write manifest", partial);
+            return TVPAL_EXIT_FAIL;
+        }
+        free(path);
+    }
+    {
+        char *cp;
+        if (asprintf(&cp, "%s/checkpoint", partial) >= 0) {
+            unlink(cp);
+            free(cp);
+        }
+    }
+    tvpal_fsync_dir(partial);
+    if (tvpal_exists(o.outdir)) {
+        char *old;
+        if (asprintf(&old, "%s.old", o.outdir) < 0)
+            die_usage("out of memory");
+        tvpal_rmtree(old);
+        if (rename(o.outdir, old) < 0 || rename(partial, o.outdir) < 0) {
+            msg("%s: cannot replace: %s", o.outdir, strerror(errno));
+            return TVPAL_EXIT_FAIL;
+        }
+        tvpal_rmtree(old);
+        free(old);
+    } else if (rename(partial, o.outdir) < 0) {
+        msg("%s: cannot rename %s into place: %s", o.outdir, partial,
+            strerror(errno));
+        return TVPAL_EXIT_FAIL;
+    }
+
+    /* Summary. */
+    struct tvpal_dataset *ds = NULL;
+    if (tvpal_dataset_open(&ds, o.outdir, &diag) < 0) {
+        msg("%s: written dataset does not verify: %s", o.outdir, diag.msg);
+        return TVPAL_EXIT_FAIL;
+    }
+    for (unsigned a = 0; a < 3; a++)
+        total_bytes += ds->axis_bytes[a];
+    double axis_bytes = (double)total_bytes / 3.0;
+    double vts = (double)g_nvox * T;
+    printf("encoded %s: steps=%u window=%u nodes=%u bytes=%llu ratio=%.3f "
+           "bpv=%.4f seconds=%.3f rate=%.2fM vox-steps/s threads=%d\n",
+           o.outdir, T, N, o.nodes, (unsigned long long)total_bytes,
+           (double)m.source_bytes / axis_bytes, axis_bytes * 8.0 / vts,
+           t_encode, (double)(T - start) * g_nvox / (t_encode > 0 ? t_encode : 1e-9) / 1e6,
+           nthreads);
+    tvpal_dataset_close(ds);
+
+    for (uint32_t q = 0; q < nshard; q++)
+        free(sj[q].rec);
+    free(sj);
+    for (int i = 0; i < nthreads; i++) {
+        tvpal_swenc_free(enc[i]);
+        free(samples[i]);
+        free(tables[i]);
+    }
+    for (uint32_t i = 0; i < N; i++)
+        free(ring[i]);
+    free(ring);
+    free(raw);
+    free(enc);
+    free(samples);
+    free(tables);
+    free(jobs);
+    free(text);
+    free(fp);
+    free(st.fine);
+    free(partial);
+    tvpal_manifest_clear(&m);
+    for (int i = 0; i < o.ninputs; i++)
+        free(abs_inputs[i]);
+    free(abs_inputs);
+    return 0;
+}

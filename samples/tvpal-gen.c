@@ -1,0 +1,318 @@
+/* tvpal-gen: deterministic analytic time-varying fields as raw float32
+ * (little-endian, x fastest), one file per timestep, any size.  Used by the
+ * tests, the demo and the benchmarks.  Output depends only on the options
+ * (field, dims, steps, seed), never on the machine or the thread count. */
+#define _GNU_SOURCE
+#include "tvpal_cli.h"
+#include "tvpal_format.h"
+#include "tvpal_fs.h"
+#include "tvpal_raw.h"
+
+#include <errno.h>
+#include <getopt.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PROG "tvpal-gen"
+
+static void usage(FILE *f)
+{
+    fprintf(f,
+"Usage: " PROG " --field NAME --dims NXxNYxNZ --steps T -o DIR [options]\n"
+"Write a deterministic analytic time-varying field as raw little-endian\n"
+"float32 volumes (x fastest): DIR/NAME_t0000.f32, DIR/NAME_t0001.f32, ...\n"
+"\n"
+"Fields:\n"
+"  blobs       smooth: Gaussian blobs moving on circular paths\n"
+"  turbulence  turbulent-looking: sum of advected value-noise octaves\n"
+"  front       a sharp moving front (shock-like) with a wrinkled surface\n"
+"  constant    the same value everywhere, every step (see --value)\n"
+"\n"
+"Options:\n"
+"  -f, --field NAME     field to write (required)\n"
+"  -d, --dims NXxNYxNZ  volume size (required)\n"
+"  -s, --steps T        number of timesteps (required)\n"
+"  -o, --output DIR     output directory, created if missing (required)\n"
+"      --single FILE    write all timesteps into one file instead\n"
+"      --prefix NAME    file name prefix (default: the field name)\n"
+"      --seed S         seed for blob paths and noise (default 1)\n"
+"      --value V        value of the constant field (default 1.5)\n"
+"  -h, --help           this help\n"
+"  -V, --version        version\n");
+}
+
+enum field { BLOBS, TURB, FRONT, CONST };
+
+struct gen {
+    enum field field;
+    uint32_t dims[3], steps, seed;
+    double value;
+};
+
+/* Integer hash (lowbias32, Chris Wellons) for lattice noise. */
+static uint32_t hash32(uint32_t x)
+{
+    x ^= x >> 16;
+    x *= 0x7feb352dU;
+    x ^= x >> 15;
+    x *= 0x846ca68bU;
+    x ^= x >> 16;
+    return x;
+}
+
+static double lattice(uint32_t seed, int i, int j, int k)
+{
+    uint32_t h = hash32((uint32_t)i * 73856093u ^ hash32((uint32_t)j * 19349663u ^
+                        hash32((uint32_t)k * 83492791u ^ seed)));
+    return (double)h / 4294967295.0 * 2.0 - 1.0;
+}
+
+static double smooth(double t)
+{
+    return t * t * t * (t * (t * 6 - 15) + 10);
+}
+
+/* Trilinear value noise with quintic fade, in [-1, 1]. */
+static double vnoise(uint32_t seed, double x, double y, double z)
+{
+    double fx = floor(x), fy = floor(y), fz = floor(z);
+    int i = (int)fx, j = (int)fy, k = (int)fz;
+    double u = smooth(x - fx), v = smooth(y - fy), w = smooth(z - fz);
+    double c[2][2][2];
+    for (int a = 0; a < 2; a++)
+        for (int b = 0; b < 2; b++)
+            for (int d = 0; d < 2; d++)
+                c[a][b][d] = lattice(seed, i + a, j + b, k + d);
+    double x00 = c[0][0][0] + u * (c[1][0][0] - c[0][0][0]);
+    double x10 = c[0][1][0] + u * (c[1][1][0] - c[0][1][0]);
+    double x01 = c[0][0][1] + u * (c[1][0][1] - c[0][0][1]);
+    double x11 = c[0][1][1] + u * (c[1][1][1] - c[0][1][1]);
+    double y0 = x00 + v * (x10 - x00), y1 = x01 + v * (x11 - x01);
+    return y0 + w * (y1 - y0);
+}
+
+#define NBLOBS 6
+
+static void gen_step(const struct gen *g, uint32_t t, float *out)
+{
+    const uint32_t nx = g->dims[0], ny = g->dims[1], nz = g->dims[2];
+    const double tt = (double)t;
+    /* Coordinates are cell centres in [0, 1]. */
+    if (g->field == CONST) {
+        size_t n = (size_t)nx * ny * nz;
+        for (size_t i = 0; i < n; i++)
+            out[i] = (float)g->value;
+        return;
+    }
+    if (g->field == BLOBS) {
+        /* Separable: exp(-|p-c|^2/s^2) = ex(x) ey(y) ez(z); per-blob 1D
+         * tables make this cheap for large volumes. */
+        double *ex = malloc(sizeof(double) * NBLOBS * (nx + ny + nz));
+        if (!ex)
+            abort();
+        double *ey = ex + NBLOBS * nx, *ez = ey + NBLOBS * ny;
+        double amp[NBLOBS];
+        for (int b = 0; b < NBLOBS; b++) {
+            uint32_t h = hash32(g->seed * 1000u + (uint32_t)b);
+            double ph = (h & 0xFFFF) / 65536.0 * 2 * M_PI;
+            double sp = 0.02 + 0.03 * ((h >> 16) & 0xFF) / 255.0;
+            double rad = 0.15 + 0.2 * ((h >> 24) & 0xFF) / 255.0;
+            double cx = 0.5 + rad * cos(ph + sp * tt);
+            double cy = 0.5 + rad * sin(ph + sp * tt);
+            double cz = 0.5 + 0.3 * sin(0.7 * ph + 0.5 * sp * tt);
+            double s = 0.08 + 0.06 * (b % 3) / 2.0;
+            amp[b] = 0.6 + 0.4 * ((b * 37) % 7) / 6.0;
+            for (uint32_t i = 0; i < nx; i++) {
+                double d = (i + 0.5) / nx - cx;
+                ex[b * nx + i] = exp(-d * d / (s * s));
+            }
+            for (uint32_t i = 0; i < ny; i++) {
+                double d = (i + 0.5) / ny - cy;
+                ey[b * ny + i] = exp(-d * d / (s * s));
+            }
+            for (uint32_t i = 0; i < nz; i++) {
+                double d = (i + 0.5) / nz - cz;
+                ez[b * nz + i] = exp(-d * d / (s * s));
+            }
+        }
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static)
+#endif
+        for (uint32_t z = 0; z < nz; z++)
+            for (uint32_t y = 0; y < ny; y++) {
+                float *row = out + (size_t)nx * (y + (size_t)ny * z);
+                for (uint32_t x = 0; x < nx; x++) {
+                    double v = 0;
+                    for (int b = 0; b < NBLOBS; b++)
+                        v += amp[b] * ex[b * nx + x] * ey[b * ny + y] *
+                             ez[b * nz + z];
+                    row[x] = (float)v;
+                }
+            }
+        free(ex);
+        return;
+    }
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static)
+#endif
+    for (uint32_t z = 0; z < nz; z++)
+        for (uint32_t y = 0; y < ny; y++) {
+            float *row = out + (size_t)nx * (y + (size_t)ny * z);
+            double pz = (z + 0.5) / nz, py = (y + 0.5) / ny;
+            for (uint32_t x = 0; x < nx; x++) {
+                double px = (x + 0.5) / nx, v = 0;
+                if (g->field == TURB) {
+                    /* Octave o is advected with its own velocity, so the
+                     * scales move relative to each other. */
+                    double amp = 1.0, f = 4.0;
+                    for (int o = 0; o < 5; o++) {
+                        double vx = 0.010 * (o + 1), vy = 0.006 * (2 - o),
+                               vz = 0.004;
+                        v += amp * vnoise(g->seed + (uint32_t)o,
+                                          f * (px - vx * tt),
+                                          f * (py - vy * tt),
+                                          f * (pz - vz * tt) + 0.05 * o * tt);
+                        amp *= 0.55;
+                        f *= 2.0;
+                    }
+                } else { /* FRONT */
+                    double wr = 0.04 * vnoise(g->seed, 6 * py, 6 * pz, 0.0);
+                    double pos = 0.1 + 0.8 * fmod(tt / 40.0, 1.0);
+                    double width = 0.5 / nx; /* about one voxel */
+                    double d = (px + wr - pos) / width;
+                    v = 1.0 + 2.0 * 0.5 * (1.0 - tanh(d)) +
+                        0.05 * vnoise(g->seed + 7, 10 * px, 10 * py,
+                                      10 * pz + 0.1 * tt);
+                }
+                row[x] = (float)v;
+            }
+        }
+}
+
+int main(int argc, char **argv)
+{
+    static const struct option lopts[] = {
+        {"field", required_argument, 0, 'f'},
+        {"dims", required_argument, 0, 'd'},
+        {"steps", required_argument, 0, 's'},
+        {"output", required_argument, 0, 'o'},
+        {"single", required_argument, 0, 'S'},
+        {"prefix", required_argument, 0, 'p'},
+        {"seed", required_argument, 0, 'r'},
+        {"value", required_argument, 0, 'v'},
+        {"help", no_argument, 0, 'h'},
+        {"version", no_argument, 0, 'V'},
+        {0, 0, 0, 0}};
+    struct gen g = {.seed = 1, .value = 1.5};
+    const char *field = NULL, *dir = NULL, *single = NULL, *prefix = NULL;
+    int have_dims = 0, c;
+    struct tvpal_diag diag;
+    while ((c = getopt_long(argc, argv, "f:d:s:o:hV", lopts, NULL)) != -1) {
+        switch (c) {
+        case 'f': field = optarg; break;
+        case 'd':
+            if (tvpal_dims_parse(optarg, g.dims, &diag) < 0) {
+                fprintf(stderr, PROG ": --dims: %s\n", diag.msg);
+                return TVPAL_EXIT_USAGE;
+            }
+            have_dims = 1;
+            break;
+        case 's':
+            if (tvpal_parse_u32(optarg, 1, 1000000, &g.steps) < 0) {
+                fprintf(stderr, PROG ": --steps \"%s\": expected 1..1000000\n",
+                        optarg);
+                return TVPAL_EXIT_USAGE;
+            }
+            break;
+        case 'o': dir = optarg; break;
+        case 'S': single = optarg; break;
+        case 'p': prefix = optarg; break;
+        case 'r':
+            if (tvpal_parse_u32(optarg, 0, UINT32_MAX, &g.seed) < 0) {
+                fprintf(stderr, PROG ": --seed \"%s\": expected a whole "
+                        "number\n", optarg);
+                return TVPAL_EXIT_USAGE;
+            }
+            break;
+        case 'v':
+            if (tvpal_parse_double(optarg, &g.value) < 0) {
+                fprintf(stderr, PROG ": --value \"%s\": expected a finite "
+                        "number\n", optarg);
+                return TVPAL_EXIT_USAGE;
+            }
+            break;
+        case 'h': usage(stdout); return 0;
+        case 'V': printf(PROG " " PACKAGE_VERSION "\n"); return 0;
+        default:
+            fprintf(stderr, "Try '" PROG " --help'.\n");
+            return TVPAL_EXIT_USAGE;
+        }
+    }
+    if (!field || !have_dims || !g.steps || (!dir && !single) ||
+        optind != argc) {
+        fprintf(stderr, PROG ": --field, --dims, --steps and -o DIR (or "
+                "--single FILE) are required (try --help)\n");
+        return TVPAL_EXIT_USAGE;
+    }
+    if (!strcmp(field, "blobs")) g.field = BLOBS;
+    else if (!strcmp(field, "turbulence")) g.field = TURB;
+    else if (!strcmp(field, "front")) g.field = FRONT;
+    else if (!strcmp(field, "constant")) g.field = CONST;
+    else {
+        fprintf(stderr, PROG ": --field \"%s\": expected blobs, turbulence, "
+                "front or constant\n", field);
+        return TVPAL_EXIT_USAGE;
+    }
+    if (!prefix)
+        prefix = field;
+    if (dir && tvpal_mkdirs(dir) < 0) {
+        fprintf(stderr, PROG ": %s: cannot create: %s\n", dir,
+                strerror(errno));
+        return TVPAL_EXIT_FAIL;
+    }
+    size_t nvox = (size_t)g.dims[0] * g.dims[1] * g.dims[2];
+    float *vol = malloc(nvox * sizeof *vol);
+    if (!vol) {
+        fprintf(stderr, PROG ": out of memory for %zu voxels\n", nvox);
+        return TVPAL_EXIT_FAIL;
+    }
+    FILE *sf = NULL;
+    char *stmp = NULL;
+    if (single) {
+        if (asprintf(&stmp, "%s.tmp", single) < 0 || !(sf = fopen(stmp, "wb"))) {
+            fprintf(stderr, PROG ": %s: cannot create: %s\n", single,
+                    strerror(errno));
+            return TVPAL_EXIT_FAIL;
+        }
+    }
+    for (uint32_t t = 0; t < g.steps; t++) {
+        gen_step(&g, t, vol);
+        tvpal_store_f32le(vol, (unsigned char *)vol, nvox);
+        if (sf) {
+            if (fwrite(vol, 4, nvox, sf) != nvox) {
+                fprintf(stderr, PROG ": %s: write error\n", single);
+                return TVPAL_EXIT_FAIL;
+            }
+            continue;
+        }
+        char *path;
+        if (asprintf(&path, "%s/%s_t%04u.f32", dir, prefix, t) < 0 ||
+            tvpal_write_file_atomic(path, vol, nvox * 4) < 0) {
+            fprintf(stderr, PROG ": %s/%s_t%04u.f32: cannot write: %s\n", dir,
+                    prefix, t, strerror(errno));
+            return TVPAL_EXIT_FAIL;
+        }
+        free(path);
+    }
+    if (sf) {
+        if (fclose(sf) != 0 || rename(stmp, single) < 0) {
+            fprintf(stderr, PROG ": %s: write error\n", single);
+            return TVPAL_EXIT_FAIL;
+        }
+        free(stmp);
+    }
+    free(vol);
+    return 0;
+}
