@@ -338,6 +338,12 @@ int tvpal_record_verify(const unsigned char *buf, uint64_t bytes,
                               "record %u: %llu payload bytes after the last "
                               "chunk", step,
                               (unsigned long long)(end - pos));
+    /* The alignment padding is outside the CRC: it must be zeros. */
+    for (uint64_t i = end; i < bytes; i++)
+        if (buf[i])
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                                  "record %u: non-zero padding at byte %llu",
+                                  step, (unsigned long long)i);
     return 0;
 }
 

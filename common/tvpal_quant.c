@@ -9,8 +9,8 @@
 
 /* Iteration limits: Lloyd converges linearly; past ~60 iterations the gain is
  * far below what the float decoder table can represent. */
-#define LLOYD_MAX_ITER 60
-#define LLOYD_REL_TOL 1e-7
+#define LLOYD_MAX_ITER 200
+#define LLOYD_REL_TOL 1e-9
 
 struct tvpal_quantws {
     size_t capacity;
@@ -18,7 +18,7 @@ struct tvpal_quantws {
     uint32_t *keys, *tmp;   /* radix sort buffers */
     float *s;               /* sorted samples */
     double *p1, *p2;        /* prefix sums of (s - mean) and its square, n+1 */
-    double mean;
+    double mean;            /* centre of p1/p2: the median (robust to outliers) */
     size_t distinct;
 };
 
@@ -122,7 +122,10 @@ int tvpal_quantws_load(struct tvpal_quantws *ws, const float *x, size_t n)
         sum += x[i];
     }
     radix_sort(ws->keys, ws->tmp, n);
-    double mean = sum / (double)n;
+    (void)sum;
+    /* Centre on the median: prefix sums of squares around it stay small in
+     * the bulk of the data even when far outliers shift the mean. */
+    double mean = key_float(ws->keys[n / 2]);
     ws->mean = mean;
     double a1 = 0.0, a2 = 0.0;
     size_t distinct = 0;
@@ -229,17 +232,64 @@ static double partition(const struct tvpal_quantws *ws, const double *y,
     return d;
 }
 
-static int cmp_double(const void *a, const void *b)
+/* Insertion sort: the levels are nearly sorted after every Lloyd step, so
+ * this is linear in practice (and much cheaper than qsort's callbacks). */
+static void sort_levels(double *y, unsigned L)
 {
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
+    for (unsigned i = 1; i < L; i++) {
+        double v = y[i];
+        unsigned j = i;
+        while (j > 0 && y[j - 1] > v) {
+            y[j] = y[j - 1];
+            j--;
+        }
+        y[j] = v;
+    }
+}
+
+/* Exact total squared error of levels y (centred, sorted) under the
+ * nearest-neighbour partition, summed cell by cell from the samples (no
+ * prefix-sum cancellation).  Also returns the partition in bnd. */
+static double exact_sse(const struct tvpal_quantws *ws, const double *y,
+                        unsigned L, size_t *bnd)
+{
+    partition(ws, y, L, bnd, 0);
+    double d = 0.0;
+    for (unsigned i = 0; i < L; i++) {
+        const double lv = y[i] + ws->mean;
+        double c = 0.0;
+        for (size_t k = bnd[i]; k < bnd[i + 1]; k++) {
+            double e = (double)ws->s[k] - lv;
+            c += e * e;
+        }
+        d += c;
+    }
+    return d;
+}
+
+/* Final centroid step: each level becomes the exact mean of its cell (the
+ * centroid condition), which cannot raise the distortion. */
+static void centroid_step(const struct tvpal_quantws *ws, double *y,
+                          unsigned L)
+{
+    size_t bnd[TVPAL_LEVELS_MAX + 1];
+    partition(ws, y, L, bnd, 0);
+    for (unsigned i = 0; i < L; i++) {
+        size_t a = bnd[i], b = bnd[i + 1];
+        if (b <= a)
+            continue;
+        double c = 0.0;
+        for (size_t k = a; k < b; k++)
+            c += (double)ws->s[k] - ws->mean;
+        y[i] = c / (double)(b - a);
+    }
+    sort_levels(y, L);
 }
 
 static void finish(const struct tvpal_quantws *ws, const double *yc,
-                   unsigned L, struct tvpal_quant *q)
+                   unsigned L, double sse, const size_t *bnd,
+                   struct tvpal_quant *q)
 {
-    size_t bnd[TVPAL_LEVELS_MAX + 1];
-    double d = partition(ws, yc, L, bnd, 0);
     q->nlevels = L;
     for (unsigned i = 0; i < L; i++) {
         q->level[i] = yc[i] + ws->mean;
@@ -247,7 +297,7 @@ static void finish(const struct tvpal_quantws *ws, const double *yc,
     }
     for (unsigned i = 0; i + 1 < L; i++)
         q->thresh[i] = 0.5 * (q->level[i] + q->level[i + 1]);
-    q->mse = ws->n ? d / (double)ws->n : 0.0;
+    q->mse = ws->n ? sse / (double)ws->n : 0.0;
 }
 
 /* Lloyd iterations from y (centred, sorted, L entries); y is overwritten with
@@ -257,10 +307,23 @@ static double lloyd(const struct tvpal_quantws *ws, double *y, unsigned L)
     size_t bnd[TVPAL_LEVELS_MAX + 1];
     double best[TVPAL_LEVELS_MAX];
     double sse[TVPAL_LEVELS_MAX];
+    double yold[TVPAL_LEVELS_MAX], cent[TVPAL_LEVELS_MAX];
     double best_d = DBL_MAX, prev_d = DBL_MAX;
+    /* Over-relaxation (y += omega (centroid - y), omega > 1) speeds up
+     * Lloyd's slow linear convergence several-fold; a relaxed step that
+     * does not lower the distortion is replaced by the plain centroid step,
+     * so the sequence of distortions still never increases. */
+    double omega = 1.8;
+    int relaxed = 0;
 
     for (int it = 0;; it++) {
         double d = partition(ws, y, L, bnd, it > 0);
+        if (relaxed && d >= prev_d) {
+            memcpy(y, cent, L * sizeof *y);
+            omega = 1.0 + 0.5 * (omega - 1.0);
+            d = partition(ws, y, L, bnd, 1);
+        }
+        relaxed = 0;
         if (d < best_d) {
             best_d = d;
             memcpy(best, y, L * sizeof *y);
@@ -271,6 +334,7 @@ static double lloyd(const struct tvpal_quantws *ws, double *y, unsigned L)
         prev_d = d;
 
         /* Centroid condition. */
+        memcpy(yold, y, L * sizeof *y);
         unsigned nempty = 0;
         for (unsigned i = 0; i < L; i++) {
             size_t a = bnd[i], b = bnd[i + 1];
@@ -282,6 +346,7 @@ static double lloyd(const struct tvpal_quantws *ws, double *y, unsigned L)
                 nempty++;
             }
         }
+        int split = nempty > 0;
         /* Empty cells: each splits the cell of largest distortion at its
          * centroid into two halves, each at its own centroid. */
         for (unsigned i = 0; i < L && nempty; i++) {
@@ -311,8 +376,16 @@ static double lloyd(const struct tvpal_quantws *ws, double *y, unsigned L)
             sse[w] = 0.0;
             sse[i] = 0.0;
             nempty--;
+            split = 1;
         }
-        qsort(y, L, sizeof *y, cmp_double);
+        sort_levels(y, L);
+        if (!split && omega > 1.01) {
+            memcpy(cent, y, L * sizeof *y);
+            for (unsigned i = 0; i < L; i++)
+                y[i] = yold[i] + omega * (cent[i] - yold[i]);
+            sort_levels(y, L);
+            relaxed = 1;
+        }
     }
     memcpy(y, best, L * sizeof *y);
     return best_d;
@@ -320,12 +393,19 @@ static double lloyd(const struct tvpal_quantws *ws, double *y, unsigned L)
 
 static void fit_exact(const struct tvpal_quantws *ws, struct tvpal_quant *q)
 {
-    double y[TVPAL_LEVELS_MAX];
     unsigned L = 0;
-    for (size_t i = 0; i < ws->n; i++)
-        if (i == 0 || ws->s[i] != ws->s[i - 1])
-            y[L++] = (double)ws->s[i] - ws->mean;
-    finish(ws, y, L, q);
+    for (size_t i = 0; i < ws->n; i++) {
+        if (i == 0 || ws->s[i] != ws->s[i - 1]) {
+            q->level[L] = ws->s[i]; /* the values themselves, exactly */
+            q->count[L] = 0;
+            L++;
+        }
+        q->count[L - 1]++;
+    }
+    q->nlevels = L;
+    for (unsigned i = 0; i + 1 < L; i++)
+        q->thresh[i] = 0.5 * (q->level[i] + q->level[i + 1]);
+    q->mse = 0.0;
 }
 
 static void uniform_levels(const struct tvpal_quantws *ws, unsigned L,
@@ -337,60 +417,90 @@ static void uniform_levels(const struct tvpal_quantws *ws, unsigned L,
         y[i] = lo + (i + 0.5) * w - ws->mean;
 }
 
+static void fit_single(const struct tvpal_quantws *ws, struct tvpal_quant *q)
+{
+    q->nlevels = 1;
+    q->level[0] = ws->n ? ws->s[0] : 0.0;
+    q->count[0] = ws->n;
+    q->mse = 0.0;
+}
+
 void tvpal_quant_fit_uniform(struct tvpal_quantws *ws, unsigned levels,
                              struct tvpal_quant *q)
 {
     double y[TVPAL_LEVELS_MAX];
+    size_t bnd[TVPAL_LEVELS_MAX + 1];
     if (levels < 1)
         levels = 1;
     if (levels > TVPAL_LEVELS_MAX)
         levels = TVPAL_LEVELS_MAX;
-    if (ws->n == 0) {
-        y[0] = 0.0;
-        finish(ws, y, 1, q);
+    if (ws->distinct <= 1) {
+        fit_single(ws, q);
         return;
     }
     uniform_levels(ws, levels, y);
-    finish(ws, y, levels, q);
+    double d = exact_sse(ws, y, levels, bnd);
+    finish(ws, y, levels, d, bnd, q);
 }
 
 void tvpal_quant_fit_from(struct tvpal_quantws *ws, const double *start,
                           unsigned levels, struct tvpal_quant *q)
 {
     double y[TVPAL_LEVELS_MAX];
+    size_t bnd[TVPAL_LEVELS_MAX + 1];
+    if (ws->distinct <= 1) {
+        fit_single(ws, q);
+        return;
+    }
     for (unsigned i = 0; i < levels; i++)
         y[i] = start[i] - ws->mean;
     lloyd(ws, y, levels);
-    finish(ws, y, levels, q);
+    centroid_step(ws, y, levels);
+    double d = exact_sse(ws, y, levels, bnd);
+    finish(ws, y, levels, d, bnd, q);
 }
 
 void tvpal_quant_fit_lloyd(struct tvpal_quantws *ws, unsigned levels,
                            struct tvpal_quant *q)
 {
-    double yu[TVPAL_LEVELS_MAX], yq[TVPAL_LEVELS_MAX];
+    double y0[TVPAL_LEVELS_MAX], yu[TVPAL_LEVELS_MAX], yq[TVPAL_LEVELS_MAX];
+    size_t b0[TVPAL_LEVELS_MAX + 1], bu[TVPAL_LEVELS_MAX + 1],
+        bq[TVPAL_LEVELS_MAX + 1];
     const size_t n = ws->n;
     if (levels < 1)
         levels = 1;
     if (levels > TVPAL_LEVELS_MAX)
         levels = TVPAL_LEVELS_MAX;
-    if (n == 0) {
-        yu[0] = 0.0;
-        finish(ws, yu, 1, q);
+    if (ws->distinct <= 1) {
+        fit_single(ws, q);
         return;
     }
     if (ws->distinct <= levels) {
         fit_exact(ws, q);
         return;
     }
-    uniform_levels(ws, levels, yu);
-    double du = lloyd(ws, yu, levels);
+    uniform_levels(ws, levels, y0);
+    memcpy(yu, y0, levels * sizeof *yu);
+    lloyd(ws, yu, levels);
+    centroid_step(ws, yu, levels);
     /* Quantile start: level i is the mean of the i-th equal-count block. */
     for (unsigned i = 0; i < levels; i++) {
         size_t a = n * i / levels, b = n * (i + 1) / levels;
         yq[i] = b > a ? (ws->p1[b] - ws->p1[a]) / (double)(b - a) : 0.0;
     }
-    double dq = lloyd(ws, yq, levels);
-    finish(ws, dq < du ? yq : yu, levels, q);
+    lloyd(ws, yq, levels);
+    centroid_step(ws, yq, levels);
+    /* Decide on exact distortions: the result is never worse than the
+     * uniform quantizer, whatever rounding did inside the iterations. */
+    double d0 = exact_sse(ws, y0, levels, b0);
+    double du = exact_sse(ws, yu, levels, bu);
+    double dq = exact_sse(ws, yq, levels, bq);
+    if (dq < du && dq <= d0)
+        finish(ws, yq, levels, dq, bq, q);
+    else if (du <= d0)
+        finish(ws, yu, levels, du, bu, q);
+    else
+        finish(ws, y0, levels, d0, b0, q);
 }
 
 unsigned tvpal_quant_code(const struct tvpal_quant *q, double v)

@@ -161,6 +161,12 @@ err:
     return rc;
 }
 
+void tvpal_shardw_set_range(struct tvpal_shardw *w, double lo, double hi)
+{
+    w->h.value_min = lo;
+    w->h.value_max = hi;
+}
+
 uint64_t tvpal_shardw_size(const struct tvpal_shardw *w)
 {
     return w->end;
@@ -482,13 +488,16 @@ unsigned tvpal_slab_needed(const struct tvpal_slab *s, uint32_t t,
     return n;
 }
 
-void tvpal_slab_apply(struct tvpal_slab *s, const unsigned char *rec)
+void tvpal_slab_apply(struct tvpal_slab *s, const unsigned char *rec,
+                      uint32_t t)
 {
     const struct tvpal_shard_header *h = &s->sh->h;
     size_t nvox = (size_t)h->slice_w * h->slice_h;
     uint64_t pos = 0;
     struct tvpal_chunk c;
     while (tvpal_record_next_chunk(rec, &pos, &c)) {
+        if (tvpal_window_start(c.h.slice, t, h->window) != c.h.wstart)
+            continue;
         struct slab_slice *sl = &s->sl[c.h.slice - h->slice_begin];
         sl->wstart = c.h.wstart;
         sl->wlen = c.h.wlen;
@@ -511,7 +520,7 @@ int tvpal_slab_seek(struct tvpal_slab *s, uint32_t t, struct tvpal_diag *diag)
         if (rc < 0)
             return rc;
         s->bytes_read += s->sh->index[steps[i]].bytes;
-        tvpal_slab_apply(s, s->rec);
+        tvpal_slab_apply(s, s->rec, t);
     }
     return 0;
 }

@@ -32,6 +32,9 @@ int tvpal_shardw_resume(struct tvpal_shardw **out, const char *path,
                         const struct tvpal_shard_header *h,
                         uint32_t steps_done, struct tvpal_diag *diag);
 
+/* Records the source value range in the header written by finish. */
+void tvpal_shardw_set_range(struct tvpal_shardw *w, double lo, double hi);
+
 /* Size the file has after the records appended so far. */
 uint64_t tvpal_shardw_size(const struct tvpal_shardw *w);
 
@@ -89,8 +92,12 @@ void tvpal_slab_free(struct tvpal_slab *slab);   /* NULL is a no-op */
 unsigned tvpal_slab_needed(const struct tvpal_slab *slab, uint32_t t,
                            uint32_t steps[16]);
 
-/* Installs the chunks of a verified record (from any I/O backend). */
-void tvpal_slab_apply(struct tvpal_slab *slab, const unsigned char *rec);
+/* Installs, from a verified record (read by any I/O backend), the chunks of
+ * the slices whose window holding timestep t starts at that record's step.
+ * Other chunks are skipped: record 0, say, also holds the short first
+ * windows of slices that need a later record at t. */
+void tvpal_slab_apply(struct tvpal_slab *slab, const unsigned char *rec,
+                      uint32_t t);
 
 /* needed + read (pread) + apply. */
 int tvpal_slab_seek(struct tvpal_slab *slab, uint32_t t,

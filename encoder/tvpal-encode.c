@@ -98,8 +98,22 @@ static void die_usage(const char *fmt, ...)
     exit(TVPAL_EXIT_USAGE);
 }
 
-/* Fatal error after output was started: nothing partial may stay behind
- * when the input is at fault (a rerun would fail the same way). */
+static void die_fail(const char *fmt, ...) __attribute__((format(printf, 1, 2), noreturn));
+static void die_fail(const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    fputs(PROG ": ", stderr);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
+    exit(TVPAL_EXIT_FAIL);
+}
+
+/* Fatal input error after output was started: the input is at fault (a
+ * rerun would fail the same way), so nothing partial stays behind.  Output
+ * and system failures (die_fail, exit 1) keep the partial output, which a
+ * rerun resumes. */
 static void die_input(const char *fmt, ...) __attribute__((format(printf, 1, 2), noreturn));
 static void die_input(const char *fmt, ...)
 {
@@ -534,7 +548,7 @@ int main(int argc, char **argv)
      * regular readable files of the expected size. */
     char **abs_inputs = calloc((size_t)o.ninputs, sizeof *abs_inputs);
     if (!abs_inputs)
-        die_usage("out of memory");
+        die_fail("out of memory");
     for (int i = 0; i < o.ninputs; i++) {
         struct stat st;
         const char *p = o.inputs[i];
@@ -547,12 +561,17 @@ int main(int argc, char **argv)
         if (access(p, R_OK) < 0)
             die_usage("%s: cannot read input: %s", p, strerror(errno));
         uint64_t want = o.steps_single ? step_bytes * T : step_bytes;
-        if ((uint64_t)st.st_size != want)
-            die_usage("%s: size is %lld bytes; expected %llu (%ux%ux%u %s%s%s)",
-                      p, (long long)st.st_size, (unsigned long long)want,
-                      o.dims[0], o.dims[1], o.dims[2], tvpal_type_name(o.type),
-                      o.steps_single ? " x " : "",
-                      o.steps_single ? "--steps" : "");
+        if ((uint64_t)st.st_size != want) {
+            if (o.steps_single)
+                die_usage("%s: size is %lld bytes; expected %llu (%u timesteps "
+                          "of %ux%ux%u %s)", p, (long long)st.st_size,
+                          (unsigned long long)want, T, o.dims[0], o.dims[1],
+                          o.dims[2], tvpal_type_name(o.type));
+            die_usage("%s: size is %lld bytes; expected %llu (one %ux%ux%u %s "
+                      "timestep)", p, (long long)st.st_size,
+                      (unsigned long long)want, o.dims[0], o.dims[1],
+                      o.dims[2], tvpal_type_name(o.type));
+        }
         abs_inputs[i] = realpath(p, NULL);
         if (!abs_inputs[i])
             die_usage("%s: %s", p, strerror(errno));
@@ -562,7 +581,7 @@ int main(int argc, char **argv)
     /* Output directories. */
     char *partial = NULL;
     if (asprintf(&partial, "%s.partial", o.outdir) < 0)
-        die_usage("out of memory");
+        die_fail("out of memory");
     if (tvpal_exists(o.outdir) && !o.force)
         die_usage("%s: output already exists (use --force to replace it)",
                   o.outdir);
@@ -583,7 +602,7 @@ int main(int argc, char **argv)
     struct stats st = {.vmin = INFINITY, .vmax = -INFINITY};
     st.fine = calloc(FINE_BINS, sizeof *st.fine);
     if (!fp || !st.fine)
-        die_usage("out of memory");
+        die_fail("out of memory");
     uint32_t start = 0;
     if (tvpal_exists(partial)) {
         start = checkpoint_load(partial, fp, &st);
@@ -603,13 +622,13 @@ int main(int argc, char **argv)
                       strerror(errno));
         free(nd);
     }
-    g_partial = start ? NULL : partial; /* keep a resumable job on errors */
+    g_partial = partial;
 
     /* Shards and their writers. */
     const uint32_t nshard = 3 * o.nodes;
     struct shardjob *sj = calloc(nshard, sizeof *sj);
     if (!sj)
-        die_usage("out of memory");
+        die_fail("out of memory");
     size_t max_slice_vox = 0;
     size_t max_jobs = 0;
     for (unsigned a = 0; a < 3; a++) {
@@ -636,7 +655,7 @@ int main(int argc, char **argv)
                                         TVPAL_ALIGN);
             j->rec = malloc(j->rec_cap);
             if (!j->rec)
-                die_usage("out of memory");
+                die_fail("out of memory");
         }
     }
     while (open_writers(sj, nshard, partial, start) < 0) {
@@ -676,7 +695,7 @@ int main(int argc, char **argv)
     g_fine_local = calloc((size_t)nthreads, sizeof *g_fine_local);
     for (int i = 0; g_fine_local && i < nthreads; i++)
         if (!(g_fine_local[i] = calloc(FINE_BINS, sizeof(uint64_t))))
-            die_usage("out of memory");
+            die_fail("out of memory");
     struct tvpal_swenc **enc = calloc((size_t)nthreads, sizeof *enc);
     float **samples = calloc((size_t)nthreads, sizeof *samples);
     float **tables = calloc((size_t)nthreads, sizeof *tables);
@@ -684,16 +703,16 @@ int main(int argc, char **argv)
     float **ring = calloc(N, sizeof *ring);
     void *raw = malloc(step_bytes);
     if (!enc || !samples || !tables || !jobs || !ring || !raw)
-        die_usage("out of memory");
+        die_fail("out of memory");
     for (int i = 0; i < nthreads; i++) {
         if (tvpal_swenc_create(&enc[i], max_slice_vox, N) < 0 ||
             !(samples[i] = malloc(max_slice_vox * N * sizeof(float))) ||
             !(tables[i] = malloc(N * 256 * sizeof(float))))
-            die_usage("out of memory");
+            die_fail("out of memory");
     }
     for (uint32_t i = 0; i < N; i++)
         if (!(ring[i] = malloc(g_nvox * sizeof(float))))
-            die_usage("out of memory for %u timesteps of %zu voxels", N,
+            die_fail("out of memory for %u timesteps of %zu voxels", N,
                       g_nvox);
 
     const int tty = isatty(STDERR_FILENO);
@@ -773,7 +792,6 @@ int main(int argc, char **argv)
             msg("%s/checkpoint: cannot write: %s", partial, strerror(errno));
             return TVPAL_EXIT_FAIL;
         }
-        g_partial = NULL; /* from now on a rerun resumes */
         if (fault_after >= 0 && (long)(t + 1) >= fault_after)
             raise(SIGKILL); /* test hook: simulate an interruption */
 
@@ -798,6 +816,7 @@ int main(int argc, char **argv)
     /* Finish shards, then the manifest; rename into place last. */
     uint64_t total_bytes = 0;
     for (uint32_t q = 0; q < nshard; q++) {
+        tvpal_shardw_set_range(sj[q].w, st.vmin, st.vmax);
         int rc = tvpal_shardw_finish(sj[q].w);
         sj[q].w = NULL;
         if (rc < 0) {
@@ -844,10 +863,10 @@ int main(int argc, char **argv)
     m.options = strdup(optstr);
     for (int i = 0; i < o.ninputs; i++)
         if (tvpal_manifest_add_source(&m, o.inputs[i]) < 0)
-            die_usage("out of memory");
+            die_fail("out of memory");
     char *text = NULL;
     if (!m.encoder || !m.options || tvpal_manifest_format(&m, &text) < 0)
-        die_usage("out of memory");
+        die_fail("out of memory");
     for (int r = -1; r < (int)o.nodes; r++) {
         char *path;
         int ok = r < 0 ? asprintf(&path, "%s/manifest.txt", partial)
@@ -869,7 +888,7 @@ int main(int argc, char **argv)
     if (tvpal_exists(o.outdir)) {
         char *old;
         if (asprintf(&old, "%s.old", o.outdir) < 0)
-            die_usage("out of memory");
+            die_fail("out of memory");
         tvpal_rmtree(old);
         if (rename(o.outdir, old) < 0 || rename(partial, o.outdir) < 0) {
             msg("%s: cannot replace: %s", o.outdir, strerror(errno));

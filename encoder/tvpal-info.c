@@ -17,16 +17,17 @@ static void usage(FILE *f)
 {
     fprintf(f,
 "Usage: " PROG " OUTDIR [--verify]\n"
-"Print the manifest of the tvpal dataset OUTDIR and the size of every shard.\n"
+"Print the manifest of the tvpal dataset OUTDIR and its bytes per axis.\n"
 "\n"
-"  -v, --verify   read every record of every shard and check its CRC-32C and\n"
-"                 layout; each corrupt record is named\n"
+"  -v, --verify   open every shard (header, index, size, agreement with the\n"
+"                 manifest) and read every record (CRC-32C and layout); each\n"
+"                 corrupt file or record is named\n"
 "  -h, --help     this help\n"
 "  -V, --version  version\n"
 "\n"
-"Exit status: 0 dataset valid, 1 corrupt records found by --verify,\n"
-"2 usage error or a dataset that cannot be opened (missing, corrupt header\n"
-"or index, truncated file).\n");
+"Exit status: 0 dataset valid; 1 --verify found corrupt, truncated or missing\n"
+"shard files or records; 2 usage error, unreadable manifest, or (without\n"
+"--verify) a dataset that cannot be opened.\n");
 }
 
 /* Verifies every shard file; returns the number of problems found. */
@@ -49,6 +50,18 @@ static unsigned verify(const char *dir, const struct tvpal_manifest *m)
                 continue;
             }
             const struct tvpal_shard_header *h = tvpal_shard_hdr(s);
+            if (memcmp(h->dims, m->dims, sizeof h->dims) ||
+                h->steps != m->steps || h->window != m->window ||
+                h->nodes != m->nodes || h->rank != r || h->axis != a) {
+                printf("CORRUPT %s: header (dims %ux%ux%u, steps %u, window "
+                       "%u, node %u of %u, axis %u) does not match the "
+                       "manifest\n", path, h->dims[0], h->dims[1], h->dims[2],
+                       h->steps, h->window, h->rank, h->nodes, h->axis);
+                bad++;
+                tvpal_shard_close(s);
+                free(path);
+                continue;
+            }
             unsigned char *buf = malloc(tvpal_shard_max_record(s));
             unsigned shard_bad = 0;
             for (uint32_t t = 0; buf && t < h->steps; t++) {

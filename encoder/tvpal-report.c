@@ -22,6 +22,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #define PROG "tvpal-report"
@@ -44,10 +45,11 @@ static void usage(FILE *f)
 "  -V, --version       version\n"
 "\n"
 "The last line is a key=value summary: psnr (worst axis), psnr_x, psnr_y,\n"
-"psnr_z, psnr_min (worst timestep and axis), rmse, max_abs_error, flicker,\n"
-"ratio (source bytes / bytes of one axis), ratio_8bit, bpv (bits per\n"
-"voxel-timestep of one axis), table_bpv, index_bpv, disk_ratio (all three\n"
-"axes).  Exit status: 0 success, 1 failure, 2 bad input.\n");
+"psnr_z, psnr_min (worst timestep and axis), rmse, max_abs_error and\n"
+"flicker (worst axis), ratio (source bytes / mean bytes of one axis),\n"
+"ratio_8bit, bpv (bits per voxel-timestep of one axis, everything counted),\n"
+"index_bpv, table_bpv, disk_ratio (all three axes stored), steps, window.\n"
+"Exit status: 0 success, 1 failure, 2 bad input.\n");
 }
 
 struct acc {
@@ -61,6 +63,21 @@ static double psnr_of(double mse, double peak)
     if (peak <= 0)
         return -INFINITY;
     return 10.0 * log10(peak * peak / mse);
+}
+
+static void jstr(FILE *f, const char *s)
+{
+    fputc('"', f);
+    for (; *s; s++) {
+        unsigned char c = (unsigned char)*s;
+        if (c == '"' || c == '\\')
+            fprintf(f, "\\%c", c);
+        else if (c < 0x20)
+            fprintf(f, "\\u%04x", c);
+        else
+            fputc(c, f);
+    }
+    fputc('"', f);
 }
 
 /* JSON has no infinities: null stands for them. */
@@ -96,6 +113,17 @@ static int read_ref(const struct tvpal_manifest *m, char **files, uint32_t t,
             return -1;
         }
         got += (size_t)k;
+    }
+    struct stat st;
+    uint64_t want = m->single_file ? (uint64_t)bytes * m->steps : bytes;
+    if (t == 0 || !m->single_file) {
+        if (fstat(fd, &st) == 0 && (uint64_t)st.st_size != want) {
+            fprintf(stderr, PROG ": %s: size is %lld bytes; expected %llu "
+                    "(dims and type of the manifest)\n", path,
+                    (long long)st.st_size, (unsigned long long)want);
+            close(fd);
+            return -1;
+        }
     }
     close(fd);
     size_t bad;
@@ -336,9 +364,11 @@ int main(int argc, char **argv)
                     strerror(errno));
             return TVPAL_EXIT_FAIL;
         }
-        fprintf(f, "{\n  \"dataset\": \"%s\",\n  \"dims\": [%u, %u, %u],\n"
+        fprintf(f, "{\n  \"dataset\": ");
+        jstr(f, dir);
+        fprintf(f, ",\n  \"dims\": [%u, %u, %u],\n"
                 "  \"steps\": %u,\n  \"window\": %u,\n  \"nodes\": %u,\n"
-                "  \"peak\": ", dir, m->dims[0], m->dims[1], m->dims[2], T,
+                "  \"peak\": ", m->dims[0], m->dims[1], m->dims[2], T,
                 m->window, m->nodes);
         jnum(f, peak);
         fprintf(f, ",\n  \"source_bytes\": %llu,\n  \"axes\": {",

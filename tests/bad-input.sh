@@ -1,0 +1,68 @@
+#!/bin/sh
+# bad-input: each bad input gets exit 2, a message naming the file or option
+# and what was expected, and leaves no output (nor OUTDIR.partial) behind;
+# inputs are never modified.
+. "$(dirname "$0")/lib.sh"
+D=8x6x5
+"$GEN" --field blobs --dims $D --steps 4 -o "$W/in" || fail gen
+IN="$W/in/blobs_t0000.f32 $W/in/blobs_t0001.f32 $W/in/blobs_t0002.f32 $W/in/blobs_t0003.f32"
+sum_before=$(cat $IN | cksum)
+O=$W/out
+none_left() {
+    if [ -e "$O" ] || [ -e "$O.partial" ]; then
+        fail "output left behind after: $1"; rm -rf "$O" "$O.partial"
+    fi
+}
+expect_exit 2 "blobs_t0000.f32: size is 960 bytes; expected 1200 \\(one 10x6x5 f32 timestep\\)" \
+    "$ENC" --dims 10x6x5 -o "$O" $IN; none_left "wrong size"
+expect_exit 2 "nope.f32: cannot read input" "$ENC" --dims $D -o "$O" "$W/nope.f32"; none_left missing
+expect_exit 2 "not a regular file" "$ENC" --dims $D -o "$O" "$W/in"; none_left directory
+expect_exit 2 "every dimension must be at least 1" "$ENC" --dims 0x6x5 -o "$O" $IN; none_left zero
+expect_exit 2 "too large|overflows" "$ENC" --dims 99999999999x2x2 -o "$O" $IN; none_left overflow
+expect_exit 2 "overflows" "$ENC" --dims 2000000000x2000000000x2000000000 -o "$O" $IN; none_left overflow2
+expect_exit 2 "expected NXxNYxNZ" "$ENC" --dims 8x6 -o "$O" $IN; none_left malformed
+expect_exit 2 "window \"0\".*1 to 16" "$ENC" --dims $D --window 0 -o "$O" $IN; none_left N0
+expect_exit 2 "window \"17\".*1 to 16" "$ENC" --dims $D --window 17 -o "$O" $IN; none_left N17
+expect_exit 2 "nodes 6: larger than the z axis \(5 slices\)" "$ENC" --dims $D --nodes 6 -o "$O" $IN; none_left K
+expect_exit 2 "type \"f16\"" "$ENC" --dims $D --type f16 -o "$O" $IN; none_left type
+expect_exit 2 "no INPUT" "$ENC" --dims $D -o "$O"; none_left noinput
+expect_exit 2 "-o OUTDIR is required" "$ENC" --dims $D $IN
+expect_exit 2 "--steps T takes exactly one INPUT" "$ENC" --dims $D --steps 4 -o "$O" $IN; none_left steps
+cat $IN > "$W/all.f32"
+expect_exit 2 "all.f32: size is 3840 bytes; expected 4800 \\(5 timesteps of 8x6x5 f32\\)" "$ENC" --dims $D --steps 5 -o "$O" "$W/all.f32"; none_left steps-size
+# NaN and infinity at a known voxel of timestep 2.
+$PY - "$W" <<'PY'
+import struct, sys
+w = sys.argv[1]
+for name, bad in (("nan", float("nan")), ("inf", float("-inf"))):
+    data = bytearray(open(w + "/in/blobs_t0002.f32", "rb").read())
+    i = 3 + 8 * (2 + 6 * 4)          # voxel (3,2,4)
+    data[4 * i:4 * i + 4] = struct.pack("<f", bad)
+    open(w + "/" + name + ".f32", "wb").write(data)
+PY
+A="$W/in/blobs_t0000.f32 $W/in/blobs_t0001.f32"
+expect_exit 2 "nan.f32: timestep 2: NaN or infinite value at voxel \(3,2,4\).*--nan-as" \
+    "$ENC" --dims $D -o "$O" $A "$W/nan.f32" "$W/in/blobs_t0003.f32"; none_left nan
+expect_exit 2 "inf.f32: timestep 2: NaN or infinite" \
+    "$ENC" --dims $D -o "$O" $A "$W/inf.f32" "$W/in/blobs_t0003.f32"; none_left inf
+# NaN late in the run (after checkpoints): still nothing left behind.
+expect_exit 2 "nan.f32: timestep 5" \
+    "$ENC" -q --dims $D --window 2 -o "$O" $IN "$W/in/blobs_t0000.f32" "$W/nan.f32"; none_left late-nan
+"$ENC" -q --dims $D --nan-as -1 -o "$O" $A "$W/nan.f32" "$W/in/blobs_t0003.f32" > /dev/null \
+    && grep -q "nonfinite_replaced = 1" "$O/manifest.txt" && ok "--nan-as replaces" \
+    || fail "--nan-as"
+expect_exit 2 "output already exists" "$ENC" --dims $D -o "$O" $IN
+"$ENC" -q --dims $D --force -o "$O" $IN > /dev/null && "$INFO" "$O" > /dev/null \
+    && ok "--force replaces" || fail "--force"
+rm -rf "$O"
+# Unwritable output: a path below a regular file.
+expect_exit 2 "cannot create" "$ENC" --dims $D -o "$W/in/blobs_t0000.f32/sub" $IN
+expect_exit 2 "lies inside the output directory" "$ENC" --dims $D --force -o "$W/in" $IN
+[ "$(cat $IN | cksum)" = "$sum_before" ] && ok "inputs unchanged" || fail "inputs modified"
+# The other programs.
+expect_exit 2 "manifest.txt" "$DEC" "$W/nodataset" --step 0 -o "$W/x.f32"
+expect_exit 2 "manifest.txt" "$INFO" "$W/nodataset"
+expect_exit 2 "manifest.txt" "$REP" "$W/nodataset"
+expect_exit 2 "--axis \"w\"" "$DEC" "$W/nodataset" --step 0 --axis w -o "$W/x.f32"
+expect_exit 2 "field \"waves\"" "$GEN" --field waves --dims $D --steps 2 -o "$W/g"
+finish

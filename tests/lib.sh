@@ -1,0 +1,48 @@
+# lib.sh: helpers for the shell tests (sourced).  Exit codes follow automake:
+# 0 pass, 77 skip, 99 hard error, anything else fail.
+set -u
+: "${TVPAL_BUILDDIR:=$(cd "$(dirname "$0")/.." && pwd)}"
+: "${TVPAL_SRCDIR:=$TVPAL_BUILDDIR}"
+ENC=$TVPAL_BUILDDIR/encoder/tvpal-encode
+DEC=$TVPAL_BUILDDIR/encoder/tvpal-decode
+INFO=$TVPAL_BUILDDIR/encoder/tvpal-info
+REP=$TVPAL_BUILDDIR/encoder/tvpal-report
+GEN=$TVPAL_BUILDDIR/samples/tvpal-gen
+if [ -x /usr/bin/python3 ]; then PY=${PYTHON:-/usr/bin/python3}; else PY=${PYTHON:-python3}; fi
+test_name=$(basename "$0" .sh)
+W=$TVPAL_BUILDDIR/tests/work/$test_name
+rm -rf "$W" && mkdir -p "$W" || exit 99
+failures=0
+
+fail() { echo "FAIL: $*" >&2; failures=$((failures + 1)); }
+ok() { echo "ok: $*"; }
+finish() {
+    if [ "$failures" -ne 0 ]; then
+        echo "$test_name: $failures failure(s)" >&2
+        exit 1
+    fi
+    rm -rf "$W"
+    exit 0
+}
+
+# expect_exit CODE PATTERN CMD...: CMD must exit with CODE and print PATTERN
+# (grep -E) on stderr.
+expect_exit() {
+    local want=$1 pat=$2 rc
+    shift 2
+    "$@" > "$W/out.txt" 2> "$W/err.txt"
+    rc=$?
+    if [ "$rc" -ne "$want" ]; then
+        fail "exit $rc (expected $want): $*"; sed 's/^/    /' "$W/err.txt" >&2
+    elif ! grep -Eq -- "$pat" "$W/err.txt"; then
+        fail "stderr lacks /$pat/: $*"; sed 's/^/    /' "$W/err.txt" >&2
+    else
+        ok "exit $want /$pat/: $(basename "$1") ${2:-} ${3:-}"
+    fi
+}
+
+# kv KEY LINE: value of key=value in LINE.
+kv() { printf '%s\n' "$2" | tr ' ' '\n' | sed -n "s/^$1=//p"; }
+
+# ge A B: A >= B (floats; "inf" is infinite).
+ge() { awk -v a="$1" -v b="$2" 'BEGIN { if (a == "inf") exit 0; exit !(a + 0 >= b + 0) }'; }

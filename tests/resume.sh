@@ -1,0 +1,36 @@
+#!/bin/sh
+# resume: an encode interrupted (SIGKILL after step 5) leaves no valid
+# dataset, only OUTDIR.partial; the same command then finishes the job and
+# the result is byte-identical to an uninterrupted run.  A partial output of
+# a different job is discarded, not resumed.
+. "$(dirname "$0")/lib.sh"
+D=18x14x10
+"$GEN" --field front --dims $D --steps 12 -o "$W/in" || fail gen
+"$ENC" -q --dims $D --window 4 --nodes 2 -o "$W/ref" "$W"/in/*.f32 > /dev/null || fail "reference encode"
+TVPAL_ENCODE_FAULT_AFTER=5 "$ENC" -q --dims $D --window 4 --nodes 2 -o "$W/ds" "$W"/in/*.f32 > /dev/null 2>&1
+rc=$?
+[ $rc -ne 0 ] && ok "interrupted run exits $rc" || fail "fault hook did not stop the encoder"
+[ ! -e "$W/ds" ] && [ -d "$W/ds.partial" ] && ok "only ds.partial exists" \
+    || fail "after interruption: $(ls "$W")"
+expect_exit 2 "manifest.txt" "$INFO" "$W/ds"
+"$ENC" --dims $D --window 4 --nodes 2 -o "$W/ds" "$W"/in/*.f32 > "$W/o.txt" 2> "$W/e.txt" \
+    || fail "rerun failed: $(cat "$W/e.txt")"
+grep -q "resuming .* at timestep 5 of 12" "$W/e.txt" && ok "rerun resumed at step 5" \
+    || fail "rerun did not resume: $(cat "$W/e.txt")"
+diff -r "$W/ref" "$W/ds" > /dev/null && ok "resumed output identical" \
+    || fail "resumed output differs"
+[ ! -e "$W/ds.partial" ] && ok "partial directory gone" || fail "ds.partial remains"
+# A partial output of another job (different window) is started over.
+TVPAL_ENCODE_FAULT_AFTER=3 "$ENC" -q --dims $D --window 2 -o "$W/d2" "$W"/in/*.f32 > /dev/null 2>&1
+"$ENC" -q --dims $D --window 4 -o "$W/d2" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" || fail "rerun d2"
+! grep -q resuming "$W/e.txt" && "$INFO" "$W/d2" --verify > /dev/null \
+    && grep -q "^window = 4" "$W/d2/manifest.txt" && ok "other job's partial discarded" \
+    || fail "stale partial handling"
+# A damaged partial output is started over too.
+TVPAL_ENCODE_FAULT_AFTER=6 "$ENC" -q --dims $D --window 4 -o "$W/d3" "$W"/in/*.f32 > /dev/null 2>&1
+truncate -s 8192 "$W/d3.partial/node-0/axis-y.tvps"
+"$ENC" -q --dims $D --window 4 -o "$W/d3" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" || fail "rerun d3"
+"$ENC" -q --dims $D --window 4 -o "$W/d4" "$W"/in/*.f32 > /dev/null
+diff -r "$W/d3" "$W/d4" > /dev/null && grep -q "starting the job over" "$W/e.txt" \
+    && ok "damaged partial restarted, output correct" || fail "damaged partial: $(cat "$W/e.txt")"
+finish

@@ -1,0 +1,161 @@
+/* test-format: shard header, record and index (de)serialization round trips;
+ * every kind of corruption is detected with the right code; slab split. */
+#include "tvpal_crc32c.h"
+#include "tvpal_format.h"
+#include "tvpal_shard.h"
+#include "tvpal_test.h"
+#include "tvpal_window.h"
+
+#include <string.h>
+
+static struct tvpal_shard_header sample_header(void)
+{
+    struct tvpal_shard_header h = {
+        .version = TVPAL_FORMAT_VERSION, .dims = {10, 7, 5}, .steps = 9,
+        .window = 4, .nodes = 3, .rank = 1, .axis = 0, .table_format = 0,
+        .value_min = -1.5, .value_max = 2.25};
+    uint32_t n;
+    tvpal_axis_geometry(h.dims, 0, &n, &h.slice_w, &h.slice_h);
+    tvpal_slab_range(n, 3, 1, &h.slice_begin, &h.slice_count);
+    h.index_offset = 8 * 4096;
+    h.file_bytes = h.index_offset + 4096;
+    h.index_crc = 0x12345678;
+    return h;
+}
+
+/* Builds record `step` for header h into buf (chunks with a recognizable
+ * fill); returns its size. */
+static uint64_t build_record(const struct tvpal_shard_header *h, uint32_t step,
+                             unsigned char *buf)
+{
+    uint64_t off = TVPAL_RECORD_HEADER_BYTES;
+    uint32_t n = 0;
+    for (uint32_t s = h->slice_begin; s < h->slice_begin + h->slice_count; s++) {
+        if (!tvpal_window_starts(s, step, h->window))
+            continue;
+        struct tvpal_chunk_header ch = {
+            .slice = s, .wstart = step,
+            .wlen = tvpal_window_len(s, step, h->window, h->steps),
+            .w = h->slice_w, .h = h->slice_h, .used = 7, .bits = {5, 3}};
+        tvpal_chunk_header_encode(&ch, buf + off);
+        uint64_t cb = tvpal_chunk_bytes(ch.wlen, ch.w, ch.h);
+        memset(buf + off + TVPAL_CHUNK_HEADER_BYTES, (int)(s + 1),
+               cb - TVPAL_CHUNK_HEADER_BYTES);
+        off += cb;
+        n++;
+    }
+    return tvpal_record_seal(buf, step, h->axis, n, off - TVPAL_RECORD_HEADER_BYTES);
+}
+
+int main(void)
+{
+    unsigned char hb[TVPAL_SHARD_HEADER_BYTES];
+    struct tvpal_shard_header h = sample_header(), g;
+    struct tvpal_diag d;
+
+    tvpal_shard_header_encode(&h, hb);
+    CHECK(tvpal_shard_header_decode(hb, &g, &d) == 0, "decode: %s", d.msg);
+    CHECK(!memcmp(g.dims, h.dims, sizeof h.dims) && g.steps == h.steps &&
+          g.window == h.window && g.nodes == 3 && g.rank == 1 &&
+          g.slice_begin == h.slice_begin && g.slice_count == h.slice_count &&
+          g.index_offset == h.index_offset && g.index_crc == h.index_crc &&
+          g.value_min == -1.5 && g.value_max == 2.25, "round trip");
+    /* Each corruption gives its own error. */
+    hb[0] ^= 1;
+    CHECK(tvpal_shard_header_decode(hb, &g, NULL) == TVPAL_E_MAGIC, "magic");
+    hb[0] ^= 1;
+    hb[20] ^= 0x40;
+    CHECK(tvpal_shard_header_decode(hb, &g, NULL) == TVPAL_E_CHECKSUM, "crc");
+    hb[20] ^= 0x40;
+    hb[8] = 2; /* version 2, CRC left stale: version is checked first */
+    CHECK(tvpal_shard_header_decode(hb, &g, NULL) == TVPAL_E_VERSION,
+          "version");
+    /* A field out of range with a valid CRC. */
+    h.window = 17;
+    tvpal_shard_header_encode(&h, hb);
+    CHECK(tvpal_shard_header_decode(hb, &g, &d) == TVPAL_E_FORMAT &&
+          strstr(d.msg, "window"), "window range: %s", d.msg);
+    h = sample_header();
+    h.slice_count++;
+    tvpal_shard_header_encode(&h, hb);
+    CHECK(tvpal_shard_header_decode(hb, &g, &d) == TVPAL_E_FORMAT &&
+          strstr(d.msg, "slab"), "slab: %s", d.msg);
+    h = sample_header();
+    h.file_bytes += 4096;
+    tvpal_shard_header_encode(&h, hb);
+    CHECK(tvpal_shard_header_decode(hb, &g, &d) == TVPAL_E_FORMAT, "size");
+
+    /* Records: every step of the sample header, verify, iterate chunks. */
+    h = sample_header();
+    static unsigned char rec[1 << 20];
+    for (uint32_t t = 0; t < h.steps; t++) {
+        uint64_t bytes = build_record(&h, t, rec);
+        CHECK(bytes % TVPAL_ALIGN == 0, "aligned");
+        CHECK(tvpal_record_verify(rec, bytes, t, &h, &d) == 0,
+              "verify step %u: %s", t, d.msg);
+        CHECK(tvpal_record_verify(rec, bytes, t + 1, &h, NULL) ==
+                  TVPAL_E_FORMAT, "wrong step");
+        uint64_t pos = 0;
+        struct tvpal_chunk c;
+        unsigned k = 0;
+        while (tvpal_record_next_chunk(rec, &pos, &c)) {
+            CHECK(c.h.wstart == t && c.indices[0] == (uint8_t)(c.h.slice + 1),
+                  "chunk %u of step %u", k, t);
+            k++;
+        }
+        /* Flip one payload byte: CRC mismatch (records of steps where no
+         * slice of this slab starts hold no chunk: the byte is padding). */
+        struct tvpal_record_header rh;
+        tvpal_record_header_decode(rec, &rh, NULL);
+        rec[TVPAL_RECORD_HEADER_BYTES + 100] ^= 0x10;
+        CHECK(tvpal_record_verify(rec, bytes, t, &h, &d) ==
+                  (rh.payload_bytes > 100 ? TVPAL_E_CHECKSUM : TVPAL_E_FORMAT),
+              "payload/padding corruption step %u", t);
+        rec[TVPAL_RECORD_HEADER_BYTES + 100] ^= 0x10;
+        rec[bytes - 1] ^= 0x01;
+        CHECK(tvpal_record_verify(rec, bytes, t, &h, &d) == TVPAL_E_FORMAT,
+              "padding corruption step %u", t);
+        rec[bytes - 1] ^= 0x01;
+        rec[5] ^= 1; /* header byte */
+        CHECK(tvpal_record_verify(rec, bytes, t, &h, NULL) == TVPAL_E_CHECKSUM,
+              "record header corruption");
+        rec[5] ^= 1;
+        CHECK(tvpal_record_verify(rec, 32, t, &h, NULL) == TVPAL_E_TRUNC,
+              "truncated record");
+    }
+    /* A record that omits a slice is rejected even with a valid CRC. */
+    {
+        uint64_t bytes = build_record(&h, 0, rec);
+        struct tvpal_record_header rh;
+        tvpal_record_header_decode(rec, &rh, NULL);
+        uint64_t first = tvpal_chunk_bytes(tvpal_window_len(h.slice_begin, 0, 4, 9),
+                                           h.slice_w, h.slice_h);
+        memmove(rec + 64, rec + 64 + first, rh.payload_bytes - first);
+        tvpal_record_seal(rec, 0, 0, rh.chunk_count - 1, rh.payload_bytes - first);
+        CHECK(tvpal_record_verify(rec, bytes, 0, &h, &d) == TVPAL_E_FORMAT,
+              "missing slice: %s", d.msg);
+    }
+    /* Index entries. */
+    struct tvpal_index_entry e = {.offset = 1ull << 40, .bytes = 8192,
+                                  .step = 77, .chunk_count = 5, .crc = 99}, f;
+    unsigned char ib[TVPAL_INDEX_ENTRY_BYTES];
+    tvpal_index_entry_encode(&e, ib);
+    tvpal_index_entry_decode(ib, &f);
+    CHECK(!memcmp(&e, &f, sizeof e), "index entry round trip");
+
+    /* Slab split: covers all slices, sizes differ by at most one. */
+    for (uint32_t n = 1; n < 70; n++)
+        for (uint32_t k = 1; k <= n; k++) {
+            uint32_t next = 0, mn = UINT32_MAX, mx = 0;
+            for (uint32_t r = 0; r < k; r++) {
+                uint32_t b, c;
+                tvpal_slab_range(n, k, r, &b, &c);
+                CHECK(b == next && c >= 1, "n %u k %u r %u", n, k, r);
+                next = b + c;
+                mn = c < mn ? c : mn;
+                mx = c > mx ? c : mx;
+            }
+            CHECK(next == n && mx - mn <= 1, "n %u k %u", n, k);
+        }
+    return tt_done("test-format");
+}
