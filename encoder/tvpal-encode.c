@@ -75,58 +75,41 @@ static void usage(FILE *f)
 
 static char *g_partial; /* removed on fatal input errors */
 
-static void msg(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
-static void msg(const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    fputs(PROG ": ", stderr);
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
-    va_end(ap);
-}
+/* How a message ends the program: MSG_ONLY returns; the others exit with
+ * code 2 (usage or bad input, before any output), 1 (output or system
+ * failure: a partial output is kept for a rerun to resume) or 2 after
+ * removing the partial output (bad input found mid-run: a rerun would fail
+ * the same way, so nothing partial stays behind). */
+enum ending { MSG_ONLY, DIE_USAGE, DIE_FAIL, DIE_INPUT };
 
-static void die_usage(const char *fmt, ...) __attribute__((format(printf, 1, 2), noreturn));
-static void die_usage(const char *fmt, ...)
+static void say(enum ending how, const char *fmt, va_list ap)
 {
-    va_list ap;
-    va_start(ap, fmt);
     fputs(PROG ": ", stderr);
     vfprintf(stderr, fmt, ap);
     fputc('\n', stderr);
-    va_end(ap);
-    exit(TVPAL_EXIT_USAGE);
-}
-
-static void die_fail(const char *fmt, ...) __attribute__((format(printf, 1, 2), noreturn));
-static void die_fail(const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    fputs(PROG ": ", stderr);
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
-    va_end(ap);
-    exit(TVPAL_EXIT_FAIL);
-}
-
-/* Fatal input error after output was started: the input is at fault (a
- * rerun would fail the same way), so nothing partial stays behind.  Output
- * and system failures (die_fail, exit 1) keep the partial output, which a
- * rerun resumes. */
-static void die_input(const char *fmt, ...) __attribute__((format(printf, 1, 2), noreturn));
-static void die_input(const char *fmt, ...)
-{
-    va_list ap;
-    va_start(ap, fmt);
-    fputs(PROG ": ", stderr);
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
-    va_end(ap);
-    if (g_partial)
+    if (how == MSG_ONLY)
+        return;
+    if (how == DIE_INPUT && g_partial)
         tvpal_rmtree(g_partial);
-    exit(TVPAL_EXIT_USAGE);
+    exit(how == DIE_FAIL ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE);
 }
+
+#define TVPAL_SAY_FN(name, how, attr)                                         \
+    static void name(const char *fmt, ...)                                    \
+        __attribute__((format(printf, 1, 2))) attr;                           \
+    static void name(const char *fmt, ...)                                    \
+    {                                                                         \
+        va_list ap;                                                           \
+        va_start(ap, fmt);                                                    \
+        say(how, fmt, ap);                                                    \
+        if (how != MSG_ONLY)                                                  \
+            exit(TVPAL_EXIT_FAIL); /* not reached: say() exited */         \
+        va_end(ap);                                                           \
+    }
+TVPAL_SAY_FN(msg, MSG_ONLY, )
+TVPAL_SAY_FN(die_usage, DIE_USAGE, __attribute__((noreturn)))
+TVPAL_SAY_FN(die_fail, DIE_FAIL, __attribute__((noreturn)))
+TVPAL_SAY_FN(die_input, DIE_INPUT, __attribute__((noreturn)))
 
 /* ------------------------------------------------------------------ state */
 
