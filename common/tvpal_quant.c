@@ -267,8 +267,9 @@ static double exact_sse(const struct tvpal_quantws *ws, const double *y,
     return d;
 }
 
-/* Final centroid step: each level becomes the exact mean of its cell (the
- * centroid condition), which cannot raise the distortion. */
+/* Final centroid step: each level becomes the mean of its cell (the
+ * centroid condition), which cannot raise the distortion.  Cell sums come
+ * from the median-centred prefix sums, exact to rounding in the bulk. */
 static void centroid_step(const struct tvpal_quantws *ws, double *y,
                           unsigned L)
 {
@@ -276,12 +277,8 @@ static void centroid_step(const struct tvpal_quantws *ws, double *y,
     partition(ws, y, L, bnd, 0);
     for (unsigned i = 0; i < L; i++) {
         size_t a = bnd[i], b = bnd[i + 1];
-        if (b <= a)
-            continue;
-        double c = 0.0;
-        for (size_t k = a; k < b; k++)
-            c += (double)ws->s[k] - ws->mean;
-        y[i] = c / (double)(b - a);
+        if (b > a)
+            y[i] = (ws->p1[b] - ws->p1[a]) / (double)(b - a);
     }
     sort_levels(y, L);
 }
@@ -490,15 +487,17 @@ void tvpal_quant_fit_lloyd(struct tvpal_quantws *ws, unsigned levels,
     }
     lloyd(ws, yq, levels);
     centroid_step(ws, yq, levels);
-    /* Decide on exact distortions: the result is never worse than the
-     * uniform quantizer, whatever rounding did inside the iterations. */
+    /* Pick the better Lloyd result by the prefix-sum estimate, then decide
+     * against the uniform quantizer on exact distortions: the result is
+     * never worse than uniform, whatever rounding did in the iterations. */
+    double eu = partition(ws, yu, levels, bu, 0);
+    double eq = partition(ws, yq, levels, bq, 0);
+    double *yb = eq < eu ? yq : yu;
+    size_t *bb = eq < eu ? bq : bu;
     double d0 = exact_sse(ws, y0, levels, b0);
-    double du = exact_sse(ws, yu, levels, bu);
-    double dq = exact_sse(ws, yq, levels, bq);
-    if (dq < du && dq <= d0)
-        finish(ws, yq, levels, dq, bq, q);
-    else if (du <= d0)
-        finish(ws, yu, levels, du, bu, q);
+    double db = exact_sse(ws, yb, levels, bb);
+    if (db <= d0)
+        finish(ws, yb, levels, db, bb, q);
     else
         finish(ws, y0, levels, d0, b0, q);
 }
