@@ -10,7 +10,9 @@
 /* Iteration limits: Lloyd converges linearly; past ~60 iterations the gain is
  * far below what the float decoder table can represent. */
 #define LLOYD_MAX_ITER 200
-#define LLOYD_REL_TOL 1e-9
+/* Both starts run this many iterations; only the better one continues. */
+#define LLOYD_RACE_ITER 24
+#define LLOYD_REL_TOL 1e-8
 
 struct tvpal_quantws {
     size_t capacity;
@@ -299,7 +301,8 @@ static void finish(const struct tvpal_quantws *ws, const double *yc,
 
 /* Lloyd iterations from y (centred, sorted, L entries); y is overwritten with
  * the best levels seen.  Returns the best total squared error. */
-static double lloyd(const struct tvpal_quantws *ws, double *y, unsigned L)
+static double lloyd(const struct tvpal_quantws *ws, double *y, unsigned L,
+                    int max_iter)
 {
     size_t bnd[TVPAL_LEVELS_MAX + 1];
     double best[TVPAL_LEVELS_MAX];
@@ -325,7 +328,7 @@ static double lloyd(const struct tvpal_quantws *ws, double *y, unsigned L)
             best_d = d;
             memcpy(best, y, L * sizeof *y);
         }
-        if (d <= 0.0 || it >= LLOYD_MAX_ITER ||
+        if (d <= 0.0 || it >= max_iter ||
             (prev_d - d) <= LLOYD_REL_TOL * prev_d)
             break;
         prev_d = d;
@@ -451,7 +454,7 @@ void tvpal_quant_fit_from(struct tvpal_quantws *ws, const double *start,
     }
     for (unsigned i = 0; i < levels; i++)
         y[i] = start[i] - ws->mean;
-    lloyd(ws, y, levels);
+    lloyd(ws, y, levels, LLOYD_MAX_ITER);
     centroid_step(ws, y, levels);
     double d = exact_sse(ws, y, levels, bnd);
     finish(ws, y, levels, d, bnd, q);
@@ -478,22 +481,22 @@ void tvpal_quant_fit_lloyd(struct tvpal_quantws *ws, unsigned levels,
     }
     uniform_levels(ws, levels, y0);
     memcpy(yu, y0, levels * sizeof *yu);
-    lloyd(ws, yu, levels);
-    centroid_step(ws, yu, levels);
     /* Quantile start: level i is the mean of the i-th equal-count block. */
     for (unsigned i = 0; i < levels; i++) {
         size_t a = n * i / levels, b = n * (i + 1) / levels;
         yq[i] = b > a ? (ws->p1[b] - ws->p1[a]) / (double)(b - a) : 0.0;
     }
-    lloyd(ws, yq, levels);
-    centroid_step(ws, yq, levels);
-    /* Pick the better Lloyd result by the prefix-sum estimate, then decide
-     * against the uniform quantizer on exact distortions: the result is
-     * never worse than uniform, whatever rounding did in the iterations. */
-    double eu = partition(ws, yu, levels, bu, 0);
-    double eq = partition(ws, yq, levels, bq, 0);
+    /* Race: both starts run a few iterations, the better one (by the
+     * prefix-sum estimate) runs on; the other is dropped. */
+    double eu = lloyd(ws, yu, levels, LLOYD_RACE_ITER);
+    double eq = lloyd(ws, yq, levels, LLOYD_RACE_ITER);
     double *yb = eq < eu ? yq : yu;
     size_t *bb = eq < eu ? bq : bu;
+    lloyd(ws, yb, levels, LLOYD_MAX_ITER - LLOYD_RACE_ITER);
+    centroid_step(ws, yb, levels);
+    /* Decide against the uniform quantizer on exact distortions: the result
+     * is never worse than uniform, whatever rounding did in the
+     * iterations. */
     double d0 = exact_sse(ws, y0, levels, b0);
     double db = exact_sse(ws, yb, levels, bb);
     if (db <= d0)

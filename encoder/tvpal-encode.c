@@ -137,12 +137,21 @@ struct shardjob {
     uint32_t nchunks;
 };
 
+/* A group of `count` slices slice, slice + N, ... of one shard, all with
+ * windows of length len starting at the current step, whose chunks follow
+ * each other in the record from offset off.  Slices of the x axis are
+ * grouped so that one pass over the volume rows gathers them all (they
+ * share cache lines); other axes use groups of one. */
 struct slicejob {
     struct shardjob *sj;
     uint32_t slice;
+    uint32_t count;
     uint32_t len;
-    uint64_t off;            /* chunk offset in sj->rec */
+    uint64_t off;            /* first chunk's offset in sj->rec */
 };
+
+/* Most slices per group: those of one 64-byte line of x (16 floats). */
+#define GROUP_SPAN 16u
 
 struct stats {
     double vmin, vmax;
@@ -172,6 +181,7 @@ static float fine_bin_value(uint32_t b)
 
 static size_t g_nvox;
 static int g_nthreads = 1;
+static size_t g_group_cap; /* floats of samples per thread */
 static uint64_t **g_fine_local; /* per-thread source histograms */
 
 /* Reads timestep t of the source into dst (converted), accounting stats
@@ -186,26 +196,13 @@ static void load_step(const struct opts *o, uint32_t t, void *raw, float *dst,
     int fd = open(path, O_RDONLY | O_CLOEXEC);
     if (fd < 0)
         die_input("%s: cannot open: %s", path, strerror(errno));
-    size_t got = 0;
-    while (got < bytes) {
-        ssize_t k = pread(fd, (char *)raw + got, bytes - got,
-                          off + (off_t)got);
-        if (k < 0 && errno == EINTR)
-            continue;
-        if (k <= 0) {
-            close(fd);
-            die_input("%s: timestep %u: %s", path, t,
-                      k < 0 ? strerror(errno)
-                            : "file shrank while encoding (truncated)");
-        }
-        got += (size_t)k;
-    }
-    close(fd);
-    /* Conversion and statistics in parallel over contiguous chunks; the
-     * first bad element is the lowest index any chunk reports. */
+    /* Reading, conversion and statistics in parallel over contiguous
+     * chunks (each thread reads its own part: the page-cache copy is as
+     * costly as the conversion); the first bad element is the lowest index
+     * any chunk reports. */
     const int stats = t >= st->loaded;
     size_t bad = SIZE_MAX, nrep = 0;
-    int rc_all = 0;
+    int rc_all = 0, read_err = 0;
     double lo = st->vmin, hi = st->vmax;
 #ifdef _OPENMP
 #pragma omp parallel reduction(min : lo, bad) reduction(max : hi) reduction(+ : nrep) reduction(min : rc_all)
@@ -219,11 +216,30 @@ static void load_step(const struct opts *o, uint32_t t, void *raw, float *dst,
         size_t a = g_nvox * (size_t)id / (size_t)nt;
         size_t b = g_nvox * (size_t)(id + 1) / (size_t)nt;
         size_t mybad = 0, myrep = 0;
-        int rc = tvpal_raw_convert((const char *)raw + a * esz, o->type,
+        int rc = 0;
+        for (size_t got = a * esz; got < b * esz;) {
+            ssize_t k = pread(fd, (char *)raw + got, b * esz - got,
+                              off + (off_t)got);
+            if (k < 0 && errno == EINTR)
+                continue;
+            if (k <= 0) {
+#ifdef _OPENMP
+#pragma omp atomic write
+#endif
+                read_err = k < 0 ? errno : -1;
+                rc = TVPAL_E_READ;
+                break;
+            }
+            got += (size_t)k;
+        }
+        if (rc == 0)
+            rc = tvpal_raw_convert((const char *)raw + a * esz, o->type,
                                    o->big_endian, b - a, dst + a,
                                    o->has_nan_as ? &o->nan_as : NULL, &mybad,
                                    &myrep);
-        if (rc < 0) {
+        if (rc == TVPAL_E_READ) {
+            rc_all = rc < rc_all ? rc : rc_all;
+        } else if (rc < 0) {
             rc_all = rc < rc_all ? rc : rc_all;
             bad = a + mybad;
         } else if (stats) {
@@ -237,6 +253,11 @@ static void load_step(const struct opts *o, uint32_t t, void *raw, float *dst,
             }
         }
     }
+    close(fd);
+    if (read_err)
+        die_input("%s: timestep %u: %s", path, t,
+                  read_err > 0 ? strerror(read_err)
+                               : "file shrank while encoding (truncated)");
     if (rc_all < 0) {
         size_t x = bad % o->dims[0], y = bad / o->dims[0] % o->dims[1],
                z = bad / o->dims[0] / o->dims[1];
@@ -360,20 +381,27 @@ out:
 
 /* ---------------------------------------------------------------- encoding */
 
-/* Copies slice s of the given axis, timesteps t..t+len-1, from the ring into
- * samples (time-major, w*h per step). */
-static void gather(const struct opts *o, float *const *ring, unsigned axis,
-                   uint32_t s, uint32_t t, uint32_t len, float *samples)
+/* Copies the slices of job jb (timesteps t..t+len-1) from the ring into
+ * samples: slice g of the group at samples + g * len * w*h, time-major. */
+static void gather(const struct opts *o, float *const *ring,
+                   const struct slicejob *jb, uint32_t t, float *samples)
 {
     const size_t nx = o->dims[0], ny = o->dims[1], nz = o->dims[2];
+    const unsigned axis = jb->sj->axis;
+    const size_t sv = (size_t)jb->sj->h.slice_w * jb->sj->h.slice_h;
+    const uint32_t s = jb->slice, len = jb->len, N = o->window;
     for (uint32_t j = 0; j < len; j++) {
-        const float *vol = ring[(t + j) % o->window];
-        float *out = samples + (size_t)j * (g_nvox / (axis == 0 ? nx : axis == 1 ? ny : nz));
+        const float *vol = ring[(t + j) % N];
+        float *out = samples + (size_t)j * sv;
         switch (axis) {
         case 0:
             for (size_t z = 0; z < nz; z++)
-                for (size_t y = 0; y < ny; y++)
-                    out[y + ny * z] = vol[s + nx * (y + ny * z)];
+                for (size_t y = 0; y < ny; y++) {
+                    const float *row = vol + nx * (y + ny * z) + s;
+                    float *dst = out + y + ny * z;
+                    for (uint32_t g = 0; g < jb->count; g++)
+                        dst[(size_t)g * len * sv] = row[(size_t)g * N];
+                }
             break;
         case 1:
             for (size_t z = 0; z < nz; z++)
@@ -385,6 +413,30 @@ static void gather(const struct opts *o, float *const *ring, unsigned axis,
             break;
         }
     }
+}
+
+/* Encodes one slice-window from samples into its chunk at `chunk`. */
+static void encode_chunk(struct tvpal_swenc *enc, float *table,
+                         const float *samples, const struct shardjob *j,
+                         uint32_t slice, uint32_t t, uint32_t len,
+                         unsigned char *chunk)
+{
+    const size_t nvox = (size_t)j->h.slice_w * j->h.slice_h;
+    struct tvpal_swinfo info;
+    tvpal_swenc_encode(enc, samples, nvox, len,
+                       chunk + TVPAL_CHUNK_HEADER_BYTES + (size_t)len * 1024,
+                       table, &info);
+    tvpal_store_f32le(table, chunk + TVPAL_CHUNK_HEADER_BYTES,
+                      (size_t)len * 256);
+    struct tvpal_chunk_header ch = {
+        .slice = slice, .wstart = t, .wlen = len, .w = j->h.slice_w,
+        .h = j->h.slice_h, .used = info.used};
+    memcpy(ch.bits, info.bits, sizeof ch.bits);
+    tvpal_chunk_header_encode(&ch, chunk);
+    /* Zero the index padding so output bytes are deterministic. */
+    size_t ib = TVPAL_CHUNK_HEADER_BYTES + (size_t)len * 1024 + nvox;
+    size_t cb = tvpal_chunk_bytes(len, j->h.slice_w, j->h.slice_h);
+    memset(chunk + ib, 0, cb - ib);
 }
 
 /* Creates (start = 0) or resumes the shard writers; reports and returns
@@ -679,6 +731,12 @@ int main(int argc, char **argv)
     for (int i = 0; g_fine_local && i < nthreads; i++)
         if (!(g_fine_local[i] = calloc(FINE_BINS, sizeof(uint64_t))))
             die_fail("out of memory");
+    /* Samples per thread: one slice-window, or a group of x slices up to
+     * 8 MiB (a group never exceeds GROUP_SPAN slices). */
+    g_group_cap = max_slice_vox * N;
+    if (g_group_cap < (size_t)2 << 20)
+        g_group_cap = (size_t)2 << 20 < max_slice_vox * N * GROUP_SPAN
+                          ? (size_t)2 << 20 : max_slice_vox * N * GROUP_SPAN;
     struct tvpal_swenc **enc = calloc((size_t)nthreads, sizeof *enc);
     float **samples = calloc((size_t)nthreads, sizeof *samples);
     float **tables = calloc((size_t)nthreads, sizeof *tables);
@@ -689,7 +747,7 @@ int main(int argc, char **argv)
         die_fail("out of memory");
     for (int i = 0; i < nthreads; i++) {
         if (tvpal_swenc_create(&enc[i], max_slice_vox, N) < 0 ||
-            !(samples[i] = malloc(max_slice_vox * N * sizeof(float))) ||
+            !(samples[i] = malloc(g_group_cap * sizeof(float))) ||
             !(tables[i] = malloc(N * 256 * sizeof(float))))
             die_fail("out of memory");
     }
@@ -719,13 +777,25 @@ int main(int argc, char **argv)
             struct shardjob *j = &sj[q];
             uint64_t off = TVPAL_RECORD_HEADER_BYTES;
             j->nchunks = 0;
+            const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
             for (uint32_t k = 0; k < j->h.slice_count; k++) {
                 uint32_t s = j->h.slice_begin + k;
                 if (!tvpal_window_starts(s, t, N))
                     continue;
                 uint32_t len = tvpal_window_len(s, t, N, T);
-                jobs[njobs++] = (struct slicejob){j, s, len, off};
-                off += tvpal_chunk_bytes(len, j->h.slice_w, j->h.slice_h);
+                uint64_t cb = tvpal_chunk_bytes(len, j->h.slice_w, j->h.slice_h);
+                struct slicejob *prev = njobs ? &jobs[njobs - 1] : NULL;
+                /* Extend the previous x group when this slice is the next of
+                 * its phase, in the same line, with the same window, and the
+                 * group's samples stay within the workspace. */
+                if (j->axis == 0 && prev && prev->sj == j && prev->len == len &&
+                    s == prev->slice + prev->count * N &&
+                    s / GROUP_SPAN == prev->slice / GROUP_SPAN &&
+                    (uint64_t)(prev->count + 1) * len * sv <= g_group_cap)
+                    prev->count++;
+                else
+                    jobs[njobs++] = (struct slicejob){j, s, 1, len, off};
+                off += cb;
                 j->nchunks++;
             }
             j->payload = off - TVPAL_RECORD_HEADER_BYTES;
@@ -740,25 +810,15 @@ int main(int argc, char **argv)
 #endif
             const struct slicejob *jb = &jobs[i];
             const struct shardjob *j = jb->sj;
-            const size_t nvox = (size_t)j->h.slice_w * j->h.slice_h;
-            unsigned char *chunk = j->rec + jb->off;
-            struct tvpal_swinfo info;
-            gather(&o, ring, j->axis, jb->slice, t, jb->len, samples[tid]);
-            tvpal_swenc_encode(enc[tid], samples[tid], nvox, jb->len,
-                               chunk + TVPAL_CHUNK_HEADER_BYTES +
-                                   (size_t)jb->len * 1024,
-                               tables[tid], &info);
-            tvpal_store_f32le(tables[tid], chunk + TVPAL_CHUNK_HEADER_BYTES,
-                              (size_t)jb->len * 256);
-            struct tvpal_chunk_header ch = {
-                .slice = jb->slice, .wstart = t, .wlen = jb->len,
-                .w = j->h.slice_w, .h = j->h.slice_h, .used = info.used};
-            memcpy(ch.bits, info.bits, sizeof ch.bits);
-            tvpal_chunk_header_encode(&ch, chunk);
-            /* Zero the index padding so output bytes are deterministic. */
-            size_t ib = TVPAL_CHUNK_HEADER_BYTES + (size_t)jb->len * 1024 + nvox;
-            size_t cb = tvpal_chunk_bytes(jb->len, j->h.slice_w, j->h.slice_h);
-            memset(chunk + ib, 0, cb - ib);
+            const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
+            const uint64_t cb = tvpal_chunk_bytes(jb->len, j->h.slice_w,
+                                                  j->h.slice_h);
+            gather(&o, ring, jb, t, samples[tid]);
+            for (uint32_t g = 0; g < jb->count; g++)
+                encode_chunk(enc[tid], tables[tid],
+                             samples[tid] + (size_t)g * jb->len * sv, j,
+                             jb->slice + g * N, t, jb->len,
+                             j->rec + jb->off + g * cb);
         }
         for (uint32_t q = 0; q < nshard; q++) {
             struct shardjob *j = &sj[q];
