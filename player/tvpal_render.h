@@ -1,0 +1,51 @@
+/* tvpal_render.h: what a renderer draws in one frame, and the CPU
+ * reference renderer every other renderer is tested against.
+ *
+ * A frame is the slices of one axis, in drawing order (back to front),
+ * each an 8-bit index image with its palette for this frame:
+ * palette[i] = opacity-corrected, premultiplied TF(decoder[t][i]).  The
+ * renderer emulates a paletted texture: it fetches the four texels nearest
+ * the sample point (texel centres at (i + 0.5) / w, clamped to the edge),
+ * looks each index up in the palette and interpolates the RGBA bilinearly
+ * (after the lookup: interpolating indices would mix unrelated values), then
+ * blends "over" back to front: dst = src + (1 - src.a) dst.
+ */
+#ifndef TVPAL_RENDER_H
+#define TVPAL_RENDER_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "tvpal_tf.h"
+#include "tvpal_view.h"
+
+struct tvpal_frame_slice {
+    uint32_t slice;           /* index along the view's axis */
+    const uint8_t *idx;       /* w * h indices, a fastest */
+    const float *palette;     /* 256 x RGBA, premultiplied, corrected */
+};
+
+struct tvpal_frame {
+    const struct tvpal_view *view;
+    uint32_t w, h;                        /* slice size */
+    uint32_t count;                       /* slices to draw */
+    const struct tvpal_frame_slice *sl;   /* in drawing order */
+};
+
+/* palette[i] for i < 256 from the decoded values row[256] of one slice at
+ * one timestep.  Returns 1 when every entry is fully transparent (the slice
+ * can be skipped), else 0. */
+int tvpal_palette_build(const struct tvpal_tf *tf, const float *row,
+                        double opacity_exponent, double opacity_scale,
+                        float *palette);
+
+/* Reference renderer, in double precision: writes width * height RGBA
+ * (premultiplied) doubles, row 0 at the bottom (GL convention). */
+void tvpal_render_ref(const struct tvpal_frame *f, double *rgba);
+
+/* The same with interpolation of indices instead of colours (what a
+ * dependent texture lookup would do; for tests and demonstrations). */
+void tvpal_render_ref_index_interp(const struct tvpal_frame *f,
+                                   double *rgba);
+
+#endif

@@ -1,0 +1,71 @@
+/* tvpal_view.c: view geometry (see tvpal_view.h). */
+#include "tvpal_view.h"
+
+#include <math.h>
+#include <string.h>
+
+void tvpal_view_setup(struct tvpal_view *v)
+{
+    const double a = v->ax_deg * M_PI / 180.0, b = v->ay_deg * M_PI / 180.0;
+    const double ca = cos(a), sa = sin(a), cb = cos(b), sb = sin(b);
+    /* R = Ry(b) Rx(a) */
+    const double rx[3][3] = {{1, 0, 0}, {0, ca, -sa}, {0, sa, ca}};
+    const double ry[3][3] = {{cb, 0, sb}, {0, 1, 0}, {-sb, 0, cb}};
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++) {
+            double s = 0;
+            for (int k = 0; k < 3; k++)
+                s += ry[i][k] * rx[k][j];
+            v->rot[i][j] = s;
+        }
+    uint32_t nmax = v->dims[0];
+    for (int i = 1; i < 3; i++)
+        nmax = v->dims[i] > nmax ? v->dims[i] : nmax;
+    for (int i = 0; i < 3; i++)
+        v->half[i] = (double)v->dims[i] / nmax;
+    /* View direction in object space: R^T (0, 0, -1). */
+    double d[3] = {-v->rot[2][0], -v->rot[2][1], -v->rot[2][2]};
+    unsigned ax = 0;
+    for (unsigned i = 1; i < 3; i++)
+        if (fabs(d[i]) > fabs(d[ax]))
+            ax = i;
+    v->axis = ax;
+    v->dcos = fabs(d[ax]);
+    /* Farther slices first: larger coordinate along d is farther. */
+    v->descending = d[ax] > 0;
+    double zoom = v->zoom > 0 ? v->zoom : 1.0;
+    double aspect = (double)v->width / (double)v->height;
+    /* The box's bounding sphere (radius |half|) fits the shorter side. */
+    double r = sqrt(v->half[0] * v->half[0] + v->half[1] * v->half[1] +
+                    v->half[2] * v->half[2]);
+    v->sx = r / zoom * (aspect > 1 ? aspect : 1.0);
+    v->sy = r / zoom / (aspect < 1 ? aspect : 1.0);
+}
+
+void tvpal_view_slice_corner(const struct tvpal_view *v, uint32_t s,
+                             unsigned c, double eye[3])
+{
+    double p[3];
+    const unsigned ax = v->axis;
+    const unsigned ua = ax == 0 ? 1 : 0, ub = ax == 2 ? 1 : 2;
+    p[ax] = ((s + 0.5) / v->dims[ax] * 2.0 - 1.0) * v->half[ax];
+    p[ua] = (c == 1 || c == 2) ? v->half[ua] : -v->half[ua];
+    p[ub] = (c >= 2) ? v->half[ub] : -v->half[ub];
+    for (int i = 0; i < 3; i++)
+        eye[i] = v->rot[i][0] * p[0] + v->rot[i][1] * p[1] +
+                 v->rot[i][2] * p[2];
+}
+
+void tvpal_view_eye_to_pixel(const struct tvpal_view *v, double ex, double ey,
+                             double *px, double *py)
+{
+    *px = (ex / v->sx + 1.0) * 0.5 * v->width;
+    *py = (ey / v->sy + 1.0) * 0.5 * v->height;
+}
+
+void tvpal_view_pixel_to_eye(const struct tvpal_view *v, double px, double py,
+                             double *ex, double *ey)
+{
+    *ex = (px / v->width * 2.0 - 1.0) * v->sx;
+    *ey = (py / v->height * 2.0 - 1.0) * v->sy;
+}

@@ -1,0 +1,53 @@
+/* tvpal_view.h: view geometry shared by every renderer (GL-free).
+ *
+ * Object space: the volume is the box centred at the origin whose sides are
+ * proportional to dims, the longest one spanning [-1, 1]; voxel (i, j, k)
+ * has its centre at ((i + 0.5) / nx - 0.5) * 2 sx, ... with sx = nx / nmax.
+ * The view rotates the volume by ax degrees about x, then ay about y, and
+ * projects orthographically along -z onto [-1, 1]^2 / zoom, widened for
+ * the image aspect ratio.  Rays go along -z in eye space.
+ *
+ * Slices of the axis most orthogonal to the view are drawn back to front;
+ * the TF opacity (per voxel spacing) is corrected for the distance a ray
+ * travels between two slices: alpha' = 1 - (1 - alpha)^(1 / |cos theta|).
+ */
+#ifndef TVPAL_VIEW_H
+#define TVPAL_VIEW_H
+
+#include <stdint.h>
+
+struct tvpal_view {
+    uint32_t dims[3];
+    unsigned width, height;      /* image size in pixels */
+    double ax_deg, ay_deg, zoom;
+    /* derived by tvpal_view_setup */
+    double rot[3][3];            /* object -> eye */
+    double half[3];              /* half extents of the box per axis */
+    double sx, sy;               /* eye units per NDC unit in x and y */
+    unsigned axis;               /* slice axis */
+    int descending;              /* draw slices from high to low index */
+    double dcos;                 /* |view direction . axis| */
+};
+
+/* Fills the derived fields.  zoom > 0. */
+void tvpal_view_setup(struct tvpal_view *v);
+
+/* Object-space corner c (0..3: (0,0), (1,0), (1,1), (0,1) in slice (a, b)
+ * coordinates) of slice s of the view's axis, and its eye-space position. */
+void tvpal_view_slice_corner(const struct tvpal_view *v, uint32_t s,
+                             unsigned c, double eye[3]);
+
+/* Eye-space (x, y) -> pixel coordinates (continuous; pixel centres at
+ * integer + 0.5), and back. */
+void tvpal_view_eye_to_pixel(const struct tvpal_view *v, double ex, double ey,
+                             double *px, double *py);
+void tvpal_view_pixel_to_eye(const struct tvpal_view *v, double px, double py,
+                             double *ex, double *ey);
+
+/* Opacity correction exponent 1 / |cos theta| for the view. */
+static inline double tvpal_view_opacity_exponent(const struct tvpal_view *v)
+{
+    return 1.0 / v->dcos;
+}
+
+#endif

@@ -1,0 +1,87 @@
+/* test-tf: transfer functions: the text format (values normalized or in
+ * data units), its errors (named by line and field), ParaView preset import
+ * with its domain rescaled to the data, evaluation, the default from a
+ * histogram, and palette construction (premultiplied, opacity-corrected,
+ * fully transparent slices detected). */
+#include "tvpal_render.h"
+#include "tvpal_test.h"
+#include "tvpal_tf.h"
+
+#include <string.h>
+
+int main(void)
+{
+    struct tvpal_tf tf;
+    struct tvpal_diag d = {{0}};
+    float c[4];
+    const char *t1 = "# comment\nname ramp\ndomain normalized\n"
+                     "0   0 0 0 0\n0.5 1 0 0 0.5  # mid\n1   1 1 1 1\n";
+    CHECK(tvpal_tf_parse_text(t1, 10, 20, &tf, &d) == 0, "%s", d.msg);
+    CHECK(tf.npoints == 3 && tf.value[1] == 15 && !strcmp(tf.name, "ramp"),
+          "normalized values mapped to [10,20]");
+    tvpal_tf_eval(&tf, 12.5, c);
+    CHECK(fabs(c[0] - 0.5) < 1e-6 && fabs(c[3] - 0.25) < 1e-6, "interp %g %g",
+          c[0], c[3]);
+    tvpal_tf_eval(&tf, -100, c);
+    CHECK(c[3] == 0, "clamped below");
+    tvpal_tf_eval(&tf, 100, c);
+    CHECK(c[3] == 1, "clamped above");
+    CHECK(tvpal_tf_parse_text("domain data\n5 1 1 1 1\n7 0 0 0 0\n", 0, 1,
+                              &tf, &d) == 0 && tf.value[1] == 7, "data domain");
+    static const struct { const char *text, *msg; } bad[] = {
+        {"0 0 0 0 0\n", "line 1: expected \"domain"},
+        {"domain weird\n", "line 1: domain \"weird\""},
+        {"domain data\n1 0 0 0\n", "line 2: expected 5 numbers"},
+        {"domain data\n1 0 0 0 0 9\n", "line 2: expected 5 numbers"},
+        {"domain data\n1 0 2 0 0\n", "line 2: g = 2"},
+        {"domain data\n1 0 0 0 0\n0 0 0 0 0\n", "line 3: value 0 is below"},
+        {"domain data\n", "no points"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        d.msg[0] = 0;
+        CHECK(tvpal_tf_parse_text(bad[i].text, 0, 1, &tf, &d) == TVPAL_E_FORMAT &&
+              strstr(d.msg, bad[i].msg), "bad %zu: got \"%s\", want \"%s\"", i,
+              d.msg, bad[i].msg);
+    }
+    const char *pv = "[{\"ColorSpace\": \"RGB\", \"Name\": \"Cool to Warm\", "
+                     "\"RGBPoints\": [-1, 0.2, 0.3, 0.8, 0, 0.9, 0.9, 0.9, 1, "
+                     "0.7, 0.0, 0.1], \"Points\": [-1, 0, 0.5, 0, 1, 1, 0.5, 0]}]";
+    CHECK(tvpal_tf_parse_paraview(pv, 100, 200, &tf, &d) == 0, "%s", d.msg);
+    CHECK(tf.npoints == 3 && tf.value[0] == 100 && tf.value[1] == 150 &&
+          tf.value[2] == 200 && !strcmp(tf.name, "Cool to Warm"),
+          "paraview domain rescaled");
+    tvpal_tf_eval(&tf, 150, c);
+    CHECK(fabs(c[3] - 0.5) < 1e-6 && fabs(c[0] - 0.9) < 1e-6, "paraview "
+          "opacity %g", c[3]);
+    CHECK(tvpal_tf_parse_paraview("{\"Name\": \"x\"}", 0, 1, &tf, &d) ==
+              TVPAL_E_FORMAT && strstr(d.msg, "RGBPoints: missing"), "%s", d.msg);
+    CHECK(tvpal_tf_parse_paraview("{\"RGBPoints\": [0, 1, 1]}", 0, 1, &tf, &d)
+              == TVPAL_E_FORMAT, "short RGBPoints");
+    uint64_t hist[64] = {0};
+    hist[3] = 1000000;
+    for (int i = 0; i < 64; i++)
+        hist[i] += 10 + i;
+    tvpal_tf_default(0, 64, hist, 64, &tf);
+    tvpal_tf_eval(&tf, 3.5, c);
+    CHECK(c[3] < 0.02, "background bin transparent (%g)", c[3]);
+    tvpal_tf_eval(&tf, 50.5, c);
+    CHECK(c[3] > 0.1, "rare values visible (%g)", c[3]);
+
+    /* Palettes. */
+    float row[256], pal[1024];
+    for (int i = 0; i < 256; i++)
+        row[i] = (float)i / 255.0f;
+    tvpal_tf_parse_text(t1, 0, 1, &tf, &d);
+    CHECK(tvpal_palette_build(&tf, row, 1.0, 1.0, pal) == 0, "not clear");
+    tvpal_tf_eval(&tf, row[200], c);
+    CHECK(fabs(pal[4 * 200 + 3] - c[3]) < 1e-6 &&
+          fabs(pal[4 * 200] - c[0] * c[3]) < 1e-6, "premultiplied");
+    tvpal_palette_build(&tf, row, 2.0, 1.0, pal);
+    CHECK(fabs(pal[4 * 200 + 3] - (1 - (1 - c[3]) * (1 - c[3]))) < 1e-6,
+          "opacity correction for twice the distance");
+    for (int i = 0; i < 256; i++)
+        row[i] = -5.0f;
+    CHECK(tvpal_palette_build(&tf, row, 1.0, 1.0, pal) == 1,
+          "transparent slice detected");
+    return tt_done("test-tf");
+}
