@@ -1,12 +1,12 @@
 /* tvpal_crc32c.c: table-driven CRC-32C, slicing by 8 (portable C, ~1 byte per
- * cycle).  Tables are built once, lazily; building them twice concurrently is
- * harmless because both threads write identical values. */
+ * cycle).  Tables are built once, on first use, under pthread_once. */
 #include "tvpal_crc32c.h"
 
+#include <pthread.h>
 #include <string.h>
 
 static uint32_t crc_table[8][256];
-static volatile int crc_ready;
+static pthread_once_t crc_once = PTHREAD_ONCE_INIT;
 
 static void crc_init(void)
 {
@@ -20,14 +20,12 @@ static void crc_init(void)
         for (int s = 1; s < 8; s++)
             crc_table[s][i] = (crc_table[s - 1][i] >> 8) ^
                               crc_table[0][crc_table[s - 1][i] & 0xFF];
-    crc_ready = 1;
 }
 
 uint32_t tvpal_crc32c(uint32_t crc, const void *data, size_t len)
 {
     const unsigned char *p = data;
-    if (!crc_ready)
-        crc_init();
+    pthread_once(&crc_once, crc_init);
     crc = ~crc;
     while (len && ((uintptr_t)p & 7)) {
         crc = (crc >> 8) ^ crc_table[0][(crc ^ *p++) & 0xFF];

@@ -1,8 +1,9 @@
 /* tvpal_error.h: the one error convention of libtvpal.
  *
  * Every fallible library function returns int: 0 on success or a negative
- * TVPAL_E_* code.  Library code never prints, never exits and never sets
- * errno; the programs turn codes into messages with tvpal_strerror().  Where a
+ * TVPAL_E_* code.  Library code never prints, never exits and does not
+ * report errors through errno (its value after a call is unspecified); the
+ * programs turn codes into messages with tvpal_strerror().  Where a
  * code alone cannot say what was wrong (which header field, which record),
  * functions take an optional struct tvpal_diag into which they write a short
  * detail; the caller owns it and may pass NULL.

@@ -163,6 +163,7 @@ int tvpal_shard_header_decode(const unsigned char *b,
                               "header: table_format %u, expected 0 (float32)",
                               h->table_format);
     if (h->index_offset % TVPAL_ALIGN || h->index_offset < TVPAL_ALIGN ||
+        h->index_offset > ((uint64_t)1 << 62) ||
         h->file_bytes != h->index_offset + tvpal_round_up(
                              (uint64_t)h->steps * TVPAL_INDEX_ENTRY_BYTES,
                              TVPAL_ALIGN))

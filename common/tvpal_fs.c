@@ -13,6 +13,8 @@
 
 int tvpal_mkdirs(const char *path)
 {
+    if (!path[0])
+        return TVPAL_E_INVAL;
     char *p = strdup(path);
     if (!p)
         return TVPAL_E_NOMEM;

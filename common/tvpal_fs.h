@@ -6,7 +6,8 @@
 
 #include "tvpal_error.h"
 
-/* mkdir -p (mode 0755).  0 or TVPAL_E_WRITE. */
+/* mkdir -p (mode 0755).  0, TVPAL_E_INVAL (empty path), TVPAL_E_NOMEM or
+ * TVPAL_E_WRITE. */
 int tvpal_mkdirs(const char *path);
 
 /* Removes a directory tree (files, subdirectories).  Missing is fine. */

@@ -203,6 +203,22 @@ int tvpal_manifest_load(const char *path, struct tvpal_manifest *m,
                                 "required key \"%s\" is missing", req[i].name);
             goto out;
         }
+    {
+        uint32_t mind = m->dims[0] < m->dims[1] ? m->dims[0] : m->dims[1];
+        mind = m->dims[2] < mind ? m->dims[2] : mind;
+        if (m->nodes > mind) {
+            rc = tvpal_diag_set(diag, TVPAL_E_MANIFEST,
+                                "nodes = %u exceeds the smallest dimension %u",
+                                m->nodes, mind);
+            goto out;
+        }
+        if (!m->single_file && m->nsources && m->nsources != m->steps) {
+            rc = tvpal_diag_set(diag, TVPAL_E_MANIFEST,
+                                "%zu source lines for %u steps", m->nsources,
+                                m->steps);
+            goto out;
+        }
+    }
 out:
     free(line);
     fclose(f);

@@ -39,7 +39,9 @@ void tvpal_manifest_clear(struct tvpal_manifest *m);
 /* Renders m as text into a malloc'ed string (*out owned by the caller). */
 int tvpal_manifest_format(const struct tvpal_manifest *m, char **out);
 
-/* Parses path into m (cleared first); diag names the line or key at fault. */
+/* Parses path into m, which must hold nothing owned (zeroed or cleared): it
+ * is overwritten.  diag names the line or key at fault; on error m holds
+ * nothing. */
 int tvpal_manifest_load(const char *path, struct tvpal_manifest *m,
                         struct tvpal_diag *diag);
 

@@ -104,6 +104,8 @@ int tvpal_shardw_resume(struct tvpal_shardw **out, const char *path,
     struct tvpal_shardw *w;
     unsigned char *buf = NULL;
     uint64_t cap = 0;
+    if (steps_done > h->steps)
+        return TVPAL_E_INVAL;
     int rc = shardw_alloc(&w, h);
     if (rc < 0)
         return rc;
@@ -279,13 +281,14 @@ int tvpal_shard_open(struct tvpal_shard **out, const char *path,
     if (!s)
         return TVPAL_E_NOMEM;
     s->fd = open(path, O_RDONLY | O_CLOEXEC);
+    int open_errno = errno;
     s->path = strdup(path);
     if (!s->path) {
         rc = TVPAL_E_NOMEM;
         goto err;
     }
     if (s->fd < 0) {
-        rc = tvpal_diag_set(diag, TVPAL_E_OPEN, "%s", strerror(errno));
+        rc = tvpal_diag_set(diag, TVPAL_E_OPEN, "%s", strerror(open_errno));
         goto err;
     }
     struct stat st;
@@ -419,6 +422,7 @@ int tvpal_shard_read_record(struct tvpal_shard *s, uint32_t step,
 
 struct slab_slice {
     uint32_t wstart, wlen;  /* loaded window; wlen 0 = nothing loaded */
+    uint32_t gen;           /* windows installed so far */
     float *table;           /* window * 256 */
     uint8_t *idx;           /* w * h */
 };
@@ -501,6 +505,7 @@ void tvpal_slab_apply(struct tvpal_slab *s, const unsigned char *rec,
         struct slab_slice *sl = &s->sl[c.h.slice - h->slice_begin];
         sl->wstart = c.h.wstart;
         sl->wlen = c.h.wlen;
+        sl->gen++;
         tvpal_load_f32le(c.table, sl->table, (size_t)c.h.wlen * 256);
         memcpy(sl->idx, c.indices, nvox);
     }
@@ -534,7 +539,22 @@ const float *tvpal_slab_row(const struct tvpal_slab *s, uint32_t k,
                             uint32_t t)
 {
     const struct slab_slice *sl = &s->sl[k];
-    return sl->table + (size_t)(t - sl->wstart) * 256;
+    if (!sl->wlen)
+        return NULL;
+    uint32_t j = t < sl->wstart ? 0 : t - sl->wstart;
+    if (j >= sl->wlen)
+        j = sl->wlen - 1;
+    return sl->table + (size_t)j * 256;
+}
+
+uint32_t tvpal_slab_generation(const struct tvpal_slab *s, uint32_t k)
+{
+    return s->sl[k].gen;
+}
+
+struct tvpal_shard *tvpal_slab_shard(const struct tvpal_slab *s)
+{
+    return s->sh;
 }
 
 void tvpal_slab_scatter(const struct tvpal_slab *s, uint32_t t, float *vol)
@@ -546,6 +566,8 @@ void tvpal_slab_scatter(const struct tvpal_slab *s, uint32_t t, float *vol)
         const uint32_t sidx = h->slice_begin + k;
         const float *row = tvpal_slab_row(s, k, t);
         const uint8_t *idx = s->sl[k].idx;
+        if (!row)
+            continue;
         for (uint32_t b = 0; b < hh; b++)
             for (uint32_t a = 0; a < w; a++) {
                 size_t v;

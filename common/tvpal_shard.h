@@ -104,10 +104,20 @@ int tvpal_slab_seek(struct tvpal_slab *slab, uint32_t t,
                     struct tvpal_diag *diag);
 
 /* After a seek to t: the indices of local slice k (w*h bytes) and the 256
- * decoded values of its palette at time t. */
+ * decoded values of its palette at time t.  When the slice's window does not
+ * hold t (a record failed to load), the row nearest t of the window it
+ * holds is returned: the last good data stays on screen.  NULL when the
+ * slice never got a window. */
 const uint8_t *tvpal_slab_indices(const struct tvpal_slab *slab, uint32_t k);
 const float *tvpal_slab_row(const struct tvpal_slab *slab, uint32_t k,
                             uint32_t t);
+
+/* Incremented each time slice k gets a new window (its indices change):
+ * renderers upload a slice's texture only when this moves. */
+uint32_t tvpal_slab_generation(const struct tvpal_slab *slab, uint32_t k);
+
+/* The shard a slab decodes. */
+struct tvpal_shard *tvpal_slab_shard(const struct tvpal_slab *slab);
 
 /* Writes the slab's decoded voxels at time t (after a seek to t) into vol, a
  * full nx*ny*nz volume, x fastest. */

@@ -93,7 +93,8 @@ int main(int argc, char **argv)
     rc = tvpal_volreader_read(vr, t, vol, &diag);
     if (rc < 0) {
         fprintf(stderr, PROG ": %s\n", diag.msg);
-        status = TVPAL_EXIT_USAGE;
+        /* A failing device is a failure (1); corrupt data is bad input. */
+        status = rc == TVPAL_E_READ ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;
         goto out;
     }
     unsigned char *bytes = (unsigned char *)vol; /* convert in place */

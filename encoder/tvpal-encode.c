@@ -194,18 +194,19 @@ static void load_step(const struct opts *o, uint32_t t, void *raw, float *dst,
     const char *path = o->steps_single ? o->inputs[0] : o->inputs[t];
     off_t off = o->steps_single ? (off_t)t * (off_t)bytes : 0;
     int fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (fd < 0)
-        die_input("%s: cannot open: %s", path, strerror(errno));
+    if (fd < 0) /* maybe transient (NFS, permissions): keep the partial */
+        die_fail("%s: cannot open: %s (rerun to resume)", path,
+                 strerror(errno));
     /* Reading, conversion and statistics in parallel over contiguous
      * chunks (each thread reads its own part: the page-cache copy is as
      * costly as the conversion); the first bad element is the lowest index
      * any chunk reports. */
     const int stats = t >= st->loaded;
-    size_t bad = SIZE_MAX, nrep = 0;
+    size_t nrep = 0, bad = SIZE_MAX;
     int rc_all = 0, read_err = 0;
     double lo = st->vmin, hi = st->vmax;
 #ifdef _OPENMP
-#pragma omp parallel reduction(min : lo, bad) reduction(max : hi) reduction(+ : nrep) reduction(min : rc_all)
+#pragma omp parallel reduction(min : lo) reduction(max : hi) reduction(+ : nrep)
 #endif
     {
         int id = 0, nt = 1;
@@ -237,12 +238,16 @@ static void load_step(const struct opts *o, uint32_t t, void *raw, float *dst,
                                    o->big_endian, b - a, dst + a,
                                    o->has_nan_as ? &o->nan_as : NULL, &mybad,
                                    &myrep);
-        if (rc == TVPAL_E_READ) {
-            rc_all = rc < rc_all ? rc : rc_all;
-        } else if (rc < 0) {
-            rc_all = rc < rc_all ? rc : rc_all;
-            bad = a + mybad;
-        } else if (stats) {
+        if (rc < 0 && rc != TVPAL_E_READ) {
+            /* The data error at the lowest index wins, with its code. */
+#ifdef _OPENMP
+#pragma omp critical(tvpal_bad)
+#endif
+            if (a + mybad < bad) {
+                bad = a + mybad;
+                rc_all = rc;
+            }
+        } else if (rc == 0 && stats) {
             uint64_t *fine = g_fine_local[id];
             nrep += myrep;
             for (size_t i = a; i < b; i++) {
@@ -254,10 +259,12 @@ static void load_step(const struct opts *o, uint32_t t, void *raw, float *dst,
         }
     }
     close(fd);
+    if (read_err > 0)
+        die_fail("%s: timestep %u: %s (rerun to resume)", path, t,
+                 strerror(read_err));
     if (read_err)
-        die_input("%s: timestep %u: %s", path, t,
-                  read_err > 0 ? strerror(read_err)
-                               : "file shrank while encoding (truncated)");
+        die_input("%s: timestep %u: file shrank while encoding (truncated)",
+                  path, t);
     if (rc_all < 0) {
         size_t x = bad % o->dims[0], y = bad / o->dims[0] % o->dims[1],
                z = bad / o->dims[0] / o->dims[1];
@@ -310,6 +317,20 @@ static char *fingerprint(const struct opts *o)
     return buf;
 }
 
+/* The checkpoint keeps a hash of the fingerprint, not the fingerprint (which
+ * names every input and would make each checkpoint O(T)): FNV-1a, 64 bits,
+ * plus the length.  Returns a static string. */
+static const char *fp_hash(const char *fp)
+{
+    static char out[40];
+    uint64_t h = 0xcbf29ce484222325ull;
+    size_t n = 0;
+    for (const unsigned char *p = (const unsigned char *)fp; *p; p++, n++)
+        h = (h ^ *p) * 0x100000001b3ull;
+    snprintf(out, sizeof out, "%016llx-%zu", (unsigned long long)h, n);
+    return out;
+}
+
 static int checkpoint_save(const char *dir, const char *fp, uint32_t done,
                            const struct stats *st)
 {
@@ -319,8 +340,8 @@ static int checkpoint_save(const char *dir, const char *fp, uint32_t done,
     if (!f)
         return TVPAL_E_NOMEM;
     fprintf(f, "fingerprint %s\ndone %u\nloaded %u\nmin %a\nmax %a\n"
-            "nonfinite %llu\n", fp, done, st->loaded, st->vmin, st->vmax,
-            (unsigned long long)st->nonfinite);
+            "nonfinite %llu\n", fp_hash(fp), done, st->loaded, st->vmin,
+            st->vmax, (unsigned long long)st->nonfinite);
     for (uint32_t b = 0; b < FINE_BINS; b++)
         if (st->fine[b])
             fprintf(f, "bin %u %llu\n", b, (unsigned long long)st->fine[b]);
@@ -336,7 +357,7 @@ static int checkpoint_save(const char *dir, const char *fp, uint32_t done,
 
 /* Returns steps done (0 when there is nothing usable to resume). */
 static uint32_t checkpoint_load(const char *dir, const char *fp,
-                                struct stats *st)
+                                uint32_t T_total, struct stats *st)
 {
     char *path = NULL, *text = NULL;
     uint32_t done = 0;
@@ -349,7 +370,8 @@ static uint32_t checkpoint_load(const char *dir, const char *fp,
     free(path);
     char *save = NULL;
     char *line = strtok_r(text, "\n", &save);
-    if (!line || strncmp(line, "fingerprint ", 12) || strcmp(line + 12, fp))
+    if (!line || strncmp(line, "fingerprint ", 12) ||
+        strcmp(line + 12, fp_hash(fp)))
         goto out;
     unsigned d = 0, l = 0;
     unsigned long long nf = 0;
@@ -369,6 +391,8 @@ static uint32_t checkpoint_load(const char *dir, const char *fp,
             goto out;
         st->fine[b] = c;
     }
+    if (d > T_total || l > T_total || l < d)
+        goto out;
     st->vmin = lo;
     st->vmax = hi;
     st->nonfinite = nf;
@@ -578,6 +602,9 @@ int main(int argc, char **argv)
     const uint64_t step_bytes = (uint64_t)g_nvox * esz;
     const uint32_t T = o.steps_single ? o.steps_single : (uint32_t)o.ninputs;
     const uint32_t N = o.window;
+    if (step_bytes > (uint64_t)INT64_MAX / T)
+        die_usage("--steps %u of %ux%ux%u %s: total size overflows", T,
+                  o.dims[0], o.dims[1], o.dims[2], tvpal_type_name(o.type));
 
     /* Inputs: absolute paths (the manifest must name them from anywhere),
      * regular readable files of the expected size. */
@@ -621,15 +648,36 @@ int main(int argc, char **argv)
         die_usage("%s: output already exists (use --force to replace it)",
                   o.outdir);
     {
-        /* Never replace a directory holding an input (inputs stay intact). */
-        char *out_abs = realpath(o.outdir, NULL);
-        if (out_abs) {
-            size_t n = strlen(out_abs);
-            for (int i = 0; i < o.ninputs; i++)
-                if (!strncmp(o.inputs[i], out_abs, n) && o.inputs[i][n] == '/')
-                    die_usage("%s: input %s lies inside the output directory; "
-                              "refusing to replace it", o.outdir, o.inputs[i]);
-            free(out_abs);
+        /* Inputs stay intact: no input may be, or lie inside, the output,
+         * its .partial or its .old (all of which may be removed). */
+        static const char *const sfx[] = {"", ".partial", ".old"};
+        for (int k = 0; k < 3; k++) {
+            char *p = NULL, *abs_p;
+            if (asprintf(&p, "%s%s", o.outdir, sfx[k]) < 0)
+                die_fail("out of memory");
+            if ((abs_p = realpath(p, NULL))) {
+                size_t n = strlen(abs_p);
+                for (int i = 0; i < o.ninputs; i++)
+                    if (!strncmp(o.inputs[i], abs_p, n) &&
+                        (o.inputs[i][n] == '/' || o.inputs[i][n] == 0))
+                        die_usage("%s: input %s is or lies inside %s; "
+                                  "refusing to replace it", o.outdir,
+                                  o.inputs[i], p);
+                free(abs_p);
+            }
+            free(p);
+        }
+        /* --force replaces only a tvpal dataset, never another file. */
+        if (tvpal_exists(o.outdir)) {
+            char *mp = NULL;
+            struct tvpal_manifest old;
+            if (asprintf(&mp, "%s/manifest.txt", o.outdir) < 0)
+                die_fail("out of memory");
+            if (tvpal_manifest_load(mp, &old, NULL) < 0)
+                die_usage("%s: exists and is not a tvpal dataset (no valid "
+                          "manifest.txt); refusing to replace it", o.outdir);
+            tvpal_manifest_clear(&old);
+            free(mp);
         }
     }
 
@@ -640,7 +688,7 @@ int main(int argc, char **argv)
         die_fail("out of memory");
     uint32_t start = 0;
     if (tvpal_exists(partial)) {
-        start = checkpoint_load(partial, fp, &st);
+        start = checkpoint_load(partial, fp, T, &st);
         if (start == 0) {
             if (tvpal_rmtree(partial) < 0)
                 die_usage("%s: cannot remove stale partial output", partial);
@@ -728,7 +776,9 @@ int main(int argc, char **argv)
 #endif
     g_nthreads = nthreads;
     g_fine_local = calloc((size_t)nthreads, sizeof *g_fine_local);
-    for (int i = 0; g_fine_local && i < nthreads; i++)
+    if (!g_fine_local)
+        die_fail("out of memory");
+    for (int i = 0; i < nthreads; i++)
         if (!(g_fine_local[i] = calloc(FINE_BINS, sizeof(uint64_t))))
             die_fail("out of memory");
     /* Samples per thread: one slice-window, or a group of x slices up to
@@ -829,6 +879,25 @@ int main(int argc, char **argv)
                 msg("%s/node-%u/axis-%c.tvps: %s: %s", partial, j->rank,
                     "xyz"[j->axis], tvpal_strerror(rc), strerror(errno));
                 return TVPAL_EXIT_FAIL;
+            }
+        }
+        if (t == 0 && T > 1) {
+            /* Record 0 holds every slice; later records hold one phase
+             * (at most ceil(n / N) slices): give the rest back. */
+            for (uint32_t q = 0; q < nshard; q++) {
+                struct shardjob *j = &sj[q];
+                uint64_t cap = tvpal_round_up(
+                    TVPAL_RECORD_HEADER_BYTES +
+                        (uint64_t)((j->h.slice_count + N - 1) / N + 1) *
+                            tvpal_chunk_bytes(N, j->h.slice_w, j->h.slice_h),
+                    TVPAL_ALIGN);
+                if (cap < j->rec_cap) {
+                    unsigned char *nb = realloc(j->rec, cap);
+                    if (nb) {
+                        j->rec = nb;
+                        j->rec_cap = cap;
+                    }
+                }
             }
         }
         if (checkpoint_save(partial, fp, t + 1, &st) < 0) {

@@ -151,7 +151,8 @@ int main(int argc, char **argv)
                    "ratio %.3f)\n", "xyz"[a],
                    (unsigned long long)ds->axis_bytes[a],
                    8.0 * (double)ds->axis_bytes[a] / vts,
-                   (double)m.source_bytes / (double)ds->axis_bytes[a]);
+                   vts * (double)tvpal_type_size(m.type) /
+                       (double)ds->axis_bytes[a]);
         tvpal_dataset_close(ds);
     }
     tvpal_manifest_clear(&m);

@@ -210,6 +210,9 @@ int main(int argc, char **argv)
     }
     const uint32_t T = m->steps;
     const size_t nvox = (size_t)m->dims[0] * m->dims[1] * m->dims[2];
+    /* Source size from dims, type and steps (not the manifest's
+     * informational source_bytes, which could be stale or edited). */
+    const uint64_t src_bytes = (uint64_t)nvox * T * tvpal_type_size(m->type);
     float *ref[2], *dec[3][2];
     void *raw = malloc(nvox * tvpal_type_size(m->type));
     struct tvpal_volreader *vr[3] = {0};
@@ -298,7 +301,7 @@ int main(int argc, char **argv)
         payload_bytes(m, a, &idx_b[a], &tab_b[a]);
     double idx_mean = (idx_b[0] + idx_b[1] + idx_b[2]) / 3.0;
     double tab_mean = (tab_b[0] + tab_b[1] + tab_b[2]) / 3.0;
-    double ratio = (double)m->source_bytes / bytes_axis;
+    double ratio = (double)src_bytes / bytes_axis;
 
     if (!quiet) {
         printf("dataset %s: %ux%ux%u %s, %u steps, window %u, %u node%s\n",
@@ -327,7 +330,7 @@ int main(int argc, char **argv)
             printf("%4c %9.3f %12.6g %12.6g %10.3g %14llu %8.3f %9.4f\n",
                    "xyz"[a], psnr_axis[a], rmse_axis[a], max_axis[a],
                    flick_axis[a], (unsigned long long)ds->axis_bytes[a],
-                   (double)m->source_bytes / (double)ds->axis_bytes[a],
+                   (double)src_bytes / (double)ds->axis_bytes[a],
                    8.0 * (double)ds->axis_bytes[a] / vts);
         printf("bits per voxel-timestep (one axis): %.4f = indices %.4f + "
                "tables %.4f + headers/padding %.4f\n", 8 * bytes_axis / vts,
@@ -372,7 +375,7 @@ int main(int argc, char **argv)
                 m->window, m->nodes);
         jnum(f, peak);
         fprintf(f, ",\n  \"source_bytes\": %llu,\n  \"axes\": {",
-                (unsigned long long)m->source_bytes);
+                (unsigned long long)src_bytes);
         for (unsigned a = 0; a < 3; a++) {
             fprintf(f, "%s\n    \"%c\": {\"psnr\": ", a ? "," : "", "xyz"[a]);
             jnum(f, psnr_axis[a]);
@@ -381,7 +384,7 @@ int main(int argc, char **argv)
                     "\"bpv\": %.6f, \"index_bpv\": %.6f, \"table_bpv\": %.6f}",
                     rmse_axis[a], max_axis[a], flick_axis[a],
                     (unsigned long long)ds->axis_bytes[a],
-                    (double)m->source_bytes / (double)ds->axis_bytes[a],
+                    (double)src_bytes / (double)ds->axis_bytes[a],
                     8.0 * (double)ds->axis_bytes[a] / vts, 8 * idx_b[a] / vts,
                     8 * tab_b[a] / vts);
         }

@@ -251,6 +251,7 @@ int main(int argc, char **argv)
         }
     }
     if (!field || !have_dims || !g.steps || (!dir && !single) ||
+        (dir && !*dir) || (single && !*single) ||
         optind != argc) {
         fprintf(stderr, PROG ": --field, --dims, --steps and -o DIR (or "
                 "--single FILE) are required (try --help)\n");
@@ -272,6 +273,11 @@ int main(int argc, char **argv)
                 strerror(errno));
         return TVPAL_EXIT_FAIL;
     }
+    /* At least 4 digits, more when needed, so that file names sort in time
+     * order (the encoder takes its inputs in argument order). */
+    int digits = 4;
+    for (uint32_t m = 10000; m <= g.steps - 1 && digits < 10; m *= 10)
+        digits++;
     size_t nvox = (size_t)g.dims[0] * g.dims[1] * g.dims[2];
     float *vol = malloc(nvox * sizeof *vol);
     if (!vol) {
@@ -298,10 +304,10 @@ int main(int argc, char **argv)
             continue;
         }
         char *path;
-        if (asprintf(&path, "%s/%s_t%04u.f32", dir, prefix, t) < 0 ||
+        if (asprintf(&path, "%s/%s_t%0*u.f32", dir, prefix, digits, t) < 0 ||
             tvpal_write_file_atomic(path, vol, nvox * 4) < 0) {
-            fprintf(stderr, PROG ": %s/%s_t%04u.f32: cannot write: %s\n", dir,
-                    prefix, t, strerror(errno));
+            fprintf(stderr, PROG ": %s/%s_t%0*u.f32: cannot write: %s\n", dir,
+                    prefix, digits, t, strerror(errno));
             return TVPAL_EXIT_FAIL;
         }
         free(path);

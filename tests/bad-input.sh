@@ -57,7 +57,11 @@ expect_exit 2 "output already exists" "$ENC" --dims $D -o "$O" $IN
 rm -rf "$O"
 # Unwritable output: a path below a regular file.
 expect_exit 2 "cannot create" "$ENC" --dims $D -o "$W/in/blobs_t0000.f32/sub" $IN
-expect_exit 2 "lies inside the output directory" "$ENC" --dims $D --force -o "$W/in" $IN
+expect_exit 2 "is or lies inside" "$ENC" --dims $D --force -o "$W/in" $IN
+expect_exit 2 "is or lies inside" "$ENC" --dims $D --force -o "$W/in/blobs_t0000.f32" $IN
+mkdir -p "$W/notds" && echo keep > "$W/notds/file"
+expect_exit 2 "notds: exists and is not a tvpal dataset" "$ENC" --dims $D --force -o "$W/notds" $IN
+[ "$(cat "$W/notds/file")" = keep ] && ok "non-dataset directory kept" || fail "notds replaced"
 [ "$(cat $IN | cksum)" = "$sum_before" ] && ok "inputs unchanged" || fail "inputs modified"
 # The other programs.
 expect_exit 2 "manifest.txt" "$DEC" "$W/nodataset" --step 0 -o "$W/x.f32"

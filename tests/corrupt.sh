@@ -55,7 +55,7 @@ fresh
 sed -i '/^window = /d' "$W/ds/manifest.txt"
 expect_exit 2 "manifest.txt.*\"window\" is missing" "$INFO" "$W/ds"
 fresh
-sed -i 's/^steps = 9/steps = 8/' "$W/ds/manifest.txt"
+sed -i 's/^window = 4/window = 2/' "$W/ds/manifest.txt"
 expect_exit 2 "does not match the manifest" "$DEC" "$W/ds" --step 0 -o "$W/x.f32"
 expect_exit 1 "corrupt" "$INFO" "$W/ds" --verify
 fresh

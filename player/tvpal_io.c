@@ -1,0 +1,158 @@
+/* tvpal_io.c: io_uring and pread read backends (see tvpal_io.h). */
+#include "tvpal_io.h"
+
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#ifdef HAVE_LIBURING
+#include <liburing.h>
+#endif
+
+struct tvpal_io {
+    enum tvpal_io_kind kind;
+    unsigned depth, inflight;
+    /* pread: FIFO of pending requests */
+    struct tvpal_io_req *q;
+    unsigned head;
+#ifdef HAVE_LIBURING
+    struct io_uring ring;
+    int ring_ok;
+#endif
+};
+
+int tvpal_io_create(struct tvpal_io **out, enum tvpal_io_kind kind,
+                    unsigned depth, struct tvpal_diag *diag)
+{
+    if (depth < 1)
+        depth = 1;
+    struct tvpal_io *io = calloc(1, sizeof *io);
+    if (!io)
+        return TVPAL_E_NOMEM;
+    io->kind = kind;
+    io->depth = depth;
+    io->q = calloc(depth, sizeof *io->q);
+    if (!io->q) {
+        free(io);
+        return TVPAL_E_NOMEM;
+    }
+    if (kind == TVPAL_IO_URING) {
+#ifdef HAVE_LIBURING
+        int rc = io_uring_queue_init(depth, &io->ring, 0);
+        if (rc < 0) {
+            free(io->q);
+            free(io);
+            return tvpal_diag_set(diag, TVPAL_E_SYS,
+                                  "io_uring is unavailable: %s",
+                                  strerror(-rc));
+        }
+        io->ring_ok = 1;
+#else
+        free(io->q);
+        free(io);
+        return tvpal_diag_set(diag, TVPAL_E_SYS,
+                              "built without liburing");
+#endif
+    }
+    *out = io;
+    return 0;
+}
+
+void tvpal_io_free(struct tvpal_io *io)
+{
+    if (!io)
+        return;
+#ifdef HAVE_LIBURING
+    if (io->ring_ok) {
+        /* Reap what is still in flight: the buffers may be freed next. */
+        while (io->inflight) {
+            struct io_uring_cqe *cqe;
+            if (io_uring_wait_cqe(&io->ring, &cqe) < 0)
+                break;
+            io_uring_cqe_seen(&io->ring, cqe);
+            io->inflight--;
+        }
+        io_uring_queue_exit(&io->ring);
+    }
+#endif
+    free(io->q);
+    free(io);
+}
+
+const char *tvpal_io_name(const struct tvpal_io *io)
+{
+    return io->kind == TVPAL_IO_URING ? "uring" : "pread";
+}
+
+unsigned tvpal_io_inflight(const struct tvpal_io *io)
+{
+    return io->inflight;
+}
+
+unsigned tvpal_io_depth(const struct tvpal_io *io)
+{
+    return io->depth;
+}
+
+int tvpal_io_submit(struct tvpal_io *io, const struct tvpal_io_req *r)
+{
+    if (io->inflight >= io->depth)
+        return TVPAL_E_INVAL;
+#ifdef HAVE_LIBURING
+    if (io->kind == TVPAL_IO_URING) {
+        struct io_uring_sqe *sqe = io_uring_get_sqe(&io->ring);
+        if (!sqe)
+            return TVPAL_E_INVAL;
+        io_uring_prep_read(sqe, r->fd, r->buf, (unsigned)r->len, r->off);
+        io_uring_sqe_set_data64(sqe, r->tag);
+        int rc = io_uring_submit(&io->ring);
+        if (rc < 0)
+            return TVPAL_E_READ;
+        io->inflight++;
+        return 0;
+    }
+#endif
+    io->q[(io->head + io->inflight) % io->depth] = *r;
+    io->inflight++;
+    return 0;
+}
+
+int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result)
+{
+    if (!io->inflight)
+        return TVPAL_E_INVAL;
+#ifdef HAVE_LIBURING
+    if (io->kind == TVPAL_IO_URING) {
+        struct io_uring_cqe *cqe;
+        int rc = io_uring_wait_cqe(&io->ring, &cqe);
+        if (rc < 0)
+            return TVPAL_E_READ;
+        *tag = io_uring_cqe_get_data64(cqe);
+        *result = cqe->res;
+        io_uring_cqe_seen(&io->ring, cqe);
+        io->inflight--;
+        return 0;
+    }
+#endif
+    struct tvpal_io_req *r = &io->q[io->head];
+    io->head = (io->head + 1) % io->depth;
+    io->inflight--;
+    uint64_t got = 0;
+    int64_t res = 0;
+    while (got < r->len) {
+        ssize_t k = pread(r->fd, (char *)r->buf + got, r->len - got,
+                          (off_t)(r->off + got));
+        if (k < 0 && errno == EINTR)
+            continue;
+        if (k < 0) {
+            res = -errno;
+            break;
+        }
+        if (k == 0)
+            break;
+        got += (uint64_t)k;
+    }
+    *tag = r->tag;
+    *result = res < 0 ? res : (int64_t)got;
+    return 0;
+}

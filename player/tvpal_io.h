@@ -1,0 +1,44 @@
+/* tvpal_io.h: asynchronous reads behind one interface, two backends:
+ *   - io_uring (liburing): reads queued to the kernel, many in flight;
+ *   - pread: the same calls, each read done synchronously when its
+ *     completion is waited for (used where io_uring is unavailable: old
+ *     kernel, seccomp, container; and selectable for comparison).
+ * Only tvpal_io.c includes liburing.  Callers own the buffers; for O_DIRECT
+ * files they must be aligned to TVPAL_ALIGN with aligned offsets and
+ * lengths.
+ */
+#ifndef TVPAL_IO_H
+#define TVPAL_IO_H
+
+#include <stdint.h>
+
+#include "tvpal_error.h"
+
+enum tvpal_io_kind { TVPAL_IO_PREAD, TVPAL_IO_URING };
+
+struct tvpal_io_req {
+    int fd;
+    uint64_t off, len;
+    void *buf;
+    uint64_t tag;          /* returned with the completion */
+};
+
+struct tvpal_io;
+
+/* depth: most reads in flight.  TVPAL_E_SYS when io_uring cannot be set up
+ * (diag says why); the caller may fall back to TVPAL_IO_PREAD. */
+int tvpal_io_create(struct tvpal_io **out, enum tvpal_io_kind kind,
+                    unsigned depth, struct tvpal_diag *diag);
+void tvpal_io_free(struct tvpal_io *io);   /* NULL is a no-op */
+const char *tvpal_io_name(const struct tvpal_io *io);
+unsigned tvpal_io_inflight(const struct tvpal_io *io);
+unsigned tvpal_io_depth(const struct tvpal_io *io);
+
+/* Queues a read (TVPAL_E_INVAL when depth reads are in flight). */
+int tvpal_io_submit(struct tvpal_io *io, const struct tvpal_io_req *r);
+
+/* Waits for one completion: *tag of its request, *result the bytes read or
+ * -errno.  TVPAL_E_INVAL when nothing is in flight. */
+int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result);
+
+#endif

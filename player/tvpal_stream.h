@@ -1,0 +1,50 @@
+/* tvpal_stream.h: feeds the slabs of one axis with records, in-core or
+ * out-of-core (paper III.D, V.A).
+ *
+ * In-core: every record of the axis is read once (through the I/O backend)
+ * and verified; seeking then only copies from RAM.  Out-of-core: records
+ * are read on demand into aligned buffers (O_DIRECT where the file system
+ * allows it, so the page cache does not hide the disk) with a prefetch
+ * queue of several timesteps ahead of the playhead in the play direction;
+ * a jump requests all the (at most N) records it needs at once.
+ */
+#ifndef TVPAL_STREAM_H
+#define TVPAL_STREAM_H
+
+#include <stdint.h>
+
+#include "tvpal_error.h"
+#include "tvpal_io.h"
+#include "tvpal_shard.h"
+
+struct tvpal_stream_stats {
+    uint64_t bytes_read;     /* from disk, this seek (prefetch included) */
+    double io_wait_ms;       /* time spent waiting for reads */
+    unsigned records_applied;
+};
+
+struct tvpal_stream;
+
+/* slabs[i] decodes a shard of the axis (borrowed, outlive the stream); io
+ * is borrowed too.  incore: load everything now.  prefetch: timesteps read
+ * ahead (out-of-core).  direct: try O_DIRECT. */
+int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
+                        unsigned nslabs, struct tvpal_io *io, int incore,
+                        unsigned prefetch, int direct,
+                        struct tvpal_diag *diag);
+void tvpal_stream_free(struct tvpal_stream *s);   /* NULL is a no-op */
+
+/* Brings every slab to timestep t; dir (+1 or -1) steers the prefetch.
+ * On a read or checksum error the other records are still applied, the
+ * failing slices keep their previous window, and the error (file, record)
+ * is returned. */
+int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
+                      struct tvpal_stream_stats *st, struct tvpal_diag *diag);
+
+/* Bytes held in RAM by an in-core stream (0 out-of-core). */
+uint64_t tvpal_stream_incore_bytes(const struct tvpal_stream *s);
+
+/* Whether the files are read with O_DIRECT. */
+int tvpal_stream_direct(const struct tvpal_stream *s);
+
+#endif
