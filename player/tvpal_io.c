@@ -18,6 +18,13 @@ struct tvpal_io {
 #ifdef HAVE_LIBURING
     struct io_uring ring;
     int ring_ok;
+    /* io_uring may complete a read short (part of it cached, or split by
+     * the block layer): the rest is resubmitted until done or EOF. */
+    struct pend {
+        struct tvpal_io_req r;
+        uint64_t done;
+        int used;
+    } *pend;
 #endif
 };
 
@@ -47,6 +54,13 @@ int tvpal_io_create(struct tvpal_io **out, enum tvpal_io_kind kind,
                                   strerror(-rc));
         }
         io->ring_ok = 1;
+        io->pend = calloc(depth, sizeof *io->pend);
+        if (!io->pend) {
+            io_uring_queue_exit(&io->ring);
+            free(io->q);
+            free(io);
+            return TVPAL_E_NOMEM;
+        }
 #else
         free(io->q);
         free(io);
@@ -74,6 +88,7 @@ void tvpal_io_free(struct tvpal_io *io)
         }
         io_uring_queue_exit(&io->ring);
     }
+    free(io->pend);
 #endif
     free(io->q);
     free(io);
@@ -94,20 +109,38 @@ unsigned tvpal_io_depth(const struct tvpal_io *io)
     return io->depth;
 }
 
+#ifdef HAVE_LIBURING
+/* Queues the remaining part of pending read k. */
+static int uring_queue(struct tvpal_io *io, unsigned k)
+{
+    struct pend *pd = &io->pend[k];
+    struct io_uring_sqe *sqe = io_uring_get_sqe(&io->ring);
+    if (!sqe)
+        return TVPAL_E_INVAL;
+    io_uring_prep_read(sqe, pd->r.fd, (char *)pd->r.buf + pd->done,
+                       (unsigned)(pd->r.len - pd->done), pd->r.off + pd->done);
+    io_uring_sqe_set_data64(sqe, k);
+    return io_uring_submit(&io->ring) < 0 ? TVPAL_E_READ : 0;
+}
+#endif
+
 int tvpal_io_submit(struct tvpal_io *io, const struct tvpal_io_req *r)
 {
     if (io->inflight >= io->depth)
         return TVPAL_E_INVAL;
 #ifdef HAVE_LIBURING
     if (io->kind == TVPAL_IO_URING) {
-        struct io_uring_sqe *sqe = io_uring_get_sqe(&io->ring);
-        if (!sqe)
+        unsigned k = 0;
+        while (k < io->depth && io->pend[k].used)
+            k++;
+        if (k == io->depth)
             return TVPAL_E_INVAL;
-        io_uring_prep_read(sqe, r->fd, r->buf, (unsigned)r->len, r->off);
-        io_uring_sqe_set_data64(sqe, r->tag);
-        int rc = io_uring_submit(&io->ring);
-        if (rc < 0)
-            return TVPAL_E_READ;
+        io->pend[k] = (struct pend){.r = *r, .done = 0, .used = 1};
+        int rc = uring_queue(io, k);
+        if (rc < 0) {
+            io->pend[k].used = 0;
+            return rc;
+        }
         io->inflight++;
         return 0;
     }
@@ -123,15 +156,29 @@ int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result)
         return TVPAL_E_INVAL;
 #ifdef HAVE_LIBURING
     if (io->kind == TVPAL_IO_URING) {
-        struct io_uring_cqe *cqe;
-        int rc = io_uring_wait_cqe(&io->ring, &cqe);
-        if (rc < 0)
-            return TVPAL_E_READ;
-        *tag = io_uring_cqe_get_data64(cqe);
-        *result = cqe->res;
-        io_uring_cqe_seen(&io->ring, cqe);
-        io->inflight--;
-        return 0;
+        for (;;) {
+            struct io_uring_cqe *cqe;
+            int rc = io_uring_wait_cqe(&io->ring, &cqe);
+            if (rc < 0)
+                return TVPAL_E_READ;
+            unsigned k = (unsigned)io_uring_cqe_get_data64(cqe);
+            int res = cqe->res;
+            io_uring_cqe_seen(&io->ring, cqe);
+            struct pend *pd = &io->pend[k];
+            if (res > 0 && pd->done + (uint64_t)res < pd->r.len) {
+                pd->done += (uint64_t)res;
+                if (uring_queue(io, k) == 0)
+                    continue; /* short read: the rest is on its way */
+                res = -EIO;
+            }
+            if (res > 0)
+                pd->done += (uint64_t)res;
+            *tag = pd->r.tag;
+            *result = res < 0 ? res : (int64_t)pd->done;
+            pd->used = 0;
+            io->inflight--;
+            return 0;
+        }
     }
 #endif
     struct tvpal_io_req *r = &io->q[io->head];

@@ -109,14 +109,23 @@ static int open_part(struct tvpal_stream *s, struct part *p, int direct,
 }
 
 int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
-                        unsigned nslabs, struct tvpal_io *io, int incore,
+                        unsigned nslabs, enum tvpal_io_kind kind, int incore,
                         unsigned prefetch, int direct,
                         struct tvpal_diag *diag)
 {
     int rc = 0;
+    struct tvpal_io *io = NULL;
+    struct tvpal_diag d = {{0}};
+    rc = tvpal_io_create(&io, kind, 64, &d);
+    if (rc < 0 && kind == TVPAL_IO_URING) /* kernel, seccomp, container */
+        rc = tvpal_io_create(&io, TVPAL_IO_PREAD, 64, diag);
+    if (rc < 0)
+        return rc;
     struct tvpal_stream *s = calloc(1, sizeof *s);
-    if (!s)
+    if (!s) {
+        tvpal_io_free(io);
         return TVPAL_E_NOMEM;
+    }
     s->p = calloc(nslabs, sizeof *s->p);
     s->n = nslabs;
     s->io = io;
@@ -124,6 +133,7 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
     s->prefetch = prefetch;
     s->direct = direct;
     if (!s->p) {
+        tvpal_io_free(io);
         free(s);
         return TVPAL_E_NOMEM;
     }
@@ -183,13 +193,13 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
             /* Verify every record once. */
             for (uint32_t t = 0; t < h->steps && rc == 0; t++) {
                 const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, t);
-                struct tvpal_diag d = {{0}};
+                struct tvpal_diag vd = {{0}};
                 rc = tvpal_record_verify(p->all + e->offset -
                                              TVPAL_SHARD_HEADER_BYTES,
-                                         e->bytes, t, h, &d);
+                                         e->bytes, t, h, &vd);
                 if (rc < 0)
                     tvpal_diag_set(diag, rc, "%s: %s", tvpal_shard_path(p->sh),
-                                   d.msg);
+                                   vd.msg);
             }
         } else {
             p->nslots = h->window + prefetch + 1;
@@ -227,8 +237,14 @@ void tvpal_stream_free(struct tvpal_stream *s)
             free(p->slots[k].buf);
         free(p->slots);
     }
+    tvpal_io_free(s->io);
     free(s->p);
     free(s);
+}
+
+const char *tvpal_stream_io_name(const struct tvpal_stream *s)
+{
+    return tvpal_io_name(s->io);
 }
 
 static int find_slot(const struct part *p, uint32_t step)

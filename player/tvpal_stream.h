@@ -25,13 +25,18 @@ struct tvpal_stream_stats {
 
 struct tvpal_stream;
 
-/* slabs[i] decodes a shard of the axis (borrowed, outlive the stream); io
- * is borrowed too.  incore: load everything now.  prefetch: timesteps read
- * ahead (out-of-core).  direct: try O_DIRECT. */
+/* slabs[i] decodes a shard of the axis (borrowed, outlive the stream).
+ * The stream owns its I/O backend of the given kind (io_uring falls back to
+ * pread when unavailable), so reads in flight never cross streams.
+ * incore: load everything now.  prefetch: timesteps read ahead
+ * (out-of-core).  direct: try O_DIRECT. */
 int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
-                        unsigned nslabs, struct tvpal_io *io, int incore,
+                        unsigned nslabs, enum tvpal_io_kind io, int incore,
                         unsigned prefetch, int direct,
                         struct tvpal_diag *diag);
+
+/* "uring" or "pread": the backend in use. */
+const char *tvpal_stream_io_name(const struct tvpal_stream *s);
 void tvpal_stream_free(struct tvpal_stream *s);   /* NULL is a no-op */
 
 /* Brings every slab to timestep t; dir (+1 or -1) steers the prefetch.

@@ -2,7 +2,8 @@
 # cli-help: every program answers --help and --version, rejects unknown
 # options with exit 2, and has a man page.
 . "$(dirname "$0")/lib.sh"
-for p in "$ENC" "$DEC" "$INFO" "$REP" "$GEN"; do
+PLAY=$TVPAL_BUILDDIR/player/tvpal-play
+for p in "$ENC" "$DEC" "$INFO" "$REP" "$GEN" $( [ -x "$PLAY" ] && echo "$PLAY" ); do
     n=$(basename "$p")
     "$p" --help > "$W/h.txt" 2>&1 && grep -q "^Usage: $n" "$W/h.txt" \
         && ok "$n --help" || fail "$n --help"

@@ -1,0 +1,358 @@
+/* tvpal-play: plays a tvpal dataset through the per-frame palette renderer.
+ * This front end is headless: it renders a range of timesteps with OSMesa
+ * and writes PNG frames and a per-frame timing CSV. */
+#define _GNU_SOURCE
+#include "tvpal_cli.h"
+#include "tvpal_fs.h"
+#include "tvpal_glr.h"
+#include "tvpal_osmesa.h"
+#include "tvpal_player.h"
+#include "tvpal_png.h"
+
+#include <errno.h>
+#include <getopt.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PROG "tvpal-play"
+
+static void usage(FILE *f)
+{
+    fprintf(f,
+"Usage: " PROG " OUTDIR [options]\n"
+"Play the tvpal dataset OUTDIR: every frame decodes the slices of the axis\n"
+"most orthogonal to the view by a per-frame palette, TF(decoder[t][i]),\n"
+"emulated in a GLSL fragment shader (interpolation after the lookup), and\n"
+"blends them back to front in a float framebuffer.  Headless (OSMesa):\n"
+"with -o DIR, writes DIR/tNNNN.png (NNNN: the timestep) and a per-frame\n"
+"timing CSV.\n"
+"\n"
+"View and frames:\n"
+"      --headless           render off-screen (the only front end so far)\n"
+"  -s, --steps A:B          timesteps A..B inclusive, 0-based (default all);\n"
+"                           B < A plays backward\n"
+"  -S, --size WxH           image size (default 512x512)\n"
+"  -r, --rotate AX,AY       degrees about x, then about y (default 20,30)\n"
+"  -z, --zoom Z             zoom factor (default 1)\n"
+"  -t, --tf FILE            transfer function (samples/tf/README.md: tvpal\n"
+"                           text format or ParaView preset JSON); default:\n"
+"                           one from the data's histogram\n"
+"      --opacity S          opacity scale (default 1)\n"
+"      --renderer R         gl (default) or ref (CPU reference, slow)\n"
+"Data:\n"
+"  -m, --mode M             incore (records in RAM) or stream (default: from\n"
+"                           disk, O_DIRECT, prefetching)\n"
+"      --io B               uring (default; pread when unavailable) or pread\n"
+"      --prefetch P         timesteps read ahead when streaming (default 4)\n"
+"      --no-direct          stream through the page cache\n"
+"      --mem MIB            report how many timesteps fit in MIB of RAM\n"
+"Output:\n"
+"  -o, --output DIR         write PNG frames here (created)\n"
+"      --csv FILE           per-frame timings (default DIR/timing.csv)\n"
+"      --strict             stop at the first read or checksum error\n"
+"  -q, --quiet              only the closing summary line\n"
+"  -h, --help               this help\n"
+"  -V, --version            version\n"
+"\n"
+"A record that fails to load is reported (file, record); the affected\n"
+"slices keep their last good data and playback continues, unless --strict.\n"
+"Exit status: 0 success; 1 failure (GL context, writing output) or load\n"
+"errors during playback; 2 bad input or usage, a dataset that cannot be\n"
+"opened, or (with --strict) the first load error.\n");
+}
+
+static void die(int code, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3), noreturn));
+static void die(int code, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    fputs(PROG ": ", stderr);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
+    exit(code);
+}
+
+/* Renderer adapters. */
+static int gl_set(void *c, uint32_t w, uint32_t h, uint32_t n,
+                  struct tvpal_diag *d)
+{
+    return tvpal_glr_set_slices(c, w, h, n, d);
+}
+static void gl_up(void *c, uint32_t layer, const uint8_t *idx)
+{
+    tvpal_glr_upload(c, layer, idx);
+}
+static int gl_draw(void *c, const struct tvpal_frame *f, float *rgba,
+                   struct tvpal_diag *d)
+{
+    return tvpal_glr_draw(c, f, rgba, d);
+}
+
+static double *ref_buf;
+static int ref_set(void *c, uint32_t w, uint32_t h, uint32_t n,
+                   struct tvpal_diag *d)
+{
+    return 0;
+}
+static void ref_up(void *c, uint32_t layer, const uint8_t *idx)
+{
+}
+static int ref_draw(void *c, const struct tvpal_frame *f, float *rgba,
+                    struct tvpal_diag *d)
+{
+    size_t n = (size_t)f->view->width * f->view->height * 4;
+    tvpal_render_ref(f, ref_buf);
+    for (size_t i = 0; i < n; i++)
+        rgba[i] = (float)ref_buf[i];
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    static const struct option lopts[] = {
+        {"headless", no_argument, 0, 'H'},
+        {"steps", required_argument, 0, 's'},
+        {"size", required_argument, 0, 'S'},
+        {"rotate", required_argument, 0, 'r'},
+        {"zoom", required_argument, 0, 'z'},
+        {"tf", required_argument, 0, 't'},
+        {"opacity", required_argument, 0, 'O'},
+        {"renderer", required_argument, 0, 'R'},
+        {"mode", required_argument, 0, 'm'},
+        {"io", required_argument, 0, 'I'},
+        {"prefetch", required_argument, 0, 'P'},
+        {"no-direct", no_argument, 0, 'D'},
+        {"mem", required_argument, 0, 'M'},
+        {"output", required_argument, 0, 'o'},
+        {"csv", required_argument, 0, 'c'},
+        {"strict", no_argument, 0, 'x'},
+        {"quiet", no_argument, 0, 'q'},
+        {"help", no_argument, 0, 'h'},
+        {"version", no_argument, 0, 'V'},
+        {0, 0, 0, 0}};
+    const char *steps_s = NULL, *tf_path = NULL, *outdir = NULL,
+               *csv_path = NULL;
+    unsigned width = 512, height = 512;
+    double ax = 20, ay = 30, zoom = 1, opacity = 1;
+    int use_ref = 0, strict = 0, quiet = 0, c;
+    uint32_t mem_mib = 0;
+    struct tvpal_player_opts po = {.incore = 0, .io = TVPAL_IO_URING,
+                                   .prefetch = 4, .direct = 1};
+    while ((c = getopt_long(argc, argv, "s:S:r:z:t:m:o:qhV", lopts, NULL)) != -1) {
+        switch (c) {
+        case 'H': break;
+        case 's': steps_s = optarg; break;
+        case 'S':
+            if (sscanf(optarg, "%ux%u", &width, &height) != 2 || !width ||
+                !height || width > 16384 || height > 16384)
+                die(2, "--size \"%s\": expected WxH, each 1..16384", optarg);
+            break;
+        case 'r':
+            if (sscanf(optarg, "%lf,%lf", &ax, &ay) != 2 || !isfinite(ax) ||
+                !isfinite(ay))
+                die(2, "--rotate \"%s\": expected AX,AY in degrees", optarg);
+            break;
+        case 'z':
+            if (tvpal_parse_double(optarg, &zoom) < 0 || zoom <= 0)
+                die(2, "--zoom \"%s\": expected a number > 0", optarg);
+            break;
+        case 't': tf_path = optarg; break;
+        case 'O':
+            if (tvpal_parse_double(optarg, &opacity) < 0 || opacity < 0)
+                die(2, "--opacity \"%s\": expected a number >= 0", optarg);
+            break;
+        case 'R':
+            if (!strcmp(optarg, "ref"))
+                use_ref = 1;
+            else if (strcmp(optarg, "gl"))
+                die(2, "--renderer \"%s\": expected gl or ref", optarg);
+            break;
+        case 'm':
+            if (!strcmp(optarg, "incore"))
+                po.incore = 1;
+            else if (strcmp(optarg, "stream"))
+                die(2, "--mode \"%s\": expected incore or stream", optarg);
+            break;
+        case 'I':
+            if (!strcmp(optarg, "pread"))
+                po.io = TVPAL_IO_PREAD;
+            else if (strcmp(optarg, "uring"))
+                die(2, "--io \"%s\": expected uring or pread", optarg);
+            break;
+        case 'P':
+            if (tvpal_parse_u32(optarg, 0, 64, &po.prefetch) < 0)
+                die(2, "--prefetch \"%s\": expected 0..64", optarg);
+            break;
+        case 'D': po.direct = 0; break;
+        case 'M':
+            if (tvpal_parse_u32(optarg, 1, UINT32_MAX, &mem_mib) < 0)
+                die(2, "--mem \"%s\": expected MiB >= 1", optarg);
+            break;
+        case 'o': outdir = optarg; break;
+        case 'c': csv_path = optarg; break;
+        case 'x': strict = 1; break;
+        case 'q': quiet = 1; break;
+        case 'h': usage(stdout); return 0;
+        case 'V': printf(PROG " " PACKAGE_VERSION "\n"); return 0;
+        default:
+            fprintf(stderr, "Try '" PROG " --help'.\n");
+            return 2;
+        }
+    }
+    if (optind != argc - 1)
+        die(2, "expected one OUTDIR (try --help)");
+    const char *dir = argv[optind];
+
+    struct tvpal_diag d = {{0}};
+    struct tvpal_player *pl;
+    if (tvpal_player_open(&pl, dir, &po, &d) < 0)
+        die(2, "%s", d.msg);
+    const struct tvpal_manifest *m = tvpal_player_manifest(pl);
+    uint32_t a = 0, b = m->steps - 1;
+    if (steps_s) {
+        if (sscanf(steps_s, "%u:%u", &a, &b) != 2 || a >= m->steps ||
+            b >= m->steps)
+            die(2, "--steps \"%s\": expected A:B within 0..%u", steps_s,
+                m->steps - 1);
+    }
+    if (tf_path) {
+        struct tvpal_tf tf;
+        if (tvpal_tf_load(tf_path, m->value_min, m->value_max, &tf, &d) < 0)
+            die(2, "%s: %s", tf_path, d.msg);
+        tvpal_player_set_tf(pl, &tf, opacity);
+    } else if (opacity != 1) {
+        struct tvpal_tf tf;
+        tvpal_tf_default(m->value_min, m->value_max, m->histogram,
+                         TVPAL_HIST_BINS, &tf);
+        tvpal_player_set_tf(pl, &tf, opacity);
+    }
+    if (mem_mib) {
+        double per_step = (double)tvpal_player_axis_bytes(pl) / m->steps;
+        double fit = (double)mem_mib * 1048576.0 / per_step;
+        printf("memory: %u MiB holds %.0f timesteps of one axis (%.2f MiB per "
+               "timestep; %u in the dataset%s)\n", mem_mib, floor(fit),
+               per_step / 1048576.0, m->steps,
+               fit >= m->steps ? ": in-core fits" : ": stream from disk");
+    }
+
+    /* Renderer. */
+    struct tvpal_renderer rend;
+    struct tvpal_osmesa *ctx = NULL;
+    struct tvpal_glr *glr = NULL;
+    if (use_ref) {
+        ref_buf = malloc(sizeof(double) * 4 * width * height);
+        if (!ref_buf)
+            die(1, "out of memory");
+        rend = (struct tvpal_renderer){NULL, NULL, ref_set, ref_up, ref_draw};
+    } else {
+        if (tvpal_osmesa_create(&ctx, &d) < 0 ||
+            tvpal_glr_create(&glr, width, height, &d) < 0)
+            die(1, "%s", d.msg);
+        rend = (struct tvpal_renderer){glr, NULL, gl_set, gl_up, gl_draw};
+    }
+    float *rgba = malloc(sizeof(float) * 4 * width * height);
+    uint8_t *rgb8 = malloc(3 * (size_t)width * height);
+    if (!rgba || !rgb8)
+        die(1, "out of memory");
+    FILE *csv = NULL;
+    char *csv_default = NULL;
+    if (outdir) {
+        if (tvpal_mkdirs(outdir) < 0)
+            die(2, "%s: cannot create: %s", outdir, strerror(errno));
+        if (!csv_path && asprintf(&csv_default, "%s/timing.csv", outdir) >= 0)
+            csv_path = csv_default;
+    }
+    if (csv_path) {
+        if (!(csv = fopen(csv_path, "w")))
+            die(2, "%s: cannot write: %s", csv_path, strerror(errno));
+        fprintf(csv, "step,axis,io_ms,upload_ms,draw_ms,readback_ms,total_ms,"
+                "bytes_read,slices_drawn,slices_skipped,slice_uploads,"
+                "axis_switch_ms\n");
+    }
+    int digits = 4;
+    for (uint32_t x = 10000; x <= m->steps - 1 && digits < 10; x *= 10)
+        digits++;
+
+    struct tvpal_view v = {.width = width, .height = height, .ax_deg = ax,
+                           .ay_deg = ay, .zoom = zoom};
+    memcpy(v.dims, m->dims, sizeof v.dims);
+    tvpal_view_setup(&v);
+    const int dir_step = b >= a ? 1 : -1;
+    const uint32_t nframes = (b >= a ? b - a : a - b) + 1;
+    double sum_io = 0, sum_up = 0, sum_draw = 0, sum_read = 0;
+    uint64_t sum_bytes = 0;
+    unsigned errors = 0;
+    char last_err[sizeof d.msg] = "";
+    const double t_start = tvpal_now();
+    if (!quiet)
+        fprintf(stderr, PROG ": %s: %ux%ux%u, %u steps, window %u; axis %c, "
+                "data %s, renderer %s\n", dir, m->dims[0], m->dims[1],
+                m->dims[2], m->steps, m->window, "xyz"[v.axis],
+                tvpal_player_io_name(pl), use_ref ? "ref" : "gl");
+    for (uint32_t i = 0; i < nframes; i++) {
+        uint32_t t = a + (uint32_t)((int)i * dir_step);
+        struct tvpal_frame_stats st;
+        d.msg[0] = 0;
+        double f0 = tvpal_now();
+        int rc = tvpal_player_frame(pl, &v, t, dir_step, &rend, rgba, &st, &d);
+        if (rc < 0 && strcmp(d.msg, last_err)) {
+            /* A bad record is retried every frame that needs it; it is
+             * reported (and counted) once. */
+            errors++;
+            snprintf(last_err, sizeof last_err, "%s", d.msg);
+            fprintf(stderr, PROG ": step %u: %s%s\n", t, d.msg,
+                    strict ? "" : " (keeping the last good data)");
+            if (strict || !st.rendered || rc == TVPAL_E_SYS ||
+                rc == TVPAL_E_NOMEM)
+                die(rc == TVPAL_E_SYS || rc == TVPAL_E_NOMEM ? 1 : 2,
+                    "stopped at step %u", t);
+        }
+        double up = 0, dr = st.draw_ms, rb = 0;
+        if (glr)
+            tvpal_glr_times(glr, &up, &dr, &rb);
+        double total = (tvpal_now() - f0) * 1e3;
+        sum_io += st.io_ms;
+        sum_up += st.upload_ms + up;
+        sum_draw += dr;
+        sum_read += rb;
+        sum_bytes += st.bytes_read;
+        if (outdir) {
+            char *path;
+            if (asprintf(&path, "%s/t%0*u.png", outdir, digits, t) < 0)
+                die(1, "out of memory");
+            static const float bg[3] = {0, 0, 0};
+            if (tvpal_png_write(path, rgba, width, height, bg, rgb8) < 0)
+                die(1, "%s: cannot write: %s", path, strerror(errno));
+            free(path);
+        }
+        if (csv)
+            fprintf(csv, "%u,%c,%.3f,%.3f,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%.3f\n",
+                    t, "xyz"[st.axis], st.io_ms, st.upload_ms + up, dr, rb,
+                    total, (unsigned long long)st.bytes_read, st.drawn,
+                    st.skipped, st.uploads, st.axis_switch_ms);
+    }
+    double el = tvpal_now() - t_start;
+    if (csv && fclose(csv) != 0)
+        die(1, "%s: write error", csv_path);
+    if (!quiet && outdir)
+        fprintf(stderr, PROG ": %u frames in %s/\n", nframes, outdir);
+    printf("fps=%.3f frames=%u io_ms=%.3f upload_ms=%.3f draw_ms=%.3f "
+           "readback_ms=%.3f bytes_read=%llu mode=%s renderer=%s errors=%u\n",
+           nframes / (el > 0 ? el : 1e-9), nframes, sum_io / nframes,
+           sum_up / nframes, sum_draw / nframes, sum_read / nframes,
+           (unsigned long long)sum_bytes, tvpal_player_io_name(pl),
+           use_ref ? "ref" : "gl", errors);
+    tvpal_glr_free(glr);
+    tvpal_osmesa_free(ctx);
+    tvpal_player_close(pl);
+    free(rgba);
+    free(rgb8);
+    free(ref_buf);
+    free(csv_default);
+    return errors ? 1 : 0;
+}

@@ -1,0 +1,218 @@
+/* tvpal_player.c: the player core (see tvpal_player.h). */
+#include "tvpal_player.h"
+#include "tvpal_cli.h"
+#include "tvpal_stream.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+struct axis_state {
+    struct tvpal_slab **slabs;       /* one per shard */
+    struct tvpal_stream *stream;     /* created on first use */
+    uint32_t n, w, h;
+    uint32_t *slab_of, *local_of;    /* slice -> (shard, local index) */
+};
+
+struct tvpal_player {
+    struct tvpal_dataset *ds;
+    struct tvpal_player_opts opts;
+    struct axis_state ax[3];
+    struct tvpal_tf tf;
+    double opacity_scale;
+    /* renderer state */
+    struct tvpal_renderer *last_r;
+    int r_axis;
+    uint32_t *uploaded_gen;          /* per slice of r_axis; 0 = never */
+    /* frame scratch */
+    struct tvpal_frame_slice *fs;
+    float *pal;
+};
+
+int tvpal_player_open(struct tvpal_player **out, const char *dir,
+                      const struct tvpal_player_opts *opts,
+                      struct tvpal_diag *diag)
+{
+    struct tvpal_player *p = calloc(1, sizeof *p);
+    if (!p)
+        return TVPAL_E_NOMEM;
+    p->opts = *opts;
+    p->r_axis = -1;
+    p->opacity_scale = 1.0;
+    int rc = tvpal_dataset_open(&p->ds, dir, diag);
+    if (rc < 0)
+        goto err;
+    uint32_t nmax = 0;
+    for (unsigned a = 0; a < 3; a++) {
+        struct axis_state *x = &p->ax[a];
+        tvpal_axis_geometry(p->ds->m.dims, a, &x->n, &x->w, &x->h);
+        nmax = x->n > nmax ? x->n : nmax;
+        x->slabs = calloc(p->ds->m.nodes, sizeof *x->slabs);
+        x->slab_of = calloc(x->n, sizeof *x->slab_of);
+        x->local_of = calloc(x->n, sizeof *x->local_of);
+        if (!x->slabs || !x->slab_of || !x->local_of) {
+            rc = TVPAL_E_NOMEM;
+            goto err;
+        }
+        for (uint32_t k = 0; k < p->ds->m.nodes; k++) {
+            rc = tvpal_slab_create(&x->slabs[k], p->ds->shards[a][k]);
+            if (rc < 0)
+                goto err;
+            const struct tvpal_shard_header *h =
+                tvpal_shard_hdr(p->ds->shards[a][k]);
+            for (uint32_t i = 0; i < h->slice_count; i++) {
+                x->slab_of[h->slice_begin + i] = k;
+                x->local_of[h->slice_begin + i] = i;
+            }
+        }
+    }
+    p->fs = calloc(nmax, sizeof *p->fs);
+    p->pal = malloc(sizeof(float) * 1024 * nmax);
+    p->uploaded_gen = calloc(nmax, sizeof *p->uploaded_gen);
+    if (!p->fs || !p->pal || !p->uploaded_gen) {
+        rc = TVPAL_E_NOMEM;
+        goto err;
+    }
+    tvpal_tf_default(p->ds->m.value_min, p->ds->m.value_max,
+                     p->ds->m.histogram, TVPAL_HIST_BINS, &p->tf);
+    *out = p;
+    return 0;
+err:
+    tvpal_player_close(p);
+    return rc;
+}
+
+void tvpal_player_close(struct tvpal_player *p)
+{
+    if (!p)
+        return;
+    for (unsigned a = 0; a < 3; a++) {
+        struct axis_state *x = &p->ax[a];
+        tvpal_stream_free(x->stream);
+        if (x->slabs && p->ds)
+            for (uint32_t k = 0; k < p->ds->m.nodes; k++)
+                tvpal_slab_free(x->slabs[k]);
+        free(x->slabs);
+        free(x->slab_of);
+        free(x->local_of);
+    }
+    tvpal_dataset_close(p->ds);
+    free(p->fs);
+    free(p->pal);
+    free(p->uploaded_gen);
+    free(p);
+}
+
+const struct tvpal_manifest *tvpal_player_manifest(const struct tvpal_player *p)
+{
+    return &p->ds->m;
+}
+
+const char *tvpal_player_io_name(const struct tvpal_player *p)
+{
+    if (p->opts.incore)
+        return "incore";
+    for (unsigned a = 0; a < 3; a++)
+        if (p->ax[a].stream)
+            return tvpal_stream_io_name(p->ax[a].stream);
+    return p->opts.io == TVPAL_IO_URING ? "uring" : "pread";
+}
+
+void tvpal_player_set_tf(struct tvpal_player *p, const struct tvpal_tf *tf,
+                         double opacity_scale)
+{
+    p->tf = *tf;
+    p->opacity_scale = opacity_scale;
+}
+
+uint64_t tvpal_player_axis_bytes(const struct tvpal_player *p)
+{
+    uint64_t b = 0;
+    for (unsigned a = 0; a < 3; a++)
+        for (uint32_t k = 0; k < p->ds->m.nodes; k++) {
+            const struct tvpal_shard_header *h =
+                tvpal_shard_hdr(p->ds->shards[a][k]);
+            b += h->index_offset - TVPAL_SHARD_HEADER_BYTES;
+        }
+    return b / 3;
+}
+
+int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
+                       uint32_t t, int dir, struct tvpal_renderer *r,
+                       float *rgba, struct tvpal_frame_stats *st,
+                       struct tvpal_diag *diag)
+{
+    struct tvpal_frame_stats local;
+    if (!st)
+        st = &local;
+    memset(st, 0, sizeof *st);
+    st->step = t;
+    st->axis = v->axis;
+    double t0 = tvpal_now();
+    struct axis_state *x = &p->ax[v->axis];
+    if (t >= p->ds->m.steps)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u out of range "
+                              "(0..%u)", t, p->ds->m.steps - 1);
+    if (!x->stream) {
+        /* First use of this axis: open its stream (in-core: load it). */
+        int rc = tvpal_stream_create(&x->stream, x->slabs, p->ds->m.nodes,
+                                     p->opts.io, p->opts.incore,
+                                     p->opts.prefetch, p->opts.direct, diag);
+        if (rc < 0)
+            return rc;
+        st->axis_switch_ms = (tvpal_now() - t0) * 1e3;
+    }
+    struct tvpal_stream_stats ss;
+    struct tvpal_diag d = {{0}};
+    int load_rc = tvpal_stream_seek(x->stream, t, dir, &ss, &d);
+    if (load_rc < 0)
+        tvpal_diag_set(diag, load_rc, "%s", d.msg);
+    st->io_ms = ss.io_wait_ms;
+    st->bytes_read = ss.bytes_read;
+
+    double t1 = tvpal_now();
+    if (r != p->last_r || r->owner != p || p->r_axis != (int)v->axis) {
+        int rc = r->set_slices(r->ctx, x->w, x->h, x->n, diag);
+        if (rc < 0)
+            return rc;
+        memset(p->uploaded_gen, 0, sizeof(uint32_t) * x->n);
+        p->last_r = r;
+        r->owner = p;
+        p->r_axis = (int)v->axis;
+    }
+    const double expo = tvpal_view_opacity_exponent(v);
+    uint32_t count = 0;
+    for (uint32_t i = 0; i < x->n; i++) {
+        uint32_t s = v->descending ? x->n - 1 - i : i;
+        struct tvpal_slab *slab = x->slabs[x->slab_of[s]];
+        uint32_t k = x->local_of[s];
+        const float *row = tvpal_slab_row(slab, k, t);
+        if (!row) {
+            st->skipped++;
+            continue;
+        }
+        float *pal = p->pal + (size_t)1024 * s;
+        if (tvpal_palette_build(&p->tf, row, expo, p->opacity_scale, pal)) {
+            st->skipped++; /* fully transparent: nothing to draw */
+            continue;
+        }
+        uint32_t gen = tvpal_slab_generation(slab, k);
+        if (p->uploaded_gen[s] != gen) {
+            r->upload(r->ctx, s, tvpal_slab_indices(slab, k));
+            p->uploaded_gen[s] = gen;
+            st->uploads++;
+        }
+        p->fs[count++] = (struct tvpal_frame_slice){
+            .slice = s, .idx = tvpal_slab_indices(slab, k), .palette = pal};
+    }
+    st->drawn = count;
+    double t2 = tvpal_now();
+    struct tvpal_frame f = {.view = v, .w = x->w, .h = x->h, .count = count,
+                            .sl = p->fs};
+    int rc = r->draw(r->ctx, &f, rgba, diag);
+    double t3 = tvpal_now();
+    st->rendered = rc == 0;
+    st->upload_ms = (t2 - t1) * 1e3;
+    st->draw_ms = (t3 - t2) * 1e3;
+    st->total_ms = (t3 - t0) * 1e3;
+    return rc < 0 ? rc : load_rc;
+}

@@ -1,0 +1,83 @@
+/* tvpal_png.c: PNG frames (see tvpal_png.h). */
+#define _GNU_SOURCE
+#include "tvpal_png.h"
+
+#include <png.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+int tvpal_png_write(const char *path, const float *rgba, unsigned width,
+                    unsigned height, const float bg[3], uint8_t *rgb8)
+{
+    for (unsigned y = 0; y < height; y++) {
+        const float *src = rgba + 4 * (size_t)(height - 1 - y) * width;
+        uint8_t *dst = rgb8 + 3 * (size_t)y * width;
+        for (unsigned x = 0; x < width; x++) {
+            float keep = 1.0f - src[4 * x + 3];
+            for (int c = 0; c < 3; c++) {
+                float v = src[4 * x + c] + keep * bg[c];
+                v = v < 0 ? 0 : v > 1 ? 1 : v;
+                dst[3 * x + c] = (uint8_t)(v * 255.0f + 0.5f);
+            }
+        }
+    }
+    char *tmp;
+    if (asprintf(&tmp, "%s.tmp", path) < 0)
+        return TVPAL_E_NOMEM;
+    FILE *f = fopen(tmp, "wb");
+    if (!f) {
+        free(tmp);
+        return TVPAL_E_OPEN;
+    }
+    int rc = TVPAL_E_WRITE;
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL,
+                                              NULL, NULL);
+    png_infop info = png ? png_create_info_struct(png) : NULL;
+    if (png && info && !setjmp(png_jmpbuf(png))) {
+        png_init_io(png, f);
+        png_set_compression_level(png, 3);
+        png_set_IHDR(png, info, width, height, 8, PNG_COLOR_TYPE_RGB,
+                     PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
+                     PNG_FILTER_TYPE_DEFAULT);
+        png_write_info(png, info);
+        for (unsigned y = 0; y < height; y++)
+            png_write_row(png, rgb8 + 3 * (size_t)y * width);
+        png_write_end(png, NULL);
+        rc = 0;
+    }
+    png_destroy_write_struct(&png, &info);
+    if (fclose(f) != 0)
+        rc = TVPAL_E_WRITE;
+    if (rc == 0 && rename(tmp, path) < 0)
+        rc = TVPAL_E_WRITE;
+    if (rc < 0)
+        unlink(tmp);
+    free(tmp);
+    return rc;
+}
+
+int tvpal_png_read(const char *path, uint8_t **out, unsigned *width,
+                   unsigned *height)
+{
+    png_image img;
+    memset(&img, 0, sizeof img);
+    img.version = PNG_IMAGE_VERSION;
+    if (!png_image_begin_read_from_file(&img, path))
+        return TVPAL_E_OPEN;
+    img.format = PNG_FORMAT_RGB;
+    uint8_t *buf = malloc(PNG_IMAGE_SIZE(img));
+    if (!buf) {
+        png_image_free(&img);
+        return TVPAL_E_NOMEM;
+    }
+    if (!png_image_finish_read(&img, NULL, buf, 0, NULL)) {
+        free(buf);
+        return TVPAL_E_FORMAT;
+    }
+    *out = buf;
+    *width = img.width;
+    *height = img.height;
+    return 0;
+}

@@ -1,0 +1,21 @@
+/* tvpal_png.h: writes frames as PNG (libpng; the only file including it). */
+#ifndef TVPAL_PNG_H
+#define TVPAL_PNG_H
+
+#include <stdint.h>
+
+#include "tvpal_error.h"
+
+/* Writes width x height premultiplied RGBA floats (row 0 at the bottom)
+ * composited over an opaque background bg[3] as 8-bit RGB, top row first,
+ * atomically (path.tmp, rename).  rgb8 is caller scratch of 3 * width *
+ * height bytes (no allocation per frame). */
+int tvpal_png_write(const char *path, const float *rgba, unsigned width,
+                    unsigned height, const float bg[3], uint8_t *rgb8);
+
+/* Reads an 8-bit RGB or RGBA PNG (tests): *out malloc'ed, 3 bytes per
+ * pixel, top row first. */
+int tvpal_png_read(const char *path, uint8_t **out, unsigned *width,
+                   unsigned *height);
+
+#endif

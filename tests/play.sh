@@ -1,0 +1,60 @@
+#!/bin/sh
+# play: tvpal-play headless writes one PNG per timestep and a timing CSV,
+# ends with the fps=... summary; in-core, io_uring and pread, forward and
+# backward give identical frames; a corrupt record is reported with its
+# file and record and playback continues (exit 1), or stops with --strict
+# (exit 2); bad options and transfer functions are refused (exit 2).
+. "$(dirname "$0")/lib.sh"
+PLAY=$TVPAL_BUILDDIR/player/tvpal-play
+[ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
+D=24x20x16
+"$GEN" --field blobs --dims $D --steps 9 -o "$W/in" || fail gen
+"$ENC" -q --dims $D --window 4 -o "$W/ds" "$W"/in/*.f32 > /dev/null || fail encode
+TF=$TVPAL_SRCDIR/samples/tf/warm.tf
+line=$("$PLAY" "$W/ds" --headless -q --size 96x80 --tf "$TF" -o "$W/f-stream") || fail "play"
+echo "$line" | grep -Eq '^fps=[0-9.]+ frames=9 io_ms=[0-9.]+ upload_ms=[0-9.]+ draw_ms=[0-9.]+ readback_ms=[0-9.]+ bytes_read=[0-9]+ mode=(uring|pread) renderer=gl errors=0$' \
+    && ok "summary: $line" || fail "summary: $line"
+n=$(ls "$W/f-stream"/t*.png | wc -l)
+[ "$n" -eq 9 ] && ok "9 PNG frames" || fail "$n frames"
+[ "$(head -c 4 "$W/f-stream/t0004.png" | od -An -c | tr -d ' ')" = "211PNG" ] && ok "PNG signature" || fail "not a PNG"
+head -n 1 "$W/f-stream/timing.csv" | grep -q '^step,axis,io_ms,upload_ms,draw_ms,readback_ms,total_ms,bytes_read' \
+    && [ "$(wc -l < "$W/f-stream/timing.csv")" -eq 10 ] && ok "timing CSV" || fail "timing CSV"
+for mode in "--mode incore" "--io pread" "--io pread --no-direct" "--io uring --prefetch 0"; do
+    tag=$(echo $mode | tr -d ' -')
+    "$PLAY" "$W/ds" --headless -q --size 96x80 --tf "$TF" $mode -o "$W/f-$tag" > /dev/null || fail "play $mode"
+    same=1
+    for f in "$W/f-stream"/t*.png; do cmp -s "$f" "$W/f-$tag/$(basename "$f")" || same=0; done
+    [ $same = 1 ] && ok "$mode: identical frames" || fail "$mode: frames differ"
+done
+"$PLAY" "$W/ds" --headless -q --size 96x80 --tf "$TF" --steps 8:0 -o "$W/f-back" > /dev/null || fail "backward"
+same=1
+for f in "$W/f-stream"/t*.png; do cmp -s "$f" "$W/f-back/$(basename "$f")" || same=0; done
+[ $same = 1 ] && ok "backward playback identical" || fail "backward frames differ"
+"$PLAY" "$W/ds" --headless -q --size 96x80 --tf "$TF" --steps 6:6 -o "$W/f-jump" > /dev/null || fail "jump"
+cmp -s "$W/f-stream/t0006.png" "$W/f-jump/t0006.png" && ok "jump to 6 = playing to 6" || fail "jump differs"
+"$PLAY" "$W/ds" --mem 1 --steps 0:0 -q | grep -q "^memory: 1 MiB holds [0-9]* timesteps" && ok "--mem report" || fail "--mem"
+# Corrupt record 3 of every axis.
+cp -r "$W/ds" "$W/bad"
+for a in x y z; do
+    $PY - "$W/bad/node-0/axis-$a.tvps" <<'PY'
+import struct, sys
+p = sys.argv[1]; b = bytearray(open(p, "rb").read())
+idx = struct.unpack_from("<Q", b, 72)[0]
+off = struct.unpack_from("<Q", b, idx + 32 * 3)[0]
+b[off + 64 + 10] ^= 0x40
+open(p, "wb").write(b)
+PY
+done
+expect_exit 1 "axis-.\.tvps: record 3: payload CRC-32C mismatch \(keeping the last good data\)" \
+    "$PLAY" "$W/bad" --headless -q --size 96x80 -o "$W/f-bad"
+[ "$(ls "$W/f-bad"/t*.png | wc -l)" -eq 9 ] && ok "playback went on after the bad record" || fail "frames missing"
+grep -q "errors=1" "$W/out.txt" && ok "summary counts the error" || fail "errors not counted"
+expect_exit 2 "record 3: payload CRC-32C mismatch" "$PLAY" "$W/bad" --headless -q --size 96x80 --strict
+printf 'domain normalized\n0 0 0 0 0\n0.5 1 1 1\n' > "$W/bad.tf"
+expect_exit 2 "bad.tf: line 3: expected 5 numbers" "$PLAY" "$W/ds" --headless --tf "$W/bad.tf"
+expect_exit 2 "nope.tf: cannot read" "$PLAY" "$W/ds" --headless --tf "$W/nope.tf"
+expect_exit 2 "--steps \"0:9\": expected A:B within 0..8" "$PLAY" "$W/ds" --headless --steps 0:9
+expect_exit 2 "--size" "$PLAY" "$W/ds" --headless --size 0x10
+expect_exit 2 "manifest.txt" "$PLAY" "$W/none" --headless
+expect_exit 2 "--mode" "$PLAY" "$W/ds" --mode fast
+finish

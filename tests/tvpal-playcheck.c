@@ -1,0 +1,166 @@
+/* tvpal-playcheck DIR: checks of the player core on an encoded dataset,
+ * with the GL renderer (OSMesa) and the CPU reference:
+ *  - GL frames match the reference within tolerance on all three axes;
+ *  - a jump to t renders the same image as playing 0..t, and backward
+ *    playback the same as forward;
+ *  - in-core, io_uring (O_DIRECT) and pread give identical images;
+ *  - a transfer-function change uploads no slice texture; a forward step
+ *    uploads only the slices whose window starts there (about 1/N).
+ * Exit 0 pass, 1 fail, 99 setup error. */
+#include "tvpal_glr.h"
+#include "tvpal_osmesa.h"
+#include "tvpal_player.h"
+#include "tvpal_test.h"
+#include "tvpal_window.h"
+
+#include <string.h>
+
+#define W 128
+#define H 112
+
+static struct tvpal_glr *glr;
+static double *refbuf;
+
+static int gl_set(void *c, uint32_t w, uint32_t h, uint32_t n, struct tvpal_diag *d)
+{ return tvpal_glr_set_slices(c, w, h, n, d); }
+static void gl_up(void *c, uint32_t l, const uint8_t *i) { tvpal_glr_upload(c, l, i); }
+static int gl_draw(void *c, const struct tvpal_frame *f, float *o, struct tvpal_diag *d)
+{ return tvpal_glr_draw(c, f, o, d); }
+static int ref_set(void *c, uint32_t w, uint32_t h, uint32_t n, struct tvpal_diag *d)
+{ return 0; }
+static void ref_up(void *c, uint32_t l, const uint8_t *i) { }
+static int ref_draw(void *c, const struct tvpal_frame *f, float *o, struct tvpal_diag *d)
+{
+    tvpal_render_ref(f, refbuf);
+    for (size_t i = 0; i < (size_t)W * H * 4; i++)
+        o[i] = (float)refbuf[i];
+    return 0;
+}
+
+static struct tvpal_player *open_player(const char *dir, int incore,
+                                        enum tvpal_io_kind io, int direct)
+{
+    struct tvpal_player_opts o = {.incore = incore, .io = io, .prefetch = 3,
+                                  .direct = direct};
+    struct tvpal_player *p;
+    struct tvpal_diag d = {{0}};
+    REQUIRE(tvpal_player_open(&p, dir, &o, &d) == 0, "%s", d.msg);
+    return p;
+}
+
+static struct tvpal_view view(const struct tvpal_manifest *m, double ax,
+                              double ay)
+{
+    struct tvpal_view v = {.width = W, .height = H, .ax_deg = ax,
+                           .ay_deg = ay, .zoom = 1.2};
+    memcpy(v.dims, m->dims, sizeof v.dims);
+    tvpal_view_setup(&v);
+    return v;
+}
+
+int main(int argc, char **argv)
+{
+    REQUIRE(argc == 2, "usage: tvpal-playcheck DIR");
+    const char *dir = argv[1];
+    struct tvpal_osmesa *ctx;
+    struct tvpal_diag d = {{0}};
+    REQUIRE(tvpal_osmesa_create(&ctx, &d) == 0, "%s", d.msg);
+    REQUIRE(tvpal_glr_create(&glr, W, H, &d) == 0, "%s", d.msg);
+    refbuf = malloc(sizeof(double) * W * H * 4);
+    static float a[W * H * 4], b[W * H * 4];
+    struct tvpal_renderer rgl = {glr, NULL, gl_set, gl_up, gl_draw};
+    struct tvpal_renderer rref = {NULL, NULL, ref_set, ref_up, ref_draw};
+    struct tvpal_player *p = open_player(dir, 0, TVPAL_IO_URING, 1);
+    const struct tvpal_manifest *m = tvpal_player_manifest(p);
+    const uint32_t T = m->steps, N = m->window;
+    struct tvpal_frame_stats st;
+
+    /* GL vs reference, three axes. */
+    static const double views[][2] = {{10, 20}, {85, 10}, {5, 95}, {-30, 200}};
+    unsigned axes = 0;
+    for (size_t vi = 0; vi < 4; vi++) {
+        struct tvpal_view v = view(m, views[vi][0], views[vi][1]);
+        axes |= 1u << v.axis;
+        for (uint32_t t = 0; t < T; t += (T > 3 ? T / 3 : 1)) {
+            REQUIRE(tvpal_player_frame(p, &v, t, 1, &rgl, a, &st, &d) == 0, "%s", d.msg);
+            REQUIRE(tvpal_player_frame(p, &v, t, 1, &rref, b, &st, &d) == 0, "%s", d.msg);
+            size_t over = 0;
+            double mx = 0, energy = 0;
+            for (size_t i = 0; i < (size_t)W * H * 4; i++) {
+                double e = fabs(a[i] - b[i]);
+                over += e > 2e-3;
+                mx = e > mx ? e : mx;
+                energy += b[i];
+            }
+            CHECK(energy > 1, "view %zu t %u: empty frame", vi, t);
+            CHECK(over <= W * H / 50, "view %zu axis %c t %u: %zu values "
+                  "differ > 2e-3 (max %g)", vi, "xyz"[v.axis], t, over, mx);
+        }
+    }
+    CHECK(axes == 7, "views cover the three axes (%u)", axes);
+
+    /* Jumps and backward playback equal forward playback. */
+    struct tvpal_view v = view(m, 25, 35);
+    static float seq[64][W * H * 4];
+    uint32_t Tm = T < 64 ? T : 64;
+    struct tvpal_player *q = open_player(dir, 0, TVPAL_IO_URING, 1);
+    for (uint32_t t = 0; t < Tm; t++) {
+        REQUIRE(tvpal_player_frame(q, &v, t, 1, &rgl, seq[t], &st, &d) == 0, "%s", d.msg);
+        if (t > 0) {
+            /* Only slices whose window starts at t change. */
+            uint32_t n = v.axis == 0 ? m->dims[0] : v.axis == 1 ? m->dims[1] : m->dims[2];
+            uint32_t starting = 0;
+            for (uint32_t s = 0; s < n; s++)
+                starting += tvpal_window_starts(s, t, N);
+            CHECK(st.uploads <= starting, "step %u: %u uploads, %u windows "
+                  "start", t, st.uploads, starting);
+        }
+    }
+    tvpal_player_close(q);
+    for (int i = 0; i < 12; i++) {
+        uint32_t t = (uint32_t)(tt_rand64() % Tm);
+        struct tvpal_player *j = open_player(dir, 0, i % 2 ? TVPAL_IO_PREAD
+                                                           : TVPAL_IO_URING, 1);
+        REQUIRE(tvpal_player_frame(j, &v, t, 1, &rgl, a, &st, &d) == 0, "%s", d.msg);
+        CHECK(!memcmp(a, seq[t], sizeof a), "jump to %u differs from playing "
+              "to it", t);
+        tvpal_player_close(j);
+    }
+    for (uint32_t t = Tm; t-- > 0;) {
+        REQUIRE(tvpal_player_frame(p, &v, t, -1, &rgl, a, &st, &d) == 0, "%s", d.msg);
+        CHECK(!memcmp(a, seq[t], sizeof a), "backward step %u differs", t);
+    }
+    /* In-core, pread and page-cache streaming give the same images. */
+    struct tvpal_player *ic = open_player(dir, 1, TVPAL_IO_URING, 1);
+    struct tvpal_player *pr = open_player(dir, 0, TVPAL_IO_PREAD, 0);
+    for (uint32_t t = 0; t < Tm; t++) {
+        REQUIRE(tvpal_player_frame(ic, &v, t, 1, &rgl, a, &st, &d) == 0, "%s", d.msg);
+        CHECK(!memcmp(a, seq[t], sizeof a), "in-core step %u differs", t);
+        REQUIRE(tvpal_player_frame(pr, &v, t, 1, &rgl, a, &st, &d) == 0, "%s", d.msg);
+        CHECK(!memcmp(a, seq[t], sizeof a), "pread step %u differs", t);
+    }
+    /* A TF change uploads no slice texture (both TFs keep every slice
+     * visible, so no slice becomes visible for the first time). */
+    uint32_t t = Tm / 2;
+    struct tvpal_tf tf;
+    REQUIRE(tvpal_tf_parse_text("domain normalized\n0 0 0 1 0.02\n1 1 0 0 0.4\n",
+                                m->value_min, m->value_max, &tf, &d) == 0, "%s", d.msg);
+    tvpal_player_set_tf(ic, &tf, 1.0);
+    REQUIRE(tvpal_player_frame(ic, &v, t, 1, &rgl, a, &st, &d) == 0, "%s", d.msg);
+    CHECK(st.skipped == 0, "all slices visible");
+    REQUIRE(tvpal_tf_parse_text("domain normalized\n0 0 1 0 0.05\n1 1 1 1 0.2\n",
+                                m->value_min, m->value_max, &tf, &d) == 0, "%s", d.msg);
+    tvpal_player_set_tf(ic, &tf, 1.0);
+    uint64_t before = tvpal_glr_uploads(glr);
+    REQUIRE(tvpal_player_frame(ic, &v, t, 1, &rgl, b, &st, &d) == 0, "%s", d.msg);
+    CHECK(tvpal_glr_uploads(glr) == before && st.uploads == 0,
+          "TF change uploaded %u slices", st.uploads);
+    CHECK(memcmp(a, b, sizeof a) != 0, "TF change changed the image");
+    tvpal_player_close(ic);
+    tvpal_player_close(pr);
+    tvpal_player_close(p);
+    tvpal_glr_free(glr);
+    tvpal_osmesa_free(ctx);
+    free(refbuf);
+    return tt_done("tvpal-playcheck");
+}
