@@ -8,6 +8,7 @@
 #include "tvpal_osmesa.h"
 #include "tvpal_player.h"
 #include "tvpal_png.h"
+#include "tvpal_window.h"
 
 #include <errno.h>
 #include <getopt.h>
@@ -31,7 +32,9 @@ static void usage(FILE *f)
 "timing CSV.\n"
 "\n"
 "View and frames:\n"
-"      --headless           render off-screen (the only front end so far)\n"
+"      --headless           render off-screen to PNG files (default when\n"
+"                           there is no display)\n"
+"  -w, --window             interactive window (default with a display)\n"
 "  -s, --steps A:B          timesteps A..B inclusive, 0-based (default all);\n"
 "                           B < A plays backward\n"
 "  -S, --size WxH           image size (default 512x512)\n"
@@ -39,7 +42,8 @@ static void usage(FILE *f)
 "  -z, --zoom Z             zoom factor (default 1)\n"
 "  -t, --tf FILE            transfer function (samples/tf/README.md: tvpal\n"
 "                           text format or ParaView preset JSON); default:\n"
-"                           one from the data's histogram\n"
+"                           one from the data's histogram.  Repeat to give\n"
+"                           several (the window cycles through them)\n"
 "      --opacity S          opacity scale (default 1)\n"
 "      --renderer R         gl (default) or ref (CPU reference, slow)\n"
 "Data:\n"
@@ -53,9 +57,19 @@ static void usage(FILE *f)
 "  -o, --output DIR         write PNG frames here (created)\n"
 "      --csv FILE           per-frame timings (default DIR/timing.csv)\n"
 "      --strict             stop at the first read or checksum error\n"
+"      --autoplay K         window: play K frames from A, then exit\n"
+"      --screenshot FILE    window: save the last frame shown as PNG\n"
 "  -q, --quiet              only the closing summary line\n"
 "  -h, --help               this help\n"
 "  -V, --version            version\n"
+"\n"
+"Window keys: space play/pause, Right/Left (or . ,) step, Home/End first/\n"
+"last, B reverse direction, T next transfer function, R reload it from its\n"
+"file, Up/Down opacity, M in-core/out-of-core, +/- or wheel zoom, S\n"
+"screenshot (tvpal-shot-NNNN.png), Q or Esc quit.  Mouse: drag the image to\n"
+"rotate, drag or click the slider to scrub.  While dragging or scrubbing\n"
+"every other slice is drawn; the full image follows when idle.  The title\n"
+"shows timestep, fps, data mode, axis and transfer function.\n"
 "\n"
 "A record that fails to load is reported (file, record); the affected\n"
 "slices keep their last good data and playback continues, unless --strict.\n"
@@ -112,10 +126,240 @@ static int ref_draw(void *c, const struct tvpal_frame *f, float *rgba,
     return 0;
 }
 
+
+/* ------------------------------------------------------------ window mode */
+
+struct win_args {
+    const char *dir;
+    struct tvpal_player_opts po;
+    struct tvpal_tf *tfs;
+    const char **tf_files;
+    unsigned ntf;
+    unsigned width, height;
+    double ax, ay, zoom, opacity;
+    uint32_t a, b, autoplay;
+    const char *shot;
+    int quiet;
+};
+
+static int save_shot(const char *path, const uint8_t *rgb, unsigned w,
+                     unsigned h, float *scratch, uint8_t *rgb8)
+{
+    /* tvpal_png_write takes premultiplied floats bottom-up: convert. */
+    for (unsigned y = 0; y < h; y++)
+        for (unsigned x = 0; x < w; x++) {
+            const uint8_t *s = rgb + 3 * ((size_t)(h - 1 - y) * w + x);
+            float *d = scratch + 4 * ((size_t)y * w + x);
+            for (int c = 0; c < 3; c++)
+                d[c] = s[c] / 255.0f;
+            d[3] = 1.0f;
+        }
+    static const float bg[3] = {0, 0, 0};
+    return tvpal_png_write(path, scratch, w, h, bg, rgb8);
+}
+
+static int run_window(struct tvpal_player *pl, const struct win_args *wa)
+{
+    struct tvpal_diag d = {{0}};
+    struct tvpal_win *win;
+    unsigned W = wa->width, H = wa->height;
+    if (tvpal_win_open(&win, W, H, PROG, &d) < 0)
+        die(1, "%s", d.msg);
+    struct tvpal_glr *glr;
+    if (tvpal_glr_create(&glr, W, H, &d) < 0)
+        die(1, "%s", d.msg);
+    struct tvpal_renderer rend = {glr, NULL, gl_set, gl_up, gl_draw};
+    const struct tvpal_manifest *m = tvpal_player_manifest(pl);
+    const uint32_t T = m->steps;
+    uint8_t *rgb = malloc(3 * (size_t)W * H), *rgb8 = malloc(3 * (size_t)W * H);
+    float *scratch = malloc(sizeof(float) * 4 * W * H);
+    if (!rgb || !rgb8 || !scratch)
+        die(1, "out of memory");
+    struct tvpal_player_opts po = wa->po;
+    double ax = wa->ax, ay = wa->ay, zoom = wa->zoom, opacity = wa->opacity;
+    unsigned tfi = 0, ntf_all = wa->ntf + 1, shots = 0;
+    uint32_t t = wa->a;
+    int dir = wa->b >= wa->a ? 1 : -1;
+    int playing = wa->autoplay > 0, redraw = 1, reduced = 0, status = 0;
+    uint32_t frames = 0;
+    double fps = 0, last = tvpal_now();
+    char last_err[sizeof d.msg] = "";
+    while (!tvpal_win_should_close(win)) {
+        struct tvpal_input in;
+        tvpal_win_poll(win, !playing && !redraw, &in);
+        int quit = 0;
+        for (int i = 0; i < in.nkeys; i++) {
+            switch (in.keys[i]) {
+            case TVPAL_KEY_PLAY: playing = !playing; break;
+            case TVPAL_KEY_NEXT: t = t + 1 < T ? t + 1 : t; playing = 0; dir = 1; break;
+            case TVPAL_KEY_PREV: t = t > 0 ? t - 1 : 0; playing = 0; dir = -1; break;
+            case TVPAL_KEY_FIRST: t = 0; break;
+            case TVPAL_KEY_LAST: t = T - 1; break;
+            case TVPAL_KEY_REVERSE: dir = -dir; break;
+            case TVPAL_KEY_TF_NEXT:
+                tfi = (tfi + 1) % ntf_all;
+                tvpal_player_set_tf(pl, &wa->tfs[tfi], opacity);
+                break;
+            case TVPAL_KEY_TF_RELOAD:
+                if (tfi < wa->ntf) {
+                    struct tvpal_tf nt;
+                    if (tvpal_tf_load(wa->tf_files[tfi], m->value_min,
+                                      m->value_max, &nt, &d) < 0)
+                        fprintf(stderr, PROG ": %s: %s (keeping the old one)\n",
+                                wa->tf_files[tfi], d.msg);
+                    else
+                        wa->tfs[tfi] = nt;
+                }
+                tvpal_player_set_tf(pl, &wa->tfs[tfi], opacity);
+                break;
+            case TVPAL_KEY_OPACITY_UP:
+            case TVPAL_KEY_OPACITY_DOWN:
+                opacity *= in.keys[i] == TVPAL_KEY_OPACITY_UP ? 1.25 : 0.8;
+                tvpal_player_set_tf(pl, &wa->tfs[tfi], opacity);
+                break;
+            case TVPAL_KEY_MODE: {
+                /* Reopen with the other data mode; the pause is the cost
+                 * of loading (in-core) or of nothing (stream). */
+                struct tvpal_player *np;
+                po.incore = !po.incore;
+                double s0 = tvpal_now();
+                if (tvpal_player_open(&np, wa->dir, &po, &d) < 0) {
+                    fprintf(stderr, PROG ": %s\n", d.msg);
+                    po.incore = !po.incore;
+                    break;
+                }
+                tvpal_player_close(pl);
+                pl = np;
+                tvpal_player_set_tf(pl, &wa->tfs[tfi], opacity);
+                if (!wa->quiet)
+                    fprintf(stderr, PROG ": data now %s (%.0f ms)\n",
+                            po.incore ? "in-core" : "streamed",
+                            (tvpal_now() - s0) * 1e3);
+                break;
+            }
+            case TVPAL_KEY_ZOOM_IN: zoom *= 1.15; break;
+            case TVPAL_KEY_ZOOM_OUT: zoom /= 1.15; break;
+            case TVPAL_KEY_SHOT: {
+                char name[64];
+                snprintf(name, sizeof name, "tvpal-shot-%04u.png", shots++);
+                tvpal_win_read(win, rgb);
+                if (save_shot(name, rgb, W, H, scratch, rgb8) == 0 && !wa->quiet)
+                    fprintf(stderr, PROG ": saved %s\n", name);
+                break;
+            }
+            case TVPAL_KEY_QUIT: quit = 1; break;
+            }
+            redraw = 1;
+        }
+        if (quit)
+            break;
+        if (in.dragging) {
+            ay += in.drag_dx * 0.4;
+            ax += in.drag_dy * 0.4;
+            redraw = 1;
+        }
+        if (in.scroll != 0) {
+            zoom *= pow(1.1, in.scroll);
+            redraw = 1;
+        }
+        if (in.scrubbing) {
+            t = (uint32_t)floor(in.scrub_pos * (T - 1) + 0.5);
+            playing = 0;
+            redraw = 1;
+        }
+        if (in.resized && in.width && in.height &&
+            (in.width != W || in.height != H)) {
+            W = in.width;
+            H = in.height;
+            tvpal_glr_free(glr);
+            if (tvpal_glr_create(&glr, W, H, &d) < 0)
+                die(1, "%s", d.msg);
+            rend = (struct tvpal_renderer){glr, NULL, gl_set, gl_up, gl_draw};
+            free(rgb);
+            free(rgb8);
+            free(scratch);
+            rgb = malloc(3 * (size_t)W * H);
+            rgb8 = malloc(3 * (size_t)W * H);
+            scratch = malloc(sizeof(float) * 4 * W * H);
+            if (!rgb || !rgb8 || !scratch)
+                die(1, "out of memory");
+            redraw = 1;
+        }
+        /* Reduced quality while the user interacts; refine when idle. */
+        int interacting = in.dragging || in.scrubbing;
+        if (!interacting && reduced)
+            redraw = 1;
+        if (!redraw && !playing)
+            continue;
+        if (playing && !redraw) {
+            int64_t nt = (int64_t)t + dir;
+            if (nt < 0 || nt >= T)
+                nt = dir > 0 ? 0 : T - 1; /* loop */
+            t = (uint32_t)nt;
+        }
+        tvpal_player_set_reduce(pl, interacting ? 2 : 1);
+        reduced = interacting;
+        struct tvpal_view v = {.width = W, .height = H, .ax_deg = ax,
+                               .ay_deg = ay, .zoom = zoom};
+        memcpy(v.dims, m->dims, sizeof v.dims);
+        tvpal_view_setup(&v);
+        struct tvpal_frame_stats st;
+        d.msg[0] = 0;
+        int rc = tvpal_player_frame(pl, &v, t, dir, &rend, NULL, &st, &d);
+        if (rc < 0 && strcmp(d.msg, last_err)) {
+            snprintf(last_err, sizeof last_err, "%s", d.msg);
+            fprintf(stderr, PROG ": step %u: %s (keeping the last good data)\n",
+                    t, d.msg);
+            status = 1;
+            if (!st.rendered)
+                break;
+        }
+        tvpal_glr_blit(glr, 0, TVPAL_SLIDER_HEIGHT);
+        if (wa->shot)
+            tvpal_win_read(win, rgb);
+        tvpal_win_present(win, T > 1 ? (double)t / (T - 1) : 0.0);
+        double now = tvpal_now();
+        double inst = now > last ? 1.0 / (now - last) : 0;
+        fps = frames ? 0.8 * fps + 0.2 * inst : inst;
+        last = now;
+        frames++;
+        char title[256];
+        snprintf(title, sizeof title, PROG " - t=%u/%u - %.1f fps - %s%s - "
+                 "axis %c - %s%s", t, T - 1, fps,
+                 tvpal_player_io_name(pl), po.incore ? "" : " stream",
+                 "xyz"[v.axis], wa->tfs[tfi].name, reduced ? " - preview" : "");
+        tvpal_win_title(win, title);
+        redraw = 0;
+        if (wa->autoplay && frames >= wa->autoplay)
+            break;
+        if (playing && wa->autoplay) {
+            int64_t nt = (int64_t)t + dir;
+            if (nt < 0 || nt >= T)
+                break;
+            t = (uint32_t)nt;
+            redraw = 1;
+        }
+    }
+    if (wa->shot && save_shot(wa->shot, rgb, W, H, scratch, rgb8) < 0)
+        die(1, "%s: cannot write", wa->shot);
+    printf("frames=%u last_step=%u fps=%.3f mode=%s\n", frames, t, fps,
+           tvpal_player_io_name(pl));
+    tvpal_glr_free(glr);
+    tvpal_win_close(win);
+    tvpal_player_close(pl);
+    free(rgb);
+    free(rgb8);
+    free(scratch);
+    return status;
+}
+
 int main(int argc, char **argv)
 {
     static const struct option lopts[] = {
         {"headless", no_argument, 0, 'H'},
+        {"window", no_argument, 0, 'w'},
+        {"autoplay", required_argument, 0, 'A'},
+        {"screenshot", required_argument, 0, 'C'},
         {"steps", required_argument, 0, 's'},
         {"size", required_argument, 0, 'S'},
         {"rotate", required_argument, 0, 'r'},
@@ -143,9 +387,20 @@ int main(int argc, char **argv)
     uint32_t mem_mib = 0;
     struct tvpal_player_opts po = {.incore = 0, .io = TVPAL_IO_URING,
                                    .prefetch = 4, .direct = 1};
-    while ((c = getopt_long(argc, argv, "s:S:r:z:t:m:o:qhV", lopts, NULL)) != -1) {
+    int mode_window = -1; /* -1: decide from the display */
+    uint32_t autoplay = 0;
+    const char *shot = NULL;
+    const char *tf_files[16];
+    unsigned ntf = 0;
+    while ((c = getopt_long(argc, argv, "s:S:r:z:t:m:o:wqhV", lopts, NULL)) != -1) {
         switch (c) {
-        case 'H': break;
+        case 'H': mode_window = 0; break;
+        case 'w': mode_window = 1; break;
+        case 'A':
+            if (tvpal_parse_u32(optarg, 1, UINT32_MAX, &autoplay) < 0)
+                die(2, "--autoplay \"%s\": expected a frame count >= 1", optarg);
+            break;
+        case 'C': shot = optarg; break;
         case 's': steps_s = optarg; break;
         case 'S':
             if (sscanf(optarg, "%ux%u", &width, &height) != 2 || !width ||
@@ -161,7 +416,11 @@ int main(int argc, char **argv)
             if (tvpal_parse_double(optarg, &zoom) < 0 || zoom <= 0)
                 die(2, "--zoom \"%s\": expected a number > 0", optarg);
             break;
-        case 't': tf_path = optarg; break;
+        case 't':
+            if (ntf == 16)
+                die(2, "--tf: at most 16 transfer functions");
+            tf_files[ntf++] = tf_path = optarg;
+            break;
         case 'O':
             if (tvpal_parse_double(optarg, &opacity) < 0 || opacity < 0)
                 die(2, "--opacity \"%s\": expected a number >= 0", optarg);
@@ -198,7 +457,13 @@ int main(int argc, char **argv)
         case 'x': strict = 1; break;
         case 'q': quiet = 1; break;
         case 'h': usage(stdout); return 0;
-        case 'V': printf(PROG " " PACKAGE_VERSION "\n"); return 0;
+        case 'V':
+#ifdef HAVE_GLFW
+            printf(PROG " " PACKAGE_VERSION " (window: yes)\n");
+#else
+            printf(PROG " " PACKAGE_VERSION " (window: no)\n");
+#endif
+            return 0;
         default:
             fprintf(stderr, "Try '" PROG " --help'.\n");
             return 2;
@@ -220,17 +485,16 @@ int main(int argc, char **argv)
             die(2, "--steps \"%s\": expected A:B within 0..%u", steps_s,
                 m->steps - 1);
     }
-    if (tf_path) {
-        struct tvpal_tf tf;
-        if (tvpal_tf_load(tf_path, m->value_min, m->value_max, &tf, &d) < 0)
-            die(2, "%s: %s", tf_path, d.msg);
-        tvpal_player_set_tf(pl, &tf, opacity);
-    } else if (opacity != 1) {
-        struct tvpal_tf tf;
-        tvpal_tf_default(m->value_min, m->value_max, m->histogram,
-                         TVPAL_HIST_BINS, &tf);
-        tvpal_player_set_tf(pl, &tf, opacity);
-    }
+    /* Transfer functions: every --tf file (checked now), then the default. */
+    static struct tvpal_tf tfs[17];
+    for (unsigned i = 0; i < ntf; i++)
+        if (tvpal_tf_load(tf_files[i], m->value_min, m->value_max, &tfs[i],
+                          &d) < 0)
+            die(2, "%s: %s", tf_files[i], d.msg);
+    tvpal_tf_default(m->value_min, m->value_max, m->histogram,
+                     TVPAL_HIST_BINS, &tfs[ntf]);
+    tvpal_player_set_tf(pl, &tfs[0], opacity);
+    (void)tf_path;
     if (mem_mib) {
         double per_step = (double)tvpal_player_axis_bytes(pl) / m->steps;
         double fit = (double)mem_mib * 1048576.0 / per_step;
@@ -239,6 +503,19 @@ int main(int argc, char **argv)
                per_step / 1048576.0, m->steps,
                fit >= m->steps ? ": in-core fits" : ": stream from disk");
     }
+
+    if (mode_window < 0)
+        mode_window = getenv("DISPLAY") && *getenv("DISPLAY") && !outdir;
+    if (mode_window) {
+        struct win_args wa = {
+            .dir = dir, .po = po, .tfs = tfs, .tf_files = tf_files, .ntf = ntf,
+            .width = width, .height = height, .ax = ax, .ay = ay,
+            .zoom = zoom, .opacity = opacity, .a = a, .b = b,
+            .autoplay = autoplay, .shot = shot, .quiet = quiet};
+        return run_window(pl, &wa);
+    }
+    if (autoplay || shot)
+        die(2, "--autoplay and --screenshot need the window (--window)");
 
     /* Renderer. */
     struct tvpal_renderer rend;

@@ -294,6 +294,16 @@ int tvpal_glr_draw(struct tvpal_glr *r, const struct tvpal_frame *f,
     return 0;
 }
 
+void tvpal_glr_blit(struct tvpal_glr *r, int x, int y)
+{
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, r->fbo);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
+    glBlitFramebuffer(0, 0, (GLint)r->width, (GLint)r->height, x, y,
+                      x + (GLint)r->width, y + (GLint)r->height,
+                      GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    glBindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+}
+
 uint64_t tvpal_glr_uploads(const struct tvpal_glr *r)
 {
     return r->uploads;

@@ -40,6 +40,10 @@ void tvpal_glr_upload(struct tvpal_glr *r, uint32_t layer,
 int tvpal_glr_draw(struct tvpal_glr *r, const struct tvpal_frame *f,
                    float *rgba, struct tvpal_diag *diag);
 
+/* Copies the last frame to the default framebuffer at (x, y) (window
+ * front end); the premultiplied colours show over black. */
+void tvpal_glr_blit(struct tvpal_glr *r, int x, int y);
+
 /* Slice texture uploads so far (tests: a TF change must upload none). */
 uint64_t tvpal_glr_uploads(const struct tvpal_glr *r);
 

@@ -3,6 +3,7 @@
 #include "tvpal_cli.h"
 #include "tvpal_stream.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -19,6 +20,7 @@ struct tvpal_player {
     struct axis_state ax[3];
     struct tvpal_tf tf;
     double opacity_scale;
+    unsigned reduce;
     /* renderer state */
     struct tvpal_renderer *last_r;
     int r_axis;
@@ -38,6 +40,7 @@ int tvpal_player_open(struct tvpal_player **out, const char *dir,
     p->opts = *opts;
     p->r_axis = -1;
     p->opacity_scale = 1.0;
+    p->reduce = 1;
     int rc = tvpal_dataset_open(&p->ds, dir, diag);
     if (rc < 0)
         goto err;
@@ -124,6 +127,11 @@ void tvpal_player_set_tf(struct tvpal_player *p, const struct tvpal_tf *tf,
     p->opacity_scale = opacity_scale;
 }
 
+void tvpal_player_set_reduce(struct tvpal_player *p, unsigned k)
+{
+    p->reduce = k ? k : 1;
+}
+
 uint64_t tvpal_player_axis_bytes(const struct tvpal_player *p)
 {
     uint64_t b = 0;
@@ -179,10 +187,23 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
         r->owner = p;
         p->r_axis = (int)v->axis;
     }
-    const double expo = tvpal_view_opacity_exponent(v);
+    /* No more slices than the image can resolve: when a pixel spans k
+     * voxels, every k-th slice is enough along the ray too. */
+    uint32_t nmax = p->ds->m.dims[0];
+    for (int i = 1; i < 3; i++)
+        nmax = p->ds->m.dims[i] > nmax ? p->ds->m.dims[i] : nmax;
+    double vpp = fmin(v->sx / v->width, v->sy / v->height) * nmax;
+    unsigned stride = vpp >= 2.0 ? (unsigned)vpp : 1;
+    stride *= p->reduce;
+    if (stride > x->n)
+        stride = x->n;
+    st->stride = stride;
+    const double expo = tvpal_view_opacity_exponent(v) * stride;
     uint32_t count = 0;
     for (uint32_t i = 0; i < x->n; i++) {
         uint32_t s = v->descending ? x->n - 1 - i : i;
+        if (s % stride != (x->n / 2) % stride)
+            continue;
         struct tvpal_slab *slab = x->slabs[x->slab_of[s]];
         uint32_t k = x->local_of[s];
         const float *row = tvpal_slab_row(slab, k, t);

@@ -48,6 +48,7 @@ struct tvpal_frame_stats {
     double io_ms, upload_ms, draw_ms, total_ms, axis_switch_ms;
     uint64_t bytes_read;
     uint32_t drawn, skipped, uploads;
+    unsigned stride;       /* slices drawn: every stride-th */
     int rendered;          /* 1 when the frame was drawn (maybe with stale
                               slices after a load error) */
 };
@@ -67,6 +68,10 @@ const char *tvpal_player_io_name(const struct tvpal_player *p);
  * texture is uploaded for a TF change). */
 void tvpal_player_set_tf(struct tvpal_player *p, const struct tvpal_tf *tf,
                          double opacity_scale);
+
+/* Draw every k-th slice only (opacity corrected for the wider spacing):
+ * the reduced-quality mode while the user drags or scrubs.  k >= 1. */
+void tvpal_player_set_reduce(struct tvpal_player *p, unsigned k);
 
 /* Renders timestep t for view v (v->axis etc. must be set up by
  * tvpal_view_setup) into rgba.  dir steers prefetch (+1/-1).  A record

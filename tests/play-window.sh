@@ -1,0 +1,49 @@
+#!/bin/sh
+# play-window: the GLFW front end opens a real window under Xvfb, renders,
+# and its framebuffer equals the headless image of the same step; keys sent
+# with xdotool step the playhead (Right x3 from step 0 shows step 3), S
+# saves a screenshot, T cycles the transfer function, Q quits.
+. "$(dirname "$0")/lib.sh"
+PLAY=$TVPAL_BUILDDIR/player/tvpal-play
+[ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
+"$PLAY" --version | grep -q "window: yes" || { echo "built without GLFW: skipped"; exit 77; }
+for tool in xvfb-run xdotool; do
+    command -v $tool > /dev/null || { echo "$tool missing (scripts/setup-deps installs it)"; exit 99; }
+done
+D=24x20x16
+"$GEN" --field blobs --dims $D --steps 9 -o "$W/in" || fail gen
+"$ENC" -q --dims $D --window 4 -o "$W/ds" "$W"/in/*.f32 > /dev/null || fail encode
+TF=$TVPAL_SRCDIR/samples/tf/warm.tf
+"$PLAY" "$W/ds" --headless -q --size 96x80 --tf "$TF" -o "$W/hl" > /dev/null || fail headless
+# 1. Autoplay: window framebuffer vs headless PNG.
+for t in 0 5; do
+    xvfb-run -a -s "-screen 0 640x480x24" "$PLAY" "$W/ds" --window --steps $t:$t \
+        --size 96x80 --tf "$TF" --autoplay 1 --screenshot "$W/win$t.png" > "$W/o.txt" 2>&1 \
+        || { fail "window run: $(cat "$W/o.txt")"; continue; }
+    cmp -s "$W/win$t.png" "$(printf '%s/hl/t%04d.png' "$W" $t)" \
+        && ok "step $t: window framebuffer = headless image" || fail "step $t: window differs"
+done
+# 2. Keys through the X server.
+cat > "$W/drive.sh" <<DRIVE
+#!/bin/sh
+cd "$W"
+"$PLAY" "$W/ds" --window --steps 0:8 --size 96x80 --tf "$TF" > "$W/play.txt" 2>&1 &
+pid=\$!
+wid=\$(xdotool search --sync --name tvpal-play | head -n 1)
+sleep 0.5
+for k in Right Right Right; do xdotool key --window \$wid \$k; sleep 0.3; done
+xdotool key --window \$wid s; sleep 0.5
+xdotool key --window \$wid t; sleep 0.3
+xdotool getwindowname \$wid > "$W/title.txt"
+xdotool key --window \$wid q 2>/dev/null
+wait \$pid
+DRIVE
+timeout 60 xvfb-run -a -s "-screen 0 640x480x24" sh "$W/drive.sh" || fail "driving the window"
+cmp -s "$W/tvpal-shot-0000.png" "$W/hl/t0003.png" \
+    && ok "Right x3 then S: screenshot = headless step 3" || fail "keys: screenshot differs ($(cat "$W/play.txt"))"
+grep -q "t=3/8" "$W/title.txt" && grep -q "default" "$W/title.txt" \
+    && ok "title: $(cat "$W/title.txt")" || fail "title: $(cat "$W/title.txt")"
+grep -q "last_step=3" "$W/play.txt" && ok "q quits" || fail "quit: $(cat "$W/play.txt")"
+# 3. No display: a clear error.
+expect_exit 1 "cannot open a window" env -u DISPLAY "$PLAY" "$W/ds" --window --autoplay 1
+finish
