@@ -45,7 +45,12 @@ static void usage(FILE *f)
 "                           one from the data's histogram.  Repeat to give\n"
 "                           several (the window cycles through them)\n"
 "      --opacity S          opacity scale (default 1)\n"
-"      --renderer R         gl (default) or ref (CPU reference, slow)\n"
+"      --renderer R         gl (default), ref (CPU reference, slow) or none\n"
+"                           (read and decode only: I/O benchmarks)\n"
+"      --fb BITS            colour buffer: 32 (float, default), 16 (half)\n"
+"                           or 8 (shows the banding of 8-bit blending)\n"
+"      --spin DEG           turn the view DEG degrees about y per frame\n"
+"                           (a camera path; crossing axes loads records)\n"
 "Data:\n"
 "  -m, --mode M             incore (records in RAM) or stream (default: from\n"
 "                           disk, O_DIRECT, prefetching)\n"
@@ -53,6 +58,11 @@ static void usage(FILE *f)
 "      --prefetch P         timesteps read ahead when streaming (default 4)\n"
 "      --no-direct          stream through the page cache\n"
 "      --mem MIB            report how many timesteps fit in MIB of RAM\n"
+"Benchmarking (headless):\n"
+"      --repeat K           draw every frame K times (times the draw alone)\n"
+"      --tf-cycle           use the next --tf every frame\n"
+"      --jumps K            every K-th frame jumps to a random timestep\n"
+"                           (CSV column jump = 1)\n"
 "Output:\n"
 "  -o, --output DIR         write PNG frames here (created)\n"
 "      --csv FILE           per-frame timings (default DIR/timing.csv)\n"
@@ -108,6 +118,12 @@ static int gl_draw(void *c, const struct tvpal_frame *f, float *rgba,
 }
 
 static double *ref_buf;
+static int none_draw(void *c, const struct tvpal_frame *f, float *rgba,
+                     struct tvpal_diag *d)
+{
+    memset(rgba, 0, sizeof(float) * 4 * f->view->width * f->view->height);
+    return 0;
+}
 static int ref_set(void *c, uint32_t w, uint32_t h, uint32_t n,
                    struct tvpal_diag *d)
 {
@@ -358,6 +374,11 @@ int main(int argc, char **argv)
     static const struct option lopts[] = {
         {"headless", no_argument, 0, 'H'},
         {"window", no_argument, 0, 'w'},
+        {"spin", required_argument, 0, 'Y'},
+        {"fb", required_argument, 0, 'F'},
+        {"repeat", required_argument, 0, 'K'},
+        {"tf-cycle", no_argument, 0, 'T'},
+        {"jumps", required_argument, 0, 'J'},
         {"autoplay", required_argument, 0, 'A'},
         {"screenshot", required_argument, 0, 'C'},
         {"steps", required_argument, 0, 's'},
@@ -388,6 +409,10 @@ int main(int argc, char **argv)
     struct tvpal_player_opts po = {.incore = 0, .io = TVPAL_IO_URING,
                                    .prefetch = 4, .direct = 1};
     int mode_window = -1; /* -1: decide from the display */
+    double spin = 0;
+    uint32_t fb_bits = 32;
+    uint32_t repeat = 1, jumps = 0;
+    int tf_cycle = 0, no_render = 0;
     uint32_t autoplay = 0;
     const char *shot = NULL;
     const char *tf_files[16];
@@ -401,6 +426,24 @@ int main(int argc, char **argv)
                 die(2, "--autoplay \"%s\": expected a frame count >= 1", optarg);
             break;
         case 'C': shot = optarg; break;
+        case 'Y':
+            if (tvpal_parse_double(optarg, &spin) < 0)
+                die(2, "--spin \"%s\": expected degrees", optarg);
+            break;
+        case 'K':
+            if (tvpal_parse_u32(optarg, 1, 100000, &repeat) < 0)
+                die(2, "--repeat \"%s\": expected 1..100000", optarg);
+            break;
+        case 'T': tf_cycle = 1; break;
+        case 'F':
+            if (tvpal_parse_u32(optarg, 8, 32, &fb_bits) < 0 ||
+                (fb_bits != 8 && fb_bits != 16 && fb_bits != 32))
+                die(2, "--fb \"%s\": expected 8, 16 or 32", optarg);
+            break;
+        case 'J':
+            if (tvpal_parse_u32(optarg, 1, UINT32_MAX, &jumps) < 0)
+                die(2, "--jumps \"%s\": expected K >= 1", optarg);
+            break;
         case 's': steps_s = optarg; break;
         case 'S':
             if (sscanf(optarg, "%ux%u", &width, &height) != 2 || !width ||
@@ -428,8 +471,10 @@ int main(int argc, char **argv)
         case 'R':
             if (!strcmp(optarg, "ref"))
                 use_ref = 1;
+            else if (!strcmp(optarg, "none"))
+                no_render = 1;
             else if (strcmp(optarg, "gl"))
-                die(2, "--renderer \"%s\": expected gl or ref", optarg);
+                die(2, "--renderer \"%s\": expected gl, ref or none", optarg);
             break;
         case 'm':
             if (!strcmp(optarg, "incore"))
@@ -521,14 +566,16 @@ int main(int argc, char **argv)
     struct tvpal_renderer rend;
     struct tvpal_osmesa *ctx = NULL;
     struct tvpal_glr *glr = NULL;
-    if (use_ref) {
+    if (no_render) {
+        rend = (struct tvpal_renderer){NULL, NULL, ref_set, ref_up, none_draw};
+    } else if (use_ref) {
         ref_buf = malloc(sizeof(double) * 4 * width * height);
         if (!ref_buf)
             die(1, "out of memory");
         rend = (struct tvpal_renderer){NULL, NULL, ref_set, ref_up, ref_draw};
     } else {
         if (tvpal_osmesa_create(&ctx, &d) < 0 ||
-            tvpal_glr_create(&glr, width, height, &d) < 0)
+            tvpal_glr_create_fb(&glr, width, height, fb_bits, &d) < 0)
             die(1, "%s", d.msg);
         rend = (struct tvpal_renderer){glr, NULL, gl_set, gl_up, gl_draw};
     }
@@ -549,7 +596,7 @@ int main(int argc, char **argv)
             die(2, "%s: cannot write: %s", csv_path, strerror(errno));
         fprintf(csv, "step,axis,io_ms,upload_ms,draw_ms,readback_ms,total_ms,"
                 "bytes_read,slices_drawn,slices_skipped,slice_uploads,"
-                "axis_switch_ms\n");
+                "axis_switch_ms,jump,stride\n");
     }
     int digits = 4;
     for (uint32_t x = 10000; x <= m->steps - 1 && digits < 10; x *= 10)
@@ -571,12 +618,30 @@ int main(int argc, char **argv)
                 "data %s, renderer %s\n", dir, m->dims[0], m->dims[1],
                 m->dims[2], m->steps, m->window, "xyz"[v.axis],
                 tvpal_player_io_name(pl), use_ref ? "ref" : "gl");
+    uint64_t rng = 0x9E3779B97F4A7C15ull;
     for (uint32_t i = 0; i < nframes; i++) {
         uint32_t t = a + (uint32_t)((int)i * dir_step);
+        int jump = 0;
+        if (jumps && i > 0 && i % jumps == 0) {
+            /* xorshift: a reproducible random timestep */
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            t = (uint32_t)(rng % m->steps);
+            jump = 1;
+        }
+        if (spin != 0 && i > 0) {
+            v.ay_deg += spin;
+            tvpal_view_setup(&v);
+        }
+        if (tf_cycle && ntf > 1)
+            tvpal_player_set_tf(pl, &tfs[i % ntf], opacity);
         struct tvpal_frame_stats st;
         d.msg[0] = 0;
         double f0 = tvpal_now();
         int rc = tvpal_player_frame(pl, &v, t, dir_step, &rend, rgba, &st, &d);
+        for (uint32_t k = 1; k < repeat && rc >= 0; k++)
+            rc = tvpal_player_frame(pl, &v, t, dir_step, &rend, rgba, &st, &d);
         if (rc < 0 && strcmp(d.msg, last_err)) {
             /* A bad record is retried every frame that needs it; it is
              * reported (and counted) once. */
@@ -608,10 +673,10 @@ int main(int argc, char **argv)
             free(path);
         }
         if (csv)
-            fprintf(csv, "%u,%c,%.3f,%.3f,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%.3f\n",
+            fprintf(csv, "%u,%c,%.3f,%.3f,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%.3f,%d,%u\n",
                     t, "xyz"[st.axis], st.io_ms, st.upload_ms + up, dr, rb,
                     total, (unsigned long long)st.bytes_read, st.drawn,
-                    st.skipped, st.uploads, st.axis_switch_ms);
+                    st.skipped, st.uploads, st.axis_switch_ms, jump, st.stride);
     }
     double el = tvpal_now() - t_start;
     if (csv && fclose(csv) != 0)
@@ -623,7 +688,7 @@ int main(int argc, char **argv)
            nframes / (el > 0 ? el : 1e-9), nframes, sum_io / nframes,
            sum_up / nframes, sum_draw / nframes, sum_read / nframes,
            (unsigned long long)sum_bytes, tvpal_player_io_name(pl),
-           use_ref ? "ref" : "gl", errors);
+           no_render ? "none" : use_ref ? "ref" : "gl", errors);
     tvpal_glr_free(glr);
     tvpal_osmesa_free(ctx);
     tvpal_player_close(pl);

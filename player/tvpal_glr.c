@@ -80,6 +80,13 @@ static int compile(GLenum type, const char *src, GLuint *out,
 int tvpal_glr_create(struct tvpal_glr **out, unsigned width, unsigned height,
                      struct tvpal_diag *diag)
 {
+    return tvpal_glr_create_fb(out, width, height, 32, diag);
+}
+
+int tvpal_glr_create_fb(struct tvpal_glr **out, unsigned width,
+                        unsigned height, unsigned fb_bits,
+                        struct tvpal_diag *diag)
+{
     const char *ver = (const char *)glGetString(GL_VERSION);
     int major = 0, minor = 0;
     if (!ver || sscanf(ver, "%d.%d", &major, &minor) != 2 ||
@@ -139,8 +146,10 @@ int tvpal_glr_create(struct tvpal_glr **out, unsigned width, unsigned height,
     glBindFramebuffer(GL_FRAMEBUFFER, r->fbo);
     glGenRenderbuffers(1, &r->rbo);
     glBindRenderbuffer(GL_RENDERBUFFER, r->rbo);
-    glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA32F, (GLsizei)width,
-                          (GLsizei)height);
+    glRenderbufferStorage(GL_RENDERBUFFER,
+                          fb_bits == 8 ? GL_RGBA8 : fb_bits == 16 ? GL_RGBA16F
+                                                                  : GL_RGBA32F,
+                          (GLsizei)width, (GLsizei)height);
     glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0,
                               GL_RENDERBUFFER, r->rbo);
     GLenum st = glCheckFramebufferStatus(GL_FRAMEBUFFER);

@@ -24,6 +24,13 @@ struct tvpal_glr;
  * in the current context.  diag says what failed (shader log, FBO status). */
 int tvpal_glr_create(struct tvpal_glr **out, unsigned width, unsigned height,
                      struct tvpal_diag *diag);
+
+/* The same with the colour buffer's precision chosen: 32 (RGBA32F, the
+ * default), 16 (RGBA16F) or 8 (RGBA8: blending rounds every layer to 1/255,
+ * which bands over many translucent slices; for comparison). */
+int tvpal_glr_create_fb(struct tvpal_glr **out, unsigned width,
+                        unsigned height, unsigned fb_bits,
+                        struct tvpal_diag *diag);
 void tvpal_glr_free(struct tvpal_glr *r);   /* NULL is a no-op */
 
 /* (Re)allocates the index texture array for `count` slices of w x h (on

@@ -131,6 +131,44 @@ int main(void)
           "(mean %g)", diff);
     printf("sharp TF: mean |colour interp - index interp| = %.4f\n", diff);
 
+    /* 8-bit accumulation bands: many translucent layers of the same colour
+     * (alpha 0.01 each, 24 slices) vs the double reference, for 8-bit,
+     * 16-bit float and 32-bit float colour buffers. */
+    {
+        struct tvpal_tf faint;
+        REQUIRE(tvpal_tf_parse_text("domain normalized\n0 0.3 0.5 0.9 0.01\n"
+                                    "1 0.9 0.6 0.2 0.012\n", 0, 1, &faint, &d) == 0,
+                "%s", d.msg);
+        struct tvpal_view vb = {.dims = {24, 20, 16}, .width = W, .height = H,
+                                .ax_deg = 0, .ay_deg = 90, .zoom = 1.0};
+        make_frame(dims, &vb, &f, sl, &faint, 0);
+        tvpal_render_ref(&f, ref);
+        double err[3];
+        static const unsigned bits[3] = {8, 16, 32};
+        for (int k = 0; k < 3; k++) {
+            struct tvpal_glr *rb;
+            REQUIRE(tvpal_glr_create_fb(&rb, W, H, bits[k], &d) == 0, "%s", d.msg);
+            REQUIRE(tvpal_glr_set_slices(rb, f.w, f.h, dims[vb.axis], &d) == 0, "%s", d.msg);
+            for (uint32_t q = 0; q < f.count; q++)
+                tvpal_glr_upload(rb, sl[q].slice, sl[q].idx);
+            REQUIRE(tvpal_glr_draw(rb, &f, gl, &d) == 0, "%s", d.msg);
+            double e = 0;
+            for (size_t i = 0; i < (size_t)W * H * 4; i++)
+                e = fmax(e, fabs(gl[i] - ref[i]));
+            err[k] = e;
+            tvpal_glr_free(rb);
+        }
+        printf("24 faint layers: max |error| vs double reference: RGBA8 %.2e "
+               "(%.1f levels of 255), RGBA16F %.2e, RGBA32F %.2e\n", err[0],
+               err[0] * 255, err[1], err[2]);
+        CHECK(err[2] < 1e-5, "float buffer accurate (%g)", err[2]);
+        CHECK(err[0] > 10 * err[1] && err[0] > 1.0 / 255,
+              "8-bit accumulation should err by more than a level (%g)", err[0]);
+        /* tvpal_glr_create_fb changed the current program state: rebind. */
+        tvpal_glr_free(r);
+        REQUIRE(tvpal_glr_create(&r, W, H, &d) == 0, "%s", d.msg);
+    }
+
     /* Changing palettes uploads nothing. */
     uint64_t up = tvpal_glr_uploads(r);
     REQUIRE(tvpal_glr_set_slices(r, f.w, f.h, dims[v.axis], &d) == 0, "%s", d.msg);
