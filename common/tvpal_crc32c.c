@@ -22,7 +22,53 @@ static void crc_init(void)
                               crc_table[0][crc_table[s - 1][i] & 0xFF];
 }
 
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+/* SSE4.2 has a CRC-32C instruction: ~8 bytes per cycle-ish instead of ~1.
+ * Three independent streams would go further; one is already faster than
+ * the disks this reads from. */
+__attribute__((target("sse4.2"))) static uint32_t crc_hw(uint32_t crc,
+                                                         const unsigned char *p,
+                                                         size_t len)
+{
+    uint64_t c = ~crc;
+    while (len && ((uintptr_t)p & 7)) {
+        c = __builtin_ia32_crc32qi((uint32_t)c, *p++);
+        len--;
+    }
+    while (len >= 8) {
+        uint64_t v;
+        memcpy(&v, p, 8);
+        c = __builtin_ia32_crc32di(c, v);
+        p += 8;
+        len -= 8;
+    }
+    while (len--)
+        c = __builtin_ia32_crc32qi((uint32_t)c, *p++);
+    return ~(uint32_t)c;
+}
+
+static int have_hw;
+static void hw_init(void)
+{
+    __builtin_cpu_init();
+    have_hw = __builtin_cpu_supports("sse4.2");
+}
+static pthread_once_t hw_once = PTHREAD_ONCE_INIT;
+#endif
+
+uint32_t tvpal_crc32c_sw(uint32_t crc, const void *data, size_t len);
+
 uint32_t tvpal_crc32c(uint32_t crc, const void *data, size_t len)
+{
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+    pthread_once(&hw_once, hw_init);
+    if (have_hw)
+        return crc_hw(crc, data, len);
+#endif
+    return tvpal_crc32c_sw(crc, data, len);
+}
+
+uint32_t tvpal_crc32c_sw(uint32_t crc, const void *data, size_t len)
 {
     const unsigned char *p = data;
     pthread_once(&crc_once, crc_init);

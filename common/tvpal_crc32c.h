@@ -12,4 +12,8 @@
 
 uint32_t tvpal_crc32c(uint32_t crc, const void *data, size_t len);
 
+/* The portable table-driven version (tvpal_crc32c uses the CPU's CRC-32C
+ * instruction when it has one); for tests. */
+uint32_t tvpal_crc32c_sw(uint32_t crc, const void *data, size_t len);
+
 #endif

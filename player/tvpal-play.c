@@ -57,7 +57,9 @@ static void usage(FILE *f)
 "      --io B               uring (default; pread when unavailable) or pread\n"
 "      --prefetch P         timesteps read ahead when streaming (default 4)\n"
 "      --no-direct          stream through the page cache\n"
-"      --mem MIB            report how many timesteps fit in MIB of RAM\n"
+"      --mem MIB            in-core: keep at most MIB of records in RAM\n"
+"                           (axes beyond it are dropped or streamed); also\n"
+"                           reports how many timesteps fit in MIB\n"
 "Benchmarking (headless):\n"
 "      --repeat K           draw every frame K times (times the draw alone)\n"
 "      --tf-cycle           use the next --tf every frame\n"
@@ -520,6 +522,7 @@ int main(int argc, char **argv)
 
     struct tvpal_diag d = {{0}};
     struct tvpal_player *pl;
+    po.mem_budget = (uint64_t)mem_mib << 20;
     if (tvpal_player_open(&pl, dir, &po, &d) < 0)
         die(2, "%s", d.msg);
     const struct tvpal_manifest *m = tvpal_player_manifest(pl);
@@ -684,10 +687,12 @@ int main(int argc, char **argv)
     if (!quiet && outdir)
         fprintf(stderr, PROG ": %u frames in %s/\n", nframes, outdir);
     printf("fps=%.3f frames=%u io_ms=%.3f upload_ms=%.3f draw_ms=%.3f "
-           "readback_ms=%.3f bytes_read=%llu mode=%s renderer=%s errors=%u\n",
+           "readback_ms=%.3f bytes_read=%llu incore_mib=%.1f mode=%s "
+           "renderer=%s errors=%u\n",
            nframes / (el > 0 ? el : 1e-9), nframes, sum_io / nframes,
            sum_up / nframes, sum_draw / nframes, sum_read / nframes,
-           (unsigned long long)sum_bytes, tvpal_player_io_name(pl),
+           (unsigned long long)sum_bytes,
+           tvpal_player_incore_bytes(pl) / 1048576.0, tvpal_player_io_name(pl),
            no_render ? "none" : use_ref ? "ref" : "gl", errors);
     tvpal_glr_free(glr);
     tvpal_osmesa_free(ctx);

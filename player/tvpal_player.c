@@ -1,6 +1,7 @@
 /* tvpal_player.c: the player core (see tvpal_player.h). */
 #include "tvpal_player.h"
 #include "tvpal_cli.h"
+#include "tvpal_format.h"
 #include "tvpal_stream.h"
 
 #include <math.h>
@@ -127,6 +128,15 @@ void tvpal_player_set_tf(struct tvpal_player *p, const struct tvpal_tf *tf,
     p->opacity_scale = opacity_scale;
 }
 
+uint64_t tvpal_player_incore_bytes(const struct tvpal_player *p)
+{
+    uint64_t b = 0;
+    for (unsigned a = 0; a < 3; a++)
+        if (p->ax[a].stream)
+            b += tvpal_stream_incore_bytes(p->ax[a].stream);
+    return b;
+}
+
 void tvpal_player_set_reduce(struct tvpal_player *p, unsigned k)
 {
     p->reduce = k ? k : 1;
@@ -161,10 +171,37 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u out of range "
                               "(0..%u)", t, p->ds->m.steps - 1);
     if (!x->stream) {
-        /* First use of this axis: open its stream (in-core: load it). */
+        /* First use of this axis: open its stream (in-core: load it).  With
+         * a memory budget, other axes' in-core records are given back
+         * first when needed (their slabs keep their decoded state); an axis
+         * larger than the whole budget is streamed instead. */
+        int incore = p->opts.incore;
+        if (incore && p->opts.mem_budget) {
+            uint64_t need = 0;
+            for (uint32_t k = 0; k < p->ds->m.nodes; k++) {
+                const struct tvpal_shard_header *h =
+                    tvpal_shard_hdr(p->ds->shards[v->axis][k]);
+                need += h->index_offset - TVPAL_SHARD_HEADER_BYTES;
+            }
+            if (need > p->opts.mem_budget) {
+                incore = 0;
+            } else {
+                uint64_t held = 0;
+                for (unsigned a = 0; a < 3; a++)
+                    if (p->ax[a].stream)
+                        held += tvpal_stream_incore_bytes(p->ax[a].stream);
+                for (unsigned a = 0; a < 3 && held + need > p->opts.mem_budget; a++)
+                    if (a != v->axis && p->ax[a].stream &&
+                        tvpal_stream_incore_bytes(p->ax[a].stream)) {
+                        held -= tvpal_stream_incore_bytes(p->ax[a].stream);
+                        tvpal_stream_free(p->ax[a].stream);
+                        p->ax[a].stream = NULL;
+                    }
+            }
+        }
         int rc = tvpal_stream_create(&x->stream, x->slabs, p->ds->m.nodes,
-                                     p->opts.io, p->opts.incore,
-                                     p->opts.prefetch, p->opts.direct, diag);
+                                     p->opts.io, incore, p->opts.prefetch,
+                                     p->opts.direct, diag);
         if (rc < 0)
             return rc;
         st->axis_switch_ms = (tvpal_now() - t0) * 1e3;

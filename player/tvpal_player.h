@@ -40,6 +40,9 @@ struct tvpal_player_opts {
     enum tvpal_io_kind io;        /* out-of-core backend */
     unsigned prefetch;            /* timesteps read ahead */
     int direct;                   /* O_DIRECT where possible */
+    uint64_t mem_budget;          /* in-core: bytes of records kept in RAM
+                                     over all axes (0: no limit); an axis
+                                     that does not fit is streamed */
 };
 
 struct tvpal_frame_stats {
@@ -85,5 +88,8 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
 /* Bytes of records one axis holds in RAM in-core (mean over axes) and per
  * timestep: how many timesteps fit in a memory budget. */
 uint64_t tvpal_player_axis_bytes(const struct tvpal_player *p);
+
+/* Bytes of records held in RAM now (all axes). */
+uint64_t tvpal_player_incore_bytes(const struct tvpal_player *p);
 
 #endif

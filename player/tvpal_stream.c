@@ -13,10 +13,17 @@
 
 enum { SLOT_FREE, SLOT_INFLIGHT, SLOT_READY, SLOT_BAD };
 
+/* A record is read in pieces of at most PIECE bytes, all queued at once:
+ * devices serve several moderate requests in parallel faster than one huge
+ * one (measured: 16 MiB records at 1.2 GiB/s whole, near fio's rate in
+ * 1 MiB pieces). */
+#define PIECE (1u << 20)
+
 struct slot {
     int state;
     uint32_t step;
-    int64_t result;          /* bytes read or -errno */
+    unsigned pending;        /* pieces in flight */
+    int64_t result;          /* bytes read, or -errno of a failed piece */
     int verified;
     unsigned char *buf;
 };
@@ -60,8 +67,12 @@ static int reap(struct tvpal_stream *s, double *wait_ms)
         return rc;
     struct part *p = &s->p[tag >> 32];
     struct slot *sl = &p->slots[tag & 0xFFFFFFFFu];
-    sl->result = res;
-    sl->state = SLOT_READY;
+    if (res < 0)
+        sl->result = res;
+    else if (sl->result >= 0)
+        sl->result += res;
+    if (--sl->pending == 0)
+        sl->state = SLOT_READY;
     return 0;
 }
 
@@ -69,21 +80,28 @@ static int submit(struct tvpal_stream *s, unsigned pi, unsigned si,
                   uint32_t step, double *wait_ms)
 {
     struct part *p = &s->p[pi];
+    struct slot *sl = &p->slots[si];
     const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, step);
-    while (tvpal_io_inflight(s->io) >= tvpal_io_depth(s->io)) {
-        int rc = reap(s, wait_ms);
+    sl->state = SLOT_INFLIGHT;
+    sl->step = step;
+    sl->verified = 0;
+    sl->result = 0;
+    sl->pending = 0;
+    for (uint64_t off = 0; off < e->bytes; off += PIECE) {
+        while (tvpal_io_inflight(s->io) >= tvpal_io_depth(s->io)) {
+            int rc = reap(s, wait_ms);
+            if (rc < 0)
+                return rc;
+        }
+        uint64_t len = e->bytes - off < PIECE ? e->bytes - off : PIECE;
+        struct tvpal_io_req r = {.fd = p->fd, .off = e->offset + off,
+                                 .len = len, .buf = sl->buf + off,
+                                 .tag = (uint64_t)pi << 32 | si};
+        int rc = tvpal_io_submit(s->io, &r);
         if (rc < 0)
             return rc;
+        sl->pending++;
     }
-    struct tvpal_io_req r = {.fd = p->fd, .off = e->offset, .len = e->bytes,
-                             .buf = p->slots[si].buf,
-                             .tag = (uint64_t)pi << 32 | si};
-    int rc = tvpal_io_submit(s->io, &r);
-    if (rc < 0)
-        return rc;
-    p->slots[si].state = SLOT_INFLIGHT;
-    p->slots[si].step = step;
-    p->slots[si].verified = 0;
     return 0;
 }
 
@@ -116,9 +134,9 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
     int rc = 0;
     struct tvpal_io *io = NULL;
     struct tvpal_diag d = {{0}};
-    rc = tvpal_io_create(&io, kind, 64, &d);
+    rc = tvpal_io_create(&io, kind, 256, &d);
     if (rc < 0 && kind == TVPAL_IO_URING) /* kernel, seccomp, container */
-        rc = tvpal_io_create(&io, TVPAL_IO_PREAD, 64, diag);
+        rc = tvpal_io_create(&io, TVPAL_IO_PREAD, 256, diag);
     if (rc < 0)
         return rc;
     struct tvpal_stream *s = calloc(1, sizeof *s);
@@ -202,7 +220,9 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
                                    vd.msg);
             }
         } else {
-            p->nslots = h->window + prefetch + 1;
+            /* N needed + P prefetched + P of an old prefetch window still
+             * in flight after a jump + 1. */
+            p->nslots = h->window + 2 * prefetch + 1;
             p->slots = calloc(p->nslots, sizeof *p->slots);
             if (!p->slots) {
                 rc = TVPAL_E_NOMEM;
@@ -312,13 +332,21 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
             if (find_slot(p, wanted[i]) >= 0)
                 continue;
             int v = victim(p, wanted, nw);
+            /* After a jump the old prefetches may hold every free slot:
+             * wait for them to land, then they can be reused. */
+            while (v < 0 && i < nn && tvpal_io_inflight(s->io)) {
+                int rc = reap(s, &st->io_wait_ms);
+                if (rc < 0)
+                    return rc;
+                v = victim(p, wanted, nw);
+            }
             if (v < 0) {
-                if (i < nn) /* a needed record must get a slot */
+                if (i < nn) /* cannot happen: N + 2P + 1 slots */
                     return tvpal_diag_set(diag, TVPAL_E_NOMEM,
                                           "no free record buffer");
                 break;
             }
-            if (i >= nn && tvpal_io_inflight(s->io) >= tvpal_io_depth(s->io))
+            if (i >= nn && tvpal_io_inflight(s->io) + 8 > tvpal_io_depth(s->io))
                 break; /* prefetch only while the queue has room */
             int rc = submit(s, pi, (unsigned)v, wanted[i], &st->io_wait_ms);
             if (rc < 0)

@@ -12,7 +12,7 @@ D=24x20x16
 "$ENC" -q --dims $D --window 4 -o "$W/ds" "$W"/in/*.f32 > /dev/null || fail encode
 TF=$TVPAL_SRCDIR/samples/tf/warm.tf
 line=$("$PLAY" "$W/ds" --headless -q --size 96x80 --tf "$TF" -o "$W/f-stream") || fail "play"
-echo "$line" | grep -Eq '^fps=[0-9.]+ frames=9 io_ms=[0-9.]+ upload_ms=[0-9.]+ draw_ms=[0-9.]+ readback_ms=[0-9.]+ bytes_read=[0-9]+ mode=(uring|pread) renderer=gl errors=0$' \
+echo "$line" | grep -Eq '^fps=[0-9.]+ frames=9 io_ms=[0-9.]+ upload_ms=[0-9.]+ draw_ms=[0-9.]+ readback_ms=[0-9.]+ bytes_read=[0-9]+ incore_mib=[0-9.]+ mode=(uring|pread) renderer=gl errors=0$' \
     && ok "summary: $line" || fail "summary: $line"
 n=$(ls "$W/f-stream"/t*.png | wc -l)
 [ "$n" -eq 9 ] && ok "9 PNG frames" || fail "$n frames"
@@ -33,6 +33,13 @@ for f in "$W/f-stream"/t*.png; do cmp -s "$f" "$W/f-back/$(basename "$f")" || sa
 "$PLAY" "$W/ds" --headless -q --size 96x80 --tf "$TF" --steps 6:6 -o "$W/f-jump" > /dev/null || fail "jump"
 cmp -s "$W/f-stream/t0006.png" "$W/f-jump/t0006.png" && ok "jump to 6 = playing to 6" || fail "jump differs"
 "$PLAY" "$W/ds" --mem 1 --steps 0:0 -q | grep -q "^memory: 1 MiB holds [0-9]* timesteps" && ok "--mem report" || fail "--mem"
+# In-core with a memory budget: crossing all three axes (--spin) keeps at
+# most the budget in RAM; an axis larger than the budget is streamed.
+axis_kib=$(( $(stat -c %s "$W/ds/node-0/axis-z.tvps") / 1024 ))
+line=$("$PLAY" "$W/ds" --headless -q --size 64x64 --mode incore --mem 1 --spin 45 --steps 0:8) || fail "mem budget"
+mib=$(kv incore_mib "$line")
+awk -v m="$mib" 'BEGIN { exit !(m <= 1.0) }' && ok "in-core with --mem 1 holds $mib MiB (axis ${axis_kib} KiB)" \
+    || fail "in-core holds $mib MiB over the 1 MiB budget"
 # Corrupt record 3 of every axis.
 cp -r "$W/ds" "$W/bad"
 for a in x y z; do
