@@ -618,9 +618,11 @@ int main(int argc, char **argv)
     const double t_start = tvpal_now();
     if (!quiet)
         fprintf(stderr, PROG ": %s: %ux%ux%u, %u steps, window %u; axis %c, "
-                "data %s, renderer %s\n", dir, m->dims[0], m->dims[1],
+                "data %s, renderer %s%s%s\n", dir, m->dims[0], m->dims[1],
                 m->dims[2], m->steps, m->window, "xyz"[v.axis],
-                tvpal_player_io_name(pl), use_ref ? "ref" : "gl");
+                po.incore ? "in-core" : "streamed",
+                no_render ? "none" : use_ref ? "ref" : "gl",
+                glr ? ", GL: " : "", glr ? tvpal_glr_gl_name() : "");
     uint64_t rng = 0x9E3779B97F4A7C15ull;
     for (uint32_t i = 0; i < nframes; i++) {
         uint32_t t = a + (uint32_t)((int)i * dir_step);

@@ -313,6 +313,12 @@ void tvpal_glr_blit(struct tvpal_glr *r, int x, int y)
     glBindFramebuffer(GL_FRAMEBUFFER, r->fbo);
 }
 
+const char *tvpal_glr_gl_name(void)
+{
+    const char *s = (const char *)glGetString(GL_RENDERER);
+    return s ? s : "unknown";
+}
+
 uint64_t tvpal_glr_uploads(const struct tvpal_glr *r)
 {
     return r->uploads;

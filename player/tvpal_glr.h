@@ -51,6 +51,9 @@ int tvpal_glr_draw(struct tvpal_glr *r, const struct tvpal_frame *f,
  * front end); the premultiplied colours show over black. */
 void tvpal_glr_blit(struct tvpal_glr *r, int x, int y);
 
+/* The GL renderer string of the current context (e.g. "llvmpipe ..."). */
+const char *tvpal_glr_gl_name(void);
+
 /* Slice texture uploads so far (tests: a TF change must upload none). */
 uint64_t tvpal_glr_uploads(const struct tvpal_glr *r);
 
