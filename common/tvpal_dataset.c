@@ -36,6 +36,8 @@ int tvpal_dataset_open(struct tvpal_dataset **out, const char *dir,
         tvpal_diag_set(diag, rc, "%s: %s", path, d.msg);
         goto err;
     }
+    ds->nshards = ds->m.nodes;
+    ds->first_rank = 0;
     for (unsigned a = 0; a < 3; a++) {
         ds->shards[a] = calloc(ds->m.nodes, sizeof *ds->shards[a]);
         if (!ds->shards[a]) {
@@ -89,13 +91,83 @@ void tvpal_dataset_close(struct tvpal_dataset *ds)
         return;
     for (unsigned a = 0; a < 3; a++) {
         if (ds->shards[a])
-            for (uint32_t r = 0; r < ds->m.nodes; r++)
+            for (uint32_t r = 0; r < ds->nshards; r++)
                 tvpal_shard_close(ds->shards[a][r]);
         free(ds->shards[a]);
     }
     tvpal_manifest_clear(&ds->m);
     free(ds->dir);
     free(ds);
+}
+
+int tvpal_dataset_open_node(struct tvpal_dataset **out, const char *node_dir,
+                            uint32_t rank, uint32_t nranks,
+                            struct tvpal_diag *diag)
+{
+    struct tvpal_diag d = {{0}};
+    char *path = NULL;
+    int rc;
+    struct tvpal_dataset *ds = calloc(1, sizeof *ds);
+    if (!ds || !(ds->dir = strdup(node_dir))) {
+        free(ds);
+        return TVPAL_E_NOMEM;
+    }
+    if (asprintf(&path, "%s/manifest.txt", node_dir) < 0) {
+        rc = TVPAL_E_NOMEM;
+        goto err;
+    }
+    rc = tvpal_manifest_load(path, &ds->m, &d);
+    if (rc < 0) {
+        tvpal_diag_set(diag, rc, "%s: %s", path, d.msg);
+        goto err;
+    }
+    if (ds->m.nodes != nranks) {
+        rc = tvpal_diag_set(diag, TVPAL_E_MISMATCH,
+                            "%s: the dataset has %u node shards; started with "
+                            "%u ranks (run mpirun -np %u)", path, ds->m.nodes,
+                            nranks, ds->m.nodes);
+        goto err;
+    }
+    ds->nshards = 1;
+    ds->first_rank = rank;
+    for (unsigned a = 0; a < 3; a++) {
+        ds->shards[a] = calloc(1, sizeof *ds->shards[a]);
+        if (!ds->shards[a]) {
+            rc = TVPAL_E_NOMEM;
+            goto err;
+        }
+        free(path);
+        if (asprintf(&path, "%s/axis-%c.tvps", node_dir, axis_name[a]) < 0) {
+            path = NULL;
+            rc = TVPAL_E_NOMEM;
+            goto err;
+        }
+        d.msg[0] = 0;
+        rc = tvpal_shard_open(&ds->shards[a][0], path, &d);
+        if (rc < 0) {
+            tvpal_diag_set(diag, rc, "%s: %s%s%s", path, tvpal_strerror(rc),
+                           d.msg[0] ? ": " : "", d.msg);
+            goto err;
+        }
+        const struct tvpal_shard_header *h = tvpal_shard_hdr(ds->shards[a][0]);
+        if (memcmp(h->dims, ds->m.dims, sizeof h->dims) ||
+            h->steps != ds->m.steps || h->window != ds->m.window ||
+            h->nodes != nranks || h->rank != rank || h->axis != a) {
+            rc = tvpal_diag_set(diag, TVPAL_E_MISMATCH,
+                                "%s: header says node %u of %u (axis %u); this "
+                                "rank is %u of %u", path, h->rank, h->nodes,
+                                h->axis, rank, nranks);
+            goto err;
+        }
+        ds->axis_bytes[a] = h->file_bytes;
+    }
+    free(path);
+    *out = ds;
+    return 0;
+err:
+    free(path);
+    tvpal_dataset_close(ds);
+    return rc;
 }
 
 struct tvpal_volreader {

@@ -13,8 +13,10 @@
 struct tvpal_dataset {
     char *dir;
     struct tvpal_manifest m;
-    struct tvpal_shard **shards[3];   /* [axis][rank], m.nodes each */
-    uint64_t axis_bytes[3];           /* total shard file bytes per axis */
+    uint32_t nshards, first_rank;     /* shards held: ranks first_rank ..
+                                         first_rank + nshards - 1 */
+    struct tvpal_shard **shards[3];   /* [axis][i], nshards each */
+    uint64_t axis_bytes[3];           /* bytes of the shards held, per axis */
 };
 
 /* Path of node r's shard of an axis under dir (malloc'ed; caller frees). */
@@ -25,6 +27,14 @@ char *tvpal_shard_filename(const char *dir, uint32_t rank, unsigned axis);
 int tvpal_dataset_open(struct tvpal_dataset **out, const char *dir,
                        struct tvpal_diag *diag);
 void tvpal_dataset_close(struct tvpal_dataset *ds);  /* NULL is a no-op */
+
+/* One node's part only: node_dir holds manifest.txt and axis-{x,y,z}.tvps
+ * of node `rank` (what a cluster rank has on its local disk).  The
+ * manifest's node count must equal nranks, and each shard's header must
+ * say rank `rank` of nranks; diag names the file and the mismatch. */
+int tvpal_dataset_open_node(struct tvpal_dataset **out, const char *node_dir,
+                            uint32_t rank, uint32_t nranks,
+                            struct tvpal_diag *diag);
 
 /* Decoder of whole volumes along one axis: one slab per shard. */
 struct tvpal_volreader;

@@ -258,7 +258,7 @@ int tvpal_glr_draw(struct tvpal_glr *r, const struct tvpal_frame *f,
     float *q = r->verts;
     for (uint32_t k = 0; k < f->count; k++) {
         const struct tvpal_frame_slice *sl = &f->sl[k];
-        memcpy(r->pal + (size_t)1024 * sl->slice, sl->palette,
+        memcpy(r->pal + (size_t)1024 * sl->layer, sl->palette,
                sizeof(float) * 1024);
         static const int tri[6] = {0, 1, 2, 0, 2, 3};
         static const float uv[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
@@ -271,7 +271,7 @@ int tvpal_glr_draw(struct tvpal_glr *r, const struct tvpal_frame *f,
             *q++ = (float)(c[ci][1] / v->sy);
             *q++ = uv[ci][0];
             *q++ = uv[ci][1];
-            *q++ = (float)sl->slice;
+            *q++ = (float)sl->layer;
         }
     }
     glActiveTexture(GL_TEXTURE1);

@@ -9,7 +9,8 @@
 #include <string.h>
 
 struct axis_state {
-    struct tvpal_slab **slabs;       /* one per shard */
+    struct tvpal_slab **slabs;       /* one per shard held */
+    uint32_t begin, held;            /* slices held: [begin, begin + held) */
     struct tvpal_stream *stream;     /* created on first use */
     uint32_t n, w, h;
     uint32_t *slab_of, *local_of;    /* slice -> (shard, local index) */
@@ -42,7 +43,10 @@ int tvpal_player_open(struct tvpal_player **out, const char *dir,
     p->r_axis = -1;
     p->opacity_scale = 1.0;
     p->reduce = 1;
-    int rc = tvpal_dataset_open(&p->ds, dir, diag);
+    int rc = opts->nranks
+                 ? tvpal_dataset_open_node(&p->ds, dir, opts->rank,
+                                           opts->nranks, diag)
+                 : tvpal_dataset_open(&p->ds, dir, diag);
     if (rc < 0)
         goto err;
     uint32_t nmax = 0;
@@ -50,14 +54,16 @@ int tvpal_player_open(struct tvpal_player **out, const char *dir,
         struct axis_state *x = &p->ax[a];
         tvpal_axis_geometry(p->ds->m.dims, a, &x->n, &x->w, &x->h);
         nmax = x->n > nmax ? x->n : nmax;
-        x->slabs = calloc(p->ds->m.nodes, sizeof *x->slabs);
+        x->slabs = calloc(p->ds->nshards, sizeof *x->slabs);
         x->slab_of = calloc(x->n, sizeof *x->slab_of);
         x->local_of = calloc(x->n, sizeof *x->local_of);
         if (!x->slabs || !x->slab_of || !x->local_of) {
             rc = TVPAL_E_NOMEM;
             goto err;
         }
-        for (uint32_t k = 0; k < p->ds->m.nodes; k++) {
+        x->begin = UINT32_MAX;
+        x->held = 0;
+        for (uint32_t k = 0; k < p->ds->nshards; k++) {
             rc = tvpal_slab_create(&x->slabs[k], p->ds->shards[a][k]);
             if (rc < 0)
                 goto err;
@@ -67,6 +73,10 @@ int tvpal_player_open(struct tvpal_player **out, const char *dir,
                 x->slab_of[h->slice_begin + i] = k;
                 x->local_of[h->slice_begin + i] = i;
             }
+            /* Shards held are consecutive slabs: one range of slices. */
+            if (h->slice_begin < x->begin)
+                x->begin = h->slice_begin;
+            x->held += h->slice_count;
         }
     }
     p->fs = calloc(nmax, sizeof *p->fs);
@@ -93,7 +103,7 @@ void tvpal_player_close(struct tvpal_player *p)
         struct axis_state *x = &p->ax[a];
         tvpal_stream_free(x->stream);
         if (x->slabs && p->ds)
-            for (uint32_t k = 0; k < p->ds->m.nodes; k++)
+            for (uint32_t k = 0; k < p->ds->nshards; k++)
                 tvpal_slab_free(x->slabs[k]);
         free(x->slabs);
         free(x->slab_of);
@@ -146,7 +156,7 @@ uint64_t tvpal_player_axis_bytes(const struct tvpal_player *p)
 {
     uint64_t b = 0;
     for (unsigned a = 0; a < 3; a++)
-        for (uint32_t k = 0; k < p->ds->m.nodes; k++) {
+        for (uint32_t k = 0; k < p->ds->nshards; k++) {
             const struct tvpal_shard_header *h =
                 tvpal_shard_hdr(p->ds->shards[a][k]);
             b += h->index_offset - TVPAL_SHARD_HEADER_BYTES;
@@ -178,7 +188,7 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
         int incore = p->opts.incore;
         if (incore && p->opts.mem_budget) {
             uint64_t need = 0;
-            for (uint32_t k = 0; k < p->ds->m.nodes; k++) {
+            for (uint32_t k = 0; k < p->ds->nshards; k++) {
                 const struct tvpal_shard_header *h =
                     tvpal_shard_hdr(p->ds->shards[v->axis][k]);
                 need += h->index_offset - TVPAL_SHARD_HEADER_BYTES;
@@ -199,7 +209,7 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
                     }
             }
         }
-        int rc = tvpal_stream_create(&x->stream, x->slabs, p->ds->m.nodes,
+        int rc = tvpal_stream_create(&x->stream, x->slabs, p->ds->nshards,
                                      p->opts.io, incore, p->opts.prefetch,
                                      p->opts.direct, diag);
         if (rc < 0)
@@ -216,7 +226,8 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
 
     double t1 = tvpal_now();
     if (r != p->last_r || r->owner != p || p->r_axis != (int)v->axis) {
-        int rc = r->set_slices(r->ctx, x->w, x->h, x->n, diag);
+        /* Texture layers: the slices held, layer = slice - begin. */
+        int rc = r->set_slices(r->ctx, x->w, x->h, x->held, diag);
         if (rc < 0)
             return rc;
         memset(p->uploaded_gen, 0, sizeof(uint32_t) * x->n);
@@ -237,8 +248,8 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
     st->stride = stride;
     const double expo = tvpal_view_opacity_exponent(v) * stride;
     uint32_t count = 0;
-    for (uint32_t i = 0; i < x->n; i++) {
-        uint32_t s = v->descending ? x->n - 1 - i : i;
+    for (uint32_t i = 0; i < x->held; i++) {
+        uint32_t s = v->descending ? x->begin + x->held - 1 - i : x->begin + i;
         if (s % stride != (x->n / 2) % stride)
             continue;
         struct tvpal_slab *slab = x->slabs[x->slab_of[s]];
@@ -248,19 +259,21 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
             st->skipped++;
             continue;
         }
-        float *pal = p->pal + (size_t)1024 * s;
+        const uint32_t layer = s - x->begin;
+        float *pal = p->pal + (size_t)1024 * layer;
         if (tvpal_palette_build(&p->tf, row, expo, p->opacity_scale, pal)) {
             st->skipped++; /* fully transparent: nothing to draw */
             continue;
         }
         uint32_t gen = tvpal_slab_generation(slab, k);
         if (p->uploaded_gen[s] != gen) {
-            r->upload(r->ctx, s, tvpal_slab_indices(slab, k));
+            r->upload(r->ctx, layer, tvpal_slab_indices(slab, k));
             p->uploaded_gen[s] = gen;
             st->uploads++;
         }
         p->fs[count++] = (struct tvpal_frame_slice){
-            .slice = s, .idx = tvpal_slab_indices(slab, k), .palette = pal};
+            .slice = s, .layer = layer, .idx = tvpal_slab_indices(slab, k),
+            .palette = pal};
     }
     st->drawn = count;
     double t2 = tvpal_now();

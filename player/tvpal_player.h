@@ -40,6 +40,9 @@ struct tvpal_player_opts {
     enum tvpal_io_kind io;        /* out-of-core backend */
     unsigned prefetch;            /* timesteps read ahead */
     int direct;                   /* O_DIRECT where possible */
+    uint32_t rank, nranks;        /* nranks > 0: open only node `rank`'s
+                                     shards, from the directory given to
+                                     tvpal_player_open (cluster mode) */
     uint64_t mem_budget;          /* in-core: bytes of records kept in RAM
                                      over all axes (0: no limit); an axis
                                      that does not fit is streamed */

@@ -20,7 +20,8 @@
 #include "tvpal_view.h"
 
 struct tvpal_frame_slice {
-    uint32_t slice;           /* index along the view's axis */
+    uint32_t slice;           /* index along the view's axis (position) */
+    uint32_t layer;           /* texture layer holding it (renderers) */
     const uint8_t *idx;       /* w * h indices, a fastest */
     const float *palette;     /* 256 x RGBA, premultiplied, corrected */
 };

@@ -51,6 +51,7 @@ static void make_frame(const uint32_t dims[3], struct tvpal_view *v,
         tvpal_palette_build(tf, row, tvpal_view_opacity_exponent(v), 1.0,
                             pal_store + (size_t)1024 * s);
         sl[k].slice = s;
+        sl[k].layer = s;
         sl[k].idx = I;
         sl[k].palette = pal_store + (size_t)1024 * s;
     }

@@ -1,0 +1,300 @@
+/* tvpal_composite.c: binary swap and gather-to-root compositing (see
+ * tvpal_composite.h).  No MPI here: messages go through tvpal_comm. */
+#include "tvpal_composite.h"
+#include "tvpal_cli.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+struct tvpal_compositor {
+    unsigned width, height;
+    int size;
+    unsigned char *sbuf, *rbuf;   /* encoded messages */
+    size_t cap;
+    size_t *counts, *displs;      /* gather bookkeeping (rank 0) */
+    uint32_t *rows;               /* [2 * size]: final row range per rank */
+};
+
+/* Encoding: u32 span count, then per span u32 start (pixel offset from the
+ * first pixel of row y0) and u32 length, then the spans' pixels (4 floats
+ * each) in order.  A pixel is transparent when all four values are 0. */
+size_t tvpal_rle_bound(unsigned width, unsigned rows)
+{
+    size_t n = (size_t)width * rows;
+    /* worst case: alternating pixels, one span per 2 pixels */
+    return 4 + (n / 2 + 1) * 8 + n * 16;
+}
+
+static inline int clear(const float *p)
+{
+    return p[0] == 0.0f && p[1] == 0.0f && p[2] == 0.0f && p[3] == 0.0f;
+}
+
+size_t tvpal_rle_encode(const float *img, unsigned width, unsigned y0,
+                        unsigned y1, unsigned char *buf)
+{
+    const size_t n = (size_t)width * (y1 - y0);
+    const float *base = img + (size_t)4 * width * y0;
+    uint32_t nspans = 0;
+    /* First pass: spans. */
+    unsigned char *hdr = buf + 4;
+    for (size_t i = 0; i < n;) {
+        while (i < n && clear(base + 4 * i))
+            i++;
+        if (i >= n)
+            break;
+        size_t s = i;
+        while (i < n && !clear(base + 4 * i))
+            i++;
+        uint32_t se[2] = {(uint32_t)s, (uint32_t)(i - s)};
+        memcpy(hdr + 8 * (size_t)nspans, se, 8);
+        nspans++;
+    }
+    memcpy(buf, &nspans, 4);
+    unsigned char *data = hdr + 8 * (size_t)nspans;
+    for (uint32_t k = 0; k < nspans; k++) {
+        uint32_t se[2];
+        memcpy(se, hdr + 8 * (size_t)k, 8);
+        memcpy(data, base + 4 * (size_t)se[0], (size_t)se[1] * 16);
+        data += (size_t)se[1] * 16;
+    }
+    return (size_t)(data - buf);
+}
+
+uint64_t tvpal_rle_blend(float *img, unsigned width, unsigned y0, unsigned y1,
+                         const unsigned char *buf, size_t bytes, int front)
+{
+    uint32_t nspans;
+    uint64_t blended = 0;
+    const size_t n = (size_t)width * (y1 - y0);
+    float *base = img + (size_t)4 * width * y0;
+    if (bytes < 4)
+        return 0;
+    memcpy(&nspans, buf, 4);
+    const unsigned char *hdr = buf + 4;
+    const float *src = (const float *)(hdr + 8 * (size_t)nspans);
+    for (uint32_t k = 0; k < nspans; k++) {
+        uint32_t se[2];
+        memcpy(se, hdr + 8 * (size_t)k, 8);
+        if (se[0] + (size_t)se[1] > n)
+            break; /* malformed: stop rather than write out of bounds */
+        float *d = base + 4 * (size_t)se[0];
+        for (uint32_t i = 0; i < se[1]; i++, d += 4, src += 4) {
+            if (front) { /* received over own */
+                float keep = 1.0f - src[3];
+                d[0] = src[0] + keep * d[0];
+                d[1] = src[1] + keep * d[1];
+                d[2] = src[2] + keep * d[2];
+                d[3] = src[3] + keep * d[3];
+            } else { /* own over received */
+                float keep = 1.0f - d[3];
+                d[0] += keep * src[0];
+                d[1] += keep * src[1];
+                d[2] += keep * src[2];
+                d[3] += keep * src[3];
+            }
+        }
+        blended += se[1];
+    }
+    return blended;
+}
+
+int tvpal_compositor_create(struct tvpal_compositor **out, unsigned width,
+                            unsigned height, int size)
+{
+    struct tvpal_compositor *cx = calloc(1, sizeof *cx);
+    if (!cx)
+        return TVPAL_E_NOMEM;
+    cx->width = width;
+    cx->height = height;
+    cx->size = size;
+    cx->cap = tvpal_rle_bound(width, height);
+    cx->sbuf = malloc(cx->cap);
+    cx->rbuf = malloc(cx->cap);
+    cx->counts = calloc((size_t)size, sizeof *cx->counts);
+    cx->displs = calloc((size_t)size, sizeof *cx->displs);
+    cx->rows = calloc((size_t)size * 2, sizeof *cx->rows);
+    if (!cx->sbuf || !cx->rbuf || !cx->counts || !cx->displs || !cx->rows) {
+        tvpal_compositor_free(cx);
+        return TVPAL_E_NOMEM;
+    }
+    *out = cx;
+    return 0;
+}
+
+void tvpal_compositor_free(struct tvpal_compositor *cx)
+{
+    if (!cx)
+        return;
+    free(cx->sbuf);
+    free(cx->rbuf);
+    free(cx->counts);
+    free(cx->displs);
+    free(cx->rows);
+    free(cx);
+}
+
+/* Rank of depth position v (0 = front) and back. */
+static inline int rank_of(int v, int K, int reverse)
+{
+    return reverse ? K - 1 - v : v;
+}
+
+static int bswap(struct tvpal_compositor *cx, struct tvpal_comm *c,
+                 int reverse, float *img, unsigned *y0out, unsigned *y1out,
+                 int *active, struct tvpal_compose_stats *st)
+{
+    const int K = c->size;
+    const int v = reverse ? K - 1 - c->rank : c->rank;
+    int P = 1;
+    while (P * 2 <= K)
+        P *= 2;
+    const int E = K - P;
+    const unsigned W = cx->width;
+    unsigned y0 = 0, y1 = cx->height;
+    int rc;
+    double t;
+    /* Fold: depth positions 2j and 2j+1 (j < E) pair; 2j+1 sends all. */
+    int vp; /* position among the P participants, or -1 */
+    if (v < 2 * E) {
+        if (v & 1) {
+            t = tvpal_now();
+            size_t n = tvpal_rle_encode(img, W, 0, cx->height, cx->sbuf);
+            st->encode_ms += (tvpal_now() - t) * 1e3;
+            t = tvpal_now();
+            rc = c->send(c, rank_of(v - 1, K, reverse), cx->sbuf, n);
+            st->exchange_ms += (tvpal_now() - t) * 1e3;
+            st->bytes_sent += n;
+            *active = 0;
+            return rc;
+        }
+        size_t got;
+        t = tvpal_now();
+        rc = c->recv(c, rank_of(v + 1, K, reverse), cx->rbuf, cx->cap, &got);
+        st->exchange_ms += (tvpal_now() - t) * 1e3;
+        if (rc < 0)
+            return rc;
+        t = tvpal_now();
+        st->pixels_blended += tvpal_rle_blend(img, W, 0, cx->height, cx->rbuf,
+                                              got, 0);
+        st->blend_ms += (tvpal_now() - t) * 1e3;
+        vp = v / 2;
+    } else {
+        vp = v - E;
+    }
+    /* Participant vp <-> depth position of its partner. */
+    for (int bit = 1; bit < P; bit <<= 1) {
+        int pp = vp ^ bit;
+        int pv = pp < E ? 2 * pp : pp + E;
+        int peer = rank_of(pv, K, reverse);
+        unsigned mid = y0 + (y1 - y0) / 2;
+        /* The lower position keeps the first half of the rows. */
+        int keep_low = !(vp & bit);
+        unsigned ky0 = keep_low ? y0 : mid, ky1 = keep_low ? mid : y1;
+        unsigned sy0 = keep_low ? mid : y0, sy1 = keep_low ? y1 : mid;
+        t = tvpal_now();
+        size_t n = tvpal_rle_encode(img, W, sy0, sy1, cx->sbuf);
+        st->encode_ms += (tvpal_now() - t) * 1e3;
+        size_t got;
+        t = tvpal_now();
+        rc = c->sendrecv(c, peer, cx->sbuf, n, cx->rbuf, cx->cap, &got);
+        st->exchange_ms += (tvpal_now() - t) * 1e3;
+        if (rc < 0)
+            return rc;
+        st->bytes_sent += n;
+        t = tvpal_now();
+        /* Partner's block is in front when its position is lower. */
+        st->pixels_blended += tvpal_rle_blend(img, W, ky0, ky1, cx->rbuf,
+                                              got, pp < vp);
+        st->blend_ms += (tvpal_now() - t) * 1e3;
+        y0 = ky0;
+        y1 = ky1;
+    }
+    *y0out = y0;
+    *y1out = y1;
+    *active = 1;
+    return 0;
+}
+
+static int gather_root(struct tvpal_compositor *cx, struct tvpal_comm *c,
+                       int reverse, float *img, float *out,
+                       struct tvpal_compose_stats *st)
+{
+    const int K = c->size;
+    const unsigned W = cx->width, H = cx->height;
+    double t;
+    int rc = 0;
+    if (c->rank != 0) {
+        t = tvpal_now();
+        size_t n = tvpal_rle_encode(img, W, 0, H, cx->sbuf);
+        st->encode_ms += (tvpal_now() - t) * 1e3;
+        t = tvpal_now();
+        rc = c->send(c, 0, cx->sbuf, n);
+        st->exchange_ms += (tvpal_now() - t) * 1e3;
+        st->bytes_sent += n;
+        return rc;
+    }
+    /* Rank 0: accumulate front to back ("under"): out = out + (1 - a) img. */
+    memset(out, 0, sizeof(float) * 4 * W * H);
+    for (int v = 0; v < K; v++) {
+        int r = rank_of(v, K, reverse);
+        size_t got;
+        const unsigned char *buf;
+        if (r == 0) {
+            t = tvpal_now();
+            got = tvpal_rle_encode(img, W, 0, H, cx->rbuf);
+            st->encode_ms += (tvpal_now() - t) * 1e3;
+        } else {
+            t = tvpal_now();
+            rc = c->recv(c, r, cx->rbuf, cx->cap, &got);
+            st->exchange_ms += (tvpal_now() - t) * 1e3;
+            if (rc < 0)
+                return rc;
+        }
+        buf = cx->rbuf;
+        t = tvpal_now();
+        /* Received piece lies behind what is accumulated so far. */
+        st->pixels_blended += tvpal_rle_blend(out, W, 0, H, buf, got, 0);
+        st->blend_ms += (tvpal_now() - t) * 1e3;
+    }
+    return 0;
+}
+
+int tvpal_composite(struct tvpal_compositor *cx, struct tvpal_comm *c,
+                    enum tvpal_compose_kind kind, int reverse, float *img,
+                    float *out, struct tvpal_compose_stats *st)
+{
+    const unsigned W = cx->width, H = cx->height;
+    memset(st, 0, sizeof *st);
+    if (c->size == 1) {
+        if (out != img)
+            memcpy(out, img, sizeof(float) * 4 * W * H);
+        return 0;
+    }
+    if (kind == TVPAL_COMPOSE_GATHER)
+        return gather_root(cx, c, reverse, img, out, st);
+    unsigned y0 = 0, y1 = 0;
+    int active = 0;
+    int rc = bswap(cx, c, reverse, img, &y0, &y1, &active, st);
+    if (rc < 0)
+        return rc;
+    /* Gather the pieces: first every rank's row range, then the rows. */
+    double t = tvpal_now();
+    uint32_t mine[2] = {active ? y0 : 0, active ? y1 : 0};
+    rc = c->gather(c, mine, sizeof mine, cx->rows);
+    if (rc < 0)
+        return rc;
+    if (c->rank == 0)
+        for (int r = 0; r < c->size; r++) {
+            cx->counts[r] = (size_t)(cx->rows[2 * r + 1] - cx->rows[2 * r]) *
+                            W * 16;
+            cx->displs[r] = (size_t)cx->rows[2 * r] * W * 16;
+        }
+    size_t bytes = (size_t)(mine[1] - mine[0]) * W * 16;
+    rc = c->gatherv(c, img + (size_t)4 * W * mine[0], bytes, out, cx->counts,
+                    cx->displs);
+    st->gather_ms = (tvpal_now() - t) * 1e3;
+    if (c->rank != 0)
+        st->gather_bytes = bytes;
+    return rc;
+}
