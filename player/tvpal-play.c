@@ -3,6 +3,8 @@
  * and writes PNG frames and a per-frame timing CSV. */
 #define _GNU_SOURCE
 #include "tvpal_cli.h"
+#include "tvpal_comm.h"
+#include "tvpal_composite.h"
 #include "tvpal_fs.h"
 #include "tvpal_glr.h"
 #include "tvpal_osmesa.h"
@@ -69,6 +71,11 @@ static void usage(FILE *f)
 "  -o, --output DIR         write PNG frames here (created)\n"
 "      --csv FILE           per-frame timings (default DIR/timing.csv)\n"
 "      --strict             stop at the first read or checksum error\n"
+"Cluster (mpirun -np K tvpal-play ..., one rank per node shard):\n"
+"      --shard-dir PATTERN  where rank r finds its shard: %%r is replaced by\n"
+"                           the rank (default OUTDIR/node-%%r)\n"
+"      --composite S        bswap (binary swap, default) or gather (all\n"
+"                           images to rank 0: the baseline)\n"
 "      --autoplay K         window: play K frames from A, then exit\n"
 "      --screenshot FILE    window: save the last frame shown as PNG\n"
 "  -q, --quiet              only the closing summary line\n"
@@ -90,17 +97,84 @@ static void usage(FILE *f)
 "opened, or (with --strict) the first load error.\n");
 }
 
+/* Under MPI only rank 0 reports what every rank finds alike (options,
+ * dataset-wide errors); a failure of one rank is reported by that rank and
+ * ends the whole job (die_rank), so no rank waits forever. */
+static int g_env_rank;            /* from the launcher's environment */
+static struct tvpal_comm g_comm;  /* valid once g_have_comm */
+static int g_have_comm;
+
 static void die(int code, const char *fmt, ...)
     __attribute__((format(printf, 2, 3), noreturn));
 static void die(int code, const char *fmt, ...)
 {
+    if (g_env_rank == 0) {
+        va_list ap;
+        va_start(ap, fmt);
+        fputs(PROG ": ", stderr);
+        vfprintf(stderr, fmt, ap);
+        fputc('\n', stderr);
+        va_end(ap);
+    }
+#ifdef HAVE_MPI
+    if (g_have_comm && g_comm.size > 1)
+        tvpal_comm_mpi_finalize(&g_comm);
+#endif
+    exit(code);
+}
+
+static void die_rank(int code, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3), noreturn));
+static void die_rank(int code, const char *fmt, ...)
+{
     va_list ap;
     va_start(ap, fmt);
-    fputs(PROG ": ", stderr);
+    if (g_have_comm && g_comm.size > 1)
+        fprintf(stderr, PROG ": rank %d: ", g_comm.rank);
+    else
+        fputs(PROG ": ", stderr);
     vfprintf(stderr, fmt, ap);
     fputc('\n', stderr);
     va_end(ap);
+    if (g_have_comm && g_comm.size > 1)
+        g_comm.abort(&g_comm, code);
     exit(code);
+}
+
+/* Every rank's result of a step that may fail on some ranks only: rank 0
+ * prints the failures (naming the ranks); all ranks exit when any failed. */
+struct rank_status {
+    int rc;
+    char msg[244];
+};
+
+static void check_all(int rc, const char *msg, int code)
+{
+    struct rank_status mine = {.rc = rc}, *all = NULL;
+    snprintf(mine.msg, sizeof mine.msg, "%s", msg);
+    if (g_comm.size == 1) {
+        if (rc < 0)
+            die(code, "%s", msg);
+        return;
+    }
+    if (g_comm.rank == 0 &&
+        !(all = calloc((size_t)g_comm.size, sizeof *all)))
+        die_rank(1, "out of memory");
+    if (g_comm.gather(&g_comm, &mine, sizeof mine, all) < 0)
+        die_rank(1, "MPI gather failed");
+    double bad = rc < 0;
+    g_comm.allmax(&g_comm, &bad, 1);
+    if (g_comm.rank == 0)
+        for (int r = 0; r < g_comm.size; r++)
+            if (all[r].rc < 0)
+                fprintf(stderr, PROG ": rank %d: %s\n", r, all[r].msg);
+    free(all);
+    if (bad > 0) {
+#ifdef HAVE_MPI
+        tvpal_comm_mpi_finalize(&g_comm);
+#endif
+        exit(code);
+    }
 }
 
 /* Renderer adapters. */
@@ -144,6 +218,41 @@ static int ref_draw(void *c, const struct tvpal_frame *f, float *rgba,
     return 0;
 }
 
+
+/* One rank's figures for one frame (gathered on rank 0). */
+struct frame_rec {
+    double io, up, draw, read, enc, exch, blend, comp, gath, total;
+    uint64_t bytes_read, bytes_sent, bytes_sent_total, gather_bytes, pixels;
+    int rc, fatal;
+    char msg[200];
+};
+
+/* Slowest rank per phase; bytes sent max and total; pixels max. */
+static void aggregate(const struct frame_rec *r, int n, struct frame_rec *o)
+{
+    memset(o, 0, sizeof *o);
+    for (int i = 0; i < n; i++) {
+        const struct frame_rec *q = &r[i];
+        o->io = fmax(o->io, q->io);
+        o->up = fmax(o->up, q->up);
+        o->draw = fmax(o->draw, q->draw);
+        o->read = fmax(o->read, q->read);
+        o->enc = fmax(o->enc, q->enc);
+        o->exch = fmax(o->exch, q->exch);
+        o->blend = fmax(o->blend, q->blend);
+        o->comp = fmax(o->comp, q->comp);
+        o->gath = fmax(o->gath, q->gath);
+        o->total = fmax(o->total, q->total);
+        o->bytes_read += q->bytes_read;
+        o->bytes_sent = q->bytes_sent > o->bytes_sent ? q->bytes_sent : o->bytes_sent;
+        o->bytes_sent_total += q->bytes_sent;
+        o->gather_bytes += q->gather_bytes;
+        o->pixels = q->pixels > o->pixels ? q->pixels : o->pixels;
+        if (q->rc < 0 && o->rc >= 0)
+            o->rc = q->rc;
+        o->fatal |= q->fatal;
+    }
+}
 
 /* ------------------------------------------------------------ window mode */
 
@@ -377,6 +486,8 @@ int main(int argc, char **argv)
         {"headless", no_argument, 0, 'H'},
         {"window", no_argument, 0, 'w'},
         {"spin", required_argument, 0, 'Y'},
+        {"shard-dir", required_argument, 0, 'G'},
+        {"composite", required_argument, 0, 'Q'},
         {"fb", required_argument, 0, 'F'},
         {"repeat", required_argument, 0, 'K'},
         {"tf-cycle", no_argument, 0, 'T'},
@@ -404,6 +515,8 @@ int main(int argc, char **argv)
         {0, 0, 0, 0}};
     const char *steps_s = NULL, *tf_path = NULL, *outdir = NULL,
                *csv_path = NULL;
+    const char *env_rank = getenv("OMPI_COMM_WORLD_RANK");
+    g_env_rank = env_rank ? atoi(env_rank) : 0;
     unsigned width = 512, height = 512;
     double ax = 20, ay = 30, zoom = 1, opacity = 1;
     int use_ref = 0, strict = 0, quiet = 0, c;
@@ -412,6 +525,8 @@ int main(int argc, char **argv)
                                    .prefetch = 4, .direct = 1};
     int mode_window = -1; /* -1: decide from the display */
     double spin = 0;
+    const char *shard_pat = NULL;
+    enum tvpal_compose_kind ckind = TVPAL_COMPOSE_BSWAP;
     uint32_t fb_bits = 32;
     uint32_t repeat = 1, jumps = 0;
     int tf_cycle = 0, no_render = 0;
@@ -437,6 +552,13 @@ int main(int argc, char **argv)
                 die(2, "--repeat \"%s\": expected 1..100000", optarg);
             break;
         case 'T': tf_cycle = 1; break;
+        case 'G': shard_pat = optarg; break;
+        case 'Q':
+            if (!strcmp(optarg, "gather"))
+                ckind = TVPAL_COMPOSE_GATHER;
+            else if (strcmp(optarg, "bswap"))
+                die(2, "--composite \"%s\": expected bswap or gather", optarg);
+            break;
         case 'F':
             if (tvpal_parse_u32(optarg, 8, 32, &fb_bits) < 0 ||
                 (fb_bits != 8 && fb_bits != 16 && fb_bits != 32))
@@ -521,10 +643,47 @@ int main(int argc, char **argv)
     const char *dir = argv[optind];
 
     struct tvpal_diag d = {{0}};
-    struct tvpal_player *pl;
+    struct tvpal_player *pl = NULL;
     po.mem_budget = (uint64_t)mem_mib << 20;
-    if (tvpal_player_open(&pl, dir, &po, &d) < 0)
-        die(2, "%s", d.msg);
+    int cluster = 0;
+#ifdef HAVE_MPI
+    if (getenv("OMPI_COMM_WORLD_SIZE")) { /* started by mpirun */
+        if (tvpal_comm_mpi_init(&argc, &argv) < 0 || tvpal_comm_mpi(&g_comm) < 0)
+            die_rank(1, "cannot initialize MPI");
+        cluster = 1;
+    } else
+#endif
+        tvpal_comm_self(&g_comm);
+    g_have_comm = 1;
+    char *node_dir = NULL;
+    if (cluster) {
+        /* Rank r reads only its own shard: OUTDIR/node-r by default. */
+        const char *pat = shard_pat ? shard_pat : NULL;
+        char rs[16];
+        snprintf(rs, sizeof rs, "%d", g_comm.rank);
+        if (!pat) {
+            if (asprintf(&node_dir, "%s/node-%s", dir, rs) < 0)
+                die_rank(1, "out of memory");
+        } else {
+            size_t cap = strlen(pat) * 4 + 32, o = 0;
+            node_dir = malloc(cap);
+            if (!node_dir)
+                die_rank(1, "out of memory");
+            for (const char *q = pat; *q && o + 16 < cap; q++) {
+                if (q[0] == '%' && q[1] == 'r') {
+                    o += (size_t)snprintf(node_dir + o, cap - o, "%s", rs);
+                    q++;
+                } else {
+                    node_dir[o++] = *q;
+                }
+            }
+            node_dir[o] = 0;
+        }
+        po.rank = (uint32_t)g_comm.rank;
+        po.nranks = (uint32_t)g_comm.size;
+    }
+    int orc = tvpal_player_open(&pl, cluster ? node_dir : dir, &po, &d);
+    check_all(orc, d.msg, 2);
     const struct tvpal_manifest *m = tvpal_player_manifest(pl);
     uint32_t a = 0, b = m->steps - 1;
     if (steps_s) {
@@ -535,15 +694,19 @@ int main(int argc, char **argv)
     }
     /* Transfer functions: every --tf file (checked now), then the default. */
     static struct tvpal_tf tfs[17];
-    for (unsigned i = 0; i < ntf; i++)
-        if (tvpal_tf_load(tf_files[i], m->value_min, m->value_max, &tfs[i],
-                          &d) < 0)
-            die(2, "%s: %s", tf_files[i], d.msg);
+    for (unsigned i = 0; i < ntf; i++) {
+        char em[300] = "";
+        int trc = tvpal_tf_load(tf_files[i], m->value_min, m->value_max,
+                                &tfs[i], &d);
+        if (trc < 0)
+            snprintf(em, sizeof em, "%s: %s", tf_files[i], d.msg);
+        check_all(trc, em, 2);
+    }
     tvpal_tf_default(m->value_min, m->value_max, m->histogram,
                      TVPAL_HIST_BINS, &tfs[ntf]);
     tvpal_player_set_tf(pl, &tfs[0], opacity);
     (void)tf_path;
-    if (mem_mib) {
+    if (mem_mib && g_comm.rank == 0) {
         double per_step = (double)tvpal_player_axis_bytes(pl) / m->steps;
         double fit = (double)mem_mib * 1048576.0 / per_step;
         printf("memory: %u MiB holds %.0f timesteps of one axis (%.2f MiB per "
@@ -553,7 +716,11 @@ int main(int argc, char **argv)
     }
 
     if (mode_window < 0)
-        mode_window = getenv("DISPLAY") && *getenv("DISPLAY") && !outdir;
+        mode_window = !cluster && getenv("DISPLAY") && *getenv("DISPLAY") &&
+                      !outdir;
+    if (mode_window && cluster)
+        die(2, "--window with mpirun is not supported yet: use --headless "
+            "(rank 0 writes the frames)");
     if (mode_window) {
         struct win_args wa = {
             .dir = dir, .po = po, .tfs = tfs, .tf_files = tf_files, .ntf = ntf,
@@ -577,15 +744,29 @@ int main(int argc, char **argv)
             die(1, "out of memory");
         rend = (struct tvpal_renderer){NULL, NULL, ref_set, ref_up, ref_draw};
     } else {
-        if (tvpal_osmesa_create(&ctx, &d) < 0 ||
-            tvpal_glr_create_fb(&glr, width, height, fb_bits, &d) < 0)
-            die(1, "%s", d.msg);
+        int grc = tvpal_osmesa_create(&ctx, &d);
+        if (grc == 0)
+            grc = tvpal_glr_create_fb(&glr, width, height, fb_bits, &d);
+        check_all(grc, d.msg, 1);
         rend = (struct tvpal_renderer){glr, NULL, gl_set, gl_up, gl_draw};
     }
     float *rgba = malloc(sizeof(float) * 4 * width * height);
+    float *final = g_comm.size > 1 ? malloc(sizeof(float) * 4 * width * height)
+                                   : rgba;
     uint8_t *rgb8 = malloc(3 * (size_t)width * height);
-    if (!rgba || !rgb8)
-        die(1, "out of memory");
+    struct tvpal_compositor *cx = NULL;
+    if (!rgba || !rgb8 || !final ||
+        tvpal_compositor_create(&cx, width, height, g_comm.size) < 0)
+        die_rank(1, "out of memory");
+    struct frame_rec *recs = NULL;
+    if (g_comm.rank == 0 &&
+        !(recs = calloc((size_t)g_comm.size, sizeof *recs)))
+        die_rank(1, "out of memory");
+    if (g_comm.rank != 0) {
+        outdir = NULL; /* rank 0 writes frames, CSV and the summary */
+        csv_path = NULL;
+        quiet = 1;
+    }
     FILE *csv = NULL;
     char *csv_default = NULL;
     if (outdir) {
@@ -599,7 +780,9 @@ int main(int argc, char **argv)
             die(2, "%s: cannot write: %s", csv_path, strerror(errno));
         fprintf(csv, "step,axis,io_ms,upload_ms,draw_ms,readback_ms,total_ms,"
                 "bytes_read,slices_drawn,slices_skipped,slice_uploads,"
-                "axis_switch_ms,jump,stride\n");
+                "axis_switch_ms,jump,stride,encode_ms,exchange_ms,blend_ms,"
+                "composite_ms,gather_ms,bytes_sent_max,bytes_sent_total,"
+                "gather_bytes_total,pixels_blended_max,ranks\n");
     }
     int digits = 4;
     for (uint32_t x = 10000; x <= m->steps - 1 && digits < 10; x *= 10)
@@ -611,7 +794,7 @@ int main(int argc, char **argv)
     tvpal_view_setup(&v);
     const int dir_step = b >= a ? 1 : -1;
     const uint32_t nframes = (b >= a ? b - a : a - b) + 1;
-    double sum_io = 0, sum_up = 0, sum_draw = 0, sum_read = 0;
+    double sum_io = 0, sum_up = 0, sum_draw = 0, sum_read = 0, sum_comp = 0;
     uint64_t sum_bytes = 0;
     unsigned errors = 0;
     char last_err[sizeof d.msg] = "";
@@ -647,61 +830,129 @@ int main(int argc, char **argv)
         int rc = tvpal_player_frame(pl, &v, t, dir_step, &rend, rgba, &st, &d);
         for (uint32_t k = 1; k < repeat && rc >= 0; k++)
             rc = tvpal_player_frame(pl, &v, t, dir_step, &rend, rgba, &st, &d);
-        if (rc < 0 && strcmp(d.msg, last_err)) {
-            /* A bad record is retried every frame that needs it; it is
-             * reported (and counted) once. */
-            errors++;
-            snprintf(last_err, sizeof last_err, "%s", d.msg);
-            fprintf(stderr, PROG ": step %u: %s%s\n", t, d.msg,
-                    strict ? "" : " (keeping the last good data)");
-            if (strict || !st.rendered || rc == TVPAL_E_SYS ||
-                rc == TVPAL_E_NOMEM)
-                die(rc == TVPAL_E_SYS || rc == TVPAL_E_NOMEM ? 1 : 2,
-                    "stopped at step %u", t);
-        }
+        if (!st.rendered && rc < 0 && g_comm.size == 1)
+            die(2, "step %u: %s", t, d.msg);
         double up = 0, dr = st.draw_ms, rb = 0;
         if (glr)
             tvpal_glr_times(glr, &up, &dr, &rb);
+        /* Sort-last compositing of the ranks' images (rank 0 gets it). */
+        struct tvpal_compose_stats cs;
+        double c0 = tvpal_now();
+        if (tvpal_composite(cx, &g_comm, ckind, !v.descending, rgba, final,
+                            &cs) < 0)
+            die_rank(1, "compositing failed at step %u", t);
+        double comp_ms = (tvpal_now() - c0) * 1e3;
         double total = (tvpal_now() - f0) * 1e3;
-        sum_io += st.io_ms;
-        sum_up += st.upload_ms + up;
-        sum_draw += dr;
-        sum_read += rb;
-        sum_bytes += st.bytes_read;
+        /* Per-rank figures to rank 0: the CSV shows the slowest rank per
+         * phase (as the paper did), bytes and pixels per rank. */
+        struct frame_rec me = {
+            .io = st.io_ms, .up = st.upload_ms + up, .draw = dr, .read = rb,
+            .enc = cs.encode_ms, .exch = cs.exchange_ms, .blend = cs.blend_ms,
+            .comp = comp_ms, .gath = cs.gather_ms, .total = total,
+            .bytes_read = st.bytes_read, .bytes_sent = cs.bytes_sent,
+            .gather_bytes = cs.gather_bytes, .pixels = cs.pixels_blended,
+            .rc = rc, .fatal = rc < 0 && (strict || !st.rendered ||
+                                          rc == TVPAL_E_SYS ||
+                                          rc == TVPAL_E_NOMEM)};
+        snprintf(me.msg, sizeof me.msg, "%s", rc < 0 ? d.msg : "");
+        struct frame_rec agg = me;
+        if (g_comm.size > 1) {
+            if (g_comm.gather(&g_comm, &me, sizeof me, recs) < 0)
+                die_rank(1, "MPI gather failed");
+            if (g_comm.rank == 0)
+                aggregate(recs, g_comm.size, &agg);
+        }
+        int stop = 0;
+        if (g_comm.rank == 0) {
+            for (int r = 0; r < g_comm.size; r++) {
+                const struct frame_rec *q = g_comm.size > 1 ? &recs[r] : &me;
+                if (q->rc >= 0 || !strcmp(q->msg, last_err))
+                    continue;
+                /* A bad record is retried every frame that needs it; it is
+                 * reported (and counted) once. */
+                errors++;
+                snprintf(last_err, sizeof last_err, "%s", q->msg);
+                if (g_comm.size > 1)
+                    fprintf(stderr, PROG ": rank %d: step %u: %s%s\n", r, t,
+                            q->msg, strict ? "" : " (keeping the last good data)");
+                else
+                    fprintf(stderr, PROG ": step %u: %s%s\n", t, q->msg,
+                            strict ? "" : " (keeping the last good data)");
+            }
+            stop = agg.fatal;
+        }
+        g_comm.bcast(&g_comm, &stop, sizeof stop, 0);
+        if (stop)
+            die(agg.rc == TVPAL_E_SYS || agg.rc == TVPAL_E_NOMEM ? 1 : 2,
+                "stopped at step %u", t);
+        if (g_comm.rank != 0)
+            continue;
+        sum_io += agg.io;
+        sum_up += agg.up;
+        sum_draw += agg.draw;
+        sum_read += agg.read;
+        sum_comp += agg.comp;
+        sum_bytes += agg.bytes_read;
         if (outdir) {
             char *path;
             if (asprintf(&path, "%s/t%0*u.png", outdir, digits, t) < 0)
                 die(1, "out of memory");
             static const float bg[3] = {0, 0, 0};
-            if (tvpal_png_write(path, rgba, width, height, bg, rgb8) < 0)
+            if (tvpal_png_write(path, final, width, height, bg, rgb8) < 0)
                 die(1, "%s: cannot write: %s", path, strerror(errno));
             free(path);
         }
         if (csv)
-            fprintf(csv, "%u,%c,%.3f,%.3f,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%.3f,%d,%u\n",
-                    t, "xyz"[st.axis], st.io_ms, st.upload_ms + up, dr, rb,
-                    total, (unsigned long long)st.bytes_read, st.drawn,
-                    st.skipped, st.uploads, st.axis_switch_ms, jump, st.stride);
+            fprintf(csv, "%u,%c,%.3f,%.3f,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%.3f,"
+                    "%d,%u,%.3f,%.3f,%.3f,%.3f,%.3f,%llu,%llu,%llu,%llu,%d\n",
+                    t, "xyz"[st.axis], agg.io, agg.up, agg.draw, agg.read,
+                    agg.total, (unsigned long long)agg.bytes_read, st.drawn,
+                    st.skipped, st.uploads, st.axis_switch_ms, jump, st.stride,
+                    agg.enc, agg.exch, agg.blend, agg.comp, agg.gath,
+                    (unsigned long long)agg.bytes_sent,
+                    (unsigned long long)agg.bytes_sent_total,
+                    (unsigned long long)agg.gather_bytes,
+                    (unsigned long long)agg.pixels, g_comm.size);
     }
     double el = tvpal_now() - t_start;
+    if (g_comm.rank != 0) {
+        tvpal_glr_free(glr);
+        tvpal_osmesa_free(ctx);
+        tvpal_player_close(pl);
+        tvpal_compositor_free(cx);
+#ifdef HAVE_MPI
+        if (cluster)
+            tvpal_comm_mpi_finalize(&g_comm);
+#endif
+        return 0;
+    }
     if (csv && fclose(csv) != 0)
         die(1, "%s: write error", csv_path);
     if (!quiet && outdir)
         fprintf(stderr, PROG ": %u frames in %s/\n", nframes, outdir);
     printf("fps=%.3f frames=%u io_ms=%.3f upload_ms=%.3f draw_ms=%.3f "
-           "readback_ms=%.3f bytes_read=%llu incore_mib=%.1f mode=%s "
-           "renderer=%s errors=%u\n",
+           "readback_ms=%.3f composite_ms=%.3f ranks=%d bytes_read=%llu "
+           "incore_mib=%.1f mode=%s renderer=%s errors=%u\n",
            nframes / (el > 0 ? el : 1e-9), nframes, sum_io / nframes,
            sum_up / nframes, sum_draw / nframes, sum_read / nframes,
-           (unsigned long long)sum_bytes,
+           sum_comp / nframes, g_comm.size, (unsigned long long)sum_bytes,
            tvpal_player_incore_bytes(pl) / 1048576.0, tvpal_player_io_name(pl),
            no_render ? "none" : use_ref ? "ref" : "gl", errors);
     tvpal_glr_free(glr);
     tvpal_osmesa_free(ctx);
     tvpal_player_close(pl);
+    tvpal_compositor_free(cx);
+    if (final != rgba)
+        free(final);
+    free(recs);
+    free(node_dir);
     free(rgba);
     free(rgb8);
     free(ref_buf);
+#ifdef HAVE_MPI
+    if (cluster)
+        tvpal_comm_mpi_finalize(&g_comm);
+#endif
     free(csv_default);
     return errors ? 1 : 0;
 }

@@ -1,0 +1,89 @@
+#!/bin/sh
+# cluster: mpirun -np K tvpal-play (one rank per shard, binary-swap or
+# gather compositing) gives the single-node image for K = 1, 2, 3, 4, 5, 8,
+# on every axis in both depth directions, with an empty slab; bytes sent per
+# rank follow the model image bytes x (1 - 1/K) on a dense image; a rank
+# count that does not match the shards, a missing shard directory and a
+# corrupt record on one rank stop every rank with a message from rank 0.
+. "$(dirname "$0")/lib.sh"
+PLAY=$TVPAL_BUILDDIR/player/tvpal-play
+[ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
+command -v mpirun > /dev/null || { echo "no mpirun (scripts/setup-deps installs openmpi-bin)"; exit 99; }
+"$PLAY" --help | grep -q -- "--composite" || exit 99
+MPI="timeout 300 mpirun --allow-run-as-root --oversubscribe"
+export LP_NUM_THREADS=1 OMPI_MCA_rmaps_base_oversubscribe=1
+D=24x20x16
+TF=$TVPAL_SRCDIR/samples/tf/warm.tf
+# Slabs along z hold z in [0,16): blobs live in the middle; a band TF that
+# is transparent below mid-range leaves the outer slabs empty.
+"$GEN" --field blobs --dims $D --steps 3 -o "$W/in" || fail gen
+VIEWS="0,0 180,0 90,0 -90,0 0,90 0,-90 30,40"
+for K in 1 2 3 4 5 8; do
+    "$ENC" -q --dims $D --window 2 --nodes $K -o "$W/k$K" "$W"/in/*.f32 > /dev/null || fail "encode K=$K"
+done
+for view in $VIEWS; do
+    "$PLAY" "$W/k1" --headless -q --size 64x56 --rotate $view --tf "$TF" -o "$W/ref-$view" > /dev/null \
+        || fail "single-node $view"
+done
+for K in 1 2 3 4 5 8; do
+    for comp in bswap gather; do
+        [ $K -eq 1 ] && [ $comp = gather ] && continue
+        worst=0
+        for view in $VIEWS; do
+            $MPI -np $K "$PLAY" "$W/k$K" --headless -q --size 64x56 --rotate $view --tf "$TF" \
+                --composite $comp -o "$W/c$K-$comp-$view" > "$W/o.txt" 2>&1 \
+                || { fail "K=$K $comp view $view: $(tail -n 3 "$W/o.txt")"; continue; }
+            for t in 0 1 2; do
+                f=$(printf 't%04d.png' $t)
+                r=$($PY "$TVPAL_SRCDIR/tests/pngdiff.py" "$W/ref-$view/$f" "$W/c$K-$comp-$view/$f")
+                m=$(echo "$r" | sed 's/max=\([0-9]*\).*/\1/')
+                [ "$m" -gt "$worst" ] && worst=$m
+            done
+        done
+        # Tolerance: one 8-bit level (float blending order differs).
+        [ "$worst" -le 1 ] && ok "K=$K $comp: all views and depth directions within $worst level(s)" \
+            || fail "K=$K $comp: composited image differs from single node by $worst levels"
+    done
+done
+# Empty slabs: with a TF transparent below mid-range, K=5 slabs along x
+# include slabs with nothing to show.
+printf 'domain normalized\n0 0 0 0 0\n0.55 0 0 0 0\n0.7 1 0.6 0.2 0.5\n1 1 1 1 0.9\n' > "$W/high.tf"
+"$PLAY" "$W/k1" --headless -q --size 64x56 --rotate 0,90 --tf "$W/high.tf" -o "$W/ref-high" > /dev/null
+$MPI -np 5 "$PLAY" "$W/k5" --headless -q --size 64x56 --rotate 0,90 --tf "$W/high.tf" -o "$W/c5-high" > "$W/o.txt" 2>&1 \
+    || fail "K=5 high TF"
+r=$($PY "$TVPAL_SRCDIR/tests/pngdiff.py" "$W/ref-high/t0001.png" "$W/c5-high/t0001.png")
+echo "$r" | grep -q "^max=[01] " && ok "K=5 with empty slabs: $r" || fail "empty slabs: $r"
+# Bytes sent: a dense image (opaque everywhere, zoomed in so the volume
+# covers the frame) at K = 4: binary swap sends 1/2 + 1/4 of the image.
+printf 'domain normalized\n0 0.5 0.5 0.5 0.3\n1 1 1 1 0.3\n' > "$W/dense.tf"
+$MPI -np 4 "$PLAY" "$W/k4" --headless -q --size 64x56 --rotate 0,0 --zoom 4 --tf "$W/dense.tf" \
+    --steps 0:0 --csv "$W/dense.csv" > "$W/o.txt" 2>&1 || fail "dense K=4"
+sent=$(awk -F, 'NR == 2 { print $20 }' "$W/dense.csv")
+model=$((64 * 56 * 16 * 3 / 4))
+awk -v s="$sent" -v m="$model" 'BEGIN { d = (s - m) / m; exit !(d > -0.05 && d < 0.05) }' \
+    && ok "K=4 dense: $sent bytes sent by the busiest rank, model $model" \
+    || fail "K=4 dense: $sent bytes sent, model $model"
+# Errors on every rank, reported by rank 0, no hang.
+expect_exit 2 "dataset has 3 node shards; started with 2 ranks" $MPI -np 2 "$PLAY" "$W/k3" --headless -q
+cp -r "$W/k3" "$W/k3m" && rm -rf "$W/k3m/node-1"
+expect_exit 2 "rank 1: .*node-1/manifest.txt" $MPI -np 3 "$PLAY" "$W/k3m" --headless -q
+cp -r "$W/k3" "$W/k3c"
+$PY - "$W/k3c/node-2/axis-z.tvps" <<'PY'
+import struct, sys
+p = sys.argv[1]; b = bytearray(open(p, "rb").read())
+idx = struct.unpack_from("<Q", b, 72)[0]
+off = struct.unpack_from("<Q", b, idx + 32 * 1)[0]
+b[off + 64 + 5] ^= 0x40
+open(p, "wb").write(b)
+PY
+expect_exit 2 "rank 2: step 1: .*axis-z.tvps: record 1: payload CRC-32C mismatch" \
+    $MPI -np 3 "$PLAY" "$W/k3c" --headless -q --rotate 0,0 --strict
+expect_exit 1 "rank 2: step 1: .*record 1: payload CRC-32C mismatch \(keeping" \
+    $MPI -np 3 "$PLAY" "$W/k3c" --headless -q --rotate 0,0
+# --shard-dir maps each rank's shard to its own path.
+mkdir -p "$W/disks" && for r in 0 1 2; do cp -r "$W/k3/node-$r" "$W/disks/local$r"; done
+$MPI -np 3 "$PLAY" "$W/nowhere" --shard-dir "$W/disks/local%r" --headless -q --size 64x56 \
+    --rotate 30,40 --tf "$TF" -o "$W/c3-map" > "$W/o.txt" 2>&1 || fail "--shard-dir: $(cat "$W/o.txt")"
+r=$($PY "$TVPAL_SRCDIR/tests/pngdiff.py" "$W/ref-30,40/t0002.png" "$W/c3-map/t0002.png")
+echo "$r" | grep -q "^max=[01] " && ok "--shard-dir: $r" || fail "--shard-dir: $r"
+finish
