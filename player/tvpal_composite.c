@@ -16,18 +16,27 @@ struct tvpal_compositor {
 };
 
 /* Encoding: u32 span count, then per span u32 start (pixel offset from the
- * first pixel of row y0) and u32 length, then the spans' pixels (4 floats
- * each) in order.  A pixel is transparent when all four values are 0. */
+ * first pixel of row y0) and u32 length, then the spans' pixels in order,
+ * each 4 x 16-bit unsigned normalized values (premultiplied RGBA in
+ * [0, 1], v = round(x * 65535)): half the bytes of float, and a step of
+ * 1.5e-5, far below the 8-bit output's 1/255.  A pixel is transparent
+ * (skipped) when all four values are 0. */
 size_t tvpal_rle_bound(unsigned width, unsigned rows)
 {
     size_t n = (size_t)width * rows;
     /* worst case: alternating pixels, one span per 2 pixels */
-    return 4 + (n / 2 + 1) * 8 + n * 16;
+    return 4 + (n / 2 + 1) * 8 + n * 8;
 }
 
 static inline int clear(const float *p)
 {
     return p[0] == 0.0f && p[1] == 0.0f && p[2] == 0.0f && p[3] == 0.0f;
+}
+
+static inline uint16_t to16(float v)
+{
+    v = v < 0.0f ? 0.0f : v > 1.0f ? 1.0f : v;
+    return (uint16_t)(v * 65535.0f + 0.5f);
 }
 
 size_t tvpal_rle_encode(const float *img, unsigned width, unsigned y0,
@@ -51,14 +60,15 @@ size_t tvpal_rle_encode(const float *img, unsigned width, unsigned y0,
         nspans++;
     }
     memcpy(buf, &nspans, 4);
-    unsigned char *data = hdr + 8 * (size_t)nspans;
+    uint16_t *data = (uint16_t *)(void *)(hdr + 8 * (size_t)nspans);
     for (uint32_t k = 0; k < nspans; k++) {
         uint32_t se[2];
         memcpy(se, hdr + 8 * (size_t)k, 8);
-        memcpy(data, base + 4 * (size_t)se[0], (size_t)se[1] * 16);
-        data += (size_t)se[1] * 16;
+        const float *p = base + 4 * (size_t)se[0];
+        for (size_t i = 0; i < 4 * (size_t)se[1]; i++)
+            *data++ = to16(p[i]);
     }
-    return (size_t)(data - buf);
+    return (size_t)((unsigned char *)data - buf);
 }
 
 uint64_t tvpal_rle_blend(float *img, unsigned width, unsigned y0, unsigned y1,
@@ -68,11 +78,12 @@ uint64_t tvpal_rle_blend(float *img, unsigned width, unsigned y0, unsigned y1,
     uint64_t blended = 0;
     const size_t n = (size_t)width * (y1 - y0);
     float *base = img + (size_t)4 * width * y0;
+    const float k16 = 1.0f / 65535.0f;
     if (bytes < 4)
         return 0;
     memcpy(&nspans, buf, 4);
     const unsigned char *hdr = buf + 4;
-    const float *src = (const float *)(hdr + 8 * (size_t)nspans);
+    const uint16_t *src = (const uint16_t *)(const void *)(hdr + 8 * (size_t)nspans);
     for (uint32_t k = 0; k < nspans; k++) {
         uint32_t se[2];
         memcpy(se, hdr + 8 * (size_t)k, 8);
@@ -80,18 +91,20 @@ uint64_t tvpal_rle_blend(float *img, unsigned width, unsigned y0, unsigned y1,
             break; /* malformed: stop rather than write out of bounds */
         float *d = base + 4 * (size_t)se[0];
         for (uint32_t i = 0; i < se[1]; i++, d += 4, src += 4) {
+            float s0 = src[0] * k16, s1 = src[1] * k16, s2 = src[2] * k16,
+                  s3 = src[3] * k16;
             if (front) { /* received over own */
-                float keep = 1.0f - src[3];
-                d[0] = src[0] + keep * d[0];
-                d[1] = src[1] + keep * d[1];
-                d[2] = src[2] + keep * d[2];
-                d[3] = src[3] + keep * d[3];
+                float keep = 1.0f - s3;
+                d[0] = s0 + keep * d[0];
+                d[1] = s1 + keep * d[1];
+                d[2] = s2 + keep * d[2];
+                d[3] = s3 + keep * d[3];
             } else { /* own over received */
                 float keep = 1.0f - d[3];
-                d[0] += keep * src[0];
-                d[1] += keep * src[1];
-                d[2] += keep * src[2];
-                d[3] += keep * src[3];
+                d[0] += keep * s0;
+                d[1] += keep * s1;
+                d[2] += keep * s2;
+                d[3] += keep * s3;
             }
         }
         blended += se[1];
@@ -284,17 +297,28 @@ int tvpal_composite(struct tvpal_compositor *cx, struct tvpal_comm *c,
     rc = c->gather(c, mine, sizeof mine, cx->rows);
     if (rc < 0)
         return rc;
+    /* Compositing is over: the pieces travel as 8-bit premultiplied RGBA
+     * (a quarter of the floats), rounded exactly as the PNG writer rounds,
+     * and rank 0 expands them back, so frames are unchanged. */
     if (c->rank == 0)
         for (int r = 0; r < c->size; r++) {
             cx->counts[r] = (size_t)(cx->rows[2 * r + 1] - cx->rows[2 * r]) *
-                            W * 16;
-            cx->displs[r] = (size_t)cx->rows[2 * r] * W * 16;
+                            W * 4;
+            cx->displs[r] = (size_t)cx->rows[2 * r] * W * 4;
         }
-    size_t bytes = (size_t)(mine[1] - mine[0]) * W * 16;
-    rc = c->gatherv(c, img + (size_t)4 * W * mine[0], bytes, out, cx->counts,
-                    cx->displs);
+    size_t npx = (size_t)(mine[1] - mine[0]) * W;
+    const float *src = img + (size_t)4 * W * mine[0];
+    for (size_t i = 0; i < 4 * npx; i++) {
+        float v = src[i];
+        v = v < 0 ? 0 : v > 1 ? 1 : v;
+        cx->sbuf[i] = (unsigned char)(v * 255.0f + 0.5f);
+    }
+    rc = c->gatherv(c, cx->sbuf, 4 * npx, cx->rbuf, cx->counts, cx->displs);
+    if (rc == 0 && c->rank == 0)
+        for (size_t i = 0; i < (size_t)4 * W * cx->height; i++)
+            out[i] = cx->rbuf[i] * (1.0f / 255.0f);
     st->gather_ms = (tvpal_now() - t) * 1e3;
     if (c->rank != 0)
-        st->gather_bytes = bytes;
+        st->gather_bytes = 4 * npx;
     return rc;
 }

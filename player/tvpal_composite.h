@@ -13,9 +13,10 @@
  *   - gather to root: every rank sends its whole image to rank 0, which
  *     blends them in depth order (the baseline).
  * Only the active part travels: a sent region is run-length encoded (runs
- * of fully transparent pixels are skipped) and blended only where the
- * sender has data (Strengert et al. 2004, section 4).  The composited
- * pieces are gathered on rank 0 (gatherv), still as floats.
+ * of fully transparent pixels are skipped) as 16-bit RGBA and blended (in
+ * float) only where the sender has data (Strengert et al. 2004, section 4).  The composited
+ * pieces are gathered on rank 0 (gatherv) as 8-bit RGBA: blending is over
+ * by then, and the frame is written at 8 bits anyway.
  */
 #ifndef TVPAL_COMPOSITE_H
 #define TVPAL_COMPOSITE_H
@@ -43,7 +44,8 @@ void tvpal_compositor_free(struct tvpal_compositor *cx);
 
 /* Composites img (this rank's image; used as work space, clobbered) over
  * all ranks; on rank 0 the result goes to out (width * height * 4 floats,
- * row 0 at the bottom).  Collective: every rank calls it. */
+ * row 0 at the bottom; with binary swap quantized to multiples of 1/255).
+ * Collective: every rank calls it. */
 int tvpal_composite(struct tvpal_compositor *cx, struct tvpal_comm *c,
                     enum tvpal_compose_kind kind, int reverse, float *img,
                     float *out, struct tvpal_compose_stats *st);
