@@ -285,23 +285,40 @@ static int save_shot(const char *path, const uint8_t *rgb, unsigned w,
     return tvpal_png_write(path, scratch, w, h, bg, rgb8);
 }
 
+/* What rank 0's window tells every rank before each frame (cluster mode:
+ * user input reaches all ranks; all stay on the same timestep). */
+struct win_cmd {
+    int quit, render, reduce, toggle_mode, reload_tf;
+    uint32_t t, tfi, width, height;
+    int dir;
+    double ax, ay, zoom, opacity;
+};
+
 static int run_window(struct tvpal_player *pl, const struct win_args *wa)
 {
     struct tvpal_diag d = {{0}};
-    struct tvpal_win *win;
+    const int leader = g_comm.rank == 0, multi = g_comm.size > 1;
+    struct tvpal_win *win = NULL;
+    struct tvpal_osmesa *octx = NULL;
     unsigned W = wa->width, H = wa->height;
-    if (tvpal_win_open(&win, W, H, PROG, &d) < 0)
-        die(1, "%s", d.msg);
-    struct tvpal_glr *glr;
-    if (tvpal_glr_create(&glr, W, H, &d) < 0)
-        die(1, "%s", d.msg);
+    /* Rank 0 opens the window; the other ranks render off-screen. */
+    int rc = leader ? tvpal_win_open(&win, W, H, PROG, &d)
+                    : tvpal_osmesa_create(&octx, &d);
+    check_all(rc, d.msg, 1);
+    struct tvpal_glr *glr = NULL;
+    rc = tvpal_glr_create(&glr, W, H, &d);
+    check_all(rc, d.msg, 1);
     struct tvpal_renderer rend = {glr, NULL, gl_set, gl_up, gl_draw};
     const struct tvpal_manifest *m = tvpal_player_manifest(pl);
     const uint32_t T = m->steps;
     uint8_t *rgb = malloc(3 * (size_t)W * H), *rgb8 = malloc(3 * (size_t)W * H);
     float *scratch = malloc(sizeof(float) * 4 * W * H);
-    if (!rgb || !rgb8 || !scratch)
-        die(1, "out of memory");
+    float *img = multi ? malloc(sizeof(float) * 4 * W * H) : NULL;
+    float *final = multi ? malloc(sizeof(float) * 4 * W * H) : NULL;
+    struct tvpal_compositor *cx = NULL;
+    if (!rgb || !rgb8 || !scratch || (multi && (!img || !final ||
+        tvpal_compositor_create(&cx, W, H, g_comm.size) < 0)))
+        die_rank(1, "out of memory");
     struct tvpal_player_opts po = wa->po;
     double ax = wa->ax, ay = wa->ay, zoom = wa->zoom, opacity = wa->opacity;
     unsigned tfi = 0, ntf_all = wa->ntf + 1, shots = 0;
@@ -311,172 +328,228 @@ static int run_window(struct tvpal_player *pl, const struct win_args *wa)
     uint32_t frames = 0;
     double fps = 0, last = tvpal_now();
     char last_err[sizeof d.msg] = "";
-    while (!tvpal_win_should_close(win)) {
-        struct tvpal_input in;
-        tvpal_win_poll(win, !playing && !redraw, &in);
-        int quit = 0;
-        for (int i = 0; i < in.nkeys; i++) {
-            switch (in.keys[i]) {
-            case TVPAL_KEY_PLAY: playing = !playing; break;
-            case TVPAL_KEY_NEXT: t = t + 1 < T ? t + 1 : t; playing = 0; dir = 1; break;
-            case TVPAL_KEY_PREV: t = t > 0 ? t - 1 : 0; playing = 0; dir = -1; break;
-            case TVPAL_KEY_FIRST: t = 0; break;
-            case TVPAL_KEY_LAST: t = T - 1; break;
-            case TVPAL_KEY_REVERSE: dir = -dir; break;
-            case TVPAL_KEY_TF_NEXT:
-                tfi = (tfi + 1) % ntf_all;
-                tvpal_player_set_tf(pl, &wa->tfs[tfi], opacity);
-                break;
-            case TVPAL_KEY_TF_RELOAD:
-                if (tfi < wa->ntf) {
-                    struct tvpal_tf nt;
-                    if (tvpal_tf_load(wa->tf_files[tfi], m->value_min,
-                                      m->value_max, &nt, &d) < 0)
-                        fprintf(stderr, PROG ": %s: %s (keeping the old one)\n",
-                                wa->tf_files[tfi], d.msg);
-                    else
-                        wa->tfs[tfi] = nt;
-                }
-                tvpal_player_set_tf(pl, &wa->tfs[tfi], opacity);
-                break;
-            case TVPAL_KEY_OPACITY_UP:
-            case TVPAL_KEY_OPACITY_DOWN:
-                opacity *= in.keys[i] == TVPAL_KEY_OPACITY_UP ? 1.25 : 0.8;
-                tvpal_player_set_tf(pl, &wa->tfs[tfi], opacity);
-                break;
-            case TVPAL_KEY_MODE: {
-                /* Reopen with the other data mode; the pause is the cost
-                 * of loading (in-core) or of nothing (stream). */
-                struct tvpal_player *np;
-                po.incore = !po.incore;
-                double s0 = tvpal_now();
-                if (tvpal_player_open(&np, wa->dir, &po, &d) < 0) {
-                    fprintf(stderr, PROG ": %s\n", d.msg);
-                    po.incore = !po.incore;
+    for (;;) {
+        struct win_cmd cmd = {0};
+        if (leader) {
+            struct tvpal_input in;
+            tvpal_win_poll(win, !playing && !redraw && !multi, &in);
+            if (tvpal_win_should_close(win))
+                cmd.quit = 1;
+            for (int i = 0; i < in.nkeys; i++) {
+                switch (in.keys[i]) {
+                case TVPAL_KEY_PLAY: playing = !playing; break;
+                case TVPAL_KEY_NEXT: t = t + 1 < T ? t + 1 : t; playing = 0; dir = 1; break;
+                case TVPAL_KEY_PREV: t = t > 0 ? t - 1 : 0; playing = 0; dir = -1; break;
+                case TVPAL_KEY_FIRST: t = 0; break;
+                case TVPAL_KEY_LAST: t = T - 1; break;
+                case TVPAL_KEY_REVERSE: dir = -dir; break;
+                case TVPAL_KEY_TF_NEXT: tfi = (tfi + 1) % ntf_all; break;
+                case TVPAL_KEY_TF_RELOAD: cmd.reload_tf = 1; break;
+                case TVPAL_KEY_OPACITY_UP: opacity *= 1.25; break;
+                case TVPAL_KEY_OPACITY_DOWN: opacity *= 0.8; break;
+                case TVPAL_KEY_MODE: cmd.toggle_mode = 1; break;
+                case TVPAL_KEY_ZOOM_IN: zoom *= 1.15; break;
+                case TVPAL_KEY_ZOOM_OUT: zoom /= 1.15; break;
+                case TVPAL_KEY_SHOT: {
+                    char name[64];
+                    snprintf(name, sizeof name, "tvpal-shot-%04u.png", shots++);
+                    tvpal_win_read(win, rgb);
+                    if (save_shot(name, rgb, W, H, scratch, rgb8) == 0 && !wa->quiet)
+                        fprintf(stderr, PROG ": saved %s\n", name);
                     break;
                 }
-                tvpal_player_close(pl);
-                pl = np;
-                tvpal_player_set_tf(pl, &wa->tfs[tfi], opacity);
-                if (!wa->quiet)
-                    fprintf(stderr, PROG ": data now %s (%.0f ms)\n",
-                            po.incore ? "in-core" : "streamed",
-                            (tvpal_now() - s0) * 1e3);
-                break;
+                case TVPAL_KEY_QUIT: cmd.quit = 1; break;
+                }
+                redraw = 1;
             }
-            case TVPAL_KEY_ZOOM_IN: zoom *= 1.15; break;
-            case TVPAL_KEY_ZOOM_OUT: zoom /= 1.15; break;
-            case TVPAL_KEY_SHOT: {
-                char name[64];
-                snprintf(name, sizeof name, "tvpal-shot-%04u.png", shots++);
-                tvpal_win_read(win, rgb);
-                if (save_shot(name, rgb, W, H, scratch, rgb8) == 0 && !wa->quiet)
-                    fprintf(stderr, PROG ": saved %s\n", name);
-                break;
+            if (in.dragging) {
+                ay += in.drag_dx * 0.4;
+                ax += in.drag_dy * 0.4;
+                redraw = 1;
             }
-            case TVPAL_KEY_QUIT: quit = 1; break;
+            if (in.scroll != 0) {
+                zoom *= pow(1.1, in.scroll);
+                redraw = 1;
             }
-            redraw = 1;
+            if (in.scrubbing) {
+                t = (uint32_t)floor(in.scrub_pos * (T - 1) + 0.5);
+                playing = 0;
+                redraw = 1;
+            }
+            if (in.resized && in.width && in.height &&
+                (in.width != W || in.height != H)) {
+                cmd.width = in.width;
+                cmd.height = in.height;
+                redraw = 1;
+            }
+            /* Reduced quality while the user interacts; refine when idle. */
+            int interacting = in.dragging || in.scrubbing;
+            if (!interacting && reduced)
+                redraw = 1;
+            if (playing && !redraw) {
+                int64_t nt = (int64_t)t + dir;
+                if (nt < 0 || nt >= T)
+                    nt = dir > 0 ? 0 : T - 1; /* loop */
+                t = (uint32_t)nt;
+            }
+            cmd.render = redraw || playing;
+            cmd.reduce = interacting ? 2 : 1;
+            cmd.t = t;
+            cmd.dir = dir;
+            cmd.tfi = tfi;
+            cmd.ax = ax;
+            cmd.ay = ay;
+            cmd.zoom = zoom;
+            cmd.opacity = opacity;
         }
-        if (quit)
+        if (multi && g_comm.bcast(&g_comm, &cmd, sizeof cmd, 0) < 0)
+            die_rank(1, "MPI broadcast failed");
+        if (cmd.quit)
             break;
-        if (in.dragging) {
-            ay += in.drag_dx * 0.4;
-            ax += in.drag_dy * 0.4;
-            redraw = 1;
+        if (cmd.reload_tf && cmd.tfi < wa->ntf) {
+            struct tvpal_tf nt;
+            if (tvpal_tf_load(wa->tf_files[cmd.tfi], m->value_min,
+                              m->value_max, &nt, &d) < 0) {
+                if (leader)
+                    fprintf(stderr, PROG ": %s: %s (keeping the old one)\n",
+                            wa->tf_files[cmd.tfi], d.msg);
+            } else {
+                wa->tfs[cmd.tfi] = nt;
+            }
         }
-        if (in.scroll != 0) {
-            zoom *= pow(1.1, in.scroll);
-            redraw = 1;
+        if (cmd.toggle_mode) {
+            /* Reopen with the other data mode; the pause is the cost of
+             * loading (in-core) or of nothing (stream). */
+            struct tvpal_player *np;
+            po.incore = !po.incore;
+            double s0 = tvpal_now();
+            rc = tvpal_player_open(&np, multi ? tvpal_player_dir(pl) : wa->dir,
+                                   &po, &d);
+            check_all(rc, d.msg, 1);
+            tvpal_player_close(pl);
+            pl = np;
+            m = tvpal_player_manifest(pl);
+            if (leader && !wa->quiet)
+                fprintf(stderr, PROG ": data now %s (%.0f ms)\n",
+                        po.incore ? "in-core" : "streamed",
+                        (tvpal_now() - s0) * 1e3);
         }
-        if (in.scrubbing) {
-            t = (uint32_t)floor(in.scrub_pos * (T - 1) + 0.5);
-            playing = 0;
-            redraw = 1;
-        }
-        if (in.resized && in.width && in.height &&
-            (in.width != W || in.height != H)) {
-            W = in.width;
-            H = in.height;
+        if (cmd.width && cmd.height) {
+            W = cmd.width;
+            H = cmd.height;
             tvpal_glr_free(glr);
-            if (tvpal_glr_create(&glr, W, H, &d) < 0)
-                die(1, "%s", d.msg);
+            rc = tvpal_glr_create(&glr, W, H, &d);
+            check_all(rc, d.msg, 1);
             rend = (struct tvpal_renderer){glr, NULL, gl_set, gl_up, gl_draw};
             free(rgb);
             free(rgb8);
             free(scratch);
+            free(img);
+            free(final);
+            tvpal_compositor_free(cx);
+            cx = NULL;
             rgb = malloc(3 * (size_t)W * H);
             rgb8 = malloc(3 * (size_t)W * H);
             scratch = malloc(sizeof(float) * 4 * W * H);
-            if (!rgb || !rgb8 || !scratch)
-                die(1, "out of memory");
-            redraw = 1;
+            img = multi ? malloc(sizeof(float) * 4 * W * H) : NULL;
+            final = multi ? malloc(sizeof(float) * 4 * W * H) : NULL;
+            if (!rgb || !rgb8 || !scratch || (multi && (!img || !final ||
+                tvpal_compositor_create(&cx, W, H, g_comm.size) < 0)))
+                die_rank(1, "out of memory");
         }
-        /* Reduced quality while the user interacts; refine when idle. */
-        int interacting = in.dragging || in.scrubbing;
-        if (!interacting && reduced)
-            redraw = 1;
-        if (!redraw && !playing)
+        if (!cmd.render)
             continue;
-        if (playing && !redraw) {
-            int64_t nt = (int64_t)t + dir;
-            if (nt < 0 || nt >= T)
-                nt = dir > 0 ? 0 : T - 1; /* loop */
-            t = (uint32_t)nt;
-        }
-        tvpal_player_set_reduce(pl, interacting ? 2 : 1);
-        reduced = interacting;
-        struct tvpal_view v = {.width = W, .height = H, .ax_deg = ax,
-                               .ay_deg = ay, .zoom = zoom};
+        tvpal_player_set_tf(pl, &wa->tfs[cmd.tfi], cmd.opacity);
+        tvpal_player_set_reduce(pl, (unsigned)cmd.reduce);
+        reduced = cmd.reduce > 1;
+        struct tvpal_view v = {.width = W, .height = H, .ax_deg = cmd.ax,
+                               .ay_deg = cmd.ay, .zoom = cmd.zoom};
         memcpy(v.dims, m->dims, sizeof v.dims);
         tvpal_view_setup(&v);
         struct tvpal_frame_stats st;
         d.msg[0] = 0;
-        int rc = tvpal_player_frame(pl, &v, t, dir, &rend, NULL, &st, &d);
+        rc = tvpal_player_frame(pl, &v, cmd.t, cmd.dir, &rend, img, &st, &d);
         if (rc < 0 && strcmp(d.msg, last_err)) {
             snprintf(last_err, sizeof last_err, "%s", d.msg);
-            fprintf(stderr, PROG ": step %u: %s (keeping the last good data)\n",
-                    t, d.msg);
+            if (multi)
+                fprintf(stderr, PROG ": rank %d: step %u: %s (keeping the last "
+                        "good data)\n", g_comm.rank, cmd.t, d.msg);
+            else
+                fprintf(stderr, PROG ": step %u: %s (keeping the last good "
+                        "data)\n", cmd.t, d.msg);
             status = 1;
             if (!st.rendered)
-                break;
+                die_rank(2, "cannot render step %u", cmd.t);
         }
-        tvpal_glr_blit(glr, 0, TVPAL_SLIDER_HEIGHT);
+        if (multi) {
+            struct tvpal_compose_stats cs;
+            if (tvpal_composite(cx, &g_comm, TVPAL_COMPOSE_BSWAP, !v.descending,
+                                img, final, &cs) < 0)
+                die_rank(1, "compositing failed at step %u", cmd.t);
+        }
+        redraw = 0;
+        frames++;
+        if (!leader)
+            continue;
+        if (multi)
+            tvpal_win_show(win, final, W, H);
+        else
+            tvpal_glr_blit(glr, 0, TVPAL_SLIDER_HEIGHT);
         if (wa->shot)
             tvpal_win_read(win, rgb);
-        tvpal_win_present(win, T > 1 ? (double)t / (T - 1) : 0.0);
+        tvpal_win_present(win, T > 1 ? (double)cmd.t / (T - 1) : 0.0);
         double now = tvpal_now();
         double inst = now > last ? 1.0 / (now - last) : 0;
-        fps = frames ? 0.8 * fps + 0.2 * inst : inst;
+        fps = frames > 1 ? 0.8 * fps + 0.2 * inst : inst;
         last = now;
-        frames++;
         char title[256];
         snprintf(title, sizeof title, PROG " - t=%u/%u - %.1f fps - %s%s - "
-                 "axis %c - %s%s", t, T - 1, fps,
+                 "axis %c - %s%s%s", cmd.t, T - 1, fps,
                  tvpal_player_io_name(pl), po.incore ? "" : " stream",
-                 "xyz"[v.axis], wa->tfs[tfi].name, reduced ? " - preview" : "");
+                 "xyz"[v.axis], wa->tfs[cmd.tfi].name,
+                 reduced ? " - preview" : "",
+                 multi ? " - cluster" : "");
         tvpal_win_title(win, title);
-        redraw = 0;
-        if (wa->autoplay && frames >= wa->autoplay)
+        if (wa->autoplay && frames >= wa->autoplay) {
+            /* Tell everyone to stop at the next round. */
+            playing = 0;
+            redraw = 0;
+            struct win_cmd q = {.quit = 1};
+            if (multi)
+                g_comm.bcast(&g_comm, &q, sizeof q, 0);
             break;
+        }
         if (playing && wa->autoplay) {
             int64_t nt = (int64_t)t + dir;
-            if (nt < 0 || nt >= T)
+            if (nt < 0 || nt >= T) {
+                struct win_cmd q = {.quit = 1};
+                if (multi)
+                    g_comm.bcast(&g_comm, &q, sizeof q, 0);
                 break;
+            }
             t = (uint32_t)nt;
             redraw = 1;
         }
     }
-    if (wa->shot && save_shot(wa->shot, rgb, W, H, scratch, rgb8) < 0)
+    if (leader && wa->shot && save_shot(wa->shot, rgb, W, H, scratch, rgb8) < 0)
         die(1, "%s: cannot write", wa->shot);
-    printf("frames=%u last_step=%u fps=%.3f mode=%s\n", frames, t, fps,
-           tvpal_player_io_name(pl));
+    if (leader)
+        printf("frames=%u last_step=%u fps=%.3f mode=%s ranks=%d\n", frames,
+               t, fps, tvpal_player_io_name(pl), g_comm.size);
     tvpal_glr_free(glr);
     tvpal_win_close(win);
+    tvpal_osmesa_free(octx);
     tvpal_player_close(pl);
+    tvpal_compositor_free(cx);
     free(rgb);
     free(rgb8);
     free(scratch);
+    free(img);
+    free(final);
+#ifdef HAVE_MPI
+    if (multi)
+        tvpal_comm_mpi_finalize(&g_comm);
+#endif
     return status;
 }
 
@@ -716,11 +789,7 @@ int main(int argc, char **argv)
     }
 
     if (mode_window < 0)
-        mode_window = !cluster && getenv("DISPLAY") && *getenv("DISPLAY") &&
-                      !outdir;
-    if (mode_window && cluster)
-        die(2, "--window with mpirun is not supported yet: use --headless "
-            "(rank 0 writes the frames)");
+        mode_window = getenv("DISPLAY") && *getenv("DISPLAY") && !outdir;
     if (mode_window) {
         struct win_args wa = {
             .dir = dir, .po = po, .tfs = tfs, .tf_files = tf_files, .ntf = ntf,

@@ -244,6 +244,7 @@ int tvpal_glr_set_slices(struct tvpal_glr *r, uint32_t w, uint32_t h,
 void tvpal_glr_upload(struct tvpal_glr *r, uint32_t layer, const uint8_t *idx)
 {
     glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D_ARRAY, r->tex_idx);
     glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, (GLint)layer, (GLsizei)r->w,
                     (GLsizei)r->h, 1, GL_RED_INTEGER, GL_UNSIGNED_BYTE, idx);
     r->uploads++;
@@ -274,7 +275,14 @@ int tvpal_glr_draw(struct tvpal_glr *r, const struct tvpal_frame *f,
             *q++ = (float)sl->layer;
         }
     }
+    /* Bind our textures every frame: a front end may have used the units
+     * (the window's composited-image texture, say). */
+    glUseProgram(r->prog);
+    glBindVertexArray(r->vao);
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D_ARRAY, r->tex_idx);
     glActiveTexture(GL_TEXTURE1);
+    glBindTexture(GL_TEXTURE_2D, r->tex_pal);
     glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, 256, (GLsizei)r->count, GL_RGBA,
                     GL_FLOAT, r->pal);
     glBindBuffer(GL_ARRAY_BUFFER, r->vbo);

@@ -121,6 +121,11 @@ const struct tvpal_manifest *tvpal_player_manifest(const struct tvpal_player *p)
     return &p->ds->m;
 }
 
+const char *tvpal_player_dir(const struct tvpal_player *p)
+{
+    return p->ds->dir;
+}
+
 const char *tvpal_player_io_name(const struct tvpal_player *p)
 {
     if (p->opts.incore)

@@ -70,6 +70,10 @@ void tvpal_player_close(struct tvpal_player *p);   /* NULL is a no-op */
 const struct tvpal_manifest *tvpal_player_manifest(const struct tvpal_player *p);
 const char *tvpal_player_io_name(const struct tvpal_player *p);
 
+/* The directory the player was opened on (node directory in cluster
+ * mode). */
+const char *tvpal_player_dir(const struct tvpal_player *p);
+
 /* Transfer function and opacity scale used from the next frame on (no
  * texture is uploaded for a TF change). */
 void tvpal_player_set_tf(struct tvpal_player *p, const struct tvpal_tf *tf,

@@ -12,6 +12,8 @@
 
 struct tvpal_win {
     GLFWwindow *win;
+    GLuint show_tex, show_fbo;   /* tvpal_win_show */
+    unsigned show_w, show_h;
     unsigned width, height;      /* image area */
     struct tvpal_input *in;      /* during poll */
     int button;                  /* 0 none, 1 on image, 2 on slider */
@@ -169,6 +171,10 @@ void tvpal_win_close(struct tvpal_win *w)
 {
     if (!w)
         return;
+    if (w->show_tex) {
+        glDeleteTextures(1, &w->show_tex);
+        glDeleteFramebuffers(1, &w->show_fbo);
+    }
     glfwDestroyWindow(w->win);
     free(w);
     glfwTerminate();
@@ -215,6 +221,39 @@ void tvpal_win_present(struct tvpal_win *w, double pos)
     rect(x - 3, 3, 7, TVPAL_SLIDER_HEIGHT - 6, 0.95f, 0.85f, 0.3f);
     glDisable(GL_SCISSOR_TEST);
     glfwSwapBuffers(w->win);
+}
+
+void tvpal_win_show(struct tvpal_win *w, const float *rgba, unsigned width,
+                    unsigned height)
+{
+    /* Unit 7: the renderer's textures live on units 0 and 1. */
+    glActiveTexture(GL_TEXTURE7);
+    if (!w->show_tex || w->show_w != width || w->show_h != height) {
+        if (!w->show_tex) {
+            glGenTextures(1, &w->show_tex);
+            glGenFramebuffers(1, &w->show_fbo);
+        }
+        glBindTexture(GL_TEXTURE_2D, w->show_tex);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, (GLsizei)width,
+                     (GLsizei)height, 0, GL_RGBA, GL_FLOAT, NULL);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, w->show_fbo);
+        glFramebufferTexture2D(GL_READ_FRAMEBUFFER, GL_COLOR_ATTACHMENT0,
+                               GL_TEXTURE_2D, w->show_tex, 0);
+        w->show_w = width;
+        w->show_h = height;
+    }
+    glBindTexture(GL_TEXTURE_2D, w->show_tex);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, (GLsizei)width, (GLsizei)height,
+                    GL_RGBA, GL_FLOAT, rgba);
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, w->show_fbo);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
+    glBlitFramebuffer(0, 0, (GLint)width, (GLint)height, 0,
+                      TVPAL_SLIDER_HEIGHT, (GLint)width,
+                      TVPAL_SLIDER_HEIGHT + (GLint)height,
+                      GL_COLOR_BUFFER_BIT, GL_NEAREST);
 }
 
 void tvpal_win_title(struct tvpal_win *w, const char *title)

@@ -86,4 +86,33 @@ $MPI -np 3 "$PLAY" "$W/nowhere" --shard-dir "$W/disks/local%r" --headless -q --s
     --rotate 30,40 --tf "$TF" -o "$W/c3-map" > "$W/o.txt" 2>&1 || fail "--shard-dir: $(cat "$W/o.txt")"
 r=$($PY "$TVPAL_SRCDIR/tests/pngdiff.py" "$W/ref-30,40/t0002.png" "$W/c3-map/t0002.png")
 echo "$r" | grep -q "^max=[01] " && ok "--shard-dir: $r" || fail "--shard-dir: $r"
+# Rank 0 shows the composited frame in its window (Xvfb); keys pressed in
+# it reach every rank (Right x2 from step 0 shows step 2 of all slabs).
+if "$PLAY" --version | grep -q "window: yes" && command -v xvfb-run > /dev/null \
+   && command -v xdotool > /dev/null; then
+    "$PLAY" "$W/k1" --headless -q --size 64x56 --rotate 30,40 --tf "$TF" -o "$W/ref-w" > /dev/null
+    timeout 120 xvfb-run -a -s "-screen 0 640x480x24" $MPI -np 3 "$PLAY" "$W/k3" --window \
+        --steps 1:1 --size 64x56 --rotate 30,40 --tf "$TF" --autoplay 1 \
+        --screenshot "$W/win3.png" > "$W/o.txt" 2>&1 || fail "cluster window: $(tail -n 3 "$W/o.txt")"
+    cmp -s "$W/win3.png" "$W/ref-w/t0001.png" && ok "K=3 window shows the single-node frame" \
+        || fail "K=3 window frame differs: $($PY "$TVPAL_SRCDIR/tests/pngdiff.py" "$W/win3.png" "$W/ref-w/t0001.png")"
+    cat > "$W/drive.sh" <<DRIVE
+#!/bin/sh
+cd "$W"
+$MPI -np 3 "$PLAY" "$W/k3" --window --size 64x56 --rotate 30,40 --tf "$TF" > "$W/play.txt" 2>&1 &
+pid=\$!
+wid=\$(xdotool search --sync --name tvpal-play | head -n 1)
+sleep 1
+for k in Right Right; do xdotool key --window \$wid \$k; sleep 0.5; done
+xdotool key --window \$wid s; sleep 1
+xdotool key --window \$wid q 2>/dev/null
+wait \$pid
+DRIVE
+    timeout 120 xvfb-run -a -s "-screen 0 640x480x24" sh "$W/drive.sh" || fail "driving the cluster window"
+    cmp -s "$W/tvpal-shot-0000.png" "$W/ref-w/t0002.png" \
+        && ok "K=3: keys reach every rank (Right x2 = step 2)" \
+        || fail "K=3 keys: $(cat "$W/play.txt" | tail -n 3)"
+else
+    echo "no GLFW, Xvfb or xdotool: cluster window test not run"
+fi
 finish
