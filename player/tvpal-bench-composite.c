@@ -54,18 +54,20 @@ int main(int argc, char **argv)
         img[4 * i + 2] = 0.1f * a;
         img[4 * i + 3] = a;
     }
-    /* memcpy bandwidth of this machine (one rank at a time would be fairer;
-     * all ranks copy together, as they composite together). */
-    double bw;
-    {
+    /* memcpy bandwidth of one core, measured by rank 0 alone while the
+     * others wait at the barrier. */
+    double bw = 0;
+    c.barrier(&c);
+    if (c.rank == 0) {
+        memcpy(work, img, n * sizeof *img);
         double t0 = tvpal_now();
         for (int k = 0; k < 5; k++)
             memcpy(work, img, n * sizeof *img);
         bw = 5.0 * n * sizeof *img / (tvpal_now() - t0);
-        c.allmax(&c, &bw, 1);
     }
+    c.barrier(&c);
     double med[2];
-    uint64_t sent[2];
+    uint64_t sent[2], gath[2];
     for (int k = 0; k < 2; k++) {
         double *times = calloc(R, sizeof *times);
         struct tvpal_compose_stats st = {0};
@@ -89,9 +91,10 @@ int main(int argc, char **argv)
                     st.encode_ms, st.exchange_ms, st.blend_ms, st.gather_ms);
         qsort(times, R, sizeof *times, cmpd);
         med[k] = times[R / 2];
-        double s = (double)(st.bytes_sent + st.gather_bytes);
-        c.allmax(&c, &s, 1);
-        sent[k] = (uint64_t)s;
+        double s[2] = {(double)st.bytes_sent, (double)st.gather_bytes};
+        c.allmax(&c, s, 2);
+        sent[k] = (uint64_t)s[0];
+        gath[k] = (uint64_t)s[1];
         free(times);
     }
     if (c.rank == 0) {
@@ -102,12 +105,15 @@ int main(int argc, char **argv)
          * received, and blends the received part (read + write own). */
         double moved = 2 * model + 2 * model + img_bytes / K;
         double bound = moved / bw;
-        printf("K=%d %ux%u: bswap %.2f ms, gather %.2f ms (bswap %.2fx faster); "
-               "busiest rank sent %llu / %llu bytes (bswap / gather, incl. "
-               "final gather); model (1-1/K) x image = %.0f bytes; memory "
-               "bound %.2f ms (memcpy %.1f GB/s): bswap at %.2fx of it\n",
+        printf("K=%d %ux%u: bswap %.2f ms, gather-to-root %.2f ms (bswap "
+               "%.2fx faster); busiest rank sends %llu compositing bytes "
+               "(model (1-1/K) x image = %.0f, %+.2f%%) + %llu final-gather "
+               "bytes under bswap, %llu under gather-to-root; memory bound "
+               "%.2f ms (one core's memcpy %.1f GB/s): bswap at %.2fx of it\n",
                K, W, H, med[0] * 1e3, med[1] * 1e3, med[1] / med[0],
-               (unsigned long long)sent[0], (unsigned long long)sent[1], model,
+               (unsigned long long)sent[0], model,
+               100.0 * ((double)sent[0] - model) / model,
+               (unsigned long long)gath[0], (unsigned long long)sent[1],
                bound * 1e3, bw / 1e9, med[0] / bound);
     }
     tvpal_compositor_free(cx);
