@@ -80,6 +80,24 @@ expect_exit 2 "rank 2: step 1: .*axis-z.tvps: record 1: payload CRC-32C mismatch
     $MPI -np 3 "$PLAY" "$W/k3c" --headless -q --rotate 0,0 --strict
 expect_exit 1 "rank 2: step 1: .*record 1: payload CRC-32C mismatch \(keeping" \
     $MPI -np 3 "$PLAY" "$W/k3c" --headless -q --rotate 0,0
+# A rank that dies (SIGKILL mid-playback) ends the job instead of hanging.
+$MPI -np 3 "$PLAY" "$W/k3" --headless -q --size 64x56 --spin 3 --steps 0:2 --repeat 20000 \
+    > "$W/kill.txt" 2>&1 &
+mpid=$!
+victim=""
+for i in $(seq 50); do
+    for p in $(pgrep -f "tvpal-play $W/k3" 2>/dev/null); do
+        tr '\0' '\n' < /proc/$p/environ 2>/dev/null | grep -qx OMPI_COMM_WORLD_RANK=1 && victim=$p
+    done
+    [ -n "$victim" ] && break
+    sleep 0.2
+done
+sleep 0.5
+[ -n "$victim" ] && kill -9 "$victim"
+wait $mpid
+rc=$?
+[ -n "$victim" ] && [ $rc -ne 0 ] && [ $rc -ne 124 ] && ok "killing rank 1 ends the job (mpirun exit $rc)" \
+    || fail "killed rank: victim '$victim', mpirun exit $rc"
 # --shard-dir maps each rank's shard to its own path.
 mkdir -p "$W/disks" && for r in 0 1 2; do cp -r "$W/k3/node-$r" "$W/disks/local$r"; done
 $MPI -np 3 "$PLAY" "$W/nowhere" --shard-dir "$W/disks/local%r" --headless -q --size 64x56 \
