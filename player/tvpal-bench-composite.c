@@ -39,8 +39,8 @@ int main(int argc, char **argv)
     tvpal_comm_self(&c);
 #endif
     size_t n = (size_t)W * H * 4;
-    float *img = malloc(n * sizeof *img), *work = malloc(n * sizeof *img),
-          *out = malloc(n * sizeof *img);
+    float *img = malloc(n * sizeof *img), *work = malloc(n * sizeof *img);
+    uint8_t *out = malloc(n);
     struct tvpal_compositor *cx;
     if (!img || !work || !out ||
         tvpal_compositor_create(&cx, W, H, c.size) < 0) {

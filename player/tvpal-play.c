@@ -314,7 +314,7 @@ static int run_window(struct tvpal_player *pl, const struct win_args *wa)
     uint8_t *rgb = malloc(3 * (size_t)W * H), *rgb8 = malloc(3 * (size_t)W * H);
     float *scratch = malloc(sizeof(float) * 4 * W * H);
     float *img = multi ? malloc(sizeof(float) * 4 * W * H) : NULL;
-    float *final = multi ? malloc(sizeof(float) * 4 * W * H) : NULL;
+    uint8_t *final = multi ? malloc(4 * (size_t)W * H) : NULL;
     struct tvpal_compositor *cx = NULL;
     if (!rgb || !rgb8 || !scratch || (multi && (!img || !final ||
         tvpal_compositor_create(&cx, W, H, g_comm.size) < 0)))
@@ -452,7 +452,7 @@ static int run_window(struct tvpal_player *pl, const struct win_args *wa)
             rgb8 = malloc(3 * (size_t)W * H);
             scratch = malloc(sizeof(float) * 4 * W * H);
             img = multi ? malloc(sizeof(float) * 4 * W * H) : NULL;
-            final = multi ? malloc(sizeof(float) * 4 * W * H) : NULL;
+            final = multi ? malloc(4 * (size_t)W * H) : NULL;
             if (!rgb || !rgb8 || !scratch || (multi && (!img || !final ||
                 tvpal_compositor_create(&cx, W, H, g_comm.size) < 0)))
                 die_rank(1, "out of memory");
@@ -820,8 +820,9 @@ int main(int argc, char **argv)
         rend = (struct tvpal_renderer){glr, NULL, gl_set, gl_up, gl_draw};
     }
     float *rgba = malloc(sizeof(float) * 4 * width * height);
-    float *final = g_comm.size > 1 ? malloc(sizeof(float) * 4 * width * height)
-                                   : rgba;
+    /* The frame as rank 0 gets it from the compositor: premultiplied
+     * 8-bit RGBA (with one rank, just this rank's image rounded). */
+    uint8_t *final = malloc(4 * (size_t)width * height);
     uint8_t *rgb8 = malloc(3 * (size_t)width * height);
     struct tvpal_compositor *cx = NULL;
     if (!rgba || !rgb8 || !final ||
@@ -967,7 +968,7 @@ int main(int argc, char **argv)
             if (asprintf(&path, "%s/t%0*u.png", outdir, digits, t) < 0)
                 die(1, "out of memory");
             static const float bg[3] = {0, 0, 0};
-            if (tvpal_png_write(path, final, width, height, bg, rgb8) < 0)
+            if (tvpal_png_write8(path, final, width, height, bg, rgb8) < 0)
                 die(1, "%s: cannot write: %s", path, strerror(errno));
             free(path);
         }
@@ -1011,8 +1012,7 @@ int main(int argc, char **argv)
     tvpal_osmesa_free(ctx);
     tvpal_player_close(pl);
     tvpal_compositor_free(cx);
-    if (final != rgba)
-        free(final);
+    free(final);
     free(recs);
     free(node_dir);
     free(rgba);

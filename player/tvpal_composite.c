@@ -8,6 +8,7 @@
 
 struct tvpal_compositor {
     unsigned width, height;
+    float *acc;                   /* gather-to-root accumulation (rank 0) */
     int size;
     unsigned char *sbuf, *rbuf;   /* encoded messages */
     size_t cap;
@@ -28,32 +29,28 @@ size_t tvpal_rle_bound(unsigned width, unsigned rows)
     return 4 + (n / 2 + 1) * 8 + n * 8;
 }
 
-static inline int clear(const float *p)
-{
-    return p[0] == 0.0f && p[1] == 0.0f && p[2] == 0.0f && p[3] == 0.0f;
-}
-
 static inline uint16_t to16(float v)
 {
     v = v < 0.0f ? 0.0f : v > 1.0f ? 1.0f : v;
     return (uint16_t)(v * 65535.0f + 0.5f);
 }
 
+/* Premultiplied pixels: alpha 0 means nothing to add (colour is 0 too), so
+ * spans are found on alpha alone. */
 size_t tvpal_rle_encode(const float *img, unsigned width, unsigned y0,
                         unsigned y1, unsigned char *buf)
 {
     const size_t n = (size_t)width * (y1 - y0);
     const float *base = img + (size_t)4 * width * y0;
     uint32_t nspans = 0;
-    /* First pass: spans. */
     unsigned char *hdr = buf + 4;
     for (size_t i = 0; i < n;) {
-        while (i < n && clear(base + 4 * i))
+        while (i < n && base[4 * i + 3] == 0.0f)
             i++;
         if (i >= n)
             break;
         size_t s = i;
-        while (i < n && !clear(base + 4 * i))
+        while (i < n && base[4 * i + 3] != 0.0f)
             i++;
         uint32_t se[2] = {(uint32_t)s, (uint32_t)(i - s)};
         memcpy(hdr + 8 * (size_t)nspans, se, 8);
@@ -65,8 +62,10 @@ size_t tvpal_rle_encode(const float *img, unsigned width, unsigned y0,
         uint32_t se[2];
         memcpy(se, hdr + 8 * (size_t)k, 8);
         const float *p = base + 4 * (size_t)se[0];
-        for (size_t i = 0; i < 4 * (size_t)se[1]; i++)
-            *data++ = to16(p[i]);
+        const size_t m = 4 * (size_t)se[1];
+        for (size_t i = 0; i < m; i++) /* vectorizes */
+            data[i] = to16(p[i]);
+        data += m;
     }
     return (size_t)((unsigned char *)data - buf);
 }
@@ -127,7 +126,8 @@ int tvpal_compositor_create(struct tvpal_compositor **out, unsigned width,
     cx->counts = calloc((size_t)size, sizeof *cx->counts);
     cx->displs = calloc((size_t)size, sizeof *cx->displs);
     cx->rows = calloc((size_t)size * 2, sizeof *cx->rows);
-    if (!cx->sbuf || !cx->rbuf || !cx->counts || !cx->displs || !cx->rows) {
+    cx->acc = malloc(sizeof(float) * 4 * width * height);
+    if (!cx->acc || !cx->sbuf || !cx->rbuf || !cx->counts || !cx->displs || !cx->rows) {
         tvpal_compositor_free(cx);
         return TVPAL_E_NOMEM;
     }
@@ -144,6 +144,7 @@ void tvpal_compositor_free(struct tvpal_compositor *cx)
     free(cx->counts);
     free(cx->displs);
     free(cx->rows);
+    free(cx->acc);
     free(cx);
 }
 
@@ -229,8 +230,18 @@ static int bswap(struct tvpal_compositor *cx, struct tvpal_comm *c,
     return 0;
 }
 
+/* Premultiplied float -> 8-bit, rounded as the PNG writer rounds. */
+static void to8(const float *src, size_t n, uint8_t *dst)
+{
+    for (size_t i = 0; i < n; i++) { /* vectorizes */
+        float v = src[i];
+        v = v < 0.0f ? 0.0f : v > 1.0f ? 1.0f : v;
+        dst[i] = (uint8_t)(v * 255.0f + 0.5f);
+    }
+}
+
 static int gather_root(struct tvpal_compositor *cx, struct tvpal_comm *c,
-                       int reverse, float *img, float *out,
+                       int reverse, float *img, uint8_t *out8,
                        struct tvpal_compose_stats *st)
 {
     const int K = c->size;
@@ -248,6 +259,7 @@ static int gather_root(struct tvpal_compositor *cx, struct tvpal_comm *c,
         return rc;
     }
     /* Rank 0: accumulate front to back ("under"): out = out + (1 - a) img. */
+    float *out = cx->acc;
     memset(out, 0, sizeof(float) * 4 * W * H);
     for (int v = 0; v < K; v++) {
         int r = rank_of(v, K, reverse);
@@ -270,22 +282,22 @@ static int gather_root(struct tvpal_compositor *cx, struct tvpal_comm *c,
         st->pixels_blended += tvpal_rle_blend(out, W, 0, H, buf, got, 0);
         st->blend_ms += (tvpal_now() - t) * 1e3;
     }
+    to8(out, (size_t)4 * W * H, out8);
     return 0;
 }
 
 int tvpal_composite(struct tvpal_compositor *cx, struct tvpal_comm *c,
                     enum tvpal_compose_kind kind, int reverse, float *img,
-                    float *out, struct tvpal_compose_stats *st)
+                    uint8_t *out8, struct tvpal_compose_stats *st)
 {
     const unsigned W = cx->width, H = cx->height;
     memset(st, 0, sizeof *st);
     if (c->size == 1) {
-        if (out != img)
-            memcpy(out, img, sizeof(float) * 4 * W * H);
+        to8(img, (size_t)4 * W * H, out8);
         return 0;
     }
     if (kind == TVPAL_COMPOSE_GATHER)
-        return gather_root(cx, c, reverse, img, out, st);
+        return gather_root(cx, c, reverse, img, out8, st);
     unsigned y0 = 0, y1 = 0;
     int active = 0;
     int rc = bswap(cx, c, reverse, img, &y0, &y1, &active, st);
@@ -299,7 +311,7 @@ int tvpal_composite(struct tvpal_compositor *cx, struct tvpal_comm *c,
         return rc;
     /* Compositing is over: the pieces travel as 8-bit premultiplied RGBA
      * (a quarter of the floats), rounded exactly as the PNG writer rounds,
-     * and rank 0 expands them back, so frames are unchanged. */
+     * straight into rank 0's output. */
     if (c->rank == 0)
         for (int r = 0; r < c->size; r++) {
             cx->counts[r] = (size_t)(cx->rows[2 * r + 1] - cx->rows[2 * r]) *
@@ -307,16 +319,8 @@ int tvpal_composite(struct tvpal_compositor *cx, struct tvpal_comm *c,
             cx->displs[r] = (size_t)cx->rows[2 * r] * W * 4;
         }
     size_t npx = (size_t)(mine[1] - mine[0]) * W;
-    const float *src = img + (size_t)4 * W * mine[0];
-    for (size_t i = 0; i < 4 * npx; i++) {
-        float v = src[i];
-        v = v < 0 ? 0 : v > 1 ? 1 : v;
-        cx->sbuf[i] = (unsigned char)(v * 255.0f + 0.5f);
-    }
-    rc = c->gatherv(c, cx->sbuf, 4 * npx, cx->rbuf, cx->counts, cx->displs);
-    if (rc == 0 && c->rank == 0)
-        for (size_t i = 0; i < (size_t)4 * W * cx->height; i++)
-            out[i] = cx->rbuf[i] * (1.0f / 255.0f);
+    to8(img + (size_t)4 * W * mine[0], 4 * npx, cx->sbuf);
+    rc = c->gatherv(c, cx->sbuf, 4 * npx, out8, cx->counts, cx->displs);
     st->gather_ms = (tvpal_now() - t) * 1e3;
     if (c->rank != 0)
         st->gather_bytes = 4 * npx;

@@ -43,12 +43,12 @@ int tvpal_compositor_create(struct tvpal_compositor **out, unsigned width,
 void tvpal_compositor_free(struct tvpal_compositor *cx);
 
 /* Composites img (this rank's image; used as work space, clobbered) over
- * all ranks; on rank 0 the result goes to out (width * height * 4 floats,
- * row 0 at the bottom; with binary swap quantized to multiples of 1/255).
- * Collective: every rank calls it. */
+ * all ranks; on rank 0 the result goes to out8: width * height
+ * premultiplied RGBA bytes, row 0 at the bottom, v = round(x * 255) as the
+ * PNG writer rounds.  Collective: every rank calls it. */
 int tvpal_composite(struct tvpal_compositor *cx, struct tvpal_comm *c,
                     enum tvpal_compose_kind kind, int reverse, float *img,
-                    float *out, struct tvpal_compose_stats *st);
+                    uint8_t *out8, struct tvpal_compose_stats *st);
 
 /* Run-length codec of a row range of an image (exposed for tests):
  * encode rows [y0, y1) of img into buf (capacity cap; needs at most

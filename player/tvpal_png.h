@@ -13,6 +13,10 @@
 int tvpal_png_write(const char *path, const float *rgba, unsigned width,
                     unsigned height, const float bg[3], uint8_t *rgb8);
 
+/* The same from premultiplied 8-bit RGBA (tvpal_composite's output). */
+int tvpal_png_write8(const char *path, const uint8_t *rgba8, unsigned width,
+                     unsigned height, const float bg[3], uint8_t *rgb8);
+
 /* Reads an 8-bit RGB or RGBA PNG (tests): *out malloc'ed, 3 bytes per
  * pixel, top row first. */
 int tvpal_png_read(const char *path, uint8_t **out, unsigned *width,

@@ -223,8 +223,8 @@ void tvpal_win_present(struct tvpal_win *w, double pos)
     glfwSwapBuffers(w->win);
 }
 
-void tvpal_win_show(struct tvpal_win *w, const float *rgba, unsigned width,
-                    unsigned height)
+void tvpal_win_show(struct tvpal_win *w, const uint8_t *rgba8,
+                    unsigned width, unsigned height)
 {
     /* Unit 7: the renderer's textures live on units 0 and 1. */
     glActiveTexture(GL_TEXTURE7);
@@ -234,8 +234,8 @@ void tvpal_win_show(struct tvpal_win *w, const float *rgba, unsigned width,
             glGenFramebuffers(1, &w->show_fbo);
         }
         glBindTexture(GL_TEXTURE_2D, w->show_tex);
-        glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, (GLsizei)width,
-                     (GLsizei)height, 0, GL_RGBA, GL_FLOAT, NULL);
+        glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, (GLsizei)width,
+                     (GLsizei)height, 0, GL_RGBA, GL_UNSIGNED_BYTE, NULL);
         glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
         glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
         glBindFramebuffer(GL_READ_FRAMEBUFFER, w->show_fbo);
@@ -247,7 +247,7 @@ void tvpal_win_show(struct tvpal_win *w, const float *rgba, unsigned width,
     glBindTexture(GL_TEXTURE_2D, w->show_tex);
     glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
     glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, (GLsizei)width, (GLsizei)height,
-                    GL_RGBA, GL_FLOAT, rgba);
+                    GL_RGBA, GL_UNSIGNED_BYTE, rgba8);
     glBindFramebuffer(GL_READ_FRAMEBUFFER, w->show_fbo);
     glBindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
     glBlitFramebuffer(0, 0, (GLint)width, (GLint)height, 0,

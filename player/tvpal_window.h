@@ -53,10 +53,10 @@ void tvpal_win_present(struct tvpal_win *w, double pos);
 void tvpal_win_title(struct tvpal_win *w, const char *title);
 
 /* Shows an image computed elsewhere (the cluster's composited frame):
- * width x height premultiplied RGBA floats, row 0 at the bottom, over
+ * width x height premultiplied 8-bit RGBA, row 0 at the bottom, over
  * black, in the image area.  Call before present. */
-void tvpal_win_show(struct tvpal_win *w, const float *rgba, unsigned width,
-                    unsigned height);
+void tvpal_win_show(struct tvpal_win *w, const uint8_t *rgba8,
+                    unsigned width, unsigned height);
 
 /* Reads the image area of the back buffer as 8-bit RGB, top row first
  * (before present; tests compare it with the headless image). */

@@ -16,5 +16,5 @@ void tvpal_win_poll(struct tvpal_win *w, int wait, struct tvpal_input *in) {}
 void tvpal_win_present(struct tvpal_win *w, double pos) {}
 void tvpal_win_title(struct tvpal_win *w, const char *title) {}
 void tvpal_win_read(struct tvpal_win *w, uint8_t *rgb) {}
-void tvpal_win_show(struct tvpal_win *w, const float *rgba, unsigned width,
-                    unsigned height) {}
+void tvpal_win_show(struct tvpal_win *w, const uint8_t *rgba8,
+                    unsigned width, unsigned height) {}
