@@ -16,8 +16,9 @@ char *tvpal_shard_filename(const char *dir, uint32_t rank, unsigned axis)
     return p;
 }
 
-int tvpal_dataset_open(struct tvpal_dataset **out, const char *dir,
-                       struct tvpal_diag *diag)
+/* Allocates a dataset for dir and loads dir/manifest.txt into it. */
+static int open_manifest(struct tvpal_dataset **out, const char *dir,
+                         struct tvpal_diag *diag)
 {
     struct tvpal_diag d = {{0}};
     char *path = NULL;
@@ -28,14 +29,29 @@ int tvpal_dataset_open(struct tvpal_dataset **out, const char *dir,
         return TVPAL_E_NOMEM;
     }
     if (asprintf(&path, "%s/manifest.txt", dir) < 0) {
+        path = NULL;
         rc = TVPAL_E_NOMEM;
-        goto err;
-    }
-    rc = tvpal_manifest_load(path, &ds->m, &d);
-    if (rc < 0) {
+    } else if ((rc = tvpal_manifest_load(path, &ds->m, &d)) < 0) {
         tvpal_diag_set(diag, rc, "%s: %s", path, d.msg);
-        goto err;
     }
+    free(path);
+    if (rc < 0) {
+        tvpal_dataset_close(ds);
+        return rc;
+    }
+    *out = ds;
+    return 0;
+}
+
+int tvpal_dataset_open(struct tvpal_dataset **out, const char *dir,
+                       struct tvpal_diag *diag)
+{
+    struct tvpal_diag d = {{0}};
+    char *path = NULL;
+    struct tvpal_dataset *ds;
+    int rc = open_manifest(&ds, dir, diag);
+    if (rc < 0)
+        return rc;
     ds->nshards = ds->m.nodes;
     ds->first_rank = 0;
     for (unsigned a = 0; a < 3; a++) {
@@ -106,26 +122,15 @@ int tvpal_dataset_open_node(struct tvpal_dataset **out, const char *node_dir,
 {
     struct tvpal_diag d = {{0}};
     char *path = NULL;
-    int rc;
-    struct tvpal_dataset *ds = calloc(1, sizeof *ds);
-    if (!ds || !(ds->dir = strdup(node_dir))) {
-        free(ds);
-        return TVPAL_E_NOMEM;
-    }
-    if (asprintf(&path, "%s/manifest.txt", node_dir) < 0) {
-        rc = TVPAL_E_NOMEM;
-        goto err;
-    }
-    rc = tvpal_manifest_load(path, &ds->m, &d);
-    if (rc < 0) {
-        tvpal_diag_set(diag, rc, "%s: %s", path, d.msg);
-        goto err;
-    }
+    struct tvpal_dataset *ds;
+    int rc = open_manifest(&ds, node_dir, diag);
+    if (rc < 0)
+        return rc;
     if (ds->m.nodes != nranks) {
         rc = tvpal_diag_set(diag, TVPAL_E_MISMATCH,
-                            "%s: the dataset has %u node shards; started with "
-                            "%u ranks (run mpirun -np %u)", path, ds->m.nodes,
-                            nranks, ds->m.nodes);
+                            "%s/manifest.txt: the dataset has %u node shards; "
+                            "started with %u ranks (run mpirun -np %u)",
+                            node_dir, ds->m.nodes, nranks, ds->m.nodes);
         goto err;
     }
     ds->nshards = 1;

@@ -105,6 +105,20 @@ static int submit(struct tvpal_stream *s, unsigned pi, unsigned si,
     return 0;
 }
 
+/* One completion of an in-core load (the tag is the piece's length). */
+static int incore_reap(struct tvpal_io *io, const struct part *p,
+                       struct tvpal_diag *diag)
+{
+    uint64_t tag;
+    int64_t res;
+    int rc = tvpal_io_wait(io, &tag, &res);
+    if (rc == 0 && res != (int64_t)tag)
+        rc = tvpal_diag_set(diag, TVPAL_E_READ, "%s: %s",
+                            tvpal_shard_path(p->sh),
+                            res < 0 ? strerror((int)-res) : "short read");
+    return rc;
+}
+
 static int open_part(struct tvpal_stream *s, struct part *p, int direct,
                      struct tvpal_diag *diag)
 {
@@ -185,29 +199,13 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
                 struct tvpal_io_req r = {
                     .fd = p->fd, .off = TVPAL_SHARD_HEADER_BYTES + off,
                     .len = len, .buf = p->all + off, .tag = len};
-                while (rc == 0 && tvpal_io_inflight(io) >= tvpal_io_depth(io)) {
-                    uint64_t tag;
-                    int64_t res;
-                    rc = tvpal_io_wait(io, &tag, &res);
-                    if (rc == 0 && res != (int64_t)tag)
-                        rc = tvpal_diag_set(diag, TVPAL_E_READ, "%s: %s",
-                                            tvpal_shard_path(p->sh),
-                                            res < 0 ? strerror((int)-res)
-                                                    : "short read");
-                }
+                while (rc == 0 && tvpal_io_inflight(io) >= tvpal_io_depth(io))
+                    rc = incore_reap(io, p, diag);
                 if (rc == 0)
                     rc = tvpal_io_submit(io, &r);
             }
-            while (rc == 0 && tvpal_io_inflight(io)) {
-                uint64_t tag;
-                int64_t res;
-                rc = tvpal_io_wait(io, &tag, &res);
-                if (rc == 0 && res != (int64_t)tag)
-                    rc = tvpal_diag_set(diag, TVPAL_E_READ, "%s: %s",
-                                        tvpal_shard_path(p->sh),
-                                        res < 0 ? strerror((int)-res)
-                                                : "short read");
-            }
+            while (rc == 0 && tvpal_io_inflight(io))
+                rc = incore_reap(io, p, diag);
             /* Verify every record once. */
             for (uint32_t t = 0; t < h->steps && rc == 0; t++) {
                 const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, t);
