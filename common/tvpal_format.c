@@ -158,10 +158,11 @@ int tvpal_shard_header_decode(const unsigned char *b,
                               "header: slab %u+%u of %ux%u slices, expected "
                               "%u+%u of %ux%u", h->slice_begin, h->slice_count,
                               h->slice_w, h->slice_h, begin, count, w, hh);
-    if (h->table_format != TVPAL_TABLE_F32)
+    if (h->table_format != TVPAL_TABLE_F32 &&
+        h->table_format != TVPAL_TABLE_U16)
         return tvpal_diag_set(diag, TVPAL_E_FORMAT,
-                              "header: table_format %u, expected 0 (float32)",
-                              h->table_format);
+                              "header: table_format %u, expected 0 (float32) "
+                              "or 1 (16-bit scaled)", h->table_format);
     if (h->index_offset % TVPAL_ALIGN || h->index_offset < TVPAL_ALIGN ||
         h->index_offset > ((uint64_t)1 << 62) ||
         h->file_bytes != h->index_offset + tvpal_round_up(
@@ -209,7 +210,7 @@ int tvpal_record_header_decode(const unsigned char *b,
 }
 
 /* Chunk header: 0 magic 4 slice 8 wstart 12 wlen 16 w 20 h 24 used
- * 28 reserved 32 bits[16] 48..63 zero. */
+ * 28 reserved 32 bits[16] 48 tmin(f32) 52 tscale(f32) 56..63 zero. */
 void tvpal_chunk_header_encode(const struct tvpal_chunk_header *h,
                                unsigned char *b)
 {
@@ -222,6 +223,11 @@ void tvpal_chunk_header_encode(const struct tvpal_chunk_header *h,
     put32(b + 20, h->h);
     put32(b + 24, h->used);
     memcpy(b + 32, h->bits, 16);
+    uint32_t u;
+    memcpy(&u, &h->tmin, 4);
+    put32(b + 48, u);
+    memcpy(&u, &h->tscale, 4);
+    put32(b + 52, u);
 }
 
 int tvpal_chunk_header_decode(const unsigned char *b,
@@ -237,6 +243,10 @@ int tvpal_chunk_header_decode(const unsigned char *b,
     h->h = get32(b + 20);
     h->used = get32(b + 24);
     memcpy(h->bits, b + 32, 16);
+    uint32_t u = get32(b + 48);
+    memcpy(&h->tmin, &u, 4);
+    u = get32(b + 52);
+    memcpy(&h->tscale, &u, 4);
     return 0;
 }
 
@@ -327,7 +337,7 @@ int tvpal_record_verify(const unsigned char *buf, uint64_t bytes,
                                   ch.h);
         prev = ch.slice;
         expect++;
-        uint64_t cb = tvpal_chunk_bytes(ch.wlen, ch.w, ch.h);
+        uint64_t cb = tvpal_chunk_bytes(ch.wlen, ch.w, ch.h, sh->table_format);
         if (cb > end - pos)
             return tvpal_diag_set(diag, TVPAL_E_FORMAT,
                                   "record %u: chunk %u overruns the payload",
@@ -349,7 +359,7 @@ int tvpal_record_verify(const unsigned char *buf, uint64_t bytes,
 }
 
 int tvpal_record_next_chunk(const unsigned char *buf, uint64_t *pos,
-                            struct tvpal_chunk *c)
+                            uint32_t table_format, struct tvpal_chunk *c)
 {
     uint64_t end = TVPAL_RECORD_HEADER_BYTES + get64(buf + 16);
     if (*pos < TVPAL_RECORD_HEADER_BYTES)
@@ -357,10 +367,54 @@ int tvpal_record_next_chunk(const unsigned char *buf, uint64_t *pos,
     if (*pos >= end)
         return 0;
     tvpal_chunk_header_decode(buf + *pos, &c->h, NULL);
+    c->table_format = table_format;
     c->table = buf + *pos + TVPAL_CHUNK_HEADER_BYTES;
-    c->indices = c->table + (size_t)c->h.wlen * 256u * 4u;
-    *pos += tvpal_chunk_bytes(c->h.wlen, c->h.w, c->h.h);
+    c->indices = c->table + (size_t)c->h.wlen * 256u *
+                                tvpal_table_entry_bytes(table_format);
+    *pos += tvpal_chunk_bytes(c->h.wlen, c->h.w, c->h.h, table_format);
     return 1;
+}
+
+void tvpal_chunk_table(const struct tvpal_chunk *c, float *out)
+{
+    const size_t n = (size_t)c->h.wlen * 256;
+    if (c->table_format != TVPAL_TABLE_U16) {
+        tvpal_load_f32le(c->table, out, n);
+        return;
+    }
+    const float t0 = c->h.tmin, ts = c->h.tscale;
+    for (size_t i = 0; i < n; i++) {
+        unsigned q = (unsigned)c->table[2 * i] | (unsigned)c->table[2 * i + 1] << 8;
+        out[i] = t0 + (float)q * ts;
+    }
+}
+
+void tvpal_table_store(const float *table, uint32_t len,
+                       uint32_t table_format, unsigned char *dst,
+                       struct tvpal_chunk_header *h)
+{
+    const size_t n = (size_t)len * 256;
+    h->tmin = 0.0f;
+    h->tscale = 0.0f;
+    if (table_format != TVPAL_TABLE_U16) {
+        tvpal_store_f32le(table, dst, n);
+        return;
+    }
+    float lo = table[0], hi = table[0];
+    for (size_t i = 1; i < n; i++) {
+        lo = table[i] < lo ? table[i] : lo;
+        hi = table[i] > hi ? table[i] : hi;
+    }
+    /* Scale in double so that lo + 65535 * scale reaches hi. */
+    double scale = ((double)hi - (double)lo) / 65535.0;
+    h->tmin = lo;
+    h->tscale = (float)scale;
+    for (size_t i = 0; i < n; i++) {
+        double q = scale > 0 ? ((double)table[i] - lo) / scale + 0.5 : 0.0;
+        unsigned v = q < 0 ? 0 : q > 65535 ? 65535 : (unsigned)q;
+        dst[2 * i] = (unsigned char)v;
+        dst[2 * i + 1] = (unsigned char)(v >> 8);
+    }
 }
 
 void tvpal_load_f32le(const unsigned char *src, float *dst, size_t n)

@@ -31,6 +31,7 @@
 #define TVPAL_RECORD_MAGIC 0x43525654u  /* "TVRC" */
 #define TVPAL_CHUNK_MAGIC 0x4B435654u   /* "TVCK" */
 #define TVPAL_TABLE_F32 0u              /* decoder table as float32 */
+#define TVPAL_TABLE_U16 1u              /* 16-bit, scaled per chunk */
 
 static inline uint64_t tvpal_round_up(uint64_t x, uint64_t a)
 {
@@ -48,7 +49,7 @@ struct tvpal_shard_header {
     uint32_t slice_begin;     /* first slice of the slab (global index) */
     uint32_t slice_count;     /* slices in the slab (>= 1) */
     uint32_t slice_w, slice_h;/* slice size: in-slice index = a + w * b */
-    uint32_t table_format;    /* TVPAL_TABLE_F32 */
+    uint32_t table_format;    /* TVPAL_TABLE_F32 or TVPAL_TABLE_U16 */
     uint64_t index_offset;    /* aligned; index of `steps` entries */
     uint64_t file_bytes;      /* total file size */
     uint32_t index_crc;
@@ -69,6 +70,7 @@ struct tvpal_chunk_header {
     uint32_t w, h;            /* slice size */
     uint32_t used;            /* distinct indices held by voxels */
     uint8_t bits[16];         /* bits per coefficient */
+    float tmin, tscale;       /* TVPAL_TABLE_U16: value = tmin + q tscale */
 };
 
 struct tvpal_index_entry {
@@ -90,10 +92,19 @@ void tvpal_axis_geometry(const uint32_t dims[3], unsigned axis,
 void tvpal_slab_range(uint32_t n, uint32_t k, uint32_t r, uint32_t *begin,
                       uint32_t *count);
 
-/* Bytes of one chunk with window length len and w*h indices. */
-static inline uint64_t tvpal_chunk_bytes(uint32_t len, uint32_t w, uint32_t h)
+/* Bytes of one table entry in a table format (4 or 2). */
+static inline uint32_t tvpal_table_entry_bytes(uint32_t table_format)
 {
-    return TVPAL_CHUNK_HEADER_BYTES + (uint64_t)len * 256u * 4u +
+    return table_format == TVPAL_TABLE_U16 ? 2u : 4u;
+}
+
+/* Bytes of one chunk with window length len, w*h indices and tables in
+ * table_format. */
+static inline uint64_t tvpal_chunk_bytes(uint32_t len, uint32_t w, uint32_t h,
+                                         uint32_t table_format)
+{
+    return TVPAL_CHUNK_HEADER_BYTES +
+           (uint64_t)len * 256u * tvpal_table_entry_bytes(table_format) +
            tvpal_round_up((uint64_t)w * h, TVPAL_CHUNK_ALIGN);
 }
 
@@ -126,9 +137,20 @@ void tvpal_index_entry_decode(const unsigned char *buf,
 /* A parsed chunk inside a record buffer (pointers borrow the buffer). */
 struct tvpal_chunk {
     struct tvpal_chunk_header h;
-    const unsigned char *table;   /* wlen * 256 float32 LE, row per step */
+    uint32_t table_format;
+    const unsigned char *table;   /* wlen * 256 entries LE, row per step */
     const uint8_t *indices;       /* w * h */
 };
+
+/* The chunk's decoder table as floats: out[j * 256 + i]. */
+void tvpal_chunk_table(const struct tvpal_chunk *c, float *out);
+
+/* Stores a table (len * 256 floats) in table_format at dst, filling the
+ * header's tmin/tscale for TVPAL_TABLE_U16 (q = round((v - tmin) /
+ * tscale), tscale = (max - min) / 65535, 0 for a constant table). */
+void tvpal_table_store(const float *table, uint32_t len,
+                       uint32_t table_format, unsigned char *dst,
+                       struct tvpal_chunk_header *h);
 
 /* Verifies a whole record held in buf[0..bytes): header, payload CRC, the
  * expected step, and that every chunk lies inside the payload with sizes
@@ -137,10 +159,10 @@ int tvpal_record_verify(const unsigned char *buf, uint64_t bytes,
                         uint32_t step, const struct tvpal_shard_header *sh,
                         struct tvpal_diag *diag);
 
-/* Iterates the chunks of a verified record: *pos starts at 0; returns 1 and
- * fills c for each chunk, 0 at the end. */
+/* Iterates the chunks of a verified record of a shard with table_format:
+ * *pos starts at 0; returns 1 and fills c for each chunk, 0 at the end. */
 int tvpal_record_next_chunk(const unsigned char *buf, uint64_t *pos,
-                            struct tvpal_chunk *c);
+                            uint32_t table_format, struct tvpal_chunk *c);
 
 /* Little-endian float32 row -> host floats. */
 void tvpal_load_f32le(const unsigned char *src, float *dst, size_t n);

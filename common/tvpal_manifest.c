@@ -45,6 +45,7 @@ int tvpal_manifest_format(const struct tvpal_manifest *m, char **out)
     fprintf(f, "steps = %u\nwindow = %u\nnodes = %u\n", m->steps, m->window,
             m->nodes);
     fprintf(f, "axes = x y z\n");
+    fprintf(f, "table = %s\n", m->table_format == 1 ? "u16" : "f32");
     fprintf(f, "value_min = %.9g\nvalue_max = %.9g\n", m->value_min,
             m->value_max);
     if (m->has_nan_as)
@@ -173,6 +174,9 @@ int tvpal_manifest_load(const char *path, struct tvpal_manifest *m,
                 bad = end == p;
                 p = end;
             }
+        } else if (!strcmp(k, "table")) {
+            bad = strcmp(v, "f32") && strcmp(v, "u16");
+            m->table_format = !strcmp(v, "u16");
         } else if (!strcmp(k, "source_bytes")) {
             m->source_bytes = strtoull(v, NULL, 10);
         } else if (!strcmp(k, "source_layout")) {

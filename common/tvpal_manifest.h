@@ -27,6 +27,7 @@ struct tvpal_manifest {
     uint64_t nonfinite;                   /* values replaced by nan_as */
     int single_file;                      /* one input holding all steps */
     uint64_t source_bytes;
+    uint32_t table_format;                /* 0 float32, 1 16-bit scaled */
     char *encoder;                        /* owned strings (may be NULL) */
     char *options;
     size_t nsources;

@@ -499,14 +499,14 @@ void tvpal_slab_apply(struct tvpal_slab *s, const unsigned char *rec,
     size_t nvox = (size_t)h->slice_w * h->slice_h;
     uint64_t pos = 0;
     struct tvpal_chunk c;
-    while (tvpal_record_next_chunk(rec, &pos, &c)) {
+    while (tvpal_record_next_chunk(rec, &pos, h->table_format, &c)) {
         if (tvpal_window_start(c.h.slice, t, h->window) != c.h.wstart)
             continue;
         struct slab_slice *sl = &s->sl[c.h.slice - h->slice_begin];
         sl->wstart = c.h.wstart;
         sl->wlen = c.h.wlen;
         sl->gen++;
-        tvpal_load_f32le(c.table, sl->table, (size_t)c.h.wlen * 256);
+        tvpal_chunk_table(&c, sl->table);
         memcpy(sl->idx, c.indices, nvox);
     }
 }

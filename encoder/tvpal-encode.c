@@ -60,6 +60,9 @@ static void usage(FILE *f)
 "  -k, --nodes K          split every axis into K slabs, one per node,\n"
 "                         written to OUTDIR/node-R/ (default 1)\n"
 "  -j, --threads J        worker threads (default: all cores)\n"
+"      --table FMT        decoder tables: f32 (default: float32) or u16\n"
+"                         (16-bit scaled per slice-window: half the table\n"
+"                         bytes, error <= (max - min) / 131070 per entry)\n"
 "Output:\n"
 "  -o, --output OUTDIR    dataset directory (must not exist)\n"
 "  -f, --force            replace an existing OUTDIR\n"
@@ -118,6 +121,7 @@ struct opts {
     enum tvpal_type type;
     int big_endian;
     uint32_t window, nodes, steps_single, threads;
+    uint32_t table_format;
     int has_nan_as;
     double nan_as;
     const char *outdir;
@@ -300,6 +304,7 @@ static char *fingerprint(const struct opts *o)
     FILE *f = open_memstream(&buf, &len);
     if (!f)
         return NULL;
+    fprintf(f, "table=%u ", o->table_format);
     fprintf(f, "dims=%ux%ux%u type=%s endian=%s window=%u nodes=%u "
             "steps=%u nan_as=%s%.17g", o->dims[0], o->dims[1], o->dims[2],
             tvpal_type_name(o->type), o->big_endian ? "big" : "little",
@@ -446,20 +451,20 @@ static void encode_chunk(struct tvpal_swenc *enc, float *table,
                          unsigned char *chunk)
 {
     const size_t nvox = (size_t)j->h.slice_w * j->h.slice_h;
+    const uint32_t tf = j->h.table_format;
+    const size_t tbytes = (size_t)len * 256 * tvpal_table_entry_bytes(tf);
     struct tvpal_swinfo info;
     tvpal_swenc_encode(enc, samples, nvox, len,
-                       chunk + TVPAL_CHUNK_HEADER_BYTES + (size_t)len * 1024,
-                       table, &info);
-    tvpal_store_f32le(table, chunk + TVPAL_CHUNK_HEADER_BYTES,
-                      (size_t)len * 256);
+                       chunk + TVPAL_CHUNK_HEADER_BYTES + tbytes, table, &info);
     struct tvpal_chunk_header ch = {
         .slice = slice, .wstart = t, .wlen = len, .w = j->h.slice_w,
         .h = j->h.slice_h, .used = info.used};
+    tvpal_table_store(table, len, tf, chunk + TVPAL_CHUNK_HEADER_BYTES, &ch);
     memcpy(ch.bits, info.bits, sizeof ch.bits);
     tvpal_chunk_header_encode(&ch, chunk);
     /* Zero the index padding so output bytes are deterministic. */
-    size_t ib = TVPAL_CHUNK_HEADER_BYTES + (size_t)len * 1024 + nvox;
-    size_t cb = tvpal_chunk_bytes(len, j->h.slice_w, j->h.slice_h);
+    size_t ib = TVPAL_CHUNK_HEADER_BYTES + tbytes + nvox;
+    size_t cb = tvpal_chunk_bytes(len, j->h.slice_w, j->h.slice_h, tf);
     memset(chunk + ib, 0, cb - ib);
 }
 
@@ -506,6 +511,7 @@ int main(int argc, char **argv)
         {"window", required_argument, 0, 'w'},
         {"nodes", required_argument, 0, 'k'},
         {"threads", required_argument, 0, 'j'},
+        {"table", required_argument, 0, 'T'},
         {"output", required_argument, 0, 'o'},
         {"force", no_argument, 0, 'f'},
         {"quiet", no_argument, 0, 'q'},
@@ -555,6 +561,14 @@ int main(int argc, char **argv)
         case 'j':
             if (tvpal_parse_u32(optarg, 1, 1024, &o.threads) < 0)
                 die_usage("--threads \"%s\": expected 1..1024", optarg);
+            break;
+        case 'T':
+            if (!strcmp(optarg, "u16"))
+                o.table_format = TVPAL_TABLE_U16;
+            else if (!strcmp(optarg, "f32"))
+                o.table_format = TVPAL_TABLE_F32;
+            else
+                die_usage("--table \"%s\": expected f32 or u16", optarg);
             break;
         case 'o':
             o.outdir = optarg;
@@ -727,14 +741,14 @@ int main(int argc, char **argv)
             j->h = (struct tvpal_shard_header){
                 .version = TVPAL_FORMAT_VERSION, .steps = T, .window = N,
                 .nodes = o.nodes, .rank = r, .axis = a, .slice_w = w,
-                .slice_h = h, .table_format = TVPAL_TABLE_F32};
+                .slice_h = h, .table_format = o.table_format};
             memcpy(j->h.dims, o.dims, sizeof o.dims);
             tvpal_slab_range(n, o.nodes, r, &j->h.slice_begin,
                              &j->h.slice_count);
             /* Largest record: every slice of the slab with a full window. */
             j->rec_cap = tvpal_round_up(TVPAL_RECORD_HEADER_BYTES +
                                             (uint64_t)j->h.slice_count *
-                                                tvpal_chunk_bytes(N, w, h),
+                                                tvpal_chunk_bytes(N, w, h, o.table_format),
                                         TVPAL_ALIGN);
             j->rec = malloc(j->rec_cap);
             if (!j->rec)
@@ -833,7 +847,8 @@ int main(int argc, char **argv)
                 if (!tvpal_window_starts(s, t, N))
                     continue;
                 uint32_t len = tvpal_window_len(s, t, N, T);
-                uint64_t cb = tvpal_chunk_bytes(len, j->h.slice_w, j->h.slice_h);
+                uint64_t cb = tvpal_chunk_bytes(len, j->h.slice_w, j->h.slice_h,
+                                                j->h.table_format);
                 struct slicejob *prev = njobs ? &jobs[njobs - 1] : NULL;
                 /* Extend the previous x group when this slice is the next of
                  * its phase, in the same line, with the same window, and the
@@ -862,7 +877,8 @@ int main(int argc, char **argv)
             const struct shardjob *j = jb->sj;
             const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
             const uint64_t cb = tvpal_chunk_bytes(jb->len, j->h.slice_w,
-                                                  j->h.slice_h);
+                                                  j->h.slice_h,
+                                                  j->h.table_format);
             gather(&o, ring, jb, t, samples[tid]);
             for (uint32_t g = 0; g < jb->count; g++)
                 encode_chunk(enc[tid], tables[tid],
@@ -889,7 +905,8 @@ int main(int argc, char **argv)
                 uint64_t cap = tvpal_round_up(
                     TVPAL_RECORD_HEADER_BYTES +
                         (uint64_t)((j->h.slice_count + N - 1) / N + 1) *
-                            tvpal_chunk_bytes(N, j->h.slice_w, j->h.slice_h),
+                            tvpal_chunk_bytes(N, j->h.slice_w, j->h.slice_h,
+                                              j->h.table_format),
                     TVPAL_ALIGN);
                 if (cap < j->rec_cap) {
                     unsigned char *nb = realloc(j->rec, cap);
@@ -971,6 +988,10 @@ int main(int argc, char **argv)
     if (o.has_nan_as)
         snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
                  " --nan-as %.17g", o.nan_as);
+    if (o.table_format == TVPAL_TABLE_U16)
+        snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
+                 " --table u16");
+    m.table_format = o.table_format;
     m.encoder = strdup(PROG " " PACKAGE_VERSION);
     m.options = strdup(optstr);
     for (int i = 0; i < o.ninputs; i++)

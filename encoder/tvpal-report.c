@@ -148,7 +148,8 @@ static void payload_bytes(const struct tvpal_manifest *m, unsigned axis,
         for (uint32_t t = 0; t < m->steps; t++)
             if (tvpal_window_starts(s, t, m->window)) {
                 *idx += (double)w * h;
-                *tab += 1024.0 * tvpal_window_len(s, t, m->window, m->steps);
+                *tab += 256.0 * (m->table_format == 1 ? 2 : 4) *
+                        tvpal_window_len(s, t, m->window, m->steps);
             }
 }
 

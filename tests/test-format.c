@@ -38,7 +38,7 @@ static uint64_t build_record(const struct tvpal_shard_header *h, uint32_t step,
             .wlen = tvpal_window_len(s, step, h->window, h->steps),
             .w = h->slice_w, .h = h->slice_h, .used = 7, .bits = {5, 3}};
         tvpal_chunk_header_encode(&ch, buf + off);
-        uint64_t cb = tvpal_chunk_bytes(ch.wlen, ch.w, ch.h);
+        uint64_t cb = tvpal_chunk_bytes(ch.wlen, ch.w, ch.h, h->table_format);
         memset(buf + off + TVPAL_CHUNK_HEADER_BYTES, (int)(s + 1),
                cb - TVPAL_CHUNK_HEADER_BYTES);
         off += cb;
@@ -98,7 +98,7 @@ int main(void)
         uint64_t pos = 0;
         struct tvpal_chunk c;
         unsigned k = 0;
-        while (tvpal_record_next_chunk(rec, &pos, &c)) {
+        while (tvpal_record_next_chunk(rec, &pos, h.table_format, &c)) {
             CHECK(c.h.wstart == t && c.indices[0] == (uint8_t)(c.h.slice + 1),
                   "chunk %u of step %u", k, t);
             k++;
@@ -129,7 +129,7 @@ int main(void)
         struct tvpal_record_header rh;
         tvpal_record_header_decode(rec, &rh, NULL);
         uint64_t first = tvpal_chunk_bytes(tvpal_window_len(h.slice_begin, 0, 4, 9),
-                                           h.slice_w, h.slice_h);
+                                           h.slice_w, h.slice_h, 0);
         memmove(rec + 64, rec + 64 + first, rh.payload_bytes - first);
         tvpal_record_seal(rec, 0, 0, rh.chunk_count - 1, rh.payload_bytes - first);
         CHECK(tvpal_record_verify(rec, bytes, 0, &h, &d) == TVPAL_E_FORMAT,
@@ -142,6 +142,37 @@ int main(void)
     tvpal_index_entry_encode(&e, ib);
     tvpal_index_entry_decode(ib, &f);
     CHECK(!memcmp(&e, &f, sizeof e), "index entry round trip");
+
+    /* 16-bit tables: round trip within half a step, constants exact. */
+    {
+        static float tab[16 * 256], back[16 * 256];
+        static unsigned char store[16 * 256 * 2];
+        for (int i = 0; i < 4 * 256; i++)
+            tab[i] = (float)(-3.0 + 1e3 * tt_uniform());
+        struct tvpal_chunk_header ch = {.wlen = 4};
+        tvpal_table_store(tab, 4, TVPAL_TABLE_U16, store, &ch);
+        struct tvpal_chunk c = {.h = ch, .table_format = TVPAL_TABLE_U16,
+                                .table = store};
+        tvpal_chunk_table(&c, back);
+        double lo = tab[0], hi = tab[0], err = 0;
+        for (int i = 0; i < 4 * 256; i++) {
+            lo = fmin(lo, tab[i]);
+            hi = fmax(hi, tab[i]);
+        }
+        for (int i = 0; i < 4 * 256; i++)
+            err = fmax(err, fabs(back[i] - tab[i]));
+        CHECK(err <= (hi - lo) / 65535 * 0.5 + 1e-4 * (hi - lo) / 65535 + 1e-5,
+              "u16 table error %g for range %g", err, hi - lo);
+        for (int i = 0; i < 256; i++)
+            tab[i] = 7.25f;
+        ch.wlen = 1;
+        tvpal_table_store(tab, 1, TVPAL_TABLE_U16, store, &ch);
+        c.h = ch;
+        tvpal_chunk_table(&c, back);
+        CHECK(back[0] == 7.25f && back[255] == 7.25f, "constant table exact");
+        CHECK(tvpal_chunk_bytes(4, 10, 10, TVPAL_TABLE_U16) ==
+                  64 + 4 * 512 + 128, "u16 chunk size");
+    }
 
     /* Slab split: covers all slices, sizes differ by at most one. */
     for (uint32_t n = 1; n < 70; n++)
