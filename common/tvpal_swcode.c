@@ -18,6 +18,13 @@ struct tvpal_swenc {
     double levels[TVPAL_NMAX][TVPAL_LEVELS_MAX];
     unsigned nlevels[TVPAL_NMAX];
     struct tvpal_qcoder coder;
+    /* --refine: generalized Lloyd on the voxel vectors */
+    unsigned refine;
+    double *xd;                  /* max_vox * max_len: voxel DCTs (double) */
+    double cd[TVPAL_TABLE_ENTRIES][TVPAL_NMAX];  /* codeword DCTs */
+    unsigned ord[TVPAL_TABLE_ENTRIES];           /* codewords by cd[.][0] */
+    double sse[TVPAL_REFINE_MAX + 1];            /* per iteration */
+    unsigned nsse;
 };
 
 int tvpal_swenc_create(struct tvpal_swenc **out, size_t max_vox,
@@ -45,10 +52,163 @@ void tvpal_swenc_free(struct tvpal_swenc *e)
 {
     if (!e)
         return;
+    free(e->xd);
     free(e->coef);
     free(e->sums);
     tvpal_quantws_free(e->qws);
     free(e);
+}
+
+/* Squared error of the current code, summed over voxels and timesteps, in
+ * double from the samples. */
+static double code_sse(const float *samples, size_t nvox, unsigned len,
+                       const uint8_t *idx, const float *table)
+{
+    double s = 0.0;
+    for (unsigned j = 0; j < len; j++) {
+        const float *x = samples + (size_t)j * nvox;
+        const float *row = table + j * TVPAL_TABLE_ENTRIES;
+        for (size_t v = 0; v < nvox; v++) {
+            double d = (double)x[v] - row[idx[v]];
+            s += d * d;
+        }
+    }
+    return s;
+}
+
+static int cmp_cd0(const struct tvpal_swenc *e, unsigned i, unsigned j);
+
+/* Generalized Lloyd (k-means) on the slice-window's voxel vectors, seeded
+ * with the 256 codewords the DCT/Lloyd-Max code produced (Linde, Buzo &
+ * Gray 1980).  Each iteration assigns every voxel to its nearest codeword
+ * and moves each codeword used to the mean of its voxels (which is what
+ * the decoder table holds anyway), so the distortion cannot rise.  The
+ * nearest-codeword search runs in the DCT domain (an orthonormal transform
+ * keeps distances) where most energy is in coefficient 0: codewords sorted
+ * by it are searched outward from the voxel's value and the search stops
+ * once (c0 - x0)^2 alone exceeds the best distance; partial sums stop a
+ * candidate early.  A voxel moves only for a strictly better codeword
+ * (ties keep the current one: deterministic). */
+static int refine(struct tvpal_swenc *e, const float *samples, size_t nvox,
+                  unsigned len, uint8_t *idx, float *table)
+{
+    const unsigned L = len, K = TVPAL_TABLE_ENTRIES;
+    double *xd = e->xd;
+    if (!xd)
+        return TVPAL_E_INVAL;
+    /* Voxel vectors in the DCT domain, voxel-major. */
+    for (size_t v = 0; v < nvox; v++) {
+        double x[TVPAL_NMAX];
+        for (unsigned j = 0; j < L; j++)
+            x[j] = samples[(size_t)j * nvox + v];
+        tvpal_dct_forward(L, x, xd + v * L);
+    }
+    e->sse[0] = code_sse(samples, nvox, len, idx, table);
+    e->nsse = 1;
+    for (unsigned it = 0; it < e->refine; it++) {
+        for (unsigned i = 0; i < K; i++) {
+            double c[TVPAL_NMAX];
+            for (unsigned j = 0; j < L; j++)
+                c[j] = table[j * K + i];
+            tvpal_dct_forward(L, c, e->cd[i]);
+            e->ord[i] = i;
+        }
+        /* Insertion sort by cd0 (ties by index): 256 entries, mostly
+         * ordered already after the first iteration. */
+        for (unsigned a = 1; a < K; a++) {
+            unsigned key = e->ord[a], b = a;
+            while (b > 0 && cmp_cd0(e, e->ord[b - 1], key) > 0) {
+                e->ord[b] = e->ord[b - 1];
+                b--;
+            }
+            e->ord[b] = key;
+        }
+        unsigned changed = 0;
+        for (size_t v = 0; v < nvox; v++) {
+            const double *x = xd + v * L;
+            unsigned best = idx[v];
+            double bd = 0.0;
+            for (unsigned j = 0; j < L; j++) {
+                double d = x[j] - e->cd[best][j];
+                bd += d * d;
+            }
+            /* First codeword with cd0 >= x0, then outward. */
+            unsigned lo = 0, hi = K;
+            while (lo < hi) {
+                unsigned mid = (lo + hi) / 2;
+                if (e->cd[e->ord[mid]][0] < x[0])
+                    lo = mid + 1;
+                else
+                    hi = mid;
+            }
+            int up = (int)lo, dn = (int)lo - 1;
+            while (up < (int)K || dn >= 0) {
+                int pick;
+                double d0u = up < (int)K ? e->cd[e->ord[up]][0] - x[0] : 1e300;
+                double d0d = dn >= 0 ? x[0] - e->cd[e->ord[dn]][0] : 1e300;
+                if (d0u <= d0d) {
+                    if (d0u * d0u >= bd) {
+                        if (d0d * d0d >= bd)
+                            break;
+                        pick = dn--;
+                    } else {
+                        pick = up++;
+                    }
+                } else {
+                    if (d0d * d0d >= bd) {
+                        if (d0u * d0u >= bd)
+                            break;
+                        pick = up++;
+                    } else {
+                        pick = dn--;
+                    }
+                }
+                unsigned ci = e->ord[pick];
+                if (ci == best)
+                    continue;
+                const double *c = e->cd[ci];
+                double d = 0.0;
+                for (unsigned j = 0; j < L && d < bd; j++) {
+                    double t = x[j] - c[j];
+                    d += t * t;
+                }
+                if (d < bd) {
+                    bd = d;
+                    best = ci;
+                }
+            }
+            if (best != idx[v]) {
+                idx[v] = (uint8_t)best;
+                changed++;
+            }
+        }
+        /* Centroids: the decoder table's means, recomputed. */
+        memset(e->cnt, 0, sizeof e->cnt);
+        memset(e->sums, 0, K * L * sizeof *e->sums);
+        for (size_t v = 0; v < nvox; v++) {
+            unsigned i = idx[v];
+            double *s = e->sums + (size_t)i * L;
+            e->cnt[i]++;
+            for (unsigned j = 0; j < L; j++)
+                s[j] += samples[(size_t)j * nvox + v];
+        }
+        for (unsigned i = 0; i < K; i++)
+            if (e->cnt[i]) {
+                double inv = 1.0 / (double)e->cnt[i];
+                for (unsigned j = 0; j < L; j++)
+                    table[j * K + i] = (float)(e->sums[(size_t)i * L + j] * inv);
+            }
+        e->sse[e->nsse++] = code_sse(samples, nvox, len, idx, table);
+        if (!changed)
+            break;
+    }
+    return 0;
+}
+
+static int cmp_cd0(const struct tvpal_swenc *e, unsigned i, unsigned j)
+{
+    double x = e->cd[i][0], y = e->cd[j][0];
+    return x < y ? -1 : x > y ? 1 : (int)i - (int)j;
 }
 
 int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
@@ -145,10 +305,39 @@ int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
         for (unsigned j = 0; j < len; j++)
             table[j * TVPAL_TABLE_ENTRIES + i] = (float)val[j];
     }
+    e->nsse = 0;
+    if (e->refine && nvox) {
+        int rc = refine(e, samples, nvox, len, idx, table);
+        if (rc < 0)
+            return rc;
+        used = 0;
+        for (unsigned i = 0; i < TVPAL_TABLE_ENTRIES; i++)
+            used += e->cnt[i] > 0;
+    }
     if (info) {
         memset(info, 0, sizeof *info);
         memcpy(info->bits, bits, len);
         info->used = used;
     }
     return 0;
+}
+
+int tvpal_swenc_set_refine(struct tvpal_swenc *e, unsigned iterations)
+{
+    if (iterations > TVPAL_REFINE_MAX)
+        return TVPAL_E_INVAL;
+    if (iterations && !e->xd) {
+        e->xd = malloc((e->max_vox ? e->max_vox : 1) * e->max_len *
+                       sizeof *e->xd);
+        if (!e->xd)
+            return TVPAL_E_NOMEM;
+    }
+    e->refine = iterations;
+    return 0;
+}
+
+unsigned tvpal_swenc_refine_sse(const struct tvpal_swenc *e, double *sse)
+{
+    memcpy(sse, e->sse, e->nsse * sizeof *sse);
+    return e->nsse;
 }

@@ -44,4 +44,17 @@ int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
                        size_t nvox, unsigned len, uint8_t *idx, float *table,
                        struct tvpal_swinfo *info);
 
+/* --refine: after the DCT/Lloyd-Max code, up to `iterations` (0..
+ * TVPAL_REFINE_MAX) of generalized Lloyd (k-means) on the voxels' time
+ * series, seeded with the 256 codewords; stops early when no voxel moves.
+ * The decoder format is unchanged.  Allocates its scratch here, not per
+ * slice. */
+#define TVPAL_REFINE_MAX 64
+int tvpal_swenc_set_refine(struct tvpal_swenc *e, unsigned iterations);
+
+/* Squared error (summed over voxels and timesteps) before refinement and
+ * after each iteration of the last encode; returns the count (0 without
+ * refinement). */
+unsigned tvpal_swenc_refine_sse(const struct tvpal_swenc *e, double *sse);
+
 #endif

@@ -60,6 +60,9 @@ static void usage(FILE *f)
 "  -k, --nodes K          split every axis into K slabs, one per node,\n"
 "                         written to OUTDIR/node-R/ (default 1)\n"
 "  -j, --threads J        worker threads (default: all cores)\n"
+"      --refine K         up to K iterations of generalized Lloyd (k-means)\n"
+"                         on each slice-window's voxel series after the DCT\n"
+"                         code (0..64, default 0): higher PSNR, same format\n"
 "      --table FMT        decoder tables: f32 (default: float32) or u16\n"
 "                         (16-bit scaled per slice-window: half the table\n"
 "                         bytes, error <= (max - min) / 131070 per entry)\n"
@@ -122,6 +125,7 @@ struct opts {
     int big_endian;
     uint32_t window, nodes, steps_single, threads;
     uint32_t table_format;
+    uint32_t refine;
     int has_nan_as;
     double nan_as;
     const char *outdir;
@@ -304,7 +308,7 @@ static char *fingerprint(const struct opts *o)
     FILE *f = open_memstream(&buf, &len);
     if (!f)
         return NULL;
-    fprintf(f, "table=%u ", o->table_format);
+    fprintf(f, "table=%u refine=%u ", o->table_format, o->refine);
     fprintf(f, "dims=%ux%ux%u type=%s endian=%s window=%u nodes=%u "
             "steps=%u nan_as=%s%.17g", o->dims[0], o->dims[1], o->dims[2],
             tvpal_type_name(o->type), o->big_endian ? "big" : "little",
@@ -512,6 +516,7 @@ int main(int argc, char **argv)
         {"nodes", required_argument, 0, 'k'},
         {"threads", required_argument, 0, 'j'},
         {"table", required_argument, 0, 'T'},
+        {"refine", required_argument, 0, 'R'},
         {"output", required_argument, 0, 'o'},
         {"force", no_argument, 0, 'f'},
         {"quiet", no_argument, 0, 'q'},
@@ -561,6 +566,11 @@ int main(int argc, char **argv)
         case 'j':
             if (tvpal_parse_u32(optarg, 1, 1024, &o.threads) < 0)
                 die_usage("--threads \"%s\": expected 1..1024", optarg);
+            break;
+        case 'R':
+            if (tvpal_parse_u32(optarg, 0, TVPAL_REFINE_MAX, &o.refine) < 0)
+                die_usage("--refine \"%s\": expected 0..%d", optarg,
+                          TVPAL_REFINE_MAX);
             break;
         case 'T':
             if (!strcmp(optarg, "u16"))
@@ -811,6 +821,7 @@ int main(int argc, char **argv)
         die_fail("out of memory");
     for (int i = 0; i < nthreads; i++) {
         if (tvpal_swenc_create(&enc[i], max_slice_vox, N) < 0 ||
+            tvpal_swenc_set_refine(enc[i], o.refine) < 0 ||
             !(samples[i] = malloc(g_group_cap * sizeof(float))) ||
             !(tables[i] = malloc(N * 256 * sizeof(float))))
             die_fail("out of memory");
@@ -991,6 +1002,9 @@ int main(int argc, char **argv)
     if (o.table_format == TVPAL_TABLE_U16)
         snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
                  " --table u16");
+    if (o.refine)
+        snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
+                 " --refine %u", o.refine);
     m.table_format = o.table_format;
     m.encoder = strdup(PROG " " PACKAGE_VERSION);
     m.options = strdup(optstr);
