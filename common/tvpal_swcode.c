@@ -20,6 +20,7 @@ struct tvpal_swenc {
     struct tvpal_qcoder coder;
     /* --refine: generalized Lloyd on the voxel vectors */
     unsigned refine;
+    int naive;                   /* uniform quantizers, IDCT tables */
     double *xd;                  /* max_vox * max_len: voxel DCTs (double) */
     double cd[TVPAL_TABLE_ENTRIES][TVPAL_NMAX];  /* codeword DCTs */
     unsigned ord[TVPAL_TABLE_ENTRIES];           /* codewords by cd[.][0] */
@@ -260,7 +261,10 @@ int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
             continue;
         const float *c = e->coef + (size_t)u * nvox;
         tvpal_quantws_load(e->qws, c, nvox);
-        tvpal_quant_fit_lloyd(e->qws, 1u << bits[u], &e->q);
+        if (e->naive)
+            tvpal_quant_fit_uniform(e->qws, 1u << bits[u], &e->q);
+        else
+            tvpal_quant_fit_lloyd(e->qws, 1u << bits[u], &e->q);
         e->nlevels[u] = e->q.nlevels;
         memcpy(e->levels[u], e->q.level, e->q.nlevels * sizeof(double));
         tvpal_qcoder_init(&e->coder, &e->q, bits[u]);
@@ -279,15 +283,16 @@ int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
     }
     unsigned used = 0;
     for (unsigned i = 0; i < TVPAL_TABLE_ENTRIES; i++) {
-        if (e->cnt[i]) {
-            used++;
+        used += e->cnt[i] > 0;
+        if (e->cnt[i] && !e->naive) {
             double inv = 1.0 / (double)e->cnt[i];
             for (unsigned j = 0; j < len; j++)
                 table[j * TVPAL_TABLE_ENTRIES + i] =
                     (float)(e->sums[(size_t)i * len + j] * inv);
             continue;
         }
-        /* Unused index: unpack its codes, dequantize, inverse DCT. */
+        /* Unused index (or the naive variant): unpack its codes,
+         * dequantize, inverse DCT. */
         double co[TVPAL_NMAX], val[TVPAL_NMAX];
         unsigned rest = i;
         for (int u = (int)len - 1; u >= 0; u--) {
@@ -334,6 +339,11 @@ int tvpal_swenc_set_refine(struct tvpal_swenc *e, unsigned iterations)
     }
     e->refine = iterations;
     return 0;
+}
+
+void tvpal_swenc_set_naive(struct tvpal_swenc *e, int naive)
+{
+    e->naive = naive;
 }
 
 unsigned tvpal_swenc_refine_sse(const struct tvpal_swenc *e, double *sse)

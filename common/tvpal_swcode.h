@@ -52,6 +52,11 @@ int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
 #define TVPAL_REFINE_MAX 64
 int tvpal_swenc_set_refine(struct tvpal_swenc *e, unsigned iterations);
 
+/* The paper's naive variant, as a floor for comparisons: uniform
+ * quantizers instead of Lloyd-Max, and decoder tables holding the inverse
+ * DCT of the dequantized coefficients instead of the per-index means. */
+void tvpal_swenc_set_naive(struct tvpal_swenc *e, int naive);
+
 /* Squared error (summed over voxels and timesteps) before refinement and
  * after each iteration of the last encode; returns the count (0 without
  * refinement). */

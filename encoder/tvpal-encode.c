@@ -63,6 +63,8 @@ static void usage(FILE *f)
 "      --refine K         up to K iterations of generalized Lloyd (k-means)\n"
 "                         on each slice-window's voxel series after the DCT\n"
 "                         code (0..64, default 0): higher PSNR, same format\n"
+"      --naive            the paper's naive variant (uniform quantizers,\n"
+"                         inverse-DCT tables): a floor for comparisons\n"
 "      --table FMT        decoder tables: f32 (default: float32) or u16\n"
 "                         (16-bit scaled per slice-window: half the table\n"
 "                         bytes, error <= (max - min) / 131070 per entry)\n"
@@ -126,6 +128,7 @@ struct opts {
     uint32_t window, nodes, steps_single, threads;
     uint32_t table_format;
     uint32_t refine;
+    int naive;
     int has_nan_as;
     double nan_as;
     const char *outdir;
@@ -308,7 +311,8 @@ static char *fingerprint(const struct opts *o)
     FILE *f = open_memstream(&buf, &len);
     if (!f)
         return NULL;
-    fprintf(f, "table=%u refine=%u ", o->table_format, o->refine);
+    fprintf(f, "table=%u refine=%u naive=%d ", o->table_format, o->refine,
+            o->naive);
     fprintf(f, "dims=%ux%ux%u type=%s endian=%s window=%u nodes=%u "
             "steps=%u nan_as=%s%.17g", o->dims[0], o->dims[1], o->dims[2],
             tvpal_type_name(o->type), o->big_endian ? "big" : "little",
@@ -517,6 +521,7 @@ int main(int argc, char **argv)
         {"threads", required_argument, 0, 'j'},
         {"table", required_argument, 0, 'T'},
         {"refine", required_argument, 0, 'R'},
+        {"naive", no_argument, 0, 'Z'},
         {"output", required_argument, 0, 'o'},
         {"force", no_argument, 0, 'f'},
         {"quiet", no_argument, 0, 'q'},
@@ -566,6 +571,9 @@ int main(int argc, char **argv)
         case 'j':
             if (tvpal_parse_u32(optarg, 1, 1024, &o.threads) < 0)
                 die_usage("--threads \"%s\": expected 1..1024", optarg);
+            break;
+        case 'Z':
+            o.naive = 1;
             break;
         case 'R':
             if (tvpal_parse_u32(optarg, 0, TVPAL_REFINE_MAX, &o.refine) < 0)
@@ -822,6 +830,7 @@ int main(int argc, char **argv)
     for (int i = 0; i < nthreads; i++) {
         if (tvpal_swenc_create(&enc[i], max_slice_vox, N) < 0 ||
             tvpal_swenc_set_refine(enc[i], o.refine) < 0 ||
+            (tvpal_swenc_set_naive(enc[i], o.naive), 0) ||
             !(samples[i] = malloc(g_group_cap * sizeof(float))) ||
             !(tables[i] = malloc(N * 256 * sizeof(float))))
             die_fail("out of memory");
@@ -1005,6 +1014,9 @@ int main(int argc, char **argv)
     if (o.refine)
         snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
                  " --refine %u", o.refine);
+    if (o.naive)
+        snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
+                 " --naive");
     m.table_format = o.table_format;
     m.encoder = strdup(PROG " " PACKAGE_VERSION);
     m.options = strdup(optstr);
