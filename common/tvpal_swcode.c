@@ -1,6 +1,7 @@
 /* tvpal_swcode.c: slice-window encoder (see tvpal_swcode.h). */
 #include "tvpal_swcode.h"
 #include "tvpal_bitalloc.h"
+#include "tvpal_eig.h"
 #include "tvpal_error.h"
 #include "tvpal_quant.h"
 
@@ -21,6 +22,11 @@ struct tvpal_swenc {
     /* --refine: generalized Lloyd on the voxel vectors */
     unsigned refine;
     int naive;                   /* uniform quantizers, IDCT tables */
+    int klt;                     /* also try the KLT per slice-window */
+    uint8_t *idx2;               /* max_vox: the KLT code */
+    float *table2;               /* max_len * 256 */
+    double basis[TVPAL_NMAX * TVPAL_NMAX];   /* rows: basis functions */
+    float basis_f[TVPAL_NMAX * TVPAL_NMAX];
     double *xd;                  /* max_vox * max_len: voxel DCTs (double) */
     double cd[TVPAL_TABLE_ENTRIES][TVPAL_NMAX];  /* codeword DCTs */
     unsigned ord[TVPAL_TABLE_ENTRIES];           /* codewords by cd[.][0] */
@@ -54,10 +60,30 @@ void tvpal_swenc_free(struct tvpal_swenc *e)
     if (!e)
         return;
     free(e->xd);
+    free(e->idx2);
+    free(e->table2);
     free(e->coef);
     free(e->sums);
     tvpal_quantws_free(e->qws);
     free(e);
+}
+
+/* out[u * n + v] = sum_x m[u * len + x] in[x * n + v] for n series. */
+static void transform_f(const float *m, unsigned len, const float *in,
+                        float *out, size_t n)
+{
+    for (unsigned u = 0; u < len; u++) {
+        float *o = out + (size_t)u * n;
+        const float *row = m + u * len;
+        for (size_t v = 0; v < n; v++)
+            o[v] = 0.0f;
+        for (unsigned x = 0; x < len; x++) {
+            const float w = row[x];
+            const float *src = in + (size_t)x * n;
+            for (size_t v = 0; v < n; v++)
+                o[v] += w * src[v];
+        }
+    }
 }
 
 /* Squared error of the current code, summed over voxels and timesteps, in
@@ -212,17 +238,44 @@ static int cmp_cd0(const struct tvpal_swenc *e, unsigned i, unsigned j)
     return x < y ? -1 : x > y ? 1 : (int)i - (int)j;
 }
 
-int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
-                       size_t nvox, unsigned len, uint8_t *idx, float *table,
-                       struct tvpal_swinfo *info)
+/* The code of one slice-window with one transform (DCT-II, or with
+ * use_klt the slice-window's KLT); writes idx, table, bits and the number
+ * of indices used. */
+static int encode_basis(struct tvpal_swenc *e, const float *samples,
+                        size_t nvox, unsigned len, uint8_t *idx, float *table,
+                        uint8_t *bits, unsigned *used_out, int use_klt)
 {
-    if (len < 1 || len > e->max_len || nvox > e->max_vox)
-        return TVPAL_E_INVAL;
-
     double mean[TVPAL_NMAX], var_u[TVPAL_NMAX];
-    uint8_t bits[TVPAL_NMAX];
 
-    tvpal_dct_forward_f(len, samples, e->coef, nvox, nvox);
+    /* The transform: DCT-II, or the slice-window's KLT (eigenvectors of
+     * the temporal covariance of its voxels, by decreasing variance). */
+    if (use_klt) {
+        double cov[TVPAL_NMAX * TVPAL_NMAX], m[TVPAL_NMAX], w[TVPAL_NMAX];
+        for (unsigned j = 0; j < len; j++) {
+            double s = 0.0;
+            for (size_t v = 0; v < nvox; v++)
+                s += samples[(size_t)j * nvox + v];
+            m[j] = nvox ? s / (double)nvox : 0.0;
+        }
+        for (unsigned j = 0; j < len; j++)
+            for (unsigned k = j; k < len; k++) {
+                const float *a = samples + (size_t)j * nvox;
+                const float *b = samples + (size_t)k * nvox;
+                double s = 0.0;
+                for (size_t v = 0; v < nvox; v++)
+                    s += ((double)a[v] - m[j]) * ((double)b[v] - m[k]);
+                cov[j * len + k] = cov[k * len + j] = nvox ? s / (double)nvox : 0.0;
+            }
+        int rc = tvpal_eig_sym((int)len, cov, w);
+        if (rc < 0)
+            return rc;
+        memcpy(e->basis, cov, sizeof(double) * len * len);
+    } else {
+        memcpy(e->basis, tvpal_dct_matrix(len), sizeof(double) * len * len);
+    }
+    for (unsigned i = 0; i < len * len; i++)
+        e->basis_f[i] = (float)e->basis[i];
+    transform_f(e->basis_f, len, samples, e->coef, nvox);
     for (unsigned u = 0; u < len; u++) {
         /* One pass, shifted by the first value (no cancellation for data
          * with a large offset), four accumulators for speed. */
@@ -306,13 +359,51 @@ int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
                 code = e->nlevels[u] - 1;
             co[u] = e->levels[u][code];
         }
-        tvpal_dct_inverse(len, co, val);
+        for (unsigned x = 0; x < len; x++) {
+            double s = 0.0;
+            for (unsigned u = 0; u < len; u++)
+                s += e->basis[u * len + x] * co[u];
+            val[x] = s;
+        }
         for (unsigned j = 0; j < len; j++)
             table[j * TVPAL_TABLE_ENTRIES + i] = (float)val[j];
     }
+    *used_out = used;
+    return 0;
+}
+
+int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
+                       size_t nvox, unsigned len, uint8_t *idx, float *table,
+                       struct tvpal_swinfo *info)
+{
+    if (len < 1 || len > e->max_len || nvox > e->max_vox)
+        return TVPAL_E_INVAL;
+    uint8_t bits[TVPAL_NMAX];
+    unsigned used;
+    int rc = encode_basis(e, samples, nvox, len, idx, table, bits, &used, 0);
+    if (rc < 0)
+        return rc;
+    if (e->klt && len > 1) {
+        /* The KLT decorrelates best but its quantized code is not always
+         * better: keep whichever code errs less, so --transform klt is
+         * never worse than the DCT on any slice-window. */
+        uint8_t bits2[TVPAL_NMAX];
+        unsigned used2;
+        rc = encode_basis(e, samples, nvox, len, e->idx2, e->table2, bits2,
+                          &used2, 1);
+        if (rc < 0)
+            return rc;
+        if (code_sse(samples, nvox, len, e->idx2, e->table2) <
+            code_sse(samples, nvox, len, idx, table)) {
+            memcpy(idx, e->idx2, nvox);
+            memcpy(table, e->table2, sizeof(float) * len * TVPAL_TABLE_ENTRIES);
+            memcpy(bits, bits2, sizeof bits2);
+            used = used2;
+        }
+    }
     e->nsse = 0;
     if (e->refine && nvox) {
-        int rc = refine(e, samples, nvox, len, idx, table);
+        rc = refine(e, samples, nvox, len, idx, table);
         if (rc < 0)
             return rc;
         used = 0;
@@ -344,6 +435,20 @@ int tvpal_swenc_set_refine(struct tvpal_swenc *e, unsigned iterations)
 void tvpal_swenc_set_naive(struct tvpal_swenc *e, int naive)
 {
     e->naive = naive;
+}
+
+int tvpal_swenc_set_klt(struct tvpal_swenc *e, int klt)
+{
+    if (klt && !tvpal_eig_available())
+        return TVPAL_E_SYS;
+    if (klt && !e->idx2) {
+        e->idx2 = malloc(e->max_vox ? e->max_vox : 1);
+        e->table2 = malloc(sizeof(float) * e->max_len * TVPAL_TABLE_ENTRIES);
+        if (!e->idx2 || !e->table2)
+            return TVPAL_E_NOMEM;
+    }
+    e->klt = klt;
+    return 0;
 }
 
 unsigned tvpal_swenc_refine_sse(const struct tvpal_swenc *e, double *sse)

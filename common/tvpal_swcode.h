@@ -57,6 +57,14 @@ int tvpal_swenc_set_refine(struct tvpal_swenc *e, unsigned iterations);
  * DCT of the dequantized coefficients instead of the per-index means. */
 void tvpal_swenc_set_naive(struct tvpal_swenc *e, int naive);
 
+/* --transform klt: also code each slice-window with its Karhunen-Loeve
+ * transform (principal components of its voxels' time series, from the
+ * temporal covariance via LAPACK) and keep whichever of the DCT and KLT
+ * codes errs less, so it is never worse than the DCT; degenerate (constant,
+ * rank-deficient) covariances work.  TVPAL_E_SYS when built without
+ * LAPACK. */
+int tvpal_swenc_set_klt(struct tvpal_swenc *e, int klt);
+
 /* Squared error (summed over voxels and timesteps) before refinement and
  * after each iteration of the last encode; returns the count (0 without
  * refinement). */

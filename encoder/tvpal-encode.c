@@ -63,6 +63,8 @@ static void usage(FILE *f)
 "      --refine K         up to K iterations of generalized Lloyd (k-means)\n"
 "                         on each slice-window's voxel series after the DCT\n"
 "                         code (0..64, default 0): higher PSNR, same format\n"
+"      --transform T      dct (default) or klt (per slice-window principal\n"
+"                         components, LAPACK)\n"
 "      --naive            the paper's naive variant (uniform quantizers,\n"
 "                         inverse-DCT tables): a floor for comparisons\n"
 "      --table FMT        decoder tables: f32 (default: float32) or u16\n"
@@ -128,7 +130,7 @@ struct opts {
     uint32_t window, nodes, steps_single, threads;
     uint32_t table_format;
     uint32_t refine;
-    int naive;
+    int naive, klt;
     int has_nan_as;
     double nan_as;
     const char *outdir;
@@ -311,8 +313,8 @@ static char *fingerprint(const struct opts *o)
     FILE *f = open_memstream(&buf, &len);
     if (!f)
         return NULL;
-    fprintf(f, "table=%u refine=%u naive=%d ", o->table_format, o->refine,
-            o->naive);
+    fprintf(f, "table=%u refine=%u naive=%d klt=%d ", o->table_format,
+            o->refine, o->naive, o->klt);
     fprintf(f, "dims=%ux%ux%u type=%s endian=%s window=%u nodes=%u "
             "steps=%u nan_as=%s%.17g", o->dims[0], o->dims[1], o->dims[2],
             tvpal_type_name(o->type), o->big_endian ? "big" : "little",
@@ -522,6 +524,7 @@ int main(int argc, char **argv)
         {"table", required_argument, 0, 'T'},
         {"refine", required_argument, 0, 'R'},
         {"naive", no_argument, 0, 'Z'},
+        {"transform", required_argument, 0, 'X'},
         {"output", required_argument, 0, 'o'},
         {"force", no_argument, 0, 'f'},
         {"quiet", no_argument, 0, 'q'},
@@ -571,6 +574,12 @@ int main(int argc, char **argv)
         case 'j':
             if (tvpal_parse_u32(optarg, 1, 1024, &o.threads) < 0)
                 die_usage("--threads \"%s\": expected 1..1024", optarg);
+            break;
+        case 'X':
+            if (!strcmp(optarg, "klt"))
+                o.klt = 1;
+            else if (strcmp(optarg, "dct"))
+                die_usage("--transform \"%s\": expected dct or klt", optarg);
             break;
         case 'Z':
             o.naive = 1;
@@ -831,6 +840,9 @@ int main(int argc, char **argv)
         if (tvpal_swenc_create(&enc[i], max_slice_vox, N) < 0 ||
             tvpal_swenc_set_refine(enc[i], o.refine) < 0 ||
             (tvpal_swenc_set_naive(enc[i], o.naive), 0) ||
+            (o.klt && tvpal_swenc_set_klt(enc[i], 1) < 0 &&
+             (die_usage("--transform klt: built without LAPACK (install "
+                        "liblapack-dev and reconfigure)"), 1)) ||
             !(samples[i] = malloc(g_group_cap * sizeof(float))) ||
             !(tables[i] = malloc(N * 256 * sizeof(float))))
             die_fail("out of memory");
@@ -1017,6 +1029,9 @@ int main(int argc, char **argv)
     if (o.naive)
         snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
                  " --naive");
+    if (o.klt)
+        snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
+                 " --transform klt");
     m.table_format = o.table_format;
     m.encoder = strdup(PROG " " PACKAGE_VERSION);
     m.options = strdup(optstr);
