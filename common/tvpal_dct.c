@@ -42,7 +42,12 @@ const float *tvpal_dct_matrix_f(unsigned n)
 void tvpal_dct_forward_f(unsigned n, const float *in, float *out,
                          size_t count, size_t stride)
 {
-    const float *m = tvpal_dct_matrix_f(n);
+    tvpal_basis_forward_f(tvpal_dct_matrix_f(n), n, in, out, count, stride);
+}
+
+void tvpal_basis_forward_f(const float *m, unsigned n, const float *in,
+                           float *out, size_t count, size_t stride)
+{
     for (unsigned u = 0; u < n; u++) {
         float *o = out + (size_t)u * stride;
         const float *row = m + u * n;

@@ -26,6 +26,11 @@ const float *tvpal_dct_matrix_f(unsigned n);
 void tvpal_dct_forward_f(unsigned n, const float *in, float *out,
                          size_t count, size_t stride);
 
+/* The same product with any basis m (row u = basis function u, n x n):
+ * out[u * stride + v] = sum_x m[u * n + x] in[x * stride + v]. */
+void tvpal_basis_forward_f(const float *m, unsigned n, const float *in,
+                           float *out, size_t count, size_t stride);
+
 /* Double-precision single-series forward and inverse (reference use). */
 void tvpal_dct_forward(unsigned n, const double *in, double *out);
 void tvpal_dct_inverse(unsigned n, const double *in, double *out);

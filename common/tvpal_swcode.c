@@ -68,24 +68,6 @@ void tvpal_swenc_free(struct tvpal_swenc *e)
     free(e);
 }
 
-/* out[u * n + v] = sum_x m[u * len + x] in[x * n + v] for n series. */
-static void transform_f(const float *m, unsigned len, const float *in,
-                        float *out, size_t n)
-{
-    for (unsigned u = 0; u < len; u++) {
-        float *o = out + (size_t)u * n;
-        const float *row = m + u * len;
-        for (size_t v = 0; v < n; v++)
-            o[v] = 0.0f;
-        for (unsigned x = 0; x < len; x++) {
-            const float w = row[x];
-            const float *src = in + (size_t)x * n;
-            for (size_t v = 0; v < n; v++)
-                o[v] += w * src[v];
-        }
-    }
-}
-
 /* Squared error of the current code, summed over voxels and timesteps, in
  * double from the samples. */
 static double code_sse(const float *samples, size_t nvox, unsigned len,
@@ -275,7 +257,7 @@ static int encode_basis(struct tvpal_swenc *e, const float *samples,
     }
     for (unsigned i = 0; i < len * len; i++)
         e->basis_f[i] = (float)e->basis[i];
-    transform_f(e->basis_f, len, samples, e->coef, nvox);
+    tvpal_basis_forward_f(e->basis_f, len, samples, e->coef, nvox, nvox);
     for (unsigned u = 0; u < len; u++) {
         /* One pass, shifted by the first value (no cancellation for data
          * with a large offset), four accumulators for speed. */
