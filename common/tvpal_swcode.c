@@ -23,6 +23,7 @@ struct tvpal_swenc {
     unsigned refine;
     int naive;                   /* uniform quantizers, IDCT tables */
     int klt;                     /* also try the KLT per slice-window */
+    int alloc_mse;               /* bits by measured quantizer error */
     uint8_t *idx2;               /* max_vox: the KLT code */
     float *table2;               /* max_len * 256 */
     double basis[TVPAL_NMAX * TVPAL_NMAX];   /* rows: basis functions */
@@ -220,12 +221,55 @@ static int cmp_cd0(const struct tvpal_swenc *e, unsigned i, unsigned j)
     return x < y ? -1 : x > y ? 1 : (int)i - (int)j;
 }
 
+/* --alloc greedy-mse: the same greedy marginal-return allocation as the
+ * variance rule, but each step's gain is measured: D_u(b) is the MSE of the
+ * Lloyd-Max quantizer of coefficient u with 2^b levels (D_u(0) = its
+ * variance), fitted for b = 1..8 once per coefficient.  Distortion adds up
+ * over coefficients (orthonormal transform), so the greedy step gives the
+ * bit where it lowers the total error most. */
+static void alloc_mse(struct tvpal_swenc *e, unsigned len, size_t nvox,
+                      const double *var, uint8_t *bits)
+{
+    double D[TVPAL_NMAX][TVPAL_INDEX_BITS + 1];
+    for (unsigned u = 0; u < len; u++) {
+        bits[u] = 0;
+        D[u][0] = var[u];
+        if (!(var[u] > 0.0)) {
+            for (unsigned b = 1; b <= TVPAL_INDEX_BITS; b++)
+                D[u][b] = 0.0;
+            continue;
+        }
+        tvpal_quantws_load(e->qws, e->coef + (size_t)u * nvox, nvox);
+        for (unsigned b = 1; b <= TVPAL_INDEX_BITS; b++) {
+            tvpal_quant_fit_lloyd(e->qws, 1u << b, &e->q);
+            D[u][b] = e->q.mse;
+        }
+    }
+    for (unsigned k = 0; k < TVPAL_INDEX_BITS; k++) {
+        unsigned best = len;
+        double gain = 0.0;
+        for (unsigned u = 0; u < len; u++) {
+            if (bits[u] >= TVPAL_INDEX_BITS)
+                continue;
+            double g = D[u][bits[u]] - D[u][bits[u] + 1];
+            if (g > gain) {
+                gain = g;
+                best = u;
+            }
+        }
+        if (best == len)
+            break;
+        bits[best]++;
+    }
+}
+
 /* The code of one slice-window with one transform (DCT-II, or with
  * use_klt the slice-window's KLT); writes idx, table, bits and the number
  * of indices used. */
 static int encode_basis(struct tvpal_swenc *e, const float *samples,
                         size_t nvox, unsigned len, uint8_t *idx, float *table,
-                        uint8_t *bits, unsigned *used_out, int use_klt)
+                        uint8_t *bits, unsigned *used_out, int use_klt,
+                        int use_mse)
 {
     double mean[TVPAL_NMAX], var_u[TVPAL_NMAX];
 
@@ -287,7 +331,10 @@ static int encode_basis(struct tvpal_swenc *e, const float *samples,
             var = 0.0;
         var_u[u] = var;
     }
-    tvpal_bitalloc_variance(var_u, len, TVPAL_INDEX_BITS, bits);
+    if (use_mse)
+        alloc_mse(e, len, nvox, var_u, bits);
+    else
+        tvpal_bitalloc_variance(var_u, len, TVPAL_INDEX_BITS, bits);
 
     memset(idx, 0, nvox);
     for (unsigned u = 0; u < len; u++) {
@@ -362,21 +409,31 @@ int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
         return TVPAL_E_INVAL;
     uint8_t bits[TVPAL_NMAX];
     unsigned used;
-    int rc = encode_basis(e, samples, nvox, len, idx, table, bits, &used, 0);
+    int rc = encode_basis(e, samples, nvox, len, idx, table, bits, &used, 0,
+                          0);
     if (rc < 0)
         return rc;
-    if (e->klt && len > 1) {
-        /* The KLT decorrelates best but its quantized code is not always
-         * better: keep whichever code errs less, so --transform klt is
-         * never worse than the DCT on any slice-window. */
+    /* Alternatives (the KLT, the measured-error allocation, both): each is
+     * coded too and kept only where it errs less, so no option is ever
+     * worse than the plain code on any slice-window.  (The KLT's quantized
+     * code, and a greedy allocation on per-coefficient errors, are not
+     * always better than the DCT and the variance rule.) */
+    double best = -1.0;
+    for (int alt = 1; alt < 4; alt++) {
+        int klt = alt & 1, mse = alt >> 1;
+        if ((klt && !(e->klt && len > 1)) || (mse && !e->alloc_mse))
+            continue;
+        if (best < 0.0)
+            best = code_sse(samples, nvox, len, idx, table);
         uint8_t bits2[TVPAL_NMAX];
         unsigned used2;
         rc = encode_basis(e, samples, nvox, len, e->idx2, e->table2, bits2,
-                          &used2, 1);
+                          &used2, klt, mse);
         if (rc < 0)
             return rc;
-        if (code_sse(samples, nvox, len, e->idx2, e->table2) <
-            code_sse(samples, nvox, len, idx, table)) {
+        double sse2 = code_sse(samples, nvox, len, e->idx2, e->table2);
+        if (sse2 < best) {
+            best = sse2;
             memcpy(idx, e->idx2, nvox);
             memcpy(table, e->table2, sizeof(float) * len * TVPAL_TABLE_ENTRIES);
             memcpy(bits, bits2, sizeof bits2);
@@ -417,6 +474,18 @@ int tvpal_swenc_set_refine(struct tvpal_swenc *e, unsigned iterations)
 void tvpal_swenc_set_naive(struct tvpal_swenc *e, int naive)
 {
     e->naive = naive;
+}
+
+int tvpal_swenc_set_alloc_mse(struct tvpal_swenc *e, int on)
+{
+    if (on && !e->idx2) {
+        e->idx2 = malloc(e->max_vox ? e->max_vox : 1);
+        e->table2 = malloc(sizeof(float) * e->max_len * TVPAL_TABLE_ENTRIES);
+        if (!e->idx2 || !e->table2)
+            return TVPAL_E_NOMEM;
+    }
+    e->alloc_mse = on;
+    return 0;
 }
 
 int tvpal_swenc_set_klt(struct tvpal_swenc *e, int klt)

@@ -65,6 +65,12 @@ void tvpal_swenc_set_naive(struct tvpal_swenc *e, int naive);
  * LAPACK. */
 int tvpal_swenc_set_klt(struct tvpal_swenc *e, int klt);
 
+/* --alloc greedy-mse: also allocate the 8 bits by the measured error of
+ * each coefficient's Lloyd-Max quantizer at every bit count (greedy
+ * marginal return on measured distortions) and keep that code where it
+ * errs less than the variance rule's. */
+int tvpal_swenc_set_alloc_mse(struct tvpal_swenc *e, int on);
+
 /* Squared error (summed over voxels and timesteps) before refinement and
  * after each iteration of the last encode; returns the count (0 without
  * refinement). */

@@ -65,6 +65,8 @@ static void usage(FILE *f)
 "                         code (0..64, default 0): higher PSNR, same format\n"
 "      --transform T      dct (default) or klt (per slice-window principal\n"
 "                         components, LAPACK)\n"
+"      --alloc A          bit allocation: variance (default, the paper's\n"
+"                         rule) or greedy-mse (by measured quantizer error)\n"
 "      --naive            the paper's naive variant (uniform quantizers,\n"
 "                         inverse-DCT tables): a floor for comparisons\n"
 "      --table FMT        decoder tables: f32 (default: float32) or u16\n"
@@ -130,7 +132,7 @@ struct opts {
     uint32_t window, nodes, steps_single, threads;
     uint32_t table_format;
     uint32_t refine;
-    int naive, klt;
+    int naive, klt, alloc_mse;
     int has_nan_as;
     double nan_as;
     const char *outdir;
@@ -313,8 +315,8 @@ static char *fingerprint(const struct opts *o)
     FILE *f = open_memstream(&buf, &len);
     if (!f)
         return NULL;
-    fprintf(f, "table=%u refine=%u naive=%d klt=%d ", o->table_format,
-            o->refine, o->naive, o->klt);
+    fprintf(f, "table=%u refine=%u naive=%d klt=%d alloc=%d ",
+            o->table_format, o->refine, o->naive, o->klt, o->alloc_mse);
     fprintf(f, "dims=%ux%ux%u type=%s endian=%s window=%u nodes=%u "
             "steps=%u nan_as=%s%.17g", o->dims[0], o->dims[1], o->dims[2],
             tvpal_type_name(o->type), o->big_endian ? "big" : "little",
@@ -525,6 +527,7 @@ int main(int argc, char **argv)
         {"refine", required_argument, 0, 'R'},
         {"naive", no_argument, 0, 'Z'},
         {"transform", required_argument, 0, 'X'},
+        {"alloc", required_argument, 0, 'A'},
         {"output", required_argument, 0, 'o'},
         {"force", no_argument, 0, 'f'},
         {"quiet", no_argument, 0, 'q'},
@@ -574,6 +577,13 @@ int main(int argc, char **argv)
         case 'j':
             if (tvpal_parse_u32(optarg, 1, 1024, &o.threads) < 0)
                 die_usage("--threads \"%s\": expected 1..1024", optarg);
+            break;
+        case 'A':
+            if (!strcmp(optarg, "greedy-mse"))
+                o.alloc_mse = 1;
+            else if (strcmp(optarg, "variance"))
+                die_usage("--alloc \"%s\": expected variance or greedy-mse",
+                          optarg);
             break;
         case 'X':
             if (!strcmp(optarg, "klt"))
@@ -840,6 +850,7 @@ int main(int argc, char **argv)
         if (tvpal_swenc_create(&enc[i], max_slice_vox, N) < 0 ||
             tvpal_swenc_set_refine(enc[i], o.refine) < 0 ||
             (tvpal_swenc_set_naive(enc[i], o.naive), 0) ||
+            tvpal_swenc_set_alloc_mse(enc[i], o.alloc_mse) < 0 ||
             (o.klt && tvpal_swenc_set_klt(enc[i], 1) < 0 &&
              (die_usage("--transform klt: built without LAPACK (install "
                         "liblapack-dev and reconfigure)"), 1)) ||
@@ -1032,6 +1043,9 @@ int main(int argc, char **argv)
     if (o.klt)
         snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
                  " --transform klt");
+    if (o.alloc_mse)
+        snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
+                 " --alloc greedy-mse");
     m.table_format = o.table_format;
     m.encoder = strdup(PROG " " PACKAGE_VERSION);
     m.options = strdup(optstr);

@@ -2,9 +2,9 @@
 # hard-cases: where methods break down.  For a constant field, two-valued
 # slices, a single outlier voxel, a 1e-30..1e30 dynamic range, a sudden
 # change between two timesteps (a shock passing) and N > T, every encoder
-# setting (plain, --transform klt, --refine, --table u16) stays finite and
-# deterministic; --transform klt and --refine are no worse than the plain
-# method; the constant and two-valued cases are exact.  16-bit tables are
+# setting (plain, --transform klt, --refine, --alloc greedy-mse, --table
+# u16) stays finite and deterministic; klt, refine and greedy-mse are no
+# worse than the plain method; the constant and two-valued cases are exact.  16-bit tables are
 # a size trade: they stay finite and deterministic, but a slice-window with
 # a huge range (an outlier, 1e-30..1e30) loses its small values; the
 # loss is printed, and README's "Where methods fail" explains it.
@@ -32,9 +32,10 @@ PY
 for case in constant twovalued outlier dynrange shock short; do
     if [ $case = short ]; then files=$(ls "$W"/outlier_t[012].f32); N=8; else files=$(ls "$W"/${case}_t*.f32); N=4; fi
     base=""
-    for v in plain klt refine u16; do
+    for v in plain klt refine mse u16; do
         case $v in
-        plain) o="" ;; klt) o="--transform klt" ;; refine) o="--refine 8" ;; u16) o="--table u16" ;;
+        plain) o="" ;; klt) o="--transform klt" ;; refine) o="--refine 8" ;;
+        mse) o="--alloc greedy-mse" ;; u16) o="--table u16" ;;
         esac
         "$ENC" -q --dims $D --window $N $o -o "$W/$case-$v" $files > /dev/null 2> "$W/e.txt" \
             || { fail "$case $v: encode: $(cat "$W/e.txt")"; continue; }
