@@ -7,10 +7,10 @@ command -v zfp > /dev/null || { echo "zfp missing (scripts/setup-deps installs i
 "$GEN" --field blobs --dims 20x18x16 --steps 8 -o "$W/in" || fail gen
 "$TVPAL_SRCDIR/scripts/rd-chart" -o "$W/rd" --dims 20x18x16 "$W"/in/*.f32 > "$W/o.txt" 2>&1 \
     || { fail "rd-chart: $(tail -n 5 "$W/o.txt")"; finish; }
-for m in tvpal-f32 tvpal-u16 tvpal-refine tvpal-naive zfp-3d zfp-4d; do
+for m in tvpal-f32 tvpal-u16 tvpal-refine tvpal-best tvpal-naive zfp-3d zfp-4d; do
     grep -q "^$m," "$W/rd/rd.csv" && ok "$m rows" || fail "no $m rows"
 done
-for f in psnr-vs-bpv.png psnr-vs-bpv.svg time-vs-psnr.png flicker.png; do
+for f in psnr-vs-bpv.png psnr-vs-bpv.svg time-vs-psnr.png fps-vs-psnr.png flicker.png; do
     [ -s "$W/rd/$f" ] && ok "$f" || fail "missing $f"
 done
 awk -F, '$1 == "tvpal-f32" { p[$2] = $4 } $1 == "tvpal-naive" { q[$2] = $4 }
