@@ -10,6 +10,7 @@
 #include "tvpal_osmesa.h"
 #include "tvpal_player.h"
 #include "tvpal_png.h"
+#include "tvpal_sw.h"
 #include "tvpal_window.h"
 
 #include <errno.h>
@@ -47,7 +48,9 @@ static void usage(FILE *f)
 "                           one from the data's histogram.  Repeat to give\n"
 "                           several (the window cycles through them)\n"
 "      --opacity S          opacity scale (default 1)\n"
-"      --renderer R         gl (default), ref (CPU reference, slow) or none\n"
+"      --renderer R         gl (default), cpu (shear-warp on the CPU: faster\n"
+"                           than GL on llvmpipe), ref (CPU reference, slow)\n"
+"                           or none\n"
 "                           (read and decode only: I/O benchmarks)\n"
 "      --fb BITS            colour buffer: 32 (float, default), 16 (half)\n"
 "                           or 8 (shows the banding of 8-bit blending)\n"
@@ -191,6 +194,12 @@ static int gl_draw(void *c, const struct tvpal_frame *f, float *rgba,
                    struct tvpal_diag *d)
 {
     return tvpal_glr_draw(c, f, rgba, d);
+}
+
+static int sw_draw(void *c, const struct tvpal_frame *f, float *rgba,
+                   struct tvpal_diag *d)
+{
+    return tvpal_sw_draw(c, f, rgba, d);
 }
 
 static double *ref_buf;
@@ -592,7 +601,7 @@ int main(int argc, char **argv)
     g_env_rank = env_rank ? atoi(env_rank) : 0;
     unsigned width = 512, height = 512;
     double ax = 20, ay = 30, zoom = 1, opacity = 1;
-    int use_ref = 0, strict = 0, quiet = 0, c;
+    int use_ref = 0, use_cpu = 0, strict = 0, quiet = 0, c;
     uint32_t mem_mib = 0;
     struct tvpal_player_opts po = {.incore = 0, .io = TVPAL_IO_URING,
                                    .prefetch = 4, .direct = 1};
@@ -668,10 +677,13 @@ int main(int argc, char **argv)
         case 'R':
             if (!strcmp(optarg, "ref"))
                 use_ref = 1;
+            else if (!strcmp(optarg, "cpu"))
+                use_cpu = 1;
             else if (!strcmp(optarg, "none"))
                 no_render = 1;
             else if (strcmp(optarg, "gl"))
-                die(2, "--renderer \"%s\": expected gl, ref or none", optarg);
+                die(2, "--renderer \"%s\": expected gl, cpu, ref or none",
+                    optarg);
             break;
         case 'm':
             if (!strcmp(optarg, "incore"))
@@ -790,6 +802,9 @@ int main(int argc, char **argv)
 
     if (mode_window < 0)
         mode_window = getenv("DISPLAY") && *getenv("DISPLAY") && !outdir;
+    if (mode_window && (use_cpu || use_ref || no_render))
+        die(2, "--renderer %s: the window renders with gl for now; use "
+            "--headless", use_cpu ? "cpu" : use_ref ? "ref" : "none");
     if (mode_window) {
         struct win_args wa = {
             .dir = dir, .po = po, .tfs = tfs, .tf_files = tf_files, .ntf = ntf,
@@ -805,8 +820,13 @@ int main(int argc, char **argv)
     struct tvpal_renderer rend;
     struct tvpal_osmesa *ctx = NULL;
     struct tvpal_glr *glr = NULL;
+    struct tvpal_sw *sw = NULL;
     if (no_render) {
         rend = (struct tvpal_renderer){NULL, NULL, ref_set, ref_up, none_draw};
+    } else if (use_cpu) {
+        if (tvpal_sw_create(&sw) < 0)
+            die_rank(1, "out of memory");
+        rend = (struct tvpal_renderer){sw, NULL, ref_set, ref_up, sw_draw};
     } else if (use_ref) {
         ref_buf = malloc(sizeof(double) * 4 * width * height);
         if (!ref_buf)
@@ -874,7 +894,7 @@ int main(int argc, char **argv)
                 "data %s, renderer %s%s%s\n", dir, m->dims[0], m->dims[1],
                 m->dims[2], m->steps, m->window, "xyz"[v.axis],
                 po.incore ? "in-core" : "streamed",
-                no_render ? "none" : use_ref ? "ref" : "gl",
+                no_render ? "none" : use_cpu ? "cpu" : use_ref ? "ref" : "gl",
                 glr ? ", GL: " : "", glr ? tvpal_glr_gl_name() : "");
     uint64_t rng = 0x9E3779B97F4A7C15ull;
     for (uint32_t i = 0; i < nframes; i++) {
@@ -1007,11 +1027,12 @@ int main(int argc, char **argv)
            sum_up / nframes, sum_draw / nframes, sum_read / nframes,
            sum_comp / nframes, g_comm.size, (unsigned long long)sum_bytes,
            tvpal_player_incore_bytes(pl) / 1048576.0, tvpal_player_io_name(pl),
-           no_render ? "none" : use_ref ? "ref" : "gl", errors);
+           no_render ? "none" : use_cpu ? "cpu" : use_ref ? "ref" : "gl", errors);
     tvpal_glr_free(glr);
     tvpal_osmesa_free(ctx);
     tvpal_player_close(pl);
     tvpal_compositor_free(cx);
+    tvpal_sw_free(sw);
     free(final);
     free(recs);
     free(node_dir);
