@@ -5,6 +5,9 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -163,16 +166,19 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
             int ya = y0 < 0 ? 0 : y0, yb = y0 + 1 >= h ? h - 1 : y0 + 1;
             const uint8_t *ra = sl->idx + (size_t)w * ya, *rb = sl->idx + (size_t)w * yb;
             const float *pal = sl->palette;
+            /* x = (i + 0.5) / sc + ta - 0.5; floor by an offset cast (x >
+             * -1 here, the inside test guards the edges). */
+            const float xoff = (float)(ta - 0.5), inv = (float)(1.0 / sc);
+#ifdef __SSE2__
+            const __m128 vfy = _mm_set1_ps(fy);
+#endif
             for (int i = i0; i < i1; i++) {
                 float *d = row + 4 * i;
-                if (skip && d[3] >= 1.0f && 1.0f - d[3] == 0.0f)
+                if (skip && 1.0f - d[3] == 0.0f)
                     continue; /* opaque: nothing can show through */
-                double tx = ta + (i + 0.5) / sc;
-                if (!(tx >= 0 && tx < w))
-                    continue;
-                double xx = tx - 0.5;
-                int x0 = (int)floor(xx);
-                float fx = (float)(xx - x0);
+                float xx = ((float)i + 0.5f) * inv + xoff;
+                int x0 = (int)(xx + 1.0f) - 1;
+                float fx = xx - (float)x0;
                 int xa = x0 < 0 ? 0 : x0, xb = x0 + 1 >= w ? w - 1 : x0 + 1;
                 const float *p00 = pal + 4 * ra[xa], *p10 = pal + 4 * ra[xb];
                 const float *p01 = pal + 4 * rb[xa], *p11 = pal + 4 * rb[xb];
@@ -180,11 +186,22 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
                     p11[3] == 0.0f)
                     continue; /* empty space: adds exactly nothing */
                 float keep = 1.0f - d[3];
+#ifdef __SSE2__
+                __m128 vfx = _mm_set1_ps(fx);
+                __m128 a00 = _mm_loadu_ps(p00), a10 = _mm_loadu_ps(p10);
+                __m128 a01 = _mm_loadu_ps(p01), a11 = _mm_loadu_ps(p11);
+                __m128 a = _mm_add_ps(a00, _mm_mul_ps(vfx, _mm_sub_ps(a10, a00)));
+                __m128 b = _mm_add_ps(a01, _mm_mul_ps(vfx, _mm_sub_ps(a11, a01)));
+                __m128 cv = _mm_add_ps(a, _mm_mul_ps(vfy, _mm_sub_ps(b, a)));
+                _mm_storeu_ps(d, _mm_add_ps(_mm_loadu_ps(d),
+                                            _mm_mul_ps(_mm_set1_ps(keep), cv)));
+#else
                 for (int ch = 0; ch < 4; ch++) {
                     float a = p00[ch] + fx * (p10[ch] - p00[ch]);
                     float b = p01[ch] + fx * (p11[ch] - p01[ch]);
                     d[ch] += keep * (a + fy * (b - a));
                 }
+#endif
             }
         }
     }
