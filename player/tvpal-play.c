@@ -196,6 +196,16 @@ static int gl_draw(void *c, const struct tvpal_frame *f, float *rgba,
     return tvpal_glr_draw(c, f, rgba, d);
 }
 
+static int sw_set(void *c, uint32_t w, uint32_t h, uint32_t n,
+                  struct tvpal_diag *d)
+{
+    return tvpal_sw_set_slices(c, w, h, n, d);
+}
+static void sw_up(void *c, uint32_t layer, const uint8_t *idx)
+{
+    (void)idx; /* read from the frame when drawn */
+    tvpal_sw_upload(c, layer);
+}
 static int sw_draw(void *c, const struct tvpal_frame *f, float *rgba,
                    struct tvpal_diag *d)
 {
@@ -231,6 +241,7 @@ static int ref_draw(void *c, const struct tvpal_frame *f, float *rgba,
 /* One rank's figures for one frame (gathered on rank 0). */
 struct frame_rec {
     double io, up, draw, read, enc, exch, blend, comp, gath, total;
+    double classify, accum, warp;   /* CPU renderer phases (0 otherwise) */
     uint64_t bytes_read, bytes_sent, bytes_sent_total, gather_bytes, pixels;
     int rc, fatal;
     char msg[200];
@@ -252,6 +263,9 @@ static void aggregate(const struct frame_rec *r, int n, struct frame_rec *o)
         o->comp = fmax(o->comp, q->comp);
         o->gath = fmax(o->gath, q->gath);
         o->total = fmax(o->total, q->total);
+        o->classify = fmax(o->classify, q->classify);
+        o->accum = fmax(o->accum, q->accum);
+        o->warp = fmax(o->warp, q->warp);
         o->bytes_read += q->bytes_read;
         o->bytes_sent = q->bytes_sent > o->bytes_sent ? q->bytes_sent : o->bytes_sent;
         o->bytes_sent_total += q->bytes_sent;
@@ -826,7 +840,7 @@ int main(int argc, char **argv)
     } else if (use_cpu) {
         if (tvpal_sw_create(&sw) < 0)
             die_rank(1, "out of memory");
-        rend = (struct tvpal_renderer){sw, NULL, ref_set, ref_up, sw_draw};
+        rend = (struct tvpal_renderer){sw, NULL, sw_set, sw_up, sw_draw};
     } else if (use_ref) {
         ref_buf = malloc(sizeof(double) * 4 * width * height);
         if (!ref_buf)
@@ -872,7 +886,8 @@ int main(int argc, char **argv)
                 "bytes_read,slices_drawn,slices_skipped,slice_uploads,"
                 "axis_switch_ms,jump,stride,encode_ms,exchange_ms,blend_ms,"
                 "composite_ms,gather_ms,bytes_sent_max,bytes_sent_total,"
-                "gather_bytes_total,pixels_blended_max,ranks\n");
+                "gather_bytes_total,pixels_blended_max,ranks,"
+                "sw_classify_ms,sw_composite_ms,sw_warp_ms\n");
     }
     int digits = 4;
     for (uint32_t x = 10000; x <= m->steps - 1 && digits < 10; x *= 10)
@@ -925,6 +940,9 @@ int main(int argc, char **argv)
         double up = 0, dr = st.draw_ms, rb = 0;
         if (glr)
             tvpal_glr_times(glr, &up, &dr, &rb);
+        double swc = 0, swa = 0, sww = 0;
+        if (sw)
+            tvpal_sw_times(sw, &swc, &swa, &sww);
         /* Sort-last compositing of the ranks' images (rank 0 gets it). */
         struct tvpal_compose_stats cs;
         double c0 = tvpal_now();
@@ -939,6 +957,7 @@ int main(int argc, char **argv)
             .io = st.io_ms, .up = st.upload_ms + up, .draw = dr, .read = rb,
             .enc = cs.encode_ms, .exch = cs.exchange_ms, .blend = cs.blend_ms,
             .comp = comp_ms, .gath = cs.gather_ms, .total = total,
+            .classify = swc, .accum = swa, .warp = sww,
             .bytes_read = st.bytes_read, .bytes_sent = cs.bytes_sent,
             .gather_bytes = cs.gather_bytes, .pixels = cs.pixels_blended,
             .rc = rc, .fatal = rc < 0 && (strict || !st.rendered ||
@@ -994,7 +1013,8 @@ int main(int argc, char **argv)
         }
         if (csv)
             fprintf(csv, "%u,%c,%.3f,%.3f,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%.3f,"
-                    "%d,%u,%.3f,%.3f,%.3f,%.3f,%.3f,%llu,%llu,%llu,%llu,%d\n",
+                    "%d,%u,%.3f,%.3f,%.3f,%.3f,%.3f,%llu,%llu,%llu,%llu,%d,"
+                    "%.3f,%.3f,%.3f\n",
                     t, "xyz"[st.axis], agg.io, agg.up, agg.draw, agg.read,
                     agg.total, (unsigned long long)agg.bytes_read, st.drawn,
                     st.skipped, st.uploads, st.axis_switch_ms, jump, st.stride,
@@ -1002,7 +1022,8 @@ int main(int argc, char **argv)
                     (unsigned long long)agg.bytes_sent,
                     (unsigned long long)agg.bytes_sent_total,
                     (unsigned long long)agg.gather_bytes,
-                    (unsigned long long)agg.pixels, g_comm.size);
+                    (unsigned long long)agg.pixels, g_comm.size,
+                    agg.classify, agg.accum, agg.warp);
     }
     double el = tvpal_now() - t_start;
     if (g_comm.rank != 0) {
