@@ -20,6 +20,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #define PROG "tvpal-play"
 
@@ -48,10 +51,12 @@ static void usage(FILE *f)
 "                           one from the data's histogram.  Repeat to give\n"
 "                           several (the window cycles through them)\n"
 "      --opacity S          opacity scale (default 1)\n"
-"      --renderer R         gl (default), cpu (shear-warp on the CPU: faster\n"
-"                           than GL on llvmpipe), ref (CPU reference, slow)\n"
-"                           or none\n"
-"                           (read and decode only: I/O benchmarks)\n"
+"      --renderer R         cpu (shear-warp on the CPU), gl (GLSL palette\n"
+"                           shader), ref (CPU reference, slow) or none (read\n"
+"                           and decode only: I/O benchmarks).  Default: cpu\n"
+"                           headless (OSMesa draws on the CPU) and in a window\n"
+"                           whose GL is a software rasterizer (llvmpipe),\n"
+"                           gl in a window on a GPU\n"
 "      --fb BITS            colour buffer: 32 (float, default), 16 (half)\n"
 "                           or 8 (shows the banding of 8-bit blending)\n"
 "      --spin DEG           turn the view DEG degrees about y per frame\n"
@@ -277,6 +282,39 @@ static void aggregate(const struct frame_rec *r, int n, struct frame_rec *o)
     }
 }
 
+/* ------------------------------------------------------------ renderers */
+
+enum { REND_AUTO, REND_GL, REND_CPU, REND_REF, REND_NONE };
+
+/* GL renderer names of Mesa's software rasterizers: on these the CPU
+ * shear-warp renderer is the faster one. */
+static int gl_is_software(const char *name)
+{
+    return !name || strstr(name, "llvmpipe") || strstr(name, "softpipe") ||
+           strstr(name, "swrast") || strstr(name, "Software") ||
+           strstr(name, "software");
+}
+
+static struct tvpal_sw *sw_new(void)
+{
+    struct tvpal_sw *sw;
+    if (tvpal_sw_create(&sw) < 0)
+        die_rank(1, "out of memory");
+    return sw;
+}
+
+static const char *sw_desc(const struct tvpal_sw *sw)
+{
+    static char b[64];
+    int nt = 1;
+#ifdef _OPENMP
+    nt = omp_get_max_threads();
+#endif
+    snprintf(b, sizeof b, "shear-warp, %s, %d thread%s", tvpal_sw_simd_name(sw),
+             nt, nt == 1 ? "" : "s");
+    return b;
+}
+
 /* ------------------------------------------------------------ window mode */
 
 struct win_args {
@@ -290,6 +328,7 @@ struct win_args {
     uint32_t a, b, autoplay;
     const char *shot;
     int quiet;
+    int renderer;     /* REND_AUTO, REND_GL or REND_CPU */
 };
 
 static int save_shot(const char *path, const uint8_t *rgb, unsigned w,
@@ -325,21 +364,48 @@ static int run_window(struct tvpal_player *pl, const struct win_args *wa)
     struct tvpal_osmesa *octx = NULL;
     unsigned W = wa->width, H = wa->height;
     /* Rank 0 opens the window; the other ranks render off-screen. */
-    int rc = leader ? tvpal_win_open(&win, W, H, PROG, &d)
-                    : tvpal_osmesa_create(&octx, &d);
+    int rc = leader ? tvpal_win_open(&win, W, H, PROG, &d) : 0;
     check_all(rc, d.msg, 1);
+    /* The renderer: the leader's choice (its window's GL decides the
+     * default) holds on every rank. */
+    int use_cpu = wa->renderer == REND_CPU;
+    char why[160] = "";
+    if (leader && wa->renderer == REND_AUTO) {
+        const char *gname = tvpal_glr_gl_name();
+        use_cpu = gl_is_software(gname);
+        snprintf(why, sizeof why, "default: the window's GL is %s%s",
+                 gname ? gname : "unknown",
+                 use_cpu ? ", which draws on the CPU" : "");
+    }
+    if (multi)
+        g_comm.bcast(&g_comm, &use_cpu, sizeof use_cpu, 0);
+    rc = !leader && !use_cpu ? tvpal_osmesa_create(&octx, &d) : 0;
+    check_all(rc, rc < 0 ? d.msg : "", 1);
     struct tvpal_glr *glr = NULL;
-    rc = tvpal_glr_create(&glr, W, H, &d);
-    check_all(rc, d.msg, 1);
-    struct tvpal_renderer rend = {glr, NULL, gl_set, gl_up, gl_draw};
+    struct tvpal_sw *sw = NULL;
+    struct tvpal_renderer rend;
+    if (use_cpu) {
+        sw = sw_new();
+        rend = (struct tvpal_renderer){sw, NULL, sw_set, sw_up, sw_draw};
+    } else {
+        rc = tvpal_glr_create(&glr, W, H, &d);
+        check_all(rc, d.msg, 1);
+        rend = (struct tvpal_renderer){glr, NULL, gl_set, gl_up, gl_draw};
+    }
+    if (leader && !wa->quiet)
+        fprintf(stderr, PROG ": renderer %s (%s%s%s)\n", use_cpu ? "cpu" : "gl",
+                use_cpu ? sw_desc(sw) : tvpal_glr_gl_name(), *why ? "; " : "", why);
+    /* The CPU image reaches the window as the compositor's 8-bit frame
+     * (with one rank: this rank's image rounded), like a cluster's. */
+    const int via_final = multi || use_cpu;
     const struct tvpal_manifest *m = tvpal_player_manifest(pl);
     const uint32_t T = m->steps;
     uint8_t *rgb = malloc(3 * (size_t)W * H), *rgb8 = malloc(3 * (size_t)W * H);
     float *scratch = malloc(sizeof(float) * 4 * W * H);
-    float *img = multi ? malloc(sizeof(float) * 4 * W * H) : NULL;
-    uint8_t *final = multi ? malloc(4 * (size_t)W * H) : NULL;
+    float *img = via_final ? malloc(sizeof(float) * 4 * W * H) : NULL;
+    uint8_t *final = via_final ? malloc(4 * (size_t)W * H) : NULL;
     struct tvpal_compositor *cx = NULL;
-    if (!rgb || !rgb8 || !scratch || (multi && (!img || !final ||
+    if (!rgb || !rgb8 || !scratch || (via_final && (!img || !final ||
         tvpal_compositor_create(&cx, W, H, g_comm.size) < 0)))
         die_rank(1, "out of memory");
     struct tvpal_player_opts po = wa->po;
@@ -460,10 +526,12 @@ static int run_window(struct tvpal_player *pl, const struct win_args *wa)
         if (cmd.width && cmd.height) {
             W = cmd.width;
             H = cmd.height;
-            tvpal_glr_free(glr);
-            rc = tvpal_glr_create(&glr, W, H, &d);
-            check_all(rc, d.msg, 1);
-            rend = (struct tvpal_renderer){glr, NULL, gl_set, gl_up, gl_draw};
+            if (glr) {
+                tvpal_glr_free(glr);
+                rc = tvpal_glr_create(&glr, W, H, &d);
+                check_all(rc, d.msg, 1);
+                rend = (struct tvpal_renderer){glr, NULL, gl_set, gl_up, gl_draw};
+            }
             free(rgb);
             free(rgb8);
             free(scratch);
@@ -474,9 +542,9 @@ static int run_window(struct tvpal_player *pl, const struct win_args *wa)
             rgb = malloc(3 * (size_t)W * H);
             rgb8 = malloc(3 * (size_t)W * H);
             scratch = malloc(sizeof(float) * 4 * W * H);
-            img = multi ? malloc(sizeof(float) * 4 * W * H) : NULL;
-            final = multi ? malloc(4 * (size_t)W * H) : NULL;
-            if (!rgb || !rgb8 || !scratch || (multi && (!img || !final ||
+            img = via_final ? malloc(sizeof(float) * 4 * W * H) : NULL;
+            final = via_final ? malloc(4 * (size_t)W * H) : NULL;
+            if (!rgb || !rgb8 || !scratch || (via_final && (!img || !final ||
                 tvpal_compositor_create(&cx, W, H, g_comm.size) < 0)))
                 die_rank(1, "out of memory");
         }
@@ -504,7 +572,7 @@ static int run_window(struct tvpal_player *pl, const struct win_args *wa)
             if (!st.rendered)
                 die_rank(2, "cannot render step %u", cmd.t);
         }
-        if (multi) {
+        if (via_final) {
             struct tvpal_compose_stats cs;
             if (tvpal_composite(cx, &g_comm, TVPAL_COMPOSE_BSWAP, !v.descending,
                                 img, final, &cs) < 0)
@@ -514,7 +582,7 @@ static int run_window(struct tvpal_player *pl, const struct win_args *wa)
         frames++;
         if (!leader)
             continue;
-        if (multi)
+        if (via_final)
             tvpal_win_show(win, final, W, H);
         else
             tvpal_glr_blit(glr, 0, TVPAL_SLIDER_HEIGHT);
@@ -527,9 +595,9 @@ static int run_window(struct tvpal_player *pl, const struct win_args *wa)
         last = now;
         char title[256];
         snprintf(title, sizeof title, PROG " - t=%u/%u - %.1f fps - %s%s - "
-                 "axis %c - %s%s%s", cmd.t, T - 1, fps,
+                 "axis %c - %s - %s%s%s", cmd.t, T - 1, fps,
                  tvpal_player_io_name(pl), po.incore ? "" : " stream",
-                 "xyz"[v.axis], wa->tfs[cmd.tfi].name,
+                 "xyz"[v.axis], use_cpu ? "cpu" : "gl", wa->tfs[cmd.tfi].name,
                  reduced ? " - preview" : "",
                  multi ? " - cluster" : "");
         tvpal_win_title(win, title);
@@ -557,9 +625,11 @@ static int run_window(struct tvpal_player *pl, const struct win_args *wa)
     if (leader && wa->shot && save_shot(wa->shot, rgb, W, H, scratch, rgb8) < 0)
         die(1, "%s: cannot write", wa->shot);
     if (leader)
-        printf("frames=%u last_step=%u fps=%.3f mode=%s ranks=%d\n", frames,
-               t, fps, tvpal_player_io_name(pl), g_comm.size);
+        printf("frames=%u last_step=%u fps=%.3f mode=%s ranks=%d renderer=%s\n",
+               frames, t, fps, tvpal_player_io_name(pl), g_comm.size,
+               use_cpu ? "cpu" : "gl");
     tvpal_glr_free(glr);
+    tvpal_sw_free(sw);
     tvpal_win_close(win);
     tvpal_osmesa_free(octx);
     tvpal_player_close(pl);
@@ -615,7 +685,7 @@ int main(int argc, char **argv)
     g_env_rank = env_rank ? atoi(env_rank) : 0;
     unsigned width = 512, height = 512;
     double ax = 20, ay = 30, zoom = 1, opacity = 1;
-    int use_ref = 0, use_cpu = 0, strict = 0, quiet = 0, c;
+    int renderer = REND_AUTO, strict = 0, quiet = 0, c;
     uint32_t mem_mib = 0;
     struct tvpal_player_opts po = {.incore = 0, .io = TVPAL_IO_URING,
                                    .prefetch = 4, .direct = 1};
@@ -625,7 +695,7 @@ int main(int argc, char **argv)
     enum tvpal_compose_kind ckind = TVPAL_COMPOSE_BSWAP;
     uint32_t fb_bits = 32;
     uint32_t repeat = 1, jumps = 0;
-    int tf_cycle = 0, no_render = 0;
+    int tf_cycle = 0;
     uint32_t autoplay = 0;
     const char *shot = NULL;
     const char *tf_files[16];
@@ -690,12 +760,14 @@ int main(int argc, char **argv)
             break;
         case 'R':
             if (!strcmp(optarg, "ref"))
-                use_ref = 1;
+                renderer = REND_REF;
             else if (!strcmp(optarg, "cpu"))
-                use_cpu = 1;
+                renderer = REND_CPU;
             else if (!strcmp(optarg, "none"))
-                no_render = 1;
-            else if (strcmp(optarg, "gl"))
+                renderer = REND_NONE;
+            else if (!strcmp(optarg, "gl"))
+                renderer = REND_GL;
+            else
                 die(2, "--renderer \"%s\": expected gl, cpu, ref or none",
                     optarg);
             break;
@@ -816,15 +888,16 @@ int main(int argc, char **argv)
 
     if (mode_window < 0)
         mode_window = getenv("DISPLAY") && *getenv("DISPLAY") && !outdir;
-    if (mode_window && (use_cpu || use_ref || no_render))
-        die(2, "--renderer %s: the window renders with gl for now; use "
-            "--headless", use_cpu ? "cpu" : use_ref ? "ref" : "none");
+    if (mode_window && (renderer == REND_REF || renderer == REND_NONE))
+        die(2, "--renderer %s: headless only (the window renders with gl or "
+            "cpu)", renderer == REND_REF ? "ref" : "none");
     if (mode_window) {
         struct win_args wa = {
             .dir = dir, .po = po, .tfs = tfs, .tf_files = tf_files, .ntf = ntf,
             .width = width, .height = height, .ax = ax, .ay = ay,
             .zoom = zoom, .opacity = opacity, .a = a, .b = b,
-            .autoplay = autoplay, .shot = shot, .quiet = quiet};
+            .autoplay = autoplay, .shot = shot, .quiet = quiet,
+            .renderer = renderer};
         return run_window(pl, &wa);
     }
     if (autoplay || shot)
@@ -835,11 +908,19 @@ int main(int argc, char **argv)
     struct tvpal_osmesa *ctx = NULL;
     struct tvpal_glr *glr = NULL;
     struct tvpal_sw *sw = NULL;
+    /* Headless GL is OSMesa, a software rasterizer: the CPU renderer is
+     * the faster one there. */
+    const char *why = "";
+    if (renderer == REND_AUTO) {
+        renderer = REND_CPU;
+        why = "; default: headless GL is OSMesa, which draws on the CPU";
+    }
+    const int no_render = renderer == REND_NONE, use_cpu = renderer == REND_CPU,
+              use_ref = renderer == REND_REF;
     if (no_render) {
         rend = (struct tvpal_renderer){NULL, NULL, ref_set, ref_up, none_draw};
     } else if (use_cpu) {
-        if (tvpal_sw_create(&sw) < 0)
-            die_rank(1, "out of memory");
+        sw = sw_new();
         rend = (struct tvpal_renderer){sw, NULL, sw_set, sw_up, sw_draw};
     } else if (use_ref) {
         ref_buf = malloc(sizeof(double) * 4 * width * height);
@@ -906,11 +987,13 @@ int main(int argc, char **argv)
     const double t_start = tvpal_now();
     if (!quiet)
         fprintf(stderr, PROG ": %s: %ux%ux%u, %u steps, window %u; axis %c, "
-                "data %s, renderer %s%s%s\n", dir, m->dims[0], m->dims[1],
+                "data %s, renderer %s (%s%s)\n", dir, m->dims[0], m->dims[1],
                 m->dims[2], m->steps, m->window, "xyz"[v.axis],
                 po.incore ? "in-core" : "streamed",
                 no_render ? "none" : use_cpu ? "cpu" : use_ref ? "ref" : "gl",
-                glr ? ", GL: " : "", glr ? tvpal_glr_gl_name() : "");
+                no_render ? "read and decode only" : use_cpu ? sw_desc(sw)
+                : use_ref ? "double-precision reference" : tvpal_glr_gl_name(),
+                why);
     uint64_t rng = 0x9E3779B97F4A7C15ull;
     for (uint32_t i = 0; i < nframes; i++) {
         uint32_t t = a + (uint32_t)((int)i * dir_step);

@@ -1,6 +1,7 @@
 #!/bin/sh
 # play-window: the GLFW front end opens a real window under Xvfb, renders,
-# and its framebuffer equals the headless image of the same step; keys sent
+# and its framebuffer equals the headless image of the same step, with the
+# default renderer (cpu: Xvfb's GL is llvmpipe) and with --renderer gl; keys sent
 # with xdotool step the playhead (Right x3 from step 0 shows step 3), S
 # saves a screenshot, T cycles the transfer function, Q quits.
 . "$(dirname "$0")/lib.sh"
@@ -15,13 +16,21 @@ D=24x20x16
 "$ENC" -q --dims $D --window 4 -o "$W/ds" "$W"/in/*.f32 > /dev/null || fail encode
 TF=$TVPAL_SRCDIR/samples/tf/warm.tf
 "$PLAY" "$W/ds" --headless -q --size 96x80 --tf "$TF" -o "$W/hl" > /dev/null || fail headless
-# 1. Autoplay: window framebuffer vs headless PNG.
-for t in 0 5; do
-    xvfb-run -a -s "-screen 0 640x480x24" "$PLAY" "$W/ds" --window --steps $t:$t \
-        --size 96x80 --tf "$TF" --autoplay 1 --screenshot "$W/win$t.png" > "$W/o.txt" 2>&1 \
-        || { fail "window run: $(cat "$W/o.txt")"; continue; }
-    cmp -s "$W/win$t.png" "$(printf '%s/hl/t%04d.png' "$W" $t)" \
-        && ok "step $t: window framebuffer = headless image" || fail "step $t: window differs"
+# 1. Autoplay: window framebuffer vs headless PNG, for both renderers.
+"$PLAY" "$W/ds" --headless -q --renderer gl --size 96x80 --tf "$TF" -o "$W/hlgl" > /dev/null || fail "headless gl"
+for r in default gl; do
+    ropt=$([ $r = gl ] && echo "--renderer gl")
+    hl=$([ $r = gl ] && echo hlgl || echo hl)
+    for t in 0 5; do
+        xvfb-run -a -s "-screen 0 640x480x24" "$PLAY" "$W/ds" --window $ropt --steps $t:$t \
+            --size 96x80 --tf "$TF" --autoplay 1 --screenshot "$W/win$r$t.png" > "$W/o.txt" 2>&1 \
+            || { fail "window run: $(cat "$W/o.txt")"; continue; }
+        cmp -s "$W/win$r$t.png" "$(printf '%s/%s/t%04d.png' "$W" $hl $t)" \
+            && ok "$r renderer, step $t: window framebuffer = headless image" \
+            || fail "$r renderer, step $t: window differs"
+    done
+    want=$([ $r = gl ] && echo "renderer=gl" || echo "renderer=cpu")
+    grep -q "$want" "$W/o.txt" && ok "$r: $(grep -o 'renderer=.*' "$W/o.txt")" || fail "$r: $(cat "$W/o.txt")"
 done
 # 2. Keys through the X server.
 cat > "$W/drive.sh" <<DRIVE
