@@ -30,7 +30,11 @@ struct tvpal_player {
     /* frame scratch */
     struct tvpal_frame_slice *fs;
     float *pal;
+    uint8_t *state;                  /* per held slice: enum slice_state */
 };
+
+/* What the frame does with a held slice (palette pass). */
+enum slice_state { SL_STRIDE, SL_NODATA, SL_CLEAR, SL_DRAW };
 
 int tvpal_player_open(struct tvpal_player **out, const char *dir,
                       const struct tvpal_player_opts *opts,
@@ -82,7 +86,8 @@ int tvpal_player_open(struct tvpal_player **out, const char *dir,
     p->fs = calloc(nmax, sizeof *p->fs);
     p->pal = malloc(sizeof(float) * 1024 * nmax);
     p->uploaded_gen = calloc(nmax, sizeof *p->uploaded_gen);
-    if (!p->fs || !p->pal || !p->uploaded_gen) {
+    p->state = malloc(nmax);
+    if (!p->fs || !p->pal || !p->uploaded_gen || !p->state) {
         rc = TVPAL_E_NOMEM;
         goto err;
     }
@@ -113,6 +118,7 @@ void tvpal_player_close(struct tvpal_player *p)
     free(p->fs);
     free(p->pal);
     free(p->uploaded_gen);
+    free(p->state);
     free(p);
 }
 
@@ -252,24 +258,42 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
         stride = x->n;
     st->stride = stride;
     const double expo = tvpal_view_opacity_exponent(v) * stride;
+    /* Palettes first, in parallel (the TF is evaluated 256 times per
+     * slice); then, in drawing order, uploads (a GL context is not shared
+     * among threads) and the frame's slice list. */
+    const int held = (int)x->held;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static)
+#endif
+    for (int i = 0; i < held; i++) {
+        uint32_t s = v->descending ? x->begin + x->held - 1 - (uint32_t)i
+                                   : x->begin + (uint32_t)i;
+        if (s % stride != (x->n / 2) % stride) {
+            p->state[i] = SL_STRIDE;
+            continue;
+        }
+        const float *row = tvpal_slab_row(x->slabs[x->slab_of[s]],
+                                          x->local_of[s], t);
+        if (!row) {
+            p->state[i] = SL_NODATA;
+            continue;
+        }
+        float *pal = p->pal + (size_t)1024 * (s - x->begin);
+        p->state[i] = tvpal_palette_build(&p->tf, row, expo, p->opacity_scale,
+                                          pal) ? SL_CLEAR : SL_DRAW;
+    }
     uint32_t count = 0;
     for (uint32_t i = 0; i < x->held; i++) {
-        uint32_t s = v->descending ? x->begin + x->held - 1 - i : x->begin + i;
-        if (s % stride != (x->n / 2) % stride)
+        if (p->state[i] == SL_STRIDE)
             continue;
+        if (p->state[i] != SL_DRAW) {
+            st->skipped++; /* no data, or fully transparent */
+            continue;
+        }
+        uint32_t s = v->descending ? x->begin + x->held - 1 - i : x->begin + i;
         struct tvpal_slab *slab = x->slabs[x->slab_of[s]];
         uint32_t k = x->local_of[s];
-        const float *row = tvpal_slab_row(slab, k, t);
-        if (!row) {
-            st->skipped++;
-            continue;
-        }
         const uint32_t layer = s - x->begin;
-        float *pal = p->pal + (size_t)1024 * layer;
-        if (tvpal_palette_build(&p->tf, row, expo, p->opacity_scale, pal)) {
-            st->skipped++; /* fully transparent: nothing to draw */
-            continue;
-        }
         uint32_t gen = tvpal_slab_generation(slab, k);
         if (p->uploaded_gen[s] != gen) {
             r->upload(r->ctx, layer, tvpal_slab_indices(slab, k));
@@ -278,7 +302,7 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
         }
         p->fs[count++] = (struct tvpal_frame_slice){
             .slice = s, .layer = layer, .idx = tvpal_slab_indices(slab, k),
-            .palette = pal};
+            .palette = p->pal + (size_t)1024 * layer};
     }
     st->drawn = count;
     double t2 = tvpal_now();
