@@ -3,7 +3,8 @@
 # ends with the fps=... summary; in-core, io_uring and pread, forward and
 # backward give identical frames; a corrupt record is reported with its
 # file and record and playback continues (exit 1), or stops with --strict
-# (exit 2); bad options and transfer functions are refused (exit 2).
+# (exit 2); a TF change every frame gives the frames of fresh runs; bad
+# options and transfer functions are refused (exit 2).
 . "$(dirname "$0")/lib.sh"
 PLAY=$TVPAL_BUILDDIR/player/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
@@ -57,6 +58,24 @@ expect_exit 1 "axis-.\.tvps: record 3: payload CRC-32C mismatch \(keeping the la
 [ "$(ls "$W/f-bad"/t*.png | wc -l)" -eq 9 ] && ok "playback went on after the bad record" || fail "frames missing"
 grep -q "errors=1" "$W/out.txt" && ok "summary counts the error" || fail "errors not counted"
 expect_exit 2 "record 3: payload CRC-32C mismatch" "$PLAY" "$W/bad" --headless -q --size 96x80 --strict
+# A transfer-function change every frame (--tf-cycle) gives each frame the
+# image a run with that TF alone gives, for both renderers.
+TF2=$TVPAL_SRCDIR/samples/tf/band.tf
+for r in cpu gl; do
+    "$PLAY" "$W/ds" --headless -q --renderer $r --size 96x80 --tf "$TF" --tf "$TF2" --tf-cycle \
+        -o "$W/cyc-$r" > /dev/null || fail "tf-cycle $r"
+    for i in 1 2; do
+        tf=$([ $i = 1 ] && echo "$TF" || echo "$TF2")
+        "$PLAY" "$W/ds" --headless -q --renderer $r --size 96x80 --tf "$tf" -o "$W/one-$r-$i" > /dev/null \
+            || fail "single TF $r"
+    done
+    same=1
+    for t in 0 1 2 3 4 5 6 7 8; do
+        f=$(printf 't%04d.png' $t)
+        cmp -s "$W/cyc-$r/$f" "$W/one-$r-$(( t % 2 + 1 ))/$f" || same=0
+    done
+    [ $same = 1 ] && ok "$r: TF change every frame = fresh runs with each TF" || fail "$r: tf-cycle frames differ"
+done
 printf 'domain normalized\n0 0 0 0 0\n0.5 1 1 1\n' > "$W/bad.tf"
 expect_exit 2 "bad.tf: line 3: expected 5 numbers" "$PLAY" "$W/ds" --headless --tf "$W/bad.tf"
 expect_exit 2 "nope.tf: cannot read" "$PLAY" "$W/ds" --headless --tf "$W/nope.tf"
