@@ -228,7 +228,9 @@ struct geom {
     double sx, sy;        /* texel shift per object unit of depth */
     double u0, v0;        /* base texel coords of intermediate pixel 0 */
     unsigned k;           /* intermediate pixels per texel */
-    unsigned wi, hi;      /* intermediate image size */
+    unsigned wi, hi;      /* intermediate image size (every slice) */
+    long io, jo;          /* the part the output shows: origin, */
+    unsigned wc, hc;      /* and size (pixels composited and stored) */
 };
 
 static double slice_depth(const struct tvpal_view *v, uint32_t s)
@@ -336,17 +338,24 @@ static void span_sse(const struct span *s, int x0, int x1)
     }
 }
 
-/* Texel x at the slice's edge, sampled at C = Cn = V(xc) (clamped). */
-static void edge_sse(const struct span *s, int x, int xc, int want_low)
+/* One texel x (-1 .. w - 1) pixel by pixel: pixels outside the stored row
+ * are left out, and at the slice's edges (x = -1, x = w - 1, where the
+ * texel coordinates clamp) only the samples inside the slice are blended.
+ * The same operations as span_sse. */
+static void texel_sse(const struct span *s, int x, int w)
 {
     const __m128 vfy = _mm_set1_ps(s->fy);
-    __m128 c = vlerp_sse(s, xc, vfy);
+    const int xa = x < 0 ? 0 : x, xb = x + 1 > w - 1 ? w - 1 : x + 1;
+    __m128 c = vlerp_sse(s, xa, vfy), cn = vlerp_sse(s, xb, vfy);
+    __m128 dd = _mm_sub_ps(cn, c);
     for (unsigned q = 0; q < s->k; q++) {
         long i = s->c0 + (long)s->k * x + q;
+        if (i < 0 || i >= (long)s->wi || (x < 0 && s->fx[q] < 0.5f) ||
+            (x == w - 1 && s->fx[q] >= 0.5f))
+            continue;
         float *d = s->row + 4 * i;
-        if (i >= 0 && i < (long)s->wi && (s->fx[q] < 0.5f) == want_low &&
-            !(s->skip && d[3] >= 1.0f))
-            blend_sse(d, c, _mm_sub_ps(c, c), s->fx[q]);
+        if (!(s->skip && d[3] >= 1.0f))
+            blend_sse(d, c, dd, s->fx[q]);
     }
 }
 #else
@@ -380,15 +389,21 @@ static void span_sse(const struct span *s, int x0, int x1)
     }
 }
 
-static void edge_sse(const struct span *s, int x, int xc, int want_low)
+static void texel_sse(const struct span *s, int x, int w)
 {
-    float c[4], dd[4] = {0, 0, 0, 0};
-    vlerp_sc(s, xc, c);
+    float c[4], cn[4], dd[4];
+    const int xa = x < 0 ? 0 : x, xb = x + 1 > w - 1 ? w - 1 : x + 1;
+    vlerp_sc(s, xa, c);
+    vlerp_sc(s, xb, cn);
+    for (int ch = 0; ch < 4; ch++)
+        dd[ch] = cn[ch] - c[ch];
     for (unsigned q = 0; q < s->k; q++) {
         long i = s->c0 + (long)s->k * x + q;
+        if (i < 0 || i >= (long)s->wi || (x < 0 && s->fx[q] < 0.5f) ||
+            (x == w - 1 && s->fx[q] >= 0.5f))
+            continue;
         float *d = s->row + 4 * i;
-        if (i >= 0 && i < (long)s->wi && (s->fx[q] < 0.5f) == want_low &&
-            !(s->skip && d[3] >= 1.0f))
+        if (!(s->skip && d[3] >= 1.0f))
             blend_sc(d, c, dd, s->fx[q]);
     }
 }
@@ -467,7 +482,8 @@ static inline long floordiv(long a, long b)
     return a >= 0 ? a / b : -((-a + b - 1) / b);
 }
 
-/* Composites intermediate row j through every slice, front to back. */
+/* Composites row j of the stored part (global row jo + j) through every
+ * slice, front to back. */
 static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
                           const struct geom *g, unsigned j, float *row,
                           int32_t *cov)
@@ -475,12 +491,12 @@ static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
     const struct tvpal_view *v = f->view;
     const int w = (int)f->w, h = (int)f->h;
     const unsigned k = g->k, tile = r->tile;
-    long cov_lo = g->wi, cov_hi = 0;
-    memset(row, 0, sizeof(float) * 4 * g->wi);
+    long cov_lo = g->wc, cov_hi = 0;
+    memset(row, 0, sizeof(float) * 4 * g->wc);
     for (uint32_t n = f->count; n-- > 0;) {
         const struct tvpal_frame_slice *sl = &f->sl[n];
         const double c = slice_depth(v, sl->slice);
-        const double ty = g->v0 + (j + 0.5) / k - c * g->sy;
+        const double ty = g->v0 + (g->jo + j + 0.5) / k - c * g->sy;
         if (!(ty >= 0 && ty < h))
             continue;
         const double yy = ty - 0.5, yf = floor(yy);
@@ -490,7 +506,7 @@ static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
         /* Pixel i samples x = (i + 0.5) / K + ta - 0.5; the first pixel
          * whose sample lies at or right of texel 0 is c0. */
         const double c0 = ceil(k * (0.5 - ta) - 0.5);
-        struct span s = {.row = row, .c0 = (long)c0, .k = k, .wi = g->wi,
+        struct span s = {.row = row, .c0 = (long)c0 - g->io, .k = k, .wi = g->wc,
                          .fy = (float)(yy - yf), .ra = sl->idx + (size_t)w * ya,
                          .rb = sl->idx + (size_t)w * yb, .pal = sl->palette,
                          .skip = r->skip};
@@ -501,7 +517,7 @@ static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
             qs += s.fx[q] < 0.5f;
         }
         /* The slice covers pixels c0 - K + qs .. c0 + K (w - 1) + qs - 1
-         * (the same tests as edge_sse), whatever its palette. */
+         * (the same tests as texel_sse), whatever its palette. */
         long first = s.c0 - (long)k + qs, end = s.c0 + (long)k * (w - 1) + qs;
         cov_lo = first < cov_lo ? first : cov_lo;
         cov_hi = end > cov_hi ? end : cov_hi;
@@ -509,7 +525,7 @@ static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
         uint64_t bits = vr[ya / tile] | vr[yb / tile];
         /* Texels whose K pixels all lie inside the row: xmin..xmax. */
         const long xmin = -floordiv(s.c0, (long)k);
-        const long xmax = floordiv((long)g->wi - (long)k - s.c0, (long)k);
+        const long xmax = floordiv((long)g->wc - (long)k - s.c0, (long)k);
         while (bits) {
             unsigned t0 = (unsigned)__builtin_ctzll(bits);
             uint64_t sh = bits >> t0;
@@ -521,17 +537,24 @@ static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
             long a = (long)t0 * tile, b = (long)t1 * tile < w ? (long)t1 * tile : w;
             long lo = a - 1, hi = b - 1;
             if (lo < 0) {
-                edge_sse(&s, -1, 0, 0);           /* samples with fx >= 0.5 */
+                texel_sse(&s, -1, w);         /* samples with fx >= 0.5 */
                 lo = 0;
             }
             if (hi == w - 1) {
-                edge_sse(&s, w - 1, w - 1, 1);    /* samples with fx < 0.5 */
+                texel_sse(&s, w - 1, w);      /* samples with fx < 0.5 */
                 hi = w - 2;
             }
-            if (lo < xmin)
+            /* Texels only partly inside the stored row (clipping). */
+            if (lo < xmin) {
+                if (xmin - 1 >= lo && xmin - 1 <= hi)
+                    texel_sse(&s, (int)(xmin - 1), w);
                 lo = xmin;
-            if (hi > xmax)
+            }
+            if (hi > xmax) {
+                if (xmax + 1 <= hi && xmax + 1 >= lo)
+                    texel_sse(&s, (int)(xmax + 1), w);
                 hi = xmax;
+            }
             if (lo > hi)
                 continue;
 #ifdef SW_AVX2
@@ -548,13 +571,13 @@ static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
         }
     }
     cov[0] = (int32_t)(cov_lo < 0 ? 0 : cov_lo);
-    cov[1] = (int32_t)(cov_hi > (long)g->wi ? (long)g->wi : cov_hi);
+    cov[1] = (int32_t)(cov_hi > (long)g->wc ? (long)g->wc : cov_hi);
     if (cov[1] < cov[0])
         cov[0] = cov[1] = 0;
 }
 
-/* Output row py from the intermediate image, pixel (px, py) at
- * xi = ox + ax px + bx py, likewise yi.  Coverage keeps the silhouette as
+/* Output row py from the stored part of the intermediate image (origin
+ * io, jo), pixel (px, py) at global xi = ox + ax px + bx py, likewise yi.  Coverage keeps the silhouette as
  * sharp as the slice rasterization of the other renderers: a pixel whose
  * nearest intermediate pixel no slice covers is transparent, and at the
  * silhouette the bilinear weights of the uncovered taps go to the covered
@@ -569,16 +592,18 @@ static inline int covered(const int32_t *cov, long x, long y, unsigned hi)
     return y >= 0 && y < (long)hi && x >= cov[2 * y] && x < cov[2 * y + 1];
 }
 
-static void warp_row(const float *im, const int32_t *cov, unsigned wi,
-                     unsigned hi, const struct warp *wp, unsigned W,
-                     unsigned py, float *o)
+static void warp_row(const float *im, const int32_t *cov, long io, long jo,
+                     unsigned wi, unsigned hi, const struct warp *wp,
+                     unsigned W, unsigned py, float *o)
 {
     const double rx = wp->ox + wp->bx * py, ry = wp->oy + wp->by * py;
     for (unsigned px = 0; px < W; px++, o += 4) {
+        /* Global coordinates first (the weights do not depend on the
+         * clipping), then relative to the stored part. */
         const double xi = rx + wp->ax * px, yi = ry + wp->ay * px;
-        const double xf = floor(xi), yf = floor(yi);
+        const double xf = floor(xi) - (double)io, yf = floor(yi) - (double)jo;
         const long x0 = (long)fmax(fmin(xf, wi), -2), y0 = (long)fmax(fmin(yf, hi), -2);
-        const float fx = (float)(xi - xf), fy = (float)(yi - yf);
+        const float fx = (float)(xi - floor(xi)), fy = (float)(yi - floor(yi));
         const long xn = x0 + (fx >= 0.5f), yn = y0 + (fy >= 0.5f);
         if (!covered(cov, xn, yn, hi)) {
             memset(o, 0, 4 * sizeof *o);
@@ -640,21 +665,63 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
                                   r->layers);
     if (setup(f, &g) < 0)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "degenerate view");
-    size_t need = (size_t)g.wi * g.hi * 4;
+    /* Warp: output pixel centre -> eye -> base texel -> intermediate. */
+    struct warp wp;
+    double e0[2], e1[2], e2[2], b0[2], b1[2], b2[2];
+    tvpal_view_pixel_to_eye(v, 0.5, 0.5, &e0[0], &e0[1]);
+    tvpal_view_pixel_to_eye(v, 1.5, 0.5, &e1[0], &e1[1]);
+    tvpal_view_pixel_to_eye(v, 0.5, 1.5, &e2[0], &e2[1]);
+    eye_to_base(&g, f->w, f->h, e0[0], e0[1], &b0[0], &b0[1]);
+    eye_to_base(&g, f->w, f->h, e1[0], e1[1], &b1[0], &b1[1]);
+    eye_to_base(&g, f->w, f->h, e2[0], e2[1], &b2[0], &b2[1]);
+    wp.ox = (b0[0] - g.u0) * g.k - 0.5;
+    wp.oy = (b0[1] - g.v0) * g.k - 0.5;
+    wp.ax = (b1[0] - b0[0]) * g.k;
+    wp.ay = (b1[1] - b0[1]) * g.k;
+    wp.bx = (b2[0] - b0[0]) * g.k;
+    wp.by = (b2[1] - b0[1]) * g.k;
+    /* Only the part of the intermediate image the output samples (with a
+     * pixel of margin around every tap) is composited: a zoomed-in view
+     * does not pay for what it does not show.  Pixels keep their global
+     * coordinates, so clipping changes no bit. */
+    g.io = g.jo = 0;
+    g.wc = g.wi;
+    g.hc = g.hi;
+    if (r->skip) {
+        const double W1 = v->width - 1.0, H1 = v->height - 1.0;
+        double xs[4] = {wp.ox, wp.ox + wp.ax * W1, wp.ox + wp.bx * H1,
+                        wp.ox + wp.ax * W1 + wp.bx * H1};
+        double ys[4] = {wp.oy, wp.oy + wp.ay * W1, wp.oy + wp.by * H1,
+                        wp.oy + wp.ay * W1 + wp.by * H1};
+        double x0 = xs[0], x1 = xs[0], y0 = ys[0], y1 = ys[0];
+        for (int i = 1; i < 4; i++) {
+            x0 = fmin(x0, xs[i]);
+            x1 = fmax(x1, xs[i]);
+            y0 = fmin(y0, ys[i]);
+            y1 = fmax(y1, ys[i]);
+        }
+        double ilo = fmax(0, floor(x0) - 1), ihi = fmin(g.wi, floor(x1) + 3);
+        double jlo = fmax(0, floor(y0) - 1), jhi = fmin(g.hi, floor(y1) + 3);
+        g.io = (long)ilo;
+        g.jo = (long)jlo;
+        g.wc = ihi > ilo ? (unsigned)(ihi - ilo) : 0;
+        g.hc = jhi > jlo ? (unsigned)(jhi - jlo) : 0;
+    }
+    size_t need = (size_t)(g.wc ? g.wc : 1) * (g.hc ? g.hc : 1) * 4;
     if (need > r->cap) {
         float *nim = realloc(r->im, need * sizeof *nim);
         if (!nim)
             return tvpal_diag_set(diag, TVPAL_E_NOMEM, "intermediate image "
-                                  "%ux%u", g.wi, g.hi);
+                                  "%ux%u", g.wc, g.hc);
         r->im = nim;
         r->cap = need;
     }
-    if (g.hi > r->cov_cap) {
-        int32_t *nc = realloc(r->cov, sizeof(int32_t) * 2 * g.hi);
+    if (g.hc + 1 > r->cov_cap) {
+        int32_t *nc = realloc(r->cov, sizeof(int32_t) * 2 * (g.hc + 1));
         if (!nc)
             return tvpal_diag_set(diag, TVPAL_E_NOMEM, "coverage rows");
         r->cov = nc;
-        r->cov_cap = g.hi;
+        r->cov_cap = g.hc + 1;
     }
     r->avx2 = r->simd && cpu_avx2();
     r->k_last = g.k;
@@ -679,37 +746,22 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
     r->t_classify = (t1 - t0) * 1e3;
     /* Composite: rows of the intermediate image, in small chunks handed
      * out dynamically (rows near the edges meet fewer slices). */
-    const int hi = (int)g.hi;
+    const int hi = (int)g.hc;
     float *im = r->im;
 #ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 4) num_threads(nt)
 #endif
     for (int j = 0; j < hi; j++)
-        composite_row(r, f, &g, (unsigned)j, im + (size_t)4 * g.wi * j,
+        composite_row(r, f, &g, (unsigned)j, im + (size_t)4 * g.wc * j,
                       r->cov + 2 * (size_t)j);
     double t2 = tvpal_now();
     r->t_composite = (t2 - t1) * 1e3;
-    /* Warp: output pixel centre -> eye -> base texel -> intermediate. */
-    struct warp wp;
-    double e0[2], e1[2], e2[2], b0[2], b1[2], b2[2];
-    tvpal_view_pixel_to_eye(v, 0.5, 0.5, &e0[0], &e0[1]);
-    tvpal_view_pixel_to_eye(v, 1.5, 0.5, &e1[0], &e1[1]);
-    tvpal_view_pixel_to_eye(v, 0.5, 1.5, &e2[0], &e2[1]);
-    eye_to_base(&g, f->w, f->h, e0[0], e0[1], &b0[0], &b0[1]);
-    eye_to_base(&g, f->w, f->h, e1[0], e1[1], &b1[0], &b1[1]);
-    eye_to_base(&g, f->w, f->h, e2[0], e2[1], &b2[0], &b2[1]);
-    wp.ox = (b0[0] - g.u0) * g.k - 0.5;
-    wp.oy = (b0[1] - g.v0) * g.k - 0.5;
-    wp.ax = (b1[0] - b0[0]) * g.k;
-    wp.ay = (b1[1] - b0[1]) * g.k;
-    wp.bx = (b2[0] - b0[0]) * g.k;
-    wp.by = (b2[1] - b0[1]) * g.k;
     const int H = (int)v->height;
 #ifdef _OPENMP
 #pragma omp parallel for schedule(static) num_threads(nt)
 #endif
     for (int py = 0; py < H; py++)
-        warp_row(im, r->cov, g.wi, g.hi, &wp, v->width, (unsigned)py,
+        warp_row(im, r->cov, g.io, g.jo, g.wc, g.hc, &wp, v->width, (unsigned)py,
                  rgba + (size_t)4 * v->width * py);
     r->t_warp = (tvpal_now() - t2) * 1e3;
     return 0;
