@@ -57,8 +57,9 @@ static void usage(FILE *f)
 "                           headless (OSMesa draws on the CPU) and in a window\n"
 "                           whose GL is a software rasterizer (llvmpipe),\n"
 "                           gl in a window on a GPU\n"
-"      --fb BITS            colour buffer: 32 (float, default), 16 (half)\n"
-"                           or 8 (shows the banding of 8-bit blending)\n"
+"      --fb BITS            GL colour buffer: 32 (float, default), 16 (half)\n"
+"                           or 8 (shows the banding of 8-bit blending);\n"
+"                           implies --renderer gl\n"
 "      --spin DEG           turn the view DEG degrees about y per frame\n"
 "                           (a camera path; crossing axes loads records)\n"
 "Data:\n"
@@ -694,6 +695,7 @@ int main(int argc, char **argv)
     const char *shard_pat = NULL;
     enum tvpal_compose_kind ckind = TVPAL_COMPOSE_BSWAP;
     uint32_t fb_bits = 32;
+    int fb_given = 0;
     uint32_t repeat = 1, jumps = 0;
     int tf_cycle = 0;
     uint32_t autoplay = 0;
@@ -726,6 +728,7 @@ int main(int argc, char **argv)
                 die(2, "--composite \"%s\": expected bswap or gather", optarg);
             break;
         case 'F':
+            fb_given = 1;
             if (tvpal_parse_u32(optarg, 8, 32, &fb_bits) < 0 ||
                 (fb_bits != 8 && fb_bits != 16 && fb_bits != 32))
                 die(2, "--fb \"%s\": expected 8, 16 or 32", optarg);
@@ -911,6 +914,13 @@ int main(int argc, char **argv)
     /* Headless GL is OSMesa, a software rasterizer: the CPU renderer is
      * the faster one there. */
     const char *why = "";
+    if (fb_given && renderer == REND_AUTO) {
+        renderer = REND_GL;
+        why = "; --fb asks for a GL framebuffer";
+    }
+    if (fb_given && renderer != REND_GL)
+        die(2, "--fb: the GL framebuffer's depth; only with --renderer gl "
+            "(the cpu renderer accumulates in float)");
     if (renderer == REND_AUTO) {
         renderer = REND_CPU;
         why = "; default: headless GL is OSMesa, which draws on the CPU";

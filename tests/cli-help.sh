@@ -1,6 +1,7 @@
 #!/bin/sh
 # cli-help: every program answers --help and --version, rejects unknown
-# options with exit 2, and has a man page.
+# options with exit 2, and has a man page that documents every option its
+# --help lists.
 . "$(dirname "$0")/lib.sh"
 PLAY=$TVPAL_BUILDDIR/player/tvpal-play
 for p in "$ENC" "$DEC" "$INFO" "$REP" "$GEN" $( [ -x "$PLAY" ] && echo "$PLAY" ); do
@@ -15,5 +16,10 @@ for p in "$ENC" "$DEC" "$INFO" "$REP" "$GEN" $( [ -x "$PLAY" ] && echo "$PLAY" )
     else
         fail "$n: no man page with .TH and OPTIONS"
     fi
+    missing=""
+    for o in $(grep -o -- '--[a-z][a-z0-9-]*' "$W/h.txt" | sort -u); do
+        grep -q -- "$(echo "$o" | sed 's/-/\\\\-/g')" "$man" 2>/dev/null || missing="$missing $o"
+    done
+    [ -z "$missing" ] && ok "$n.1 documents every --help option" || fail "$n.1 lacks:$missing"
 done
 finish
