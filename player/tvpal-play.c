@@ -801,10 +801,16 @@ int main(int argc, char **argv)
         case 'q': quiet = 1; break;
         case 'h': usage(stdout); return 0;
         case 'V':
-#ifdef HAVE_GLFW
-            printf(PROG " " PACKAGE_VERSION " (window: yes)\n");
+            printf(PROG " " PACKAGE_VERSION " (window: %s, gl: %s)\n",
+#ifdef TVPAL_HAVE_WINDOW
+                   "yes",
 #else
-            printf(PROG " " PACKAGE_VERSION " (window: no)\n");
+                   "no",
+#endif
+#ifdef TVPAL_HAVE_GL
+                   "yes");
+#else
+                   "no");
 #endif
             return 0;
         default:

@@ -1,13 +1,15 @@
-/* tvpal_window_none.c: the window front end of a build without GLFW: the
- * window cannot be opened, and says why; nothing else is reachable. */
+/* tvpal_window_none.c: the window front end of a build without GLFW or
+ * OSMesa (the window's GL comes through Mesa): the window cannot be
+ * opened, and says why; nothing else is reachable. */
 #include "tvpal_window.h"
 
 int tvpal_win_open(struct tvpal_win **out, unsigned width, unsigned height,
                    const char *title, struct tvpal_diag *diag)
 {
     return tvpal_diag_set(diag, TVPAL_E_SYS,
-                          "cannot open a window: built without GLFW (install "
-                          "libglfw3-dev and reconfigure), use --headless");
+                          "cannot open a window: built without GLFW or OSMesa "
+                          "(install libglfw3-dev and libosmesa6-dev and "
+                          "reconfigure), use --headless");
 }
 
 void tvpal_win_close(struct tvpal_win *w) {}

@@ -14,7 +14,17 @@ command -v mpirun > /dev/null || { echo "no mpirun (scripts/setup-deps installs 
 "$PLAY" --help | grep -q -- "--composite" || exit 99
 MPI="timeout 300 mpirun --allow-run-as-root --oversubscribe"
 export LP_NUM_THREADS=1 OMPI_MCA_rmaps_base_oversubscribe=1
-GLR="--renderer gl"
+# A build without OSMesa has only the cpu renderer: the same checks run with
+# it, at its tolerance (see below).
+if "$PLAY" --version | grep -q "gl: yes"; then
+    GLR="--renderer gl" TOL=1
+else
+    GLR="--renderer cpu" TOL=6
+    echo "built without OSMesa: the comparisons run with the cpu renderer (tolerance $TOL levels)"
+fi
+within() { # pngdiff-output: max <= TOL
+    [ "$(echo "$1" | sed 's/max=\([0-9]*\).*/\1/')" -le $TOL ]
+}
 D=24x20x16
 TF=$TVPAL_SRCDIR/samples/tf/warm.tf
 # Slabs along z hold z in [0,16): blobs live in the middle; a band TF that
@@ -44,7 +54,7 @@ for K in 1 2 3 4 5 8; do
             done
         done
         # Tolerance: one 8-bit level (float blending order differs).
-        [ "$worst" -le 1 ] && ok "K=$K $comp: all views and depth directions within $worst level(s)" \
+        [ "$worst" -le $TOL ] && ok "K=$K $comp: all views and depth directions within $worst level(s)" \
             || fail "K=$K $comp: composited image differs from single node by $worst levels"
     done
 done
@@ -83,7 +93,7 @@ printf 'domain normalized\n0 0 0 0 0\n0.55 0 0 0 0\n0.7 1 0.6 0.2 0.5\n1 1 1 1 0
 $MPI -np 5 "$PLAY" "$W/k5" --headless -q $GLR --size 64x56 --rotate 0,90 --tf "$W/high.tf" -o "$W/c5-high" > "$W/o.txt" 2>&1 \
     || fail "K=5 high TF"
 r=$($PY "$TVPAL_SRCDIR/tests/pngdiff.py" "$W/ref-high/t0001.png" "$W/c5-high/t0001.png")
-echo "$r" | grep -q "^max=[01] " && ok "K=5 with empty slabs: $r" || fail "empty slabs: $r"
+within "$r" && ok "K=5 with empty slabs: $r" || fail "empty slabs: $r"
 # Bytes sent: a dense image (opaque everywhere, zoomed in so the volume
 # covers the frame) at K = 4: binary swap sends 1/2 + 1/4 of the image.
 printf 'domain normalized\n0 0.5 0.5 0.5 0.3\n1 1 1 1 0.3\n' > "$W/dense.tf"
@@ -134,7 +144,7 @@ mkdir -p "$W/disks" && for r in 0 1 2; do cp -r "$W/k3/node-$r" "$W/disks/local$
 $MPI -np 3 "$PLAY" "$W/nowhere" --shard-dir "$W/disks/local%r" --headless -q $GLR --size 64x56 \
     --rotate 30,40 --tf "$TF" -o "$W/c3-map" > "$W/o.txt" 2>&1 || fail "--shard-dir: $(cat "$W/o.txt")"
 r=$($PY "$TVPAL_SRCDIR/tests/pngdiff.py" "$W/ref-30,40/t0002.png" "$W/c3-map/t0002.png")
-echo "$r" | grep -q "^max=[01] " && ok "--shard-dir: $r" || fail "--shard-dir: $r"
+within "$r" && ok "--shard-dir: $r" || fail "--shard-dir: $r"
 # Rank 0 shows the composited frame in its window (Xvfb); keys pressed in
 # it reach every rank (Right x2 from step 0 shows step 2 of all slabs).
 if "$PLAY" --version | grep -q "window: yes" && command -v xvfb-run > /dev/null \
