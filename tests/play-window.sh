@@ -7,7 +7,7 @@
 . "$(dirname "$0")/lib.sh"
 PLAY=$TVPAL_BUILDDIR/player/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
-"$PLAY" --version | grep -q "window: yes" || { echo "built without GLFW: skipped"; exit 77; }
+"$PLAY" --version | grep -q "window: yes" || { echo "built without the window (GLFW and OSMesa): skipped"; exit 77; }
 for tool in xvfb-run xdotool; do
     command -v $tool > /dev/null || { echo "$tool missing (scripts/setup-deps installs it)"; exit 99; }
 done
