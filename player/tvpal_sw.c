@@ -43,7 +43,9 @@ struct tvpal_sw {
     unsigned tile, tcols, trows;
     uint64_t *sets;       /* layers x trows x tcols x 4 words: index sets */
     uint8_t *dirty;       /* layers: indices changed since the sets */
-    uint64_t *vis;        /* layers x trows: visible tile columns (frame) */
+    uint32_t *todo;       /* layers: dirty layers of this frame (scratch) */
+    uint64_t *vis;        /* frame slices x trows: visible tile columns */
+    size_t vis_cap;       /* frame slices vis holds */
     unsigned k_last;
     double t_classify, t_composite, t_warp;
 };
@@ -67,6 +69,7 @@ void tvpal_sw_free(struct tvpal_sw *r)
     free(r->cov);
     free(r->sets);
     free(r->dirty);
+    free(r->todo);
     free(r->vis);
     free(r);
 }
@@ -113,36 +116,41 @@ const char *tvpal_sw_simd_name(const struct tvpal_sw *r)
 int tvpal_sw_set_slices(struct tvpal_sw *r, uint32_t w, uint32_t h,
                         uint32_t layers, struct tvpal_diag *diag)
 {
-    if (w == 0 || h == 0)
-        return tvpal_diag_set(diag, TVPAL_E_INVAL, "empty slices (%ux%u)", w, h);
+    if (w == 0 || h == 0 || w > (1u << 20) || h > (1u << 20))
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "slices of %ux%u (expected "
+                              "1 to 2^20 texels a side)", w, h);
     unsigned tile = TILE_MIN;
     while ((w + tile - 1) / tile > 64)
         tile *= 2;
     unsigned tcols = (w + tile - 1) / tile, trows = (h + tile - 1) / tile;
-    size_t nsets = (size_t)(layers ? layers : 1) * trows * tcols * 4;
-    uint64_t *sets = malloc(nsets * sizeof *sets);
-    uint8_t *dirty = malloc(layers ? layers : 1);
-    uint64_t *vis = malloc((size_t)(layers ? layers : 1) * trows * sizeof *vis);
-    if (!sets || !dirty || !vis) {
+    const size_t nl = layers ? layers : 1;
+    if (nl > SIZE_MAX / 32 / trows / tcols)
+        return tvpal_diag_set(diag, TVPAL_E_OVERFLOW, "tile index sets for "
+                              "%u slices of %ux%u", layers, w, h);
+    uint64_t *sets = malloc(nl * trows * tcols * 4 * sizeof *sets);
+    uint8_t *dirty = malloc(nl);
+    uint32_t *todo = malloc(nl * sizeof *todo);
+    if (!sets || !dirty || !todo) {
         free(sets);
         free(dirty);
-        free(vis);
+        free(todo);
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "tile index sets for "
                               "%u slices of %ux%u", layers, w, h);
     }
     free(r->sets);
     free(r->dirty);
-    free(r->vis);
-    memset(dirty, 1, layers ? layers : 1);
+    free(r->todo);
+    memset(dirty, 1, nl);
     r->sets = sets;
     r->dirty = dirty;
-    r->vis = vis;
+    r->todo = todo;
     r->w = w;
     r->h = h;
     r->layers = layers;
     r->tile = tile;
     r->tcols = tcols;
     r->trows = trows;
+    r->vis_cap = 0; /* rows per slice may have changed */
     return 0;
 }
 
@@ -196,9 +204,9 @@ static void build_sets(const struct tvpal_sw *r, uint32_t layer,
 
 /* Visible tile columns of each tile row of one slice for its palette: a
  * tile is visible iff it holds an index whose entry is not all zero. */
-static void classify(const struct tvpal_sw *r, const struct tvpal_frame_slice *sl)
+static void classify(const struct tvpal_sw *r, const struct tvpal_frame_slice *sl,
+                     uint64_t *out)
 {
-    uint64_t *out = r->vis + (size_t)sl->layer * r->trows;
     const uint64_t all = r->tcols == 64 ? ~0ull : (1ull << r->tcols) - 1;
     if (!r->skip) {
         for (unsigned ty = 0; ty < r->trows; ty++)
@@ -273,14 +281,15 @@ static int setup(const struct tvpal_frame *f, struct geom *g)
     g->sy = db / (2 * g->hb) * f->h;
     /* K: intermediate pixels per texel, a whole number (the weights of a
      * slice row stay constant), about what the output shows (1 to KMAX):
-     * the warp never magnifies by more than 1.25, so zoomed-in views keep
-     * their detail (and silhouettes their sharpness). */
+     * up to K = KMAX the warp magnifies by at most 1.25, so zoomed-in views
+     * keep their detail and silhouettes their sharpness; beyond (more than
+     * 4.25 output pixels per texel) it magnifies, bilinearly. */
     double texel = 2 * g->ha / f->w;
     double texel_b = 2 * g->hb / f->h;
     texel = texel > texel_b ? texel : texel_b;
     double pix = fmin(2 * v->sx / v->width, 2 * v->sy / v->height);
     double kk = ceil(texel / pix - 0.25);
-    g->k = kk < 1 ? 1 : kk > KMAX ? KMAX : (unsigned)kk;
+    g->k = !(kk >= 1) ? 1 : kk > KMAX ? KMAX : (unsigned)kk;   /* NaN: 1 */
     /* Extent: every slice's footprint, shifted, with a pixel of margin. */
     double c0 = slice_depth(v, 0), c1 = slice_depth(v, v->dims[ax] - 1);
     double umin = fmin(c0 * g->sx, c1 * g->sx), umax = fmax(c0 * g->sx, c1 * g->sx);
@@ -332,7 +341,7 @@ static void span_sse(const struct span *s, int x0, int x1)
         __m128 dd = _mm_sub_ps(cn, c);
         float *d = s->row + 4 * (s->c0 + (long)s->k * x);
         for (unsigned q = 0; q < s->k; q++, d += 4)
-            if (!(s->skip && d[3] >= 1.0f))
+            if (!(s->skip && d[3] == 1.0f))
                 blend_sse(d, c, dd, s->fx[q]);
         c = cn;
     }
@@ -354,7 +363,7 @@ static void texel_sse(const struct span *s, int x, int w)
             (x == w - 1 && s->fx[q] >= 0.5f))
             continue;
         float *d = s->row + 4 * i;
-        if (!(s->skip && d[3] >= 1.0f))
+        if (!(s->skip && d[3] == 1.0f))
             blend_sse(d, c, dd, s->fx[q]);
     }
 }
@@ -383,7 +392,7 @@ static void span_sse(const struct span *s, int x0, int x1)
             dd[ch] = cn[ch] - c[ch];
         float *d = s->row + 4 * (s->c0 + (long)s->k * x);
         for (unsigned q = 0; q < s->k; q++, d += 4)
-            if (!(s->skip && d[3] >= 1.0f))
+            if (!(s->skip && d[3] == 1.0f))
                 blend_sc(d, c, dd, s->fx[q]);
         memcpy(c, cn, sizeof c);
     }
@@ -403,7 +412,7 @@ static void texel_sse(const struct span *s, int x, int w)
             (x == w - 1 && s->fx[q] >= 0.5f))
             continue;
         float *d = s->row + 4 * i;
-        if (!(s->skip && d[3] >= 1.0f))
+        if (!(s->skip && d[3] == 1.0f))
             blend_sc(d, c, dd, s->fx[q]);
     }
 }
@@ -442,7 +451,7 @@ AVX2 static void span_avx2_k1(const struct span *s, int x0, int x1)
         __m256 vn = _mm256_add_ps(a, _mm256_mul_ps(vfy, _mm256_sub_ps(b, a)));
         __m256 cur = _mm256_permute2f128_ps(vp, vn, 0x21);
         float *d = s->row + 4 * (s->c0 + x);
-        if (!(s->skip && d[3] >= 1.0f && d[7] >= 1.0f))
+        if (!(s->skip && d[3] == 1.0f && d[7] == 1.0f))
             blend2(d, _mm256_add_ps(cur, _mm256_mul_ps(vfx, _mm256_sub_ps(vn, cur))));
         vp = vn;
     }
@@ -450,7 +459,7 @@ AVX2 static void span_avx2_k1(const struct span *s, int x0, int x1)
         __m128 cc = _mm256_extractf128_ps(vp, 1);
         __m128 cn = vlerp_sse(s, x + 1, _mm_set1_ps(s->fy));
         float *d = s->row + 4 * (s->c0 + x);
-        if (!(s->skip && d[3] >= 1.0f))
+        if (!(s->skip && d[3] == 1.0f))
             blend_sse(d, cc, _mm_sub_ps(cn, cc), s->fx[0]);
     }
 }
@@ -466,7 +475,7 @@ AVX2 static void span_avx2_k2(const struct span *s, int x0, int x1)
         __m128 cn = vlerp_sse(s, x + 1, vfy);
         __m128 dd = _mm_sub_ps(cn, c);
         float *d = s->row + 4 * (s->c0 + 2L * x);
-        if (!(s->skip && d[3] >= 1.0f && d[7] >= 1.0f)) {
+        if (!(s->skip && d[3] == 1.0f && d[7] == 1.0f)) {
             __m256 c2 = _mm256_insertf128_ps(_mm256_castps128_ps256(c), c, 1);
             __m256 d2 = _mm256_insertf128_ps(_mm256_castps128_ps256(dd), dd, 1);
             blend2(d, _mm256_add_ps(c2, _mm256_mul_ps(vfx, d2)));
@@ -521,7 +530,7 @@ static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
         long first = s.c0 - (long)k + qs, end = s.c0 + (long)k * (w - 1) + qs;
         cov_lo = first < cov_lo ? first : cov_lo;
         cov_hi = end > cov_hi ? end : cov_hi;
-        const uint64_t *vr = r->vis + (size_t)sl->layer * r->trows;
+        const uint64_t *vr = r->vis + (size_t)n * r->trows;
         uint64_t bits = vr[ya / tile] | vr[yb / tile];
         /* Texels whose K pixels all lie inside the row: xmin..xmax. */
         const long xmin = -floordiv(s.c0, (long)k);
@@ -658,11 +667,26 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "frame slices %ux%u, "
                               "renderer prepared for %ux%u", f->w, f->h,
                               r->w, r->h);
-    for (uint32_t n = 0; n < f->count; n++)
+    const unsigned ax = v->axis;
+    if (ax > 2 || f->w != v->dims[ax == 0 ? 1 : 0] || f->h != v->dims[ax == 2 ? 1 : 2])
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "frame slices %ux%u do not "
+                              "match the view's volume", f->w, f->h);
+    for (uint32_t n = 0; n < f->count; n++) {
         if (f->sl[n].layer >= r->layers)
             return tvpal_diag_set(diag, TVPAL_E_INVAL, "slice layer %u, "
                                   "renderer prepared for %u", f->sl[n].layer,
                                   r->layers);
+        if (f->sl[n].slice >= v->dims[ax])
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "slice %u of an axis "
+                                  "of %u", f->sl[n].slice, v->dims[ax]);
+    }
+    if (f->count > r->vis_cap) {
+        uint64_t *nv = realloc(r->vis, sizeof *nv * f->count * r->trows);
+        if (!nv)
+            return tvpal_diag_set(diag, TVPAL_E_NOMEM, "visible tiles");
+        r->vis = nv;
+        r->vis_cap = f->count;
+    }
     if (setup(f, &g) < 0)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "degenerate view");
     /* Warp: output pixel centre -> eye -> base texel -> intermediate. */
@@ -729,19 +753,31 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
 #ifdef _OPENMP
     nt = r->threads > 0 ? r->threads : omp_get_max_threads();
 #endif
-    /* Classify. */
+    /* Classify: index sets of the layers whose data changed (each once,
+     * whichever frame slices show it), then the visible tiles of every
+     * frame slice for its own palette. */
     const int count = (int)f->count;
+    int ntodo = 0;
+    for (int n = 0; n < count; n++) {
+        const uint32_t layer = f->sl[n].layer;
+        if (r->dirty[layer] == 1) {
+            r->dirty[layer] = 2;
+            r->todo[ntodo++] = (uint32_t)n;
+        }
+    }
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 4) num_threads(nt)
+#endif
+    for (int m = 0; m < ntodo; m++) {
+        const struct tvpal_frame_slice *sl = &f->sl[r->todo[m]];
+        build_sets(r, sl->layer, sl->idx);
+        r->dirty[sl->layer] = 0;
+    }
 #ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 8) num_threads(nt)
 #endif
-    for (int n = 0; n < count; n++) {
-        const struct tvpal_frame_slice *sl = &f->sl[n];
-        if (r->dirty[sl->layer]) {
-            build_sets(r, sl->layer, sl->idx);
-            r->dirty[sl->layer] = 0;
-        }
-        classify(r, sl);
-    }
+    for (int n = 0; n < count; n++)
+        classify(r, &f->sl[n], r->vis + (size_t)n * r->trows);
     double t1 = tvpal_now();
     r->t_classify = (t1 - t0) * 1e3;
     /* Composite: rows of the intermediate image, in small chunks handed

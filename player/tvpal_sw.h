@@ -25,8 +25,8 @@
  * row composited by one thread through all slices (it stays in L1): the
  * image is the same for any thread count.  An AVX2 inner loop is chosen
  * at run time where the CPU has it; it performs the same float operations
- * in the same order as the SSE2 loop (no fused multiply-add), so both give
- * the same bits.  No allocation per frame once the largest image and the
+ * in the same order as the SSE2 loop (no fused multiply-add: the player
+ * library is built with -ffp-contract=off), so both give the same bits.  No allocation per frame once the largest image and the
  * slice set (tvpal_sw_set_slices) have been seen.
  */
 #ifndef TVPAL_SW_H
@@ -58,7 +58,11 @@ void tvpal_sw_upload(struct tvpal_sw *r, uint32_t layer);
 
 /* Renders the frame (slices in back-to-front order, as for the other
  * renderers) into width * height RGBA floats, row 0 at the bottom.  The
- * frame's slices must match the last tvpal_sw_set_slices. */
+ * frame's slices must match the last tvpal_sw_set_slices and the view's
+ * volume (TVPAL_E_INVAL otherwise); a layer may appear in several frame
+ * slices, each with its own palette.  Palette entries are premultiplied;
+ * alpha in [0, 1] is what the player builds, larger values are drawn as
+ * given (early termination stops only pixels whose alpha is exactly 1). */
 int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
                   float *rgba, struct tvpal_diag *diag);
 
@@ -67,8 +71,9 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
 void tvpal_sw_times(const struct tvpal_sw *r, double *classify_ms,
                     double *composite_ms, double *warp_ms);
 
-/* Intermediate pixels per texel (K) of the last draw, and the inner loop
- * used ("avx2" or "sse2" or "scalar"); for reports. */
+/* Intermediate pixels per texel (K) of the last draw, and the inner loops
+ * used ("avx2": AVX2 for K = 1 and 2, SSE2 otherwise; "sse2"; "scalar"),
+ * for reports. */
 unsigned tvpal_sw_scale(const struct tvpal_sw *r);
 const char *tvpal_sw_simd_name(const struct tvpal_sw *r);
 

@@ -218,6 +218,41 @@ int main(void)
         CHECK(tvpal_sw_set_slices(sw, 0, 5, 4, &d) == TVPAL_E_INVAL, "empty slices");
     }
 
+    /* Unusual frames the player does not make but the contract allows:
+     * one layer drawn by two frame slices with different palettes, and
+     * palettes with alpha above 1 (early termination must then not stop
+     * a pixel whose alpha overshot).  Options still change no bit. */
+    {
+        struct tvpal_view v = {.dims = {48, 40, 32}, .width = vo.W, .height = vo.H,
+                               .ax_deg = 25, .ay_deg = 35, .zoom = 1};
+        struct tvpal_frame f;
+        const size_t np = (size_t)4 * vo.W * vo.H;
+        make_frame(&vo, &v, &f, &tf);
+        /* Every other slice shows the layer of its neighbour, with the
+         * dense palette of slice 0. */
+        for (uint32_t k = 1; k < f.count; k += 2) {
+            sl[k].layer = sl[k - 1].layer;
+            sl[k].idx = sl[k - 1].idx;
+            sl[k].palette = pal_store; /* tf's palette of slice 0 */
+        }
+        float *hot = pal_store + (size_t)1024 * (f.count + 1);
+        for (int i = 0; i < 256; i++) {
+            float a = 1.5f * (float)i / 255.0f;
+            hot[4 * i] = a * 0.9f;
+            hot[4 * i + 1] = a * 0.5f;
+            hot[4 * i + 2] = a * 0.1f;
+            hot[4 * i + 3] = a;
+        }
+        sl[2].palette = hot;
+        draw_fresh(&f, f.count, 1, 1, 1, img);
+        draw_fresh(&f, f.count, 2, 0, 0, img2);
+        CHECK(!memcmp(img, img2, sizeof(float) * np), "shared layer / alpha > 1: options "
+              "changed pixels");
+        draw_fresh(&f, f.count, 3, 1, 0, img2);
+        CHECK(!memcmp(img, img2, sizeof(float) * np), "shared layer / alpha > 1: SSE2 "
+              "vs AVX2 or threads changed pixels");
+    }
+
     /* Odd shapes: 1 x H, W x 1 and 1100-wide slices (tiles of 32), views
      * that see them edge-on and face-on. */
     static const struct vol odd[] = {{{1, 40, 32}, 90, 80, 1},
