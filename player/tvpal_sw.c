@@ -314,6 +314,20 @@ struct span {
     int skip;
 };
 
+/* Pixel q of texel x (-1 .. w - 1) when it is to be blended: inside the
+ * stored row, inside the slice (x = -1 and x = w - 1 clamp their texel
+ * coordinates: only samples with fx >= 0.5, resp. < 0.5, lie inside) and
+ * not opaque (with skipping); else NULL. */
+static inline float *texel_pixel(const struct span *s, int x, int w, unsigned q)
+{
+    long i = s->c0 + (long)s->k * x + q;
+    if (i < 0 || i >= (long)s->wi || (x < 0 && s->fx[q] < 0.5f) ||
+        (x == w - 1 && s->fx[q] >= 0.5f))
+        return NULL;
+    float *d = s->row + 4 * i;
+    return s->skip && d[3] == 1.0f ? NULL : d;
+}
+
 #if defined(__SSE2__)
 static inline __m128 vlerp_sse(const struct span *s, int x, __m128 vfy)
 {
@@ -358,12 +372,8 @@ static void texel_sse(const struct span *s, int x, int w)
     __m128 c = vlerp_sse(s, xa, vfy), cn = vlerp_sse(s, xb, vfy);
     __m128 dd = _mm_sub_ps(cn, c);
     for (unsigned q = 0; q < s->k; q++) {
-        long i = s->c0 + (long)s->k * x + q;
-        if (i < 0 || i >= (long)s->wi || (x < 0 && s->fx[q] < 0.5f) ||
-            (x == w - 1 && s->fx[q] >= 0.5f))
-            continue;
-        float *d = s->row + 4 * i;
-        if (!(s->skip && d[3] == 1.0f))
+        float *d = texel_pixel(s, x, w, q);
+        if (d)
             blend_sse(d, c, dd, s->fx[q]);
     }
 }
@@ -407,12 +417,8 @@ static void texel_sse(const struct span *s, int x, int w)
     for (int ch = 0; ch < 4; ch++)
         dd[ch] = cn[ch] - c[ch];
     for (unsigned q = 0; q < s->k; q++) {
-        long i = s->c0 + (long)s->k * x + q;
-        if (i < 0 || i >= (long)s->wi || (x < 0 && s->fx[q] < 0.5f) ||
-            (x == w - 1 && s->fx[q] >= 0.5f))
-            continue;
-        float *d = s->row + 4 * i;
-        if (!(s->skip && d[3] == 1.0f))
+        float *d = texel_pixel(s, x, w, q);
+        if (d)
             blend_sc(d, c, dd, s->fx[q]);
     }
 }

@@ -133,6 +133,7 @@ int main(void)
     unsigned axes = 0, ks = 0;
     struct tvpal_sw *sw;
     REQUIRE(tvpal_sw_create(&sw) == 0, "create");
+    printf("inner loops: %s\n", tvpal_sw_simd_name(sw));
     for (size_t vi = 0; vi < sizeof views / sizeof *views; vi++) {
         struct tvpal_view v = {.dims = {48, 40, 32}, .width = vo.W, .height = vo.H,
                                .ax_deg = views[vi][0], .ay_deg = views[vi][1],
