@@ -328,6 +328,8 @@ static inline float *texel_pixel(const struct span *s, int x, int w, unsigned q)
     return s->skip && d[3] == 1.0f ? NULL : d;
 }
 
+/* span_v4 and texel_v4 blend one RGBA pixel at a time: with SSE2 where the
+ * compiler targets it, else in scalar code (the same operations). */
 #if defined(__SSE2__)
 static inline __m128 vlerp_sse(const struct span *s, int x, __m128 vfy)
 {
@@ -346,7 +348,7 @@ static inline void blend_sse(float *d, __m128 c, __m128 dd, float fx)
     _mm_storeu_ps(d, _mm_add_ps(dv, _mm_mul_ps(keep, s)));
 }
 
-static void span_sse(const struct span *s, int x0, int x1)
+static void span_v4(const struct span *s, int x0, int x1)
 {
     const __m128 vfy = _mm_set1_ps(s->fy);
     __m128 c = vlerp_sse(s, x0, vfy);
@@ -364,8 +366,8 @@ static void span_sse(const struct span *s, int x0, int x1)
 /* One texel x (-1 .. w - 1) pixel by pixel: pixels outside the stored row
  * are left out, and at the slice's edges (x = -1, x = w - 1, where the
  * texel coordinates clamp) only the samples inside the slice are blended.
- * The same operations as span_sse. */
-static void texel_sse(const struct span *s, int x, int w)
+ * The same operations as span_v4. */
+static void texel_v4(const struct span *s, int x, int w)
 {
     const __m128 vfy = _mm_set1_ps(s->fy);
     const int xa = x < 0 ? 0 : x, xb = x + 1 > w - 1 ? w - 1 : x + 1;
@@ -392,7 +394,7 @@ static inline void blend_sc(float *d, const float *c, const float *dd, float fx)
         d[ch] = d[ch] + keep * (c[ch] + fx * dd[ch]);
 }
 
-static void span_sse(const struct span *s, int x0, int x1)
+static void span_v4(const struct span *s, int x0, int x1)
 {
     float c[4], cn[4], dd[4];
     vlerp_sc(s, x0, c);
@@ -408,7 +410,7 @@ static void span_sse(const struct span *s, int x0, int x1)
     }
 }
 
-static void texel_sse(const struct span *s, int x, int w)
+static void texel_v4(const struct span *s, int x, int w)
 {
     float c[4], cn[4], dd[4];
     const int xa = x < 0 ? 0 : x, xb = x + 1 > w - 1 ? w - 1 : x + 1;
@@ -532,7 +534,7 @@ static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
             qs += s.fx[q] < 0.5f;
         }
         /* The slice covers pixels c0 - K + qs .. c0 + K (w - 1) + qs - 1
-         * (the same tests as texel_sse), whatever its palette. */
+         * (the same tests as texel_v4), whatever its palette. */
         long first = s.c0 - (long)k + qs, end = s.c0 + (long)k * (w - 1) + qs;
         cov_lo = first < cov_lo ? first : cov_lo;
         cov_hi = end > cov_hi ? end : cov_hi;
@@ -552,22 +554,22 @@ static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
             long a = (long)t0 * tile, b = (long)t1 * tile < w ? (long)t1 * tile : w;
             long lo = a - 1, hi = b - 1;
             if (lo < 0) {
-                texel_sse(&s, -1, w);         /* samples with fx >= 0.5 */
+                texel_v4(&s, -1, w);         /* samples with fx >= 0.5 */
                 lo = 0;
             }
             if (hi == w - 1) {
-                texel_sse(&s, w - 1, w);      /* samples with fx < 0.5 */
+                texel_v4(&s, w - 1, w);      /* samples with fx < 0.5 */
                 hi = w - 2;
             }
             /* Texels only partly inside the stored row (clipping). */
             if (lo < xmin) {
                 if (xmin - 1 >= lo && xmin - 1 <= hi)
-                    texel_sse(&s, (int)(xmin - 1), w);
+                    texel_v4(&s, (int)(xmin - 1), w);
                 lo = xmin;
             }
             if (hi > xmax) {
                 if (xmax + 1 <= hi && xmax + 1 >= lo)
-                    texel_sse(&s, (int)(xmax + 1), w);
+                    texel_v4(&s, (int)(xmax + 1), w);
                 hi = xmax;
             }
             if (lo > hi)
@@ -582,7 +584,7 @@ static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
                 continue;
             }
 #endif
-            span_sse(&s, (int)lo, (int)hi);
+            span_v4(&s, (int)lo, (int)hi);
         }
     }
     cov[0] = (int32_t)(cov_lo < 0 ? 0 : cov_lo);
