@@ -60,6 +60,10 @@ static void usage(FILE *f)
 "      --fb BITS            GL colour buffer: 32 (float, default), 16 (half)\n"
 "                           or 8 (shows the banding of 8-bit blending);\n"
 "                           implies --renderer gl\n"
+"      --cpu-scale K        cpu renderer: intermediate pixels per texel, auto\n"
+"                           (default: 1 to 4, as many as the view shows) or\n"
+"                           1..8 (sharper at close zoom; cost grows as K^2);\n"
+"                           implies --renderer cpu\n"
 "      --spin DEG           turn the view DEG degrees about y per frame\n"
 "                           (a camera path; crossing axes loads records)\n"
 "Data:\n"
@@ -80,6 +84,10 @@ static void usage(FILE *f)
 "  -o, --output DIR         write PNG frames here (created)\n"
 "      --csv FILE           per-frame timings (default DIR/timing.csv)\n"
 "      --strict             stop at the first read or checksum error\n"
+"      --ref-psnr           also draw every frame with the reference renderer\n"
+"                           and report the image's PSNR against it (CSV\n"
+"                           column psnr_ref, summary line psnr_ref=; one\n"
+"                           rank; timings are then not representative)\n"
 "Cluster (mpirun -np K tvpal-play ..., one rank per node shard):\n"
 "      --shard-dir PATTERN  where rank r finds its shard: %%r is replaced by\n"
 "                           the rank (default OUTDIR/node-%%r)\n"
@@ -330,6 +338,7 @@ struct win_args {
     const char *shot;
     int quiet;
     int renderer;     /* REND_AUTO, REND_GL or REND_CPU */
+    unsigned fb_bits, cpu_scale;
 };
 
 static int save_shot(const char *path, const uint8_t *rgb, unsigned w,
@@ -387,9 +396,10 @@ static int run_window(struct tvpal_player *pl, const struct win_args *wa)
     struct tvpal_renderer rend;
     if (use_cpu) {
         sw = sw_new();
+        tvpal_sw_set_scale(sw, wa->cpu_scale);
         rend = (struct tvpal_renderer){sw, NULL, sw_set, sw_up, sw_draw};
     } else {
-        rc = tvpal_glr_create(&glr, W, H, &d);
+        rc = tvpal_glr_create_fb(&glr, W, H, wa->fb_bits, &d);
         check_all(rc, d.msg, 1);
         rend = (struct tvpal_renderer){glr, NULL, gl_set, gl_up, gl_draw};
     }
@@ -529,7 +539,7 @@ static int run_window(struct tvpal_player *pl, const struct win_args *wa)
             H = cmd.height;
             if (glr) {
                 tvpal_glr_free(glr);
-                rc = tvpal_glr_create(&glr, W, H, &d);
+                rc = tvpal_glr_create_fb(&glr, W, H, wa->fb_bits, &d);
                 check_all(rc, d.msg, 1);
                 rend = (struct tvpal_renderer){glr, NULL, gl_set, gl_up, gl_draw};
             }
@@ -656,6 +666,7 @@ int main(int argc, char **argv)
         {"shard-dir", required_argument, 0, 'G'},
         {"composite", required_argument, 0, 'Q'},
         {"fb", required_argument, 0, 'F'},
+        {"cpu-scale", required_argument, 0, 'k'},
         {"repeat", required_argument, 0, 'K'},
         {"tf-cycle", no_argument, 0, 'T'},
         {"jumps", required_argument, 0, 'J'},
@@ -676,6 +687,7 @@ int main(int argc, char **argv)
         {"output", required_argument, 0, 'o'},
         {"csv", required_argument, 0, 'c'},
         {"strict", no_argument, 0, 'x'},
+        {"ref-psnr", no_argument, 0, 'e'},
         {"quiet", no_argument, 0, 'q'},
         {"help", no_argument, 0, 'h'},
         {"version", no_argument, 0, 'V'},
@@ -694,10 +706,10 @@ int main(int argc, char **argv)
     double spin = 0;
     const char *shard_pat = NULL;
     enum tvpal_compose_kind ckind = TVPAL_COMPOSE_BSWAP;
-    uint32_t fb_bits = 32;
-    int fb_given = 0;
+    uint32_t fb_bits = 32, cpu_scale = 0;
+    int fb_given = 0, scale_given = 0;
     uint32_t repeat = 1, jumps = 0;
-    int tf_cycle = 0;
+    int tf_cycle = 0, ref_psnr = 0;
     uint32_t autoplay = 0;
     const char *shot = NULL;
     const char *tf_files[16];
@@ -732,6 +744,11 @@ int main(int argc, char **argv)
             if (tvpal_parse_u32(optarg, 8, 32, &fb_bits) < 0 ||
                 (fb_bits != 8 && fb_bits != 16 && fb_bits != 32))
                 die(2, "--fb \"%s\": expected 8, 16 or 32", optarg);
+            break;
+        case 'k':
+            scale_given = 1;
+            if (strcmp(optarg, "auto") && tvpal_parse_u32(optarg, 1, 8, &cpu_scale) < 0)
+                die(2, "--cpu-scale \"%s\": expected auto or 1..8", optarg);
             break;
         case 'J':
             if (tvpal_parse_u32(optarg, 1, UINT32_MAX, &jumps) < 0)
@@ -798,6 +815,7 @@ int main(int argc, char **argv)
         case 'o': outdir = optarg; break;
         case 'c': csv_path = optarg; break;
         case 'x': strict = 1; break;
+        case 'e': ref_psnr = 1; break;
         case 'q': quiet = 1; break;
         case 'h': usage(stdout); return 0;
         case 'V':
@@ -895,6 +913,23 @@ int main(int argc, char **argv)
                fit >= m->steps ? ": in-core fits" : ": stream from disk");
     }
 
+    /* Options that belong to one renderer choose it, or are refused with
+     * the other. */
+    const char *why = "";
+    if (fb_given && renderer == REND_AUTO) {
+        renderer = REND_GL;
+        why = "; --fb asks for a GL framebuffer";
+    }
+    if (fb_given && renderer != REND_GL)
+        die(2, "--fb: the GL framebuffer's depth; only with --renderer gl "
+            "(the cpu renderer accumulates in float)");
+    if (scale_given && renderer == REND_AUTO) {
+        renderer = REND_CPU;
+        why = "; --cpu-scale asks for it";
+    }
+    if (scale_given && renderer != REND_CPU)
+        die(2, "--cpu-scale: the shear-warp intermediate image's resolution; "
+            "only with --renderer cpu");
     if (mode_window < 0)
         mode_window = getenv("DISPLAY") && *getenv("DISPLAY") && !outdir;
     if (mode_window && (renderer == REND_REF || renderer == REND_NONE))
@@ -906,7 +941,7 @@ int main(int argc, char **argv)
             .width = width, .height = height, .ax = ax, .ay = ay,
             .zoom = zoom, .opacity = opacity, .a = a, .b = b,
             .autoplay = autoplay, .shot = shot, .quiet = quiet,
-            .renderer = renderer};
+            .renderer = renderer, .fb_bits = fb_bits, .cpu_scale = cpu_scale};
         return run_window(pl, &wa);
     }
     if (autoplay || shot)
@@ -919,14 +954,6 @@ int main(int argc, char **argv)
     struct tvpal_sw *sw = NULL;
     /* Headless GL is OSMesa, a software rasterizer: the CPU renderer is
      * the faster one there. */
-    const char *why = "";
-    if (fb_given && renderer == REND_AUTO) {
-        renderer = REND_GL;
-        why = "; --fb asks for a GL framebuffer";
-    }
-    if (fb_given && renderer != REND_GL)
-        die(2, "--fb: the GL framebuffer's depth; only with --renderer gl "
-            "(the cpu renderer accumulates in float)");
     if (renderer == REND_AUTO) {
         renderer = REND_CPU;
         why = "; default: headless GL is OSMesa, which draws on the CPU";
@@ -937,6 +964,7 @@ int main(int argc, char **argv)
         rend = (struct tvpal_renderer){NULL, NULL, ref_set, ref_up, none_draw};
     } else if (use_cpu) {
         sw = sw_new();
+        tvpal_sw_set_scale(sw, cpu_scale);
         rend = (struct tvpal_renderer){sw, NULL, sw_set, sw_up, sw_draw};
     } else if (use_ref) {
         ref_buf = malloc(sizeof(double) * 4 * width * height);
@@ -949,6 +977,17 @@ int main(int argc, char **argv)
             grc = tvpal_glr_create_fb(&glr, width, height, fb_bits, &d);
         check_all(grc, d.msg, 1);
         rend = (struct tvpal_renderer){glr, NULL, gl_set, gl_up, gl_draw};
+    }
+    /* --ref-psnr: the reference renderer draws every frame again. */
+    struct tvpal_renderer rend_ref = {NULL, NULL, ref_set, ref_up, ref_draw};
+    float *ref_rgba = NULL;
+    if (ref_psnr) {
+        if (g_comm.size > 1 || no_render || use_ref)
+            die(2, "--ref-psnr: one rank, with the cpu or gl renderer");
+        if (!ref_buf && !(ref_buf = malloc(sizeof(double) * 4 * width * height)))
+            die(1, "out of memory");
+        if (!(ref_rgba = malloc(sizeof(float) * 4 * width * height)))
+            die(1, "out of memory");
     }
     float *rgba = malloc(sizeof(float) * 4 * width * height);
     /* The frame as rank 0 gets it from the compositor: premultiplied
@@ -984,7 +1023,7 @@ int main(int argc, char **argv)
                 "axis_switch_ms,jump,stride,encode_ms,exchange_ms,blend_ms,"
                 "composite_ms,gather_ms,bytes_sent_max,bytes_sent_total,"
                 "gather_bytes_total,pixels_blended_max,ranks,"
-                "sw_classify_ms,sw_composite_ms,sw_warp_ms\n");
+                "sw_classify_ms,sw_composite_ms,sw_warp_ms,psnr_ref\n");
     }
     int digits = 4;
     for (uint32_t x = 10000; x <= m->steps - 1 && digits < 10; x *= 10)
@@ -997,6 +1036,7 @@ int main(int argc, char **argv)
     const int dir_step = b >= a ? 1 : -1;
     const uint32_t nframes = (b >= a ? b - a : a - b) + 1;
     double sum_io = 0, sum_up = 0, sum_draw = 0, sum_read = 0, sum_comp = 0;
+    double sum_psnr = 0;
     uint64_t sum_bytes = 0;
     unsigned errors = 0;
     char last_err[sizeof d.msg] = "";
@@ -1050,6 +1090,23 @@ int main(int argc, char **argv)
             die_rank(1, "compositing failed at step %u", t);
         double comp_ms = (tvpal_now() - c0) * 1e3;
         double total = (tvpal_now() - f0) * 1e3;
+        double psnr = 0;
+        if (ref_psnr) {
+            /* The same frame by the reference renderer (after the timings:
+             * switching renderers makes the next frame upload every slice
+             * again, so timings of a --ref-psnr run are not representative). */
+            struct tvpal_frame_stats st2;
+            if (tvpal_player_frame(pl, &v, t, dir_step, &rend_ref, ref_rgba,
+                                   &st2, &d) < 0 && !st2.rendered)
+                die(2, "step %u: reference: %s", t, d.msg);
+            double e = 0;
+            const size_t np = (size_t)4 * width * height;
+            for (size_t q = 0; q < np; q++)
+                e += ((double)rgba[q] - ref_buf[q]) * ((double)rgba[q] - ref_buf[q]);
+            e /= (double)np;
+            psnr = e > 0 ? 10 * log10(1.0 / e) : INFINITY;
+            sum_psnr += psnr;
+        }
         /* Per-rank figures to rank 0: the CSV shows the slowest rank per
          * phase (as the paper did), bytes and pixels per rank. */
         struct frame_rec me = {
@@ -1113,7 +1170,7 @@ int main(int argc, char **argv)
         if (csv)
             fprintf(csv, "%u,%c,%.3f,%.3f,%.3f,%.3f,%.3f,%llu,%u,%u,%u,%.3f,"
                     "%d,%u,%.3f,%.3f,%.3f,%.3f,%.3f,%llu,%llu,%llu,%llu,%d,"
-                    "%.3f,%.3f,%.3f\n",
+                    "%.3f,%.3f,%.3f,%.3f\n",
                     t, "xyz"[st.axis], agg.io, agg.up, agg.draw, agg.read,
                     agg.total, (unsigned long long)agg.bytes_read, st.drawn,
                     st.skipped, st.uploads, st.axis_switch_ms, jump, st.stride,
@@ -1122,7 +1179,7 @@ int main(int argc, char **argv)
                     (unsigned long long)agg.bytes_sent_total,
                     (unsigned long long)agg.gather_bytes,
                     (unsigned long long)agg.pixels, g_comm.size,
-                    agg.classify, agg.accum, agg.warp);
+                    agg.classify, agg.accum, agg.warp, ref_psnr ? psnr : NAN);
     }
     double el = tvpal_now() - t_start;
     if (g_comm.rank != 0) {
@@ -1148,6 +1205,8 @@ int main(int argc, char **argv)
            sum_comp / nframes, g_comm.size, (unsigned long long)sum_bytes,
            tvpal_player_incore_bytes(pl) / 1048576.0, tvpal_player_io_name(pl),
            no_render ? "none" : use_cpu ? "cpu" : use_ref ? "ref" : "gl", errors);
+    if (ref_psnr)
+        printf("psnr_ref=%.3f\n", sum_psnr / nframes);
     tvpal_glr_free(glr);
     tvpal_osmesa_free(ctx);
     tvpal_player_close(pl);
@@ -1159,6 +1218,7 @@ int main(int argc, char **argv)
     free(rgba);
     free(rgb8);
     free(ref_buf);
+    free(ref_rgba);
 #ifdef HAVE_MPI
     if (cluster)
         tvpal_comm_mpi_finalize(&g_comm);

@@ -29,7 +29,8 @@
 #include <omp.h>
 #endif
 
-#define KMAX 4        /* most intermediate pixels per texel */
+#define KAUTO 4       /* most intermediate pixels per texel chosen alone */
+#define KMAX 8        /* most that can be asked for (tvpal_sw_set_scale) */
 #define TILE_MIN 16   /* tile side; doubled until a row has <= 64 tiles */
 
 struct tvpal_sw {
@@ -38,6 +39,7 @@ struct tvpal_sw {
     int32_t *cov;         /* per intermediate row: covered pixels [lo, hi) */
     size_t cov_cap;       /* rows */
     int threads, skip, simd;
+    unsigned force_k;     /* 0: K from the view; else 1..KMAX */
     int avx2;             /* the AVX2 loops run (simd and the CPU has it) */
     uint32_t w, h, layers;
     unsigned tile, tcols, trows;
@@ -79,6 +81,14 @@ void tvpal_sw_options(struct tvpal_sw *r, int threads, int skip, int simd)
     r->threads = threads;
     r->skip = skip;
     r->simd = simd;
+}
+
+int tvpal_sw_set_scale(struct tvpal_sw *r, unsigned k)
+{
+    if (k > KMAX)
+        return TVPAL_E_INVAL;
+    r->force_k = k;
+    return 0;
 }
 
 void tvpal_sw_times(const struct tvpal_sw *r, double *classify_ms,
@@ -256,7 +266,7 @@ static void eye_to_base(const struct geom *g, unsigned w, unsigned h,
     *tv = (b + g->hb) / (2 * g->hb) * h;
 }
 
-static int setup(const struct tvpal_frame *f, struct geom *g)
+static int setup(const struct tvpal_frame *f, unsigned force_k, struct geom *g)
 {
     const struct tvpal_view *v = f->view;
     const unsigned ax = v->axis;
@@ -280,8 +290,8 @@ static int setup(const struct tvpal_frame *f, struct geom *g)
     g->sx = da / (2 * g->ha) * f->w;
     g->sy = db / (2 * g->hb) * f->h;
     /* K: intermediate pixels per texel, a whole number (the weights of a
-     * slice row stay constant), about what the output shows (1 to KMAX):
-     * up to K = KMAX the warp magnifies by at most 1.25, so zoomed-in views
+     * slice row stay constant), about what the output shows (1 to KAUTO):
+     * up to K = KAUTO the warp magnifies by at most 1.25, so zoomed-in views
      * keep their detail and silhouettes their sharpness; beyond (more than
      * 4.25 output pixels per texel) it magnifies, bilinearly. */
     double texel = 2 * g->ha / f->w;
@@ -289,7 +299,9 @@ static int setup(const struct tvpal_frame *f, struct geom *g)
     texel = texel > texel_b ? texel : texel_b;
     double pix = fmin(2 * v->sx / v->width, 2 * v->sy / v->height);
     double kk = ceil(texel / pix - 0.25);
-    g->k = !(kk >= 1) ? 1 : kk > KMAX ? KMAX : (unsigned)kk;   /* NaN: 1 */
+    g->k = !(kk >= 1) ? 1 : kk > KAUTO ? KAUTO : (unsigned)kk;   /* NaN: 1 */
+    if (force_k)
+        g->k = force_k;
     /* Extent: every slice's footprint, shifted, with a pixel of margin. */
     double c0 = slice_depth(v, 0), c1 = slice_depth(v, v->dims[ax] - 1);
     double umin = fmin(c0 * g->sx, c1 * g->sx), umax = fmax(c0 * g->sx, c1 * g->sx);
@@ -695,7 +707,7 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
         r->vis = nv;
         r->vis_cap = f->count;
     }
-    if (setup(f, &g) < 0)
+    if (setup(f, r->force_k, &g) < 0)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "degenerate view");
     /* Warp: output pixel centre -> eye -> base texel -> intermediate. */
     struct warp wp;

@@ -5,10 +5,10 @@
  * exact: each slice is translated onto an intermediate image aligned with
  * the slices (the translation grows linearly with the slice's depth), and
  * one 2D affine warp maps that image to the output with bilinear filtering.
- * The intermediate image has K = 1..4 pixels per texel, the whole number
- * nearest to the output's pixels per texel (zoomed-in views stay sharp),
- * so the bilinear weights of a slice row are the same for every texel:
- * K fixed phases.  Slices are composited front to back with the same
+ * The intermediate image has K pixels per texel, a whole number: by default
+ * ceil(output pixels per texel - 0.25), 1 to 4 (zoomed-in views stay
+ * sharp), or forced to 1..8 (tvpal_sw_set_scale).  K whole makes the
+ * bilinear weights of a slice row the same for every texel: K fixed phases.  Slices are composited front to back with the same
  * palette semantics as tvpal_render_ref (four nearest texels looked up in
  * the slice's palette, colours interpolated, premultiplied "over"); only
  * the resampling differs.
@@ -45,6 +45,11 @@ void tvpal_sw_free(struct tvpal_sw *r);   /* NULL is a no-op */
  * skip (empty-space skipping and early termination; 1 by default),
  * simd (1: AVX2 where the CPU has it, the default; 0: SSE2 only). */
 void tvpal_sw_options(struct tvpal_sw *r, int threads, int skip, int simd);
+
+/* Intermediate pixels per texel: 0 (the default) chooses K from the view
+ * (1..4, see above); 1..8 forces it (speed against sharpness: the cost
+ * grows as K^2).  TVPAL_E_INVAL for k > 8. */
+int tvpal_sw_set_scale(struct tvpal_sw *r, unsigned k);
 
 /* Prepares for `layers` slices of w x h indices (frame slices name their
  * layer, < layers).  Every layer starts as changed.  Allocates; 0 or

@@ -89,6 +89,18 @@ else
     cmp -s "$W/fb8/t0004.png" "$W/fb32/t0004.png" && fail "--fb 8 = float buffer" \
         || ok "--fb 8 differs from the float buffer ($($PY "$TVPAL_SRCDIR/tests/pngdiff.py" "$W/fb8/t0004.png" "$W/fb32/t0004.png"))"
 fi
+# --cpu-scale: a finer intermediate image (another image, the same size),
+# refused with gl and out of range.
+"$PLAY" "$W/ds" --headless -q --size 96x80 --tf "$TF" --steps 4:4 --cpu-scale 8 -o "$W/k8" > /dev/null \
+    && [ -f "$W/k8/t0004.png" ] && ! cmp -s "$W/k8/t0004.png" "$W/f-stream/t0004.png" \
+    && ok "--cpu-scale 8 renders another image" || fail "--cpu-scale 8"
+expect_exit 2 "--cpu-scale: .*only with --renderer cpu" "$PLAY" "$W/ds" --headless --renderer gl --cpu-scale 2
+expect_exit 2 "--cpu-scale \"9\": expected auto or 1..8" "$PLAY" "$W/ds" --headless --cpu-scale 9
+line=$("$PLAY" "$W/ds" --headless -q --size 96x80 --tf "$TF" --steps 2:4 --ref-psnr --csv "$W/rp.csv") \
+    && echo "$line" | grep -q "^psnr_ref=[0-9.]*$" \
+    && awk -F, 'NR == 1 { ok = ($NF == "psnr_ref") } NR > 1 && !($NF >= 35) { ok = 0 } END { exit !ok }' "$W/rp.csv" \
+    && ok "--ref-psnr: $line (per frame in the CSV)" || fail "--ref-psnr: $line"
+expect_exit 2 "--ref-psnr: one rank, with the cpu or gl renderer" "$PLAY" "$W/ds" --headless --renderer ref --ref-psnr
 expect_exit 2 "--fb: .*only with --renderer gl" "$PLAY" "$W/ds" --headless --renderer cpu --fb 8
 printf 'domain normalized\n0 0 0 0 0\n0.5 1 1 1\n' > "$W/bad.tf"
 expect_exit 2 "bad.tf: line 3: expected 5 numbers" "$PLAY" "$W/ds" --headless --tf "$W/bad.tf"

@@ -182,6 +182,41 @@ int main(void)
         }
     }
     CHECK(axes == 7, "all axes (%u)", axes);
+
+    /* A forced K (speed against sharpness): 8 at close zoom is at least as
+     * close to the reference as the automatic 4, options change no bit;
+     * 1 still passes the floor; 9 is refused. */
+    {
+        struct tvpal_view v = {.dims = {48, 40, 32}, .width = vo.W, .height = vo.H,
+                               .ax_deg = 30, .ay_deg = 40, .zoom = 6};
+        struct tvpal_frame f;
+        const size_t np = (size_t)4 * vo.W * vo.H;
+        make_frame(&vo, &v, &f, &tf3);
+        tvpal_render_ref(&f, ref);
+        double p[9] = {0};
+        for (unsigned k = 0; k <= 8; k += 1) {
+            if (k != 0 && k != 1 && k != 8)
+                continue;
+            struct tvpal_sw *fk;
+            REQUIRE(tvpal_sw_create(&fk) == 0, "create");
+            REQUIRE(tvpal_sw_set_scale(fk, k) == 0, "scale %u", k);
+            tvpal_sw_options(fk, 1, 1, 1);
+            REQUIRE(tvpal_sw_set_slices(fk, f.w, f.h, f.count, &d) == 0, "%s", d.msg);
+            REQUIRE(tvpal_sw_draw(fk, &f, img, &d) == 0, "%s", d.msg);
+            CHECK(k == 0 ? tvpal_sw_scale(fk) == 4 : tvpal_sw_scale(fk) == k,
+                  "K %u asked, %u used", k, tvpal_sw_scale(fk));
+            p[k] = psnr(img, ref, np);
+            printf("zoom 6, opaque TF, K %s%u: %.2f dB\n", k ? "" : "auto = ",
+                   tvpal_sw_scale(fk), p[k]);
+            tvpal_sw_options(fk, 3, 0, 0);
+            REQUIRE(tvpal_sw_draw(fk, &f, img2, &d) == 0, "%s", d.msg);
+            CHECK(!memcmp(img, img2, sizeof(float) * np), "K %u: options changed pixels", k);
+            CHECK(k != 0 || tvpal_sw_set_scale(fk, 9) == TVPAL_E_INVAL, "K 9 accepted");
+            tvpal_sw_free(fk);
+        }
+        CHECK(p[8] >= p[0] - 0.01, "K 8 (%.2f dB) worse than auto (%.2f dB)", p[8], p[0]);
+        CHECK(p[1] >= 35.0, "K 1: %.2f dB", p[1]);
+    }
     CHECK(ks == (1u << 1 | 1u << 2 | 1u << 3 | 1u << 4), "K = 1..4 covered (%#x)", ks);
 
     /* New slice data: upload marks the layer, the next draw sees it. */
