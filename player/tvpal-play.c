@@ -932,6 +932,8 @@ int main(int argc, char **argv)
             "only with --renderer cpu");
     if (mode_window < 0)
         mode_window = getenv("DISPLAY") && *getenv("DISPLAY") && !outdir;
+    if (mode_window && ref_psnr)
+        die(2, "--ref-psnr: headless only");
     if (mode_window && (renderer == REND_REF || renderer == REND_NONE))
         die(2, "--renderer %s: headless only (the window renders with gl or "
             "cpu)", renderer == REND_REF ? "ref" : "none");

@@ -53,6 +53,7 @@ cmp -s "$W/tvpal-shot-0000.png" "$W/hl/t0003.png" \
 grep -q "t=3/8" "$W/title.txt" && grep -q "default" "$W/title.txt" \
     && ok "title: $(cat "$W/title.txt")" || fail "title: $(cat "$W/title.txt")"
 grep -q "last_step=3" "$W/play.txt" && ok "q quits" || fail "quit: $(cat "$W/play.txt")"
+expect_exit 2 "--ref-psnr: headless only" "$PLAY" "$W/ds" --window --ref-psnr
 # 3. No display: a clear error.
 expect_exit 1 "cannot open a window" env -u DISPLAY "$PLAY" "$W/ds" --window --autoplay 1
 finish
