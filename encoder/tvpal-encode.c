@@ -1,5 +1,5 @@
 /* tvpal-encode: encodes a time series of raw volumes into a tvpal dataset
- * (paper section III; format: common/FORMAT.md).
+ * (paper section III; format: common/format/FORMAT.md).
  *
  * Streaming: timestep t + N - 1 is read when the records of step t are
  * built, so memory holds N float volumes (a ring) plus the records of one
@@ -9,6 +9,7 @@
  */
 #define _GNU_SOURCE
 #include "tvpal_cli.h"
+#include "tvpal_clock.h"
 #include "tvpal_crc32c.h"
 #include "tvpal_dataset.h"
 #include "tvpal_error.h"
@@ -18,7 +19,7 @@
 #include "tvpal_raw.h"
 #include "tvpal_shard.h"
 #include "tvpal_swcode.h"
-#include "tvpal_window.h"
+#include "tvpal_schedule.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -887,9 +888,9 @@ int main(int argc, char **argv)
             const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
             for (uint32_t k = 0; k < j->h.slice_count; k++) {
                 uint32_t s = j->h.slice_begin + k;
-                if (!tvpal_window_starts(s, t, N))
+                if (!tvpal_schedule_starts(s, t, N))
                     continue;
-                uint32_t len = tvpal_window_len(s, t, N, T);
+                uint32_t len = tvpal_schedule_len(s, t, N, T);
                 uint64_t cb = tvpal_chunk_bytes(len, j->h.slice_w, j->h.slice_h,
                                                 j->h.table_format);
                 struct slicejob *prev = njobs ? &jobs[njobs - 1] : NULL;

@@ -13,7 +13,7 @@
 #include "tvpal_dataset.h"
 #include "tvpal_format.h"
 #include "tvpal_raw.h"
-#include "tvpal_window.h"
+#include "tvpal_schedule.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -146,10 +146,10 @@ static void payload_bytes(const struct tvpal_manifest *m, unsigned axis,
     *idx = *tab = 0;
     for (uint32_t s = 0; s < n; s++)
         for (uint32_t t = 0; t < m->steps; t++)
-            if (tvpal_window_starts(s, t, m->window)) {
+            if (tvpal_schedule_starts(s, t, m->window)) {
                 *idx += (double)w * h;
                 *tab += 256.0 * (m->table_format == 1 ? 2 : 4) *
-                        tvpal_window_len(s, t, m->window, m->steps);
+                        tvpal_schedule_len(s, t, m->window, m->steps);
             }
 }
 

@@ -3,14 +3,14 @@
 # options with exit 2, and has a man page that documents every option its
 # --help lists.
 . "$(dirname "$0")/lib.sh"
-PLAY=$TVPAL_BUILDDIR/player/tvpal-play
+PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 for p in "$ENC" "$DEC" "$INFO" "$REP" "$GEN" $( [ -x "$PLAY" ] && echo "$PLAY" ); do
     n=$(basename "$p")
     "$p" --help > "$W/h.txt" 2>&1 && grep -q "^Usage: $n" "$W/h.txt" \
         && ok "$n --help" || fail "$n --help"
     "$p" --version | grep -q "^$n " && ok "$n --version" || fail "$n --version"
     expect_exit 2 "unrecognized|Try" "$p" --no-such-option
-    man=$(ls "$TVPAL_SRCDIR"/*/"$n.1" 2>/dev/null | head -n 1)
+    man=$(ls "$TVPAL_SRCDIR"/*/"$n.1" "$TVPAL_SRCDIR"/*/*/"$n.1" 2>/dev/null | head -n 1)
     if [ -n "$man" ] && grep -q '^\.TH' "$man" && grep -q '^\.SH OPTIONS' "$man"; then
         ok "$n.1"
     else

@@ -5,7 +5,7 @@
 # with xdotool step the playhead (Right x3 from step 0 shows step 3), S
 # saves a screenshot, T cycles the transfer function, Q quits.
 . "$(dirname "$0")/lib.sh"
-PLAY=$TVPAL_BUILDDIR/player/tvpal-play
+PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
 "$PLAY" --version | grep -q "window: yes" || { echo "built without the window (GLFW and OSMesa): skipped"; exit 77; }
 for tool in xvfb-run xdotool; do

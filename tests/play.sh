@@ -6,7 +6,7 @@
 # (exit 2); a TF change every frame gives the frames of fresh runs; bad
 # options and transfer functions are refused (exit 2).
 . "$(dirname "$0")/lib.sh"
-PLAY=$TVPAL_BUILDDIR/player/tvpal-play
+PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
 D=24x20x16
 "$GEN" --field blobs --dims $D --steps 9 -o "$W/in" || fail gen

@@ -5,7 +5,7 @@
 # each slice at the pixel, like the reference) is at least as accurate as
 # cpu's automatic K.
 . "$(dirname "$0")/lib.sh"
-PLAY=$TVPAL_BUILDDIR/player/tvpal-play
+PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without libpng: skipped"; exit 77; }
 command -v gnuplot > /dev/null || { echo "gnuplot missing (scripts/setup-deps installs it)"; exit 99; }
 TVPAL_RC_DIMS=20x18x16 TVPAL_RC_STEPS=4 TVPAL_RC_SIZE=80x64 TVPAL_RC_ZOOMS="1 2.5" \

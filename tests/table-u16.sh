@@ -20,7 +20,7 @@ awk -v a="$(kv psnr "$a")" -v b="$(kv psnr "$b")" 'BEGIN { d = a - b; exit !(d <
     && ok "psnr $(kv psnr "$a") -> $(kv psnr "$b")" || fail "psnr changed: $(kv psnr "$a") -> $(kv psnr "$b")"
 "$CHK" seqjump "$W/u16" > "$W/sj.txt" 2>&1 && ok "u16: jumps = sequential" || { fail "seqjump u16"; cat "$W/sj.txt" >&2; }
 "$INFO" "$W/u16" --verify > /dev/null && ok "u16 verifies" || fail "verify u16"
-PLAY=$TVPAL_BUILDDIR/player/tvpal-play
+PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 if [ -x "$PLAY" ]; then
     for tf in f32 u16; do
         "$PLAY" "$W/$tf" --headless -q --size 64x64 -o "$W/p-$tf" --steps 4:4 > /dev/null || fail "play $tf"

@@ -5,6 +5,7 @@
  * writer (SSE2 and scalar paths agree, clamping out-of-range values). */
 #include "tvpal_comm.h"
 #include "tvpal_composite.h"
+#include "tvpal_rle.h"
 #include "tvpal_test.h"
 
 #include <string.h>

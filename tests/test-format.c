@@ -4,7 +4,7 @@
 #include "tvpal_format.h"
 #include "tvpal_shard.h"
 #include "tvpal_test.h"
-#include "tvpal_window.h"
+#include "tvpal_schedule.h"
 
 #include <string.h>
 
@@ -31,11 +31,11 @@ static uint64_t build_record(const struct tvpal_shard_header *h, uint32_t step,
     uint64_t off = TVPAL_RECORD_HEADER_BYTES;
     uint32_t n = 0;
     for (uint32_t s = h->slice_begin; s < h->slice_begin + h->slice_count; s++) {
-        if (!tvpal_window_starts(s, step, h->window))
+        if (!tvpal_schedule_starts(s, step, h->window))
             continue;
         struct tvpal_chunk_header ch = {
             .slice = s, .wstart = step,
-            .wlen = tvpal_window_len(s, step, h->window, h->steps),
+            .wlen = tvpal_schedule_len(s, step, h->window, h->steps),
             .w = h->slice_w, .h = h->slice_h, .used = 7, .bits = {5, 3}};
         tvpal_chunk_header_encode(&ch, buf + off);
         uint64_t cb = tvpal_chunk_bytes(ch.wlen, ch.w, ch.h, h->table_format);
@@ -128,7 +128,7 @@ int main(void)
         uint64_t bytes = build_record(&h, 0, rec);
         struct tvpal_record_header rh;
         tvpal_record_header_decode(rec, &rh, NULL);
-        uint64_t first = tvpal_chunk_bytes(tvpal_window_len(h.slice_begin, 0, 4, 9),
+        uint64_t first = tvpal_chunk_bytes(tvpal_schedule_len(h.slice_begin, 0, 4, 9),
                                            h.slice_w, h.slice_h, 0);
         memmove(rec + 64, rec + 64 + first, rh.payload_bytes - first);
         tvpal_record_seal(rec, 0, 0, rh.chunk_count - 1, rh.payload_bytes - first);

@@ -9,7 +9,7 @@
  * of the pixels may exceed it. */
 #include "tvpal_glr.h"
 #include "tvpal_osmesa.h"
-#include "tvpal_render.h"
+#include "tvpal_render_ref.h"
 #include "tvpal_test.h"
 
 #include <string.h>

@@ -14,7 +14,7 @@
  * renderer.  Odd shapes: one-texel-wide and one-row slices, slices wider
  * than 64 tiles of 16.  Errors: a frame that does not match the prepared
  * slices is refused. */
-#include "tvpal_render.h"
+#include "tvpal_render_ref.h"
 #include "tvpal_sw.h"
 #include "tvpal_test.h"
 

@@ -3,7 +3,7 @@
  * with its domain rescaled to the data, evaluation, the default from a
  * histogram, and palette construction (premultiplied, opacity-corrected,
  * fully transparent slices detected). */
-#include "tvpal_render.h"
+#include "tvpal_frame.h"
 #include "tvpal_test.h"
 #include "tvpal_tf.h"
 

@@ -10,8 +10,9 @@
 #include "tvpal_glr.h"
 #include "tvpal_osmesa.h"
 #include "tvpal_player.h"
+#include "tvpal_render_ref.h"
 #include "tvpal_test.h"
-#include "tvpal_window.h"
+#include "tvpal_schedule.h"
 
 #include <string.h>
 
@@ -111,7 +112,7 @@ int main(int argc, char **argv)
             uint32_t n = v.axis == 0 ? m->dims[0] : v.axis == 1 ? m->dims[1] : m->dims[2];
             uint32_t starting = 0;
             for (uint32_t s = 0; s < n; s++)
-                starting += tvpal_window_starts(s, t, N);
+                starting += tvpal_schedule_starts(s, t, N);
             CHECK(st.uploads <= starting, "step %u: %u uploads, %u windows "
                   "start", t, st.uploads, starting);
         }

@@ -1,0 +1,74 @@
+/* tvpal_cli.c: program helpers (see tvpal_cli.h). */
+#include "tvpal_cli.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+int tvpal_parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out)
+{
+    char *end;
+    if (!s || *s < '0' || *s > '9')
+        return -1;
+    errno = 0;
+    unsigned long long v = strtoull(s, &end, 10);
+    if (errno || *end || v < lo || v > hi)
+        return -1;
+    *out = (uint32_t)v;
+    return 0;
+}
+
+int tvpal_parse_double(const char *s, double *out)
+{
+    char *end;
+    if (!s || !*s)
+        return -1;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (errno || *end || !isfinite(v))
+        return -1;
+    *out = v;
+    return 0;
+}
+
+int tvpal_parse_axis(const char *s)
+{
+    if (s && s[0] && !s[1] && s[0] >= 'x' && s[0] <= 'z')
+        return s[0] - 'x';
+    return -1;
+}
+
+void tvpal_progress_format(char *buf, size_t cap, uint64_t done,
+                           uint64_t total, const char *unit, double rate,
+                           const char *rate_unit, double eta_s, int width)
+{
+    char bar[128] = "";
+    double frac = total ? (double)done / (double)total : 1.0;
+    if (width > 0) {
+        if (width > 100)
+            width = 100;
+        int fill = (int)(frac * width + 0.5);
+        bar[0] = '[';
+        for (int i = 0; i < width; i++)
+            bar[1 + i] = i < fill ? '#' : '.';
+        bar[1 + width] = ']';
+        bar[2 + width] = ' ';
+        bar[3 + width] = 0;
+    }
+    char eta[32];
+    if (!(eta_s >= 0) || eta_s > 1e7)
+        snprintf(eta, sizeof eta, "--");
+    else if (eta_s >= 3600)
+        snprintf(eta, sizeof eta, "%dh%02dm", (int)(eta_s / 3600),
+                 (int)fmod(eta_s / 60, 60));
+    else if (eta_s >= 60)
+        snprintf(eta, sizeof eta, "%dm%02ds", (int)(eta_s / 60),
+                 (int)fmod(eta_s, 60));
+    else
+        snprintf(eta, sizeof eta, "%.0fs", eta_s);
+    snprintf(buf, cap, "%s%3.0f%%  %llu/%llu %s  %.1f %s  ETA %s", bar,
+             100.0 * frac, (unsigned long long)done,
+             (unsigned long long)total, unit, rate, rate_unit, eta);
+}

@@ -1,0 +1,26 @@
+/* tvpal_cli.h: helpers shared by the programs: number parsing and
+ * progress-line formatting (the clock is tvpal_clock.h).  Nothing here prints. */
+#ifndef TVPAL_CLI_H
+#define TVPAL_CLI_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+/* Exit codes of every tvpal program. */
+enum { TVPAL_EXIT_OK = 0, TVPAL_EXIT_FAIL = 1, TVPAL_EXIT_USAGE = 2 };
+
+/* Whole decimal number in [lo, hi]; 0 or -1. */
+int tvpal_parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out);
+/* Finite double; 0 or -1. */
+int tvpal_parse_double(const char *s, double *out);
+/* "x" | "y" | "z" -> 0..2; -1 otherwise. */
+int tvpal_parse_axis(const char *s);
+
+
+/* Formats "[#####.....]  45%  45/99 steps  12.3 Mvox-steps/s  ETA 1m23s"
+ * (bar when width > 0) into buf. */
+void tvpal_progress_format(char *buf, size_t cap, uint64_t done,
+                           uint64_t total, const char *unit, double rate,
+                           const char *rate_unit, double eta_s, int width);
+
+#endif

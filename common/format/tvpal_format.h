@@ -1,0 +1,171 @@
+/* tvpal_format.h: the on-disk shard format (spec: common/format/FORMAT.md).
+ *
+ * A dataset directory holds, for each node R of K, node-R/axis-{x,y,z}.tvps:
+ * the slab of consecutive slices of that axis owned by node R.  A shard file
+ * is a 4096-byte header, then one record per timestep t = 0..T-1 (the
+ * slice-windows of the slab that start at t, each with its decoder table and
+ * its indices), each record starting on a 4096-byte boundary, then the record
+ * index.  All integers and floats are little-endian.  Every record, the index
+ * and the header carry a CRC-32C.
+ *
+ * This header has the layout constants and pure (no I/O) encode/decode
+ * functions; tvpal_shard.h does the I/O.
+ */
+#ifndef TVPAL_FORMAT_H
+#define TVPAL_FORMAT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "tvpal_error.h"
+
+#define TVPAL_FORMAT_VERSION 1u
+#define TVPAL_ALIGN 4096u               /* record alignment (O_DIRECT) */
+#define TVPAL_SHARD_HEADER_BYTES 4096u
+#define TVPAL_RECORD_HEADER_BYTES 64u
+#define TVPAL_CHUNK_HEADER_BYTES 64u
+#define TVPAL_INDEX_ENTRY_BYTES 32u
+#define TVPAL_CHUNK_ALIGN 64u
+
+#define TVPAL_SHARD_MAGIC "TVPALSHD"    /* 8 bytes at offset 0 */
+#define TVPAL_RECORD_MAGIC 0x43525654u  /* "TVRC" */
+#define TVPAL_CHUNK_MAGIC 0x4B435654u   /* "TVCK" */
+#define TVPAL_TABLE_F32 0u              /* decoder table as float32 */
+#define TVPAL_TABLE_U16 1u              /* 16-bit, scaled per chunk */
+
+static inline uint64_t tvpal_round_up(uint64_t x, uint64_t a)
+{
+    return (x + a - 1) / a * a;
+}
+
+struct tvpal_shard_header {
+    uint32_t version;
+    uint32_t dims[3];         /* nx, ny, nz of the whole volume */
+    uint32_t steps;           /* T */
+    uint32_t window;          /* N */
+    uint32_t nodes;           /* K */
+    uint32_t rank;            /* R, 0..K-1 */
+    uint32_t axis;            /* 0 = x, 1 = y, 2 = z */
+    uint32_t slice_begin;     /* first slice of the slab (global index) */
+    uint32_t slice_count;     /* slices in the slab (>= 1) */
+    uint32_t slice_w, slice_h;/* slice size: in-slice index = a + w * b */
+    uint32_t table_format;    /* TVPAL_TABLE_F32 or TVPAL_TABLE_U16 */
+    uint64_t index_offset;    /* aligned; index of `steps` entries */
+    uint64_t file_bytes;      /* total file size */
+    uint32_t index_crc;
+    double value_min, value_max; /* of the whole source */
+};
+
+struct tvpal_record_header {
+    uint32_t step;            /* t */
+    uint32_t chunk_count;
+    uint32_t axis;
+    uint64_t payload_bytes;   /* chunks, after the 64-byte header */
+    uint32_t payload_crc;
+};
+
+struct tvpal_chunk_header {
+    uint32_t slice;           /* global slice index */
+    uint32_t wstart, wlen;    /* window [wstart, wstart + wlen) */
+    uint32_t w, h;            /* slice size */
+    uint32_t used;            /* distinct indices held by voxels */
+    uint8_t bits[16];         /* bits per coefficient */
+    float tmin, tscale;       /* TVPAL_TABLE_U16: value = tmin + q tscale */
+};
+
+struct tvpal_index_entry {
+    uint64_t offset;          /* aligned record offset */
+    uint64_t bytes;           /* record bytes including padding (aligned) */
+    uint32_t step;
+    uint32_t chunk_count;
+    uint32_t crc;             /* payload CRC, as in the record header */
+};
+
+/* Geometry of axis a's slices for volume dims: count, w, h.  In-slice voxel
+ * (a_, b_) of slice s is volume voxel:
+ *   axis x: (s, a_, b_)   axis y: (a_, s, b_)   axis z: (a_, b_, s). */
+void tvpal_axis_geometry(const uint32_t dims[3], unsigned axis,
+                         uint32_t *count, uint32_t *w, uint32_t *h);
+
+/* Slab of node r of k along an axis of n slices: [*begin, *begin + *count),
+ * as equal as possible, the first n % k slabs one slice larger. */
+void tvpal_slab_range(uint32_t n, uint32_t k, uint32_t r, uint32_t *begin,
+                      uint32_t *count);
+
+/* Bytes of one table entry in a table format (4 or 2). */
+static inline uint32_t tvpal_table_entry_bytes(uint32_t table_format)
+{
+    return table_format == TVPAL_TABLE_U16 ? 2u : 4u;
+}
+
+/* Bytes of one chunk with window length len, w*h indices and tables in
+ * table_format. */
+static inline uint64_t tvpal_chunk_bytes(uint32_t len, uint32_t w, uint32_t h,
+                                         uint32_t table_format)
+{
+    return TVPAL_CHUNK_HEADER_BYTES +
+           (uint64_t)len * 256u * tvpal_table_entry_bytes(table_format) +
+           tvpal_round_up((uint64_t)w * h, TVPAL_CHUNK_ALIGN);
+}
+
+/* Serialization.  *_encode write exactly the fixed size into buf (CRCs
+ * included); *_decode validate magic, version, CRC and field ranges, and
+ * describe the first bad field in diag. */
+void tvpal_shard_header_encode(const struct tvpal_shard_header *h,
+                               unsigned char *buf);
+int tvpal_shard_header_decode(const unsigned char *buf,
+                              struct tvpal_shard_header *h,
+                              struct tvpal_diag *diag);
+
+void tvpal_record_header_encode(const struct tvpal_record_header *h,
+                                unsigned char *buf);
+int tvpal_record_header_decode(const unsigned char *buf,
+                               struct tvpal_record_header *h,
+                               struct tvpal_diag *diag);
+
+void tvpal_chunk_header_encode(const struct tvpal_chunk_header *h,
+                               unsigned char *buf);
+int tvpal_chunk_header_decode(const unsigned char *buf,
+                              struct tvpal_chunk_header *h,
+                              struct tvpal_diag *diag);
+
+void tvpal_index_entry_encode(const struct tvpal_index_entry *e,
+                              unsigned char *buf);
+void tvpal_index_entry_decode(const unsigned char *buf,
+                              struct tvpal_index_entry *e);
+
+/* A parsed chunk inside a record buffer (pointers borrow the buffer). */
+struct tvpal_chunk {
+    struct tvpal_chunk_header h;
+    uint32_t table_format;
+    const unsigned char *table;   /* wlen * 256 entries LE, row per step */
+    const uint8_t *indices;       /* w * h */
+};
+
+/* The chunk's decoder table as floats: out[j * 256 + i]. */
+void tvpal_chunk_table(const struct tvpal_chunk *c, float *out);
+
+/* Stores a table (len * 256 floats) in table_format at dst, filling the
+ * header's tmin/tscale for TVPAL_TABLE_U16 (q = round((v - tmin) /
+ * tscale), tscale = (max - min) / 65535, 0 for a constant table). */
+void tvpal_table_store(const float *table, uint32_t len,
+                       uint32_t table_format, unsigned char *dst,
+                       struct tvpal_chunk_header *h);
+
+/* Verifies a whole record held in buf[0..bytes): header, payload CRC, the
+ * expected step, and that every chunk lies inside the payload with sizes
+ * consistent with sh.  Call before tvpal_record_chunk. */
+int tvpal_record_verify(const unsigned char *buf, uint64_t bytes,
+                        uint32_t step, const struct tvpal_shard_header *sh,
+                        struct tvpal_diag *diag);
+
+/* Iterates the chunks of a verified record of a shard with table_format:
+ * *pos starts at 0; returns 1 and fills c for each chunk, 0 at the end. */
+int tvpal_record_next_chunk(const unsigned char *buf, uint64_t *pos,
+                            uint32_t table_format, struct tvpal_chunk *c);
+
+/* Little-endian float32 row -> host floats. */
+void tvpal_load_f32le(const unsigned char *src, float *dst, size_t n);
+void tvpal_store_f32le(const float *src, unsigned char *dst, size_t n);
+
+#endif

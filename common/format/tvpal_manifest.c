@@ -1,0 +1,232 @@
+/* tvpal_manifest.c: manifest text format (see tvpal_manifest.h). */
+#include "tvpal_manifest.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+void tvpal_manifest_clear(struct tvpal_manifest *m)
+{
+    free(m->encoder);
+    free(m->options);
+    for (size_t i = 0; i < m->nsources; i++)
+        free(m->sources[i]);
+    free(m->sources);
+    memset(m, 0, sizeof *m);
+}
+
+int tvpal_manifest_add_source(struct tvpal_manifest *m, const char *src)
+{
+    char **s = realloc(m->sources, (m->nsources + 1) * sizeof *s);
+    if (!s)
+        return TVPAL_E_NOMEM;
+    m->sources = s;
+    if (!(s[m->nsources] = strdup(src)))
+        return TVPAL_E_NOMEM;
+    m->nsources++;
+    return 0;
+}
+
+int tvpal_manifest_format(const struct tvpal_manifest *m, char **out)
+{
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    if (!f)
+        return TVPAL_E_NOMEM;
+    fprintf(f, "# tvpal dataset manifest (spec: common/format/FORMAT.md)\n");
+    fprintf(f, "format = tvpal-dataset\nformat_version = 1\n");
+    fprintf(f, "encoder = %s\n", m->encoder ? m->encoder : "unknown");
+    fprintf(f, "options = %s\n", m->options ? m->options : "");
+    fprintf(f, "dims = %ux%ux%u\n", m->dims[0], m->dims[1], m->dims[2]);
+    fprintf(f, "type = %s\n", tvpal_type_name(m->type));
+    fprintf(f, "endian = %s\n", m->big_endian ? "big" : "little");
+    fprintf(f, "steps = %u\nwindow = %u\nnodes = %u\n", m->steps, m->window,
+            m->nodes);
+    fprintf(f, "axes = x y z\n");
+    fprintf(f, "table = %s\n", m->table_format == 1 ? "u16" : "f32");
+    fprintf(f, "value_min = %.9g\nvalue_max = %.9g\n", m->value_min,
+            m->value_max);
+    if (m->has_nan_as)
+        fprintf(f, "nan_as = %.17g\n", m->nan_as);
+    else
+        fprintf(f, "nan_as = none\n");
+    fprintf(f, "nonfinite_replaced = %llu\n",
+            (unsigned long long)m->nonfinite);
+    fprintf(f, "histogram_bins = %d\nhistogram =", TVPAL_HIST_BINS);
+    for (int i = 0; i < TVPAL_HIST_BINS; i++)
+        fprintf(f, " %llu", (unsigned long long)m->histogram[i]);
+    fprintf(f, "\nsource_bytes = %llu\n", (unsigned long long)m->source_bytes);
+    fprintf(f, "source_layout = %s\n",
+            m->single_file ? "single-file" : "file-per-step");
+    for (size_t i = 0; i < m->nsources; i++)
+        fprintf(f, "source = %s\n", m->sources[i]);
+    if (fclose(f) != 0) {
+        free(buf);
+        return TVPAL_E_NOMEM;
+    }
+    *out = buf;
+    return 0;
+}
+
+static char *trim(char *s)
+{
+    while (*s == ' ' || *s == '\t')
+        s++;
+    char *e = s + strlen(s);
+    while (e > s && (e[-1] == ' ' || e[-1] == '\t' || e[-1] == '\n' ||
+                     e[-1] == '\r'))
+        *--e = 0;
+    return s;
+}
+
+static int parse_u32(const char *v, uint32_t *out)
+{
+    char *end;
+    errno = 0;
+    unsigned long long x = strtoull(v, &end, 10);
+    if (errno || *end || end == v || x > 0xFFFFFFFFull)
+        return -1;
+    *out = (uint32_t)x;
+    return 0;
+}
+
+static int parse_dbl(const char *v, double *out)
+{
+    char *end;
+    errno = 0;
+    *out = strtod(v, &end);
+    return (errno || *end || end == v) ? -1 : 0;
+}
+
+enum { K_DIMS = 1, K_TYPE = 2, K_STEPS = 4, K_WINDOW = 8, K_NODES = 16,
+       K_MIN = 32, K_MAX = 64, K_FORMAT = 128 };
+
+int tvpal_manifest_load(const char *path, struct tvpal_manifest *m,
+                        struct tvpal_diag *diag)
+{
+    memset(m, 0, sizeof *m);
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s", strerror(errno));
+    char *line = NULL;
+    size_t cap = 0;
+    unsigned lineno = 0, seen = 0;
+    int rc = 0;
+    while (getline(&line, &cap, f) > 0) {
+        lineno++;
+        char *s = trim(line);
+        if (!*s || *s == '#')
+            continue;
+        char *eq = strchr(s, '=');
+        if (!eq) {
+            rc = tvpal_diag_set(diag, TVPAL_E_MANIFEST,
+                                "line %u: expected \"key = value\"", lineno);
+            goto out;
+        }
+        *eq = 0;
+        char *k = trim(s), *v = trim(eq + 1);
+        int bad = 0;
+        if (!strcmp(k, "format")) {
+            bad = strcmp(v, "tvpal-dataset") != 0;
+            seen |= K_FORMAT;
+        } else if (!strcmp(k, "format_version")) {
+            uint32_t ver;
+            if (parse_u32(v, &ver) || ver != 1) {
+                rc = tvpal_diag_set(diag, TVPAL_E_VERSION,
+                                    "line %u: format_version %s, expected 1",
+                                    lineno, v);
+                goto out;
+            }
+        } else if (!strcmp(k, "dims")) {
+            bad = tvpal_dims_parse(v, m->dims, NULL) < 0;
+            seen |= K_DIMS;
+        } else if (!strcmp(k, "type")) {
+            bad = tvpal_type_parse(v, &m->type) < 0;
+            seen |= K_TYPE;
+        } else if (!strcmp(k, "endian")) {
+            bad = strcmp(v, "big") && strcmp(v, "little");
+            m->big_endian = !strcmp(v, "big");
+        } else if (!strcmp(k, "steps")) {
+            bad = parse_u32(v, &m->steps) || !m->steps;
+            seen |= K_STEPS;
+        } else if (!strcmp(k, "window")) {
+            bad = parse_u32(v, &m->window) || m->window < 1 || m->window > 16;
+            seen |= K_WINDOW;
+        } else if (!strcmp(k, "nodes")) {
+            bad = parse_u32(v, &m->nodes) || !m->nodes;
+            seen |= K_NODES;
+        } else if (!strcmp(k, "value_min")) {
+            bad = parse_dbl(v, &m->value_min);
+            seen |= K_MIN;
+        } else if (!strcmp(k, "value_max")) {
+            bad = parse_dbl(v, &m->value_max);
+            seen |= K_MAX;
+        } else if (!strcmp(k, "nan_as")) {
+            m->has_nan_as = strcmp(v, "none") != 0;
+            bad = m->has_nan_as && parse_dbl(v, &m->nan_as);
+        } else if (!strcmp(k, "histogram")) {
+            char *p = v;
+            for (int i = 0; i < TVPAL_HIST_BINS && !bad; i++) {
+                char *end;
+                m->histogram[i] = strtoull(p, &end, 10);
+                bad = end == p;
+                p = end;
+            }
+        } else if (!strcmp(k, "table")) {
+            bad = strcmp(v, "f32") && strcmp(v, "u16");
+            m->table_format = !strcmp(v, "u16");
+        } else if (!strcmp(k, "source_bytes")) {
+            m->source_bytes = strtoull(v, NULL, 10);
+        } else if (!strcmp(k, "source_layout")) {
+            m->single_file = !strcmp(v, "single-file");
+        } else if (!strcmp(k, "encoder")) {
+            free(m->encoder);
+            bad = !(m->encoder = strdup(v));
+        } else if (!strcmp(k, "options")) {
+            free(m->options);
+            bad = !(m->options = strdup(v));
+        } else if (!strcmp(k, "source")) {
+            bad = tvpal_manifest_add_source(m, v) < 0;
+        }
+        if (bad) {
+            rc = tvpal_diag_set(diag, TVPAL_E_MANIFEST,
+                                "line %u: bad value for %s: \"%s\"", lineno,
+                                k, v);
+            goto out;
+        }
+    }
+    static const struct { unsigned bit; const char *name; } req[] = {
+        {K_FORMAT, "format"}, {K_DIMS, "dims"}, {K_TYPE, "type"},
+        {K_STEPS, "steps"}, {K_WINDOW, "window"}, {K_NODES, "nodes"},
+        {K_MIN, "value_min"}, {K_MAX, "value_max"}};
+    for (size_t i = 0; i < sizeof req / sizeof *req; i++)
+        if (!(seen & req[i].bit)) {
+            rc = tvpal_diag_set(diag, TVPAL_E_MANIFEST,
+                                "required key \"%s\" is missing", req[i].name);
+            goto out;
+        }
+    {
+        uint32_t mind = m->dims[0] < m->dims[1] ? m->dims[0] : m->dims[1];
+        mind = m->dims[2] < mind ? m->dims[2] : mind;
+        if (m->nodes > mind) {
+            rc = tvpal_diag_set(diag, TVPAL_E_MANIFEST,
+                                "nodes = %u exceeds the smallest dimension %u",
+                                m->nodes, mind);
+            goto out;
+        }
+        if (!m->single_file && m->nsources && m->nsources != m->steps) {
+            rc = tvpal_diag_set(diag, TVPAL_E_MANIFEST,
+                                "%zu source lines for %u steps", m->nsources,
+                                m->steps);
+            goto out;
+        }
+    }
+out:
+    free(line);
+    fclose(f);
+    if (rc < 0)
+        tvpal_manifest_clear(m);
+    return rc;
+}

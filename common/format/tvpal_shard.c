@@ -1,0 +1,587 @@
+/* tvpal_shard.c: shard file writer, reader and slab decoding state. */
+#include "tvpal_shard.h"
+#include "tvpal_crc32c.h"
+#include "tvpal_schedule.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+/* pwrite/pread the whole range, retrying short transfers and EINTR. */
+static int pwrite_all(int fd, const void *buf, uint64_t n, uint64_t off)
+{
+    const unsigned char *p = buf;
+    while (n) {
+        ssize_t k = pwrite(fd, p, n > (1u << 30) ? (1u << 30) : n, (off_t)off);
+        if (k < 0) {
+            if (errno == EINTR)
+                continue;
+            return TVPAL_E_WRITE;
+        }
+        p += k;
+        n -= (uint64_t)k;
+        off += (uint64_t)k;
+    }
+    return 0;
+}
+
+static int pread_all(int fd, void *buf, uint64_t n, uint64_t off)
+{
+    unsigned char *p = buf;
+    while (n) {
+        ssize_t k = pread(fd, p, n > (1u << 30) ? (1u << 30) : n, (off_t)off);
+        if (k < 0) {
+            if (errno == EINTR)
+                continue;
+            return TVPAL_E_READ;
+        }
+        if (k == 0)
+            return TVPAL_E_TRUNC;
+        p += k;
+        n -= (uint64_t)k;
+        off += (uint64_t)k;
+    }
+    return 0;
+}
+
+/* ------------------------------------------------------------------ writer */
+
+struct tvpal_shardw {
+    int fd;
+    struct tvpal_shard_header h;
+    struct tvpal_index_entry *index;  /* h.steps entries */
+    uint32_t done;                    /* records appended */
+    uint64_t end;                     /* file offset after them */
+};
+
+static int shardw_alloc(struct tvpal_shardw **out,
+                        const struct tvpal_shard_header *h)
+{
+    struct tvpal_shardw *w = calloc(1, sizeof *w);
+    if (!w)
+        return TVPAL_E_NOMEM;
+    w->fd = -1;
+    w->h = *h;
+    w->index = calloc(h->steps, sizeof *w->index);
+    if (!w->index) {
+        free(w);
+        return TVPAL_E_NOMEM;
+    }
+    w->end = TVPAL_SHARD_HEADER_BYTES;
+    *out = w;
+    return 0;
+}
+
+int tvpal_shardw_create(struct tvpal_shardw **out, const char *path,
+                        const struct tvpal_shard_header *h)
+{
+    struct tvpal_shardw *w;
+    int rc = shardw_alloc(&w, h);
+    if (rc < 0)
+        return rc;
+    w->fd = open(path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (w->fd < 0) {
+        tvpal_shardw_free(w);
+        return TVPAL_E_OPEN;
+    }
+    static const unsigned char zero[TVPAL_SHARD_HEADER_BYTES];
+    rc = pwrite_all(w->fd, zero, sizeof zero, 0);
+    if (rc < 0) {
+        tvpal_shardw_free(w);
+        return rc;
+    }
+    *out = w;
+    return 0;
+}
+
+int tvpal_shardw_resume(struct tvpal_shardw **out, const char *path,
+                        const struct tvpal_shard_header *h,
+                        uint32_t steps_done, struct tvpal_diag *diag)
+{
+    struct tvpal_shardw *w;
+    unsigned char *buf = NULL;
+    uint64_t cap = 0;
+    if (steps_done > h->steps)
+        return TVPAL_E_INVAL;
+    int rc = shardw_alloc(&w, h);
+    if (rc < 0)
+        return rc;
+    w->fd = open(path, O_RDWR | O_CLOEXEC);
+    if (w->fd < 0) {
+        rc = tvpal_diag_set(diag, TVPAL_E_OPEN, "cannot reopen partial shard");
+        goto err;
+    }
+    for (uint32_t t = 0; t < steps_done; t++) {
+        unsigned char hb[TVPAL_RECORD_HEADER_BYTES];
+        struct tvpal_record_header rh;
+        rc = pread_all(w->fd, hb, sizeof hb, w->end);
+        if (rc < 0) {
+            tvpal_diag_set(diag, rc, "record %u: cannot read header", t);
+            goto err;
+        }
+        rc = tvpal_record_header_decode(hb, &rh, diag);
+        if (rc < 0)
+            goto err;
+        uint64_t bytes = tvpal_round_up(TVPAL_RECORD_HEADER_BYTES +
+                                            rh.payload_bytes, TVPAL_ALIGN);
+        if (bytes > cap) {
+            free(buf);
+            cap = bytes;
+            buf = malloc(cap);
+            if (!buf) {
+                rc = TVPAL_E_NOMEM;
+                goto err;
+            }
+        }
+        rc = pread_all(w->fd, buf, bytes, w->end);
+        if (rc < 0) {
+            tvpal_diag_set(diag, rc, "record %u: cannot read", t);
+            goto err;
+        }
+        rc = tvpal_record_verify(buf, bytes, t, h, diag);
+        if (rc < 0)
+            goto err;
+        w->index[t] = (struct tvpal_index_entry){
+            .offset = w->end, .bytes = bytes, .step = t,
+            .chunk_count = rh.chunk_count, .crc = rh.payload_crc};
+        w->end += bytes;
+    }
+    w->done = steps_done;
+    if (ftruncate(w->fd, (off_t)w->end) < 0) {
+        rc = TVPAL_E_WRITE;
+        goto err;
+    }
+    free(buf);
+    *out = w;
+    return 0;
+err:
+    free(buf);
+    tvpal_shardw_free(w);
+    return rc;
+}
+
+void tvpal_shardw_set_range(struct tvpal_shardw *w, double lo, double hi)
+{
+    w->h.value_min = lo;
+    w->h.value_max = hi;
+}
+
+uint64_t tvpal_shardw_size(const struct tvpal_shardw *w)
+{
+    return w->end;
+}
+
+int tvpal_shardw_append(struct tvpal_shardw *w, const unsigned char *buf,
+                        uint64_t bytes)
+{
+    if (w->done >= w->h.steps || bytes % TVPAL_ALIGN)
+        return TVPAL_E_INVAL;
+    int rc = pwrite_all(w->fd, buf, bytes, w->end);
+    if (rc < 0)
+        return rc;
+    struct tvpal_record_header rh;
+    tvpal_record_header_decode(buf, &rh, NULL);
+    w->index[w->done] = (struct tvpal_index_entry){
+        .offset = w->end, .bytes = bytes, .step = w->done,
+        .chunk_count = rh.chunk_count, .crc = rh.payload_crc};
+    w->done++;
+    w->end += bytes;
+    return 0;
+}
+
+int tvpal_shardw_finish(struct tvpal_shardw *w)
+{
+    int rc = 0;
+    unsigned char *ib = NULL;
+    if (w->done != w->h.steps) {
+        rc = TVPAL_E_INVAL;
+        goto out;
+    }
+    uint64_t ibytes = tvpal_round_up((uint64_t)w->h.steps *
+                                         TVPAL_INDEX_ENTRY_BYTES, TVPAL_ALIGN);
+    ib = calloc(1, ibytes);
+    if (!ib) {
+        rc = TVPAL_E_NOMEM;
+        goto out;
+    }
+    for (uint32_t t = 0; t < w->h.steps; t++)
+        tvpal_index_entry_encode(&w->index[t],
+                                 ib + (size_t)t * TVPAL_INDEX_ENTRY_BYTES);
+    w->h.index_offset = w->end;
+    w->h.file_bytes = w->end + ibytes;
+    w->h.index_crc = tvpal_crc32c(0, ib, ibytes);
+    w->h.version = TVPAL_FORMAT_VERSION;
+    rc = pwrite_all(w->fd, ib, ibytes, w->end);
+    if (rc < 0)
+        goto out;
+    unsigned char hb[TVPAL_SHARD_HEADER_BYTES];
+    tvpal_shard_header_encode(&w->h, hb);
+    /* Header last: the file becomes valid only once everything is there. */
+    if (fdatasync(w->fd) < 0) {
+        rc = TVPAL_E_WRITE;
+        goto out;
+    }
+    rc = pwrite_all(w->fd, hb, sizeof hb, 0);
+    if (rc == 0 && fsync(w->fd) < 0)
+        rc = TVPAL_E_WRITE;
+out:
+    free(ib);
+    if (w->fd >= 0 && close(w->fd) < 0 && rc == 0)
+        rc = TVPAL_E_WRITE;
+    w->fd = -1;
+    tvpal_shardw_free(w);
+    return rc;
+}
+
+void tvpal_shardw_free(struct tvpal_shardw *w)
+{
+    if (!w)
+        return;
+    if (w->fd >= 0)
+        close(w->fd);
+    free(w->index);
+    free(w);
+}
+
+uint64_t tvpal_record_seal(unsigned char *buf, uint32_t step, uint32_t axis,
+                           uint32_t chunk_count, uint64_t payload_bytes)
+{
+    struct tvpal_record_header rh = {
+        .step = step, .chunk_count = chunk_count, .axis = axis,
+        .payload_bytes = payload_bytes,
+        .payload_crc = tvpal_crc32c(0, buf + TVPAL_RECORD_HEADER_BYTES,
+                                    payload_bytes)};
+    tvpal_record_header_encode(&rh, buf);
+    uint64_t used = TVPAL_RECORD_HEADER_BYTES + payload_bytes;
+    uint64_t total = tvpal_round_up(used, TVPAL_ALIGN);
+    memset(buf + used, 0, total - used);
+    return total;
+}
+
+/* ------------------------------------------------------------------ reader */
+
+struct tvpal_shard {
+    int fd;
+    char *path;
+    struct tvpal_shard_header h;
+    struct tvpal_index_entry *index;
+    uint64_t max_record;
+};
+
+int tvpal_shard_open(struct tvpal_shard **out, const char *path,
+                     struct tvpal_diag *diag)
+{
+    int rc;
+    unsigned char *ib = NULL;
+    unsigned char hb[TVPAL_SHARD_HEADER_BYTES];
+    struct tvpal_shard *s = calloc(1, sizeof *s);
+    if (!s)
+        return TVPAL_E_NOMEM;
+    s->fd = open(path, O_RDONLY | O_CLOEXEC);
+    int open_errno = errno;
+    s->path = strdup(path);
+    if (!s->path) {
+        rc = TVPAL_E_NOMEM;
+        goto err;
+    }
+    if (s->fd < 0) {
+        rc = tvpal_diag_set(diag, TVPAL_E_OPEN, "%s", strerror(open_errno));
+        goto err;
+    }
+    struct stat st;
+    if (fstat(s->fd, &st) < 0) {
+        rc = TVPAL_E_READ;
+        goto err;
+    }
+    if ((uint64_t)st.st_size < TVPAL_SHARD_HEADER_BYTES) {
+        rc = tvpal_diag_set(diag, TVPAL_E_TRUNC,
+                            "%lld bytes, shorter than the %u-byte header",
+                            (long long)st.st_size, TVPAL_SHARD_HEADER_BYTES);
+        goto err;
+    }
+    rc = pread_all(s->fd, hb, sizeof hb, 0);
+    if (rc < 0)
+        goto err;
+    rc = tvpal_shard_header_decode(hb, &s->h, diag);
+    if (rc < 0)
+        goto err;
+    if ((uint64_t)st.st_size != s->h.file_bytes) {
+        rc = tvpal_diag_set(diag, (uint64_t)st.st_size < s->h.file_bytes ?
+                            TVPAL_E_TRUNC : TVPAL_E_FORMAT,
+                            "file is %lld bytes, header says %llu",
+                            (long long)st.st_size,
+                            (unsigned long long)s->h.file_bytes);
+        goto err;
+    }
+    uint64_t ibytes = s->h.file_bytes - s->h.index_offset;
+    ib = malloc(ibytes);
+    s->index = calloc(s->h.steps, sizeof *s->index);
+    if (!ib || !s->index) {
+        rc = TVPAL_E_NOMEM;
+        goto err;
+    }
+    rc = pread_all(s->fd, ib, ibytes, s->h.index_offset);
+    if (rc < 0)
+        goto err;
+    if (tvpal_crc32c(0, ib, ibytes) != s->h.index_crc) {
+        rc = tvpal_diag_set(diag, TVPAL_E_CHECKSUM,
+                            "record index: CRC-32C mismatch");
+        goto err;
+    }
+    uint64_t expect = TVPAL_SHARD_HEADER_BYTES;
+    for (uint32_t t = 0; t < s->h.steps; t++) {
+        struct tvpal_index_entry *e = &s->index[t];
+        tvpal_index_entry_decode(ib + (size_t)t * TVPAL_INDEX_ENTRY_BYTES, e);
+        if (e->step != t || e->offset != expect || !e->bytes ||
+            e->bytes % TVPAL_ALIGN || e->bytes > s->h.index_offset - expect) {
+            rc = tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                                "record index: entry %u (offset %llu, %llu "
+                                "bytes) out of place", t,
+                                (unsigned long long)e->offset,
+                                (unsigned long long)e->bytes);
+            goto err;
+        }
+        expect += e->bytes;
+        if (e->bytes > s->max_record)
+            s->max_record = e->bytes;
+    }
+    if (expect != s->h.index_offset) {
+        rc = tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                            "record index: records end at %llu, index at %llu",
+                            (unsigned long long)expect,
+                            (unsigned long long)s->h.index_offset);
+        goto err;
+    }
+    free(ib);
+    *out = s;
+    return 0;
+err:
+    free(ib);
+    tvpal_shard_close(s);
+    return rc;
+}
+
+void tvpal_shard_close(struct tvpal_shard *s)
+{
+    if (!s)
+        return;
+    if (s->fd >= 0)
+        close(s->fd);
+    free(s->path);
+    free(s->index);
+    free(s);
+}
+
+const struct tvpal_shard_header *tvpal_shard_hdr(const struct tvpal_shard *s)
+{
+    return &s->h;
+}
+
+const struct tvpal_index_entry *tvpal_shard_entry(const struct tvpal_shard *s,
+                                                  uint32_t step)
+{
+    return step < s->h.steps ? &s->index[step] : NULL;
+}
+
+const char *tvpal_shard_path(const struct tvpal_shard *s)
+{
+    return s->path;
+}
+
+int tvpal_shard_fd(const struct tvpal_shard *s)
+{
+    return s->fd;
+}
+
+uint64_t tvpal_shard_max_record(const struct tvpal_shard *s)
+{
+    return s->max_record;
+}
+
+int tvpal_shard_read_record(struct tvpal_shard *s, uint32_t step,
+                            unsigned char *buf, uint64_t cap,
+                            struct tvpal_diag *diag)
+{
+    if (step >= s->h.steps)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "record %u: no such step "
+                              "(%u steps)", step, s->h.steps);
+    const struct tvpal_index_entry *e = &s->index[step];
+    if (e->bytes > cap)
+        return TVPAL_E_INVAL;
+    int rc = pread_all(s->fd, buf, e->bytes, e->offset);
+    if (rc < 0)
+        return tvpal_diag_set(diag, rc, "record %u: %s", step,
+                              tvpal_strerror(rc));
+    return tvpal_record_verify(buf, e->bytes, step, &s->h, diag);
+}
+
+/* -------------------------------------------------------------------- slab */
+
+struct slab_slice {
+    uint32_t wstart, wlen;  /* loaded window; wlen 0 = nothing loaded */
+    uint32_t gen;           /* windows installed so far */
+    float *table;           /* window * 256 */
+    uint8_t *idx;           /* w * h */
+};
+
+struct tvpal_slab {
+    struct tvpal_shard *sh;
+    struct slab_slice *sl;
+    unsigned char *rec;     /* record buffer, max_record bytes */
+    uint64_t bytes_read;
+};
+
+int tvpal_slab_create(struct tvpal_slab **out, struct tvpal_shard *sh)
+{
+    const struct tvpal_shard_header *h = &sh->h;
+    struct tvpal_slab *s = calloc(1, sizeof *s);
+    if (!s)
+        return TVPAL_E_NOMEM;
+    s->sh = sh;
+    s->sl = calloc(h->slice_count, sizeof *s->sl);
+    s->rec = malloc(sh->max_record);
+    if (!s->sl || !s->rec)
+        goto nomem;
+    size_t nvox = (size_t)h->slice_w * h->slice_h;
+    for (uint32_t k = 0; k < h->slice_count; k++) {
+        s->sl[k].table = malloc((size_t)h->window * 256 * sizeof(float));
+        s->sl[k].idx = malloc(nvox ? nvox : 1);
+        if (!s->sl[k].table || !s->sl[k].idx)
+            goto nomem;
+    }
+    *out = s;
+    return 0;
+nomem:
+    tvpal_slab_free(s);
+    return TVPAL_E_NOMEM;
+}
+
+void tvpal_slab_free(struct tvpal_slab *s)
+{
+    if (!s)
+        return;
+    if (s->sl)
+        for (uint32_t k = 0; k < s->sh->h.slice_count; k++) {
+            free(s->sl[k].table);
+            free(s->sl[k].idx);
+        }
+    free(s->sl);
+    free(s->rec);
+    free(s);
+}
+
+unsigned tvpal_slab_needed(const struct tvpal_slab *s, uint32_t t,
+                           uint32_t steps[16])
+{
+    const struct tvpal_shard_header *h = &s->sh->h;
+    unsigned n = 0;
+    uint32_t need_mask = 0; /* bit d: record t - d is needed (d < N) */
+    for (uint32_t k = 0; k < h->slice_count; k++) {
+        uint32_t ws = tvpal_schedule_start(h->slice_begin + k, t, h->window);
+        const struct slab_slice *sl = &s->sl[k];
+        if (sl->wlen && sl->wstart == ws)
+            continue;
+        need_mask |= 1u << (t - ws);
+    }
+    for (int d = 15; d >= 0; d--)
+        if (need_mask & (1u << d))
+            steps[n++] = t - (uint32_t)d;
+    return n;
+}
+
+void tvpal_slab_apply(struct tvpal_slab *s, const unsigned char *rec,
+                      uint32_t t)
+{
+    const struct tvpal_shard_header *h = &s->sh->h;
+    size_t nvox = (size_t)h->slice_w * h->slice_h;
+    uint64_t pos = 0;
+    struct tvpal_chunk c;
+    while (tvpal_record_next_chunk(rec, &pos, h->table_format, &c)) {
+        if (tvpal_schedule_start(c.h.slice, t, h->window) != c.h.wstart)
+            continue;
+        struct slab_slice *sl = &s->sl[c.h.slice - h->slice_begin];
+        sl->wstart = c.h.wstart;
+        sl->wlen = c.h.wlen;
+        sl->gen++;
+        tvpal_chunk_table(&c, sl->table);
+        memcpy(sl->idx, c.indices, nvox);
+    }
+}
+
+int tvpal_slab_seek(struct tvpal_slab *s, uint32_t t, struct tvpal_diag *diag)
+{
+    uint32_t steps[16];
+    if (t >= s->sh->h.steps)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL,
+                              "step %u out of range (0..%u)", t,
+                              s->sh->h.steps - 1);
+    unsigned n = tvpal_slab_needed(s, t, steps);
+    for (unsigned i = 0; i < n; i++) {
+        int rc = tvpal_shard_read_record(s->sh, steps[i], s->rec,
+                                         s->sh->max_record, diag);
+        if (rc < 0)
+            return rc;
+        s->bytes_read += s->sh->index[steps[i]].bytes;
+        tvpal_slab_apply(s, s->rec, t);
+    }
+    return 0;
+}
+
+const uint8_t *tvpal_slab_indices(const struct tvpal_slab *s, uint32_t k)
+{
+    return s->sl[k].idx;
+}
+
+const float *tvpal_slab_row(const struct tvpal_slab *s, uint32_t k,
+                            uint32_t t)
+{
+    const struct slab_slice *sl = &s->sl[k];
+    if (!sl->wlen)
+        return NULL;
+    uint32_t j = t < sl->wstart ? 0 : t - sl->wstart;
+    if (j >= sl->wlen)
+        j = sl->wlen - 1;
+    return sl->table + (size_t)j * 256;
+}
+
+uint32_t tvpal_slab_generation(const struct tvpal_slab *s, uint32_t k)
+{
+    return s->sl[k].gen;
+}
+
+struct tvpal_shard *tvpal_slab_shard(const struct tvpal_slab *s)
+{
+    return s->sh;
+}
+
+void tvpal_slab_scatter(const struct tvpal_slab *s, uint32_t t, float *vol)
+{
+    const struct tvpal_shard_header *h = &s->sh->h;
+    const size_t nx = h->dims[0], ny = h->dims[1];
+    const uint32_t w = h->slice_w, hh = h->slice_h;
+    for (uint32_t k = 0; k < h->slice_count; k++) {
+        const uint32_t sidx = h->slice_begin + k;
+        const float *row = tvpal_slab_row(s, k, t);
+        const uint8_t *idx = s->sl[k].idx;
+        if (!row)
+            continue;
+        for (uint32_t b = 0; b < hh; b++)
+            for (uint32_t a = 0; a < w; a++) {
+                size_t v;
+                switch (h->axis) {
+                case 0: v = sidx + nx * (a + ny * (size_t)b); break;
+                case 1: v = a + nx * (sidx + ny * (size_t)b); break;
+                default: v = a + nx * (b + ny * (size_t)sidx); break;
+                }
+                vol[v] = row[idx[a + (size_t)w * b]];
+            }
+    }
+}
+
+uint64_t tvpal_slab_bytes_read(const struct tvpal_slab *s)
+{
+    return s->bytes_read;
+}

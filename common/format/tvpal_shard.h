@@ -1,0 +1,130 @@
+/* tvpal_shard.h: reading and writing shard files (format: common/format/FORMAT.md).
+ *
+ * Writer: records are appended in step order, the index and the final header
+ * are written by tvpal_shardw_finish; until then the header is zeros, so an
+ * unfinished file is never mistaken for a valid one.  A writer can resume a
+ * partial file: its first `steps_done` records are re-verified, the index is
+ * rebuilt from them, and anything after them is cut off.
+ *
+ * Reader: tvpal_shard_open validates the header, the file size (truncation)
+ * and the index; tvpal_shard_read_record reads one record with pread and
+ * verifies it (CRC-32C, step, chunk layout).
+ */
+#ifndef TVPAL_SHARD_H
+#define TVPAL_SHARD_H
+
+#include <stdint.h>
+
+#include "tvpal_error.h"
+#include "tvpal_format.h"
+
+/* ---- writer ---- */
+struct tvpal_shardw;
+
+/* Creates (truncates) path for a shard described by h (index fields are
+ * filled in by finish).  *out owned by the caller: finish or free it. */
+int tvpal_shardw_create(struct tvpal_shardw **out, const char *path,
+                        const struct tvpal_shard_header *h);
+
+/* Reopens a partial shard written by the same encoding and keeps its first
+ * steps_done records (verified); diag names the first bad one. */
+int tvpal_shardw_resume(struct tvpal_shardw **out, const char *path,
+                        const struct tvpal_shard_header *h,
+                        uint32_t steps_done, struct tvpal_diag *diag);
+
+/* Records the source value range in the header written by finish. */
+void tvpal_shardw_set_range(struct tvpal_shardw *w, double lo, double hi);
+
+/* Size the file has after the records appended so far. */
+uint64_t tvpal_shardw_size(const struct tvpal_shardw *w);
+
+/* Appends the sealed record for the next step (buf of `bytes`, a multiple of
+ * TVPAL_ALIGN, from tvpal_record_seal). */
+int tvpal_shardw_append(struct tvpal_shardw *w, const unsigned char *buf,
+                        uint64_t bytes);
+
+/* Writes index and header, fsyncs and closes; frees w whatever the result. */
+int tvpal_shardw_finish(struct tvpal_shardw *w);
+
+/* Closes without finishing (the file stays invalid); NULL is a no-op. */
+void tvpal_shardw_free(struct tvpal_shardw *w);
+
+/* Completes a record whose chunks occupy buf[64 .. 64 + payload_bytes):
+ * writes the record header (with the payload CRC), zero-pads to the next
+ * TVPAL_ALIGN boundary and returns the record's total bytes.  buf must have
+ * room for tvpal_round_up(64 + payload_bytes, TVPAL_ALIGN). */
+uint64_t tvpal_record_seal(unsigned char *buf, uint32_t step, uint32_t axis,
+                           uint32_t chunk_count, uint64_t payload_bytes);
+
+/* ---- reader ---- */
+struct tvpal_shard;
+
+int tvpal_shard_open(struct tvpal_shard **out, const char *path,
+                     struct tvpal_diag *diag);
+void tvpal_shard_close(struct tvpal_shard *s);   /* NULL is a no-op */
+
+const struct tvpal_shard_header *tvpal_shard_hdr(const struct tvpal_shard *s);
+const struct tvpal_index_entry *tvpal_shard_entry(const struct tvpal_shard *s,
+                                                  uint32_t step);
+const char *tvpal_shard_path(const struct tvpal_shard *s);
+int tvpal_shard_fd(const struct tvpal_shard *s);
+/* Largest record of the shard (buffer size for read_record). */
+uint64_t tvpal_shard_max_record(const struct tvpal_shard *s);
+
+/* Reads and verifies record `step` into buf (capacity cap). */
+int tvpal_shard_read_record(struct tvpal_shard *s, uint32_t step,
+                            unsigned char *buf, uint64_t cap,
+                            struct tvpal_diag *diag);
+
+/* ---- decoding state of one slab ---- */
+/* Holds, for every slice of a shard, the window (decoder table + indices)
+ * holding the current timestep.  Moving to timestep t loads only the records
+ * of the windows that change: one record during forward or backward playback,
+ * at most N after a jump. */
+struct tvpal_slab;
+
+/* sh is borrowed and must outlive the slab. */
+int tvpal_slab_create(struct tvpal_slab **out, struct tvpal_shard *sh);
+void tvpal_slab_free(struct tvpal_slab *slab);   /* NULL is a no-op */
+
+/* Steps of the records needed to hold timestep t (ascending, at most N),
+ * given what is loaded now; writes them to steps and returns the count. */
+unsigned tvpal_slab_needed(const struct tvpal_slab *slab, uint32_t t,
+                           uint32_t steps[16]);
+
+/* Installs, from a verified record (read by any I/O backend), the chunks of
+ * the slices whose window holding timestep t starts at that record's step.
+ * Other chunks are skipped: record 0, say, also holds the short first
+ * windows of slices that need a later record at t. */
+void tvpal_slab_apply(struct tvpal_slab *slab, const unsigned char *rec,
+                      uint32_t t);
+
+/* needed + read (pread) + apply. */
+int tvpal_slab_seek(struct tvpal_slab *slab, uint32_t t,
+                    struct tvpal_diag *diag);
+
+/* After a seek to t: the indices of local slice k (w*h bytes) and the 256
+ * decoded values of its palette at time t.  When the slice's window does not
+ * hold t (a record failed to load), the row nearest t of the window it
+ * holds is returned: the last good data stays on screen.  NULL when the
+ * slice never got a window. */
+const uint8_t *tvpal_slab_indices(const struct tvpal_slab *slab, uint32_t k);
+const float *tvpal_slab_row(const struct tvpal_slab *slab, uint32_t k,
+                            uint32_t t);
+
+/* Incremented each time slice k gets a new window (its indices change):
+ * renderers upload a slice's texture only when this moves. */
+uint32_t tvpal_slab_generation(const struct tvpal_slab *slab, uint32_t k);
+
+/* The shard a slab decodes. */
+struct tvpal_shard *tvpal_slab_shard(const struct tvpal_slab *slab);
+
+/* Writes the slab's decoded voxels at time t (after a seek to t) into vol, a
+ * full nx*ny*nz volume, x fastest. */
+void tvpal_slab_scatter(const struct tvpal_slab *slab, uint32_t t,
+                        float *vol);
+
+/* Bytes and records read by tvpal_slab_seek so far. */
+uint64_t tvpal_slab_bytes_read(const struct tvpal_slab *slab);
+
+#endif

@@ -1,0 +1,48 @@
+/* tvpal_frame.c: per-slice palettes (see tvpal_frame.h). */
+#include "tvpal_frame.h"
+
+#include <math.h>
+
+/* Opacity correction 1 - (1 - a)^e through a table over a in [0, 1],
+ * rebuilt when e changes (once per view, not 65536 pow() per frame).
+ * Linear interpolation in 4096 cells: error < 1e-6 for e <= 16, a < 1;
+ * a = 1 stays exactly 1 and a = 0 exactly 0.  One table per thread. */
+#define ALPHA_CELLS 4096
+static _Thread_local double lut_e = -1.0;
+static _Thread_local float lut[ALPHA_CELLS + 1];
+
+static inline double corrected(double a, double e)
+{
+    if (e != lut_e) {
+        for (int k = 0; k <= ALPHA_CELLS; k++)
+            lut[k] = (float)(1.0 - pow(1.0 - (double)k / ALPHA_CELLS, e));
+        lut_e = e;
+    }
+    double x = a * ALPHA_CELLS;
+    int k = (int)x;
+    if (k >= ALPHA_CELLS)
+        return 1.0;
+    double f = x - k;
+    return lut[k] + f * (lut[k + 1] - lut[k]);
+}
+
+int tvpal_palette_build(const struct tvpal_tf *tf, const float *row,
+                        double opacity_exponent, double opacity_scale,
+                        float *palette)
+{
+    int clear = 1;
+    for (unsigned i = 0; i < 256; i++) {
+        float c[4];
+        tvpal_tf_eval(tf, row[i], c);
+        double a = c[3] * opacity_scale;
+        a = a < 0 ? 0 : a > 1 ? 1 : a;
+        a = corrected(a, opacity_exponent);
+        float *p = palette + 4 * i;
+        p[0] = (float)(c[0] * a);
+        p[1] = (float)(c[1] * a);
+        p[2] = (float)(c[2] * a);
+        p[3] = (float)a;
+        clear &= p[3] == 0.0f;
+    }
+    return clear;
+}

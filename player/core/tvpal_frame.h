@@ -1,0 +1,60 @@
+/* tvpal_frame.h: what a renderer draws in one frame, the palette of a
+ * slice, and the interface every renderer implements (tvpal_renderer).
+ *
+ * A frame is the slices of one axis, in drawing order (back to front),
+ * each an 8-bit index image with its palette for this frame:
+ * palette[i] = opacity-corrected, premultiplied TF(decoder[t][i]).  The
+ * renderer emulates a paletted texture: it fetches the four texels nearest
+ * the sample point (texel centres at (i + 0.5) / w, clamped to the edge),
+ * looks each index up in the palette and interpolates the RGBA bilinearly
+ * (after the lookup: interpolating indices would mix unrelated values), then
+ * blends "over" back to front: dst = src + (1 - src.a) dst.
+ */
+#ifndef TVPAL_FRAME_H
+#define TVPAL_FRAME_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "tvpal_tf.h"
+#include "tvpal_view.h"
+#include "tvpal_error.h"
+
+struct tvpal_frame_slice {
+    uint32_t slice;           /* index along the view's axis (position) */
+    uint32_t layer;           /* texture layer holding it (renderers) */
+    const uint8_t *idx;       /* w * h indices, a fastest */
+    const float *palette;     /* 256 x RGBA, premultiplied, corrected */
+};
+
+struct tvpal_frame {
+    const struct tvpal_view *view;
+    uint32_t w, h;                        /* slice size */
+    uint32_t count;                       /* slices to draw */
+    const struct tvpal_frame_slice *sl;   /* in drawing order */
+};
+
+/* palette[i] for i < 256 from the decoded values row[256] of one slice at
+ * one timestep.  Returns 1 when every entry is fully transparent (the slice
+ * can be skipped), else 0. */
+int tvpal_palette_build(const struct tvpal_tf *tf, const float *row,
+                        double opacity_exponent, double opacity_scale,
+                        float *palette);
+
+/* A renderer behind the player: cpu shear-warp, GL or
+ * the CPU reference.  The player that
+ * drew last owns its textures; another player drawing with it re-uploads
+ * everything first. */
+struct tvpal_renderer {
+    void *ctx;
+    const void *owner;   /* set by the player; start with NULL */
+    /* Prepare for `count` slices of w x h (axis change). */
+    int (*set_slices)(void *ctx, uint32_t w, uint32_t h, uint32_t count,
+                      struct tvpal_diag *diag);
+    void (*upload)(void *ctx, uint32_t layer, const uint8_t *idx);
+    /* Draw and read back into rgba (width * height * 4 floats). */
+    int (*draw)(void *ctx, const struct tvpal_frame *f, float *rgba,
+                struct tvpal_diag *diag);
+};
+
+#endif

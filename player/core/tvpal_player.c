@@ -1,0 +1,318 @@
+/* tvpal_player.c: the player core (see tvpal_player.h). */
+#include "tvpal_player.h"
+#include "tvpal_clock.h"
+#include "tvpal_format.h"
+#include "tvpal_stream.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct axis_state {
+    struct tvpal_slab **slabs;       /* one per shard held */
+    uint32_t begin, held;            /* slices held: [begin, begin + held) */
+    struct tvpal_stream *stream;     /* created on first use */
+    uint32_t n, w, h;
+    uint32_t *slab_of, *local_of;    /* slice -> (shard, local index) */
+};
+
+struct tvpal_player {
+    struct tvpal_dataset *ds;
+    struct tvpal_player_opts opts;
+    struct axis_state ax[3];
+    struct tvpal_tf tf;
+    double opacity_scale;
+    unsigned reduce;
+    /* renderer state */
+    struct tvpal_renderer *last_r;
+    int r_axis;
+    uint32_t *uploaded_gen;          /* per slice of r_axis; 0 = never */
+    /* frame scratch */
+    struct tvpal_frame_slice *fs;
+    float *pal;
+    uint8_t *state;                  /* per held slice: enum slice_state */
+};
+
+/* What the frame does with a held slice (palette pass). */
+enum slice_state { SL_STRIDE, SL_NODATA, SL_CLEAR, SL_DRAW };
+
+int tvpal_player_open(struct tvpal_player **out, const char *dir,
+                      const struct tvpal_player_opts *opts,
+                      struct tvpal_diag *diag)
+{
+    struct tvpal_player *p = calloc(1, sizeof *p);
+    if (!p)
+        return TVPAL_E_NOMEM;
+    p->opts = *opts;
+    p->r_axis = -1;
+    p->opacity_scale = 1.0;
+    p->reduce = 1;
+    int rc = opts->nranks
+                 ? tvpal_dataset_open_node(&p->ds, dir, opts->rank,
+                                           opts->nranks, diag)
+                 : tvpal_dataset_open(&p->ds, dir, diag);
+    if (rc < 0)
+        goto err;
+    uint32_t nmax = 0;
+    for (unsigned a = 0; a < 3; a++) {
+        struct axis_state *x = &p->ax[a];
+        tvpal_axis_geometry(p->ds->m.dims, a, &x->n, &x->w, &x->h);
+        nmax = x->n > nmax ? x->n : nmax;
+        x->slabs = calloc(p->ds->nshards, sizeof *x->slabs);
+        x->slab_of = calloc(x->n, sizeof *x->slab_of);
+        x->local_of = calloc(x->n, sizeof *x->local_of);
+        if (!x->slabs || !x->slab_of || !x->local_of) {
+            rc = TVPAL_E_NOMEM;
+            goto err;
+        }
+        x->begin = UINT32_MAX;
+        x->held = 0;
+        for (uint32_t k = 0; k < p->ds->nshards; k++) {
+            rc = tvpal_slab_create(&x->slabs[k], p->ds->shards[a][k]);
+            if (rc < 0)
+                goto err;
+            const struct tvpal_shard_header *h =
+                tvpal_shard_hdr(p->ds->shards[a][k]);
+            for (uint32_t i = 0; i < h->slice_count; i++) {
+                x->slab_of[h->slice_begin + i] = k;
+                x->local_of[h->slice_begin + i] = i;
+            }
+            /* Shards held are consecutive slabs: one range of slices. */
+            if (h->slice_begin < x->begin)
+                x->begin = h->slice_begin;
+            x->held += h->slice_count;
+        }
+    }
+    p->fs = calloc(nmax, sizeof *p->fs);
+    p->pal = malloc(sizeof(float) * 1024 * nmax);
+    p->uploaded_gen = calloc(nmax, sizeof *p->uploaded_gen);
+    p->state = malloc(nmax);
+    if (!p->fs || !p->pal || !p->uploaded_gen || !p->state) {
+        rc = TVPAL_E_NOMEM;
+        goto err;
+    }
+    tvpal_tf_default(p->ds->m.value_min, p->ds->m.value_max,
+                     p->ds->m.histogram, TVPAL_HIST_BINS, &p->tf);
+    *out = p;
+    return 0;
+err:
+    tvpal_player_close(p);
+    return rc;
+}
+
+void tvpal_player_close(struct tvpal_player *p)
+{
+    if (!p)
+        return;
+    for (unsigned a = 0; a < 3; a++) {
+        struct axis_state *x = &p->ax[a];
+        tvpal_stream_free(x->stream);
+        if (x->slabs && p->ds)
+            for (uint32_t k = 0; k < p->ds->nshards; k++)
+                tvpal_slab_free(x->slabs[k]);
+        free(x->slabs);
+        free(x->slab_of);
+        free(x->local_of);
+    }
+    tvpal_dataset_close(p->ds);
+    free(p->fs);
+    free(p->pal);
+    free(p->uploaded_gen);
+    free(p->state);
+    free(p);
+}
+
+const struct tvpal_manifest *tvpal_player_manifest(const struct tvpal_player *p)
+{
+    return &p->ds->m;
+}
+
+const char *tvpal_player_dir(const struct tvpal_player *p)
+{
+    return p->ds->dir;
+}
+
+const char *tvpal_player_io_name(const struct tvpal_player *p)
+{
+    if (p->opts.incore)
+        return "incore";
+    for (unsigned a = 0; a < 3; a++)
+        if (p->ax[a].stream)
+            return tvpal_stream_io_name(p->ax[a].stream);
+    return p->opts.io == TVPAL_IO_URING ? "uring" : "pread";
+}
+
+void tvpal_player_set_tf(struct tvpal_player *p, const struct tvpal_tf *tf,
+                         double opacity_scale)
+{
+    p->tf = *tf;
+    p->opacity_scale = opacity_scale;
+}
+
+uint64_t tvpal_player_incore_bytes(const struct tvpal_player *p)
+{
+    uint64_t b = 0;
+    for (unsigned a = 0; a < 3; a++)
+        if (p->ax[a].stream)
+            b += tvpal_stream_incore_bytes(p->ax[a].stream);
+    return b;
+}
+
+void tvpal_player_set_reduce(struct tvpal_player *p, unsigned k)
+{
+    p->reduce = k ? k : 1;
+}
+
+uint64_t tvpal_player_axis_bytes(const struct tvpal_player *p)
+{
+    uint64_t b = 0;
+    for (unsigned a = 0; a < 3; a++)
+        for (uint32_t k = 0; k < p->ds->nshards; k++) {
+            const struct tvpal_shard_header *h =
+                tvpal_shard_hdr(p->ds->shards[a][k]);
+            b += h->index_offset - TVPAL_SHARD_HEADER_BYTES;
+        }
+    return b / 3;
+}
+
+int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
+                       uint32_t t, int dir, struct tvpal_renderer *r,
+                       float *rgba, struct tvpal_frame_stats *st,
+                       struct tvpal_diag *diag)
+{
+    struct tvpal_frame_stats local;
+    if (!st)
+        st = &local;
+    memset(st, 0, sizeof *st);
+    st->step = t;
+    st->axis = v->axis;
+    double t0 = tvpal_now();
+    struct axis_state *x = &p->ax[v->axis];
+    if (t >= p->ds->m.steps)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u out of range "
+                              "(0..%u)", t, p->ds->m.steps - 1);
+    if (!x->stream) {
+        /* First use of this axis: open its stream (in-core: load it).  With
+         * a memory budget, other axes' in-core records are given back
+         * first when needed (their slabs keep their decoded state); an axis
+         * larger than the whole budget is streamed instead. */
+        int incore = p->opts.incore;
+        if (incore && p->opts.mem_budget) {
+            uint64_t need = 0;
+            for (uint32_t k = 0; k < p->ds->nshards; k++) {
+                const struct tvpal_shard_header *h =
+                    tvpal_shard_hdr(p->ds->shards[v->axis][k]);
+                need += h->index_offset - TVPAL_SHARD_HEADER_BYTES;
+            }
+            if (need > p->opts.mem_budget) {
+                incore = 0;
+            } else {
+                uint64_t held = 0;
+                for (unsigned a = 0; a < 3; a++)
+                    if (p->ax[a].stream)
+                        held += tvpal_stream_incore_bytes(p->ax[a].stream);
+                for (unsigned a = 0; a < 3 && held + need > p->opts.mem_budget; a++)
+                    if (a != v->axis && p->ax[a].stream &&
+                        tvpal_stream_incore_bytes(p->ax[a].stream)) {
+                        held -= tvpal_stream_incore_bytes(p->ax[a].stream);
+                        tvpal_stream_free(p->ax[a].stream);
+                        p->ax[a].stream = NULL;
+                    }
+            }
+        }
+        int rc = tvpal_stream_create(&x->stream, x->slabs, p->ds->nshards,
+                                     p->opts.io, incore, p->opts.prefetch,
+                                     p->opts.direct, diag);
+        if (rc < 0)
+            return rc;
+        st->axis_switch_ms = (tvpal_now() - t0) * 1e3;
+    }
+    struct tvpal_stream_stats ss;
+    struct tvpal_diag d = {{0}};
+    int load_rc = tvpal_stream_seek(x->stream, t, dir, &ss, &d);
+    if (load_rc < 0)
+        tvpal_diag_set(diag, load_rc, "%s", d.msg);
+    st->io_ms = ss.io_wait_ms;
+    st->bytes_read = ss.bytes_read;
+
+    double t1 = tvpal_now();
+    if (r != p->last_r || r->owner != p || p->r_axis != (int)v->axis) {
+        /* Texture layers: the slices held, layer = slice - begin. */
+        int rc = r->set_slices(r->ctx, x->w, x->h, x->held, diag);
+        if (rc < 0)
+            return rc;
+        memset(p->uploaded_gen, 0, sizeof(uint32_t) * x->n);
+        p->last_r = r;
+        r->owner = p;
+        p->r_axis = (int)v->axis;
+    }
+    /* No more slices than the image can resolve: when a pixel spans k
+     * voxels, every k-th slice is enough along the ray too. */
+    uint32_t nmax = p->ds->m.dims[0];
+    for (int i = 1; i < 3; i++)
+        nmax = p->ds->m.dims[i] > nmax ? p->ds->m.dims[i] : nmax;
+    double vpp = fmin(v->sx / v->width, v->sy / v->height) * nmax;
+    unsigned stride = vpp >= 2.0 ? (unsigned)vpp : 1;
+    stride *= p->reduce;
+    if (stride > x->n)
+        stride = x->n;
+    st->stride = stride;
+    const double expo = tvpal_view_opacity_exponent(v) * stride;
+    /* Palettes first, in parallel (the TF is evaluated 256 times per
+     * slice); then, in drawing order, uploads (a GL context is not shared
+     * among threads) and the frame's slice list. */
+    const int held = (int)x->held;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static)
+#endif
+    for (int i = 0; i < held; i++) {
+        uint32_t s = v->descending ? x->begin + x->held - 1 - (uint32_t)i
+                                   : x->begin + (uint32_t)i;
+        if (s % stride != (x->n / 2) % stride) {
+            p->state[i] = SL_STRIDE;
+            continue;
+        }
+        const float *row = tvpal_slab_row(x->slabs[x->slab_of[s]],
+                                          x->local_of[s], t);
+        if (!row) {
+            p->state[i] = SL_NODATA;
+            continue;
+        }
+        float *pal = p->pal + (size_t)1024 * (s - x->begin);
+        p->state[i] = tvpal_palette_build(&p->tf, row, expo, p->opacity_scale,
+                                          pal) ? SL_CLEAR : SL_DRAW;
+    }
+    uint32_t count = 0;
+    for (uint32_t i = 0; i < x->held; i++) {
+        if (p->state[i] == SL_STRIDE)
+            continue;
+        if (p->state[i] != SL_DRAW) {
+            st->skipped++; /* no data, or fully transparent */
+            continue;
+        }
+        uint32_t s = v->descending ? x->begin + x->held - 1 - i : x->begin + i;
+        struct tvpal_slab *slab = x->slabs[x->slab_of[s]];
+        uint32_t k = x->local_of[s];
+        const uint32_t layer = s - x->begin;
+        uint32_t gen = tvpal_slab_generation(slab, k);
+        if (p->uploaded_gen[s] != gen) {
+            r->upload(r->ctx, layer, tvpal_slab_indices(slab, k));
+            p->uploaded_gen[s] = gen;
+            st->uploads++;
+        }
+        p->fs[count++] = (struct tvpal_frame_slice){
+            .slice = s, .layer = layer, .idx = tvpal_slab_indices(slab, k),
+            .palette = p->pal + (size_t)1024 * layer};
+    }
+    st->drawn = count;
+    double t2 = tvpal_now();
+    struct tvpal_frame f = {.view = v, .w = x->w, .h = x->h, .count = count,
+                            .sl = p->fs};
+    int rc = r->draw(r->ctx, &f, rgba, diag);
+    double t3 = tvpal_now();
+    st->rendered = rc == 0;
+    st->upload_ms = (t2 - t1) * 1e3;
+    st->draw_ms = (t3 - t2) * 1e3;
+    st->total_ms = (t3 - t0) * 1e3;
+    return rc < 0 ? rc : load_rc;
+}

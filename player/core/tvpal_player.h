@@ -1,0 +1,87 @@
+/* tvpal_player.h: the player core shared by every front end: one node's
+ * shards of a dataset, the decoding state of each axis, the record stream
+ * (in-core or out-of-core), per-frame palettes and the renderer.
+ *
+ * A frame at timestep t with a view: the axis most orthogonal to the view
+ * is chosen; its slabs are brought to t (one record per shard during steady
+ * playback, at most N after a jump); for every slice, palette =
+ * TF(decoder[t]) with opacity corrected for the view; slices whose palette
+ * is fully transparent are skipped; slice textures are uploaded only when
+ * the slice's window changed since the last upload.  No allocation per
+ * frame: scratch is sized when the player is opened.
+ */
+#ifndef TVPAL_PLAYER_H
+#define TVPAL_PLAYER_H
+
+#include <stdint.h>
+
+#include "tvpal_dataset.h"
+#include "tvpal_io.h"
+#include "tvpal_frame.h"
+#include "tvpal_tf.h"
+
+struct tvpal_player_opts {
+    int incore;                   /* all records of an axis in RAM */
+    enum tvpal_io_kind io;        /* out-of-core backend */
+    unsigned prefetch;            /* timesteps read ahead */
+    int direct;                   /* O_DIRECT where possible */
+    uint32_t rank, nranks;        /* nranks > 0: open only node `rank`'s
+                                     shards, from the directory given to
+                                     tvpal_player_open (cluster mode) */
+    uint64_t mem_budget;          /* in-core: bytes of records kept in RAM
+                                     over all axes (0: no limit); an axis
+                                     that does not fit is streamed */
+};
+
+struct tvpal_frame_stats {
+    uint32_t step;
+    unsigned axis;
+    double io_ms, upload_ms, draw_ms, total_ms, axis_switch_ms;
+    uint64_t bytes_read;
+    uint32_t drawn, skipped, uploads;
+    unsigned stride;       /* slices drawn: every stride-th */
+    int rendered;          /* 1 when the frame was drawn (maybe with stale
+                              slices after a load error) */
+};
+
+struct tvpal_player;
+
+/* Opens dir; opts as above.  On error diag names the file and problem. */
+int tvpal_player_open(struct tvpal_player **out, const char *dir,
+                      const struct tvpal_player_opts *opts,
+                      struct tvpal_diag *diag);
+void tvpal_player_close(struct tvpal_player *p);   /* NULL is a no-op */
+
+const struct tvpal_manifest *tvpal_player_manifest(const struct tvpal_player *p);
+const char *tvpal_player_io_name(const struct tvpal_player *p);
+
+/* The directory the player was opened on (node directory in cluster
+ * mode). */
+const char *tvpal_player_dir(const struct tvpal_player *p);
+
+/* Transfer function and opacity scale used from the next frame on (no
+ * texture is uploaded for a TF change). */
+void tvpal_player_set_tf(struct tvpal_player *p, const struct tvpal_tf *tf,
+                         double opacity_scale);
+
+/* Draw every k-th slice only (opacity corrected for the wider spacing):
+ * the reduced-quality mode while the user drags or scrubs.  k >= 1. */
+void tvpal_player_set_reduce(struct tvpal_player *p, unsigned k);
+
+/* Renders timestep t for view v (v->axis etc. must be set up by
+ * tvpal_view_setup) into rgba.  dir steers prefetch (+1/-1).  A record
+ * that fails to load is reported through the return code and diag; the
+ * frame is still drawn with the last good data of the affected slices. */
+int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
+                       uint32_t t, int dir, struct tvpal_renderer *r,
+                       float *rgba, struct tvpal_frame_stats *st,
+                       struct tvpal_diag *diag);
+
+/* Bytes of records one axis holds in RAM in-core (mean over axes) and per
+ * timestep: how many timesteps fit in a memory budget. */
+uint64_t tvpal_player_axis_bytes(const struct tvpal_player *p);
+
+/* Bytes of records held in RAM now (all axes). */
+uint64_t tvpal_player_incore_bytes(const struct tvpal_player *p);
+
+#endif

@@ -1,0 +1,341 @@
+/* tvpal_glr.c: GL palette renderer (see tvpal_glr.h). */
+#define GL_GLEXT_PROTOTYPES 1
+#include "tvpal_glr.h"
+#include "tvpal_clock.h"
+
+#include <GL/gl.h>
+#include <GL/glext.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const char *vs_src =
+    "#version 330 core\n"
+    "layout(location = 0) in vec2 pos;   // NDC\n"
+    "layout(location = 1) in vec2 uv;    // slice coordinates in [0,1]\n"
+    "layout(location = 2) in float layer;\n"
+    "out vec2 v_uv;\n"
+    "flat out int v_layer;\n"
+    "void main() {\n"
+    "    v_uv = uv;\n"
+    "    v_layer = int(layer + 0.5);\n"
+    "    gl_Position = vec4(pos, 0.0, 1.0);\n"
+    "}\n";
+
+/* Paletted-texture emulation: the four nearest texels (centres at
+ * (i + 0.5) / size, clamped to the edge) are looked up in the slice's
+ * palette and the colours, not the indices, are interpolated. */
+static const char *fs_src =
+    "#version 330 core\n"
+    "uniform usampler2DArray idx;\n"
+    "uniform sampler2D pal;              // 256 x slices, RGBA32F\n"
+    "uniform ivec2 size;\n"
+    "in vec2 v_uv;\n"
+    "flat in int v_layer;\n"
+    "out vec4 color;\n"
+    "vec4 look(ivec2 p) {\n"
+    "    p = clamp(p, ivec2(0), size - 1);\n"
+    "    uint i = texelFetch(idx, ivec3(p, v_layer), 0).r;\n"
+    "    return texelFetch(pal, ivec2(int(i), v_layer), 0);\n"
+    "}\n"
+    "void main() {\n"
+    "    vec2 t = v_uv * vec2(size) - 0.5;\n"
+    "    vec2 t0 = floor(t);\n"
+    "    vec2 f = t - t0;\n"
+    "    ivec2 p = ivec2(t0);\n"
+    "    vec4 a = mix(look(p), look(p + ivec2(1, 0)), f.x);\n"
+    "    vec4 b = mix(look(p + ivec2(0, 1)), look(p + ivec2(1, 1)), f.x);\n"
+    "    color = mix(a, b, f.y);\n"
+    "}\n";
+
+struct tvpal_glr {
+    unsigned width, height;
+    GLuint prog, vao, vbo, fbo, rbo, tex_idx, tex_pal;
+    GLint u_size;
+    uint32_t w, h, count;
+    float *verts;            /* count * 6 * 5 */
+    float *pal;              /* count * 256 * 4 */
+    uint64_t uploads;
+    double t_upload, t_draw, t_read;
+};
+
+static int compile(GLenum type, const char *src, GLuint *out,
+                   struct tvpal_diag *diag)
+{
+    GLuint s = glCreateShader(type);
+    glShaderSource(s, 1, &src, NULL);
+    glCompileShader(s);
+    GLint ok = 0;
+    glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
+    if (!ok) {
+        char log[200];
+        glGetShaderInfoLog(s, sizeof log, NULL, log);
+        glDeleteShader(s);
+        return tvpal_diag_set(diag, TVPAL_E_SYS, "shader: %s", log);
+    }
+    *out = s;
+    return 0;
+}
+
+int tvpal_glr_create(struct tvpal_glr **out, unsigned width, unsigned height,
+                     struct tvpal_diag *diag)
+{
+    return tvpal_glr_create_fb(out, width, height, 32, diag);
+}
+
+int tvpal_glr_create_fb(struct tvpal_glr **out, unsigned width,
+                        unsigned height, unsigned fb_bits,
+                        struct tvpal_diag *diag)
+{
+    const char *ver = (const char *)glGetString(GL_VERSION);
+    int major = 0, minor = 0;
+    if (!ver || sscanf(ver, "%d.%d", &major, &minor) != 2 ||
+        major * 10 + minor < 33)
+        return tvpal_diag_set(diag, TVPAL_E_SYS,
+                              "OpenGL 3.3 is needed; the context offers %s",
+                              ver ? ver : "none");
+    struct tvpal_glr *r = calloc(1, sizeof *r);
+    if (!r)
+        return TVPAL_E_NOMEM;
+    r->width = width;
+    r->height = height;
+    GLuint vs = 0, fs = 0;
+    int rc = compile(GL_VERTEX_SHADER, vs_src, &vs, diag);
+    if (rc < 0)
+        goto err;
+    rc = compile(GL_FRAGMENT_SHADER, fs_src, &fs, diag);
+    if (rc < 0) {
+        glDeleteShader(vs);
+        goto err;
+    }
+    r->prog = glCreateProgram();
+    glAttachShader(r->prog, vs);
+    glAttachShader(r->prog, fs);
+    glLinkProgram(r->prog);
+    glDeleteShader(vs);
+    glDeleteShader(fs);
+    GLint ok = 0;
+    glGetProgramiv(r->prog, GL_LINK_STATUS, &ok);
+    if (!ok) {
+        char log[200];
+        glGetProgramInfoLog(r->prog, sizeof log, NULL, log);
+        rc = tvpal_diag_set(diag, TVPAL_E_SYS, "shader link: %s", log);
+        goto err;
+    }
+    glUseProgram(r->prog);
+    glUniform1i(glGetUniformLocation(r->prog, "idx"), 0);
+    glUniform1i(glGetUniformLocation(r->prog, "pal"), 1);
+    r->u_size = glGetUniformLocation(r->prog, "size");
+
+    glGenVertexArrays(1, &r->vao);
+    glBindVertexArray(r->vao);
+    glGenBuffers(1, &r->vbo);
+    glBindBuffer(GL_ARRAY_BUFFER, r->vbo);
+    glVertexAttribPointer(0, 2, GL_FLOAT, GL_FALSE, 5 * sizeof(float), (void *)0);
+    glVertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, 5 * sizeof(float),
+                          (void *)(2 * sizeof(float)));
+    glVertexAttribPointer(2, 1, GL_FLOAT, GL_FALSE, 5 * sizeof(float),
+                          (void *)(4 * sizeof(float)));
+    glEnableVertexAttribArray(0);
+    glEnableVertexAttribArray(1);
+    glEnableVertexAttribArray(2);
+
+    /* Float colour buffer: 8-bit accumulation over hundreds of slices
+     * bands visibly. */
+    glGenFramebuffers(1, &r->fbo);
+    glBindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+    glGenRenderbuffers(1, &r->rbo);
+    glBindRenderbuffer(GL_RENDERBUFFER, r->rbo);
+    glRenderbufferStorage(GL_RENDERBUFFER,
+                          fb_bits == 8 ? GL_RGBA8 : fb_bits == 16 ? GL_RGBA16F
+                                                                  : GL_RGBA32F,
+                          (GLsizei)width, (GLsizei)height);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0,
+                              GL_RENDERBUFFER, r->rbo);
+    GLenum st = glCheckFramebufferStatus(GL_FRAMEBUFFER);
+    if (st != GL_FRAMEBUFFER_COMPLETE) {
+        rc = tvpal_diag_set(diag, TVPAL_E_SYS,
+                            "a %ux%u float framebuffer is not available "
+                            "(status 0x%x)", width, height, st);
+        goto err;
+    }
+    glGenTextures(1, &r->tex_idx);
+    glGenTextures(1, &r->tex_pal);
+    glViewport(0, 0, (GLsizei)width, (GLsizei)height);
+    glEnable(GL_BLEND);
+    glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA); /* premultiplied "over" */
+    glDisable(GL_DEPTH_TEST);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    if (glGetError() != GL_NO_ERROR) {
+        rc = tvpal_diag_set(diag, TVPAL_E_SYS, "GL setup failed");
+        goto err;
+    }
+    *out = r;
+    return 0;
+err:
+    tvpal_glr_free(r);
+    return rc;
+}
+
+void tvpal_glr_free(struct tvpal_glr *r)
+{
+    if (!r)
+        return;
+    if (r->tex_idx)
+        glDeleteTextures(1, &r->tex_idx);
+    if (r->tex_pal)
+        glDeleteTextures(1, &r->tex_pal);
+    if (r->rbo)
+        glDeleteRenderbuffers(1, &r->rbo);
+    if (r->fbo)
+        glDeleteFramebuffers(1, &r->fbo);
+    if (r->vbo)
+        glDeleteBuffers(1, &r->vbo);
+    if (r->vao)
+        glDeleteVertexArrays(1, &r->vao);
+    if (r->prog)
+        glDeleteProgram(r->prog);
+    free(r->verts);
+    free(r->pal);
+    free(r);
+}
+
+int tvpal_glr_set_slices(struct tvpal_glr *r, uint32_t w, uint32_t h,
+                         uint32_t count, struct tvpal_diag *diag)
+{
+    GLint maxl = 0, maxs = 0;
+    glGetIntegerv(GL_MAX_ARRAY_TEXTURE_LAYERS, &maxl);
+    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &maxs);
+    if ((GLint)count > maxl || (GLint)w > maxs || (GLint)h > maxs)
+        return tvpal_diag_set(diag, TVPAL_E_SYS,
+                              "%u slices of %ux%u exceed the GL limits (%d "
+                              "layers, %d texels)", count, w, h, maxl, maxs);
+    float *v = realloc(r->verts, sizeof(float) * 30 * count);
+    float *p = realloc(r->pal, sizeof(float) * 1024 * count);
+    if (v)
+        r->verts = v;
+    if (p)
+        r->pal = p;
+    if (!v || !p)
+        return TVPAL_E_NOMEM;
+    r->w = w;
+    r->h = h;
+    r->count = count;
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D_ARRAY, r->tex_idx);
+    glTexImage3D(GL_TEXTURE_2D_ARRAY, 0, GL_R8UI, (GLsizei)w, (GLsizei)h,
+                 (GLsizei)count, 0, GL_RED_INTEGER, GL_UNSIGNED_BYTE, NULL);
+    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glActiveTexture(GL_TEXTURE1);
+    glBindTexture(GL_TEXTURE_2D, r->tex_pal);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, 256, (GLsizei)count, 0, GL_RGBA,
+                 GL_FLOAT, NULL);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glUniform2i(r->u_size, (GLint)w, (GLint)h);
+    if (glGetError() != GL_NO_ERROR)
+        return tvpal_diag_set(diag, TVPAL_E_SYS,
+                              "cannot allocate textures for %u slices of "
+                              "%ux%u", count, w, h);
+    return 0;
+}
+
+void tvpal_glr_upload(struct tvpal_glr *r, uint32_t layer, const uint8_t *idx)
+{
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D_ARRAY, r->tex_idx);
+    glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, (GLint)layer, (GLsizei)r->w,
+                    (GLsizei)r->h, 1, GL_RED_INTEGER, GL_UNSIGNED_BYTE, idx);
+    r->uploads++;
+}
+
+int tvpal_glr_draw(struct tvpal_glr *r, const struct tvpal_frame *f,
+                   float *rgba, struct tvpal_diag *diag)
+{
+    const struct tvpal_view *v = f->view;
+    double t0 = tvpal_now();
+    /* Palettes of the drawn slices, in their layers; quads back to front. */
+    float *q = r->verts;
+    for (uint32_t k = 0; k < f->count; k++) {
+        const struct tvpal_frame_slice *sl = &f->sl[k];
+        memcpy(r->pal + (size_t)1024 * sl->layer, sl->palette,
+               sizeof(float) * 1024);
+        static const int tri[6] = {0, 1, 2, 0, 2, 3};
+        static const float uv[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+        double c[4][3];
+        for (int i = 0; i < 4; i++)
+            tvpal_view_slice_corner(v, sl->slice, (unsigned)i, c[i]);
+        for (int i = 0; i < 6; i++) {
+            int ci = tri[i];
+            *q++ = (float)(c[ci][0] / v->sx);
+            *q++ = (float)(c[ci][1] / v->sy);
+            *q++ = uv[ci][0];
+            *q++ = uv[ci][1];
+            *q++ = (float)sl->layer;
+        }
+    }
+    /* Bind our textures every frame: a front end may have used the units
+     * (the window's composited-image texture, say). */
+    glUseProgram(r->prog);
+    glBindVertexArray(r->vao);
+    glActiveTexture(GL_TEXTURE0);
+    glBindTexture(GL_TEXTURE_2D_ARRAY, r->tex_idx);
+    glActiveTexture(GL_TEXTURE1);
+    glBindTexture(GL_TEXTURE_2D, r->tex_pal);
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, 256, (GLsizei)r->count, GL_RGBA,
+                    GL_FLOAT, r->pal);
+    glBindBuffer(GL_ARRAY_BUFFER, r->vbo);
+    glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(sizeof(float) * 30 * f->count),
+                 r->verts, GL_STREAM_DRAW);
+    double t1 = tvpal_now();
+    glBindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+    glClearColor(0, 0, 0, 0);
+    glClear(GL_COLOR_BUFFER_BIT);
+    glDrawArrays(GL_TRIANGLES, 0, (GLsizei)(6 * f->count));
+    glFinish();
+    double t2 = tvpal_now();
+    if (rgba) {
+        glReadBuffer(GL_COLOR_ATTACHMENT0);
+        glReadPixels(0, 0, (GLsizei)r->width, (GLsizei)r->height, GL_RGBA,
+                     GL_FLOAT, rgba);
+    }
+    double t3 = tvpal_now();
+    r->t_upload = (t1 - t0) * 1e3;
+    r->t_draw = (t2 - t1) * 1e3;
+    r->t_read = (t3 - t2) * 1e3;
+    GLenum e = glGetError();
+    if (e != GL_NO_ERROR)
+        return tvpal_diag_set(diag, TVPAL_E_SYS, "GL error 0x%x while drawing",
+                              e);
+    return 0;
+}
+
+void tvpal_glr_blit(struct tvpal_glr *r, int x, int y)
+{
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, r->fbo);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
+    glBlitFramebuffer(0, 0, (GLint)r->width, (GLint)r->height, x, y,
+                      x + (GLint)r->width, y + (GLint)r->height,
+                      GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    glBindFramebuffer(GL_FRAMEBUFFER, r->fbo);
+}
+
+const char *tvpal_glr_gl_name(void)
+{
+    const char *s = (const char *)glGetString(GL_RENDERER);
+    return s ? s : "unknown";
+}
+
+uint64_t tvpal_glr_uploads(const struct tvpal_glr *r)
+{
+    return r->uploads;
+}
+
+void tvpal_glr_times(const struct tvpal_glr *r, double *upload_ms,
+                     double *draw_ms, double *readback_ms)
+{
+    *upload_ms = r->t_upload;
+    *draw_ms = r->t_draw;
+    *readback_ms = r->t_read;
+}

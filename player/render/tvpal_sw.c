@@ -1,0 +1,824 @@
+/* tvpal_sw.c: shear-warp CPU palette renderer (see tvpal_sw.h).
+ *
+ * Three phases per frame, each a parallel loop:
+ *   classify:  tile index sets of slices whose indices changed, then the
+ *              visible tiles of every slice (its set meets the palette's
+ *              non-zero entries);
+ *   composite: per intermediate row, front to back through the slices,
+ *              runs of visible tiles only; per texel one vertical lerp
+ *              (constant weight fy for the row), then K horizontal lerps
+ *              (constant weights fx[q]) and K blends;
+ *   warp:      per output pixel, bilinear from the intermediate image.
+ * The float operations and their order are fixed (sample = A + fy (B - A),
+ * then C + fx (Cn - C), then dst + (1 - dst.a) sample) so every inner loop
+ * variant gives the same bits. */
+#include "tvpal_sw.h"
+#include "tvpal_clock.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+#if defined(__SSE2__) && defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__))
+#include <immintrin.h>
+#define SW_AVX2 1
+#endif
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#define KAUTO 4       /* most intermediate pixels per texel chosen alone */
+#define KMAX 8        /* most that can be asked for (tvpal_sw_set_scale) */
+#define TILE_MIN 16   /* tile side; doubled until a row has <= 64 tiles */
+
+struct tvpal_sw {
+    float *im;            /* intermediate image, RGBA premultiplied */
+    size_t cap;           /* floats */
+    int32_t *cov;         /* per intermediate row: covered pixels [lo, hi) */
+    size_t cov_cap;       /* rows */
+    int threads, skip, simd;
+    unsigned force_k;     /* 0: K from the view; else 1..KMAX */
+    int avx2;             /* the AVX2 loops run (simd and the CPU has it) */
+    uint32_t w, h, layers;
+    unsigned tile, tcols, trows;
+    uint64_t *sets;       /* layers x trows x tcols x 4 words: index sets */
+    uint8_t *dirty;       /* layers: indices changed since the sets */
+    uint32_t *todo;       /* layers: dirty layers of this frame (scratch) */
+    uint64_t *vis;        /* frame slices x trows: visible tile columns */
+    size_t vis_cap;       /* frame slices vis holds */
+    unsigned k_last;
+    double t_classify, t_composite, t_warp;
+};
+
+int tvpal_sw_create(struct tvpal_sw **out)
+{
+    struct tvpal_sw *r = calloc(1, sizeof *r);
+    if (!r)
+        return TVPAL_E_NOMEM;
+    r->skip = 1;
+    r->simd = 1;
+    *out = r;
+    return 0;
+}
+
+void tvpal_sw_free(struct tvpal_sw *r)
+{
+    if (!r)
+        return;
+    free(r->im);
+    free(r->cov);
+    free(r->sets);
+    free(r->dirty);
+    free(r->todo);
+    free(r->vis);
+    free(r);
+}
+
+void tvpal_sw_options(struct tvpal_sw *r, int threads, int skip, int simd)
+{
+    r->threads = threads;
+    r->skip = skip;
+    r->simd = simd;
+}
+
+int tvpal_sw_set_scale(struct tvpal_sw *r, unsigned k)
+{
+    if (k > KMAX)
+        return TVPAL_E_INVAL;
+    r->force_k = k;
+    return 0;
+}
+
+void tvpal_sw_times(const struct tvpal_sw *r, double *classify_ms,
+                    double *composite_ms, double *warp_ms)
+{
+    *classify_ms = r->t_classify;
+    *composite_ms = r->t_composite;
+    *warp_ms = r->t_warp;
+}
+
+unsigned tvpal_sw_scale(const struct tvpal_sw *r)
+{
+    return r->k_last;
+}
+
+static int cpu_avx2(void)
+{
+#ifdef SW_AVX2
+    return __builtin_cpu_supports("avx2");
+#else
+    return 0;
+#endif
+}
+
+const char *tvpal_sw_simd_name(const struct tvpal_sw *r)
+{
+#if defined(__SSE2__)
+    return r->simd && cpu_avx2() ? "avx2" : "sse2";
+#else
+    (void)r;
+    return "scalar";
+#endif
+}
+
+int tvpal_sw_set_slices(struct tvpal_sw *r, uint32_t w, uint32_t h,
+                        uint32_t layers, struct tvpal_diag *diag)
+{
+    if (w == 0 || h == 0 || w > (1u << 20) || h > (1u << 20))
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "slices of %ux%u (expected "
+                              "1 to 2^20 texels a side)", w, h);
+    unsigned tile = TILE_MIN;
+    while ((w + tile - 1) / tile > 64)
+        tile *= 2;
+    unsigned tcols = (w + tile - 1) / tile, trows = (h + tile - 1) / tile;
+    const size_t nl = layers ? layers : 1;
+    if (nl > SIZE_MAX / 32 / trows / tcols)
+        return tvpal_diag_set(diag, TVPAL_E_OVERFLOW, "tile index sets for "
+                              "%u slices of %ux%u", layers, w, h);
+    uint64_t *sets = malloc(nl * trows * tcols * 4 * sizeof *sets);
+    uint8_t *dirty = malloc(nl);
+    uint32_t *todo = malloc(nl * sizeof *todo);
+    if (!sets || !dirty || !todo) {
+        free(sets);
+        free(dirty);
+        free(todo);
+        return tvpal_diag_set(diag, TVPAL_E_NOMEM, "tile index sets for "
+                              "%u slices of %ux%u", layers, w, h);
+    }
+    free(r->sets);
+    free(r->dirty);
+    free(r->todo);
+    memset(dirty, 1, nl);
+    r->sets = sets;
+    r->dirty = dirty;
+    r->todo = todo;
+    r->w = w;
+    r->h = h;
+    r->layers = layers;
+    r->tile = tile;
+    r->tcols = tcols;
+    r->trows = trows;
+    r->vis_cap = 0; /* rows per slice may have changed */
+    return 0;
+}
+
+void tvpal_sw_upload(struct tvpal_sw *r, uint32_t layer)
+{
+    if (layer < r->layers)
+        r->dirty[layer] = 1;
+}
+
+/* Index sets of every tile of one slice: 256 bits, bit i set iff some
+ * texel of the tile holds index i.  Marks in a byte table (stores only, no
+ * dependency chain), then packs. */
+static void build_sets(const struct tvpal_sw *r, uint32_t layer,
+                       const uint8_t *idx)
+{
+    const unsigned tile = r->tile, tcols = r->tcols;
+    const uint32_t w = r->w, h = r->h;
+    uint64_t *out = r->sets + (size_t)layer * r->trows * tcols * 4;
+    _Alignas(16) uint8_t seen[64][256];
+    for (unsigned ty = 0; ty < r->trows; ty++) {
+        memset(seen, 0, sizeof(seen[0]) * tcols);
+        uint32_t y1 = (ty + 1) * tile < h ? (ty + 1) * tile : h;
+        for (uint32_t y = ty * tile; y < y1; y++) {
+            const uint8_t *row = idx + (size_t)w * y;
+            for (unsigned tx = 0; tx < tcols; tx++) {
+                uint32_t x0 = tx * tile, x1 = x0 + tile < w ? x0 + tile : w;
+                uint8_t *s = seen[tx];
+                for (uint32_t x = x0; x < x1; x++)
+                    s[row[x]] = 1;
+            }
+        }
+        for (unsigned tx = 0; tx < tcols; tx++) {
+            uint64_t *m = out + 4 * ((size_t)ty * tcols + tx);
+            for (int q = 0; q < 4; q++) {
+                uint64_t bits = 0;
+#if defined(__SSE2__)
+                for (int c = 0; c < 4; c++) {
+                    __m128i v = _mm_load_si128((const __m128i *)&seen[tx][64 * q + 16 * c]);
+                    bits |= (uint64_t)(unsigned)_mm_movemask_epi8(_mm_slli_epi16(v, 7))
+                            << (16 * c);
+                }
+#else
+                for (int i = 0; i < 64; i++)
+                    bits |= (uint64_t)seen[tx][64 * q + i] << i;
+#endif
+                m[q] = bits;
+            }
+        }
+    }
+}
+
+/* Visible tile columns of each tile row of one slice for its palette: a
+ * tile is visible iff it holds an index whose entry is not all zero. */
+static void classify(const struct tvpal_sw *r, const struct tvpal_frame_slice *sl,
+                     uint64_t *out)
+{
+    const uint64_t all = r->tcols == 64 ? ~0ull : (1ull << r->tcols) - 1;
+    if (!r->skip) {
+        for (unsigned ty = 0; ty < r->trows; ty++)
+            out[ty] = all;
+        return;
+    }
+    uint64_t vm[4] = {0, 0, 0, 0};
+    const float *p = sl->palette;
+    for (int i = 0; i < 256; i++)
+        if (p[4 * i] != 0.0f || p[4 * i + 1] != 0.0f || p[4 * i + 2] != 0.0f ||
+            p[4 * i + 3] != 0.0f)
+            vm[i >> 6] |= 1ull << (i & 63);
+    const uint64_t *s = r->sets + (size_t)sl->layer * r->trows * r->tcols * 4;
+    for (unsigned ty = 0; ty < r->trows; ty++) {
+        uint64_t bits = 0;
+        for (unsigned tx = 0; tx < r->tcols; tx++, s += 4)
+            if ((s[0] & vm[0]) | (s[1] & vm[1]) | (s[2] & vm[2]) | (s[3] & vm[3]))
+                bits |= 1ull << tx;
+        out[ty] = bits;
+    }
+}
+
+/* Geometry of the factorization, in texel units of the slices. */
+struct geom {
+    double minv[2][2];    /* eye xy -> in-slice object coords (a, b) */
+    double ha, hb;        /* half extents along the slice's two axes */
+    double sx, sy;        /* texel shift per object unit of depth */
+    double u0, v0;        /* base texel coords of intermediate pixel 0 */
+    unsigned k;           /* intermediate pixels per texel */
+    unsigned wi, hi;      /* intermediate image size (every slice) */
+    long io, jo;          /* the part the output shows: origin, */
+    unsigned wc, hc;      /* and size (pixels composited and stored) */
+};
+
+static double slice_depth(const struct tvpal_view *v, uint32_t s)
+{
+    return ((s + 0.5) / v->dims[v->axis] * 2.0 - 1.0) * v->half[v->axis];
+}
+
+/* Eye (x, y) -> base texel coords (the slice at depth 0). */
+static void eye_to_base(const struct geom *g, unsigned w, unsigned h,
+                        double ex, double ey, double *tu, double *tv)
+{
+    double a = g->minv[0][0] * ex + g->minv[0][1] * ey;
+    double b = g->minv[1][0] * ex + g->minv[1][1] * ey;
+    *tu = (a + g->ha) / (2 * g->ha) * w;
+    *tv = (b + g->hb) / (2 * g->hb) * h;
+}
+
+static int setup(const struct tvpal_frame *f, unsigned force_k, struct geom *g)
+{
+    const struct tvpal_view *v = f->view;
+    const unsigned ax = v->axis;
+    const unsigned ua = ax == 0 ? 1 : 0, ub = ax == 2 ? 1 : 2;
+    double m00 = v->rot[0][ua], m01 = v->rot[0][ub];
+    double m10 = v->rot[1][ua], m11 = v->rot[1][ub];
+    double det = m00 * m11 - m01 * m10;
+    if (fabs(det) < 1e-12)
+        return TVPAL_E_INVAL;
+    g->minv[0][0] = m11 / det;
+    g->minv[0][1] = -m01 / det;
+    g->minv[1][0] = -m10 / det;
+    g->minv[1][1] = m00 / det;
+    g->ha = v->half[ua];
+    g->hb = v->half[ub];
+    /* A point at depth c appears where the base point is shifted by
+     * c * Minv * Ra: slice texel = base texel - c * shift. */
+    double ra = v->rot[0][ax], rb = v->rot[1][ax];
+    double da = g->minv[0][0] * ra + g->minv[0][1] * rb;
+    double db = g->minv[1][0] * ra + g->minv[1][1] * rb;
+    g->sx = da / (2 * g->ha) * f->w;
+    g->sy = db / (2 * g->hb) * f->h;
+    /* K: intermediate pixels per texel, a whole number (the weights of a
+     * slice row stay constant), about what the output shows (1 to KAUTO):
+     * up to K = KAUTO the warp magnifies by at most 1.25, so zoomed-in views
+     * keep their detail and silhouettes their sharpness; beyond (more than
+     * 4.25 output pixels per texel) it magnifies, bilinearly. */
+    double texel = 2 * g->ha / f->w;
+    double texel_b = 2 * g->hb / f->h;
+    texel = texel > texel_b ? texel : texel_b;
+    double pix = fmin(2 * v->sx / v->width, 2 * v->sy / v->height);
+    double kk = ceil(texel / pix - 0.25);
+    g->k = !(kk >= 1) ? 1 : kk > KAUTO ? KAUTO : (unsigned)kk;   /* NaN: 1 */
+    if (force_k)
+        g->k = force_k;
+    /* Extent: every slice's footprint, shifted, with a pixel of margin. */
+    double c0 = slice_depth(v, 0), c1 = slice_depth(v, v->dims[ax] - 1);
+    double umin = fmin(c0 * g->sx, c1 * g->sx), umax = fmax(c0 * g->sx, c1 * g->sx);
+    double vmin = fmin(c0 * g->sy, c1 * g->sy), vmax = fmax(c0 * g->sy, c1 * g->sy);
+    g->u0 = floor(umin) - 1;
+    g->v0 = floor(vmin) - 1;
+    g->wi = (unsigned)ceil((umax + f->w + 1 - g->u0) * g->k);
+    g->hi = (unsigned)ceil((vmax + f->h + 1 - g->v0) * g->k);
+    return 0;
+}
+
+/* One slice row's share of an intermediate row: texels x0..x1 (inclusive,
+ * x0 >= 0, x1 + 1 < w), pixel of texel x and phase q at K x + c0 + q. */
+struct span {
+    float *row;           /* intermediate row */
+    long c0;
+    unsigned k;
+    unsigned wi;          /* row length (edge pixels are bounds-checked) */
+    float fx[KMAX], fy;
+    const uint8_t *ra, *rb;   /* texel rows below and above the sample */
+    const float *pal;
+    int skip;
+};
+
+/* Pixel q of texel x (-1 .. w - 1) when it is to be blended: inside the
+ * stored row, inside the slice (x = -1 and x = w - 1 clamp their texel
+ * coordinates: only samples with fx >= 0.5, resp. < 0.5, lie inside) and
+ * not opaque (with skipping); else NULL. */
+static inline float *texel_pixel(const struct span *s, int x, int w, unsigned q)
+{
+    long i = s->c0 + (long)s->k * x + q;
+    if (i < 0 || i >= (long)s->wi || (x < 0 && s->fx[q] < 0.5f) ||
+        (x == w - 1 && s->fx[q] >= 0.5f))
+        return NULL;
+    float *d = s->row + 4 * i;
+    return s->skip && d[3] == 1.0f ? NULL : d;
+}
+
+/* span_v4 and texel_v4 blend one RGBA pixel at a time: with SSE2 where the
+ * compiler targets it, else in scalar code (the same operations). */
+#if defined(__SSE2__)
+static inline __m128 vlerp_sse(const struct span *s, int x, __m128 vfy)
+{
+    __m128 a = _mm_loadu_ps(s->pal + 4 * s->ra[x]);
+    __m128 b = _mm_loadu_ps(s->pal + 4 * s->rb[x]);
+    return _mm_add_ps(a, _mm_mul_ps(vfy, _mm_sub_ps(b, a)));
+}
+
+/* dst + (1 - dst.a) * (C + fx (Cn - C)), with D = Cn - C. */
+static inline void blend_sse(float *d, __m128 c, __m128 dd, float fx)
+{
+    const __m128 one = _mm_set1_ps(1.0f);
+    __m128 s = _mm_add_ps(c, _mm_mul_ps(_mm_set1_ps(fx), dd));
+    __m128 dv = _mm_loadu_ps(d);
+    __m128 keep = _mm_sub_ps(one, _mm_shuffle_ps(dv, dv, 0xFF));
+    _mm_storeu_ps(d, _mm_add_ps(dv, _mm_mul_ps(keep, s)));
+}
+
+static void span_v4(const struct span *s, int x0, int x1)
+{
+    const __m128 vfy = _mm_set1_ps(s->fy);
+    __m128 c = vlerp_sse(s, x0, vfy);
+    for (int x = x0; x <= x1; x++) {
+        __m128 cn = vlerp_sse(s, x + 1, vfy);
+        __m128 dd = _mm_sub_ps(cn, c);
+        float *d = s->row + 4 * (s->c0 + (long)s->k * x);
+        for (unsigned q = 0; q < s->k; q++, d += 4)
+            if (!(s->skip && d[3] == 1.0f))
+                blend_sse(d, c, dd, s->fx[q]);
+        c = cn;
+    }
+}
+
+/* One texel x (-1 .. w - 1) pixel by pixel: pixels outside the stored row
+ * are left out, and at the slice's edges (x = -1, x = w - 1, where the
+ * texel coordinates clamp) only the samples inside the slice are blended.
+ * The same operations as span_v4. */
+static void texel_v4(const struct span *s, int x, int w)
+{
+    const __m128 vfy = _mm_set1_ps(s->fy);
+    const int xa = x < 0 ? 0 : x, xb = x + 1 > w - 1 ? w - 1 : x + 1;
+    __m128 c = vlerp_sse(s, xa, vfy), cn = vlerp_sse(s, xb, vfy);
+    __m128 dd = _mm_sub_ps(cn, c);
+    for (unsigned q = 0; q < s->k; q++) {
+        float *d = texel_pixel(s, x, w, q);
+        if (d)
+            blend_sse(d, c, dd, s->fx[q]);
+    }
+}
+#else
+static inline void vlerp_sc(const struct span *s, int x, float *o)
+{
+    const float *a = s->pal + 4 * s->ra[x], *b = s->pal + 4 * s->rb[x];
+    for (int ch = 0; ch < 4; ch++)
+        o[ch] = a[ch] + s->fy * (b[ch] - a[ch]);
+}
+
+static inline void blend_sc(float *d, const float *c, const float *dd, float fx)
+{
+    float keep = 1.0f - d[3];
+    for (int ch = 0; ch < 4; ch++)
+        d[ch] = d[ch] + keep * (c[ch] + fx * dd[ch]);
+}
+
+static void span_v4(const struct span *s, int x0, int x1)
+{
+    float c[4], cn[4], dd[4];
+    vlerp_sc(s, x0, c);
+    for (int x = x0; x <= x1; x++) {
+        vlerp_sc(s, x + 1, cn);
+        for (int ch = 0; ch < 4; ch++)
+            dd[ch] = cn[ch] - c[ch];
+        float *d = s->row + 4 * (s->c0 + (long)s->k * x);
+        for (unsigned q = 0; q < s->k; q++, d += 4)
+            if (!(s->skip && d[3] == 1.0f))
+                blend_sc(d, c, dd, s->fx[q]);
+        memcpy(c, cn, sizeof c);
+    }
+}
+
+static void texel_v4(const struct span *s, int x, int w)
+{
+    float c[4], cn[4], dd[4];
+    const int xa = x < 0 ? 0 : x, xb = x + 1 > w - 1 ? w - 1 : x + 1;
+    vlerp_sc(s, xa, c);
+    vlerp_sc(s, xb, cn);
+    for (int ch = 0; ch < 4; ch++)
+        dd[ch] = cn[ch] - c[ch];
+    for (unsigned q = 0; q < s->k; q++) {
+        float *d = texel_pixel(s, x, w, q);
+        if (d)
+            blend_sc(d, c, dd, s->fx[q]);
+    }
+}
+#endif
+
+#ifdef SW_AVX2
+#define AVX2 __attribute__((target("avx2")))
+
+AVX2 static inline __m256 load2(const float *lo, const float *hi)
+{
+    return _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(lo)),
+                                _mm_loadu_ps(hi), 1);
+}
+
+/* dst pair + (1 - dst.a) * s, per pixel. */
+AVX2 static inline void blend2(float *d, __m256 s)
+{
+    __m256 dv = _mm256_loadu_ps(d);
+    __m256 keep = _mm256_sub_ps(_mm256_set1_ps(1.0f), _mm256_permute_ps(dv, 0xFF));
+    _mm256_storeu_ps(d, _mm256_add_ps(dv, _mm256_mul_ps(keep, s)));
+}
+
+/* K = 1: two texels (pixels) per step. */
+AVX2 static void span_avx2_k1(const struct span *s, int x0, int x1)
+{
+    const __m256 vfy = _mm256_set1_ps(s->fy), vfx = _mm256_set1_ps(s->fx[0]);
+    const uint8_t *ra = s->ra, *rb = s->rb;
+    const float *pal = s->pal;
+    __m128 c = vlerp_sse(s, x0, _mm_set1_ps(s->fy));
+    __m256 vp = _mm256_insertf128_ps(_mm256_castps128_ps256(c), c, 1);
+    int x = x0;
+    for (; x + 1 <= x1; x += 2) {
+        /* vn = [V(x+1) | V(x+2)], cur = [V(x) | V(x+1)] */
+        __m256 a = load2(pal + 4 * ra[x + 1], pal + 4 * ra[x + 2]);
+        __m256 b = load2(pal + 4 * rb[x + 1], pal + 4 * rb[x + 2]);
+        __m256 vn = _mm256_add_ps(a, _mm256_mul_ps(vfy, _mm256_sub_ps(b, a)));
+        __m256 cur = _mm256_permute2f128_ps(vp, vn, 0x21);
+        float *d = s->row + 4 * (s->c0 + x);
+        if (!(s->skip && d[3] == 1.0f && d[7] == 1.0f))
+            blend2(d, _mm256_add_ps(cur, _mm256_mul_ps(vfx, _mm256_sub_ps(vn, cur))));
+        vp = vn;
+    }
+    if (x <= x1) {
+        __m128 cc = _mm256_extractf128_ps(vp, 1);
+        __m128 cn = vlerp_sse(s, x + 1, _mm_set1_ps(s->fy));
+        float *d = s->row + 4 * (s->c0 + x);
+        if (!(s->skip && d[3] == 1.0f))
+            blend_sse(d, cc, _mm_sub_ps(cn, cc), s->fx[0]);
+    }
+}
+
+/* K = 2: the two pixels of a texel in one step. */
+AVX2 static void span_avx2_k2(const struct span *s, int x0, int x1)
+{
+    const __m128 vfy = _mm_set1_ps(s->fy);
+    const __m256 vfx = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_set1_ps(s->fx[0])),
+                                            _mm_set1_ps(s->fx[1]), 1);
+    __m128 c = vlerp_sse(s, x0, vfy);
+    for (int x = x0; x <= x1; x++) {
+        __m128 cn = vlerp_sse(s, x + 1, vfy);
+        __m128 dd = _mm_sub_ps(cn, c);
+        float *d = s->row + 4 * (s->c0 + 2L * x);
+        if (!(s->skip && d[3] == 1.0f && d[7] == 1.0f)) {
+            __m256 c2 = _mm256_insertf128_ps(_mm256_castps128_ps256(c), c, 1);
+            __m256 d2 = _mm256_insertf128_ps(_mm256_castps128_ps256(dd), dd, 1);
+            blend2(d, _mm256_add_ps(c2, _mm256_mul_ps(vfx, d2)));
+        }
+        c = cn;
+    }
+}
+#endif
+
+/* floor(a / b) for b > 0. */
+static inline long floordiv(long a, long b)
+{
+    return a >= 0 ? a / b : -((-a + b - 1) / b);
+}
+
+/* Composites row j of the stored part (global row jo + j) through every
+ * slice, front to back. */
+static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
+                          const struct geom *g, unsigned j, float *row,
+                          int32_t *cov)
+{
+    const struct tvpal_view *v = f->view;
+    const int w = (int)f->w, h = (int)f->h;
+    const unsigned k = g->k, tile = r->tile;
+    long cov_lo = g->wc, cov_hi = 0;
+    memset(row, 0, sizeof(float) * 4 * g->wc);
+    for (uint32_t n = f->count; n-- > 0;) {
+        const struct tvpal_frame_slice *sl = &f->sl[n];
+        const double c = slice_depth(v, sl->slice);
+        const double ty = g->v0 + (g->jo + j + 0.5) / k - c * g->sy;
+        if (!(ty >= 0 && ty < h))
+            continue;
+        const double yy = ty - 0.5, yf = floor(yy);
+        const int y0 = (int)yf;
+        const int ya = y0 < 0 ? 0 : y0, yb = y0 + 1 >= h ? h - 1 : y0 + 1;
+        const double ta = g->u0 - c * g->sx;
+        /* Pixel i samples x = (i + 0.5) / K + ta - 0.5; the first pixel
+         * whose sample lies at or right of texel 0 is c0. */
+        const double c0 = ceil(k * (0.5 - ta) - 0.5);
+        struct span s = {.row = row, .c0 = (long)c0 - g->io, .k = k, .wi = g->wc,
+                         .fy = (float)(yy - yf), .ra = sl->idx + (size_t)w * ya,
+                         .rb = sl->idx + (size_t)w * yb, .pal = sl->palette,
+                         .skip = r->skip};
+        unsigned qs = 0; /* phases with fx < 0.5 (fx grows with q) */
+        for (unsigned q = 0; q < k; q++) {
+            double fx = (c0 + q + 0.5) / k + ta - 0.5;
+            s.fx[q] = (float)(fx < 0 ? 0 : fx > 1 ? 1 : fx);
+            qs += s.fx[q] < 0.5f;
+        }
+        /* The slice covers pixels c0 - K + qs .. c0 + K (w - 1) + qs - 1
+         * (the same tests as texel_v4), whatever its palette. */
+        long first = s.c0 - (long)k + qs, end = s.c0 + (long)k * (w - 1) + qs;
+        cov_lo = first < cov_lo ? first : cov_lo;
+        cov_hi = end > cov_hi ? end : cov_hi;
+        const uint64_t *vr = r->vis + (size_t)n * r->trows;
+        uint64_t bits = vr[ya / tile] | vr[yb / tile];
+        /* Texels whose K pixels all lie inside the row: xmin..xmax. */
+        const long xmin = -floordiv(s.c0, (long)k);
+        const long xmax = floordiv((long)g->wc - (long)k - s.c0, (long)k);
+        while (bits) {
+            unsigned t0 = (unsigned)__builtin_ctzll(bits);
+            uint64_t sh = bits >> t0;
+            unsigned len = ~sh == 0 ? 64 - t0 : (unsigned)__builtin_ctzll(~sh);
+            unsigned t1 = t0 + len;
+            bits = t1 >= 64 ? 0 : bits & ~((1ull << t1) - 1);
+            /* Texels [a, b) are visible: pixels whose x0 is a - 1 .. b - 1
+             * may sample them (x0 = -1 and w - 1 are the clamped edges). */
+            long a = (long)t0 * tile, b = (long)t1 * tile < w ? (long)t1 * tile : w;
+            long lo = a - 1, hi = b - 1;
+            if (lo < 0) {
+                texel_v4(&s, -1, w);         /* samples with fx >= 0.5 */
+                lo = 0;
+            }
+            if (hi == w - 1) {
+                texel_v4(&s, w - 1, w);      /* samples with fx < 0.5 */
+                hi = w - 2;
+            }
+            /* Texels only partly inside the stored row (clipping). */
+            if (lo < xmin) {
+                if (xmin - 1 >= lo && xmin - 1 <= hi)
+                    texel_v4(&s, (int)(xmin - 1), w);
+                lo = xmin;
+            }
+            if (hi > xmax) {
+                if (xmax + 1 <= hi && xmax + 1 >= lo)
+                    texel_v4(&s, (int)(xmax + 1), w);
+                hi = xmax;
+            }
+            if (lo > hi)
+                continue;
+#ifdef SW_AVX2
+            if (r->avx2 && k == 1) {
+                span_avx2_k1(&s, (int)lo, (int)hi);
+                continue;
+            }
+            if (r->avx2 && k == 2) {
+                span_avx2_k2(&s, (int)lo, (int)hi);
+                continue;
+            }
+#endif
+            span_v4(&s, (int)lo, (int)hi);
+        }
+    }
+    cov[0] = (int32_t)(cov_lo < 0 ? 0 : cov_lo);
+    cov[1] = (int32_t)(cov_hi > (long)g->wc ? (long)g->wc : cov_hi);
+    if (cov[1] < cov[0])
+        cov[0] = cov[1] = 0;
+}
+
+/* Output row py from the stored part of the intermediate image (origin
+ * io, jo), pixel (px, py) at global xi = ox + ax px + bx py, likewise yi.  Coverage keeps the silhouette as
+ * sharp as the slice rasterization of the other renderers: a pixel whose
+ * nearest intermediate pixel no slice covers is transparent, and at the
+ * silhouette the bilinear weights of the uncovered taps go to the covered
+ * ones (as clamping to the edge does for one slice).  Inside, plain
+ * bilinear. */
+struct warp {
+    double ox, ax, bx, oy, ay, by;
+};
+
+static inline int covered(const int32_t *cov, long x, long y, unsigned hi)
+{
+    return y >= 0 && y < (long)hi && x >= cov[2 * y] && x < cov[2 * y + 1];
+}
+
+static void warp_row(const float *im, const int32_t *cov, long io, long jo,
+                     unsigned wi, unsigned hi, const struct warp *wp,
+                     unsigned W, unsigned py, float *o)
+{
+    const double rx = wp->ox + wp->bx * py, ry = wp->oy + wp->by * py;
+    for (unsigned px = 0; px < W; px++, o += 4) {
+        /* Global coordinates first (the weights do not depend on the
+         * clipping), then relative to the stored part. */
+        const double xi = rx + wp->ax * px, yi = ry + wp->ay * px;
+        const double xf = floor(xi) - (double)io, yf = floor(yi) - (double)jo;
+        const long x0 = (long)fmax(fmin(xf, wi), -2), y0 = (long)fmax(fmin(yf, hi), -2);
+        const float fx = (float)(xi - floor(xi)), fy = (float)(yi - floor(yi));
+        const long xn = x0 + (fx >= 0.5f), yn = y0 + (fy >= 0.5f);
+        if (!covered(cov, xn, yn, hi)) {
+            memset(o, 0, 4 * sizeof *o);
+            continue;
+        }
+        if (y0 >= 0 && y0 + 1 < (long)hi && x0 >= cov[2 * y0] &&
+            x0 >= cov[2 * y0 + 2] && x0 + 1 < cov[2 * y0 + 1] &&
+            x0 + 1 < cov[2 * y0 + 3]) {
+            const float *p00 = im + 4 * ((size_t)y0 * wi + x0), *p10 = p00 + 4;
+            const float *p01 = p00 + 4 * (size_t)wi, *p11 = p01 + 4;
+#if defined(__SSE2__)
+            __m128 vfx = _mm_set1_ps(fx), vfy = _mm_set1_ps(fy);
+            __m128 a = _mm_loadu_ps(p00), b = _mm_loadu_ps(p10);
+            __m128 c = _mm_loadu_ps(p01), d = _mm_loadu_ps(p11);
+            __m128 top = _mm_add_ps(a, _mm_mul_ps(vfx, _mm_sub_ps(b, a)));
+            __m128 bot = _mm_add_ps(c, _mm_mul_ps(vfx, _mm_sub_ps(d, c)));
+            _mm_storeu_ps(o, _mm_add_ps(top, _mm_mul_ps(vfy, _mm_sub_ps(bot, top))));
+#else
+            for (int ch = 0; ch < 4; ch++) {
+                float top = p00[ch] + fx * (p10[ch] - p00[ch]);
+                float bot = p01[ch] + fx * (p11[ch] - p01[ch]);
+                o[ch] = top + fy * (bot - top);
+            }
+#endif
+            continue;
+        }
+        /* Silhouette: the covered taps, weights renormalized. */
+        float acc[4] = {0, 0, 0, 0}, wsum = 0;
+        for (int dy = 0; dy < 2; dy++)
+            for (int dx = 0; dx < 2; dx++) {
+                long x = x0 + dx, y = y0 + dy;
+                if (!covered(cov, x, y, hi))
+                    continue;
+                float wt = (dx ? fx : 1 - fx) * (dy ? fy : 1 - fy);
+                const float *p = im + 4 * ((size_t)y * wi + x);
+                for (int ch = 0; ch < 4; ch++)
+                    acc[ch] += wt * p[ch];
+                wsum += wt;
+            }
+        for (int ch = 0; ch < 4; ch++)
+            o[ch] = wsum > 0 ? acc[ch] / wsum : 0;
+    }
+}
+
+int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
+                  float *rgba, struct tvpal_diag *diag)
+{
+    const struct tvpal_view *v = f->view;
+    struct geom g;
+    double t0 = tvpal_now();
+    if (f->w != r->w || f->h != r->h)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "frame slices %ux%u, "
+                              "renderer prepared for %ux%u", f->w, f->h,
+                              r->w, r->h);
+    const unsigned ax = v->axis;
+    if (ax > 2 || f->w != v->dims[ax == 0 ? 1 : 0] || f->h != v->dims[ax == 2 ? 1 : 2])
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "frame slices %ux%u do not "
+                              "match the view's volume", f->w, f->h);
+    for (uint32_t n = 0; n < f->count; n++) {
+        if (f->sl[n].layer >= r->layers)
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "slice layer %u, "
+                                  "renderer prepared for %u", f->sl[n].layer,
+                                  r->layers);
+        if (f->sl[n].slice >= v->dims[ax])
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "slice %u of an axis "
+                                  "of %u", f->sl[n].slice, v->dims[ax]);
+    }
+    if (f->count > r->vis_cap) {
+        uint64_t *nv = realloc(r->vis, sizeof *nv * f->count * r->trows);
+        if (!nv)
+            return tvpal_diag_set(diag, TVPAL_E_NOMEM, "visible tiles");
+        r->vis = nv;
+        r->vis_cap = f->count;
+    }
+    if (setup(f, r->force_k, &g) < 0)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "degenerate view");
+    /* Warp: output pixel centre -> eye -> base texel -> intermediate. */
+    struct warp wp;
+    double e0[2], e1[2], e2[2], b0[2], b1[2], b2[2];
+    tvpal_view_pixel_to_eye(v, 0.5, 0.5, &e0[0], &e0[1]);
+    tvpal_view_pixel_to_eye(v, 1.5, 0.5, &e1[0], &e1[1]);
+    tvpal_view_pixel_to_eye(v, 0.5, 1.5, &e2[0], &e2[1]);
+    eye_to_base(&g, f->w, f->h, e0[0], e0[1], &b0[0], &b0[1]);
+    eye_to_base(&g, f->w, f->h, e1[0], e1[1], &b1[0], &b1[1]);
+    eye_to_base(&g, f->w, f->h, e2[0], e2[1], &b2[0], &b2[1]);
+    wp.ox = (b0[0] - g.u0) * g.k - 0.5;
+    wp.oy = (b0[1] - g.v0) * g.k - 0.5;
+    wp.ax = (b1[0] - b0[0]) * g.k;
+    wp.ay = (b1[1] - b0[1]) * g.k;
+    wp.bx = (b2[0] - b0[0]) * g.k;
+    wp.by = (b2[1] - b0[1]) * g.k;
+    /* Only the part of the intermediate image the output samples (with a
+     * pixel of margin around every tap) is composited: a zoomed-in view
+     * does not pay for what it does not show.  Pixels keep their global
+     * coordinates, so clipping changes no bit. */
+    g.io = g.jo = 0;
+    g.wc = g.wi;
+    g.hc = g.hi;
+    if (r->skip) {
+        const double W1 = v->width - 1.0, H1 = v->height - 1.0;
+        double xs[4] = {wp.ox, wp.ox + wp.ax * W1, wp.ox + wp.bx * H1,
+                        wp.ox + wp.ax * W1 + wp.bx * H1};
+        double ys[4] = {wp.oy, wp.oy + wp.ay * W1, wp.oy + wp.by * H1,
+                        wp.oy + wp.ay * W1 + wp.by * H1};
+        double x0 = xs[0], x1 = xs[0], y0 = ys[0], y1 = ys[0];
+        for (int i = 1; i < 4; i++) {
+            x0 = fmin(x0, xs[i]);
+            x1 = fmax(x1, xs[i]);
+            y0 = fmin(y0, ys[i]);
+            y1 = fmax(y1, ys[i]);
+        }
+        double ilo = fmax(0, floor(x0) - 1), ihi = fmin(g.wi, floor(x1) + 3);
+        double jlo = fmax(0, floor(y0) - 1), jhi = fmin(g.hi, floor(y1) + 3);
+        g.io = (long)ilo;
+        g.jo = (long)jlo;
+        g.wc = ihi > ilo ? (unsigned)(ihi - ilo) : 0;
+        g.hc = jhi > jlo ? (unsigned)(jhi - jlo) : 0;
+    }
+    size_t need = (size_t)(g.wc ? g.wc : 1) * (g.hc ? g.hc : 1) * 4;
+    if (need > r->cap) {
+        float *nim = realloc(r->im, need * sizeof *nim);
+        if (!nim)
+            return tvpal_diag_set(diag, TVPAL_E_NOMEM, "intermediate image "
+                                  "%ux%u", g.wc, g.hc);
+        r->im = nim;
+        r->cap = need;
+    }
+    if (g.hc + 1 > r->cov_cap) {
+        int32_t *nc = realloc(r->cov, sizeof(int32_t) * 2 * (g.hc + 1));
+        if (!nc)
+            return tvpal_diag_set(diag, TVPAL_E_NOMEM, "coverage rows");
+        r->cov = nc;
+        r->cov_cap = g.hc + 1;
+    }
+    r->avx2 = r->simd && cpu_avx2();
+    r->k_last = g.k;
+    int nt = 1;
+#ifdef _OPENMP
+    nt = r->threads > 0 ? r->threads : omp_get_max_threads();
+#endif
+    /* Classify: index sets of the layers whose data changed (each once,
+     * whichever frame slices show it), then the visible tiles of every
+     * frame slice for its own palette. */
+    const int count = (int)f->count;
+    int ntodo = 0;
+    for (int n = 0; n < count; n++) {
+        const uint32_t layer = f->sl[n].layer;
+        if (r->dirty[layer] == 1) {
+            r->dirty[layer] = 2;
+            r->todo[ntodo++] = (uint32_t)n;
+        }
+    }
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 4) num_threads(nt)
+#endif
+    for (int m = 0; m < ntodo; m++) {
+        const struct tvpal_frame_slice *sl = &f->sl[r->todo[m]];
+        build_sets(r, sl->layer, sl->idx);
+        r->dirty[sl->layer] = 0;
+    }
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 8) num_threads(nt)
+#endif
+    for (int n = 0; n < count; n++)
+        classify(r, &f->sl[n], r->vis + (size_t)n * r->trows);
+    double t1 = tvpal_now();
+    r->t_classify = (t1 - t0) * 1e3;
+    /* Composite: rows of the intermediate image, in small chunks handed
+     * out dynamically (rows near the edges meet fewer slices). */
+    const int hi = (int)g.hc;
+    float *im = r->im;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 4) num_threads(nt)
+#endif
+    for (int j = 0; j < hi; j++)
+        composite_row(r, f, &g, (unsigned)j, im + (size_t)4 * g.wc * j,
+                      r->cov + 2 * (size_t)j);
+    double t2 = tvpal_now();
+    r->t_composite = (t2 - t1) * 1e3;
+    const int H = (int)v->height;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static) num_threads(nt)
+#endif
+    for (int py = 0; py < H; py++)
+        warp_row(im, r->cov, g.io, g.jo, g.wc, g.hc, &wp, v->width, (unsigned)py,
+                 rgba + (size_t)4 * v->width * py);
+    r->t_warp = (tvpal_now() - t2) * 1e3;
+    return 0;
+}

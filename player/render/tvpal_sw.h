@@ -1,0 +1,85 @@
+/* tvpal_sw.h: the CPU palette renderer by shear-warp factorization
+ * (Lacroute & Levoy, SIGGRAPH 1994), for nodes without a GPU.
+ *
+ * Axis-aligned slices under an orthographic view make the factorization
+ * exact: each slice is translated onto an intermediate image aligned with
+ * the slices (the translation grows linearly with the slice's depth), and
+ * one 2D affine warp maps that image to the output with bilinear filtering.
+ * The intermediate image has K pixels per texel, a whole number: by default
+ * ceil(output pixels per texel - 0.25), 1 to 4 (zoomed-in views stay
+ * sharp), or forced to 1..8 (tvpal_sw_set_scale).  K whole makes the
+ * bilinear weights of a slice row the same for every texel: K fixed phases.  Slices are composited front to back with the same
+ * palette semantics as tvpal_render_ref (four nearest texels looked up in
+ * the slice's palette, colours interpolated, premultiplied "over"); only
+ * the resampling differs.
+ *
+ * Only what the frame needs is done.  Each slice is cut into square tiles;
+ * when a slice's indices change (tvpal_sw_upload) the set of indices each
+ * tile holds is rebuilt, once per upload.  Every frame a tile is visible iff
+ * it holds an index whose palette entry is not fully transparent, and only
+ * runs of visible tiles are composited (a transparent entry is all zero, so
+ * skipping adds exactly nothing).  A pixel stops accumulating once it is
+ * fully opaque.  Neither changes a pixel.
+ *
+ * Rows of the intermediate image are shared among threads (OpenMP), each
+ * row composited by one thread through all slices (it stays in L1): the
+ * image is the same for any thread count.  An AVX2 inner loop is chosen
+ * at run time where the CPU has it; it performs the same float operations
+ * in the same order as the SSE2 loop (no fused multiply-add: the player
+ * library is built with -ffp-contract=off), so both give the same bits.  No allocation per frame once the largest image and the
+ * slice set (tvpal_sw_set_slices) have been seen.
+ */
+#ifndef TVPAL_SW_H
+#define TVPAL_SW_H
+
+#include "tvpal_error.h"
+#include "tvpal_frame.h"
+
+struct tvpal_sw;
+
+/* Owns *out on success; free with tvpal_sw_free. */
+int tvpal_sw_create(struct tvpal_sw **out);
+void tvpal_sw_free(struct tvpal_sw *r);   /* NULL is a no-op */
+
+/* Options for tests and benchmarks: threads (0 = OpenMP's default),
+ * skip (empty-space skipping and early termination; 1 by default),
+ * simd (1: AVX2 where the CPU has it, the default; 0: SSE2 only). */
+void tvpal_sw_options(struct tvpal_sw *r, int threads, int skip, int simd);
+
+/* Intermediate pixels per texel: 0 (the default) chooses K from the view
+ * (1..4, see above); 1..8 forces it (speed against sharpness: the cost
+ * grows as K^2).  TVPAL_E_INVAL for k > 8. */
+int tvpal_sw_set_scale(struct tvpal_sw *r, unsigned k);
+
+/* Prepares for `layers` slices of w x h indices (frame slices name their
+ * layer, < layers).  Every layer starts as changed.  Allocates; 0 or
+ * TVPAL_E_NOMEM / TVPAL_E_INVAL with diag set. */
+int tvpal_sw_set_slices(struct tvpal_sw *r, uint32_t w, uint32_t h,
+                        uint32_t layers, struct tvpal_diag *diag);
+
+/* The indices of `layer` changed: its tile index sets are rebuilt from the
+ * frame's idx pointer the next time it is drawn. */
+void tvpal_sw_upload(struct tvpal_sw *r, uint32_t layer);
+
+/* Renders the frame (slices in back-to-front order, as for the other
+ * renderers) into width * height RGBA floats, row 0 at the bottom.  The
+ * frame's slices must match the last tvpal_sw_set_slices and the view's
+ * volume (TVPAL_E_INVAL otherwise); a layer may appear in several frame
+ * slices, each with its own palette.  Palette entries are premultiplied;
+ * alpha in [0, 1] is what the player builds, larger values are drawn as
+ * given (early termination stops only pixels whose alpha is exactly 1). */
+int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
+                  float *rgba, struct tvpal_diag *diag);
+
+/* Phase times of the last draw (ms): classification (tile index sets of
+ * changed slices, visible tiles), compositing, warp. */
+void tvpal_sw_times(const struct tvpal_sw *r, double *classify_ms,
+                    double *composite_ms, double *warp_ms);
+
+/* Intermediate pixels per texel (K) of the last draw, and the inner loops
+ * used ("avx2": AVX2 for K = 1 and 2, SSE2 otherwise; "sse2"; "scalar"),
+ * for reports. */
+unsigned tvpal_sw_scale(const struct tvpal_sw *r);
+const char *tvpal_sw_simd_name(const struct tvpal_sw *r);
+
+#endif
