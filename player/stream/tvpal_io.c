@@ -111,7 +111,8 @@ unsigned tvpal_io_depth(const struct tvpal_io *io)
 
 #ifdef HAVE_LIBURING
 /* Queues the remaining part of pending read k. */
-static int uring_queue(struct tvpal_io *io, unsigned k)
+static int uring_queue(struct tvpal_io *io, unsigned k,
+                       struct tvpal_diag *diag)
 {
     struct pend *pd = &io->pend[k];
     struct io_uring_sqe *sqe = io_uring_get_sqe(&io->ring);
@@ -120,11 +121,16 @@ static int uring_queue(struct tvpal_io *io, unsigned k)
     io_uring_prep_read(sqe, pd->r.fd, (char *)pd->r.buf + pd->done,
                        (unsigned)(pd->r.len - pd->done), pd->r.off + pd->done);
     io_uring_sqe_set_data64(sqe, k);
-    return io_uring_submit(&io->ring) < 0 ? TVPAL_E_READ : 0;
+    int rc = io_uring_submit(&io->ring);
+    if (rc < 0)
+        return tvpal_diag_set(diag, TVPAL_E_READ, "io_uring_submit: %s",
+                              strerror(-rc));
+    return 0;
 }
 #endif
 
-int tvpal_io_submit(struct tvpal_io *io, const struct tvpal_io_req *r)
+int tvpal_io_submit(struct tvpal_io *io, const struct tvpal_io_req *r,
+                    struct tvpal_diag *diag)
 {
     if (io->inflight >= io->depth)
         return TVPAL_E_INVAL;
@@ -136,7 +142,7 @@ int tvpal_io_submit(struct tvpal_io *io, const struct tvpal_io_req *r)
         if (k == io->depth)
             return TVPAL_E_INVAL;
         io->pend[k] = (struct pend){.r = *r, .done = 0, .used = 1};
-        int rc = uring_queue(io, k);
+        int rc = uring_queue(io, k, diag);
         if (rc < 0) {
             io->pend[k].used = 0;
             return rc;
@@ -150,7 +156,8 @@ int tvpal_io_submit(struct tvpal_io *io, const struct tvpal_io_req *r)
     return 0;
 }
 
-int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result)
+int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result,
+                  struct tvpal_diag *diag)
 {
     if (!io->inflight)
         return TVPAL_E_INVAL;
@@ -160,16 +167,17 @@ int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result)
             struct io_uring_cqe *cqe;
             int rc = io_uring_wait_cqe(&io->ring, &cqe);
             if (rc < 0)
-                return TVPAL_E_READ;
+                return tvpal_diag_set(diag, TVPAL_E_READ,
+                                      "io_uring_wait_cqe: %s", strerror(-rc));
             unsigned k = (unsigned)io_uring_cqe_get_data64(cqe);
             int res = cqe->res;
             io_uring_cqe_seen(&io->ring, cqe);
             struct pend *pd = &io->pend[k];
             if (res > 0 && pd->done + (uint64_t)res < pd->r.len) {
                 pd->done += (uint64_t)res;
-                if (uring_queue(io, k) == 0)
+                if (uring_queue(io, k, NULL) == 0)
                     continue; /* short read: the rest is on its way */
-                res = -EIO;
+                res = -EIO; /* the rest could not be queued: a failed read */
             }
             if (res > 0)
                 pd->done += (uint64_t)res;

@@ -34,11 +34,17 @@ const char *tvpal_io_name(const struct tvpal_io *io);
 unsigned tvpal_io_inflight(const struct tvpal_io *io);
 unsigned tvpal_io_depth(const struct tvpal_io *io);
 
-/* Queues a read (TVPAL_E_INVAL when depth reads are in flight). */
-int tvpal_io_submit(struct tvpal_io *io, const struct tvpal_io_req *r);
+/* Queues a read.  TVPAL_E_INVAL when depth reads are in flight;
+ * TVPAL_E_READ when the kernel refuses the submission (diag: the call and
+ * its errno text). */
+int tvpal_io_submit(struct tvpal_io *io, const struct tvpal_io_req *r,
+                    struct tvpal_diag *diag);
 
 /* Waits for one completion: *tag of its request, *result the bytes read or
- * -errno.  TVPAL_E_INVAL when nothing is in flight. */
-int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result);
+ * -errno of that read.  TVPAL_E_INVAL when nothing is in flight;
+ * TVPAL_E_READ when waiting itself fails (diag: the call and its errno
+ * text). */
+int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result,
+                  struct tvpal_diag *diag);
 
 #endif

@@ -11,7 +11,7 @@
 #include <string.h>
 #include <unistd.h>
 
-enum { SLOT_FREE, SLOT_INFLIGHT, SLOT_READY, SLOT_BAD };
+enum { SLOT_FREE, SLOT_INFLIGHT, SLOT_READY };
 
 /* A record is read in pieces of at most PIECE bytes, all queued at once:
  * devices serve several moderate requests in parallel faster than one huge
@@ -41,7 +41,7 @@ struct tvpal_stream {
     struct part *p;
     unsigned n;
     struct tvpal_io *io;
-    int incore, direct;
+    int incore;
     unsigned prefetch;
     uint64_t incore_bytes;
 };
@@ -55,12 +55,13 @@ static void *aligned(uint64_t bytes)
 }
 
 /* Runs one completion; marks its slot. */
-static int reap(struct tvpal_stream *s, double *wait_ms)
+static int reap(struct tvpal_stream *s, double *wait_ms,
+                struct tvpal_diag *diag)
 {
     uint64_t tag;
     int64_t res;
     double t0 = tvpal_now();
-    int rc = tvpal_io_wait(s->io, &tag, &res);
+    int rc = tvpal_io_wait(s->io, &tag, &res, diag);
     if (wait_ms)
         *wait_ms += (tvpal_now() - t0) * 1e3;
     if (rc < 0)
@@ -77,7 +78,7 @@ static int reap(struct tvpal_stream *s, double *wait_ms)
 }
 
 static int submit(struct tvpal_stream *s, unsigned pi, unsigned si,
-                  uint32_t step, double *wait_ms)
+                  uint32_t step, double *wait_ms, struct tvpal_diag *diag)
 {
     struct part *p = &s->p[pi];
     struct slot *sl = &p->slots[si];
@@ -89,7 +90,7 @@ static int submit(struct tvpal_stream *s, unsigned pi, unsigned si,
     sl->pending = 0;
     for (uint64_t off = 0; off < e->bytes; off += PIECE) {
         while (tvpal_io_inflight(s->io) >= tvpal_io_depth(s->io)) {
-            int rc = reap(s, wait_ms);
+            int rc = reap(s, wait_ms, diag);
             if (rc < 0)
                 return rc;
         }
@@ -97,7 +98,7 @@ static int submit(struct tvpal_stream *s, unsigned pi, unsigned si,
         struct tvpal_io_req r = {.fd = p->fd, .off = e->offset + off,
                                  .len = len, .buf = sl->buf + off,
                                  .tag = (uint64_t)pi << 32 | si};
-        int rc = tvpal_io_submit(s->io, &r);
+        int rc = tvpal_io_submit(s->io, &r, diag);
         if (rc < 0)
             return rc;
         sl->pending++;
@@ -111,8 +112,12 @@ static int incore_reap(struct tvpal_io *io, const struct part *p,
 {
     uint64_t tag;
     int64_t res;
-    int rc = tvpal_io_wait(io, &tag, &res);
-    if (rc == 0 && res != (int64_t)tag)
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_io_wait(io, &tag, &res, &d);
+    if (rc < 0)
+        return tvpal_diag_set(diag, rc, "%s: %s", tvpal_shard_path(p->sh),
+                              d.msg);
+    if (res != (int64_t)tag)
         rc = tvpal_diag_set(diag, TVPAL_E_READ, "%s: %s",
                             tvpal_shard_path(p->sh),
                             res < 0 ? strerror((int)-res) : "short read");
@@ -131,7 +136,7 @@ static int open_part(struct tvpal_stream *s, struct part *p, int direct,
                                   strerror(errno));
     }
     if (p->fd < 0) {
-        s->direct = 0; /* e.g. tmpfs: no O_DIRECT */
+        /* e.g. tmpfs: no O_DIRECT; read through the page cache */
         p->fd = open(path, O_RDONLY | O_CLOEXEC);
         if (p->fd < 0)
             return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
@@ -163,7 +168,6 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
     s->io = io;
     s->incore = incore;
     s->prefetch = prefetch;
-    s->direct = direct;
     if (!s->p) {
         tvpal_io_free(io);
         free(s);
@@ -201,8 +205,13 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
                     .len = len, .buf = p->all + off, .tag = len};
                 while (rc == 0 && tvpal_io_inflight(io) >= tvpal_io_depth(io))
                     rc = incore_reap(io, p, diag);
-                if (rc == 0)
-                    rc = tvpal_io_submit(io, &r);
+                if (rc == 0) {
+                    struct tvpal_diag qd = {{0}};
+                    rc = tvpal_io_submit(io, &r, &qd);
+                    if (rc < 0)
+                        tvpal_diag_set(diag, rc, "%s: %s",
+                                       tvpal_shard_path(p->sh), qd.msg);
+                }
             }
             while (rc == 0 && tvpal_io_inflight(io))
                 rc = incore_reap(io, p, diag);
@@ -244,7 +253,7 @@ void tvpal_stream_free(struct tvpal_stream *s)
     if (!s)
         return;
     /* Nothing may stay in flight into buffers freed here. */
-    while (s->io && tvpal_io_inflight(s->io) && reap(s, NULL) == 0)
+    while (s->io && tvpal_io_inflight(s->io) && reap(s, NULL, NULL) == 0)
         ;
     for (unsigned i = 0; i < s->n; i++) {
         struct part *p = &s->p[i];
@@ -333,7 +342,7 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
             /* After a jump the old prefetches may hold every free slot:
              * wait for them to land, then they can be reused. */
             while (v < 0 && i < nn && tvpal_io_inflight(s->io)) {
-                int rc = reap(s, &st->io_wait_ms);
+                int rc = reap(s, &st->io_wait_ms, diag);
                 if (rc < 0)
                     return rc;
                 v = victim(p, wanted, nw);
@@ -346,10 +355,13 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
             }
             if (i >= nn && tvpal_io_inflight(s->io) + 8 > tvpal_io_depth(s->io))
                 break; /* prefetch only while the queue has room */
-            int rc = submit(s, pi, (unsigned)v, wanted[i], &st->io_wait_ms);
+            struct tvpal_diag qd = {{0}};
+            int rc = submit(s, pi, (unsigned)v, wanted[i], &st->io_wait_ms,
+                            &qd);
             if (rc < 0)
-                return tvpal_diag_set(diag, rc, "%s: cannot queue a read",
-                                      tvpal_shard_path(p->sh));
+                return tvpal_diag_set(diag, rc, "%s: cannot queue a read%s%s",
+                                      tvpal_shard_path(p->sh),
+                                      qd.msg[0] ? ": " : "", qd.msg);
             st->bytes_read += tvpal_shard_entry(p->sh, wanted[i])->bytes;
         }
     }
@@ -367,7 +379,7 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
                 continue; /* cannot happen: queued above */
             struct slot *sl = &p->slots[k];
             while (sl->state == SLOT_INFLIGHT) {
-                int rc = reap(s, &st->io_wait_ms);
+                int rc = reap(s, &st->io_wait_ms, diag);
                 if (rc < 0)
                     return rc;
             }
@@ -401,9 +413,4 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
 uint64_t tvpal_stream_incore_bytes(const struct tvpal_stream *s)
 {
     return s->incore_bytes;
-}
-
-int tvpal_stream_direct(const struct tvpal_stream *s)
-{
-    return s->direct;
 }
