@@ -54,12 +54,4 @@ struct tvpal_diag {
 int tvpal_diag_set(struct tvpal_diag *diag, int code, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 
-/* Propagate an error, single-exit style: `TVPAL_TRY(rc = f(...));` jumps to
- * the enclosing function's `err:` label when rc < 0. */
-#define TVPAL_TRY(expr)                                                       \
-    do {                                                                      \
-        if ((expr) < 0)                                                       \
-            goto err;                                                         \
-    } while (0)
-
 #endif

@@ -430,7 +430,10 @@ struct slab_slice {
 struct tvpal_slab {
     struct tvpal_shard *sh;
     struct slab_slice *sl;
-    unsigned char *rec;     /* record buffer, max_record bytes */
+    unsigned char *rec;     /* record buffer of tvpal_slab_seek, max_record
+                             * bytes, allocated by its first call: the
+                             * player feeds records itself (slab_apply) and
+                             * never needs it */
     uint64_t bytes_read;
 };
 
@@ -442,8 +445,7 @@ int tvpal_slab_create(struct tvpal_slab **out, struct tvpal_shard *sh)
         return TVPAL_E_NOMEM;
     s->sh = sh;
     s->sl = calloc(h->slice_count, sizeof *s->sl);
-    s->rec = malloc(sh->max_record);
-    if (!s->sl || !s->rec)
+    if (!s->sl)
         goto nomem;
     size_t nvox = (size_t)h->slice_w * h->slice_h;
     for (uint32_t k = 0; k < h->slice_count; k++) {
@@ -518,6 +520,8 @@ int tvpal_slab_seek(struct tvpal_slab *s, uint32_t t, struct tvpal_diag *diag)
         return tvpal_diag_set(diag, TVPAL_E_INVAL,
                               "step %u out of range (0..%u)", t,
                               s->sh->h.steps - 1);
+    if (!s->rec && !(s->rec = malloc(s->sh->max_record)))
+        return TVPAL_E_NOMEM;
     unsigned n = tvpal_slab_needed(s, t, steps);
     for (unsigned i = 0; i < n; i++) {
         int rc = tvpal_shard_read_record(s->sh, steps[i], s->rec,

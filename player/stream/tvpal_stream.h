@@ -49,7 +49,4 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
 /* Bytes held in RAM by an in-core stream (0 out-of-core). */
 uint64_t tvpal_stream_incore_bytes(const struct tvpal_stream *s);
 
-/* Whether the files are read with O_DIRECT. */
-int tvpal_stream_direct(const struct tvpal_stream *s);
-
 #endif
