@@ -20,23 +20,6 @@
 #define H 112
 
 static struct tvpal_glr *glr;
-static double *refbuf;
-
-static int gl_set(void *c, uint32_t w, uint32_t h, uint32_t n, struct tvpal_diag *d)
-{ return tvpal_glr_set_slices(c, w, h, n, d); }
-static void gl_up(void *c, uint32_t l, const uint8_t *i) { tvpal_glr_upload(c, l, i); }
-static int gl_draw(void *c, const struct tvpal_frame *f, float *o, struct tvpal_diag *d)
-{ return tvpal_glr_draw(c, f, o, d); }
-static int ref_set(void *c, uint32_t w, uint32_t h, uint32_t n, struct tvpal_diag *d)
-{ return 0; }
-static void ref_up(void *c, uint32_t l, const uint8_t *i) { }
-static int ref_draw(void *c, const struct tvpal_frame *f, float *o, struct tvpal_diag *d)
-{
-    tvpal_render_ref(f, refbuf);
-    for (size_t i = 0; i < (size_t)W * H * 4; i++)
-        o[i] = (float)refbuf[i];
-    return 0;
-}
 
 static struct tvpal_player *open_player(const char *dir, int incore,
                                         enum tvpal_io_kind io, int direct)
@@ -67,10 +50,12 @@ int main(int argc, char **argv)
     struct tvpal_diag d = {{0}};
     REQUIRE(tvpal_osmesa_create(&ctx, &d) == 0, "%s", d.msg);
     REQUIRE(tvpal_glr_create(&glr, W, H, &d) == 0, "%s", d.msg);
-    refbuf = malloc(sizeof(double) * W * H * 4);
+    struct tvpal_ref *ref;
+    REQUIRE(tvpal_ref_create(&ref, (size_t)W * H) == 0, "out of memory");
     static float a[W * H * 4], b[W * H * 4];
-    struct tvpal_renderer rgl = {glr, NULL, gl_set, gl_up, gl_draw};
-    struct tvpal_renderer rref = {NULL, NULL, ref_set, ref_up, ref_draw};
+    struct tvpal_renderer rgl, rref;
+    tvpal_glr_renderer(glr, &rgl);
+    tvpal_ref_renderer(ref, &rref);
     struct tvpal_player *p = open_player(dir, 0, TVPAL_IO_URING, 1);
     const struct tvpal_manifest *m = tvpal_player_manifest(p);
     const uint32_t T = m->steps, N = m->window;
@@ -162,6 +147,6 @@ int main(int argc, char **argv)
     tvpal_player_close(p);
     tvpal_glr_free(glr);
     tvpal_osmesa_free(ctx);
-    free(refbuf);
+    tvpal_ref_free(ref);
     return tt_done("tvpal-playcheck");
 }

@@ -30,14 +30,11 @@ int main(int argc, char **argv)
     if (argc >= 4)
         R = (unsigned)atoi(argv[3]);
     struct tvpal_comm c;
-#ifdef HAVE_MPI
-    if (tvpal_comm_mpi_init(&argc, &argv) < 0 || tvpal_comm_mpi(&c) < 0) {
-        fprintf(stderr, "tvpal-bench-composite: MPI init failed\n");
+    struct tvpal_diag d = {{0}};
+    if (tvpal_comm_open(&c, TVPAL_COMM_AUTO, &argc, &argv, &d) < 0) {
+        fprintf(stderr, "tvpal-bench-composite: %s\n", d.msg);
         return 1;
     }
-#else
-    tvpal_comm_self(&c);
-#endif
     size_t n = (size_t)W * H * 4;
     float *img = malloc(n * sizeof *img), *work = malloc(n * sizeof *img);
     uint8_t *out = malloc(n);
@@ -133,8 +130,6 @@ int main(int argc, char **argv)
     free(img);
     free(work);
     free(out);
-#ifdef HAVE_MPI
-    tvpal_comm_mpi_finalize(&c);
-#endif
+    tvpal_comm_close(&c);
     return 0;
 }

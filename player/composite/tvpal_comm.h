@@ -14,6 +14,7 @@
 #include "tvpal_error.h"
 
 struct tvpal_comm {
+    const char *name;          /* "self" or "mpi" */
     int rank, size;
     void *impl;
     /* Exchange with one partner: send sbytes, receive into rbuf (capacity
@@ -38,20 +39,50 @@ struct tvpal_comm {
     int (*allmax)(struct tvpal_comm *c, double *v, int n);
     void (*barrier)(struct tvpal_comm *c);
     /* Ends the whole job (a rank that cannot go on must not leave the
-     * others waiting). */
+     * others waiting); does not return. */
     void (*abort)(struct tvpal_comm *c, int code);
+    /* Ends the communicator (collective; for MPI, MPI_Finalize).  Called
+     * through tvpal_comm_close. */
+    void (*finalize)(struct tvpal_comm *c);
     uint64_t bytes_sent;       /* counted by the implementation */
 };
 
 /* The trivial communicator of one process. */
 void tvpal_comm_self(struct tvpal_comm *c);
 
-#ifdef HAVE_MPI
-/* MPI over a duplicate of MPI_COMM_WORLD (MPI_Init must have run:
- * tvpal_comm_mpi_init does it).  Returns 0 or TVPAL_E_SYS. */
-int tvpal_comm_mpi_init(int *argc, char ***argv);
-int tvpal_comm_mpi(struct tvpal_comm *c);
-void tvpal_comm_mpi_finalize(struct tvpal_comm *c);
-#endif
+/* Which communicator tvpal_comm_open starts. */
+enum tvpal_comm_kind {
+    TVPAL_COMM_AUTO,   /* MPI when an MPI launcher started the process */
+    TVPAL_COMM_SELF,   /* one process */
+    TVPAL_COMM_MPI     /* MPI (the process may be a singleton) */
+};
+
+/* Whether an MPI launcher started this process, from the environment
+ * the launchers set: Open MPI's mpirun (OMPI_COMM_WORLD_SIZE), the PMI of
+ * MPICH's and Intel MPI's Hydra and of Slurm's srun (PMI_SIZE, PMI_RANK),
+ * PMIx (PMIX_RANK: Open MPI 5, srun --mpi=pmix), MVAPICH
+ * (MV2_COMM_WORLD_SIZE).  TVPAL_COMM=self or TVPAL_COMM=mpi in the
+ * environment overrides the guess.  When *launcher is non-NULL it gets the
+ * variable that decided (static text), or NULL. */
+int tvpal_comm_launched(const char **launcher);
+
+/* Starts the communicator of `kind` in *c (AUTO: tvpal_comm_launched
+ * decides).  argc/argv are given to MPI_Init, which may remove its own
+ * arguments.  TVPAL_E_SYS when MPI cannot start or was not built (diag
+ * says which and what to install).  Every open is ended by
+ * tvpal_comm_close. */
+int tvpal_comm_open(struct tvpal_comm *c, enum tvpal_comm_kind kind,
+                    int *argc, char ***argv, struct tvpal_diag *diag);
+
+/* Ends what tvpal_comm_open started (collective under MPI); c is then the
+ * one-process communicator, so a late abort or close stays safe.  A
+ * zeroed struct is a no-op. */
+void tvpal_comm_close(struct tvpal_comm *c);
+
+/* The MPI communicator (tvpal_comm_mpi.c, or tvpal_comm_mpi_none.c in a
+ * build without MPI, which refuses): a duplicate of MPI_COMM_WORLD, after
+ * MPI_Init when it has not run. */
+int tvpal_comm_mpi_open(struct tvpal_comm *c, int *argc, char ***argv,
+                        struct tvpal_diag *diag);
 
 #endif

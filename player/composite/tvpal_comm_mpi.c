@@ -133,28 +133,39 @@ static void mpi_abort(struct tvpal_comm *c, int code)
     exit(code);
 }
 
-int tvpal_comm_mpi_init(int *argc, char ***argv)
+/* Ends the communicator and MPI (collective). */
+static void mpi_finalize(struct tvpal_comm *c)
 {
-    int ok = 0;
-    MPI_Initialized(&ok);
-    if (!ok && MPI_Init(argc, argv) != MPI_SUCCESS)
-        return TVPAL_E_SYS;
-    return 0;
+    if (c->impl) {
+        MPI_Comm_free((MPI_Comm *)c->impl);
+        free(c->impl);
+        c->impl = NULL;
+    }
+    int done = 0;
+    MPI_Finalized(&done);
+    if (!done)
+        MPI_Finalize();
 }
 
-int tvpal_comm_mpi(struct tvpal_comm *c)
+int tvpal_comm_mpi_open(struct tvpal_comm *c, int *argc, char ***argv,
+                        struct tvpal_diag *diag)
 {
+    int ok = 0;
     memset(c, 0, sizeof *c);
+    MPI_Initialized(&ok);
+    if (!ok && MPI_Init(argc, argv) != MPI_SUCCESS)
+        return tvpal_diag_set(diag, TVPAL_E_SYS, "MPI_Init failed");
     MPI_Comm *dup = malloc(sizeof *dup);
     if (!dup)
         return TVPAL_E_NOMEM;
     if (MPI_Comm_dup(MPI_COMM_WORLD, dup) != MPI_SUCCESS) {
         free(dup);
-        return TVPAL_E_SYS;
+        return tvpal_diag_set(diag, TVPAL_E_SYS, "MPI_Comm_dup failed");
     }
     /* Errors come back as codes, not as an abort inside the library. */
     MPI_Comm_set_errhandler(*dup, MPI_ERRORS_RETURN);
     c->impl = dup;
+    c->name = "mpi";
     MPI_Comm_rank(*dup, &c->rank);
     MPI_Comm_size(*dup, &c->size);
     c->sendrecv = mpi_sendrecv;
@@ -166,15 +177,6 @@ int tvpal_comm_mpi(struct tvpal_comm *c)
     c->allmax = mpi_allmax;
     c->barrier = mpi_barrier;
     c->abort = mpi_abort;
+    c->finalize = mpi_finalize;
     return 0;
-}
-
-void tvpal_comm_mpi_finalize(struct tvpal_comm *c)
-{
-    if (c && c->impl) {
-        MPI_Comm_free((MPI_Comm *)c->impl);
-        free(c->impl);
-        c->impl = NULL;
-    }
-    MPI_Finalize();
 }

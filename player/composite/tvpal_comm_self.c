@@ -61,6 +61,7 @@ static void self_abort(struct tvpal_comm *c, int code)
 void tvpal_comm_self(struct tvpal_comm *c)
 {
     memset(c, 0, sizeof *c);
+    c->name = "self";
     c->rank = 0;
     c->size = 1;
     c->sendrecv = self_sendrecv;

@@ -2,6 +2,8 @@
 #include "tvpal_frame.h"
 
 #include <math.h>
+#include <stdio.h>
+#include <string.h>
 
 /* Opacity correction 1 - (1 - a)^e through a table over a in [0, 1],
  * rebuilt when e changes (once per view, not 65536 pow() per frame).
@@ -45,4 +47,33 @@ int tvpal_palette_build(const struct tvpal_tf *tf, const float *row,
         clear &= p[3] == 0.0f;
     }
     return clear;
+}
+
+static int none_set(void *ctx, uint32_t w, uint32_t h, uint32_t n,
+                    struct tvpal_diag *diag)
+{
+    return 0;
+}
+
+static void none_upload(void *ctx, uint32_t layer, const uint8_t *idx)
+{
+}
+
+static int none_draw(void *ctx, const struct tvpal_frame *f, float *rgba,
+                     struct tvpal_diag *diag)
+{
+    memset(rgba, 0, sizeof(float) * 4 * f->view->width * f->view->height);
+    return 0;
+}
+
+static void none_describe(const void *ctx, char *buf, size_t cap)
+{
+    snprintf(buf, cap, "read and decode only");
+}
+
+void tvpal_renderer_none(struct tvpal_renderer *r)
+{
+    *r = (struct tvpal_renderer){.name = "none", .set_slices = none_set,
+                                 .upload = none_upload, .draw = none_draw,
+                                 .describe = none_describe};
 }

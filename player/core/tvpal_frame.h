@@ -41,20 +41,42 @@ int tvpal_palette_build(const struct tvpal_tf *tf, const float *row,
                         double opacity_exponent, double opacity_scale,
                         float *palette);
 
-/* A renderer behind the player: cpu shear-warp, GL or
- * the CPU reference.  The player that
- * drew last owns its textures; another player drawing with it re-uploads
- * everything first. */
+/* Phase times of a renderer's last draw, in ms; a renderer fills the
+ * phases it has and leaves the others as the caller set them. */
+struct tvpal_render_times {
+    double upload_ms, draw_ms, readback_ms;     /* gl */
+    double classify_ms, composite_ms, warp_ms;  /* cpu shear-warp */
+};
+
+/* The interface every renderer implements (render/: cpu shear-warp, gl, the
+ * reference; tvpal_renderer_none below).  Each renderer module fills one
+ * with its own function (tvpal_sw_renderer, tvpal_glr_renderer,
+ * tvpal_ref_renderer); ctx stays owned by that module's create/free.  The
+ * player that drew last owns the renderer's slice data (owner); another
+ * player drawing with it re-uploads everything first. */
 struct tvpal_renderer {
+    const char *name;    /* "cpu", "gl", "ref" or "none" */
     void *ctx;
     const void *owner;   /* set by the player; start with NULL */
     /* Prepare for `count` slices of w x h (axis change). */
     int (*set_slices)(void *ctx, uint32_t w, uint32_t h, uint32_t count,
                       struct tvpal_diag *diag);
+    /* Slice data of `layer` changed; idx (w * h indices) stays valid
+     * until the next upload of that layer. */
     void (*upload)(void *ctx, uint32_t layer, const uint8_t *idx);
-    /* Draw and read back into rgba (width * height * 4 floats). */
+    /* Draw and read back into rgba (width * height * 4 floats of the
+     * frame's view, premultiplied, row 0 at the bottom). */
     int (*draw)(void *ctx, const struct tvpal_frame *f, float *rgba,
                 struct tvpal_diag *diag);
+    /* Phase times of the last draw (NULL: none but the caller's). */
+    void (*times)(const void *ctx, struct tvpal_render_times *t);
+    /* What runs, for the start-up line: "shear-warp, avx2, 2 threads",
+     * the GL renderer's name, ...; written to buf (cap bytes). */
+    void (*describe)(const void *ctx, char *buf, size_t cap);
 };
+
+/* A renderer that draws nothing (an all-transparent image): for reading
+ * and decoding alone, as I/O benchmarks do. */
+void tvpal_renderer_none(struct tvpal_renderer *r);
 
 #endif

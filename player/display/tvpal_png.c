@@ -2,6 +2,7 @@
 #define _GNU_SOURCE
 #include "tvpal_png.h"
 
+#include <errno.h>
 #include <png.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -9,10 +10,11 @@
 #include <unistd.h>
 
 static int write_rgb(const char *path, unsigned width, unsigned height,
-                     const uint8_t *rgb8);
+                     const uint8_t *rgb8, struct tvpal_diag *diag);
 
 int tvpal_png_write(const char *path, const float *rgba, unsigned width,
-                    unsigned height, const float bg[3], uint8_t *rgb8)
+                    unsigned height, const float bg[3], uint8_t *rgb8,
+                    struct tvpal_diag *diag)
 {
     for (unsigned y = 0; y < height; y++) {
         const float *src = rgba + 4 * (size_t)(height - 1 - y) * width;
@@ -26,11 +28,12 @@ int tvpal_png_write(const char *path, const float *rgba, unsigned width,
             }
         }
     }
-    return write_rgb(path, width, height, rgb8);
+    return write_rgb(path, width, height, rgb8, diag);
 }
 
 int tvpal_png_write8(const char *path, const uint8_t *rgba8, unsigned width,
-                     unsigned height, const float bg[3], uint8_t *rgb8)
+                     unsigned height, const float bg[3], uint8_t *rgb8,
+                     struct tvpal_diag *diag)
 {
     for (unsigned y = 0; y < height; y++) {
         const uint8_t *src = rgba8 + 4 * (size_t)(height - 1 - y) * width;
@@ -44,19 +47,21 @@ int tvpal_png_write8(const char *path, const uint8_t *rgba8, unsigned width,
             }
         }
     }
-    return write_rgb(path, width, height, rgb8);
+    return write_rgb(path, width, height, rgb8, diag);
 }
 
 static int write_rgb(const char *path, unsigned width, unsigned height,
-                     const uint8_t *rgb8)
+                     const uint8_t *rgb8, struct tvpal_diag *diag)
 {
     char *tmp;
     if (asprintf(&tmp, "%s.tmp", path) < 0)
         return TVPAL_E_NOMEM;
     FILE *f = fopen(tmp, "wb");
     if (!f) {
+        int rc = tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", tmp,
+                                strerror(errno));
         free(tmp);
-        return TVPAL_E_OPEN;
+        return rc;
     }
     int rc = TVPAL_E_WRITE;
     png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL,
@@ -74,11 +79,20 @@ static int write_rgb(const char *path, unsigned width, unsigned height,
         png_write_end(png, NULL);
         rc = 0;
     }
+    /* libpng reports a failed fwrite through its error jump; errno still
+     * holds the cause. */
+    int werr = rc < 0 ? errno : 0;
     png_destroy_write_struct(&png, &info);
-    if (fclose(f) != 0)
+    if (fclose(f) != 0 && rc == 0) {
         rc = TVPAL_E_WRITE;
+        werr = errno;
+    }
+    if (rc < 0)
+        tvpal_diag_set(diag, rc, "%s: %s", tmp,
+                       werr ? strerror(werr) : "PNG encoding failed");
     if (rc == 0 && rename(tmp, path) < 0)
-        rc = TVPAL_E_WRITE;
+        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "%s: cannot rename to %s: "
+                            "%s", tmp, path, strerror(errno));
     if (rc < 0)
         unlink(tmp);
     free(tmp);

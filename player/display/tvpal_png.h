@@ -9,13 +9,16 @@
 /* Writes width x height premultiplied RGBA floats (row 0 at the bottom)
  * composited over an opaque background bg[3] as 8-bit RGB, top row first,
  * atomically (path.tmp, rename).  rgb8 is caller scratch of 3 * width *
- * height bytes (no allocation per frame). */
+ * height bytes (no allocation per frame).  On failure diag (may be NULL)
+ * names the file and the cause; no file is left at path.tmp. */
 int tvpal_png_write(const char *path, const float *rgba, unsigned width,
-                    unsigned height, const float bg[3], uint8_t *rgb8);
+                    unsigned height, const float bg[3], uint8_t *rgb8,
+                    struct tvpal_diag *diag);
 
 /* The same from premultiplied 8-bit RGBA (tvpal_composite's output). */
 int tvpal_png_write8(const char *path, const uint8_t *rgba8, unsigned width,
-                     unsigned height, const float bg[3], uint8_t *rgb8);
+                     unsigned height, const float bg[3], uint8_t *rgb8,
+                    struct tvpal_diag *diag);
 
 /* Reads an 8-bit RGB or RGBA PNG (tests): *out malloc'ed, 3 bytes per
  * pixel, top row first. */

@@ -62,4 +62,9 @@ uint64_t tvpal_glr_uploads(const struct tvpal_glr *r);
 void tvpal_glr_times(const struct tvpal_glr *r, double *upload_ms,
                      double *draw_ms, double *readback_ms);
 
+/* r behind the renderer interface (name "gl"; times: upload, draw,
+ * readback; described by the GL renderer's name).  r stays owned by the
+ * caller. */
+void tvpal_glr_renderer(struct tvpal_glr *r, struct tvpal_renderer *out);
+
 #endif

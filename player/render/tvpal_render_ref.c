@@ -4,6 +4,9 @@
 #include "tvpal_render_ref.h"
 
 #include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 /* Slice plane in eye space: corner c0 and edge vectors along a and b. */
@@ -91,4 +94,78 @@ void tvpal_render_ref_index_interp(const struct tvpal_frame *f,
                                    double *rgba)
 {
     render(f, rgba, 1);
+}
+
+/* ------------------------------------------------ the renderer interface */
+
+struct tvpal_ref {
+    double *img;
+    size_t max_pixels;
+};
+
+int tvpal_ref_create(struct tvpal_ref **out, size_t max_pixels)
+{
+    if (max_pixels > SIZE_MAX / (4 * sizeof(double)))
+        return TVPAL_E_OVERFLOW;
+    struct tvpal_ref *ref = calloc(1, sizeof *ref);
+    if (!ref)
+        return TVPAL_E_NOMEM;
+    ref->img = malloc(4 * sizeof(double) * (max_pixels ? max_pixels : 1));
+    if (!ref->img) {
+        free(ref);
+        return TVPAL_E_NOMEM;
+    }
+    ref->max_pixels = max_pixels;
+    *out = ref;
+    return 0;
+}
+
+void tvpal_ref_free(struct tvpal_ref *ref)
+{
+    if (!ref)
+        return;
+    free(ref->img);
+    free(ref);
+}
+
+const double *tvpal_ref_image(const struct tvpal_ref *ref)
+{
+    return ref->img;
+}
+
+static int ref_set(void *c, uint32_t w, uint32_t h, uint32_t n,
+                   struct tvpal_diag *d)
+{
+    return 0; /* draws straight from the frame's slices */
+}
+
+static void ref_up(void *c, uint32_t layer, const uint8_t *idx)
+{
+}
+
+static int ref_draw(void *c, const struct tvpal_frame *f, float *rgba,
+                    struct tvpal_diag *d)
+{
+    struct tvpal_ref *ref = c;
+    const size_t np = (size_t)f->view->width * f->view->height;
+    if (np > ref->max_pixels)
+        return tvpal_diag_set(d, TVPAL_E_INVAL, "reference renderer: %ux%u "
+                              "image, made for %zu pixels", f->view->width,
+                              f->view->height, ref->max_pixels);
+    tvpal_render_ref(f, ref->img);
+    for (size_t i = 0; i < 4 * np; i++)
+        rgba[i] = (float)ref->img[i];
+    return 0;
+}
+
+static void ref_describe(const void *c, char *buf, size_t cap)
+{
+    snprintf(buf, cap, "double-precision reference");
+}
+
+void tvpal_ref_renderer(struct tvpal_ref *ref, struct tvpal_renderer *out)
+{
+    *out = (struct tvpal_renderer){.name = "ref", .ctx = ref,
+                                   .set_slices = ref_set, .upload = ref_up,
+                                   .draw = ref_draw, .describe = ref_describe};
 }

@@ -16,6 +16,7 @@
 #include "tvpal_clock.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #if defined(__SSE2__)
@@ -821,4 +822,47 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
                  rgba + (size_t)4 * v->width * py);
     r->t_warp = (tvpal_now() - t2) * 1e3;
     return 0;
+}
+
+/* ------------------------------------------------ the renderer interface */
+
+static int sw_set(void *c, uint32_t w, uint32_t h, uint32_t n,
+                  struct tvpal_diag *d)
+{
+    return tvpal_sw_set_slices(c, w, h, n, d);
+}
+
+static void sw_up(void *c, uint32_t layer, const uint8_t *idx)
+{
+    (void)idx; /* read from the frame when drawn */
+    tvpal_sw_upload(c, layer);
+}
+
+static int sw_draw(void *c, const struct tvpal_frame *f, float *rgba,
+                   struct tvpal_diag *d)
+{
+    return tvpal_sw_draw(c, f, rgba, d);
+}
+
+static void sw_times(const void *c, struct tvpal_render_times *t)
+{
+    tvpal_sw_times(c, &t->classify_ms, &t->composite_ms, &t->warp_ms);
+}
+
+static void sw_describe(const void *c, char *buf, size_t cap)
+{
+    int nt = 1;
+#ifdef _OPENMP
+    nt = omp_get_max_threads();
+#endif
+    snprintf(buf, cap, "shear-warp, %s, %d thread%s", tvpal_sw_simd_name(c),
+             nt, nt == 1 ? "" : "s");
+}
+
+void tvpal_sw_renderer(struct tvpal_sw *r, struct tvpal_renderer *out)
+{
+    *out = (struct tvpal_renderer){.name = "cpu", .ctx = r,
+                                   .set_slices = sw_set, .upload = sw_up,
+                                   .draw = sw_draw, .times = sw_times,
+                                   .describe = sw_describe};
 }

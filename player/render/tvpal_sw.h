@@ -82,4 +82,8 @@ void tvpal_sw_times(const struct tvpal_sw *r, double *classify_ms,
 unsigned tvpal_sw_scale(const struct tvpal_sw *r);
 const char *tvpal_sw_simd_name(const struct tvpal_sw *r);
 
+/* r behind the renderer interface (name "cpu"; times: classify,
+ * composite, warp).  r stays owned by the caller. */
+void tvpal_sw_renderer(struct tvpal_sw *r, struct tvpal_renderer *out);
+
 #endif

@@ -1,0 +1,68 @@
+/* play.h: the parts of tvpal-play and what they share: the options
+ * (play_cli.c), the session every front end plays (tvpal-play.c opens it),
+ * the headless loop (play_headless.c) and the window loop (play_window.c).
+ * Renderers are chosen in play_renderer.c, per-frame figures described in
+ * play_timing.c, the cluster glue is play_cluster.c. */
+#ifndef PLAY_H
+#define PLAY_H
+
+#include <stdint.h>
+
+#include "tvpal_composite.h"
+#include "tvpal_player.h"
+#include "tvpal_tf.h"
+
+#define PLAY_PROG "tvpal-play"
+#define PLAY_MAX_TF 16
+
+/* --renderer */
+enum play_renderer_kind {
+    PLAY_REND_AUTO, PLAY_REND_GL, PLAY_REND_CPU, PLAY_REND_REF, PLAY_REND_NONE
+};
+
+/* Everything the command line says, after play_options_check. */
+struct play_opts {
+    const char *dir;                    /* OUTDIR */
+    const char *steps;                  /* --steps A:B, checked once open */
+    unsigned width, height;             /* --size */
+    double ax, ay, zoom, opacity, spin;
+    const char *tf_files[PLAY_MAX_TF];  /* --tf, in order */
+    unsigned ntf;
+    int renderer;                       /* enum play_renderer_kind */
+    const char *renderer_why;           /* why a default or implied choice */
+    uint32_t fb_bits, cpu_scale;        /* cpu_scale 0: auto */
+    int fb_given, scale_given;
+    int window;                         /* -1 until checked: from $DISPLAY */
+    struct tvpal_player_opts po;        /* data mode, I/O, prefetch */
+    uint32_t mem_mib;
+    uint32_t repeat, jumps, autoplay;
+    int tf_cycle, ref_psnr, strict, quiet, no_direct;
+    const char *outdir, *csv_path, *shot, *shard_pat;
+    enum tvpal_compose_kind ckind;
+};
+
+/* Parses argv into o (defaults first).  --help and --version print and
+ * return 1 (exit 0); usage errors end the job with exit 2.  Returns 0 to
+ * go on. */
+int play_options_parse(struct play_opts *o, int argc, char **argv);
+/* The rules between options: renderer implications (--fb: gl, --cpu-scale:
+ * cpu, default cpu headless), what needs or refuses the window, --ref-psnr
+ * on one rank.  Ends the job with exit 2 on a conflict. */
+void play_options_check(struct play_opts *o, int nranks);
+
+/* The dataset being played and what every front end needs of it. */
+struct play_session {
+    struct play_opts *o;
+    struct tvpal_player *pl;            /* owned; a loop may replace it */
+    const struct tvpal_manifest *m;
+    uint32_t a, b;                      /* first and last step */
+    struct tvpal_tf tfs[PLAY_MAX_TF + 1]; /* --tf files, then the default */
+    unsigned ntf;                       /* --tf count (tfs[ntf]: default) */
+};
+
+/* The loops.  Each returns the exit status (0, or 1 after load errors)
+ * and closes s->pl. */
+int play_run_headless(struct play_session *s);
+int play_run_window(struct play_session *s);
+
+#endif

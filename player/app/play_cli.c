@@ -1,0 +1,412 @@
+/* play_cli.c: tvpal-play's command line: one table of options, the parser
+ * it drives, and play_options_check, which holds every rule between
+ * options (see play.h). */
+#include "play.h"
+#include "play_cluster.h"
+#include "tvpal_cli.h"
+
+#include <getopt.h>
+#include <math.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PROG PLAY_PROG
+
+static void usage(FILE *f)
+{
+    fprintf(f,
+"Usage: " PROG " OUTDIR [options]\n"
+"Play the tvpal dataset OUTDIR: every frame decodes the slices of the axis\n"
+"most orthogonal to the view by a per-frame palette, TF(decoder[t][i]),\n"
+"emulated in a GLSL fragment shader (interpolation after the lookup), and\n"
+"blends them back to front in a float framebuffer.  Headless (OSMesa):\n"
+"with -o DIR, writes DIR/tNNNN.png (NNNN: the timestep) and a per-frame\n"
+"timing CSV.\n"
+"\n"
+"View and frames:\n"
+"      --headless           render off-screen to PNG files (default when\n"
+"                           there is no display)\n"
+"  -w, --window             interactive window (default with a display)\n"
+"  -s, --steps A:B          timesteps A..B inclusive, 0-based (default all);\n"
+"                           B < A plays backward\n"
+"  -S, --size WxH           image size (default 512x512)\n"
+"  -r, --rotate AX,AY       degrees about x, then about y (default 20,30)\n"
+"  -z, --zoom Z             zoom factor (default 1)\n"
+"  -t, --tf FILE            transfer function (samples/tf/README.md: tvpal\n"
+"                           text format or ParaView preset JSON); default:\n"
+"                           one from the data's histogram.  Repeat to give\n"
+"                           several (the window cycles through them)\n"
+"      --opacity S          opacity scale (default 1)\n"
+"      --renderer R         cpu (shear-warp on the CPU), gl (GLSL palette\n"
+"                           shader), ref (CPU reference, slow) or none (read\n"
+"                           and decode only: I/O benchmarks).  Default: cpu\n"
+"                           headless (OSMesa draws on the CPU) and in a window\n"
+"                           whose GL is a software rasterizer (llvmpipe),\n"
+"                           gl in a window on a GPU\n"
+"      --fb BITS            GL colour buffer: 32 (float, default), 16 (half)\n"
+"                           or 8 (shows the banding of 8-bit blending);\n"
+"                           implies --renderer gl\n"
+"      --cpu-scale K        cpu renderer: intermediate pixels per texel, auto\n"
+"                           (default: 1 to 4, as many as the view shows) or\n"
+"                           1..8 (sharper at close zoom; cost grows as K^2);\n"
+"                           implies --renderer cpu\n"
+"      --spin DEG           turn the view DEG degrees about y per frame\n"
+"                           (a camera path; crossing axes loads records)\n"
+"Data:\n"
+"  -m, --mode M             incore (records in RAM) or stream (default: from\n"
+"                           disk, O_DIRECT, prefetching)\n"
+"      --io B               uring (default; pread when unavailable) or pread\n"
+"      --prefetch P         timesteps read ahead when streaming (default 4)\n"
+"      --no-direct          stream through the page cache\n"
+"      --mem MIB            in-core: keep at most MIB of records in RAM\n"
+"                           (axes beyond it are dropped or streamed); also\n"
+"                           reports how many timesteps fit in MIB\n"
+"Benchmarking (headless):\n"
+"      --repeat K           draw every frame K times (times the draw alone)\n"
+"      --tf-cycle           use the next --tf every frame\n"
+"      --jumps K            every K-th frame jumps to a random timestep\n"
+"                           (CSV column jump = 1)\n"
+"Output:\n"
+"  -o, --output DIR         write PNG frames here (created)\n"
+"      --csv FILE           per-frame timings (default DIR/timing.csv)\n"
+"      --strict             stop at the first read or checksum error\n"
+"      --ref-psnr           also draw every frame with the reference renderer\n"
+"                           and report the image's PSNR against it (CSV\n"
+"                           column psnr_ref, summary line psnr_ref=; one\n"
+"                           rank; timings are then not representative)\n"
+"Cluster (mpirun -np K tvpal-play ..., one rank per node shard):\n"
+"      --shard-dir PATTERN  where rank r finds its shard: %%r is replaced by\n"
+"                           the rank (default OUTDIR/node-%%r)\n"
+"      --composite S        bswap (binary swap, default) or gather (all\n"
+"                           images to rank 0: the baseline)\n"
+"      --autoplay K         window: play K frames from A, then exit\n"
+"      --screenshot FILE    window: save the last frame shown as PNG\n"
+"  -q, --quiet              only the closing summary line\n"
+"  -h, --help               this help\n"
+"  -V, --version            version\n"
+"\n"
+"Window keys: space play/pause, Right/Left (or . ,) step, Home/End first/\n"
+"last, B reverse direction, T next transfer function, R reload it from its\n"
+"file, Up/Down opacity, M in-core/out-of-core, +/- or wheel zoom, S\n"
+"screenshot (tvpal-shot-NNNN.png), Q or Esc quit.  Mouse: drag the image to\n"
+"rotate, drag or click the slider to scrub.  While dragging or scrubbing\n"
+"every other slice is drawn; the full image follows when idle.  The title\n"
+"shows timestep, fps, data mode, axis and transfer function.\n"
+"\n"
+"A record that fails to load is reported (file, record); the affected\n"
+"slices keep their last good data and playback continues, unless --strict.\n"
+"Exit status: 0 success; 1 failure (GL context, writing output) or load\n"
+"errors during playback; 2 bad input or usage, a dataset that cannot be\n"
+"opened, or (with --strict) the first load error.\n");
+}
+
+/* ---------------------------------------------------------- the table */
+
+/* How an option's argument is taken.  Numbers are checked against
+ * [lo, hi]; a refused argument is reported as
+ * `--NAME "ARG": expected EXPECT` (exit 2). */
+enum opt_kind {
+    OPT_SET,      /* no argument: int field = lo */
+    OPT_U32,      /* uint32_t field in [lo, hi] */
+    OPT_DOUBLE,   /* finite double field >= lo (> lo when hi < 0) */
+    OPT_TEXT,     /* const char * field = the argument */
+    OPT_FN        /* fn(o, arg): 0 or -1 */
+};
+
+struct opt_def {
+    const char *name;
+    int key;                   /* getopt's value: the short letter or > 255 */
+    enum opt_kind kind;
+    size_t off;                /* field of struct play_opts */
+    double lo, hi;
+    int (*fn)(struct play_opts *o, const char *arg);
+    const char *expect;
+};
+
+#define F(field) offsetof(struct play_opts, field)
+
+static int set_size(struct play_opts *o, const char *arg)
+{
+    return sscanf(arg, "%ux%u", &o->width, &o->height) == 2 && o->width &&
+                   o->height && o->width <= 16384 && o->height <= 16384
+               ? 0 : -1;
+}
+
+static int set_rotate(struct play_opts *o, const char *arg)
+{
+    return sscanf(arg, "%lf,%lf", &o->ax, &o->ay) == 2 && isfinite(o->ax) &&
+                   isfinite(o->ay) ? 0 : -1;
+}
+
+static int set_tf(struct play_opts *o, const char *arg)
+{
+    if (o->ntf == PLAY_MAX_TF)
+        play_die(2, "--tf: at most %d transfer functions", PLAY_MAX_TF);
+    o->tf_files[o->ntf++] = arg;
+    return 0;
+}
+
+static int set_renderer(struct play_opts *o, const char *arg)
+{
+    static const char *const names[] = {"gl", "cpu", "ref", "none"};
+    static const int kinds[] = {PLAY_REND_GL, PLAY_REND_CPU, PLAY_REND_REF,
+                                PLAY_REND_NONE};
+    for (int i = 0; i < 4; i++)
+        if (!strcmp(arg, names[i])) {
+            o->renderer = kinds[i];
+            return 0;
+        }
+    return -1;
+}
+
+static int set_fb(struct play_opts *o, const char *arg)
+{
+    o->fb_given = 1;
+    return tvpal_parse_u32(arg, 8, 32, &o->fb_bits) == 0 &&
+                   (o->fb_bits == 8 || o->fb_bits == 16 || o->fb_bits == 32)
+               ? 0 : -1;
+}
+
+static int set_cpu_scale(struct play_opts *o, const char *arg)
+{
+    o->scale_given = 1;
+    if (!strcmp(arg, "auto"))
+        return 0;
+    return tvpal_parse_u32(arg, 1, 8, &o->cpu_scale);
+}
+
+static int set_mode(struct play_opts *o, const char *arg)
+{
+    if (!strcmp(arg, "incore"))
+        o->po.incore = 1;
+    else if (strcmp(arg, "stream"))
+        return -1;
+    return 0;
+}
+
+static int set_io(struct play_opts *o, const char *arg)
+{
+    if (!strcmp(arg, "pread"))
+        o->po.io = TVPAL_IO_PREAD;
+    else if (strcmp(arg, "uring"))
+        return -1;
+    return 0;
+}
+
+static int set_prefetch(struct play_opts *o, const char *arg)
+{
+    return tvpal_parse_u32(arg, 0, 64, &o->po.prefetch);
+}
+
+static int set_composite(struct play_opts *o, const char *arg)
+{
+    if (!strcmp(arg, "gather"))
+        o->ckind = TVPAL_COMPOSE_GATHER;
+    else if (strcmp(arg, "bswap"))
+        return -1;
+    return 0;
+}
+
+enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
+       K_REPEAT, K_TF_CYCLE, K_JUMPS, K_AUTOPLAY, K_SCREENSHOT, K_OPACITY,
+       K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_MEM, K_CSV, K_STRICT,
+       K_REF_PSNR };
+
+/* Grouped as --help groups them. */
+static const struct opt_def opt_table[] = {
+    /* view and frames */
+    {"headless", K_HEADLESS, OPT_SET, F(window), 0, 0, NULL, NULL},
+    {"window", 'w', OPT_SET, F(window), 1, 0, NULL, NULL},
+    {"steps", 's', OPT_TEXT, F(steps), 0, 0, NULL, NULL},
+    {"size", 'S', OPT_FN, 0, 0, 0, set_size, "WxH, each 1..16384"},
+    {"rotate", 'r', OPT_FN, 0, 0, 0, set_rotate, "AX,AY in degrees"},
+    {"zoom", 'z', OPT_DOUBLE, F(zoom), 0, -1, NULL, "a number > 0"},
+    {"tf", 't', OPT_FN, 0, 0, 0, set_tf, NULL},
+    {"opacity", K_OPACITY, OPT_DOUBLE, F(opacity), 0, 0, NULL,
+     "a number >= 0"},
+    {"renderer", K_RENDERER, OPT_FN, 0, 0, 0, set_renderer,
+     "gl, cpu, ref or none"},
+    {"fb", K_FB, OPT_FN, 0, 0, 0, set_fb, "8, 16 or 32"},
+    {"cpu-scale", K_CPU_SCALE, OPT_FN, 0, 0, 0, set_cpu_scale,
+     "auto or 1..8"},
+    {"spin", K_SPIN, OPT_DOUBLE, F(spin), -INFINITY, 0, NULL, "degrees"},
+    /* data */
+    {"mode", 'm', OPT_FN, 0, 0, 0, set_mode, "incore or stream"},
+    {"io", K_IO, OPT_FN, 0, 0, 0, set_io, "uring or pread"},
+    {"prefetch", K_PREFETCH, OPT_FN, 0, 0, 0, set_prefetch, "0..64"},
+    {"no-direct", K_NO_DIRECT, OPT_SET, F(no_direct), 1, 0, NULL, NULL},
+    {"mem", K_MEM, OPT_U32, F(mem_mib), 1, UINT32_MAX, NULL, "MiB >= 1"},
+    /* benchmarking */
+    {"repeat", K_REPEAT, OPT_U32, F(repeat), 1, 100000, NULL, "1..100000"},
+    {"tf-cycle", K_TF_CYCLE, OPT_SET, F(tf_cycle), 1, 0, NULL, NULL},
+    {"jumps", K_JUMPS, OPT_U32, F(jumps), 1, UINT32_MAX, NULL, "K >= 1"},
+    /* output */
+    {"output", 'o', OPT_TEXT, F(outdir), 0, 0, NULL, NULL},
+    {"csv", K_CSV, OPT_TEXT, F(csv_path), 0, 0, NULL, NULL},
+    {"strict", K_STRICT, OPT_SET, F(strict), 1, 0, NULL, NULL},
+    {"ref-psnr", K_REF_PSNR, OPT_SET, F(ref_psnr), 1, 0, NULL, NULL},
+    /* cluster and window */
+    {"shard-dir", K_SHARD_DIR, OPT_TEXT, F(shard_pat), 0, 0, NULL, NULL},
+    {"composite", K_COMPOSITE, OPT_FN, 0, 0, 0, set_composite,
+     "bswap or gather"},
+    {"autoplay", K_AUTOPLAY, OPT_U32, F(autoplay), 1, UINT32_MAX, NULL,
+     "a frame count >= 1"},
+    {"screenshot", K_SCREENSHOT, OPT_TEXT, F(shot), 0, 0, NULL, NULL},
+    {"quiet", 'q', OPT_SET, F(quiet), 1, 0, NULL, NULL},
+};
+#define NOPTS (sizeof opt_table / sizeof *opt_table)
+
+/* Options that take no argument (getopt's has_arg). */
+static int takes_arg(const struct opt_def *d)
+{
+    return d->kind != OPT_SET;
+}
+
+static void defaults(struct play_opts *o)
+{
+    *o = (struct play_opts){
+        .width = 512, .height = 512, .ax = 20, .ay = 30, .zoom = 1,
+        .opacity = 1, .renderer = PLAY_REND_AUTO, .renderer_why = "",
+        .fb_bits = 32, .window = -1, .repeat = 1,
+        .po = {.incore = 0, .io = TVPAL_IO_URING, .prefetch = 4, .direct = 1},
+        .ckind = TVPAL_COMPOSE_BSWAP};
+}
+
+/* Applies table entry d to its argument; 0 or -1. */
+static int apply(struct play_opts *o, const struct opt_def *d,
+                 const char *arg)
+{
+    char *base = (char *)o;
+    switch (d->kind) {
+    case OPT_SET:
+        *(int *)(void *)(base + d->off) = (int)d->lo;
+        return 0;
+    case OPT_U32:
+        return tvpal_parse_u32(arg, (uint32_t)d->lo, (uint32_t)d->hi,
+                               (uint32_t *)(void *)(base + d->off));
+    case OPT_DOUBLE: {
+        double v;
+        if (tvpal_parse_double(arg, &v) < 0 || v < d->lo ||
+            (d->hi < 0 && v <= d->lo))
+            return -1;
+        *(double *)(void *)(base + d->off) = v;
+        return 0;
+    }
+    case OPT_TEXT:
+        *(const char **)(void *)(base + d->off) = arg;
+        return 0;
+    case OPT_FN:
+        return d->fn(o, arg);
+    }
+    return -1;
+}
+
+static void print_version(void)
+{
+    printf(PROG " " PACKAGE_VERSION " (window: %s, gl: %s)\n",
+#ifdef TVPAL_HAVE_WINDOW
+           "yes",
+#else
+           "no",
+#endif
+#ifdef TVPAL_HAVE_GL
+           "yes");
+#else
+           "no");
+#endif
+}
+
+int play_options_parse(struct play_opts *o, int argc, char **argv)
+{
+    struct option lopts[NOPTS + 3];
+    for (size_t i = 0; i < NOPTS; i++)
+        lopts[i] = (struct option){opt_table[i].name,
+                                   takes_arg(&opt_table[i]) ? required_argument
+                                                            : no_argument,
+                                   NULL, opt_table[i].key};
+    lopts[NOPTS] = (struct option){"help", no_argument, NULL, 'h'};
+    lopts[NOPTS + 1] = (struct option){"version", no_argument, NULL, 'V'};
+    lopts[NOPTS + 2] = (struct option){NULL, 0, NULL, 0};
+    defaults(o);
+    int c;
+    while ((c = getopt_long(argc, argv, "s:S:r:z:t:m:o:wqhV", lopts, NULL)) != -1) {
+        if (c == 'h') {
+            usage(stdout);
+            return 1;
+        }
+        if (c == 'V') {
+            print_version();
+            return 1;
+        }
+        const struct opt_def *d = NULL;
+        for (size_t i = 0; i < NOPTS && !d; i++)
+            if (opt_table[i].key == c)
+                d = &opt_table[i];
+        if (!d) {
+            fprintf(stderr, "Try '" PROG " --help'.\n");
+            play_cluster_end();
+            exit(2);
+        }
+        if (apply(o, d, optarg) < 0)
+            play_die(2, "--%s \"%s\": expected %s", d->name, optarg,
+                     d->expect);
+    }
+    if (optind != argc - 1)
+        play_die(2, "expected one OUTDIR (try --help)");
+    o->dir = argv[optind];
+    o->po.mem_budget = (uint64_t)o->mem_mib << 20;
+    o->po.direct = !o->no_direct;
+    return 0;
+}
+
+/* ---------------------------------------------------------- the rules */
+
+/* Options that belong to one renderer choose it, or are refused with
+ * another. */
+static void check_renderer_options(struct play_opts *o)
+{
+    if (o->fb_given && o->renderer == PLAY_REND_AUTO) {
+        o->renderer = PLAY_REND_GL;
+        o->renderer_why = "; --fb asks for a GL framebuffer";
+    }
+    if (o->fb_given && o->renderer != PLAY_REND_GL)
+        play_die(2, "--fb: the GL framebuffer's depth; only with --renderer "
+                 "gl (the cpu renderer accumulates in float)");
+    if (o->scale_given && o->renderer == PLAY_REND_AUTO) {
+        o->renderer = PLAY_REND_CPU;
+        o->renderer_why = "; --cpu-scale asks for it";
+    }
+    if (o->scale_given && o->renderer != PLAY_REND_CPU)
+        play_die(2, "--cpu-scale: the shear-warp intermediate image's "
+                 "resolution; only with --renderer cpu");
+}
+
+void play_options_check(struct play_opts *o, int nranks)
+{
+    check_renderer_options(o);
+    if (o->window < 0)
+        o->window = getenv("DISPLAY") && *getenv("DISPLAY") && !o->outdir;
+    if (o->window) {
+        if (o->ref_psnr)
+            play_die(2, "--ref-psnr: headless only");
+        if (o->renderer == PLAY_REND_REF || o->renderer == PLAY_REND_NONE)
+            play_die(2, "--renderer %s: headless only (the window renders "
+                     "with gl or cpu)",
+                     o->renderer == PLAY_REND_REF ? "ref" : "none");
+        return; /* the window's GL decides an automatic choice */
+    }
+    if (o->autoplay || o->shot)
+        play_die(2, "--autoplay and --screenshot need the window (--window)");
+    /* Headless GL is OSMesa, a software rasterizer: the CPU renderer is
+     * the faster one there. */
+    if (o->renderer == PLAY_REND_AUTO) {
+        o->renderer = PLAY_REND_CPU;
+        o->renderer_why = "; default: headless GL is OSMesa, which draws on "
+                          "the CPU";
+    }
+    if (o->ref_psnr && (nranks > 1 || o->renderer == PLAY_REND_NONE ||
+                        o->renderer == PLAY_REND_REF))
+        play_die(2, "--ref-psnr: one rank, with the cpu or gl renderer");
+}

@@ -1,0 +1,338 @@
+/* play_headless.c: the headless loop of tvpal-play: renders a range of
+ * timesteps off-screen, composites the ranks' images (sort-last), and on
+ * rank 0 writes PNG frames, the timing CSV and the summary line. */
+#define _GNU_SOURCE
+#include "play.h"
+#include "play_cluster.h"
+#include "play_renderer.h"
+#include "play_timing.h"
+#include "tvpal_clock.h"
+#include "tvpal_fs.h"
+#include "tvpal_png.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PROG PLAY_PROG
+
+/* Everything one headless run holds; sized once, nothing per frame. */
+struct headless {
+    struct play_session *s;
+    const struct play_opts *o;
+    struct play_renderer pr;
+    struct tvpal_ref *ref;          /* --ref-psnr: the reference renderer */
+    struct tvpal_renderer rref;
+    float *ref_rgba;
+    float *rgba;                    /* this rank's image */
+    uint8_t *final, *rgb8;          /* composited frame (rank 0), PNG rows */
+    struct tvpal_compositor *cx;
+    struct play_rank_rec *recs;     /* rank 0: one per rank */
+    const char *outdir, *csv_path;  /* rank 0 only */
+    char *csv_default;
+    FILE *csv;
+    int quiet, digits;
+    struct tvpal_view v;
+    int dir_step;
+    uint32_t nframes;
+    unsigned errors;
+    char last_err[256];
+    struct play_totals tot;
+    uint64_t rng;
+};
+
+static void setup_renderers(struct headless *h)
+{
+    const struct play_opts *o = h->o;
+    struct tvpal_diag d = {{0}};
+    int rc = play_renderer_open(&h->pr, o->renderer, o->width, o->height,
+                                o->fb_bits, o->cpu_scale, 1, &d);
+    play_check_all(rc, d.msg, 1);
+    if (o->ref_psnr) {
+        if (tvpal_ref_create(&h->ref, (size_t)o->width * o->height) < 0 ||
+            !(h->ref_rgba = malloc(sizeof(float) * 4 * o->width * o->height)))
+            play_die(1, "out of memory");
+        tvpal_ref_renderer(h->ref, &h->rref);
+    }
+}
+
+static void setup_buffers(struct headless *h)
+{
+    const unsigned W = h->o->width, H = h->o->height;
+    h->rgba = malloc(sizeof(float) * 4 * W * H);
+    /* The frame as rank 0 gets it from the compositor: premultiplied
+     * 8-bit RGBA (with one rank, just this rank's image rounded). */
+    h->final = malloc(4 * (size_t)W * H);
+    h->rgb8 = malloc(3 * (size_t)W * H);
+    if (!h->rgba || !h->rgb8 || !h->final ||
+        tvpal_compositor_create(&h->cx, W, H, play_comm.size) < 0)
+        play_die_rank(1, "out of memory");
+    if (play_comm.rank == 0 &&
+        !(h->recs = calloc((size_t)play_comm.size, sizeof *h->recs)))
+        play_die_rank(1, "out of memory");
+}
+
+/* Rank 0 writes frames, CSV and the summary. */
+static void setup_outputs(struct headless *h)
+{
+    h->outdir = h->o->outdir;
+    h->csv_path = h->o->csv_path;
+    h->quiet = h->o->quiet;
+    if (play_comm.rank != 0) {
+        h->outdir = h->csv_path = NULL;
+        h->quiet = 1;
+    }
+    if (h->outdir) {
+        if (tvpal_mkdirs(h->outdir) < 0)
+            play_die(2, "%s: cannot create: %s", h->outdir, strerror(errno));
+        if (!h->csv_path &&
+            asprintf(&h->csv_default, "%s/timing.csv", h->outdir) >= 0)
+            h->csv_path = h->csv_default;
+    }
+    if (h->csv_path) {
+        if (!(h->csv = fopen(h->csv_path, "w")))
+            play_die(2, "%s: cannot write: %s", h->csv_path, strerror(errno));
+        play_timing_csv_header(h->csv);
+    }
+    h->digits = 4;
+    for (uint32_t x = 10000; x <= h->s->m->steps - 1 && h->digits < 10; x *= 10)
+        h->digits++;
+}
+
+static void setup_view(struct headless *h)
+{
+    const struct play_opts *o = h->o;
+    h->v = (struct tvpal_view){.width = o->width, .height = o->height,
+                               .ax_deg = o->ax, .ay_deg = o->ay,
+                               .zoom = o->zoom};
+    memcpy(h->v.dims, h->s->m->dims, sizeof h->v.dims);
+    tvpal_view_setup(&h->v);
+    h->dir_step = h->s->b >= h->s->a ? 1 : -1;
+    h->nframes = (h->s->b >= h->s->a ? h->s->b - h->s->a
+                                     : h->s->a - h->s->b) + 1;
+    h->rng = 0x9E3779B97F4A7C15ull;
+}
+
+static void print_start_line(const struct headless *h)
+{
+    const struct tvpal_manifest *m = h->s->m;
+    char desc[160];
+    if (h->quiet)
+        return;
+    fprintf(stderr, PROG ": %s: %ux%ux%u, %u steps, window %u; axis %c, "
+            "data %s, renderer %s (%s%s)\n", h->o->dir, m->dims[0], m->dims[1],
+            m->dims[2], m->steps, m->window, "xyz"[h->v.axis],
+            h->o->po.incore ? "in-core" : "streamed", h->pr.r.name,
+            play_renderer_describe(&h->pr, desc, sizeof desc),
+            h->o->renderer_why);
+}
+
+/* Timestep of frame i; every --jumps K-th frame a reproducible random one
+ * (xorshift). */
+static uint32_t frame_step(struct headless *h, uint32_t i, int *jump)
+{
+    *jump = 0;
+    if (h->o->jumps && i > 0 && i % h->o->jumps == 0) {
+        h->rng ^= h->rng << 13;
+        h->rng ^= h->rng >> 7;
+        h->rng ^= h->rng << 17;
+        *jump = 1;
+        return (uint32_t)(h->rng % h->s->m->steps);
+    }
+    return h->s->a + (uint32_t)((int)i * h->dir_step);
+}
+
+/* PSNR of this rank's float image against the reference renderer's
+ * drawing of the same frame.  Drawn after the timings: switching renderers
+ * makes the next frame upload every slice again, so the timings of a
+ * --ref-psnr run are not representative. */
+static double reference_psnr(struct headless *h, uint32_t t)
+{
+    struct tvpal_frame_stats st;
+    struct tvpal_diag d = {{0}};
+    if (tvpal_player_frame(h->s->pl, &h->v, t, h->dir_step, &h->rref,
+                           h->ref_rgba, &st, &d) < 0 && !st.rendered)
+        play_die(2, "step %u: reference: %s", t, d.msg);
+    const double *ref = tvpal_ref_image(h->ref);
+    const size_t np = (size_t)4 * h->o->width * h->o->height;
+    double e = 0;
+    for (size_t q = 0; q < np; q++)
+        e += ((double)h->rgba[q] - ref[q]) * ((double)h->rgba[q] - ref[q]);
+    e /= (double)np;
+    return e > 0 ? 10 * log10(1.0 / e) : INFINITY;
+}
+
+/* Draws frame t (--repeat times), composites it and measures this rank's
+ * part; row gets the player's statistics. */
+static void draw_frame(struct headless *h, uint32_t t, struct play_rank_rec *me,
+                       struct play_row *row)
+{
+    struct tvpal_frame_stats st;
+    struct tvpal_diag d = {{0}};
+    double f0 = tvpal_now();
+    int rc = tvpal_player_frame(h->s->pl, &h->v, t, h->dir_step, &h->pr.r,
+                                h->rgba, &st, &d);
+    for (uint32_t k = 1; k < h->o->repeat && rc >= 0; k++)
+        rc = tvpal_player_frame(h->s->pl, &h->v, t, h->dir_step, &h->pr.r,
+                                h->rgba, &st, &d);
+    if (!st.rendered && rc < 0 && !play_cluster_multi())
+        play_die(2, "step %u: %s", t, d.msg);
+    struct tvpal_render_times rt = {.draw_ms = st.draw_ms};
+    if (h->pr.r.times)
+        h->pr.r.times(h->pr.r.ctx, &rt);
+    /* Sort-last compositing of the ranks' images (rank 0 gets it). */
+    struct tvpal_compose_stats cs;
+    double c0 = tvpal_now();
+    if (tvpal_composite(h->cx, &play_comm, h->o->ckind, !h->v.descending,
+                        h->rgba, h->final, &cs) < 0)
+        play_die_rank(1, "compositing failed at step %u", t);
+    double comp_ms = (tvpal_now() - c0) * 1e3;
+    *me = (struct play_rank_rec){
+        .io = st.io_ms, .up = st.upload_ms + rt.upload_ms, .draw = rt.draw_ms,
+        .read = rt.readback_ms, .enc = cs.encode_ms, .exch = cs.exchange_ms,
+        .blend = cs.blend_ms, .comp = comp_ms, .gath = cs.gather_ms,
+        .total = (tvpal_now() - f0) * 1e3, .classify = rt.classify_ms,
+        .accum = rt.composite_ms, .warp = rt.warp_ms,
+        .bytes_read = st.bytes_read, .bytes_sent = cs.bytes_sent,
+        .gather_bytes = cs.gather_bytes, .pixels = cs.pixels_blended,
+        .rc = rc, .fatal = rc < 0 && (h->o->strict || !st.rendered ||
+                                      rc == TVPAL_E_SYS ||
+                                      rc == TVPAL_E_NOMEM)};
+    snprintf(me->msg, sizeof me->msg, "%s", rc < 0 ? d.msg : "");
+    *row = (struct play_row){.step = t, .axis = "xyz"[st.axis],
+                             .drawn = st.drawn, .skipped = st.skipped,
+                             .uploads = st.uploads, .stride = st.stride,
+                             .axis_switch_ms = st.axis_switch_ms,
+                             .ranks = play_comm.size, .psnr = NAN};
+}
+
+/* Rank 0 reports each rank's new load error once (a bad record is retried
+ * every frame that needs it); every rank learns whether to stop. */
+static void settle_errors(struct headless *h, uint32_t t,
+                          const struct play_rank_rec *me, struct play_row *row)
+{
+    row->agg = *me;
+    if (play_cluster_multi()) {
+        if (play_comm.gather(&play_comm, me, sizeof *me, h->recs) < 0)
+            play_die_rank(1, "MPI gather failed");
+        if (play_comm.rank == 0)
+            play_timing_aggregate(h->recs, play_comm.size, &row->agg);
+    }
+    int stop = 0;
+    if (play_comm.rank == 0) {
+        const char *keep = h->o->strict ? "" : " (keeping the last good data)";
+        for (int r = 0; r < play_comm.size; r++) {
+            const struct play_rank_rec *q = play_cluster_multi() ? &h->recs[r] : me;
+            if (q->rc >= 0 || !strcmp(q->msg, h->last_err))
+                continue;
+            h->errors++;
+            snprintf(h->last_err, sizeof h->last_err, "%s", q->msg);
+            if (play_cluster_multi())
+                fprintf(stderr, PROG ": rank %d: step %u: %s%s\n", r, t,
+                        q->msg, keep);
+            else
+                fprintf(stderr, PROG ": step %u: %s%s\n", t, q->msg, keep);
+        }
+        stop = row->agg.fatal;
+    }
+    play_comm.bcast(&play_comm, &stop, sizeof stop, 0);
+    if (stop)
+        play_die(row->agg.rc == TVPAL_E_SYS || row->agg.rc == TVPAL_E_NOMEM
+                     ? 1 : 2, "stopped at step %u", t);
+}
+
+/* Rank 0: the frame's PNG and CSV row. */
+static void write_frame(struct headless *h, const struct play_row *row)
+{
+    if (h->outdir) {
+        char *path;
+        struct tvpal_diag d = {{0}};
+        if (asprintf(&path, "%s/t%0*u.png", h->outdir, h->digits, row->step) < 0)
+            play_die(1, "out of memory");
+        static const float bg[3] = {0, 0, 0};
+        if (tvpal_png_write8(path, h->final, h->o->width, h->o->height, bg,
+                             h->rgb8, &d) < 0)
+            play_die(1, "%s: cannot write: %s", path, d.msg);
+        free(path);
+    }
+    if (h->csv)
+        play_timing_csv_row(h->csv, row);
+}
+
+static void play_frames(struct headless *h)
+{
+    const struct play_opts *o = h->o;
+    for (uint32_t i = 0; i < h->nframes; i++) {
+        int jump;
+        uint32_t t = frame_step(h, i, &jump);
+        if (o->spin != 0 && i > 0) {
+            h->v.ay_deg += o->spin;
+            tvpal_view_setup(&h->v);
+        }
+        if (o->tf_cycle && o->ntf > 1)
+            tvpal_player_set_tf(h->s->pl, &h->s->tfs[i % o->ntf], o->opacity);
+        struct play_rank_rec me;
+        struct play_row row;
+        draw_frame(h, t, &me, &row);
+        row.jump = jump;
+        if (o->ref_psnr)
+            row.psnr = reference_psnr(h, t);
+        settle_errors(h, t, &me, &row);
+        if (play_comm.rank != 0)
+            continue;
+        play_timing_add(&h->tot, &row);
+        write_frame(h, &row);
+    }
+}
+
+static void print_summary(struct headless *h, double elapsed)
+{
+    if (h->csv && fclose(h->csv) != 0)
+        play_die(1, "%s: write error", h->csv_path);
+    h->csv = NULL;
+    if (!h->quiet && h->outdir)
+        fprintf(stderr, PROG ": %u frames in %s/\n", h->nframes, h->outdir);
+    play_timing_summary(stdout, &h->tot,
+                        h->nframes / (elapsed > 0 ? elapsed : 1e-9));
+    printf(" incore_mib=%.1f mode=%s renderer=%s errors=%u\n",
+           tvpal_player_incore_bytes(h->s->pl) / 1048576.0,
+           tvpal_player_io_name(h->s->pl), h->pr.r.name, h->errors);
+    if (h->o->ref_psnr)
+        printf("psnr_ref=%.3f\n", play_timing_mean_psnr(&h->tot));
+}
+
+static void teardown(struct headless *h)
+{
+    if (h->csv)
+        fclose(h->csv);
+    play_renderer_close(&h->pr);
+    tvpal_ref_free(h->ref);
+    tvpal_player_close(h->s->pl);
+    h->s->pl = NULL;
+    tvpal_compositor_free(h->cx);
+    free(h->final);
+    free(h->recs);
+    free(h->rgba);
+    free(h->rgb8);
+    free(h->ref_rgba);
+    free(h->csv_default);
+}
+
+int play_run_headless(struct play_session *s)
+{
+    struct headless h = {.s = s, .o = s->o};
+    setup_renderers(&h);
+    setup_buffers(&h);
+    setup_outputs(&h);
+    setup_view(&h);
+    print_start_line(&h);
+    const double t_start = tvpal_now();
+    play_frames(&h);
+    if (play_comm.rank == 0)
+        print_summary(&h, tvpal_now() - t_start);
+    unsigned errors = h.errors;
+    teardown(&h);
+    return errors ? 1 : 0;
+}

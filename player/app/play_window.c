@@ -1,0 +1,411 @@
+/* play_window.c: the interactive window of tvpal-play.  Rank 0 owns the
+ * window and its input; before each frame it tells every rank what to do
+ * (a win_cmd), so that under MPI all ranks stay on the same timestep and
+ * view, and the frame reaches the window through the compositor. */
+#include "play.h"
+#include "play_cluster.h"
+#include "play_renderer.h"
+#include "tvpal_clock.h"
+#include "tvpal_png.h"
+#include "tvpal_win.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PROG PLAY_PROG
+
+/* What rank 0's window tells every rank before each frame. */
+struct win_cmd {
+    int quit, render, reduce, toggle_mode, reload_tf;
+    uint32_t t, tfi, width, height;
+    int dir;
+    double ax, ay, zoom, opacity;
+};
+
+struct win_state {
+    struct play_session *s;
+    const struct play_opts *o;
+    int leader, multi;
+    struct tvpal_win *win;          /* rank 0 */
+    struct play_renderer pr;
+    int use_cpu;
+    unsigned W, H;
+    /* The CPU image reaches the window as the compositor's 8-bit frame
+     * (with one rank: this rank's image rounded), like a cluster's. */
+    int via_final;
+    uint8_t *rgb, *rgb8, *final;    /* window pixels, PNG rows, composite */
+    float *scratch, *img;
+    struct tvpal_compositor *cx;
+    struct tvpal_player_opts po;
+    /* The view and playback state rank 0 steers. */
+    double ax, ay, zoom, opacity;
+    unsigned tfi, shots;
+    uint32_t t;
+    int dir, playing, redraw, reduced, status;
+    uint32_t frames;
+    double fps, last;
+    char last_err[256];
+};
+
+static void free_buffers(struct win_state *w)
+{
+    free(w->rgb);
+    free(w->rgb8);
+    free(w->scratch);
+    free(w->img);
+    free(w->final);
+    tvpal_compositor_free(w->cx);
+    w->rgb = w->rgb8 = w->final = NULL;
+    w->scratch = w->img = NULL;
+    w->cx = NULL;
+}
+
+/* Buffers for W x H (again after a resize). */
+static void alloc_buffers(struct win_state *w)
+{
+    const size_t n = (size_t)w->W * w->H;
+    w->rgb = malloc(3 * n);
+    w->rgb8 = malloc(3 * n);
+    w->scratch = malloc(sizeof(float) * 4 * n);
+    w->img = w->via_final ? malloc(sizeof(float) * 4 * n) : NULL;
+    w->final = w->via_final ? malloc(4 * n) : NULL;
+    if (!w->rgb || !w->rgb8 || !w->scratch ||
+        (w->via_final && (!w->img || !w->final ||
+                          tvpal_compositor_create(&w->cx, w->W, w->H,
+                                                  play_comm.size) < 0)))
+        play_die_rank(1, "out of memory");
+}
+
+/* The window on rank 0, and the renderer: the leader's choice (its
+ * window's GL decides the default) holds on every rank. */
+static void open_window(struct win_state *w)
+{
+    struct tvpal_diag d = {{0}};
+    int rc = w->leader ? tvpal_win_open(&w->win, w->W, w->H, PROG, &d) : 0;
+    play_check_all(rc, d.msg, 1);
+    w->use_cpu = w->o->renderer == PLAY_REND_CPU;
+    char why[160] = "";
+    if (w->leader && w->o->renderer == PLAY_REND_AUTO) {
+        const char *gname = tvpal_glr_gl_name();
+        w->use_cpu = play_gl_is_software(gname);
+        snprintf(why, sizeof why, "default: the window's GL is %s%s",
+                 gname ? gname : "unknown",
+                 w->use_cpu ? ", which draws on the CPU" : "");
+    }
+    if (w->multi)
+        play_comm.bcast(&play_comm, &w->use_cpu, sizeof w->use_cpu, 0);
+    /* Ranks other than 0 draw GL off-screen, in their own context. */
+    rc = play_renderer_open(&w->pr, w->use_cpu ? PLAY_REND_CPU : PLAY_REND_GL,
+                            w->W, w->H, w->o->fb_bits, w->o->cpu_scale,
+                            !w->leader, &d);
+    play_check_all(rc, rc < 0 ? d.msg : "", 1);
+    if (w->leader && !w->o->quiet) {
+        char desc[160];
+        fprintf(stderr, PROG ": renderer %s (%s%s%s)\n", w->pr.r.name,
+                play_renderer_describe(&w->pr, desc, sizeof desc),
+                *why ? "; " : "", why);
+    }
+    w->via_final = w->multi || w->use_cpu;
+    alloc_buffers(w);
+}
+
+/* tvpal_png_write takes premultiplied floats bottom-up: convert the
+ * window's top-down RGB. */
+static int save_shot(struct win_state *w, const char *path)
+{
+    const unsigned W = w->W, H = w->H;
+    for (unsigned y = 0; y < H; y++)
+        for (unsigned x = 0; x < W; x++) {
+            const uint8_t *s = w->rgb + 3 * ((size_t)(H - 1 - y) * W + x);
+            float *d = w->scratch + 4 * ((size_t)y * W + x);
+            for (int c = 0; c < 3; c++)
+                d[c] = s[c] / 255.0f;
+            d[3] = 1.0f;
+        }
+    static const float bg[3] = {0, 0, 0};
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_png_write(path, w->scratch, W, H, bg, w->rgb8, &d);
+    if (rc < 0)
+        fprintf(stderr, PROG ": %s\n", d.msg);
+    return rc;
+}
+
+/* One key pressed on rank 0. */
+static void handle_key(struct win_state *w, int key, struct win_cmd *cmd)
+{
+    const uint32_t T = w->s->m->steps;
+    switch (key) {
+    case TVPAL_KEY_PLAY: w->playing = !w->playing; break;
+    case TVPAL_KEY_NEXT:
+        w->t = w->t + 1 < T ? w->t + 1 : w->t;
+        w->playing = 0;
+        w->dir = 1;
+        break;
+    case TVPAL_KEY_PREV:
+        w->t = w->t > 0 ? w->t - 1 : 0;
+        w->playing = 0;
+        w->dir = -1;
+        break;
+    case TVPAL_KEY_FIRST: w->t = 0; break;
+    case TVPAL_KEY_LAST: w->t = T - 1; break;
+    case TVPAL_KEY_REVERSE: w->dir = -w->dir; break;
+    case TVPAL_KEY_TF_NEXT: w->tfi = (w->tfi + 1) % (w->s->ntf + 1); break;
+    case TVPAL_KEY_TF_RELOAD: cmd->reload_tf = 1; break;
+    case TVPAL_KEY_OPACITY_UP: w->opacity *= 1.25; break;
+    case TVPAL_KEY_OPACITY_DOWN: w->opacity *= 0.8; break;
+    case TVPAL_KEY_MODE: cmd->toggle_mode = 1; break;
+    case TVPAL_KEY_ZOOM_IN: w->zoom *= 1.15; break;
+    case TVPAL_KEY_ZOOM_OUT: w->zoom /= 1.15; break;
+    case TVPAL_KEY_SHOT: {
+        char name[64];
+        snprintf(name, sizeof name, "tvpal-shot-%04u.png", w->shots++);
+        tvpal_win_read(w->win, w->rgb);
+        if (save_shot(w, name) == 0 && !w->o->quiet)
+            fprintf(stderr, PROG ": saved %s\n", name);
+        break;
+    }
+    case TVPAL_KEY_QUIT: cmd->quit = 1; break;
+    }
+    w->redraw = 1;
+}
+
+/* Rank 0: this frame's input, and the command for every rank. */
+static void read_input(struct win_state *w, struct win_cmd *cmd)
+{
+    const uint32_t T = w->s->m->steps;
+    struct tvpal_input in;
+    tvpal_win_poll(w->win, !w->playing && !w->redraw && !w->multi, &in);
+    if (tvpal_win_should_close(w->win))
+        cmd->quit = 1;
+    for (int i = 0; i < in.nkeys; i++)
+        handle_key(w, in.keys[i], cmd);
+    if (in.dragging) {
+        w->ay += in.drag_dx * 0.4;
+        w->ax += in.drag_dy * 0.4;
+        w->redraw = 1;
+    }
+    if (in.scroll != 0) {
+        w->zoom *= pow(1.1, in.scroll);
+        w->redraw = 1;
+    }
+    if (in.scrubbing) {
+        w->t = (uint32_t)floor(in.scrub_pos * (T - 1) + 0.5);
+        w->playing = 0;
+        w->redraw = 1;
+    }
+    if (in.resized && in.width && in.height &&
+        (in.width != w->W || in.height != w->H)) {
+        cmd->width = in.width;
+        cmd->height = in.height;
+        w->redraw = 1;
+    }
+    /* Reduced quality while the user interacts; refine when idle. */
+    int interacting = in.dragging || in.scrubbing;
+    if (!interacting && w->reduced)
+        w->redraw = 1;
+    if (w->playing && !w->redraw) {
+        int64_t nt = (int64_t)w->t + w->dir;
+        if (nt < 0 || nt >= T)
+            nt = w->dir > 0 ? 0 : T - 1; /* loop */
+        w->t = (uint32_t)nt;
+    }
+    cmd->render = w->redraw || w->playing;
+    cmd->reduce = interacting ? 2 : 1;
+    cmd->t = w->t;
+    cmd->dir = w->dir;
+    cmd->tfi = w->tfi;
+    cmd->ax = w->ax;
+    cmd->ay = w->ay;
+    cmd->zoom = w->zoom;
+    cmd->opacity = w->opacity;
+}
+
+static void reload_tf(struct win_state *w, uint32_t tfi)
+{
+    struct play_session *s = w->s;
+    struct tvpal_tf nt;
+    struct tvpal_diag d = {{0}};
+    if (tvpal_tf_load(w->o->tf_files[tfi], s->m->value_min, s->m->value_max,
+                      &nt, &d) < 0) {
+        if (w->leader)
+            fprintf(stderr, PROG ": %s: %s (keeping the old one)\n",
+                    w->o->tf_files[tfi], d.msg);
+    } else {
+        s->tfs[tfi] = nt;
+    }
+}
+
+/* Reopens the dataset in the other data mode; the pause is the cost of
+ * loading (in-core) or of nothing (stream). */
+static void toggle_mode(struct win_state *w)
+{
+    struct play_session *s = w->s;
+    struct tvpal_player *np;
+    struct tvpal_diag d = {{0}};
+    w->po.incore = !w->po.incore;
+    double s0 = tvpal_now();
+    int rc = tvpal_player_open(&np, w->multi ? tvpal_player_dir(s->pl)
+                                             : w->o->dir, &w->po, &d);
+    play_check_all(rc, d.msg, 1);
+    tvpal_player_close(s->pl);
+    s->pl = np;
+    s->m = tvpal_player_manifest(np);
+    if (w->leader && !w->o->quiet)
+        fprintf(stderr, PROG ": data now %s (%.0f ms)\n",
+                w->po.incore ? "in-core" : "streamed",
+                (tvpal_now() - s0) * 1e3);
+}
+
+static void resize(struct win_state *w, unsigned width, unsigned height)
+{
+    struct tvpal_diag d = {{0}};
+    w->W = width;
+    w->H = height;
+    int rc = play_renderer_resize(&w->pr, width, height, &d);
+    play_check_all(rc, d.msg, 1);
+    free_buffers(w);
+    alloc_buffers(w);
+}
+
+/* Every rank: draws the command's frame (and composites it). */
+static void render(struct win_state *w, const struct win_cmd *cmd,
+                   struct tvpal_view *v)
+{
+    struct play_session *s = w->s;
+    tvpal_player_set_tf(s->pl, &s->tfs[cmd->tfi], cmd->opacity);
+    tvpal_player_set_reduce(s->pl, (unsigned)cmd->reduce);
+    w->reduced = cmd->reduce > 1;
+    *v = (struct tvpal_view){.width = w->W, .height = w->H, .ax_deg = cmd->ax,
+                             .ay_deg = cmd->ay, .zoom = cmd->zoom};
+    memcpy(v->dims, s->m->dims, sizeof v->dims);
+    tvpal_view_setup(v);
+    struct tvpal_frame_stats st;
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_player_frame(s->pl, v, cmd->t, cmd->dir, &w->pr.r, w->img,
+                                &st, &d);
+    if (rc < 0 && strcmp(d.msg, w->last_err)) {
+        snprintf(w->last_err, sizeof w->last_err, "%s", d.msg);
+        if (w->multi)
+            fprintf(stderr, PROG ": rank %d: step %u: %s (keeping the last "
+                    "good data)\n", play_comm.rank, cmd->t, d.msg);
+        else
+            fprintf(stderr, PROG ": step %u: %s (keeping the last good "
+                    "data)\n", cmd->t, d.msg);
+        w->status = 1;
+        if (!st.rendered)
+            play_die_rank(2, "cannot render step %u", cmd->t);
+    }
+    if (w->via_final) {
+        struct tvpal_compose_stats cs;
+        if (tvpal_composite(w->cx, &play_comm, TVPAL_COMPOSE_BSWAP,
+                            !v->descending, w->img, w->final, &cs) < 0)
+            play_die_rank(1, "compositing failed at step %u", cmd->t);
+    }
+    w->redraw = 0;
+    w->frames++;
+}
+
+/* Rank 0: shows the frame, the slider and the title. */
+static void present(struct win_state *w, const struct win_cmd *cmd,
+                    const struct tvpal_view *v)
+{
+    const uint32_t T = w->s->m->steps;
+    if (w->via_final)
+        tvpal_win_show(w->win, w->final, w->W, w->H);
+    else
+        tvpal_glr_blit(w->pr.glr, 0, TVPAL_SLIDER_HEIGHT);
+    if (w->o->shot)
+        tvpal_win_read(w->win, w->rgb);
+    tvpal_win_present(w->win, T > 1 ? (double)cmd->t / (T - 1) : 0.0);
+    double now = tvpal_now();
+    double inst = now > w->last ? 1.0 / (now - w->last) : 0;
+    w->fps = w->frames > 1 ? 0.8 * w->fps + 0.2 * inst : inst;
+    w->last = now;
+    char title[256];
+    snprintf(title, sizeof title, PROG " - t=%u/%u - %.1f fps - %s%s - "
+             "axis %c - %s - %s%s%s", cmd->t, T - 1, w->fps,
+             tvpal_player_io_name(w->s->pl), w->po.incore ? "" : " stream",
+             "xyz"[v->axis], w->pr.r.name, w->s->tfs[cmd->tfi].name,
+             w->reduced ? " - preview" : "", w->multi ? " - cluster" : "");
+    tvpal_win_title(w->win, title);
+}
+
+/* Rank 0, --autoplay: whether the run is over; then every rank is told
+ * to stop at its next round. */
+static int autoplay_over(struct win_state *w)
+{
+    const uint32_t T = w->s->m->steps;
+    int over = 0;
+    if (w->o->autoplay && w->frames >= w->o->autoplay) {
+        w->playing = 0;
+        w->redraw = 0;
+        over = 1;
+    } else if (w->playing && w->o->autoplay) {
+        int64_t nt = (int64_t)w->t + w->dir;
+        if (nt < 0 || nt >= T) {
+            over = 1;
+        } else {
+            w->t = (uint32_t)nt;
+            w->redraw = 1;
+        }
+    }
+    if (over && w->multi) {
+        struct win_cmd q = {.quit = 1};
+        play_comm.bcast(&play_comm, &q, sizeof q, 0);
+    }
+    return over;
+}
+
+static void event_loop(struct win_state *w)
+{
+    for (;;) {
+        struct win_cmd cmd = {0};
+        struct tvpal_view v;
+        if (w->leader)
+            read_input(w, &cmd);
+        if (w->multi && play_comm.bcast(&play_comm, &cmd, sizeof cmd, 0) < 0)
+            play_die_rank(1, "MPI broadcast failed");
+        if (cmd.quit)
+            break;
+        if (cmd.reload_tf && cmd.tfi < w->s->ntf)
+            reload_tf(w, cmd.tfi);
+        if (cmd.toggle_mode)
+            toggle_mode(w);
+        if (cmd.width && cmd.height)
+            resize(w, cmd.width, cmd.height);
+        if (!cmd.render)
+            continue;
+        render(w, &cmd, &v);
+        if (!w->leader)
+            continue;
+        present(w, &cmd, &v);
+        if (autoplay_over(w))
+            break;
+    }
+}
+
+int play_run_window(struct play_session *s)
+{
+    struct win_state w = {
+        .s = s, .o = s->o, .leader = play_comm.rank == 0,
+        .multi = play_cluster_multi(), .W = s->o->width, .H = s->o->height,
+        .po = s->o->po, .ax = s->o->ax, .ay = s->o->ay, .zoom = s->o->zoom,
+        .opacity = s->o->opacity, .t = s->a, .dir = s->b >= s->a ? 1 : -1,
+        .playing = s->o->autoplay > 0, .redraw = 1, .last = tvpal_now()};
+    open_window(&w);
+    event_loop(&w);
+    if (w.leader && w.o->shot && save_shot(&w, w.o->shot) < 0)
+        play_die(1, "%s: cannot write", w.o->shot);
+    if (w.leader)
+        printf("frames=%u last_step=%u fps=%.3f mode=%s ranks=%d renderer=%s\n",
+               w.frames, w.t, w.fps, tvpal_player_io_name(s->pl),
+               play_comm.size, w.pr.r.name);
+    play_renderer_close(&w.pr);
+    tvpal_win_close(w.win);
+    tvpal_player_close(s->pl);
+    s->pl = NULL;
+    free_buffers(&w);
+    return w.status;
+}
