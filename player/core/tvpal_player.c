@@ -175,6 +175,145 @@ uint64_t tvpal_player_axis_bytes(const struct tvpal_player *p)
     return b / 3;
 }
 
+/* First use of axis a: opens its stream (in-core: loads it).  With a
+ * memory budget, other axes' in-core records are given back first when
+ * needed (their slabs keep their decoded state); an axis larger than the
+ * whole budget is streamed instead. */
+static int open_axis(struct tvpal_player *p, unsigned a,
+                     struct tvpal_diag *diag)
+{
+    int incore = p->opts.incore;
+    if (incore && p->opts.mem_budget) {
+        uint64_t need = 0;
+        for (uint32_t k = 0; k < p->ds->nshards; k++) {
+            const struct tvpal_shard_header *h =
+                tvpal_shard_hdr(p->ds->shards[a][k]);
+            need += h->index_offset - TVPAL_SHARD_HEADER_BYTES;
+        }
+        if (need > p->opts.mem_budget) {
+            incore = 0;
+        } else {
+            uint64_t held = 0;
+            for (unsigned b = 0; b < 3; b++)
+                if (p->ax[b].stream)
+                    held += tvpal_stream_incore_bytes(p->ax[b].stream);
+            for (unsigned b = 0; b < 3 && held + need > p->opts.mem_budget; b++)
+                if (b != a && p->ax[b].stream &&
+                    tvpal_stream_incore_bytes(p->ax[b].stream)) {
+                    held -= tvpal_stream_incore_bytes(p->ax[b].stream);
+                    tvpal_stream_free(p->ax[b].stream);
+                    p->ax[b].stream = NULL;
+                }
+        }
+    }
+    struct axis_state *x = &p->ax[a];
+    return tvpal_stream_create(&x->stream, x->slabs, p->ds->nshards,
+                               p->opts.io, incore, p->opts.prefetch,
+                               p->opts.direct, diag);
+}
+
+/* The renderer is told the slices of the axis when it, its owner or the
+ * axis changed (texture layers: the slices held, layer = slice - begin);
+ * every slice is then uploaded again. */
+static int prepare_renderer(struct tvpal_player *p, unsigned a,
+                            struct tvpal_renderer *r, struct tvpal_diag *diag)
+{
+    const struct axis_state *x = &p->ax[a];
+    if (r == p->last_r && r->owner == p && p->r_axis == (int)a)
+        return 0;
+    int rc = r->set_slices(r->ctx, x->w, x->h, x->held, diag);
+    if (rc < 0)
+        return rc;
+    memset(p->uploaded_gen, 0, sizeof(uint32_t) * x->n);
+    p->last_r = r;
+    r->owner = p;
+    p->r_axis = (int)a;
+    return 0;
+}
+
+/* No more slices than the image can resolve: when a pixel spans k voxels,
+ * every k-th slice is enough along the ray too; times the reduction. */
+static unsigned slice_stride(const struct tvpal_player *p,
+                             const struct tvpal_view *v, uint32_t n)
+{
+    uint32_t nmax = p->ds->m.dims[0];
+    for (int i = 1; i < 3; i++)
+        nmax = p->ds->m.dims[i] > nmax ? p->ds->m.dims[i] : nmax;
+    double vpp = fmin(v->sx / v->width, v->sy / v->height) * nmax;
+    unsigned stride = vpp >= 2.0 ? (unsigned)vpp : 1;
+    stride *= p->reduce;
+    return stride > n ? n : stride;
+}
+
+/* The held slice drawn i-th (back to front). */
+static inline uint32_t slice_in_order(const struct axis_state *x,
+                                      const struct tvpal_view *v, uint32_t i)
+{
+    return v->descending ? x->begin + x->held - 1 - i : x->begin + i;
+}
+
+/* Palettes of every held slice at t, in parallel (the TF is evaluated 256
+ * times per slice), and what the frame does with each slice. */
+static void build_palettes(struct tvpal_player *p, const struct axis_state *x,
+                           const struct tvpal_view *v, uint32_t t,
+                           unsigned stride)
+{
+    const double expo = tvpal_view_opacity_exponent(v) * stride;
+    const int held = (int)x->held;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(static)
+#endif
+    for (int i = 0; i < held; i++) {
+        uint32_t s = slice_in_order(x, v, (uint32_t)i);
+        if (s % stride != (x->n / 2) % stride) {
+            p->state[i] = SL_STRIDE;
+            continue;
+        }
+        const float *row = tvpal_slab_row(x->slabs[x->slab_of[s]],
+                                          x->local_of[s], t);
+        if (!row) {
+            p->state[i] = SL_NODATA;
+            continue;
+        }
+        float *pal = p->pal + (size_t)1024 * (s - x->begin);
+        p->state[i] = tvpal_palette_build(&p->tf, row, expo, p->opacity_scale,
+                                          pal) ? SL_CLEAR : SL_DRAW;
+    }
+}
+
+/* In drawing order: uploads of slices whose window changed (serial: a GL
+ * context is not shared among threads) and the frame's slice list.
+ * Returns the slices to draw. */
+static uint32_t list_slices(struct tvpal_player *p, const struct axis_state *x,
+                            const struct tvpal_view *v,
+                            struct tvpal_renderer *r,
+                            struct tvpal_frame_stats *st)
+{
+    uint32_t count = 0;
+    for (uint32_t i = 0; i < x->held; i++) {
+        if (p->state[i] == SL_STRIDE)
+            continue;
+        if (p->state[i] != SL_DRAW) {
+            st->skipped++; /* no data, or fully transparent */
+            continue;
+        }
+        uint32_t s = slice_in_order(x, v, i);
+        struct tvpal_slab *slab = x->slabs[x->slab_of[s]];
+        uint32_t k = x->local_of[s];
+        const uint32_t layer = s - x->begin;
+        uint32_t gen = tvpal_slab_generation(slab, k);
+        if (p->uploaded_gen[s] != gen) {
+            r->upload(r->ctx, layer, tvpal_slab_indices(slab, k));
+            p->uploaded_gen[s] = gen;
+            st->uploads++;
+        }
+        p->fs[count++] = (struct tvpal_frame_slice){
+            .slice = s, .layer = layer, .idx = tvpal_slab_indices(slab, k),
+            .palette = p->pal + (size_t)1024 * layer};
+    }
+    return count;
+}
+
 int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
                        uint32_t t, int dir, struct tvpal_renderer *r,
                        float *rgba, struct tvpal_frame_stats *st,
@@ -192,41 +331,13 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u out of range "
                               "(0..%u)", t, p->ds->m.steps - 1);
     if (!x->stream) {
-        /* First use of this axis: open its stream (in-core: load it).  With
-         * a memory budget, other axes' in-core records are given back
-         * first when needed (their slabs keep their decoded state); an axis
-         * larger than the whole budget is streamed instead. */
-        int incore = p->opts.incore;
-        if (incore && p->opts.mem_budget) {
-            uint64_t need = 0;
-            for (uint32_t k = 0; k < p->ds->nshards; k++) {
-                const struct tvpal_shard_header *h =
-                    tvpal_shard_hdr(p->ds->shards[v->axis][k]);
-                need += h->index_offset - TVPAL_SHARD_HEADER_BYTES;
-            }
-            if (need > p->opts.mem_budget) {
-                incore = 0;
-            } else {
-                uint64_t held = 0;
-                for (unsigned a = 0; a < 3; a++)
-                    if (p->ax[a].stream)
-                        held += tvpal_stream_incore_bytes(p->ax[a].stream);
-                for (unsigned a = 0; a < 3 && held + need > p->opts.mem_budget; a++)
-                    if (a != v->axis && p->ax[a].stream &&
-                        tvpal_stream_incore_bytes(p->ax[a].stream)) {
-                        held -= tvpal_stream_incore_bytes(p->ax[a].stream);
-                        tvpal_stream_free(p->ax[a].stream);
-                        p->ax[a].stream = NULL;
-                    }
-            }
-        }
-        int rc = tvpal_stream_create(&x->stream, x->slabs, p->ds->nshards,
-                                     p->opts.io, incore, p->opts.prefetch,
-                                     p->opts.direct, diag);
+        int rc = open_axis(p, v->axis, diag);
         if (rc < 0)
             return rc;
         st->axis_switch_ms = (tvpal_now() - t0) * 1e3;
     }
+    /* A record that fails to load leaves its slices with their last good
+     * data: the frame is drawn, and the error returned. */
     struct tvpal_stream_stats ss;
     struct tvpal_diag d = {{0}};
     int load_rc = tvpal_stream_seek(x->stream, t, dir, &ss, &d);
@@ -236,79 +347,17 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
     st->bytes_read = ss.bytes_read;
 
     double t1 = tvpal_now();
-    if (r != p->last_r || r->owner != p || p->r_axis != (int)v->axis) {
-        /* Texture layers: the slices held, layer = slice - begin. */
-        int rc = r->set_slices(r->ctx, x->w, x->h, x->held, diag);
-        if (rc < 0)
-            return rc;
-        memset(p->uploaded_gen, 0, sizeof(uint32_t) * x->n);
-        p->last_r = r;
-        r->owner = p;
-        p->r_axis = (int)v->axis;
-    }
-    /* No more slices than the image can resolve: when a pixel spans k
-     * voxels, every k-th slice is enough along the ray too. */
-    uint32_t nmax = p->ds->m.dims[0];
-    for (int i = 1; i < 3; i++)
-        nmax = p->ds->m.dims[i] > nmax ? p->ds->m.dims[i] : nmax;
-    double vpp = fmin(v->sx / v->width, v->sy / v->height) * nmax;
-    unsigned stride = vpp >= 2.0 ? (unsigned)vpp : 1;
-    stride *= p->reduce;
-    if (stride > x->n)
-        stride = x->n;
-    st->stride = stride;
-    const double expo = tvpal_view_opacity_exponent(v) * stride;
-    /* Palettes first, in parallel (the TF is evaluated 256 times per
-     * slice); then, in drawing order, uploads (a GL context is not shared
-     * among threads) and the frame's slice list. */
-    const int held = (int)x->held;
-#ifdef _OPENMP
-#pragma omp parallel for schedule(static)
-#endif
-    for (int i = 0; i < held; i++) {
-        uint32_t s = v->descending ? x->begin + x->held - 1 - (uint32_t)i
-                                   : x->begin + (uint32_t)i;
-        if (s % stride != (x->n / 2) % stride) {
-            p->state[i] = SL_STRIDE;
-            continue;
-        }
-        const float *row = tvpal_slab_row(x->slabs[x->slab_of[s]],
-                                          x->local_of[s], t);
-        if (!row) {
-            p->state[i] = SL_NODATA;
-            continue;
-        }
-        float *pal = p->pal + (size_t)1024 * (s - x->begin);
-        p->state[i] = tvpal_palette_build(&p->tf, row, expo, p->opacity_scale,
-                                          pal) ? SL_CLEAR : SL_DRAW;
-    }
-    uint32_t count = 0;
-    for (uint32_t i = 0; i < x->held; i++) {
-        if (p->state[i] == SL_STRIDE)
-            continue;
-        if (p->state[i] != SL_DRAW) {
-            st->skipped++; /* no data, or fully transparent */
-            continue;
-        }
-        uint32_t s = v->descending ? x->begin + x->held - 1 - i : x->begin + i;
-        struct tvpal_slab *slab = x->slabs[x->slab_of[s]];
-        uint32_t k = x->local_of[s];
-        const uint32_t layer = s - x->begin;
-        uint32_t gen = tvpal_slab_generation(slab, k);
-        if (p->uploaded_gen[s] != gen) {
-            r->upload(r->ctx, layer, tvpal_slab_indices(slab, k));
-            p->uploaded_gen[s] = gen;
-            st->uploads++;
-        }
-        p->fs[count++] = (struct tvpal_frame_slice){
-            .slice = s, .layer = layer, .idx = tvpal_slab_indices(slab, k),
-            .palette = p->pal + (size_t)1024 * layer};
-    }
+    int rc = prepare_renderer(p, v->axis, r, diag);
+    if (rc < 0)
+        return rc;
+    st->stride = slice_stride(p, v, x->n);
+    build_palettes(p, x, v, t, st->stride);
+    uint32_t count = list_slices(p, x, v, r, st);
     st->drawn = count;
     double t2 = tvpal_now();
     struct tvpal_frame f = {.view = v, .w = x->w, .h = x->h, .count = count,
                             .sl = p->fs};
-    int rc = r->draw(r->ctx, &f, rgba, diag);
+    rc = r->draw(r->ctx, &f, rgba, diag);
     double t3 = tvpal_now();
     st->rendered = rc == 0;
     st->upload_ms = (t2 - t1) * 1e3;

@@ -678,12 +678,12 @@ static void warp_row(const float *im, const int32_t *cov, long io, long jo,
     }
 }
 
-int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
-                  float *rgba, struct tvpal_diag *diag)
+/* The frame must be what the renderer was prepared for and lie in the
+ * view's volume. */
+static int check_frame(const struct tvpal_sw *r, const struct tvpal_frame *f,
+                       struct tvpal_diag *diag)
 {
     const struct tvpal_view *v = f->view;
-    struct geom g;
-    double t0 = tvpal_now();
     if (f->w != r->w || f->h != r->h)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "frame slices %ux%u, "
                               "renderer prepared for %ux%u", f->w, f->h,
@@ -701,6 +701,66 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
             return tvpal_diag_set(diag, TVPAL_E_INVAL, "slice %u of an axis "
                                   "of %u", f->sl[n].slice, v->dims[ax]);
     }
+    return 0;
+}
+
+/* Warp: output pixel centre -> eye -> base texel -> intermediate. */
+static void setup_warp(const struct tvpal_frame *f, const struct geom *g,
+                       struct warp *wp)
+{
+    const struct tvpal_view *v = f->view;
+    double e0[2], e1[2], e2[2], b0[2], b1[2], b2[2];
+    tvpal_view_pixel_to_eye(v, 0.5, 0.5, &e0[0], &e0[1]);
+    tvpal_view_pixel_to_eye(v, 1.5, 0.5, &e1[0], &e1[1]);
+    tvpal_view_pixel_to_eye(v, 0.5, 1.5, &e2[0], &e2[1]);
+    eye_to_base(g, f->w, f->h, e0[0], e0[1], &b0[0], &b0[1]);
+    eye_to_base(g, f->w, f->h, e1[0], e1[1], &b1[0], &b1[1]);
+    eye_to_base(g, f->w, f->h, e2[0], e2[1], &b2[0], &b2[1]);
+    wp->ox = (b0[0] - g->u0) * g->k - 0.5;
+    wp->oy = (b0[1] - g->v0) * g->k - 0.5;
+    wp->ax = (b1[0] - b0[0]) * g->k;
+    wp->ay = (b1[1] - b0[1]) * g->k;
+    wp->bx = (b2[0] - b0[0]) * g->k;
+    wp->by = (b2[1] - b0[1]) * g->k;
+}
+
+/* Only the part of the intermediate image the output samples (with a pixel
+ * of margin around every tap) is composited: a zoomed-in view does not pay
+ * for what it does not show.  Pixels keep their global coordinates, so
+ * clipping changes no bit.  Without skipping: all of it. */
+static void clip_to_output(const struct tvpal_view *v, const struct warp *wp,
+                           int skip, struct geom *g)
+{
+    g->io = g->jo = 0;
+    g->wc = g->wi;
+    g->hc = g->hi;
+    if (!skip)
+        return;
+    const double W1 = v->width - 1.0, H1 = v->height - 1.0;
+    double xs[4] = {wp->ox, wp->ox + wp->ax * W1, wp->ox + wp->bx * H1,
+                    wp->ox + wp->ax * W1 + wp->bx * H1};
+    double ys[4] = {wp->oy, wp->oy + wp->ay * W1, wp->oy + wp->by * H1,
+                    wp->oy + wp->ay * W1 + wp->by * H1};
+    double x0 = xs[0], x1 = xs[0], y0 = ys[0], y1 = ys[0];
+    for (int i = 1; i < 4; i++) {
+        x0 = fmin(x0, xs[i]);
+        x1 = fmax(x1, xs[i]);
+        y0 = fmin(y0, ys[i]);
+        y1 = fmax(y1, ys[i]);
+    }
+    double ilo = fmax(0, floor(x0) - 1), ihi = fmin(g->wi, floor(x1) + 3);
+    double jlo = fmax(0, floor(y0) - 1), jhi = fmin(g->hi, floor(y1) + 3);
+    g->io = (long)ilo;
+    g->jo = (long)jlo;
+    g->wc = ihi > ilo ? (unsigned)(ihi - ilo) : 0;
+    g->hc = jhi > jlo ? (unsigned)(jhi - jlo) : 0;
+}
+
+/* Scratch grows to the largest frame seen, then stays: no allocation per
+ * frame in steady playback. */
+static int reserve_scratch(struct tvpal_sw *r, const struct tvpal_frame *f,
+                           const struct geom *g, struct tvpal_diag *diag)
+{
     if (f->count > r->vis_cap) {
         uint64_t *nv = realloc(r->vis, sizeof *nv * f->count * r->trows);
         if (!nv)
@@ -708,75 +768,31 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
         r->vis = nv;
         r->vis_cap = f->count;
     }
-    if (setup(f, r->force_k, &g) < 0)
-        return tvpal_diag_set(diag, TVPAL_E_INVAL, "degenerate view");
-    /* Warp: output pixel centre -> eye -> base texel -> intermediate. */
-    struct warp wp;
-    double e0[2], e1[2], e2[2], b0[2], b1[2], b2[2];
-    tvpal_view_pixel_to_eye(v, 0.5, 0.5, &e0[0], &e0[1]);
-    tvpal_view_pixel_to_eye(v, 1.5, 0.5, &e1[0], &e1[1]);
-    tvpal_view_pixel_to_eye(v, 0.5, 1.5, &e2[0], &e2[1]);
-    eye_to_base(&g, f->w, f->h, e0[0], e0[1], &b0[0], &b0[1]);
-    eye_to_base(&g, f->w, f->h, e1[0], e1[1], &b1[0], &b1[1]);
-    eye_to_base(&g, f->w, f->h, e2[0], e2[1], &b2[0], &b2[1]);
-    wp.ox = (b0[0] - g.u0) * g.k - 0.5;
-    wp.oy = (b0[1] - g.v0) * g.k - 0.5;
-    wp.ax = (b1[0] - b0[0]) * g.k;
-    wp.ay = (b1[1] - b0[1]) * g.k;
-    wp.bx = (b2[0] - b0[0]) * g.k;
-    wp.by = (b2[1] - b0[1]) * g.k;
-    /* Only the part of the intermediate image the output samples (with a
-     * pixel of margin around every tap) is composited: a zoomed-in view
-     * does not pay for what it does not show.  Pixels keep their global
-     * coordinates, so clipping changes no bit. */
-    g.io = g.jo = 0;
-    g.wc = g.wi;
-    g.hc = g.hi;
-    if (r->skip) {
-        const double W1 = v->width - 1.0, H1 = v->height - 1.0;
-        double xs[4] = {wp.ox, wp.ox + wp.ax * W1, wp.ox + wp.bx * H1,
-                        wp.ox + wp.ax * W1 + wp.bx * H1};
-        double ys[4] = {wp.oy, wp.oy + wp.ay * W1, wp.oy + wp.by * H1,
-                        wp.oy + wp.ay * W1 + wp.by * H1};
-        double x0 = xs[0], x1 = xs[0], y0 = ys[0], y1 = ys[0];
-        for (int i = 1; i < 4; i++) {
-            x0 = fmin(x0, xs[i]);
-            x1 = fmax(x1, xs[i]);
-            y0 = fmin(y0, ys[i]);
-            y1 = fmax(y1, ys[i]);
-        }
-        double ilo = fmax(0, floor(x0) - 1), ihi = fmin(g.wi, floor(x1) + 3);
-        double jlo = fmax(0, floor(y0) - 1), jhi = fmin(g.hi, floor(y1) + 3);
-        g.io = (long)ilo;
-        g.jo = (long)jlo;
-        g.wc = ihi > ilo ? (unsigned)(ihi - ilo) : 0;
-        g.hc = jhi > jlo ? (unsigned)(jhi - jlo) : 0;
-    }
-    size_t need = (size_t)(g.wc ? g.wc : 1) * (g.hc ? g.hc : 1) * 4;
+    size_t need = (size_t)(g->wc ? g->wc : 1) * (g->hc ? g->hc : 1) * 4;
     if (need > r->cap) {
         float *nim = realloc(r->im, need * sizeof *nim);
         if (!nim)
             return tvpal_diag_set(diag, TVPAL_E_NOMEM, "intermediate image "
-                                  "%ux%u", g.wc, g.hc);
+                                  "%ux%u", g->wc, g->hc);
         r->im = nim;
         r->cap = need;
     }
-    if (g.hc + 1 > r->cov_cap) {
-        int32_t *nc = realloc(r->cov, sizeof(int32_t) * 2 * (g.hc + 1));
+    if (g->hc + 1 > r->cov_cap) {
+        int32_t *nc = realloc(r->cov, sizeof(int32_t) * 2 * (g->hc + 1));
         if (!nc)
             return tvpal_diag_set(diag, TVPAL_E_NOMEM, "coverage rows");
         r->cov = nc;
-        r->cov_cap = g.hc + 1;
+        r->cov_cap = g->hc + 1;
     }
-    r->avx2 = r->simd && cpu_avx2();
-    r->k_last = g.k;
-    int nt = 1;
-#ifdef _OPENMP
-    nt = r->threads > 0 ? r->threads : omp_get_max_threads();
-#endif
-    /* Classify: index sets of the layers whose data changed (each once,
-     * whichever frame slices show it), then the visible tiles of every
-     * frame slice for its own palette. */
+    return 0;
+}
+
+/* Classify: index sets of the layers whose data changed (each once,
+ * whichever frame slices show it), then the visible tiles of every frame
+ * slice for its own palette. */
+static void classify_frame(struct tvpal_sw *r, const struct tvpal_frame *f,
+                           int nt)
+{
     const int count = (int)f->count;
     int ntodo = 0;
     for (int n = 0; n < count; n++) {
@@ -799,6 +815,31 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
 #endif
     for (int n = 0; n < count; n++)
         classify(r, &f->sl[n], r->vis + (size_t)n * r->trows);
+}
+
+int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
+                  float *rgba, struct tvpal_diag *diag)
+{
+    const struct tvpal_view *v = f->view;
+    struct geom g;
+    struct warp wp;
+    double t0 = tvpal_now();
+    int rc = check_frame(r, f, diag);
+    if (rc < 0)
+        return rc;
+    if (setup(f, r->force_k, &g) < 0)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "degenerate view");
+    setup_warp(f, &g, &wp);
+    clip_to_output(v, &wp, r->skip, &g);
+    if ((rc = reserve_scratch(r, f, &g, diag)) < 0)
+        return rc;
+    r->avx2 = r->simd && cpu_avx2();
+    r->k_last = g.k;
+    int nt = 1;
+#ifdef _OPENMP
+    nt = r->threads > 0 ? r->threads : omp_get_max_threads();
+#endif
+    classify_frame(r, f, nt);
     double t1 = tvpal_now();
     r->t_classify = (t1 - t0) * 1e3;
     /* Composite: rows of the intermediate image, in small chunks handed
