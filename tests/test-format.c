@@ -174,6 +174,44 @@ int main(void)
                   64 + 4 * 512 + 128, "u16 chunk size");
     }
 
+    /* FORMAT.md 6.6/6.7: tmin and tscale are f32 at chunk bytes 48 and 52,
+     * 56..63 stay zero; a u16 entry decodes as float32(tmin + float32(q *
+     * tscale)), two roundings, never a fused multiply-add.  The q chosen are
+     * ones where the fused result differs, so a contracted decoder fails. */
+    {
+        struct tvpal_chunk_header ch = {.slice = 1, .wstart = 0, .wlen = 1,
+                                        .w = 2, .h = 2, .used = 1,
+                                        .tmin = 0.1f, .tscale = 1e-3f / 3};
+        unsigned char cb[TVPAL_CHUNK_HEADER_BYTES + 512];
+        tvpal_chunk_header_encode(&ch, cb);
+        float f48, f52;
+        memcpy(&f48, cb + 48, 4); /* little-endian host assumed by the test */
+        memcpy(&f52, cb + 52, 4);
+        int zero = 1;
+        for (int i = 56; i < 64; i++)
+            zero &= cb[i] == 0;
+        CHECK(f48 == ch.tmin && f52 == ch.tscale && zero,
+              "chunk header tmin/tscale at 48/52, 56..63 zero");
+        float want[256];
+        unsigned found = 0;
+        for (unsigned q = 1; q < 65536 && found < 256; q++) {
+            volatile float p = (float)q * ch.tscale;
+            float two = ch.tmin + p;
+            if (two == fmaf((float)q, ch.tscale, ch.tmin))
+                continue;
+            cb[64 + 2 * found] = (unsigned char)q;
+            cb[64 + 2 * found + 1] = (unsigned char)(q >> 8);
+            want[found++] = two;
+        }
+        CHECK(found == 256, "%u q where fma differs", found);
+        float got[256];
+        struct tvpal_chunk c = {.h = ch, .table_format = TVPAL_TABLE_U16,
+                                .table = cb + 64};
+        tvpal_chunk_table(&c, got);
+        CHECK(!memcmp(got, want, sizeof got),
+              "u16 entries rounded twice (no fused multiply-add)");
+    }
+
     /* Slab split: covers all slices, sizes differ by at most one. */
     for (uint32_t n = 1; n < 70; n++)
         for (uint32_t k = 1; k <= n; k++) {

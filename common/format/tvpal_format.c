@@ -385,7 +385,12 @@ void tvpal_chunk_table(const struct tvpal_chunk *c, float *out)
     const float t0 = c->h.tmin, ts = c->h.tscale;
     for (size_t i = 0; i < n; i++) {
         unsigned q = (unsigned)c->table[2 * i] | (unsigned)c->table[2 * i + 1] << 8;
-        out[i] = t0 + (float)q * ts;
+        /* FORMAT.md 6.7: the product rounded to float32, then the sum.  A
+         * fused multiply-add (GCC contracts by default on aarch64, and on
+         * x86 with -mfma) would change the last bit on some targets; the
+         * volatile keeps the two roundings. */
+        volatile float p = (float)q * ts;
+        out[i] = t0 + p;
     }
 }
 
