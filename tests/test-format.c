@@ -117,8 +117,10 @@ int main(void)
               "padding corruption step %u", t);
         rec[bytes - 1] ^= 0x01;
         rec[5] ^= 1; /* header byte */
-        CHECK(tvpal_record_verify(rec, bytes, t, &h, NULL) == TVPAL_E_CHECKSUM,
-              "record header corruption");
+        char want[64];
+        snprintf(want, sizeof want, "record %u: record header: CRC", t);
+        CHECK(tvpal_record_verify(rec, bytes, t, &h, &d) == TVPAL_E_CHECKSUM &&
+                  strstr(d.msg, want), "record header corruption: %s", d.msg);
         rec[5] ^= 1;
         CHECK(tvpal_record_verify(rec, 32, t, &h, NULL) == TVPAL_E_TRUNC,
               "truncated record");
@@ -134,6 +136,19 @@ int main(void)
         tvpal_record_seal(rec, 0, 0, rh.chunk_count - 1, rh.payload_bytes - first);
         CHECK(tvpal_record_verify(rec, bytes, 0, &h, &d) == TVPAL_E_FORMAT,
               "missing slice: %s", d.msg);
+    }
+    /* A chunk with a bad magic (CRCs valid) names the record and chunk. */
+    {
+        uint64_t bytes = build_record(&h, 0, rec);
+        struct tvpal_record_header rh;
+        tvpal_record_header_decode(rec, &rh, NULL);
+        uint64_t first = tvpal_chunk_bytes(tvpal_schedule_len(h.slice_begin, 0, 4, 9),
+                                           h.slice_w, h.slice_h, 0);
+        rec[64 + first] ^= 1; /* magic of chunk 1 */
+        tvpal_record_seal(rec, 0, 0, rh.chunk_count, rh.payload_bytes);
+        CHECK(tvpal_record_verify(rec, bytes, 0, &h, &d) == TVPAL_E_MAGIC &&
+                  strstr(d.msg, "record 0: chunk 1: bad magic"),
+              "chunk magic: %s", d.msg);
     }
     /* Index entries. */
     struct tvpal_index_entry e = {.offset = 1ull << 40, .bytes = 8192,
