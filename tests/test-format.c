@@ -117,8 +117,10 @@ int main(void)
               "padding corruption step %u", t);
         rec[bytes - 1] ^= 0x01;
         rec[5] ^= 1; /* header byte */
-        CHECK(tvpal_record_verify(rec, bytes, t, &h, NULL) == TVPAL_E_CHECKSUM,
-              "record header corruption");
+        char want[64];
+        snprintf(want, sizeof want, "record %u: record header: CRC", t);
+        CHECK(tvpal_record_verify(rec, bytes, t, &h, &d) == TVPAL_E_CHECKSUM &&
+                  strstr(d.msg, want), "record header corruption: %s", d.msg);
         rec[5] ^= 1;
         CHECK(tvpal_record_verify(rec, 32, t, &h, NULL) == TVPAL_E_TRUNC,
               "truncated record");
@@ -134,6 +136,19 @@ int main(void)
         tvpal_record_seal(rec, 0, 0, rh.chunk_count - 1, rh.payload_bytes - first);
         CHECK(tvpal_record_verify(rec, bytes, 0, &h, &d) == TVPAL_E_FORMAT,
               "missing slice: %s", d.msg);
+    }
+    /* A chunk with a bad magic (CRCs valid) names the record and chunk. */
+    {
+        uint64_t bytes = build_record(&h, 0, rec);
+        struct tvpal_record_header rh;
+        tvpal_record_header_decode(rec, &rh, NULL);
+        uint64_t first = tvpal_chunk_bytes(tvpal_schedule_len(h.slice_begin, 0, 4, 9),
+                                           h.slice_w, h.slice_h, 0);
+        rec[64 + first] ^= 1; /* magic of chunk 1 */
+        tvpal_record_seal(rec, 0, 0, rh.chunk_count, rh.payload_bytes);
+        CHECK(tvpal_record_verify(rec, bytes, 0, &h, &d) == TVPAL_E_MAGIC &&
+                  strstr(d.msg, "record 0: chunk 1: bad magic"),
+              "chunk magic: %s", d.msg);
     }
     /* Index entries. */
     struct tvpal_index_entry e = {.offset = 1ull << 40, .bytes = 8192,
@@ -172,6 +187,44 @@ int main(void)
         CHECK(back[0] == 7.25f && back[255] == 7.25f, "constant table exact");
         CHECK(tvpal_chunk_bytes(4, 10, 10, TVPAL_TABLE_U16) ==
                   64 + 4 * 512 + 128, "u16 chunk size");
+    }
+
+    /* FORMAT.md 6.6/6.7: tmin and tscale are f32 at chunk bytes 48 and 52,
+     * 56..63 stay zero; a u16 entry decodes as float32(tmin + float32(q *
+     * tscale)), two roundings, never a fused multiply-add.  The q chosen are
+     * ones where the fused result differs, so a contracted decoder fails. */
+    {
+        struct tvpal_chunk_header ch = {.slice = 1, .wstart = 0, .wlen = 1,
+                                        .w = 2, .h = 2, .used = 1,
+                                        .tmin = 0.1f, .tscale = 1e-3f / 3};
+        unsigned char cb[TVPAL_CHUNK_HEADER_BYTES + 512];
+        tvpal_chunk_header_encode(&ch, cb);
+        float f48, f52;
+        memcpy(&f48, cb + 48, 4); /* little-endian host assumed by the test */
+        memcpy(&f52, cb + 52, 4);
+        int zero = 1;
+        for (int i = 56; i < 64; i++)
+            zero &= cb[i] == 0;
+        CHECK(f48 == ch.tmin && f52 == ch.tscale && zero,
+              "chunk header tmin/tscale at 48/52, 56..63 zero");
+        float want[256];
+        unsigned found = 0;
+        for (unsigned q = 1; q < 65536 && found < 256; q++) {
+            volatile float p = (float)q * ch.tscale;
+            float two = ch.tmin + p;
+            if (two == fmaf((float)q, ch.tscale, ch.tmin))
+                continue;
+            cb[64 + 2 * found] = (unsigned char)q;
+            cb[64 + 2 * found + 1] = (unsigned char)(q >> 8);
+            want[found++] = two;
+        }
+        CHECK(found == 256, "%u q where fma differs", found);
+        float got[256];
+        struct tvpal_chunk c = {.h = ch, .table_format = TVPAL_TABLE_U16,
+                                .table = cb + 64};
+        tvpal_chunk_table(&c, got);
+        CHECK(!memcmp(got, want, sizeof got),
+              "u16 entries rounded twice (no fused multiply-add)");
     }
 
     /* Slab split: covers all slices, sizes differ by at most one. */

@@ -281,9 +281,10 @@ int tvpal_record_verify(const unsigned char *buf, uint64_t bytes,
     if (bytes < TVPAL_RECORD_HEADER_BYTES)
         return tvpal_diag_set(diag, TVPAL_E_TRUNC, "record %u: %llu bytes",
                               step, (unsigned long long)bytes);
-    int rc = tvpal_record_header_decode(buf, &rh, diag);
-    if (rc < 0)
-        return rc;
+    struct tvpal_diag hd = {{0}};
+    int rc = tvpal_record_header_decode(buf, &rh, &hd);
+    if (rc < 0) /* name the record: the header's own step is not trusted */
+        return tvpal_diag_set(diag, rc, "record %u: %s", step, hd.msg);
     if (rh.step != step || rh.axis != sh->axis)
         return tvpal_diag_set(diag, TVPAL_E_FORMAT,
                               "record %u: header says step %u axis %u", step,
@@ -319,9 +320,10 @@ int tvpal_record_verify(const unsigned char *buf, uint64_t bytes,
             return tvpal_diag_set(diag, TVPAL_E_FORMAT,
                                   "record %u: chunk %u beyond payload", step,
                                   k);
-        rc = tvpal_chunk_header_decode(buf + pos, &ch, diag);
+        rc = tvpal_chunk_header_decode(buf + pos, &ch, NULL);
         if (rc < 0)
-            return rc;
+            return tvpal_diag_set(diag, rc, "record %u: chunk %u: bad magic",
+                                  step, k);
         if (ch.slice < sh->slice_begin ||
             ch.slice >= sh->slice_begin + sh->slice_count ||
             (k > 0 && ch.slice <= prev) || ch.wstart != step ||
@@ -385,7 +387,12 @@ void tvpal_chunk_table(const struct tvpal_chunk *c, float *out)
     const float t0 = c->h.tmin, ts = c->h.tscale;
     for (size_t i = 0; i < n; i++) {
         unsigned q = (unsigned)c->table[2 * i] | (unsigned)c->table[2 * i + 1] << 8;
-        out[i] = t0 + (float)q * ts;
+        /* FORMAT.md 6.7: the product rounded to float32, then the sum.  A
+         * fused multiply-add (GCC contracts by default on aarch64, and on
+         * x86 with -mfma) would change the last bit on some targets; the
+         * volatile keeps the two roundings. */
+        volatile float p = (float)q * ts;
+        out[i] = t0 + p;
     }
 }
 

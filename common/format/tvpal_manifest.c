@@ -169,9 +169,13 @@ int tvpal_manifest_load(const char *path, struct tvpal_manifest *m,
         } else if (!strcmp(k, "histogram")) {
             char *p = v;
             for (int i = 0; i < TVPAL_HIST_BINS && !bad; i++) {
+                /* Decimal digits only: strtoull would take "-1" as 2^64-1. */
+                while (*p == ' ' || *p == '\t')
+                    p++;
                 char *end;
+                errno = 0;
                 m->histogram[i] = strtoull(p, &end, 10);
-                bad = end == p;
+                bad = *p < '0' || *p > '9' || errno == ERANGE;
                 p = end;
             }
         } else if (!strcmp(k, "table")) {

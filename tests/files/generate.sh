@@ -1,0 +1,190 @@
+#!/bin/sh
+# generate.sh: writes the tvpal file corpus (tests/files/, see README.md):
+# the good-* datasets with today's tvpal-gen and tvpal-encode, the bad-*
+# shards and manifests by editing copies of good-1-basic in python3, and
+# SHA256SUMS of what today's tvpal-decode makes of every good step and axis.
+# Deterministic: a second run gives the same bytes.  The corpus is committed;
+# run this only to add a case, then review the diff (a changed good-* file
+# means the encoder's output changed, which the corpus does not require).
+#
+# Usage: tests/files/generate.sh [BUILDDIR [OUTDIR]]
+#   BUILDDIR  the built tree (default: the source tree holding this script)
+#   OUTDIR    where to write (default: this script's folder); write to a
+#             scratch folder and `diff -r` it with tests/files to check
+set -eu
+here=$(cd "$(dirname "$0")" && pwd)
+B=${1:-$(cd "$here/../.." && pwd)}
+O=${2:-$here}
+GEN=$B/samples/tvpal-gen
+ENC=$B/encoder/tvpal-encode
+DEC=$B/encoder/tvpal-decode
+PY=${PYTHON:-python3}
+for p in "$GEN" "$ENC" "$DEC"; do
+    [ -x "$p" ] || { echo "generate.sh: $p not built" >&2; exit 1; }
+done
+mkdir -p "$O"
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+rm -rf "$O"/good-* "$O"/bad-* "$O/SHA256SUMS"
+
+# good NAME FIELD DIMS STEPS ENCODER-OPTIONS...: a dataset from tvpal-gen.
+# The manifest's source lines name absolute input paths (of this run's
+# scratch folder): they are rewritten to /corpus/input/FILE, the same in
+# every manifest copy, so the output does not depend on where it ran.
+good() {
+    name=$1 field=$2 dims=$3 steps=$4
+    shift 4
+    "$GEN" --field "$field" --dims "$dims" --steps "$steps" -o "$tmp/in-$name" \
+        > /dev/null
+    "$ENC" -q -j 1 --dims "$dims" "$@" -o "$tmp/$name" "$tmp/in-$name"/*.f32 \
+        > /dev/null
+    for m in "$tmp/$name/manifest.txt" "$tmp/$name"/node-*/manifest.txt; do
+        sed 's|^source = .*/|source = /corpus/input/|' "$m" > "$tmp/m"
+        cat "$tmp/m" > "$m"
+    done
+    cp -r "$tmp/$name" "$O/$name"
+}
+# f32 tables, one node; N = 2 over T = 3 steps: a short first window
+# (odd slices: [0,1)) and a window cut at T (even slices: [2,3)).
+good good-1-basic blobs 4x3x2 3 --window 2
+# 16-bit tables, two nodes; node 1 of axis z holds one slice (phase 0), so
+# its record 1 holds no chunk.
+good good-2-u16-nodes turbulence 4x3x3 3 --window 2 --nodes 2 --table u16
+
+# The bad files: each one copy of a good-1-basic file with one fault.
+"$PY" - "$O" <<'PY'
+import struct, sys
+O = sys.argv[1]
+base = O + "/good-1-basic/"
+
+def crc32c(data, crc=0):
+    tab = crc32c.tab
+    if not tab:
+        for i in range(256):
+            c = i
+            for _ in range(8):
+                c = (c >> 1) ^ (0x82F63B78 if c & 1 else 0)
+            tab.append(c)
+    c = crc ^ 0xFFFFFFFF
+    for b in data:
+        c = tab[(c ^ b) & 0xFF] ^ (c >> 8)
+    return c ^ 0xFFFFFFFF
+crc32c.tab = []
+assert crc32c(b"123456789") == 0xE3069283
+
+shard = bytearray(open(base + "node-0/axis-z.tvps", "rb").read())
+idx = struct.unpack_from("<Q", shard, 72)[0]
+steps = struct.unpack_from("<I", shard, 28)[0]
+def rec(t):
+    return struct.unpack_from("<Q", shard, idx + 32 * t)[0]
+def u32(b, off, v):
+    struct.pack_into("<I", b, off, v)
+def seal_header(b):
+    u32(b, 4092, crc32c(b[0:4092]))
+def seal_index(b):
+    u32(b, 88, crc32c(b[idx:]))
+    seal_header(b)
+def seal_record(b, t):
+    """Recomputes record t's payload CRC (header, index entry) and the
+    record header CRC, the index CRC and the shard header CRC."""
+    r = rec(t)
+    n = struct.unpack_from("<Q", b, r + 16)[0]
+    pc = crc32c(b[r + 64:r + 64 + n])
+    u32(b, r + 24, pc)
+    u32(b, r + 60, crc32c(b[r:r + 60]))
+    u32(b, idx + 32 * t + 24, pc)
+    seal_index(b)
+def write(name, b):
+    open(O + "/" + name, "wb").write(bytes(b))
+
+b = bytearray(shard); b[0:4096] = bytes(4096)
+write("bad-shard-unfinished.tvps", b)          # header never written
+b = bytearray(shard); u32(b, 8, 2)             # CRC left stale on purpose
+write("bad-shard-version-2.tvps", b)
+b = bytearray(shard); b[2000] ^= 0x01          # a reserved byte
+write("bad-shard-header-crc.tvps", b)
+b = bytearray(shard); u32(b, 64, 2); seal_header(b)
+write("bad-shard-table-format.tvps", b)
+write("bad-shard-truncated.tvps", shard[:-4096])
+write("bad-shard-extra.tvps", shard + bytes(4096))
+b = bytearray(shard); b[idx + 32 * 1 + 20] ^= 0x01  # entry 1 chunk_count
+write("bad-shard-index-crc.tvps", b)
+b = bytearray(shard)                           # entry 1 one page further
+struct.pack_into("<Q", b, idx + 32, rec(1) + 4096); seal_index(b)
+write("bad-shard-index-order.tvps", b)
+b = bytearray(shard); b[rec(2) + 40] ^= 0x01   # a reserved header byte
+write("bad-record-header-crc.tvps", b)
+b = bytearray(shard); b[rec(1) + 64 + 64 + 100] ^= 0x01  # a table byte
+write("bad-record-payload-crc.tvps", b)
+b = bytearray(shard); b[rec(0) + 4000] = 0x5A  # after the payload
+assert struct.unpack_from("<Q", b, rec(0) + 16)[0] + 64 < 4000 < rec(1) - rec(0)
+write("bad-record-padding.tvps", b)
+b = bytearray(shard); u32(b, rec(1) + 4, 2); seal_record(b, 1)
+write("bad-record-step.tvps", b)
+b = bytearray(shard); u32(b, rec(2) + 64 + 16, 5); seal_record(b, 2)
+write("bad-record-chunk.tvps", b)              # chunk w 5, slices are 4x3
+
+# Manifests: good-1-basic's with one change each.
+text = open(base + "manifest.txt").read()
+lines = text.split("\n")
+def edit(key, value):
+    """The manifest with key's line set to value (None: removed)."""
+    out = []
+    for l in lines:
+        if l.startswith(key + " = "):
+            if value is None:
+                continue
+            l = key + " = " + value
+        out.append(l)
+    return "\n".join(out)
+def mwrite(name, t):
+    open(O + "/" + name, "w", newline="").write(t)
+mwrite("bad-manifest-no-window.txt", edit("window", None))
+mwrite("bad-manifest-format.txt", edit("format", "tvpal-dataset-2"))
+mwrite("bad-manifest-version-2.txt", edit("format_version", "2"))
+mwrite("bad-manifest-window-17.txt", edit("window", "17"))
+mwrite("bad-manifest-dims.txt", edit("dims", "4x3"))
+mwrite("bad-manifest-endian.txt", edit("endian", "middle"))
+mwrite("bad-manifest-table.txt", edit("table", "f16"))
+mwrite("bad-manifest-nodes.txt", edit("nodes", "3"))
+mwrite("bad-manifest-window-mismatch.txt", edit("window", "3"))
+hist = [l for l in lines if l.startswith("histogram = ")][0].split()[2:]
+mwrite("bad-manifest-histogram-short.txt",
+       edit("histogram", " ".join(hist[:63])))
+mwrite("bad-manifest-histogram-negative.txt",
+       edit("histogram", " ".join(["-1"] + hist[1:])))
+mwrite("bad-manifest-no-equals.txt", text.replace("axes = x y z", "axes x y z"))
+src = [l for l in lines if l.startswith("source = ")]
+mwrite("bad-manifest-sources.txt", text.replace(src[-1] + "\n", ""))
+# Accepted variants of the syntax (Section 3.1): CRLF ends, blank and
+# comment lines, blanks around keys and values, a '#' inside a value, no
+# format_version, unknown keys, a key given twice (the last one counts).
+v = []
+for l in lines:
+    if l.startswith("format_version"):
+        continue
+    if l.startswith("window = "):
+        v += ["window = 9", "\t window\t=  " + l.split(" = ")[1] + "  "]
+        continue
+    if l.startswith("encoder = "):
+        l = "encoder = tvpal-encode #1"
+    v.append(l)
+v[1:1] = ["", "   # a comment after blanks", "future_key = a later version's key",
+          "future.key-2 = x = y"]
+mwrite("good-manifest-variants.txt", "\r\n".join(v))
+PY
+
+# Expected decoder output: one line per good dataset, axis and step.
+for ds in "$O"/good-*/; do
+    ds=${ds%/}
+    name=$(basename "$ds")
+    steps=$(sed -n 's/^steps = //p' "$ds/manifest.txt")
+    for a in x y z; do
+        t=0
+        while [ "$t" -lt "$steps" ]; do
+            "$DEC" "$ds" --step $t --axis $a -o - | sha256sum |
+                sed "s|-\$|$name/$a/$t|"
+            t=$((t + 1))
+        done
+    done
+done > "$O/SHA256SUMS"
