@@ -934,10 +934,11 @@ int main(int argc, char **argv)
             struct shardjob *j = &sj[q];
             uint64_t bytes = tvpal_record_seal(j->rec, t, j->axis, j->nchunks,
                                                j->payload);
-            int rc = tvpal_shardw_append(j->w, j->rec, bytes);
+            struct tvpal_diag d = {{0}};
+            int rc = tvpal_shardw_append(j->w, j->rec, bytes, &d);
             if (rc < 0) {
-                msg("%s/node-%u/axis-%c.tvps: %s: %s", partial, j->rank,
-                    "xyz"[j->axis], tvpal_strerror(rc), strerror(errno));
+                msg("%s/node-%u/axis-%c.tvps: %s (%s)", partial, j->rank,
+                    "xyz"[j->axis], tvpal_strerror(rc), d.msg);
                 return TVPAL_EXIT_FAIL;
             }
         }
@@ -990,11 +991,12 @@ int main(int argc, char **argv)
     uint64_t total_bytes = 0;
     for (uint32_t q = 0; q < nshard; q++) {
         tvpal_shardw_set_range(sj[q].w, st.vmin, st.vmax);
-        int rc = tvpal_shardw_finish(sj[q].w);
+        struct tvpal_diag d = {{0}};
+        int rc = tvpal_shardw_finish(sj[q].w, &d);
         sj[q].w = NULL;
         if (rc < 0) {
-            msg("%s/node-%u/axis-%c.tvps: cannot finish: %s", partial,
-                sj[q].rank, "xyz"[sj[q].axis], tvpal_strerror(rc));
+            msg("%s/node-%u/axis-%c.tvps: cannot finish: %s (%s)", partial,
+                sj[q].rank, "xyz"[sj[q].axis], tvpal_strerror(rc), d.msg);
             return TVPAL_EXIT_FAIL;
         }
     }
