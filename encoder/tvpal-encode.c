@@ -8,6 +8,7 @@
  * the same command continue an interrupted job.
  */
 #define _GNU_SOURCE
+#include "tvpal_checkpoint.h"
 #include "tvpal_cli.h"
 #include "tvpal_clock.h"
 #include "tvpal_crc32c.h"
@@ -38,7 +39,7 @@
 #endif
 
 #define PROG "tvpal-encode"
-#define FINE_BINS 65536u /* source histogram keyed by the top 16 float bits */
+#define FINE_BINS TVPAL_CHECKPOINT_BINS /* source histogram classes */
 
 static void usage(FILE *f)
 {
@@ -169,13 +170,6 @@ struct slicejob {
 /* Most slices per group: those of one 64-byte line of x (16 floats). */
 #define GROUP_SPAN 16u
 
-struct stats {
-    double vmin, vmax;
-    uint64_t nonfinite;
-    uint64_t *fine;          /* FINE_BINS */
-    uint32_t loaded;         /* timesteps accounted in the stats */
-};
-
 static uint32_t fine_bin(float f)
 {
     uint32_t u;
@@ -203,7 +197,7 @@ static uint64_t **g_fine_local; /* per-thread source histograms */
 /* Reads timestep t of the source into dst (converted), accounting stats
  * when t is not yet in them. */
 static void load_step(const struct opts *o, uint32_t t, void *raw, float *dst,
-                      struct stats *st)
+                      struct tvpal_checkpoint_stats *st)
 {
     const size_t esz = tvpal_type_size(o->type);
     const size_t bytes = g_nvox * esz;
@@ -311,114 +305,20 @@ static void load_step(const struct opts *o, uint32_t t, void *raw, float *dst,
  * output is resumed only by the same job. */
 static char *fingerprint(const struct opts *o)
 {
-    char *buf = NULL;
-    size_t len = 0;
-    FILE *f = open_memstream(&buf, &len);
-    if (!f)
+    char *params = NULL, *fp = NULL;
+    if (asprintf(&params, "table=%u refine=%u naive=%d klt=%d alloc=%d "
+                 "dims=%ux%ux%u type=%s endian=%s window=%u nodes=%u "
+                 "steps=%u nan_as=%s%.17g", o->table_format, o->refine,
+                 o->naive, o->klt, o->alloc_mse, o->dims[0], o->dims[1],
+                 o->dims[2], tvpal_type_name(o->type),
+                 o->big_endian ? "big" : "little", o->window, o->nodes,
+                 o->steps_single, o->has_nan_as ? "" : "none:",
+                 o->has_nan_as ? o->nan_as : 0.0) < 0)
         return NULL;
-    fprintf(f, "table=%u refine=%u naive=%d klt=%d alloc=%d ",
-            o->table_format, o->refine, o->naive, o->klt, o->alloc_mse);
-    fprintf(f, "dims=%ux%ux%u type=%s endian=%s window=%u nodes=%u "
-            "steps=%u nan_as=%s%.17g", o->dims[0], o->dims[1], o->dims[2],
-            tvpal_type_name(o->type), o->big_endian ? "big" : "little",
-            o->window, o->nodes, o->steps_single,
-            o->has_nan_as ? "" : "none:", o->has_nan_as ? o->nan_as : 0.0);
-    for (int i = 0; i < o->ninputs; i++) {
-        struct stat st;
-        if (stat(o->inputs[i], &st) < 0)
-            memset(&st, 0, sizeof st);
-        fprintf(f, " %s:%lld:%lld.%09ld", o->inputs[i],
-                (long long)st.st_size, (long long)st.st_mtim.tv_sec,
-                st.st_mtim.tv_nsec);
-    }
-    fclose(f);
-    return buf;
-}
-
-/* The checkpoint keeps a hash of the fingerprint, not the fingerprint (which
- * names every input and would make each checkpoint O(T)): FNV-1a, 64 bits,
- * plus the length.  Returns a static string. */
-static const char *fp_hash(const char *fp)
-{
-    static char out[40];
-    uint64_t h = 0xcbf29ce484222325ull;
-    size_t n = 0;
-    for (const unsigned char *p = (const unsigned char *)fp; *p; p++, n++)
-        h = (h ^ *p) * 0x100000001b3ull;
-    snprintf(out, sizeof out, "%016llx-%zu", (unsigned long long)h, n);
-    return out;
-}
-
-static int checkpoint_save(const char *dir, const char *fp, uint32_t done,
-                           const struct stats *st)
-{
-    char *buf = NULL, *path = NULL;
-    size_t len = 0;
-    FILE *f = open_memstream(&buf, &len);
-    if (!f)
-        return TVPAL_E_NOMEM;
-    fprintf(f, "fingerprint %s\ndone %u\nloaded %u\nmin %a\nmax %a\n"
-            "nonfinite %llu\n", fp_hash(fp), done, st->loaded, st->vmin,
-            st->vmax, (unsigned long long)st->nonfinite);
-    for (uint32_t b = 0; b < FINE_BINS; b++)
-        if (st->fine[b])
-            fprintf(f, "bin %u %llu\n", b, (unsigned long long)st->fine[b]);
-    fclose(f);
-    int rc = TVPAL_E_NOMEM;
-    if (asprintf(&path, "%s/checkpoint", dir) >= 0) {
-        rc = tvpal_write_file_atomic(path, buf, len);
-        free(path);
-    }
-    free(buf);
-    return rc;
-}
-
-/* Returns steps done (0 when there is nothing usable to resume). */
-static uint32_t checkpoint_load(const char *dir, const char *fp,
-                                uint32_t T_total, struct stats *st)
-{
-    char *path = NULL, *text = NULL;
-    uint32_t done = 0;
-    if (asprintf(&path, "%s/checkpoint", dir) < 0)
-        return 0;
-    if (tvpal_read_file(path, &text, NULL) < 0) {
-        free(path);
-        return 0;
-    }
-    free(path);
-    char *save = NULL;
-    char *line = strtok_r(text, "\n", &save);
-    if (!line || strncmp(line, "fingerprint ", 12) ||
-        strcmp(line + 12, fp_hash(fp)))
-        goto out;
-    unsigned d = 0, l = 0;
-    unsigned long long nf = 0;
-    double lo, hi;
-    if (!(line = strtok_r(NULL, "\n", &save)) || sscanf(line, "done %u", &d) != 1 ||
-        !(line = strtok_r(NULL, "\n", &save)) || sscanf(line, "loaded %u", &l) != 1 ||
-        !(line = strtok_r(NULL, "\n", &save)) || sscanf(line, "min %la", &lo) != 1 ||
-        !(line = strtok_r(NULL, "\n", &save)) || sscanf(line, "max %la", &hi) != 1 ||
-        !(line = strtok_r(NULL, "\n", &save)) ||
-        sscanf(line, "nonfinite %llu", &nf) != 1)
-        goto out;
-    memset(st->fine, 0, FINE_BINS * sizeof *st->fine);
-    while ((line = strtok_r(NULL, "\n", &save))) {
-        unsigned b;
-        unsigned long long c;
-        if (sscanf(line, "bin %u %llu", &b, &c) != 2 || b >= FINE_BINS)
-            goto out;
-        st->fine[b] = c;
-    }
-    if (d > T_total || l > T_total || l < d)
-        goto out;
-    st->vmin = lo;
-    st->vmax = hi;
-    st->nonfinite = nf;
-    st->loaded = l;
-    done = d;
-out:
-    free(text);
-    return done;
+    if (tvpal_checkpoint_fingerprint(params, o->inputs, o->ninputs, &fp) < 0)
+        fp = NULL;
+    free(params);
+    return fp;
 }
 
 /* ---------------------------------------------------------------- encoding */
@@ -734,20 +634,18 @@ int main(int argc, char **argv)
     }
 
     char *fp = fingerprint(&o);
-    struct stats st = {.vmin = INFINITY, .vmax = -INFINITY};
-    st.fine = calloc(FINE_BINS, sizeof *st.fine);
-    if (!fp || !st.fine)
+    struct tvpal_checkpoint_stats st;
+    if (!fp || tvpal_checkpoint_stats_init(&st) < 0)
         die_fail("out of memory");
     uint32_t start = 0;
     if (tvpal_exists(partial)) {
-        start = checkpoint_load(partial, fp, T, &st);
-        if (start == 0) {
+        /* Missing, another job's or damaged: start over (FORMAT.md 9.2). */
+        if (tvpal_checkpoint_load(partial, fp, T, g_nvox, &start, &st,
+                                  NULL) < 0 || start == 0) {
+            start = 0;
+            tvpal_checkpoint_stats_reset(&st);
             if (tvpal_rmtree(partial) < 0)
                 die_usage("%s: cannot remove stale partial output", partial);
-            st.vmin = INFINITY;
-            st.vmax = -INFINITY;
-            st.loaded = 0;
-            memset(st.fine, 0, FINE_BINS * sizeof *st.fine);
         }
     }
     for (uint32_t r = 0; r < o.nodes; r++) {
@@ -802,11 +700,7 @@ int main(int argc, char **argv)
         if (!start)
             die_input("%s: cannot create the output files", partial);
         start = 0;
-        st.vmin = INFINITY;
-        st.vmax = -INFINITY;
-        st.loaded = 0;
-        st.nonfinite = 0;
-        memset(st.fine, 0, FINE_BINS * sizeof *st.fine);
+        tvpal_checkpoint_stats_reset(&st);
         tvpal_rmtree(partial);
         for (uint32_t r = 0; r < o.nodes; r++) {
             char *nd;
@@ -962,8 +856,11 @@ int main(int argc, char **argv)
                 }
             }
         }
-        if (checkpoint_save(partial, fp, t + 1, &st) < 0) {
-            msg("%s/checkpoint: cannot write: %s", partial, strerror(errno));
+        struct tvpal_diag cd = {{0}};
+        int crc = tvpal_checkpoint_save(partial, fp, t + 1, &st, &cd);
+        if (crc < 0) {
+            msg("%s/checkpoint: cannot write: %s (%s)", partial,
+                tvpal_strerror(crc), cd.msg);
             return TVPAL_EXIT_FAIL;
         }
         if (fault_after >= 0 && (long)(t + 1) >= fault_after)
@@ -1068,13 +965,7 @@ int main(int argc, char **argv)
         }
         free(path);
     }
-    {
-        char *cp;
-        if (asprintf(&cp, "%s/checkpoint", partial) >= 0) {
-            unlink(cp);
-            free(cp);
-        }
-    }
+    tvpal_checkpoint_remove(partial, NULL);
     tvpal_fsync_dir(partial);
     if (tvpal_exists(o.outdir)) {
         char *old;
@@ -1129,7 +1020,7 @@ int main(int argc, char **argv)
     free(jobs);
     free(text);
     free(fp);
-    free(st.fine);
+    tvpal_checkpoint_stats_free(&st);
     free(partial);
     tvpal_manifest_clear(&m);
     for (int i = 0; i < o.ninputs; i++)
