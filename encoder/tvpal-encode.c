@@ -4,14 +4,22 @@
  * Streaming: timestep t + N - 1 is read when the records of step t are
  * built, so memory holds N float volumes (a ring) plus the records of one
  * step, never T.  Output goes to OUTDIR.partial/ and is renamed to OUTDIR
- * only when complete; a checkpoint written after every step lets a rerun of
- * the same command continue an interrupted job.
+ * only when complete; a checkpoint written after every step
+ * (tvpal_checkpoint.h) lets a rerun of the same command continue an
+ * interrupted job.
+ *
+ * main runs the steps in order: options (g_optspec, validate_opts), input
+ * and output checks, the partial output (resumed or new), shards and
+ * workspaces, the streaming driver (encode_steps) and the finishing
+ * (finish_partial, move_into_place, print_summary).  A step that fails ends
+ * the program with the exit code of `enum ending`.
  */
 #define _GNU_SOURCE
+#include "tvpal_checkpoint.h"
 #include "tvpal_cli.h"
 #include "tvpal_clock.h"
-#include "tvpal_crc32c.h"
 #include "tvpal_dataset.h"
+#include "tvpal_eig.h"
 #include "tvpal_error.h"
 #include "tvpal_format.h"
 #include "tvpal_fs.h"
@@ -28,6 +36,7 @@
 #include <math.h>
 #include <signal.h>
 #include <stdarg.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -38,7 +47,6 @@
 #endif
 
 #define PROG "tvpal-encode"
-#define FINE_BINS 65536u /* source histogram keyed by the top 16 float bits */
 
 static void usage(FILE *f)
 {
@@ -124,14 +132,28 @@ TVPAL_SAY_FN(die_usage, DIE_USAGE, __attribute__((noreturn)))
 TVPAL_SAY_FN(die_fail, DIE_FAIL, __attribute__((noreturn)))
 TVPAL_SAY_FN(die_input, DIE_INPUT, __attribute__((noreturn)))
 
-/* ------------------------------------------------------------------ state */
+/* The text of a library error for a message: the code's message, then the
+ * diag's detail in parentheses when it has one.  Library calls promise
+ * nothing about errno, so their cause comes from here, never strerror(errno).
+ * Returns a static buffer (reports are made by one thread). */
+static const char *lib_error(int rc, const struct tvpal_diag *d)
+{
+    static char buf[sizeof ((struct tvpal_diag *)0)->msg + 64];
+    if (d && d->msg[0])
+        snprintf(buf, sizeof buf, "%s (%s)", tvpal_strerror(rc), d->msg);
+    else
+        snprintf(buf, sizeof buf, "%s", tvpal_strerror(rc));
+    return buf;
+}
+
+/* ---------------------------------------------------------------- options */
 
 struct opts {
     uint32_t dims[3];
     enum tvpal_type type;
     int big_endian;
     uint32_t window, nodes, steps_single, threads;
-    uint32_t table_format;
+    int table_format;          /* TVPAL_TABLE_F32 or TVPAL_TABLE_U16 */
     uint32_t refine;
     int naive, klt, alloc_mse;
     int has_nan_as;
@@ -141,6 +163,246 @@ struct opts {
     char **inputs;
     int ninputs;
 };
+
+/* How an option's argument is parsed (parse_option). */
+enum optkind {
+    OPT_DIMS,      /* NXxNYxNZ into dims */
+    OPT_TYPE,      /* sample type into type */
+    OPT_U32,       /* whole number in [lo, hi] into the uint32_t at field */
+    OPT_CHOICE,    /* choice[i] sets the int at field to i */
+    OPT_FLAG,      /* no argument: sets the int at field to 1 */
+    OPT_NAN_AS,    /* finite |value| <= TVPAL_VALUE_MAX into nan_as */
+    OPT_OUTPUT,    /* OUTDIR */
+    OPT_HELP,
+    OPT_VERSION
+};
+
+#define OPT_LONG_ONLY 256 /* keys from here on have no short form */
+#define STR_(x) #x
+#define STR(x) STR_(x)
+
+/* One row per option: its names, how it is parsed and where it goes.  The
+ * getopt_long table and the short-option string are made from it; --help
+ * (usage) lists the same options grouped by purpose. */
+static const struct optspec {
+    const char *name;
+    int key;                   /* short letter, or OPT_LONG_ONLY + n */
+    enum optkind kind;
+    size_t field;              /* offsetof in struct opts (U32, CHOICE, FLAG) */
+    uint32_t lo, hi;           /* OPT_U32 */
+    const char *choice[2];     /* OPT_CHOICE */
+    const char *expect;        /* the usage error's "expected ..." */
+} g_optspec[] = {
+    {"dims", 'd', OPT_DIMS, 0, 0, 0, {0}, NULL},
+    {"type", 't', OPT_TYPE, 0, 0, 0, {0}, "f32, f64, u8, u16 or i16"},
+    {"endian", 'e', OPT_CHOICE, offsetof(struct opts, big_endian), 0, 0,
+     {"little", "big"}, "little or big"},
+    {"steps", 's', OPT_U32, offsetof(struct opts, steps_single), 1,
+     UINT32_MAX, {0}, "a whole number >= 1"},
+    {"nan-as", OPT_LONG_ONLY + 0, OPT_NAN_AS, 0, 0, 0, {0},
+     "a finite number"},
+    {"window", 'w', OPT_U32, offsetof(struct opts, window), 1, TVPAL_NMAX,
+     {0}, "a whole number from 1 to " STR(TVPAL_NMAX)},
+    {"nodes", 'k', OPT_U32, offsetof(struct opts, nodes), 1, UINT32_MAX,
+     {0}, "a whole number >= 1"},
+    {"threads", 'j', OPT_U32, offsetof(struct opts, threads), 1, 1024, {0},
+     "1..1024"},
+    {"table", OPT_LONG_ONLY + 1, OPT_CHOICE,
+     offsetof(struct opts, table_format), 0, 0, {"f32", "u16"},
+     "f32 or u16"},
+    {"refine", OPT_LONG_ONLY + 2, OPT_U32, offsetof(struct opts, refine), 0,
+     TVPAL_REFINE_MAX, {0}, "0.." STR(TVPAL_REFINE_MAX)},
+    {"naive", OPT_LONG_ONLY + 3, OPT_FLAG, offsetof(struct opts, naive), 0,
+     0, {0}, NULL},
+    {"transform", OPT_LONG_ONLY + 4, OPT_CHOICE, offsetof(struct opts, klt),
+     0, 0, {"dct", "klt"}, "dct or klt"},
+    {"alloc", OPT_LONG_ONLY + 5, OPT_CHOICE,
+     offsetof(struct opts, alloc_mse), 0, 0, {"variance", "greedy-mse"},
+     "variance or greedy-mse"},
+    {"output", 'o', OPT_OUTPUT, 0, 0, 0, {0}, NULL},
+    {"force", 'f', OPT_FLAG, offsetof(struct opts, force), 0, 0, {0}, NULL},
+    {"quiet", 'q', OPT_FLAG, offsetof(struct opts, quiet), 0, 0, {0}, NULL},
+    {"help", 'h', OPT_HELP, 0, 0, 0, {0}, NULL},
+    {"version", 'V', OPT_VERSION, 0, 0, 0, {0}, NULL},
+};
+#define NOPTS (sizeof g_optspec / sizeof *g_optspec)
+
+/* --table's choices are the format's codes, in order. */
+_Static_assert(TVPAL_TABLE_F32 == 0 && TVPAL_TABLE_U16 == 1,
+               "g_optspec: --table choice i must be table format i");
+
+/* Applies one option's argument to o; a bad one ends the program (exit 2).
+ * --help and --version print and exit 0. */
+static void parse_option(const struct optspec *sp, const char *arg,
+                         struct opts *o)
+{
+    char *base = (char *)o;
+    struct tvpal_diag diag = {{0}};
+    switch (sp->kind) {
+    case OPT_DIMS:
+        if (tvpal_dims_parse(arg, o->dims, &diag) < 0)
+            die_usage("--dims: %s", diag.msg);
+        return;
+    case OPT_TYPE:
+        if (tvpal_type_parse(arg, &o->type) < 0)
+            break;
+        return;
+    case OPT_U32:
+        if (tvpal_parse_u32(arg, sp->lo, sp->hi,
+                            (uint32_t *)(base + sp->field)) < 0)
+            break;
+        return;
+    case OPT_CHOICE:
+        for (int i = 0; i < 2; i++)
+            if (!strcmp(arg, sp->choice[i])) {
+                *(int *)(base + sp->field) = i;
+                return;
+            }
+        break;
+    case OPT_FLAG:
+        *(int *)(base + sp->field) = 1;
+        return;
+    case OPT_NAN_AS:
+        if (tvpal_parse_double(arg, &o->nan_as) < 0 ||
+            fabs(o->nan_as) > TVPAL_VALUE_MAX)
+            break;
+        o->has_nan_as = 1;
+        return;
+    case OPT_OUTPUT:
+        o->outdir = arg;
+        return;
+    case OPT_HELP:
+        usage(stdout);
+        exit(0);
+    case OPT_VERSION:
+        printf(PROG " " PACKAGE_VERSION " (format %u)\n", TVPAL_FORMAT_VERSION);
+        exit(0);
+    }
+    die_usage("--%s \"%s\": expected %s", sp->name, arg, sp->expect);
+}
+
+/* Parses the command line into o (defaults first); INPUT... are the
+ * arguments after the options.  Returns whether --dims was given. */
+static int parse_options(int argc, char **argv, struct opts *o)
+{
+    struct option lopts[NOPTS + 1];
+    char shortopts[2 * NOPTS + 1], *so = shortopts;
+    int have_dims = 0, c;
+    *o = (struct opts){.type = TVPAL_F32, .window = 4, .nodes = 1,
+                       .table_format = TVPAL_TABLE_F32};
+    for (size_t i = 0; i < NOPTS; i++) {
+        const struct optspec *sp = &g_optspec[i];
+        int arg = sp->kind != OPT_FLAG && sp->kind != OPT_HELP &&
+                  sp->kind != OPT_VERSION;
+        lopts[i] = (struct option){sp->name, arg ? required_argument
+                                                  : no_argument, 0, sp->key};
+        if (sp->key < OPT_LONG_ONLY) {
+            *so++ = (char)sp->key;
+            if (arg)
+                *so++ = ':';
+        }
+    }
+    lopts[NOPTS] = (struct option){0, 0, 0, 0};
+    *so = 0;
+    while ((c = getopt_long(argc, argv, shortopts, lopts, NULL)) != -1) {
+        size_t i = 0;
+        while (i < NOPTS && g_optspec[i].key != c)
+            i++;
+        if (i == NOPTS) { /* getopt_long has said what was wrong */
+            fprintf(stderr, "Try '" PROG " --help'.\n");
+            exit(TVPAL_EXIT_USAGE);
+        }
+        parse_option(&g_optspec[i], optarg, o);
+        have_dims |= g_optspec[i].kind == OPT_DIMS;
+    }
+    o->inputs = argv + optind;
+    o->ninputs = argc - optind;
+    return have_dims;
+}
+
+/* Every rule between options and arguments: what is required, what
+ * conflicts, what the build cannot do.  Ends the program (exit 2) on the
+ * first broken rule, before anything is read or written. */
+static void validate_opts(const struct opts *o, int have_dims)
+{
+    if (!have_dims)
+        die_usage("--dims NXxNYxNZ is required (try --help)");
+    if (!o->outdir || !*o->outdir)
+        die_usage("-o OUTDIR is required (try --help)");
+    if (o->ninputs < 1)
+        die_usage("no INPUT files given (one raw file per timestep)");
+    if (o->steps_single && o->ninputs != 1)
+        die_usage("--steps T takes exactly one INPUT holding all T timesteps "
+                  "(%d given)", o->ninputs);
+    const uint32_t *d = o->dims;
+    const uint32_t mind = d[0] < d[1] ? (d[0] < d[2] ? d[0] : d[2])
+                                      : (d[1] < d[2] ? d[1] : d[2]);
+    for (unsigned a = 0; a < 3; a++)
+        if (o->nodes > d[a])
+            die_usage("--nodes %u: larger than the %c axis (%u slices); "
+                      "expected at most %u", o->nodes, "xyz"[a], d[a], mind);
+    if (strchr(o->outdir, '\n'))
+        die_usage("-o: a newline in the path is not supported");
+    const uint64_t step_bytes = (uint64_t)d[0] * d[1] * d[2] *
+                                tvpal_type_size(o->type);
+    const uint32_t T = o->steps_single ? o->steps_single
+                                       : (uint32_t)o->ninputs;
+    if (step_bytes > (uint64_t)INT64_MAX / T)
+        die_usage("--steps %u of %ux%ux%u %s: total size overflows", T,
+                  d[0], d[1], d[2], tvpal_type_name(o->type));
+    if (o->klt && !tvpal_eig_available())
+        die_usage("--transform klt: built without LAPACK (install "
+                  "liblapack-dev and reconfigure)");
+}
+
+/* Text of the options that decide the output bytes: with the inputs, the
+ * job's fingerprint (tvpal_checkpoint_fingerprint).  Malloc'ed. */
+static char *job_params(const struct opts *o)
+{
+    char *s = NULL;
+    int n = asprintf(&s, "table=%d refine=%u naive=%d klt=%d alloc=%d "
+                     "dims=%ux%ux%u type=%s endian=%s window=%u nodes=%u "
+                     "steps=%u nan_as=%s%.17g", o->table_format, o->refine,
+                     o->naive, o->klt, o->alloc_mse, o->dims[0], o->dims[1],
+                     o->dims[2], tvpal_type_name(o->type),
+                     o->big_endian ? "big" : "little", o->window, o->nodes,
+                     o->steps_single, o->has_nan_as ? "" : "none:",
+                     o->has_nan_as ? o->nan_as : 0.0);
+    return n < 0 ? NULL : s;
+}
+
+/* The manifest's "options" line: the command-line form of job_params. */
+static void options_line(const struct opts *o, uint32_t T, char *buf,
+                         size_t cap)
+{
+    size_t n = (size_t)snprintf(
+        buf, cap, "--dims %ux%ux%u --type %s --endian %s --window %u "
+        "--nodes %u%s", o->dims[0], o->dims[1], o->dims[2],
+        tvpal_type_name(o->type), o->big_endian ? "big" : "little",
+        o->window, o->nodes, o->steps_single ? " --steps" : "");
+#define OPTS_ADD(...)                                                         \
+    do {                                                                      \
+        if (n < cap)                                                          \
+            n += (size_t)snprintf(buf + n, cap - n, __VA_ARGS__);             \
+    } while (0)
+    if (o->steps_single)
+        OPTS_ADD(" %u", T);
+    if (o->has_nan_as)
+        OPTS_ADD(" --nan-as %.17g", o->nan_as);
+    if ((uint32_t)o->table_format == TVPAL_TABLE_U16)
+        OPTS_ADD(" --table u16");
+    if (o->refine)
+        OPTS_ADD(" --refine %u", o->refine);
+    if (o->naive)
+        OPTS_ADD(" --naive");
+    if (o->klt)
+        OPTS_ADD(" --transform klt");
+    if (o->alloc_mse)
+        OPTS_ADD(" --alloc greedy-mse");
+#undef OPTS_ADD
+}
+
+/* ------------------------------------------------------------------ state */
 
 struct shardjob {
     unsigned axis;
@@ -169,11 +431,32 @@ struct slicejob {
 /* Most slices per group: those of one 64-byte line of x (16 floats). */
 #define GROUP_SPAN 16u
 
-struct stats {
-    double vmin, vmax;
-    uint64_t nonfinite;
-    uint64_t *fine;          /* FINE_BINS */
-    uint32_t loaded;         /* timesteps accounted in the stats */
+/* One encoding run: the job, its output and the workspaces, set up by
+ * main's steps in order and released by run_free. */
+struct run {
+    struct opts o;
+    uint32_t T, N;           /* timesteps, window */
+    size_t nvox;             /* voxels per timestep */
+    uint64_t step_bytes;     /* source bytes per timestep */
+    char **abs_inputs;       /* o.inputs points here once checked */
+    char *partial;           /* OUTDIR.partial */
+    char *fp;                /* job fingerprint */
+    struct tvpal_checkpoint_stats st;
+    uint32_t start;          /* first step to encode (> 0: resumed) */
+    /* Shards: 3 axes x K nodes, axis-major. */
+    struct shardjob *sj;
+    uint32_t nshard;
+    size_t max_slice_vox, max_jobs;
+    /* Workspaces: per thread, then shared. */
+    int nthreads;
+    uint64_t **fine_local;   /* per-thread source histograms */
+    size_t group_cap;        /* floats of samples per thread */
+    struct tvpal_swenc **enc;
+    float **samples, **tables;
+    struct slicejob *jobs;   /* max_jobs */
+    float **ring;            /* N converted timesteps, step t at t % N */
+    void *raw;               /* one source timestep */
+    double t_encode;         /* seconds of the streaming loop */
 };
 
 static uint32_t fine_bin(float f)
@@ -195,32 +478,28 @@ static float fine_bin_value(uint32_t b)
 
 /* ------------------------------------------------------------- input I/O */
 
-static size_t g_nvox;
-static int g_nthreads = 1;
-static size_t g_group_cap; /* floats of samples per thread */
-static uint64_t **g_fine_local; /* per-thread source histograms */
+/* What the threads of read_convert found. */
+struct loaded {
+    size_t bad;              /* lowest voxel index of a data error */
+    int rc;                  /* its code (TVPAL_E_NAN or _RANGE), or 0 */
+    int read_err;            /* errno of a failed read, -1 at end of file */
+    size_t nrep;             /* values replaced by --nan-as */
+    double lo, hi;           /* range including the stats' so far */
+};
 
-/* Reads timestep t of the source into dst (converted), accounting stats
- * when t is not yet in them. */
-static void load_step(const struct opts *o, uint32_t t, void *raw, float *dst,
-                      struct stats *st)
+/* Reads the timestep at off of fd into r->raw and converts it into dst, in
+ * parallel over contiguous chunks (each thread reads its own part: the
+ * page-cache copy is as costly as the conversion); when `stats`, counts
+ * the values into the per-thread histograms and res's range. */
+static void read_convert(struct run *r, int fd, off_t off, float *dst,
+                         int stats, struct loaded *res)
 {
-    const size_t esz = tvpal_type_size(o->type);
-    const size_t bytes = g_nvox * esz;
-    const char *path = o->steps_single ? o->inputs[0] : o->inputs[t];
-    off_t off = o->steps_single ? (off_t)t * (off_t)bytes : 0;
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (fd < 0) /* maybe transient (NFS, permissions): keep the partial */
-        die_fail("%s: cannot open: %s (rerun to resume)", path,
-                 strerror(errno));
-    /* Reading, conversion and statistics in parallel over contiguous
-     * chunks (each thread reads its own part: the page-cache copy is as
-     * costly as the conversion); the first bad element is the lowest index
-     * any chunk reports. */
-    const int stats = t >= st->loaded;
+    const struct opts *o = &r->o;
+    const size_t esz = tvpal_type_size(o->type), nvox = r->nvox;
+    char *raw = r->raw;
     size_t nrep = 0, bad = SIZE_MAX;
     int rc_all = 0, read_err = 0;
-    double lo = st->vmin, hi = st->vmax;
+    double lo = r->st.vmin, hi = r->st.vmax;
 #ifdef _OPENMP
 #pragma omp parallel reduction(min : lo) reduction(max : hi) reduction(+ : nrep)
 #endif
@@ -230,13 +509,12 @@ static void load_step(const struct opts *o, uint32_t t, void *raw, float *dst,
         id = omp_get_thread_num();
         nt = omp_get_num_threads();
 #endif
-        size_t a = g_nvox * (size_t)id / (size_t)nt;
-        size_t b = g_nvox * (size_t)(id + 1) / (size_t)nt;
+        size_t a = nvox * (size_t)id / (size_t)nt;
+        size_t b = nvox * (size_t)(id + 1) / (size_t)nt;
         size_t mybad = 0, myrep = 0;
         int rc = 0;
         for (size_t got = a * esz; got < b * esz;) {
-            ssize_t k = pread(fd, (char *)raw + got, b * esz - got,
-                              off + (off_t)got);
+            ssize_t k = pread(fd, raw + got, b * esz - got, off + (off_t)got);
             if (k < 0 && errno == EINTR)
                 continue;
             if (k <= 0) {
@@ -250,8 +528,8 @@ static void load_step(const struct opts *o, uint32_t t, void *raw, float *dst,
             got += (size_t)k;
         }
         if (rc == 0)
-            rc = tvpal_raw_convert((const char *)raw + a * esz, o->type,
-                                   o->big_endian, b - a, dst + a,
+            rc = tvpal_raw_convert(raw + a * esz, o->type, o->big_endian,
+                                   b - a, dst + a,
                                    o->has_nan_as ? &o->nan_as : NULL, &mybad,
                                    &myrep);
         if (rc < 0 && rc != TVPAL_E_READ) {
@@ -264,7 +542,7 @@ static void load_step(const struct opts *o, uint32_t t, void *raw, float *dst,
                 rc_all = rc;
             }
         } else if (rc == 0 && stats) {
-            uint64_t *fine = g_fine_local[id];
+            uint64_t *fine = r->fine_local[id];
             nrep += myrep;
             for (size_t i = a; i < b; i++) {
                 float v = dst[i];
@@ -274,17 +552,35 @@ static void load_step(const struct opts *o, uint32_t t, void *raw, float *dst,
             }
         }
     }
+    *res = (struct loaded){bad, rc_all, read_err, nrep, lo, hi};
+}
+
+/* Reads timestep t of the source into dst (converted), accounting stats
+ * when t is not yet in them.  A read error ends the program keeping the
+ * partial output (maybe transient); bad data ends it removing it. */
+static void load_step(struct run *r, uint32_t t, float *dst)
+{
+    const struct opts *o = &r->o;
+    const char *path = o->steps_single ? o->inputs[0] : o->inputs[t];
+    const off_t off = o->steps_single ? (off_t)t * (off_t)r->step_bytes : 0;
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0) /* maybe transient (NFS, permissions): keep the partial */
+        die_fail("%s: cannot open: %s (rerun to resume)", path,
+                 strerror(errno));
+    const int stats = t >= r->st.loaded;
+    struct loaded res;
+    read_convert(r, fd, off, dst, stats, &res);
     close(fd);
-    if (read_err > 0)
+    if (res.read_err > 0)
         die_fail("%s: timestep %u: %s (rerun to resume)", path, t,
-                 strerror(read_err));
-    if (read_err)
+                 strerror(res.read_err));
+    if (res.read_err)
         die_input("%s: timestep %u: file shrank while encoding (truncated)",
                   path, t);
-    if (rc_all < 0) {
-        size_t x = bad % o->dims[0], y = bad / o->dims[0] % o->dims[1],
-               z = bad / o->dims[0] / o->dims[1];
-        if (rc_all == TVPAL_E_NAN)
+    if (res.rc < 0) {
+        size_t x = res.bad % o->dims[0], y = res.bad / o->dims[0] % o->dims[1],
+               z = res.bad / o->dims[0] / o->dims[1];
+        if (res.rc == TVPAL_E_NAN)
             die_input("%s: timestep %u: NaN or infinite value at voxel "
                       "(%zu,%zu,%zu); expected finite values (use --nan-as "
                       "VALUE to replace them)", path, t, x, y, z);
@@ -294,131 +590,281 @@ static void load_step(const struct opts *o, uint32_t t, void *raw, float *dst,
     }
     if (!stats)
         return;
-    for (int id = 0; id < g_nthreads; id++)
-        for (uint32_t k = 0; k < FINE_BINS; k++) {
-            st->fine[k] += g_fine_local[id][k];
-            g_fine_local[id][k] = 0;
+    for (int id = 0; id < r->nthreads; id++)
+        for (uint32_t k = 0; k < TVPAL_CHECKPOINT_BINS; k++) {
+            r->st.fine[k] += r->fine_local[id][k];
+            r->fine_local[id][k] = 0;
         }
-    st->nonfinite += nrep;
-    st->vmin = lo;
-    st->vmax = hi;
-    st->loaded = t + 1;
+    r->st.nonfinite += res.nrep;
+    r->st.vmin = res.lo;
+    r->st.vmax = res.hi;
+    r->st.loaded = t + 1;
 }
 
-/* ------------------------------------------------------------- checkpoint */
-
-/* Identity of the job: options and inputs (path, size, mtime).  A partial
- * output is resumed only by the same job. */
-static char *fingerprint(const struct opts *o)
+/* Checks the inputs before any output exists: regular readable files of
+ * the expected size, named by absolute paths from then on (the manifest
+ * must name them from anywhere). */
+static void check_inputs(struct run *r)
 {
-    char *buf = NULL;
-    size_t len = 0;
-    FILE *f = open_memstream(&buf, &len);
-    if (!f)
-        return NULL;
-    fprintf(f, "table=%u refine=%u naive=%d klt=%d alloc=%d ",
-            o->table_format, o->refine, o->naive, o->klt, o->alloc_mse);
-    fprintf(f, "dims=%ux%ux%u type=%s endian=%s window=%u nodes=%u "
-            "steps=%u nan_as=%s%.17g", o->dims[0], o->dims[1], o->dims[2],
-            tvpal_type_name(o->type), o->big_endian ? "big" : "little",
-            o->window, o->nodes, o->steps_single,
-            o->has_nan_as ? "" : "none:", o->has_nan_as ? o->nan_as : 0.0);
+    struct opts *o = &r->o;
+    const uint64_t want = o->steps_single ? r->step_bytes * r->T
+                                          : r->step_bytes;
+    if (!(r->abs_inputs = calloc((size_t)o->ninputs, sizeof *r->abs_inputs)))
+        die_fail("out of memory");
     for (int i = 0; i < o->ninputs; i++) {
         struct stat st;
-        if (stat(o->inputs[i], &st) < 0)
-            memset(&st, 0, sizeof st);
-        fprintf(f, " %s:%lld:%lld.%09ld", o->inputs[i],
-                (long long)st.st_size, (long long)st.st_mtim.tv_sec,
-                st.st_mtim.tv_nsec);
+        const char *p = o->inputs[i];
+        if (strchr(p, '\n'))
+            die_usage("%s: a newline in a file name is not supported", p);
+        if (stat(p, &st) < 0)
+            die_usage("%s: cannot read input: %s", p, strerror(errno));
+        if (!S_ISREG(st.st_mode))
+            die_usage("%s: not a regular file", p);
+        if (access(p, R_OK) < 0)
+            die_usage("%s: cannot read input: %s", p, strerror(errno));
+        if ((uint64_t)st.st_size != want) {
+            if (o->steps_single)
+                die_usage("%s: size is %lld bytes; expected %llu (%u timesteps "
+                          "of %ux%ux%u %s)", p, (long long)st.st_size,
+                          (unsigned long long)want, r->T, o->dims[0],
+                          o->dims[1], o->dims[2], tvpal_type_name(o->type));
+            die_usage("%s: size is %lld bytes; expected %llu (one %ux%ux%u %s "
+                      "timestep)", p, (long long)st.st_size,
+                      (unsigned long long)want, o->dims[0], o->dims[1],
+                      o->dims[2], tvpal_type_name(o->type));
+        }
+        if (!(r->abs_inputs[i] = realpath(p, NULL)))
+            die_usage("%s: %s", p, strerror(errno));
     }
-    fclose(f);
-    return buf;
+    o->inputs = r->abs_inputs;
 }
 
-/* The checkpoint keeps a hash of the fingerprint, not the fingerprint (which
- * names every input and would make each checkpoint O(T)): FNV-1a, 64 bits,
- * plus the length.  Returns a static string. */
-static const char *fp_hash(const char *fp)
+/* ---------------------------------------------------------------- output */
+
+/* Refuses an output that would destroy what it must not: an existing
+ * OUTDIR without --force, any input (OUTDIR, its .partial and .old may all
+ * be removed), or with --force anything but a tvpal dataset.  Sets
+ * r->partial. */
+static void check_output(struct run *r)
 {
-    static char out[40];
-    uint64_t h = 0xcbf29ce484222325ull;
-    size_t n = 0;
-    for (const unsigned char *p = (const unsigned char *)fp; *p; p++, n++)
-        h = (h ^ *p) * 0x100000001b3ull;
-    snprintf(out, sizeof out, "%016llx-%zu", (unsigned long long)h, n);
-    return out;
+    const struct opts *o = &r->o;
+    static const char *const sfx[] = {"", ".partial", ".old"};
+    if (asprintf(&r->partial, "%s.partial", o->outdir) < 0)
+        die_fail("out of memory");
+    if (tvpal_exists(o->outdir) && !o->force)
+        die_usage("%s: output already exists (use --force to replace it)",
+                  o->outdir);
+    for (int k = 0; k < 3; k++) {
+        char *p = NULL, *abs_p;
+        if (asprintf(&p, "%s%s", o->outdir, sfx[k]) < 0)
+            die_fail("out of memory");
+        if ((abs_p = realpath(p, NULL))) {
+            size_t n = strlen(abs_p);
+            for (int i = 0; i < o->ninputs; i++)
+                if (!strncmp(o->inputs[i], abs_p, n) &&
+                    (o->inputs[i][n] == '/' || o->inputs[i][n] == 0))
+                    die_usage("%s: input %s is or lies inside %s; "
+                              "refusing to replace it", o->outdir,
+                              o->inputs[i], p);
+            free(abs_p);
+        }
+        free(p);
+    }
+    if (tvpal_exists(o->outdir)) {
+        char *mp = NULL;
+        struct tvpal_manifest old;
+        if (asprintf(&mp, "%s/manifest.txt", o->outdir) < 0)
+            die_fail("out of memory");
+        if (tvpal_manifest_load(mp, &old, NULL) < 0)
+            die_usage("%s: exists and is not a tvpal dataset (no valid "
+                      "manifest.txt); refusing to replace it", o->outdir);
+        tvpal_manifest_clear(&old);
+        free(mp);
+    }
 }
 
-static int checkpoint_save(const char *dir, const char *fp, uint32_t done,
-                           const struct stats *st)
+/* Creates OUTDIR.partial/node-R/ for every node (after which bad input
+ * removes the partial output, see die_input). */
+static void make_node_dirs(struct run *r)
 {
-    char *buf = NULL, *path = NULL;
-    size_t len = 0;
-    FILE *f = open_memstream(&buf, &len);
-    if (!f)
-        return TVPAL_E_NOMEM;
-    fprintf(f, "fingerprint %s\ndone %u\nloaded %u\nmin %a\nmax %a\n"
-            "nonfinite %llu\n", fp_hash(fp), done, st->loaded, st->vmin,
-            st->vmax, (unsigned long long)st->nonfinite);
-    for (uint32_t b = 0; b < FINE_BINS; b++)
-        if (st->fine[b])
-            fprintf(f, "bin %u %llu\n", b, (unsigned long long)st->fine[b]);
-    fclose(f);
-    int rc = TVPAL_E_NOMEM;
-    if (asprintf(&path, "%s/checkpoint", dir) >= 0) {
-        rc = tvpal_write_file_atomic(path, buf, len);
+    for (uint32_t k = 0; k < r->o.nodes; k++) {
+        struct tvpal_diag d = {{0}};
+        char *nd;
+        int rc = asprintf(&nd, "%s/node-%u", r->partial, k) < 0
+                     ? TVPAL_E_NOMEM : tvpal_mkdirs_diag(nd, &d);
+        if (rc < 0)
+            die_usage("%s: cannot create output directory: %s", r->partial,
+                      lib_error(rc, &d));
+        free(nd);
+    }
+    g_partial = r->partial;
+}
+
+/* Resumes the partial output of the same job from its checkpoint, or
+ * removes a partial output that has none usable; then makes the node
+ * directories.  Sets r->fp, r->st and r->start. */
+static void open_partial(struct run *r)
+{
+    char *params = job_params(&r->o);
+    if (!params ||
+        tvpal_checkpoint_fingerprint(params, r->o.inputs, r->o.ninputs,
+                                     &r->fp) < 0 ||
+        tvpal_checkpoint_stats_init(&r->st) < 0)
+        die_fail("out of memory");
+    free(params);
+    r->start = 0;
+    if (tvpal_exists(r->partial)) {
+        /* A checkpoint that is missing, of another job or damaged is not
+         * an error: the job starts over (FORMAT.md 9.2). */
+        if (tvpal_checkpoint_load(r->partial, r->fp, r->T, r->nvox, &r->start,
+                                  &r->st, NULL) < 0 || r->start == 0) {
+            r->start = 0;
+            tvpal_checkpoint_stats_reset(&r->st);
+            if (tvpal_rmtree(r->partial) < 0)
+                die_usage("%s: cannot remove stale partial output",
+                          r->partial);
+        }
+    }
+    make_node_dirs(r);
+}
+
+/* Describes the 3K shards (axis-major) and allocates their record
+ * buffers; sets the largest slice and the most slice-windows of a step. */
+static void setup_shards(struct run *r)
+{
+    const struct opts *o = &r->o;
+    r->nshard = 3 * o->nodes;
+    if (!(r->sj = calloc(r->nshard, sizeof *r->sj)))
+        die_fail("out of memory");
+    for (unsigned a = 0; a < 3; a++) {
+        uint32_t n, w, h;
+        tvpal_axis_geometry(o->dims, a, &n, &w, &h);
+        if ((size_t)w * h > r->max_slice_vox)
+            r->max_slice_vox = (size_t)w * h;
+        r->max_jobs += n;
+        for (uint32_t k = 0; k < o->nodes; k++) {
+            struct shardjob *j = &r->sj[a * o->nodes + k];
+            j->axis = a;
+            j->rank = k;
+            j->h = (struct tvpal_shard_header){
+                .version = TVPAL_FORMAT_VERSION, .steps = r->T,
+                .window = r->N, .nodes = o->nodes, .rank = k, .axis = a,
+                .slice_w = w, .slice_h = h,
+                .table_format = (uint32_t)o->table_format};
+            memcpy(j->h.dims, o->dims, sizeof o->dims);
+            tvpal_slab_range(n, o->nodes, k, &j->h.slice_begin,
+                             &j->h.slice_count);
+            /* Largest record: every slice of the slab with a full window. */
+            j->rec_cap = tvpal_round_up(
+                TVPAL_RECORD_HEADER_BYTES +
+                    (uint64_t)j->h.slice_count *
+                        tvpal_chunk_bytes(r->N, w, h, j->h.table_format),
+                TVPAL_ALIGN);
+            if (!(j->rec = malloc(j->rec_cap)))
+                die_fail("out of memory");
+        }
+    }
+}
+
+/* Creates (start = 0) or resumes the shard writers; reports and returns
+ * < 0 on the first failure. */
+static int open_writers(struct run *r)
+{
+    for (uint32_t q = 0; q < r->nshard; q++) {
+        struct shardjob *j = &r->sj[q];
+        struct tvpal_diag d = {{0}};
+        char *path = tvpal_shard_filename(r->partial, j->rank, j->axis);
+        int rc;
+        if (!path)
+            return TVPAL_E_NOMEM;
+        if (r->start)
+            rc = tvpal_shardw_resume(&j->w, path, &j->h, r->start, &d);
+        else
+            rc = tvpal_shardw_create(&j->w, path, &j->h);
+        if (rc < 0)
+            msg("%s: cannot %s: %s%s%s%s", path,
+                r->start ? "resume" : "create", tvpal_strerror(rc),
+                d.msg[0] ? " (" : "", d.msg, d.msg[0] ? ")" : "");
+        if (rc < 0 && r->start)
+            msg("starting the job over");
         free(path);
+        if (rc < 0)
+            return rc;
     }
-    free(buf);
-    return rc;
+    return 0;
 }
 
-/* Returns steps done (0 when there is nothing usable to resume). */
-static uint32_t checkpoint_load(const char *dir, const char *fp,
-                                uint32_t T_total, struct stats *st)
+/* Opens the writers; a partial output that does not verify is removed and
+ * the job started over, from empty statistics. */
+static void open_or_restart_writers(struct run *r)
 {
-    char *path = NULL, *text = NULL;
-    uint32_t done = 0;
-    if (asprintf(&path, "%s/checkpoint", dir) < 0)
-        return 0;
-    if (tvpal_read_file(path, &text, NULL) < 0) {
-        free(path);
-        return 0;
+    while (open_writers(r) < 0) {
+        for (uint32_t q = 0; q < r->nshard; q++) {
+            tvpal_shardw_free(r->sj[q].w);
+            r->sj[q].w = NULL;
+        }
+        if (!r->start)
+            die_input("%s: cannot create the output files", r->partial);
+        r->start = 0;
+        tvpal_checkpoint_stats_reset(&r->st);
+        tvpal_rmtree(r->partial);
+        make_node_dirs(r);
     }
-    free(path);
-    char *save = NULL;
-    char *line = strtok_r(text, "\n", &save);
-    if (!line || strncmp(line, "fingerprint ", 12) ||
-        strcmp(line + 12, fp_hash(fp)))
-        goto out;
-    unsigned d = 0, l = 0;
-    unsigned long long nf = 0;
-    double lo, hi;
-    if (!(line = strtok_r(NULL, "\n", &save)) || sscanf(line, "done %u", &d) != 1 ||
-        !(line = strtok_r(NULL, "\n", &save)) || sscanf(line, "loaded %u", &l) != 1 ||
-        !(line = strtok_r(NULL, "\n", &save)) || sscanf(line, "min %la", &lo) != 1 ||
-        !(line = strtok_r(NULL, "\n", &save)) || sscanf(line, "max %la", &hi) != 1 ||
-        !(line = strtok_r(NULL, "\n", &save)) ||
-        sscanf(line, "nonfinite %llu", &nf) != 1)
-        goto out;
-    memset(st->fine, 0, FINE_BINS * sizeof *st->fine);
-    while ((line = strtok_r(NULL, "\n", &save))) {
-        unsigned b;
-        unsigned long long c;
-        if (sscanf(line, "bin %u %llu", &b, &c) != 2 || b >= FINE_BINS)
-            goto out;
-        st->fine[b] = c;
+}
+
+/* ------------------------------------------------------------- workspace */
+
+/* Threads and their workspaces, the ring of N timesteps and the raw
+ * buffer: everything the streaming loop uses, allocated once. */
+static void setup_workspace(struct run *r)
+{
+    const uint32_t N = r->N;
+    r->nthreads = 1;
+#ifdef _OPENMP
+    if (r->o.threads)
+        omp_set_num_threads((int)r->o.threads);
+    r->nthreads = omp_get_max_threads();
+#endif
+    const size_t nt = (size_t)r->nthreads;
+    if (!(r->fine_local = calloc(nt, sizeof *r->fine_local)))
+        die_fail("out of memory");
+    for (size_t i = 0; i < nt; i++)
+        if (!(r->fine_local[i] = calloc(TVPAL_CHECKPOINT_BINS,
+                                        sizeof(uint64_t))))
+            die_fail("out of memory");
+    /* Samples per thread: one slice-window, or a group of x slices up to
+     * 8 MiB (a group never exceeds GROUP_SPAN slices). */
+    const size_t sw = r->max_slice_vox * N;
+    r->group_cap = sw;
+    if (r->group_cap < (size_t)2 << 20)
+        r->group_cap = (size_t)2 << 20 < sw * GROUP_SPAN ? (size_t)2 << 20
+                                                         : sw * GROUP_SPAN;
+    r->enc = calloc(nt, sizeof *r->enc);
+    r->samples = calloc(nt, sizeof *r->samples);
+    r->tables = calloc(nt, sizeof *r->tables);
+    r->jobs = calloc(r->max_jobs, sizeof *r->jobs);
+    r->ring = calloc(N, sizeof *r->ring);
+    r->raw = malloc(r->step_bytes);
+    if (!r->enc || !r->samples || !r->tables || !r->jobs || !r->ring ||
+        !r->raw)
+        die_fail("out of memory");
+    for (size_t i = 0; i < nt; i++) {
+        if (tvpal_swenc_create(&r->enc[i], r->max_slice_vox, N) < 0 ||
+            tvpal_swenc_set_refine(r->enc[i], r->o.refine) < 0 ||
+            (tvpal_swenc_set_naive(r->enc[i], r->o.naive),
+             tvpal_swenc_set_alloc_mse(r->enc[i], r->o.alloc_mse) < 0))
+            die_fail("out of memory");
+        if (r->o.klt && tvpal_swenc_set_klt(r->enc[i], 1) < 0)
+            die_usage("--transform klt: built without LAPACK (install "
+                      "liblapack-dev and reconfigure)");
+        if (!(r->samples[i] = malloc(r->group_cap * sizeof(float))) ||
+            !(r->tables[i] = malloc(N * 256 * sizeof(float))))
+            die_fail("out of memory");
     }
-    if (d > T_total || l > T_total || l < d)
-        goto out;
-    st->vmin = lo;
-    st->vmax = hi;
-    st->nonfinite = nf;
-    st->loaded = l;
-    done = d;
-out:
-    free(text);
-    return done;
+    for (uint32_t i = 0; i < N; i++)
+        if (!(r->ring[i] = malloc(r->nvox * sizeof(float))))
+            die_fail("out of memory for %u timesteps of %zu voxels", N,
+                     r->nvox);
 }
 
 /* ---------------------------------------------------------------- encoding */
@@ -481,657 +927,341 @@ static void encode_chunk(struct tvpal_swenc *enc, float *table,
     memset(chunk + ib, 0, cb - ib);
 }
 
-/* Creates (start = 0) or resumes the shard writers; reports and returns
- * < 0 on the first failure. */
-static int open_writers(struct shardjob *sj, uint32_t nshard,
-                        const char *partial, uint32_t start)
+/* Lists the slice-windows of every shard that start at step t, in record
+ * order, into r->jobs (x slices grouped), and lays out each shard's
+ * record.  Returns the number of jobs. */
+static size_t plan_step(struct run *r, uint32_t t)
 {
-    for (uint32_t q = 0; q < nshard; q++) {
-        struct shardjob *j = &sj[q];
-        struct tvpal_diag d = {{0}};
-        char *path = tvpal_shard_filename(partial, j->rank, j->axis);
-        int rc;
-        if (!path)
-            return TVPAL_E_NOMEM;
-        if (start)
-            rc = tvpal_shardw_resume(&j->w, path, &j->h, start, &d);
-        else
-            rc = tvpal_shardw_create(&j->w, path, &j->h);
-        if (rc < 0)
-            msg("%s: cannot %s: %s%s%s%s", path, start ? "resume" : "create",
-                tvpal_strerror(rc), d.msg[0] ? " (" : "", d.msg,
-                d.msg[0] ? ")" : "");
-        if (rc < 0 && start)
-            msg("starting the job over");
-        free(path);
-        if (rc < 0)
-            return rc;
+    const uint32_t N = r->N;
+    struct slicejob *jobs = r->jobs;
+    size_t njobs = 0;
+    for (uint32_t q = 0; q < r->nshard; q++) {
+        struct shardjob *j = &r->sj[q];
+        uint64_t off = TVPAL_RECORD_HEADER_BYTES;
+        j->nchunks = 0;
+        const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
+        for (uint32_t k = 0; k < j->h.slice_count; k++) {
+            uint32_t s = j->h.slice_begin + k;
+            if (!tvpal_schedule_starts(s, t, N))
+                continue;
+            uint32_t len = tvpal_schedule_len(s, t, N, r->T);
+            uint64_t cb = tvpal_chunk_bytes(len, j->h.slice_w, j->h.slice_h,
+                                            j->h.table_format);
+            struct slicejob *prev = njobs ? &jobs[njobs - 1] : NULL;
+            /* Extend the previous x group when this slice is the next of
+             * its phase, in the same line, with the same window, and the
+             * group's samples stay within the workspace. */
+            if (j->axis == 0 && prev && prev->sj == j && prev->len == len &&
+                s == prev->slice + prev->count * N &&
+                s / GROUP_SPAN == prev->slice / GROUP_SPAN &&
+                (uint64_t)(prev->count + 1) * len * sv <= r->group_cap)
+                prev->count++;
+            else
+                jobs[njobs++] = (struct slicejob){j, s, 1, len, off};
+            off += cb;
+            j->nchunks++;
+        }
+        j->payload = off - TVPAL_RECORD_HEADER_BYTES;
     }
-    return 0;
+    return njobs;
 }
 
-
-int main(int argc, char **argv)
+/* Encodes the planned slice-windows of step t into the record buffers,
+ * one job per thread at a time. */
+static void encode_step(struct run *r, uint32_t t, size_t njobs)
 {
-    struct opts o = {.type = TVPAL_F32, .window = 4, .nodes = 1};
-    int have_dims = 0;
-    static const struct option lopts[] = {
-        {"dims", required_argument, 0, 'd'},
-        {"type", required_argument, 0, 't'},
-        {"endian", required_argument, 0, 'e'},
-        {"steps", required_argument, 0, 's'},
-        {"nan-as", required_argument, 0, 'N'},
-        {"window", required_argument, 0, 'w'},
-        {"nodes", required_argument, 0, 'k'},
-        {"threads", required_argument, 0, 'j'},
-        {"table", required_argument, 0, 'T'},
-        {"refine", required_argument, 0, 'R'},
-        {"naive", no_argument, 0, 'Z'},
-        {"transform", required_argument, 0, 'X'},
-        {"alloc", required_argument, 0, 'A'},
-        {"output", required_argument, 0, 'o'},
-        {"force", no_argument, 0, 'f'},
-        {"quiet", no_argument, 0, 'q'},
-        {"help", no_argument, 0, 'h'},
-        {"version", no_argument, 0, 'V'},
-        {0, 0, 0, 0}};
-    int c;
-    struct tvpal_diag diag = {{0}};
-    while ((c = getopt_long(argc, argv, "d:t:e:s:w:k:j:o:fqhV", lopts, NULL)) != -1) {
-        switch (c) {
-        case 'd':
-            if (tvpal_dims_parse(optarg, o.dims, &diag) < 0)
-                die_usage("--dims: %s", diag.msg);
-            have_dims = 1;
-            break;
-        case 't':
-            if (tvpal_type_parse(optarg, &o.type) < 0)
-                die_usage("--type \"%s\": expected f32, f64, u8, u16 or i16",
-                          optarg);
-            break;
-        case 'e':
-            if (strcmp(optarg, "little") && strcmp(optarg, "big"))
-                die_usage("--endian \"%s\": expected little or big", optarg);
-            o.big_endian = !strcmp(optarg, "big");
-            break;
-        case 's':
-            if (tvpal_parse_u32(optarg, 1, UINT32_MAX, &o.steps_single) < 0)
-                die_usage("--steps \"%s\": expected a whole number >= 1",
-                          optarg);
-            break;
-        case 'N':
-            if (tvpal_parse_double(optarg, &o.nan_as) < 0 ||
-                fabs(o.nan_as) > TVPAL_VALUE_MAX)
-                die_usage("--nan-as \"%s\": expected a finite number", optarg);
-            o.has_nan_as = 1;
-            break;
-        case 'w':
-            if (tvpal_parse_u32(optarg, 1, TVPAL_NMAX, &o.window) < 0)
-                die_usage("--window \"%s\": expected a whole number from 1 "
-                          "to %d", optarg, TVPAL_NMAX);
-            break;
-        case 'k':
-            if (tvpal_parse_u32(optarg, 1, UINT32_MAX, &o.nodes) < 0)
-                die_usage("--nodes \"%s\": expected a whole number >= 1",
-                          optarg);
-            break;
-        case 'j':
-            if (tvpal_parse_u32(optarg, 1, 1024, &o.threads) < 0)
-                die_usage("--threads \"%s\": expected 1..1024", optarg);
-            break;
-        case 'A':
-            if (!strcmp(optarg, "greedy-mse"))
-                o.alloc_mse = 1;
-            else if (strcmp(optarg, "variance"))
-                die_usage("--alloc \"%s\": expected variance or greedy-mse",
-                          optarg);
-            break;
-        case 'X':
-            if (!strcmp(optarg, "klt"))
-                o.klt = 1;
-            else if (strcmp(optarg, "dct"))
-                die_usage("--transform \"%s\": expected dct or klt", optarg);
-            break;
-        case 'Z':
-            o.naive = 1;
-            break;
-        case 'R':
-            if (tvpal_parse_u32(optarg, 0, TVPAL_REFINE_MAX, &o.refine) < 0)
-                die_usage("--refine \"%s\": expected 0..%d", optarg,
-                          TVPAL_REFINE_MAX);
-            break;
-        case 'T':
-            if (!strcmp(optarg, "u16"))
-                o.table_format = TVPAL_TABLE_U16;
-            else if (!strcmp(optarg, "f32"))
-                o.table_format = TVPAL_TABLE_F32;
-            else
-                die_usage("--table \"%s\": expected f32 or u16", optarg);
-            break;
-        case 'o':
-            o.outdir = optarg;
-            break;
-        case 'f':
-            o.force = 1;
-            break;
-        case 'q':
-            o.quiet = 1;
-            break;
-        case 'h':
-            usage(stdout);
-            return 0;
-        case 'V':
-            printf(PROG " " PACKAGE_VERSION " (format %u)\n",
-                   TVPAL_FORMAT_VERSION);
-            return 0;
-        default:
-            fprintf(stderr, "Try '" PROG " --help'.\n");
-            return TVPAL_EXIT_USAGE;
-        }
-    }
-    if (!have_dims)
-        die_usage("--dims NXxNYxNZ is required (try --help)");
-    if (!o.outdir || !*o.outdir)
-        die_usage("-o OUTDIR is required (try --help)");
-    o.inputs = argv + optind;
-    o.ninputs = argc - optind;
-    if (o.ninputs < 1)
-        die_usage("no INPUT files given (one raw file per timestep)");
-    if (o.steps_single && o.ninputs != 1)
-        die_usage("--steps T takes exactly one INPUT holding all T timesteps "
-                  "(%d given)", o.ninputs);
-    for (unsigned a = 0; a < 3; a++)
-        if (o.nodes > o.dims[a])
-            die_usage("--nodes %u: larger than the %c axis (%u slices); "
-                      "expected at most %u", o.nodes, "xyz"[a], o.dims[a],
-                      o.dims[0] < o.dims[1] ? (o.dims[0] < o.dims[2] ? o.dims[0] : o.dims[2])
-                                            : (o.dims[1] < o.dims[2] ? o.dims[1] : o.dims[2]));
-    if (strchr(o.outdir, '\n'))
-        die_usage("-o: a newline in the path is not supported");
-
-    g_nvox = (size_t)o.dims[0] * o.dims[1] * o.dims[2];
-    const size_t esz = tvpal_type_size(o.type);
-    const uint64_t step_bytes = (uint64_t)g_nvox * esz;
-    const uint32_t T = o.steps_single ? o.steps_single : (uint32_t)o.ninputs;
-    const uint32_t N = o.window;
-    if (step_bytes > (uint64_t)INT64_MAX / T)
-        die_usage("--steps %u of %ux%ux%u %s: total size overflows", T,
-                  o.dims[0], o.dims[1], o.dims[2], tvpal_type_name(o.type));
-
-    /* Inputs: absolute paths (the manifest must name them from anywhere),
-     * regular readable files of the expected size. */
-    char **abs_inputs = calloc((size_t)o.ninputs, sizeof *abs_inputs);
-    if (!abs_inputs)
-        die_fail("out of memory");
-    for (int i = 0; i < o.ninputs; i++) {
-        struct stat st;
-        const char *p = o.inputs[i];
-        if (strchr(p, '\n'))
-            die_usage("%s: a newline in a file name is not supported", p);
-        if (stat(p, &st) < 0)
-            die_usage("%s: cannot read input: %s", p, strerror(errno));
-        if (!S_ISREG(st.st_mode))
-            die_usage("%s: not a regular file", p);
-        if (access(p, R_OK) < 0)
-            die_usage("%s: cannot read input: %s", p, strerror(errno));
-        uint64_t want = o.steps_single ? step_bytes * T : step_bytes;
-        if ((uint64_t)st.st_size != want) {
-            if (o.steps_single)
-                die_usage("%s: size is %lld bytes; expected %llu (%u timesteps "
-                          "of %ux%ux%u %s)", p, (long long)st.st_size,
-                          (unsigned long long)want, T, o.dims[0], o.dims[1],
-                          o.dims[2], tvpal_type_name(o.type));
-            die_usage("%s: size is %lld bytes; expected %llu (one %ux%ux%u %s "
-                      "timestep)", p, (long long)st.st_size,
-                      (unsigned long long)want, o.dims[0], o.dims[1],
-                      o.dims[2], tvpal_type_name(o.type));
-        }
-        abs_inputs[i] = realpath(p, NULL);
-        if (!abs_inputs[i])
-            die_usage("%s: %s", p, strerror(errno));
-    }
-    o.inputs = abs_inputs;
-
-    /* Output directories. */
-    char *partial = NULL;
-    if (asprintf(&partial, "%s.partial", o.outdir) < 0)
-        die_fail("out of memory");
-    if (tvpal_exists(o.outdir) && !o.force)
-        die_usage("%s: output already exists (use --force to replace it)",
-                  o.outdir);
-    {
-        /* Inputs stay intact: no input may be, or lie inside, the output,
-         * its .partial or its .old (all of which may be removed). */
-        static const char *const sfx[] = {"", ".partial", ".old"};
-        for (int k = 0; k < 3; k++) {
-            char *p = NULL, *abs_p;
-            if (asprintf(&p, "%s%s", o.outdir, sfx[k]) < 0)
-                die_fail("out of memory");
-            if ((abs_p = realpath(p, NULL))) {
-                size_t n = strlen(abs_p);
-                for (int i = 0; i < o.ninputs; i++)
-                    if (!strncmp(o.inputs[i], abs_p, n) &&
-                        (o.inputs[i][n] == '/' || o.inputs[i][n] == 0))
-                        die_usage("%s: input %s is or lies inside %s; "
-                                  "refusing to replace it", o.outdir,
-                                  o.inputs[i], p);
-                free(abs_p);
-            }
-            free(p);
-        }
-        /* --force replaces only a tvpal dataset, never another file. */
-        if (tvpal_exists(o.outdir)) {
-            char *mp = NULL;
-            struct tvpal_manifest old;
-            if (asprintf(&mp, "%s/manifest.txt", o.outdir) < 0)
-                die_fail("out of memory");
-            if (tvpal_manifest_load(mp, &old, NULL) < 0)
-                die_usage("%s: exists and is not a tvpal dataset (no valid "
-                          "manifest.txt); refusing to replace it", o.outdir);
-            tvpal_manifest_clear(&old);
-            free(mp);
-        }
-    }
-
-    char *fp = fingerprint(&o);
-    struct stats st = {.vmin = INFINITY, .vmax = -INFINITY};
-    st.fine = calloc(FINE_BINS, sizeof *st.fine);
-    if (!fp || !st.fine)
-        die_fail("out of memory");
-    uint32_t start = 0;
-    if (tvpal_exists(partial)) {
-        start = checkpoint_load(partial, fp, T, &st);
-        if (start == 0) {
-            if (tvpal_rmtree(partial) < 0)
-                die_usage("%s: cannot remove stale partial output", partial);
-            st.vmin = INFINITY;
-            st.vmax = -INFINITY;
-            st.loaded = 0;
-            memset(st.fine, 0, FINE_BINS * sizeof *st.fine);
-        }
-    }
-    for (uint32_t r = 0; r < o.nodes; r++) {
-        char *nd;
-        if (asprintf(&nd, "%s/node-%u", partial, r) < 0 || tvpal_mkdirs(nd) < 0)
-            die_usage("%s: cannot create output directory: %s", partial,
-                      strerror(errno));
-        free(nd);
-    }
-    g_partial = partial;
-
-    /* Shards and their writers. */
-    const uint32_t nshard = 3 * o.nodes;
-    struct shardjob *sj = calloc(nshard, sizeof *sj);
-    if (!sj)
-        die_fail("out of memory");
-    size_t max_slice_vox = 0;
-    size_t max_jobs = 0;
-    for (unsigned a = 0; a < 3; a++) {
-        uint32_t n, w, h;
-        tvpal_axis_geometry(o.dims, a, &n, &w, &h);
-        if ((size_t)w * h > max_slice_vox)
-            max_slice_vox = (size_t)w * h;
-        max_jobs += n;
-        for (uint32_t r = 0; r < o.nodes; r++) {
-            struct shardjob *j = &sj[a * o.nodes + r];
-            j->axis = a;
-            j->rank = r;
-            j->h = (struct tvpal_shard_header){
-                .version = TVPAL_FORMAT_VERSION, .steps = T, .window = N,
-                .nodes = o.nodes, .rank = r, .axis = a, .slice_w = w,
-                .slice_h = h, .table_format = o.table_format};
-            memcpy(j->h.dims, o.dims, sizeof o.dims);
-            tvpal_slab_range(n, o.nodes, r, &j->h.slice_begin,
-                             &j->h.slice_count);
-            /* Largest record: every slice of the slab with a full window. */
-            j->rec_cap = tvpal_round_up(TVPAL_RECORD_HEADER_BYTES +
-                                            (uint64_t)j->h.slice_count *
-                                                tvpal_chunk_bytes(N, w, h, o.table_format),
-                                        TVPAL_ALIGN);
-            j->rec = malloc(j->rec_cap);
-            if (!j->rec)
-                die_fail("out of memory");
-        }
-    }
-    while (open_writers(sj, nshard, partial, start) < 0) {
-        /* A partial output that does not verify is started over. */
-        for (uint32_t q = 0; q < nshard; q++) {
-            tvpal_shardw_free(sj[q].w);
-            sj[q].w = NULL;
-        }
-        if (!start)
-            die_input("%s: cannot create the output files", partial);
-        start = 0;
-        st.vmin = INFINITY;
-        st.vmax = -INFINITY;
-        st.loaded = 0;
-        st.nonfinite = 0;
-        memset(st.fine, 0, FINE_BINS * sizeof *st.fine);
-        tvpal_rmtree(partial);
-        for (uint32_t r = 0; r < o.nodes; r++) {
-            char *nd;
-            if (asprintf(&nd, "%s/node-%u", partial, r) < 0 ||
-                tvpal_mkdirs(nd) < 0)
-                die_usage("%s: cannot create output directory: %s", partial,
-                          strerror(errno));
-            free(nd);
-        }
-        g_partial = partial;
-    }
-
-    /* Threads and their workspaces. */
-    int nthreads = 1;
-#ifdef _OPENMP
-    if (o.threads)
-        omp_set_num_threads((int)o.threads);
-    nthreads = omp_get_max_threads();
-#endif
-    g_nthreads = nthreads;
-    g_fine_local = calloc((size_t)nthreads, sizeof *g_fine_local);
-    if (!g_fine_local)
-        die_fail("out of memory");
-    for (int i = 0; i < nthreads; i++)
-        if (!(g_fine_local[i] = calloc(FINE_BINS, sizeof(uint64_t))))
-            die_fail("out of memory");
-    /* Samples per thread: one slice-window, or a group of x slices up to
-     * 8 MiB (a group never exceeds GROUP_SPAN slices). */
-    g_group_cap = max_slice_vox * N;
-    if (g_group_cap < (size_t)2 << 20)
-        g_group_cap = (size_t)2 << 20 < max_slice_vox * N * GROUP_SPAN
-                          ? (size_t)2 << 20 : max_slice_vox * N * GROUP_SPAN;
-    struct tvpal_swenc **enc = calloc((size_t)nthreads, sizeof *enc);
-    float **samples = calloc((size_t)nthreads, sizeof *samples);
-    float **tables = calloc((size_t)nthreads, sizeof *tables);
-    struct slicejob *jobs = calloc(max_jobs, sizeof *jobs);
-    float **ring = calloc(N, sizeof *ring);
-    void *raw = malloc(step_bytes);
-    if (!enc || !samples || !tables || !jobs || !ring || !raw)
-        die_fail("out of memory");
-    for (int i = 0; i < nthreads; i++) {
-        if (tvpal_swenc_create(&enc[i], max_slice_vox, N) < 0 ||
-            tvpal_swenc_set_refine(enc[i], o.refine) < 0 ||
-            (tvpal_swenc_set_naive(enc[i], o.naive), 0) ||
-            tvpal_swenc_set_alloc_mse(enc[i], o.alloc_mse) < 0 ||
-            (o.klt && tvpal_swenc_set_klt(enc[i], 1) < 0 &&
-             (die_usage("--transform klt: built without LAPACK (install "
-                        "liblapack-dev and reconfigure)"), 1)) ||
-            !(samples[i] = malloc(g_group_cap * sizeof(float))) ||
-            !(tables[i] = malloc(N * 256 * sizeof(float))))
-            die_fail("out of memory");
-    }
-    for (uint32_t i = 0; i < N; i++)
-        if (!(ring[i] = malloc(g_nvox * sizeof(float))))
-            die_fail("out of memory for %u timesteps of %zu voxels", N,
-                      g_nvox);
-
-    const int tty = isatty(STDERR_FILENO);
-    const double t0 = tvpal_now();
-    double last_report = t0;
-    uint32_t loaded = start;
-    const char *fault = getenv("TVPAL_ENCODE_FAULT_AFTER");
-    const long fault_after = fault ? atol(fault) : -1;
-    if (start && !o.quiet)
-        msg("resuming %s at timestep %u of %u", partial, start, T);
-
-    for (uint32_t t = start; t < T; t++) {
-        uint32_t need = t + N < T ? t + N : T;
-        while (loaded < need) {
-            load_step(&o, loaded, raw, ring[loaded % N], &st);
-            loaded++;
-        }
-        /* Every slice of every shard whose window starts at t. */
-        size_t njobs = 0;
-        for (uint32_t q = 0; q < nshard; q++) {
-            struct shardjob *j = &sj[q];
-            uint64_t off = TVPAL_RECORD_HEADER_BYTES;
-            j->nchunks = 0;
-            const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
-            for (uint32_t k = 0; k < j->h.slice_count; k++) {
-                uint32_t s = j->h.slice_begin + k;
-                if (!tvpal_schedule_starts(s, t, N))
-                    continue;
-                uint32_t len = tvpal_schedule_len(s, t, N, T);
-                uint64_t cb = tvpal_chunk_bytes(len, j->h.slice_w, j->h.slice_h,
-                                                j->h.table_format);
-                struct slicejob *prev = njobs ? &jobs[njobs - 1] : NULL;
-                /* Extend the previous x group when this slice is the next of
-                 * its phase, in the same line, with the same window, and the
-                 * group's samples stay within the workspace. */
-                if (j->axis == 0 && prev && prev->sj == j && prev->len == len &&
-                    s == prev->slice + prev->count * N &&
-                    s / GROUP_SPAN == prev->slice / GROUP_SPAN &&
-                    (uint64_t)(prev->count + 1) * len * sv <= g_group_cap)
-                    prev->count++;
-                else
-                    jobs[njobs++] = (struct slicejob){j, s, 1, len, off};
-                off += cb;
-                j->nchunks++;
-            }
-            j->payload = off - TVPAL_RECORD_HEADER_BYTES;
-        }
 #ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 1)
 #endif
-        for (size_t i = 0; i < njobs; i++) {
-            int tid = 0;
+    for (size_t i = 0; i < njobs; i++) {
+        int tid = 0;
 #ifdef _OPENMP
-            tid = omp_get_thread_num();
+        tid = omp_get_thread_num();
 #endif
-            const struct slicejob *jb = &jobs[i];
-            const struct shardjob *j = jb->sj;
-            const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
-            const uint64_t cb = tvpal_chunk_bytes(jb->len, j->h.slice_w,
-                                                  j->h.slice_h,
-                                                  j->h.table_format);
-            gather(&o, ring, jb, t, samples[tid]);
-            for (uint32_t g = 0; g < jb->count; g++)
-                encode_chunk(enc[tid], tables[tid],
-                             samples[tid] + (size_t)g * jb->len * sv, j,
-                             jb->slice + g * N, t, jb->len,
-                             j->rec + jb->off + g * cb);
-        }
-        for (uint32_t q = 0; q < nshard; q++) {
-            struct shardjob *j = &sj[q];
-            uint64_t bytes = tvpal_record_seal(j->rec, t, j->axis, j->nchunks,
-                                               j->payload);
-            int rc = tvpal_shardw_append(j->w, j->rec, bytes);
-            if (rc < 0) {
-                msg("%s/node-%u/axis-%c.tvps: %s: %s", partial, j->rank,
-                    "xyz"[j->axis], tvpal_strerror(rc), strerror(errno));
-                return TVPAL_EXIT_FAIL;
+        const struct slicejob *jb = &r->jobs[i];
+        const struct shardjob *j = jb->sj;
+        const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
+        const uint64_t cb = tvpal_chunk_bytes(jb->len, j->h.slice_w,
+                                              j->h.slice_h, j->h.table_format);
+        gather(&r->o, r->ring, jb, t, r->samples[tid]);
+        for (uint32_t g = 0; g < jb->count; g++)
+            encode_chunk(r->enc[tid], r->tables[tid],
+                         r->samples[tid] + (size_t)g * jb->len * sv, j,
+                         jb->slice + g * r->N, t, jb->len,
+                         j->rec + jb->off + g * cb);
+    }
+}
+
+/* Record 0 holds every slice; later records hold one phase (at most
+ * ceil(n / N) slices): gives the rest of the record buffers back. */
+static void shrink_records(struct run *r)
+{
+    for (uint32_t q = 0; q < r->nshard; q++) {
+        struct shardjob *j = &r->sj[q];
+        uint64_t cap = tvpal_round_up(
+            TVPAL_RECORD_HEADER_BYTES +
+                (uint64_t)((j->h.slice_count + r->N - 1) / r->N + 1) *
+                    tvpal_chunk_bytes(r->N, j->h.slice_w, j->h.slice_h,
+                                      j->h.table_format),
+            TVPAL_ALIGN);
+        if (cap < j->rec_cap) {
+            unsigned char *nb = realloc(j->rec, cap);
+            if (nb) {
+                j->rec = nb;
+                j->rec_cap = cap;
             }
         }
-        if (t == 0 && T > 1) {
-            /* Record 0 holds every slice; later records hold one phase
-             * (at most ceil(n / N) slices): give the rest back. */
-            for (uint32_t q = 0; q < nshard; q++) {
-                struct shardjob *j = &sj[q];
-                uint64_t cap = tvpal_round_up(
-                    TVPAL_RECORD_HEADER_BYTES +
-                        (uint64_t)((j->h.slice_count + N - 1) / N + 1) *
-                            tvpal_chunk_bytes(N, j->h.slice_w, j->h.slice_h,
-                                              j->h.table_format),
-                    TVPAL_ALIGN);
-                if (cap < j->rec_cap) {
-                    unsigned char *nb = realloc(j->rec, cap);
-                    if (nb) {
-                        j->rec = nb;
-                        j->rec_cap = cap;
-                    }
-                }
-            }
-        }
-        if (checkpoint_save(partial, fp, t + 1, &st) < 0) {
-            msg("%s/checkpoint: cannot write: %s", partial, strerror(errno));
-            return TVPAL_EXIT_FAIL;
-        }
+    }
+}
+
+/* Seals and appends step t's record to every shard, then saves the
+ * checkpoint: after it, a rerun resumes at t + 1. */
+static void write_step(struct run *r, uint32_t t)
+{
+    struct tvpal_diag d = {{0}};
+    int rc;
+    for (uint32_t q = 0; q < r->nshard; q++) {
+        struct shardjob *j = &r->sj[q];
+        uint64_t bytes = tvpal_record_seal(j->rec, t, j->axis, j->nchunks,
+                                           j->payload);
+        if ((rc = tvpal_shardw_append(j->w, j->rec, bytes, &d)) < 0)
+            die_fail("%s/node-%u/axis-%c.tvps: %s", r->partial, j->rank,
+                     "xyz"[j->axis], lib_error(rc, &d));
+    }
+    if (t == 0 && r->T > 1)
+        shrink_records(r);
+    if ((rc = tvpal_checkpoint_save(r->partial, r->fp, t + 1, &r->st, &d)) < 0)
+        die_fail("%s/checkpoint: cannot write: %s", r->partial,
+                 lib_error(rc, &d));
+}
+
+/* Progress on stderr: a bar redrawn at most 5 times a second on a terminal,
+ * otherwise a line every 30 s; always at the last step. */
+struct progress {
+    int tty;
+    double t0, last;
+};
+
+static void report_progress(const struct run *r, struct progress *p,
+                            uint32_t t)
+{
+    double now = tvpal_now();
+    if (r->o.quiet || (t + 1 != r->T && now - p->last < (p->tty ? 0.2 : 30.0)))
+        return;
+    char line[256];
+    double el = now - p->t0;
+    double done = (double)(t + 1 - r->start);
+    double rate = done * (double)r->nvox / (el > 0 ? el : 1e-9) / 1e6;
+    double eta = el / done * (double)(r->T - t - 1);
+    tvpal_progress_format(line, sizeof line, t + 1, r->T, "steps", rate,
+                          "Mvox-steps/s", eta, p->tty ? 30 : 0);
+    if (p->tty)
+        fprintf(stderr, "\r%s\033[K%s", line, t + 1 == r->T ? "\n" : "");
+    else
+        fprintf(stderr, PROG ": %s\n", line);
+    p->last = now;
+}
+
+/* The streaming driver: for each step from r->start, reads what its
+ * windows need (step t + N - 1 at most), encodes and writes its records
+ * and checkpoints.  TVPAL_ENCODE_FAULT_AFTER=S (a test hook) kills the
+ * process after S steps, as an interruption would. */
+static void encode_steps(struct run *r)
+{
+    struct progress p = {isatty(STDERR_FILENO), tvpal_now(), 0};
+    const char *fault = getenv("TVPAL_ENCODE_FAULT_AFTER");
+    const long fault_after = fault ? atol(fault) : -1;
+    uint32_t loaded = r->start;
+    p.last = p.t0;
+    if (r->start && !r->o.quiet)
+        msg("resuming %s at timestep %u of %u", r->partial, r->start, r->T);
+    for (uint32_t t = r->start; t < r->T; t++) {
+        uint32_t need = t + r->N < r->T ? t + r->N : r->T;
+        for (; loaded < need; loaded++)
+            load_step(r, loaded, r->ring[loaded % r->N]);
+        encode_step(r, t, plan_step(r, t));
+        write_step(r, t);
         if (fault_after >= 0 && (long)(t + 1) >= fault_after)
-            raise(SIGKILL); /* test hook: simulate an interruption */
-
-        double now = tvpal_now();
-        if (!o.quiet && (t + 1 == T || now - last_report >= (tty ? 0.2 : 30.0))) {
-            char line[256];
-            double el = now - t0;
-            double done = (double)(t + 1 - start);
-            double rate = done * (double)g_nvox / (el > 0 ? el : 1e-9) / 1e6;
-            double eta = el / done * (double)(T - t - 1);
-            tvpal_progress_format(line, sizeof line, t + 1, T, "steps", rate,
-                                  "Mvox-steps/s", eta, tty ? 30 : 0);
-            if (tty)
-                fprintf(stderr, "\r%s\033[K%s", line, t + 1 == T ? "\n" : "");
-            else
-                fprintf(stderr, PROG ": %s\n", line);
-            last_report = now;
-        }
+            raise(SIGKILL);
+        report_progress(r, &p, t);
     }
-    const double t_encode = tvpal_now() - t0;
+    r->t_encode = tvpal_now() - p.t0;
+}
 
-    /* Finish shards, then the manifest; rename into place last. */
-    uint64_t total_bytes = 0;
-    for (uint32_t q = 0; q < nshard; q++) {
-        tvpal_shardw_set_range(sj[q].w, st.vmin, st.vmax);
-        int rc = tvpal_shardw_finish(sj[q].w);
-        sj[q].w = NULL;
-        if (rc < 0) {
-            msg("%s/node-%u/axis-%c.tvps: cannot finish: %s", partial,
-                sj[q].rank, "xyz"[sj[q].axis], tvpal_strerror(rc));
-            return TVPAL_EXIT_FAIL;
-        }
-    }
-    struct tvpal_manifest m = {0};
-    memcpy(m.dims, o.dims, sizeof o.dims);
-    m.type = o.type;
-    m.big_endian = o.big_endian;
-    m.steps = T;
-    m.window = N;
-    m.nodes = o.nodes;
-    m.value_min = st.vmin;
-    m.value_max = st.vmax;
-    m.has_nan_as = o.has_nan_as;
-    m.nan_as = o.nan_as;
-    m.nonfinite = st.nonfinite;
-    m.single_file = o.steps_single != 0;
-    m.source_bytes = step_bytes * T;
-    for (uint32_t b = 0; b < FINE_BINS; b++) {
-        if (!st.fine[b])
+/* ------------------------------------------------------------- finishing */
+
+/* The manifest of the encoded dataset (FORMAT.md 7); m owns its strings. */
+static void build_manifest(const struct run *r, struct tvpal_manifest *m)
+{
+    const struct opts *o = &r->o;
+    const struct tvpal_checkpoint_stats *st = &r->st;
+    char optstr[256];
+    *m = (struct tvpal_manifest){0};
+    memcpy(m->dims, o->dims, sizeof o->dims);
+    m->type = o->type;
+    m->big_endian = o->big_endian;
+    m->steps = r->T;
+    m->window = r->N;
+    m->nodes = o->nodes;
+    m->value_min = st->vmin;
+    m->value_max = st->vmax;
+    m->has_nan_as = o->has_nan_as;
+    m->nan_as = o->nan_as;
+    m->nonfinite = st->nonfinite;
+    m->single_file = o->steps_single != 0;
+    m->source_bytes = r->step_bytes * r->T;
+    /* The manifest's histogram: the fine classes into TVPAL_HIST_BINS
+     * equal bins over [min, max]. */
+    for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++) {
+        if (!st->fine[b])
             continue;
         double v = fine_bin_value(b);
-        double span = st.vmax - st.vmin;
-        int bin = span > 0 ? (int)((v - st.vmin) / span * TVPAL_HIST_BINS) : 0;
+        double span = st->vmax - st->vmin;
+        int bin = span > 0 ? (int)((v - st->vmin) / span * TVPAL_HIST_BINS) : 0;
         bin = bin < 0 ? 0 : bin >= TVPAL_HIST_BINS ? TVPAL_HIST_BINS - 1 : bin;
-        m.histogram[bin] += st.fine[b];
+        m->histogram[bin] += st->fine[b];
     }
-    char optstr[256];
-    snprintf(optstr, sizeof optstr, "--dims %ux%ux%u --type %s --endian %s "
-             "--window %u --nodes %u%s", o.dims[0], o.dims[1], o.dims[2],
-             tvpal_type_name(o.type), o.big_endian ? "big" : "little", N,
-             o.nodes, o.steps_single ? " --steps" : "");
-    if (o.steps_single)
-        snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
-                 " %u", T);
-    if (o.has_nan_as)
-        snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
-                 " --nan-as %.17g", o.nan_as);
-    if (o.table_format == TVPAL_TABLE_U16)
-        snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
-                 " --table u16");
-    if (o.refine)
-        snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
-                 " --refine %u", o.refine);
-    if (o.naive)
-        snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
-                 " --naive");
-    if (o.klt)
-        snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
-                 " --transform klt");
-    if (o.alloc_mse)
-        snprintf(optstr + strlen(optstr), sizeof optstr - strlen(optstr),
-                 " --alloc greedy-mse");
-    m.table_format = o.table_format;
-    m.encoder = strdup(PROG " " PACKAGE_VERSION);
-    m.options = strdup(optstr);
-    for (int i = 0; i < o.ninputs; i++)
-        if (tvpal_manifest_add_source(&m, o.inputs[i]) < 0)
+    options_line(o, r->T, optstr, sizeof optstr);
+    m->table_format = (uint32_t)o->table_format;
+    m->encoder = strdup(PROG " " PACKAGE_VERSION);
+    m->options = strdup(optstr);
+    for (int i = 0; i < o->ninputs; i++)
+        if (tvpal_manifest_add_source(m, o->inputs[i]) < 0)
             die_fail("out of memory");
-    char *text = NULL;
-    if (!m.encoder || !m.options || tvpal_manifest_format(&m, &text) < 0)
+    if (!m->encoder || !m->options)
         die_fail("out of memory");
-    for (int r = -1; r < (int)o.nodes; r++) {
+}
+
+/* Finishes the shards, then writes the manifest to OUTDIR.partial and to
+ * every node directory, and removes the checkpoint (FORMAT.md 9.2, 4). */
+static void finish_partial(struct run *r)
+{
+    struct tvpal_diag d = {{0}};
+    struct tvpal_manifest m;
+    char *text = NULL;
+    int rc;
+    for (uint32_t q = 0; q < r->nshard; q++) {
+        tvpal_shardw_set_range(r->sj[q].w, r->st.vmin, r->st.vmax);
+        rc = tvpal_shardw_finish(r->sj[q].w, &d);
+        r->sj[q].w = NULL;
+        if (rc < 0)
+            die_fail("%s/node-%u/axis-%c.tvps: cannot finish: %s", r->partial,
+                     r->sj[q].rank, "xyz"[r->sj[q].axis], lib_error(rc, &d));
+    }
+    build_manifest(r, &m);
+    if (tvpal_manifest_format(&m, &text) < 0)
+        die_fail("out of memory");
+    for (int k = -1; k < (int)r->o.nodes; k++) {
         char *path;
-        int ok = r < 0 ? asprintf(&path, "%s/manifest.txt", partial)
-                       : asprintf(&path, "%s/node-%d/manifest.txt", partial, r);
-        if (ok < 0 || tvpal_write_file_atomic(path, text, strlen(text)) < 0) {
-            msg("%s: cannot write manifest", partial);
-            return TVPAL_EXIT_FAIL;
-        }
+        int ok = k < 0 ? asprintf(&path, "%s/manifest.txt", r->partial)
+                       : asprintf(&path, "%s/node-%d/manifest.txt",
+                                  r->partial, k);
+        rc = ok < 0 ? TVPAL_E_NOMEM
+                    : tvpal_write_file_atomic_diag(path, text, strlen(text),
+                                                   &d);
+        if (rc < 0)
+            die_fail("%s: cannot write manifest: %s", r->partial,
+                     lib_error(rc, &d));
         free(path);
     }
-    {
-        char *cp;
-        if (asprintf(&cp, "%s/checkpoint", partial) >= 0) {
-            unlink(cp);
-            free(cp);
-        }
-    }
-    tvpal_fsync_dir(partial);
-    if (tvpal_exists(o.outdir)) {
+    free(text);
+    tvpal_manifest_clear(&m);
+    tvpal_checkpoint_remove(r->partial, NULL);
+    tvpal_fsync_dir(r->partial);
+}
+
+/* Renames OUTDIR.partial to OUTDIR; with --force an existing OUTDIR goes
+ * to OUTDIR.old first and is removed after. */
+static void move_into_place(const struct run *r)
+{
+    const char *out = r->o.outdir;
+    if (tvpal_exists(out)) {
         char *old;
-        if (asprintf(&old, "%s.old", o.outdir) < 0)
+        if (asprintf(&old, "%s.old", out) < 0)
             die_fail("out of memory");
         tvpal_rmtree(old);
-        if (rename(o.outdir, old) < 0 || rename(partial, o.outdir) < 0) {
-            msg("%s: cannot replace: %s", o.outdir, strerror(errno));
-            return TVPAL_EXIT_FAIL;
-        }
+        if (rename(out, old) < 0 || rename(r->partial, out) < 0)
+            die_fail("%s: cannot replace: %s", out, strerror(errno));
         tvpal_rmtree(old);
         free(old);
-    } else if (rename(partial, o.outdir) < 0) {
-        msg("%s: cannot rename %s into place: %s", o.outdir, partial,
-            strerror(errno));
-        return TVPAL_EXIT_FAIL;
+    } else if (rename(r->partial, out) < 0) {
+        die_fail("%s: cannot rename %s into place: %s", out, r->partial,
+                 strerror(errno));
     }
+}
 
-    /* Summary. */
+/* Reopens the dataset with the reader (it must verify) and prints the
+ * closing key=value line on stdout. */
+static void print_summary(const struct run *r)
+{
+    struct tvpal_diag d = {{0}};
     struct tvpal_dataset *ds = NULL;
-    if (tvpal_dataset_open(&ds, o.outdir, &diag) < 0) {
-        msg("%s: written dataset does not verify: %s", o.outdir, diag.msg);
-        return TVPAL_EXIT_FAIL;
-    }
+    uint64_t total_bytes = 0;
+    if (tvpal_dataset_open(&ds, r->o.outdir, &d) < 0)
+        die_fail("%s: written dataset does not verify: %s", r->o.outdir,
+                 d.msg);
     for (unsigned a = 0; a < 3; a++)
         total_bytes += ds->axis_bytes[a];
-    double axis_bytes = (double)total_bytes / 3.0;
-    double vts = (double)g_nvox * T;
+    tvpal_dataset_close(ds);
+    const double axis_bytes = (double)total_bytes / 3.0;
+    const double vts = (double)r->nvox * r->T, te = r->t_encode;
     printf("encoded %s: steps=%u window=%u nodes=%u bytes=%llu ratio=%.3f "
            "bpv=%.4f seconds=%.3f rate=%.2fM vox-steps/s threads=%d\n",
-           o.outdir, T, N, o.nodes, (unsigned long long)total_bytes,
-           (double)m.source_bytes / axis_bytes, axis_bytes * 8.0 / vts,
-           t_encode, (double)(T - start) * g_nvox / (t_encode > 0 ? t_encode : 1e-9) / 1e6,
-           nthreads);
-    tvpal_dataset_close(ds);
+           r->o.outdir, r->T, r->N, r->o.nodes,
+           (unsigned long long)total_bytes,
+           (double)(r->step_bytes * r->T) / axis_bytes,
+           axis_bytes * 8.0 / vts, te,
+           (double)(r->T - r->start) * r->nvox / (te > 0 ? te : 1e-9) / 1e6,
+           r->nthreads);
+}
 
-    for (uint32_t q = 0; q < nshard; q++)
-        free(sj[q].rec);
-    free(sj);
-    for (int i = 0; i < nthreads; i++) {
-        tvpal_swenc_free(enc[i]);
-        free(samples[i]);
-        free(tables[i]);
+static void run_free(struct run *r)
+{
+    for (uint32_t q = 0; q < r->nshard; q++)
+        free(r->sj[q].rec);
+    free(r->sj);
+    for (int i = 0; i < r->nthreads; i++) {
+        tvpal_swenc_free(r->enc[i]);
+        free(r->samples[i]);
+        free(r->tables[i]);
+        free(r->fine_local[i]);
     }
-    for (uint32_t i = 0; i < N; i++)
-        free(ring[i]);
-    free(ring);
-    free(raw);
-    free(enc);
-    free(samples);
-    free(tables);
-    free(jobs);
-    free(text);
-    free(fp);
-    free(st.fine);
-    free(partial);
-    tvpal_manifest_clear(&m);
-    for (int i = 0; i < o.ninputs; i++)
-        free(abs_inputs[i]);
-    free(abs_inputs);
+    for (uint32_t i = 0; i < r->N; i++)
+        free(r->ring[i]);
+    free(r->ring);
+    free(r->raw);
+    free(r->enc);
+    free(r->samples);
+    free(r->tables);
+    free(r->fine_local);
+    free(r->jobs);
+    free(r->fp);
+    tvpal_checkpoint_stats_free(&r->st);
+    free(r->partial);
+    for (int i = 0; i < r->o.ninputs; i++)
+        free(r->abs_inputs[i]);
+    free(r->abs_inputs);
+}
+
+/* Each step ends the program itself on failure (see `enum ending`). */
+int main(int argc, char **argv)
+{
+    struct run r = {0};
+    validate_opts(&r.o, parse_options(argc, argv, &r.o));
+    r.T = r.o.steps_single ? r.o.steps_single : (uint32_t)r.o.ninputs;
+    r.N = r.o.window;
+    r.nvox = (size_t)r.o.dims[0] * r.o.dims[1] * r.o.dims[2];
+    r.step_bytes = (uint64_t)r.nvox * tvpal_type_size(r.o.type);
+    check_inputs(&r);
+    check_output(&r);
+    open_partial(&r);
+    setup_shards(&r);
+    open_or_restart_writers(&r);
+    setup_workspace(&r);
+    encode_steps(&r);
+    finish_partial(&r);
+    move_into_place(&r);
+    print_summary(&r);
+    run_free(&r);
     return 0;
 }

@@ -11,10 +11,10 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-int tvpal_mkdirs(const char *path)
+int tvpal_mkdirs_diag(const char *path, struct tvpal_diag *diag)
 {
     if (!path[0])
-        return TVPAL_E_INVAL;
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "empty path");
     char *p = strdup(path);
     if (!p)
         return TVPAL_E_NOMEM;
@@ -24,7 +24,8 @@ int tvpal_mkdirs(const char *path)
             char c = *s;
             *s = 0;
             if (mkdir(p, 0755) < 0 && errno != EEXIST) {
-                rc = TVPAL_E_WRITE;
+                rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "mkdir %s: %s", p,
+                                    strerror(errno));
                 break;
             }
             *s = c;
@@ -34,6 +35,11 @@ int tvpal_mkdirs(const char *path)
     }
     free(p);
     return rc;
+}
+
+int tvpal_mkdirs(const char *path)
+{
+    return tvpal_mkdirs_diag(path, NULL);
 }
 
 int tvpal_rmtree(const char *path)
@@ -67,7 +73,8 @@ int tvpal_rmtree(const char *path)
     return rc;
 }
 
-int tvpal_write_file_atomic(const char *path, const void *data, size_t len)
+int tvpal_write_file_atomic_diag(const char *path, const void *data,
+                                 size_t len, struct tvpal_diag *diag)
 {
     char *tmp;
     if (asprintf(&tmp, "%s.tmp", path) < 0)
@@ -75,31 +82,44 @@ int tvpal_write_file_atomic(const char *path, const void *data, size_t len)
     int rc = 0;
     int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (fd < 0) {
+        rc = tvpal_diag_set(diag, TVPAL_E_OPEN, "create %s: %s", tmp,
+                            strerror(errno));
         free(tmp);
-        return TVPAL_E_OPEN;
+        return rc;
     }
+    /* Each failure names the step and errno's text at once: the next
+     * system call (close, unlink) may change errno. */
     const char *p = data;
     while (len) {
         ssize_t k = write(fd, p, len);
         if (k < 0) {
             if (errno == EINTR)
                 continue;
-            rc = TVPAL_E_WRITE;
+            rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "write %s: %s", tmp,
+                                strerror(errno));
             break;
         }
         p += k;
         len -= (size_t)k;
     }
     if (rc == 0 && fsync(fd) < 0)
-        rc = TVPAL_E_WRITE;
+        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "fsync %s: %s", tmp,
+                            strerror(errno));
     if (close(fd) < 0 && rc == 0)
-        rc = TVPAL_E_WRITE;
+        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "close %s: %s", tmp,
+                            strerror(errno));
     if (rc == 0 && rename(tmp, path) < 0)
-        rc = TVPAL_E_WRITE;
+        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "rename %s: %s", tmp,
+                            strerror(errno));
     if (rc < 0)
         unlink(tmp);
     free(tmp);
     return rc;
+}
+
+int tvpal_write_file_atomic(const char *path, const void *data, size_t len)
+{
+    return tvpal_write_file_atomic_diag(path, data, len, NULL);
 }
 
 int tvpal_read_file(const char *path, char **out, size_t *len)

@@ -263,18 +263,12 @@ static void alloc_mse(struct tvpal_swenc *e, unsigned len, size_t nvox,
     }
 }
 
-/* The code of one slice-window with one transform (DCT-II, or with
- * use_klt the slice-window's KLT); writes idx, table, bits and the number
- * of indices used. */
-static int encode_basis(struct tvpal_swenc *e, const float *samples,
-                        size_t nvox, unsigned len, uint8_t *idx, float *table,
-                        uint8_t *bits, unsigned *used_out, int use_klt,
-                        int use_mse)
+/* The transform into e->basis (and its float copy): DCT-II, or with use_klt
+ * the slice-window's KLT (eigenvectors of the temporal covariance of its
+ * voxels, by decreasing variance).  0 or tvpal_eig_sym's error. */
+static int basis_choose(struct tvpal_swenc *e, const float *samples,
+                        size_t nvox, unsigned len, int use_klt)
 {
-    double mean[TVPAL_NMAX], var_u[TVPAL_NMAX];
-
-    /* The transform: DCT-II, or the slice-window's KLT (eigenvectors of
-     * the temporal covariance of its voxels, by decreasing variance). */
     if (use_klt) {
         double cov[TVPAL_NMAX * TVPAL_NMAX], m[TVPAL_NMAX], w[TVPAL_NMAX];
         for (unsigned j = 0; j < len; j++) {
@@ -301,7 +295,13 @@ static int encode_basis(struct tvpal_swenc *e, const float *samples,
     }
     for (unsigned i = 0; i < len * len; i++)
         e->basis_f[i] = (float)e->basis[i];
-    tvpal_basis_forward_f(e->basis_f, len, samples, e->coef, nvox, nvox);
+    return 0;
+}
+
+/* Mean and variance of each coefficient u of e->coef over the voxels. */
+static void coef_stats(const struct tvpal_swenc *e, size_t nvox,
+                       unsigned len, double *mean, double *var_u)
+{
     for (unsigned u = 0; u < len; u++) {
         /* One pass, shifted by the first value (no cancellation for data
          * with a large offset), four accumulators for speed. */
@@ -331,11 +331,13 @@ static int encode_basis(struct tvpal_swenc *e, const float *samples,
             var = 0.0;
         var_u[u] = var;
     }
-    if (use_mse)
-        alloc_mse(e, len, nvox, var_u, bits);
-    else
-        tvpal_bitalloc_variance(var_u, len, TVPAL_INDEX_BITS, bits);
+}
 
+/* Fits a quantizer of 2^bits[u] levels to each coefficient (levels kept in
+ * e->levels) and packs the codes of all coefficients into idx. */
+static void quantize_coefs(struct tvpal_swenc *e, size_t nvox, unsigned len,
+                           const uint8_t *bits, uint8_t *idx)
+{
     memset(idx, 0, nvox);
     for (unsigned u = 0; u < len; u++) {
         e->nlevels[u] = 0;
@@ -352,8 +354,44 @@ static int encode_basis(struct tvpal_swenc *e, const float *samples,
         tvpal_qcoder_init(&e->coder, &e->q, bits[u]);
         tvpal_qcoder_pack(&e->coder, c, nvox, idx);
     }
+}
 
-    /* Decoder table: per-index means of the original samples. */
+/* Decoder table entry i of an unused index (or of every index in the
+ * naive variant): unpacks its codes, dequantizes, inverse transform. */
+static void table_decode(const struct tvpal_swenc *e, unsigned len,
+                         const uint8_t *bits, const double *mean, unsigned i,
+                         float *table)
+{
+    double co[TVPAL_NMAX], val[TVPAL_NMAX];
+    unsigned rest = i;
+    for (int u = (int)len - 1; u >= 0; u--) {
+        if (!bits[u]) {
+            co[u] = mean[u];
+            continue;
+        }
+        unsigned code = rest & ((1u << bits[u]) - 1);
+        rest >>= bits[u];
+        if (code >= e->nlevels[u])
+            code = e->nlevels[u] - 1;
+        co[u] = e->levels[u][code];
+    }
+    for (unsigned x = 0; x < len; x++) {
+        double s = 0.0;
+        for (unsigned u = 0; u < len; u++)
+            s += e->basis[u * len + x] * co[u];
+        val[x] = s;
+    }
+    for (unsigned j = 0; j < len; j++)
+        table[j * TVPAL_TABLE_ENTRIES + i] = (float)val[j];
+}
+
+/* Decoder table: per-index means of the original samples; returns the
+ * number of indices used. */
+static unsigned table_build(struct tvpal_swenc *e, const float *samples,
+                            size_t nvox, unsigned len, const uint8_t *idx,
+                            const uint8_t *bits, const double *mean,
+                            float *table)
+{
     memset(e->cnt, 0, sizeof e->cnt);
     memset(e->sums, 0, TVPAL_TABLE_ENTRIES * len * sizeof *e->sums);
     for (size_t v = 0; v < nvox; v++) {
@@ -373,31 +411,31 @@ static int encode_basis(struct tvpal_swenc *e, const float *samples,
                     (float)(e->sums[(size_t)i * len + j] * inv);
             continue;
         }
-        /* Unused index (or the naive variant): unpack its codes,
-         * dequantize, inverse DCT. */
-        double co[TVPAL_NMAX], val[TVPAL_NMAX];
-        unsigned rest = i;
-        for (int u = (int)len - 1; u >= 0; u--) {
-            if (!bits[u]) {
-                co[u] = mean[u];
-                continue;
-            }
-            unsigned code = rest & ((1u << bits[u]) - 1);
-            rest >>= bits[u];
-            if (code >= e->nlevels[u])
-                code = e->nlevels[u] - 1;
-            co[u] = e->levels[u][code];
-        }
-        for (unsigned x = 0; x < len; x++) {
-            double s = 0.0;
-            for (unsigned u = 0; u < len; u++)
-                s += e->basis[u * len + x] * co[u];
-            val[x] = s;
-        }
-        for (unsigned j = 0; j < len; j++)
-            table[j * TVPAL_TABLE_ENTRIES + i] = (float)val[j];
+        table_decode(e, len, bits, mean, i, table);
     }
-    *used_out = used;
+    return used;
+}
+
+/* The code of one slice-window with one transform (DCT-II, or with
+ * use_klt the slice-window's KLT); writes idx, table, bits and the number
+ * of indices used. */
+static int encode_basis(struct tvpal_swenc *e, const float *samples,
+                        size_t nvox, unsigned len, uint8_t *idx, float *table,
+                        uint8_t *bits, unsigned *used_out, int use_klt,
+                        int use_mse)
+{
+    double mean[TVPAL_NMAX], var_u[TVPAL_NMAX];
+    int rc = basis_choose(e, samples, nvox, len, use_klt);
+    if (rc < 0)
+        return rc;
+    tvpal_basis_forward_f(e->basis_f, len, samples, e->coef, nvox, nvox);
+    coef_stats(e, nvox, len, mean, var_u);
+    if (use_mse)
+        alloc_mse(e, len, nvox, var_u, bits);
+    else
+        tvpal_bitalloc_variance(var_u, len, TVPAL_INDEX_BITS, bits);
+    quantize_coefs(e, nvox, len, bits, idx);
+    *used_out = table_build(e, samples, nvox, len, idx, bits, mean, table);
     return 0;
 }
 

@@ -103,6 +103,112 @@ static int parse_dbl(const char *v, double *out)
 enum { K_DIMS = 1, K_TYPE = 2, K_STEPS = 4, K_WINDOW = 8, K_NODES = 16,
        K_MIN = 32, K_MAX = 64, K_FORMAT = 128 };
 
+/* Applies one "key = value" line to m, noting required keys in *seen.
+ * Unknown keys are ignored (FORMAT.md: later versions may add keys).  0,
+ * TVPAL_E_VERSION or TVPAL_E_MANIFEST naming the line. */
+static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
+                        unsigned lineno, unsigned *seen,
+                        struct tvpal_diag *diag)
+{
+    int bad = 0;
+    if (!strcmp(k, "format")) {
+        bad = strcmp(v, "tvpal-dataset") != 0;
+        *seen |= K_FORMAT;
+    } else if (!strcmp(k, "format_version")) {
+        uint32_t ver;
+        if (parse_u32(v, &ver) || ver != 1)
+            return tvpal_diag_set(diag, TVPAL_E_VERSION,
+                                  "line %u: format_version %s, expected 1",
+                                  lineno, v);
+    } else if (!strcmp(k, "dims")) {
+        bad = tvpal_dims_parse(v, m->dims, NULL) < 0;
+        *seen |= K_DIMS;
+    } else if (!strcmp(k, "type")) {
+        bad = tvpal_type_parse(v, &m->type) < 0;
+        *seen |= K_TYPE;
+    } else if (!strcmp(k, "endian")) {
+        bad = strcmp(v, "big") && strcmp(v, "little");
+        m->big_endian = !strcmp(v, "big");
+    } else if (!strcmp(k, "steps")) {
+        bad = parse_u32(v, &m->steps) || !m->steps;
+        *seen |= K_STEPS;
+    } else if (!strcmp(k, "window")) {
+        bad = parse_u32(v, &m->window) || m->window < 1 || m->window > 16;
+        *seen |= K_WINDOW;
+    } else if (!strcmp(k, "nodes")) {
+        bad = parse_u32(v, &m->nodes) || !m->nodes;
+        *seen |= K_NODES;
+    } else if (!strcmp(k, "value_min")) {
+        bad = parse_dbl(v, &m->value_min);
+        *seen |= K_MIN;
+    } else if (!strcmp(k, "value_max")) {
+        bad = parse_dbl(v, &m->value_max);
+        *seen |= K_MAX;
+    } else if (!strcmp(k, "nan_as")) {
+        m->has_nan_as = strcmp(v, "none") != 0;
+        bad = m->has_nan_as && parse_dbl(v, &m->nan_as);
+    } else if (!strcmp(k, "histogram")) {
+        char *p = v;
+        for (int i = 0; i < TVPAL_HIST_BINS && !bad; i++) {
+            /* Decimal digits only: strtoull would take "-1" as 2^64-1. */
+            while (*p == ' ' || *p == '\t')
+                p++;
+            char *end;
+            errno = 0;
+            m->histogram[i] = strtoull(p, &end, 10);
+            bad = *p < '0' || *p > '9' || errno == ERANGE;
+            p = end;
+        }
+    } else if (!strcmp(k, "table")) {
+        bad = strcmp(v, "f32") && strcmp(v, "u16");
+        m->table_format = !strcmp(v, "u16");
+    } else if (!strcmp(k, "source_bytes")) {
+        m->source_bytes = strtoull(v, NULL, 10);
+    } else if (!strcmp(k, "source_layout")) {
+        m->single_file = !strcmp(v, "single-file");
+    } else if (!strcmp(k, "encoder")) {
+        free(m->encoder);
+        bad = !(m->encoder = strdup(v));
+    } else if (!strcmp(k, "options")) {
+        free(m->options);
+        bad = !(m->options = strdup(v));
+    } else if (!strcmp(k, "source")) {
+        bad = tvpal_manifest_add_source(m, v) < 0;
+    }
+    if (bad)
+        return tvpal_diag_set(diag, TVPAL_E_MANIFEST,
+                              "line %u: bad value for %s: \"%s\"", lineno, k,
+                              v);
+    return 0;
+}
+
+/* The rules between keys, once all lines are read: every required key
+ * present, nodes within the dimensions, one source line per step. */
+static int manifest_check(const struct tvpal_manifest *m, unsigned seen,
+                          struct tvpal_diag *diag)
+{
+    static const struct { unsigned bit; const char *name; } req[] = {
+        {K_FORMAT, "format"}, {K_DIMS, "dims"}, {K_TYPE, "type"},
+        {K_STEPS, "steps"}, {K_WINDOW, "window"}, {K_NODES, "nodes"},
+        {K_MIN, "value_min"}, {K_MAX, "value_max"}};
+    for (size_t i = 0; i < sizeof req / sizeof *req; i++)
+        if (!(seen & req[i].bit))
+            return tvpal_diag_set(diag, TVPAL_E_MANIFEST,
+                                  "required key \"%s\" is missing",
+                                  req[i].name);
+    uint32_t mind = m->dims[0] < m->dims[1] ? m->dims[0] : m->dims[1];
+    mind = m->dims[2] < mind ? m->dims[2] : mind;
+    if (m->nodes > mind)
+        return tvpal_diag_set(diag, TVPAL_E_MANIFEST,
+                              "nodes = %u exceeds the smallest dimension %u",
+                              m->nodes, mind);
+    if (!m->single_file && m->nsources && m->nsources != m->steps)
+        return tvpal_diag_set(diag, TVPAL_E_MANIFEST,
+                              "%zu source lines for %u steps", m->nsources,
+                              m->steps);
+    return 0;
+}
+
 int tvpal_manifest_load(const char *path, struct tvpal_manifest *m,
                         struct tvpal_diag *diag)
 {
@@ -114,7 +220,7 @@ int tvpal_manifest_load(const char *path, struct tvpal_manifest *m,
     size_t cap = 0;
     unsigned lineno = 0, seen = 0;
     int rc = 0;
-    while (getline(&line, &cap, f) > 0) {
+    while (rc == 0 && getline(&line, &cap, f) > 0) {
         lineno++;
         char *s = trim(line);
         if (!*s || *s == '#')
@@ -123,111 +229,13 @@ int tvpal_manifest_load(const char *path, struct tvpal_manifest *m,
         if (!eq) {
             rc = tvpal_diag_set(diag, TVPAL_E_MANIFEST,
                                 "line %u: expected \"key = value\"", lineno);
-            goto out;
+            break;
         }
         *eq = 0;
-        char *k = trim(s), *v = trim(eq + 1);
-        int bad = 0;
-        if (!strcmp(k, "format")) {
-            bad = strcmp(v, "tvpal-dataset") != 0;
-            seen |= K_FORMAT;
-        } else if (!strcmp(k, "format_version")) {
-            uint32_t ver;
-            if (parse_u32(v, &ver) || ver != 1) {
-                rc = tvpal_diag_set(diag, TVPAL_E_VERSION,
-                                    "line %u: format_version %s, expected 1",
-                                    lineno, v);
-                goto out;
-            }
-        } else if (!strcmp(k, "dims")) {
-            bad = tvpal_dims_parse(v, m->dims, NULL) < 0;
-            seen |= K_DIMS;
-        } else if (!strcmp(k, "type")) {
-            bad = tvpal_type_parse(v, &m->type) < 0;
-            seen |= K_TYPE;
-        } else if (!strcmp(k, "endian")) {
-            bad = strcmp(v, "big") && strcmp(v, "little");
-            m->big_endian = !strcmp(v, "big");
-        } else if (!strcmp(k, "steps")) {
-            bad = parse_u32(v, &m->steps) || !m->steps;
-            seen |= K_STEPS;
-        } else if (!strcmp(k, "window")) {
-            bad = parse_u32(v, &m->window) || m->window < 1 || m->window > 16;
-            seen |= K_WINDOW;
-        } else if (!strcmp(k, "nodes")) {
-            bad = parse_u32(v, &m->nodes) || !m->nodes;
-            seen |= K_NODES;
-        } else if (!strcmp(k, "value_min")) {
-            bad = parse_dbl(v, &m->value_min);
-            seen |= K_MIN;
-        } else if (!strcmp(k, "value_max")) {
-            bad = parse_dbl(v, &m->value_max);
-            seen |= K_MAX;
-        } else if (!strcmp(k, "nan_as")) {
-            m->has_nan_as = strcmp(v, "none") != 0;
-            bad = m->has_nan_as && parse_dbl(v, &m->nan_as);
-        } else if (!strcmp(k, "histogram")) {
-            char *p = v;
-            for (int i = 0; i < TVPAL_HIST_BINS && !bad; i++) {
-                /* Decimal digits only: strtoull would take "-1" as 2^64-1. */
-                while (*p == ' ' || *p == '\t')
-                    p++;
-                char *end;
-                errno = 0;
-                m->histogram[i] = strtoull(p, &end, 10);
-                bad = *p < '0' || *p > '9' || errno == ERANGE;
-                p = end;
-            }
-        } else if (!strcmp(k, "table")) {
-            bad = strcmp(v, "f32") && strcmp(v, "u16");
-            m->table_format = !strcmp(v, "u16");
-        } else if (!strcmp(k, "source_bytes")) {
-            m->source_bytes = strtoull(v, NULL, 10);
-        } else if (!strcmp(k, "source_layout")) {
-            m->single_file = !strcmp(v, "single-file");
-        } else if (!strcmp(k, "encoder")) {
-            free(m->encoder);
-            bad = !(m->encoder = strdup(v));
-        } else if (!strcmp(k, "options")) {
-            free(m->options);
-            bad = !(m->options = strdup(v));
-        } else if (!strcmp(k, "source")) {
-            bad = tvpal_manifest_add_source(m, v) < 0;
-        }
-        if (bad) {
-            rc = tvpal_diag_set(diag, TVPAL_E_MANIFEST,
-                                "line %u: bad value for %s: \"%s\"", lineno,
-                                k, v);
-            goto out;
-        }
+        rc = manifest_set(m, trim(s), trim(eq + 1), lineno, &seen, diag);
     }
-    static const struct { unsigned bit; const char *name; } req[] = {
-        {K_FORMAT, "format"}, {K_DIMS, "dims"}, {K_TYPE, "type"},
-        {K_STEPS, "steps"}, {K_WINDOW, "window"}, {K_NODES, "nodes"},
-        {K_MIN, "value_min"}, {K_MAX, "value_max"}};
-    for (size_t i = 0; i < sizeof req / sizeof *req; i++)
-        if (!(seen & req[i].bit)) {
-            rc = tvpal_diag_set(diag, TVPAL_E_MANIFEST,
-                                "required key \"%s\" is missing", req[i].name);
-            goto out;
-        }
-    {
-        uint32_t mind = m->dims[0] < m->dims[1] ? m->dims[0] : m->dims[1];
-        mind = m->dims[2] < mind ? m->dims[2] : mind;
-        if (m->nodes > mind) {
-            rc = tvpal_diag_set(diag, TVPAL_E_MANIFEST,
-                                "nodes = %u exceeds the smallest dimension %u",
-                                m->nodes, mind);
-            goto out;
-        }
-        if (!m->single_file && m->nsources && m->nsources != m->steps) {
-            rc = tvpal_diag_set(diag, TVPAL_E_MANIFEST,
-                                "%zu source lines for %u steps", m->nsources,
-                                m->steps);
-            goto out;
-        }
-    }
-out:
+    if (rc == 0)
+        rc = manifest_check(m, seen, diag);
     free(line);
     fclose(f);
     if (rc < 0)

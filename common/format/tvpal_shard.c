@@ -10,8 +10,10 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-/* pwrite/pread the whole range, retrying short transfers and EINTR. */
-static int pwrite_all(int fd, const void *buf, uint64_t n, uint64_t off)
+/* pwrite/pread the whole range, retrying short transfers and EINTR.  A
+ * failed write puts its cause (errno's text) in diag. */
+static int pwrite_all(int fd, const void *buf, uint64_t n, uint64_t off,
+                      struct tvpal_diag *diag)
 {
     const unsigned char *p = buf;
     while (n) {
@@ -19,7 +21,8 @@ static int pwrite_all(int fd, const void *buf, uint64_t n, uint64_t off)
         if (k < 0) {
             if (errno == EINTR)
                 continue;
-            return TVPAL_E_WRITE;
+            return tvpal_diag_set(diag, TVPAL_E_WRITE, "write at byte %llu: %s",
+                                  (unsigned long long)off, strerror(errno));
         }
         p += k;
         n -= (uint64_t)k;
@@ -88,7 +91,7 @@ int tvpal_shardw_create(struct tvpal_shardw **out, const char *path,
         return TVPAL_E_OPEN;
     }
     static const unsigned char zero[TVPAL_SHARD_HEADER_BYTES];
-    rc = pwrite_all(w->fd, zero, sizeof zero, 0);
+    rc = pwrite_all(w->fd, zero, sizeof zero, 0, NULL);
     if (rc < 0) {
         tvpal_shardw_free(w);
         return rc;
@@ -175,11 +178,13 @@ uint64_t tvpal_shardw_size(const struct tvpal_shardw *w)
 }
 
 int tvpal_shardw_append(struct tvpal_shardw *w, const unsigned char *buf,
-                        uint64_t bytes)
+                        uint64_t bytes, struct tvpal_diag *diag)
 {
     if (w->done >= w->h.steps || bytes % TVPAL_ALIGN)
-        return TVPAL_E_INVAL;
-    int rc = pwrite_all(w->fd, buf, bytes, w->end);
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "record %u of %u, %llu "
+                              "bytes", w->done, w->h.steps,
+                              (unsigned long long)bytes);
+    int rc = pwrite_all(w->fd, buf, bytes, w->end, diag);
     if (rc < 0)
         return rc;
     struct tvpal_record_header rh;
@@ -192,12 +197,13 @@ int tvpal_shardw_append(struct tvpal_shardw *w, const unsigned char *buf,
     return 0;
 }
 
-int tvpal_shardw_finish(struct tvpal_shardw *w)
+int tvpal_shardw_finish(struct tvpal_shardw *w, struct tvpal_diag *diag)
 {
     int rc = 0;
     unsigned char *ib = NULL;
     if (w->done != w->h.steps) {
-        rc = TVPAL_E_INVAL;
+        rc = tvpal_diag_set(diag, TVPAL_E_INVAL, "%u of %u records written",
+                            w->done, w->h.steps);
         goto out;
     }
     uint64_t ibytes = tvpal_round_up((uint64_t)w->h.steps *
@@ -214,23 +220,24 @@ int tvpal_shardw_finish(struct tvpal_shardw *w)
     w->h.file_bytes = w->end + ibytes;
     w->h.index_crc = tvpal_crc32c(0, ib, ibytes);
     w->h.version = TVPAL_FORMAT_VERSION;
-    rc = pwrite_all(w->fd, ib, ibytes, w->end);
+    rc = pwrite_all(w->fd, ib, ibytes, w->end, diag);
     if (rc < 0)
         goto out;
     unsigned char hb[TVPAL_SHARD_HEADER_BYTES];
     tvpal_shard_header_encode(&w->h, hb);
     /* Header last: the file becomes valid only once everything is there. */
     if (fdatasync(w->fd) < 0) {
-        rc = TVPAL_E_WRITE;
+        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "fdatasync: %s",
+                            strerror(errno));
         goto out;
     }
-    rc = pwrite_all(w->fd, hb, sizeof hb, 0);
+    rc = pwrite_all(w->fd, hb, sizeof hb, 0, diag);
     if (rc == 0 && fsync(w->fd) < 0)
-        rc = TVPAL_E_WRITE;
+        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "fsync: %s", strerror(errno));
 out:
     free(ib);
     if (w->fd >= 0 && close(w->fd) < 0 && rc == 0)
-        rc = TVPAL_E_WRITE;
+        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "close: %s", strerror(errno));
     w->fd = -1;
     tvpal_shardw_free(w);
     return rc;

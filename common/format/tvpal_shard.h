@@ -39,12 +39,16 @@ void tvpal_shardw_set_range(struct tvpal_shardw *w, double lo, double hi);
 uint64_t tvpal_shardw_size(const struct tvpal_shardw *w);
 
 /* Appends the sealed record for the next step (buf of `bytes`, a multiple of
- * TVPAL_ALIGN, from tvpal_record_seal). */
+ * TVPAL_ALIGN, from tvpal_record_seal).  0, TVPAL_E_INVAL (all steps already
+ * written, or bytes not aligned) or TVPAL_E_WRITE; diag (optional) gets the
+ * cause, e.g. "write at byte 8192: No space left on device". */
 int tvpal_shardw_append(struct tvpal_shardw *w, const unsigned char *buf,
-                        uint64_t bytes);
+                        uint64_t bytes, struct tvpal_diag *diag);
 
-/* Writes index and header, fsyncs and closes; frees w whatever the result. */
-int tvpal_shardw_finish(struct tvpal_shardw *w);
+/* Writes index and header, fsyncs and closes; frees w whatever the result.
+ * 0, TVPAL_E_INVAL (not every step appended), TVPAL_E_NOMEM or
+ * TVPAL_E_WRITE, with the cause in diag (optional). */
+int tvpal_shardw_finish(struct tvpal_shardw *w, struct tvpal_diag *diag);
 
 /* Closes without finishing (the file stays invalid); NULL is a no-op. */
 void tvpal_shardw_free(struct tvpal_shardw *w);

@@ -1,0 +1,238 @@
+/* tvpal_checkpoint.c: the encoder's resume record (see tvpal_checkpoint.h;
+ * the text layout is common/format/FORMAT.md 9.2). */
+#define _GNU_SOURCE
+#include "tvpal_checkpoint.h"
+#include "tvpal_fs.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+int tvpal_checkpoint_stats_init(struct tvpal_checkpoint_stats *st)
+{
+    st->fine = calloc(TVPAL_CHECKPOINT_BINS, sizeof *st->fine);
+    if (!st->fine)
+        return TVPAL_E_NOMEM;
+    tvpal_checkpoint_stats_reset(st);
+    return 0;
+}
+
+void tvpal_checkpoint_stats_reset(struct tvpal_checkpoint_stats *st)
+{
+    st->vmin = INFINITY;
+    st->vmax = -INFINITY;
+    st->nonfinite = 0;
+    st->loaded = 0;
+    if (st->fine)
+        memset(st->fine, 0, TVPAL_CHECKPOINT_BINS * sizeof *st->fine);
+}
+
+void tvpal_checkpoint_stats_free(struct tvpal_checkpoint_stats *st)
+{
+    free(st->fine);
+    st->fine = NULL;
+}
+
+int tvpal_checkpoint_fingerprint(const char *params, char *const *inputs,
+                                 int ninputs, char **out)
+{
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    if (!f)
+        return TVPAL_E_NOMEM;
+    fputs(params, f);
+    for (int i = 0; i < ninputs; i++) {
+        struct stat st;
+        if (stat(inputs[i], &st) < 0)
+            memset(&st, 0, sizeof st);
+        fprintf(f, " %s:%lld:%lld.%09ld", inputs[i], (long long)st.st_size,
+                (long long)st.st_mtim.tv_sec, st.st_mtim.tv_nsec);
+    }
+    if (fclose(f) != 0) {
+        free(buf);
+        return TVPAL_E_NOMEM;
+    }
+    *out = buf;
+    return 0;
+}
+
+/* The checkpoint keeps a hash of the fingerprint, not the fingerprint (which
+ * names every input and would make each checkpoint O(T)): FNV-1a, 64 bits,
+ * plus the length, as "%016llx-%zu" into out[40]. */
+static void fp_hash(const char *fp, char out[40])
+{
+    uint64_t h = 0xcbf29ce484222325ull;
+    size_t n = 0;
+    for (const unsigned char *p = (const unsigned char *)fp; *p; p++, n++)
+        h = (h ^ *p) * 0x100000001b3ull;
+    snprintf(out, 40, "%016llx-%zu", (unsigned long long)h, n);
+}
+
+static char *checkpoint_path(const char *dir)
+{
+    char *path = NULL;
+    return asprintf(&path, "%s/checkpoint", dir) < 0 ? NULL : path;
+}
+
+int tvpal_checkpoint_save(const char *dir, const char *fingerprint,
+                          uint32_t done,
+                          const struct tvpal_checkpoint_stats *st,
+                          struct tvpal_diag *diag)
+{
+    char hash[40], *buf = NULL, *path = NULL;
+    size_t len = 0;
+    fp_hash(fingerprint, hash);
+    FILE *f = open_memstream(&buf, &len);
+    if (!f)
+        return tvpal_diag_set(diag, TVPAL_E_NOMEM, "checkpoint text");
+    fprintf(f, "fingerprint %s\ndone %u\nloaded %u\nmin %a\nmax %a\n"
+            "nonfinite %llu\n", hash, done, st->loaded, st->vmin, st->vmax,
+            (unsigned long long)st->nonfinite);
+    for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++)
+        if (st->fine[b])
+            fprintf(f, "bin %u %llu\n", b, (unsigned long long)st->fine[b]);
+    int rc = fclose(f) != 0 ? TVPAL_E_NOMEM : 0;
+    if (rc == 0 && !(path = checkpoint_path(dir)))
+        rc = TVPAL_E_NOMEM;
+    if (rc == 0)
+        rc = tvpal_write_file_atomic_diag(path, buf, len, diag);
+    else
+        tvpal_diag_set(diag, rc, "checkpoint text");
+    free(path);
+    free(buf);
+    return rc;
+}
+
+/* Parses the fixed lines after the fingerprint into *done and st.  Returns
+ * 0 or TVPAL_E_FORMAT naming the first bad line. */
+static int parse_head(char **save, uint32_t *done,
+                      struct tvpal_checkpoint_stats *st,
+                      struct tvpal_diag *diag)
+{
+    static const char *const fmt[] = {"done %u", "loaded %u", "min %la",
+                                      "max %la", "nonfinite %llu"};
+    unsigned d = 0, l = 0;
+    unsigned long long nf = 0;
+    double lo = 0, hi = 0;
+    void *const dst[] = {&d, &l, &lo, &hi, &nf};
+    for (int i = 0; i < 5; i++) {
+        char *line = strtok_r(NULL, "\n", save);
+        if (!line || sscanf(line, fmt[i], dst[i]) != 1)
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT, "line %d: expected "
+                                  "\"%.*s\"", i + 2,
+                                  (int)strcspn(fmt[i], " "), fmt[i]);
+    }
+    *done = d;
+    st->loaded = l;
+    st->vmin = lo;
+    st->vmax = hi;
+    st->nonfinite = nf;
+    return 0;
+}
+
+/* Parses the "bin CLASS COUNT" lines (classes ascending) into st->fine and
+ * their total into *sum.  Returns 0 or TVPAL_E_FORMAT. */
+static int parse_bins(char **save, struct tvpal_checkpoint_stats *st,
+                      uint64_t *sum, struct tvpal_diag *diag)
+{
+    char *line;
+    long prev = -1;
+    *sum = 0;
+    memset(st->fine, 0, TVPAL_CHECKPOINT_BINS * sizeof *st->fine);
+    while ((line = strtok_r(NULL, "\n", save))) {
+        unsigned b;
+        unsigned long long c;
+        if (sscanf(line, "bin %u %llu", &b, &c) != 2 ||
+            b >= TVPAL_CHECKPOINT_BINS || (long)b <= prev)
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT, "bad histogram "
+                                  "line \"%.40s\"", line);
+        if (__builtin_add_overflow(*sum, (uint64_t)c, sum))
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT, "histogram count "
+                                  "overflows");
+        st->fine[b] = c;
+        prev = b;
+    }
+    return 0;
+}
+
+/* Parses a checkpoint's text (modified in place); see tvpal_checkpoint_load
+ * for what is checked. */
+static int parse_checkpoint(char *text, const char *fingerprint,
+                            uint32_t steps, uint64_t step_voxels,
+                            uint32_t *done, struct tvpal_checkpoint_stats *st,
+                            struct tvpal_diag *diag)
+{
+    char hash[40], *save = NULL;
+    size_t n = strlen(text);
+    /* Every line the writer writes ends in a newline: a file cut inside a
+     * line is refused here, one cut between lines by the sum below. */
+    if (n == 0 || text[n - 1] != '\n')
+        return tvpal_diag_set(diag, TVPAL_E_TRUNC, "last line incomplete");
+    fp_hash(fingerprint, hash);
+    char *line = strtok_r(text, "\n", &save);
+    if (!line || strncmp(line, "fingerprint ", 12))
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "line 1: expected "
+                              "\"fingerprint\"");
+    if (strcmp(line + 12, hash))
+        return tvpal_diag_set(diag, TVPAL_E_MISMATCH, "written by another "
+                              "job (other options or inputs)");
+    uint64_t sum = 0, want;
+    int rc = parse_head(&save, done, st, diag);
+    if (rc == 0)
+        rc = parse_bins(&save, st, &sum, diag);
+    if (rc < 0)
+        return rc;
+    if (*done > steps || st->loaded > steps || st->loaded < *done)
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "done %u, loaded %u of "
+                              "%u steps", *done, st->loaded, steps);
+    if (__builtin_mul_overflow((uint64_t)st->loaded, step_voxels, &want) ||
+        sum != want)
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "histogram holds %llu "
+                              "values; expected %u steps of %llu voxels",
+                              (unsigned long long)sum, st->loaded,
+                              (unsigned long long)step_voxels);
+    if (st->loaded && !(st->vmin <= st->vmax))
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "min %g > max %g",
+                              st->vmin, st->vmax);
+    return 0;
+}
+
+int tvpal_checkpoint_load(const char *dir, const char *fingerprint,
+                          uint32_t steps, uint64_t step_voxels,
+                          uint32_t *done, struct tvpal_checkpoint_stats *st,
+                          struct tvpal_diag *diag)
+{
+    char *path = checkpoint_path(dir), *text = NULL;
+    int rc = path ? tvpal_read_file(path, &text, NULL) : TVPAL_E_NOMEM;
+    if (rc < 0)
+        tvpal_diag_set(diag, rc, "%s/checkpoint: %s", dir,
+                       tvpal_strerror(rc));
+    else
+        rc = parse_checkpoint(text, fingerprint, steps, step_voxels, done, st,
+                              diag);
+    if (rc < 0) {
+        *done = 0;
+        tvpal_checkpoint_stats_reset(st);
+    }
+    free(text);
+    free(path);
+    return rc;
+}
+
+int tvpal_checkpoint_remove(const char *dir, struct tvpal_diag *diag)
+{
+    char *path = checkpoint_path(dir);
+    if (!path)
+        return TVPAL_E_NOMEM;
+    int rc = 0;
+    if (unlink(path) < 0 && errno != ENOENT)
+        rc = tvpal_diag_set(diag, TVPAL_E_SYS, "unlink %s: %s", path,
+                            strerror(errno));
+    free(path);
+    return rc;
+}
