@@ -9,7 +9,6 @@
 #include "tvpal_format.h"
 #include "tvpal_fs.h"
 
-#include <errno.h>
 #include <getopt.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -135,8 +134,9 @@ static int write_output(const char *out, const unsigned char *bytes, size_t nvox
         }
         return 0;
     }
-    if (tvpal_write_file_atomic(out, bytes, nvox * 4) < 0) {
-        fprintf(stderr, PROG ": %s: cannot write: %s\n", out, strerror(errno));
+    int rc = tvpal_write_file_atomic(out, bytes, nvox * 4);
+    if (rc < 0) {
+        fprintf(stderr, PROG ": %s: cannot write: %s\n", out, tvpal_strerror(rc));
         return TVPAL_EXIT_FAIL;
     }
     return 0;
