@@ -391,7 +391,7 @@ static int make_output_dir(const struct options *o)
     int rc = tvpal_mkdirs(o->dir);
     if (rc < 0) {
         fprintf(stderr, PROG ": %s: cannot create: %s\n", o->dir,
-                strerror(errno));
+                tvpal_strerror(rc));
         return TVPAL_EXIT_FAIL;
     }
     return 0;
@@ -406,13 +406,17 @@ static int write_per_step(const struct options *o, float *vol, size_t nvox)
         gen_step(&o->g, t, vol);
         tvpal_store_f32le(vol, (unsigned char *)vol, nvox);
         char *path;
-        if (asprintf(&path, "%s/%s_t%0*u.f32", o->dir, o->prefix, digits, t) < 0 ||
-            tvpal_write_file_atomic(path, vol, nvox * 4) < 0) {
-            fprintf(stderr, PROG ": %s/%s_t%0*u.f32: cannot write: %s\n",
-                    o->dir, o->prefix, digits, t, strerror(errno));
+        if (asprintf(&path, "%s/%s_t%0*u.f32", o->dir, o->prefix, digits, t) < 0) {
+            fprintf(stderr, PROG ": out of memory\n");
             return TVPAL_EXIT_FAIL;
         }
+        int rc = tvpal_write_file_atomic(path, vol, nvox * 4);
+        if (rc < 0)
+            fprintf(stderr, PROG ": %s: cannot write: %s\n", path,
+                    tvpal_strerror(rc));
         free(path);
+        if (rc < 0)
+            return TVPAL_EXIT_FAIL;
     }
     return 0;
 }
