@@ -361,25 +361,28 @@ static int write_single(const struct options *o, float *vol, size_t nvox)
 {
     char *tmp = NULL;
     FILE *f = NULL;
-    if (asprintf(&tmp, "%s.tmp", o->single) < 0 || !(f = fopen(tmp, "wb"))) {
+    if (asprintf(&tmp, "%s.tmp", o->single) < 0) {
+        fprintf(stderr, PROG ": out of memory\n");
+        return TVPAL_EXIT_FAIL;
+    }
+    if (!(f = fopen(tmp, "wb"))) {
         fprintf(stderr, PROG ": %s: cannot create: %s\n", o->single,
                 strerror(errno));
+        free(tmp);
         return TVPAL_EXIT_FAIL;
     }
-    for (uint32_t t = 0; t < o->g.steps; t++) {
+    int ok = 1;
+    for (uint32_t t = 0; t < o->g.steps && ok; t++) {
         gen_step(&o->g, t, vol);
         tvpal_store_f32le(vol, (unsigned char *)vol, nvox);
-        if (fwrite(vol, 4, nvox, f) != nvox) {
-            fprintf(stderr, PROG ": %s: write error\n", o->single);
-            return TVPAL_EXIT_FAIL;
-        }
+        ok = fwrite(vol, 4, nvox, f) == nvox;
     }
-    if (fclose(f) != 0 || rename(tmp, o->single) < 0) {
+    /* Renamed only when every byte reached the file. */
+    ok = fclose(f) == 0 && ok && rename(tmp, o->single) == 0;
+    if (!ok)
         fprintf(stderr, PROG ": %s: write error\n", o->single);
-        return TVPAL_EXIT_FAIL;
-    }
     free(tmp);
-    return 0;
+    return ok ? 0 : TVPAL_EXIT_FAIL;
 }
 
 /* Creates -o DIR when given, even with --single (which is what is written
