@@ -1,12 +1,14 @@
 /* tvpal-decode: reconstructs one timestep of a tvpal dataset as raw
- * little-endian float32 (x fastest), from any of the three axes. */
+ * little-endian float32 (x fastest), from any of the three axes.
+ *
+ * The steps of main: parse and check the options, open the dataset, check
+ * --step against it, decode the step, write it (atomically, or to stdout). */
 #define _GNU_SOURCE
 #include "tvpal_cli.h"
 #include "tvpal_dataset.h"
 #include "tvpal_format.h"
 #include "tvpal_fs.h"
 
-#include <errno.h>
 #include <getopt.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -31,85 +33,143 @@ static void usage(FILE *f)
 "Exit status: 0 success, 1 failure (I/O), 2 bad input, usage or corrupt data.\n");
 }
 
-int main(int argc, char **argv)
+struct options {
+    const char *dir;      /* OUTDIR */
+    const char *step_s;   /* --step as given: its range is the dataset's */
+    const char *out;      /* -o FILE; "-" is stdout */
+    int axis;             /* 0..2 */
+};
+
+static const struct option long_options[] = {
+    {"step", required_argument, 0, 't'},
+    {"axis", required_argument, 0, 'a'},
+    {"output", required_argument, 0, 'o'},
+    {"help", no_argument, 0, 'h'},
+    {"version", no_argument, 0, 'V'},
+    {0, 0, 0, 0}};
+static const char short_options[] = "t:a:o:hV";
+
+/* Fills o from argv and checks that OUTDIR, --step and -o are there.
+ * Returns -1 to go on, or the exit status when the program is done: --help,
+ * --version or a usage error (message printed). */
+static int parse_options(int argc, char **argv, struct options *o)
 {
-    static const struct option lopts[] = {
-        {"step", required_argument, 0, 't'},
-        {"axis", required_argument, 0, 'a'},
-        {"output", required_argument, 0, 'o'},
-        {"help", no_argument, 0, 'h'},
-        {"version", no_argument, 0, 'V'},
-        {0, 0, 0, 0}};
-    const char *step_s = NULL, *out = NULL;
-    int axis = 2, c;
-    while ((c = getopt_long(argc, argv, "t:a:o:hV", lopts, NULL)) != -1) {
+    int c;
+    *o = (struct options){.axis = 2};
+    while ((c = getopt_long(argc, argv, short_options, long_options, NULL)) != -1) {
         switch (c) {
-        case 't': step_s = optarg; break;
+        case 't': o->step_s = optarg; break;
         case 'a':
-            if ((axis = tvpal_parse_axis(optarg)) < 0) {
+            if ((o->axis = tvpal_parse_axis(optarg)) < 0) {
                 fprintf(stderr, PROG ": --axis \"%s\": expected x, y or z\n",
                         optarg);
                 return TVPAL_EXIT_USAGE;
             }
             break;
-        case 'o': out = optarg; break;
-        case 'h': usage(stdout); return 0;
-        case 'V': printf(PROG " " PACKAGE_VERSION "\n"); return 0;
+        case 'o': o->out = optarg; break;
+        case 'h': usage(stdout); return TVPAL_EXIT_OK;
+        case 'V': printf(PROG " " PACKAGE_VERSION "\n"); return TVPAL_EXIT_OK;
         default:
             fprintf(stderr, "Try '" PROG " --help'.\n");
             return TVPAL_EXIT_USAGE;
         }
     }
-    if (optind != argc - 1 || !step_s || !out) {
+    if (optind != argc - 1 || !o->step_s || !o->out) {
         fprintf(stderr, PROG ": expected OUTDIR, --step T and -o FILE "
                 "(try --help)\n");
         return TVPAL_EXIT_USAGE;
     }
-    const char *dir = argv[optind];
-    struct tvpal_diag diag = {{0}};
-    struct tvpal_dataset *ds = NULL;
-    struct tvpal_volreader *vr = NULL;
-    float *vol = NULL;
-    int rc = tvpal_dataset_open(&ds, dir, &diag);
-    if (rc < 0) {
-        fprintf(stderr, PROG ": %s\n", diag.msg[0] ? diag.msg : tvpal_strerror(rc));
-        return TVPAL_EXIT_USAGE;
-    }
-    uint32_t t;
-    if (tvpal_parse_u32(step_s, 0, ds->m.steps - 1, &t) < 0) {
+    o->dir = argv[optind];
+    return -1;
+}
+
+/* --step as a timestep of ds.  Returns 0 or TVPAL_EXIT_USAGE (printed). */
+static int step_of(const struct options *o, const struct tvpal_dataset *ds,
+                   uint32_t *t)
+{
+    if (tvpal_parse_u32(o->step_s, 0, ds->m.steps - 1, t) < 0) {
         fprintf(stderr, PROG ": --step \"%s\": expected 0..%u for %s\n",
-                step_s, ds->m.steps - 1, dir);
-        tvpal_dataset_close(ds);
+                o->step_s, ds->m.steps - 1, o->dir);
         return TVPAL_EXIT_USAGE;
     }
-    size_t nvox = (size_t)ds->m.dims[0] * ds->m.dims[1] * ds->m.dims[2];
-    int status = TVPAL_EXIT_OK;
-    vol = malloc(nvox * sizeof *vol);
-    if (!vol || tvpal_volreader_create(&vr, ds, (unsigned)axis) < 0) {
+    return 0;
+}
+
+/* A library error: the diag when the function filled it, else the code's
+ * text (the library promises nothing about errno). */
+static void print_lib_error(int rc, const struct tvpal_diag *diag)
+{
+    fprintf(stderr, PROG ": %s\n", diag->msg[0] ? diag->msg : tvpal_strerror(rc));
+}
+
+/* Decodes timestep t from the slices of one axis into vol (nx*ny*nz floats).
+ * Returns 0 or the exit status (printed): a failing device is a failure (1),
+ * corrupt data is bad input (2). */
+static int decode_step(struct tvpal_dataset *ds, unsigned axis, uint32_t t,
+                       float *vol)
+{
+    struct tvpal_volreader *vr = NULL;
+    struct tvpal_diag diag = {{0}};
+    if (tvpal_volreader_create(&vr, ds, axis) < 0) {
         fprintf(stderr, PROG ": out of memory\n");
-        status = TVPAL_EXIT_FAIL;
-        goto out;
+        return TVPAL_EXIT_FAIL;
     }
-    rc = tvpal_volreader_read(vr, t, vol, &diag);
+    int status = 0, rc = tvpal_volreader_read(vr, t, vol, &diag);
     if (rc < 0) {
-        fprintf(stderr, PROG ": %s\n", diag.msg);
-        /* A failing device is a failure (1); corrupt data is bad input. */
+        print_lib_error(rc, &diag);
         status = rc == TVPAL_E_READ ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;
-        goto out;
     }
-    unsigned char *bytes = (unsigned char *)vol; /* convert in place */
-    tvpal_store_f32le(vol, bytes, nvox);
+    tvpal_volreader_free(vr);
+    return status;
+}
+
+/* Writes the nvox little-endian floats at bytes to out ("-": stdout).
+ * Returns 0 or TVPAL_EXIT_FAIL (printed). */
+static int write_output(const char *out, const unsigned char *bytes, size_t nvox)
+{
     if (!strcmp(out, "-")) {
         if (fwrite(bytes, 4, nvox, stdout) != nvox || fflush(stdout)) {
             fprintf(stderr, PROG ": stdout: write error\n");
-            status = TVPAL_EXIT_FAIL;
+            return TVPAL_EXIT_FAIL;
         }
-    } else if (tvpal_write_file_atomic(out, bytes, nvox * 4) < 0) {
-        fprintf(stderr, PROG ": %s: cannot write: %s\n", out, strerror(errno));
+        return 0;
+    }
+    int rc = tvpal_write_file_atomic(out, bytes, nvox * 4);
+    if (rc < 0) {
+        fprintf(stderr, PROG ": %s: cannot write: %s\n", out, tvpal_strerror(rc));
+        return TVPAL_EXIT_FAIL;
+    }
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    struct options o;
+    int status = parse_options(argc, argv, &o);
+    if (status >= 0)
+        return status;
+    struct tvpal_diag diag = {{0}};
+    struct tvpal_dataset *ds = NULL;
+    int rc = tvpal_dataset_open(&ds, o.dir, &diag);
+    if (rc < 0) {
+        print_lib_error(rc, &diag);
+        return TVPAL_EXIT_USAGE;
+    }
+    const size_t nvox = (size_t)ds->m.dims[0] * ds->m.dims[1] * ds->m.dims[2];
+    uint32_t t;
+    float *vol = NULL;
+    status = step_of(&o, ds, &t);
+    if (status == 0 && !(vol = malloc(nvox * sizeof *vol))) {
+        fprintf(stderr, PROG ": out of memory\n");
         status = TVPAL_EXIT_FAIL;
     }
-out:
-    tvpal_volreader_free(vr);
+    if (status == 0)
+        status = decode_step(ds, (unsigned)o.axis, t, vol);
+    if (status == 0) {
+        unsigned char *bytes = (unsigned char *)vol; /* convert in place */
+        tvpal_store_f32le(vol, bytes, nvox);
+        status = write_output(o.out, bytes, nvox);
+    }
     tvpal_dataset_close(ds);
     free(vol);
     return status;

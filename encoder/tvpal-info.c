@@ -1,5 +1,9 @@
 /* tvpal-info: prints what a tvpal dataset holds and, with --verify, checks
- * every record of every shard, naming each corrupt one. */
+ * every record of every shard, naming each corrupt one.
+ *
+ * The steps of main: parse the options, load the manifest and print it,
+ * then either verify every shard (--verify) or open the dataset and print
+ * its bytes per axis. */
 #define _GNU_SOURCE
 #include "tvpal_cli.h"
 #include "tvpal_dataset.h"
@@ -30,77 +34,30 @@ static void usage(FILE *f)
 "--verify) a dataset that cannot be opened.\n");
 }
 
-/* Verifies every shard file; returns the number of problems found. */
-static unsigned verify(const char *dir, const struct tvpal_manifest *m)
-{
-    unsigned bad = 0;
-    for (unsigned a = 0; a < 3; a++)
-        for (uint32_t r = 0; r < m->nodes; r++) {
-            char *path = tvpal_shard_filename(dir, r, a);
-            struct tvpal_shard *s = NULL;
-            struct tvpal_diag d = {{0}};
-            if (!path)
-                return bad + 1;
-            int rc = tvpal_shard_open(&s, path, &d);
-            if (rc < 0) {
-                printf("CORRUPT %s: %s%s%s\n", path, tvpal_strerror(rc),
-                       d.msg[0] ? ": " : "", d.msg);
-                bad++;
-                free(path);
-                continue;
-            }
-            const struct tvpal_shard_header *h = tvpal_shard_hdr(s);
-            if (memcmp(h->dims, m->dims, sizeof h->dims) ||
-                h->steps != m->steps || h->window != m->window ||
-                h->nodes != m->nodes || h->rank != r || h->axis != a) {
-                printf("CORRUPT %s: header (dims %ux%ux%u, steps %u, window "
-                       "%u, node %u of %u, axis %u) does not match the "
-                       "manifest\n", path, h->dims[0], h->dims[1], h->dims[2],
-                       h->steps, h->window, h->rank, h->nodes, h->axis);
-                bad++;
-                tvpal_shard_close(s);
-                free(path);
-                continue;
-            }
-            unsigned char *buf = malloc(tvpal_shard_max_record(s));
-            unsigned shard_bad = 0;
-            for (uint32_t t = 0; buf && t < h->steps; t++) {
-                d.msg[0] = 0;
-                rc = tvpal_shard_read_record(s, t, buf,
-                                             tvpal_shard_max_record(s), &d);
-                if (rc < 0) {
-                    printf("CORRUPT %s: record %u (offset %llu): %s\n", path,
-                           t,
-                           (unsigned long long)tvpal_shard_entry(s, t)->offset,
-                           d.msg[0] ? d.msg : tvpal_strerror(rc));
-                    shard_bad++;
-                }
-            }
-            if (!buf)
-                shard_bad++;
-            if (!shard_bad)
-                printf("ok %s: %u records\n", path, h->steps);
-            bad += shard_bad;
-            free(buf);
-            tvpal_shard_close(s);
-            free(path);
-        }
-    return bad;
-}
+struct options {
+    const char *dir;   /* OUTDIR */
+    int verify;
+};
 
-int main(int argc, char **argv)
+static const struct option long_options[] = {
+    {"verify", no_argument, 0, 'v'},
+    {"help", no_argument, 0, 'h'},
+    {"version", no_argument, 0, 'V'},
+    {0, 0, 0, 0}};
+static const char short_options[] = "vhV";
+
+/* Fills o from argv and checks that exactly one OUTDIR is given.  Returns -1
+ * to go on, or the exit status when the program is done: --help, --version
+ * or a usage error (message printed). */
+static int parse_options(int argc, char **argv, struct options *o)
 {
-    static const struct option lopts[] = {
-        {"verify", no_argument, 0, 'v'},
-        {"help", no_argument, 0, 'h'},
-        {"version", no_argument, 0, 'V'},
-        {0, 0, 0, 0}};
-    int do_verify = 0, c;
-    while ((c = getopt_long(argc, argv, "vhV", lopts, NULL)) != -1) {
+    int c;
+    *o = (struct options){0};
+    while ((c = getopt_long(argc, argv, short_options, long_options, NULL)) != -1) {
         switch (c) {
-        case 'v': do_verify = 1; break;
-        case 'h': usage(stdout); return 0;
-        case 'V': printf(PROG " " PACKAGE_VERSION "\n"); return 0;
+        case 'v': o->verify = 1; break;
+        case 'h': usage(stdout); return TVPAL_EXIT_OK;
+        case 'V': printf(PROG " " PACKAGE_VERSION "\n"); return TVPAL_EXIT_OK;
         default:
             fprintf(stderr, "Try '" PROG " --help'.\n");
             return TVPAL_EXIT_USAGE;
@@ -110,51 +67,153 @@ int main(int argc, char **argv)
         fprintf(stderr, PROG ": expected one OUTDIR (try --help)\n");
         return TVPAL_EXIT_USAGE;
     }
-    const char *dir = argv[optind];
+    o->dir = argv[optind];
+    return -1;
+}
+
+/* Reads every record of the open shard s (path, header h); prints one line
+ * per bad record and returns their number (1 when out of memory). */
+static unsigned verify_records(struct tvpal_shard *s, const char *path,
+                               const struct tvpal_shard_header *h)
+{
+    const size_t cap = tvpal_shard_max_record(s);
+    unsigned char *buf = malloc(cap);
+    if (!buf)
+        return 1;
+    unsigned bad = 0;
+    for (uint32_t t = 0; t < h->steps; t++) {
+        struct tvpal_diag d = {{0}};
+        int rc = tvpal_shard_read_record(s, t, buf, cap, &d);
+        if (rc < 0) {
+            printf("CORRUPT %s: record %u (offset %llu): %s\n", path, t,
+                   (unsigned long long)tvpal_shard_entry(s, t)->offset,
+                   d.msg[0] ? d.msg : tvpal_strerror(rc));
+            bad++;
+        }
+    }
+    free(buf);
+    return bad;
+}
+
+/* Verifies the shard of node r, axis a at path: it opens, its header
+ * agrees with the manifest m, every record reads.  Prints "ok ..." or one
+ * "CORRUPT ..." line per problem and returns the number of problems. */
+static unsigned verify_shard(const char *path, const struct tvpal_manifest *m,
+                             uint32_t r, unsigned a)
+{
+    struct tvpal_shard *s = NULL;
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_shard_open(&s, path, &d);
+    if (rc < 0) {
+        printf("CORRUPT %s: %s%s%s\n", path, tvpal_strerror(rc),
+               d.msg[0] ? ": " : "", d.msg);
+        return 1;
+    }
+    const struct tvpal_shard_header *h = tvpal_shard_hdr(s);
+    unsigned bad;
+    if (memcmp(h->dims, m->dims, sizeof h->dims) || h->steps != m->steps ||
+        h->window != m->window || h->nodes != m->nodes || h->rank != r ||
+        h->axis != a) {
+        printf("CORRUPT %s: header (dims %ux%ux%u, steps %u, window "
+               "%u, node %u of %u, axis %u) does not match the "
+               "manifest\n", path, h->dims[0], h->dims[1], h->dims[2],
+               h->steps, h->window, h->rank, h->nodes, h->axis);
+        bad = 1;
+    } else {
+        bad = verify_records(s, path, h);
+        if (!bad)
+            printf("ok %s: %u records\n", path, h->steps);
+    }
+    tvpal_shard_close(s);
+    return bad;
+}
+
+/* Verifies every shard file; returns the number of problems found. */
+static unsigned verify(const char *dir, const struct tvpal_manifest *m)
+{
+    unsigned bad = 0;
+    for (unsigned a = 0; a < 3; a++)
+        for (uint32_t r = 0; r < m->nodes; r++) {
+            char *path = tvpal_shard_filename(dir, r, a);
+            if (!path)
+                return bad + 1;
+            bad += verify_shard(path, m, r, a);
+            free(path);
+        }
+    return bad;
+}
+
+/* --verify: every shard, then the verdict.  Returns the exit status. */
+static int print_verify(const char *dir, const struct tvpal_manifest *m)
+{
+    unsigned bad = verify(dir, m);
+    printf("verify: %s (%u problem%s)\n", bad ? "FAILED" : "ok", bad,
+           bad == 1 ? "" : "s");
+    if (bad)
+        fprintf(stderr, PROG ": %s: %u corrupt record%s or file%s\n",
+                dir, bad, bad == 1 ? "" : "s", bad == 1 ? "" : "s");
+    return bad ? TVPAL_EXIT_FAIL : TVPAL_EXIT_OK;
+}
+
+/* Without --verify: opens the dataset (every shard's header and index) and
+ * prints the bytes of each axis.  Returns the exit status. */
+static int print_axis_bytes(const char *dir, const struct tvpal_manifest *m)
+{
+    struct tvpal_dataset *ds = NULL;
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_dataset_open(&ds, dir, &d);
+    if (rc < 0) {
+        fprintf(stderr, PROG ": %s\n", d.msg[0] ? d.msg : tvpal_strerror(rc));
+        return TVPAL_EXIT_USAGE;
+    }
+    double vts = (double)m->dims[0] * m->dims[1] * m->dims[2] * m->steps;
+    for (unsigned a = 0; a < 3; a++)
+        printf("axis_%c_bytes = %llu  (%.4f bits per voxel-timestep, "
+               "ratio %.3f)\n", "xyz"[a],
+               (unsigned long long)ds->axis_bytes[a],
+               8.0 * (double)ds->axis_bytes[a] / vts,
+               vts * (double)tvpal_type_size(m->type) /
+                   (double)ds->axis_bytes[a]);
+    tvpal_dataset_close(ds);
+    return TVPAL_EXIT_OK;
+}
+
+/* Loads dir/manifest.txt into m and prints the file as it is.  Returns 0 or
+ * the exit status (printed). */
+static int load_and_print_manifest(const char *dir, struct tvpal_manifest *m)
+{
     char *mpath, *text = NULL;
-    struct tvpal_manifest m;
     struct tvpal_diag d = {{0}};
     if (asprintf(&mpath, "%s/manifest.txt", dir) < 0)
         return TVPAL_EXIT_FAIL;
-    int rc = tvpal_manifest_load(mpath, &m, &d);
+    int rc = tvpal_manifest_load(mpath, m, &d);
     if (rc < 0) {
         fprintf(stderr, PROG ": %s: %s%s%s\n", mpath, tvpal_strerror(rc),
                 d.msg[0] ? ": " : "", d.msg);
         free(mpath);
         return TVPAL_EXIT_USAGE;
     }
+    /* Loaded and checked a moment ago: a failure to read it again only
+     * leaves out the text. */
     if (tvpal_read_file(mpath, &text, NULL) == 0) {
         fputs(text, stdout);
         free(text);
     }
     free(mpath);
-    int status = TVPAL_EXIT_OK;
-    if (do_verify) {
-        unsigned bad = verify(dir, &m);
-        printf("verify: %s (%u problem%s)\n", bad ? "FAILED" : "ok", bad,
-               bad == 1 ? "" : "s");
-        if (bad)
-            fprintf(stderr, PROG ": %s: %u corrupt record%s or file%s\n",
-                    dir, bad, bad == 1 ? "" : "s", bad == 1 ? "" : "s");
-        status = bad ? TVPAL_EXIT_FAIL : TVPAL_EXIT_OK;
-    } else {
-        struct tvpal_dataset *ds = NULL;
-        rc = tvpal_dataset_open(&ds, dir, &d);
-        if (rc < 0) {
-            fprintf(stderr, PROG ": %s\n", d.msg);
-            tvpal_manifest_clear(&m);
-            return TVPAL_EXIT_USAGE;
-        }
-        double vts = (double)m.dims[0] * m.dims[1] * m.dims[2] * m.steps;
-        for (unsigned a = 0; a < 3; a++)
-            printf("axis_%c_bytes = %llu  (%.4f bits per voxel-timestep, "
-                   "ratio %.3f)\n", "xyz"[a],
-                   (unsigned long long)ds->axis_bytes[a],
-                   8.0 * (double)ds->axis_bytes[a] / vts,
-                   vts * (double)tvpal_type_size(m.type) /
-                       (double)ds->axis_bytes[a]);
-        tvpal_dataset_close(ds);
-    }
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    struct options o;
+    int status = parse_options(argc, argv, &o);
+    if (status >= 0)
+        return status;
+    struct tvpal_manifest m;
+    status = load_and_print_manifest(o.dir, &m);
+    if (status != 0)
+        return status;
+    status = o.verify ? print_verify(o.dir, &m) : print_axis_bytes(o.dir, &m);
     tvpal_manifest_clear(&m);
     return status;
 }

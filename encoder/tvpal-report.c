@@ -7,6 +7,13 @@
  * timesteps: PSNR = 10 log10(peak^2 / MSE).  Flicker at t >= 1 is
  * mean |(R[t] - R[t-1]) - (V[t] - V[t-1])| / peak: it exposes jumps at window
  * boundaries that a per-frame error hides.
+ *
+ * The steps of main: parse and check the options, open the dataset, one pass
+ * over the timesteps (read the reference, decode the three axes, accumulate
+ * the per-step errors), the per-axis and overall figures, then the outputs:
+ * the text report, the CSV, the JSON and the closing key=value line.  The
+ * CSV columns and the keys of the closing line are tables (csv_columns,
+ * summary_keys): header and rows come from the same entries.
  */
 #define _GNU_SOURCE
 #include "tvpal_cli.h"
@@ -19,6 +26,7 @@
 #include <fcntl.h>
 #include <getopt.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -52,8 +60,126 @@ static void usage(FILE *f)
 "Exit status: 0 success, 1 failure, 2 bad input.\n");
 }
 
-struct acc {
-    double sse, maxabs, flick;     /* flick: sum of |.| over voxels */
+/* ------------------------------------------------------------------------
+ * Options
+ */
+
+struct options {
+    const char *dir;                   /* OUTDIR */
+    const char *csv_path, *json_path;  /* NULL: not written */
+    int use_ref, quiet;
+    char **refs;    /* the reference files: the arguments after OUTDIR, or */
+    size_t nrefs;   /* the manifest's sources (validate_options decides) */
+};
+
+static const struct option long_options[] = {
+    {"reference", no_argument, 0, 'r'},
+    {"csv", required_argument, 0, 'c'},
+    {"json", required_argument, 0, 'j'},
+    {"quiet", no_argument, 0, 'q'},
+    {"help", no_argument, 0, 'h'},
+    {"version", no_argument, 0, 'V'},
+    {0, 0, 0, 0}};
+static const char short_options[] = "rc:j:qhV";
+
+/* Fills o from argv.  Returns -1 to go on, or the exit status when the
+ * program is done: --help, --version or a usage error (message printed). */
+static int parse_options(int argc, char **argv, struct options *o)
+{
+    int c;
+    *o = (struct options){0};
+    while ((c = getopt_long(argc, argv, short_options, long_options, NULL)) != -1) {
+        switch (c) {
+        case 'r': o->use_ref = 1; break;
+        case 'c': o->csv_path = optarg; break;
+        case 'j': o->json_path = optarg; break;
+        case 'q': o->quiet = 1; break;
+        case 'h': usage(stdout); return TVPAL_EXIT_OK;
+        case 'V': printf(PROG " " PACKAGE_VERSION "\n"); return TVPAL_EXIT_OK;
+        default:
+            fprintf(stderr, "Try '" PROG " --help'.\n");
+            return TVPAL_EXIT_USAGE;
+        }
+    }
+    if (optind >= argc) {
+        fprintf(stderr, PROG ": expected OUTDIR (try --help)\n");
+        return TVPAL_EXIT_USAGE;
+    }
+    o->dir = argv[optind];
+    o->refs = argv + optind + 1;
+    o->nrefs = (size_t)(argc - optind - 1);
+    return -1;
+}
+
+/* Checks the options against the dataset, whose layout says how many
+ * reference files there must be (one holding every timestep, or one per
+ * timestep).  Without --reference no argument may follow OUTDIR and the
+ * manifest's sources are read.  Returns 0 or TVPAL_EXIT_USAGE (printed). */
+static int validate_options(struct options *o, const struct tvpal_manifest *m)
+{
+    if (!o->use_ref) {
+        if (o->nrefs) {
+            fprintf(stderr, PROG ": unexpected argument \"%s\" (reference "
+                    "files follow --reference)\n", o->refs[0]);
+            return TVPAL_EXIT_USAGE;
+        }
+        o->refs = m->sources;
+        o->nrefs = m->nsources;
+    }
+    size_t want = m->single_file ? 1 : m->steps;
+    if (o->nrefs != want) {
+        fprintf(stderr, PROG ": %zu reference file%s; expected %zu (%s)\n",
+                o->nrefs, o->nrefs == 1 ? "" : "s", want,
+                m->single_file ? "one file holding every timestep"
+                               : "one file per timestep");
+        return TVPAL_EXIT_USAGE;
+    }
+    return 0;
+}
+
+/* A library error: the diag when the function filled it, else the code's
+ * text (the library promises nothing about errno). */
+static void print_lib_error(int rc, const struct tvpal_diag *diag)
+{
+    fprintf(stderr, PROG ": %s\n", diag->msg[0] ? diag->msg : tvpal_strerror(rc));
+}
+
+/* ------------------------------------------------------------------------
+ * The report: errors per timestep and axis, then per axis and overall
+ */
+
+/* Error of one decoded timestep of one axis against the reference. */
+struct step_err {
+    double sse, maxabs;
+    double flick;                 /* sum of |.| over voxels; 0 at t = 0 */
+};
+
+/* One axis over all timesteps. */
+struct axis_sum {
+    double psnr, rmse, maxabs, flicker;
+    double idx_bytes, tab_bytes;  /* payload, from the window schedule */
+};
+
+struct report {
+    const struct tvpal_dataset *ds;
+    const struct tvpal_manifest *m;
+    const char *dir;
+    uint32_t steps;
+    size_t nvox;
+    /* Source size from dims, type and steps (not the manifest's
+     * informational source_bytes, which could be stale or edited). */
+    uint64_t src_bytes;
+    double vts;                   /* voxel-timesteps */
+    double vmin, vmax, peak;      /* of the reference, over all timesteps */
+    struct step_err *per;         /* [t * 3 + axis] */
+    struct axis_sum axis[3];
+    double psnr;                  /* worst axis */
+    double psnr_min;              /* worst timestep and axis: */
+    uint32_t psnr_min_t;
+    unsigned psnr_min_a;
+    double worst_rmse, worst_max, worst_flick;   /* worst axis */
+    double bytes_axis, idx_mean, tab_mean;       /* mean of the three axes */
+    double ratio;                 /* source bytes / bytes_axis */
 };
 
 static double psnr_of(double mse, double peak)
@@ -65,32 +191,95 @@ static double psnr_of(double mse, double peak)
     return 10.0 * log10(peak * peak / mse);
 }
 
-static void jstr(FILE *f, const char *s)
+static const struct step_err *step_at(const struct report *r, uint32_t t,
+                                      unsigned a)
 {
-    fputc('"', f);
-    for (; *s; s++) {
-        unsigned char c = (unsigned char)*s;
-        if (c == '"' || c == '\\')
-            fprintf(f, "\\%c", c);
-        else if (c < 0x20)
-            fprintf(f, "\\u%04x", c);
-        else
-            fputc(c, f);
+    return &r->per[(size_t)t * 3 + a];
+}
+
+static double step_rmse(const struct report *r, uint32_t t, unsigned a)
+{
+    return sqrt(step_at(r, t, a)->sse / (double)r->nvox);
+}
+
+static double step_psnr(const struct report *r, uint32_t t, unsigned a)
+{
+    return psnr_of(step_at(r, t, a)->sse / (double)r->nvox, r->peak);
+}
+
+/* Mean flicker of step t (none at t = 0, nor without contrast). */
+static double step_flicker(const struct report *r, uint32_t t, unsigned a)
+{
+    return t && r->peak > 0 ? step_at(r, t, a)->flick / (double)r->nvox / r->peak
+                            : 0.0;
+}
+
+/* Sets the sizes and allocates r->per.  Returns 0 or -1 (out of memory). */
+static int report_init(struct report *r, const struct tvpal_dataset *ds,
+                       const char *dir)
+{
+    const struct tvpal_manifest *m = &ds->m;
+    *r = (struct report){.ds = ds, .m = m, .dir = dir, .steps = m->steps};
+    r->nvox = (size_t)m->dims[0] * m->dims[1] * m->dims[2];
+    r->src_bytes = (uint64_t)r->nvox * r->steps * tvpal_type_size(m->type);
+    r->vts = (double)r->nvox * r->steps;
+    r->vmin = INFINITY;
+    r->vmax = -INFINITY;
+    r->per = calloc((size_t)r->steps * 3, sizeof *r->per);
+    return r->per ? 0 : -1;
+}
+
+/* ------------------------------------------------------------------------
+ * Reading the reference and the decoded steps
+ */
+
+/* Working memory of the pass over the timesteps: the raw bytes of one
+ * reference step; the reference and each axis's decoded volume at t and
+ * t - 1 (for flicker), alternating by the parity of t; a reader per axis. */
+struct scan_buffers {
+    void *raw;
+    float *ref[2], *dec[3][2];
+    struct tvpal_volreader *vr[3];
+};
+
+static void buffers_free(struct scan_buffers *b)
+{
+    for (unsigned a = 0; a < 3; a++) {
+        tvpal_volreader_free(b->vr[a]);
+        free(b->dec[a][0]);
+        free(b->dec[a][1]);
     }
-    fputc('"', f);
+    free(b->ref[0]);
+    free(b->ref[1]);
+    free(b->raw);
 }
 
-/* JSON has no infinities: null stands for them. */
-static void jnum(FILE *f, double v)
+/* Returns 0 or -1 (out of memory; what was allocated is in b for
+ * buffers_free). */
+static int buffers_alloc(struct scan_buffers *b, struct tvpal_dataset *ds,
+                         size_t nvox)
 {
-    if (isfinite(v))
-        fprintf(f, "%.6g", v);
-    else
-        fputs("null", f);
+    *b = (struct scan_buffers){0};
+    b->raw = malloc(nvox * tvpal_type_size(ds->m.type));
+    b->ref[0] = malloc(nvox * sizeof(float));
+    b->ref[1] = malloc(nvox * sizeof(float));
+    if (!b->raw || !b->ref[0] || !b->ref[1])
+        return -1;
+    for (unsigned a = 0; a < 3; a++) {
+        b->dec[a][0] = malloc(nvox * sizeof(float));
+        b->dec[a][1] = malloc(nvox * sizeof(float));
+        if (!b->dec[a][0] || !b->dec[a][1] ||
+            tvpal_volreader_create(&b->vr[a], ds, a) != 0)
+            return -1;
+    }
+    return 0;
 }
 
-static int read_ref(const struct tvpal_manifest *m, char **files, uint32_t t,
-                    void *raw, float *dst, size_t nvox)
+/* Reads timestep t of the reference into dst (nvox floats), raw being
+ * scratch for the file's bytes.  The file's size must be what dims, type and
+ * steps say (checked once for a single file).  Returns 0 or -1 (printed). */
+static int read_reference_step(const struct tvpal_manifest *m, char **files,
+                               uint32_t t, void *raw, float *dst, size_t nvox)
 {
     size_t esz = tvpal_type_size(m->type), bytes = nvox * esz;
     const char *path = m->single_file ? files[0] : files[t];
@@ -137,6 +326,67 @@ static int read_ref(const struct tvpal_manifest *m, char **files, uint32_t t,
     return 0;
 }
 
+/* Widens [vmin, vmax] to the reference step R. */
+static void update_range(struct report *r, const float *R)
+{
+    double vmin = r->vmin, vmax = r->vmax;
+    for (size_t i = 0; i < r->nvox; i++) {
+        vmin = R[i] < vmin ? R[i] : vmin;
+        vmax = R[i] > vmax ? R[i] : vmax;
+    }
+    r->vmin = vmin;
+    r->vmax = vmax;
+}
+
+/* Error of the decoded step V against the reference R; the previous steps
+ * Rp, Vp count only when t > 0 (flicker). */
+static void measure_step(struct step_err *p, size_t nvox, uint32_t t,
+                         const float *R, const float *Rp, const float *V,
+                         const float *Vp)
+{
+    double sse = 0, mx = 0, fl = 0;
+    for (size_t i = 0; i < nvox; i++) {
+        double e = (double)V[i] - (double)R[i];
+        sse += e * e;
+        mx = fabs(e) > mx ? fabs(e) : mx;
+    }
+    if (t > 0)
+        for (size_t i = 0; i < nvox; i++)
+            fl += fabs(((double)R[i] - Rp[i]) - ((double)V[i] - Vp[i]));
+    p->sse = sse;
+    p->maxabs = mx;
+    p->flick = fl;
+}
+
+/* The one pass over the timesteps: per step, the reference and the three
+ * decoded axes.  Returns 0 or TVPAL_EXIT_USAGE (a reference or a record that
+ * cannot be read; printed). */
+static int scan_steps(struct report *r, char **refs, struct scan_buffers *b)
+{
+    struct tvpal_diag diag = {{0}};
+    for (uint32_t t = 0; t < r->steps; t++) {
+        const unsigned cur = t & 1, prev = cur ^ 1;
+        if (read_reference_step(r->m, refs, t, b->raw, b->ref[cur], r->nvox) < 0)
+            return TVPAL_EXIT_USAGE;
+        update_range(r, b->ref[cur]);
+        for (unsigned a = 0; a < 3; a++) {
+            int rc = tvpal_volreader_read(b->vr[a], t, b->dec[a][cur], &diag);
+            if (rc < 0) {
+                print_lib_error(rc, &diag);
+                return TVPAL_EXIT_USAGE;
+            }
+            measure_step(&r->per[(size_t)t * 3 + a], r->nvox, t, b->ref[cur],
+                         b->ref[prev], b->dec[a][cur], b->dec[a][prev]);
+        }
+    }
+    r->peak = r->vmax - r->vmin;
+    return 0;
+}
+
+/* ------------------------------------------------------------------------
+ * Per-axis and overall figures
+ */
+
 /* Bytes of indices and tables of one axis, from the window schedule. */
 static void payload_bytes(const struct tvpal_manifest *m, unsigned axis,
                           double *idx, double *tab)
@@ -153,284 +403,354 @@ static void payload_bytes(const struct tvpal_manifest *m, unsigned axis,
             }
 }
 
-int main(int argc, char **argv)
+/* Errors per axis over all timesteps, the worst axis, the worst step. */
+static void summarize_errors(struct report *r)
 {
-    static const struct option lopts[] = {
-        {"reference", no_argument, 0, 'r'},
-        {"csv", required_argument, 0, 'c'},
-        {"json", required_argument, 0, 'j'},
-        {"quiet", no_argument, 0, 'q'},
-        {"help", no_argument, 0, 'h'},
-        {"version", no_argument, 0, 'V'},
-        {0, 0, 0, 0}};
-    const char *csv_path = NULL, *json_path = NULL;
-    int use_ref = 0, quiet = 0, c;
-    while ((c = getopt_long(argc, argv, "rc:j:qhV", lopts, NULL)) != -1) {
-        switch (c) {
-        case 'r': use_ref = 1; break;
-        case 'c': csv_path = optarg; break;
-        case 'j': json_path = optarg; break;
-        case 'q': quiet = 1; break;
-        case 'h': usage(stdout); return 0;
-        case 'V': printf(PROG " " PACKAGE_VERSION "\n"); return 0;
-        default:
-            fprintf(stderr, "Try '" PROG " --help'.\n");
-            return TVPAL_EXIT_USAGE;
-        }
-    }
-    if (optind >= argc) {
-        fprintf(stderr, PROG ": expected OUTDIR (try --help)\n");
-        return TVPAL_EXIT_USAGE;
-    }
-    const char *dir = argv[optind];
-    struct tvpal_diag diag = {{0}};
-    struct tvpal_dataset *ds = NULL;
-    int rc = tvpal_dataset_open(&ds, dir, &diag);
-    if (rc < 0) {
-        fprintf(stderr, PROG ": %s\n", diag.msg[0] ? diag.msg : tvpal_strerror(rc));
-        return TVPAL_EXIT_USAGE;
-    }
-    const struct tvpal_manifest *m = &ds->m;
-    char **refs = m->sources;
-    size_t nrefs = m->nsources;
-    if (use_ref) {
-        refs = argv + optind + 1;
-        nrefs = (size_t)(argc - optind - 1);
-    } else if (optind + 1 != argc) {
-        fprintf(stderr, PROG ": unexpected argument \"%s\" (reference files "
-                "follow --reference)\n", argv[optind + 1]);
-        return TVPAL_EXIT_USAGE;
-    }
-    size_t want = m->single_file ? 1 : m->steps;
-    if (nrefs != want) {
-        fprintf(stderr, PROG ": %zu reference file%s; expected %zu (%s)\n",
-                nrefs, nrefs == 1 ? "" : "s", want,
-                m->single_file ? "one file holding every timestep"
-                               : "one file per timestep");
-        return TVPAL_EXIT_USAGE;
-    }
-    const uint32_t T = m->steps;
-    const size_t nvox = (size_t)m->dims[0] * m->dims[1] * m->dims[2];
-    /* Source size from dims, type and steps (not the manifest's
-     * informational source_bytes, which could be stale or edited). */
-    const uint64_t src_bytes = (uint64_t)nvox * T * tvpal_type_size(m->type);
-    float *ref[2], *dec[3][2];
-    void *raw = malloc(nvox * tvpal_type_size(m->type));
-    struct tvpal_volreader *vr[3] = {0};
-    struct acc *per = calloc((size_t)T * 3, sizeof *per);
-    ref[0] = malloc(nvox * sizeof(float));
-    ref[1] = malloc(nvox * sizeof(float));
-    int ok = raw && per && ref[0] && ref[1];
-    for (unsigned a = 0; a < 3 && ok; a++) {
-        dec[a][0] = malloc(nvox * sizeof(float));
-        dec[a][1] = malloc(nvox * sizeof(float));
-        ok = dec[a][0] && dec[a][1] &&
-             tvpal_volreader_create(&vr[a], ds, a) == 0;
-    }
-    if (!ok) {
-        fprintf(stderr, PROG ": out of memory\n");
-        return TVPAL_EXIT_FAIL;
-    }
-
-    double vmin = INFINITY, vmax = -INFINITY;
-    for (uint32_t t = 0; t < T; t++) {
-        float *R = ref[t & 1], *Rp = ref[(t & 1) ^ 1];
-        if (read_ref(m, refs, t, raw, R, nvox) < 0)
-            return TVPAL_EXIT_USAGE;
-        for (size_t i = 0; i < nvox; i++) {
-            vmin = R[i] < vmin ? R[i] : vmin;
-            vmax = R[i] > vmax ? R[i] : vmax;
-        }
-        for (unsigned a = 0; a < 3; a++) {
-            float *V = dec[a][t & 1], *Vp = dec[a][(t & 1) ^ 1];
-            rc = tvpal_volreader_read(vr[a], t, V, &diag);
-            if (rc < 0) {
-                fprintf(stderr, PROG ": %s\n", diag.msg);
-                return TVPAL_EXIT_USAGE;
-            }
-            struct acc *p = &per[(size_t)t * 3 + a];
-            double sse = 0, mx = 0, fl = 0;
-            for (size_t i = 0; i < nvox; i++) {
-                double e = (double)V[i] - (double)R[i];
-                sse += e * e;
-                mx = fabs(e) > mx ? fabs(e) : mx;
-            }
-            if (t > 0)
-                for (size_t i = 0; i < nvox; i++)
-                    fl += fabs(((double)R[i] - Rp[i]) - ((double)V[i] - Vp[i]));
-            p->sse = sse;
-            p->maxabs = mx;
-            p->flick = fl;
-        }
-    }
-    const double peak = vmax - vmin;
-    const double vts = (double)nvox * T;
-
-    /* Per axis and overall. */
-    double psnr_axis[3], rmse_axis[3], max_axis[3], flick_axis[3];
-    double psnr_min = INFINITY, worst_rmse = 0, worst_max = 0, worst_flick = 0;
-    uint32_t psnr_min_t = 0;
-    unsigned psnr_min_a = 0;
+    const uint32_t T = r->steps;
+    r->psnr_min = INFINITY;
     for (unsigned a = 0; a < 3; a++) {
+        struct axis_sum *x = &r->axis[a];
         double sse = 0, mx = 0, fl = 0;
         for (uint32_t t = 0; t < T; t++) {
-            const struct acc *p = &per[(size_t)t * 3 + a];
+            const struct step_err *p = step_at(r, t, a);
             sse += p->sse;
             mx = p->maxabs > mx ? p->maxabs : mx;
             fl += p->flick;
-            double ps = psnr_of(p->sse / (double)nvox, peak);
-            if (ps < psnr_min) {
-                psnr_min = ps;
-                psnr_min_t = t;
-                psnr_min_a = a;
+            double ps = step_psnr(r, t, a);
+            if (ps < r->psnr_min) {
+                r->psnr_min = ps;
+                r->psnr_min_t = t;
+                r->psnr_min_a = a;
             }
         }
-        rmse_axis[a] = sqrt(sse / vts);
-        psnr_axis[a] = psnr_of(sse / vts, peak);
-        max_axis[a] = mx;
-        flick_axis[a] = T > 1 && peak > 0
-                            ? fl / ((double)nvox * (T - 1)) / peak : 0.0;
-        worst_rmse = rmse_axis[a] > worst_rmse ? rmse_axis[a] : worst_rmse;
-        worst_max = mx > worst_max ? mx : worst_max;
-        worst_flick = flick_axis[a] > worst_flick ? flick_axis[a] : worst_flick;
+        x->rmse = sqrt(sse / r->vts);
+        x->psnr = psnr_of(sse / r->vts, r->peak);
+        x->maxabs = mx;
+        x->flicker = T > 1 && r->peak > 0
+                         ? fl / ((double)r->nvox * (T - 1)) / r->peak : 0.0;
+        r->worst_rmse = x->rmse > r->worst_rmse ? x->rmse : r->worst_rmse;
+        r->worst_max = mx > r->worst_max ? mx : r->worst_max;
+        r->worst_flick = x->flicker > r->worst_flick ? x->flicker : r->worst_flick;
     }
-    double psnr = fmin(psnr_axis[0], fmin(psnr_axis[1], psnr_axis[2]));
-    double bytes_axis = (ds->axis_bytes[0] + ds->axis_bytes[1] +
-                         ds->axis_bytes[2]) / 3.0;
-    double idx_b[3], tab_b[3];
+    r->psnr = fmin(r->axis[0].psnr, fmin(r->axis[1].psnr, r->axis[2].psnr));
+}
+
+/* Bytes per axis (files), split into indices, tables and the rest. */
+static void summarize_sizes(struct report *r)
+{
+    const uint64_t *ab = r->ds->axis_bytes;
+    r->bytes_axis = (ab[0] + ab[1] + ab[2]) / 3.0;
     for (unsigned a = 0; a < 3; a++)
-        payload_bytes(m, a, &idx_b[a], &tab_b[a]);
-    double idx_mean = (idx_b[0] + idx_b[1] + idx_b[2]) / 3.0;
-    double tab_mean = (tab_b[0] + tab_b[1] + tab_b[2]) / 3.0;
-    double ratio = (double)src_bytes / bytes_axis;
+        payload_bytes(r->m, a, &r->axis[a].idx_bytes, &r->axis[a].tab_bytes);
+    r->idx_mean = (r->axis[0].idx_bytes + r->axis[1].idx_bytes +
+                   r->axis[2].idx_bytes) / 3.0;
+    r->tab_mean = (r->axis[0].tab_bytes + r->axis[1].tab_bytes +
+                   r->axis[2].tab_bytes) / 3.0;
+    r->ratio = (double)r->src_bytes / r->bytes_axis;
+}
 
-    if (!quiet) {
-        printf("dataset %s: %ux%ux%u %s, %u steps, window %u, %u node%s\n",
-               dir, m->dims[0], m->dims[1], m->dims[2],
-               tvpal_type_name(m->type), T, m->window, m->nodes,
-               m->nodes == 1 ? "" : "s");
-        printf("peak (max - min of the original) = %.9g  [%.9g, %.9g]\n",
-               peak, vmin, vmax);
-        printf("%6s %9s %9s %9s %12s %10s\n", "step", "psnr_x", "psnr_y",
-               "psnr_z", "max_abs_err", "flicker");
-        for (uint32_t t = 0; t < T; t++) {
-            double ps[3], mx = 0, fl = 0;
-            for (unsigned a = 0; a < 3; a++) {
-                const struct acc *p = &per[(size_t)t * 3 + a];
-                ps[a] = psnr_of(p->sse / (double)nvox, peak);
-                mx = p->maxabs > mx ? p->maxabs : mx;
-                double f = t && peak > 0 ? p->flick / (double)nvox / peak : 0;
-                fl = f > fl ? f : fl;
-            }
-            printf("%6u %9.3f %9.3f %9.3f %12.6g %10.3g\n", t, ps[0], ps[1],
-                   ps[2], mx, fl);
-        }
-        printf("%4s %9s %12s %12s %10s %14s %8s %9s\n", "axis", "psnr",
-               "rmse", "max_abs_err", "flicker", "bytes", "ratio", "bpv");
-        for (unsigned a = 0; a < 3; a++)
-            printf("%4c %9.3f %12.6g %12.6g %10.3g %14llu %8.3f %9.4f\n",
-                   "xyz"[a], psnr_axis[a], rmse_axis[a], max_axis[a],
-                   flick_axis[a], (unsigned long long)ds->axis_bytes[a],
-                   (double)src_bytes / (double)ds->axis_bytes[a],
-                   8.0 * (double)ds->axis_bytes[a] / vts);
-        printf("bits per voxel-timestep (one axis): %.4f = indices %.4f + "
-               "tables %.4f + headers/padding %.4f\n", 8 * bytes_axis / vts,
-               8 * idx_mean / vts, 8 * tab_mean / vts,
-               8 * (bytes_axis - idx_mean - tab_mean) / vts);
-        printf("worst timestep: %u on axis %c (%.3f dB)\n", psnr_min_t,
-               "xyz"[psnr_min_a], psnr_min);
-    }
-    if (csv_path) {
-        FILE *f = fopen(csv_path, "w");
-        if (!f) {
-            fprintf(stderr, PROG ": %s: cannot write: %s\n", csv_path,
-                    strerror(errno));
-            return TVPAL_EXIT_FAIL;
-        }
-        fprintf(f, "step,axis,rmse,psnr,max_abs_error,flicker\n");
-        for (uint32_t t = 0; t < T; t++)
-            for (unsigned a = 0; a < 3; a++) {
-                const struct acc *p = &per[(size_t)t * 3 + a];
-                fprintf(f, "%u,%c,%.9g,%.6f,%.9g,%.9g\n", t, "xyz"[a],
-                        sqrt(p->sse / (double)nvox),
-                        psnr_of(p->sse / (double)nvox, peak), p->maxabs,
-                        t && peak > 0 ? p->flick / (double)nvox / peak : 0.0);
-            }
-        if (fclose(f) != 0) {
-            fprintf(stderr, PROG ": %s: write error\n", csv_path);
-            return TVPAL_EXIT_FAIL;
-        }
-    }
-    if (json_path) {
-        FILE *f = fopen(json_path, "w");
-        if (!f) {
-            fprintf(stderr, PROG ": %s: cannot write: %s\n", json_path,
-                    strerror(errno));
-            return TVPAL_EXIT_FAIL;
-        }
-        fprintf(f, "{\n  \"dataset\": ");
-        jstr(f, dir);
-        fprintf(f, ",\n  \"dims\": [%u, %u, %u],\n"
-                "  \"steps\": %u,\n  \"window\": %u,\n  \"nodes\": %u,\n"
-                "  \"peak\": ", m->dims[0], m->dims[1], m->dims[2], T,
-                m->window, m->nodes);
-        jnum(f, peak);
-        fprintf(f, ",\n  \"source_bytes\": %llu,\n  \"axes\": {",
-                (unsigned long long)src_bytes);
+/* ------------------------------------------------------------------------
+ * Outputs
+ */
+
+/* Text report on stdout (without --quiet). */
+static void print_text(const struct report *r)
+{
+    const struct tvpal_manifest *m = r->m;
+    const uint64_t *ab = r->ds->axis_bytes;
+    printf("dataset %s: %ux%ux%u %s, %u steps, window %u, %u node%s\n",
+           r->dir, m->dims[0], m->dims[1], m->dims[2],
+           tvpal_type_name(m->type), r->steps, m->window, m->nodes,
+           m->nodes == 1 ? "" : "s");
+    printf("peak (max - min of the original) = %.9g  [%.9g, %.9g]\n",
+           r->peak, r->vmin, r->vmax);
+    printf("%6s %9s %9s %9s %12s %10s\n", "step", "psnr_x", "psnr_y",
+           "psnr_z", "max_abs_err", "flicker");
+    for (uint32_t t = 0; t < r->steps; t++) {
+        double ps[3], mx = 0, fl = 0;
         for (unsigned a = 0; a < 3; a++) {
-            fprintf(f, "%s\n    \"%c\": {\"psnr\": ", a ? "," : "", "xyz"[a]);
-            jnum(f, psnr_axis[a]);
-            fprintf(f, ", \"rmse\": %.9g, \"max_abs_error\": %.9g, "
-                    "\"flicker\": %.9g, \"bytes\": %llu, \"ratio\": %.6f, "
-                    "\"bpv\": %.6f, \"index_bpv\": %.6f, \"table_bpv\": %.6f}",
-                    rmse_axis[a], max_axis[a], flick_axis[a],
-                    (unsigned long long)ds->axis_bytes[a],
-                    (double)src_bytes / (double)ds->axis_bytes[a],
-                    8.0 * (double)ds->axis_bytes[a] / vts, 8 * idx_b[a] / vts,
-                    8 * tab_b[a] / vts);
+            ps[a] = step_psnr(r, t, a);
+            mx = step_at(r, t, a)->maxabs > mx ? step_at(r, t, a)->maxabs : mx;
+            double f = step_flicker(r, t, a);
+            fl = f > fl ? f : fl;
         }
-        fprintf(f, "\n  },\n  \"per_step\": [");
-        for (uint32_t t = 0; t < T; t++) {
-            fprintf(f, "%s\n    {\"step\": %u", t ? "," : "", t);
-            for (unsigned a = 0; a < 3; a++) {
-                const struct acc *p = &per[(size_t)t * 3 + a];
-                fprintf(f, ", \"psnr_%c\": ", "xyz"[a]);
-                jnum(f, psnr_of(p->sse / (double)nvox, peak));
-                fprintf(f, ", \"max_abs_error_%c\": %.9g, \"flicker_%c\": %.9g",
-                        "xyz"[a], p->maxabs, "xyz"[a],
-                        t && peak > 0 ? p->flick / (double)nvox / peak : 0.0);
-            }
-            fputc('}', f);
-        }
-        fprintf(f, "\n  ],\n  \"summary\": {\"psnr\": ");
-        jnum(f, psnr);
-        fprintf(f, ", \"psnr_min\": ");
-        jnum(f, psnr_min);
-        fprintf(f, ", \"ratio\": %.6f, \"bpv\": %.6f}\n}\n", ratio,
-                8 * bytes_axis / vts);
-        if (fclose(f) != 0) {
-            fprintf(stderr, PROG ": %s: write error\n", json_path);
-            return TVPAL_EXIT_FAIL;
-        }
+        printf("%6u %9.3f %9.3f %9.3f %12.6g %10.3g\n", t, ps[0], ps[1],
+               ps[2], mx, fl);
     }
-    printf("psnr=%.4f psnr_x=%.4f psnr_y=%.4f psnr_z=%.4f psnr_min=%.4f "
-           "rmse=%.6g max_abs_error=%.6g flicker=%.6g ratio=%.4f "
-           "ratio_8bit=%.4f bpv=%.4f index_bpv=%.4f table_bpv=%.4f "
-           "disk_ratio=%.4f steps=%u window=%u\n",
-           psnr, psnr_axis[0], psnr_axis[1], psnr_axis[2], psnr_min,
-           worst_rmse, worst_max, worst_flick, ratio, vts / bytes_axis,
-           8 * bytes_axis / vts, 8 * idx_mean / vts, 8 * tab_mean / vts,
-           ratio / 3.0, T, m->window);
+    printf("%4s %9s %12s %12s %10s %14s %8s %9s\n", "axis", "psnr",
+           "rmse", "max_abs_err", "flicker", "bytes", "ratio", "bpv");
+    for (unsigned a = 0; a < 3; a++)
+        printf("%4c %9.3f %12.6g %12.6g %10.3g %14llu %8.3f %9.4f\n",
+               "xyz"[a], r->axis[a].psnr, r->axis[a].rmse, r->axis[a].maxabs,
+               r->axis[a].flicker, (unsigned long long)ab[a],
+               (double)r->src_bytes / (double)ab[a],
+               8.0 * (double)ab[a] / r->vts);
+    printf("bits per voxel-timestep (one axis): %.4f = indices %.4f + "
+           "tables %.4f + headers/padding %.4f\n", 8 * r->bytes_axis / r->vts,
+           8 * r->idx_mean / r->vts, 8 * r->tab_mean / r->vts,
+           8 * (r->bytes_axis - r->idx_mean - r->tab_mean) / r->vts);
+    printf("worst timestep: %u on axis %c (%.3f dB)\n", r->psnr_min_t,
+           "xyz"[r->psnr_min_a], r->psnr_min);
+}
 
-    for (unsigned a = 0; a < 3; a++) {
-        tvpal_volreader_free(vr[a]);
-        free(dec[a][0]);
-        free(dec[a][1]);
+/* A column of the CSV or a key of the summary line: its name, the printf
+ * conversion of its value and where the value is in its record (a struct of
+ * doubles).  kind says how the double is handed to the conversion: counts
+ * and characters are exact in a double. */
+enum col_kind { COL_UINT, COL_CHAR, COL_REAL };
+struct column {
+    const char *name;
+    const char *fmt;
+    enum col_kind kind;
+    size_t off;
+};
+
+static void put_value(FILE *f, const struct column *c, const void *rec)
+{
+    const double v = *(const double *)((const char *)rec + c->off);
+    switch (c->kind) {
+    case COL_UINT: fprintf(f, c->fmt, (unsigned)v); break;
+    case COL_CHAR: fprintf(f, c->fmt, (int)v); break;
+    case COL_REAL: fprintf(f, c->fmt, v); break;
     }
-    free(ref[0]);
-    free(ref[1]);
-    free(raw);
-    free(per);
-    tvpal_dataset_close(ds);
+}
+
+/* One CSV row: a timestep of one axis. */
+struct csv_row {
+    double step, axis, rmse, psnr, max_abs_error, flicker;
+};
+#define CSV_COL(name, fmt, kind) {#name, fmt, kind, offsetof(struct csv_row, name)}
+static const struct column csv_columns[] = {
+    CSV_COL(step, "%u", COL_UINT),
+    CSV_COL(axis, "%c", COL_CHAR),
+    CSV_COL(rmse, "%.9g", COL_REAL),
+    CSV_COL(psnr, "%.6f", COL_REAL),
+    CSV_COL(max_abs_error, "%.9g", COL_REAL),
+    CSV_COL(flicker, "%.9g", COL_REAL),
+};
+#undef CSV_COL
+#define NCSV (sizeof csv_columns / sizeof csv_columns[0])
+
+static struct csv_row csv_row_of(const struct report *r, uint32_t t, unsigned a)
+{
+    return (struct csv_row){
+        .step = t, .axis = "xyz"[a], .rmse = step_rmse(r, t, a),
+        .psnr = step_psnr(r, t, a), .max_abs_error = step_at(r, t, a)->maxabs,
+        .flicker = step_flicker(r, t, a)};
+}
+
+/* The header (the column names), then one row per timestep and axis. */
+static void write_csv_rows(FILE *f, const struct report *r)
+{
+    for (size_t c = 0; c < NCSV; c++)
+        fprintf(f, "%s%s", c ? "," : "", csv_columns[c].name);
+    fputc('\n', f);
+    for (uint32_t t = 0; t < r->steps; t++)
+        for (unsigned a = 0; a < 3; a++) {
+            const struct csv_row row = csv_row_of(r, t, a);
+            for (size_t c = 0; c < NCSV; c++) {
+                if (c)
+                    fputc(',', f);
+                put_value(f, &csv_columns[c], &row);
+            }
+            fputc('\n', f);
+        }
+}
+
+static void jstr(FILE *f, const char *s)
+{
+    fputc('"', f);
+    for (; *s; s++) {
+        unsigned char c = (unsigned char)*s;
+        if (c == '"' || c == '\\')
+            fprintf(f, "\\%c", c);
+        else if (c < 0x20)
+            fprintf(f, "\\u%04x", c);
+        else
+            fputc(c, f);
+    }
+    fputc('"', f);
+}
+
+/* JSON has no infinities: null stands for them. */
+static void jnum(FILE *f, double v)
+{
+    if (isfinite(v))
+        fprintf(f, "%.6g", v);
+    else
+        fputs("null", f);
+}
+
+static void write_json_axes(FILE *f, const struct report *r)
+{
+    const uint64_t *ab = r->ds->axis_bytes;
+    fprintf(f, ",\n  \"source_bytes\": %llu,\n  \"axes\": {",
+            (unsigned long long)r->src_bytes);
+    for (unsigned a = 0; a < 3; a++) {
+        const struct axis_sum *x = &r->axis[a];
+        fprintf(f, "%s\n    \"%c\": {\"psnr\": ", a ? "," : "", "xyz"[a]);
+        jnum(f, x->psnr);
+        fprintf(f, ", \"rmse\": %.9g, \"max_abs_error\": %.9g, "
+                "\"flicker\": %.9g, \"bytes\": %llu, \"ratio\": %.6f, "
+                "\"bpv\": %.6f, \"index_bpv\": %.6f, \"table_bpv\": %.6f}",
+                x->rmse, x->maxabs, x->flicker, (unsigned long long)ab[a],
+                (double)r->src_bytes / (double)ab[a],
+                8.0 * (double)ab[a] / r->vts, 8 * x->idx_bytes / r->vts,
+                8 * x->tab_bytes / r->vts);
+    }
+    fprintf(f, "\n  }");
+}
+
+static void write_json_steps(FILE *f, const struct report *r)
+{
+    fprintf(f, ",\n  \"per_step\": [");
+    for (uint32_t t = 0; t < r->steps; t++) {
+        fprintf(f, "%s\n    {\"step\": %u", t ? "," : "", t);
+        for (unsigned a = 0; a < 3; a++) {
+            fprintf(f, ", \"psnr_%c\": ", "xyz"[a]);
+            jnum(f, step_psnr(r, t, a));
+            fprintf(f, ", \"max_abs_error_%c\": %.9g, \"flicker_%c\": %.9g",
+                    "xyz"[a], step_at(r, t, a)->maxabs, "xyz"[a],
+                    step_flicker(r, t, a));
+        }
+        fputc('}', f);
+    }
+    fprintf(f, "\n  ]");
+}
+
+/* Everything as one JSON object. */
+static void write_json_doc(FILE *f, const struct report *r)
+{
+    const struct tvpal_manifest *m = r->m;
+    fprintf(f, "{\n  \"dataset\": ");
+    jstr(f, r->dir);
+    fprintf(f, ",\n  \"dims\": [%u, %u, %u],\n"
+            "  \"steps\": %u,\n  \"window\": %u,\n  \"nodes\": %u,\n"
+            "  \"peak\": ", m->dims[0], m->dims[1], m->dims[2], r->steps,
+            m->window, m->nodes);
+    jnum(f, r->peak);
+    write_json_axes(f, r);
+    write_json_steps(f, r);
+    fprintf(f, ",\n  \"summary\": {\"psnr\": ");
+    jnum(f, r->psnr);
+    fprintf(f, ", \"psnr_min\": ");
+    jnum(f, r->psnr_min);
+    fprintf(f, ", \"ratio\": %.6f, \"bpv\": %.6f}\n}\n", r->ratio,
+            8 * r->bytes_axis / r->vts);
+}
+
+/* Writes path with fn.  Returns 0 or TVPAL_EXIT_FAIL (printed). */
+static int write_file(const char *path, const struct report *r,
+                      void (*fn)(FILE *, const struct report *))
+{
+    FILE *f = fopen(path, "w");
+    if (!f) {
+        fprintf(stderr, PROG ": %s: cannot write: %s\n", path, strerror(errno));
+        return TVPAL_EXIT_FAIL;
+    }
+    fn(f, r);
+    if (fclose(f) != 0) {
+        fprintf(stderr, PROG ": %s: write error\n", path);
+        return TVPAL_EXIT_FAIL;
+    }
     return 0;
+}
+
+/* The closing line's values, in a record for the summary_keys table. */
+struct summary {
+    double psnr, psnr_x, psnr_y, psnr_z, psnr_min, rmse, max_abs_error;
+    double flicker, ratio, ratio_8bit, bpv, index_bpv, table_bpv, disk_ratio;
+    double steps, window;
+};
+#define KEY(name, fmt, kind) {#name, fmt, kind, offsetof(struct summary, name)}
+static const struct column summary_keys[] = {
+    KEY(psnr, "%.4f", COL_REAL),
+    KEY(psnr_x, "%.4f", COL_REAL),
+    KEY(psnr_y, "%.4f", COL_REAL),
+    KEY(psnr_z, "%.4f", COL_REAL),
+    KEY(psnr_min, "%.4f", COL_REAL),
+    KEY(rmse, "%.6g", COL_REAL),
+    KEY(max_abs_error, "%.6g", COL_REAL),
+    KEY(flicker, "%.6g", COL_REAL),
+    KEY(ratio, "%.4f", COL_REAL),
+    KEY(ratio_8bit, "%.4f", COL_REAL),
+    KEY(bpv, "%.4f", COL_REAL),
+    KEY(index_bpv, "%.4f", COL_REAL),
+    KEY(table_bpv, "%.4f", COL_REAL),
+    KEY(disk_ratio, "%.4f", COL_REAL),
+    KEY(steps, "%u", COL_UINT),
+    KEY(window, "%u", COL_UINT),
+};
+#undef KEY
+
+static struct summary summary_of(const struct report *r)
+{
+    return (struct summary){
+        .psnr = r->psnr, .psnr_x = r->axis[0].psnr, .psnr_y = r->axis[1].psnr,
+        .psnr_z = r->axis[2].psnr, .psnr_min = r->psnr_min,
+        .rmse = r->worst_rmse, .max_abs_error = r->worst_max,
+        .flicker = r->worst_flick, .ratio = r->ratio,
+        .ratio_8bit = r->vts / r->bytes_axis, .bpv = 8 * r->bytes_axis / r->vts,
+        .index_bpv = 8 * r->idx_mean / r->vts,
+        .table_bpv = 8 * r->tab_mean / r->vts, .disk_ratio = r->ratio / 3.0,
+        .steps = r->steps, .window = r->m->window};
+}
+
+/* The closing key=value line on stdout. */
+static void print_summary_line(const struct report *r)
+{
+    const struct summary s = summary_of(r);
+    for (size_t k = 0; k < sizeof summary_keys / sizeof summary_keys[0]; k++) {
+        printf("%s%s=", k ? " " : "", summary_keys[k].name);
+        put_value(stdout, &summary_keys[k], &s);
+    }
+    putchar('\n');
+}
+
+/* The outputs in their order; the first that fails stops the others.
+ * Returns 0 or TVPAL_EXIT_FAIL (printed). */
+static int write_outputs(const struct report *r, const struct options *o)
+{
+    if (!o->quiet)
+        print_text(r);
+    if (o->csv_path && write_file(o->csv_path, r, write_csv_rows) != 0)
+        return TVPAL_EXIT_FAIL;
+    if (o->json_path && write_file(o->json_path, r, write_json_doc) != 0)
+        return TVPAL_EXIT_FAIL;
+    print_summary_line(r);
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    struct options o;
+    int status = parse_options(argc, argv, &o);
+    if (status >= 0)
+        return status;
+    struct tvpal_diag diag = {{0}};
+    struct tvpal_dataset *ds = NULL;
+    int rc = tvpal_dataset_open(&ds, o.dir, &diag);
+    if (rc < 0) {
+        print_lib_error(rc, &diag);
+        return TVPAL_EXIT_USAGE;
+    }
+    struct report r = {0};
+    struct scan_buffers b = {0};
+    status = validate_options(&o, &ds->m);
+    if (status == 0 && (report_init(&r, ds, o.dir) < 0 ||
+                        buffers_alloc(&b, ds, r.nvox) < 0)) {
+        fprintf(stderr, PROG ": out of memory\n");
+        status = TVPAL_EXIT_FAIL;
+    }
+    if (status == 0)
+        status = scan_steps(&r, o.refs, &b);
+    if (status == 0) {
+        summarize_errors(&r);
+        summarize_sizes(&r);
+        status = write_outputs(&r, &o);
+    }
+    buffers_free(&b);
+    free(r.per);
+    tvpal_dataset_close(ds);
+    return status;
 }

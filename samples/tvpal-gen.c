@@ -1,7 +1,11 @@
 /* tvpal-gen: deterministic analytic time-varying fields as raw float32
  * (little-endian, x fastest), one file per timestep, any size.  Used by the
  * tests, the demo and the benchmarks.  Output depends only on the options
- * (field, dims, steps, seed), never on the machine or the thread count. */
+ * (field, dims, steps, seed), never on the machine or the thread count.
+ *
+ * The steps of main: parse and check the options, create the output
+ * directory, then per timestep compute the field (gen_step) and write it,
+ * to its own file or appended to the --single file. */
 #define _GNU_SOURCE
 #include "tvpal_cli.h"
 #include "tvpal_format.h"
@@ -45,11 +49,16 @@ static void usage(FILE *f)
 
 enum field { BLOBS, TURB, FRONT, CONST };
 
+/* What a timestep's values depend on. */
 struct gen {
     enum field field;
     uint32_t dims[3], steps, seed;
-    double value;
+    double value;                 /* of the constant field */
 };
+
+/* ------------------------------------------------------------------------
+ * The fields
+ */
 
 /* Integer hash (lowbias32, Chris Wellons) for lattice noise. */
 static uint32_t hash32(uint32_t x)
@@ -95,65 +104,107 @@ static double vnoise(uint32_t seed, double x, double y, double z)
 
 #define NBLOBS 6
 
-static void gen_step(const struct gen *g, uint32_t t, float *out)
+static void gen_constant(const struct gen *g, float *out)
+{
+    size_t n = (size_t)g->dims[0] * g->dims[1] * g->dims[2];
+    for (size_t i = 0; i < n; i++)
+        out[i] = (float)g->value;
+}
+
+/* Blob b at time tt: its amplitude, and its separable factors
+ * exp(-|p-c|^2/s^2) = ex(x) ey(y) ez(z) along each axis (nx, ny, nz
+ * entries at ex, ey, ez). */
+static double blob_tables(const struct gen *g, int b, double tt, double *ex,
+                          double *ey, double *ez)
 {
     const uint32_t nx = g->dims[0], ny = g->dims[1], nz = g->dims[2];
-    const double tt = (double)t;
-    /* Coordinates are cell centres in [0, 1]. */
-    if (g->field == CONST) {
-        size_t n = (size_t)nx * ny * nz;
-        for (size_t i = 0; i < n; i++)
-            out[i] = (float)g->value;
-        return;
+    uint32_t h = hash32(g->seed * 1000u + (uint32_t)b);
+    double ph = (h & 0xFFFF) / 65536.0 * 2 * M_PI;
+    double sp = 0.02 + 0.03 * ((h >> 16) & 0xFF) / 255.0;
+    double rad = 0.15 + 0.2 * ((h >> 24) & 0xFF) / 255.0;
+    double cx = 0.5 + rad * cos(ph + sp * tt);
+    double cy = 0.5 + rad * sin(ph + sp * tt);
+    double cz = 0.5 + 0.3 * sin(0.7 * ph + 0.5 * sp * tt);
+    double s = 0.08 + 0.06 * (b % 3) / 2.0;
+    for (uint32_t i = 0; i < nx; i++) {
+        double d = (i + 0.5) / nx - cx;
+        ex[i] = exp(-d * d / (s * s));
     }
-    if (g->field == BLOBS) {
-        /* Separable: exp(-|p-c|^2/s^2) = ex(x) ey(y) ez(z); per-blob 1D
-         * tables make this cheap for large volumes. */
-        double *ex = malloc(sizeof(double) * NBLOBS * (nx + ny + nz));
-        if (!ex)
-            abort();
-        double *ey = ex + NBLOBS * nx, *ez = ey + NBLOBS * ny;
-        double amp[NBLOBS];
-        for (int b = 0; b < NBLOBS; b++) {
-            uint32_t h = hash32(g->seed * 1000u + (uint32_t)b);
-            double ph = (h & 0xFFFF) / 65536.0 * 2 * M_PI;
-            double sp = 0.02 + 0.03 * ((h >> 16) & 0xFF) / 255.0;
-            double rad = 0.15 + 0.2 * ((h >> 24) & 0xFF) / 255.0;
-            double cx = 0.5 + rad * cos(ph + sp * tt);
-            double cy = 0.5 + rad * sin(ph + sp * tt);
-            double cz = 0.5 + 0.3 * sin(0.7 * ph + 0.5 * sp * tt);
-            double s = 0.08 + 0.06 * (b % 3) / 2.0;
-            amp[b] = 0.6 + 0.4 * ((b * 37) % 7) / 6.0;
-            for (uint32_t i = 0; i < nx; i++) {
-                double d = (i + 0.5) / nx - cx;
-                ex[b * nx + i] = exp(-d * d / (s * s));
-            }
-            for (uint32_t i = 0; i < ny; i++) {
-                double d = (i + 0.5) / ny - cy;
-                ey[b * ny + i] = exp(-d * d / (s * s));
-            }
-            for (uint32_t i = 0; i < nz; i++) {
-                double d = (i + 0.5) / nz - cz;
-                ez[b * nz + i] = exp(-d * d / (s * s));
-            }
-        }
+    for (uint32_t i = 0; i < ny; i++) {
+        double d = (i + 0.5) / ny - cy;
+        ey[i] = exp(-d * d / (s * s));
+    }
+    for (uint32_t i = 0; i < nz; i++) {
+        double d = (i + 0.5) / nz - cz;
+        ez[i] = exp(-d * d / (s * s));
+    }
+    return 0.6 + 0.4 * ((b * 37) % 7) / 6.0;
+}
+
+/* Gaussian blobs on circular paths.  Separable: per-blob 1D tables make
+ * this cheap for large volumes. */
+static void gen_blobs(const struct gen *g, uint32_t t, float *out)
+{
+    const uint32_t nx = g->dims[0], ny = g->dims[1], nz = g->dims[2];
+    double *ex = malloc(sizeof(double) * NBLOBS * (nx + ny + nz));
+    if (!ex)
+        abort();
+    double *ey = ex + NBLOBS * nx, *ez = ey + NBLOBS * ny;
+    double amp[NBLOBS];
+    for (int b = 0; b < NBLOBS; b++)
+        amp[b] = blob_tables(g, b, (double)t, ex + b * nx, ey + b * ny,
+                             ez + b * nz);
 #ifdef _OPENMP
 #pragma omp parallel for schedule(static)
 #endif
-        for (uint32_t z = 0; z < nz; z++)
-            for (uint32_t y = 0; y < ny; y++) {
-                float *row = out + (size_t)nx * (y + (size_t)ny * z);
-                for (uint32_t x = 0; x < nx; x++) {
-                    double v = 0;
-                    for (int b = 0; b < NBLOBS; b++)
-                        v += amp[b] * ex[b * nx + x] * ey[b * ny + y] *
-                             ez[b * nz + z];
-                    row[x] = (float)v;
-                }
+    for (uint32_t z = 0; z < nz; z++)
+        for (uint32_t y = 0; y < ny; y++) {
+            float *row = out + (size_t)nx * (y + (size_t)ny * z);
+            for (uint32_t x = 0; x < nx; x++) {
+                double v = 0;
+                for (int b = 0; b < NBLOBS; b++)
+                    v += amp[b] * ex[b * nx + x] * ey[b * ny + y] *
+                         ez[b * nz + z];
+                row[x] = (float)v;
             }
-        free(ex);
-        return;
+        }
+    free(ex);
+}
+
+/* Turbulence at cell centre (px, py, pz) and time tt: octave o is advected
+ * with its own velocity, so the scales move relative to each other. */
+static double turbulence_at(const struct gen *g, double px, double py,
+                            double pz, double tt)
+{
+    double v = 0, amp = 1.0, f = 4.0;
+    for (int o = 0; o < 5; o++) {
+        double vx = 0.010 * (o + 1), vy = 0.006 * (2 - o), vz = 0.004;
+        v += amp * vnoise(g->seed + (uint32_t)o, f * (px - vx * tt),
+                          f * (py - vy * tt), f * (pz - vz * tt) + 0.05 * o * tt);
+        amp *= 0.55;
+        f *= 2.0;
     }
+    return v;
+}
+
+/* The front at (px, py, pz) and time tt: a tanh step about one voxel wide,
+ * wrinkled and sweeping along x every 40 steps, over faint noise. */
+static double front_at(const struct gen *g, double px, double py, double pz,
+                       double tt)
+{
+    double wr = 0.04 * vnoise(g->seed, 6 * py, 6 * pz, 0.0);
+    double pos = 0.1 + 0.8 * fmod(tt / 40.0, 1.0);
+    double width = 0.5 / g->dims[0]; /* about one voxel */
+    double d = (px + wr - pos) / width;
+    return 1.0 + 2.0 * 0.5 * (1.0 - tanh(d)) +
+           0.05 * vnoise(g->seed + 7, 10 * px, 10 * py, 10 * pz + 0.1 * tt);
+}
+
+/* The fields evaluated voxel by voxel (turbulence, front). */
+static void gen_pointwise(const struct gen *g, uint32_t t, float *out)
+{
+    const uint32_t nx = g->dims[0], ny = g->dims[1], nz = g->dims[2];
+    const double tt = (double)t;
 #ifdef _OPENMP
 #pragma omp parallel for schedule(static)
 #endif
@@ -162,163 +213,232 @@ static void gen_step(const struct gen *g, uint32_t t, float *out)
             float *row = out + (size_t)nx * (y + (size_t)ny * z);
             double pz = (z + 0.5) / nz, py = (y + 0.5) / ny;
             for (uint32_t x = 0; x < nx; x++) {
-                double px = (x + 0.5) / nx, v = 0;
-                if (g->field == TURB) {
-                    /* Octave o is advected with its own velocity, so the
-                     * scales move relative to each other. */
-                    double amp = 1.0, f = 4.0;
-                    for (int o = 0; o < 5; o++) {
-                        double vx = 0.010 * (o + 1), vy = 0.006 * (2 - o),
-                               vz = 0.004;
-                        v += amp * vnoise(g->seed + (uint32_t)o,
-                                          f * (px - vx * tt),
-                                          f * (py - vy * tt),
-                                          f * (pz - vz * tt) + 0.05 * o * tt);
-                        amp *= 0.55;
-                        f *= 2.0;
-                    }
-                } else { /* FRONT */
-                    double wr = 0.04 * vnoise(g->seed, 6 * py, 6 * pz, 0.0);
-                    double pos = 0.1 + 0.8 * fmod(tt / 40.0, 1.0);
-                    double width = 0.5 / nx; /* about one voxel */
-                    double d = (px + wr - pos) / width;
-                    v = 1.0 + 2.0 * 0.5 * (1.0 - tanh(d)) +
-                        0.05 * vnoise(g->seed + 7, 10 * px, 10 * py,
-                                      10 * pz + 0.1 * tt);
-                }
+                double px = (x + 0.5) / nx;
+                double v = g->field == TURB ? turbulence_at(g, px, py, pz, tt)
+                                            : front_at(g, px, py, pz, tt);
                 row[x] = (float)v;
             }
         }
 }
 
-int main(int argc, char **argv)
+/* Timestep t of the field into out (nx*ny*nz floats, x fastest).
+ * Coordinates are cell centres in [0, 1]. */
+static void gen_step(const struct gen *g, uint32_t t, float *out)
 {
-    static const struct option lopts[] = {
-        {"field", required_argument, 0, 'f'},
-        {"dims", required_argument, 0, 'd'},
-        {"steps", required_argument, 0, 's'},
-        {"output", required_argument, 0, 'o'},
-        {"single", required_argument, 0, 'S'},
-        {"prefix", required_argument, 0, 'p'},
-        {"seed", required_argument, 0, 'r'},
-        {"value", required_argument, 0, 'v'},
-        {"help", no_argument, 0, 'h'},
-        {"version", no_argument, 0, 'V'},
-        {0, 0, 0, 0}};
-    struct gen g = {.seed = 1, .value = 1.5};
-    const char *field = NULL, *dir = NULL, *single = NULL, *prefix = NULL;
-    int have_dims = 0, c;
+    switch (g->field) {
+    case CONST: gen_constant(g, out); break;
+    case BLOBS: gen_blobs(g, t, out); break;
+    case TURB:
+    case FRONT: gen_pointwise(g, t, out); break;
+    }
+}
+
+/* ------------------------------------------------------------------------
+ * Options
+ */
+
+struct options {
+    struct gen g;
+    const char *field, *dir, *single, *prefix;
+    int have_dims;
+    int nextra;                   /* arguments that are not options */
+};
+
+static const struct option long_options[] = {
+    {"field", required_argument, 0, 'f'},
+    {"dims", required_argument, 0, 'd'},
+    {"steps", required_argument, 0, 's'},
+    {"output", required_argument, 0, 'o'},
+    {"single", required_argument, 0, 'S'},
+    {"prefix", required_argument, 0, 'p'},
+    {"seed", required_argument, 0, 'r'},
+    {"value", required_argument, 0, 'v'},
+    {"help", no_argument, 0, 'h'},
+    {"version", no_argument, 0, 'V'},
+    {0, 0, 0, 0}};
+static const char short_options[] = "f:d:s:o:hV";
+
+/* Fills o from argv; numbers are checked as they come.  Returns -1 to go
+ * on, or the exit status when the program is done: --help, --version or a
+ * usage error (message printed). */
+static int parse_options(int argc, char **argv, struct options *o)
+{
+    int c;
     struct tvpal_diag diag;
-    while ((c = getopt_long(argc, argv, "f:d:s:o:hV", lopts, NULL)) != -1) {
+    *o = (struct options){.g = {.seed = 1, .value = 1.5}};
+    while ((c = getopt_long(argc, argv, short_options, long_options, NULL)) != -1) {
         switch (c) {
-        case 'f': field = optarg; break;
+        case 'f': o->field = optarg; break;
         case 'd':
-            if (tvpal_dims_parse(optarg, g.dims, &diag) < 0) {
+            if (tvpal_dims_parse(optarg, o->g.dims, &diag) < 0) {
                 fprintf(stderr, PROG ": --dims: %s\n", diag.msg);
                 return TVPAL_EXIT_USAGE;
             }
-            have_dims = 1;
+            o->have_dims = 1;
             break;
         case 's':
-            if (tvpal_parse_u32(optarg, 1, 1000000, &g.steps) < 0) {
+            if (tvpal_parse_u32(optarg, 1, 1000000, &o->g.steps) < 0) {
                 fprintf(stderr, PROG ": --steps \"%s\": expected 1..1000000\n",
                         optarg);
                 return TVPAL_EXIT_USAGE;
             }
             break;
-        case 'o': dir = optarg; break;
-        case 'S': single = optarg; break;
-        case 'p': prefix = optarg; break;
+        case 'o': o->dir = optarg; break;
+        case 'S': o->single = optarg; break;
+        case 'p': o->prefix = optarg; break;
         case 'r':
-            if (tvpal_parse_u32(optarg, 0, UINT32_MAX, &g.seed) < 0) {
+            if (tvpal_parse_u32(optarg, 0, UINT32_MAX, &o->g.seed) < 0) {
                 fprintf(stderr, PROG ": --seed \"%s\": expected a whole "
                         "number\n", optarg);
                 return TVPAL_EXIT_USAGE;
             }
             break;
         case 'v':
-            if (tvpal_parse_double(optarg, &g.value) < 0) {
+            if (tvpal_parse_double(optarg, &o->g.value) < 0) {
                 fprintf(stderr, PROG ": --value \"%s\": expected a finite "
                         "number\n", optarg);
                 return TVPAL_EXIT_USAGE;
             }
             break;
-        case 'h': usage(stdout); return 0;
-        case 'V': printf(PROG " " PACKAGE_VERSION "\n"); return 0;
+        case 'h': usage(stdout); return TVPAL_EXIT_OK;
+        case 'V': printf(PROG " " PACKAGE_VERSION "\n"); return TVPAL_EXIT_OK;
         default:
             fprintf(stderr, "Try '" PROG " --help'.\n");
             return TVPAL_EXIT_USAGE;
         }
     }
-    if (!field || !have_dims || !g.steps || (!dir && !single) ||
-        (dir && !*dir) || (single && !*single) ||
-        optind != argc) {
+    o->nextra = argc - optind;
+    return -1;
+}
+
+/* The required options are there and not empty, nothing else is; the field
+ * is known (sets o->g.field); the prefix defaults to the field's name.
+ * Returns 0 or TVPAL_EXIT_USAGE (printed). */
+static int validate_options(struct options *o)
+{
+    if (!o->field || !o->have_dims || !o->g.steps || (!o->dir && !o->single) ||
+        (o->dir && !*o->dir) || (o->single && !*o->single) || o->nextra) {
         fprintf(stderr, PROG ": --field, --dims, --steps and -o DIR (or "
                 "--single FILE) are required (try --help)\n");
         return TVPAL_EXIT_USAGE;
     }
-    if (!strcmp(field, "blobs")) g.field = BLOBS;
-    else if (!strcmp(field, "turbulence")) g.field = TURB;
-    else if (!strcmp(field, "front")) g.field = FRONT;
-    else if (!strcmp(field, "constant")) g.field = CONST;
-    else {
+    static const struct { const char *name; enum field field; } fields[] = {
+        {"blobs", BLOBS}, {"turbulence", TURB}, {"front", FRONT},
+        {"constant", CONST}};
+    size_t i = 0;
+    while (i < sizeof fields / sizeof fields[0] && strcmp(o->field, fields[i].name))
+        i++;
+    if (i == sizeof fields / sizeof fields[0]) {
         fprintf(stderr, PROG ": --field \"%s\": expected blobs, turbulence, "
-                "front or constant\n", field);
+                "front or constant\n", o->field);
         return TVPAL_EXIT_USAGE;
     }
-    if (!prefix)
-        prefix = field;
-    if (dir && tvpal_mkdirs(dir) < 0) {
-        fprintf(stderr, PROG ": %s: cannot create: %s\n", dir,
-                strerror(errno));
+    o->g.field = fields[i].field;
+    if (!o->prefix)
+        o->prefix = o->field;
+    return 0;
+}
+
+/* ------------------------------------------------------------------------
+ * Output
+ */
+
+/* Digits of the step number in file names: at least 4, more when needed, so
+ * that file names sort in time order (the encoder takes its inputs in
+ * argument order). */
+static int step_digits(uint32_t steps)
+{
+    int digits = 4;
+    for (uint32_t m = 10000; m <= steps - 1 && digits < 10; m *= 10)
+        digits++;
+    return digits;
+}
+
+/* Every timestep into one file, written as FILE.tmp and renamed when
+ * complete.  vol is scratch for nvox floats.  Returns 0 or TVPAL_EXIT_FAIL
+ * (printed). */
+static int write_single(const struct options *o, float *vol, size_t nvox)
+{
+    char *tmp = NULL;
+    FILE *f = NULL;
+    if (asprintf(&tmp, "%s.tmp", o->single) < 0) {
+        fprintf(stderr, PROG ": out of memory\n");
         return TVPAL_EXIT_FAIL;
     }
-    /* At least 4 digits, more when needed, so that file names sort in time
-     * order (the encoder takes its inputs in argument order). */
-    int digits = 4;
-    for (uint32_t m = 10000; m <= g.steps - 1 && digits < 10; m *= 10)
-        digits++;
-    size_t nvox = (size_t)g.dims[0] * g.dims[1] * g.dims[2];
+    if (!(f = fopen(tmp, "wb"))) {
+        fprintf(stderr, PROG ": %s: cannot create: %s\n", o->single,
+                strerror(errno));
+        free(tmp);
+        return TVPAL_EXIT_FAIL;
+    }
+    int ok = 1;
+    for (uint32_t t = 0; t < o->g.steps && ok; t++) {
+        gen_step(&o->g, t, vol);
+        tvpal_store_f32le(vol, (unsigned char *)vol, nvox);
+        ok = fwrite(vol, 4, nvox, f) == nvox;
+    }
+    /* Renamed only when every byte reached the file. */
+    ok = fclose(f) == 0 && ok && rename(tmp, o->single) == 0;
+    if (!ok)
+        fprintf(stderr, PROG ": %s: write error\n", o->single);
+    free(tmp);
+    return ok ? 0 : TVPAL_EXIT_FAIL;
+}
+
+/* Creates -o DIR when given, even with --single (which is what is written
+ * then).  Returns 0 or TVPAL_EXIT_FAIL (printed). */
+static int make_output_dir(const struct options *o)
+{
+    if (!o->dir)
+        return 0;
+    int rc = tvpal_mkdirs(o->dir);
+    if (rc < 0) {
+        fprintf(stderr, PROG ": %s: cannot create: %s\n", o->dir,
+                tvpal_strerror(rc));
+        return TVPAL_EXIT_FAIL;
+    }
+    return 0;
+}
+
+/* One file per timestep, DIR/PREFIX_tNNNN.f32, each written atomically.
+ * vol is scratch for nvox floats.  Returns 0 or TVPAL_EXIT_FAIL (printed). */
+static int write_per_step(const struct options *o, float *vol, size_t nvox)
+{
+    const int digits = step_digits(o->g.steps);
+    for (uint32_t t = 0; t < o->g.steps; t++) {
+        gen_step(&o->g, t, vol);
+        tvpal_store_f32le(vol, (unsigned char *)vol, nvox);
+        char *path;
+        if (asprintf(&path, "%s/%s_t%0*u.f32", o->dir, o->prefix, digits, t) < 0) {
+            fprintf(stderr, PROG ": out of memory\n");
+            return TVPAL_EXIT_FAIL;
+        }
+        int rc = tvpal_write_file_atomic(path, vol, nvox * 4);
+        if (rc < 0)
+            fprintf(stderr, PROG ": %s: cannot write: %s\n", path,
+                    tvpal_strerror(rc));
+        free(path);
+        if (rc < 0)
+            return TVPAL_EXIT_FAIL;
+    }
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    struct options o;
+    int status = parse_options(argc, argv, &o);
+    if (status >= 0)
+        return status;
+    if ((status = validate_options(&o)) != 0 || (status = make_output_dir(&o)) != 0)
+        return status;
+    size_t nvox = (size_t)o.g.dims[0] * o.g.dims[1] * o.g.dims[2];
     float *vol = malloc(nvox * sizeof *vol);
     if (!vol) {
         fprintf(stderr, PROG ": out of memory for %zu voxels\n", nvox);
         return TVPAL_EXIT_FAIL;
     }
-    FILE *sf = NULL;
-    char *stmp = NULL;
-    if (single) {
-        if (asprintf(&stmp, "%s.tmp", single) < 0 || !(sf = fopen(stmp, "wb"))) {
-            fprintf(stderr, PROG ": %s: cannot create: %s\n", single,
-                    strerror(errno));
-            return TVPAL_EXIT_FAIL;
-        }
-    }
-    for (uint32_t t = 0; t < g.steps; t++) {
-        gen_step(&g, t, vol);
-        tvpal_store_f32le(vol, (unsigned char *)vol, nvox);
-        if (sf) {
-            if (fwrite(vol, 4, nvox, sf) != nvox) {
-                fprintf(stderr, PROG ": %s: write error\n", single);
-                return TVPAL_EXIT_FAIL;
-            }
-            continue;
-        }
-        char *path;
-        if (asprintf(&path, "%s/%s_t%0*u.f32", dir, prefix, digits, t) < 0 ||
-            tvpal_write_file_atomic(path, vol, nvox * 4) < 0) {
-            fprintf(stderr, PROG ": %s/%s_t%0*u.f32: cannot write: %s\n", dir,
-                    prefix, digits, t, strerror(errno));
-            return TVPAL_EXIT_FAIL;
-        }
-        free(path);
-    }
-    if (sf) {
-        if (fclose(sf) != 0 || rename(stmp, single) < 0) {
-            fprintf(stderr, PROG ": %s: write error\n", single);
-            return TVPAL_EXIT_FAIL;
-        }
-        free(stmp);
-    }
+    status = o.single ? write_single(&o, vol, nvox) : write_per_step(&o, vol, nvox);
     free(vol);
-    return 0;
+    return status;
 }
