@@ -134,9 +134,11 @@ static int write_output(const char *out, const unsigned char *bytes, size_t nvox
         }
         return 0;
     }
-    int rc = tvpal_write_file_atomic(out, bytes, nvox * 4);
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_write_file_atomic(out, bytes, nvox * 4, &d);
     if (rc < 0) {
-        fprintf(stderr, PROG ": %s: cannot write: %s\n", out, tvpal_strerror(rc));
+        fprintf(stderr, PROG ": %s: cannot write: %s\n", out,
+                d.msg[0] ? d.msg : tvpal_strerror(rc));
         return TVPAL_EXIT_FAIL;
     }
     return 0;

@@ -691,7 +691,7 @@ static void make_node_dirs(struct run *r)
         struct tvpal_diag d = {{0}};
         char *nd;
         int rc = asprintf(&nd, "%s/node-%u", r->partial, k) < 0
-                     ? TVPAL_E_NOMEM : tvpal_mkdirs_diag(nd, &d);
+                     ? TVPAL_E_NOMEM : tvpal_mkdirs(nd, &d);
         if (rc < 0)
             die_usage("%s: cannot create output directory: %s", r->partial,
                       lib_error(rc, &d));
@@ -1157,7 +1157,7 @@ static void finish_partial(struct run *r)
                        : asprintf(&path, "%s/node-%d/manifest.txt",
                                   r->partial, k);
         rc = ok < 0 ? TVPAL_E_NOMEM
-                    : tvpal_write_file_atomic_diag(path, text, strlen(text),
+                    : tvpal_write_file_atomic(path, text, strlen(text),
                                                    &d);
         if (rc < 0)
             die_fail("%s: cannot write manifest: %s", r->partial,

@@ -195,7 +195,7 @@ static int load_and_print_manifest(const char *dir, struct tvpal_manifest *m)
     }
     /* Loaded and checked a moment ago: a failure to read it again only
      * leaves out the text. */
-    if (tvpal_read_file(mpath, &text, NULL) == 0) {
+    if (tvpal_read_file(mpath, &text, NULL, NULL) == 0) {
         fputs(text, stdout);
         free(text);
     }

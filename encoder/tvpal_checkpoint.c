@@ -100,7 +100,7 @@ int tvpal_checkpoint_save(const char *dir, const char *fingerprint,
     if (rc == 0 && !(path = checkpoint_path(dir)))
         rc = TVPAL_E_NOMEM;
     if (rc == 0)
-        rc = tvpal_write_file_atomic_diag(path, buf, len, diag);
+        rc = tvpal_write_file_atomic(path, buf, len, diag);
     else
         tvpal_diag_set(diag, rc, "checkpoint text");
     free(path);
@@ -208,7 +208,7 @@ int tvpal_checkpoint_load(const char *dir, const char *fingerprint,
                           struct tvpal_diag *diag)
 {
     char *path = checkpoint_path(dir), *text = NULL;
-    int rc = path ? tvpal_read_file(path, &text, NULL) : TVPAL_E_NOMEM;
+    int rc = path ? tvpal_read_file(path, &text, NULL, NULL) : TVPAL_E_NOMEM;
     if (rc < 0)
         tvpal_diag_set(diag, rc, "%s/checkpoint: %s", dir,
                        tvpal_strerror(rc));

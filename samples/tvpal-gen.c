@@ -391,10 +391,11 @@ static int make_output_dir(const struct options *o)
 {
     if (!o->dir)
         return 0;
-    int rc = tvpal_mkdirs(o->dir);
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_mkdirs(o->dir, &d);
     if (rc < 0) {
         fprintf(stderr, PROG ": %s: cannot create: %s\n", o->dir,
-                tvpal_strerror(rc));
+                d.msg[0] ? d.msg : tvpal_strerror(rc));
         return TVPAL_EXIT_FAIL;
     }
     return 0;
@@ -413,10 +414,11 @@ static int write_per_step(const struct options *o, float *vol, size_t nvox)
             fprintf(stderr, PROG ": out of memory\n");
             return TVPAL_EXIT_FAIL;
         }
-        int rc = tvpal_write_file_atomic(path, vol, nvox * 4);
+        struct tvpal_diag d = {{0}};
+        int rc = tvpal_write_file_atomic(path, vol, nvox * 4, &d);
         if (rc < 0)
             fprintf(stderr, PROG ": %s: cannot write: %s\n", path,
-                    tvpal_strerror(rc));
+                    d.msg[0] ? d.msg : tvpal_strerror(rc));
         free(path);
         if (rc < 0)
             return TVPAL_EXIT_FAIL;

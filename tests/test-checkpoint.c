@@ -47,14 +47,14 @@ static int is_empty(const struct tvpal_checkpoint_stats *st)
 static char *read_text(void)
 {
     char *text = NULL;
-    REQUIRE(tvpal_read_file(path_in("checkpoint"), &text, NULL) == 0,
+    REQUIRE(tvpal_read_file(path_in("checkpoint"), &text, NULL, NULL) == 0,
             "read checkpoint back");
     return text;
 }
 
 static void write_text(const char *text, size_t len)
 {
-    REQUIRE(tvpal_write_file_atomic(path_in("checkpoint"), text, len) == 0,
+    REQUIRE(tvpal_write_file_atomic(path_in("checkpoint"), text, len, NULL) == 0,
             "rewrite checkpoint");
 }
 
@@ -124,8 +124,8 @@ static void test_fingerprint(void)
     snprintf(in0, sizeof in0, "%s", path_in("in0"));
     snprintf(in1, sizeof in1, "%s", path_in("in1"));
     char *ins[2] = {in0, in1};
-    REQUIRE(tvpal_write_file_atomic(in0, "abcd", 4) == 0 &&
-                tvpal_write_file_atomic(in1, "efgh", 4) == 0, "inputs");
+    REQUIRE(tvpal_write_file_atomic(in0, "abcd", 4, NULL) == 0 &&
+                tvpal_write_file_atomic(in1, "efgh", 4, NULL) == 0, "inputs");
     char *f1 = NULL, *f2 = NULL, *f3 = NULL, *f4 = NULL;
     CHECK(tvpal_checkpoint_fingerprint("window=4", ins, 2, &f1) == 0 &&
               tvpal_checkpoint_fingerprint("window=4", ins, 2, &f2) == 0 &&
@@ -136,7 +136,7 @@ static void test_fingerprint(void)
     CHECK(f1 && !strncmp(f1, "window=4 ", 9) && strstr(f1, ":4:"),
           "layout: \"%s\"", f1 ? f1 : "");
     /* An input that changed size is another job. */
-    REQUIRE(tvpal_write_file_atomic(in1, "efghij", 6) == 0, "input changed");
+    REQUIRE(tvpal_write_file_atomic(in1, "efghij", 6, NULL) == 0, "input changed");
     CHECK(tvpal_checkpoint_fingerprint("window=4", ins, 2, &f4) == 0 && f4 &&
               strcmp(f1, f4), "changed input, same fingerprint");
     /* The checkpoint of one job is refused by the other. */

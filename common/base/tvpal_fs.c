@@ -11,7 +11,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-int tvpal_mkdirs_diag(const char *path, struct tvpal_diag *diag)
+int tvpal_mkdirs(const char *path, struct tvpal_diag *diag)
 {
     if (!path[0])
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "empty path");
@@ -35,11 +35,6 @@ int tvpal_mkdirs_diag(const char *path, struct tvpal_diag *diag)
     }
     free(p);
     return rc;
-}
-
-int tvpal_mkdirs(const char *path)
-{
-    return tvpal_mkdirs_diag(path, NULL);
 }
 
 int tvpal_rmtree(const char *path)
@@ -73,8 +68,8 @@ int tvpal_rmtree(const char *path)
     return rc;
 }
 
-int tvpal_write_file_atomic_diag(const char *path, const void *data,
-                                 size_t len, struct tvpal_diag *diag)
+int tvpal_write_file_atomic(const char *path, const void *data, size_t len,
+                            struct tvpal_diag *diag)
 {
     char *tmp;
     if (asprintf(&tmp, "%s.tmp", path) < 0)
@@ -117,16 +112,13 @@ int tvpal_write_file_atomic_diag(const char *path, const void *data,
     return rc;
 }
 
-int tvpal_write_file_atomic(const char *path, const void *data, size_t len)
-{
-    return tvpal_write_file_atomic_diag(path, data, len, NULL);
-}
-
-int tvpal_read_file(const char *path, char **out, size_t *len)
+int tvpal_read_file(const char *path, char **out, size_t *len,
+                    struct tvpal_diag *diag)
 {
     FILE *f = fopen(path, "rb");
     if (!f)
-        return TVPAL_E_OPEN;
+        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
+                              strerror(errno));
     char *buf = NULL;
     size_t n = 0, cap = 0;
     int rc = 0;
@@ -144,7 +136,8 @@ int tvpal_read_file(const char *path, char **out, size_t *len)
         n += k;
         if (k == 0) {
             if (ferror(f))
-                rc = TVPAL_E_READ;
+                rc = tvpal_diag_set(diag, TVPAL_E_READ, "%s: %s", path,
+                                    strerror(errno));
             break;
         }
     }

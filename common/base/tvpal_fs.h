@@ -7,26 +7,26 @@
 #include "tvpal_error.h"
 
 /* mkdir -p (mode 0755).  0, TVPAL_E_INVAL (empty path), TVPAL_E_NOMEM or
- * TVPAL_E_WRITE.  The _diag form also writes the cause into diag (optional,
- * caller-owned), e.g. "mkdir out/node-0: Permission denied"; the plain form
- * is the same with diag NULL. */
-int tvpal_mkdirs(const char *path);
-int tvpal_mkdirs_diag(const char *path, struct tvpal_diag *diag);
+ * TVPAL_E_WRITE; diag (optional, caller-owned) gets the cause, e.g.
+ * "mkdir out/node-0: Permission denied". */
+int tvpal_mkdirs(const char *path, struct tvpal_diag *diag);
 
 /* Removes a directory tree (files, subdirectories).  Missing is fine. */
 int tvpal_rmtree(const char *path);
 
 /* Writes len bytes to path atomically: path.tmp, fsync, rename.  0,
  * TVPAL_E_NOMEM, TVPAL_E_OPEN (path.tmp cannot be created) or TVPAL_E_WRITE;
- * on failure path is unchanged and path.tmp removed.  The _diag form also
- * writes the cause into diag (optional), e.g. "write out/manifest.txt.tmp:
- * No space left on device". */
-int tvpal_write_file_atomic(const char *path, const void *data, size_t len);
-int tvpal_write_file_atomic_diag(const char *path, const void *data,
-                                 size_t len, struct tvpal_diag *diag);
+ * on failure path is unchanged and path.tmp removed, and diag (optional)
+ * gets the cause, e.g. "write out/manifest.txt.tmp: No space left on
+ * device". */
+int tvpal_write_file_atomic(const char *path, const void *data, size_t len,
+                            struct tvpal_diag *diag);
 
-/* Reads a whole small file into a malloc'ed, NUL-terminated buffer. */
-int tvpal_read_file(const char *path, char **out, size_t *len);
+/* Reads a whole small file into a malloc'ed, NUL-terminated buffer (*len:
+ * its bytes, when len is non-NULL).  TVPAL_E_OPEN, TVPAL_E_READ or
+ * TVPAL_E_NOMEM; diag (optional) gets "PATH: cause". */
+int tvpal_read_file(const char *path, char **out, size_t *len,
+                    struct tvpal_diag *diag);
 
 /* fsync of a directory, so that renames in it are durable. */
 int tvpal_fsync_dir(const char *path);

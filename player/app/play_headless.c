@@ -85,8 +85,9 @@ static void setup_outputs(struct headless *h)
         h->quiet = 1;
     }
     if (h->outdir) {
-        if (tvpal_mkdirs(h->outdir) < 0)
-            play_die(2, "%s: cannot create: %s", h->outdir, strerror(errno));
+        struct tvpal_diag d = {{0}};
+        if (tvpal_mkdirs(h->outdir, &d) < 0)
+            play_die(2, "%s: cannot create: %s", h->outdir, d.msg);
         if (!h->csv_path &&
             asprintf(&h->csv_default, "%s/timing.csv", h->outdir) >= 0)
             h->csv_path = h->csv_default;

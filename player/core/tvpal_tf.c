@@ -203,9 +203,13 @@ int tvpal_tf_load(const char *path, double vmin, double vmax,
                   struct tvpal_tf *tf, struct tvpal_diag *diag)
 {
     char *text = NULL;
-    int rc = tvpal_read_file(path, &text, NULL);
-    if (rc < 0)
-        return tvpal_diag_set(diag, rc, "cannot read: %s", strerror(errno));
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_read_file(path, &text, NULL, &d);
+    if (rc < 0) { /* d says "PATH: cause"; the caller names the file */
+        const char *cause = strrchr(d.msg, ':');
+        return tvpal_diag_set(diag, rc, "cannot read: %s",
+                              cause ? cause + 2 : tvpal_strerror(rc));
+    }
     const char *p = text;
     while (isspace((unsigned char)*p))
         p++;
