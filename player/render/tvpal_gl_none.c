@@ -4,8 +4,6 @@
 #include "tvpal_glr.h"
 #include "tvpal_osmesa.h"
 
-#include <stdio.h>
-
 #define WHY "built without OSMesa (install libosmesa6-dev and reconfigure); " \
             "use --renderer cpu"
 
@@ -69,40 +67,9 @@ void tvpal_glr_times(const struct tvpal_glr *r, double *upload_ms,
     *upload_ms = *draw_ms = *readback_ms = 0;
 }
 
-/* ------------------------------------------------ the renderer interface */
-
-static int gl_set(void *c, uint32_t w, uint32_t h, uint32_t n,
-                  struct tvpal_diag *d)
-{
-    return tvpal_glr_set_slices(c, w, h, n, d);
-}
-
-static void gl_up(void *c, uint32_t layer, const uint8_t *idx)
-{
-    tvpal_glr_upload(c, layer, idx);
-}
-
-static int gl_draw(void *c, const struct tvpal_frame *f, float *rgba,
-                   struct tvpal_diag *d)
-{
-    return tvpal_glr_draw(c, f, rgba, d);
-}
-
-static void gl_times(const void *c, struct tvpal_render_times *t)
-{
-    tvpal_glr_times(c, &t->upload_ms, &t->draw_ms, &t->readback_ms);
-}
-
-static void gl_describe(const void *c, char *buf, size_t cap)
-{
-    const char *name = tvpal_glr_gl_name();
-    snprintf(buf, cap, "%s", name ? name : "GL");
-}
-
+/* Never reached with a renderer: tvpal_glr_create fails in this build. */
 void tvpal_glr_renderer(struct tvpal_glr *r, struct tvpal_renderer *out)
 {
-    *out = (struct tvpal_renderer){.name = "gl", .ctx = r,
-                                   .set_slices = gl_set, .upload = gl_up,
-                                   .draw = gl_draw, .times = gl_times,
-                                   .describe = gl_describe};
+    (void)r;
+    *out = (struct tvpal_renderer){.name = "gl"};
 }
