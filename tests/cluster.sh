@@ -12,6 +12,9 @@ PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
 command -v mpirun > /dev/null || { echo "no mpirun (scripts/setup-deps installs openmpi-bin)"; exit 99; }
 "$PLAY" --help | grep -q -- "--composite" || exit 99
+"$PLAY" --version | grep -q "mpi: yes" || { echo "built without MPI: skipped (an MPI launch is refused; see below)"; \
+    TVPAL_COMM=mpi "$PLAY" --version > /dev/null 2> "$W/nompi.txt"; \
+    grep -q "libopenmpi-dev" "$W/nompi.txt" && exit 77; cat "$W/nompi.txt"; exit 1; }
 MPI="timeout 300 mpirun --allow-run-as-root --oversubscribe"
 export LP_NUM_THREADS=1 OMPI_MCA_rmaps_base_oversubscribe=1
 # A build without OSMesa has only the cpu renderer: the same checks run with

@@ -4,6 +4,7 @@
 #include "play.h"
 #include "play_cluster.h"
 #include "tvpal_cli.h"
+#include "tvpal_comm.h"
 
 #include <getopt.h>
 #include <math.h>
@@ -305,17 +306,18 @@ static int apply(struct play_opts *o, const struct opt_def *d,
 
 static void print_version(void)
 {
-    printf(PROG " " PACKAGE_VERSION " (window: %s, gl: %s)\n",
+    printf(PROG " " PACKAGE_VERSION " (window: %s, gl: %s, mpi: %s)\n",
 #ifdef TVPAL_HAVE_WINDOW
            "yes",
 #else
            "no",
 #endif
 #ifdef TVPAL_HAVE_GL
-           "yes");
+           "yes",
 #else
-           "no");
+           "no",
 #endif
+           tvpal_comm_mpi_built() ? "yes" : "no");
 }
 
 int play_options_parse(struct play_opts *o, int argc, char **argv)

@@ -84,5 +84,7 @@ void tvpal_comm_close(struct tvpal_comm *c);
  * MPI_Init when it has not run. */
 int tvpal_comm_mpi_open(struct tvpal_comm *c, int *argc, char ***argv,
                         struct tvpal_diag *diag);
+/* Whether this build has MPI (1) or refuses it (0). */
+int tvpal_comm_mpi_built(void);
 
 #endif

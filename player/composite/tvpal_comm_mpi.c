@@ -180,3 +180,8 @@ int tvpal_comm_mpi_open(struct tvpal_comm *c, int *argc, char ***argv,
     c->finalize = mpi_finalize;
     return 0;
 }
+
+int tvpal_comm_mpi_built(void)
+{
+    return 1;
+}

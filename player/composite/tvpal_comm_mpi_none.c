@@ -9,3 +9,8 @@ int tvpal_comm_mpi_open(struct tvpal_comm *c, int *argc, char ***argv,
                           "MPI (install the Debian package libopenmpi-dev "
                           "and rebuild)");
 }
+
+int tvpal_comm_mpi_built(void)
+{
+    return 0;
+}
