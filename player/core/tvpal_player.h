@@ -6,9 +6,10 @@
  * is chosen; its slabs are brought to t (one record per shard during steady
  * playback, at most N after a jump); for every slice, palette =
  * TF(decoder[t]) with opacity corrected for the view; slices whose palette
- * is fully transparent are skipped; slice textures are uploaded only when
- * the slice's window changed since the last upload.  No allocation per
- * frame: scratch is sized when the player is opened.
+ * is fully transparent are skipped; a slice's indices go to the renderer
+ * (GL textures, the cpu renderer's tile index sets) only when the slice's
+ * window changed since the last upload.  No allocation per frame: scratch
+ * is sized when the player is opened.
  */
 #ifndef TVPAL_PLAYER_H
 #define TVPAL_PLAYER_H
@@ -60,7 +61,7 @@ const char *tvpal_player_io_name(const struct tvpal_player *p);
 const char *tvpal_player_dir(const struct tvpal_player *p);
 
 /* Transfer function and opacity scale used from the next frame on (no
- * texture is uploaded for a TF change). */
+ * slice is uploaded again for a TF change). */
 void tvpal_player_set_tf(struct tvpal_player *p, const struct tvpal_tf *tf,
                          double opacity_scale);
 
