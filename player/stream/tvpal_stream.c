@@ -145,6 +145,65 @@ static int open_part(struct tvpal_stream *s, struct part *p, int direct,
     return 0;
 }
 
+/* In-core: the shard's records region [4096, index) read into RAM, in
+ * pieces of at most 64 MiB (aligned), all queued; then every record
+ * verified once. */
+static int load_incore(struct tvpal_stream *s, struct part *p,
+                       struct tvpal_diag *diag)
+{
+    const struct tvpal_shard_header *h = tvpal_shard_hdr(p->sh);
+    struct tvpal_io *io = s->io;
+    uint64_t bytes = h->index_offset - TVPAL_SHARD_HEADER_BYTES;
+    int rc = 0;
+    if (!(p->all = aligned(bytes)))
+        return tvpal_diag_set(diag, TVPAL_E_NOMEM,
+                              "in-core: cannot hold %llu bytes of %s",
+                              (unsigned long long)bytes,
+                              tvpal_shard_path(p->sh));
+    s->incore_bytes += bytes;
+    const uint64_t piece = 64u << 20;
+    for (uint64_t off = 0; off < bytes && rc == 0; off += piece) {
+        uint64_t len = bytes - off < piece ? bytes - off : piece;
+        struct tvpal_io_req r = {
+            .fd = p->fd, .off = TVPAL_SHARD_HEADER_BYTES + off,
+            .len = len, .buf = p->all + off, .tag = len};
+        while (rc == 0 && tvpal_io_inflight(io) >= tvpal_io_depth(io))
+            rc = incore_reap(io, p, diag);
+        if (rc == 0) {
+            struct tvpal_diag qd = {{0}};
+            rc = tvpal_io_submit(io, &r, &qd);
+            if (rc < 0)
+                tvpal_diag_set(diag, rc, "%s: %s", tvpal_shard_path(p->sh),
+                               qd.msg);
+        }
+    }
+    while (rc == 0 && tvpal_io_inflight(io))
+        rc = incore_reap(io, p, diag);
+    for (uint32_t t = 0; t < h->steps && rc == 0; t++) {
+        const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, t);
+        struct tvpal_diag vd = {{0}};
+        rc = tvpal_record_verify(p->all + e->offset - TVPAL_SHARD_HEADER_BYTES,
+                                 e->bytes, t, h, &vd);
+        if (rc < 0)
+            tvpal_diag_set(diag, rc, "%s: %s", tvpal_shard_path(p->sh),
+                           vd.msg);
+    }
+    return rc;
+}
+
+/* Out-of-core: record buffers for N needed + P prefetched + P of an old
+ * prefetch window still in flight after a jump + 1 (nslots). */
+static int alloc_slots(struct part *p, unsigned nslots)
+{
+    p->nslots = nslots;
+    if (!(p->slots = calloc(p->nslots, sizeof *p->slots)))
+        return TVPAL_E_NOMEM;
+    for (unsigned k = 0; k < p->nslots; k++)
+        if (!(p->slots[k].buf = aligned(tvpal_shard_max_record(p->sh))))
+            return TVPAL_E_NOMEM;
+    return 0;
+}
+
 int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
                         unsigned nslabs, enum tvpal_io_kind kind, int incore,
                         unsigned prefetch, int direct,
@@ -185,60 +244,8 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
         rc = open_part(s, p, direct, diag);
         if (rc < 0)
             break;
-        if (incore) {
-            uint64_t bytes = h->index_offset - TVPAL_SHARD_HEADER_BYTES;
-            p->all = aligned(bytes);
-            if (!p->all) {
-                rc = tvpal_diag_set(diag, TVPAL_E_NOMEM,
-                                    "in-core: cannot hold %llu bytes of %s",
-                                    (unsigned long long)bytes,
-                                    tvpal_shard_path(p->sh));
-                break;
-            }
-            s->incore_bytes += bytes;
-            /* Read in pieces of at most 64 MiB (aligned), all queued. */
-            const uint64_t piece = 64u << 20;
-            for (uint64_t off = 0; off < bytes && rc == 0; off += piece) {
-                uint64_t len = bytes - off < piece ? bytes - off : piece;
-                struct tvpal_io_req r = {
-                    .fd = p->fd, .off = TVPAL_SHARD_HEADER_BYTES + off,
-                    .len = len, .buf = p->all + off, .tag = len};
-                while (rc == 0 && tvpal_io_inflight(io) >= tvpal_io_depth(io))
-                    rc = incore_reap(io, p, diag);
-                if (rc == 0) {
-                    struct tvpal_diag qd = {{0}};
-                    rc = tvpal_io_submit(io, &r, &qd);
-                    if (rc < 0)
-                        tvpal_diag_set(diag, rc, "%s: %s",
-                                       tvpal_shard_path(p->sh), qd.msg);
-                }
-            }
-            while (rc == 0 && tvpal_io_inflight(io))
-                rc = incore_reap(io, p, diag);
-            /* Verify every record once. */
-            for (uint32_t t = 0; t < h->steps && rc == 0; t++) {
-                const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, t);
-                struct tvpal_diag vd = {{0}};
-                rc = tvpal_record_verify(p->all + e->offset -
-                                             TVPAL_SHARD_HEADER_BYTES,
-                                         e->bytes, t, h, &vd);
-                if (rc < 0)
-                    tvpal_diag_set(diag, rc, "%s: %s", tvpal_shard_path(p->sh),
-                                   vd.msg);
-            }
-        } else {
-            /* N needed + P prefetched + P of an old prefetch window still
-             * in flight after a jump + 1. */
-            p->nslots = h->window + 2 * prefetch + 1;
-            p->slots = calloc(p->nslots, sizeof *p->slots);
-            if (!p->slots) {
-                rc = TVPAL_E_NOMEM;
-                break;
-            }
-            for (unsigned k = 0; k < p->nslots && rc == 0; k++)
-                if (!(p->slots[k].buf = aligned(tvpal_shard_max_record(p->sh))))
-                    rc = TVPAL_E_NOMEM;
-        }
+        rc = incore ? load_incore(s, p, diag)
+                    : alloc_slots(p, h->window + 2 * prefetch + 1);
     }
     if (rc < 0) {
         tvpal_stream_free(s);
