@@ -1,0 +1,280 @@
+/* tvpal_input.c: format detection and series of files over the format
+ * backends (see tvpal_input.h).  No format library here: each backend is
+ * its own adapter file. */
+#include "tvpal_input_impl.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const char *const format_names[] = {"auto", "raw", "netcdf", "vti"};
+
+const char *tvpal_input_format_name(enum tvpal_input_format f)
+{
+    return (unsigned)f < sizeof format_names / sizeof *format_names
+               ? format_names[f] : "unknown";
+}
+
+int tvpal_input_format_parse(const char *s, enum tvpal_input_format *f)
+{
+    for (unsigned i = 0; i < sizeof format_names / sizeof *format_names; i++)
+        if (!strcmp(s, format_names[i])) {
+            *f = (enum tvpal_input_format)i;
+            return 0;
+        }
+    return TVPAL_E_INVAL;
+}
+
+/* XML whose root element is a VTKFile of type ImageData, within the first
+ * bytes (an XML declaration and comments may come first). */
+static int looks_like_vti(const char *head, size_t n)
+{
+    const char *p = memchr(head, '<', n);
+    if (!p)
+        return 0;
+    const char *root = strstr(head, "<VTKFile");
+    return root && strstr(root, "ImageData") != NULL;
+}
+
+int tvpal_input_detect(const char *path, enum tvpal_input_format *f,
+                       struct tvpal_diag *diag)
+{
+    static const unsigned char hdf5_sig[8] = {0x89, 'H', 'D', 'F',
+                                              '\r', '\n', 0x1a, '\n'};
+    char head[1025];
+    FILE *fp = fopen(path, "rb");
+    if (!fp)
+        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
+                              strerror(errno));
+    size_t n = fread(head, 1, sizeof head - 1, fp);
+    int err = ferror(fp);
+    fclose(fp);
+    if (err)
+        return tvpal_diag_set(diag, TVPAL_E_READ, "%s: read error", path);
+    head[n] = 0;
+    *f = TVPAL_IN_RAW;
+    if (n >= 4 && !memcmp(head, "CDF", 3) &&
+        (head[3] == 1 || head[3] == 2 || head[3] == 5))
+        *f = TVPAL_IN_NETCDF;
+    else if (n >= 8 && !memcmp(head, hdf5_sig, 8))
+        *f = TVPAL_IN_NETCDF;   /* NetCDF-4; plain HDF5 is not read yet */
+    else if (n >= 5 && memchr(head, 0, n) == NULL && looks_like_vti(head, n))
+        *f = TVPAL_IN_VTI;
+    return 0;
+}
+
+static const struct tvpal_input_backend *backend_of(enum tvpal_input_format f)
+{
+    switch (f) {
+    case TVPAL_IN_NETCDF: return &tvpal_input_netcdf;
+    case TVPAL_IN_VTI: return &tvpal_input_vti;
+    default: return NULL;
+    }
+}
+
+struct tvpal_input {
+    const struct tvpal_input_backend *be;
+    struct tvpal_input_opts opts;
+    struct tvpal_input_info info;
+    char **files;              /* copies of the paths */
+    uint32_t *first;           /* [nfiles + 1]: first series step per file */
+    int nfiles;
+    double *times;             /* [steps] when info.has_times */
+    struct tvpal_input_file *cur;  /* the open file, or NULL */
+    int cur_i;
+};
+
+void tvpal_input_close(struct tvpal_input *in)
+{
+    if (!in)
+        return;
+    if (in->cur)
+        in->be->close(in->cur);
+    for (int i = 0; in->files && i < in->nfiles; i++)
+        free(in->files[i]);
+    free(in->files);
+    free(in->first);
+    free(in->times);
+    free(in);
+}
+
+/* Every file after the first must hold the same variable on the same grid
+ * (its name, type and dims); only the number of steps may differ. */
+static int check_same_grid(const struct tvpal_input_info *a,
+                           const struct tvpal_input_info *b,
+                           const char *first, const char *path,
+                           struct tvpal_diag *diag)
+{
+    if (memcmp(a->dims, b->dims, sizeof a->dims))
+        return tvpal_diag_set(diag, TVPAL_E_MISMATCH, "%s: variable %s is "
+                              "%ux%ux%u; %s has %ux%ux%u", path, b->var,
+                              b->dims[0], b->dims[1], b->dims[2], first,
+                              a->dims[0], a->dims[1], a->dims[2]);
+    if (a->type != b->type)
+        return tvpal_diag_set(diag, TVPAL_E_MISMATCH, "%s: variable %s is %s; "
+                              "%s has %s", path, b->var, tvpal_type_name(b->type),
+                              first, tvpal_type_name(a->type));
+    if (a->has_times != b->has_times)
+        return tvpal_diag_set(diag, TVPAL_E_MISMATCH, "%s: %s time values; %s "
+                              "%s", path, b->has_times ? "has" : "has no",
+                              first, a->has_times ? "has" : "has none");
+    return 0;
+}
+
+/* Opens file i into in->cur (closing another). */
+static int open_file(struct tvpal_input *in, int i, struct tvpal_input_info *info,
+                     double **times, struct tvpal_diag *diag)
+{
+    if (in->cur && in->cur_i == i && !info)
+        return 0;
+    if (in->cur)
+        in->be->close(in->cur);
+    in->cur = NULL;
+    struct tvpal_input_info scratch;
+    double *t = NULL;
+    int rc = in->be->open(&in->cur, in->files[i], &in->opts,
+                          info ? info : &scratch, times ? times : &t, diag);
+    free(t);
+    in->cur_i = i;
+    if (rc < 0)
+        in->cur = NULL;
+    return rc;
+}
+
+static int append_times(struct tvpal_input *in, const double *t, uint32_t n)
+{
+    uint32_t have = in->info.steps;
+    double *nt = realloc(in->times, sizeof *nt * ((size_t)have + n + 1));
+    if (!nt)
+        return TVPAL_E_NOMEM;
+    in->times = nt;
+    memcpy(nt + have, t, sizeof *nt * n);
+    return 0;
+}
+
+/* Reads every file's description: steps per file, and that they agree. */
+static int scan_files(struct tvpal_input *in, struct tvpal_diag *diag)
+{
+    for (int i = 0; i < in->nfiles; i++) {
+        struct tvpal_input_info fi;
+        double *times = NULL;
+        int rc = open_file(in, i, &fi, &times, diag);
+        if (rc == 0 && i == 0)
+            in->info = fi, in->info.steps = 0;
+        else if (rc == 0)
+            rc = check_same_grid(&in->info, &fi, in->files[0], in->files[i],
+                                 diag);
+        if (rc == 0 && fi.has_times)
+            rc = append_times(in, times, fi.steps);
+        free(times);
+        if (rc < 0)
+            return rc;
+        if (fi.steps > UINT32_MAX - in->info.steps)
+            return tvpal_diag_set(diag, TVPAL_E_OVERFLOW, "too many steps");
+        in->first[i] = in->info.steps;
+        in->info.steps += fi.steps;
+    }
+    in->first[in->nfiles] = in->info.steps;
+    return 0;
+}
+
+int tvpal_input_open(struct tvpal_input **out, enum tvpal_input_format fmt,
+                     char *const *files, int nfiles,
+                     const struct tvpal_input_opts *opts,
+                     struct tvpal_diag *diag)
+{
+    if (nfiles < 1)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "no input files");
+    int rc = 0;
+    if (fmt == TVPAL_IN_AUTO && (rc = tvpal_input_detect(files[0], &fmt, diag)) < 0)
+        return rc;
+    const struct tvpal_input_backend *be = backend_of(fmt);
+    if (!be)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: a raw file (no "
+                              "header tvpal reads): give --dims and --type",
+                              files[0]);
+    struct tvpal_input *in = calloc(1, sizeof *in);
+    if (!in)
+        return TVPAL_E_NOMEM;
+    in->be = be;
+    in->opts = opts ? *opts : (struct tvpal_input_opts){0};
+    in->nfiles = nfiles;
+    in->cur_i = -1;
+    in->files = calloc((size_t)nfiles, sizeof *in->files);
+    in->first = calloc((size_t)nfiles + 1, sizeof *in->first);
+    rc = in->files && in->first ? 0 : TVPAL_E_NOMEM;
+    for (int i = 0; rc == 0 && i < nfiles; i++)
+        if (!(in->files[i] = strdup(files[i])))
+            rc = TVPAL_E_NOMEM;
+    if (rc == 0)
+        rc = scan_files(in, diag);
+    if (rc == 0 && in->info.steps == 0)
+        rc = tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s has no "
+                            "timesteps", files[0], in->info.var);
+    if (rc < 0) {
+        tvpal_input_close(in);
+        return rc;
+    }
+    *out = in;
+    return 0;
+}
+
+const struct tvpal_input_info *tvpal_input_info(const struct tvpal_input *in)
+{
+    return &in->info;
+}
+
+/* The file holding series step t (binary search over first[]). */
+static int file_of(const struct tvpal_input *in, uint32_t t)
+{
+    int lo = 0, hi = in->nfiles - 1;
+    while (lo < hi) {
+        int mid = (lo + hi + 1) / 2;
+        if (in->first[mid] <= t)
+            lo = mid;
+        else
+            hi = mid - 1;
+    }
+    return lo;
+}
+
+const char *tvpal_input_file(const struct tvpal_input *in, uint32_t t,
+                             uint32_t *index_in_file)
+{
+    int i = file_of(in, t);
+    if (index_in_file)
+        *index_in_file = t - in->first[i];
+    return in->files[i];
+}
+
+int tvpal_input_read(struct tvpal_input *in, uint32_t t, float *dst,
+                     struct tvpal_diag *diag)
+{
+    if (t >= in->info.steps)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u of %u", t,
+                              in->info.steps);
+    int i = file_of(in, t);
+    int rc = open_file(in, i, NULL, NULL, diag);
+    if (rc < 0)
+        return rc;
+    return in->be->read(in->cur, t - in->first[i], dst, diag);
+}
+
+double tvpal_input_time(const struct tvpal_input *in, uint32_t t)
+{
+    return in->info.has_times && t < in->info.steps ? in->times[t] : (double)t;
+}
+
+int tvpal_input_describe(const char *path, enum tvpal_input_format fmt,
+                         char **text, struct tvpal_diag *diag)
+{
+    int rc = 0;
+    if (fmt == TVPAL_IN_AUTO && (rc = tvpal_input_detect(path, &fmt, diag)) < 0)
+        return rc;
+    const struct tvpal_input_backend *be = backend_of(fmt);
+    if (!be)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: a raw file: no "
+                              "header says what it holds", path);
+    return be->describe(path, text, diag);
+}

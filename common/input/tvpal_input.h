@@ -1,0 +1,113 @@
+/* tvpal_input.h: readers of self-describing simulation output (NetCDF, VTK
+ * ImageData), one timestep at a time.
+ *
+ * A series is one or more files of one format holding one variable in
+ * time order: a file may hold one timestep or several (a time dimension).
+ * The variable's last three dimensions are z, y, x whatever their names;
+ * tvpal_input_read gives a timestep as float32, x fastest, with missing
+ * values (CF _FillValue, missing_value, outside valid_min/max/range) as NaN,
+ * so the encoder's NaN policy (refuse, or --nan-as) applies to them.  A
+ * reader holds at most one timestep's worth of scratch: memory does not
+ * grow with the files.  Raw files are read by the encoder itself
+ * (tvpal_raw.h); this interface is for the formats that say what they hold.
+ *
+ * Each format is one backend file, the only one that includes its library
+ * (LAYERS.md): tvpal_in_netcdf.c (libnetcdf), tvpal_in_vti.c (expat, zlib).
+ * A build without a library has its _none.c twin, which refuses the format
+ * naming the Debian package to install.
+ *
+ * All functions return 0 or a negative TVPAL_E_* code and never print; the
+ * diag (optional, caller-owned) names the file, the variable and what was
+ * expected. */
+#ifndef TVPAL_INPUT_H
+#define TVPAL_INPUT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "tvpal_error.h"
+#include "tvpal_raw.h"
+
+enum tvpal_input_format {
+    TVPAL_IN_AUTO,     /* from the file's own bytes (tvpal_input_detect) */
+    TVPAL_IN_RAW,      /* no header: dims and type must be given */
+    TVPAL_IN_NETCDF,   /* classic, 64-bit offset, CDF-5 and NetCDF-4 */
+    TVPAL_IN_VTI       /* VTK XML ImageData */
+};
+
+/* "auto", "raw", "netcdf", "vti" <-> the enum; parse: 0 or TVPAL_E_INVAL. */
+const char *tvpal_input_format_name(enum tvpal_input_format f);
+int tvpal_input_format_parse(const char *s, enum tvpal_input_format *f);
+
+/* The format of path from its first bytes, never from its name: "CDF\1",
+ * "CDF\2", "CDF\5" and HDF5's signature (NetCDF-4 is HDF5) are NetCDF;
+ * an XML file whose root is <VTKFile type="ImageData"> is vti; anything else
+ * is raw.  TVPAL_E_OPEN or TVPAL_E_READ when path cannot be read. */
+int tvpal_input_detect(const char *path, enum tvpal_input_format *f,
+                       struct tvpal_diag *diag);
+
+struct tvpal_input_opts {
+    const char *var;        /* variable (NetCDF) or point array (vti);
+                             * NULL: the only candidate, or vti's active
+                             * Scalars */
+    const char *time_dim;   /* NetCDF: the time dimension; NULL: the
+                             * unlimited one, else the dimension a CF time
+                             * coordinate (units "... since ...") names */
+};
+
+/* What a series holds, from its files. */
+struct tvpal_input_info {
+    uint32_t dims[3];           /* x, y, z */
+    uint32_t steps;             /* over all files */
+    enum tvpal_type type;       /* the stored type (f32 after CF unpacking
+                                 * of packed integers, f64 for doubles) */
+    char var[128];              /* the variable read */
+    char units[64];             /* its units attribute, or "" */
+    char dim_names[3][64];      /* x, y, z dimension names, or "" */
+    double spacing[3], origin[3];  /* 1 and 0 where the file says nothing */
+    int nonuniform[3];          /* 1: the axis' coordinates are not evenly
+                                 * spaced (spacing then 1, origin 0) */
+    int has_times;              /* times from the files (tvpal_input_time) */
+    char time_units[128];       /* e.g. "hours since 2005-08-28 00:00:00" */
+    uint64_t missing_attrs;     /* 1: fill/missing/valid-range attributes
+                                 * that reading turns into NaN */
+};
+
+struct tvpal_input;
+
+/* Opens files[0..nfiles) as one series of format fmt (AUTO: detected
+ * from files[0]; every file must be of that format).  Checks that every
+ * file has the variable with the same spatial dims.  Owns *out on
+ * success (tvpal_input_close).  Errors: TVPAL_E_OPEN, TVPAL_E_FORMAT (not
+ * such a file, corrupt), TVPAL_E_INVAL (no such variable: the diag lists
+ * the variables; fewer than 3 spatial dims; several steps per file wanted
+ * and no time dimension), TVPAL_E_MISMATCH (dims differ between files),
+ * TVPAL_E_SYS (format not built: the diag names the package). */
+int tvpal_input_open(struct tvpal_input **out, enum tvpal_input_format fmt,
+                     char *const *files, int nfiles,
+                     const struct tvpal_input_opts *opts,
+                     struct tvpal_diag *diag);
+void tvpal_input_close(struct tvpal_input *in);   /* NULL is a no-op */
+
+const struct tvpal_input_info *tvpal_input_info(const struct tvpal_input *in);
+
+/* Timestep t (0-based over the series) into dst: dims[0] * dims[1] *
+ * dims[2] floats, x fastest; missing values NaN.  Reads only that step
+ * (hyperslab or array of one file). */
+int tvpal_input_read(struct tvpal_input *in, uint32_t t, float *dst,
+                     struct tvpal_diag *diag);
+
+/* The time value of step t (has_times), else t. */
+double tvpal_input_time(const struct tvpal_input *in, uint32_t t);
+
+/* The file of step t and the step's index within it. */
+const char *tvpal_input_file(const struct tvpal_input *in, uint32_t t,
+                             uint32_t *index_in_file);
+
+/* A listing of what path holds, for people (tvpal-info --inspect): the
+ * format, then one line per variable with its dims, type and units.
+ * *text is malloc'ed. */
+int tvpal_input_describe(const char *path, enum tvpal_input_format fmt,
+                         char **text, struct tvpal_diag *diag);
+
+#endif

@@ -1,0 +1,32 @@
+/* tvpal_input_impl.h: what a format backend of tvpal_input provides (for
+ * tvpal_input.c and the backend files only).
+ *
+ * A backend opens one file at a time: tvpal_input.c strings the files of a
+ * series together, checks that they agree and maps a series step to (file,
+ * step in file). */
+#ifndef TVPAL_INPUT_IMPL_H
+#define TVPAL_INPUT_IMPL_H
+
+#include "tvpal_input.h"
+
+struct tvpal_input_file;   /* a backend's open file */
+
+struct tvpal_input_backend {
+    const char *name;      /* "netcdf", "vti" */
+    /* Opens path; fills info (steps: the steps in this file; times of
+     * those steps into *times, malloc'ed, when info->has_times). */
+    int (*open)(struct tvpal_input_file **out, const char *path,
+                const struct tvpal_input_opts *opts,
+                struct tvpal_input_info *info, double **times,
+                struct tvpal_diag *diag);
+    /* Step k of the file into dst (float32, x fastest, missing NaN). */
+    int (*read)(struct tvpal_input_file *f, uint32_t k, float *dst,
+                struct tvpal_diag *diag);
+    void (*close)(struct tvpal_input_file *f);
+    int (*describe)(const char *path, char **text, struct tvpal_diag *diag);
+};
+
+extern const struct tvpal_input_backend tvpal_input_netcdf;
+extern const struct tvpal_input_backend tvpal_input_vti;
+
+#endif
