@@ -10,6 +10,7 @@ void tvpal_manifest_clear(struct tvpal_manifest *m)
 {
     free(m->encoder);
     free(m->options);
+    free(m->source_var);
     for (size_t i = 0; i < m->nsources; i++)
         free(m->sources[i]);
     free(m->sources);
@@ -58,8 +59,13 @@ int tvpal_manifest_format(const struct tvpal_manifest *m, char **out)
     for (int i = 0; i < TVPAL_HIST_BINS; i++)
         fprintf(f, " %llu", (unsigned long long)m->histogram[i]);
     fprintf(f, "\nsource_bytes = %llu\n", (unsigned long long)m->source_bytes);
-    fprintf(f, "source_layout = %s\n",
-            m->single_file ? "single-file" : "file-per-step");
+    fprintf(f, "source_layout = %s\n", m->single_file ? "single-file"
+                                      : m->series ? "series" : "file-per-step");
+    /* Raw sources say nothing more (manifests as before these keys). */
+    if (m->source_format[0] && strcmp(m->source_format, "raw")) {
+        fprintf(f, "source_format = %s\n", m->source_format);
+        fprintf(f, "source_var = %s\n", m->source_var ? m->source_var : "");
+    }
     for (size_t i = 0; i < m->nsources; i++)
         fprintf(f, "source = %s\n", m->sources[i]);
     if (fclose(f) != 0) {
@@ -166,6 +172,14 @@ static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
         m->source_bytes = strtoull(v, NULL, 10);
     } else if (!strcmp(k, "source_layout")) {
         m->single_file = !strcmp(v, "single-file");
+        m->series = !strcmp(v, "series");
+    } else if (!strcmp(k, "source_format")) {
+        bad = strlen(v) >= sizeof m->source_format;
+        if (!bad)
+            strcpy(m->source_format, v);
+    } else if (!strcmp(k, "source_var")) {
+        free(m->source_var);
+        bad = !(m->source_var = strdup(v));
     } else if (!strcmp(k, "encoder")) {
         free(m->encoder);
         bad = !(m->encoder = strdup(v));
@@ -202,7 +216,8 @@ static int manifest_check(const struct tvpal_manifest *m, unsigned seen,
         return tvpal_diag_set(diag, TVPAL_E_MANIFEST,
                               "nodes = %u exceeds the smallest dimension %u",
                               m->nodes, mind);
-    if (!m->single_file && m->nsources && m->nsources != m->steps)
+    if (!m->single_file && !m->series && m->nsources &&
+        m->nsources != m->steps)
         return tvpal_diag_set(diag, TVPAL_E_MANIFEST,
                               "%zu source lines for %u steps", m->nsources,
                               m->steps);

@@ -26,6 +26,13 @@ struct tvpal_manifest {
     double nan_as;
     uint64_t nonfinite;                   /* values replaced by nan_as */
     int single_file;                      /* one input holding all steps */
+    int series;                           /* self-describing files of one
+                                           * or more steps each, in order
+                                           * (source_layout = series) */
+    char source_format[16];               /* "raw" (or "" = raw), "netcdf",
+                                           * "vti": how to read the sources */
+    char *source_var;                     /* owned; the variable read from
+                                           * self-describing sources */
     uint64_t source_bytes;
     uint32_t table_format;                /* 0 float32, 1 16-bit scaled */
     char *encoder;                        /* owned strings (may be NULL) */
