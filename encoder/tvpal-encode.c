@@ -23,6 +23,7 @@
 #include "tvpal_error.h"
 #include "tvpal_format.h"
 #include "tvpal_fs.h"
+#include "tvpal_input.h"
 #include "tvpal_manifest.h"
 #include "tvpal_raw.h"
 #include "tvpal_shard.h"
@@ -51,18 +52,31 @@
 static void usage(FILE *f)
 {
     fprintf(f,
-"Usage: " PROG " --dims NXxNYxNZ [options] -o OUTDIR INPUT...\n"
-"Encode a time series of raw volumes (one file per timestep, in time order,\n"
-"or one file holding all timesteps with --steps) into a tvpal dataset: for\n"
-"each axis, 8-bit indexed slices with per-window decoder tables.\n"
+"Usage: " PROG " [--dims NXxNYxNZ] [options] -o OUTDIR INPUT...\n"
+"Encode a time series of volumes into a tvpal dataset: for each axis, 8-bit\n"
+"indexed slices with per-window decoder tables.  INPUT is raw (one file per\n"
+"timestep, in time order, or one file holding all timesteps with --steps),\n"
+"or NetCDF or VTK ImageData (.vti) files, which say their own dims, type\n"
+"and steps (a file may hold several timesteps: a time dimension).\n"
 "\n"
 "Input:\n"
-"  -d, --dims NXxNYxNZ    volume size, x fastest (required)\n"
-"  -t, --type TYPE        f32 (default), f64, u8, u16, i16\n"
-"  -e, --endian ORDER     little (default) or big\n"
-"  -s, --steps T          INPUT is one file holding T timesteps\n"
-"      --nan-as VALUE     replace NaN and infinite values by VALUE\n"
-"                         (default: refuse them, naming file and timestep)\n"
+"      --format F         auto (default: from each file's own bytes), raw,\n"
+"                         netcdf or vti\n"
+"      --var NAME         the variable (NetCDF) or point array (vti) to\n"
+"                         encode (default: the only one, or vti's active\n"
+"                         scalars; tvpal-info --inspect FILE lists them)\n"
+"      --time-dim NAME    NetCDF: the time dimension (default: the\n"
+"                         unlimited one, or the one a CF time coordinate\n"
+"                         names)\n"
+"  -d, --dims NXxNYxNZ    volume size, x fastest (required for raw input;\n"
+"                         must agree with a self-describing file)\n"
+"  -t, --type TYPE        raw: f32 (default), f64, u8, u16, i16\n"
+"  -e, --endian ORDER     raw: little (default) or big\n"
+"  -s, --steps T          raw: INPUT is one file holding T timesteps\n"
+"      --nan-as VALUE     replace NaN and infinite values by VALUE, and\n"
+"                         the missing values of NetCDF (_FillValue,\n"
+"                         missing_value, outside valid_range) (default:\n"
+"                         refuse them, naming file, timestep and voxel)\n"
 "Encoding:\n"
 "  -w, --window N         timesteps per DCT window, 1..16 (default 4;\n"
 "                         N = 1 is the plain 8-bit Lloyd-Max baseline)\n"
@@ -162,6 +176,9 @@ struct opts {
     int force, quiet;
     char **inputs;
     int ninputs;
+    enum tvpal_input_format format;   /* --format; AUTO until detected */
+    const char *var, *time_dim;       /* --var, --time-dim */
+    int have_type, have_endian;       /* given on the command line */
 };
 
 /* How an option's argument is parsed (parse_option). */
@@ -173,6 +190,8 @@ enum optkind {
     OPT_FLAG,      /* no argument: sets the int at field to 1 */
     OPT_NAN_AS,    /* finite |value| <= TVPAL_VALUE_MAX into nan_as */
     OPT_OUTPUT,    /* OUTDIR */
+    OPT_FORMAT,    /* input format into format */
+    OPT_TEXT,      /* the argument into the const char * at field */
     OPT_HELP,
     OPT_VERSION
 };
@@ -219,6 +238,12 @@ static const struct optspec {
     {"alloc", OPT_LONG_ONLY + 5, OPT_CHOICE,
      offsetof(struct opts, alloc_mse), 0, 0, {"variance", "greedy-mse"},
      "variance or greedy-mse"},
+    {"format", OPT_LONG_ONLY + 6, OPT_FORMAT, 0, 0, 0, {0},
+     "auto, raw, netcdf or vti"},
+    {"var", OPT_LONG_ONLY + 7, OPT_TEXT, offsetof(struct opts, var), 0, 0,
+     {0}, NULL},
+    {"time-dim", OPT_LONG_ONLY + 8, OPT_TEXT, offsetof(struct opts, time_dim),
+     0, 0, {0}, NULL},
     {"output", 'o', OPT_OUTPUT, 0, 0, 0, {0}, NULL},
     {"force", 'f', OPT_FLAG, offsetof(struct opts, force), 0, 0, {0}, NULL},
     {"quiet", 'q', OPT_FLAG, offsetof(struct opts, quiet), 0, 0, {0}, NULL},
@@ -271,6 +296,13 @@ static void parse_option(const struct optspec *sp, const char *arg,
     case OPT_OUTPUT:
         o->outdir = arg;
         return;
+    case OPT_FORMAT:
+        if (tvpal_input_format_parse(arg, &o->format) < 0)
+            break;
+        return;
+    case OPT_TEXT:
+        *(const char **)(void *)(base + sp->field) = arg;
+        return;
     case OPT_HELP:
         usage(stdout);
         exit(0);
@@ -314,6 +346,8 @@ static int parse_options(int argc, char **argv, struct opts *o)
         }
         parse_option(&g_optspec[i], optarg, o);
         have_dims |= g_optspec[i].kind == OPT_DIMS;
+        o->have_type |= g_optspec[i].kind == OPT_TYPE;
+        o->have_endian |= g_optspec[i].key == 'e';
     }
     o->inputs = argv + optind;
     o->ninputs = argc - optind;
@@ -323,14 +357,16 @@ static int parse_options(int argc, char **argv, struct opts *o)
 /* Every rule between options and arguments: what is required, what
  * conflicts, what the build cannot do.  Ends the program (exit 2) on the
  * first broken rule, before anything is read or written. */
-static void validate_opts(const struct opts *o, int have_dims)
+static void validate_opts(const struct opts *o, int have_dims,
+                          uint32_t input_steps)
 {
     if (!have_dims)
-        die_usage("--dims NXxNYxNZ is required (try --help)");
+        die_usage("--dims NXxNYxNZ is required for raw input (try --help)");
     if (!o->outdir || !*o->outdir)
         die_usage("-o OUTDIR is required (try --help)");
     if (o->ninputs < 1)
-        die_usage("no INPUT files given (one raw file per timestep)");
+        die_usage("no INPUT files given (one raw file per timestep, or "
+                  "NetCDF or VTK files)");
     if (o->steps_single && o->ninputs != 1)
         die_usage("--steps T takes exactly one INPUT holding all T timesteps "
                   "(%d given)", o->ninputs);
@@ -345,8 +381,9 @@ static void validate_opts(const struct opts *o, int have_dims)
         die_usage("-o: a newline in the path is not supported");
     const uint64_t step_bytes = (uint64_t)d[0] * d[1] * d[2] *
                                 tvpal_type_size(o->type);
-    const uint32_t T = o->steps_single ? o->steps_single
-                                       : (uint32_t)o->ninputs;
+    const uint32_t T = input_steps ? input_steps
+                       : o->steps_single ? o->steps_single
+                                         : (uint32_t)o->ninputs;
     if (step_bytes > (uint64_t)INT64_MAX / T)
         die_usage("--steps %u of %ux%ux%u %s: total size overflows", T,
                   d[0], d[1], d[2], tvpal_type_name(o->type));
@@ -357,9 +394,9 @@ static void validate_opts(const struct opts *o, int have_dims)
 
 /* Text of the options that decide the output bytes: with the inputs, the
  * job's fingerprint (tvpal_checkpoint_fingerprint).  Malloc'ed. */
-static char *job_params(const struct opts *o)
+static char *job_params(const struct opts *o, const struct tvpal_input *in)
 {
-    char *s = NULL;
+    char *s = NULL, *t = NULL;
     int n = asprintf(&s, "table=%d refine=%u naive=%d klt=%d alloc=%d "
                      "dims=%ux%ux%u type=%s endian=%s window=%u nodes=%u "
                      "steps=%u nan_as=%s%.17g", o->table_format, o->refine,
@@ -368,7 +405,16 @@ static char *job_params(const struct opts *o)
                      o->big_endian ? "big" : "little", o->window, o->nodes,
                      o->steps_single, o->has_nan_as ? "" : "none:",
                      o->has_nan_as ? o->nan_as : 0.0);
-    return n < 0 ? NULL : s;
+    if (n < 0)
+        return NULL;
+    if (!in)
+        return s;
+    /* Raw jobs keep the fingerprint of earlier versions (their partial
+     * outputs still resume). */
+    n = asprintf(&t, "%s format=%s var=%s", s, tvpal_input_format_name(o->format),
+                 tvpal_input_info(in)->var);
+    free(s);
+    return n < 0 ? NULL : t;
 }
 
 /* The manifest's "options" line: the command-line form of job_params. */
@@ -456,6 +502,7 @@ struct run {
     struct slicejob *jobs;   /* max_jobs */
     float **ring;            /* N converted timesteps, step t at t % N */
     void *raw;               /* one source timestep */
+    struct tvpal_input *in;  /* self-describing input, or NULL (raw) */
     double t_encode;         /* seconds of the streaming loop */
 };
 
@@ -494,6 +541,7 @@ struct loaded {
 static void read_convert(struct run *r, int fd, off_t off, float *dst,
                          int stats, struct loaded *res)
 {
+    /* fd < 0: the timestep is in r->raw already (a reader put it there). */
     const struct opts *o = &r->o;
     const size_t esz = tvpal_type_size(o->type), nvox = r->nvox;
     char *raw = r->raw;
@@ -513,7 +561,7 @@ static void read_convert(struct run *r, int fd, off_t off, float *dst,
         size_t b = nvox * (size_t)(id + 1) / (size_t)nt;
         size_t mybad = 0, myrep = 0;
         int rc = 0;
-        for (size_t got = a * esz; got < b * esz;) {
+        for (size_t got = a * esz; fd >= 0 && got < b * esz;) {
             ssize_t k = pread(fd, raw + got, b * esz - got, off + (off_t)got);
             if (k < 0 && errno == EINTR)
                 continue;
@@ -563,14 +611,25 @@ static void load_step(struct run *r, uint32_t t, float *dst)
     const struct opts *o = &r->o;
     const char *path = o->steps_single ? o->inputs[0] : o->inputs[t];
     const off_t off = o->steps_single ? (off_t)t * (off_t)r->step_bytes : 0;
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (fd < 0) /* maybe transient (NFS, permissions): keep the partial */
-        die_fail("%s: cannot open: %s (rerun to resume)", path,
-                 strerror(errno));
     const int stats = t >= r->st.loaded;
     struct loaded res;
+    int fd = -1;
+    if (r->in) {
+        uint32_t k;
+        struct tvpal_diag d = {{0}};
+        path = tvpal_input_file(r->in, t, &k);
+        int rc = tvpal_input_read(r->in, t, r->raw, &d);
+        if (rc < 0) /* the file changed or is corrupt: a rerun fails too */
+            die_input("timestep %u (step %u of %s): %s", t, k, path,
+                      lib_error(rc, &d));
+    } else if ((fd = open(path, O_RDONLY | O_CLOEXEC)) < 0) {
+        /* maybe transient (NFS, permissions): keep the partial */
+        die_fail("%s: cannot open: %s (rerun to resume)", path,
+                 strerror(errno));
+    }
     read_convert(r, fd, off, dst, stats, &res);
-    close(fd);
+    if (fd >= 0)
+        close(fd);
     if (res.read_err > 0)
         die_fail("%s: timestep %u: %s (rerun to resume)", path, t,
                  strerror(res.read_err));
@@ -601,6 +660,54 @@ static void load_step(struct run *r, uint32_t t, float *dst)
     r->st.loaded = t + 1;
 }
 
+/* A self-describing input (NetCDF, VTK ImageData: tvpal_input.h) says its
+ * dims and steps itself; --dims and --type, for raw input, must then agree
+ * with it, and --steps and --endian do not apply.  The reader delivers
+ * float32 in host order, which the encoder then takes as a raw f32 source.
+ * Sets r->in, or leaves it NULL for raw input; returns whether the dims are
+ * known. */
+static int open_source(struct run *r, int have_dims)
+{
+    struct opts *o = &r->o;
+    struct tvpal_diag d = {{0}};
+    enum tvpal_input_format f = o->format;
+    if (o->ninputs < 1)
+        return have_dims;
+    if (f == TVPAL_IN_AUTO && tvpal_input_detect(o->inputs[0], &f, &d) < 0)
+        return have_dims; /* check_inputs names the unreadable file */
+    if (f == TVPAL_IN_RAW) {
+        if (o->var || o->time_dim)
+            die_usage("--var and --time-dim: for self-describing input "
+                      "(NetCDF, VTK); %s is raw", o->inputs[0]);
+        return have_dims;
+    }
+    struct tvpal_input_opts io = {.var = o->var, .time_dim = o->time_dim};
+    int rc = tvpal_input_open(&r->in, f, o->inputs, o->ninputs, &io, &d);
+    if (rc < 0)
+        die_usage("%s", lib_error(rc, &d));
+    const struct tvpal_input_info *in = tvpal_input_info(r->in);
+    if (have_dims && memcmp(o->dims, in->dims, sizeof in->dims))
+        die_usage("%s: variable %s is %ux%ux%u; --dims says %ux%ux%u",
+                  o->inputs[0], in->var, in->dims[0], in->dims[1],
+                  in->dims[2], o->dims[0], o->dims[1], o->dims[2]);
+    if (o->have_type && o->type != in->type)
+        die_usage("%s: variable %s is %s; --type says %s", o->inputs[0],
+                  in->var, tvpal_type_name(in->type),
+                  tvpal_type_name(o->type));
+    if (o->steps_single || o->have_endian)
+        die_usage("--steps and --endian: for raw input only (%s is %s: it "
+                  "says its own steps and byte order)", o->inputs[0],
+                  tvpal_input_format_name(f));
+    memcpy(o->dims, in->dims, sizeof o->dims);
+    o->type = TVPAL_F32;
+    o->big_endian = 0;
+    o->format = f;
+#ifdef WORDS_BIGENDIAN
+    o->big_endian = 1;
+#endif
+    return 1;
+}
+
 /* Checks the inputs before any output exists: regular readable files of
  * the expected size, named by absolute paths from then on (the manifest
  * must name them from anywhere). */
@@ -622,7 +729,7 @@ static void check_inputs(struct run *r)
             die_usage("%s: not a regular file", p);
         if (access(p, R_OK) < 0)
             die_usage("%s: cannot read input: %s", p, strerror(errno));
-        if ((uint64_t)st.st_size != want) {
+        if (!r->in && (uint64_t)st.st_size != want) {
             if (o->steps_single)
                 die_usage("%s: size is %lld bytes; expected %llu (%u timesteps "
                           "of %ux%ux%u %s)", p, (long long)st.st_size,
@@ -705,7 +812,7 @@ static void make_node_dirs(struct run *r)
  * directories.  Sets r->fp, r->st and r->start. */
 static void open_partial(struct run *r)
 {
-    char *params = job_params(&r->o);
+    char *params = job_params(&r->o, r->in);
     if (!params ||
         tvpal_checkpoint_fingerprint(params, r->o.inputs, r->o.ninputs,
                                      &r->fp) < 0 ||
@@ -1110,6 +1217,16 @@ static void build_manifest(const struct run *r, struct tvpal_manifest *m)
     m->nonfinite = st->nonfinite;
     m->single_file = o->steps_single != 0;
     m->source_bytes = r->step_bytes * r->T;
+    if (r->in) {
+        /* One file of all steps, one file per step, or files of several
+         * steps each (series). */
+        m->single_file = o->ninputs == 1 && r->T > 1;
+        m->series = o->ninputs > 1 && (uint32_t)o->ninputs != r->T;
+        snprintf(m->source_format, sizeof m->source_format, "%s",
+                 tvpal_input_format_name(o->format));
+        if (!(m->source_var = strdup(tvpal_input_info(r->in)->var)))
+            die_fail("out of memory");
+    }
     /* The manifest's histogram: the fine classes into TVPAL_HIST_BINS
      * equal bins over [min, max]. */
     for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++) {
@@ -1241,14 +1358,19 @@ static void run_free(struct run *r)
     for (int i = 0; i < r->o.ninputs; i++)
         free(r->abs_inputs[i]);
     free(r->abs_inputs);
+    tvpal_input_close(r->in);
 }
 
 /* Each step ends the program itself on failure (see `enum ending`). */
 int main(int argc, char **argv)
 {
     struct run r = {0};
-    validate_opts(&r.o, parse_options(argc, argv, &r.o));
-    r.T = r.o.steps_single ? r.o.steps_single : (uint32_t)r.o.ninputs;
+    int have_dims = parse_options(argc, argv, &r.o);
+    have_dims = open_source(&r, have_dims);
+    const uint32_t input_steps = r.in ? tvpal_input_info(r.in)->steps : 0;
+    validate_opts(&r.o, have_dims, input_steps);
+    r.T = input_steps ? input_steps
+          : r.o.steps_single ? r.o.steps_single : (uint32_t)r.o.ninputs;
     r.N = r.o.window;
     r.nvox = (size_t)r.o.dims[0] * r.o.dims[1] * r.o.dims[2];
     r.step_bytes = (uint64_t)r.nvox * tvpal_type_size(r.o.type);
