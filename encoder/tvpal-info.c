@@ -9,6 +9,7 @@
 #include "tvpal_dataset.h"
 #include "tvpal_format.h"
 #include "tvpal_fs.h"
+#include "tvpal_input.h"
 
 #include <getopt.h>
 #include <stdio.h>
@@ -21,11 +22,16 @@ static void usage(FILE *f)
 {
     fprintf(f,
 "Usage: " PROG " OUTDIR [--verify]\n"
-"Print the manifest of the tvpal dataset OUTDIR and its bytes per axis.\n"
+"       " PROG " --inspect FILE\n"
+"Print the manifest of the tvpal dataset OUTDIR and its bytes per axis; or,\n"
+"with --inspect, what an input file holds.\n"
 "\n"
 "  -v, --verify   open every shard (header, index, size, agreement with the\n"
 "                 manifest) and read every record (CRC-32C and layout); each\n"
 "                 corrupt file or record is named\n"
+"  -i, --inspect  FILE is an input for tvpal-encode: print its format and\n"
+"                 its variables with their dims, type and units (NetCDF,\n"
+"                 VTK ImageData)\n"
 "  -h, --help     this help\n"
 "  -V, --version  version\n"
 "\n"
@@ -35,16 +41,17 @@ static void usage(FILE *f)
 }
 
 struct options {
-    const char *dir;   /* OUTDIR */
-    int verify;
+    const char *dir;   /* OUTDIR, or the FILE of --inspect */
+    int verify, inspect;
 };
 
 static const struct option long_options[] = {
     {"verify", no_argument, 0, 'v'},
+    {"inspect", no_argument, 0, 'i'},
     {"help", no_argument, 0, 'h'},
     {"version", no_argument, 0, 'V'},
     {0, 0, 0, 0}};
-static const char short_options[] = "vhV";
+static const char short_options[] = "vihV";
 
 /* Fills o from argv and checks that exactly one OUTDIR is given.  Returns -1
  * to go on, or the exit status when the program is done: --help, --version
@@ -56,6 +63,7 @@ static int parse_options(int argc, char **argv, struct options *o)
     while ((c = getopt_long(argc, argv, short_options, long_options, NULL)) != -1) {
         switch (c) {
         case 'v': o->verify = 1; break;
+        case 'i': o->inspect = 1; break;
         case 'h': usage(stdout); return TVPAL_EXIT_OK;
         case 'V': printf(PROG " " PACKAGE_VERSION "\n"); return TVPAL_EXIT_OK;
         default:
@@ -64,7 +72,12 @@ static int parse_options(int argc, char **argv, struct options *o)
         }
     }
     if (optind != argc - 1) {
-        fprintf(stderr, PROG ": expected one OUTDIR (try --help)\n");
+        fprintf(stderr, PROG ": expected one %s (try --help)\n",
+                o->inspect ? "FILE" : "OUTDIR");
+        return TVPAL_EXIT_USAGE;
+    }
+    if (o->inspect && o->verify) {
+        fprintf(stderr, PROG ": --inspect and --verify: one at a time\n");
         return TVPAL_EXIT_USAGE;
     }
     o->dir = argv[optind];
@@ -203,12 +216,37 @@ static int load_and_print_manifest(const char *dir, struct tvpal_manifest *m)
     return 0;
 }
 
+/* --inspect: what an input file holds (tvpal_input_describe). */
+static int inspect(const char *path)
+{
+    struct tvpal_diag d = {{0}};
+    enum tvpal_input_format f;
+    char *text = NULL;
+    int rc = tvpal_input_detect(path, &f, &d);
+    if (rc == 0 && f == TVPAL_IN_RAW) {
+        printf("%s: raw (no header: tvpal-encode needs --dims and --type)\n",
+               path);
+        return TVPAL_EXIT_OK;
+    }
+    if (rc == 0)
+        rc = tvpal_input_describe(path, f, &text, &d);
+    if (rc < 0) {
+        fprintf(stderr, PROG ": %s\n", d.msg[0] ? d.msg : tvpal_strerror(rc));
+        return TVPAL_EXIT_USAGE;
+    }
+    printf("%s: %s", path, text);
+    free(text);
+    return TVPAL_EXIT_OK;
+}
+
 int main(int argc, char **argv)
 {
     struct options o;
     int status = parse_options(argc, argv, &o);
     if (status >= 0)
         return status;
+    if (o.inspect)
+        return inspect(o.dir);
     struct tvpal_manifest m;
     status = load_and_print_manifest(o.dir, &m);
     if (status != 0)
