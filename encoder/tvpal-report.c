@@ -19,6 +19,7 @@
 #include "tvpal_cli.h"
 #include "tvpal_dataset.h"
 #include "tvpal_format.h"
+#include "tvpal_input.h"
 #include "tvpal_raw.h"
 #include "tvpal_schedule.h"
 
@@ -70,6 +71,8 @@ struct options {
     int use_ref, quiet;
     char **refs;    /* the reference files: the arguments after OUTDIR, or */
     size_t nrefs;   /* the manifest's sources (validate_options decides) */
+    struct tvpal_input *src;  /* self-describing references (NetCDF, VTK),
+                               * or NULL for raw ones */
 };
 
 static const struct option long_options[] = {
@@ -111,6 +114,65 @@ static int parse_options(int argc, char **argv, struct options *o)
     return -1;
 }
 
+/* References in the format the encoder read (source_format, source_var):
+ * the same reader, which must find the dataset's dims and steps.  Returns 0
+ * or TVPAL_EXIT_USAGE (printed). */
+static int open_self_describing(struct options *o,
+                                const struct tvpal_manifest *m)
+{
+    enum tvpal_input_format f;
+    struct tvpal_diag d = {{0}};
+    struct tvpal_input_opts io = {.var = m->source_var};
+    int rc = tvpal_input_format_parse(m->source_format, &f);
+    if (rc < 0) {
+        fprintf(stderr, PROG ": source_format \"%s\": expected raw, netcdf "
+                "or vti\n", m->source_format);
+        return TVPAL_EXIT_USAGE;
+    }
+    if (o->nrefs < 1) {
+        fprintf(stderr, PROG ": no reference files\n");
+        return TVPAL_EXIT_USAGE;
+    }
+    rc = tvpal_input_open(&o->src, f, o->refs, (int)o->nrefs, &io, &d);
+    if (rc < 0) {
+        fprintf(stderr, PROG ": %s\n", d.msg[0] ? d.msg : tvpal_strerror(rc));
+        return TVPAL_EXIT_USAGE;
+    }
+    const struct tvpal_input_info *in = tvpal_input_info(o->src);
+    if (memcmp(in->dims, m->dims, sizeof m->dims) || in->steps != m->steps) {
+        fprintf(stderr, PROG ": %s: variable %s is %ux%ux%u with %u steps; "
+                "the dataset is %ux%ux%u with %u\n", o->refs[0], in->var,
+                in->dims[0], in->dims[1], in->dims[2], in->steps, m->dims[0],
+                m->dims[1], m->dims[2], m->steps);
+        return TVPAL_EXIT_USAGE;
+    }
+    return 0;
+}
+
+/* Timestep t of a self-describing reference, with the dataset's NaN
+ * policy (--nan-as) applied as the encoder applied it. */
+static int read_input_step(const struct tvpal_manifest *m,
+                           struct tvpal_input *src, uint32_t t, float *dst,
+                           size_t nvox)
+{
+    struct tvpal_diag d = {{0}};
+    size_t bad;
+    int rc = tvpal_input_read(src, t, dst, &d);
+    if (rc < 0) {
+        fprintf(stderr, PROG ": timestep %u: %s\n", t,
+                d.msg[0] ? d.msg : tvpal_strerror(rc));
+        return -1;
+    }
+    rc = tvpal_raw_convert(dst, TVPAL_F32, m->big_endian, nvox, dst,
+                           m->has_nan_as ? &m->nan_as : NULL, &bad, NULL);
+    if (rc < 0) {
+        fprintf(stderr, PROG ": %s: timestep %u: %s at element %zu\n",
+                tvpal_input_file(src, t, NULL), t, tvpal_strerror(rc), bad);
+        return -1;
+    }
+    return 0;
+}
+
 /* Checks the options against the dataset, whose layout says how many
  * reference files there must be (one holding every timestep, or one per
  * timestep).  Without --reference no argument may follow OUTDIR and the
@@ -126,6 +188,8 @@ static int validate_options(struct options *o, const struct tvpal_manifest *m)
         o->refs = m->sources;
         o->nrefs = m->nsources;
     }
+    if (m->source_format[0] && strcmp(m->source_format, "raw"))
+        return open_self_describing(o, m);
     size_t want = m->single_file ? 1 : m->steps;
     if (o->nrefs != want) {
         fprintf(stderr, PROG ": %zu reference file%s; expected %zu (%s)\n",
@@ -361,12 +425,15 @@ static void measure_step(struct step_err *p, size_t nvox, uint32_t t,
 /* The one pass over the timesteps: per step, the reference and the three
  * decoded axes.  Returns 0 or TVPAL_EXIT_USAGE (a reference or a record that
  * cannot be read; printed). */
-static int scan_steps(struct report *r, char **refs, struct scan_buffers *b)
+static int scan_steps(struct report *r, char **refs, struct tvpal_input *src,
+                      struct scan_buffers *b)
 {
     struct tvpal_diag diag = {{0}};
     for (uint32_t t = 0; t < r->steps; t++) {
         const unsigned cur = t & 1, prev = cur ^ 1;
-        if (read_reference_step(r->m, refs, t, b->raw, b->ref[cur], r->nvox) < 0)
+        if ((src ? read_input_step(r->m, src, t, b->ref[cur], r->nvox)
+                 : read_reference_step(r->m, refs, t, b->raw, b->ref[cur],
+                                       r->nvox)) < 0)
             return TVPAL_EXIT_USAGE;
         update_range(r, b->ref[cur]);
         for (unsigned a = 0; a < 3; a++) {
@@ -743,7 +810,7 @@ int main(int argc, char **argv)
         status = TVPAL_EXIT_FAIL;
     }
     if (status == 0)
-        status = scan_steps(&r, o.refs, &b);
+        status = scan_steps(&r, o.refs, o.src, &b);
     if (status == 0) {
         summarize_errors(&r);
         summarize_sizes(&r);
@@ -751,6 +818,7 @@ int main(int argc, char **argv)
     }
     buffers_free(&b);
     free(r.per);
+    tvpal_input_close(o.src);
     tvpal_dataset_close(ds);
     return status;
 }
