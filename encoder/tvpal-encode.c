@@ -68,6 +68,9 @@ static void usage(FILE *f)
 "      --time-dim NAME    NetCDF: the time dimension (default: the\n"
 "                         unlimited one, or the one a CF time coordinate\n"
 "                         names)\n"
+"      --sort ORDER       none (default: as given; a warning names the first\n"
+"                         pair of numbered names out of natural order) or\n"
+"                         natural (density_2 before density_10)\n"
 "  -d, --dims NXxNYxNZ    volume size, x fastest (required for raw input;\n"
 "                         must agree with a self-describing file)\n"
 "  -t, --type TYPE        raw: f32 (default), f64, u8, u16, i16\n"
@@ -179,6 +182,7 @@ struct opts {
     enum tvpal_input_format format;   /* --format; AUTO until detected */
     const char *var, *time_dim;       /* --var, --time-dim */
     int have_type, have_endian;       /* given on the command line */
+    int sort_natural;                 /* --sort natural */
 };
 
 /* How an option's argument is parsed (parse_option). */
@@ -244,6 +248,8 @@ static const struct optspec {
      {0}, NULL},
     {"time-dim", OPT_LONG_ONLY + 8, OPT_TEXT, offsetof(struct opts, time_dim),
      0, 0, {0}, NULL},
+    {"sort", OPT_LONG_ONLY + 9, OPT_CHOICE, offsetof(struct opts, sort_natural),
+     0, 0, {"none", "natural"}, "none or natural"},
     {"output", 'o', OPT_OUTPUT, 0, 0, 0, {0}, NULL},
     {"force", 'f', OPT_FLAG, offsetof(struct opts, force), 0, 0, {0}, NULL},
     {"quiet", 'q', OPT_FLAG, offsetof(struct opts, quiet), 0, 0, {0}, NULL},
@@ -658,6 +664,31 @@ static void load_step(struct run *r, uint32_t t, float *dst)
     r->st.vmin = res.lo;
     r->st.vmax = res.hi;
     r->st.loaded = t + 1;
+}
+
+static int natural_qsort_cmp(const void *a, const void *b)
+{
+    return tvpal_natural_cmp(*(char *const *)a, *(char *const *)b);
+}
+
+/* Inputs are encoded in the order given.  A shell glob sorts density_10
+ * before density_2: --sort natural puts them in numeric order; without it
+ * the first pair out of that order is named (a warning, not an error:
+ * the order may be meant). */
+static void order_inputs(struct opts *o)
+{
+    if (o->sort_natural) {
+        qsort(o->inputs, (size_t)o->ninputs, sizeof *o->inputs,
+              natural_qsort_cmp);
+        return;
+    }
+    for (int i = 0; i + 1 < o->ninputs; i++)
+        if (tvpal_natural_cmp(o->inputs[i], o->inputs[i + 1]) > 0) {
+            msg("warning: the inputs are not in natural order: %s comes "
+                "before %s (they are encoded in the order given; --sort "
+                "natural sorts them)", o->inputs[i], o->inputs[i + 1]);
+            return;
+        }
 }
 
 /* A self-describing input (NetCDF, VTK ImageData: tvpal_input.h) says its
@@ -1366,6 +1397,7 @@ int main(int argc, char **argv)
 {
     struct run r = {0};
     int have_dims = parse_options(argc, argv, &r.o);
+    order_inputs(&r.o);
     have_dims = open_source(&r, have_dims);
     const uint32_t input_steps = r.in ? tvpal_input_info(r.in)->steps : 0;
     validate_opts(&r.o, have_dims, input_steps);

@@ -1,6 +1,7 @@
 /* tvpal_cli.c: program helpers (see tvpal_cli.h). */
 #include "tvpal_cli.h"
 
+#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -71,4 +72,36 @@ void tvpal_progress_format(char *buf, size_t cap, uint64_t done,
     snprintf(buf, cap, "%s%3.0f%%  %llu/%llu %s  %.1f %s  ETA %s", bar,
              100.0 * frac, (unsigned long long)done,
              (unsigned long long)total, unit, rate, rate_unit, eta);
+}
+
+int tvpal_natural_cmp(const char *a, const char *b)
+{
+    while (*a && *b) {
+        if (isdigit((unsigned char)*a) && isdigit((unsigned char)*b)) {
+            const char *ea = a, *eb = b;
+            while (*a == '0')
+                a++;
+            while (*b == '0')
+                b++;
+            for (ea = a; isdigit((unsigned char)*ea); ea++)
+                ;
+            for (eb = b; isdigit((unsigned char)*eb); eb++)
+                ;
+            /* Without leading zeros, the longer run is the larger number;
+             * runs of one length compare digit by digit. */
+            if (ea - a != eb - b)
+                return ea - a < eb - b ? -1 : 1;
+            int c = strncmp(a, b, (size_t)(ea - a));
+            if (c)
+                return c;
+            a = ea;
+            b = eb;
+            continue;
+        }
+        if (*a != *b)
+            return (unsigned char)*a < (unsigned char)*b ? -1 : 1;
+        a++;
+        b++;
+    }
+    return (unsigned char)*a - (unsigned char)*b;
 }

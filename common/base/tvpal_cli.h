@@ -23,4 +23,9 @@ void tvpal_progress_format(char *buf, size_t cap, uint64_t done,
                            uint64_t total, const char *unit, double rate,
                            const char *rate_unit, double eta_s, int width);
 
+/* Natural order of file names: runs of digits compare by their numeric
+ * value (density_2 < density_10), everything else byte by byte; <0, 0, >0
+ * as strcmp. */
+int tvpal_natural_cmp(const char *a, const char *b);
+
 #endif
