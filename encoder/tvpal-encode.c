@@ -76,6 +76,9 @@ static void usage(FILE *f)
 "  -t, --type TYPE        raw: f32 (default), f64, u8, u16, i16\n"
 "  -e, --endian ORDER     raw: little (default) or big\n"
 "  -s, --steps T          raw: INPUT is one file holding T timesteps\n"
+"      --times FILE       the time value of every step (T numbers, rising;\n"
+"                         default: a NetCDF time coordinate, else 0..T-1)\n"
+"      --time-units TEXT  their units (default: the coordinate's)\n"
 "      --nan-as VALUE     replace NaN and infinite values by VALUE, and\n"
 "                         the missing values of NetCDF (_FillValue,\n"
 "                         missing_value, outside valid_range) (default:\n"
@@ -183,6 +186,8 @@ struct opts {
     const char *var, *time_dim;       /* --var, --time-dim */
     int have_type, have_endian;       /* given on the command line */
     int sort_natural;                 /* --sort natural */
+    const char *times_file;           /* --times FILE */
+    const char *time_units;           /* --time-units TEXT */
 };
 
 /* How an option's argument is parsed (parse_option). */
@@ -250,6 +255,10 @@ static const struct optspec {
      0, 0, {0}, NULL},
     {"sort", OPT_LONG_ONLY + 9, OPT_CHOICE, offsetof(struct opts, sort_natural),
      0, 0, {"none", "natural"}, "none or natural"},
+    {"times", OPT_LONG_ONLY + 10, OPT_TEXT, offsetof(struct opts, times_file),
+     0, 0, {0}, NULL},
+    {"time-units", OPT_LONG_ONLY + 11, OPT_TEXT,
+     offsetof(struct opts, time_units), 0, 0, {0}, NULL},
     {"output", 'o', OPT_OUTPUT, 0, 0, 0, {0}, NULL},
     {"force", 'f', OPT_FLAG, offsetof(struct opts, force), 0, 0, {0}, NULL},
     {"quiet", 'q', OPT_FLAG, offsetof(struct opts, quiet), 0, 0, {0}, NULL},
@@ -509,6 +518,8 @@ struct run {
     float **ring;            /* N converted timesteps, step t at t % N */
     void *raw;               /* one source timestep */
     struct tvpal_input *in;  /* self-describing input, or NULL (raw) */
+    double *times;           /* [T] time values, or NULL (none known) */
+    char time_units[128];
     double t_encode;         /* seconds of the streaming loop */
 };
 
@@ -737,6 +748,72 @@ static int open_source(struct run *r, int have_dims)
     o->big_endian = 1;
 #endif
     return 1;
+}
+
+/* The steps' time values: --times FILE (T rising numbers, any white
+ * space between them), else a time coordinate of the input, else none
+ * (the manifest then says nothing and the steps are their indices). */
+static void load_times(struct run *r)
+{
+    const struct opts *o = &r->o;
+    const struct tvpal_input_info *in = r->in ? tvpal_input_info(r->in) : NULL;
+    if (!o->times_file && !(in && in->has_times))
+        return;
+    if (!(r->times = malloc(sizeof *r->times * r->T)))
+        die_fail("out of memory");
+    snprintf(r->time_units, sizeof r->time_units, "%s",
+             o->time_units ? o->time_units : in ? in->time_units : "");
+    for (char *c = r->time_units; *c; c++) /* one manifest line */
+        if ((unsigned char)*c < ' ')
+            *c = ' ';
+    if (!o->times_file) {
+        for (uint32_t t = 0; t < r->T; t++)
+            r->times[t] = tvpal_input_time(r->in, t);
+        return;
+    }
+    FILE *f = fopen(o->times_file, "r");
+    if (!f)
+        die_usage("--times %s: %s", o->times_file, strerror(errno));
+    uint32_t n = 0;
+    double v;
+    while (n <= r->T && fscanf(f, "%lf", &v) == 1) {
+        if (!isfinite(v) || (n > 0 && n < r->T && v <= r->times[n - 1]))
+            die_usage("--times %s: value %u (%g): expected a finite number "
+                      "larger than the one before", o->times_file, n + 1, v);
+        if (n < r->T)
+            r->times[n] = v;
+        n++;
+    }
+    int junk = !feof(f);
+    fclose(f);
+    if (junk || n != r->T)
+        die_usage("--times %s: %s%u numbers; expected %u, one per step",
+                  o->times_file, junk ? "not a number after " : "", n, r->T);
+}
+
+/* Windows that straddle a gap in time cost accuracy there (the DCT sees a
+ * jump): warn when an interval is more than twice a neighbouring one,
+ * naming the steps. */
+static void warn_irregular_times(const struct run *r)
+{
+    char list[160] = "";
+    size_t len = 0;
+    unsigned found = 0;
+    for (uint32_t i = 0; r->times && i + 1 < r->T; i++) {
+        double d = r->times[i + 1] - r->times[i];
+        int gap = (i > 0 && d > 2 * (r->times[i] - r->times[i - 1])) ||
+                  (i + 2 < r->T && d > 2 * (r->times[i + 2] - r->times[i + 1]));
+        if (!gap)
+            continue;
+        if (found++ < 4 && len < sizeof list)
+            len += (size_t)snprintf(list + len, sizeof list - len, "%s%u-%u",
+                                    found > 1 ? ", " : "", i, i + 1);
+    }
+    if (found)
+        msg("warning: irregular time intervals: %u interval%s more than twice "
+            "a neighbour's (steps %s%s); windows that straddle a gap lose "
+            "accuracy there", found, found == 1 ? " is" : "s are", list,
+            found > 4 ? ", ..." : "");
 }
 
 /* Checks the inputs before any output exists: regular readable files of
@@ -1248,6 +1325,13 @@ static void build_manifest(const struct run *r, struct tvpal_manifest *m)
     m->nonfinite = st->nonfinite;
     m->single_file = o->steps_single != 0;
     m->source_bytes = r->step_bytes * r->T;
+    if (r->times) {
+        if (!(m->times = malloc(sizeof *m->times * r->T)))
+            die_fail("out of memory");
+        memcpy(m->times, r->times, sizeof *m->times * r->T);
+        m->ntimes = r->T;
+        snprintf(m->time_units, sizeof m->time_units, "%s", r->time_units);
+    }
     if (r->in) {
         /* One file of all steps, one file per step, or files of several
          * steps each (series). */
@@ -1390,6 +1474,7 @@ static void run_free(struct run *r)
         free(r->abs_inputs[i]);
     free(r->abs_inputs);
     tvpal_input_close(r->in);
+    free(r->times);
 }
 
 /* Each step ends the program itself on failure (see `enum ending`). */
@@ -1407,6 +1492,8 @@ int main(int argc, char **argv)
     r.nvox = (size_t)r.o.dims[0] * r.o.dims[1] * r.o.dims[2];
     r.step_bytes = (uint64_t)r.nvox * tvpal_type_size(r.o.type);
     check_inputs(&r);
+    load_times(&r);
+    warn_irregular_times(&r);
     check_output(&r);
     open_partial(&r);
     setup_shards(&r);

@@ -584,7 +584,7 @@ static void put_value(FILE *f, const struct column *c, const void *rec)
 
 /* One CSV row: a timestep of one axis. */
 struct csv_row {
-    double step, axis, rmse, psnr, max_abs_error, flicker;
+    double step, axis, rmse, psnr, max_abs_error, flicker, time;
 };
 #define CSV_COL(name, fmt, kind) {#name, fmt, kind, offsetof(struct csv_row, name)}
 static const struct column csv_columns[] = {
@@ -594,6 +594,7 @@ static const struct column csv_columns[] = {
     CSV_COL(psnr, "%.6f", COL_REAL),
     CSV_COL(max_abs_error, "%.9g", COL_REAL),
     CSV_COL(flicker, "%.9g", COL_REAL),
+    CSV_COL(time, "%.17g", COL_REAL),   /* the manifest's, else the step */
 };
 #undef CSV_COL
 #define NCSV (sizeof csv_columns / sizeof csv_columns[0])
@@ -603,7 +604,8 @@ static struct csv_row csv_row_of(const struct report *r, uint32_t t, unsigned a)
     return (struct csv_row){
         .step = t, .axis = "xyz"[a], .rmse = step_rmse(r, t, a),
         .psnr = step_psnr(r, t, a), .max_abs_error = step_at(r, t, a)->maxabs,
-        .flicker = step_flicker(r, t, a)};
+        .flicker = step_flicker(r, t, a),
+        .time = r->m->ntimes ? r->m->times[t] : (double)t};
 }
 
 /* The header (the column names), then one row per timestep and axis. */

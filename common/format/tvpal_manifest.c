@@ -2,6 +2,7 @@
 #include "tvpal_manifest.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -11,6 +12,7 @@ void tvpal_manifest_clear(struct tvpal_manifest *m)
     free(m->encoder);
     free(m->options);
     free(m->source_var);
+    free(m->times);
     for (size_t i = 0; i < m->nsources; i++)
         free(m->sources[i]);
     free(m->sources);
@@ -66,6 +68,12 @@ int tvpal_manifest_format(const struct tvpal_manifest *m, char **out)
         fprintf(f, "source_format = %s\n", m->source_format);
         fprintf(f, "source_var = %s\n", m->source_var ? m->source_var : "");
     }
+    if (m->ntimes) {
+        fprintf(f, "time_units = %s\ntimes =", m->time_units);
+        for (uint32_t i = 0; i < m->ntimes; i++)
+            fprintf(f, " %.17g", m->times[i]);
+        fputc('\n', f);
+    }
     for (size_t i = 0; i < m->nsources; i++)
         fprintf(f, "source = %s\n", m->sources[i]);
     if (fclose(f) != 0) {
@@ -104,6 +112,36 @@ static int parse_dbl(const char *v, double *out)
     errno = 0;
     *out = strtod(v, &end);
     return (errno || *end || end == v) ? -1 : 0;
+}
+
+/* "times = v v v ...": finite numbers, as many as the line holds (the
+ * check against steps comes after every line is read). */
+static int parse_times(struct tvpal_manifest *m, const char *v)
+{
+    free(m->times);
+    m->times = NULL;
+    m->ntimes = 0;
+    size_t cap = 0;
+    for (const char *p = v;;) {
+        while (*p == ' ' || *p == '\t')
+            p++;
+        if (!*p)
+            return 0;
+        char *end;
+        errno = 0;
+        double t = strtod(p, &end);
+        if (end == p || errno || !isfinite(t) || m->ntimes == UINT32_MAX)
+            return -1;
+        if (m->ntimes == cap) {
+            cap = cap ? 2 * cap : 64;
+            double *nt = realloc(m->times, cap * sizeof *nt);
+            if (!nt)
+                return -1;
+            m->times = nt;
+        }
+        m->times[m->ntimes++] = t;
+        p = end;
+    }
 }
 
 enum { K_DIMS = 1, K_TYPE = 2, K_STEPS = 4, K_WINDOW = 8, K_NODES = 16,
@@ -177,8 +215,15 @@ static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
         bad = strlen(v) >= sizeof m->source_format;
         if (!bad)
             strcpy(m->source_format, v);
+    } else if (!strcmp(k, "times")) {
+        bad = parse_times(m, v) < 0;
+    } else if (!strcmp(k, "time_units")) {
+        bad = strlen(v) >= sizeof m->time_units;
+        if (!bad)
+            strcpy(m->time_units, v);
     } else if (!strcmp(k, "source_var")) {
         free(m->source_var);
+    free(m->times);
         bad = !(m->source_var = strdup(v));
     } else if (!strcmp(k, "encoder")) {
         free(m->encoder);
@@ -216,6 +261,10 @@ static int manifest_check(const struct tvpal_manifest *m, unsigned seen,
         return tvpal_diag_set(diag, TVPAL_E_MANIFEST,
                               "nodes = %u exceeds the smallest dimension %u",
                               m->nodes, mind);
+    if (m->ntimes && m->ntimes != m->steps)
+        return tvpal_diag_set(diag, TVPAL_E_MANIFEST,
+                              "%u time values for %u steps", m->ntimes,
+                              m->steps);
     if (!m->single_file && !m->series && m->nsources &&
         m->nsources != m->steps)
         return tvpal_diag_set(diag, TVPAL_E_MANIFEST,

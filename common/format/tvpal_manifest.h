@@ -33,6 +33,10 @@ struct tvpal_manifest {
                                            * "vti": how to read the sources */
     char *source_var;                     /* owned; the variable read from
                                            * self-describing sources */
+    double *times;                        /* owned; ntimes (0, or steps)
+                                           * time values of the steps */
+    uint32_t ntimes;
+    char time_units[128];                 /* e.g. "hours since ...", or "" */
     uint64_t source_bytes;
     uint32_t table_format;                /* 0 float32, 1 16-bit scaled */
     char *encoder;                        /* owned strings (may be NULL) */

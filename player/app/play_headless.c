@@ -206,7 +206,9 @@ static void draw_frame(struct headless *h, uint32_t t, struct play_rank_rec *me,
                              .drawn = st.drawn, .skipped = st.skipped,
                              .uploads = st.uploads, .stride = st.stride,
                              .axis_switch_ms = st.axis_switch_ms,
-                             .ranks = play_comm.size, .psnr = NAN};
+                             .ranks = play_comm.size, .psnr = NAN,
+                             .time = h->s->m->ntimes ? h->s->m->times[t]
+                                                     : (double)t};
 }
 
 /* Rank 0 reports each rank's new load error once (a bad record is retried

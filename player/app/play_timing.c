@@ -37,13 +37,14 @@ void play_timing_aggregate(const struct play_rank_rec *r, int n,
 
 /* ------------------------------------------------------------ the table */
 
-enum col_kind { C_U32, C_INT, C_CHAR, C_MS, C_U64 };
+enum col_kind { C_U32, C_INT, C_CHAR, C_MS, C_U64, C_REAL };
 /* What the summary line makes of a column over the frames. */
 enum col_sum { S_NONE, S_MEAN, S_SUM, S_LAST };
 
 struct column {
     const char *name;
-    enum col_kind kind;   /* C_MS: "%.3f"; integers as themselves */
+    enum col_kind kind;   /* C_MS: "%.3f", C_REAL: "%.17g"; integers as
+                           * themselves */
     size_t off;           /* in struct play_row */
     enum col_sum sum;
 };
@@ -81,6 +82,7 @@ static const struct column columns[] = {
     {"sw_composite_ms", C_MS, A(accum), S_NONE},
     {"sw_warp_ms", C_MS, A(warp), S_NONE},
     {"psnr_ref", C_MS, R(psnr), S_MEAN},
+    {"time", C_REAL, R(time), S_NONE},
 };
 #define NCOLS (sizeof columns / sizeof *columns)
 
@@ -99,7 +101,8 @@ static double value(const struct column *c, const struct play_row *row)
     case C_U32: return *(const uint32_t *)(const void *)p;
     case C_INT: return *(const int *)(const void *)p;
     case C_CHAR: return *p;
-    case C_MS: return *(const double *)(const void *)p;
+    case C_MS:
+    case C_REAL: return *(const double *)(const void *)p;
     case C_U64: return (double)*(const uint64_t *)(const void *)p;
     }
     return 0;
@@ -112,6 +115,7 @@ static void print_value(FILE *f, const struct column *c, const char *p)
     case C_INT: fprintf(f, "%d", *(const int *)(const void *)p); break;
     case C_CHAR: fputc(*p, f); break;
     case C_MS: fprintf(f, "%.3f", *(const double *)(const void *)p); break;
+    case C_REAL: fprintf(f, "%.17g", *(const double *)(const void *)p); break;
     case C_U64:
         fprintf(f, "%llu",
                 (unsigned long long)*(const uint64_t *)(const void *)p);

@@ -28,6 +28,8 @@ struct play_row {
     double axis_switch_ms;
     int jump, ranks;
     double psnr;                    /* against the reference, or NAN */
+    double time;                    /* the step's time value (manifest),
+                                     * else the step */
 };
 
 /* Slowest rank per phase; bytes read and sent summed, sent also as the

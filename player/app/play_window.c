@@ -323,9 +323,14 @@ static void present(struct win_state *w, const struct win_cmd *cmd,
     double inst = now > w->last ? 1.0 / (now - w->last) : 0;
     w->fps = w->frames > 1 ? 0.8 * w->fps + 0.2 * inst : inst;
     w->last = now;
-    char title[256];
-    snprintf(title, sizeof title, PROG " - t=%u/%u - %.1f fps - %s%s - "
-             "axis %c - %s - %s%s%s", cmd->t, T - 1, w->fps,
+    const struct tvpal_manifest *m = w->s->m;
+    char when[96] = "";
+    if (m->ntimes)
+        snprintf(when, sizeof when, " (%g%s%.40s)", m->times[cmd->t],
+                 m->time_units[0] ? " " : "", m->time_units);
+    char title[320];
+    snprintf(title, sizeof title, PROG " - t=%u/%u%s - %.1f fps - %s%s - "
+             "axis %c - %s - %s%s%s", cmd->t, T - 1, when, w->fps,
              tvpal_player_io_name(w->s->pl), w->po.incore ? "" : " stream",
              "xyz"[v->axis], w->pr.r.name, w->s->tfs[cmd->tfi].name,
              w->reduced ? " - preview" : "", w->multi ? " - cluster" : "");
