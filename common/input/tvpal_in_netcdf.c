@@ -1,0 +1,836 @@
+/* tvpal_in_netcdf.c: the netcdf backend of tvpal_input, on libnetcdf (the
+ * only file of the tree that includes netcdf.h, LAYERS.md).  Classic,
+ * 64-bit offset, CDF-5 and NetCDF-4/HDF5 files all go through nc_open; the
+ * variables of the root group are read.
+ *
+ * A variable's last three dims are z, y, x.  Its time dim is, in order:
+ * opts->time_dim; the unlimited dim; a dim whose coordinate variable has CF
+ * time units ("<unit> since <date>"); the first dim of a variable of 4
+ * (or more) dims.  A 3-D variable is one step, unless one of its dims is
+ * time by those rules (the file's unlimited dim, or the first dim of its
+ * 4-D variables): it then has 2 spatial dims and is refused.  Dims other
+ * than time, z, y and x must have length 1.
+ *
+ * Missing values follow CF (section 2.5.1 and 8.1): a stored value equal to
+ * _FillValue or to one of missing_value's values, or outside valid_min /
+ * valid_max / valid_range, becomes NaN; those tests are made on the stored
+ * (packed) value.  Then scale_factor and add_offset unpack it, in double.
+ * One exception, as netCDF-Java does it: a valid_* attribute of a packed
+ * variable whose type is that of scale_factor/add_offset (not the stored
+ * type) is in unpacked units and is tested after unpacking.
+ *
+ * read() reads one step's hyperslab (nc_get_vara) into the caller's floats
+ * (float variables) or into one step of scratch in the stored type,
+ * allocated at open. */
+#include "tvpal_input_impl.h"
+
+#include <netcdf.h>
+
+#include <float.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define MAX_DIMS 8       /* dims of one variable (time, extras, z, y, x) */
+#define MAX_MISSING 16   /* _FillValue and missing_value's values */
+#define MAX_TIME_DIMS 32 /* dims of a file that look like time */
+
+struct tvpal_input_file {
+    int ncid, varid;
+    char *path;
+    char var[NC_MAX_NAME + 1];
+    nc_type xtype;
+    int ndims, tpos;           /* tpos: index of the time dim, or -1 */
+    size_t steps;
+    size_t count[MAX_DIMS];    /* one step: 1 on time and extra dims */
+    size_t nvox;
+    void *scratch;             /* one step, stored type; NULL for float */
+    double miss[MAX_MISSING];  /* in the stored type's values */
+    int nmiss;
+    int has_min, has_max, valid_unpacked;
+    double vmin, vmax;
+    int packed;
+    double scale, offset;
+    int cook;                  /* any of the above: per-voxel work */
+};
+
+/* ---------------------------------------------------------------- errors */
+
+static int code_of(int status, int code)
+{
+    return status == NC_ENOMEM ? TVPAL_E_NOMEM : code;
+}
+
+static int ncdf_fail(struct tvpal_diag *diag, int status, int code,
+                   const char *path, const char *var)
+{
+    if (var)
+        return tvpal_diag_set(diag, code_of(status, code), "%s: variable %s: "
+                              "%s", path, var, nc_strerror(status));
+    return tvpal_diag_set(diag, code_of(status, code), "%s: %s", path,
+                          nc_strerror(status));
+}
+
+/* nc_open's failure: errno values (positive) are the file system's, the
+ * rest mean the bytes are not a readable NetCDF file. */
+static int open_fail(struct tvpal_diag *diag, int status, const char *path)
+{
+    return ncdf_fail(diag, status, status > 0 ? TVPAL_E_OPEN : TVPAL_E_FORMAT,
+                   path, NULL);
+}
+
+/* ------------------------------------------------------- text appending */
+
+/* src into dst[cap], cut short where it does not fit. */
+static void copy_str(char *dst, size_t cap, const char *src)
+{
+    size_t n = strlen(src);
+    if (n >= cap)
+        n = cap - 1;
+    memcpy(dst, src, n);
+    dst[n] = 0;
+}
+
+struct buf {
+    char *s;
+    size_t len, cap;
+    int full;   /* fixed-size buffer ran out (growable: malloc failed) */
+    int grow;
+};
+
+static void put(struct buf *b, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+static void put(struct buf *b, const char *fmt, ...)
+{
+    if (b->full)
+        return;
+    for (;;) {
+        va_list ap;
+        va_start(ap, fmt);
+        int n = vsnprintf(b->s + b->len, b->cap - b->len, fmt, ap);
+        va_end(ap);
+        if (n < 0) {
+            b->full = 1;
+            return;
+        }
+        if ((size_t)n < b->cap - b->len) {
+            b->len += (size_t)n;
+            return;
+        }
+        if (!b->grow) {
+            b->full = 1;
+            return;
+        }
+        size_t cap = b->cap * 2 + (size_t)n;
+        char *s = realloc(b->s, cap);
+        if (!s) {
+            b->full = 1;
+            return;
+        }
+        b->s = s, b->cap = cap;
+    }
+}
+
+/* ------------------------------------------------------ file inspection */
+
+/* A text attribute (NC_CHAR, or a NetCDF-4 string) into buf; 1 when found
+ * and text, 0 otherwise. */
+static int text_att(int ncid, int varid, const char *name, char *buf,
+                    size_t cap)
+{
+    nc_type t;
+    size_t len;
+    buf[0] = 0;
+    if (nc_inq_att(ncid, varid, name, &t, &len) != NC_NOERR)
+        return 0;
+    if (t == NC_CHAR) {
+        char *tmp = malloc(len + 1);
+        if (!tmp || nc_get_att_text(ncid, varid, name, tmp) != NC_NOERR) {
+            free(tmp);
+            return 0;
+        }
+        tmp[len] = 0;
+        snprintf(buf, cap, "%s", tmp);
+        free(tmp);
+        return 1;
+    }
+    if (t == NC_STRING && len >= 1) {
+        char **v = calloc(len, sizeof *v);
+        if (!v || nc_get_att_string(ncid, varid, name, v) != NC_NOERR) {
+            free(v);
+            return 0;
+        }
+        snprintf(buf, cap, "%s", v[0] ? v[0] : "");
+        nc_free_string(len, v);
+        free(v);
+        return 1;
+    }
+    return 0;
+}
+
+static int is_numeric(nc_type t)
+{
+    switch (t) {
+    case NC_BYTE: case NC_UBYTE: case NC_SHORT: case NC_USHORT:
+    case NC_INT: case NC_UINT: case NC_INT64: case NC_UINT64:
+    case NC_FLOAT: case NC_DOUBLE:
+        return 1;
+    default:
+        return 0;
+    }
+}
+
+/* A coordinate variable: 1-D, named as its dim. */
+static int is_coord_var(int ncid, int varid)
+{
+    char name[NC_MAX_NAME + 1], dname[NC_MAX_NAME + 1];
+    int nd, dimid;
+    if (nc_inq_varndims(ncid, varid, &nd) != NC_NOERR || nd != 1 ||
+        nc_inq_varname(ncid, varid, name) != NC_NOERR ||
+        nc_inq_vardimid(ncid, varid, &dimid) != NC_NOERR ||
+        nc_inq_dimname(ncid, dimid, dname) != NC_NOERR)
+        return 0;
+    return !strcmp(name, dname);
+}
+
+/* The numeric coordinate variable of dimid, or -1. */
+static int coord_var_of(int ncid, int dimid)
+{
+    char dname[NC_MAX_NAME + 1];
+    int varid, nd, d;
+    nc_type t;
+    if (nc_inq_dimname(ncid, dimid, dname) != NC_NOERR ||
+        nc_inq_varid(ncid, dname, &varid) != NC_NOERR ||
+        nc_inq_varndims(ncid, varid, &nd) != NC_NOERR || nd != 1 ||
+        nc_inq_vardimid(ncid, varid, &d) != NC_NOERR || d != dimid ||
+        nc_inq_vartype(ncid, varid, &t) != NC_NOERR || !is_numeric(t))
+        return -1;
+    return varid;
+}
+
+/* CF time units: "<unit> since <date>". */
+static int cf_time_units(int ncid, int varid)
+{
+    char u[256];
+    return text_att(ncid, varid, "units", u, sizeof u) && strstr(u, " since ");
+}
+
+static int dim_is_cf_time(int ncid, int dimid)
+{
+    int v = coord_var_of(ncid, dimid);
+    return v >= 0 && cf_time_units(ncid, v);
+}
+
+static int is_unlimited(int ncid, int dimid)
+{
+    int n, ids[NC_MAX_DIMS];
+    if (nc_inq_unlimdims(ncid, &n, NULL) != NC_NOERR || n < 1 ||
+        n > NC_MAX_DIMS || nc_inq_unlimdims(ncid, &n, ids) != NC_NOERR)
+        return 0;
+    for (int i = 0; i < n; i++)
+        if (ids[i] == dimid)
+            return 1;
+    return 0;
+}
+
+/* The dims of the file that are time for choosing a variable: the named
+ * one, the unlimited ones, those with a CF time coordinate and the first
+ * dim of every variable of 4 or more dims. */
+static int file_time_dims(int ncid, const char *time_dim, int *ids)
+{
+    int n = 0, nv, d;
+    if (time_dim && nc_inq_dimid(ncid, time_dim, &d) == NC_NOERR)
+        ids[n++] = d;
+    int nu, u[NC_MAX_DIMS];
+    if (nc_inq_unlimdims(ncid, &nu, NULL) == NC_NOERR && nu <= NC_MAX_DIMS &&
+        nc_inq_unlimdims(ncid, &nu, u) == NC_NOERR)
+        for (int i = 0; i < nu && n < MAX_TIME_DIMS; i++)
+            ids[n++] = u[i];
+    if (nc_inq_nvars(ncid, &nv) != NC_NOERR)
+        return n;
+    for (int v = 0; v < nv && n < MAX_TIME_DIMS; v++) {
+        int nd, dims[NC_MAX_VAR_DIMS];
+        if (nc_inq_varndims(ncid, v, &nd) != NC_NOERR || nd > NC_MAX_VAR_DIMS ||
+            nc_inq_vardimid(ncid, v, dims) != NC_NOERR)
+            continue;
+        if (is_coord_var(ncid, v) && cf_time_units(ncid, v))
+            ids[n++] = dims[0];
+        else if (nd >= 4)
+            ids[n++] = dims[0];
+    }
+    return n;
+}
+
+/* A variable with at least 3 dims that are not time, numeric, and not a
+ * coordinate variable. */
+static int is_candidate(int ncid, int varid, const int *tdims, int ntd)
+{
+    int nd, dims[NC_MAX_VAR_DIMS], spatial = 0;
+    nc_type t;
+    if (nc_inq_varndims(ncid, varid, &nd) != NC_NOERR || nd < 3 ||
+        nd > NC_MAX_VAR_DIMS || nc_inq_vardimid(ncid, varid, dims) != NC_NOERR ||
+        nc_inq_vartype(ncid, varid, &t) != NC_NOERR || !is_numeric(t) ||
+        is_coord_var(ncid, varid))
+        return 0;
+    for (int i = 0; i < nd; i++) {
+        int time = 0;
+        for (int j = 0; j < ntd; j++)
+            time |= dims[i] == tdims[j];
+        spatial += !time;
+    }
+    return spatial >= 3;
+}
+
+/* "NAME(dim1,dim2,...)". */
+static void put_var_dims(struct buf *b, int ncid, int varid)
+{
+    char name[NC_MAX_NAME + 1], dname[NC_MAX_NAME + 1];
+    int nd, dims[NC_MAX_VAR_DIMS];
+    if (nc_inq_varname(ncid, varid, name) != NC_NOERR ||
+        nc_inq_varndims(ncid, varid, &nd) != NC_NOERR || nd > NC_MAX_VAR_DIMS ||
+        nc_inq_vardimid(ncid, varid, dims) != NC_NOERR)
+        return;
+    put(b, "%s(", name);
+    for (int i = 0; i < nd; i++)
+        if (nc_inq_dimname(ncid, dims[i], dname) == NC_NOERR)
+            put(b, "%s%s", i ? "," : "", dname);
+    put(b, ")");
+}
+
+/* "variables: T(frtime,level,lat,lon), Z(...)": the candidates, or every
+ * variable but the coordinate variables; "..." when the diag is short. */
+static void list_vars(char *out, size_t cap, int ncid, int candidates,
+                      const int *tdims, int ntd)
+{
+    char tmp[512];
+    struct buf b = {tmp, 0, sizeof tmp, 0, 0};
+    int nv, k = 0;
+    put(&b, "variables: ");
+    if (nc_inq_nvars(ncid, &nv) == NC_NOERR)
+        for (int v = 0; v < nv; v++) {
+            if (candidates ? !is_candidate(ncid, v, tdims, ntd)
+                           : is_coord_var(ncid, v))
+                continue;
+            if (k++)
+                put(&b, ", ");
+            put_var_dims(&b, ncid, v);
+        }
+    if (!k)
+        put(&b, "none");
+    if (b.full || b.len >= cap)
+        snprintf(tmp + (cap > 4 ? cap - 4 : 0), 4, "...");
+    copy_str(out, cap, tmp);
+}
+
+/* The variable to read: opts->var, or the only candidate. */
+static int choose_var(int ncid, const char *path,
+                      const struct tvpal_input_opts *opts, int *varid,
+                      struct tvpal_diag *diag)
+{
+    int tdims[MAX_TIME_DIMS], ntd = file_time_dims(ncid, opts->time_dim, tdims);
+    /* the list gets what the diag has left after the rest of the message */
+    char list[200];
+    size_t other = strlen(path) + 50 + (opts->var ? strlen(opts->var) : 0);
+    size_t room = sizeof diag->msg > other + 40 ? sizeof diag->msg - other : 40;
+    if (room > sizeof list)
+        room = sizeof list;
+    if (opts->var) {
+        if (nc_inq_varid(ncid, opts->var, varid) == NC_NOERR)
+            return 0;
+        list_vars(list, room, ncid, 0, tdims, ntd);
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: no variable %s; %s",
+                              path, opts->var, list);
+    }
+    int nv, found = 0;
+    int rc = nc_inq_nvars(ncid, &nv);
+    if (rc != NC_NOERR)
+        return ncdf_fail(diag, rc, TVPAL_E_FORMAT, path, NULL);
+    for (int v = 0; v < nv; v++)
+        if (is_candidate(ncid, v, tdims, ntd))
+            *varid = v, found++;
+    if (found == 1)
+        return 0;
+    if (found == 0) {
+        list_vars(list, room, ncid, 0, tdims, ntd);
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: no variable with 3 "
+                              "spatial dims (z, y, x); %s", path, list);
+    }
+    list_vars(list, room, ncid, 1, tdims, ntd);
+    return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: %d variables could be "
+                          "read, give one (--var); %s", path, found, list);
+}
+
+/* The position of the variable's time dim among its dims, or -1 (one
+ * step); see the top of the file for the order of the rules.  In a
+ * variable of 4 or more dims the time dim is looked for before the last
+ * three (z, y, x); a named one there, or a time dim of a 3-D variable, is
+ * refused by the caller (fewer than 3 spatial dims). */
+static int find_time_dim(int ncid, const char *path, const char *vd,
+                         const int *dims, int nd,
+                         const struct tvpal_input_opts *opts, int *tpos,
+                         struct tvpal_diag *diag)
+{
+    char dname[NC_MAX_NAME + 1];
+    *tpos = -1;
+    if (opts->time_dim) {
+        for (int i = 0; i < nd; i++)
+            if (nc_inq_dimname(ncid, dims[i], dname) == NC_NOERR &&
+                !strcmp(dname, opts->time_dim))
+                *tpos = i;
+        if (*tpos < 0)
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: time dim %s is "
+                                  "not a dim of %s", path, opts->time_dim, vd);
+        return 0;
+    }
+    if (nd == 3) {
+        /* one step, unless one of its dims is time elsewhere in the file
+         * (Psl(frtime,lat,lon) next to T(frtime,level,lat,lon)): then it
+         * has 2 spatial dims, refused by the caller */
+        int tdims[MAX_TIME_DIMS], ntd = file_time_dims(ncid, NULL, tdims);
+        for (int i = 0; i < nd && *tpos < 0; i++)
+            for (int j = 0; j < ntd; j++)
+                if (dims[i] == tdims[j])
+                    *tpos = i;
+        return 0;
+    }
+    for (int i = 0; i < nd - 3 && *tpos < 0; i++)
+        if (is_unlimited(ncid, dims[i]))
+            *tpos = i;
+    for (int i = 0; i < nd - 3 && *tpos < 0; i++)
+        if (dim_is_cf_time(ncid, dims[i]))
+            *tpos = i;
+    if (*tpos < 0)
+        *tpos = 0;
+    return 0;
+}
+
+/* Reads n values of an attribute as double; 0 when absent. */
+static int num_att(int ncid, int varid, const char *name, double *v, int max,
+                   nc_type *type)
+{
+    size_t len;
+    if (nc_inq_att(ncid, varid, name, type, &len) != NC_NOERR ||
+        !is_numeric(*type) || len < 1 || len > (size_t)max)
+        return 0;
+    if (nc_get_att_double(ncid, varid, name, v) != NC_NOERR)
+        return 0;
+    return (int)len;
+}
+
+/* An attribute value as the stored type holds it: a double missing_value
+ * on a float variable compares as the float it rounds to. */
+static double as_stored(nc_type t, double v)
+{
+    if (t == NC_FLOAT && fabs(v) <= FLT_MAX)
+        return (double)(float)v;
+    return v;
+}
+
+/* CF attributes: missing values, valid range, packing.  Returns whether
+ * any of the missing/valid attributes exists. */
+static int read_cf_atts(struct tvpal_input_file *f)
+{
+    int ncid = f->ncid, varid = f->varid, any = 0;
+    nc_type t, pack_type = NC_NAT;
+    double v[MAX_MISSING];
+    int n;
+
+    if ((n = num_att(ncid, varid, "scale_factor", v, 1, &t)) == 1)
+        f->scale = v[0], f->packed = 1, pack_type = t;
+    if ((n = num_att(ncid, varid, "add_offset", v, 1, &t)) == 1)
+        f->offset = v[0], f->packed = 1, pack_type = t;
+    if (f->packed && f->xtype == NC_FLOAT && f->scale == 1 && f->offset == 0)
+        f->packed = 0;   /* identity: nothing to do */
+
+    if ((n = num_att(ncid, varid, "_FillValue", v, 1, &t)) == 1)
+        f->miss[f->nmiss++] = as_stored(f->xtype, v[0]), any = 1;
+    if ((n = num_att(ncid, varid, "missing_value", v, MAX_MISSING - 1, &t)))
+        for (int i = 0; i < n; i++)
+            f->miss[f->nmiss++] = as_stored(f->xtype, v[i]), any = 1;
+
+    nc_type vt = NC_NAT;
+    if (num_att(ncid, varid, "valid_range", v, 2, &t) == 2) {
+        f->vmin = v[0], f->vmax = v[1], f->has_min = f->has_max = 1, vt = t;
+    } else {
+        if (num_att(ncid, varid, "valid_min", v, 1, &t) == 1)
+            f->vmin = v[0], f->has_min = 1, vt = t;
+        if (num_att(ncid, varid, "valid_max", v, 1, &t) == 1)
+            f->vmax = v[0], f->has_max = 1, vt = t;
+    }
+    if (f->has_min || f->has_max) {
+        any = 1;
+        f->valid_unpacked = f->packed && vt == pack_type && vt != f->xtype;
+        if (!f->valid_unpacked) {
+            f->vmin = as_stored(f->xtype, f->vmin);
+            f->vmax = as_stored(f->xtype, f->vmax);
+        }
+    }
+    f->cook = any || f->packed;
+    return any;
+}
+
+/* One stored value, as double, to the float the caller gets. */
+static inline float cook(const struct tvpal_input_file *f, double v)
+{
+    if (isnan(v))
+        return NAN;
+    for (int i = 0; i < f->nmiss; i++)
+        if (v == f->miss[i])
+            return NAN;
+    if (!f->valid_unpacked &&
+        ((f->has_min && v < f->vmin) || (f->has_max && v > f->vmax)))
+        return NAN;
+    if (f->packed)
+        v = v * f->scale + f->offset;
+    if (f->valid_unpacked &&
+        ((f->has_min && v < f->vmin) || (f->has_max && v > f->vmax)))
+        return NAN;
+    return (float)v;
+}
+
+/* An axis' coordinate variable into spacing, origin and nonuniform. */
+static int read_axis(struct tvpal_input_file *f, int dimid, size_t len,
+                     double *spacing, double *origin, int *nonuniform,
+                     struct tvpal_diag *diag)
+{
+    *spacing = 1, *origin = 0, *nonuniform = 0;
+    int cv = coord_var_of(f->ncid, dimid);
+    if (cv < 0 || len < 1)
+        return 0;
+    double *c = malloc(sizeof *c * len);
+    if (!c)
+        return TVPAL_E_NOMEM;
+    int st = nc_get_var_double(f->ncid, cv, c);
+    if (st != NC_NOERR) {
+        free(c);
+        char name[NC_MAX_NAME + 1] = "?";
+        nc_inq_varname(f->ncid, cv, name);
+        return ncdf_fail(diag, st, TVPAL_E_READ, f->path, name);
+    }
+    *origin = c[0];
+    if (len > 1) {
+        double step = (c[len - 1] - c[0]) / (double)(len - 1);
+        int even = step != 0 && isfinite(step);
+        for (size_t i = 1; even && i < len; i++)
+            even = fabs((c[i] - c[i - 1]) - step) <= 1e-6 * fabs(step);
+        if (even)
+            *spacing = step;
+        else
+            *nonuniform = 1, *origin = 0;
+    }
+    free(c);
+    return 0;
+}
+
+/* Time values of the time dim: its coordinate variable, else (WRF: no
+ * coordinate variables; the Times char array is not parsed) the only 1-D
+ * numeric variable on it with CF time units, such as WRF's XTIME.  None:
+ * has_times stays 0. */
+static int read_times(struct tvpal_input_file *f, int tdim,
+                      struct tvpal_input_info *info, double **times,
+                      struct tvpal_diag *diag)
+{
+    int tv = coord_var_of(f->ncid, tdim);
+    if (tv < 0) {
+        int nv, found = 0;
+        if (nc_inq_nvars(f->ncid, &nv) != NC_NOERR)
+            return 0;
+        for (int v = 0; v < nv; v++) {
+            int nd, d;
+            nc_type t;
+            if (nc_inq_varndims(f->ncid, v, &nd) == NC_NOERR && nd == 1 &&
+                nc_inq_vardimid(f->ncid, v, &d) == NC_NOERR && d == tdim &&
+                nc_inq_vartype(f->ncid, v, &t) == NC_NOERR && is_numeric(t) &&
+                cf_time_units(f->ncid, v))
+                tv = v, found++;
+        }
+        if (found != 1)
+            return 0;
+    }
+    double *t = malloc(sizeof *t * (f->steps ? f->steps : 1));
+    if (!t)
+        return TVPAL_E_NOMEM;
+    int st = f->steps ? nc_get_var_double(f->ncid, tv, t) : NC_NOERR;
+    if (st != NC_NOERR) {
+        free(t);
+        char name[NC_MAX_NAME + 1] = "?";
+        nc_inq_varname(f->ncid, tv, name);
+        return ncdf_fail(diag, st, TVPAL_E_READ, f->path, name);
+    }
+    text_att(f->ncid, tv, "units", info->time_units, sizeof info->time_units);
+    info->has_times = 1;
+    *times = t;
+    return 0;
+}
+
+/* The variable's grid: time dim, z, y, x, the extra dims of length 1. */
+static int read_grid(struct tvpal_input_file *f,
+                     const struct tvpal_input_opts *opts,
+                     struct tvpal_input_info *info, int *tdim,
+                     struct tvpal_diag *diag)
+{
+    int dims[NC_MAX_VAR_DIMS], nd, st;
+    char vd[200];
+    struct buf b = {vd, 0, sizeof vd, 0, 0};
+    put_var_dims(&b, f->ncid, f->varid);
+    if ((st = nc_inq_varndims(f->ncid, f->varid, &nd)) != NC_NOERR ||
+        (nd <= NC_MAX_VAR_DIMS &&
+         (st = nc_inq_vardimid(f->ncid, f->varid, dims)) != NC_NOERR) ||
+        (st = nc_inq_vartype(f->ncid, f->varid, &f->xtype)) != NC_NOERR)
+        return ncdf_fail(diag, st, TVPAL_E_FORMAT, f->path, f->var);
+    if (!is_numeric(f->xtype))
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s is not "
+                              "numeric", f->path, vd);
+    if (nd < 3)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s has %d "
+                              "dims; 3 spatial ones (z, y, x) are needed",
+                              f->path, vd, nd);
+    if (nd > MAX_DIMS)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s has %d "
+                              "dims; at most %d are read", f->path, vd, nd,
+                              MAX_DIMS);
+    int rc = find_time_dim(f->ncid, f->path, vd, dims, nd, opts, &f->tpos,
+                           diag);
+    if (rc < 0)
+        return rc;
+    f->ndims = nd;
+    if (f->tpos >= nd - 3) {
+        char dname[NC_MAX_NAME + 1] = "?";
+        nc_inq_dimname(f->ncid, dims[f->tpos], dname);
+        if (nd == 3)
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s: "
+                                  "with time dim %s it has fewer than 3 "
+                                  "spatial dims (z, y, x)", f->path, vd, dname);
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s: time dim "
+                              "%s is one of its last three dims, which are z, "
+                              "y, x", f->path, vd, dname);
+    }
+    f->nvox = 1;
+    for (int i = 0; i < nd; i++) {
+        size_t len;
+        char dname[NC_MAX_NAME + 1];
+        if ((st = nc_inq_dim(f->ncid, dims[i], dname, &len)) != NC_NOERR)
+            return ncdf_fail(diag, st, TVPAL_E_FORMAT, f->path, f->var);
+        if (i == f->tpos) {
+            f->steps = len;
+            f->count[i] = 1;
+            continue;
+        }
+        if (i < nd - 3 && len != 1)
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s: dim "
+                                  "%s (length %zu) is neither its time dim "
+                                  "nor z, y, x%s", f->path, vd, dname, len,
+                                  f->tpos < 0 ? "; give the time dim" : "");
+        f->count[i] = len;
+        if (i < nd - 3)
+            continue;
+        int axis = nd - 1 - i;
+        if (len == 0)
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s: dim "
+                                  "%s has length 0", f->path, vd, dname);
+        if (len > UINT32_MAX || f->nvox > SIZE_MAX / 8 / len)
+            return tvpal_diag_set(diag, TVPAL_E_OVERFLOW, "%s: variable %s "
+                                  "is too large", f->path, vd);
+        f->nvox *= len;
+        info->dims[axis] = (uint32_t)len;
+        copy_str(info->dim_names[axis], sizeof info->dim_names[axis], dname);
+        rc = read_axis(f, dims[i], len, &info->spacing[axis],
+                       &info->origin[axis], &info->nonuniform[axis], diag);
+        if (rc < 0)
+            return rc;
+    }
+    if (f->tpos < 0)
+        f->steps = 1;
+    if (f->steps > UINT32_MAX)
+        return tvpal_diag_set(diag, TVPAL_E_OVERFLOW, "%s: variable %s has "
+                              "too many steps", f->path, vd);
+    *tdim = f->tpos >= 0 ? dims[f->tpos] : -1;
+    return 0;
+}
+
+static enum tvpal_type stored_type(const struct tvpal_input_file *f)
+{
+    if (f->packed)
+        return TVPAL_F32;
+    switch (f->xtype) {
+    case NC_DOUBLE: return TVPAL_F64;
+    case NC_UBYTE: return TVPAL_U8;
+    case NC_SHORT: return TVPAL_I16;
+    case NC_USHORT: return TVPAL_U16;
+    /* float, and the types tvpal has no name for (byte, 32- and 64-bit
+     * integers): read as float32 like the rest */
+    default: return TVPAL_F32;
+    }
+}
+
+static void ncdf_close(struct tvpal_input_file *f)
+{
+    if (!f)
+        return;
+    nc_close(f->ncid);
+    free(f->scratch);
+    free(f->path);
+    free(f);
+}
+
+static int ncdf_open(struct tvpal_input_file **out, const char *path,
+                        const struct tvpal_input_opts *opts,
+                        struct tvpal_input_info *info, double **times,
+                        struct tvpal_diag *diag)
+{
+    static const struct tvpal_input_opts none;
+    if (!opts)
+        opts = &none;
+    memset(info, 0, sizeof *info);
+    *times = NULL;
+    for (int a = 0; a < 3; a++)
+        info->spacing[a] = 1;
+    struct tvpal_input_file *f = calloc(1, sizeof *f);
+    if (!f || !(f->path = strdup(path))) {
+        free(f);
+        return TVPAL_E_NOMEM;
+    }
+    f->scale = 1;
+    int st = nc_open(path, NC_NOWRITE, &f->ncid);
+    if (st != NC_NOERR) {
+        free(f->path);
+        free(f);
+        return open_fail(diag, st, path);
+    }
+    int tdim = -1;
+    int rc = choose_var(f->ncid, path, opts, &f->varid, diag);
+    if (rc == 0 && (st = nc_inq_varname(f->ncid, f->varid, f->var)) != NC_NOERR)
+        rc = ncdf_fail(diag, st, TVPAL_E_FORMAT, path, NULL);
+    if (rc == 0)
+        rc = read_grid(f, opts, info, &tdim, diag);
+    if (rc == 0) {
+        info->missing_attrs = (uint64_t)read_cf_atts(f);
+        info->type = stored_type(f);
+        info->steps = (uint32_t)f->steps;
+        copy_str(info->var, sizeof info->var, f->var);
+        text_att(f->ncid, f->varid, "units", info->units, sizeof info->units);
+        if (f->xtype != NC_FLOAT) {
+            size_t size;
+            if ((st = nc_inq_type(f->ncid, f->xtype, NULL, &size)) != NC_NOERR)
+                rc = ncdf_fail(diag, st, TVPAL_E_FORMAT, path, f->var);
+            else if (!(f->scratch = malloc(f->nvox * size)))
+                rc = TVPAL_E_NOMEM;
+        }
+    }
+    if (rc == 0 && tdim >= 0)
+        rc = read_times(f, tdim, info, times, diag);
+    if (rc < 0) {
+        ncdf_close(f);
+        return rc;
+    }
+    *out = f;
+    return 0;
+}
+
+#define NCDF_COOK(T)                                                     \
+    do {                                                                     \
+        const T *s = f->scratch;                                             \
+        for (size_t i = 0; i < f->nvox; i++)                                 \
+            dst[i] = cook(f, (double)s[i]);                                  \
+    } while (0)
+
+static int ncdf_read(struct tvpal_input_file *f, uint32_t k, float *dst,
+                        struct tvpal_diag *diag)
+{
+    if (k >= f->steps)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s: step %u "
+                              "of %zu", f->path, f->var, k, f->steps);
+    size_t start[MAX_DIMS] = {0};
+    if (f->tpos >= 0)
+        start[f->tpos] = k;
+    int st;
+    if (f->xtype == NC_FLOAT) {
+        st = nc_get_vara_float(f->ncid, f->varid, start, f->count, dst);
+        if (st == NC_NOERR && f->cook)
+            for (size_t i = 0; i < f->nvox; i++)
+                dst[i] = cook(f, dst[i]);
+    } else {
+        st = nc_get_vara(f->ncid, f->varid, start, f->count, f->scratch);
+        if (st == NC_NOERR)
+            switch (f->xtype) {
+            case NC_BYTE: NCDF_COOK(signed char); break;
+            case NC_UBYTE: NCDF_COOK(unsigned char); break;
+            case NC_SHORT: NCDF_COOK(short); break;
+            case NC_USHORT: NCDF_COOK(unsigned short); break;
+            case NC_INT: NCDF_COOK(int); break;
+            case NC_UINT: NCDF_COOK(unsigned int); break;
+            case NC_INT64: NCDF_COOK(long long); break;
+            case NC_UINT64: NCDF_COOK(unsigned long long); break;
+            default: NCDF_COOK(double); break;   /* NC_DOUBLE */
+            }
+    }
+    if (st != NC_NOERR)
+        return ncdf_fail(diag, st, TVPAL_E_READ, f->path, f->var);
+    return 0;
+}
+
+static const char *format_name(int fmt)
+{
+    switch (fmt) {
+    case NC_FORMAT_CLASSIC: return "classic";
+    case NC_FORMAT_64BIT_OFFSET: return "64-bit offset";
+    case NC_FORMAT_CDF5: return "cdf5";
+    case NC_FORMAT_NETCDF4: return "netcdf-4";
+    case NC_FORMAT_NETCDF4_CLASSIC: return "netcdf-4";
+    default: return "unknown";
+    }
+}
+
+static int ncdf_describe(const char *path, char **text, struct tvpal_diag *diag)
+{
+    int ncid, fmt, nv, st;
+    *text = NULL;
+    if ((st = nc_open(path, NC_NOWRITE, &ncid)) != NC_NOERR)
+        return open_fail(diag, st, path);
+    if ((st = nc_inq_format(ncid, &fmt)) != NC_NOERR ||
+        (st = nc_inq_nvars(ncid, &nv)) != NC_NOERR) {
+        nc_close(ncid);
+        return ncdf_fail(diag, st, TVPAL_E_FORMAT, path, NULL);
+    }
+    struct buf b = {malloc(256), 0, 256, 0, 1};
+    if (!b.s) {
+        nc_close(ncid);
+        return TVPAL_E_NOMEM;
+    }
+    put(&b, "netcdf %s\n", format_name(fmt));
+    for (int v = 0; v < nv; v++) {
+        char name[NC_MAX_NAME + 1], dname[NC_MAX_NAME + 1], tname[NC_MAX_NAME + 1];
+        char units[256];
+        int nd, dims[NC_MAX_VAR_DIMS];
+        nc_type t;
+        if ((st = nc_inq_var(ncid, v, name, &t, &nd, NULL, NULL)) != NC_NOERR ||
+            nd > NC_MAX_VAR_DIMS ||
+            (st = nc_inq_vardimid(ncid, v, dims)) != NC_NOERR ||
+            (st = nc_inq_type(ncid, t, tname, NULL)) != NC_NOERR) {
+            nc_close(ncid);
+            free(b.s);
+            return ncdf_fail(diag, st, TVPAL_E_FORMAT, path, NULL);
+        }
+        put(&b, "%s(", name);
+        for (int i = 0; i < nd; i++) {
+            size_t len = 0;
+            nc_inq_dim(ncid, dims[i], dname, &len);
+            put(&b, "%s%s=%zu", i ? ", " : "", dname, len);
+        }
+        text_att(ncid, v, "units", units, sizeof units);
+        put(&b, ") %s units=\"%s\"%s\n", tname, units,
+            is_coord_var(ncid, v) ? " coordinate" : "");
+    }
+    nc_close(ncid);
+    if (b.full) {
+        free(b.s);
+        return TVPAL_E_NOMEM;
+    }
+    *text = b.s;
+    return 0;
+}
+
+const struct tvpal_input_backend tvpal_input_netcdf = {
+    "netcdf", ncdf_open, ncdf_read, ncdf_close, ncdf_describe};
