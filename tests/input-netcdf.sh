@@ -1,0 +1,119 @@
+#!/bin/sh
+# input-netcdf: NetCDF files made by ncgen from CDL (classic, 64-bit
+# offset, NetCDF-4 with zlib chunks; one file with a time dimension, or a
+# series of files) encode to exactly the shards of raw files of the same
+# numbers, and tvpal-report measures them against the same reader; bad
+# input (unknown variable, contradicting --dims, fill values without
+# --nan-as) exits 2 naming what was wrong and leaves nothing behind; the
+# real files in ../shared/data/netcdf encode (skipped where absent).
+. "$(dirname "$0")/lib.sh"
+"$INFO" --inspect /dev/null > /dev/null 2>&1
+if ! command -v ncgen > /dev/null; then echo "no ncgen (netcdf-bin): skipped"; exit 77; fi
+D=9x7x5
+T=3
+# The numbers: a smooth field with a moving bump, float32-exact in CDL
+# (written with 9 significant digits, read back as the same float).
+"$PY" - "$W" $D $T <<'PY' || exit 99
+import struct, sys
+w, dims, T = sys.argv[1], [int(v) for v in sys.argv[2].split("x")], int(sys.argv[3])
+nx, ny, nz = dims
+def val(t, x, y, z):
+    f = struct.unpack("<f", struct.pack("<f", 10.0 + x * 0.5 + y * 0.25 - z + 3.0 * (x == t + 2) * (y == 3)))[0]
+    return f
+def cdl(name, steps, fmt_fill=False):
+    lines = ["netcdf %s {" % name, "dimensions:", " time = UNLIMITED ;",
+             " z = %d ;" % nz, " y = %d ;" % ny, " x = %d ;" % nx, "variables:",
+             " double time(time) ;", '  time:units = "hours since 2005-08-28 00:00:00" ;',
+             " float x(x) ;", " float y(y) ;", " float z(z) ;",
+             " float temp(time, z, y, x) ;", '  temp:units = "K" ;']
+    if fmt_fill:
+        lines.append("  temp:_FillValue = -9999.f ;")
+    lines += [" float other(z, y, x) ;", "data:",
+              " time = %s ;" % ", ".join(str(3 * t) for t in steps),
+              " x = %s ;" % ", ".join(str(0.5 * i) for i in range(nx)),
+              " y = %s ;" % ", ".join(str(2.0 * i) for i in range(ny)),
+              " z = %s ;" % ", ".join(str(1.0 + i) for i in range(nz))]
+    vals = []
+    for t in steps:
+        for z in range(nz):
+            for y in range(ny):
+                for x in range(nx):
+                    v = val(t, x, y, z)
+                    if fmt_fill and t == 1 and (x, y, z) == (4, 2, 1):
+                        v = -9999.0
+                    vals.append("%.9g" % v)
+    lines.append(" temp = %s ;" % ", ".join(vals))
+    lines.append(" other = %s ;" % ", ".join("1" for _ in range(nx * ny * nz)))
+    lines.append("}")
+    return "\n".join(lines) + "\n"
+open("%s/all.cdl" % w, "w").write(cdl("all", range(T)))
+open("%s/a.cdl" % w, "w").write(cdl("a", range(2)))
+open("%s/b.cdl" % w, "w").write(cdl("b", range(2, T)))
+open("%s/fill.cdl" % w, "w").write(cdl("fill", range(T), True))
+for t in range(T):
+    with open("%s/raw_t%d.f32" % (w, t), "wb") as f:
+        for z in range(nz):
+            for y in range(ny):
+                for x in range(nx):
+                    f.write(struct.pack("<f", val(t, x, y, z)))
+PY
+for k in nc3 nc6 nc4; do
+    ncgen -k $k -o "$W/all-$k.nc" "$W/all.cdl" || { fail "ncgen -k $k"; continue; }
+done
+ncgen -k nc4 -o "$W/a.nc" "$W/a.cdl" && ncgen -k nc4 -o "$W/b.nc" "$W/b.cdl" || fail "ncgen series"
+ncgen -k nc4 -o "$W/fill.nc" "$W/fill.cdl" || fail "ncgen fill"
+"$ENC" -q --dims $D --window 2 -o "$W/raw" "$W"/raw_t*.f32 > /dev/null || { fail "raw encode"; finish; }
+if "$INFO" --inspect "$W/all-nc4.nc" 2>&1 | grep -q "built without NetCDF"; then
+    echo "built without NetCDF: skipped (and tvpal-info says so)"; exit 77
+fi
+"$INFO" --inspect "$W/all-nc4.nc" > "$W/inspect.txt" 2>&1 && grep -q "temp" "$W/inspect.txt" \
+    && grep -q "other" "$W/inspect.txt" && ok "--inspect lists temp and other" \
+    || fail "--inspect: $(cat "$W/inspect.txt")"
+same_shards() { # DIR: its shards equal the raw dataset's
+    for a in x y z; do
+        cmp -s "$W/raw/node-0/axis-$a.tvps" "$1/node-0/axis-$a.tvps" || return 1
+    done
+}
+for k in nc3 nc6 nc4; do
+    "$ENC" -q --var temp --window 2 -o "$W/ds-$k" "$W/all-$k.nc" > /dev/null 2> "$W/e.txt" \
+        || { fail "$k encode: $(cat "$W/e.txt")"; continue; }
+    same_shards "$W/ds-$k" && ok "$k: shards identical to raw" || fail "$k: shards differ from raw"
+    grep -q "^source_format = netcdf" "$W/ds-$k/manifest.txt" && grep -q "^source_var = temp" "$W/ds-$k/manifest.txt" \
+        && ok "$k: manifest names format and variable" || fail "$k: manifest"
+done
+"$ENC" -q --var temp --window 2 -o "$W/ds-series" "$W/a.nc" "$W/b.nc" > /dev/null 2> "$W/e.txt" \
+    || fail "series encode: $(cat "$W/e.txt")"
+same_shards "$W/ds-series" && ok "series of 2 + 1 steps: shards identical to raw" || fail "series shards differ"
+grep -q "^source_layout = series" "$W/ds-series/manifest.txt" && ok "series layout" || fail "series layout"
+lr=$("$REP" -q "$W/raw") && ln=$("$REP" -q "$W/ds-nc4") || fail "report"
+[ "$(kv psnr "$lr")" = "$(kv psnr "$ln")" ] && [ "$(kv rmse "$lr")" = "$(kv rmse "$ln")" ] \
+    && ok "report: psnr $(kv psnr "$ln") as from raw" || fail "report differs: $lr / $ln"
+ls=$("$REP" -q "$W/ds-series") && [ "$(kv psnr "$ls")" = "$(kv psnr "$lr")" ] \
+    && ok "report on the series" || fail "series report: $ls"
+# Bad input: exit 2, a message naming the file and the variable, nothing left.
+nothing_left() { [ ! -e "$W/bad" ] && [ ! -e "$W/bad.partial" ] && ok "nothing left ($1)" || fail "output left ($1)"; }
+expect_exit 2 "nope.*temp|temp.*nope" "$ENC" -q --var nope -o "$W/bad" "$W/all-nc4.nc"; nothing_left "unknown var"
+expect_exit 2 "temp" "$ENC" -q -o "$W/bad" "$W/all-nc4.nc"; nothing_left "two candidates"
+expect_exit 2 "9x7x5.*--dims|--dims.*9x7x5" "$ENC" -q --var temp --dims 9x7x6 -o "$W/bad" "$W/all-nc4.nc"
+nothing_left "contradicting --dims"
+expect_exit 2 "--steps and --endian" "$ENC" -q --var temp --steps 3 -o "$W/bad" "$W/all-nc4.nc"; nothing_left "--steps"
+expect_exit 2 "fill.nc.*\(4,2,1\).*--nan-as" "$ENC" -q --var temp -o "$W/bad" "$W/fill.nc"; nothing_left "fill value"
+"$ENC" -q --var temp --window 2 --nan-as 10 -o "$W/ds-fill" "$W/fill.nc" > /dev/null 2> "$W/e.txt" \
+    && ok "fill value with --nan-as" || fail "--nan-as: $(cat "$W/e.txt")"
+"$REP" -q "$W/ds-fill" > /dev/null 2> "$W/e.txt" && ok "report with --nan-as" || fail "report --nan-as: $(cat "$W/e.txt")"
+printf 'CDF\001garbage' > "$W/trunc.nc"
+expect_exit 2 "trunc.nc" "$ENC" -q -o "$W/bad" "$W/trunc.nc"; nothing_left "corrupt file"
+# Real model output.
+S=${TVPAL_SHARED:-$TVPAL_SRCDIR/../shared}/data/netcdf
+if [ -r "$S/mercator_sample.nc" ] && [ -r "$S/contour.cdf" ]; then
+    "$ENC" -q --var T -o "$W/wrf" "$S/mercator_sample.nc" > "$W/o.txt" 2> "$W/e.txt" \
+        && grep -q "^dims = 48x48x14" "$W/wrf/manifest.txt" && grep -q "^steps = 4" "$W/wrf/manifest.txt" \
+        && ok "WRF T: 48x48x14, 4 steps" || fail "WRF: $(cat "$W/e.txt")"
+    l=$("$REP" -q "$W/wrf") && ge "$(kv psnr "$l")" 30 && ok "WRF report psnr $(kv psnr "$l")" || fail "WRF report: $l"
+    "$ENC" -q --var T --nan-as 0 -o "$W/contour" "$S/contour.cdf" > /dev/null 2> "$W/e.txt" \
+        && grep -q "^dims = 36x33x10" "$W/contour/manifest.txt" && grep -q "^steps = 7" "$W/contour/manifest.txt" \
+        && ok "contour T: 36x33x10, 7 steps" || fail "contour: $(cat "$W/e.txt")"
+else
+    echo "no $S: the real-data part is skipped"
+fi
+finish
