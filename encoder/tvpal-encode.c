@@ -740,6 +740,11 @@ static int open_source(struct run *r, int have_dims)
         die_usage("--steps and --endian: for raw input only (%s is %s: it "
                   "says its own steps and byte order)", o->inputs[0],
                   tvpal_input_format_name(f));
+    for (unsigned a = 0; a < 3; a++)
+        if (in->nonuniform[a])
+            msg("warning: %s: the %c axis (%s) is not evenly spaced; the "
+                "grid is taken as evenly spaced in index", o->inputs[0],
+                "xyz"[a], in->dim_names[a][0] ? in->dim_names[a] : "?");
     memcpy(o->dims, in->dims, sizeof o->dims);
     o->type = TVPAL_F32;
     o->big_endian = 0;

@@ -113,6 +113,10 @@ if [ -r "$S/mercator_sample.nc" ] && [ -r "$S/contour.cdf" ]; then
     "$ENC" -q --var T --nan-as 0 -o "$W/contour" "$S/contour.cdf" > /dev/null 2> "$W/e.txt" \
         && grep -q "^dims = 36x33x10" "$W/contour/manifest.txt" && grep -q "^steps = 7" "$W/contour/manifest.txt" \
         && ok "contour T: 36x33x10, 7 steps" || fail "contour: $(cat "$W/e.txt")"
+    grep -q "the z axis (level) is not evenly spaced" "$W/e.txt" && ok "warning: pressure levels not evenly spaced" \
+        || fail "no spacing warning: $(cat "$W/e.txt")"
+    grep -q "^times = 0 6 12 24 30 36 48$" "$W/contour/manifest.txt" && grep -q "^time_units = hours$" "$W/contour/manifest.txt" \
+        && ok "contour: times from frtime" || fail "contour times: $(grep '^time' "$W/contour/manifest.txt")"
 else
     echo "no $S: the real-data part is skipped"
 fi
