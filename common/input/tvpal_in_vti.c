@@ -729,6 +729,13 @@ static void convert(const unsigned char *src, int t, int be, size_t n,
                     float *dst)
 {
     unsigned sz = vti_types[t].size;
+    const uint32_t one = 1;
+    int host_be = *(const unsigned char *)&one == 0;
+    if (t == T_F32 && be == host_be) {   /* already float32 as stored */
+        if (src != (const unsigned char *)dst)
+            memmove(dst, src, n * 4);
+        return;
+    }
     for (size_t i = 0; i < n; i++) {
         uint64_t u = load_uint(src + i * sz, sz, be);
         float f;
