@@ -27,14 +27,16 @@ int tvpal_input_format_parse(const char *s, enum tvpal_input_format *f)
 }
 
 /* XML whose root element is a VTKFile of type ImageData, within the first
- * bytes (an XML declaration and comments may come first). */
-static int looks_like_vti(const char *head, size_t n)
+ * bytes (an XML declaration and comments may come first).  Text up to the
+ * end of the root's tag, which the string functions check (head ends with
+ * a NUL): appended raw data, NUL bytes included, may follow within the
+ * first bytes, as in ParaView's own small files. */
+static int looks_like_vti(const char *head)
 {
-    const char *p = memchr(head, '<', n);
-    if (!p)
-        return 0;
     const char *root = strstr(head, "<VTKFile");
-    return root && strstr(root, "ImageData") != NULL;
+    const char *gt = root ? strchr(root, '>') : NULL;
+    const char *type = root ? strstr(root, "ImageData") : NULL;
+    return gt && type && type < gt;
 }
 
 int tvpal_input_detect(const char *path, enum tvpal_input_format *f,
@@ -59,7 +61,7 @@ int tvpal_input_detect(const char *path, enum tvpal_input_format *f,
         *f = TVPAL_IN_NETCDF;
     else if (n >= 8 && !memcmp(head, hdf5_sig, 8))
         *f = TVPAL_IN_NETCDF;   /* NetCDF-4; plain HDF5 is not read yet */
-    else if (n >= 5 && memchr(head, 0, n) == NULL && looks_like_vti(head, n))
+    else if (n >= 5 && looks_like_vti(head))
         *f = TVPAL_IN_VTI;
     return 0;
 }

@@ -1,0 +1,1080 @@
+/* tvpal_in_vti.c: the VTK XML ImageData (.vti) backend of tvpal_input, and
+ * the only file of the tree that includes expat and zlib (LAYERS.md).
+ *
+ * One file is one timestep.  The XML is parsed with expat up to the
+ * <AppendedData> tag (what follows the '_' marker is not XML: raw bytes or
+ * base64 text), the point array's data is found by the rules of the VTK
+ * XML format and zlib inflates its blocks:
+ *   ascii     numbers separated by white space in the DataArray's text;
+ *   binary    base64 text in the DataArray;
+ *   appended  at `offset` bytes (raw) or characters (base64) after '_'.
+ * Binary data starts with a header of header_type (UInt32 or UInt64)
+ * integers in the file's byte order: uncompressed, [nbytes]; compressed,
+ * [nblocks, blocksize, lastblocksize, csize_1 .. csize_n] followed by the
+ * blocks.  VTK base64-encodes an uncompressed header with its data as one
+ * stream, a compressed header apart from its blocks; the decoder reads a
+ * padded quad as the end of one stream and goes on with the next, which
+ * reads both layouts (and a header written with its blocks).
+ *
+ * Nothing is kept between calls but the path and what open found: read maps
+ * the file, parses it again and decodes into dst (float32 arrays in place;
+ * other types through one step of scratch).  Errors are TVPAL_E_FORMAT for
+ * a file that is not a readable .vti, with the path and the problem in the
+ * diag; TVPAL_E_INVAL for an array that cannot be chosen or is not a scalar
+ * field. */
+#include "tvpal_input_impl.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <limits.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <expat.h>
+#include <zlib.h>
+
+#define ZLIB_NAME "vtkZLibDataCompressor"
+
+/* DataArray types: VTK's name, bytes per value, and the tvpal type that
+ * info reports (the nearest float type where tvpal has no such integer). */
+static const struct vti_type {
+    const char *name;
+    unsigned size;
+    enum tvpal_type as;
+} vti_types[] = {
+    {"Float32", 4, TVPAL_F32}, {"Float64", 8, TVPAL_F64},
+    {"Int8", 1, TVPAL_F32},    {"UInt8", 1, TVPAL_U8},
+    {"Int16", 2, TVPAL_I16},   {"UInt16", 2, TVPAL_U16},
+    {"Int32", 4, TVPAL_F64},   {"UInt32", 4, TVPAL_F64},
+    {"Int64", 8, TVPAL_F64},   {"UInt64", 8, TVPAL_F64},
+};
+enum { T_F32, T_F64, T_I8, T_U8, T_I16, T_U16, T_I32, T_U32, T_I64, T_U64,
+       T_COUNT };
+
+enum { F_ASCII, F_BINARY, F_APPENDED, F_UNKNOWN };
+
+struct vti_array {
+    char *name;                 /* "" when the file gives none */
+    char type[32];              /* as the file spells it */
+    int t;                      /* T_*, or -1 for a type not read */
+    long ncomp;
+    int fmt;                    /* F_* */
+    char fmt_name[32];
+    int has_offset;
+    uint64_t offset;
+    size_t text_begin, text_end;   /* the element's text in the file */
+    int has_text;
+    int cell;                   /* in CellData, not PointData */
+};
+
+/* What one parse of a file found. */
+struct vti_doc {
+    const char *path;
+    const unsigned char *buf;   /* the mapped file */
+    size_t size;
+    int big_endian, header64;
+    char byte_order[32], header_type[32], compressor[64];
+    int have_image, have_whole, have_direction;
+    long long whole[6], extent[6];
+    int have_extent;
+    double origin[3], spacing[3], direction[9];
+    int npieces;
+    char *scalars;              /* the PointData's Scalars, or NULL */
+    struct vti_array *arrays;
+    int narrays, cap;
+    int have_appended, appended_base64;
+    size_t appended_at;         /* first byte after '_'; 0 if none */
+    /* parser state */
+    XML_Parser xp;
+    int depth, piece_depth, data_depth, cur;   /* cur: array open, or -1 */
+    int in_cell, skip_piece;
+    int rc;                     /* an error a handler met */
+    struct tvpal_diag *diag;
+};
+
+struct tvpal_input_file {
+    char *path;
+    char var[128];              /* the array open chose */
+    uint32_t dims[3];
+    int t;
+};
+
+/* --------------------------------------------------------- file mapping */
+
+static int map_file(const char *path, const unsigned char **buf, size_t *size,
+                    struct tvpal_diag *diag)
+{
+    int fd = open(path, O_RDONLY);
+    if (fd < 0)
+        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
+                              strerror(errno));
+    struct stat st;
+    if (fstat(fd, &st) < 0) {
+        int e = errno;
+        close(fd);
+        return tvpal_diag_set(diag, TVPAL_E_READ, "%s: %s", path, strerror(e));
+    }
+    if (st.st_size == 0) {
+        close(fd);
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: empty file, not a "
+                              "VTK ImageData file", path);
+    }
+    if ((uint64_t)st.st_size > SIZE_MAX) {
+        close(fd);
+        return tvpal_diag_set(diag, TVPAL_E_OVERFLOW, "%s: too large to map",
+                              path);
+    }
+    void *p = mmap(NULL, (size_t)st.st_size, PROT_READ, MAP_PRIVATE, fd, 0);
+    int e = errno;
+    close(fd);
+    if (p == MAP_FAILED)
+        return tvpal_diag_set(diag, TVPAL_E_READ, "%s: mmap: %s", path,
+                              strerror(e));
+    *buf = p;
+    *size = (size_t)st.st_size;
+    return 0;
+}
+
+/* ------------------------------------------------------------ XML parse */
+
+static void doc_free(struct vti_doc *d)
+{
+    for (int i = 0; i < d->narrays; i++)
+        free(d->arrays[i].name);
+    free(d->arrays);
+    free(d->scalars);
+    if (d->buf)
+        munmap((void *)d->buf, d->size);
+    memset(d, 0, sizeof *d);
+}
+
+static const char *attr(const XML_Char **atts, const char *name)
+{
+    for (int i = 0; atts[i]; i += 2)
+        if (!strcmp(atts[i], name))
+            return atts[i + 1];
+    return NULL;
+}
+
+/* Stops the parse with an error (the first one wins); returns the code. */
+static int fail(struct vti_doc *d, int code, const char *fmt, const char *a,
+                const char *b)
+{
+    if (d->rc == 0) {
+        char what[200];
+        snprintf(what, sizeof what, fmt, a, b ? b : "");
+        d->rc = tvpal_diag_set(d->diag, code, "%s: line %lu: %s", d->path,
+                               (unsigned long)XML_GetCurrentLineNumber(d->xp),
+                               what);
+    }
+    XML_StopParser(d->xp, XML_FALSE);
+    return code;
+}
+
+static int nomem(struct vti_doc *d)
+{
+    d->rc = TVPAL_E_NOMEM;
+    XML_StopParser(d->xp, XML_FALSE);
+    return TVPAL_E_NOMEM;
+}
+
+static int parse_ints(const char *s, long long *v, int n)
+{
+    for (int i = 0; i < n; i++) {
+        char *e;
+        errno = 0;
+        v[i] = strtoll(s, &e, 10);
+        if (e == s || errno)
+            return -1;
+        s = e;
+    }
+    while (*s == ' ' || *s == '\t' || *s == '\n' || *s == '\r')
+        s++;
+    return *s ? -1 : 0;
+}
+
+static int parse_doubles(const char *s, double *v, int n)
+{
+    for (int i = 0; i < n; i++) {
+        char *e;
+        v[i] = strtod(s, &e);
+        if (e == s || !isfinite(v[i]))
+            return -1;
+        s = e;
+    }
+    while (*s == ' ' || *s == '\t' || *s == '\n' || *s == '\r')
+        s++;
+    return *s ? -1 : 0;
+}
+
+static void copy_attr(char *dst, size_t cap, const char *v)
+{
+    snprintf(dst, cap, "%s", v);
+}
+
+static int start_vtkfile(struct vti_doc *d, const XML_Char **atts)
+{
+    const char *v = attr(atts, "type");
+    if (!v || strcmp(v, "ImageData"))
+        return fail(d, TVPAL_E_FORMAT, "VTKFile type is %s; only ImageData "
+                    "(.vti) is read", v ? v : "missing", NULL);
+    v = attr(atts, "byte_order");
+    copy_attr(d->byte_order, sizeof d->byte_order, v ? v : "LittleEndian");
+    if (!strcmp(d->byte_order, "BigEndian"))
+        d->big_endian = 1;
+    else if (strcmp(d->byte_order, "LittleEndian"))
+        return fail(d, TVPAL_E_FORMAT, "byte_order %s (LittleEndian or "
+                    "BigEndian expected)", v, NULL);
+    v = attr(atts, "header_type");
+    copy_attr(d->header_type, sizeof d->header_type, v ? v : "UInt32");
+    if (!strcmp(d->header_type, "UInt64"))
+        d->header64 = 1;
+    else if (strcmp(d->header_type, "UInt32"))
+        return fail(d, TVPAL_E_FORMAT, "header_type %s (UInt32 or UInt64 "
+                    "expected)", v, NULL);
+    v = attr(atts, "compressor");
+    copy_attr(d->compressor, sizeof d->compressor, v ? v : "");
+    return 0;
+}
+
+static int start_image(struct vti_doc *d, const XML_Char **atts)
+{
+    const char *v;
+    d->have_image = 1;
+    if (!(v = attr(atts, "WholeExtent")) || parse_ints(v, d->whole, 6) < 0)
+        return fail(d, TVPAL_E_FORMAT, "ImageData WholeExtent is %s (six "
+                    "integers expected)", v ? v : "missing", NULL);
+    d->have_whole = 1;
+    if ((v = attr(atts, "Origin")) && parse_doubles(v, d->origin, 3) < 0)
+        return fail(d, TVPAL_E_FORMAT, "ImageData Origin is %s (three "
+                    "numbers expected)", v, NULL);
+    if ((v = attr(atts, "Spacing")) && parse_doubles(v, d->spacing, 3) < 0)
+        return fail(d, TVPAL_E_FORMAT, "ImageData Spacing is %s (three "
+                    "numbers expected)", v, NULL);
+    if ((v = attr(atts, "Direction"))) {
+        if (parse_doubles(v, d->direction, 9) < 0)
+            return fail(d, TVPAL_E_FORMAT, "ImageData Direction is %s (nine "
+                        "numbers expected)", v, NULL);
+        d->have_direction = 1;
+    }
+    return 0;
+}
+
+static int start_array(struct vti_doc *d, const XML_Char **atts)
+{
+    if (d->narrays == d->cap) {
+        int cap = d->cap ? 2 * d->cap : 8;
+        struct vti_array *a = realloc(d->arrays, sizeof *a * (size_t)cap);
+        if (!a)
+            return nomem(d);
+        d->arrays = a;
+        d->cap = cap;
+    }
+    struct vti_array *a = &d->arrays[d->narrays];
+    memset(a, 0, sizeof *a);
+    const char *v = attr(atts, "Name");
+    if (!(a->name = strdup(v ? v : "")))
+        return nomem(d);
+    d->narrays++;
+    a->cell = d->in_cell;
+    v = attr(atts, "type");
+    copy_attr(a->type, sizeof a->type, v ? v : "missing");
+    a->t = -1;
+    for (int i = 0; v && i < T_COUNT; i++)
+        if (!strcmp(v, vti_types[i].name))
+            a->t = i;
+    a->ncomp = 1;
+    if ((v = attr(atts, "NumberOfComponents"))) {
+        char *e;
+        a->ncomp = strtol(v, &e, 10);
+        if (e == v || *e || a->ncomp < 1)
+            return fail(d, TVPAL_E_FORMAT, "DataArray %s: NumberOfComponents "
+                        "is %s", a->name, v);
+    }
+    v = attr(atts, "format");
+    copy_attr(a->fmt_name, sizeof a->fmt_name, v ? v : "ascii");
+    a->fmt = !strcmp(a->fmt_name, "ascii")      ? F_ASCII
+             : !strcmp(a->fmt_name, "binary")   ? F_BINARY
+             : !strcmp(a->fmt_name, "appended") ? F_APPENDED
+                                                : F_UNKNOWN;
+    if ((v = attr(atts, "offset"))) {
+        char *e;
+        errno = 0;
+        unsigned long long o = strtoull(v, &e, 10);
+        if (e == v || *e || errno || *v == '-')
+            return fail(d, TVPAL_E_FORMAT, "DataArray %s: offset is %s",
+                        a->name, v);
+        a->offset = o;
+        a->has_offset = 1;
+    }
+    d->cur = d->narrays - 1;
+    return 0;
+}
+
+static int start(struct vti_doc *d, int depth, const XML_Char *name,
+                 const XML_Char **atts)
+{
+    if (depth == 0) {
+        if (strcmp(name, "VTKFile"))
+            return fail(d, TVPAL_E_FORMAT, "the root element is <%s>, not "
+                        "<VTKFile>", name, NULL);
+        return start_vtkfile(d, atts);
+    }
+    if (depth == 1 && !strcmp(name, "ImageData"))
+        return start_image(d, atts);
+    if (depth == 1 && !strcmp(name, "AppendedData")) {
+        const char *v = attr(atts, "encoding");
+        d->have_appended = 1;
+        if (!v || !strcmp(v, "raw"))
+            return 0;
+        if (!strcmp(v, "base64")) {
+            d->appended_base64 = 1;
+            return 0;
+        }
+        return fail(d, TVPAL_E_FORMAT, "AppendedData encoding %s (raw or "
+                    "base64 expected)", v, NULL);
+    }
+    if (depth == 2 && d->have_image && !strcmp(name, "Piece")) {
+        /* The arrays of the first piece only: a second one is refused. */
+        d->skip_piece = d->npieces++ > 0;
+        d->piece_depth = depth;
+        const char *v = attr(atts, "Extent");
+        if (!d->skip_piece && v) {
+            if (parse_ints(v, d->extent, 6) < 0)
+                return fail(d, TVPAL_E_FORMAT, "Piece Extent is %s (six "
+                            "integers expected)", v, NULL);
+            d->have_extent = 1;
+        }
+        return 0;
+    }
+    if (d->piece_depth && depth == d->piece_depth + 1 && !d->skip_piece &&
+        (!strcmp(name, "PointData") || !strcmp(name, "CellData"))) {
+        d->in_cell = !strcmp(name, "CellData");
+        d->data_depth = depth;
+        const char *v = attr(atts, "Scalars");
+        if (!d->in_cell && v && !d->scalars && !(d->scalars = strdup(v)))
+            return nomem(d);
+        return 0;
+    }
+    if (d->data_depth && depth == d->data_depth + 1 &&
+        !strcmp(name, "DataArray"))
+        return start_array(d, atts);
+    return 0;
+}
+
+static void XMLCALL on_start(void *ud, const XML_Char *name,
+                             const XML_Char **atts)
+{
+    struct vti_doc *d = ud;
+    int depth = d->depth++;
+    (void)start(d, depth, name, atts);
+}
+
+static void XMLCALL on_end(void *ud, const XML_Char *name)
+{
+    struct vti_doc *d = ud;
+    int depth = --d->depth;
+    /* An element inside the DataArray (VTK writes InformationKey ones
+     * before the data): the data is the text after the last of them. */
+    if (d->cur >= 0 && depth > d->data_depth + 1)
+        d->arrays[d->cur].has_text = 0;
+    if (d->cur >= 0 && d->data_depth && depth == d->data_depth + 1) {
+        struct vti_array *a = &d->arrays[d->cur];
+        size_t here = (size_t)XML_GetCurrentByteIndex(d->xp);
+        if (!a->has_text)
+            a->text_begin = here;
+        a->text_end = here;
+        a->has_text = 1;
+        d->cur = -1;
+    }
+    if (depth == d->data_depth)
+        d->data_depth = 0;
+    if (depth == d->piece_depth)
+        d->piece_depth = 0;
+}
+
+static void XMLCALL on_text(void *ud, const XML_Char *s, int len)
+{
+    struct vti_doc *d = ud;
+    if (d->cur >= 0 && d->depth == d->data_depth + 2 &&
+        !d->arrays[d->cur].has_text) {
+        d->arrays[d->cur].text_begin = (size_t)XML_GetCurrentByteIndex(d->xp);
+        d->arrays[d->cur].has_text = 1;
+    }
+}
+
+static const unsigned char *find(const unsigned char *p, size_t n,
+                                 const char *s)
+{
+    size_t k = strlen(s);
+    for (size_t i = 0; n >= k && i <= n - k; i++)
+        if (p[i] == (unsigned char)s[0] && !memcmp(p + i, s, k))
+            return p + i;
+    return NULL;
+}
+
+/* Feeds buf[0..n) to expat in pieces (so that expat copies no more than a
+ * piece of a large inline array); final: this is the last of the text. */
+static int feed(struct vti_doc *d, const unsigned char *buf, size_t n,
+                int final)
+{
+    const size_t piece = 1 << 20;
+    do {
+        size_t k = n < piece ? n : piece;
+        int last = final && k == n;
+        if (XML_Parse(d->xp, (const char *)buf, (int)k, last) !=
+            XML_STATUS_OK) {
+            if (d->rc)
+                return d->rc;
+            if (XML_GetErrorCode(d->xp) == XML_ERROR_NO_MEMORY)
+                return TVPAL_E_NOMEM;
+            return tvpal_diag_set(
+                d->diag, TVPAL_E_FORMAT, "%s: XML error at line %lu: %s",
+                d->path, (unsigned long)XML_GetCurrentLineNumber(d->xp),
+                XML_ErrorString(XML_GetErrorCode(d->xp)));
+        }
+        buf += k;
+        n -= k;
+    } while (n > 0);
+    return d->rc;
+}
+
+/* Maps path and parses its XML into *d (owned by the caller: doc_free, also
+ * after an error). */
+static int load(struct vti_doc *d, const char *path, struct tvpal_diag *diag)
+{
+    memset(d, 0, sizeof *d);
+    d->path = path;
+    d->diag = diag;
+    d->cur = -1;
+    d->spacing[0] = d->spacing[1] = d->spacing[2] = 1;
+    int rc = map_file(path, &d->buf, &d->size, diag);
+    if (rc < 0)
+        return rc;
+    if (!(d->xp = XML_ParserCreate(NULL)))
+        return TVPAL_E_NOMEM;
+    XML_SetUserData(d->xp, d);
+    XML_SetElementHandler(d->xp, on_start, on_end);
+    XML_SetCharacterDataHandler(d->xp, on_text);
+
+    /* As VTK does, the XML ends at <AppendedData ...>: the element is
+     * closed for expat, and its data begins after the '_' marker. */
+    const unsigned char *tag = find(d->buf, d->size, "<AppendedData");
+    if (!tag) {
+        rc = feed(d, d->buf, d->size, 1);
+    } else {
+        const unsigned char *end = d->buf + d->size;
+        const unsigned char *gt = memchr(tag, '>', (size_t)(end - tag));
+        if (!gt) {
+            rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: the <AppendedData> "
+                                "tag is not closed (truncated file?)", path);
+        } else {
+            int empty = gt[-1] == '/';
+            static const char close_data[] = "</AppendedData>\n</VTKFile>\n";
+            const char *rest = empty ? close_data + 16 : close_data;
+            rc = feed(d, d->buf, (size_t)(gt + 1 - d->buf), 0);
+            if (rc == 0)
+                rc = feed(d, (const unsigned char *)rest, strlen(rest), 1);
+            const unsigned char *p = gt + 1;
+            while (!empty && p < end && (*p == ' ' || *p == '\t' ||
+                                         *p == '\n' || *p == '\r'))
+                p++;
+            if (rc == 0 && !empty && (p == end || *p != '_'))
+                rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: AppendedData "
+                                    "has no '_' marker before its data", path);
+            if (!empty && p < end)
+                d->appended_at = (size_t)(p + 1 - d->buf);
+        }
+    }
+    XML_ParserFree(d->xp);
+    d->xp = NULL;
+    if (rc == 0 && !d->have_whole)
+        rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: no <ImageData> element "
+                            "with a WholeExtent", path);
+    return rc;
+}
+
+/* ------------------------------------------------------ choosing a grid */
+
+static int grid(const struct vti_doc *d, struct tvpal_input_info *info)
+{
+    for (int i = 0; i < 3; i++) {
+        long long lo = d->whole[2 * i], hi = d->whole[2 * i + 1];
+        if (hi < lo || hi - lo >= INT32_MAX)
+            return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: WholeExtent "
+                                  "%lld %lld on axis %c is empty or too "
+                                  "large", d->path, lo, hi, "xyz"[i]);
+        info->dims[i] = (uint32_t)(hi - lo + 1);
+        if (!(d->spacing[i] > 0))
+            return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: Spacing %g on "
+                                  "axis %c (positive expected)", d->path,
+                                  d->spacing[i], "xyz"[i]);
+        info->spacing[i] = d->spacing[i];
+        /* VTK places point (i, j, k) of the extent at Origin + i * Spacing:
+         * the first point of the grid is at extent start. */
+        info->origin[i] = d->origin[i] + (double)lo * d->spacing[i];
+    }
+    uint64_t n = (uint64_t)info->dims[0] * info->dims[1] * info->dims[2];
+    if (n > SIZE_MAX / 8)
+        return tvpal_diag_set(d->diag, TVPAL_E_OVERFLOW, "%s: %ux%ux%u "
+                              "points overflow", d->path, info->dims[0],
+                              info->dims[1], info->dims[2]);
+    if (d->have_direction)
+        for (int i = 0; i < 9; i++)
+            if (d->direction[i] != (i % 4 == 0 ? 1.0 : 0.0))
+                return tvpal_diag_set(
+                    d->diag, TVPAL_E_FORMAT, "%s: non-identity Direction is "
+                    "not supported (%g %g %g %g %g %g %g %g %g)", d->path,
+                    d->direction[0], d->direction[1], d->direction[2],
+                    d->direction[3], d->direction[4], d->direction[5],
+                    d->direction[6], d->direction[7], d->direction[8]);
+    if (d->npieces == 0)
+        return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: no Piece in "
+                              "ImageData", d->path);
+    if (d->npieces > 1)
+        return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: %d pieces: "
+                              "several pieces are not supported", d->path,
+                              d->npieces);
+    if (!d->have_extent || memcmp(d->extent, d->whole, sizeof d->whole))
+        return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: the Piece's Extent "
+                              "is not the WholeExtent: several pieces are not "
+                              "supported", d->path);
+    return 0;
+}
+
+/* "a, b, c" of the point arrays into buf. */
+static void list_arrays(const struct vti_doc *d, char *buf, size_t cap)
+{
+    size_t n = 0;
+    buf[0] = 0;
+    for (int i = 0; i < d->narrays && n < cap; i++)
+        if (!d->arrays[i].cell) {
+            int k = snprintf(buf + n, cap - n, "%s%s", n ? ", " : "",
+                             d->arrays[i].name);
+            n += k > 0 ? (size_t)k : 0;
+        }
+    if (!buf[0])
+        snprintf(buf, cap, "none");
+}
+
+/* The point array that opts (or the file) names, checked for reading. */
+static int choose(const struct vti_doc *d, const char *var, int *out)
+{
+    char names[160];
+    int pick = -1, npoint = 0;
+    for (int i = 0; i < d->narrays; i++)
+        npoint += !d->arrays[i].cell;
+    list_arrays(d, names, sizeof names);
+    const char *want = var ? var : d->scalars;
+    if (want) {
+        for (int i = 0; i < d->narrays && pick < 0; i++)
+            if (!d->arrays[i].cell && !strcmp(d->arrays[i].name, want))
+                pick = i;
+        for (int i = 0; i < d->narrays && pick < 0; i++)
+            if (d->arrays[i].cell && !strcmp(d->arrays[i].name, want))
+                return tvpal_diag_set(d->diag, TVPAL_E_INVAL, "%s: %s is a "
+                                      "cell array; tvpal reads point arrays "
+                                      "(point arrays: %s)", d->path, want,
+                                      names);
+        if (pick < 0)
+            return tvpal_diag_set(d->diag, var ? TVPAL_E_INVAL : TVPAL_E_FORMAT,
+                                  "%s: no point array %s%s (point arrays: %s)",
+                                  d->path, want, var ? "" : " (the active "
+                                  "Scalars)", names);
+    } else if (npoint == 1) {
+        for (int i = 0; i < d->narrays; i++)
+            if (!d->arrays[i].cell)
+                pick = i;
+    } else if (npoint == 0) {
+        return tvpal_diag_set(d->diag, TVPAL_E_INVAL, "%s: no point arrays "
+                              "(PointData DataArray) to read", d->path);
+    } else {
+        return tvpal_diag_set(d->diag, TVPAL_E_INVAL, "%s: %d point arrays "
+                              "and no active Scalars: choose one (point "
+                              "arrays: %s)", d->path, npoint, names);
+    }
+    const struct vti_array *a = &d->arrays[pick];
+    if (strlen(a->name) >= sizeof ((struct tvpal_input_info *)0)->var)
+        return tvpal_diag_set(d->diag, TVPAL_E_INVAL, "%s: array name %.40s... "
+                              "is too long", d->path, a->name);
+    if (a->ncomp != 1)
+        return tvpal_diag_set(d->diag, TVPAL_E_INVAL, "%s: array %s has %ld "
+                              "components (NumberOfComponents); tvpal reads "
+                              "scalar arrays only", d->path, a->name, a->ncomp);
+    if (a->t < 0)
+        return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s has type "
+                              "%s (Float32/64, [U]Int8/16/32/64 are read)",
+                              d->path, a->name, a->type);
+    if (a->fmt == F_UNKNOWN)
+        return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s has "
+                              "format %s (ascii, binary or appended expected)",
+                              d->path, a->name, a->fmt_name);
+    if (a->fmt != F_ASCII && d->compressor[0] && strcmp(d->compressor, ZLIB_NAME))
+        return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: compressor %s is not "
+                              "supported yet (only " ZLIB_NAME " or none)",
+                              d->path, d->compressor);
+    if (a->fmt == F_APPENDED && (!d->have_appended || !d->appended_at))
+        return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s is "
+                              "appended and the file has no AppendedData",
+                              d->path, a->name);
+    if (a->fmt == F_APPENDED && !a->has_offset)
+        return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: appended array %s "
+                              "has no offset", d->path, a->name);
+    *out = pick;
+    return 0;
+}
+
+/* --------------------------------------------------------- byte sources */
+
+/* Raw bytes, or base64 text decoded as it is read: white space is skipped,
+ * and a padded quad ends one encoded stream with the next one following. */
+struct src {
+    const unsigned char *p, *end;
+    int b64;
+    unsigned char pend[3];
+    unsigned npend, ipend;
+    int bad;                    /* a character that is not base64 */
+};
+
+static int b64_value(unsigned char c)
+{
+    if (c >= 'A' && c <= 'Z') return c - 'A';
+    if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+    if (c >= '0' && c <= '9') return c - '0' + 52;
+    if (c == '+') return 62;
+    if (c == '/') return 63;
+    if (c == '=') return 64;
+    if (c == ' ' || c == '\t' || c == '\n' || c == '\r') return -2;
+    return -1;
+}
+
+/* Up to n bytes into out (NULL: skip them); returns how many there were. */
+static size_t src_read(struct src *s, unsigned char *out, size_t n)
+{
+    if (!s->b64) {
+        size_t k = (size_t)(s->end - s->p);
+        k = k < n ? k : n;
+        if (out)
+            memcpy(out, s->p, k);
+        s->p += k;
+        return k;
+    }
+    size_t got = 0;
+    while (got < n) {
+        if (s->ipend < s->npend) {
+            unsigned char c = s->pend[s->ipend++];
+            if (out)
+                out[got] = c;
+            got++;
+            continue;
+        }
+        int v[4], k = 0;
+        while (k < 4 && s->p < s->end) {
+            int c = b64_value(*s->p++);
+            if (c == -2)
+                continue;
+            if (c == -1) {
+                s->bad = 1;
+                return got;
+            }
+            v[k++] = c;
+        }
+        if (k < 4)
+            return got;
+        unsigned nb = 3;
+        if (v[0] == 64 || v[1] == 64 || (v[2] == 64 && v[3] != 64)) {
+            s->bad = 1;
+            return got;
+        }
+        if (v[2] == 64)
+            nb = 1, v[2] = v[3] = 0;
+        else if (v[3] == 64)
+            nb = 2, v[3] = 0;
+        uint32_t w = (uint32_t)v[0] << 18 | (uint32_t)v[1] << 12 |
+                     (uint32_t)v[2] << 6 | (uint32_t)v[3];
+        s->pend[0] = (unsigned char)(w >> 16);
+        s->pend[1] = (unsigned char)(w >> 8);
+        s->pend[2] = (unsigned char)w;
+        s->npend = nb;
+        s->ipend = 0;
+    }
+    return got;
+}
+
+/* The most bytes the rest of s can hold (base64: an upper bound). */
+static size_t src_left(const struct src *s)
+{
+    size_t k = (size_t)(s->end - s->p);
+    return s->b64 ? k / 4 * 3 + 3 + (s->npend - s->ipend) : k;
+}
+
+static uint64_t load_uint(const unsigned char *p, unsigned size, int be)
+{
+    uint64_t v = 0;
+    for (unsigned i = 0; i < size; i++)
+        v |= (uint64_t)p[be ? size - 1 - i : i] << (8 * i);
+    return v;
+}
+
+/* ------------------------------------------------------------- decoding */
+
+/* Converts n values of type t (byte order be) at src to float; src may be
+ * dst itself for 4-byte types (each value is read before it is written). */
+static void convert(const unsigned char *src, int t, int be, size_t n,
+                    float *dst)
+{
+    unsigned sz = vti_types[t].size;
+    const uint32_t one = 1;
+    int host_be = *(const unsigned char *)&one == 0;
+    if (t == T_F32 && be == host_be) {   /* already float32 as stored */
+        if (src != (const unsigned char *)dst)
+            memmove(dst, src, n * 4);
+        return;
+    }
+    for (size_t i = 0; i < n; i++) {
+        uint64_t u = load_uint(src + i * sz, sz, be);
+        float f;
+        double g;
+        switch (t) {
+        case T_F32: {
+            uint32_t u32 = (uint32_t)u;
+            memcpy(&f, &u32, 4);
+            break;
+        }
+        case T_F64: memcpy(&g, &u, 8); f = (float)g; break;
+        case T_I8: f = (float)(int8_t)(uint8_t)u; break;
+        case T_U8: f = (float)(uint8_t)u; break;
+        case T_I16: f = (float)(int16_t)(uint16_t)u; break;
+        case T_U16: f = (float)(uint16_t)u; break;
+        case T_I32: f = (float)(int32_t)(uint32_t)u; break;
+        case T_U32: f = (float)(uint32_t)u; break;
+        case T_I64: f = (float)(int64_t)u; break;
+        default: f = (float)u; break;
+        }
+        dst[i] = f;
+    }
+}
+
+static int read_ascii(const struct vti_doc *d, const struct vti_array *a,
+                      size_t n, float *dst)
+{
+    const char *p = (const char *)d->buf + a->text_begin;
+    const char *end = (const char *)d->buf + a->text_end;
+    size_t i = 0;
+    for (;; i++) {
+        while (p < end && (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r'))
+            p++;
+        if (p == end)
+            break;
+        char tok[64];
+        size_t k = 0;
+        while (p < end && !(*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r')
+               && k < sizeof tok - 1)
+            tok[k++] = *p++;
+        tok[k] = 0;
+        if (i >= n)
+            return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: ascii array %s "
+                                  "has more than the %zu values of its extent",
+                                  d->path, a->name, n);
+        char *e;
+        float f;
+        if (a->t == T_F32)
+            f = strtof(tok, &e);
+        else
+            f = (float)strtod(tok, &e);
+        if (e == tok || *e)
+            return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: ascii array %s: "
+                                  "value %zu is \"%.32s\", not a number",
+                                  d->path, a->name, i + 1, tok);
+        dst[i] = f;
+    }
+    if (i < n)
+        return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: ascii array %s has "
+                              "%zu values; its extent needs %zu", d->path,
+                              a->name, i, n);
+    return 0;
+}
+
+static int truncated(const struct vti_doc *d, const struct vti_array *a,
+                     const struct src *s, const char *what, uint64_t got,
+                     uint64_t want)
+{
+    if (s->bad)
+        return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s: a "
+                              "character that is not base64 in its %s",
+                              d->path, a->name, what);
+    return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s: its %s ends "
+                          "after %llu of %llu bytes (%s)", d->path, a->name,
+                          what, (unsigned long long)got,
+                          (unsigned long long)want,
+                          a->fmt == F_BINARY || d->appended_base64
+                              ? "truncated base64" : "past the end of the file");
+}
+
+/* The binary data of array a (binary or appended): checks its header
+ * against nbytes, the size its extent needs, and decodes into out (NULL:
+ * checks the header and the bounds only). */
+static int read_binary(const struct vti_doc *d, const struct vti_array *a,
+                       uint64_t nbytes, unsigned char *out)
+{
+    struct src s = {0};
+    if (a->fmt == F_BINARY) {
+        s.p = d->buf + a->text_begin;
+        s.end = d->buf + a->text_end;
+        s.b64 = 1;
+    } else {
+        uint64_t room = d->size - d->appended_at;
+        if (a->offset >= room)
+            return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s: "
+                                  "appended offset %llu points past the end "
+                                  "of the file (%llu bytes of appended data)",
+                                  d->path, a->name,
+                                  (unsigned long long)a->offset,
+                                  (unsigned long long)room);
+        s.p = d->buf + d->appended_at + a->offset;
+        s.end = d->buf + d->size;
+        s.b64 = d->appended_base64;
+    }
+    const unsigned hs = d->header64 ? 8 : 4;
+    unsigned char h[3 * 8];
+    const char *tn = vti_types[a->t].name;
+
+    if (!d->compressor[0]) {
+        size_t got = src_read(&s, h, hs);
+        if (got < hs)
+            return truncated(d, a, &s, "header", got, hs);
+        uint64_t len = load_uint(h, hs, d->big_endian);
+        if (len != nbytes)
+            return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s holds "
+                                  "%llu bytes; its extent needs %llu (%s)",
+                                  d->path, a->name, (unsigned long long)len,
+                                  (unsigned long long)nbytes, tn);
+        if (src_left(&s) < nbytes)
+            return truncated(d, a, &s, "data", src_left(&s), nbytes);
+        if (!out)
+            return 0;
+        got = src_read(&s, out, (size_t)nbytes);
+        return got < nbytes ? truncated(d, a, &s, "data", got, nbytes) : 0;
+    }
+
+    size_t got = src_read(&s, h, 3 * hs);
+    if (got < 3 * hs)
+        return truncated(d, a, &s, "compression header", got, 3 * hs);
+    uint64_t nb = load_uint(h, hs, d->big_endian);
+    uint64_t bs = load_uint(h + hs, hs, d->big_endian);
+    uint64_t last = load_uint(h + 2 * hs, hs, d->big_endian);
+    uint64_t total = 0;
+    if (nb > 0 && bs > 0 && bs < (uint64_t)1 << 40 && last <= bs &&
+        nb <= nbytes / bs + 1)
+        total = last ? (nb - 1) * bs + last : nb * bs;
+    if (total != nbytes || bs > ULONG_MAX)
+        return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s: %llu "
+                              "compressed blocks of %llu bytes (last %llu) "
+                              "do not make the %llu bytes its extent needs "
+                              "(%s)", d->path, a->name, (unsigned long long)nb,
+                              (unsigned long long)bs, (unsigned long long)last,
+                              (unsigned long long)nbytes, tn);
+    if (nb > src_left(&s) / hs)
+        return truncated(d, a, &s, "compression header", src_left(&s),
+                         nb * hs);
+    uint64_t *csize = malloc(sizeof *csize * (size_t)nb);
+    unsigned char *cbuf = NULL;
+    if (!csize)
+        return TVPAL_E_NOMEM;
+    int rc = 0;
+    uint64_t sum = 0, cmax = 0;
+    for (uint64_t i = 0; i < nb && rc == 0; i++) {
+        got = src_read(&s, h, hs);
+        if (got < hs) {
+            rc = truncated(d, a, &s, "compression header", 3 * hs + i * hs + got,
+                           (3 + nb) * hs);
+            break;
+        }
+        csize[i] = load_uint(h, hs, d->big_endian);
+        if (csize[i] > ULONG_MAX || csize[i] > src_left(&s))
+            rc = truncated(d, a, &s, "compressed blocks", src_left(&s),
+                           csize[i]);
+        sum += csize[i];
+        cmax = csize[i] > cmax ? csize[i] : cmax;
+    }
+    if (rc == 0 && sum > src_left(&s))
+        rc = truncated(d, a, &s, "compressed blocks", src_left(&s), sum);
+    if (rc == 0 && out && s.b64 && !(cbuf = malloc((size_t)cmax + 1)))
+        rc = TVPAL_E_NOMEM;
+    for (uint64_t i = 0; rc == 0 && out && i < nb; i++) {
+        const unsigned char *c = s.p;
+        if (s.b64) {
+            got = src_read(&s, cbuf, (size_t)csize[i]);
+            if (got < csize[i]) {
+                rc = truncated(d, a, &s, "compressed blocks", got, csize[i]);
+                break;
+            }
+            c = cbuf;
+        } else {
+            s.p += csize[i];
+        }
+        uint64_t want = i + 1 == nb && last ? last : bs;
+        uLongf dlen = (uLongf)want;
+        int z = uncompress(out + i * bs, &dlen, c, (uLong)csize[i]);
+        if (z != Z_OK || dlen != want)
+            rc = tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s: zlib "
+                                "block %llu of %llu does not inflate (%s)",
+                                d->path, a->name, (unsigned long long)i + 1,
+                                (unsigned long long)nb,
+                                z != Z_OK ? (z == Z_BUF_ERROR ? "data ends "
+                                "early or inflates to more than its size"
+                                : zError(z)) : "inflates to less than its "
+                                "size");
+    }
+    free(cbuf);
+    free(csize);
+    return rc;
+}
+
+/* Array a of the doc into dst (n floats). */
+static int decode(const struct vti_doc *d, const struct vti_array *a, size_t n,
+                  float *dst)
+{
+    if (a->fmt == F_ASCII)
+        return read_ascii(d, a, n, dst);
+    unsigned sz = vti_types[a->t].size;
+    unsigned char *raw = sz == sizeof *dst ? (unsigned char *)dst
+                                           : malloc(n * sz);
+    if (!raw)
+        return TVPAL_E_NOMEM;
+    int rc = read_binary(d, a, (uint64_t)n * sz, raw);
+    if (rc == 0)
+        convert(raw, a->t, d->big_endian, n, dst);
+    if (raw != (unsigned char *)dst)
+        free(raw);
+    return rc;
+}
+
+/* ------------------------------------------------------------- backend */
+
+static int vti_open(struct tvpal_input_file **out, const char *path,
+                    const struct tvpal_input_opts *opts,
+                    struct tvpal_input_info *info, double **times,
+                    struct tvpal_diag *diag)
+{
+    struct vti_doc d;
+    memset(info, 0, sizeof *info);
+    *times = NULL;
+    int pick = -1;
+    int rc = load(&d, path, diag);
+    if (rc == 0)
+        rc = grid(&d, info);
+    if (rc == 0)
+        rc = choose(&d, opts ? opts->var : NULL, &pick);
+    size_t n = (size_t)info->dims[0] * info->dims[1] * info->dims[2];
+    if (rc == 0 && d.arrays[pick].fmt != F_ASCII)
+        rc = read_binary(&d, &d.arrays[pick],
+                         (uint64_t)n * vti_types[d.arrays[pick].t].size, NULL);
+    struct tvpal_input_file *f = NULL;
+    if (rc == 0 && (!(f = calloc(1, sizeof *f)) || !(f->path = strdup(path))))
+        rc = TVPAL_E_NOMEM;
+    if (rc == 0) {
+        const struct vti_array *a = &d.arrays[pick];
+        snprintf(info->var, sizeof info->var, "%s", a->name);
+        info->type = vti_types[a->t].as;
+        info->steps = 1;
+        memcpy(f->var, info->var, sizeof f->var);
+        memcpy(f->dims, info->dims, sizeof f->dims);
+        f->t = a->t;
+        *out = f;
+        f = NULL;
+    }
+    if (f)
+        free(f->path);
+    free(f);
+    doc_free(&d);
+    return rc;
+}
+
+static int vti_read(struct tvpal_input_file *f, uint32_t k, float *dst,
+                    struct tvpal_diag *diag)
+{
+    if (k != 0)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: step %u of a file "
+                              "that holds one", f->path, k);
+    struct vti_doc d;
+    struct tvpal_input_info info = {0};
+    int pick = -1;
+    int rc = load(&d, f->path, diag);
+    if (rc == 0)
+        rc = grid(&d, &info);
+    if (rc == 0)
+        rc = choose(&d, f->var, &pick);
+    if (rc == 0 && (memcmp(info.dims, f->dims, sizeof f->dims) ||
+                    d.arrays[pick].t != f->t))
+        rc = tvpal_diag_set(diag, TVPAL_E_MISMATCH, "%s: changed since it was "
+                            "opened (array %s)", f->path, f->var);
+    if (rc == 0)
+        rc = decode(&d, &d.arrays[pick],
+                    (size_t)f->dims[0] * f->dims[1] * f->dims[2], dst);
+    doc_free(&d);
+    return rc;
+}
+
+static void vti_close(struct tvpal_input_file *f)
+{
+    if (f)
+        free(f->path);
+    free(f);
+}
+
+static int vti_describe(const char *path, char **text, struct tvpal_diag *diag)
+{
+    struct vti_doc d;
+    *text = NULL;
+    int rc = load(&d, path, diag);
+    if (rc < 0) {
+        doc_free(&d);
+        return rc;
+    }
+    size_t cap = 1024;
+    for (int i = 0; i < d.narrays; i++)
+        cap += strlen(d.arrays[i].name) + sizeof d.arrays[i].type + 64;
+    char *t = malloc(cap);
+    if (!t) {
+        doc_free(&d);
+        return TVPAL_E_NOMEM;
+    }
+    size_t n = 0;
+    const long long *w = d.whole;
+    n += (size_t)snprintf(t + n, cap - n, "vti (VTK XML ImageData, %s, header "
+                          "%s, %s)\nextent %lld %lld %lld %lld %lld %lld "
+                          "(%lldx%lldx%lld) spacing %.9g %.9g %.9g origin %.9g "
+                          "%.9g %.9g", d.byte_order, d.header_type,
+                          d.compressor[0] ? d.compressor : "none", w[0], w[1],
+                          w[2], w[3], w[4], w[5], w[1] - w[0] + 1,
+                          w[3] - w[2] + 1, w[5] - w[4] + 1, d.spacing[0],
+                          d.spacing[1], d.spacing[2], d.origin[0], d.origin[1],
+                          d.origin[2]);
+    if (d.npieces > 1)
+        n += (size_t)snprintf(t + n, cap - n, " pieces %d", d.npieces);
+    if (d.have_direction)
+        for (int i = 0; i < 9; i++)
+            n += (size_t)snprintf(t + n, cap - n, "%s%.9g",
+                                  i ? " " : " direction ", d.direction[i]);
+    n += (size_t)snprintf(t + n, cap - n, "\n");
+    for (int i = 0; i < d.narrays; i++) {
+        const struct vti_array *a = &d.arrays[i];
+        int active = !a->cell && d.scalars && !strcmp(d.scalars, a->name);
+        n += (size_t)snprintf(t + n, cap - n, "%s %s components=%ld%s%s\n",
+                              a->name, a->type, a->ncomp,
+                              active ? " [active scalars]" : "",
+                              a->cell ? " [cell data]" : "");
+    }
+    doc_free(&d);
+    *text = t;
+    return 0;
+}
+
+const struct tvpal_input_backend tvpal_input_vti = {
+    "vti", vti_open, vti_read, vti_close, vti_describe};
