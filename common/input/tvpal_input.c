@@ -31,12 +31,13 @@ int tvpal_input_format_parse(const char *s, enum tvpal_input_format *f)
  * end of the root's tag, which the string functions check (head ends with
  * a NUL): appended raw data, NUL bytes included, may follow within the
  * first bytes, as in ParaView's own small files. */
-static int looks_like_vti(const char *head)
+/* A VTK XML file: a <VTKFile ...> tag in the text before any binary data.
+ * Every VTK XML type goes to the vti reader, which reads ImageData and
+ * refuses the others by name (better than "raw: give --dims"). */
+static int looks_like_vtk_xml(const char *head)
 {
     const char *root = strstr(head, "<VTKFile");
-    const char *gt = root ? strchr(root, '>') : NULL;
-    const char *type = root ? strstr(root, "ImageData") : NULL;
-    return gt && type && type < gt;
+    return root && strchr(root, '>') != NULL;
 }
 
 int tvpal_input_detect(const char *path, enum tvpal_input_format *f,
@@ -61,7 +62,7 @@ int tvpal_input_detect(const char *path, enum tvpal_input_format *f,
         *f = TVPAL_IN_NETCDF;
     else if (n >= 8 && !memcmp(head, hdf5_sig, 8))
         *f = TVPAL_IN_NETCDF;   /* NetCDF-4; plain HDF5 is not read yet */
-    else if (n >= 5 && looks_like_vti(head))
+    else if (n >= 5 && looks_like_vtk_xml(head))
         *f = TVPAL_IN_VTI;
     return 0;
 }

@@ -41,8 +41,9 @@ int tvpal_input_format_parse(const char *s, enum tvpal_input_format *f);
 
 /* The format of path from its first bytes, never from its name: "CDF\1",
  * "CDF\2", "CDF\5" and HDF5's signature (NetCDF-4 is HDF5) are NetCDF;
- * an XML file whose root is <VTKFile type="ImageData"> is vti; anything else
- * is raw.  TVPAL_E_OPEN or TVPAL_E_READ when path cannot be read. */
+ * an XML file with a <VTKFile> root is vti (the reader refuses VTK types
+ * other than ImageData by name); anything else is raw.  TVPAL_E_OPEN or
+ * TVPAL_E_READ when path cannot be read. */
 int tvpal_input_detect(const char *path, enum tvpal_input_format *f,
                        struct tvpal_diag *diag);
 
@@ -52,7 +53,8 @@ struct tvpal_input_opts {
                              * Scalars */
     const char *time_dim;   /* NetCDF: the time dimension; NULL: the
                              * unlimited one, else the dimension a CF time
-                             * coordinate (units "... since ...") names */
+                             * coordinate (units "... since ...") names,
+                             * else the first of a 4-D variable */
 };
 
 /* What a series holds, from its files. */
@@ -64,7 +66,9 @@ struct tvpal_input_info {
     char var[128];              /* the variable read */
     char units[64];             /* its units attribute, or "" */
     char dim_names[3][64];      /* x, y, z dimension names, or "" */
-    double spacing[3], origin[3];  /* 1 and 0 where the file says nothing */
+    double spacing[3], origin[3];  /* 1 and 0 where the file says nothing;
+                                 * spacing < 0 for falling coordinates
+                                 * (latitude north to south) */
     int nonuniform[3];          /* 1: the axis' coordinates are not evenly
                                  * spaced (spacing then 1, origin 0) */
     int has_times;              /* times from the files (tvpal_input_time) */
