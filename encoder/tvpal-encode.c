@@ -76,6 +76,11 @@ static void usage(FILE *f)
 "  -t, --type TYPE        raw: f32 (default), f64, u8, u16, i16\n"
 "  -e, --endian ORDER     raw: little (default) or big\n"
 "  -s, --steps T          raw: INPUT is one file holding T timesteps\n"
+"      --spacing DX,DY,DZ voxel size per axis (default: from the file's\n"
+"                         evenly spaced coordinates, else 1,1,1); the\n"
+"                         player draws the physical shape\n"
+"      --origin OX,OY,OZ  position of the first voxel (default: from the\n"
+"                         file, else 0,0,0)\n"
 "      --times FILE       the time value of every step (T numbers, rising;\n"
 "                         default: a NetCDF time coordinate, else 0..T-1)\n"
 "      --time-units TEXT  their units (default: the coordinate's)\n"
@@ -186,6 +191,8 @@ struct opts {
     const char *var, *time_dim;       /* --var, --time-dim */
     int have_type, have_endian;       /* given on the command line */
     int sort_natural;                 /* --sort natural */
+    double spacing[3], origin[3];     /* --spacing, --origin */
+    int have_spacing, have_origin;
     const char *times_file;           /* --times FILE */
     const char *time_units;           /* --time-units TEXT */
 };
@@ -201,6 +208,8 @@ enum optkind {
     OPT_OUTPUT,    /* OUTDIR */
     OPT_FORMAT,    /* input format into format */
     OPT_TEXT,      /* the argument into the const char * at field */
+    OPT_SPACING,   /* DX,DY,DZ > 0 into spacing */
+    OPT_ORIGIN,    /* OX,OY,OZ into origin */
     OPT_HELP,
     OPT_VERSION
 };
@@ -255,6 +264,10 @@ static const struct optspec {
      0, 0, {0}, NULL},
     {"sort", OPT_LONG_ONLY + 9, OPT_CHOICE, offsetof(struct opts, sort_natural),
      0, 0, {"none", "natural"}, "none or natural"},
+    {"spacing", OPT_LONG_ONLY + 12, OPT_SPACING, 0, 0, 0, {0},
+     "DX,DY,DZ, three numbers > 0"},
+    {"origin", OPT_LONG_ONLY + 13, OPT_ORIGIN, 0, 0, 0, {0},
+     "OX,OY,OZ, three numbers"},
     {"times", OPT_LONG_ONLY + 10, OPT_TEXT, offsetof(struct opts, times_file),
      0, 0, {0}, NULL},
     {"time-units", OPT_LONG_ONLY + 11, OPT_TEXT,
@@ -318,6 +331,21 @@ static void parse_option(const struct optspec *sp, const char *arg,
     case OPT_TEXT:
         *(const char **)(void *)(base + sp->field) = arg;
         return;
+    case OPT_SPACING:
+    case OPT_ORIGIN: {
+        double *v = sp->kind == OPT_SPACING ? o->spacing : o->origin;
+        char tail;
+        if (sscanf(arg, "%lf,%lf,%lf%c", &v[0], &v[1], &v[2], &tail) != 3)
+            break;
+        int good = 1;
+        for (int i = 0; i < 3; i++)
+            good &= isfinite(v[i]) && fabs(v[i]) <= 1e300 &&
+                    (sp->kind == OPT_ORIGIN || v[i] > 0);
+        if (!good)
+            break;
+        *(sp->kind == OPT_SPACING ? &o->have_spacing : &o->have_origin) = 1;
+        return;
+    }
     case OPT_HELP:
         usage(stdout);
         exit(0);
@@ -1311,6 +1339,22 @@ static void encode_steps(struct run *r)
 /* ------------------------------------------------------------- finishing */
 
 /* The manifest of the encoded dataset (FORMAT.md 7); m owns its strings. */
+/* The physical grid: --spacing/--origin, else what a self-describing input
+ * says (the size of a falling coordinate's step; an axis not evenly spaced
+ * counts 1, origin 0), else the unit grid. */
+static void grid_of(const struct run *r, double spacing[3], double origin[3])
+{
+    const struct opts *o = &r->o;
+    const struct tvpal_input_info *in = r->in ? tvpal_input_info(r->in) : NULL;
+    for (int i = 0; i < 3; i++) {
+        int known = in && !in->nonuniform[i] && in->spacing[i] != 0;
+        spacing[i] = o->have_spacing ? o->spacing[i]
+                     : known ? fabs(in->spacing[i]) : 1.0;
+        origin[i] = o->have_origin ? o->origin[i]
+                    : in && !in->nonuniform[i] ? in->origin[i] : 0.0;
+    }
+}
+
 static void build_manifest(const struct run *r, struct tvpal_manifest *m)
 {
     const struct opts *o = &r->o;
@@ -1330,6 +1374,7 @@ static void build_manifest(const struct run *r, struct tvpal_manifest *m)
     m->nonfinite = st->nonfinite;
     m->single_file = o->steps_single != 0;
     m->source_bytes = r->step_bytes * r->T;
+    grid_of(r, m->spacing, m->origin);
     if (r->times) {
         if (!(m->times = malloc(sizeof *m->times * r->T)))
             die_fail("out of memory");

@@ -68,6 +68,12 @@ int tvpal_manifest_format(const struct tvpal_manifest *m, char **out)
         fprintf(f, "source_format = %s\n", m->source_format);
         fprintf(f, "source_var = %s\n", m->source_var ? m->source_var : "");
     }
+    /* The physical grid, unless it is the default one (or unset: 0). */
+    const double *sp = m->spacing, *o = m->origin;
+    if ((sp[0] || sp[1] || sp[2]) && (sp[0] != 1 || sp[1] != 1 || sp[2] != 1))
+        fprintf(f, "spacing = %.17g %.17g %.17g\n", sp[0], sp[1], sp[2]);
+    if (o[0] || o[1] || o[2])
+        fprintf(f, "origin = %.17g %.17g %.17g\n", o[0], o[1], o[2]);
     if (m->ntimes) {
         fprintf(f, "time_units = %s\ntimes =", m->time_units);
         for (uint32_t i = 0; i < m->ntimes; i++)
@@ -112,6 +118,23 @@ static int parse_dbl(const char *v, double *out)
     errno = 0;
     *out = strtod(v, &end);
     return (errno || *end || end == v) ? -1 : 0;
+}
+
+/* Three finite numbers "a b c"; spacing must also be > 0. */
+static int parse_triple(const char *v, double out[3], int positive)
+{
+    char *end;
+    const char *p = v;
+    for (int i = 0; i < 3; i++) {
+        errno = 0;
+        out[i] = strtod(p, &end);
+        if (end == p || errno || !isfinite(out[i]) || (positive && !(out[i] > 0)))
+            return -1;
+        p = end;
+    }
+    while (*p == ' ' || *p == '\t')
+        p++;
+    return *p ? -1 : 0;
 }
 
 /* "times = v v v ...": finite numbers, as many as the line holds (the
@@ -215,6 +238,10 @@ static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
         bad = strlen(v) >= sizeof m->source_format;
         if (!bad)
             strcpy(m->source_format, v);
+    } else if (!strcmp(k, "spacing")) {
+        bad = parse_triple(v, m->spacing, 1) < 0;
+    } else if (!strcmp(k, "origin")) {
+        bad = parse_triple(v, m->origin, 0) < 0;
     } else if (!strcmp(k, "times")) {
         bad = parse_times(m, v) < 0;
     } else if (!strcmp(k, "time_units")) {
@@ -277,6 +304,7 @@ int tvpal_manifest_load(const char *path, struct tvpal_manifest *m,
                         struct tvpal_diag *diag)
 {
     memset(m, 0, sizeof *m);
+    m->spacing[0] = m->spacing[1] = m->spacing[2] = 1;  /* absent: unit grid */
     FILE *f = fopen(path, "r");
     if (!f)
         return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s", strerror(errno));

@@ -33,6 +33,9 @@ struct tvpal_manifest {
                                            * "vti": how to read the sources */
     char *source_var;                     /* owned; the variable read from
                                            * self-describing sources */
+    double spacing[3];                    /* voxel size per axis; loaded
+                                           * 1 1 1 when absent */
+    double origin[3];                     /* the first voxel's position */
     double *times;                        /* owned; ntimes (0, or steps)
                                            * time values of the steps */
     uint32_t ntimes;

@@ -26,6 +26,7 @@ struct play_opts {
     const char *steps;                  /* --steps A:B, checked once open */
     unsigned width, height;             /* --size */
     double ax, ay, zoom, opacity, spin;
+    double scale_z;                     /* vertical exaggeration (z) */
     const char *tf_files[PLAY_MAX_TF];  /* --tf, in order */
     unsigned ntf;
     int renderer;                       /* enum play_renderer_kind */
@@ -49,6 +50,10 @@ int play_options_parse(struct play_opts *o, int argc, char **argv);
  * cpu, default cpu headless), what needs or refuses the window, --ref-psnr
  * on one rank.  Ends the job with exit 2 on a conflict. */
 void play_options_check(struct play_opts *o, int nranks);
+
+/* The view's voxel spacing: the dataset's, z times scale_z. */
+void play_view_spacing(const struct tvpal_manifest *m, double scale_z,
+                       double spacing[3]);
 
 /* The dataset being played and what every front end needs of it. */
 struct play_session {

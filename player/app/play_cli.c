@@ -53,6 +53,8 @@ static void usage(FILE *f)
 "                           (default: 1 to 4, as many as the view shows) or\n"
 "                           1..8 (sharper at close zoom; cost grows as K^2);\n"
 "                           implies --renderer cpu\n"
+"      --scale-z F          stretch z by F (vertical exaggeration; default\n"
+"                           1: the dataset's spacing, its physical shape)\n"
 "      --spin DEG           turn the view DEG degrees about y per frame\n"
 "                           (a camera path; crossing axes loads records)\n"
 "Data:\n"
@@ -90,7 +92,8 @@ static void usage(FILE *f)
 "\n"
 "Window keys: space play/pause, Right/Left (or . ,) step, Home/End first/\n"
 "last, B reverse direction, T next transfer function, R reload it from its\n"
-"file, Up/Down opacity, M in-core/out-of-core, +/- or wheel zoom, S\n"
+"file, Up/Down opacity, ] / [ stretch or shrink z, M in-core/out-of-core,\n"
+"+/- or wheel zoom, S\n"
 "screenshot (tvpal-shot-NNNN.png), Q or Esc quit.  Mouse: drag the image to\n"
 "rotate, drag or click the slider to scrub.  While dragging or scrubbing\n"
 "every other slice is drawn; the full image follows when idle.  The title\n"
@@ -139,6 +142,12 @@ static int set_rotate(struct play_opts *o, const char *arg)
 {
     return sscanf(arg, "%lf,%lf", &o->ax, &o->ay) == 2 && isfinite(o->ax) &&
                    isfinite(o->ay) ? 0 : -1;
+}
+
+static int set_scale_z(struct play_opts *o, const char *arg)
+{
+    return tvpal_parse_double(arg, &o->scale_z) == 0 && o->scale_z > 0 &&
+                   o->scale_z <= 1000 ? 0 : -1;
 }
 
 static int set_tf(struct play_opts *o, const char *arg)
@@ -213,7 +222,7 @@ static int set_composite(struct play_opts *o, const char *arg)
 enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
        K_REPEAT, K_TF_CYCLE, K_JUMPS, K_AUTOPLAY, K_SCREENSHOT, K_OPACITY,
        K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_MEM, K_CSV, K_STRICT,
-       K_REF_PSNR };
+       K_REF_PSNR, K_SCALE_Z };
 
 /* Grouped as --help groups them. */
 static const struct opt_def opt_table[] = {
@@ -233,6 +242,8 @@ static const struct opt_def opt_table[] = {
     {"cpu-scale", K_CPU_SCALE, OPT_FN, 0, 0, 0, set_cpu_scale,
      "auto or 1..8"},
     {"spin", K_SPIN, OPT_DOUBLE, F(spin), -INFINITY, 0, NULL, "degrees"},
+    {"scale-z", K_SCALE_Z, OPT_FN, 0, 0, 0, set_scale_z,
+     "a factor in (0, 1000]"},
     /* data */
     {"mode", 'm', OPT_FN, 0, 0, 0, set_mode, "incore or stream"},
     {"io", K_IO, OPT_FN, 0, 0, 0, set_io, "uring or pread"},
@@ -269,6 +280,7 @@ static void defaults(struct play_opts *o)
 {
     *o = (struct play_opts){
         .width = 512, .height = 512, .ax = 20, .ay = 30, .zoom = 1,
+        .scale_z = 1,
         .opacity = 1, .renderer = PLAY_REND_AUTO, .renderer_why = "",
         .fb_bits = 32, .window = -1, .repeat = 1,
         .po = {.incore = 0, .io = TVPAL_IO_URING, .prefetch = 4, .direct = 1},
@@ -411,4 +423,16 @@ void play_options_check(struct play_opts *o, int nranks)
     if (o->ref_psnr && (nranks > 1 || o->renderer == PLAY_REND_NONE ||
                         o->renderer == PLAY_REND_REF))
         play_die(2, "--ref-psnr: one rank, with the cpu or gl renderer");
+}
+
+void play_view_spacing(const struct tvpal_manifest *m, double scale_z,
+                       double spacing[3])
+{
+    for (int i = 0; i < 3; i++)
+        spacing[i] = m->spacing[i] > 0 ? m->spacing[i] : 1.0;
+    spacing[2] *= scale_z > 0 ? scale_z : 1.0;
+    /* The unit grid stays the view's isotropic case (same bits as before
+     * spacing existed). */
+    if (spacing[0] == 1 && spacing[1] == 1 && spacing[2] == 1)
+        spacing[0] = spacing[1] = spacing[2] = 0;
 }

@@ -109,6 +109,7 @@ static void setup_view(struct headless *h)
                                .ax_deg = o->ax, .ay_deg = o->ay,
                                .zoom = o->zoom};
     memcpy(h->v.dims, h->s->m->dims, sizeof h->v.dims);
+    play_view_spacing(h->s->m, o->scale_z, h->v.spacing);
     tvpal_view_setup(&h->v);
     h->dir_step = h->s->b >= h->s->a ? 1 : -1;
     h->nframes = (h->s->b >= h->s->a ? h->s->b - h->s->a

@@ -21,7 +21,7 @@ struct win_cmd {
     int quit, render, reduce, toggle_mode, reload_tf;
     uint32_t t, tfi, width, height;
     int dir;
-    double ax, ay, zoom, opacity;
+    double ax, ay, zoom, opacity, scale_z;
 };
 
 struct win_state {
@@ -40,7 +40,7 @@ struct win_state {
     struct tvpal_compositor *cx;
     struct tvpal_player_opts po;
     /* The view and playback state rank 0 steers. */
-    double ax, ay, zoom, opacity;
+    double ax, ay, zoom, opacity, scale_z;
     unsigned tfi, shots;
     uint32_t t;
     int dir, playing, redraw, reduced, status;
@@ -158,6 +158,8 @@ static void handle_key(struct win_state *w, int key, struct win_cmd *cmd)
     case TVPAL_KEY_MODE: cmd->toggle_mode = 1; break;
     case TVPAL_KEY_ZOOM_IN: w->zoom *= 1.15; break;
     case TVPAL_KEY_ZOOM_OUT: w->zoom /= 1.15; break;
+    case TVPAL_KEY_SCALE_Z_UP: w->scale_z = fmin(w->scale_z * 1.25, 1000); break;
+    case TVPAL_KEY_SCALE_Z_DOWN: w->scale_z = fmax(w->scale_z * 0.8, 1e-3); break;
     case TVPAL_KEY_SHOT: {
         char name[64];
         snprintf(name, sizeof name, "tvpal-shot-%04u.png", w->shots++);
@@ -220,6 +222,7 @@ static void read_input(struct win_state *w, struct win_cmd *cmd)
     cmd->ay = w->ay;
     cmd->zoom = w->zoom;
     cmd->opacity = w->opacity;
+    cmd->scale_z = w->scale_z;
 }
 
 static void reload_tf(struct win_state *w, uint32_t tfi)
@@ -280,6 +283,7 @@ static void render(struct win_state *w, const struct win_cmd *cmd,
     *v = (struct tvpal_view){.width = w->W, .height = w->H, .ax_deg = cmd->ax,
                              .ay_deg = cmd->ay, .zoom = cmd->zoom};
     memcpy(v->dims, s->m->dims, sizeof v->dims);
+    play_view_spacing(s->m, cmd->scale_z, v->spacing);
     tvpal_view_setup(v);
     struct tvpal_frame_stats st;
     struct tvpal_diag d = {{0}};
@@ -397,7 +401,7 @@ int play_run_window(struct play_session *s)
         .s = s, .o = s->o, .leader = play_comm.rank == 0,
         .multi = play_cluster_multi(), .W = s->o->width, .H = s->o->height,
         .po = s->o->po, .ax = s->o->ax, .ay = s->o->ay, .zoom = s->o->zoom,
-        .opacity = s->o->opacity, .t = s->a, .dir = s->b >= s->a ? 1 : -1,
+        .opacity = s->o->opacity, .scale_z = s->o->scale_z, .t = s->a, .dir = s->b >= s->a ? 1 : -1,
         .playing = s->o->autoplay > 0, .redraw = 1, .last = tvpal_now()};
     open_window(&w);
     event_loop(&w);

@@ -239,7 +239,13 @@ static unsigned slice_stride(const struct tvpal_player *p,
     uint32_t nmax = p->ds->m.dims[0];
     for (int i = 1; i < 3; i++)
         nmax = p->ds->m.dims[i] > nmax ? p->ds->m.dims[i] : nmax;
-    double vpp = fmin(v->sx / v->width, v->sy / v->height) * nmax;
+    /* Slices per pixel along the view's axis: on a physical grid, the
+     * axis' slices per eye unit, dims / (2 half), times the pixel's 2 s /
+     * size; on the unit grid that is nmax s / size (kept as it was). */
+    const int iso = v->spacing[0] == 0 && v->spacing[1] == 0 &&
+                    v->spacing[2] == 0;
+    double per_unit = iso ? nmax : v->dims[v->axis] / v->half[v->axis];
+    double vpp = fmin(v->sx / v->width, v->sy / v->height) * per_unit;
     unsigned stride = vpp >= 2.0 ? (unsigned)vpp : 1;
     stride *= p->reduce;
     return stride > n ? n : stride;

@@ -18,11 +18,19 @@ void tvpal_view_setup(struct tvpal_view *v)
                 s += ry[i][k] * rx[k][j];
             v->rot[i][j] = s;
         }
-    uint32_t nmax = v->dims[0];
-    for (int i = 1; i < 3; i++)
-        nmax = v->dims[i] > nmax ? v->dims[i] : nmax;
+    /* Physical extents; on an isotropic grid the same numbers (and bits)
+     * as the voxel counts. */
+    const int iso = v->spacing[0] == 0 && v->spacing[1] == 0 &&
+                    v->spacing[2] == 0;
+    double ext[3], emax = 0, smin = 0;
+    for (int i = 0; i < 3; i++) {
+        const double sp = iso ? 1.0 : v->spacing[i];
+        ext[i] = (double)v->dims[i] * sp;
+        emax = ext[i] > emax ? ext[i] : emax;
+        smin = i == 0 || sp < smin ? sp : smin;
+    }
     for (int i = 0; i < 3; i++)
-        v->half[i] = (double)v->dims[i] / nmax;
+        v->half[i] = ext[i] / emax;
     /* View direction in object space: R^T (0, 0, -1). */
     double d[3] = {-v->rot[2][0], -v->rot[2][1], -v->rot[2][2]};
     unsigned ax = 0;
@@ -31,6 +39,7 @@ void tvpal_view_setup(struct tvpal_view *v)
             ax = i;
     v->axis = ax;
     v->dcos = fabs(d[ax]);
+    v->gap = iso ? 1.0 : v->spacing[ax] / smin;
     /* Farther slices first: larger coordinate along d is farther. */
     v->descending = d[ax] > 0;
     double zoom = v->zoom > 0 ? v->zoom : 1.0;

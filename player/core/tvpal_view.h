@@ -1,15 +1,18 @@
 /* tvpal_view.h: view geometry shared by every renderer (GL-free).
  *
  * Object space: the volume is the box centred at the origin whose sides are
- * proportional to dims, the longest one spanning [-1, 1]; voxel (i, j, k)
- * has its centre at ((i + 0.5) / nx - 0.5) * 2 sx, ... with sx = nx / nmax.
+ * proportional to its physical extents dims[i] * spacing[i], the longest
+ * one spanning [-1, 1]; voxel (i, j, k) has its centre at
+ * ((i + 0.5) / nx - 0.5) * 2 half[0], ... (half[i]: the half extent).
  * The view rotates the volume by ax degrees about x, then ay about y, and
  * projects orthographically along -z onto [-1, 1]^2 / zoom, widened for
  * the image aspect ratio.  Rays go along -z in eye space.
  *
  * Slices of the axis most orthogonal to the view are drawn back to front;
- * the TF opacity (per voxel spacing) is corrected for the distance a ray
- * travels between two slices: alpha' = 1 - (1 - alpha)^(1 / |cos theta|).
+ * the TF opacity is per unit of the smallest voxel spacing, corrected for
+ * the distance a ray travels between two slices:
+ * alpha' = 1 - (1 - alpha)^(gap / |cos theta|), gap = the slice spacing
+ * over the smallest spacing (1 on an isotropic grid).
  */
 #ifndef TVPAL_VIEW_H
 #define TVPAL_VIEW_H
@@ -18,6 +21,8 @@
 
 struct tvpal_view {
     uint32_t dims[3];
+    double spacing[3];           /* voxel size per axis (physical units, any
+                                  * scale); 0 in all three: 1 1 1 */
     unsigned width, height;      /* image size in pixels */
     double ax_deg, ay_deg, zoom;
     /* derived by tvpal_view_setup */
@@ -27,9 +32,11 @@ struct tvpal_view {
     unsigned axis;               /* slice axis */
     int descending;              /* draw slices from high to low index */
     double dcos;                 /* |view direction . axis| */
+    double gap;                  /* slice spacing / smallest spacing */
 };
 
-/* Fills the derived fields.  zoom > 0. */
+/* Fills the derived fields.  zoom > 0; spacing all 0 (isotropic) or all
+ * finite and > 0. */
 void tvpal_view_setup(struct tvpal_view *v);
 
 /* Object-space corner c (0..3: (0,0), (1,0), (1,1), (0,1) in slice (a, b)
@@ -44,10 +51,10 @@ void tvpal_view_eye_to_pixel(const struct tvpal_view *v, double ex, double ey,
 void tvpal_view_pixel_to_eye(const struct tvpal_view *v, double px, double py,
                              double *ex, double *ey);
 
-/* Opacity correction exponent 1 / |cos theta| for the view. */
+/* Opacity correction exponent gap / |cos theta| for the view. */
 static inline double tvpal_view_opacity_exponent(const struct tvpal_view *v)
 {
-    return 1.0 / v->dcos;
+    return v->gap / v->dcos;
 }
 
 #endif
