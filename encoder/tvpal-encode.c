@@ -1472,6 +1472,53 @@ static void move_into_place(const struct run *r)
     }
 }
 
+/* A few voxels far from all the others (a fill value such as 1e35 left in
+ * the data) set the value range, so the quantizers and the default transfer
+ * function spend it on them and the report's PSNR, relative to that range,
+ * looks excellent.  Warns, naming how many, when the range is more than
+ * 1000 times the 0.1..99.9 percentile range or a value is beyond +-1e30
+ * (from the source histogram's 65536 classes). */
+static void warn_dominating_values(const struct run *r)
+{
+    const uint64_t *fine = r->st.fine;
+    uint64_t total = 0, cum = 0, far = 0, huge = 0;
+    for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++)
+        total += fine[b];
+    if (!total)
+        return;
+    /* lo, hi: the classes holding the 0.1th and 99.9th percentiles. */
+    uint32_t lo = 0, hi = 0;
+    int have_lo = 0, have_hi = 0;
+    for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS && !have_hi; b++) {
+        cum += fine[b];
+        if (!have_lo && cum * 1000 > total)
+            lo = b, have_lo = 1;
+        if (cum * 1000 >= total * 999)
+            hi = b, have_hi = 1;
+    }
+    const double plo = fine_bin_value(lo), phi = fine_bin_value(hi);
+    const double span = phi - plo, range = r->st.vmax - r->st.vmin;
+    for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++) {
+        double v = fine_bin_value(b);
+        if (fine[b] && fabs(v) > 1e30)
+            huge += fine[b];
+        if (fine[b] && (v < plo - 100 * span || v > phi + 100 * span))
+            far += fine[b];
+    }
+    if (huge)
+        msg("warning: %llu value%s beyond +-1e30 (the range is %g .. %g): a "
+            "fill value? It sets the quantizers' and the colours' range",
+            (unsigned long long)huge, huge == 1 ? "" : "s", r->st.vmin,
+            r->st.vmax);
+    else if (range > 1000 * span && far)
+        msg("warning: %llu value%s (%.3g%%) lie far outside the bulk of the "
+            "data (0.1..99.9 percentiles %.4g .. %.4g, range %g .. %g): they "
+            "set the quantizers' and the colours' range; missing values?",
+            (unsigned long long)far, far == 1 ? "" : "s",
+            100.0 * (double)far / (double)total, plo, phi, r->st.vmin,
+            r->st.vmax);
+}
+
 /* Reopens the dataset with the reader (it must verify) and prints the
  * closing key=value line on stdout. */
 static void print_summary(const struct run *r)
@@ -1550,6 +1597,7 @@ int main(int argc, char **argv)
     open_or_restart_writers(&r);
     setup_workspace(&r);
     encode_steps(&r);
+    warn_dominating_values(&r);
     finish_partial(&r);
     move_into_place(&r);
     print_summary(&r);
