@@ -819,6 +819,60 @@ static int truncated(const struct vti_doc *d, const struct vti_array *a,
 /* The binary data of array a (binary or appended): checks its header
  * against nbytes, the size its extent needs, and decodes into out (NULL:
  * checks the header and the bounds only). */
+
+/* A block that does not inflate to its size. */
+static int block_error(const struct vti_doc *d, const struct vti_array *a,
+                       uint64_t i, uint64_t nb, int z)
+{
+    return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s: zlib block "
+                          "%llu of %llu does not inflate (%s)", d->path,
+                          a->name, (unsigned long long)i + 1,
+                          (unsigned long long)nb,
+                          z != Z_OK ? (z == Z_BUF_ERROR ? "data ends early or "
+                          "inflates to more than its size" : zError(z))
+                                    : "inflates to less than its size");
+}
+
+/* Raw (not base64) compressed blocks lie one after the other at c: each
+ * inflates on its own, so the threads share them (the encoder's other
+ * threads wait for the step meanwhile).  The lowest failing block is
+ * reported, as a serial loop would. */
+static int inflate_raw_blocks(const struct vti_doc *d,
+                              const struct vti_array *a,
+                              const unsigned char *c, const uint64_t *csize,
+                              uint64_t nb, uint64_t bs, uint64_t last,
+                              unsigned char *out)
+{
+    uint64_t *at = malloc(sizeof *at * (size_t)(nb + 1));
+    if (!at)
+        return TVPAL_E_NOMEM;
+    at[0] = 0;
+    for (uint64_t i = 0; i < nb; i++)
+        at[i + 1] = at[i] + csize[i];
+    int64_t bad = -1;
+    int bad_z = Z_OK;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 1)
+#endif
+    for (int64_t i = 0; i < (int64_t)nb; i++) {
+        uint64_t want = (uint64_t)i + 1 == nb && last ? last : bs;
+        uLongf dlen = (uLongf)want;
+        int z = uncompress(out + (uint64_t)i * bs, &dlen, c + at[i],
+                           (uLong)csize[i]);
+        if (z != Z_OK || dlen != want) {
+#ifdef _OPENMP
+#pragma omp critical(tvpal_vti_block)
+#endif
+            if (bad < 0 || i < bad) {
+                bad = i;
+                bad_z = z;
+            }
+        }
+    }
+    free(at);
+    return bad < 0 ? 0 : block_error(d, a, (uint64_t)bad, nb, bad_z);
+}
+
 static int read_binary(const struct vti_doc *d, const struct vti_array *a,
                        uint64_t nbytes, unsigned char *out)
 {
@@ -906,30 +960,19 @@ static int read_binary(const struct vti_doc *d, const struct vti_array *a,
         rc = truncated(d, a, &s, "compressed blocks", src_left(&s), sum);
     if (rc == 0 && out && s.b64 && !(cbuf = malloc((size_t)cmax + 1)))
         rc = TVPAL_E_NOMEM;
-    for (uint64_t i = 0; rc == 0 && out && i < nb; i++) {
-        const unsigned char *c = s.p;
-        if (s.b64) {
-            got = src_read(&s, cbuf, (size_t)csize[i]);
-            if (got < csize[i]) {
-                rc = truncated(d, a, &s, "compressed blocks", got, csize[i]);
-                break;
-            }
-            c = cbuf;
-        } else {
-            s.p += csize[i];
+    if (rc == 0 && out && !s.b64)
+        rc = inflate_raw_blocks(d, a, s.p, csize, nb, bs, last, out);
+    for (uint64_t i = 0; rc == 0 && out && s.b64 && i < nb; i++) {
+        got = src_read(&s, cbuf, (size_t)csize[i]);
+        if (got < csize[i]) {
+            rc = truncated(d, a, &s, "compressed blocks", got, csize[i]);
+            break;
         }
         uint64_t want = i + 1 == nb && last ? last : bs;
         uLongf dlen = (uLongf)want;
-        int z = uncompress(out + i * bs, &dlen, c, (uLong)csize[i]);
+        int z = uncompress(out + i * bs, &dlen, cbuf, (uLong)csize[i]);
         if (z != Z_OK || dlen != want)
-            rc = tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s: zlib "
-                                "block %llu of %llu does not inflate (%s)",
-                                d->path, a->name, (unsigned long long)i + 1,
-                                (unsigned long long)nb,
-                                z != Z_OK ? (z == Z_BUF_ERROR ? "data ends "
-                                "early or inflates to more than its size"
-                                : zError(z)) : "inflates to less than its "
-                                "size");
+            rc = block_error(d, a, i, nb, z);
     }
     free(cbuf);
     free(csize);
