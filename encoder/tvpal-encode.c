@@ -35,6 +35,7 @@
 #include <getopt.h>
 #include <limits.h>
 #include <math.h>
+#include <pthread.h>
 #include <signal.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -546,6 +547,7 @@ struct run {
     float **ring;            /* N converted timesteps, step t at t % N */
     void *raw;               /* one source timestep */
     struct tvpal_input *in;  /* self-describing input, or NULL (raw) */
+    struct prefetch *pf;     /* reads the input's next step meanwhile */
     double *times;           /* [T] time values, or NULL (none known) */
     char time_units[128];
     double t_encode;         /* seconds of the streaming loop */
@@ -648,6 +650,115 @@ static void read_convert(struct run *r, int fd, off_t off, float *dst,
     *res = (struct loaded){bad, rc_all, read_err, nrep, lo, hi};
 }
 
+/* A self-describing input is read (and inflated) by its library on one
+ * thread; the encoding of a step runs on all of them.  One reader thread
+ * reads step t + 1 while step t is converted and encoded, so the two
+ * overlap.  The reader is the only thread that calls the input library once
+ * it runs (HDF5 and libnetcdf builds need not be thread-safe). */
+struct prefetch {
+    pthread_t thread;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    struct tvpal_input *in;
+    void *buf;               /* nvox floats: the step being read or read */
+    int64_t want, ready;     /* step asked for / in buf (-1: none) */
+    int busy, quit, rc;
+    struct tvpal_diag d;
+};
+
+static void *prefetch_main(void *arg)
+{
+    struct prefetch *pf = arg;
+    pthread_mutex_lock(&pf->mu);
+    for (;;) {
+        while (!pf->quit && pf->want < 0)
+            pthread_cond_wait(&pf->cv, &pf->mu);
+        if (pf->quit)
+            break;
+        int64_t t = pf->want;
+        pf->want = -1;
+        pf->busy = 1;
+        pthread_mutex_unlock(&pf->mu);
+        struct tvpal_diag d = {{0}};
+        int rc = tvpal_input_read(pf->in, (uint32_t)t, pf->buf, &d);
+        pthread_mutex_lock(&pf->mu);
+        pf->busy = 0;
+        pf->ready = t;
+        pf->rc = rc;
+        pf->d = d;
+        pthread_cond_broadcast(&pf->cv);
+    }
+    pthread_mutex_unlock(&pf->mu);
+    return NULL;
+}
+
+/* Starts the reader (NULL when threads are not available: then every step
+ * is read in place). */
+static struct prefetch *prefetch_start(struct tvpal_input *in, size_t bytes)
+{
+    struct prefetch *pf = calloc(1, sizeof *pf);
+    if (!pf || !(pf->buf = malloc(bytes))) {
+        free(pf);
+        return NULL;
+    }
+    pf->in = in;
+    pf->want = pf->ready = -1;
+    pthread_mutex_init(&pf->mu, NULL);
+    pthread_cond_init(&pf->cv, NULL);
+    if (pthread_create(&pf->thread, NULL, prefetch_main, pf) != 0) {
+        free(pf->buf);
+        free(pf);
+        return NULL;
+    }
+    return pf;
+}
+
+static void prefetch_stop(struct prefetch *pf)
+{
+    if (!pf)
+        return;
+    pthread_mutex_lock(&pf->mu);
+    pf->quit = 1;
+    pthread_cond_broadcast(&pf->cv);
+    pthread_mutex_unlock(&pf->mu);
+    pthread_join(pf->thread, NULL);
+    pthread_mutex_destroy(&pf->mu);
+    pthread_cond_destroy(&pf->cv);
+    free(pf->buf);
+    free(pf);
+}
+
+/* Step t of the input into *raw: from the reader when it has it (the
+ * buffers are swapped), else read here; then step t + 1 is asked for. */
+static int input_step(struct run *r, uint32_t t, struct tvpal_diag *d)
+{
+    struct prefetch *pf = r->pf;
+    int rc = 1;
+    if (pf) {
+        pthread_mutex_lock(&pf->mu);
+        while (pf->busy || pf->want >= 0)
+            pthread_cond_wait(&pf->cv, &pf->mu);
+        if (pf->ready == (int64_t)t) {
+            void *tmp = r->raw;
+            r->raw = pf->buf;
+            pf->buf = tmp;
+            rc = pf->rc;
+            *d = pf->d;
+        }
+        pf->ready = -1;
+        pthread_mutex_unlock(&pf->mu);
+    }
+    if (rc > 0) /* not read ahead: the reader is idle, so this is safe */
+        rc = tvpal_input_read(r->in, t, r->raw, d);
+    if (pf && t + 1 < r->T) {
+        pthread_mutex_lock(&pf->mu);
+        pf->want = t + 1;
+        pthread_cond_broadcast(&pf->cv);
+        pthread_mutex_unlock(&pf->mu);
+    }
+    return rc;
+}
+
 /* Reads timestep t of the source into dst (converted), accounting stats
  * when t is not yet in them.  A read error ends the program keeping the
  * partial output (maybe transient); bad data ends it removing it. */
@@ -663,7 +774,7 @@ static void load_step(struct run *r, uint32_t t, float *dst)
         uint32_t k;
         struct tvpal_diag d = {{0}};
         path = tvpal_input_file(r->in, t, &k);
-        int rc = tvpal_input_read(r->in, t, r->raw, &d);
+        int rc = input_step(r, t, &d);
         if (rc < 0) /* the file changed or is corrupt: a rerun fails too */
             die_input("timestep %u (step %u of %s): %s", t, k, path,
                       lib_error(rc, &d));
@@ -1546,6 +1657,7 @@ static void print_summary(const struct run *r)
 
 static void run_free(struct run *r)
 {
+    prefetch_stop(r->pf);   /* before the input it reads is closed */
     for (uint32_t q = 0; q < r->nshard; q++)
         free(r->sj[q].rec);
     free(r->sj);
@@ -1596,6 +1708,8 @@ int main(int argc, char **argv)
     setup_shards(&r);
     open_or_restart_writers(&r);
     setup_workspace(&r);
+    if (r.in)
+        r.pf = prefetch_start(r.in, r.step_bytes);
     encode_steps(&r);
     warn_dominating_values(&r);
     finish_partial(&r);
