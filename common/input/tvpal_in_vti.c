@@ -1,5 +1,8 @@
 /* tvpal_in_vti.c: the VTK XML ImageData (.vti) backend of tvpal_input, and
- * the only file of the tree that includes expat and zlib (LAYERS.md).
+ * the only file of the tree that includes expat and zlib (LAYERS.md).  It
+ * also reads .pvti files (PImageData: the whole extent assembled from its
+ * pieces, each a .vti read as below, one piece at a time) and parses .pvd
+ * collections for tvpal_input.c (tvpal_input_vtk_collection).
  *
  * One file is one timestep.  The XML is parsed with expat up to the
  * <AppendedData> tag (what follows the '_' marker is not XML: raw bytes or
@@ -73,6 +76,12 @@ struct vti_array {
 };
 
 /* What one parse of a file found. */
+/* A piece of a .pvti: its extent and its .vti (resolved). */
+struct vti_piece {
+    long long ext[6];
+    char *source;
+};
+
 struct vti_doc {
     const char *path;
     const unsigned char *buf;   /* the mapped file */
@@ -84,6 +93,9 @@ struct vti_doc {
     int have_extent;
     double origin[3], spacing[3], direction[9];
     int npieces;
+    int parallel;               /* PImageData: pcs[] are its pieces */
+    struct vti_piece *pcs;
+    int npcs, pcap;
     char *scalars;              /* the PointData's Scalars, or NULL */
     struct vti_array *arrays;
     int narrays, cap;
@@ -102,6 +114,11 @@ struct tvpal_input_file {
     char var[128];              /* the array open chose */
     uint32_t dims[3];
     int t;
+    /* .pvti: the whole extent, the pieces and one piece of scratch */
+    long long whole[6];
+    struct vti_piece *pcs;
+    int npcs;
+    float *scratch;
 };
 
 /* --------------------------------------------------------- file mapping */
@@ -147,6 +164,9 @@ static void doc_free(struct vti_doc *d)
     for (int i = 0; i < d->narrays; i++)
         free(d->arrays[i].name);
     free(d->arrays);
+    for (int i = 0; i < d->npcs; i++)
+        free(d->pcs[i].source);
+    free(d->pcs);
     free(d->scalars);
     if (d->buf)
         munmap((void *)d->buf, d->size);
@@ -220,9 +240,15 @@ static void copy_attr(char *dst, size_t cap, const char *v)
 static int start_vtkfile(struct vti_doc *d, const XML_Char **atts)
 {
     const char *v = attr(atts, "type");
-    if (!v || strcmp(v, "ImageData"))
+    if (v && !strcmp(v, "Collection"))
+        return fail(d, TVPAL_E_FORMAT, "a .pvd collection (VTKFile type "
+                    "Collection) where an ImageData file was expected", NULL,
+                    NULL);
+    if (!v || (strcmp(v, "ImageData") && strcmp(v, "PImageData")))
         return fail(d, TVPAL_E_FORMAT, "VTKFile type is %s; only ImageData "
-                    "(.vti) is read", v ? v : "missing", NULL);
+                    "(.vti), PImageData (.pvti) and Collection (.pvd) are "
+                    "read", v ? v : "missing", NULL);
+    d->parallel = !strcmp(v, "PImageData");
     v = attr(atts, "byte_order");
     copy_attr(d->byte_order, sizeof d->byte_order, v ? v : "LittleEndian");
     if (!strcmp(d->byte_order, "BigEndian"))
@@ -316,6 +342,50 @@ static int start_array(struct vti_doc *d, const XML_Char **atts)
     return 0;
 }
 
+/* A PImageData's children: PPointData/PCellData with their PDataArrays
+ * (the arrays every piece has), and Piece Extent= Source=. */
+static int start_parallel(struct vti_doc *d, int depth, const XML_Char *name,
+                          const XML_Char **atts)
+{
+    if (!d->have_image)
+        return 0;
+    if (depth == 2 && !strcmp(name, "Piece")) {
+        if (d->npcs == d->pcap) {
+            int cap = d->pcap ? 2 * d->pcap : 8;
+            struct vti_piece *p = realloc(d->pcs, sizeof *p * (size_t)cap);
+            if (!p)
+                return nomem(d);
+            d->pcs = p;
+            d->pcap = cap;
+        }
+        struct vti_piece *p = &d->pcs[d->npcs];
+        const char *v = attr(atts, "Extent");
+        if (!v || parse_ints(v, p->ext, 6) < 0)
+            return fail(d, TVPAL_E_FORMAT, "Piece Extent is %s (six integers "
+                        "expected)", v ? v : "missing", NULL);
+        if (!(v = attr(atts, "Source")) || !*v)
+            return fail(d, TVPAL_E_FORMAT, "Piece %s has no Source file",
+                        attr(atts, "Extent"), NULL);
+        if (!(p->source = strdup(v)))
+            return nomem(d);
+        d->npcs++;
+        return 0;
+    }
+    if (depth == 2 && (!strcmp(name, "PPointData") ||
+                       !strcmp(name, "PCellData"))) {
+        d->in_cell = !strcmp(name, "PCellData");
+        d->data_depth = depth;
+        const char *v = attr(atts, "Scalars");
+        if (!d->in_cell && v && !d->scalars && !(d->scalars = strdup(v)))
+            return nomem(d);
+        return 0;
+    }
+    if (d->data_depth && depth == d->data_depth + 1 &&
+        !strcmp(name, "PDataArray"))
+        return start_array(d, atts);
+    return 0;
+}
+
 static int start(struct vti_doc *d, int depth, const XML_Char *name,
                  const XML_Char **atts)
 {
@@ -325,8 +395,10 @@ static int start(struct vti_doc *d, int depth, const XML_Char *name,
                         "<VTKFile>", name, NULL);
         return start_vtkfile(d, atts);
     }
-    if (depth == 1 && !strcmp(name, "ImageData"))
+    if (depth == 1 && !strcmp(name, d->parallel ? "PImageData" : "ImageData"))
         return start_image(d, atts);
+    if (d->parallel)
+        return start_parallel(d, depth, name, atts);
     if (depth == 1 && !strcmp(name, "AppendedData")) {
         const char *v = attr(atts, "encoding");
         d->have_appended = 1;
@@ -494,8 +566,9 @@ static int load(struct vti_doc *d, const char *path, struct tvpal_diag *diag)
     XML_ParserFree(d->xp);
     d->xp = NULL;
     if (rc == 0 && !d->have_whole)
-        rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: no <ImageData> element "
-                            "with a WholeExtent", path);
+        rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: no <%s> element "
+                            "with a WholeExtent", path,
+                            d->parallel ? "PImageData" : "ImageData");
     return rc;
 }
 
@@ -533,6 +606,9 @@ static int grid(const struct vti_doc *d, struct tvpal_input_info *info)
                     d->direction[0], d->direction[1], d->direction[2],
                     d->direction[3], d->direction[4], d->direction[5],
                     d->direction[6], d->direction[7], d->direction[8]);
+    if (d->parallel)
+        return d->npcs ? 0 : tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: no "
+                                           "Piece in PImageData", d->path);
     if (d->npieces == 0)
         return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: no Piece in "
                               "ImageData", d->path);
@@ -998,7 +1074,177 @@ static int decode(const struct vti_doc *d, const struct vti_array *a, size_t n,
     return rc;
 }
 
+/* -------------------------------------------------------- .pvti pieces */
+
+/* rel resolved against the directory of base (rel itself when absolute
+ * or base has no directory); malloc'ed, or NULL. */
+static char *beside(const char *base, const char *rel)
+{
+    const char *slash = strrchr(base, '/');
+    size_t k = rel[0] == '/' || !slash ? 0 : (size_t)(slash - base) + 1;
+    char *p = malloc(k + strlen(rel) + 1);
+    if (p) {
+        memcpy(p, base, k);
+        strcpy(p + k, rel);
+    }
+    return p;
+}
+
+/* Appends " (what path)" to the diag: which .pvti or .pvd an error of one
+ * of its files comes from. */
+static void diag_note(struct tvpal_diag *diag, const char *what,
+                      const char *path)
+{
+    if (!diag)
+        return;
+    size_t k = strlen(diag->msg);
+    snprintf(diag->msg + k, sizeof diag->msg - k, " (%s %s)", what, path);
+}
+
+static long long ext_points(const long long *e)
+{
+    return (e[1] - e[0] + 1) * (e[3] - e[2] + 1) * (e[5] - e[4] + 1);
+}
+
+/* Loads piece p of the .pvti ppath into *d and chooses array var in it:
+ * one Piece of extent p->ext holding var as type t. */
+static int piece_load(struct vti_doc *d, const char *ppath,
+                      const struct vti_piece *p, const char *var, int t,
+                      int *pick, struct tvpal_diag *diag)
+{
+    int rc = load(d, p->source, diag);
+    if (rc == 0 && d->parallel)
+        rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: a piece that is a "
+                            "PImageData itself", p->source);
+    if (rc == 0 && d->npieces != 1)
+        rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: %d Pieces (one "
+                            "expected in a piece file)", p->source,
+                            d->npieces);
+    const long long *e = d->extent;
+    if (rc == 0 && (!d->have_extent || memcmp(e, p->ext, sizeof d->extent)))
+        rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: Piece Extent %lld %lld "
+                            "%lld %lld %lld %lld; the .pvti says %lld %lld "
+                            "%lld %lld %lld %lld", p->source, e[0], e[1], e[2],
+                            e[3], e[4], e[5], p->ext[0], p->ext[1], p->ext[2],
+                            p->ext[3], p->ext[4], p->ext[5]);
+    if (rc == 0)
+        rc = choose(d, var, pick);
+    if (rc == 0 && d->arrays[*pick].t != t)
+        rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: array %s is %s; the "
+                            ".pvti says %s", p->source, var,
+                            d->arrays[*pick].type, vti_types[t].name);
+    if (rc == 0 && d->arrays[*pick].fmt != F_ASCII)
+        rc = read_binary(d, &d->arrays[*pick],
+                         (uint64_t)ext_points(p->ext) * vti_types[t].size,
+                         NULL);
+    if (rc < 0)
+        diag_note(diag, "a piece of", ppath);
+    return rc;
+}
+
+/* The pieces of the .pvti d into f: resolved, inside the whole extent,
+ * covering it (a byte per point, for this check only), each one readable. */
+static int pieces_open(struct tvpal_input_file *f, struct vti_doc *d,
+                       struct tvpal_diag *diag)
+{
+    if (!(f->pcs = calloc((size_t)d->npcs, sizeof *f->pcs)))
+        return TVPAL_E_NOMEM;
+    f->npcs = d->npcs;
+    memcpy(f->whole, d->whole, sizeof f->whole);
+    const long long *w = d->whole;
+    long long most = 0;
+    for (int i = 0; i < d->npcs; i++) {
+        const long long *e = d->pcs[i].ext;
+        memcpy(f->pcs[i].ext, e, sizeof f->pcs[i].ext);
+        if (!(f->pcs[i].source = beside(d->path, d->pcs[i].source)))
+            return TVPAL_E_NOMEM;
+        for (int a = 0; a < 3; a++)
+            if (e[2 * a] > e[2 * a + 1] || e[2 * a] < w[2 * a] ||
+                e[2 * a + 1] > w[2 * a + 1])
+                return tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: Piece %s: "
+                                      "Extent %lld %lld %lld %lld %lld %lld is "
+                                      "empty or outside the WholeExtent",
+                                      d->path, d->pcs[i].source, e[0], e[1],
+                                      e[2], e[3], e[4], e[5]);
+        most = ext_points(e) > most ? ext_points(e) : most;
+    }
+    size_t nx = (size_t)f->dims[0], ny = f->dims[1], nz = f->dims[2];
+    unsigned char *seen = calloc(nx * ny * nz, 1);
+    if (!seen)
+        return TVPAL_E_NOMEM;
+    for (int i = 0; i < f->npcs; i++) {
+        const long long *e = f->pcs[i].ext;
+        for (long long z = e[4]; z <= e[5]; z++)
+            for (long long y = e[2]; y <= e[3]; y++)
+                memset(seen + ((size_t)(z - w[4]) * ny + (size_t)(y - w[2])) *
+                       nx + (size_t)(e[0] - w[0]), 1, (size_t)(e[1] - e[0] + 1));
+    }
+    size_t hole = 0;
+    while (hole < nx * ny * nz && seen[hole])
+        hole++;
+    free(seen);
+    if (hole < nx * ny * nz)
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: the Pieces do not "
+                              "cover the WholeExtent: point (%lld,%lld,%lld) "
+                              "is in none", d->path, w[0] + (long long)(hole % nx),
+                              w[2] + (long long)(hole / nx % ny),
+                              w[4] + (long long)(hole / nx / ny));
+    for (int i = 0; i < f->npcs; i++) {
+        struct vti_doc pd;
+        int pick = -1;
+        int rc = piece_load(&pd, d->path, &f->pcs[i], f->var, f->t, &pick,
+                            diag);
+        doc_free(&pd);
+        if (rc < 0)
+            return rc;
+    }
+    if (!(f->scratch = malloc(sizeof *f->scratch * (size_t)most)))
+        return TVPAL_E_NOMEM;
+    return 0;
+}
+
+/* One step of a .pvti: each piece decoded into the scratch and copied into
+ * its place; where pieces overlap (VTK's shared faces) the later one wins,
+ * the values there being the same. */
+static int pieces_read(struct tvpal_input_file *f, float *dst,
+                       struct tvpal_diag *diag)
+{
+    const long long *w = f->whole;
+    size_t nx = f->dims[0], ny = f->dims[1];
+    for (int i = 0; i < f->npcs; i++) {
+        struct vti_doc d;
+        int pick = -1;
+        const long long *e = f->pcs[i].ext;
+        int rc = piece_load(&d, f->path, &f->pcs[i], f->var, f->t, &pick,
+                            diag);
+        if (rc == 0)
+            rc = decode(&d, &d.arrays[pick], (size_t)ext_points(e), f->scratch);
+        doc_free(&d);
+        if (rc < 0)
+            return rc;
+        size_t px = (size_t)(e[1] - e[0] + 1);
+        const float *s = f->scratch;
+        for (long long z = e[4]; z <= e[5]; z++)
+            for (long long y = e[2]; y <= e[3]; y++, s += px)
+                memcpy(dst + ((size_t)(z - w[4]) * ny + (size_t)(y - w[2])) *
+                       nx + (size_t)(e[0] - w[0]), s, px * sizeof *s);
+    }
+    return 0;
+}
+
 /* ------------------------------------------------------------- backend */
+
+static void vti_close(struct tvpal_input_file *f)
+{
+    if (!f)
+        return;
+    for (int i = 0; i < f->npcs; i++)
+        free(f->pcs[i].source);
+    free(f->pcs);
+    free(f->scratch);
+    free(f->path);
+    free(f);
+}
 
 static int vti_open(struct tvpal_input_file **out, const char *path,
                     const struct tvpal_input_opts *opts,
@@ -1015,7 +1261,7 @@ static int vti_open(struct tvpal_input_file **out, const char *path,
     if (rc == 0)
         rc = choose(&d, opts ? opts->var : NULL, &pick);
     size_t n = (size_t)info->dims[0] * info->dims[1] * info->dims[2];
-    if (rc == 0 && d.arrays[pick].fmt != F_ASCII)
+    if (rc == 0 && !d.parallel && d.arrays[pick].fmt != F_ASCII)
         rc = read_binary(&d, &d.arrays[pick],
                          (uint64_t)n * vti_types[d.arrays[pick].t].size, NULL);
     struct tvpal_input_file *f = NULL;
@@ -1029,12 +1275,14 @@ static int vti_open(struct tvpal_input_file **out, const char *path,
         memcpy(f->var, info->var, sizeof f->var);
         memcpy(f->dims, info->dims, sizeof f->dims);
         f->t = a->t;
+        if (d.parallel)
+            rc = pieces_open(f, &d, diag);
+    }
+    if (rc == 0) {
         *out = f;
         f = NULL;
     }
-    if (f)
-        free(f->path);
-    free(f);
+    vti_close(f);
     doc_free(&d);
     return rc;
 }
@@ -1045,6 +1293,8 @@ static int vti_read(struct tvpal_input_file *f, uint32_t k, float *dst,
     if (k != 0)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: step %u of a file "
                               "that holds one", f->path, k);
+    if (f->npcs)
+        return pieces_read(f, dst, diag);
     struct vti_doc d;
     struct tvpal_input_info info = {0};
     int pick = -1;
@@ -1064,18 +1314,268 @@ static int vti_read(struct tvpal_input_file *f, uint32_t k, float *dst,
     return rc;
 }
 
-static void vti_close(struct tvpal_input_file *f)
+static int vti_describe(const char *path, char **text, struct tvpal_diag *diag);
+
+/* -------------------------------------------------- .pvd collections */
+
+struct pvd_set {
+    double t;
+    int has_t, order;
+    char *part, *file;
+};
+
+struct pvd_doc {
+    XML_Parser xp;
+    const char *path;
+    struct tvpal_diag *diag;
+    int depth, is_coll, not_coll, in_coll, rc;
+    struct pvd_set *sets;
+    int n, cap;
+};
+
+static int pvd_fail(struct pvd_doc *p, const char *what, const char *a)
 {
-    if (f)
-        free(f->path);
-    free(f);
+    if (p->rc == 0)
+        p->rc = tvpal_diag_set(p->diag, TVPAL_E_FORMAT, "%s: line %lu: %s%s",
+                               p->path,
+                               (unsigned long)XML_GetCurrentLineNumber(p->xp),
+                               what, a ? a : "");
+    XML_StopParser(p->xp, XML_FALSE);
+    return p->rc;
+}
+
+static void XMLCALL pvd_start(void *ud, const XML_Char *name,
+                              const XML_Char **atts)
+{
+    struct pvd_doc *p = ud;
+    int depth = p->depth++;
+    if (p->rc || p->not_coll)
+        return;
+    if (depth == 0) {
+        const char *t = attr(atts, "type");
+        if (strcmp(name, "VTKFile") || !t || strcmp(t, "Collection")) {
+            p->not_coll = 1;   /* not ours: stop reading at the root */
+            XML_StopParser(p->xp, XML_FALSE);
+        }
+        p->is_coll = !p->not_coll;
+        return;
+    }
+    if (depth == 1)
+        p->in_coll = !strcmp(name, "Collection");
+    if (depth != 2 || !p->in_coll || strcmp(name, "DataSet"))
+        return;
+    if (p->n == p->cap) {
+        int cap = p->cap ? 2 * p->cap : 16;
+        struct pvd_set *s = realloc(p->sets, sizeof *s * (size_t)cap);
+        if (!s) {
+            p->rc = TVPAL_E_NOMEM;
+            XML_StopParser(p->xp, XML_FALSE);
+            return;
+        }
+        p->sets = s;
+        p->cap = cap;
+    }
+    struct pvd_set *s = &p->sets[p->n];
+    memset(s, 0, sizeof *s);
+    const char *f = attr(atts, "file"), *part = attr(atts, "part");
+    const char *ts = attr(atts, "timestep");
+    if (!f || !*f) {
+        pvd_fail(p, "a DataSet without a file attribute", NULL);
+        return;
+    }
+    if (ts) {
+        char *e;
+        s->t = strtod(ts, &e);
+        while (*e == ' ' || *e == '\t' || *e == '\n' || *e == '\r')
+            e++;
+        if (e == ts || *e || !isfinite(s->t)) {
+            pvd_fail(p, "DataSet timestep is not a number: ", ts);
+            return;
+        }
+        s->has_t = 1;
+    }
+    s->order = p->n;
+    if (!(s->file = strdup(f)) || !(s->part = strdup(part ? part : "0"))) {
+        free(s->file);
+        p->rc = TVPAL_E_NOMEM;
+        XML_StopParser(p->xp, XML_FALSE);
+        return;
+    }
+    p->n++;
+}
+
+static void XMLCALL pvd_end(void *ud, const XML_Char *name)
+{
+    struct pvd_doc *p = ud;
+    (void)name;
+    p->depth--;
+}
+
+/* By timestep, then document order (a stable sort, as VTK's reader
+ * shows the steps in time order). */
+static int pvd_cmp(const void *a, const void *b)
+{
+    const struct pvd_set *x = a, *y = b;
+    if (x->t != y->t)
+        return x->t < y->t ? -1 : 1;
+    return x->order - y->order;
+}
+
+int tvpal_input_vtk_collection(const char *path, char ***files,
+                               double **times, int *n,
+                               struct tvpal_diag *diag)
+{
+    *files = NULL;
+    *times = NULL;
+    *n = 0;
+    FILE *fp = fopen(path, "rb");
+    if (!fp)   /* not ours to say: the backend reports it */
+        return 0;
+    struct pvd_doc p = {0};
+    p.path = path;
+    p.diag = diag;
+    int rc = 0;
+    if (!(p.xp = XML_ParserCreate(NULL))) {
+        fclose(fp);
+        return TVPAL_E_NOMEM;
+    }
+    XML_SetUserData(p.xp, &p);
+    XML_SetElementHandler(p.xp, pvd_start, pvd_end);
+    /* Small reads: a .vti stops at its root tag, in the first of them. */
+    char buf[4096];
+    for (;;) {
+        size_t k = fread(buf, 1, sizeof buf, fp);
+        int last = k < sizeof buf;
+        if (XML_Parse(p.xp, buf, (int)k, last) != XML_STATUS_OK) {
+            if (!p.is_coll || p.not_coll)
+                break;   /* not a collection (or not XML): not ours */
+            if (!p.rc && XML_GetErrorCode(p.xp) == XML_ERROR_NO_MEMORY)
+                p.rc = TVPAL_E_NOMEM;
+            if (!p.rc)
+                p.rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: XML error "
+                                      "at line %lu: %s", path, (unsigned long)
+                                      XML_GetCurrentLineNumber(p.xp),
+                                      XML_ErrorString(XML_GetErrorCode(p.xp)));
+            break;
+        }
+        if (last)
+            break;
+    }
+    fclose(fp);
+    XML_ParserFree(p.xp);
+    p.xp = NULL;
+    rc = p.rc;
+    if (rc == 0 && p.is_coll && p.n == 0)
+        rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: a collection without "
+                            "a DataSet", path);
+    int timed = 0;
+    for (int i = 0; i < p.n; i++)
+        timed += p.sets[i].has_t;
+    if (rc == 0 && p.n > 1 && timed < p.n)
+        rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: %d of its %d DataSets "
+                            "have no timestep", path, p.n - timed, p.n);
+    if (rc == 0 && p.n > 1)
+        qsort(p.sets, (size_t)p.n, sizeof *p.sets, pvd_cmp);
+    for (int i = 1; rc == 0 && i < p.n; i++) {
+        const struct pvd_set *a = &p.sets[i - 1], *b = &p.sets[i];
+        if (a->t == b->t && strcmp(a->part, b->part))
+            rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: timestep %g has "
+                                "parts %s and %s: multi-part collections are "
+                                "not supported", path, a->t, a->part, b->part);
+        else if (a->t == b->t)
+            rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: two DataSets at "
+                                "timestep %g (%s and %s)", path, a->t,
+                                a->file, b->file);
+    }
+    char **fl = NULL;
+    double *tl = NULL;
+    if (rc == 0 && p.n > 0) {
+        fl = calloc((size_t)p.n, sizeof *fl);
+        tl = timed ? malloc(sizeof *tl * (size_t)p.n) : NULL;
+        if (!fl || (timed && !tl))
+            rc = TVPAL_E_NOMEM;
+    }
+    for (int i = 0; rc == 0 && i < p.n; i++) {
+        if (!(fl[i] = beside(path, p.sets[i].file))) {
+            rc = TVPAL_E_NOMEM;
+            break;
+        }
+        if (tl)
+            tl[i] = p.sets[i].t;
+        FILE *df = fopen(fl[i], "rb");
+        if (!df)
+            rc = tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: its DataSet %s: %s",
+                                path, fl[i], strerror(errno));
+        else
+            fclose(df);
+    }
+    for (int i = 0; i < p.n; i++) {
+        free(p.sets[i].file);
+        free(p.sets[i].part);
+    }
+    free(p.sets);
+    if (rc < 0 || !fl) {
+        for (int i = 0; fl && i < p.n; i++)
+            free(fl[i]);
+        free(fl);
+        free(tl);
+        return rc;
+    }
+    *files = fl;
+    *times = tl;
+    *n = p.n;
+    return 0;
+}
+
+/* ------------------------------------------------------------- describe */
+
+/* A .pvd: its DataSets, then what the first one holds. */
+static int describe_collection(const char *path, char **files, double *times,
+                               int n, char **text, struct tvpal_diag *diag)
+{
+    char *first = NULL;
+    int rc = vti_describe(files[0], &first, diag);
+    size_t cap = 256 + (first ? strlen(first) : 0);
+    for (int i = 0; i < n; i++)
+        cap += strlen(files[i]) + 48;
+    char *t = rc == 0 ? malloc(cap) : NULL;
+    if (rc == 0 && !t)
+        rc = TVPAL_E_NOMEM;
+    if (rc == 0) {
+        size_t k = (size_t)snprintf(t, cap, "vti (VTK collection .pvd, %d "
+                                    "DataSet%s, %s)\n", n, n == 1 ? "" : "s",
+                                    times ? "by timestep" : "no timestep");
+        for (int i = 0; i < n; i++)
+            k += (size_t)snprintf(t + k, cap - k, "timestep %.17g %s\n",
+                                  times ? times[i] : (double)i, files[i]);
+        snprintf(t + k, cap - k, "first DataSet: %s", first);
+        *text = t;
+    } else {
+        diag_note(diag, "listed in", path);
+    }
+    free(first);
+    return rc;
 }
 
 static int vti_describe(const char *path, char **text, struct tvpal_diag *diag)
 {
     struct vti_doc d;
     *text = NULL;
-    int rc = load(&d, path, diag);
+    char **files = NULL;
+    double *times = NULL;
+    int nf = 0;
+    int rc = tvpal_input_vtk_collection(path, &files, &times, &nf, diag);
+    if (rc == 0 && nf > 0) {
+        rc = describe_collection(path, files, times, nf, text, diag);
+        for (int i = 0; i < nf; i++)
+            free(files[i]);
+        free(files);
+        free(times);
+        return rc;
+    }
+    if (rc < 0)
+        return rc;
+    rc = load(&d, path, diag);
     if (rc < 0) {
         doc_free(&d);
         return rc;
@@ -1083,6 +1583,8 @@ static int vti_describe(const char *path, char **text, struct tvpal_diag *diag)
     size_t cap = 1024;
     for (int i = 0; i < d.narrays; i++)
         cap += strlen(d.arrays[i].name) + sizeof d.arrays[i].type + 64;
+    for (int i = 0; i < d.npcs; i++)
+        cap += strlen(d.pcs[i].source) + 160;
     char *t = malloc(cap);
     if (!t) {
         doc_free(&d);
@@ -1090,10 +1592,11 @@ static int vti_describe(const char *path, char **text, struct tvpal_diag *diag)
     }
     size_t n = 0;
     const long long *w = d.whole;
-    n += (size_t)snprintf(t + n, cap - n, "vti (VTK XML ImageData, %s, header "
+    n += (size_t)snprintf(t + n, cap - n, "vti (VTK XML %s, %s, header "
                           "%s, %s)\nextent %lld %lld %lld %lld %lld %lld "
                           "(%lldx%lldx%lld) spacing %.9g %.9g %.9g origin %.9g "
-                          "%.9g %.9g", d.byte_order, d.header_type,
+                          "%.9g %.9g", d.parallel ? "PImageData" : "ImageData",
+                          d.byte_order, d.header_type,
                           d.compressor[0] ? d.compressor : "none", w[0], w[1],
                           w[2], w[3], w[4], w[5], w[1] - w[0] + 1,
                           w[3] - w[2] + 1, w[5] - w[4] + 1, d.spacing[0],
@@ -1106,6 +1609,12 @@ static int vti_describe(const char *path, char **text, struct tvpal_diag *diag)
             n += (size_t)snprintf(t + n, cap - n, "%s%.9g",
                                   i ? " " : " direction ", d.direction[i]);
     n += (size_t)snprintf(t + n, cap - n, "\n");
+    for (int i = 0; i < d.npcs; i++) {
+        const long long *e = d.pcs[i].ext;
+        n += (size_t)snprintf(t + n, cap - n, "piece %s extent %lld %lld %lld "
+                              "%lld %lld %lld\n", d.pcs[i].source, e[0], e[1],
+                              e[2], e[3], e[4], e[5]);
+    }
     for (int i = 0; i < d.narrays; i++) {
         const struct vti_array *a = &d.arrays[i];
         int active = !a->cell && d.scalars && !strcmp(d.scalars, a->name);

@@ -8,7 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-static const char *const format_names[] = {"auto", "raw", "netcdf", "vti"};
+static const char *const format_names[] = {"auto", "raw", "netcdf", "vti",
+                                            "vtk"};
 
 const char *tvpal_input_format_name(enum tvpal_input_format f)
 {
@@ -64,6 +65,8 @@ int tvpal_input_detect(const char *path, enum tvpal_input_format *f,
         *f = TVPAL_IN_NETCDF;   /* NetCDF-4; plain HDF5 is not read yet */
     else if (n >= 5 && looks_like_vtk_xml(head))
         *f = TVPAL_IN_VTI;
+    else if (n >= 14 && !memcmp(head, "# vtk DataFile", 14))
+        *f = TVPAL_IN_VTK;   /* legacy: any dataset; the reader names it */
     return 0;
 }
 
@@ -72,6 +75,7 @@ static const struct tvpal_input_backend *backend_of(enum tvpal_input_format f)
     switch (f) {
     case TVPAL_IN_NETCDF: return &tvpal_input_netcdf;
     case TVPAL_IN_VTI: return &tvpal_input_vti;
+    case TVPAL_IN_VTK: return &tvpal_input_vtk;
     default: return NULL;
     }
 }
@@ -81,6 +85,7 @@ struct tvpal_input {
     struct tvpal_input_opts opts;
     struct tvpal_input_info info;
     char **files;              /* copies of the paths */
+    char **listed_in;          /* [nfiles]: the .pvd of each file, or NULL */
     uint32_t *first;           /* [nfiles + 1]: first series step per file */
     int nfiles;
     double *times;             /* [steps] when info.has_times */
@@ -96,7 +101,11 @@ void tvpal_input_close(struct tvpal_input *in)
         in->be->close(in->cur);
     for (int i = 0; in->files && i < in->nfiles; i++)
         free(in->files[i]);
+    for (int i = 0; in->listed_in && i < in->nfiles; i++)
+        if (!i || in->listed_in[i] != in->listed_in[i - 1])
+            free(in->listed_in[i]);
     free(in->files);
+    free(in->listed_in);
     free(in->first);
     free(in->times);
     free(in);
@@ -171,6 +180,11 @@ static int scan_files(struct tvpal_input *in, struct tvpal_diag *diag)
         if (rc == 0 && fi.has_times)
             rc = append_times(in, times, fi.steps);
         free(times);
+        if (rc < 0 && in->listed_in && in->listed_in[i] && diag) {
+            size_t k = strlen(diag->msg);
+            snprintf(diag->msg + k, sizeof diag->msg - k, " (listed in %s)",
+                     in->listed_in[i]);
+        }
         if (rc < 0)
             return rc;
         if (fi.steps > UINT32_MAX - in->info.steps)
@@ -180,6 +194,77 @@ static int scan_files(struct tvpal_input *in, struct tvpal_diag *diag)
     }
     in->first[in->nfiles] = in->info.steps;
     return 0;
+}
+
+/* Puts the files of in (files[0..nfiles), .pvd collections expanded)
+ * into in->files, in->listed_in and in->times.  A collection's times are
+ * the series' times; plain files beside a collection would have none. */
+static int expand_files(struct tvpal_input *in, char *const *files,
+                        int nfiles, struct tvpal_diag *diag)
+{
+    int rc = 0, cap = 0, ncoll = 0, nplain = 0, ntimed = 0;
+    for (int i = 0; rc == 0 && i < nfiles; i++) {
+        char **cf = NULL;
+        double *ct = NULL;
+        int cn = 0;
+        if (in->be == &tvpal_input_vti)
+            rc = tvpal_input_vtk_collection(files[i], &cf, &ct, &cn, diag);
+        char *owner = NULL;
+        if (rc == 0 && cn > 0 && !(owner = strdup(files[i])))
+            rc = TVPAL_E_NOMEM;
+        int add = cn > 0 ? cn : 1;
+        if (rc == 0 && in->nfiles + add > cap) {
+            int nc = 2 * cap > in->nfiles + add ? 2 * cap : in->nfiles + add;
+            char **f = realloc(in->files, sizeof *f * (size_t)nc);
+            if (f)
+                in->files = f;
+            char **l = f ? realloc(in->listed_in, sizeof *l * (size_t)nc) : NULL;
+            if (l)
+                in->listed_in = l;
+            double *t = l ? realloc(in->times, sizeof *t * (size_t)nc) : NULL;
+            if (t)
+                in->times = t;
+            rc = t ? 0 : TVPAL_E_NOMEM;
+            cap = t ? nc : cap;
+        }
+        for (int k = 0; rc == 0 && k < add; k++) {
+            char *p = cn > 0 ? cf[k] : strdup(files[i]);
+            if (cn > 0)
+                cf[k] = NULL;
+            if (!p) {
+                rc = TVPAL_E_NOMEM;
+                break;
+            }
+            in->files[in->nfiles] = p;
+            in->listed_in[in->nfiles] = owner;
+            in->times[in->nfiles] = ct ? ct[k] : 0;
+            in->nfiles++;
+        }
+        if (rc < 0 && owner && (in->nfiles == 0 ||
+                                in->listed_in[in->nfiles - 1] != owner))
+            free(owner);
+        for (int k = 0; k < cn; k++)
+            free(cf[k]);
+        free(cf);
+        free(ct);
+        ncoll += cn > 0;
+        nplain += cn == 0;
+        ntimed += cn > 0 && ct != NULL;
+    }
+    if (rc == 0 && ncoll && nplain)
+        rc = tvpal_diag_set(diag, TVPAL_E_MISMATCH, "%s and %s: a .pvd "
+                            "collection and plain files in one series (give "
+                            "the collection or its files)", files[0],
+                            files[nfiles - 1]);
+    if (rc == 0 && ncoll && ntimed != ncoll)
+        rc = tvpal_diag_set(diag, TVPAL_E_MISMATCH, "%s ... %s: some "
+                            "collections have timesteps and some none",
+                            files[0], files[nfiles - 1]);
+    if (ncoll == 0 || ntimed != ncoll) {
+        free(in->times);
+        in->times = NULL;
+    }
+    return rc;
 }
 
 int tvpal_input_open(struct tvpal_input **out, enum tvpal_input_format fmt,
@@ -202,16 +287,28 @@ int tvpal_input_open(struct tvpal_input **out, enum tvpal_input_format fmt,
         return TVPAL_E_NOMEM;
     in->be = be;
     in->opts = opts ? *opts : (struct tvpal_input_opts){0};
-    in->nfiles = nfiles;
     in->cur_i = -1;
-    in->files = calloc((size_t)nfiles, sizeof *in->files);
-    in->first = calloc((size_t)nfiles + 1, sizeof *in->first);
-    rc = in->files && in->first ? 0 : TVPAL_E_NOMEM;
-    for (int i = 0; rc == 0 && i < nfiles; i++)
-        if (!(in->files[i] = strdup(files[i])))
-            rc = TVPAL_E_NOMEM;
+    rc = expand_files(in, files, nfiles, diag);
+    /* Collection times are the series' times; the backend gives none. */
+    double *coll_times = in->times;
+    in->times = NULL;
+    if (rc == 0 && !(in->first = calloc((size_t)in->nfiles + 1,
+                                        sizeof *in->first)))
+        rc = TVPAL_E_NOMEM;
     if (rc == 0)
         rc = scan_files(in, diag);
+    if (rc == 0 && coll_times) {
+        if (in->info.has_times || in->info.steps != (uint32_t)in->nfiles)
+            rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: its DataSets "
+                                "hold %u steps in %d files (one each "
+                                "expected)", files[0], in->info.steps,
+                                in->nfiles);
+        free(in->times);
+        in->times = coll_times;
+        coll_times = NULL;
+        in->info.has_times = 1;
+    }
+    free(coll_times);
     if (rc == 0 && in->info.steps == 0)
         rc = tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s has no "
                             "timesteps", files[0], in->info.var);

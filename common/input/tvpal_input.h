@@ -1,5 +1,5 @@
 /* tvpal_input.h: readers of self-describing simulation output (NetCDF, VTK
- * ImageData), one timestep at a time.
+ * ImageData, legacy VTK), one timestep at a time.
  *
  * A series is one or more files of one format holding one variable in
  * time order: a file may hold one timestep or several (a time dimension).
@@ -12,7 +12,8 @@
  * (tvpal_raw.h); this interface is for the formats that say what they hold.
  *
  * Each format is one backend file, the only one that includes its library
- * (LAYERS.md): tvpal_in_netcdf.c (libnetcdf), tvpal_in_vti.c (expat, zlib).
+ * (LAYERS.md): tvpal_in_netcdf.c (libnetcdf), tvpal_in_vti.c (expat, zlib:
+ * .vti, .pvti and .pvd collections), tvpal_in_vtk.c (legacy .vtk, stdio).
  * A build without a library has its _none.c twin, which refuses the format
  * naming the Debian package to install.
  *
@@ -32,17 +33,21 @@ enum tvpal_input_format {
     TVPAL_IN_AUTO,     /* from the file's own bytes (tvpal_input_detect) */
     TVPAL_IN_RAW,      /* no header: dims and type must be given */
     TVPAL_IN_NETCDF,   /* classic, 64-bit offset, CDF-5 and NetCDF-4 */
-    TVPAL_IN_VTI       /* VTK XML ImageData */
+    TVPAL_IN_VTI,      /* VTK XML ImageData (.vti, .pvti), and .pvd
+                        * collections of them */
+    TVPAL_IN_VTK       /* legacy VTK STRUCTURED_POINTS (.vtk) */
 };
 
-/* "auto", "raw", "netcdf", "vti" <-> the enum; parse: 0 or TVPAL_E_INVAL. */
+/* "auto", "raw", "netcdf", "vti", "vtk" <-> the enum; parse: 0 or
+ * TVPAL_E_INVAL. */
 const char *tvpal_input_format_name(enum tvpal_input_format f);
 int tvpal_input_format_parse(const char *s, enum tvpal_input_format *f);
 
 /* The format of path from its first bytes, never from its name: "CDF\1",
  * "CDF\2", "CDF\5" and HDF5's signature (NetCDF-4 is HDF5) are NetCDF;
  * an XML file with a <VTKFile> root is vti (the reader refuses VTK types
- * other than ImageData by name); anything else is raw.  TVPAL_E_OPEN or
+ * other than ImageData, PImageData and Collection by name); "# vtk
+ * DataFile" is legacy vtk; anything else is raw.  TVPAL_E_OPEN or
  * TVPAL_E_READ when path cannot be read. */
 int tvpal_input_detect(const char *path, enum tvpal_input_format *f,
                        struct tvpal_diag *diag);
@@ -80,7 +85,10 @@ struct tvpal_input_info {
 struct tvpal_input;
 
 /* Opens files[0..nfiles) as one series of format fmt (AUTO: detected
- * from files[0]; every file must be of that format).  Checks that every
+ * from files[0]; every file must be of that format).  A .pvd collection
+ * (vti) stands for its DataSets' files, sorted by timestep, whose
+ * timesteps are the times (has_times); several collections are strung
+ * together; collections and plain files cannot be mixed.  Checks that every
  * file has the variable with the same spatial dims.  Owns *out on
  * success (tvpal_input_close).  Errors: TVPAL_E_OPEN, TVPAL_E_FORMAT (not
  * such a file, corrupt), TVPAL_E_INVAL (no such variable: the diag lists

@@ -12,7 +12,7 @@
 struct tvpal_input_file;   /* a backend's open file */
 
 struct tvpal_input_backend {
-    const char *name;      /* "netcdf", "vti" */
+    const char *name;      /* "netcdf", "vti", "vtk" */
     /* Opens path; fills info (steps: the steps in this file; times of
      * those steps into *times, malloc'ed, when info->has_times). */
     int (*open)(struct tvpal_input_file **out, const char *path,
@@ -28,5 +28,21 @@ struct tvpal_input_backend {
 
 extern const struct tvpal_input_backend tvpal_input_netcdf;
 extern const struct tvpal_input_backend tvpal_input_vti;
+extern const struct tvpal_input_backend tvpal_input_vtk;
+
+/* A ParaView collection (.pvd: <VTKFile type="Collection">, parsed with
+ * expat in tvpal_in_vti.c).  path not a collection (another root, another
+ * VTKFile type, not XML): 0 with *files NULL and *n 0.  A collection: its
+ * DataSets' files (relative paths resolved against path's directory),
+ * sorted by timestep as VTK's reader does (a stable sort: document order
+ * where the file is in order already), into *files (*n malloc'ed strings
+ * in a malloc'ed array) and their timesteps into *times (malloc'ed; NULL
+ * when the one DataSet of the file has no timestep).  Every file must be
+ * readable.  Errors: TVPAL_E_FORMAT (XML error, no DataSet, a DataSet
+ * without file or timestep, several parts or DataSets at one timestep),
+ * TVPAL_E_OPEN (a DataSet's file: the diag names it and path). */
+int tvpal_input_vtk_collection(const char *path, char ***files,
+                               double **times, int *n,
+                               struct tvpal_diag *diag);
 
 #endif
