@@ -12,7 +12,7 @@
 struct tvpal_input_file;   /* a backend's open file */
 
 struct tvpal_input_backend {
-    const char *name;      /* "netcdf", "vti" */
+    const char *name;      /* "netcdf", "vti", "hdf5" */
     /* Opens path; fills info (steps: the steps in this file; times of
      * those steps into *times, malloc'ed, when info->has_times). */
     int (*open)(struct tvpal_input_file **out, const char *path,
@@ -28,5 +28,6 @@ struct tvpal_input_backend {
 
 extern const struct tvpal_input_backend tvpal_input_netcdf;
 extern const struct tvpal_input_backend tvpal_input_vti;
+extern const struct tvpal_input_backend tvpal_input_hdf5;
 
 #endif
