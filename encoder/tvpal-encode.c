@@ -61,8 +61,9 @@ static void usage(FILE *f)
 "\n"
 "Input:\n"
 "      --format F         auto (default: from each file's own bytes), raw,\n"
-"                         netcdf or vti\n"
-"      --var NAME         the variable (NetCDF) or point array (vti) to\n"
+"                         netcdf, hdf5 or vti\n"
+"      --var NAME         the variable (NetCDF), dataset (HDF5:\n"
+"                         /group/dataset) or point array (vti) to\n"
 "                         encode (default: the only one, or vti's active\n"
 "                         scalars; tvpal-info --inspect FILE lists them)\n"
 "      --time-dim NAME    NetCDF: the time dimension (default: the\n"
@@ -248,7 +249,7 @@ static const struct optspec {
      offsetof(struct opts, alloc_mse), 0, 0, {"variance", "greedy-mse"},
      "variance or greedy-mse"},
     {"format", OPT_LONG_ONLY + 6, OPT_FORMAT, 0, 0, 0, {0},
-     "auto, raw, netcdf or vti"},
+     "auto, raw, netcdf, hdf5 or vti"},
     {"var", OPT_LONG_ONLY + 7, OPT_TEXT, offsetof(struct opts, var), 0, 0,
      {0}, NULL},
     {"time-dim", OPT_LONG_ONLY + 8, OPT_TEXT, offsetof(struct opts, time_dim),
