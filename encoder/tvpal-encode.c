@@ -63,11 +63,13 @@ static void usage(FILE *f)
 "\n"
 "Input:\n"
 "      --format F         auto (default: from each file's own bytes), raw,\n"
-"                         netcdf, vti (also .pvti, .pvd) or vtk (legacy)\n"
-"      --var NAME         the variable (NetCDF), point array (vti) or\n"
-"                         SCALARS (vtk) to encode (default: the only one,\n"
-"                         or the active scalars; tvpal-info --inspect FILE\n"
-"                         lists them)\n"
+"                         netcdf, hdf5, vti (also .pvti, .pvd) or vtk\n"
+"                         (legacy)\n"
+"      --var NAME         the variable (NetCDF), dataset (HDF5:\n"
+"                         /group/dataset), point array (vti) or SCALARS\n"
+"                         (vtk) to encode (default: the only one, or the\n"
+"                         active scalars; tvpal-info --inspect FILE lists\n"
+"                         them)\n"
 "      --time-dim NAME    NetCDF: the time dimension (default: the\n"
 "                         unlimited one, or the one a CF time coordinate\n"
 "                         names)\n"
@@ -260,7 +262,7 @@ static const struct optspec {
      offsetof(struct opts, alloc_mse), 0, 0, {"variance", "greedy-mse"},
      "variance or greedy-mse"},
     {"format", OPT_LONG_ONLY + 6, OPT_FORMAT, 0, 0, 0, {0},
-     "auto, raw, netcdf, vti or vtk"},
+     "auto, raw, netcdf, hdf5, vti or vtk"},
     {"var", OPT_LONG_ONLY + 7, OPT_TEXT, offsetof(struct opts, var), 0, 0,
      {0}, NULL},
     {"time-dim", OPT_LONG_ONLY + 8, OPT_TEXT, offsetof(struct opts, time_dim),

@@ -1,7 +1,9 @@
 /* tvpal_in_netcdf.c: the netcdf backend of tvpal_input, on libnetcdf (the
  * only file of the tree that includes netcdf.h, LAYERS.md).  Classic,
  * 64-bit offset, CDF-5 and NetCDF-4/HDF5 files all go through nc_open; the
- * variables of the root group are read.
+ * variables of the root group are read.  An HDF5 file without netCDF's
+ * metadata is refused as not NetCDF (TVPAL_E_FORMAT): tvpal_in_hdf5.c
+ * reads it.
  *
  * A variable's last three dims are z, y, x.  Its time dim is, in order:
  * opts->time_dim; the unlimited dim; a dim whose coordinate variable has CF
@@ -79,6 +81,25 @@ static int open_fail(struct tvpal_diag *diag, int status, const char *path)
 {
     return ncdf_fail(diag, status, status > 0 ? TVPAL_E_OPEN : TVPAL_E_FORMAT,
                    path, NULL);
+}
+
+/* A file of NetCDF-4 format without netCDF's metadata is plain HDF5:
+ * libnetcdf would read it (root group only, phony dims) but it is not
+ * NetCDF, and TVPAL_E_FORMAT sends it to the hdf5 reader
+ * (tvpal_input_detect).  netCDF writes _NCProperties (4.4.1 on) and marks
+ * its variables with dimension scales, which its _IsNetcdf4 reports. */
+static int plain_hdf5_fail(int ncid, const char *path, struct tvpal_diag *diag)
+{
+    int fmt, is_nc4 = 1;
+    if (nc_inq_format(ncid, &fmt) != NC_NOERR || fmt != NC_FORMAT_NETCDF4 ||
+        nc_inq_att(ncid, NC_GLOBAL, "_NCProperties", NULL, NULL) == NC_NOERR ||
+        nc_get_att_int(ncid, NC_GLOBAL, "_IsNetcdf4", &is_nc4) != NC_NOERR ||
+        is_nc4)
+        return 0;
+    nc_close(ncid);
+    return tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: an HDF5 file without "
+                          "netCDF metadata, not NetCDF-4 (--format hdf5 "
+                          "reads it)", path);
 }
 
 /* ------------------------------------------------------- text appending */
@@ -694,13 +715,15 @@ static int ncdf_open(struct tvpal_input_file **out, const char *path,
     }
     f->scale = 1;
     int st = nc_open(path, NC_NOWRITE, &f->ncid);
-    if (st != NC_NOERR) {
+    int rc = st != NC_NOERR ? open_fail(diag, st, path)
+                            : plain_hdf5_fail(f->ncid, path, diag);
+    if (rc < 0) {
         free(f->path);
         free(f);
-        return open_fail(diag, st, path);
+        return rc;
     }
     int tdim = -1;
-    int rc = choose_var(f->ncid, path, opts, &f->varid, diag);
+    rc = choose_var(f->ncid, path, opts, &f->varid, diag);
     if (rc == 0 && (st = nc_inq_varname(f->ncid, f->varid, f->var)) != NC_NOERR)
         rc = ncdf_fail(diag, st, TVPAL_E_FORMAT, path, NULL);
     if (rc == 0)
@@ -789,6 +812,9 @@ static int ncdf_describe(const char *path, char **text, struct tvpal_diag *diag)
     *text = NULL;
     if ((st = nc_open(path, NC_NOWRITE, &ncid)) != NC_NOERR)
         return open_fail(diag, st, path);
+    int rc = plain_hdf5_fail(ncid, path, diag);
+    if (rc < 0)
+        return rc;
     if ((st = nc_inq_format(ncid, &fmt)) != NC_NOERR ||
         (st = nc_inq_nvars(ncid, &nv)) != NC_NOERR) {
         nc_close(ncid);

@@ -9,7 +9,7 @@
 #include <string.h>
 
 static const char *const format_names[] = {"auto", "raw", "netcdf", "vti",
-                                            "vtk"};
+                                            "vtk", "hdf5"};
 
 const char *tvpal_input_format_name(enum tvpal_input_format f)
 {
@@ -41,33 +41,79 @@ static int looks_like_vtk_xml(const char *head)
     return root && strchr(root, '>') != NULL;
 }
 
-int tvpal_input_detect(const char *path, enum tvpal_input_format *f,
-                       struct tvpal_diag *diag)
+/* The first cap - 1 bytes of path into head, NUL-terminated; *n read. */
+static int read_head(const char *path, char *head, size_t cap, size_t *n,
+                     struct tvpal_diag *diag)
 {
-    static const unsigned char hdf5_sig[8] = {0x89, 'H', 'D', 'F',
-                                              '\r', '\n', 0x1a, '\n'};
-    char head[1025];
+    *n = 0;
     FILE *fp = fopen(path, "rb");
     if (!fp)
         return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
                               strerror(errno));
-    size_t n = fread(head, 1, sizeof head - 1, fp);
+    *n = fread(head, 1, cap - 1, fp);
     int err = ferror(fp);
     fclose(fp);
     if (err)
         return tvpal_diag_set(diag, TVPAL_E_READ, "%s: read error", path);
-    head[n] = 0;
+    head[*n] = 0;
+    return 0;
+}
+
+static int hdf5_signature(const char *head, size_t n)
+{
+    static const unsigned char sig[8] = {0x89, 'H', 'D', 'F',
+                                         '\r', '\n', 0x1a, '\n'};
+    return n >= 8 && !memcmp(head, sig, 8);
+}
+
+/* An HDF5 file is NetCDF-4 unless the NetCDF reader refuses it as not
+ * NetCDF (TVPAL_E_FORMAT: no netCDF metadata, or damaged). */
+static int plain_hdf5(const char *path)
+{
+    char *text = NULL;
+    int rc = tvpal_input_netcdf.describe(path, &text, NULL);
+    free(text);
+    return rc == TVPAL_E_FORMAT;
+}
+
+int tvpal_input_detect(const char *path, enum tvpal_input_format *f,
+                       struct tvpal_diag *diag)
+{
+    char head[1025];
+    size_t n;
+    int rc = read_head(path, head, sizeof head, &n, diag);
+    if (rc < 0)
+        return rc;
     *f = TVPAL_IN_RAW;
     if (n >= 4 && !memcmp(head, "CDF", 3) &&
         (head[3] == 1 || head[3] == 2 || head[3] == 5))
         *f = TVPAL_IN_NETCDF;
-    else if (n >= 8 && !memcmp(head, hdf5_sig, 8))
-        *f = TVPAL_IN_NETCDF;   /* NetCDF-4; plain HDF5 is not read yet */
+    else if (hdf5_signature(head, n))
+        *f = plain_hdf5(path) ? TVPAL_IN_HDF5 : TVPAL_IN_NETCDF;
     else if (n >= 5 && looks_like_vtk_xml(head))
         *f = TVPAL_IN_VTI;
     else if (n >= 14 && !memcmp(head, "# vtk DataFile", 14))
         *f = TVPAL_IN_VTK;   /* legacy: any dataset; the reader names it */
     return 0;
+}
+
+/* AUTO for a series: detection, except that an HDF5 file (NetCDF-4 too)
+ * with a dataset path for the variable (/group/dataset) is read as HDF5. */
+static int auto_format(const char *path, const struct tvpal_input_opts *opts,
+                       enum tvpal_input_format *f, struct tvpal_diag *diag)
+{
+    char head[9];
+    size_t n;
+    int rc;
+    if (opts && opts->var && opts->var[0] == '/') {
+        if ((rc = read_head(path, head, sizeof head, &n, diag)) < 0)
+            return rc;
+        if (hdf5_signature(head, n)) {
+            *f = TVPAL_IN_HDF5;
+            return 0;
+        }
+    }
+    return tvpal_input_detect(path, f, diag);
 }
 
 static const struct tvpal_input_backend *backend_of(enum tvpal_input_format f)
@@ -76,6 +122,7 @@ static const struct tvpal_input_backend *backend_of(enum tvpal_input_format f)
     case TVPAL_IN_NETCDF: return &tvpal_input_netcdf;
     case TVPAL_IN_VTI: return &tvpal_input_vti;
     case TVPAL_IN_VTK: return &tvpal_input_vtk;
+    case TVPAL_IN_HDF5: return &tvpal_input_hdf5;
     default: return NULL;
     }
 }
@@ -275,7 +322,8 @@ int tvpal_input_open(struct tvpal_input **out, enum tvpal_input_format fmt,
     if (nfiles < 1)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "no input files");
     int rc = 0;
-    if (fmt == TVPAL_IN_AUTO && (rc = tvpal_input_detect(files[0], &fmt, diag)) < 0)
+    if (fmt == TVPAL_IN_AUTO &&
+        (rc = auto_format(files[0], opts, &fmt, diag)) < 0)
         return rc;
     const struct tvpal_input_backend *be = backend_of(fmt);
     if (!be)

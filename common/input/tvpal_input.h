@@ -1,5 +1,5 @@
-/* tvpal_input.h: readers of self-describing simulation output (NetCDF, VTK
- * ImageData, legacy VTK), one timestep at a time.
+/* tvpal_input.h: readers of self-describing simulation output (NetCDF,
+ * HDF5, VTK ImageData, legacy VTK), one timestep at a time.
  *
  * A series is one or more files of one format holding one variable in
  * time order: a file may hold one timestep or several (a time dimension).
@@ -12,8 +12,9 @@
  * (tvpal_raw.h); this interface is for the formats that say what they hold.
  *
  * Each format is one backend file, the only one that includes its library
- * (LAYERS.md): tvpal_in_netcdf.c (libnetcdf), tvpal_in_vti.c (expat, zlib:
- * .vti, .pvti and .pvd collections), tvpal_in_vtk.c (legacy .vtk, stdio).
+ * (LAYERS.md): tvpal_in_netcdf.c (libnetcdf), tvpal_in_hdf5.c (libhdf5),
+ * tvpal_in_vti.c (expat, zlib: .vti, .pvti and .pvd collections),
+ * tvpal_in_vtk.c (legacy .vtk, stdio).
  * A build without a library has its _none.c twin, which refuses the format
  * naming the Debian package to install.
  *
@@ -35,27 +36,37 @@ enum tvpal_input_format {
     TVPAL_IN_NETCDF,   /* classic, 64-bit offset, CDF-5 and NetCDF-4 */
     TVPAL_IN_VTI,      /* VTK XML ImageData (.vti, .pvti), and .pvd
                         * collections of them */
-    TVPAL_IN_VTK       /* legacy VTK STRUCTURED_POINTS (.vtk) */
+    TVPAL_IN_VTK,      /* legacy VTK STRUCTURED_POINTS (.vtk) */
+    TVPAL_IN_HDF5      /* HDF5 datasets by path (serial libhdf5) */
 };
 
-/* "auto", "raw", "netcdf", "vti", "vtk" <-> the enum; parse: 0 or
+/* "auto", "raw", "netcdf", "vti", "vtk", "hdf5" <-> the enum; parse: 0 or
  * TVPAL_E_INVAL. */
 const char *tvpal_input_format_name(enum tvpal_input_format f);
 int tvpal_input_format_parse(const char *s, enum tvpal_input_format *f);
 
-/* The format of path from its first bytes, never from its name: "CDF\1",
- * "CDF\2", "CDF\5" and HDF5's signature (NetCDF-4 is HDF5) are NetCDF;
- * an XML file with a <VTKFile> root is vti (the reader refuses VTK types
- * other than ImageData, PImageData and Collection by name); "# vtk
- * DataFile" is legacy vtk; anything else is raw.  TVPAL_E_OPEN or
- * TVPAL_E_READ when path cannot be read. */
+/* The format of path from its own bytes, never from its name: "CDF\1",
+ * "CDF\2" and "CDF\5" are NetCDF; a file with HDF5's signature is NetCDF
+ * (NetCDF-4 is HDF5) unless the NetCDF reader refuses it as not NetCDF
+ * (TVPAL_E_FORMAT: a plain HDF5 file without netCDF's metadata, or a
+ * damaged one), then hdf5; an XML file with a <VTKFile> root is vti (the
+ * reader refuses VTK types other than ImageData, PImageData and Collection
+ * by name); "# vtk DataFile" is legacy vtk; anything else is raw.
+ * TVPAL_E_OPEN or TVPAL_E_READ when path cannot be read.
+ *
+ * tvpal_input_open with TVPAL_IN_AUTO adds one rule: a file with HDF5's
+ * signature whose opts->var starts with '/' (a dataset path) goes to the
+ * hdf5 reader, NetCDF-4 or not (a variable in a group of a NetCDF-4
+ * file).  --format hdf5 (TVPAL_IN_HDF5) reads any HDF5 file as HDF5. */
 int tvpal_input_detect(const char *path, enum tvpal_input_format *f,
                        struct tvpal_diag *diag);
 
 struct tvpal_input_opts {
-    const char *var;        /* variable (NetCDF) or point array (vti);
-                             * NULL: the only candidate, or vti's active
-                             * Scalars */
+    const char *var;        /* variable (NetCDF), dataset path such as
+                             * /group/dataset (HDF5) or point array (vti);
+                             * NULL: the only candidate (HDF5: the only
+                             * numeric dataset of rank 3 or 4), or vti's
+                             * active Scalars */
     const char *time_dim;   /* NetCDF: the time dimension; NULL: the
                              * unlimited one, else the dimension a CF time
                              * coordinate (units "... since ...") names,

@@ -12,7 +12,7 @@
 struct tvpal_input_file;   /* a backend's open file */
 
 struct tvpal_input_backend {
-    const char *name;      /* "netcdf", "vti", "vtk" */
+    const char *name;      /* "netcdf", "vti", "vtk", "hdf5" */
     /* Opens path; fills info (steps: the steps in this file; times of
      * those steps into *times, malloc'ed, when info->has_times). */
     int (*open)(struct tvpal_input_file **out, const char *path,
@@ -44,5 +44,6 @@ extern const struct tvpal_input_backend tvpal_input_vtk;
 int tvpal_input_vtk_collection(const char *path, char ***files,
                                double **times, int *n,
                                struct tvpal_diag *diag);
+extern const struct tvpal_input_backend tvpal_input_hdf5;
 
 #endif

@@ -1,0 +1,633 @@
+/* tvpal_in_hdf5.c: the hdf5 backend of tvpal_input, on the serial HDF5 C
+ * library (the only file of the library that includes hdf5.h, LAYERS.md).
+ *
+ * The dataset is opts->var, a path such as /group/dataset; without one,
+ * the only numeric dataset of rank 3 or 4 in the file (every group
+ * visited).
+ * Rank 3 is one step (z, y, x, x fastest); rank 4 is (time, z, y, x), time
+ * slowest.  Any integer or float type is read, converted by the library:
+ * 32-bit floats straight into the caller's floats, the rest through one
+ * step of double scratch (exact for every integer up to 2^53, so that
+ * missing values compare exactly).  A numeric _FillValue or missing_value
+ * attribute makes the voxels of those values NaN; a string units
+ * attribute is the units.  Chunked and compressed (gzip) datasets are
+ * read by the library, one step's hyperslab per read.
+ *
+ * HDF5 prints its error stack by default: open and describe turn that off
+ * for the process (H5Eset_auto2), and the innermost message of the stack
+ * goes into the diag next to the file and the dataset. */
+#include "tvpal_input_impl.h"
+
+#include <hdf5.h>
+
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define NO_ID ((hid_t)-1)
+#define MAX_MISSING 16   /* _FillValue and missing_value's values */
+#define MAX_RANK 32      /* H5S_MAX_RANK */
+
+struct tvpal_input_file {
+    hid_t file, dset, fspace, mspace;
+    char *path;
+    char var[128];             /* the dataset's path, from the root */
+    int rank;                  /* 3 or 4 */
+    hsize_t dims[4];
+    size_t nvox;
+    uint32_t steps;
+    int is_f32;                /* stored as 32-bit float: no scratch */
+    double *scratch;           /* one step as double (other types) */
+    double miss[MAX_MISSING];  /* as the stored type holds them */
+    int nmiss;
+};
+
+/* ------------------------------------------------------- text appending */
+
+static void copy_str(char *dst, size_t cap, const char *src)
+{
+    size_t n = strlen(src);
+    if (n >= cap)
+        n = cap - 1;
+    memcpy(dst, src, n);
+    dst[n] = 0;
+}
+
+struct buf {
+    char *s;
+    size_t len, cap;
+    int full;   /* fixed-size buffer ran out (growable: malloc failed) */
+    int grow;
+};
+
+static void put(struct buf *b, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+static void put(struct buf *b, const char *fmt, ...)
+{
+    if (b->full)
+        return;
+    for (;;) {
+        va_list ap;
+        va_start(ap, fmt);
+        int n = vsnprintf(b->s + b->len, b->cap - b->len, fmt, ap);
+        va_end(ap);
+        if (n < 0) {
+            b->full = 1;
+            return;
+        }
+        if ((size_t)n < b->cap - b->len) {
+            b->len += (size_t)n;
+            return;
+        }
+        if (!b->grow) {
+            b->full = 1;
+            return;
+        }
+        size_t cap = b->cap * 2 + (size_t)n;
+        char *s = realloc(b->s, cap);
+        if (!s) {
+            b->full = 1;
+            return;
+        }
+        b->s = s, b->cap = cap;
+    }
+}
+
+/* ---------------------------------------------------------------- errors */
+
+static void quiet(void)
+{
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+}
+
+/* Keeps the description of the innermost frame (the last of a downward
+ * walk): the cause ("file signature not found"), not the API call. */
+static herr_t last_desc(unsigned n, const H5E_error2_t *e, void *data)
+{
+    (void)n;
+    if (e->desc && e->desc[0])
+        copy_str(data, 96, e->desc);
+    return 0;
+}
+
+/* The current error stack as one short text, then cleared. */
+static const char *h5_msg(char *buf)
+{
+    buf[0] = 0;
+    H5Ewalk2(H5E_DEFAULT, H5E_WALK_DOWNWARD, last_desc, buf);
+    H5Eclear2(H5E_DEFAULT);
+    if (!buf[0])
+        copy_str(buf, 96, "HDF5 error");
+    return buf;
+}
+
+/* "PATH: dataset VAR: WHAT (HDF5's cause)". */
+static int h5_fail(struct tvpal_diag *diag, int code, const char *path,
+                   const char *var, const char *what)
+{
+    char m[96];
+    h5_msg(m);
+    if (var)
+        return tvpal_diag_set(diag, code, "%s: dataset %s: %s (%s)", path, var,
+                              what, m);
+    return tvpal_diag_set(diag, code, "%s: %s (%s)", path, what, m);
+}
+
+/* H5Fopen read-only; TVPAL_E_OPEN when the file system refuses the file,
+ * TVPAL_E_FORMAT when its bytes are not HDF5. */
+static int open_file(const char *path, hid_t *file, struct tvpal_diag *diag)
+{
+    FILE *fp = fopen(path, "rb");
+    if (!fp)
+        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
+                              strerror(errno));
+    fclose(fp);
+    quiet();
+    *file = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+    if (*file < 0)
+        return h5_fail(diag, TVPAL_E_FORMAT, path, NULL,
+                       "not an HDF5 file, or a damaged one");
+    return 0;
+}
+
+/* ------------------------------------------------------ file inspection */
+
+/* The dims of a dataset; rank < 0 on error. */
+static int shape_of(hid_t dset, hsize_t *dims)
+{
+    hid_t s = H5Dget_space(dset);
+    if (s < 0)
+        return -1;
+    int rank = H5Sget_simple_extent_ndims(s);
+    if (rank > MAX_RANK ||
+        (rank > 0 && H5Sget_simple_extent_dims(s, dims, NULL) < 0))
+        rank = -1;
+    H5Sclose(s);
+    return rank;
+}
+
+static int is_numeric(hid_t type)
+{
+    H5T_class_t c = H5Tget_class(type);
+    return c == H5T_INTEGER || c == H5T_FLOAT;
+}
+
+/* "float", "int16", ... for describe. */
+static const char *type_name(hid_t t)
+{
+    static const char *const ints[2][4] = {
+        {"uint8", "uint16", "uint32", "uint64"},
+        {"int8", "int16", "int32", "int64"}};
+    size_t size = H5Tget_size(t);
+    int lg = size == 1 ? 0 : size == 2 ? 1 : size == 4 ? 2 : size == 8 ? 3 : -1;
+    switch (H5Tget_class(t)) {
+    case H5T_INTEGER:
+        return lg < 0 ? "integer" : ints[H5Tget_sign(t) == H5T_SGN_2][lg];
+    case H5T_FLOAT:
+        return size == 4 ? "float" : size == 8 ? "double" : "float (other size)";
+    case H5T_STRING: return "string";
+    case H5T_COMPOUND: return "compound";
+    case H5T_ENUM: return "enum";
+    case H5T_ARRAY: return "array";
+    case H5T_VLEN: return "vlen";
+    case H5T_OPAQUE: return "opaque";
+    case H5T_REFERENCE: return "reference";
+    case H5T_BITFIELD: return "bitfield";
+    default: return "unknown";
+    }
+}
+
+/* The tvpal type of a stored numeric type: f32, f64, u8, i16 and u16 as
+ * stored, f32 for the types tvpal has no name for. */
+static enum tvpal_type stored_type(hid_t t)
+{
+    size_t size = H5Tget_size(t);
+    if (H5Tget_class(t) == H5T_FLOAT)
+        return size == 8 ? TVPAL_F64 : TVPAL_F32;
+    int sgn = H5Tget_sign(t) == H5T_SGN_2;
+    if (size == 1 && !sgn)
+        return TVPAL_U8;
+    if (size == 2)
+        return sgn ? TVPAL_I16 : TVPAL_U16;
+    return TVPAL_F32;
+}
+
+/* A numeric attribute of 1..max values, as double; 0 when absent. */
+static int num_att(hid_t obj, const char *name, double *v, int max)
+{
+    if (H5Aexists(obj, name) <= 0) {
+        H5Eclear2(H5E_DEFAULT);
+        return 0;
+    }
+    hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
+    hid_t t = a >= 0 ? H5Aget_type(a) : NO_ID;
+    hid_t s = a >= 0 ? H5Aget_space(a) : NO_ID;
+    hssize_t n = s >= 0 ? H5Sget_simple_extent_npoints(s) : -1;
+    int got = 0;
+    if (t >= 0 && is_numeric(t) && n >= 1 && n <= max &&
+        H5Aread(a, H5T_NATIVE_DOUBLE, v) >= 0)
+        got = (int)n;
+    if (s >= 0)
+        H5Sclose(s);
+    if (t >= 0)
+        H5Tclose(t);
+    if (a >= 0)
+        H5Aclose(a);
+    H5Eclear2(H5E_DEFAULT);
+    return got;
+}
+
+/* A scalar string attribute (fixed or variable length) into buf; 1 when
+ * found, else 0 and "". */
+static int text_att(hid_t obj, const char *name, char *buf, size_t cap)
+{
+    buf[0] = 0;
+    if (H5Aexists(obj, name) <= 0) {
+        H5Eclear2(H5E_DEFAULT);
+        return 0;
+    }
+    hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
+    hid_t t = a >= 0 ? H5Aget_type(a) : NO_ID;
+    hid_t s = a >= 0 ? H5Aget_space(a) : NO_ID;
+    hid_t mt = NO_ID;
+    int got = 0;
+    if (t >= 0 && s >= 0 && H5Tget_class(t) == H5T_STRING &&
+        H5Sget_simple_extent_npoints(s) == 1 && (mt = H5Tcopy(H5T_C_S1)) >= 0) {
+        if (H5Tis_variable_str(t) > 0) {
+            char *v = NULL;
+            if (H5Tset_size(mt, H5T_VARIABLE) >= 0 && H5Aread(a, mt, &v) >= 0) {
+                copy_str(buf, cap, v ? v : "");
+                got = 1;
+            }
+            H5free_memory(v);
+        } else {
+            size_t size = H5Tget_size(t);
+            char *v = size ? malloc(size + 1) : NULL;
+            if (v && H5Tset_size(mt, size) >= 0 && H5Aread(a, mt, v) >= 0) {
+                v[size] = 0;
+                copy_str(buf, cap, v);
+                got = 1;
+            }
+            free(v);
+        }
+    }
+    if (mt >= 0)
+        H5Tclose(mt);
+    if (s >= 0)
+        H5Sclose(s);
+    if (t >= 0)
+        H5Tclose(t);
+    if (a >= 0)
+        H5Aclose(a);
+    H5Eclear2(H5E_DEFAULT);
+    return got;
+}
+
+/* "(2, 3, 4)". */
+static void put_shape(struct buf *b, const hsize_t *dims, int rank)
+{
+    put(b, "(");
+    for (int i = 0; i < rank; i++)
+        put(b, "%s%llu", i ? ", " : "", (unsigned long long)dims[i]);
+    put(b, ")");
+}
+
+/* Every dataset of the file, through its hard links (a dataset reached by
+ * two hard links is seen twice; soft and external links are not
+ * followed). */
+struct walk {
+    int ncand;            /* numeric datasets of rank 3 or 4 */
+    char cand[128];       /* the last of them, from the root */
+    int long_name;        /* a candidate's path did not fit cand */
+    int all;              /* list every dataset, not the candidates only */
+    int describe;         /* one line per dataset with type and units */
+    struct buf *list;
+    int nlisted;
+};
+
+static herr_t visit(hid_t g, const char *name, const H5L_info_t *li, void *data)
+{
+    struct walk *w = data;
+    if (li->type != H5L_TYPE_HARD)
+        return 0;
+    hid_t o = H5Oopen(g, name, H5P_DEFAULT);
+    if (o < 0) {
+        H5Eclear2(H5E_DEFAULT);
+        return 0;
+    }
+    hsize_t dims[MAX_RANK];
+    int rank;
+    if (H5Iget_type(o) == H5I_DATASET && (rank = shape_of(o, dims)) >= 0) {
+        hid_t t = H5Dget_type(o);
+        int cand = (rank == 3 || rank == 4) && t >= 0 && is_numeric(t);
+        if (cand) {
+            w->ncand++;
+            int n = snprintf(w->cand, sizeof w->cand, "/%s", name);
+            w->long_name = n < 0 || (size_t)n >= sizeof w->cand;
+        }
+        if (w->describe) {
+            char units[256];
+            text_att(o, "units", units, sizeof units);
+            put(w->list, "/%s ", name);
+            put_shape(w->list, dims, rank);
+            put(w->list, " %s units=\"%s\"\n", t >= 0 ? type_name(t) : "?",
+                units);
+        } else if (cand || w->all) {
+            put(w->list, "%s/%s ", w->nlisted++ ? ", " : "", name);
+            put_shape(w->list, dims, rank);
+        }
+        if (t >= 0)
+            H5Tclose(t);
+    }
+    H5Oclose(o);
+    H5Eclear2(H5E_DEFAULT);
+    return 0;
+}
+
+/* Walks the file; 0 or TVPAL_E_FORMAT (its links cannot be read). */
+static int walk(hid_t file, struct walk *w, const char *path,
+                struct tvpal_diag *diag)
+{
+    if (H5Lvisit(file, H5_INDEX_NAME, H5_ITER_INC, visit, w) < 0)
+        return h5_fail(diag, TVPAL_E_FORMAT, path, NULL,
+                       "cannot list its groups");
+    return 0;
+}
+
+/* "datasets: /a (2, 3, 4), ..." into out[cap]: the candidates, or every
+ * dataset; "..." when the diag is short. */
+static void list_datasets(char *out, size_t cap, hid_t file, int all)
+{
+    char tmp[512];
+    struct buf b = {tmp, 0, sizeof tmp, 0, 0};
+    struct walk w = {.all = all, .list = &b};
+    put(&b, "datasets: ");
+    H5Lvisit(file, H5_INDEX_NAME, H5_ITER_INC, visit, &w);
+    H5Eclear2(H5E_DEFAULT);
+    if (!w.nlisted)
+        put(&b, "none");
+    if (b.full || b.len >= cap)
+        snprintf(tmp + (cap > 4 ? cap - 4 : 0), 4, "...");
+    copy_str(out, cap, tmp);
+}
+
+/* The dataset to read: opts->var, or the only candidate.  Opens f->dset
+ * and sets f->var. */
+static int choose_dataset(struct tvpal_input_file *f,
+                          const struct tvpal_input_opts *opts,
+                          struct tvpal_diag *diag)
+{
+    /* the list gets what the diag has left after the rest of the message */
+    char list[200];
+    size_t other = strlen(f->path) + 60 + (opts->var ? strlen(opts->var) : 0);
+    size_t room = sizeof diag->msg > other + 40 ? sizeof diag->msg - other : 40;
+    if (room > sizeof list)
+        room = sizeof list;
+    if (opts->var) {
+        int n = snprintf(f->var, sizeof f->var, "%s%s",
+                         opts->var[0] == '/' ? "" : "/", opts->var);
+        if (n < 0 || (size_t)n >= sizeof f->var)
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: dataset path %s "
+                                  "is too long (at most %zu characters)",
+                                  f->path, opts->var, sizeof f->var - 2);
+        hid_t o = H5Oopen(f->file, f->var, H5P_DEFAULT);
+        H5Eclear2(H5E_DEFAULT);
+        if (o >= 0 && H5Iget_type(o) == H5I_DATASET) {
+            f->dset = o;
+            return 0;
+        }
+        if (o >= 0) {
+            H5Oclose(o);
+            list_datasets(list, room, f->file, 1);
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: %s is not a "
+                                  "dataset; %s", f->path, f->var, list);
+        }
+        list_datasets(list, room, f->file, 1);
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: no dataset %s; %s",
+                              f->path, f->var, list);
+    }
+    struct walk w = {0};
+    char tmp[8];
+    struct buf b = {tmp, 0, sizeof tmp, 0, 0};
+    w.list = &b;
+    int rc = walk(f->file, &w, f->path, diag);
+    if (rc < 0)
+        return rc;
+    if (w.ncand == 1 && !w.long_name) {
+        copy_str(f->var, sizeof f->var, w.cand);
+        if ((f->dset = H5Dopen2(f->file, f->var, H5P_DEFAULT)) < 0)
+            return h5_fail(diag, TVPAL_E_FORMAT, f->path, f->var,
+                           "cannot open it");
+        return 0;
+    }
+    if (w.ncand == 1)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: the dataset's path "
+                              "is too long (at most %zu characters)", f->path,
+                              sizeof f->var - 1);
+    if (w.ncand == 0) {
+        list_datasets(list, room, f->file, 1);
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: no numeric dataset "
+                              "of rank 3 (z, y, x) or 4 (time, z, y, x); %s",
+                              f->path, list);
+    }
+    list_datasets(list, room, f->file, 0);
+    return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: %d datasets could be "
+                          "read, give one (--var /group/dataset); %s", f->path,
+                          w.ncand, list);
+}
+
+/* The dataset's shape, type and attributes into f and info. */
+static int read_layout(struct tvpal_input_file *f,
+                       struct tvpal_input_info *info, struct tvpal_diag *diag)
+{
+    hsize_t dims[MAX_RANK];
+    int rank = shape_of(f->dset, dims);
+    if (rank < 0)
+        return h5_fail(diag, TVPAL_E_FORMAT, f->path, f->var,
+                       "cannot read its dataspace");
+    char shape[160];
+    struct buf b = {shape, 0, sizeof shape, 0, 0};
+    put_shape(&b, dims, rank);
+    hid_t t = H5Dget_type(f->dset);
+    if (t < 0)
+        return h5_fail(diag, TVPAL_E_FORMAT, f->path, f->var,
+                       "cannot read its type");
+    int numeric = is_numeric(t);
+    const char *tname = type_name(t);
+    f->is_f32 = H5Tget_class(t) == H5T_FLOAT && H5Tget_size(t) == 4;
+    info->type = numeric ? stored_type(t) : TVPAL_F32;
+    H5Tclose(t);
+    if (!numeric)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: dataset %s %s is of "
+                              "type %s, not numbers", f->path, f->var, shape,
+                              tname);
+    if (rank != 3 && rank != 4)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: dataset %s %s has "
+                              "rank %d; rank 3 (z, y, x) or 4 (time, z, y, "
+                              "x) is read", f->path, f->var, shape, rank);
+    f->rank = rank;
+    memcpy(f->dims, dims, sizeof *dims * (size_t)rank);
+    f->nvox = 1;
+    for (int a = 0; a < 3; a++) {
+        hsize_t len = dims[rank - 1 - a];
+        if (len == 0)
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: dataset %s %s is "
+                                  "empty", f->path, f->var, shape);
+        if (len > UINT32_MAX || f->nvox > SIZE_MAX / 8 / len)
+            return tvpal_diag_set(diag, TVPAL_E_OVERFLOW, "%s: dataset %s %s "
+                                  "is too large", f->path, f->var, shape);
+        f->nvox *= (size_t)len;
+        info->dims[a] = (uint32_t)len;
+    }
+    if (rank == 4 && dims[0] > UINT32_MAX)
+        return tvpal_diag_set(diag, TVPAL_E_OVERFLOW, "%s: dataset %s %s has "
+                              "too many steps", f->path, f->var, shape);
+    f->steps = rank == 4 ? (uint32_t)dims[0] : 1;
+
+    double v[MAX_MISSING];
+    int n = num_att(f->dset, "_FillValue", v, MAX_MISSING);
+    n += num_att(f->dset, "missing_value", v + n, MAX_MISSING - n);
+    for (int i = 0; i < n; i++)
+        if (!isnan(v[i]))
+            /* a float dataset holds the float the value rounds to */
+            f->miss[f->nmiss++] = f->is_f32 && fabs(v[i]) <= 3.4e38
+                                      ? (double)(float)v[i] : v[i];
+    info->missing_attrs = n > 0;
+    text_att(f->dset, "units", info->units, sizeof info->units);
+    return 0;
+}
+
+static void h5_close(struct tvpal_input_file *f)
+{
+    if (!f)
+        return;
+    if (f->mspace >= 0)
+        H5Sclose(f->mspace);
+    if (f->fspace >= 0)
+        H5Sclose(f->fspace);
+    if (f->dset >= 0)
+        H5Dclose(f->dset);
+    if (f->file >= 0)
+        H5Fclose(f->file);
+    H5Eclear2(H5E_DEFAULT);
+    free(f->scratch);
+    free(f->path);
+    free(f);
+}
+
+static int h5_open(struct tvpal_input_file **out, const char *path,
+                   const struct tvpal_input_opts *opts,
+                   struct tvpal_input_info *info, double **times,
+                   struct tvpal_diag *diag)
+{
+    static const struct tvpal_input_opts none;
+    if (!opts)
+        opts = &none;
+    memset(info, 0, sizeof *info);
+    *times = NULL;
+    for (int a = 0; a < 3; a++)
+        info->spacing[a] = 1;
+    struct tvpal_input_file *f = calloc(1, sizeof *f);
+    if (!f || !(f->path = strdup(path))) {
+        free(f);
+        return TVPAL_E_NOMEM;
+    }
+    f->file = f->dset = f->fspace = f->mspace = NO_ID;
+    int rc = open_file(path, &f->file, diag);
+    if (rc == 0)
+        rc = choose_dataset(f, opts, diag);
+    if (rc == 0)
+        rc = read_layout(f, info, diag);
+    if (rc == 0) {
+        hsize_t n = f->nvox;
+        if ((f->fspace = H5Dget_space(f->dset)) < 0 ||
+            (f->mspace = H5Screate_simple(1, &n, NULL)) < 0)
+            rc = h5_fail(diag, TVPAL_E_FORMAT, path, f->var,
+                         "cannot make its dataspaces");
+    }
+    if (rc == 0 && !f->is_f32 &&
+        !(f->scratch = malloc(sizeof *f->scratch * f->nvox)))
+        rc = TVPAL_E_NOMEM;
+    if (rc < 0) {
+        h5_close(f);
+        return rc;
+    }
+    info->steps = f->steps;
+    copy_str(info->var, sizeof info->var, f->var);
+    *out = f;
+    return 0;
+}
+
+static inline int missing(const struct tvpal_input_file *f, double v)
+{
+    for (int i = 0; i < f->nmiss; i++)
+        if (v == f->miss[i])
+            return 1;
+    return 0;
+}
+
+static int h5_read(struct tvpal_input_file *f, uint32_t k, float *dst,
+                   struct tvpal_diag *diag)
+{
+    if (k >= f->steps)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: dataset %s: step %u "
+                              "of %u", f->path, f->var, k, f->steps);
+    hsize_t start[4] = {0}, count[4];
+    memcpy(count, f->dims, sizeof count);
+    if (f->rank == 4)
+        start[0] = k, count[0] = 1;
+    if (H5Sselect_hyperslab(f->fspace, H5S_SELECT_SET, start, NULL, count,
+                            NULL) < 0)
+        return h5_fail(diag, TVPAL_E_READ, f->path, f->var,
+                       "cannot select a step");
+    if (H5Dread(f->dset, f->is_f32 ? H5T_NATIVE_FLOAT : H5T_NATIVE_DOUBLE,
+                f->mspace, f->fspace, H5P_DEFAULT,
+                f->is_f32 ? (void *)dst : (void *)f->scratch) < 0) {
+        char what[48];
+        snprintf(what, sizeof what, "cannot read step %u", k);
+        return h5_fail(diag, TVPAL_E_READ, f->path, f->var, what);
+    }
+    if (f->is_f32) {
+        if (f->nmiss)
+            for (size_t i = 0; i < f->nvox; i++)
+                if (missing(f, dst[i]))
+                    dst[i] = NAN;
+    } else {
+        for (size_t i = 0; i < f->nvox; i++)
+            dst[i] = missing(f, f->scratch[i]) ? NAN : (float)f->scratch[i];
+    }
+    return 0;
+}
+
+static int h5_describe(const char *path, char **text, struct tvpal_diag *diag)
+{
+    hid_t file;
+    *text = NULL;
+    int rc = open_file(path, &file, diag);
+    if (rc < 0)
+        return rc;
+    struct buf b = {malloc(256), 0, 256, 0, 1};
+    if (!b.s) {
+        H5Fclose(file);
+        return TVPAL_E_NOMEM;
+    }
+    put(&b, "hdf5\n");
+    struct walk w = {.describe = 1, .list = &b};
+    rc = walk(file, &w, path, diag);
+    H5Fclose(file);
+    H5Eclear2(H5E_DEFAULT);
+    if (rc == 0 && b.full)
+        rc = TVPAL_E_NOMEM;
+    if (rc < 0) {
+        free(b.s);
+        return rc;
+    }
+    *text = b.s;
+    return 0;
+}
+
+const struct tvpal_input_backend tvpal_input_hdf5 = {
+    "hdf5", h5_open, h5_read, h5_close, h5_describe};

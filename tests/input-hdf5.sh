@@ -1,0 +1,60 @@
+#!/bin/sh
+# input-hdf5: HDF5 files written with the HDF5 C API (test-hdf5 --make: a
+# rank-4 chunked gzip dataset in a group next to another dataset, a series
+# of rank-3 files) encode to exactly the shards of raw files of the same
+# numbers, and tvpal-report measures them against the same reader;
+# tvpal-info --inspect lists the datasets; bad input (unknown dataset, two
+# candidates, rank 2, fill values without --nan-as, a damaged file) exits 2
+# naming the file and the dataset and leaves nothing behind.
+. "$(dirname "$0")/lib.sh"
+MK=$TVPAL_BUILDDIR/tests/test-hdf5
+"$MK" --make "$W"; rc=$?
+[ "$rc" -eq 77 ] && { echo "built without HDF5 (libhdf5-dev): skipped"; exit 77; }
+[ "$rc" -eq 0 ] || { echo "test-hdf5 --make failed ($rc)"; exit 99; }
+D=9x7x5
+"$ENC" -q --dims $D --window 2 -o "$W/raw" "$W"/raw_t*.f32 > /dev/null || { fail "raw encode"; finish; }
+"$INFO" --inspect "$W/all.h5" > "$W/inspect.txt" 2>&1 \
+    && grep -q '^.*all.h5: hdf5$' "$W/inspect.txt" \
+    && grep -qx '/sim/other (5, 7, 9) double units=""' "$W/inspect.txt" \
+    && grep -qx '/sim/temp (3, 5, 7, 9) float units="K"' "$W/inspect.txt" \
+    && ok "--inspect lists /sim/temp and /sim/other" || fail "--inspect: $(cat "$W/inspect.txt")"
+same_shards() { # DIR: its shards equal the raw dataset's
+    for a in x y z; do
+        cmp -s "$W/raw/node-0/axis-$a.tvps" "$1/node-0/axis-$a.tvps" || return 1
+    done
+}
+"$ENC" -q --var /sim/temp --window 2 -o "$W/ds-all" "$W/all.h5" > /dev/null 2> "$W/e.txt" \
+    || fail "all.h5 encode: $(cat "$W/e.txt")"
+same_shards "$W/ds-all" && ok "rank 4, chunked gzip: shards identical to raw" || fail "all.h5: shards differ from raw"
+grep -q "^source_format = hdf5" "$W/ds-all/manifest.txt" && grep -q "^source_var = /sim/temp" "$W/ds-all/manifest.txt" \
+    && ok "manifest names format and dataset" || fail "manifest: $(grep '^source' "$W/ds-all/manifest.txt")"
+"$ENC" -q --format hdf5 --var sim/temp --window 2 -o "$W/ds-forced" "$W/all.h5" > /dev/null 2> "$W/e.txt" \
+    && same_shards "$W/ds-forced" && ok "--format hdf5, relative path" || fail "--format hdf5: $(cat "$W/e.txt")"
+"$ENC" -q --window 2 -o "$W/ds-series" "$W"/s0.h5 "$W"/s1.h5 "$W"/s2.h5 > /dev/null 2> "$W/e.txt" \
+    || fail "series encode: $(cat "$W/e.txt")"
+same_shards "$W/ds-series" && ok "series of rank-3 files, the only dataset: shards identical to raw" \
+    || fail "series shards differ"
+grep -q "^source_var = /temp" "$W/ds-series/manifest.txt" && ok "series: the only dataset /temp" || fail "series var"
+lr=$("$REP" -q "$W/raw") && lh=$("$REP" -q "$W/ds-all") || fail "report"
+[ "$(kv psnr "$lr")" = "$(kv psnr "$lh")" ] && [ "$(kv rmse "$lr")" = "$(kv rmse "$lh")" ] \
+    && ok "report: psnr $(kv psnr "$lh") as from raw" || fail "report differs: $lr / $lh"
+ls=$("$REP" -q "$W/ds-series") && [ "$(kv psnr "$ls")" = "$(kv psnr "$lr")" ] \
+    && ok "report on the series" || fail "series report: $ls"
+# Bad input: exit 2, a message naming the file and the dataset, nothing left.
+bad() { expect_exit "$@"; cat "$W/err.txt" >> "$W/all-err.txt"; }
+nothing_left() { [ ! -e "$W/bad" ] && [ ! -e "$W/bad.partial" ] && ok "nothing left ($1)" || fail "output left ($1)"; }
+bad 2 "all.h5.*/sim/nope.*/sim/temp" "$ENC" -q --var /sim/nope -o "$W/bad" "$W/all.h5"; nothing_left "unknown dataset"
+bad 2 "all.h5.*2 datasets.*/sim/other \(5, 7, 9\).*/sim/temp \(3, 5, 7, 9\)" "$ENC" -q -o "$W/bad" "$W/all.h5"
+nothing_left "two candidates"
+bad 2 "flat.h5.*/flat \(7, 9\).*rank 2" "$ENC" -q --var /flat -o "$W/bad" "$W/flat.h5"; nothing_left "rank 2"
+bad 2 "9x7x5.*--dims|--dims.*9x7x5" "$ENC" -q --var /sim/temp --dims 9x7x6 -o "$W/bad" "$W/all.h5"
+nothing_left "contradicting --dims"
+bad 2 "fill.h5.*\(4,2,1\).*--nan-as" "$ENC" -q --var /sim/temp -o "$W/bad" "$W/fill.h5"; nothing_left "fill value"
+"$ENC" -q --var /sim/temp --window 2 --nan-as 10 -o "$W/ds-fill" "$W/fill.h5" > /dev/null 2> "$W/e.txt" \
+    && ok "fill value with --nan-as" || fail "--nan-as: $(cat "$W/e.txt")"
+bad 2 "bad.h5.*damaged" "$ENC" -q -o "$W/bad" "$W/bad.h5"; nothing_left "damaged file"
+bad 2 "bad.h5.*damaged" "$INFO" --inspect "$W/bad.h5"
+bad 2 "raw_t0.f32.*not an HDF5 file" "$ENC" -q --format hdf5 -o "$W/bad" "$W/raw_t0.f32"; nothing_left "not HDF5"
+# HDF5 never prints its own error stack
+grep -q "HDF5-DIAG" "$W/all-err.txt" && fail "HDF5 printed its error stack" || ok "no HDF5 error stack on stderr"
+finish

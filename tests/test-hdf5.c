@@ -1,0 +1,614 @@
+/* test-hdf5: the HDF5 reader on fixtures written with the HDF5 C API at
+ * test time (a float dataset in a group, a chunked gzip rank-4 series, the
+ * integer and double types, fill and missing values, two candidates, a
+ * rank-2 dataset, a damaged file, a non-HDF5 file), and the format choice
+ * between NetCDF-4 (ncgen) and plain HDF5: dims, steps, type, values, NaN,
+ * the errors and their listings, describe, no HDF5 handle left open.
+ * `test-hdf5 --make DIR` writes the files of tests/input-hdf5.sh instead.
+ * Skipped (77) without HDF5 support. */
+#include "config.h"
+
+#include "tvpal_input_impl.h"
+#include "tvpal_test.h"
+
+#include <string.h>
+
+#ifndef HAVE_HDF5
+int main(void)
+{
+    printf("test-hdf5: built without HDF5 (libhdf5-dev): skipped\n");
+    return 77;
+}
+#else
+
+#include <hdf5.h>
+
+static char work[1024];
+
+static const char *wpath(const char *name)
+{
+    static char p[4][1200];
+    static int i;
+    i = (i + 1) % 4;
+    snprintf(p[i], sizeof p[i], "%s/%s", work, name);
+    return p[i];
+}
+
+/* ------------------------------------------------------------- fixtures */
+
+/* Value i of step k (exact in float). */
+static float val(int k, int i)
+{
+    return (float)(k * 100 + 0.5 * i + 0.25);
+}
+
+static hid_t create(const char *path)
+{
+    hid_t f = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    REQUIRE(f >= 0, "H5Fcreate %s", path);
+    return f;
+}
+
+static hid_t group(hid_t f, const char *name)
+{
+    hid_t g = H5Gcreate2(f, name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    REQUIRE(g >= 0, "H5Gcreate2 %s", name);
+    return g;
+}
+
+/* Dataset name of rank dims in loc, stored as ftype, written from data
+ * (of memory type mtype); chunk: one step per chunk and gzip level 4. */
+static hid_t dataset(hid_t loc, const char *name, hid_t ftype, int rank,
+                     const hsize_t *dims, hid_t mtype, const void *data,
+                     int chunk)
+{
+    hid_t s = H5Screate_simple(rank, dims, NULL);
+    hid_t p = H5Pcreate(H5P_DATASET_CREATE);
+    REQUIRE(s >= 0 && p >= 0, "dataspace %s", name);
+    if (chunk) {
+        hsize_t c[8];
+        memcpy(c, dims, sizeof *dims * (size_t)rank);
+        c[0] = 1;
+        REQUIRE(H5Pset_chunk(p, rank, c) >= 0 && H5Pset_deflate(p, 4) >= 0,
+                "chunk %s", name);
+    }
+    hid_t d = H5Dcreate2(loc, name, ftype, s, H5P_DEFAULT, p, H5P_DEFAULT);
+    REQUIRE(d >= 0, "H5Dcreate2 %s", name);
+    REQUIRE(!data || H5Dwrite(d, mtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) >= 0,
+            "H5Dwrite %s", name);
+    H5Pclose(p);
+    H5Sclose(s);
+    return d;
+}
+
+static void num_attr(hid_t obj, const char *name, hid_t type, int n,
+                     const void *v)
+{
+    hsize_t len = (hsize_t)n;
+    hid_t s = n == 1 ? H5Screate(H5S_SCALAR) : H5Screate_simple(1, &len, NULL);
+    hid_t a = H5Acreate2(obj, name, type, s, H5P_DEFAULT, H5P_DEFAULT);
+    REQUIRE(a >= 0 && H5Awrite(a, type, v) >= 0, "attribute %s", name);
+    H5Aclose(a);
+    H5Sclose(s);
+}
+
+/* A scalar string attribute: variable length, or fixed (NUL padded). */
+static void text_attr(hid_t obj, const char *name, const char *v, int vlen)
+{
+    hid_t t = H5Tcopy(H5T_C_S1);
+    H5Tset_size(t, vlen ? H5T_VARIABLE : strlen(v) + 1);
+    hid_t s = H5Screate(H5S_SCALAR);
+    hid_t a = H5Acreate2(obj, name, t, s, H5P_DEFAULT, H5P_DEFAULT);
+    REQUIRE(a >= 0 && H5Awrite(a, t, vlen ? (const void *)&v : v) >= 0,
+            "attribute %s", name);
+    H5Aclose(a);
+    H5Sclose(s);
+    H5Tclose(t);
+}
+
+static void write_text(const char *path, const char *text, size_t n)
+{
+    FILE *fp = fopen(path, "wb");
+    REQUIRE(fp && fwrite(text, 1, n, fp) == n && fclose(fp) == 0, "write %s",
+            path);
+}
+
+static void make_fixtures(void)
+{
+    float v[3 * 30];
+    for (int k = 0; k < 3; k++)
+        for (int i = 0; i < 30; i++)
+            v[k * 30 + i] = val(k, i);
+
+    /* one.h5: /grp/temp float (2, 3, 4) with units, next to datasets of
+     * rank 2 and 1 (not candidates) */
+    hid_t f = create(wpath("one.h5"));
+    hid_t g = group(f, "grp");
+    hsize_t d3[3] = {2, 3, 4}, d2[2] = {3, 4}, d1[1] = {5};
+    hid_t d = dataset(g, "temp", H5T_IEEE_F32LE, 3, d3, H5T_NATIVE_FLOAT, v, 0);
+    text_attr(d, "units", "K", 1);
+    H5Dclose(d);
+    H5Dclose(dataset(g, "flat", H5T_IEEE_F32LE, 2, d2, H5T_NATIVE_FLOAT, v, 0));
+    H5Dclose(dataset(f, "x", H5T_IEEE_F64LE, 1, d1, H5T_NATIVE_FLOAT, v, 0));
+    H5Gclose(g);
+    H5Fclose(f);
+
+    /* steps.h5: /run/density float (3, 2, 3, 5), big-endian, one step per
+     * chunk, gzip 4 */
+    f = create(wpath("steps.h5"));
+    g = group(f, "run");
+    hsize_t d4[4] = {3, 2, 3, 5};
+    d = dataset(g, "density", H5T_IEEE_F32BE, 4, d4, H5T_NATIVE_FLOAT, v, 1);
+    text_attr(d, "units", "kg m-3", 0);
+    H5Dclose(d);
+    H5Gclose(g);
+    H5Fclose(f);
+
+    /* types.h5: int16, double, uint8, uint16, int32 (2, 2, 3) */
+    f = create(wpath("types.h5"));
+    hsize_t dt[3] = {2, 2, 3};
+    short s16[12] = {-32768, -1, 0, 1, 2, 3, 1000, -1000, 32767, 5, 6, 7};
+    double f64[12] = {0.1, -2.5, 1e10, 3, 4, 5, 6, 7, 8, 9, 10, 1.0 / 3};
+    unsigned char u8[12] = {0, 1, 2, 3, 4, 5, 250, 251, 252, 253, 254, 255};
+    unsigned short u16[12] = {0, 1, 2, 3, 4, 5, 60000, 65534, 65535, 9, 10, 11};
+    int i32[12] = {-7, 16777216, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11};
+    d = dataset(f, "i16", H5T_STD_I16BE, 3, dt, H5T_NATIVE_SHORT, s16, 0);
+    text_attr(d, "units", "m", 0);
+    H5Dclose(d);
+    H5Dclose(dataset(f, "d64", H5T_IEEE_F64LE, 3, dt, H5T_NATIVE_DOUBLE, f64, 1));
+    H5Dclose(dataset(f, "u8", H5T_STD_U8LE, 3, dt, H5T_NATIVE_UCHAR, u8, 0));
+    H5Dclose(dataset(f, "u16", H5T_STD_U16LE, 3, dt, H5T_NATIVE_USHORT, u16, 0));
+    H5Dclose(dataset(f, "i32", H5T_STD_I32LE, 3, dt, H5T_NATIVE_INT, i32, 0));
+    H5Fclose(f);
+
+    /* fill.h5: /fill int16 with _FillValue -32767 and missing_value {7, 8};
+     * /ffill float with _FillValue -999.5 (float) and missing_value 1e30
+     * (double: compares as the float it rounds to) */
+    f = create(wpath("fill.h5"));
+    short fs[12] = {0, -32767, 7, 8, 9, -32767, 1, 2, 3, 4, 5, 6};
+    d = dataset(f, "fill", H5T_STD_I16LE, 3, dt, H5T_NATIVE_SHORT, fs, 0);
+    short fv = -32767;
+    double mv[2] = {7, 8};
+    num_attr(d, "_FillValue", H5T_NATIVE_SHORT, 1, &fv);
+    num_attr(d, "missing_value", H5T_NATIVE_DOUBLE, 2, mv);
+    H5Dclose(d);
+    float ff[12] = {1, -999.5f, 1e30f, 4, 5, 6, 7, 8, 9, 10, 11, 12};
+    d = dataset(f, "ffill", H5T_IEEE_F32LE, 3, dt, H5T_NATIVE_FLOAT, ff, 0);
+    float ffv = -999.5f;
+    double fmv = 1e30;
+    num_attr(d, "_FillValue", H5T_NATIVE_FLOAT, 1, &ffv);
+    num_attr(d, "missing_value", H5T_NATIVE_DOUBLE, 1, &fmv);
+    H5Dclose(d);
+    H5Fclose(f);
+
+    /* two.h5: two candidates, a rank-2 and a rank-5 dataset, a string */
+    f = create(wpath("two.h5"));
+    g = group(f, "g");
+    hsize_t d5[5] = {1, 1, 2, 2, 2}, db[3] = {3, 2, 4};
+    H5Dclose(dataset(f, "a", H5T_IEEE_F32LE, 3, d3, H5T_NATIVE_FLOAT, v, 0));
+    H5Dclose(dataset(g, "b", H5T_IEEE_F32LE, 3, db, H5T_NATIVE_FLOAT, v, 0));
+    H5Dclose(dataset(f, "flat", H5T_IEEE_F32LE, 2, d2, H5T_NATIVE_FLOAT, v, 0));
+    H5Dclose(dataset(g, "five", H5T_IEEE_F32LE, 5, d5, H5T_NATIVE_FLOAT, v, 0));
+    hid_t st = H5Tcopy(H5T_C_S1);
+    H5Tset_size(st, 4);
+    H5Dclose(dataset(g, "names", st, 3, d3, st, NULL, 0));
+    H5Tclose(st);
+    H5Gclose(g);
+    H5Fclose(f);
+
+    /* flat.h5: only a rank-2 dataset */
+    f = create(wpath("flat.h5"));
+    H5Dclose(dataset(f, "flat", H5T_IEEE_F32LE, 2, d2, H5T_NATIVE_FLOAT, v, 0));
+    H5Fclose(f);
+
+    write_text(wpath("not.h5"), "this is not an HDF5 file\n", 25);
+    static const char bad[] = "\211HDF\r\n\032\n\377\377 damaged superblock";
+    write_text(wpath("bad.h5"), bad, sizeof bad - 1);
+}
+
+/* ---------------------------------------------------------------- tests */
+
+static struct tvpal_input *open1(enum tvpal_input_format fmt, const char *file,
+                                 const char *var, int *rc, struct tvpal_diag *g)
+{
+    struct tvpal_input *in = NULL;
+    char *files[1] = {(char *)file};
+    struct tvpal_input_opts o = {var, NULL};
+    g->msg[0] = 0;
+    *rc = tvpal_input_open(&in, fmt, files, 1, &o, g);
+    return *rc == 0 ? in : NULL;
+}
+
+static int same_float(float a, float b)
+{
+    return (isnan(a) && isnan(b)) || a == b;
+}
+
+static enum tvpal_input_format detect(const char *path)
+{
+    enum tvpal_input_format f = TVPAL_IN_AUTO;
+    struct tvpal_diag g;
+    CHECK(tvpal_input_detect(path, &f, &g) == 0, "detect %s: %s", path, g.msg);
+    return f;
+}
+
+static void test_one(void)
+{
+    struct tvpal_diag g;
+    int rc;
+    CHECK(detect(wpath("one.h5")) == TVPAL_IN_HDF5, "plain HDF5 detected as hdf5");
+    struct tvpal_input *in = open1(TVPAL_IN_AUTO, wpath("one.h5"), NULL, &rc, &g);
+    REQUIRE(in, "open one.h5: %d %s", rc, g.msg);
+    const struct tvpal_input_info *fi = tvpal_input_info(in);
+    CHECK(fi->dims[0] == 4 && fi->dims[1] == 3 && fi->dims[2] == 2,
+          "dims %ux%ux%u", fi->dims[0], fi->dims[1], fi->dims[2]);
+    CHECK(fi->steps == 1 && fi->type == TVPAL_F32 && !fi->missing_attrs &&
+          !fi->has_times, "one step of f32");
+    CHECK(!strcmp(fi->var, "/grp/temp"), "var %s (the only candidate)", fi->var);
+    CHECK(!strcmp(fi->units, "K"), "units %s (variable-length string)", fi->units);
+    CHECK(fi->spacing[0] == 1 && fi->origin[0] == 0, "spacing 1, origin 0");
+    float buf[30];
+    REQUIRE(tvpal_input_read(in, 0, buf, &g) == 0, "read: %s", g.msg);
+    int bad = 0;
+    for (int i = 0; i < 24; i++)
+        bad += buf[i] != val(0, i);
+    CHECK(!bad, "one.h5: %d values differ", bad);
+    CHECK(tvpal_input_read(in, 1, buf, &g) == TVPAL_E_INVAL, "step past the end");
+    tvpal_input_close(in);
+
+    /* the same by path, relative or absolute, and forced */
+    in = open1(TVPAL_IN_HDF5, wpath("one.h5"), "grp/temp", &rc, &g);
+    CHECK(in && !strcmp(tvpal_input_info(in)->var, "/grp/temp"),
+          "relative path: %s", g.msg);
+    tvpal_input_close(in);
+    CHECK(!open1(TVPAL_IN_AUTO, wpath("one.h5"), "/grp/nope", &rc, &g) &&
+          rc == TVPAL_E_INVAL && strstr(g.msg, "one.h5") &&
+          strstr(g.msg, "no dataset /grp/nope") &&
+          strstr(g.msg, "/grp/temp (2, 3, 4)") && strstr(g.msg, "/grp/flat (3, 4)") &&
+          strstr(g.msg, "/x (5)"), "unknown dataset: %d %s", rc, g.msg);
+    CHECK(!open1(TVPAL_IN_AUTO, wpath("one.h5"), "/nogroup/temp", &rc, &g) &&
+          rc == TVPAL_E_INVAL && strstr(g.msg, "/nogroup/temp"),
+          "missing group: %d %s", rc, g.msg);
+    CHECK(!open1(TVPAL_IN_AUTO, wpath("one.h5"), "/grp", &rc, &g) &&
+          rc == TVPAL_E_INVAL && strstr(g.msg, "/grp is not a dataset"),
+          "a group: %d %s", rc, g.msg);
+    CHECK(!open1(TVPAL_IN_AUTO, wpath("one.h5"), "/grp/flat", &rc, &g) &&
+          rc == TVPAL_E_INVAL && strstr(g.msg, "/grp/flat (3, 4)") &&
+          strstr(g.msg, "rank 2"), "rank 2: %d %s", rc, g.msg);
+
+    char *text = NULL;
+    CHECK(tvpal_input_describe(wpath("one.h5"), TVPAL_IN_AUTO, &text, &g) == 0,
+          "describe: %s", g.msg);
+    CHECK(text && !strcmp(text, "hdf5\n"
+                          "/grp/flat (3, 4) float units=\"\"\n"
+                          "/grp/temp (2, 3, 4) float units=\"K\"\n"
+                          "/x (5) double units=\"\"\n"), "describe one.h5: %s",
+          text ? text : "");
+    free(text);
+}
+
+static void test_steps(void)
+{
+    struct tvpal_diag g;
+    int rc;
+    /* the fixture is what it says: chunked, deflated */
+    hid_t f = H5Fopen(wpath("steps.h5"), H5F_ACC_RDONLY, H5P_DEFAULT);
+    hid_t d = H5Dopen2(f, "/run/density", H5P_DEFAULT);
+    hid_t p = H5Dget_create_plist(d);
+    unsigned flags;
+    size_t nv = 1;
+    unsigned cv[1];
+    hsize_t chunk[4];
+    CHECK(H5Pget_layout(p) == H5D_CHUNKED && H5Pget_chunk(p, 4, chunk) == 4 &&
+          chunk[0] == 1 && chunk[3] == 5, "one step per chunk");
+    CHECK(H5Pget_nfilters(p) == 1 &&
+          H5Pget_filter2(p, 0, &flags, &nv, cv, 0, NULL, NULL) == H5Z_FILTER_DEFLATE &&
+          cv[0] == 4, "gzip 4");
+    H5Pclose(p);
+    H5Dclose(d);
+    H5Fclose(f);
+
+    struct tvpal_input *in = open1(TVPAL_IN_AUTO, wpath("steps.h5"),
+                                   "/run/density", &rc, &g);
+    REQUIRE(in, "open steps.h5: %d %s", rc, g.msg);
+    const struct tvpal_input_info *fi = tvpal_input_info(in);
+    CHECK(fi->dims[0] == 5 && fi->dims[1] == 3 && fi->dims[2] == 2 && fi->steps == 3,
+          "dims %ux%ux%u steps %u", fi->dims[0], fi->dims[1], fi->dims[2], fi->steps);
+    CHECK(fi->type == TVPAL_F32 && !strcmp(fi->units, "kg m-3"),
+          "f32 (big-endian), units %s (fixed-length string)", fi->units);
+    float buf[30];
+    uint32_t order[4] = {2, 0, 1, 2};   /* any order, again */
+    for (int j = 0; j < 4; j++) {
+        uint32_t k = order[j];
+        REQUIRE(tvpal_input_read(in, k, buf, &g) == 0, "read %u: %s", k, g.msg);
+        int bad = 0;
+        for (int i = 0; i < 30; i++)
+            bad += buf[i] != val((int)k, i);
+        CHECK(!bad, "step %u: %d values differ", k, bad);
+    }
+    tvpal_input_close(in);
+
+    /* a series of two files of 3 steps */
+    char *files[2] = {(char *)wpath("steps.h5"), (char *)wpath("steps.h5")};
+    struct tvpal_input_opts o = {"/run/density", NULL};
+    in = NULL;
+    rc = tvpal_input_open(&in, TVPAL_IN_HDF5, files, 2, &o, &g);
+    REQUIRE(rc == 0, "series: %s", g.msg);
+    CHECK(tvpal_input_info(in)->steps == 6, "6 steps");
+    CHECK(tvpal_input_read(in, 4, buf, &g) == 0 && buf[7] == val(1, 7), "step 4");
+    tvpal_input_close(in);
+    /* another grid in the second file */
+    files[1] = (char *)wpath("one.h5");
+    o.var = NULL;
+    in = NULL;
+    rc = tvpal_input_open(&in, TVPAL_IN_HDF5, files, 2, &o, &g);
+    CHECK(rc == TVPAL_E_MISMATCH && !in && strstr(g.msg, "one.h5"),
+          "series with another grid: %d %s", rc, g.msg);
+}
+
+static void test_types(void)
+{
+    static const struct {
+        const char *var;
+        enum tvpal_type type;
+        float want[12];
+    } t[] = {
+        {"/i16", TVPAL_I16, {-32768, -1, 0, 1, 2, 3, 1000, -1000, 32767, 5, 6, 7}},
+        {"/d64", TVPAL_F64, {0.1f, -2.5f, 1e10f, 3, 4, 5, 6, 7, 8, 9, 10,
+                             (float)(1.0 / 3)}},
+        {"/u8", TVPAL_U8, {0, 1, 2, 3, 4, 5, 250, 251, 252, 253, 254, 255}},
+        {"/u16", TVPAL_U16, {0, 1, 2, 3, 4, 5, 60000, 65534, 65535, 9, 10, 11}},
+        {"/i32", TVPAL_F32, {-7, 16777216, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11}},
+    };
+    struct tvpal_diag g;
+    int rc;
+    float buf[12];
+    for (size_t j = 0; j < sizeof t / sizeof *t; j++) {
+        struct tvpal_input *in = open1(TVPAL_IN_AUTO, wpath("types.h5"),
+                                       t[j].var, &rc, &g);
+        REQUIRE(in, "open %s: %s", t[j].var, g.msg);
+        const struct tvpal_input_info *fi = tvpal_input_info(in);
+        CHECK(fi->type == t[j].type && fi->dims[0] == 3 && fi->dims[2] == 2 &&
+              fi->steps == 1, "%s: type %s", t[j].var, tvpal_type_name(fi->type));
+        REQUIRE(tvpal_input_read(in, 0, buf, &g) == 0, "read %s: %s", t[j].var, g.msg);
+        for (int i = 0; i < 12; i++)
+            CHECK(buf[i] == t[j].want[i], "%s[%d] = %.9g, want %.9g", t[j].var,
+                  i, buf[i], t[j].want[i]);
+        tvpal_input_close(in);
+    }
+    struct tvpal_input *in = open1(TVPAL_IN_AUTO, wpath("types.h5"), "/i16", &rc, &g);
+    CHECK(in && !strcmp(tvpal_input_info(in)->units, "m"), "i16 units");
+    tvpal_input_close(in);
+    char *text = NULL;
+    CHECK(tvpal_input_describe(wpath("types.h5"), TVPAL_IN_HDF5, &text, &g) == 0 &&
+          strstr(text, "/i16 (2, 2, 3) int16 units=\"m\"\n") &&
+          strstr(text, "/d64 (2, 2, 3) double units=\"\"\n") &&
+          strstr(text, "/u8 (2, 2, 3) uint8") && strstr(text, "/u16 (2, 2, 3) uint16") &&
+          strstr(text, "/i32 (2, 2, 3) int32"), "describe types: %s",
+          text ? text : g.msg);
+    free(text);
+}
+
+static void test_fill(void)
+{
+    struct tvpal_diag g;
+    int rc;
+    float buf[12];
+    struct tvpal_input *in = open1(TVPAL_IN_AUTO, wpath("fill.h5"), "/fill", &rc, &g);
+    REQUIRE(in, "open /fill: %s", g.msg);
+    CHECK(tvpal_input_info(in)->missing_attrs && tvpal_input_info(in)->type == TVPAL_I16,
+          "fill: missing attrs, i16");
+    REQUIRE(tvpal_input_read(in, 0, buf, &g) == 0, "read /fill: %s", g.msg);
+    static const float wf[12] = {0, NAN, NAN, NAN, 9, NAN, 1, 2, 3, 4, 5, 6};
+    for (int i = 0; i < 12; i++)
+        CHECK(same_float(buf[i], wf[i]), "fill[%d] = %g, want %g", i, buf[i], wf[i]);
+    tvpal_input_close(in);
+
+    in = open1(TVPAL_IN_AUTO, wpath("fill.h5"), "/ffill", &rc, &g);
+    REQUIRE(in, "open /ffill: %s", g.msg);
+    CHECK(tvpal_input_info(in)->missing_attrs, "ffill: missing attrs");
+    REQUIRE(tvpal_input_read(in, 0, buf, &g) == 0, "read /ffill: %s", g.msg);
+    static const float wff[12] = {1, NAN, NAN, 4, 5, 6, 7, 8, 9, 10, 11, 12};
+    for (int i = 0; i < 12; i++)
+        CHECK(same_float(buf[i], wff[i]), "ffill[%d] = %g, want %g", i, buf[i],
+              wff[i]);
+    tvpal_input_close(in);
+}
+
+static void test_errors(void)
+{
+    struct tvpal_diag g;
+    int rc;
+    CHECK(!open1(TVPAL_IN_AUTO, wpath("two.h5"), NULL, &rc, &g) &&
+          rc == TVPAL_E_INVAL && strstr(g.msg, "two.h5") &&
+          strstr(g.msg, "2 datasets") && strstr(g.msg, "--var") &&
+          strstr(g.msg, "datasets: /a (2, 3, 4), /g/b (3, 2, 4)") &&
+          !strstr(g.msg, "flat") && !strstr(g.msg, "names") &&
+          !strstr(g.msg, "five"),
+          "two candidates: %d %s", rc, g.msg);
+    struct tvpal_input *in = open1(TVPAL_IN_AUTO, wpath("two.h5"), "/g/b", &rc, &g);
+    CHECK(in && tvpal_input_info(in)->dims[0] == 4 && tvpal_input_info(in)->dims[2] == 3,
+          "/g/b: %s", g.msg);
+    tvpal_input_close(in);
+    CHECK(!open1(TVPAL_IN_AUTO, wpath("two.h5"), "/g/five", &rc, &g) &&
+          rc == TVPAL_E_INVAL && strstr(g.msg, "/g/five (1, 1, 2, 2, 2)") &&
+          strstr(g.msg, "rank 5"), "rank 5: %d %s", rc, g.msg);
+    CHECK(!open1(TVPAL_IN_AUTO, wpath("two.h5"), "/g/names", &rc, &g) &&
+          rc == TVPAL_E_INVAL && strstr(g.msg, "/g/names") &&
+          strstr(g.msg, "string"), "strings: %d %s", rc, g.msg);
+    CHECK(!open1(TVPAL_IN_AUTO, wpath("flat.h5"), NULL, &rc, &g) &&
+          rc == TVPAL_E_INVAL && strstr(g.msg, "flat.h5") &&
+          strstr(g.msg, "rank 3") && strstr(g.msg, "/flat (3, 4)"),
+          "no candidate: %d %s", rc, g.msg);
+
+    /* not HDF5: raw under AUTO, refused when forced */
+    CHECK(detect(wpath("not.h5")) == TVPAL_IN_RAW, "text is raw");
+    CHECK(!open1(TVPAL_IN_HDF5, wpath("not.h5"), NULL, &rc, &g) &&
+          rc == TVPAL_E_FORMAT && strstr(g.msg, "not.h5") &&
+          strstr(g.msg, "not an HDF5 file"), "not hdf5: %d %s", rc, g.msg);
+    char *text = NULL;
+    CHECK(tvpal_input_describe(wpath("not.h5"), TVPAL_IN_HDF5, &text, &g) ==
+          TVPAL_E_FORMAT && !text, "describe not hdf5: %s", g.msg);
+    /* HDF5's signature, then garbage: not NetCDF, so hdf5, which refuses */
+    CHECK(detect(wpath("bad.h5")) == TVPAL_IN_HDF5, "damaged HDF5 goes to hdf5");
+    CHECK(!open1(TVPAL_IN_AUTO, wpath("bad.h5"), NULL, &rc, &g) &&
+          rc == TVPAL_E_FORMAT && strstr(g.msg, "bad.h5") &&
+          strstr(g.msg, "damaged"), "damaged: %d %s", rc, g.msg);
+    CHECK(!open1(TVPAL_IN_HDF5, wpath("absent.h5"), NULL, &rc, &g) &&
+          rc == TVPAL_E_OPEN && strstr(g.msg, "absent.h5"), "absent: %d %s", rc,
+          g.msg);
+    /* forced netcdf on plain HDF5: refused by name */
+    CHECK(!open1(TVPAL_IN_NETCDF, wpath("one.h5"), NULL, &rc, &g) &&
+          rc == TVPAL_E_FORMAT && strstr(g.msg, "without netCDF metadata"),
+          "plain HDF5 as netcdf: %d %s", rc, g.msg);
+}
+
+/* NetCDF-4 (ncgen) stays NetCDF under AUTO; a dataset path reads it as
+ * HDF5. */
+static void test_netcdf4(void)
+{
+#ifdef HAVE_NETCDF
+    if (system("command -v ncgen >/dev/null 2>&1")) {
+        printf("test-hdf5: no ncgen (netcdf-bin): the NetCDF-4 part is skipped\n");
+        return;
+    }
+    FILE *fp = fopen(wpath("n.cdl"), "w");
+    REQUIRE(fp, "write n.cdl");
+    fprintf(fp, "netcdf n {\ndimensions:\n z = 2 ;\n y = 3 ;\n x = 4 ;\n"
+            "variables:\n float T(z, y, x) ;\n  T:units = \"K\" ;\n"
+            " float z(z) ;\ndata:\n z = 10, 20 ;\n T = ");
+    for (int i = 0; i < 24; i++)
+        fprintf(fp, "%.9g%s", val(0, i), i < 23 ? ", " : " ;\n}\n");
+    REQUIRE(fclose(fp) == 0, "write n.cdl");
+    char cmd[3000];
+    snprintf(cmd, sizeof cmd, "ncgen -k nc4 -o '%s' '%s'", wpath("n.nc"),
+             wpath("n.cdl"));
+    REQUIRE(system(cmd) == 0, "%s", cmd);
+    CHECK(detect(wpath("n.nc")) == TVPAL_IN_NETCDF, "NetCDF-4 detected as netcdf");
+    struct tvpal_diag g;
+    int rc;
+    struct tvpal_input *in = open1(TVPAL_IN_AUTO, wpath("n.nc"), NULL, &rc, &g);
+    REQUIRE(in, "open n.nc: %s", g.msg);
+    CHECK(!strcmp(tvpal_input_info(in)->var, "T") &&
+          tvpal_input_info(in)->spacing[2] == 10, "read by netcdf (z spacing)");
+    tvpal_input_close(in);
+    char *text = NULL;
+    CHECK(tvpal_input_describe(wpath("n.nc"), TVPAL_IN_AUTO, &text, &g) == 0 &&
+          !strncmp(text, "netcdf netcdf-4\n", 16), "describe n.nc: %s",
+          text ? text : g.msg);
+    free(text);
+    in = open1(TVPAL_IN_AUTO, wpath("n.nc"), "/T", &rc, &g);
+    REQUIRE(in, "open n.nc /T: %s", g.msg);
+    const struct tvpal_input_info *fi = tvpal_input_info(in);
+    CHECK(!strcmp(fi->var, "/T") && fi->spacing[2] == 1 && fi->dims[0] == 4 &&
+          !strcmp(fi->units, "K"), "/T read by hdf5: %s", fi->var);
+    float buf[24];
+    REQUIRE(tvpal_input_read(in, 0, buf, &g) == 0, "read /T: %s", g.msg);
+    int bad = 0;
+    for (int i = 0; i < 24; i++)
+        bad += buf[i] != val(0, i);
+    CHECK(!bad, "n.nc /T: %d values differ", bad);
+    tvpal_input_close(in);
+#else
+    printf("test-hdf5: built without NetCDF: the NetCDF-4 part is skipped\n");
+#endif
+}
+
+/* ------------------------------------------------ files of input-hdf5.sh */
+
+#define NX 9
+#define NY 7
+#define NZ 5
+#define NT 3
+
+/* As tests/input-netcdf.sh: a smooth field with a moving bump. */
+static float field(int t, int x, int y, int z)
+{
+    return (float)(10.0 + x * 0.5 + y * 0.25 - z + 3.0 * (x == t + 2) * (y == 3));
+}
+
+static int make_dir(const char *dir)
+{
+    snprintf(work, sizeof work, "%s", dir);
+    static float v[NT][NZ][NY][NX];
+    for (int t = 0; t < NT; t++)
+        for (int z = 0; z < NZ; z++)
+            for (int y = 0; y < NY; y++)
+                for (int x = 0; x < NX; x++)
+                    v[t][z][y][x] = field(t, x, y, z);
+    for (int t = 0; t < NT; t++) {
+        char name[32];
+        snprintf(name, sizeof name, "raw_t%d.f32", t);
+        write_text(wpath(name), (const char *)v[t], sizeof v[t]);
+    }
+    hsize_t d4[4] = {NT, NZ, NY, NX}, d3[3] = {NZ, NY, NX}, d2[2] = {NY, NX};
+
+    /* all.h5: /sim/temp (3, 5, 7, 9) chunked and gzip'ed, /sim/other */
+    hid_t f = create(wpath("all.h5"));
+    hid_t g = group(f, "sim");
+    hid_t d = dataset(g, "temp", H5T_IEEE_F32LE, 4, d4, H5T_NATIVE_FLOAT, v, 1);
+    text_attr(d, "units", "K", 1);
+    H5Dclose(d);
+    H5Dclose(dataset(g, "other", H5T_IEEE_F64LE, 3, d3, H5T_NATIVE_FLOAT, v, 0));
+    H5Gclose(g);
+    H5Fclose(f);
+
+    /* s0.h5 ... s2.h5: one step each, /temp the only dataset */
+    for (int t = 0; t < NT; t++) {
+        char name[32];
+        snprintf(name, sizeof name, "s%d.h5", t);
+        f = create(wpath(name));
+        H5Dclose(dataset(f, "temp", H5T_IEEE_F32LE, 3, d3, H5T_NATIVE_FLOAT,
+                         v[t], 0));
+        H5Fclose(f);
+    }
+
+    /* fill.h5: /sim/temp with _FillValue -9999 at step 1, (4, 2, 1) */
+    v[1][1][2][4] = -9999;
+    f = create(wpath("fill.h5"));
+    g = group(f, "sim");
+    d = dataset(g, "temp", H5T_IEEE_F32LE, 4, d4, H5T_NATIVE_FLOAT, v, 1);
+    float fv = -9999;
+    num_attr(d, "_FillValue", H5T_NATIVE_FLOAT, 1, &fv);
+    H5Dclose(d);
+    H5Gclose(g);
+    H5Fclose(f);
+
+    f = create(wpath("flat.h5"));
+    H5Dclose(dataset(f, "flat", H5T_IEEE_F32LE, 2, d2, H5T_NATIVE_FLOAT, v, 0));
+    H5Fclose(f);
+    static const char bad[] = "\211HDF\r\n\032\n\377\377 damaged superblock";
+    write_text(wpath("bad.h5"), bad, sizeof bad - 1);
+    return H5Fget_obj_count((hid_t)H5F_OBJ_ALL, H5F_OBJ_ALL) == 0 ? 0 : 99;
+}
+
+int main(int argc, char **argv)
+{
+    if (argc == 3 && !strcmp(argv[1], "--make"))
+        return make_dir(argv[2]);
+    const char *b = getenv("TVPAL_BUILDDIR");
+    snprintf(work, sizeof work, "%s/tests/work/test-hdf5", b ? b : ".");
+    char cmd[2200];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s'", work, work);
+    REQUIRE(system(cmd) == 0, "%s", cmd);
+
+    make_fixtures();
+    CHECK(H5Fget_obj_count((hid_t)H5F_OBJ_ALL, H5F_OBJ_ALL) == 0,
+          "fixtures: handles left open");
+    test_one();
+    test_steps();
+    test_types();
+    test_fill();
+    test_errors();
+    test_netcdf4();
+    ssize_t left = H5Fget_obj_count((hid_t)H5F_OBJ_ALL, H5F_OBJ_ALL);
+    CHECK(left == 0, "%zd HDF5 handles left open by the reader", left);
+    int rc = tt_done("test-hdf5");
+    if (rc == 0) {
+        snprintf(cmd, sizeof cmd, "rm -rf '%s'", work);
+        if (system(cmd) != 0)
+            fprintf(stderr, "could not remove %s\n", work);
+    }
+    return rc;
+}
+#endif
