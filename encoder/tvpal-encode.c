@@ -867,7 +867,10 @@ static int open_source(struct run *r, int have_dims)
         return have_dims;
     }
     struct tvpal_input_opts io = {.var = o->var, .time_dim = o->time_dim};
-    int rc = tvpal_input_open(&r->in, f, o->inputs, o->ninputs, &io, &d);
+    /* Given AUTO, the reader applies its own rules beyond the first bytes
+     * (an HDF5 dataset path in --var). */
+    int rc = tvpal_input_open(&r->in, o->format, o->inputs, o->ninputs, &io,
+                              &d);
     if (rc < 0)
         die_usage("%s", lib_error(rc, &d));
     const struct tvpal_input_info *in = tvpal_input_info(r->in);
@@ -891,7 +894,7 @@ static int open_source(struct run *r, int have_dims)
     memcpy(o->dims, in->dims, sizeof o->dims);
     o->type = TVPAL_F32;
     o->big_endian = 0;
-    o->format = f;
+    o->format = tvpal_input_format(r->in);
 #ifdef WORDS_BIGENDIAN
     o->big_endian = 1;
 #endif

@@ -125,8 +125,8 @@ static int open_self_describing(struct options *o,
     struct tvpal_input_opts io = {.var = m->source_var};
     int rc = tvpal_input_format_parse(m->source_format, &f);
     if (rc < 0) {
-        fprintf(stderr, PROG ": source_format \"%s\": expected raw, netcdf "
-                "or vti\n", m->source_format);
+        fprintf(stderr, PROG ": source_format \"%s\": expected raw, netcdf, "
+                "hdf5, vti or vtk\n", m->source_format);
         return TVPAL_EXIT_USAGE;
     }
     if (o->nrefs < 1) {

@@ -129,6 +129,7 @@ static const struct tvpal_input_backend *backend_of(enum tvpal_input_format f)
 
 struct tvpal_input {
     const struct tvpal_input_backend *be;
+    enum tvpal_input_format fmt;   /* the format read (never AUTO) */
     struct tvpal_input_opts opts;
     struct tvpal_input_info info;
     char **files;              /* copies of the paths */
@@ -334,6 +335,7 @@ int tvpal_input_open(struct tvpal_input **out, enum tvpal_input_format fmt,
     if (!in)
         return TVPAL_E_NOMEM;
     in->be = be;
+    in->fmt = fmt;
     in->opts = opts ? *opts : (struct tvpal_input_opts){0};
     in->cur_i = -1;
     rc = expand_files(in, files, nfiles, diag);
@@ -366,6 +368,11 @@ int tvpal_input_open(struct tvpal_input **out, enum tvpal_input_format fmt,
     }
     *out = in;
     return 0;
+}
+
+enum tvpal_input_format tvpal_input_format(const struct tvpal_input *in)
+{
+    return in->fmt;
 }
 
 const struct tvpal_input_info *tvpal_input_info(const struct tvpal_input *in)

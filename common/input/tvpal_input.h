@@ -114,6 +114,9 @@ void tvpal_input_close(struct tvpal_input *in);   /* NULL is a no-op */
 
 const struct tvpal_input_info *tvpal_input_info(const struct tvpal_input *in);
 
+/* The format the series is read as (AUTO resolved). */
+enum tvpal_input_format tvpal_input_format(const struct tvpal_input *in);
+
 /* Timestep t (0-based over the series) into dst: dims[0] * dims[1] *
  * dims[2] floats, x fastest; missing values NaN.  Reads only that step
  * (hyperslab or array of one file). */
