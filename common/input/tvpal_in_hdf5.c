@@ -47,54 +47,6 @@ struct tvpal_input_file {
 
 /* ------------------------------------------------------- text appending */
 
-static void copy_str(char *dst, size_t cap, const char *src)
-{
-    size_t n = strlen(src);
-    if (n >= cap)
-        n = cap - 1;
-    memcpy(dst, src, n);
-    dst[n] = 0;
-}
-
-struct buf {
-    char *s;
-    size_t len, cap;
-    int full;   /* fixed-size buffer ran out (growable: malloc failed) */
-    int grow;
-};
-
-static void put(struct buf *b, const char *fmt, ...)
-    __attribute__((format(printf, 2, 3)));
-static void put(struct buf *b, const char *fmt, ...)
-{
-    if (b->full)
-        return;
-    for (;;) {
-        va_list ap;
-        va_start(ap, fmt);
-        int n = vsnprintf(b->s + b->len, b->cap - b->len, fmt, ap);
-        va_end(ap);
-        if (n < 0) {
-            b->full = 1;
-            return;
-        }
-        if ((size_t)n < b->cap - b->len) {
-            b->len += (size_t)n;
-            return;
-        }
-        if (!b->grow) {
-            b->full = 1;
-            return;
-        }
-        size_t cap = b->cap * 2 + (size_t)n;
-        char *s = realloc(b->s, cap);
-        if (!s) {
-            b->full = 1;
-            return;
-        }
-        b->s = s, b->cap = cap;
-    }
-}
 
 /* ---------------------------------------------------------------- errors */
 
@@ -109,7 +61,7 @@ static herr_t last_desc(unsigned n, const H5E_error2_t *e, void *data)
 {
     (void)n;
     if (e->desc && e->desc[0])
-        copy_str(data, 96, e->desc);
+        tvpal_input_copy_str(data, 96, e->desc);
     return 0;
 }
 
@@ -120,7 +72,7 @@ static const char *h5_msg(char *buf)
     H5Ewalk2(H5E_DEFAULT, H5E_WALK_DOWNWARD, last_desc, buf);
     H5Eclear2(H5E_DEFAULT);
     if (!buf[0])
-        copy_str(buf, 96, "HDF5 error");
+        tvpal_input_copy_str(buf, 96, "HDF5 error");
     return buf;
 }
 
@@ -259,7 +211,7 @@ static int text_att(hid_t obj, const char *name, char *buf, size_t cap)
         if (H5Tis_variable_str(t) > 0) {
             char *v = NULL;
             if (H5Tset_size(mt, H5T_VARIABLE) >= 0 && H5Aread(a, mt, &v) >= 0) {
-                copy_str(buf, cap, v ? v : "");
+                tvpal_input_copy_str(buf, cap, v ? v : "");
                 got = 1;
             }
             H5free_memory(v);
@@ -268,7 +220,7 @@ static int text_att(hid_t obj, const char *name, char *buf, size_t cap)
             char *v = size ? malloc(size + 1) : NULL;
             if (v && H5Tset_size(mt, size) >= 0 && H5Aread(a, mt, v) >= 0) {
                 v[size] = 0;
-                copy_str(buf, cap, v);
+                tvpal_input_copy_str(buf, cap, v);
                 got = 1;
             }
             free(v);
@@ -287,12 +239,12 @@ static int text_att(hid_t obj, const char *name, char *buf, size_t cap)
 }
 
 /* "(2, 3, 4)". */
-static void put_shape(struct buf *b, const hsize_t *dims, int rank)
+static void put_shape(struct tvpal_text *b, const hsize_t *dims, int rank)
 {
-    put(b, "(");
+    tvpal_text_put(b, "(");
     for (int i = 0; i < rank; i++)
-        put(b, "%s%llu", i ? ", " : "", (unsigned long long)dims[i]);
-    put(b, ")");
+        tvpal_text_put(b, "%s%llu", i ? ", " : "", (unsigned long long)dims[i]);
+    tvpal_text_put(b, ")");
 }
 
 /* Every dataset of the file, through its hard links (a dataset reached by
@@ -304,7 +256,7 @@ struct walk {
     int long_name;        /* a candidate's path did not fit cand */
     int all;              /* list every dataset, not the candidates only */
     int describe;         /* one line per dataset with type and units */
-    struct buf *list;
+    struct tvpal_text *list;
     int nlisted;
 };
 
@@ -331,12 +283,12 @@ static herr_t visit(hid_t g, const char *name, const H5L_info_t *li, void *data)
         if (w->describe) {
             char units[256];
             text_att(o, "units", units, sizeof units);
-            put(w->list, "/%s ", name);
+            tvpal_text_put(w->list, "/%s ", name);
             put_shape(w->list, dims, rank);
-            put(w->list, " %s units=\"%s\"\n", t >= 0 ? type_name(t) : "?",
+            tvpal_text_put(w->list, " %s units=\"%s\"\n", t >= 0 ? type_name(t) : "?",
                 units);
         } else if (cand || w->all) {
-            put(w->list, "%s/%s ", w->nlisted++ ? ", " : "", name);
+            tvpal_text_put(w->list, "%s/%s ", w->nlisted++ ? ", " : "", name);
             put_shape(w->list, dims, rank);
         }
         if (t >= 0)
@@ -362,16 +314,16 @@ static int walk(hid_t file, struct walk *w, const char *path,
 static void list_datasets(char *out, size_t cap, hid_t file, int all)
 {
     char tmp[512];
-    struct buf b = {tmp, 0, sizeof tmp, 0, 0};
+    struct tvpal_text b = {tmp, 0, sizeof tmp, 0, 0};
     struct walk w = {.all = all, .list = &b};
-    put(&b, "datasets: ");
+    tvpal_text_put(&b, "datasets: ");
     H5Lvisit(file, H5_INDEX_NAME, H5_ITER_INC, visit, &w);
     H5Eclear2(H5E_DEFAULT);
     if (!w.nlisted)
-        put(&b, "none");
+        tvpal_text_put(&b, "none");
     if (b.full || b.len >= cap)
         snprintf(tmp + (cap > 4 ? cap - 4 : 0), 4, "...");
-    copy_str(out, cap, tmp);
+    tvpal_input_copy_str(out, cap, tmp);
 }
 
 /* The dataset to read: opts->var, or the only candidate.  Opens f->dset
@@ -411,13 +363,13 @@ static int choose_dataset(struct tvpal_input_file *f,
     }
     struct walk w = {0};
     char tmp[8];
-    struct buf b = {tmp, 0, sizeof tmp, 0, 0};
+    struct tvpal_text b = {tmp, 0, sizeof tmp, 0, 0};
     w.list = &b;
     int rc = walk(f->file, &w, f->path, diag);
     if (rc < 0)
         return rc;
     if (w.ncand == 1 && !w.long_name) {
-        copy_str(f->var, sizeof f->var, w.cand);
+        tvpal_input_copy_str(f->var, sizeof f->var, w.cand);
         if ((f->dset = H5Dopen2(f->file, f->var, H5P_DEFAULT)) < 0)
             return h5_fail(diag, TVPAL_E_FORMAT, f->path, f->var,
                            "cannot open it");
@@ -449,7 +401,7 @@ static int read_layout(struct tvpal_input_file *f,
         return h5_fail(diag, TVPAL_E_FORMAT, f->path, f->var,
                        "cannot read its dataspace");
     char shape[160];
-    struct buf b = {shape, 0, sizeof shape, 0, 0};
+    struct tvpal_text b = {shape, 0, sizeof shape, 0, 0};
     put_shape(&b, dims, rank);
     hid_t t = H5Dget_type(f->dset);
     if (t < 0)
@@ -556,7 +508,7 @@ static int h5_open(struct tvpal_input_file **out, const char *path,
         return rc;
     }
     info->steps = f->steps;
-    copy_str(info->var, sizeof info->var, f->var);
+    tvpal_input_copy_str(info->var, sizeof info->var, f->var);
     *out = f;
     return 0;
 }
@@ -609,12 +561,12 @@ static int h5_describe(const char *path, char **text, struct tvpal_diag *diag)
     int rc = open_file(path, &file, diag);
     if (rc < 0)
         return rc;
-    struct buf b = {malloc(256), 0, 256, 0, 1};
+    struct tvpal_text b = {malloc(256), 0, 256, 0, 1};
     if (!b.s) {
         H5Fclose(file);
         return TVPAL_E_NOMEM;
     }
-    put(&b, "hdf5\n");
+    tvpal_text_put(&b, "hdf5\n");
     struct walk w = {.describe = 1, .list = &b};
     rc = walk(file, &w, path, diag);
     H5Fclose(file);

@@ -105,54 +105,6 @@ static int plain_hdf5_fail(int ncid, const char *path, struct tvpal_diag *diag)
 /* ------------------------------------------------------- text appending */
 
 /* src into dst[cap], cut short where it does not fit. */
-static void copy_str(char *dst, size_t cap, const char *src)
-{
-    size_t n = strlen(src);
-    if (n >= cap)
-        n = cap - 1;
-    memcpy(dst, src, n);
-    dst[n] = 0;
-}
-
-struct buf {
-    char *s;
-    size_t len, cap;
-    int full;   /* fixed-size buffer ran out (growable: malloc failed) */
-    int grow;
-};
-
-static void put(struct buf *b, const char *fmt, ...)
-    __attribute__((format(printf, 2, 3)));
-static void put(struct buf *b, const char *fmt, ...)
-{
-    if (b->full)
-        return;
-    for (;;) {
-        va_list ap;
-        va_start(ap, fmt);
-        int n = vsnprintf(b->s + b->len, b->cap - b->len, fmt, ap);
-        va_end(ap);
-        if (n < 0) {
-            b->full = 1;
-            return;
-        }
-        if ((size_t)n < b->cap - b->len) {
-            b->len += (size_t)n;
-            return;
-        }
-        if (!b->grow) {
-            b->full = 1;
-            return;
-        }
-        size_t cap = b->cap * 2 + (size_t)n;
-        char *s = realloc(b->s, cap);
-        if (!s) {
-            b->full = 1;
-            return;
-        }
-        b->s = s, b->cap = cap;
-    }
-}
 
 /* ------------------------------------------------------ file inspection */
 
@@ -305,7 +257,7 @@ static int is_candidate(int ncid, int varid, const int *tdims, int ntd)
 }
 
 /* "NAME(dim1,dim2,...)". */
-static void put_var_dims(struct buf *b, int ncid, int varid)
+static void put_var_dims(struct tvpal_text *b, int ncid, int varid)
 {
     char name[NC_MAX_NAME + 1], dname[NC_MAX_NAME + 1];
     int nd, dims[NC_MAX_VAR_DIMS];
@@ -313,11 +265,11 @@ static void put_var_dims(struct buf *b, int ncid, int varid)
         nc_inq_varndims(ncid, varid, &nd) != NC_NOERR || nd > NC_MAX_VAR_DIMS ||
         nc_inq_vardimid(ncid, varid, dims) != NC_NOERR)
         return;
-    put(b, "%s(", name);
+    tvpal_text_put(b, "%s(", name);
     for (int i = 0; i < nd; i++)
         if (nc_inq_dimname(ncid, dims[i], dname) == NC_NOERR)
-            put(b, "%s%s", i ? "," : "", dname);
-    put(b, ")");
+            tvpal_text_put(b, "%s%s", i ? "," : "", dname);
+    tvpal_text_put(b, ")");
 }
 
 /* "variables: T(frtime,level,lat,lon), Z(...)": the candidates, or every
@@ -326,23 +278,23 @@ static void list_vars(char *out, size_t cap, int ncid, int candidates,
                       const int *tdims, int ntd)
 {
     char tmp[512];
-    struct buf b = {tmp, 0, sizeof tmp, 0, 0};
+    struct tvpal_text b = {tmp, 0, sizeof tmp, 0, 0};
     int nv, k = 0;
-    put(&b, "variables: ");
+    tvpal_text_put(&b, "variables: ");
     if (nc_inq_nvars(ncid, &nv) == NC_NOERR)
         for (int v = 0; v < nv; v++) {
             if (candidates ? !is_candidate(ncid, v, tdims, ntd)
                            : is_coord_var(ncid, v))
                 continue;
             if (k++)
-                put(&b, ", ");
+                tvpal_text_put(&b, ", ");
             put_var_dims(&b, ncid, v);
         }
     if (!k)
-        put(&b, "none");
+        tvpal_text_put(&b, "none");
     if (b.full || b.len >= cap)
         snprintf(tmp + (cap > 4 ? cap - 4 : 0), 4, "...");
-    copy_str(out, cap, tmp);
+    tvpal_input_copy_str(out, cap, tmp);
 }
 
 /* The variable to read: opts->var, or the only candidate. */
@@ -594,7 +546,7 @@ static int read_grid(struct tvpal_input_file *f,
 {
     int dims[NC_MAX_VAR_DIMS], nd, st;
     char vd[200];
-    struct buf b = {vd, 0, sizeof vd, 0, 0};
+    struct tvpal_text b = {vd, 0, sizeof vd, 0, 0};
     put_var_dims(&b, f->ncid, f->varid);
     if ((st = nc_inq_varndims(f->ncid, f->varid, &nd)) != NC_NOERR ||
         (nd <= NC_MAX_VAR_DIMS &&
@@ -656,7 +608,7 @@ static int read_grid(struct tvpal_input_file *f,
                                   "is too large", f->path, vd);
         f->nvox *= len;
         info->dims[axis] = (uint32_t)len;
-        copy_str(info->dim_names[axis], sizeof info->dim_names[axis], dname);
+        tvpal_input_copy_str(info->dim_names[axis], sizeof info->dim_names[axis], dname);
         rc = read_axis(f, dims[i], len, &info->spacing[axis],
                        &info->origin[axis], &info->nonuniform[axis], diag);
         if (rc < 0)
@@ -732,7 +684,7 @@ static int ncdf_open(struct tvpal_input_file **out, const char *path,
         info->missing_attrs = (uint64_t)read_cf_atts(f);
         info->type = stored_type(f);
         info->steps = (uint32_t)f->steps;
-        copy_str(info->var, sizeof info->var, f->var);
+        tvpal_input_copy_str(info->var, sizeof info->var, f->var);
         text_att(f->ncid, f->varid, "units", info->units, sizeof info->units);
         if (f->xtype != NC_FLOAT) {
             size_t size;
@@ -820,12 +772,12 @@ static int ncdf_describe(const char *path, char **text, struct tvpal_diag *diag)
         nc_close(ncid);
         return ncdf_fail(diag, st, TVPAL_E_FORMAT, path, NULL);
     }
-    struct buf b = {malloc(256), 0, 256, 0, 1};
+    struct tvpal_text b = {malloc(256), 0, 256, 0, 1};
     if (!b.s) {
         nc_close(ncid);
         return TVPAL_E_NOMEM;
     }
-    put(&b, "netcdf %s\n", format_name(fmt));
+    tvpal_text_put(&b, "netcdf %s\n", format_name(fmt));
     for (int v = 0; v < nv; v++) {
         char name[NC_MAX_NAME + 1], dname[NC_MAX_NAME + 1], tname[NC_MAX_NAME + 1];
         char units[256];
@@ -839,14 +791,14 @@ static int ncdf_describe(const char *path, char **text, struct tvpal_diag *diag)
             free(b.s);
             return ncdf_fail(diag, st, TVPAL_E_FORMAT, path, NULL);
         }
-        put(&b, "%s(", name);
+        tvpal_text_put(&b, "%s(", name);
         for (int i = 0; i < nd; i++) {
             size_t len = 0;
             nc_inq_dim(ncid, dims[i], dname, &len);
-            put(&b, "%s%s=%zu", i ? ", " : "", dname, len);
+            tvpal_text_put(&b, "%s%s=%zu", i ? ", " : "", dname, len);
         }
         text_att(ncid, v, "units", units, sizeof units);
-        put(&b, ") %s units=\"%s\"%s\n", tname, units,
+        tvpal_text_put(&b, ") %s units=\"%s\"%s\n", tname, units,
             is_coord_var(ncid, v) ? " coordinate" : "");
     }
     nc_close(ncid);

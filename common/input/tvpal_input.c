@@ -4,6 +4,7 @@
 #include "tvpal_input_impl.h"
 
 #include <errno.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -432,4 +433,47 @@ int tvpal_input_describe(const char *path, enum tvpal_input_format fmt,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: a raw file: no "
                               "header says what it holds", path);
     return be->describe(path, text, diag);
+}
+
+/* ------------------------------------------- helpers of the backends */
+
+void tvpal_input_copy_str(char *dst, size_t cap, const char *src)
+{
+    size_t n = strlen(src);
+    if (n >= cap)
+        n = cap - 1;
+    memcpy(dst, src, n);
+    dst[n] = 0;
+}
+
+
+void tvpal_text_put(struct tvpal_text *b, const char *fmt, ...)
+{
+    if (b->full)
+        return;
+    for (;;) {
+        va_list ap;
+        va_start(ap, fmt);
+        int n = vsnprintf(b->s + b->len, b->cap - b->len, fmt, ap);
+        va_end(ap);
+        if (n < 0) {
+            b->full = 1;
+            return;
+        }
+        if ((size_t)n < b->cap - b->len) {
+            b->len += (size_t)n;
+            return;
+        }
+        if (!b->grow) {
+            b->full = 1;
+            return;
+        }
+        size_t cap = b->cap * 2 + (size_t)n;
+        char *s = realloc(b->s, cap);
+        if (!s) {
+            b->full = 1;
+            return;
+        }
+        b->s = s, b->cap = cap;
+    }
 }

@@ -46,4 +46,21 @@ int tvpal_input_vtk_collection(const char *path, char ***files,
                                struct tvpal_diag *diag);
 extern const struct tvpal_input_backend tvpal_input_hdf5;
 
+/* Helpers the backends share (tvpal_input.c). */
+
+/* src into dst (cap bytes), cut to fit, always terminated. */
+void tvpal_input_copy_str(char *dst, size_t cap, const char *src);
+
+/* Text built by pieces: s of cap bytes (len used).  With grow, s is
+ * malloc'ed and grows; without, a full buffer sets full and drops the
+ * rest (as it does when growing fails). */
+struct tvpal_text {
+    char *s;
+    size_t len, cap;
+    int full;   /* fixed-size buffer ran out (growable: malloc failed) */
+    int grow;
+};
+void tvpal_text_put(struct tvpal_text *b, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+
 #endif
