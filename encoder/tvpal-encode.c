@@ -769,7 +769,8 @@ static int input_step(struct run *r, uint32_t t, struct tvpal_diag *d)
 static void load_step(struct run *r, uint32_t t, float *dst)
 {
     const struct opts *o = &r->o;
-    const char *path = o->steps_single ? o->inputs[0] : o->inputs[t];
+    /* Raw: a file per step, or one of them all; a reader knows its own. */
+    const char *path = r->in || o->steps_single ? o->inputs[0] : o->inputs[t];
     const off_t off = o->steps_single ? (off_t)t * (off_t)r->step_bytes : 0;
     const int stats = t >= r->st.loaded;
     struct loaded res;
