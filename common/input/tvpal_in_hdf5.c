@@ -582,4 +582,5 @@ static int h5_describe(const char *path, char **text, struct tvpal_diag *diag)
 }
 
 const struct tvpal_input_backend tvpal_input_hdf5 = {
-    "hdf5", h5_open, h5_read, h5_close, h5_describe};
+    .name = "hdf5", .open = h5_open, .read = h5_read, .close = h5_close,
+    .describe = h5_describe};

@@ -102,6 +102,17 @@ static int plain_hdf5_fail(int ncid, const char *path, struct tvpal_diag *diag)
                           "reads it)", path);
 }
 
+int tvpal_input_netcdf_plain_hdf5(const char *path)
+{
+    int ncid;
+    if (nc_open(path, NC_NOWRITE, &ncid) != NC_NOERR)
+        return 1;
+    if (plain_hdf5_fail(ncid, path, NULL) < 0)
+        return 1;   /* it closed ncid */
+    nc_close(ncid);
+    return 0;
+}
+
 /* ------------------------------------------------------- text appending */
 
 /* src into dst[cap], cut short where it does not fit. */
@@ -811,4 +822,5 @@ static int ncdf_describe(const char *path, char **text, struct tvpal_diag *diag)
 }
 
 const struct tvpal_input_backend tvpal_input_netcdf = {
-    "netcdf", ncdf_open, ncdf_read, ncdf_close, ncdf_describe};
+    .name = "netcdf", .open = ncdf_open, .read = ncdf_read, .close = ncdf_close,
+    .describe = ncdf_describe};

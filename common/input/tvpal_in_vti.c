@@ -1629,4 +1629,5 @@ static int vti_describe(const char *path, char **text, struct tvpal_diag *diag)
 }
 
 const struct tvpal_input_backend tvpal_input_vti = {
-    "vti", vti_open, vti_read, vti_close, vti_describe};
+    .name = "vti", .open = vti_open, .read = vti_read, .close = vti_close,
+    .describe = vti_describe};

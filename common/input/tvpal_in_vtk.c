@@ -666,4 +666,5 @@ static int vtk_describe(const char *path, char **text, struct tvpal_diag *diag)
 }
 
 const struct tvpal_input_backend tvpal_input_vtk = {
-    "vtk", vtk_open, vtk_read, vtk_close, vtk_describe};
+    .name = "vtk", .open = vtk_open, .read = vtk_read, .close = vtk_close,
+    .describe = vtk_describe};

@@ -69,14 +69,6 @@ static int hdf5_signature(const char *head, size_t n)
 
 /* An HDF5 file is NetCDF-4 unless the NetCDF reader refuses it as not
  * NetCDF (TVPAL_E_FORMAT: no netCDF metadata, or damaged). */
-static int plain_hdf5(const char *path)
-{
-    char *text = NULL;
-    int rc = tvpal_input_netcdf.describe(path, &text, NULL);
-    free(text);
-    return rc == TVPAL_E_FORMAT;
-}
-
 int tvpal_input_detect(const char *path, enum tvpal_input_format *f,
                        struct tvpal_diag *diag)
 {
@@ -90,7 +82,8 @@ int tvpal_input_detect(const char *path, enum tvpal_input_format *f,
         (head[3] == 1 || head[3] == 2 || head[3] == 5))
         *f = TVPAL_IN_NETCDF;
     else if (hdf5_signature(head, n))
-        *f = plain_hdf5(path) ? TVPAL_IN_HDF5 : TVPAL_IN_NETCDF;
+        *f = tvpal_input_netcdf_plain_hdf5(path) ? TVPAL_IN_HDF5
+                                                 : TVPAL_IN_NETCDF;
     else if (n >= 5 && looks_like_vtk_xml(head))
         *f = TVPAL_IN_VTI;
     else if (n >= 14 && !memcmp(head, "# vtk DataFile", 14))
@@ -332,6 +325,9 @@ int tvpal_input_open(struct tvpal_input **out, enum tvpal_input_format fmt,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: a raw file (no "
                               "header tvpal reads): give --dims and --type",
                               files[0]);
+    if (be->missing)
+        return tvpal_diag_set(diag, TVPAL_E_SYS, "%s: %s", files[0],
+                              be->missing);
     struct tvpal_input *in = calloc(1, sizeof *in);
     if (!in)
         return TVPAL_E_NOMEM;
@@ -432,6 +428,8 @@ int tvpal_input_describe(const char *path, enum tvpal_input_format fmt,
     if (!be)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: a raw file: no "
                               "header says what it holds", path);
+    if (be->missing)
+        return tvpal_diag_set(diag, TVPAL_E_SYS, "%s: %s", path, be->missing);
     return be->describe(path, text, diag);
 }
 

@@ -24,7 +24,17 @@ struct tvpal_input_backend {
                 struct tvpal_diag *diag);
     void (*close)(struct tvpal_input_file *f);
     int (*describe)(const char *path, char **text, struct tvpal_diag *diag);
+    /* Non-NULL in a build without the format's library (the _none.c
+     * twins): why it is refused and what to install; the functions above
+     * are then NULL and never called. */
+    const char *missing;
 };
+
+/* In a build with libnetcdf: whether path (an HDF5 file) lacks netCDF's
+ * metadata, so it is plain HDF5 rather than NetCDF-4; 1 too when libnetcdf
+ * cannot open it at all (a damaged file: the hdf5 reader says what is
+ * wrong).  Without libnetcdf: 0 (NetCDF, which that build refuses). */
+int tvpal_input_netcdf_plain_hdf5(const char *path);
 
 extern const struct tvpal_input_backend tvpal_input_netcdf;
 extern const struct tvpal_input_backend tvpal_input_vti;
