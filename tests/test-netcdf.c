@@ -359,15 +359,15 @@ static void test_series(void)
         "dimensions:\n time = UNLIMITED ;\n z = 2 ;\n y = 2 ;\n x = %d ;\n"
         "variables:\n float time(time) ;\n  time:units = \"days since 2000-01-01\" ;\n"
         " float T(time, z, y, x) ;\n";
-    char h[512], t[SERIES_CAP];
+    char h[512], text[SERIES_CAP];
     snprintf(h, sizeof h, hdr, 3);
     gen("s1", "nc3", "netcdf s1 {\n%sdata:\n time = 0, 1 ;\n T = %s ;\n}\n", h,
-        series_text(t, 0, 2, 12, -1, -1, ""));
+        series_text(text, 0, 2, 12, -1, -1, ""));
     gen("s2", "nc4", "netcdf s2 {\n%sdata:\n time = 2, 3 ;\n T = %s ;\n}\n", h,
-        series_text(t, 2, 2, 12, -1, -1, ""));
+        series_text(text, 2, 2, 12, -1, -1, ""));
     snprintf(h, sizeof h, hdr, 4);
     gen("s3", "nc3", "netcdf s3 {\n%sdata:\n time = 4, 5 ;\n T = %s ;\n}\n", h,
-        series_text(t, 4, 2, 16, -1, -1, ""));
+        series_text(text, 4, 2, 16, -1, -1, ""));
 
     struct tvpal_diag g = {{0}};
     struct tvpal_input *in = NULL;

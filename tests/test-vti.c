@@ -37,39 +37,6 @@ static const char *fixture(const char *name, const char *ext)
     return path[k];
 }
 
-/* n little-endian float32 values from path into v; 0 or -1. */
-static int load_f32(const char *path, float *v, size_t n)
-{
-    FILE *fp = fopen(path, "rb");
-    if (!fp)
-        return -1;
-    unsigned char *b = malloc(n * 4);
-    size_t got = b ? fread(b, 4, n, fp) : 0;
-    int extra = fgetc(fp) != EOF;
-    fclose(fp);
-    for (size_t i = 0; i < got; i++) {
-        uint32_t u = (uint32_t)b[4 * i] | (uint32_t)b[4 * i + 1] << 8 |
-                     (uint32_t)b[4 * i + 2] << 16 | (uint32_t)b[4 * i + 3] << 24;
-        memcpy(&v[i], &u, 4);
-    }
-    free(b);
-    return got == n && !extra ? 0 : -1;
-}
-
-/* Bit for bit, except that any NaN equals any NaN. */
-static size_t count_diff(const float *a, const float *b, size_t n,
-                         size_t *first)
-{
-    size_t bad = 0;
-    for (size_t i = 0; i < n; i++)
-        if (!(isnan(a[i]) && isnan(b[i])) && memcmp(&a[i], &b[i], 4)) {
-            if (!bad)
-                *first = i;
-            bad++;
-        }
-    return bad;
-}
-
 /* Reads fixture name (var: opts.var) and compares with name.f32 (or
  * expect's .f32); returns the info through *out when non-NULL. */
 static void check_good(const char *name, const char *var, const char *expect,
@@ -96,9 +63,9 @@ static void check_good(const char *name, const char *var, const char *expect,
         got[i] = -12345.f;
     rc = tvpal_input_read(in, 0, got, &g);
     CHECK(rc == 0, "%s: read: %s (%s)", name, tvpal_strerror(rc), g.msg);
-    REQUIRE(load_f32(fixture(expect ? expect : name, ".f32"), want, N) == 0,
+    REQUIRE(tt_load_f32(fixture(expect ? expect : name, ".f32"), want, N) == 0,
             "%s.f32", expect ? expect : name);
-    size_t first = 0, bad = count_diff(got, want, N, &first);
+    size_t first = 0, bad = tt_count_diff(got, want, N, &first);
     CHECK(rc < 0 || bad == 0, "%s: %zu values differ, first at %zu: %.9g, "
           "expected %.9g", name, bad, first, got[first], want[first]);
     rc = tvpal_input_read(in, 1, got, &g);
@@ -305,13 +272,13 @@ static int realdata(void)
             char raw[4300];
             snprintf(raw, sizeof raw, "%s/viscous-fingers-run01/"
                      "density_t%03u.f32", base, s);
-            if (load_f32(raw, want, n) < 0) {
+            if (tt_load_f32(raw, want, n) < 0) {
                 printf("no %s: that step is not compared\n", raw);
                 continue;
             }
             rc = tvpal_input_read(in, s - 1, got, &g);
             CHECK(rc == 0, "read step %u: %s", s, g.msg);
-            size_t first = 0, bad = count_diff(got, want, n, &first);
+            size_t first = 0, bad = tt_count_diff(got, want, n, &first);
             CHECK(rc < 0 || bad == 0, "step %u: %zu values differ from %s, "
                   "first at %zu", s, bad, raw, first);
             ran++;

@@ -27,39 +27,6 @@ static const char *fixture(const char *name)
     return path[k];
 }
 
-/* n little-endian float32 values from path into v; 0 or -1. */
-static int load_f32(const char *path, float *v, size_t n)
-{
-    FILE *fp = fopen(path, "rb");
-    if (!fp)
-        return -1;
-    unsigned char *b = malloc(n * 4);
-    size_t got = b ? fread(b, 4, n, fp) : 0;
-    int extra = fgetc(fp) != EOF;
-    fclose(fp);
-    for (size_t i = 0; i < got; i++) {
-        uint32_t u = (uint32_t)b[4 * i] | (uint32_t)b[4 * i + 1] << 8 |
-                     (uint32_t)b[4 * i + 2] << 16 | (uint32_t)b[4 * i + 3] << 24;
-        memcpy(&v[i], &u, 4);
-    }
-    free(b);
-    return got == n && !extra ? 0 : -1;
-}
-
-/* Bit for bit, except that any NaN equals any NaN. */
-static size_t count_diff(const float *a, const float *b, size_t n,
-                         size_t *first)
-{
-    size_t bad = 0;
-    for (size_t i = 0; i < n; i++)
-        if (!(isnan(a[i]) && isnan(b[i])) && memcmp(&a[i], &b[i], 4)) {
-            if (!bad)
-                *first = i;
-            bad++;
-        }
-    return bad;
-}
-
 /* Opens fixture name (var: opts.var) as a series; each step s must equal
  * expect[s] (a .f32 fixture); checks dims and type, returns the info. */
 static void check_good(const char *name, const char *var,
@@ -89,8 +56,8 @@ static void check_good(const char *name, const char *var,
         rc = tvpal_input_read(in, s, got, &g);
         CHECK(rc == 0, "%s: read %u: %s (%s)", name, s, tvpal_strerror(rc),
               g.msg);
-        REQUIRE(load_f32(fixture(expect[s]), want, N) == 0, "%s", expect[s]);
-        size_t first = 0, bad = count_diff(got, want, N, &first);
+        REQUIRE(tt_load_f32(fixture(expect[s]), want, N) == 0, "%s", expect[s]);
+        size_t first = 0, bad = tt_count_diff(got, want, N, &first);
         CHECK(rc < 0 || bad == 0, "%s step %u: %zu values differ, first at "
               "%zu: %.9g, expected %.9g", name, s, bad, first, got[first],
               want[first]);

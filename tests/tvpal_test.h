@@ -8,6 +8,7 @@
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 static int tt_failures;
 static unsigned long tt_checks;
@@ -60,6 +61,39 @@ static inline double tt_gauss(void)
 {
     double u = tt_uniform(), v = tt_uniform();
     return sqrt(-2.0 * log(1.0 - u)) * cos(2.0 * M_PI * v);
+}
+
+/* n little-endian float32 values from path into v; 0 or -1. */
+static inline int tt_load_f32(const char *path, float *v, size_t n)
+{
+    FILE *fp = fopen(path, "rb");
+    if (!fp)
+        return -1;
+    unsigned char *b = malloc(n * 4);
+    size_t got = b ? fread(b, 4, n, fp) : 0;
+    int extra = fgetc(fp) != EOF;
+    fclose(fp);
+    for (size_t i = 0; i < got; i++) {
+        uint32_t u = (uint32_t)b[4 * i] | (uint32_t)b[4 * i + 1] << 8 |
+                     (uint32_t)b[4 * i + 2] << 16 | (uint32_t)b[4 * i + 3] << 24;
+        memcpy(&v[i], &u, 4);
+    }
+    free(b);
+    return got == n && !extra ? 0 : -1;
+}
+
+/* Bit for bit, except that any NaN equals any NaN. */
+static inline size_t tt_count_diff(const float *a, const float *b, size_t n,
+                         size_t *first)
+{
+    size_t bad = 0;
+    for (size_t i = 0; i < n; i++)
+        if (!(isnan(a[i]) && isnan(b[i])) && memcmp(&a[i], &b[i], 4)) {
+            if (!bad)
+                *first = i;
+            bad++;
+        }
+    return bad;
 }
 
 #endif
