@@ -406,9 +406,10 @@ static void test_not_netcdf(void)
     fclose(fp);
     struct tvpal_diag g;
     struct tvpal_input_file *f = NULL;
-    struct tvpal_input_info fi;
+    struct tvpal_input_info fi = {.spacing = {1, 1, 1}};
+    const struct tvpal_input_opts none = {0};
     double *times = NULL;
-    int rc = tvpal_input_netcdf.open(&f, wpath("not.nc"), NULL, &fi, &times, &g);
+    int rc = tvpal_input_netcdf.open(&f, wpath("not.nc"), &none, &fi, &times, &g);
     CHECK(rc == TVPAL_E_FORMAT && !f && strstr(g.msg, "not.nc"),
           "not netcdf: %d %s", rc, g.msg);
     char *files[1] = {(char *)wpath("not.nc")};
@@ -418,7 +419,7 @@ static void test_not_netcdf(void)
     char *text = NULL;
     CHECK(tvpal_input_describe(wpath("not.nc"), TVPAL_IN_NETCDF, &text, &g) ==
           TVPAL_E_FORMAT && !text, "describe not netcdf");
-    rc = tvpal_input_netcdf.open(&f, wpath("absent.nc"), NULL, &fi, &times, &g);
+    rc = tvpal_input_netcdf.open(&f, wpath("absent.nc"), &none, &fi, &times, &g);
     CHECK(rc == TVPAL_E_OPEN && strstr(g.msg, "absent.nc"), "absent: %d %s", rc, g.msg);
 }
 

@@ -475,13 +475,6 @@ static int h5_open(struct tvpal_input_file **out, const char *path,
                    struct tvpal_input_info *info, double **times,
                    struct tvpal_diag *diag)
 {
-    static const struct tvpal_input_opts none;
-    if (!opts)
-        opts = &none;
-    memset(info, 0, sizeof *info);
-    *times = NULL;
-    for (int a = 0; a < 3; a++)
-        info->spacing[a] = 1;
     struct tvpal_input_file *f = calloc(1, sizeof *f);
     if (!f || !(f->path = strdup(path))) {
         free(f);

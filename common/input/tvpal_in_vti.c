@@ -1252,14 +1252,12 @@ static int vti_open(struct tvpal_input_file **out, const char *path,
                     struct tvpal_diag *diag)
 {
     struct vti_doc d;
-    memset(info, 0, sizeof *info);
-    *times = NULL;
     int pick = -1;
     int rc = load(&d, path, diag);
     if (rc == 0)
         rc = grid(&d, info);
     if (rc == 0)
-        rc = choose(&d, opts ? opts->var : NULL, &pick);
+        rc = choose(&d, opts->var, &pick);
     size_t n = (size_t)info->dims[0] * info->dims[1] * info->dims[2];
     if (rc == 0 && !d.parallel && d.arrays[pick].fmt != F_ASCII)
         rc = read_binary(&d, &d.arrays[pick],

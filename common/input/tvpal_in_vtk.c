@@ -508,12 +508,10 @@ static int vtk_open(struct tvpal_input_file **out, const char *path,
                     struct tvpal_diag *diag)
 {
     struct vtk_hdr h;
-    memset(info, 0, sizeof *info);
-    *times = NULL;
     int pick = -1;
     int rc = scan(&h, path, diag);
     if (rc == 0)
-        rc = choose(&h, opts ? opts->var : NULL, &pick);
+        rc = choose(&h, opts->var, &pick);
     struct tvpal_input_file *f = NULL;
     if (rc == 0 && (!(f = calloc(1, sizeof *f)) || !(f->path = strdup(path))))
         rc = TVPAL_E_NOMEM;

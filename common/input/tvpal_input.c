@@ -187,8 +187,15 @@ static int open_file(struct tvpal_input *in, int i, struct tvpal_input_info *inf
     in->cur = NULL;
     struct tvpal_input_info scratch;
     double *t = NULL;
-    int rc = in->be->open(&in->cur, in->files[i], &in->opts,
-                          info ? info : &scratch, times ? times : &t, diag);
+    if (!info)
+        info = &scratch;
+    if (!times)
+        times = &t;
+    /* What a file says nothing about: the unit grid, no times. */
+    *info = (struct tvpal_input_info){.spacing = {1, 1, 1}};
+    *times = NULL;
+    int rc = in->be->open(&in->cur, in->files[i], &in->opts, info, times,
+                          diag);
     free(t);
     in->cur_i = i;
     if (rc < 0)

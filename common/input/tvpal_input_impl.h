@@ -14,7 +14,9 @@ struct tvpal_input_file;   /* a backend's open file */
 struct tvpal_input_backend {
     const char *name;      /* "netcdf", "vti", "vtk", "hdf5" */
     /* Opens path; fills info (steps: the steps in this file; times of
-     * those steps into *times, malloc'ed, when info->has_times). */
+     * those steps into *times, malloc'ed, when info->has_times).  opts is
+     * never NULL; info arrives zeroed but for spacing 1 1 1, and *times
+     * NULL (tvpal_input.c sets these defaults once for every backend). */
     int (*open)(struct tvpal_input_file **out, const char *path,
                 const struct tvpal_input_opts *opts,
                 struct tvpal_input_info *info, double **times,
