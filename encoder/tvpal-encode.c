@@ -857,9 +857,10 @@ static int open_source(struct run *r, int have_dims)
     struct opts *o = &r->o;
     struct tvpal_diag d = {{0}};
     enum tvpal_input_format f = o->format;
+    struct tvpal_input_opts io = {.var = o->var, .time_dim = o->time_dim};
     if (o->ninputs < 1)
         return have_dims;
-    if (f == TVPAL_IN_AUTO && tvpal_input_detect(o->inputs[0], &f, &d) < 0)
+    if (f == TVPAL_IN_AUTO && tvpal_input_detect(o->inputs[0], &io, &f, &d) < 0)
         return have_dims; /* check_inputs names the unreadable file */
     if (f == TVPAL_IN_RAW) {
         if (o->var || o->time_dim)
@@ -867,11 +868,7 @@ static int open_source(struct run *r, int have_dims)
                       "(NetCDF, VTK); %s is raw", o->inputs[0]);
         return have_dims;
     }
-    struct tvpal_input_opts io = {.var = o->var, .time_dim = o->time_dim};
-    /* Given AUTO, the reader applies its own rules beyond the first bytes
-     * (an HDF5 dataset path in --var). */
-    int rc = tvpal_input_open(&r->in, o->format, o->inputs, o->ninputs, &io,
-                              &d);
+    int rc = tvpal_input_open(&r->in, f, o->inputs, o->ninputs, &io, &d);
     if (rc < 0)
         die_usage("%s", lib_error(rc, &d));
     const struct tvpal_input_info *in = tvpal_input_info(r->in);

@@ -222,7 +222,7 @@ static int inspect(const char *path)
     struct tvpal_diag d = {{0}};
     enum tvpal_input_format f;
     char *text = NULL;
-    int rc = tvpal_input_detect(path, &f, &d);
+    int rc = tvpal_input_detect(path, NULL, &f, &d);
     if (rc == 0 && f == TVPAL_IN_RAW) {
         printf("%s: raw (no header: tvpal-encode needs --dims and --type)\n",
                path);

@@ -228,7 +228,7 @@ static enum tvpal_input_format detect(const char *path)
 {
     enum tvpal_input_format f = TVPAL_IN_AUTO;
     struct tvpal_diag g;
-    CHECK(tvpal_input_detect(path, &f, &g) == 0, "detect %s: %s", path, g.msg);
+    CHECK(tvpal_input_detect(path, NULL, &f, &g) == 0, "detect %s: %s", path, g.msg);
     return f;
 }
 

@@ -187,7 +187,7 @@ static void fixtures(void)
     CHECK(rc == TVPAL_E_FORMAT && !text, "describe bad-xml: %d", rc);
 
     enum tvpal_input_format f = TVPAL_IN_RAW;
-    CHECK(tvpal_input_detect(fixture("appended-zlib", ".vti"), &f, &g) == 0 &&
+    CHECK(tvpal_input_detect(fixture("appended-zlib", ".vti"), NULL, &f, &g) == 0 &&
           f == TVPAL_IN_VTI, "appended-zlib detected as vti");
 
     puts("bad files:");

@@ -178,7 +178,7 @@ static void pvd(void)
                  "timestep)\ntimestep 0.5 ");
     describe_has("series.pvd", "\nfirst DataSet: vti (VTK XML ImageData");
     enum tvpal_input_format f = TVPAL_IN_RAW;
-    CHECK(tvpal_input_detect(fixture("series.pvd"), &f, &g) == 0 &&
+    CHECK(tvpal_input_detect(fixture("series.pvd"), NULL, &f, &g) == 0 &&
           f == TVPAL_IN_VTI, "series.pvd detected as vti");
 
     check_bad("bad-missing.pvd", NULL, TVPAL_E_OPEN, "No such file",
@@ -239,7 +239,7 @@ static void legacy(void)
                  "c float components=1 [cell data]\n");
     enum tvpal_input_format f = TVPAL_IN_RAW;
     struct tvpal_diag g = {{0}};
-    CHECK(tvpal_input_detect(fixture("ascii-float.vtk"), &f, &g) == 0 &&
+    CHECK(tvpal_input_detect(fixture("ascii-float.vtk"), NULL, &f, &g) == 0 &&
           f == TVPAL_IN_VTK, "ascii-float.vtk detected as vtk");
     CHECK(tvpal_input_format_parse("vtk", &f) == 0 && f == TVPAL_IN_VTK &&
           !strcmp(tvpal_input_format_name(TVPAL_IN_VTK), "vtk"),

@@ -67,47 +67,29 @@ static int hdf5_signature(const char *head, size_t n)
     return n >= 8 && !memcmp(head, sig, 8);
 }
 
-/* An HDF5 file is NetCDF-4 unless the NetCDF reader refuses it as not
- * NetCDF (TVPAL_E_FORMAT: no netCDF metadata, or damaged). */
-int tvpal_input_detect(const char *path, enum tvpal_input_format *f,
-                       struct tvpal_diag *diag)
+/* An HDF5 file is NetCDF-4 unless the variable is a dataset path or the
+ * NetCDF reader refuses it as not NetCDF (no netCDF metadata, or damaged). */
+int tvpal_input_detect(const char *path, const struct tvpal_input_opts *opts,
+                       enum tvpal_input_format *f, struct tvpal_diag *diag)
 {
     char head[1025];
     size_t n;
     int rc = read_head(path, head, sizeof head, &n, diag);
     if (rc < 0)
         return rc;
+    const int dataset_path = opts && opts->var && opts->var[0] == '/';
     *f = TVPAL_IN_RAW;
     if (n >= 4 && !memcmp(head, "CDF", 3) &&
         (head[3] == 1 || head[3] == 2 || head[3] == 5))
         *f = TVPAL_IN_NETCDF;
     else if (hdf5_signature(head, n))
-        *f = tvpal_input_netcdf_plain_hdf5(path) ? TVPAL_IN_HDF5
-                                                 : TVPAL_IN_NETCDF;
+        *f = dataset_path || tvpal_input_netcdf_plain_hdf5(path)
+                 ? TVPAL_IN_HDF5 : TVPAL_IN_NETCDF;
     else if (n >= 5 && looks_like_vtk_xml(head))
         *f = TVPAL_IN_VTI;
     else if (n >= 14 && !memcmp(head, "# vtk DataFile", 14))
         *f = TVPAL_IN_VTK;   /* legacy: any dataset; the reader names it */
     return 0;
-}
-
-/* AUTO for a series: detection, except that an HDF5 file (NetCDF-4 too)
- * with a dataset path for the variable (/group/dataset) is read as HDF5. */
-static int auto_format(const char *path, const struct tvpal_input_opts *opts,
-                       enum tvpal_input_format *f, struct tvpal_diag *diag)
-{
-    char head[9];
-    size_t n;
-    int rc;
-    if (opts && opts->var && opts->var[0] == '/') {
-        if ((rc = read_head(path, head, sizeof head, &n, diag)) < 0)
-            return rc;
-        if (hdf5_signature(head, n)) {
-            *f = TVPAL_IN_HDF5;
-            return 0;
-        }
-    }
-    return tvpal_input_detect(path, f, diag);
 }
 
 static const struct tvpal_input_backend *backend_of(enum tvpal_input_format f)
@@ -325,7 +307,7 @@ int tvpal_input_open(struct tvpal_input **out, enum tvpal_input_format fmt,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "no input files");
     int rc = 0;
     if (fmt == TVPAL_IN_AUTO &&
-        (rc = auto_format(files[0], opts, &fmt, diag)) < 0)
+        (rc = tvpal_input_detect(files[0], opts, &fmt, diag)) < 0)
         return rc;
     const struct tvpal_input_backend *be = backend_of(fmt);
     if (!be)
@@ -429,7 +411,8 @@ int tvpal_input_describe(const char *path, enum tvpal_input_format fmt,
                          char **text, struct tvpal_diag *diag)
 {
     int rc = 0;
-    if (fmt == TVPAL_IN_AUTO && (rc = tvpal_input_detect(path, &fmt, diag)) < 0)
+    if (fmt == TVPAL_IN_AUTO &&
+        (rc = tvpal_input_detect(path, NULL, &fmt, diag)) < 0)
         return rc;
     const struct tvpal_input_backend *be = backend_of(fmt);
     if (!be)

@@ -54,12 +54,14 @@ int tvpal_input_format_parse(const char *s, enum tvpal_input_format *f);
  * by name); "# vtk DataFile" is legacy vtk; anything else is raw.
  * TVPAL_E_OPEN or TVPAL_E_READ when path cannot be read.
  *
- * tvpal_input_open with TVPAL_IN_AUTO adds one rule: a file with HDF5's
- * signature whose opts->var starts with '/' (a dataset path) goes to the
- * hdf5 reader, NetCDF-4 or not (a variable in a group of a NetCDF-4
- * file).  --format hdf5 (TVPAL_IN_HDF5) reads any HDF5 file as HDF5. */
-int tvpal_input_detect(const char *path, enum tvpal_input_format *f,
-                       struct tvpal_diag *diag);
+ * With opts (may be NULL), one more rule: a file with HDF5's signature
+ * whose opts->var starts with '/' (a dataset path) is hdf5, NetCDF-4 or not
+ * (a variable in a group of a NetCDF-4 file).  --format hdf5
+ * (TVPAL_IN_HDF5) reads any HDF5 file as HDF5.  tvpal_input_open with
+ * TVPAL_IN_AUTO detects with its opts. */
+struct tvpal_input_opts;
+int tvpal_input_detect(const char *path, const struct tvpal_input_opts *opts,
+                       enum tvpal_input_format *f, struct tvpal_diag *diag);
 
 struct tvpal_input_opts {
     const char *var;        /* variable (NetCDF), dataset path such as
