@@ -7,7 +7,6 @@
 # --nan-as) exits 2 naming what was wrong and leaves nothing behind; the
 # real files in ../shared/data/netcdf encode (skipped where absent).
 . "$(dirname "$0")/lib.sh"
-"$INFO" --inspect /dev/null > /dev/null 2>&1
 if ! command -v ncgen > /dev/null; then echo "no ncgen (netcdf-bin): skipped"; exit 77; fi
 D=9x7x5
 T=3
