@@ -84,6 +84,16 @@ int main(void)
     h.file_bytes += 4096;
     tvpal_shard_header_encode(&h, hb);
     CHECK(tvpal_shard_header_decode(hb, &g, &d) == TVPAL_E_FORMAT, "size");
+    /* table_format 0..3 are defined (2, 3: with missing values). */
+    for (uint32_t tf = 0; tf <= 4; tf++) {
+        h = sample_header();
+        h.table_format = tf;
+        tvpal_shard_header_encode(&h, hb);
+        int rc = tvpal_shard_header_decode(hb, &g, &d);
+        CHECK(tf <= 3 ? rc == 0 && g.table_format == tf
+                      : rc == TVPAL_E_FORMAT && strstr(d.msg, "table_format"),
+              "table_format %u: %d", tf, rc);
+    }
 
     /* Records: every step of the sample header, verify, iterate chunks. */
     h = sample_header();
@@ -187,6 +197,59 @@ int main(void)
         CHECK(back[0] == 7.25f && back[255] == 7.25f, "constant table exact");
         CHECK(tvpal_chunk_bytes(4, 10, 10, TVPAL_TABLE_U16) ==
                   64 + 4 * 512 + 128, "u16 chunk size");
+    }
+
+    /* Missing entries (FORMAT.md 6.7, table_format 2 and 3): NaN in f32
+     * tables; in u16 tables q = 65535 in a chunk flagged missing, the
+     * finite entries scaled over 65534 steps.  The flag is byte 28. */
+    {
+        static float tab[4 * 256], back[4 * 256];
+        static unsigned char store[4 * 256 * 4];
+        for (int i = 0; i < 4 * 256; i++)
+            tab[i] = i % 7 == 3 ? NAN : (float)(-3.0 + 1e3 * tt_uniform());
+        tab[5] = -3.5f; /* the extremes, finite */
+        tab[6] = 1000.5f;
+        struct tvpal_chunk_header ch = {.wlen = 4};
+        tvpal_table_store(tab, 4, TVPAL_TABLE_U16, store, &ch);
+        CHECK(ch.flags == TVPAL_CHUNK_MISSING, "u16 with NaN: chunk flagged");
+        struct tvpal_chunk c = {.h = ch, .table = store,
+                                .table_format = TVPAL_TABLE_U16 |
+                                                TVPAL_TABLE_MISSING};
+        tvpal_chunk_table(&c, back);
+        int same_nan = 1;
+        double err = 0;
+        for (int i = 0; i < 4 * 256; i++) {
+            same_nan &= !isnan(tab[i]) == !isnan(back[i]);
+            if (!isnan(tab[i]))
+                err = fmax(err, fabs(back[i] - tab[i]));
+        }
+        CHECK(same_nan, "u16: NaN exactly where stored");
+        CHECK(err <= 1004.0 / 65534 * 0.5 * (1 + 1e-4) + 1e-5,
+              "u16 missing table error %g", err);
+        CHECK(back[6] <= 1000.5f + 1e-3 && back[6] >= 1000.5f - 0.008,
+              "u16 largest finite entry below the missing code (%g)",
+              back[6]);
+        /* A shard of table_format 1 knows no flag: 65535 is a value. */
+        c.table_format = TVPAL_TABLE_U16;
+        tvpal_chunk_table(&c, back);
+        CHECK(!isnan(back[3]), "table_format 1 ignores byte 28");
+        tvpal_table_store(tab, 4, TVPAL_TABLE_F32, store, &ch);
+        c = (struct tvpal_chunk){.h = ch, .table = store,
+                                 .table_format = TVPAL_TABLE_F32 |
+                                                 TVPAL_TABLE_MISSING};
+        tvpal_chunk_table(&c, back);
+        same_nan = ch.flags == TVPAL_CHUNK_MISSING;
+        for (int i = 0; i < 4 * 256; i++)
+            same_nan &= isnan(tab[i]) ? isnan(back[i]) : back[i] == tab[i];
+        CHECK(same_nan, "f32 with NaN: flagged, exact, NaN kept");
+        unsigned char chb[TVPAL_CHUNK_HEADER_BYTES];
+        tvpal_chunk_header_encode(&ch, chb);
+        CHECK(chb[28] == 1 && !chb[29] && !chb[30] && !chb[31],
+              "chunk flags at byte 28");
+        for (int i = 0; i < 256; i++)
+            tab[i] = 1.0f;
+        tvpal_table_store(tab, 1, TVPAL_TABLE_F32, store, &ch);
+        CHECK(ch.flags == 0, "no NaN: no flag");
     }
 
     /* FORMAT.md 6.6/6.7: tmin and tscale are f32 at chunk bytes 48 and 52,

@@ -1,7 +1,9 @@
 /* test-swcode: one slice-window: the decoder table holds, for every used
  * index and timestep, the mean of the original samples of the voxels with
  * that index; unused entries are finite; constant and two-valued slices are
- * exact; N = 1 is the plain 8-bit Lloyd-Max code; deterministic. */
+ * exact; N = 1 is the plain 8-bit Lloyd-Max code; deterministic.  Missing
+ * values (NaN samples) decode as NaN exactly where they were, whatever
+ * their pattern in time, also when the finite code uses every index. */
 #include "tvpal_dct.h"
 #include "tvpal_error.h"
 #include "tvpal_swcode.h"
@@ -26,6 +28,153 @@ static double recon_mse(unsigned len)
             e += d * d;
         }
     return e / ((double)len * NV);
+}
+
+/* Checks the code of the current samples: a decoded entry is NaN exactly
+ * where the sample is, except for `dropped` present samples; returns the
+ * PSNR (peak 20) of the present samples decoded finite. */
+static double check_missing(unsigned len, const struct tvpal_swinfo *info,
+                            const char *what)
+{
+    uint64_t nan_src = 0, extra = 0, lost = 0;
+    double e = 0;
+    size_t n = 0;
+    for (unsigned j = 0; j < len; j++)
+        for (size_t v = 0; v < NV; v++) {
+            float s = samples[j * NV + v], d = table[j * 256 + idx[v]];
+            nan_src += isnan(s);
+            if (isnan(s) && !isnan(d))
+                lost++;
+            if (!isnan(s) && isnan(d))
+                extra++;
+            if (!isnan(s) && !isnan(d)) {
+                e += (double)(d - s) * (d - s);
+                n++;
+            }
+        }
+    CHECK(lost == 0, "%s: %llu missing samples decode finite", what,
+          (unsigned long long)lost);
+    CHECK(extra == info->dropped, "%s: %llu present samples decode NaN, "
+          "info says %llu dropped", what, (unsigned long long)extra,
+          (unsigned long long)info->dropped);
+    CHECK(info->missing == nan_src, "%s: info counts %llu missing of %llu",
+          what, (unsigned long long)info->missing,
+          (unsigned long long)nan_src);
+    return n ? 10 * log10(400.0 / (e / (double)n)) : INFINITY;
+}
+
+static void smooth(unsigned len, double noise)
+{
+    for (unsigned j = 0; j < len; j++)
+        for (size_t v = 0; v < NV; v++) {
+            double a = (double)(v % W) / W, b = (double)(v / W) / H;
+            samples[j * NV + v] = (float)(10 * sin(4 * a + 0.3 * j) *
+                                              cos(3 * b - 0.2 * j) +
+                                          noise * tt_gauss() + 100);
+        }
+}
+
+/* PSNR (peak 20) over the samples `mask_src` has present, of the code of
+ * `full` (the same field with nothing missing). */
+static float ref_samples[TVPAL_NMAX * NV];
+static double ref_psnr(struct tvpal_swenc *e, unsigned len)
+{
+    memcpy(ref_samples, samples, sizeof samples);
+    for (size_t i = 0; i < (size_t)len * NV; i++)
+        if (isnan(ref_samples[i]))
+            ref_samples[i] = 100; /* any finite value */
+    tvpal_swenc_encode(e, ref_samples, NV, len, idx2, table2, NULL);
+    double err = 0;
+    size_t n = 0;
+    for (unsigned j = 0; j < len; j++)
+        for (size_t v = 0; v < NV; v++) {
+            if (isnan(samples[j * NV + v]))
+                continue;
+            double d = table2[j * 256 + idx2[v]] - samples[j * NV + v];
+            err += d * d;
+            n++;
+        }
+    return 10 * log10(400.0 / (err / (double)n));
+}
+
+static void test_missing(struct tvpal_swenc *e)
+{
+    struct tvpal_swinfo info;
+    /* A land mask (missing throughout), a region missing at steps 1 and 2
+     * only, and values beyond a valid range here and there. */
+    const unsigned len = 4;
+    smooth(len, 0.05);
+    for (size_t v = 0; v < NV; v++) {
+        size_t x = v % W, y = v / W;
+        for (unsigned j = 0; j < len; j++) {
+            float *s = &samples[j * NV + v];
+            if (x < 10 && y < 12)
+                *s = NAN;
+            if (x > 40 && y > 20 && (j == 1 || j == 2))
+                *s = NAN;
+            if ((v * 7 + j * 13) % 101 == 0)
+                *s = NAN;
+        }
+    }
+    CHECK(tvpal_swenc_encode(e, samples, NV, len, idx, table, &info) == 0,
+          "encode with missing");
+    double p = check_missing(len, &info, "mask"), r = ref_psnr(e, len);
+    printf("missing mask: present samples %.2f dB (filled in: %.2f dB)\n",
+           p, r);
+    CHECK(p > r - 1, "mask: present samples at %.2f dB, filled %.2f", p, r);
+    CHECK(info.dropped == 0, "mask: nothing dropped");
+    tvpal_swenc_encode(e, samples, NV, len, idx2, table2, NULL);
+    CHECK(!memcmp(idx, idx2, NV) && !memcmp(table, table2, len * 1024),
+          "missing: deterministic");
+
+    /* Noise fills all 256 indices: missing voxels get merged ones. */
+    smooth(8, 3.0);
+    for (size_t v = 0; v < NV; v += 17)
+        samples[(v % 8) * NV + v] = NAN;
+    for (size_t v = 0; v < 40; v++)
+        for (unsigned j = 0; j < 8; j++)
+            samples[j * NV + v] = NAN;
+    tvpal_swenc_encode(e, samples, NV, 8, idx, table, &info);
+    p = check_missing(8, &info, "merge");
+    r = ref_psnr(e, 8);
+    printf("missing merge: used %u, present samples %.2f dB (filled in: "
+           "%.2f dB)\n", info.used, p, r);
+    CHECK(p > r - 1, "merge: present samples at %.2f dB, filled %.2f", p, r);
+
+    /* Every voxel missing: a table of NaN. */
+    for (size_t i = 0; i < (size_t)len * NV; i++)
+        samples[i] = NAN;
+    tvpal_swenc_encode(e, samples, NV, len, idx, table, &info);
+    check_missing(len, &info, "all missing");
+    int all = 1;
+    for (unsigned i = 0; i < len * 256; i++)
+        all &= isnan(table[i]);
+    CHECK(all && info.used == 1, "all missing: NaN table, one index (%u)",
+          info.used);
+
+    /* N = 16 with a random pattern per voxel: more patterns than indices,
+     * the rare ones dropped and counted. */
+    smooth(16, 0.05);
+    for (size_t v = 0; v < NV; v++)
+        for (unsigned j = 0; j < 16; j++)
+            if (tt_rand64() % 4 == 0)
+                samples[j * NV + v] = NAN;
+    tvpal_swenc_encode(e, samples, NV, 16, idx, table, &info);
+    check_missing(16, &info, "patterns");
+    CHECK(info.dropped > 0, "patterns: some dropped");
+
+    /* With refinement and the KLT the finite part is refined alone. */
+    tvpal_swenc_set_refine(e, 4);
+    smooth(len, 0.05);
+    for (size_t v = 0; v < NV; v += 3)
+        samples[2 * NV + v] = NAN;
+    tvpal_swenc_encode(e, samples, NV, len, idx, table, &info);
+    p = check_missing(len, &info, "refine");
+    r = ref_psnr(e, len);
+    printf("missing refine: present samples %.2f dB (filled in: %.2f dB)\n",
+           p, r);
+    CHECK(p > r - 1, "refine: present samples at %.2f dB, filled %.2f", p, r);
+    tvpal_swenc_set_refine(e, 0);
 }
 
 int main(void)
@@ -154,6 +303,7 @@ int main(void)
               "refine deterministic");
     }
     tvpal_swenc_set_refine(e, 0);
+    test_missing(e);
     tvpal_swenc_free(e);
     tvpal_swenc_free(NULL);
     return tt_done("test-swcode");

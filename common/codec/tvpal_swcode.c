@@ -5,6 +5,7 @@
 #include "tvpal_error.h"
 #include "tvpal_quant.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -33,6 +34,7 @@ struct tvpal_swenc {
     unsigned ord[TVPAL_TABLE_ENTRIES];           /* codewords by cd[.][0] */
     double sse[TVPAL_REFINE_MAX + 1];            /* per iteration */
     unsigned nsse;
+    struct missing_ws *miss;     /* NULL until a slice has missing values */
 };
 
 int tvpal_swenc_create(struct tvpal_swenc **out, size_t max_vox,
@@ -56,10 +58,13 @@ int tvpal_swenc_create(struct tvpal_swenc **out, size_t max_vox,
     return 0;
 }
 
+static void missing_ws_free(struct missing_ws *m);
+
 void tvpal_swenc_free(struct tvpal_swenc *e)
 {
     if (!e)
         return;
+    missing_ws_free(e->miss);
     free(e->xd);
     free(e->idx2);
     free(e->table2);
@@ -439,13 +444,12 @@ static int encode_basis(struct tvpal_swenc *e, const float *samples,
     return 0;
 }
 
-int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
-                       size_t nvox, unsigned len, uint8_t *idx, float *table,
-                       struct tvpal_swinfo *info)
+/* The code of a slice-window without missing values: the DCT code and
+ * the alternatives the options ask for, the best kept, then refined. */
+static int encode_finite(struct tvpal_swenc *e, const float *samples,
+                         size_t nvox, unsigned len, uint8_t *idx,
+                         float *table, uint8_t *bits, unsigned *used_out)
 {
-    if (len < 1 || len > e->max_len || nvox > e->max_vox)
-        return TVPAL_E_INVAL;
-    uint8_t bits[TVPAL_NMAX];
     unsigned used;
     int rc = encode_basis(e, samples, nvox, len, idx, table, bits, &used, 0,
                           0);
@@ -463,7 +467,7 @@ int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
             continue;
         if (best < 0.0)
             best = code_sse(samples, nvox, len, idx, table);
-        uint8_t bits2[TVPAL_NMAX];
+        uint8_t bits2[TVPAL_NMAX] = {0};
         unsigned used2;
         rc = encode_basis(e, samples, nvox, len, e->idx2, e->table2, bits2,
                           &used2, klt, mse);
@@ -487,6 +491,421 @@ int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
         for (unsigned i = 0; i < TVPAL_TABLE_ENTRIES; i++)
             used += e->cnt[i] > 0;
     }
+    *used_out = used;
+    return 0;
+}
+
+/* ------------------------------------------------------- missing values */
+
+/* A slice-window with missing samples (NaN) is coded in groups.  The
+ * voxels with every sample present are one group, coded as above as a
+ * slice of their own.  The others are grouped by their pattern of missing
+ * timesteps (a bit per timestep); each pattern is coded the same way over
+ * the timesteps it has, and its table rows are NaN at the timesteps it
+ * misses, so a decoder finds NaN exactly where the source had it.  Voxels
+ * missing throughout share one index of NaN.  When the groups' codes need
+ * more than the 256 indices, each group gets a share in proportion to its
+ * voxels (at least one index) and merges its least used indices into the
+ * nearest ones (by table row) down to its share.  At most
+ * MISSING_PATTERNS_MAX patterns are coded; the voxels of rarer ones
+ * (possible only for N >= 8) are coded as missing throughout the window,
+ * and their present samples counted in tvpal_swinfo.dropped. */
+#define MISSING_PATTERNS_MAX 128
+
+struct missing_vox {
+    uint32_t mask;      /* bit j: sample j is missing */
+    uint32_t v;         /* voxel */
+};
+
+/* A group of voxels coded together: the finite ones (mask 0) or those of
+ * one pattern. */
+struct missing_group {
+    uint32_t mask;
+    uint32_t start, n;  /* patterns: their voxels are mv[start .. +n) */
+    uint8_t *code;      /* n codes: fidx, or pcode + start */
+    float *table;       /* 256 * len entries, row stride 256 */
+    unsigned len;       /* timesteps it has */
+    unsigned used, share;
+};
+
+struct missing_ws {
+    uint32_t *mask;                  /* max_vox */
+    float *samples;                  /* max_len * max_vox: one group's */
+    uint8_t *fidx;                   /* max_vox: finite voxels' codes */
+    uint8_t *pcode;                  /* max_vox: pattern voxels' codes */
+    struct missing_vox *mv;          /* max_vox */
+    struct missing_group *grp;       /* max_vox + 1 (the finite group,
+                                      * a pattern per missing voxel) */
+    size_t ngrp;
+    float *ptables;                  /* MISSING_PATTERNS_MAX * 256 * len */
+};
+
+static void missing_ws_free(struct missing_ws *m)
+{
+    if (!m)
+        return;
+    free(m->mask);
+    free(m->samples);
+    free(m->fidx);
+    free(m->pcode);
+    free(m->mv);
+    free(m->grp);
+    free(m->ptables);
+    free(m);
+}
+
+/* Allocated on the first slice-window with missing values, kept for the
+ * next ones (never per slice). */
+static int missing_ws_get(struct tvpal_swenc *e)
+{
+    if (e->miss)
+        return 0;
+    const size_t n = e->max_vox ? e->max_vox : 1;
+    struct missing_ws *m = calloc(1, sizeof *m);
+    if (!m)
+        return TVPAL_E_NOMEM;
+    m->mask = malloc(n * sizeof *m->mask);
+    m->samples = malloc(n * e->max_len * sizeof *m->samples);
+    m->fidx = malloc(n);
+    m->pcode = malloc(n);
+    m->mv = malloc(n * sizeof *m->mv);
+    m->grp = malloc((n + 1) * sizeof *m->grp);
+    m->ptables = malloc((size_t)MISSING_PATTERNS_MAX * TVPAL_TABLE_ENTRIES *
+                        e->max_len * sizeof *m->ptables);
+    if (!m->mask || !m->samples || !m->fidx || !m->pcode || !m->mv ||
+        !m->grp || !m->ptables) {
+        missing_ws_free(m);
+        return TVPAL_E_NOMEM;
+    }
+    e->miss = m;
+    return 0;
+}
+
+/* Any NaN among the n samples?  (A plain scan: vectorized, and cheaper
+ * than the DCT that follows when there is none.) */
+static int has_nan(const float *s, size_t n)
+{
+    int any = 0;
+    for (size_t i = 0; i < n; i++)
+        any |= s[i] != s[i];
+    return any;
+}
+
+static int cmp_missing_vox(const void *pa, const void *pb)
+{
+    const struct missing_vox *a = pa, *b = pb;
+    if (a->mask != b->mask)
+        return a->mask < b->mask ? -1 : 1;
+    return a->v < b->v ? -1 : a->v > b->v;
+}
+
+/* Fills m->mask and the list of missing voxels (by mask, then voxel);
+ * returns the number of finite voxels; *nmiss voxels and *nsamples
+ * samples are missing. */
+static size_t missing_scan(struct missing_ws *m, const float *samples,
+                           size_t nvox, unsigned len, size_t *nmiss,
+                           uint64_t *nsamples)
+{
+    uint64_t ns = 0;
+    memset(m->mask, 0, nvox * sizeof *m->mask);
+    for (unsigned j = 0; j < len; j++) {
+        const float *row = samples + (size_t)j * nvox;
+        for (size_t v = 0; v < nvox; v++)
+            if (row[v] != row[v]) {
+                m->mask[v] |= 1u << j;
+                ns++;
+            }
+    }
+    size_t nm = 0;
+    for (size_t v = 0; v < nvox; v++)
+        if (m->mask[v])
+            m->mv[nm++] = (struct missing_vox){m->mask[v], (uint32_t)v};
+    qsort(m->mv, nm, sizeof *m->mv, cmp_missing_vox);
+    *nmiss = nm;
+    *nsamples = ns;
+    return nvox - nm;
+}
+
+/* Most voxels first; ties by mask (deterministic). */
+static int cmp_group_count(const void *pa, const void *pb)
+{
+    const struct missing_group *a = pa, *b = pb;
+    if (a->n != b->n)
+        return a->n > b->n ? -1 : 1;
+    return a->mask < b->mask ? -1 : a->mask > b->mask;
+}
+
+/* Lists the partial patterns of the sorted missing voxels as groups after
+ * m->grp[0 .. m->ngrp); sets *full when some voxel is missing throughout. */
+static void missing_group_patterns(struct missing_ws *m, size_t nmiss,
+                                   uint32_t all, int *full)
+{
+    *full = 0;
+    for (size_t i = 0; i < nmiss;) {
+        size_t k = i;
+        while (k < nmiss && m->mv[k].mask == m->mv[i].mask)
+            k++;
+        if (m->mv[i].mask == all)
+            *full = 1;
+        else
+            m->grp[m->ngrp++] = (struct missing_group){
+                .mask = m->mv[i].mask, .start = (uint32_t)i,
+                .n = (uint32_t)(k - i)};
+        i = k;
+    }
+}
+
+/* The partial patterns as groups (after the finite group, if any), at most
+ * MISSING_PATTERNS_MAX: the voxels of rarer ones are given the full pattern
+ * and their present samples added to *dropped. */
+static void missing_patterns(struct missing_ws *m, size_t nmiss,
+                             unsigned len, int *full, uint64_t *dropped)
+{
+    const uint32_t all = (1u << len) - 1;
+    const size_t first = m->ngrp;
+    missing_group_patterns(m, nmiss, all, full);
+    size_t np = m->ngrp - first;
+    if (np <= MISSING_PATTERNS_MAX)
+        return;
+    struct missing_group *pat = m->grp + first;
+    qsort(pat, np, sizeof *pat, cmp_group_count);
+    for (size_t p = MISSING_PATTERNS_MAX; p < np; p++) {
+        unsigned present = len - (unsigned)__builtin_popcount(pat[p].mask);
+        *dropped += (uint64_t)present * pat[p].n;
+        for (uint32_t i = 0; i < pat[p].n; i++)
+            m->mv[pat[p].start + i].mask = all;
+    }
+    qsort(m->mv, nmiss, sizeof *m->mv, cmp_missing_vox);
+    m->ngrp = first;
+    missing_group_patterns(m, nmiss, all, full);
+}
+
+/* Codes the voxels of pattern group g over the timesteps it has. */
+static int missing_code_pattern(struct tvpal_swenc *e, const float *samples,
+                                size_t nvox, unsigned len,
+                                struct missing_group *g)
+{
+    struct missing_ws *m = e->miss;
+    unsigned lp = 0;
+    for (unsigned j = 0; j < len; j++) {
+        if (g->mask >> j & 1)
+            continue;
+        const float *row = samples + (size_t)j * nvox;
+        float *dst = m->samples + (size_t)lp * g->n;
+        for (uint32_t k = 0; k < g->n; k++)
+            dst[k] = row[m->mv[g->start + k].v];
+        lp++;
+    }
+    uint8_t bits[TVPAL_NMAX];
+    g->len = lp;
+    g->code = m->pcode + g->start;
+    return encode_finite(e, m->samples, g->n, lp, g->code, g->table, bits,
+                         &g->used);
+}
+
+/* Shares out `budget` indices: each group at least one, the rest one at a
+ * time to the group with the most voxels per index, never more than its
+ * code uses.  (Only called when the codes need more than the budget.) */
+static void missing_share(struct missing_group *grp, size_t ng,
+                          unsigned budget)
+{
+    for (size_t g = 0; g < ng; g++) {
+        grp[g].share = 1;
+        budget--;
+    }
+    for (; budget; budget--) {
+        size_t best = ng;
+        for (size_t g = 0; g < ng; g++)
+            if (grp[g].share < grp[g].used &&
+                (best == ng || (double)grp[g].n / grp[g].share >
+                                   (double)grp[best].n / grp[best].share))
+                best = g;
+        if (best == ng)
+            return;
+        grp[best].share++;
+    }
+}
+
+/* Merges group g's least held index into the index with the nearest table
+ * row (squared distance over its timesteps), again, until it holds
+ * g->share indices; its codes are rewritten once at the end. */
+static void missing_merge_down(struct missing_group *g)
+{
+    size_t cnt[TVPAL_TABLE_ENTRIES] = {0};
+    uint8_t to[TVPAL_TABLE_ENTRIES];
+    for (unsigned i = 0; i < TVPAL_TABLE_ENTRIES; i++)
+        to[i] = (uint8_t)i;
+    for (uint32_t k = 0; k < g->n; k++)
+        cnt[g->code[k]]++;
+    const float *t = g->table;
+    for (unsigned used = g->used; used > g->share; used--) {
+        unsigned a = TVPAL_TABLE_ENTRIES, b = TVPAL_TABLE_ENTRIES;
+        for (unsigned i = 0; i < TVPAL_TABLE_ENTRIES; i++)
+            if (cnt[i] && (a == TVPAL_TABLE_ENTRIES || cnt[i] < cnt[a]))
+                a = i;
+        double best = 0;
+        for (unsigned i = 0; i < TVPAL_TABLE_ENTRIES; i++) {
+            if (!cnt[i] || i == a)
+                continue;
+            double d = 0;
+            for (unsigned j = 0; j < g->len; j++) {
+                double x = (double)t[j * TVPAL_TABLE_ENTRIES + i] -
+                           t[j * TVPAL_TABLE_ENTRIES + a];
+                d += x * x;
+            }
+            if (b == TVPAL_TABLE_ENTRIES || d < best) {
+                best = d;
+                b = i;
+            }
+        }
+        const double wa = (double)cnt[a], wb = (double)cnt[b];
+        for (unsigned j = 0; j < g->len; j++) {
+            float *r = g->table + j * TVPAL_TABLE_ENTRIES;
+            r[b] = (float)((wa * r[a] + wb * r[b]) / (wa + wb));
+        }
+        cnt[b] += cnt[a];
+        cnt[a] = 0;
+        for (unsigned i = 0; i < TVPAL_TABLE_ENTRIES; i++)
+            if (to[i] == a)
+                to[i] = (uint8_t)b;
+    }
+    for (uint32_t k = 0; k < g->n; k++)
+        g->code[k] = to[g->code[k]];
+    g->used = g->share;
+}
+
+/* Places group g's codes at free indices (taken[] marks those in use,
+ * *next the lowest candidate): its table rows go there, NaN at the
+ * timesteps it misses, and its voxels' indices are set. */
+static void missing_place(const struct missing_ws *m,
+                          const struct missing_group *g, unsigned len,
+                          uint8_t *taken, unsigned *next, uint8_t *idx,
+                          float *table)
+{
+    uint8_t at[TVPAL_TABLE_ENTRIES];
+    uint8_t held[TVPAL_TABLE_ENTRIES] = {0};
+    for (uint32_t k = 0; k < g->n; k++)
+        held[g->code[k]] = 1;
+    for (unsigned c = 0; c < TVPAL_TABLE_ENTRIES; c++) {
+        if (!held[c])
+            continue;
+        while (taken[*next])
+            (*next)++;
+        const unsigned i = *next;
+        taken[i] = 1;
+        at[c] = (uint8_t)i;
+        for (unsigned j = 0, jp = 0; j < len; j++)
+            table[j * TVPAL_TABLE_ENTRIES + i] =
+                (g->mask >> j & 1) ? NAN
+                                   : g->table[jp++ * TVPAL_TABLE_ENTRIES + c];
+    }
+    for (uint32_t k = 0; k < g->n; k++)
+        idx[m->mv[g->start + k].v] = at[g->code[k]];
+}
+
+/* The finite voxels as group 0 (when there are any), coded into table. */
+static int missing_code_finite(struct tvpal_swenc *e, const float *samples,
+                               size_t nvox, unsigned len, size_t nf,
+                               float *table, uint8_t *bits)
+{
+    struct missing_ws *m = e->miss;
+    m->ngrp = 0;
+    if (!nf) {
+        for (size_t i = 0; i < (size_t)len * TVPAL_TABLE_ENTRIES; i++)
+            table[i] = NAN;
+        return 0;
+    }
+    for (unsigned j = 0; j < len; j++) {
+        const float *row = samples + (size_t)j * nvox;
+        float *dst = m->samples + (size_t)j * nf;
+        for (size_t v = 0, k = 0; v < nvox; v++)
+            if (!m->mask[v])
+                dst[k++] = row[v];
+    }
+    struct missing_group *g = &m->grp[m->ngrp++];
+    *g = (struct missing_group){.n = (uint32_t)nf, .code = m->fidx,
+                                .table = table, .len = len};
+    return encode_finite(e, m->samples, nf, len, m->fidx, table, bits,
+                         &g->used);
+}
+
+static int encode_missing(struct tvpal_swenc *e, const float *samples,
+                          size_t nvox, unsigned len, uint8_t *idx,
+                          float *table, struct tvpal_swinfo *info)
+{
+    int rc = missing_ws_get(e);
+    if (rc < 0)
+        return rc;
+    struct missing_ws *m = e->miss;
+    size_t nmiss;
+    uint64_t nsamples, dropped = 0;
+    uint8_t bits[TVPAL_NMAX] = {0};
+    const size_t nf = missing_scan(m, samples, nvox, len, &nmiss, &nsamples);
+    if ((rc = missing_code_finite(e, samples, nvox, len, nf, table, bits)) < 0)
+        return rc;
+    const int has_finite = m->ngrp == 1;
+    int full;
+    missing_patterns(m, nmiss, len, &full, &dropped);
+    unsigned demand = full;
+    for (size_t g = 0; g < m->ngrp; g++) {
+        struct missing_group *gr = &m->grp[g];
+        if (g >= (size_t)has_finite) {
+            gr->table = m->ptables + (g - has_finite) * TVPAL_TABLE_ENTRIES *
+                                         (size_t)len;
+            if ((rc = missing_code_pattern(e, samples, nvox, len, gr)) < 0)
+                return rc;
+        }
+        demand += gr->used;
+    }
+    if (demand > TVPAL_TABLE_ENTRIES) {
+        missing_share(m->grp, m->ngrp, TVPAL_TABLE_ENTRIES - full);
+        for (size_t g = 0; g < m->ngrp; g++)
+            if (m->grp[g].used > m->grp[g].share)
+                missing_merge_down(&m->grp[g]);
+    }
+    /* The finite voxels keep their indices; the others take free ones. */
+    uint8_t taken[TVPAL_TABLE_ENTRIES] = {0};
+    for (size_t v = 0, k = 0; v < nvox && has_finite; v++)
+        if (!m->mask[v])
+            taken[idx[v] = m->fidx[k++]] = 1;
+    unsigned next = 0;
+    const uint32_t all = (1u << len) - 1;
+    if (full) {
+        while (taken[next])
+            next++;
+        taken[next] = 1;
+        for (unsigned j = 0; j < len; j++)
+            table[j * TVPAL_TABLE_ENTRIES + next] = NAN;
+        for (size_t q = 0; q < nmiss; q++)
+            if (m->mv[q].mask == all)
+                idx[m->mv[q].v] = (uint8_t)next;
+    }
+    for (size_t g = (size_t)has_finite; g < m->ngrp; g++)
+        missing_place(m, &m->grp[g], len, taken, &next, idx, table);
+    if (info) {
+        memset(info, 0, sizeof *info);
+        memcpy(info->bits, bits, len);
+        for (unsigned i = 0; i < TVPAL_TABLE_ENTRIES; i++)
+            info->used += taken[i];
+        info->missing = nsamples;
+        info->dropped = dropped;
+    }
+    return 0;
+}
+
+int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
+                       size_t nvox, unsigned len, uint8_t *idx, float *table,
+                       struct tvpal_swinfo *info)
+{
+    if (len < 1 || len > e->max_len || nvox > e->max_vox)
+        return TVPAL_E_INVAL;
+    if (has_nan(samples, nvox * len))
+        return encode_missing(e, samples, nvox, len, idx, table, info);
+    uint8_t bits[TVPAL_NMAX] = {0};
+    unsigned used;
+    int rc = encode_finite(e, samples, nvox, len, idx, table, bits, &used);
+    if (rc < 0)
+        return rc;
     if (info) {
         memset(info, 0, sizeof *info);
         memcpy(info->bits, bits, len);

@@ -28,6 +28,8 @@
 struct tvpal_swinfo {
     uint8_t bits[TVPAL_NMAX];   /* bits per coefficient, sum 8 or 0 */
     unsigned used;              /* distinct indices held by voxels */
+    uint64_t missing;           /* NaN samples (missing values) */
+    uint64_t dropped;           /* present samples coded as missing */
 };
 
 /* Workspace for slices of up to max_vox voxels and windows up to max_len.
@@ -37,9 +39,23 @@ int tvpal_swenc_create(struct tvpal_swenc **out, size_t max_vox,
                        unsigned max_len);
 void tvpal_swenc_free(struct tvpal_swenc *e);
 
-/* samples[j * nvox + v]: sample j (< len) of voxel v (< nvox), finite.
+/* samples[j * nvox + v]: sample j (< len) of voxel v (< nvox); finite, or
+ * NaN for a missing value (|value| <= TVPAL_VALUE_MAX otherwise).
  * Writes idx[0..nvox-1] and table[0..len*256-1]; info may be NULL.
- * Returns 0 or TVPAL_E_INVAL (sizes beyond the workspace). */
+ *
+ * Missing values: table[j * 256 + idx[v]] is NaN exactly where sample j
+ * of voxel v is NaN, and finite elsewhere, except in a slice-window whose
+ * voxels show more than 128 different patterns of missing timesteps
+ * (possible for len >= 8): the voxels of the rarest patterns are then
+ * missing throughout the window, and info->dropped counts the present
+ * samples lost so.  The voxels with no missing sample are coded as a
+ * slice of their own (the indices they leave free go to the others; when
+ * too few are free, their least used indices are merged).  A slice that
+ * is missing throughout gets a table of NaN.
+ *
+ * Returns 0, TVPAL_E_INVAL (sizes beyond the workspace) or TVPAL_E_NOMEM
+ * (the missing-value workspace, allocated on the first slice-window that
+ * needs it). */
 int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
                        size_t nvox, unsigned len, uint8_t *idx, float *table,
                        struct tvpal_swinfo *info);

@@ -3,6 +3,7 @@
 #include "tvpal_crc32c.h"
 #include "tvpal_schedule.h"
 
+#include <math.h>
 #include <string.h>
 
 static void put32(unsigned char *p, uint32_t v)
@@ -158,11 +159,11 @@ int tvpal_shard_header_decode(const unsigned char *b,
                               "header: slab %u+%u of %ux%u slices, expected "
                               "%u+%u of %ux%u", h->slice_begin, h->slice_count,
                               h->slice_w, h->slice_h, begin, count, w, hh);
-    if (h->table_format != TVPAL_TABLE_F32 &&
-        h->table_format != TVPAL_TABLE_U16)
+    if (h->table_format > TVPAL_TABLE_MAX)
         return tvpal_diag_set(diag, TVPAL_E_FORMAT,
-                              "header: table_format %u, expected 0 (float32) "
-                              "or 1 (16-bit scaled)", h->table_format);
+                              "header: table_format %u, expected 0 (float32), "
+                              "1 (16-bit scaled), 2 or 3 (the same with "
+                              "missing values)", h->table_format);
     if (h->index_offset % TVPAL_ALIGN || h->index_offset < TVPAL_ALIGN ||
         h->index_offset > ((uint64_t)1 << 62) ||
         h->file_bytes != h->index_offset + tvpal_round_up(
@@ -210,7 +211,7 @@ int tvpal_record_header_decode(const unsigned char *b,
 }
 
 /* Chunk header: 0 magic 4 slice 8 wstart 12 wlen 16 w 20 h 24 used
- * 28 reserved 32 bits[16] 48 tmin(f32) 52 tscale(f32) 56..63 zero. */
+ * 28 flags 32 bits[16] 48 tmin(f32) 52 tscale(f32) 56..63 zero. */
 void tvpal_chunk_header_encode(const struct tvpal_chunk_header *h,
                                unsigned char *b)
 {
@@ -222,6 +223,7 @@ void tvpal_chunk_header_encode(const struct tvpal_chunk_header *h,
     put32(b + 16, h->w);
     put32(b + 20, h->h);
     put32(b + 24, h->used);
+    put32(b + 28, h->flags);
     memcpy(b + 32, h->bits, 16);
     uint32_t u;
     memcpy(&u, &h->tmin, 4);
@@ -242,6 +244,7 @@ int tvpal_chunk_header_decode(const unsigned char *b,
     h->w = get32(b + 16);
     h->h = get32(b + 20);
     h->used = get32(b + 24);
+    h->flags = get32(b + 28);
     memcpy(h->bits, b + 32, 16);
     uint32_t u = get32(b + 48);
     memcpy(&h->tmin, &u, 4);
@@ -380,13 +383,21 @@ int tvpal_record_next_chunk(const unsigned char *buf, uint64_t *pos,
 void tvpal_chunk_table(const struct tvpal_chunk *c, float *out)
 {
     const size_t n = (size_t)c->h.wlen * 256;
-    if (c->table_format != TVPAL_TABLE_U16) {
+    if (!(c->table_format & TVPAL_TABLE_U16)) {
         tvpal_load_f32le(c->table, out, n);
         return;
     }
+    /* The flag means something only in shards that say so (a version 1
+     * reader ignored byte 28). */
+    const int missing = (c->table_format & TVPAL_TABLE_MISSING) &&
+                        (c->h.flags & TVPAL_CHUNK_MISSING);
     const float t0 = c->h.tmin, ts = c->h.tscale;
     for (size_t i = 0; i < n; i++) {
         unsigned q = (unsigned)c->table[2 * i] | (unsigned)c->table[2 * i + 1] << 8;
+        if (missing && q == TVPAL_U16_MISSING) {
+            out[i] = NAN;
+            continue;
+        }
         /* FORMAT.md 6.7: the product rounded to float32, then the sum.  A
          * fused multiply-add (GCC contracts by default on aarch64, and on
          * x86 with -mfma) would change the last bit on some targets; the
@@ -396,29 +407,57 @@ void tvpal_chunk_table(const struct tvpal_chunk *c, float *out)
     }
 }
 
+/* Smallest and largest finite entry; returns 1 when some entry is NaN.
+ * An all-NaN table gives lo = hi = 0. */
+static int table_range(const float *table, size_t n, float *lo, float *hi)
+{
+    int nan = 0, any = 0;
+    float a = 0, b = 0;
+    for (size_t i = 0; i < n; i++) {
+        float v = table[i];
+        if (v != v) {
+            nan = 1;
+            continue;
+        }
+        if (!any || v < a)
+            a = v;
+        if (!any || v > b)
+            b = v;
+        any = 1;
+    }
+    *lo = a;
+    *hi = b;
+    return nan;
+}
+
 void tvpal_table_store(const float *table, uint32_t len,
                        uint32_t table_format, unsigned char *dst,
                        struct tvpal_chunk_header *h)
 {
     const size_t n = (size_t)len * 256;
+    float lo, hi;
+    const int missing = table_range(table, n, &lo, &hi);
     h->tmin = 0.0f;
     h->tscale = 0.0f;
-    if (table_format != TVPAL_TABLE_U16) {
+    h->flags = missing ? TVPAL_CHUNK_MISSING : 0;
+    if (!(table_format & TVPAL_TABLE_U16)) {
         tvpal_store_f32le(table, dst, n);
         return;
     }
-    float lo = table[0], hi = table[0];
-    for (size_t i = 1; i < n; i++) {
-        lo = table[i] < lo ? table[i] : lo;
-        hi = table[i] > hi ? table[i] : hi;
-    }
-    /* Scale in double so that lo + 65535 * scale reaches hi. */
-    double scale = ((double)hi - (double)lo) / 65535.0;
+    /* Scale in double so that lo + top * scale reaches hi; with missing
+     * entries the top code is theirs. */
+    const double top = missing ? 65534.0 : 65535.0;
+    double scale = ((double)hi - (double)lo) / top;
     h->tmin = lo;
     h->tscale = (float)scale;
     for (size_t i = 0; i < n; i++) {
-        double q = scale > 0 ? ((double)table[i] - lo) / scale + 0.5 : 0.0;
-        unsigned v = q < 0 ? 0 : q > 65535 ? 65535 : (unsigned)q;
+        unsigned v;
+        if (table[i] != table[i]) {
+            v = TVPAL_U16_MISSING;
+        } else {
+            double q = scale > 0 ? ((double)table[i] - lo) / scale + 0.5 : 0.0;
+            v = q < 0 ? 0 : q > top ? (unsigned)top : (unsigned)q;
+        }
         dst[2 * i] = (unsigned char)v;
         dst[2 * i + 1] = (unsigned char)(v >> 8);
     }

@@ -32,6 +32,15 @@
 #define TVPAL_CHUNK_MAGIC 0x4B435654u   /* "TVCK" */
 #define TVPAL_TABLE_F32 0u              /* decoder table as float32 */
 #define TVPAL_TABLE_U16 1u              /* 16-bit, scaled per chunk */
+/* Added to 0 or 1 when some chunk holds missing entries (FORMAT.md 6.7):
+ * 2 = float32 with NaN entries, 3 = 16-bit with q = 65535 missing in the
+ * chunks flagged TVPAL_CHUNK_MISSING.  Readers before spec 1.5 reject
+ * them, as 10.2 says they reject an unknown table_format. */
+#define TVPAL_TABLE_MISSING 2u
+#define TVPAL_TABLE_MAX 3u
+/* Chunk header flags (byte 28): the chunk's table has missing entries. */
+#define TVPAL_CHUNK_MISSING 1u
+#define TVPAL_U16_MISSING 65535u        /* q of a missing u16 entry */
 
 static inline uint64_t tvpal_round_up(uint64_t x, uint64_t a)
 {
@@ -69,6 +78,7 @@ struct tvpal_chunk_header {
     uint32_t wstart, wlen;    /* window [wstart, wstart + wlen) */
     uint32_t w, h;            /* slice size */
     uint32_t used;            /* distinct indices held by voxels */
+    uint32_t flags;           /* TVPAL_CHUNK_MISSING (table_format >= 2) */
     uint8_t bits[16];         /* bits per coefficient */
     float tmin, tscale;       /* TVPAL_TABLE_U16: value = tmin + q tscale */
 };
@@ -95,7 +105,7 @@ void tvpal_slab_range(uint32_t n, uint32_t k, uint32_t r, uint32_t *begin,
 /* Bytes of one table entry in a table format (4 or 2). */
 static inline uint32_t tvpal_table_entry_bytes(uint32_t table_format)
 {
-    return table_format == TVPAL_TABLE_U16 ? 2u : 4u;
+    return (table_format & TVPAL_TABLE_U16) ? 2u : 4u;
 }
 
 /* Bytes of one chunk with window length len, w*h indices and tables in
@@ -142,12 +152,17 @@ struct tvpal_chunk {
     const uint8_t *indices;       /* w * h */
 };
 
-/* The chunk's decoder table as floats: out[j * 256 + i]. */
+/* The chunk's decoder table as floats: out[j * 256 + i]; a missing entry
+ * is NaN. */
 void tvpal_chunk_table(const struct tvpal_chunk *c, float *out);
 
-/* Stores a table (len * 256 floats) in table_format at dst, filling the
- * header's tmin/tscale for TVPAL_TABLE_U16 (q = round((v - tmin) /
- * tscale), tscale = (max - min) / 65535, 0 for a constant table). */
+/* Stores a table (len * 256 floats) in table_format (0 or 1) at dst,
+ * filling the header's tmin/tscale for TVPAL_TABLE_U16 (q = round((v -
+ * tmin) / tscale), tscale = (max - min) / 65535, 0 for a constant table).
+ * NaN entries are missing: the header gets TVPAL_CHUNK_MISSING, a u16
+ * table is then scaled over the finite entries with 65534 steps and a
+ * missing entry stored as TVPAL_U16_MISSING.  The shard's table_format
+ * must then include TVPAL_TABLE_MISSING (tvpal_shardw_set_missing). */
 void tvpal_table_store(const float *table, uint32_t len,
                        uint32_t table_format, unsigned char *dst,
                        struct tvpal_chunk_header *h);

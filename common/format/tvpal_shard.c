@@ -58,7 +58,20 @@ struct tvpal_shardw {
     struct tvpal_index_entry *index;  /* h.steps entries */
     uint32_t done;                    /* records appended */
     uint64_t end;                     /* file offset after them */
+    int missing;                      /* a chunk flagged missing entries */
 };
+
+/* Whether a chunk of the sealed record buf says its table has missing
+ * entries: the shard's table_format then gets TVPAL_TABLE_MISSING. */
+static int record_has_missing(const unsigned char *buf, uint32_t table_format)
+{
+    uint64_t pos = 0;
+    struct tvpal_chunk c;
+    while (tvpal_record_next_chunk(buf, &pos, table_format, &c))
+        if (c.h.flags & TVPAL_CHUNK_MISSING)
+            return 1;
+    return 0;
+}
 
 static int shardw_alloc(struct tvpal_shardw **out,
                         const struct tvpal_shard_header *h)
@@ -150,6 +163,7 @@ int tvpal_shardw_resume(struct tvpal_shardw **out, const char *path,
         w->index[t] = (struct tvpal_index_entry){
             .offset = w->end, .bytes = bytes, .step = t,
             .chunk_count = rh.chunk_count, .crc = rh.payload_crc};
+        w->missing |= record_has_missing(buf, h->table_format);
         w->end += bytes;
     }
     w->done = steps_done;
@@ -192,6 +206,7 @@ int tvpal_shardw_append(struct tvpal_shardw *w, const unsigned char *buf,
     w->index[w->done] = (struct tvpal_index_entry){
         .offset = w->end, .bytes = bytes, .step = w->done,
         .chunk_count = rh.chunk_count, .crc = rh.payload_crc};
+    w->missing |= record_has_missing(buf, w->h.table_format);
     w->done++;
     w->end += bytes;
     return 0;
@@ -220,6 +235,8 @@ int tvpal_shardw_finish(struct tvpal_shardw *w, struct tvpal_diag *diag)
     w->h.file_bytes = w->end + ibytes;
     w->h.index_crc = tvpal_crc32c(0, ib, ibytes);
     w->h.version = TVPAL_FORMAT_VERSION;
+    if (w->missing)
+        w->h.table_format |= TVPAL_TABLE_MISSING;
     rc = pwrite_all(w->fd, ib, ibytes, w->end, diag);
     if (rc < 0)
         goto out;

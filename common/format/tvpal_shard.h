@@ -46,6 +46,8 @@ int tvpal_shardw_append(struct tvpal_shardw *w, const unsigned char *buf,
                         uint64_t bytes, struct tvpal_diag *diag);
 
 /* Writes index and header, fsyncs and closes; frees w whatever the result.
+ * When a chunk appended (or kept by resume) has TVPAL_CHUNK_MISSING, the
+ * header's table_format gets TVPAL_TABLE_MISSING (FORMAT.md 6.7).
  * 0, TVPAL_E_INVAL (not every step appended), TVPAL_E_NOMEM or
  * TVPAL_E_WRITE, with the cause in diag (optional). */
 int tvpal_shardw_finish(struct tvpal_shardw *w, struct tvpal_diag *diag);
