@@ -57,6 +57,16 @@ int tvpal_manifest_format(const struct tvpal_manifest *m, char **out)
         fprintf(f, "nan_as = none\n");
     fprintf(f, "nonfinite_replaced = %llu\n",
             (unsigned long long)m->nonfinite);
+    /* Missing values: absent when there are none and none were asked for
+     * (manifests as before these keys). */
+    if (m->nmissing_values) {
+        fprintf(f, "missing_values =");
+        for (unsigned i = 0; i < m->nmissing_values; i++)
+            fprintf(f, " %.9g", m->missing_values[i]);
+        fputc('\n', f);
+    }
+    if (m->missing || m->nmissing_values)
+        fprintf(f, "missing = %llu\n", (unsigned long long)m->missing);
     fprintf(f, "histogram_bins = %d\nhistogram =", TVPAL_HIST_BINS);
     for (int i = 0; i < TVPAL_HIST_BINS; i++)
         fprintf(f, " %llu", (unsigned long long)m->histogram[i]);
@@ -139,6 +149,40 @@ static int parse_triple(const char *v, double out[3], int positive)
 
 /* "times = v v v ...": finite numbers, as many as the line holds (the
  * check against steps comes after every line is read). */
+/* Decimal digits only (strtoull would take "-1" as 2^64-1). */
+static int parse_u64(const char *v, uint64_t *out)
+{
+    char *end;
+    errno = 0;
+    if (*v < '0' || *v > '9')
+        return -1;
+    unsigned long long x = strtoull(v, &end, 10);
+    if (errno || *end)
+        return -1;
+    *out = x;
+    return 0;
+}
+
+/* Up to TVPAL_MISSING_VALUES_MAX finite numbers separated by spaces. */
+static int parse_missing_values(struct tvpal_manifest *m, const char *v)
+{
+    m->nmissing_values = 0;
+    for (const char *p = v;;) {
+        while (*p == ' ' || *p == '\t')
+            p++;
+        if (!*p)
+            return 0;
+        char *end;
+        errno = 0;
+        double x = strtod(p, &end);
+        if (end == p || errno || !isfinite(x) ||
+            m->nmissing_values == TVPAL_MISSING_VALUES_MAX)
+            return -1;
+        m->missing_values[m->nmissing_values++] = x;
+        p = end;
+    }
+}
+
 static int parse_times(struct tvpal_manifest *m, const char *v)
 {
     free(m->times);
@@ -214,6 +258,10 @@ static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
     } else if (!strcmp(k, "nan_as")) {
         m->has_nan_as = strcmp(v, "none") != 0;
         bad = m->has_nan_as && parse_dbl(v, &m->nan_as);
+    } else if (!strcmp(k, "missing")) {
+        bad = parse_u64(v, &m->missing);
+    } else if (!strcmp(k, "missing_values")) {
+        bad = parse_missing_values(m, v) < 0;
     } else if (!strcmp(k, "histogram")) {
         char *p = v;
         for (int i = 0; i < TVPAL_HIST_BINS && !bad; i++) {
@@ -250,7 +298,6 @@ static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
             strcpy(m->time_units, v);
     } else if (!strcmp(k, "source_var")) {
         free(m->source_var);
-    free(m->times);
         bad = !(m->source_var = strdup(v));
     } else if (!strcmp(k, "encoder")) {
         free(m->encoder);

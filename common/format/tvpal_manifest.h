@@ -14,6 +14,7 @@
 #include "tvpal_raw.h"
 
 #define TVPAL_HIST_BINS 64
+#define TVPAL_MISSING_VALUES_MAX 16
 
 struct tvpal_manifest {
     uint32_t dims[3];
@@ -25,6 +26,15 @@ struct tvpal_manifest {
     int has_nan_as;
     double nan_as;
     uint64_t nonfinite;                   /* values replaced by nan_as */
+    uint64_t missing;                     /* missing source values (NaN,
+                                           * CF fill/valid range,
+                                           * missing_values), T*nx*ny*nz
+                                           * at most; not in the range or
+                                           * the histogram */
+    double missing_values[TVPAL_MISSING_VALUES_MAX]; /* --missing V: source
+                                           * values that mean missing,
+                                           * compared as float32 */
+    unsigned nmissing_values;
     int single_file;                      /* one input holding all steps */
     int series;                           /* self-describing files of one
                                            * or more steps each, in order
