@@ -89,10 +89,15 @@ static void usage(FILE *f)
 "      --times FILE       the time value of every step (T numbers, rising;\n"
 "                         default: a NetCDF time coordinate, else 0..T-1)\n"
 "      --time-units TEXT  their units (default: the coordinate's)\n"
-"      --nan-as VALUE     replace NaN and infinite values by VALUE, and\n"
-"                         the missing values of NetCDF (_FillValue,\n"
-"                         missing_value, outside valid_range) (default:\n"
-"                         refuse them, naming file, timestep and voxel)\n"
+"      --missing V        source value V marks a missing value (repeatable,\n"
+"                         up to 16; compared as float32).  Missing values\n"
+"                         (also NaN, and NetCDF/HDF5 _FillValue,\n"
+"                         missing_value and values outside valid_range)\n"
+"                         decode as NaN, are left out of the value range\n"
+"                         and the histogram, and are drawn transparent\n"
+"      --nan-as VALUE     replace NaN, infinite and missing values by VALUE\n"
+"                         instead (default: infinite values are refused,\n"
+"                         naming file, timestep and voxel)\n"
 "Encoding:\n"
 "  -w, --window N         timesteps per DCT window, 1..16 (default 4;\n"
 "                         N = 1 is the plain 8-bit Lloyd-Max baseline)\n"
@@ -188,6 +193,8 @@ struct opts {
     int naive, klt, alloc_mse;
     int has_nan_as;
     double nan_as;
+    double missing[TVPAL_MISSING_VALUES_MAX];   /* --missing V */
+    unsigned nmissing;
     const char *outdir;
     int force, quiet;
     char **inputs;
@@ -210,6 +217,7 @@ enum optkind {
     OPT_CHOICE,    /* choice[i] sets the int at field to i */
     OPT_FLAG,      /* no argument: sets the int at field to 1 */
     OPT_NAN_AS,    /* finite |value| <= TVPAL_VALUE_MAX into nan_as */
+    OPT_MISSING,   /* a finite value appended to missing[] */
     OPT_OUTPUT,    /* OUTDIR */
     OPT_FORMAT,    /* input format into format */
     OPT_TEXT,      /* the argument into the const char * at field */
@@ -243,6 +251,8 @@ static const struct optspec {
      UINT32_MAX, {0}, "a whole number >= 1"},
     {"nan-as", OPT_LONG_ONLY + 0, OPT_NAN_AS, 0, 0, 0, {0},
      "a finite number"},
+    {"missing", OPT_LONG_ONLY + 14, OPT_MISSING, 0, 0, 0, {0},
+     "a finite number (at most 16 of them)"},
     {"window", 'w', OPT_U32, offsetof(struct opts, window), 1, TVPAL_NMAX,
      {0}, "a whole number from 1 to " STR(TVPAL_NMAX)},
     {"nodes", 'k', OPT_U32, offsetof(struct opts, nodes), 1, UINT32_MAX,
@@ -326,6 +336,14 @@ static void parse_option(const struct optspec *sp, const char *arg,
             break;
         o->has_nan_as = 1;
         return;
+    case OPT_MISSING: {
+        double v;
+        if (o->nmissing == TVPAL_MISSING_VALUES_MAX ||
+            tvpal_parse_double(arg, &v) < 0 || !isfinite(v))
+            break;
+        o->missing[o->nmissing++] = v;
+        return;
+    }
     case OPT_OUTPUT:
         o->outdir = arg;
         return;
@@ -455,6 +473,13 @@ static char *job_params(const struct opts *o, const struct tvpal_input *in)
                      o->has_nan_as ? o->nan_as : 0.0);
     if (n < 0)
         return NULL;
+    for (unsigned i = 0; i < o->nmissing; i++) {
+        n = asprintf(&t, "%s missing=%.9g", s, (double)(float)o->missing[i]);
+        free(s);
+        if (n < 0)
+            return NULL;
+        s = t;
+    }
     if (!in)
         return s;
     /* Raw jobs keep the fingerprint of earlier versions (their partial
@@ -483,6 +508,8 @@ static void options_line(const struct opts *o, uint32_t T, char *buf,
         OPTS_ADD(" %u", T);
     if (o->has_nan_as)
         OPTS_ADD(" --nan-as %.17g", o->nan_as);
+    for (unsigned i = 0; i < o->nmissing; i++)
+        OPTS_ADD(" --missing %.9g", (double)(float)o->missing[i]);
     if ((uint32_t)o->table_format == TVPAL_TABLE_U16)
         OPTS_ADD(" --table u16");
     if (o->refine)
@@ -552,6 +579,7 @@ struct run {
     void *raw;               /* one source timestep */
     struct tvpal_input *in;  /* self-describing input, or NULL (raw) */
     struct prefetch *pf;     /* reads the input's next step meanwhile */
+    uint64_t *dropped;       /* per thread: present values coded missing */
     double *times;           /* [T] time values, or NULL (none known) */
     char time_units[128];
     double t_encode;         /* seconds of the streaming loop */
@@ -582,8 +610,25 @@ struct loaded {
     int rc;                  /* its code (TVPAL_E_NAN or _RANGE), or 0 */
     int read_err;            /* errno of a failed read, -1 at end of file */
     size_t nrep;             /* values replaced by --nan-as */
+    size_t nmiss;            /* missing values (NaN after conversion) */
     double lo, hi;           /* range including the stats' so far */
 };
+
+/* --missing V: the values equal to one become NaN (missing), or --nan-as
+ * when given.  Returns how many were replaced by --nan-as. */
+static size_t apply_missing_values(const struct opts *o, float *v, size_t n)
+{
+    if (!o->nmissing || !tvpal_missing_apply(v, n, o->missing, o->nmissing) ||
+        !o->has_nan_as)
+        return 0;
+    size_t k = 0;
+    for (size_t i = 0; i < n; i++)
+        if (v[i] != v[i]) {
+            v[i] = (float)o->nan_as;
+            k++;
+        }
+    return k;
+}
 
 /* Reads the timestep at off of fd into r->raw and converts it into dst, in
  * parallel over contiguous chunks (each thread reads its own part: the
@@ -596,11 +641,12 @@ static void read_convert(struct run *r, int fd, off_t off, float *dst,
     const struct opts *o = &r->o;
     const size_t esz = tvpal_type_size(o->type), nvox = r->nvox;
     char *raw = r->raw;
-    size_t nrep = 0, bad = SIZE_MAX;
+    size_t nrep = 0, nmiss = 0, bad = SIZE_MAX;
     int rc_all = 0, read_err = 0;
     double lo = r->st.vmin, hi = r->st.vmax;
 #ifdef _OPENMP
-#pragma omp parallel reduction(min : lo) reduction(max : hi) reduction(+ : nrep)
+#pragma omp parallel reduction(min : lo) reduction(max : hi) \
+    reduction(+ : nrep, nmiss)
 #endif
     {
         int id = 0, nt = 1;
@@ -631,6 +677,8 @@ static void read_convert(struct run *r, int fd, off_t off, float *dst,
                                    b - a, dst + a,
                                    o->has_nan_as ? &o->nan_as : NULL, &mybad,
                                    &myrep);
+        if (rc == 0)
+            myrep += apply_missing_values(o, dst + a, b - a);
         if (rc < 0 && rc != TVPAL_E_READ) {
             /* The data error at the lowest index wins, with its code. */
 #ifdef _OPENMP
@@ -645,13 +693,17 @@ static void read_convert(struct run *r, int fd, off_t off, float *dst,
             nrep += myrep;
             for (size_t i = a; i < b; i++) {
                 float v = dst[i];
+                if (v != v) { /* missing: in no figure */
+                    nmiss++;
+                    continue;
+                }
                 lo = v < lo ? v : lo;
                 hi = v > hi ? v : hi;
                 fine[fine_bin(v)]++;
             }
         }
     }
-    *res = (struct loaded){bad, rc_all, read_err, nrep, lo, hi};
+    *res = (struct loaded){bad, rc_all, read_err, nrep, nmiss, lo, hi};
 }
 
 /* A self-describing input is read (and inflated) by its library on one
@@ -801,9 +853,10 @@ static void load_step(struct run *r, uint32_t t, float *dst)
         size_t x = res.bad % o->dims[0], y = res.bad / o->dims[0] % o->dims[1],
                z = res.bad / o->dims[0] / o->dims[1];
         if (res.rc == TVPAL_E_NAN)
-            die_input("%s: timestep %u: NaN or infinite value at voxel "
-                      "(%zu,%zu,%zu); expected finite values (use --nan-as "
-                      "VALUE to replace them)", path, t, x, y, z);
+            die_input("%s: timestep %u: infinite value at voxel "
+                      "(%zu,%zu,%zu); expected finite values or NaN for "
+                      "missing ones (use --nan-as VALUE to replace them)",
+                      path, t, x, y, z);
         die_input("%s: timestep %u: value at voxel (%zu,%zu,%zu) exceeds "
                   "the supported magnitude %g", path, t, x, y, z,
                   TVPAL_VALUE_MAX);
@@ -816,6 +869,7 @@ static void load_step(struct run *r, uint32_t t, float *dst)
             r->fine_local[id][k] = 0;
         }
     r->st.nonfinite += res.nrep;
+    r->st.missing += res.nmiss;
     r->st.vmin = res.lo;
     r->st.vmax = res.hi;
     r->st.loaded = t + 1;
@@ -1204,12 +1258,13 @@ static void setup_workspace(struct run *r)
         r->group_cap = (size_t)2 << 20 < sw * GROUP_SPAN ? (size_t)2 << 20
                                                          : sw * GROUP_SPAN;
     r->enc = calloc(nt, sizeof *r->enc);
+    r->dropped = calloc(nt, sizeof *r->dropped);
     r->samples = calloc(nt, sizeof *r->samples);
     r->tables = calloc(nt, sizeof *r->tables);
     r->jobs = calloc(r->max_jobs, sizeof *r->jobs);
     r->ring = calloc(N, sizeof *r->ring);
     r->raw = malloc(r->step_bytes);
-    if (!r->enc || !r->samples || !r->tables || !r->jobs || !r->ring ||
+    if (!r->enc || !r->dropped || !r->samples || !r->tables || !r->jobs || !r->ring ||
         !r->raw)
         die_fail("out of memory");
     for (size_t i = 0; i < nt; i++) {
@@ -1271,7 +1326,7 @@ static void gather(const struct opts *o, float *const *ring,
 static void encode_chunk(struct tvpal_swenc *enc, float *table,
                          const float *samples, const struct shardjob *j,
                          uint32_t slice, uint32_t t, uint32_t len,
-                         unsigned char *chunk)
+                         unsigned char *chunk, uint64_t *dropped)
 {
     const size_t nvox = (size_t)j->h.slice_w * j->h.slice_h;
     const uint32_t tf = j->h.table_format;
@@ -1279,6 +1334,7 @@ static void encode_chunk(struct tvpal_swenc *enc, float *table,
     struct tvpal_swinfo info;
     tvpal_swenc_encode(enc, samples, nvox, len,
                        chunk + TVPAL_CHUNK_HEADER_BYTES + tbytes, table, &info);
+    *dropped += info.dropped;
     struct tvpal_chunk_header ch = {
         .slice = slice, .wstart = t, .wlen = len, .w = j->h.slice_w,
         .h = j->h.slice_h, .used = info.used};
@@ -1352,7 +1408,7 @@ static void encode_step(struct run *r, uint32_t t, size_t njobs)
             encode_chunk(r->enc[tid], r->tables[tid],
                          r->samples[tid] + (size_t)g * jb->len * sv, j,
                          jb->slice + g * r->N, t, jb->len,
-                         j->rec + jb->off + g * cb);
+                         j->rec + jb->off + g * cb, &r->dropped[tid]);
     }
 }
 
@@ -1488,6 +1544,10 @@ static void build_manifest(const struct run *r, struct tvpal_manifest *m)
     m->has_nan_as = o->has_nan_as;
     m->nan_as = o->nan_as;
     m->nonfinite = st->nonfinite;
+    m->missing = st->missing;
+    for (unsigned i = 0; i < o->nmissing; i++)
+        m->missing_values[i] = (float)o->missing[i];
+    m->nmissing_values = o->nmissing;
     m->single_file = o->steps_single != 0;
     m->source_bytes = r->step_bytes * r->T;
     grid_of(r, m->spacing, m->origin);
@@ -1588,6 +1648,25 @@ static void move_into_place(const struct run *r)
     }
 }
 
+/* Every value missing leaves nothing to encode or draw; present values
+ * coded as missing (more missing-value patterns in a slice-window than the
+ * code has indices for) are reported. */
+static void check_missing(const struct run *r)
+{
+    if (!(r->st.vmin <= r->st.vmax))
+        die_input("%s: every value is missing (NaN%s); expected some "
+                  "present values", r->o.inputs[0],
+                  r->o.nmissing ? " or a --missing value" : "");
+    uint64_t dropped = 0;
+    for (int i = 0; i < r->nthreads; i++)
+        dropped += r->dropped[i];
+    if (dropped)
+        msg("warning: %llu present value%s coded as missing: slice-windows "
+            "with more than 128 patterns of missing timesteps (a smaller "
+            "--window avoids it)", (unsigned long long)dropped,
+            dropped == 1 ? "" : "s");
+}
+
 /* A few voxels far from all the others (a fill value such as 1e35 left in
  * the data) set the value range, so the quantizers and the default transfer
  * function spend it on them and the report's PSNR, relative to that range,
@@ -1623,13 +1702,15 @@ static void warn_dominating_values(const struct run *r)
     }
     if (huge)
         msg("warning: %llu value%s beyond +-1e30 (the range is %g .. %g): a "
-            "fill value? It sets the quantizers' and the colours' range",
+            "fill value? It sets the quantizers' and the colours' range "
+            "(--missing V marks a value as missing)",
             (unsigned long long)huge, huge == 1 ? "" : "s", r->st.vmin,
             r->st.vmax);
     else if (range > 1000 * span && far)
         msg("warning: %llu value%s (%.3g%%) lie far outside the bulk of the "
             "data (0.1..99.9 percentiles %.4g .. %.4g, range %g .. %g): they "
-            "set the quantizers' and the colours' range; missing values?",
+            "set the quantizers' and the colours' range; missing values? "
+            "(--missing V marks a value as missing)",
             (unsigned long long)far, far == 1 ? "" : "s",
             100.0 * (double)far / (double)total, plo, phi, r->st.vmin,
             r->st.vmax);
@@ -1651,13 +1732,14 @@ static void print_summary(const struct run *r)
     const double axis_bytes = (double)total_bytes / 3.0;
     const double vts = (double)r->nvox * r->T, te = r->t_encode;
     printf("encoded %s: steps=%u window=%u nodes=%u bytes=%llu ratio=%.3f "
-           "bpv=%.4f seconds=%.3f rate=%.2fM vox-steps/s threads=%d\n",
+           "bpv=%.4f seconds=%.3f rate=%.2fM vox-steps/s threads=%d "
+           "missing=%llu\n",
            r->o.outdir, r->T, r->N, r->o.nodes,
            (unsigned long long)total_bytes,
            (double)(r->step_bytes * r->T) / axis_bytes,
            axis_bytes * 8.0 / vts, te,
            (double)(r->T - r->start) * r->nvox / (te > 0 ? te : 1e-9) / 1e6,
-           r->nthreads);
+           r->nthreads, (unsigned long long)r->st.missing);
 }
 
 static void run_free(struct run *r)
@@ -1677,6 +1759,7 @@ static void run_free(struct run *r)
     free(r->ring);
     free(r->raw);
     free(r->enc);
+    free(r->dropped);
     free(r->samples);
     free(r->tables);
     free(r->fine_local);
@@ -1716,6 +1799,7 @@ int main(int argc, char **argv)
     if (r.in)
         r.pf = prefetch_start(r.in, r.step_bytes);
     encode_steps(&r);
+    check_missing(&r);
     warn_dominating_values(&r);
     finish_partial(&r);
     move_into_place(&r);

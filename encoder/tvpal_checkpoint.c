@@ -26,6 +26,7 @@ void tvpal_checkpoint_stats_reset(struct tvpal_checkpoint_stats *st)
     st->vmin = INFINITY;
     st->vmax = -INFINITY;
     st->nonfinite = 0;
+    st->missing = 0;
     st->loaded = 0;
     if (st->fine)
         memset(st->fine, 0, TVPAL_CHECKPOINT_BINS * sizeof *st->fine);
@@ -91,8 +92,9 @@ int tvpal_checkpoint_save(const char *dir, const char *fingerprint,
     if (!f)
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "checkpoint text");
     fprintf(f, "fingerprint %s\ndone %u\nloaded %u\nmin %a\nmax %a\n"
-            "nonfinite %llu\n", hash, done, st->loaded, st->vmin, st->vmax,
-            (unsigned long long)st->nonfinite);
+            "nonfinite %llu\nmissing %llu\n", hash, done, st->loaded,
+            st->vmin, st->vmax, (unsigned long long)st->nonfinite,
+            (unsigned long long)st->missing);
     for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++)
         if (st->fine[b])
             fprintf(f, "bin %u %llu\n", b, (unsigned long long)st->fine[b]);
@@ -115,12 +117,13 @@ static int parse_head(char **save, uint32_t *done,
                       struct tvpal_diag *diag)
 {
     static const char *const fmt[] = {"done %u", "loaded %u", "min %la",
-                                      "max %la", "nonfinite %llu"};
+                                      "max %la", "nonfinite %llu",
+                                      "missing %llu"};
     unsigned d = 0, l = 0;
-    unsigned long long nf = 0;
+    unsigned long long nf = 0, miss = 0;
     double lo = 0, hi = 0;
-    void *const dst[] = {&d, &l, &lo, &hi, &nf};
-    for (int i = 0; i < 5; i++) {
+    void *const dst[] = {&d, &l, &lo, &hi, &nf, &miss};
+    for (int i = 0; i < 6; i++) {
         char *line = strtok_r(NULL, "\n", save);
         if (!line || sscanf(line, fmt[i], dst[i]) != 1)
             return tvpal_diag_set(diag, TVPAL_E_FORMAT, "line %d: expected "
@@ -132,6 +135,7 @@ static int parse_head(char **save, uint32_t *done,
     st->vmin = lo;
     st->vmax = hi;
     st->nonfinite = nf;
+    st->missing = miss;
     return 0;
 }
 
@@ -191,12 +195,14 @@ static int parse_checkpoint(char *text, const char *fingerprint,
         return tvpal_diag_set(diag, TVPAL_E_FORMAT, "done %u, loaded %u of "
                               "%u steps", *done, st->loaded, steps);
     if (__builtin_mul_overflow((uint64_t)st->loaded, step_voxels, &want) ||
-        sum != want)
+        st->missing > want || sum != want - st->missing)
         return tvpal_diag_set(diag, TVPAL_E_FORMAT, "histogram holds %llu "
-                              "values; expected %u steps of %llu voxels",
+                              "values; expected %u steps of %llu voxels, "
+                              "%llu of them missing",
                               (unsigned long long)sum, st->loaded,
-                              (unsigned long long)step_voxels);
-    if (st->loaded && !(st->vmin <= st->vmax))
+                              (unsigned long long)step_voxels,
+                              (unsigned long long)st->missing);
+    if (sum && !(st->vmin <= st->vmax))
         return tvpal_diag_set(diag, TVPAL_E_FORMAT, "min %g > max %g",
                               st->vmin, st->vmax);
     return 0;

@@ -28,6 +28,7 @@
 struct tvpal_checkpoint_stats {
     double vmin, vmax;       /* range; +inf, -inf while loaded == 0 */
     uint64_t nonfinite;      /* NaN/inf values replaced (--nan-as) */
+    uint64_t missing;        /* missing values (not in the histogram) */
     uint64_t *fine;          /* TVPAL_CHECKPOINT_BINS counters, owned */
     uint32_t loaded;         /* timesteps accounted */
 };
@@ -61,7 +62,7 @@ int tvpal_checkpoint_save(const char *dir, const char *fingerprint,
 /* Reads DIR/checkpoint of the job `fingerprint` with `steps` timesteps of
  * `step_voxels` voxels.  On success sets *done and overwrites st (whose
  * array must be allocated); the checkpoint is consistent: done <= loaded <=
- * steps and the histogram holds loaded * step_voxels values.  On failure
+ * steps and the histogram holds loaded * step_voxels - missing values.  On failure
  * *done is 0 and st is empty, so the caller can start the job over.
  * Returns 0, TVPAL_E_OPEN or TVPAL_E_READ (no readable checkpoint),
  * TVPAL_E_MISMATCH (the checkpoint of another job), TVPAL_E_TRUNC (its last

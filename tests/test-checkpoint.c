@@ -21,7 +21,8 @@ static char *path_in(const char *name)
     return buf;
 }
 
-/* Three steps of ten voxels: counts summing to 30. */
+/* Three steps of ten voxels, two of the values missing: counts summing to
+ * 28. */
 static void fill(struct tvpal_checkpoint_stats *st)
 {
     tvpal_checkpoint_stats_reset(st);
@@ -31,8 +32,9 @@ static void fill(struct tvpal_checkpoint_stats *st)
     st->loaded = 3;
     st->fine[0] = 1;
     st->fine[5] = 12;
-    st->fine[40000] = 16;
+    st->fine[40000] = 14;
     st->fine[TVPAL_CHECKPOINT_BINS - 1] = 1;
+    st->missing = 2;
 }
 
 static int is_empty(const struct tvpal_checkpoint_stats *st)
@@ -94,6 +96,7 @@ static void test_round_trip(void)
     int rc = tvpal_checkpoint_load(g_dir, "job A", STEPS, VOX, &done, &b, &d);
     CHECK(rc == 0, "load: %s (%s)", tvpal_strerror(rc), d.msg);
     CHECK(done == 2, "done %u", done);
+    CHECK(b.missing == 2, "missing %llu", (unsigned long long)b.missing);
     CHECK(b.loaded == 3 && b.nonfinite == 7, "loaded %u nonfinite %llu",
           b.loaded, (unsigned long long)b.nonfinite);
     CHECK(b.vmin == a.vmin && b.vmax == a.vmax, "range %a %a", b.vmin,
@@ -207,10 +210,12 @@ static void test_damaged(void)
     tvpal_checkpoint_stats_free(&st);
     /* Tampered lines. */
     tamper("count changed", "bin 5 12\n", "bin 5 13\n", TVPAL_E_FORMAT);
-    tamper("classes out of order", "bin 5 12\nbin 40000 16\n",
-           "bin 40000 16\nbin 5 12\n", TVPAL_E_FORMAT);
+    tamper("classes out of order", "bin 5 12\nbin 40000 14\n",
+           "bin 40000 14\nbin 5 12\n", TVPAL_E_FORMAT);
     tamper("class out of range", "bin 65535 1\n", "bin 65536 1\n",
            TVPAL_E_FORMAT);
+    tamper("missing changed", "missing 2\n", "missing 3\n", TVPAL_E_FORMAT);
+    tamper("missing line gone", "missing 2\n", "", TVPAL_E_FORMAT);
     tamper("done beyond loaded", "done 3\n", "done 4\n", TVPAL_E_FORMAT);
     tamper("done missing", "done 3\n", "", TVPAL_E_FORMAT);
     tamper("fingerprint line", "fingerprint ", "fingerprnt ", TVPAL_E_FORMAT);

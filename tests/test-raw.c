@@ -58,7 +58,16 @@ int main(void)
           && out[0] == 1.5f, "f64 be");
     float in[4] = {1.0f, NAN, 2.0f, INFINITY};
     CHECK(tvpal_raw_convert(in, TVPAL_F32, 0, 4, out, NULL, &badi, NULL) ==
-              TVPAL_E_NAN && badi == 1, "NaN found at 1 (got %zu)", badi);
+              TVPAL_E_NAN && badi == 3, "infinity found at 3 (got %zu)", badi);
+    CHECK(isnan(out[1]) && out[2] == 2.0f, "NaN kept as missing");
+    const unsigned char f64nan[] = {0, 0, 0, 0, 0, 0, 0xF8, 0x7F};
+    CHECK(tvpal_raw_convert(f64nan, TVPAL_F64, 0, 1, out, NULL, &badi, NULL) ==
+              0 && isnan(out[0]), "f64 NaN kept");
+    float mv[5] = {1e35f, 3.0f, -999.0f, 0.1f, 1e35f};
+    const double vals[2] = {1e35, -999};
+    CHECK(tvpal_missing_apply(mv, 5, vals, 2) == 3 && isnan(mv[0]) &&
+              isnan(mv[2]) && isnan(mv[4]) && mv[1] == 3.0f && mv[3] == 0.1f,
+          "--missing values compared as float32");
     double repl = -7;
     CHECK(tvpal_raw_convert(in, TVPAL_F32, 0, 4, out, &repl, &badi, &rep) == 0
           && out[1] == -7.0f && out[3] == -7.0f && rep == 2, "nan-as");

@@ -127,12 +127,16 @@ int tvpal_raw_convert(const void *src, enum tvpal_type t, int big_endian,
             memcpy(&v, &u, 8);
         }
         if (!isfinite(v)) {
-            if (!nan_as) {
+            if (nan_as) {
+                v = *nan_as;
+                nrep++;
+            } else if (v != v) {
+                dst[i] = NAN; /* missing */
+                continue;
+            } else {
                 *bad = i;
                 return TVPAL_E_NAN;
             }
-            v = *nan_as;
-            nrep++;
         }
         if (fabs(v) > TVPAL_VALUE_MAX) {
             *bad = i;
@@ -143,4 +147,22 @@ int tvpal_raw_convert(const void *src, enum tvpal_type t, int big_endian,
     if (replaced)
         *replaced += nrep;
     return 0;
+}
+
+size_t tvpal_missing_apply(float *v, size_t n, const double *values,
+                           unsigned nvalues)
+{
+    float m[16];
+    unsigned k = nvalues < 16 ? nvalues : 16;
+    for (unsigned i = 0; i < k; i++)
+        m[i] = (float)values[i];
+    size_t hits = 0;
+    for (size_t i = 0; i < n; i++)
+        for (unsigned j = 0; j < k; j++)
+            if (v[i] == m[j]) {
+                v[i] = NAN;
+                hits++;
+                break;
+            }
+    return hits;
 }

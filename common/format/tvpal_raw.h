@@ -26,11 +26,18 @@ int tvpal_dims_parse(const char *s, uint32_t dims[3], struct tvpal_diag *diag);
 
 /* Converts n elements of type t (byte order: big_endian) to float.  NaN and
  * +-inf become *nan_as when nan_as is non-NULL (their count is added to
- * *replaced when replaced is non-NULL); otherwise the first one stops the
- * conversion with TVPAL_E_NAN and its element index in *bad.
- * |value| > TVPAL_VALUE_MAX gives TVPAL_E_RANGE (index in *bad). */
+ * *replaced when replaced is non-NULL); otherwise NaN stays NaN (a missing
+ * value) and the first +-inf stops the conversion with TVPAL_E_NAN and its
+ * element index in *bad.  |value| > TVPAL_VALUE_MAX gives TVPAL_E_RANGE
+ * (index in *bad). */
 int tvpal_raw_convert(const void *src, enum tvpal_type t, int big_endian,
                       size_t n, float *dst, const double *nan_as,
                       size_t *bad, size_t *replaced);
+
+/* Missing values given by value (tvpal-encode --missing V): each of the n
+ * floats equal to float32(values[k]) for some k < nvalues (at most 16)
+ * becomes NaN.  Returns how many did. */
+size_t tvpal_missing_apply(float *v, size_t n, const double *values,
+                           unsigned nvalues);
 
 #endif
