@@ -28,6 +28,19 @@ int main(void)
     CHECK(c[3] == 1, "clamped above");
     CHECK(tvpal_tf_parse_text("domain data\n5 1 1 1 1\n7 0 0 0 0\n", 0, 1,
                               &tf, &d) == 0 && tf.value[1] == 7, "data domain");
+    /* The NaN colour: transparent unless a "nan r g b a" line says. */
+    CHECK(tvpal_tf_parse_text(t1, 10, 20, &tf, &d) == 0 && tf.nan_rgba[0] == 0 &&
+          tf.nan_rgba[1] == 0 && tf.nan_rgba[2] == 0 && tf.nan_rgba[3] == 0,
+          "text without a nan line: transparent NaN colour");
+    CHECK(tvpal_tf_parse_text("nan 1 0.5 0.25 0.75  # missing\ndomain data\n"
+                              "0 0 0 0 0\n", 0, 1, &tf, &d) == 0, "%s", d.msg);
+    CHECK(tf.nan_rgba[0] == 1.0f && tf.nan_rgba[1] == 0.5f &&
+          tf.nan_rgba[2] == 0.25f && tf.nan_rgba[3] == 0.75f && tf.npoints == 1,
+          "nan line: %g %g %g %g", tf.nan_rgba[0], tf.nan_rgba[1],
+          tf.nan_rgba[2], tf.nan_rgba[3]);
+    CHECK(tvpal_tf_parse_text("domain data\n0 0 0 0 0\nnan 0 1 0 1\n", 0, 1,
+                              &tf, &d) == 0 && tf.nan_rgba[1] == 1.0f &&
+          tf.nan_rgba[3] == 1.0f, "nan line after the points");
     static const struct { const char *text, *msg; } bad[] = {
         {"0 0 0 0 0\n", "line 1: expected \"domain"},
         {"domain weird\n", "line 1: domain \"weird\""},
@@ -36,6 +49,11 @@ int main(void)
         {"domain data\n1 0 2 0 0\n", "line 2: g = 2"},
         {"domain data\n1 0 0 0 0\n0 0 0 0 0\n", "line 3: value 0 is below"},
         {"domain data\n", "no points"},
+        {"domain data\nnan 1 0 0\n0 0 0 0 0\n", "line 2: expected \"nan r g b a\""},
+        {"domain data\nnan 1 0 0 1 1\n0 0 0 0 0\n", "line 2: expected \"nan r g b a\""},
+        {"nan 1 0 0 1.5\ndomain data\n0 0 0 0 0\n", "line 1: nan a = 1.5; expected 0..1"},
+        {"domain data\nnan -1 0 0 1\n0 0 0 0 0\n", "line 2: nan r = -1"},
+        {"domain data\nnan 0 nan 0 1\n0 0 0 0 0\n", "line 2: nan g = nan"},
     };
     for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
         d.msg[0] = 0;
@@ -66,6 +84,8 @@ int main(void)
     CHECK(c[3] < 0.02, "background bin transparent (%g)", c[3]);
     tvpal_tf_eval(&tf, 50.5, c);
     CHECK(c[3] > 0.1, "rare values visible (%g)", c[3]);
+    CHECK(tf.nan_rgba[0] == 0 && tf.nan_rgba[1] == 0 && tf.nan_rgba[2] == 0 &&
+          tf.nan_rgba[3] == 0, "default TF: transparent NaN");
 
     /* Palettes. */
     float row[256], pal[1024];

@@ -27,6 +27,38 @@ static int add_point(struct tvpal_tf *tf, double v, const float c[4],
     return 0;
 }
 
+/* Checks that each of c's 4 components lies in [0, 1]; `what` prefixes
+ * the component's name in the message ("" for a point, "nan " for the
+ * NaN colour). */
+static int check_unit_rgba(const float c[4], const char *what, unsigned line,
+                           struct tvpal_diag *diag)
+{
+    for (int i = 0; i < 4; i++)
+        if (!(c[i] >= 0.0f && c[i] <= 1.0f))
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                                  "line %u: %s%c = %g; expected 0..1", line,
+                                  what, "rgba"[i], c[i]);
+    return 0;
+}
+
+/* The text format's "nan r g b a" line s (after the keyword check). */
+static int parse_nan_line(const char *s, unsigned line, struct tvpal_tf *tf,
+                          struct tvpal_diag *diag)
+{
+    float c[4];
+    char extra;
+    if (sscanf(s, "%*s %f %f %f %f %c", &c[0], &c[1], &c[2], &c[3],
+               &extra) != 4)
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                              "line %u: expected \"nan r g b a\" (4 numbers "
+                              "0..1), got \"%s\"", line, s);
+    int rc = check_unit_rgba(c, "nan ", line, diag);
+    if (rc < 0)
+        return rc;
+    memcpy(tf->nan_rgba, c, sizeof c);
+    return 0;
+}
+
 int tvpal_tf_parse_text(const char *text, double vmin, double vmax,
                         struct tvpal_tf *tf, struct tvpal_diag *diag)
 {
@@ -74,6 +106,12 @@ int tvpal_tf_parse_text(const char *text, double vmin, double vmax,
             snprintf(tf->name, sizeof tf->name, "%s", nm);
             continue;
         }
+        if (!strcmp(word, "nan")) {
+            int rc = parse_nan_line(s, line, tf, diag);
+            if (rc < 0)
+                return rc;
+            continue;
+        }
         if (normalized < 0)
             return tvpal_diag_set(diag, TVPAL_E_FORMAT,
                                   "line %u: expected \"domain normalized\" or "
@@ -87,17 +125,15 @@ int tvpal_tf_parse_text(const char *text, double vmin, double vmax,
             return tvpal_diag_set(diag, TVPAL_E_FORMAT,
                                   "line %u: expected 5 numbers \"value r g b "
                                   "a\", got \"%s\"", line, s);
-        for (int i = 0; i < 4; i++)
-            if (!(c[i] >= 0.0f && c[i] <= 1.0f))
-                return tvpal_diag_set(diag, TVPAL_E_FORMAT,
-                                      "line %u: %c = %g; expected 0..1",
-                                      line, "rgba"[i], c[i]);
+        int rc = check_unit_rgba(c, "", line, diag);
+        if (rc < 0)
+            return rc;
         if (!isfinite(v))
             return tvpal_diag_set(diag, TVPAL_E_FORMAT,
                                   "line %u: value is not finite", line);
         if (normalized)
             v = vmin + v * (vmax - vmin);
-        int rc = add_point(tf, v, c, line, diag);
+        rc = add_point(tf, v, c, line, diag);
         if (rc < 0)
             return rc;
     }

@@ -10,6 +10,9 @@
  *   - ParaView colour-map presets (JSON): RGBPoints and, when present, the
  *     opacity Points; their domain is rescaled onto the data range, as
  *     ParaView does when a preset is applied.
+ * A missing value (a voxel that decodes to NaN) takes the TF's NaN colour
+ * nan_rgba instead of a point's; every source defaults it to fully
+ * transparent {0, 0, 0, 0}.
  * Functions return 0 or a negative TVPAL_E_* code with the reason (line,
  * field, expected) in diag.
  */
@@ -27,6 +30,11 @@ struct tvpal_tf {
     unsigned npoints;                       /* 1..TVPAL_TF_MAX_POINTS */
     double value[TVPAL_TF_MAX_POINTS];      /* non-decreasing, data units */
     float rgba[TVPAL_TF_MAX_POINTS][4];
+    /* Colour and opacity of NaN (missing) values: straight, not
+     * premultiplied, each in [0, 1], opacity per unit of reference slice
+     * spacing like the points'.  {0, 0, 0, 0} (transparent) unless the
+     * source sets it: the text format's "nan r g b a" line. */
+    float nan_rgba[4];
     char name[64];
 };
 
