@@ -71,6 +71,53 @@ int main(void)
     tvpal_tf_eval(&tf, 150, c);
     CHECK(fabs(c[3] - 0.5) < 1e-6 && fabs(c[0] - 0.9) < 1e-6, "paraview "
           "opacity %g", c[3]);
+    CHECK(tf.nan_rgba[0] == 0 && tf.nan_rgba[1] == 0 && tf.nan_rgba[2] == 0 &&
+          tf.nan_rgba[3] == 0, "preset without NanColor: transparent NaN");
+    /* NanColor and NanOpacity as ParaView writes them; NanOpacity defaults
+     * to 1 with a NanColor. */
+    const char *pvn = "[{\"Name\": \"n\", \"NanColor\": [1, 0.5, 0],\n"
+                      "  \"NanOpacity\" : 0.25, \"RGBPoints\": [0, 0, 0, 0, 1, 1, 1, 1]}]";
+    CHECK(tvpal_tf_parse_paraview(pvn, 0, 1, &tf, &d) == 0, "%s", d.msg);
+    CHECK(tf.nan_rgba[0] == 1.0f && tf.nan_rgba[1] == 0.5f &&
+          tf.nan_rgba[2] == 0.0f && tf.nan_rgba[3] == 0.25f,
+          "NanColor/NanOpacity: %g %g %g %g", tf.nan_rgba[0], tf.nan_rgba[1],
+          tf.nan_rgba[2], tf.nan_rgba[3]);
+    CHECK(tvpal_tf_parse_paraview("{\"NanColor\": [0.5, 0.5, 1], \"RGBPoints\": "
+                                  "[0, 0, 0, 0]}", 0, 1, &tf, &d) == 0 &&
+          tf.nan_rgba[0] == 0.5f && tf.nan_rgba[2] == 1.0f &&
+          tf.nan_rgba[3] == 1.0f, "NanColor alone: opacity %g", tf.nan_rgba[3]);
+    CHECK(tvpal_tf_parse_paraview("{\"NanOpacity\": 0.5, \"RGBPoints\": "
+                                  "[0, 0, 0, 0]}", 0, 1, &tf, &d) == 0 &&
+          tf.nan_rgba[0] == 0 && tf.nan_rgba[3] == 0.5f,
+          "NanOpacity alone: black, opacity %g", tf.nan_rgba[3]);
+    /* A string equal to a key is not the key. */
+    CHECK(tvpal_tf_parse_paraview("{\"Name\": \"NanColor\", \"RGBPoints\": "
+                                  "[0, 0, 0, 0], \"NanColor\": [0, 1, 0]}", 0, 1,
+                                  &tf, &d) == 0 && !strcmp(tf.name, "NanColor") &&
+          tf.nan_rgba[1] == 1.0f && tf.nan_rgba[3] == 1.0f, "key vs string: %s",
+          d.msg);
+    static const struct { const char *json, *msg; } badpv[] = {
+        {"{\"NanColor\": [1, 0], \"RGBPoints\": [0, 0, 0, 0]}",
+         "NanColor: malformed; expected [r, g, b]"},
+        {"{\"NanColor\": [1, 0, 0, 1], \"RGBPoints\": [0, 0, 0, 0]}",
+         "NanColor: malformed; expected [r, g, b]"},
+        {"{\"NanColor\": 1, \"RGBPoints\": [0, 0, 0, 0]}",
+         "NanColor: malformed; expected [r, g, b]"},
+        {"{\"NanColor\": [0, 2, 0], \"RGBPoints\": [0, 0, 0, 0]}",
+         "NanColor: g = 2; expected [r, g, b], 3 numbers in 0..1"},
+        {"{\"NanColor\": [0, 0, -0.5], \"RGBPoints\": [0, 0, 0, 0]}",
+         "NanColor: b = -0.5"},
+        {"{\"NanOpacity\": 1.5, \"RGBPoints\": [0, 0, 0, 0]}",
+         "NanOpacity: 1.5; expected a number in 0..1"},
+        {"{\"NanOpacity\": \"x\", \"RGBPoints\": [0, 0, 0, 0]}",
+         "NanOpacity: malformed; expected a number in 0..1"},
+    };
+    for (size_t i = 0; i < sizeof badpv / sizeof *badpv; i++) {
+        d.msg[0] = 0;
+        CHECK(tvpal_tf_parse_paraview(badpv[i].json, 0, 1, &tf, &d) ==
+                  TVPAL_E_FORMAT && strstr(d.msg, badpv[i].msg),
+              "bad preset %zu: got \"%s\", want \"%s\"", i, d.msg, badpv[i].msg);
+    }
     CHECK(tvpal_tf_parse_paraview("{\"Name\": \"x\"}", 0, 1, &tf, &d) ==
               TVPAL_E_FORMAT && strstr(d.msg, "RGBPoints: missing"), "%s", d.msg);
     CHECK(tvpal_tf_parse_paraview("{\"RGBPoints\": [0, 1, 1]}", 0, 1, &tf, &d)

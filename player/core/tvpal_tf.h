@@ -33,7 +33,8 @@ struct tvpal_tf {
     /* Colour and opacity of NaN (missing) values: straight, not
      * premultiplied, each in [0, 1], opacity per unit of reference slice
      * spacing like the points'.  {0, 0, 0, 0} (transparent) unless the
-     * source sets it: the text format's "nan r g b a" line. */
+     * source sets it: the text format's "nan r g b a" line, a ParaView
+     * preset's NanColor [r, g, b] and NanOpacity. */
     float nan_rgba[4];
     char name[64];
 };
@@ -44,7 +45,9 @@ int tvpal_tf_parse_text(const char *text, double vmin, double vmax,
                         struct tvpal_tf *tf, struct tvpal_diag *diag);
 
 /* Parses a ParaView preset (a JSON object or an array of them: the first
- * with RGBPoints is used). */
+ * with RGBPoints is used).  NanColor [r, g, b] (0..1 each) sets the NaN
+ * colour, NanOpacity (0..1) its opacity: 1 when only NanColor is given,
+ * as in ParaView; black when only NanOpacity is. */
 int tvpal_tf_parse_paraview(const char *json, double vmin, double vmax,
                             struct tvpal_tf *tf, struct tvpal_diag *diag);
 
