@@ -1,8 +1,10 @@
 /* test-tf: transfer functions: the text format (values normalized or in
  * data units), its errors (named by line and field), ParaView preset import
  * with its domain rescaled to the data, evaluation, the default from a
- * histogram, and palette construction (premultiplied, opacity-corrected,
- * fully transparent slices detected). */
+ * histogram, the NaN colour (text line, ParaView NanColor/NanOpacity,
+ * defaults, errors), and palette construction (premultiplied,
+ * opacity-corrected, NaN entries in the NaN colour, fully transparent slices
+ * detected). */
 #include "tvpal_frame.h"
 #include "tvpal_test.h"
 #include "tvpal_tf.h"
@@ -150,5 +152,62 @@ int main(void)
         row[i] = -5.0f;
     CHECK(tvpal_palette_build(&tf, row, 1.0, 1.0, pal) == 1,
           "transparent slice detected");
+
+    /* NaN (missing) entries: the NaN colour, scaled, corrected and
+     * premultiplied; the finite entries bit for bit as without NaN. */
+    float nrow[256], pal0[1024];
+    for (int i = 0; i < 256; i++)
+        row[i] = nrow[i] = (float)i / 255.0f;
+    for (int i = 0; i < 256; i += 7)
+        nrow[i] = NAN;
+    nrow[255] = -NAN;
+    const double expo = 1.7, scale = 0.8;
+    tvpal_palette_build(&tf, row, expo, scale, pal0);
+    CHECK(tvpal_palette_build(&tf, nrow, expo, scale, pal) == 0, "not clear");
+    int same = 1, zero = 1;
+    for (int i = 0; i < 256; i++) {
+        if (isnan(nrow[i]))
+            zero &= pal[4 * i] == 0 && pal[4 * i + 1] == 0 &&
+                    pal[4 * i + 2] == 0 && pal[4 * i + 3] == 0;
+        else
+            same &= !memcmp(pal + 4 * i, pal0 + 4 * i, sizeof(float) * 4);
+    }
+    CHECK(same, "finite entries changed by NaN neighbours");
+    CHECK(zero, "transparent NaN colour: exactly {0, 0, 0, 0}");
+    const float nc[4] = {1.0f, 0.5f, 0.25f, 0.6f};
+    memcpy(tf.nan_rgba, nc, sizeof nc);
+    tvpal_palette_build(&tf, nrow, expo, scale, pal);
+    const double na = 1 - pow(1 - nc[3] * scale, expo);
+    int nan_ok = 1;
+    same = 1;
+    for (int i = 0; i < 256; i++) {
+        const float *q = pal + 4 * i;
+        if (isnan(nrow[i]))
+            nan_ok &= fabs(q[3] - na) < 1e-6 && fabs(q[0] - nc[0] * na) < 1e-6 &&
+                      fabs(q[1] - nc[1] * na) < 1e-6 &&
+                      fabs(q[2] - nc[2] * na) < 1e-6;
+        else
+            same &= !memcmp(q, pal0 + 4 * i, sizeof(float) * 4);
+    }
+    CHECK(nan_ok, "NaN entry %g %g %g %g, want alpha %g", pal[0], pal[1], pal[2],
+          pal[3], na);
+    CHECK(same, "finite entries changed by a NaN colour");
+    /* Opacity scale clamps the NaN colour's opacity like any other. */
+    tvpal_palette_build(&tf, nrow, expo, 3.0, pal);
+    CHECK(pal[3] == 1.0f && pal[0] == 1.0f && pal[1] == 0.5f, "clamped NaN "
+          "opacity %g", pal[3]);
+    /* All NaN: clear with the transparent colour, not with a visible one. */
+    for (int i = 0; i < 256; i++)
+        nrow[i] = NAN;
+    CHECK(tvpal_palette_build(&tf, nrow, 1.0, 1.0, pal) == 0,
+          "a visible NaN colour is not clear");
+    memset(tf.nan_rgba, 0, sizeof tf.nan_rgba);
+    memset(pal, 0xff, sizeof pal);
+    CHECK(tvpal_palette_build(&tf, nrow, 1.0, 1.0, pal) == 1,
+          "all NaN, transparent NaN colour: clear");
+    zero = 1;
+    for (int i = 0; i < 1024; i++)
+        zero &= pal[i] == 0;
+    CHECK(zero, "all NaN: every entry exactly 0");
     return tt_done("test-tf");
 }

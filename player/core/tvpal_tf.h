@@ -61,7 +61,8 @@ int tvpal_tf_load(const char *path, double vmin, double vmax,
 void tvpal_tf_default(double vmin, double vmax, const uint64_t *hist,
                       unsigned nbins, struct tvpal_tf *tf);
 
-/* Colour and opacity at value v (straight, not premultiplied). */
+/* Colour and opacity at a finite value v (straight, not premultiplied);
+ * NaN is the caller's case (nan_rgba). */
 void tvpal_tf_eval(const struct tvpal_tf *tf, double v, float rgba[4]);
 
 #endif
