@@ -3,8 +3,9 @@
 # ends with the fps=... summary; in-core, io_uring and pread, forward and
 # backward give identical frames; a corrupt record is reported with its
 # file and record and playback continues (exit 1), or stops with --strict
-# (exit 2); a TF change every frame gives the frames of fresh runs; bad
-# options and transfer functions are refused (exit 2).
+# (exit 2); a TF change every frame gives the frames of fresh runs;
+# --nan-color leaves a frame without missing values as it is; bad options
+# and transfer functions are refused (exit 2).
 . "$(dirname "$0")/lib.sh"
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
@@ -106,6 +107,16 @@ expect_exit 2 "--fb: .*only with --renderer gl" "$PLAY" "$W/ds" --headless --ren
 printf 'domain normalized\n0 0 0 0 0\n0.5 1 1 1\n' > "$W/bad.tf"
 expect_exit 2 "bad.tf: line 3: expected 5 numbers" "$PLAY" "$W/ds" --headless --tf "$W/bad.tf"
 expect_exit 2 "nope.tf: cannot read" "$PLAY" "$W/ds" --headless --tf "$W/nope.tf"
+printf 'nan 1 0 0 2\ndomain normalized\n0 0 0 0 0\n' > "$W/badnan.tf"
+expect_exit 2 "badnan.tf: line 1: nan a = 2; expected 0..1" "$PLAY" "$W/ds" --headless --tf "$W/badnan.tf"
+# --nan-color: a data set without missing values draws as without it.
+"$PLAY" "$W/ds" --headless -q --size 96x80 --tf "$TF" --steps 4:4 --nan-color 1,0,0.5 -o "$W/f-nan" > /dev/null \
+    && cmp -s "$W/f-stream/t0004.png" "$W/f-nan/t0004.png" && ok "--nan-color: no missing values, same frame" \
+    || fail "--nan-color changed a frame without missing values"
+for bad in 2,0,0 1,0 1,0,0, 1,0,0,1,1 red nan,0,0 ""; do
+    expect_exit 2 "--nan-color \"$bad\": expected none or R,G,B\[,A\], each 0..1" \
+        "$PLAY" "$W/ds" --headless --nan-color "$bad"
+done
 expect_exit 2 "--steps \"0:9\": expected A:B within 0..8" "$PLAY" "$W/ds" --headless --steps 0:9
 expect_exit 2 "--size" "$PLAY" "$W/ds" --headless --size 0x10
 expect_exit 2 "manifest.txt" "$PLAY" "$W/none" --headless

@@ -1,8 +1,10 @@
 /* test-render: the GL palette renderer (OSMesa, GLSL 3.3) matches the CPU
  * reference renderer for several views on all three axes, for N = 1-like
  * (smooth) and noisy index data; index interpolation differs measurably
- * from colour interpolation on a sharp transfer function; uploads are
- * counted only when indices change.
+ * from colour interpolation on a sharp transfer function; a block of
+ * missing (NaN) values with the default transparent NaN colour draws as
+ * the same block transparent by the TF; uploads are counted only when
+ * indices change.
  * Tolerance: RGBA32F blending in single precision vs double: max |diff|
  * 2e-3 per channel except along quad edges, where rasterization rules and
  * the reference's half-open edge test may disagree on a pixel: at most 2%
@@ -55,6 +57,46 @@ static void make_frame(const uint32_t dims[3], struct tvpal_view *v,
         sl[k].idx = I;
         sl[k].palette = pal_store + (size_t)1024 * s;
     }
+}
+
+/* make_frame (smooth), then a box of voxels (the middle third of the
+ * volume on every axis) drawn with palette entry 1 alone, whose row value
+ * is v1 (NaN: missing values); the voxels that had index 1 move to 2. */
+static void make_block_frame(const uint32_t dims[3], struct tvpal_view *v,
+                             struct tvpal_frame *f, struct tvpal_frame_slice *sl,
+                             const struct tvpal_tf *tf, float v1)
+{
+    make_frame(dims, v, f, sl, tf, 0);
+    const uint32_t n = f->count, w = f->w, h = f->h;
+    for (uint32_t s = 0; s < n; s++) {
+        uint8_t *I = idx_store + (size_t)s * w * h;
+        for (uint32_t b = 0; b < h; b++)
+            for (uint32_t x = 0; x < w; x++) {
+                uint8_t *q = I + x + (size_t)w * b;
+                if (*q == 1)
+                    *q = 2;
+                if (s >= n / 3 && s < 2 * n / 3 && x >= w / 3 &&
+                    x < 2 * w / 3 && b >= h / 3 && b < 2 * h / 3)
+                    *q = 1;
+            }
+        float row[256];
+        for (int i = 0; i < 256; i++)
+            row[i] = (float)i / 255.0f + 0.001f * s;
+        row[1] = v1;
+        tvpal_palette_build(tf, row, tvpal_view_opacity_exponent(v), 1.0,
+                            pal_store + (size_t)1024 * s);
+    }
+}
+
+/* Draws f with r after uploading every slice. */
+static void draw_gl(struct tvpal_glr *r, const struct tvpal_frame *f,
+                    uint32_t layers, float *img)
+{
+    struct tvpal_diag d = {{0}};
+    REQUIRE(tvpal_glr_set_slices(r, f->w, f->h, layers, &d) == 0, "%s", d.msg);
+    for (uint32_t k = 0; k < f->count; k++)
+        tvpal_glr_upload(r, f->sl[k].slice, f->sl[k].idx);
+    REQUIRE(tvpal_glr_draw(r, f, img, &d) == 0, "%s", d.msg);
 }
 
 int main(void)
@@ -181,6 +223,49 @@ int main(void)
     tvpal_glr_draw(r, &f, gl, &d);
     CHECK(tvpal_glr_uploads(r) == up, "drawing with new palettes uploads "
           "no slice");
+
+    /* Missing values: a block whose palette entry comes from a NaN row
+     * value, with the default transparent NaN colour, draws exactly as
+     * the same block made transparent by the TF (value 0, below the
+     * sharp TF's band): what lies behind it shows, in GL and in the
+     * reference; an opaque NaN colour hides it. */
+    {
+        static float gl2[W * H * 4];
+        struct tvpal_tf nanred = sharp;
+        const float red[4] = {1, 0, 0, 1};
+        memcpy(nanred.nan_rgba, red, sizeof red);
+        REQUIRE(sharp.nan_rgba[3] == 0, "transparent NaN by default");
+        for (size_t vi = 0; vi < 4; vi++) {
+            struct tvpal_view vn = {.dims = {24, 20, 16}, .width = W,
+                                    .height = H, .ax_deg = views[vi][0],
+                                    .ay_deg = views[vi][1], .zoom = 1.0};
+            make_block_frame(dims, &vn, &f, sl, &sharp, 0.0f);
+            draw_gl(r, &f, dims[vn.axis], gl);
+            tvpal_render_ref(&f, ref);
+            make_block_frame(dims, &vn, &f, sl, &sharp, NAN);
+            draw_gl(r, &f, dims[vn.axis], gl2);
+            tvpal_render_ref(&f, ref2);
+            CHECK(!memcmp(gl, gl2, sizeof gl), "view %zu: gl: NaN block "
+                  "differs from a transparent one", vi);
+            CHECK(!memcmp(ref, ref2, sizeof ref), "view %zu: reference: NaN "
+                  "block differs from a transparent one", vi);
+            make_block_frame(dims, &vn, &f, sl, &nanred, NAN);
+            draw_gl(r, &f, dims[vn.axis], gl2);
+            tvpal_render_ref(&f, ref2);
+            CHECK(memcmp(gl, gl2, sizeof gl) != 0, "view %zu: gl: an opaque "
+                  "NaN colour draws nothing", vi);
+            CHECK(memcmp(ref, ref2, sizeof ref) != 0, "view %zu: reference: "
+                  "an opaque NaN colour draws nothing", vi);
+            /* Where the opaque block shows, the transparent one shows
+             * what lies behind it. */
+            double behind = 0;
+            for (size_t i = 0; i < (size_t)W * H; i++)
+                if (memcmp(gl + 4 * i, gl2 + 4 * i, sizeof(float) * 4))
+                    behind += gl[4 * i + 3];
+            CHECK(behind > 1.0, "view %zu: nothing behind the block (%g)", vi,
+                  behind);
+        }
+    }
     tvpal_glr_free(r);
     tvpal_osmesa_free(ctx);
     free(idx_store);

@@ -11,7 +11,8 @@
  * function that leaves most tiles empty and an opaque one that saturates
  * pixels); the AVX2 and SSE2 inner loops; a TF change every frame vs a fresh
  * renderer with that TF; new slice data announced by upload vs a fresh
- * renderer.  Odd shapes: one-texel-wide and one-row slices, slices wider
+ * renderer; a block of missing (NaN) values with the default transparent
+ * NaN colour vs the same block transparent by the TF.  Odd shapes: one-texel-wide and one-row slices, slices wider
  * than 64 tiles of 16.  Errors: a frame that does not match the prepared
  * slices is refused. */
 #include "tvpal_render_ref.h"
@@ -63,6 +64,35 @@ static void make_frame(const struct vol *vo, struct tvpal_view *v,
         tvpal_palette_build(tf, row, tvpal_view_opacity_exponent(v), 1.0,
                             pal_store + (size_t)1024 * s);
         sl[k] = (struct tvpal_frame_slice){s, s, I, pal_store + (size_t)1024 * s};
+    }
+}
+
+/* make_frame, then a box of voxels (the middle third of the volume on
+ * every axis) drawn with palette entry 1 alone, whose row value is v1
+ * (NaN: missing values); the voxels that had index 1 move to 2. */
+static void make_block_frame(const struct vol *vo, struct tvpal_view *v,
+                             struct tvpal_frame *f, const struct tvpal_tf *tf,
+                             float v1)
+{
+    make_frame(vo, v, f, tf);
+    const uint32_t n = f->count, w = f->w, h = f->h;
+    for (uint32_t s = 0; s < n; s++) {
+        uint8_t *I = idx_store + (size_t)s * w * h;
+        for (uint32_t b = 0; b < h; b++)
+            for (uint32_t x = 0; x < w; x++) {
+                uint8_t *q = I + x + (size_t)w * b;
+                if (*q == 1)
+                    *q = 2;
+                if (s >= n / 3 && s < 2 * n / 3 && x >= w / 3 &&
+                    x < 2 * w / 3 && b >= h / 3 && b < 2 * h / 3)
+                    *q = 1;
+            }
+        float row[256];
+        for (int i = 0; i < 256; i++)
+            row[i] = (float)i / 255.0f;
+        row[1] = v1;
+        tvpal_palette_build(tf, row, tvpal_view_opacity_exponent(v), 1.0,
+                            pal_store + (size_t)1024 * s);
     }
 }
 
@@ -314,6 +344,55 @@ int main(void)
         draw_fresh(&f, f.count, 3, 1, 0, img2);
         CHECK(!memcmp(img, img2, sizeof(float) * np), "shared layer / alpha > 1: SSE2 "
               "vs AVX2 or threads changed pixels");
+    }
+
+    /* Missing values: a block whose palette entry comes from a NaN row
+     * value, with the default transparent NaN colour, draws exactly as
+     * the same block made transparent by the TF (value 0): what lies
+     * behind it shows, in the shear-warp (skipping on and off) and the
+     * reference renderer; an opaque NaN colour hides it. */
+    {
+        const size_t np = (size_t)4 * vo.W * vo.H;
+        struct tvpal_tf tfn = tf;
+        const float red[4] = {1, 0, 0, 1};
+        memcpy(tfn.nan_rgba, red, sizeof red);
+        double *ref2 = malloc(sizeof(double) * np);
+        REQUIRE(ref2 && tf.nan_rgba[3] == 0, "memory, transparent NaN");
+        for (size_t vi = 0; vi < 5; vi++) {
+            struct tvpal_view v = {.dims = {48, 40, 32}, .width = vo.W,
+                                   .height = vo.H, .ax_deg = views[vi][0],
+                                   .ay_deg = views[vi][1],
+                                   .zoom = views[vi][2]};
+            struct tvpal_frame f;
+            for (int skip = 0; skip < 2; skip++) {
+                make_block_frame(&vo, &v, &f, &tf, 0.0f);
+                draw_fresh(&f, f.count, 2, skip, 1, img);
+                tvpal_render_ref(&f, ref);
+                make_block_frame(&vo, &v, &f, &tf, NAN);
+                draw_fresh(&f, f.count, 2, skip, 1, img2);
+                CHECK(!memcmp(img, img2, sizeof(float) * np), "view %zu skip %d: "
+                      "NaN block differs from a transparent one", vi, skip);
+                tvpal_render_ref(&f, ref2);
+                CHECK(!memcmp(ref, ref2, sizeof(double) * np), "view %zu: "
+                      "reference: NaN block differs from a transparent one", vi);
+                make_block_frame(&vo, &v, &f, &tfn, NAN);
+                draw_fresh(&f, f.count, 2, skip, 1, img2);
+                CHECK(memcmp(img, img2, sizeof(float) * np) != 0, "view %zu: "
+                      "an opaque NaN colour draws nothing", vi);
+                tvpal_render_ref(&f, ref2);
+                CHECK(memcmp(ref, ref2, sizeof(double) * np) != 0, "view %zu: "
+                      "reference: an opaque NaN colour draws nothing", vi);
+                /* Where the opaque block shows, the transparent one shows
+                 * what lies behind it. */
+                double behind = 0;
+                for (size_t i = 0; i < np / 4; i++)
+                    if (memcmp(img + 4 * i, img2 + 4 * i, sizeof(float) * 4))
+                        behind += img[4 * i + 3];
+                CHECK(behind > 1.0, "view %zu: nothing behind the block (%g)",
+                      vi, behind);
+            }
+        }
+        free(ref2);
     }
 
     /* Odd shapes: 1 x H, W x 1 and 1100-wide slices (tiles of 32), views

@@ -29,6 +29,8 @@ struct play_opts {
     double scale_z;                     /* vertical exaggeration (z) */
     const char *tf_files[PLAY_MAX_TF];  /* --tf, in order */
     unsigned ntf;
+    int nan_given;                      /* --nan-color: */
+    float nan_rgba[4];                  /* straight RGBA, each in [0, 1] */
     int renderer;                       /* enum play_renderer_kind */
     const char *renderer_why;           /* why a default or implied choice */
     uint32_t fb_bits, cpu_scale;        /* cpu_scale 0: auto */
@@ -50,6 +52,11 @@ int play_options_parse(struct play_opts *o, int argc, char **argv);
  * cpu, default cpu headless), what needs or refuses the window, --ref-psnr
  * on one rank.  Ends the job with exit 2 on a conflict. */
 void play_options_check(struct play_opts *o, int nranks);
+
+/* What the options change in a loaded transfer function: --nan-color
+ * replaces its NaN colour.  Applied to every --tf file (also when reloaded)
+ * and to the default. */
+void play_tf_apply_options(const struct play_opts *o, struct tvpal_tf *tf);
 
 /* The view's voxel spacing: the dataset's, z times scale_z. */
 void play_view_spacing(const struct tvpal_manifest *m, double scale_z,

@@ -39,6 +39,11 @@ static void usage(FILE *f)
 "                           text format or ParaView preset JSON); default:\n"
 "                           one from the data's histogram.  Repeat to give\n"
 "                           several (the window cycles through them)\n"
+"      --nan-color SPEC     colour of missing values (voxels that decode to\n"
+"                           NaN) for every transfer function: none\n"
+"                           (transparent) or R,G,B[,A], each 0..1, A default\n"
+"                           1; default: the TF file's (transparent unless it\n"
+"                           says)\n"
 "      --opacity S          opacity scale (default 1)\n"
 "      --renderer R         cpu (shear-warp on the CPU), gl (GLSL palette\n"
 "                           shader), ref (CPU reference, slow) or none (read\n"
@@ -158,6 +163,37 @@ static int set_tf(struct play_opts *o, const char *arg)
     return 0;
 }
 
+/* --nan-color none | R,G,B[,A]: each in [0, 1], A 1 when left out. */
+static int set_nan_color(struct play_opts *o, const char *arg)
+{
+    float c[4] = {0, 0, 0, 1};
+    o->nan_given = 1;
+    if (!strcmp(arg, "none")) {
+        memset(o->nan_rgba, 0, sizeof o->nan_rgba);
+        return 0;
+    }
+    unsigned n = 0;
+    for (const char *p = arg;;) {
+        char num[64];
+        size_t len = strcspn(p, ",");
+        double v;
+        if (n == 4 || len >= sizeof num)
+            return -1;
+        memcpy(num, p, len);
+        num[len] = 0;
+        if (tvpal_parse_double(num, &v) < 0 || !(v >= 0 && v <= 1))
+            return -1;
+        c[n++] = (float)v;
+        if (!p[len])
+            break;
+        p += len + 1;
+    }
+    if (n < 3)
+        return -1;
+    memcpy(o->nan_rgba, c, sizeof c);
+    return 0;
+}
+
 static int set_renderer(struct play_opts *o, const char *arg)
 {
     static const char *const names[] = {"gl", "cpu", "ref", "none"};
@@ -222,7 +258,7 @@ static int set_composite(struct play_opts *o, const char *arg)
 enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
        K_REPEAT, K_TF_CYCLE, K_JUMPS, K_AUTOPLAY, K_SCREENSHOT, K_OPACITY,
        K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_MEM, K_CSV, K_STRICT,
-       K_REF_PSNR, K_SCALE_Z };
+       K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR };
 
 /* Grouped as --help groups them. */
 static const struct opt_def opt_table[] = {
@@ -234,6 +270,8 @@ static const struct opt_def opt_table[] = {
     {"rotate", 'r', OPT_FN, 0, 0, 0, set_rotate, "AX,AY in degrees"},
     {"zoom", 'z', OPT_DOUBLE, F(zoom), 0, -1, NULL, "a number > 0"},
     {"tf", 't', OPT_FN, 0, 0, 0, set_tf, NULL},
+    {"nan-color", K_NAN_COLOR, OPT_FN, 0, 0, 0, set_nan_color,
+     "none or R,G,B[,A], each 0..1"},
     {"opacity", K_OPACITY, OPT_DOUBLE, F(opacity), 0, 0, NULL,
      "a number >= 0"},
     {"renderer", K_RENDERER, OPT_FN, 0, 0, 0, set_renderer,
@@ -423,6 +461,12 @@ void play_options_check(struct play_opts *o, int nranks)
     if (o->ref_psnr && (nranks > 1 || o->renderer == PLAY_REND_NONE ||
                         o->renderer == PLAY_REND_REF))
         play_die(2, "--ref-psnr: one rank, with the cpu or gl renderer");
+}
+
+void play_tf_apply_options(const struct play_opts *o, struct tvpal_tf *tf)
+{
+    if (o->nan_given)
+        memcpy(tf->nan_rgba, o->nan_rgba, sizeof tf->nan_rgba);
 }
 
 void play_view_spacing(const struct tvpal_manifest *m, double scale_z,

@@ -236,6 +236,7 @@ static void reload_tf(struct win_state *w, uint32_t tfi)
             fprintf(stderr, PROG ": %s: %s (keeping the old one)\n",
                     w->o->tf_files[tfi], d.msg);
     } else {
+        play_tf_apply_options(w->o, &nt);
         s->tfs[tfi] = nt;
     }
 }

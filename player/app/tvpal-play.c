@@ -42,7 +42,7 @@ static void open_dataset(struct play_session *s)
 }
 
 /* Every --tf file (checked now, on every rank), then the default from the
- * data's histogram. */
+ * data's histogram, each with what the options change (--nan-color). */
 static void load_tfs(struct play_session *s)
 {
     const struct tvpal_manifest *m = s->m;
@@ -55,9 +55,11 @@ static void load_tfs(struct play_session *s)
         if (rc < 0)
             snprintf(em, sizeof em, "%s: %s", s->o->tf_files[i], d.msg);
         play_check_all(rc, em, 2);
+        play_tf_apply_options(s->o, &s->tfs[i]);
     }
     tvpal_tf_default(m->value_min, m->value_max, m->histogram,
                      TVPAL_HIST_BINS, &s->tfs[s->ntf]);
+    play_tf_apply_options(s->o, &s->tfs[s->ntf]);
     tvpal_player_set_tf(s->pl, &s->tfs[0], s->o->opacity);
 }
 

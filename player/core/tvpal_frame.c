@@ -34,8 +34,12 @@ int tvpal_palette_build(const struct tvpal_tf *tf, const float *row,
 {
     int clear = 1;
     for (unsigned i = 0; i < 256; i++) {
-        float c[4];
-        tvpal_tf_eval(tf, row[i], c);
+        float ev[4];
+        const float *c = tf->nan_rgba; /* a missing value */
+        if (!isnan(row[i])) {
+            tvpal_tf_eval(tf, row[i], ev);
+            c = ev;
+        }
         double a = c[3] * opacity_scale;
         a = a < 0 ? 0 : a > 1 ? 1 : a;
         a = corrected(a, opacity_exponent);

@@ -3,7 +3,8 @@
  *
  * A frame is the slices of one axis, in drawing order (back to front),
  * each an 8-bit index image with its palette for this frame:
- * palette[i] = opacity-corrected, premultiplied TF(decoder[t][i]).  The
+ * palette[i] = opacity-corrected, premultiplied TF(decoder[t][i]) (the
+ * TF's NaN colour where decoder[t][i] is NaN: a missing value).  The
  * renderer emulates a paletted texture: it fetches the four texels nearest
  * the sample point (texel centres at (i + 0.5) / w, clamped to the edge),
  * looks each index up in the palette and interpolates the RGBA bilinearly
@@ -35,8 +36,10 @@ struct tvpal_frame {
 };
 
 /* palette[i] for i < 256 from the decoded values row[256] of one slice at
- * one timestep.  Returns 1 when every entry is fully transparent (the slice
- * can be skipped), else 0. */
+ * one timestep; a NaN row[i] (a missing value) takes tf->nan_rgba, scaled,
+ * corrected and premultiplied like any other colour, so the default
+ * transparent NaN colour gives exactly {0, 0, 0, 0}.  Returns 1 when every
+ * entry is fully transparent (the slice can be skipped), else 0. */
 int tvpal_palette_build(const struct tvpal_tf *tf, const float *row,
                         double opacity_exponent, double opacity_scale,
                         float *palette);

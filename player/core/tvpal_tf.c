@@ -27,6 +27,38 @@ static int add_point(struct tvpal_tf *tf, double v, const float c[4],
     return 0;
 }
 
+/* Checks that each of c's 4 components lies in [0, 1]; `what` prefixes
+ * the component's name in the message ("" for a point, "nan " for the
+ * NaN colour). */
+static int check_unit_rgba(const float c[4], const char *what, unsigned line,
+                           struct tvpal_diag *diag)
+{
+    for (int i = 0; i < 4; i++)
+        if (!(c[i] >= 0.0f && c[i] <= 1.0f))
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                                  "line %u: %s%c = %g; expected 0..1", line,
+                                  what, "rgba"[i], c[i]);
+    return 0;
+}
+
+/* The text format's "nan r g b a" line s (after the keyword check). */
+static int parse_nan_line(const char *s, unsigned line, struct tvpal_tf *tf,
+                          struct tvpal_diag *diag)
+{
+    float c[4];
+    char extra;
+    if (sscanf(s, "%*s %f %f %f %f %c", &c[0], &c[1], &c[2], &c[3],
+               &extra) != 4)
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                              "line %u: expected \"nan r g b a\" (4 numbers "
+                              "0..1), got \"%s\"", line, s);
+    int rc = check_unit_rgba(c, "nan ", line, diag);
+    if (rc < 0)
+        return rc;
+    memcpy(tf->nan_rgba, c, sizeof c);
+    return 0;
+}
+
 int tvpal_tf_parse_text(const char *text, double vmin, double vmax,
                         struct tvpal_tf *tf, struct tvpal_diag *diag)
 {
@@ -74,6 +106,12 @@ int tvpal_tf_parse_text(const char *text, double vmin, double vmax,
             snprintf(tf->name, sizeof tf->name, "%s", nm);
             continue;
         }
+        if (!strcmp(word, "nan")) {
+            int rc = parse_nan_line(s, line, tf, diag);
+            if (rc < 0)
+                return rc;
+            continue;
+        }
         if (normalized < 0)
             return tvpal_diag_set(diag, TVPAL_E_FORMAT,
                                   "line %u: expected \"domain normalized\" or "
@@ -87,17 +125,15 @@ int tvpal_tf_parse_text(const char *text, double vmin, double vmax,
             return tvpal_diag_set(diag, TVPAL_E_FORMAT,
                                   "line %u: expected 5 numbers \"value r g b "
                                   "a\", got \"%s\"", line, s);
-        for (int i = 0; i < 4; i++)
-            if (!(c[i] >= 0.0f && c[i] <= 1.0f))
-                return tvpal_diag_set(diag, TVPAL_E_FORMAT,
-                                      "line %u: %c = %g; expected 0..1",
-                                      line, "rgba"[i], c[i]);
+        int rc = check_unit_rgba(c, "", line, diag);
+        if (rc < 0)
+            return rc;
         if (!isfinite(v))
             return tvpal_diag_set(diag, TVPAL_E_FORMAT,
                                   "line %u: value is not finite", line);
         if (normalized)
             v = vmin + v * (vmax - vmin);
-        int rc = add_point(tf, v, c, line, diag);
+        rc = add_point(tf, v, c, line, diag);
         if (rc < 0)
             return rc;
     }
@@ -107,18 +143,38 @@ int tvpal_tf_parse_text(const char *text, double vmin, double vmax,
     return 0;
 }
 
-/* Reads the numeric array following "key": [ ... ] in json into out. */
-static int json_array(const char *json, const char *key, double *out,
-                      size_t cap, size_t *n)
+/* The value of "key" in json: the first occurrence of the quoted key
+ * followed by ':' (a string that equals the key is skipped), past the
+ * colon and blanks.  NULL when the key is absent. */
+static const char *json_value(const char *json, const char *key)
 {
     char pat[64];
     snprintf(pat, sizeof pat, "\"%s\"", key);
-    const char *p = strstr(json, pat);
+    for (const char *p = strstr(json, pat); p; p = strstr(p + 1, pat)) {
+        const char *q = p + strlen(pat);
+        while (isspace((unsigned char)*q))
+            q++;
+        if (*q != ':')
+            continue;
+        q++;
+        while (isspace((unsigned char)*q))
+            q++;
+        return q;
+    }
+    return NULL;
+}
+
+/* Reads the numeric array value of "key" in json into out.  Returns 1
+ * when read, 0 when the key is absent, -1 when the value is not an array
+ * of at most cap finite numbers. */
+static int json_array(const char *json, const char *key, double *out,
+                      size_t cap, size_t *n)
+{
+    const char *p = json_value(json, key);
     *n = 0;
     if (!p)
         return 0;
-    p = strchr(p + strlen(pat), '[');
-    if (!p)
+    if (*p != '[')
         return -1;
     p++;
     for (;;) {
@@ -134,6 +190,56 @@ static int json_array(const char *json, const char *key, double *out,
         out[(*n)++] = v;
         p = end;
     }
+}
+
+/* Reads the number value of "key" in json into out.  Returns 1 when read,
+ * 0 when the key is absent, -1 when the value is not a finite number. */
+static int json_number(const char *json, const char *key, double *out)
+{
+    const char *p = json_value(json, key);
+    if (!p)
+        return 0;
+    char *end;
+    errno = 0;
+    double v = strtod(p, &end);
+    if (end == p || errno || !isfinite(v))
+        return -1;
+    *out = v;
+    return 1;
+}
+
+/* The preset's optional NaN colour: NanColor [r, g, b] and NanOpacity,
+ * each in [0, 1]; the opacity is 1 when only the colour is given (as
+ * vtkDiscretizableColorTransferFunction's NanOpacity defaults to 1).
+ * Absent: tf->nan_rgba stays as it is (transparent). */
+static int parse_paraview_nan(const char *json, struct tvpal_tf *tf,
+                              struct tvpal_diag *diag)
+{
+    double rgb[3], op = 1.0;
+    size_t n;
+    int rc = json_array(json, "NanColor", rgb, 3, &n);
+    if (rc < 0 || (rc > 0 && n != 3))
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                              "NanColor: malformed; expected [r, g, b], 3 "
+                              "numbers in 0..1");
+    for (size_t i = 0; rc > 0 && i < 3; i++)
+        if (!(rgb[i] >= 0 && rgb[i] <= 1))
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                                  "NanColor: %c = %g; expected [r, g, b], 3 "
+                                  "numbers in 0..1", "rgb"[i], rgb[i]);
+    int ro = json_number(json, "NanOpacity", &op);
+    if (ro < 0)
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "NanOpacity: malformed; "
+                              "expected a number in 0..1");
+    if (!(op >= 0 && op <= 1))
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "NanOpacity: %g; "
+                              "expected a number in 0..1", op);
+    if (rc > 0)
+        for (int i = 0; i < 3; i++)
+            tf->nan_rgba[i] = (float)rgb[i];
+    if (rc > 0 || ro > 0)
+        tf->nan_rgba[3] = (float)op;
+    return 0;
 }
 
 int tvpal_tf_parse_paraview(const char *json, double vmin, double vmax,
@@ -196,7 +302,7 @@ int tvpal_tf_parse_paraview(const char *json, double vmin, double vmax,
         if (rc < 0)
             return rc;
     }
-    return 0;
+    return parse_paraview_nan(json, tf, diag);
 }
 
 int tvpal_tf_load(const char *path, double vmin, double vmax,
