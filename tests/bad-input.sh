@@ -41,13 +41,27 @@ for name, bad in (("nan", float("nan")), ("inf", float("-inf"))):
     open(w + "/" + name + ".f32", "wb").write(data)
 PY
 A="$W/in/blobs_t0000.f32 $W/in/blobs_t0001.f32"
-expect_exit 2 "nan.f32: timestep 2: NaN or infinite value at voxel \(3,2,4\).*--nan-as" \
-    "$ENC" --dims $D -o "$O" $A "$W/nan.f32" "$W/in/blobs_t0003.f32"; none_left nan
-expect_exit 2 "inf.f32: timestep 2: NaN or infinite" \
+# NaN is a missing value: encoded, decoding to NaN there and only there.
+"$ENC" -q --dims $D -o "$O" $A "$W/nan.f32" "$W/in/blobs_t0003.f32" > /dev/null \
+    && grep -q "^missing = 1$" "$O/manifest.txt" && ok "NaN encoded as missing" \
+    || fail "NaN as missing"
+nan_exactly "$O" 2 $D "3,2,4"
+nan_exactly "$O" 3 $D ""
+rm -rf "$O"
+expect_exit 2 "inf.f32: timestep 2: infinite value at voxel \(3,2,4\).*--nan-as" \
     "$ENC" --dims $D -o "$O" $A "$W/inf.f32" "$W/in/blobs_t0003.f32"; none_left inf
-# NaN late in the run (after checkpoints): still nothing left behind.
-expect_exit 2 "nan.f32: timestep 5" \
-    "$ENC" -q --dims $D --window 2 -o "$O" $IN "$W/in/blobs_t0000.f32" "$W/nan.f32"; none_left late-nan
+# Infinity late in the run (after checkpoints): still nothing left behind.
+expect_exit 2 "inf.f32: timestep 5" \
+    "$ENC" -q --dims $D --window 2 -o "$O" $IN "$W/in/blobs_t0000.f32" "$W/inf.f32"; none_left late-inf
+# Every value missing: nothing to encode.
+$PY -c "import struct,sys; open(sys.argv[1],'wb').write(struct.pack('<f',float('nan'))*240)" "$W/allnan.f32"
+expect_exit 2 "allnan.f32: every value is missing" "$ENC" -q --dims $D -o "$O" "$W/allnan.f32" "$W/allnan.f32"
+none_left all-missing
+# --missing V: the value is missing wherever it occurs.
+"$ENC" -q --dims $D --missing 0 -o "$O" $IN > /dev/null 2>&1 && grep -q "^missing_values = 0$" "$O/manifest.txt" \
+    && ok "--missing 0 recorded" || fail "--missing 0"
+rm -rf "$O"
+expect_exit 2 "--missing" "$ENC" -q --dims $D --missing nan -o "$O" $IN; none_left missing-nan
 "$ENC" -q --dims $D --nan-as -1 -o "$O" $A "$W/nan.f32" "$W/in/blobs_t0003.f32" > /dev/null \
     && grep -q "nonfinite_replaced = 1" "$O/manifest.txt" && ok "--nan-as replaces" \
     || fail "--nan-as"

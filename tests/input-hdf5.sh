@@ -64,7 +64,10 @@ nothing_left "two candidates"
 bad 2 "flat.h5.*/flat \(7, 9\).*rank 2" "$ENC" -q --var /flat -o "$W/bad" "$W/flat.h5"; nothing_left "rank 2"
 bad 2 "9x7x5.*--dims|--dims.*9x7x5" "$ENC" -q --var /sim/temp --dims 9x7x6 -o "$W/bad" "$W/all.h5"
 nothing_left "contradicting --dims"
-bad 2 "fill.h5.*\(4,2,1\).*--nan-as" "$ENC" -q --var /sim/temp -o "$W/bad" "$W/fill.h5"; nothing_left "fill value"
+line=$("$ENC" -q --var /sim/temp --window 2 -o "$W/ds-miss" "$W/fill.h5" 2> "$W/e.txt") \
+    && [ "$(kv missing "$line")" = 1 ] && ok "fill value encoded as missing" \
+    || fail "fill value: $line $(cat "$W/e.txt")"
+nan_exactly "$W/ds-miss" 1 9x7x5 "4,2,1"
 "$ENC" -q --var /sim/temp --window 2 --nan-as 10 -o "$W/ds-fill" "$W/fill.h5" > /dev/null 2> "$W/e.txt" \
     && ok "fill value with --nan-as" || fail "--nan-as: $(cat "$W/e.txt")"
 bad 2 "bad.h5.*damaged" "$ENC" -q -o "$W/bad" "$W/bad.h5"; nothing_left "damaged file"

@@ -46,3 +46,28 @@ kv() { printf '%s\n' "$2" | tr ' ' '\n' | sed -n "s/^$1=//p"; }
 
 # ge A B: A >= B (floats; "inf" is infinite).
 ge() { awk -v a="$1" -v b="$2" 'BEGIN { if (a == "inf") exit 0; exit !(a + 0 >= b + 0) }'; }
+
+# nan_exactly DATASET STEP DIMS "X,Y,Z ...": every axis of DATASET decodes
+# STEP with NaN at exactly the listed voxels (DIMS = NXxNYxNZ; "" = none).
+nan_exactly() {
+    local a got want
+    want=$(printf '%s\n' $4 | sort | tr '\n' ' ')
+    for a in x y z; do
+        "$DEC" "$1" --step "$2" --axis $a -o "$W/nan-$a.f32" 2> "$W/nan-err.txt" \
+            || { fail "decode $1 step $2 axis $a: $(cat "$W/nan-err.txt")"; continue; }
+        got=$("$PY" - "$W/nan-$a.f32" "$3" <<'PY'
+import math, struct, sys
+nx, ny, nz = map(int, sys.argv[2].lower().split("x"))
+b = open(sys.argv[1], "rb").read()
+v = struct.unpack("<%df" % (len(b) // 4), b)
+assert len(v) == nx * ny * nz, "size"
+for i, f in enumerate(v):
+    if math.isnan(f):
+        print("%d,%d,%d" % (i % nx, i // nx % ny, i // (nx * ny)))
+PY
+)
+        got=$(printf '%s\n' $got | sort | tr '\n' ' ')
+        [ "$got" = "$want" ] && ok "$(basename "$1") step $2 axis $a: NaN at ${want:-nowhere}" \
+            || fail "$(basename "$1") step $2 axis $a: NaN at '$got', expected '$want'"
+    done
+}

@@ -36,6 +36,12 @@ good() {
     shift 4
     "$GEN" --field "$field" --dims "$dims" --steps "$steps" -o "$tmp/in-$name" \
         > /dev/null
+    good_encode "$name" "$dims" "$@"
+}
+# good_encode NAME DIMS ENCODER-OPTIONS...: encodes $tmp/in-NAME/*.f32.
+good_encode() {
+    name=$1 dims=$2
+    shift 2
     "$ENC" -q -j 1 --dims "$dims" "$@" -o "$tmp/$name" "$tmp/in-$name"/*.f32 \
         > /dev/null
     for m in "$tmp/$name/manifest.txt" "$tmp/$name"/node-*/manifest.txt; do
@@ -50,6 +56,21 @@ good good-1-basic blobs 4x3x2 3 --window 2
 # 16-bit tables, two nodes; node 1 of axis z holds one slice (phase 0), so
 # its record 1 holds no chunk.
 good good-2-u16-nodes turbulence 4x3x3 3 --window 2 --nodes 2 --table u16
+# Missing values, 16-bit tables (table_format 3): blobs 4x3x2, T = 3, N = 2,
+# voxel (1,1,0) missing at every step and voxel (2,0,1) at step 1 only.
+"$GEN" --field blobs --dims 4x3x2 --steps 3 -o "$tmp/in-good-3-missing" > /dev/null
+"$PY" - "$tmp/in-good-3-missing" <<'PY'
+import glob, struct, sys
+for t, f in enumerate(sorted(glob.glob(sys.argv[1] + "/*.f32"))):
+    b = bytearray(open(f, "rb").read())
+    nan = struct.pack("<I", 0x7FC00000)
+    for (x, y, z), steps in (((1, 1, 0), (0, 1, 2)), ((2, 0, 1), (1,))):
+        if t in steps:
+            i = x + 4 * (y + 3 * z)
+            b[4 * i:4 * i + 4] = nan
+    open(f, "wb").write(b)
+PY
+good_encode good-3-missing 4x3x2 --window 2 --table u16
 
 # The bad files: each one copy of a good-1-basic file with one fault.
 "$PY" - "$O" <<'PY'
@@ -103,7 +124,7 @@ b = bytearray(shard); u32(b, 8, 2)             # CRC left stale on purpose
 write("bad-shard-version-2.tvps", b)
 b = bytearray(shard); b[2000] ^= 0x01          # a reserved byte
 write("bad-shard-header-crc.tvps", b)
-b = bytearray(shard); u32(b, 64, 2); seal_header(b)
+b = bytearray(shard); u32(b, 64, 4); seal_header(b)
 write("bad-shard-table-format.tvps", b)
 write("bad-shard-truncated.tvps", shard[:-4096])
 write("bad-shard-extra.tvps", shard + bytes(4096))
