@@ -149,6 +149,20 @@ static int open_self_describing(struct options *o,
     return 0;
 }
 
+/* The manifest's missing_values become NaN (missing), or its nan_as, as
+ * the encoder made them. */
+static void apply_missing_values(const struct tvpal_manifest *m, float *v,
+                                 size_t n)
+{
+    if (!m->nmissing_values ||
+        !tvpal_missing_apply(v, n, m->missing_values, m->nmissing_values) ||
+        !m->has_nan_as)
+        return;
+    for (size_t i = 0; i < n; i++)
+        if (v[i] != v[i])
+            v[i] = (float)m->nan_as;
+}
+
 /* Timestep t of a self-describing reference, with the dataset's NaN
  * policy (--nan-as) applied as the encoder applied it. */
 static int read_input_step(const struct tvpal_manifest *m,
@@ -170,6 +184,7 @@ static int read_input_step(const struct tvpal_manifest *m,
                 tvpal_input_file(src, t, NULL), t, tvpal_strerror(rc), bad);
         return -1;
     }
+    apply_missing_values(m, dst, nvox);
     return 0;
 }
 
@@ -216,6 +231,11 @@ static void print_lib_error(int rc, const struct tvpal_diag *diag)
 struct step_err {
     double sse, maxabs;
     double flick;                 /* sum of |.| over voxels; 0 at t = 0 */
+    /* Missing values (NaN in the reference) are in no sum: n voxels are
+     * measured, nfl in flick (present at t and t - 1); `missing` are NaN
+     * in the reference, `mismatch` NaN in exactly one of the reference
+     * and the decoded volume (a defect: decoding keeps them in place). */
+    double n, nfl, missing, mismatch;
 };
 
 /* One axis over all timesteps. */
@@ -243,6 +263,8 @@ struct report {
     unsigned psnr_min_a;
     double worst_rmse, worst_max, worst_flick;   /* worst axis */
     double bytes_axis, idx_mean, tab_mean;       /* mean of the three axes */
+    double missing, mismatch;     /* reference NaN voxel-steps (per axis
+                                   * the same); mismatches, worst axis */
     double ratio;                 /* source bytes / bytes_axis */
 };
 
@@ -261,21 +283,29 @@ static const struct step_err *step_at(const struct report *r, uint32_t t,
     return &r->per[(size_t)t * 3 + a];
 }
 
+/* Mean squared error of a step over its measured voxels (0 when every
+ * voxel is missing). */
+static double step_mse(const struct report *r, uint32_t t, unsigned a)
+{
+    const struct step_err *p = step_at(r, t, a);
+    return p->n > 0 ? p->sse / p->n : 0.0;
+}
+
 static double step_rmse(const struct report *r, uint32_t t, unsigned a)
 {
-    return sqrt(step_at(r, t, a)->sse / (double)r->nvox);
+    return sqrt(step_mse(r, t, a));
 }
 
 static double step_psnr(const struct report *r, uint32_t t, unsigned a)
 {
-    return psnr_of(step_at(r, t, a)->sse / (double)r->nvox, r->peak);
+    return psnr_of(step_mse(r, t, a), r->peak);
 }
 
 /* Mean flicker of step t (none at t = 0, nor without contrast). */
 static double step_flicker(const struct report *r, uint32_t t, unsigned a)
 {
-    return t && r->peak > 0 ? step_at(r, t, a)->flick / (double)r->nvox / r->peak
-                            : 0.0;
+    const struct step_err *p = step_at(r, t, a);
+    return t && r->peak > 0 && p->nfl > 0 ? p->flick / p->nfl / r->peak : 0.0;
 }
 
 /* Sets the sizes and allocates r->per.  Returns 0 or -1 (out of memory). */
@@ -387,6 +417,7 @@ static int read_reference_step(const struct tvpal_manifest *m, char **files,
                 t, tvpal_strerror(rc), bad);
         return -1;
     }
+    apply_missing_values(m, dst, nvox);
     return 0;
 }
 
@@ -395,6 +426,8 @@ static void update_range(struct report *r, const float *R)
 {
     double vmin = r->vmin, vmax = r->vmax;
     for (size_t i = 0; i < r->nvox; i++) {
+        if (R[i] != R[i])
+            continue; /* missing */
         vmin = R[i] < vmin ? R[i] : vmin;
         vmax = R[i] > vmax ? R[i] : vmax;
     }
@@ -403,23 +436,36 @@ static void update_range(struct report *r, const float *R)
 }
 
 /* Error of the decoded step V against the reference R; the previous steps
- * Rp, Vp count only when t > 0 (flicker). */
+ * Rp, Vp count only when t > 0 (flicker).  A voxel missing (NaN) in R or
+ * V is left out; NaN in only one of them is a mismatch. */
 static void measure_step(struct step_err *p, size_t nvox, uint32_t t,
                          const float *R, const float *Rp, const float *V,
                          const float *Vp)
 {
     double sse = 0, mx = 0, fl = 0;
+    size_t n = 0, nfl = 0, miss = 0, bad = 0;
     for (size_t i = 0; i < nvox; i++) {
+        const int rn = R[i] != R[i], vn = V[i] != V[i];
+        miss += rn;
+        bad += rn != vn;
+        if (rn || vn)
+            continue;
         double e = (double)V[i] - (double)R[i];
         sse += e * e;
         mx = fabs(e) > mx ? fabs(e) : mx;
+        n++;
     }
     if (t > 0)
-        for (size_t i = 0; i < nvox; i++)
-            fl += fabs(((double)R[i] - Rp[i]) - ((double)V[i] - Vp[i]));
-    p->sse = sse;
-    p->maxabs = mx;
-    p->flick = fl;
+        for (size_t i = 0; i < nvox; i++) {
+            double d = ((double)R[i] - Rp[i]) - ((double)V[i] - Vp[i]);
+            if (d != d)
+                continue; /* missing at t or t - 1 */
+            fl += fabs(d);
+            nfl++;
+        }
+    *p = (struct step_err){.sse = sse, .maxabs = mx, .flick = fl,
+                           .n = (double)n, .nfl = (double)nfl,
+                           .missing = (double)miss, .mismatch = (double)bad};
 }
 
 /* The one pass over the timesteps: per step, the reference and the three
@@ -477,12 +523,16 @@ static void summarize_errors(struct report *r)
     r->psnr_min = INFINITY;
     for (unsigned a = 0; a < 3; a++) {
         struct axis_sum *x = &r->axis[a];
-        double sse = 0, mx = 0, fl = 0;
+        double sse = 0, mx = 0, fl = 0, n = 0, nfl = 0, miss = 0, bad = 0;
         for (uint32_t t = 0; t < T; t++) {
             const struct step_err *p = step_at(r, t, a);
             sse += p->sse;
             mx = p->maxabs > mx ? p->maxabs : mx;
             fl += p->flick;
+            n += p->n;
+            nfl += p->nfl;
+            miss += p->missing;
+            bad += p->mismatch;
             double ps = step_psnr(r, t, a);
             if (ps < r->psnr_min) {
                 r->psnr_min = ps;
@@ -490,11 +540,14 @@ static void summarize_errors(struct report *r)
                 r->psnr_min_a = a;
             }
         }
-        x->rmse = sqrt(sse / r->vts);
-        x->psnr = psnr_of(sse / r->vts, r->peak);
+        const double mse = n > 0 ? sse / n : 0.0;
+        x->rmse = sqrt(mse);
+        x->psnr = psnr_of(mse, r->peak);
         x->maxabs = mx;
-        x->flicker = T > 1 && r->peak > 0
-                         ? fl / ((double)r->nvox * (T - 1)) / r->peak : 0.0;
+        x->flicker = T > 1 && r->peak > 0 && nfl > 0 ? fl / nfl / r->peak
+                                                     : 0.0;
+        r->missing = miss;
+        r->mismatch = bad > r->mismatch ? bad : r->mismatch;
         r->worst_rmse = x->rmse > r->worst_rmse ? x->rmse : r->worst_rmse;
         r->worst_max = mx > r->worst_max ? mx : r->worst_max;
         r->worst_flick = x->flicker > r->worst_flick ? x->flicker : r->worst_flick;
@@ -558,13 +611,17 @@ static void print_text(const struct report *r)
            8 * (r->bytes_axis - r->idx_mean - r->tab_mean) / r->vts);
     printf("worst timestep: %u on axis %c (%.3f dB)\n", r->psnr_min_t,
            "xyz"[r->psnr_min_a], r->psnr_min);
+    if (r->missing)
+        printf("missing values: %.0f of %.0f voxel-timesteps (%.3g%%), left "
+               "out of every figure\n", r->missing, r->vts,
+               100.0 * r->missing / r->vts);
 }
 
 /* A column of the CSV or a key of the summary line: its name, the printf
  * conversion of its value and where the value is in its record (a struct of
  * doubles).  kind says how the double is handed to the conversion: counts
  * and characters are exact in a double. */
-enum col_kind { COL_UINT, COL_CHAR, COL_REAL };
+enum col_kind { COL_UINT, COL_CHAR, COL_REAL, COL_COUNT };
 struct column {
     const char *name;
     const char *fmt;
@@ -579,12 +636,13 @@ static void put_value(FILE *f, const struct column *c, const void *rec)
     case COL_UINT: fprintf(f, c->fmt, (unsigned)v); break;
     case COL_CHAR: fprintf(f, c->fmt, (int)v); break;
     case COL_REAL: fprintf(f, c->fmt, v); break;
+    case COL_COUNT: fprintf(f, "%.0f", v); break; /* exact below 2^53 */
     }
 }
 
 /* One CSV row: a timestep of one axis. */
 struct csv_row {
-    double step, axis, rmse, psnr, max_abs_error, flicker, time;
+    double step, axis, rmse, psnr, max_abs_error, flicker, time, missing;
 };
 #define CSV_COL(name, fmt, kind) {#name, fmt, kind, offsetof(struct csv_row, name)}
 static const struct column csv_columns[] = {
@@ -595,6 +653,7 @@ static const struct column csv_columns[] = {
     CSV_COL(max_abs_error, "%.9g", COL_REAL),
     CSV_COL(flicker, "%.9g", COL_REAL),
     CSV_COL(time, "%.17g", COL_REAL),   /* the manifest's, else the step */
+    CSV_COL(missing, "", COL_COUNT),    /* voxels missing in the reference */
 };
 #undef CSV_COL
 #define NCSV (sizeof csv_columns / sizeof csv_columns[0])
@@ -605,7 +664,8 @@ static struct csv_row csv_row_of(const struct report *r, uint32_t t, unsigned a)
         .step = t, .axis = "xyz"[a], .rmse = step_rmse(r, t, a),
         .psnr = step_psnr(r, t, a), .max_abs_error = step_at(r, t, a)->maxabs,
         .flicker = step_flicker(r, t, a),
-        .time = r->m->ntimes ? r->m->times[t] : (double)t};
+        .time = r->m->ntimes ? r->m->times[t] : (double)t,
+        .missing = step_at(r, t, a)->missing};
 }
 
 /* The header (the column names), then one row per timestep and axis. */
@@ -704,8 +764,9 @@ static void write_json_doc(FILE *f, const struct report *r)
     jnum(f, r->psnr);
     fprintf(f, ", \"psnr_min\": ");
     jnum(f, r->psnr_min);
-    fprintf(f, ", \"ratio\": %.6f, \"bpv\": %.6f}\n}\n", r->ratio,
-            8 * r->bytes_axis / r->vts);
+    fprintf(f, ", \"ratio\": %.6f, \"bpv\": %.6f, \"missing\": %.0f, "
+            "\"missing_mismatch\": %.0f}\n}\n", r->ratio,
+            8 * r->bytes_axis / r->vts, r->missing, r->mismatch);
 }
 
 /* Writes path with fn.  Returns 0 or TVPAL_EXIT_FAIL (printed). */
@@ -729,7 +790,7 @@ static int write_file(const char *path, const struct report *r,
 struct summary {
     double psnr, psnr_x, psnr_y, psnr_z, psnr_min, rmse, max_abs_error;
     double flicker, ratio, ratio_8bit, bpv, index_bpv, table_bpv, disk_ratio;
-    double steps, window;
+    double steps, window, missing, missing_mismatch;
 };
 #define KEY(name, fmt, kind) {#name, fmt, kind, offsetof(struct summary, name)}
 static const struct column summary_keys[] = {
@@ -749,6 +810,8 @@ static const struct column summary_keys[] = {
     KEY(disk_ratio, "%.4f", COL_REAL),
     KEY(steps, "%u", COL_UINT),
     KEY(window, "%u", COL_UINT),
+    KEY(missing, "", COL_COUNT),
+    KEY(missing_mismatch, "", COL_COUNT),
 };
 #undef KEY
 
@@ -762,7 +825,8 @@ static struct summary summary_of(const struct report *r)
         .ratio_8bit = r->vts / r->bytes_axis, .bpv = 8 * r->bytes_axis / r->vts,
         .index_bpv = 8 * r->idx_mean / r->vts,
         .table_bpv = 8 * r->tab_mean / r->vts, .disk_ratio = r->ratio / 3.0,
-        .steps = r->steps, .window = r->m->window};
+        .steps = r->steps, .window = r->m->window, .missing = r->missing,
+        .missing_mismatch = r->mismatch};
 }
 
 /* The closing key=value line on stdout. */
@@ -817,6 +881,14 @@ int main(int argc, char **argv)
         summarize_errors(&r);
         summarize_sizes(&r);
         status = write_outputs(&r, &o);
+        if (status == 0 && r.mismatch > 0) {
+            /* The dataset does not hold the reference's missing values
+             * where they are (another reference, or a defect). */
+            fprintf(stderr, PROG ": %s: %.0f voxel-timesteps are missing "
+                    "(NaN) in only one of the reference and the decoded "
+                    "dataset\n", o.dir, r.mismatch);
+            status = TVPAL_EXIT_FAIL;
+        }
     }
     buffers_free(&b);
     free(r.per);
