@@ -121,6 +121,28 @@ if [ -r "$S/mercator_sample.nc" ] && [ -r "$S/contour.cdf" ]; then
         || fail "no spacing warning: $(cat "$W/e.txt")"
     grep -q "^times = 0 6 12 24 30 36 48$" "$W/contour/manifest.txt" && grep -q "^time_units = hours$" "$W/contour/manifest.txt" \
         && ok "contour: times from frtime" || fail "contour times: $(grep '^time' "$W/contour/manifest.txt")"
+    # Its Z has fill values (T has none): missing values, as many as ncdump
+    # (netcdf-bin's own reader) shows ("_" or outside valid_range -150..5000),
+    # and NaN after decoding at exactly those voxels of step 0.
+    "$ENC" -q --var Z -o "$W/contour-miss" "$S/contour.cdf" > /dev/null 2> "$W/e.txt" || fail "contour missing: $(cat "$W/e.txt")"
+    "$DEC" "$W/contour-miss" --step 0 --axis z -o "$W/c0.f32" || fail "contour decode"
+    ncdump -v Z "$S/contour.cdf" > "$W/c.cdl" || fail ncdump
+    got=$(sed -n 's/^missing = //p' "$W/contour-miss/manifest.txt")
+    "$PY" - "$W/c.cdl" "$W/c0.f32" "$got" <<'PY' && ok "contour: $got missing values, where ncdump has them" || fail "contour missing values"
+import math, re, struct, sys
+text = open(sys.argv[1]).read().split(" Z =", 1)[1].split(";", 1)[0]
+vals = [t for t in re.split(r"[,\s]+", text) if t]
+miss = [t == "_" or not (-150 <= float(t) <= 5000) for t in vals]
+n0 = 36 * 33 * 10
+b = open(sys.argv[2], "rb").read()
+dec = struct.unpack("<%df" % (len(b) // 4), b)
+where = [math.isnan(v) for v in dec]
+print("ncdump: %d of %d missing, %d at step 0; manifest %s; decoded step 0: %d NaN"
+      % (sum(miss), len(vals), sum(miss[:n0]), sys.argv[3], sum(where)))
+sys.exit(0 if sum(miss) == int(sys.argv[3]) and where == miss[:n0] and sum(miss) > 0 else 1)
+PY
+    l=$("$REP" -q "$W/contour-miss") && [ "$(kv missing "$l")" = "$got" ] && [ "$(kv missing_mismatch "$l")" = 0 ] \
+        && ok "contour report: psnr $(kv psnr "$l") without the $got missing values" || fail "contour report: $l"
 else
     echo "no $S: the real-data part is skipped"
 fi
