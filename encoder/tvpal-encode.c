@@ -373,7 +373,8 @@ static void parse_option(const struct optspec *sp, const char *arg,
         usage(stdout);
         exit(0);
     case OPT_VERSION:
-        printf(PROG " " PACKAGE_VERSION " (format %u)\n", TVPAL_FORMAT_VERSION);
+        printf(PROG " " PACKAGE_VERSION " (format %u; inflate: %s)\n",
+               TVPAL_FORMAT_VERSION, tvpal_input_inflate_library());
         exit(0);
     }
     die_usage("--%s \"%s\": expected %s", sp->name, arg, sp->expect);

@@ -582,6 +582,65 @@ static int make_dir(const char *dir)
     return H5Fget_obj_count((hid_t)H5F_OBJ_ALL, H5F_OBJ_ALL) == 0 ? 0 : 99;
 }
 
+/* Little-endian float32 chunked 1 x 1 x 2 x 3 (edges cut) with shuffle
+ * and gzip: read directly (tvpal_in_hdf5.c "direct chunk reading"), the
+ * same values; a chunk whose bytes are damaged is an error, not garbage. */
+static void test_direct(void)
+{
+    float v[3 * 30], buf[30];
+    for (int i = 0; i < 3 * 30; i++)
+        v[i] = val(i / 30, i % 30);
+    hid_t f = create(wpath("edge.h5"));
+    hsize_t dims[4] = {3, 2, 3, 5}, chunk[4] = {1, 1, 2, 3};
+    hid_t sp = H5Screate_simple(4, dims, NULL), p = H5Pcreate(H5P_DATASET_CREATE);
+    REQUIRE(H5Pset_chunk(p, 4, chunk) >= 0 && H5Pset_shuffle(p) >= 0 &&
+            H5Pset_deflate(p, 6) >= 0, "edge.h5 filters");
+    hid_t d = H5Dcreate2(f, "v", H5T_IEEE_F32LE, sp, H5P_DEFAULT, p, H5P_DEFAULT);
+    REQUIRE(d >= 0 && H5Dwrite(d, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL,
+                               H5P_DEFAULT, v) >= 0, "edge.h5 write");
+    /* Where chunk (1, 1, 2, 3) of step 1 lies, to damage it below. */
+    hsize_t off[4] = {1, 1, 2, 3};
+    haddr_t addr = 0;
+    hsize_t size = 0;
+    unsigned mask;
+    REQUIRE(H5Dget_chunk_info_by_coord(d, off, &mask, &addr, &size) >= 0 &&
+            size > 8, "chunk info");
+    H5Dclose(d);
+    H5Pclose(p);
+    H5Sclose(sp);
+    H5Fclose(f);
+
+    struct tvpal_diag g;
+    int rc;
+    const uint64_t c0 = tvpal_input_inflated_chunks();
+    struct tvpal_input *in = open1(TVPAL_IN_AUTO, wpath("edge.h5"), "/v", &rc, &g);
+    REQUIRE(in, "open edge.h5: %d %s", rc, g.msg);
+    for (uint32_t k = 0; k < 3; k++) {
+        REQUIRE(tvpal_input_read(in, k, buf, &g) == 0, "read %u: %s", k, g.msg);
+        int bad = 0;
+        for (int i = 0; i < 30; i++)
+            bad += buf[i] != val((int)k, i);
+        CHECK(!bad, "edge.h5 step %u: %d values differ", k, bad);
+    }
+    tvpal_input_close(in);
+    CHECK(tvpal_input_inflated_chunks() - c0 == 3 * 8,
+          "24 chunks inflated directly (%llu)",
+          (unsigned long long)(tvpal_input_inflated_chunks() - c0));
+
+    FILE *fp = fopen(wpath("edge.h5"), "r+b");
+    REQUIRE(fp && fseek(fp, (long)addr + (long)size / 2, SEEK_SET) == 0 &&
+            fputc(0x55 ^ 0xff, fp) != EOF && fputc(0xAA, fp) != EOF &&
+            fclose(fp) == 0, "damage the chunk");
+    in = open1(TVPAL_IN_AUTO, wpath("edge.h5"), "/v", &rc, &g);
+    REQUIRE(in, "open damaged edge.h5: %s", g.msg);
+    CHECK(tvpal_input_read(in, 0, buf, &g) == 0, "step 0 undamaged");
+    rc = tvpal_input_read(in, 1, buf, &g);
+    CHECK(rc == TVPAL_E_FORMAT && strstr(g.msg, "edge.h5") &&
+              strstr(g.msg, "step 1") && strstr(g.msg, "inflate"),
+          "damaged chunk: %d %s", rc, g.msg);
+    tvpal_input_close(in);
+}
+
 int main(int argc, char **argv)
 {
     if (argc == 3 && !strcmp(argv[1], "--make"))
@@ -601,6 +660,9 @@ int main(int argc, char **argv)
     test_fill();
     test_errors();
     test_netcdf4();
+#if defined(HAVE_ZLIB) || defined(HAVE_LIBDEFLATE)
+    test_direct();
+#endif
     ssize_t left = H5Fget_obj_count((hid_t)H5F_OBJ_ALL, H5F_OBJ_ALL);
     CHECK(left == 0, "%zd HDF5 handles left open by the reader", left);
     int rc = tt_done("test-hdf5");

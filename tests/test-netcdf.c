@@ -293,7 +293,7 @@ static void test_64bit(void)
  * unlimited nor a coordinate (the first of 4 dims); extra dims. */
 static void test_netcdf4(void)
 {
-    char v[SERIES_CAP], w[SERIES_CAP], cmd[1200];
+    char v[SERIES_CAP], w[SERIES_CAP], x[SERIES_CAP], cmd[1200];
     gen("c", "nc4",
         "netcdf c {\n"
         "dimensions:\n step = 3 ;\n one = 1 ;\n two = 2 ;\n lev = 2 ;\n"
@@ -303,11 +303,14 @@ static void test_netcdf4(void)
         "  V:_DeflateLevel = 4 ;\n  V:units = \"m s-1\" ;\n"
         " double W(step, one, lev, lat, lon) ;\n"
         " float E(step, two, lev, lat, lon) ;\n"
+        " float S(step, lev, lat, lon) ;\n  S:_ChunkSizes = 1, 1, 2, 3 ;\n"
+        "  S:_DeflateLevel = 1 ;\n  S:_Shuffle = \"true\" ;\n"
         " int lev(lev) ;\n"
         "data:\n"
-        " V = %s ;\n W = %s ;\n lev = 10, 20 ;\n}\n",
+        " V = %s ;\n W = %s ;\n S = %s ;\n lev = 10, 20 ;\n}\n",
         series_text(v, 0, 3, 30, 2, 29, "1e30"),
-        series_text(w, 0, 3, 30, -1, -1, ""));
+        series_text(w, 0, 3, 30, -1, -1, ""),
+        series_text(x, 0, 3, 30, -1, -1, ""));
     snprintf(cmd, sizeof cmd, "ncdump -hs '%s' | grep -q 'V:_DeflateLevel = 4'",
              wpath("c.nc"));
     CHECK(system(cmd) == 0, "c.nc has a deflated V");
@@ -315,6 +318,7 @@ static void test_netcdf4(void)
     struct tvpal_diag g;
     int rc;
     float buf[30];
+    const uint64_t chunks0 = tvpal_input_inflated_chunks();
     struct tvpal_input *in = open1(wpath("c.nc"), "V", NULL, &rc, &g);
     REQUIRE(in, "open V: %s", g.msg);
     const struct tvpal_input_info *fi = tvpal_input_info(in);
@@ -331,6 +335,29 @@ static void test_netcdf4(void)
         CHECK(!bad, "V step %u: %d differ", k, bad);
     }
     tvpal_input_close(in);
+    /* Deflated float chunks are read directly (tvpal_in_hdf5.c) and
+     * inflated by tvpal_inflate, not by the library: one per step. */
+#ifdef HAVE_HDF5
+    CHECK(tvpal_input_inflated_chunks() == chunks0 + 3,
+          "V: 3 chunks inflated directly (%llu)",
+          (unsigned long long)(tvpal_input_inflated_chunks() - chunks0));
+#endif
+    /* Shuffled, 2 x 2 x 2 chunks per step cut at the edges. */
+    in = open1(wpath("c.nc"), "S", NULL, &rc, &g);
+    REQUIRE(in, "open S: %s", g.msg);
+    for (uint32_t k = 0; k < 3; k++) {
+        REQUIRE(tvpal_input_read(in, k, buf, &g) == 0, "read S %u: %s", k, g.msg);
+        int bad = 0;
+        for (int i = 0; i < 30; i++)
+            bad += buf[i] != val((int)k, i);
+        CHECK(!bad, "S step %u (shuffled, edge chunks): %d differ", k, bad);
+    }
+    tvpal_input_close(in);
+#ifdef HAVE_HDF5
+    CHECK(tvpal_input_inflated_chunks() == chunks0 + 3 + 3 * 8,
+          "S: 8 chunks a step inflated directly (%llu in all)",
+          (unsigned long long)(tvpal_input_inflated_chunks() - chunks0));
+#endif
 
     in = open1(wpath("c.nc"), "W", NULL, &rc, &g);
     REQUIRE(in, "open W (an extra dim of length 1): %s", g.msg);

@@ -6,3 +6,28 @@ const struct tvpal_input_backend tvpal_input_hdf5 = {
     .name = "hdf5",
     .missing = "this tvpal was built without HDF5 support (install the Debian "
                "package libhdf5-dev and reconfigure)"};
+
+int tvpal_input_hdf5_direct_open(struct tvpal_h5direct **out,
+                                 const char *path, const char *dataset)
+{
+    (void)path, (void)dataset;
+    *out = NULL;
+    return 0;
+}
+
+int tvpal_input_hdf5_direct_read(struct tvpal_h5direct *d, uint32_t k,
+                                 float *dst)
+{
+    (void)d, (void)k, (void)dst;
+    return 1;
+}
+
+void tvpal_input_hdf5_direct_close(struct tvpal_h5direct *d)
+{
+    (void)d;
+}
+
+uint64_t tvpal_input_hdf5_inflated(void)
+{
+    return 0;
+}

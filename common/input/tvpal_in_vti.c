@@ -1,5 +1,5 @@
 /* tvpal_in_vti.c: the VTK XML ImageData (.vti) backend of tvpal_input, and
- * the only file of the tree that includes expat and zlib (LAYERS.md).  It
+ * the only file of the tree that includes expat (LAYERS.md).  It
  * also reads .pvti files (PImageData: the whole extent assembled from its
  * pieces, each a .vti read as below, one piece at a time) and parses .pvd
  * collections for tvpal_input.c (tvpal_input_vtk_collection).
@@ -7,7 +7,7 @@
  * One file is one timestep.  The XML is parsed with expat up to the
  * <AppendedData> tag (what follows the '_' marker is not XML: raw bytes or
  * base64 text), the point array's data is found by the rules of the VTK
- * XML format and zlib inflates its blocks:
+ * XML format and tvpal_inflate (zlib or libdeflate) inflates its blocks:
  *   ascii     numbers separated by white space in the DataArray's text;
  *   binary    base64 text in the DataArray;
  *   appended  at `offset` bytes (raw) or characters (base64) after '_'.
@@ -25,6 +25,7 @@
  * a file that is not a readable .vti, with the path and the problem in the
  * diag; TVPAL_E_INVAL for an array that cannot be chosen or is not a scalar
  * field. */
+#include "tvpal_inflate.h"
 #include "tvpal_input_impl.h"
 
 #include <errno.h>
@@ -39,7 +40,6 @@
 #include <unistd.h>
 
 #include <expat.h>
-#include <zlib.h>
 
 #define ZLIB_NAME "vtkZLibDataCompressor"
 
@@ -900,13 +900,24 @@ static int truncated(const struct vti_doc *d, const struct vti_array *a,
 static int block_error(const struct vti_doc *d, const struct vti_array *a,
                        uint64_t i, uint64_t nb, int z)
 {
+    if (z == TVPAL_INFLATE_NOMEM)
+        return TVPAL_E_NOMEM;
     return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s: zlib block "
                           "%llu of %llu does not inflate (%s)", d->path,
                           a->name, (unsigned long long)i + 1,
                           (unsigned long long)nb,
-                          z != Z_OK ? (z == Z_BUF_ERROR ? "data ends early or "
-                          "inflates to more than its size" : zError(z))
-                                    : "inflates to less than its size");
+                          z != TVPAL_INFLATE_OK ? tvpal_inflate_why(z)
+                                : "inflates to less than its size");
+}
+
+/* Block i: exactly `want` bytes from csize compressed ones; 0 or the
+ * tvpal_inflate status (OK when it inflates to fewer bytes). */
+static int inflate_block(const unsigned char *c, uint64_t csize,
+                         unsigned char *out, uint64_t want, int *z)
+{
+    size_t got;
+    *z = tvpal_inflate(c, (size_t)csize, out, (size_t)want, &got);
+    return *z != TVPAL_INFLATE_OK || got != want;
 }
 
 /* Raw (not base64) compressed blocks lie one after the other at c: each
@@ -926,16 +937,15 @@ static int inflate_raw_blocks(const struct vti_doc *d,
     for (uint64_t i = 0; i < nb; i++)
         at[i + 1] = at[i] + csize[i];
     int64_t bad = -1;
-    int bad_z = Z_OK;
+    int bad_z = TVPAL_INFLATE_OK;
 #ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 1)
 #endif
     for (int64_t i = 0; i < (int64_t)nb; i++) {
         uint64_t want = (uint64_t)i + 1 == nb && last ? last : bs;
-        uLongf dlen = (uLongf)want;
-        int z = uncompress(out + (uint64_t)i * bs, &dlen, c + at[i],
-                           (uLong)csize[i]);
-        if (z != Z_OK || dlen != want) {
+        int z;
+        if (inflate_block(c + at[i], csize[i], out + (uint64_t)i * bs, want,
+                          &z)) {
 #ifdef _OPENMP
 #pragma omp critical(tvpal_vti_block)
 #endif
@@ -1045,9 +1055,8 @@ static int read_binary(const struct vti_doc *d, const struct vti_array *a,
             break;
         }
         uint64_t want = i + 1 == nb && last ? last : bs;
-        uLongf dlen = (uLongf)want;
-        int z = uncompress(out + i * bs, &dlen, cbuf, (uLong)csize[i]);
-        if (z != Z_OK || dlen != want)
+        int z;
+        if (inflate_block(cbuf, csize[i], out + i * bs, want, &z))
             rc = block_error(d, a, i, nb, z);
     }
     free(cbuf);

@@ -2,6 +2,9 @@
  * backends (see tvpal_input.h).  No format library here: each backend is
  * its own adapter file. */
 #include "tvpal_input_impl.h"
+#ifdef HAVE_INFLATE_ADAPTER
+#include "tvpal_inflate.h"
+#endif
 
 #include <errno.h>
 #include <stdarg.h>
@@ -464,4 +467,23 @@ void tvpal_text_put(struct tvpal_text *b, const char *fmt, ...)
         }
         b->s = s, b->cap = cap;
     }
+}
+
+const char *tvpal_input_inflate_library(void)
+{
+#if defined(HAVE_INFLATE_ADAPTER) && defined(HAVE_HDF5)
+    static char buf[96];
+    snprintf(buf, sizeof buf, "%s (also HDF5 and NetCDF-4 chunks)",
+             tvpal_inflate_library());
+    return buf;
+#elif defined(HAVE_INFLATE_ADAPTER)
+    return tvpal_inflate_library();
+#else
+    return "none";
+#endif
+}
+
+uint64_t tvpal_input_inflated_chunks(void)
+{
+    return tvpal_input_hdf5_inflated();
 }

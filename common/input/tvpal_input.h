@@ -138,4 +138,11 @@ const char *tvpal_input_file(const struct tvpal_input *in, uint32_t t,
 int tvpal_input_describe(const char *path, enum tvpal_input_format fmt,
                          char **text, struct tvpal_diag *diag);
 
+/* What inflates compressed input, for --version: "libdeflate 1.14 (also
+ * HDF5 and NetCDF-4 chunks)", "zlib 1.2.13" or "none".  And how many
+ * HDF5 or NetCDF-4 chunks libdeflate has inflated in this process (0
+ * without it: the HDF5 library's own zlib filter does). */
+const char *tvpal_input_inflate_library(void);
+uint64_t tvpal_input_inflated_chunks(void);
+
 #endif
