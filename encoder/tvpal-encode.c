@@ -836,10 +836,11 @@ static void load_step(struct run *r, uint32_t t, float *dst)
         if (rc < 0) /* the file changed or is corrupt: a rerun fails too */
             die_input("timestep %u (step %u of %s): %s", t, k, path,
                       lib_error(rc, &d));
-    } else if ((fd = open(path, O_RDONLY | O_CLOEXEC)) < 0) {
-        /* maybe transient (NFS, permissions): keep the partial */
-        die_fail("%s: cannot open: %s (rerun to resume)", path,
-                 strerror(errno));
+    } else {
+        struct tvpal_diag d = {{0}};
+        if ((fd = tvpal_open_regular(path, &d)) < 0)
+            /* maybe transient (NFS, permissions): keep the partial */
+            die_fail("cannot open %s (rerun to resume)", d.msg);
     }
     read_convert(r, fd, off, dst, stats, &res);
     if (fd >= 0)
@@ -916,7 +917,14 @@ static int open_source(struct run *r, int have_dims)
     if (o->ninputs < 1)
         return have_dims;
     if (f == TVPAL_IN_AUTO && tvpal_input_detect(o->inputs[0], &io, &f, &d) < 0)
-        return have_dims; /* check_inputs names the unreadable file */
+    {
+        /* d says "PATH: cause" */
+        size_t n = strlen(o->inputs[0]);
+        const char *cause = !strncmp(d.msg, o->inputs[0], n) &&
+                                    !strncmp(d.msg + n, ": ", 2)
+                                ? d.msg + n + 2 : d.msg;
+        die_usage("%s: cannot read input: %s", o->inputs[0], cause);
+    }
     if (f == TVPAL_IN_RAW) {
         if (o->var || o->time_dim)
             die_usage("--var and --time-dim: for self-describing input "
@@ -975,9 +983,11 @@ static void load_times(struct run *r)
             r->times[t] = tvpal_input_time(r->in, t);
         return;
     }
-    FILE *f = fopen(o->times_file, "r");
+    struct tvpal_diag d = {{0}};
+    int rc;
+    FILE *f = tvpal_fopen_text(o->times_file, &rc, &d);
     if (!f)
-        die_usage("--times %s: %s", o->times_file, strerror(errno));
+        die_usage("--times %s", d.msg);
     uint32_t n = 0;
     double v;
     while (n <= r->T && fscanf(f, "%lf", &v) == 1) {

@@ -18,6 +18,7 @@
 #define _GNU_SOURCE
 #include "tvpal_cli.h"
 #include "tvpal_dataset.h"
+#include "tvpal_fs.h"
 #include "tvpal_format.h"
 #include "tvpal_input.h"
 #include "tvpal_raw.h"
@@ -378,10 +379,10 @@ static int read_reference_step(const struct tvpal_manifest *m, char **files,
     size_t esz = tvpal_type_size(m->type), bytes = nvox * esz;
     const char *path = m->single_file ? files[0] : files[t];
     off_t off = m->single_file ? (off_t)t * (off_t)bytes : 0;
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    struct tvpal_diag d = {{0}};
+    int fd = tvpal_open_regular(path, &d);
     if (fd < 0) {
-        fprintf(stderr, PROG ": %s: cannot open reference: %s\n", path,
-                strerror(errno));
+        fprintf(stderr, PROG ": cannot open reference %s\n", d.msg);
         return -1;
     }
     size_t got = 0;

@@ -27,7 +27,7 @@
     X(CHECKSUM, -9,   "checksum mismatch (corrupt data)")                     \
     X(FORMAT,   -10,  "malformed file (field out of range)")                  \
     X(SIZE,     -11,  "file size does not match dims and type")               \
-    X(NAN,      -12,  "NaN or infinite value in input")                       \
+    X(NAN,      -12,  "infinite value in input")                              \
     X(RANGE,    -13,  "value out of supported range")                         \
     X(OVERFLOW, -14,  "size overflows")                                       \
     X(EXIST,    -15,  "output already exists")                                \

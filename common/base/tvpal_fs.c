@@ -5,6 +5,7 @@
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -112,16 +113,66 @@ int tvpal_write_file_atomic(const char *path, const void *data, size_t len,
     return rc;
 }
 
+int tvpal_open_regular(const char *path, struct tvpal_diag *diag)
+{
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0)
+        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
+                              strerror(errno));
+    struct stat st;
+    if (fstat(fd, &st) < 0 || !S_ISREG(st.st_mode)) {
+        const char *what = S_ISFIFO(st.st_mode) ? " (a FIFO)"
+                           : S_ISCHR(st.st_mode) ? " (a character device)"
+                           : S_ISBLK(st.st_mode) ? " (a block device)"
+                           : S_ISDIR(st.st_mode) ? " (a directory)"
+                           : S_ISSOCK(st.st_mode) ? " (a socket)" : "";
+        close(fd);
+        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: not a regular file%s",
+                              path, what);
+    }
+    int fl = fcntl(fd, F_GETFL);
+    if (fl >= 0)
+        fcntl(fd, F_SETFL, fl & ~O_NONBLOCK);
+    return fd;
+}
+
+/* A regular file of at most TVPAL_TEXT_MAX bytes, open; else < 0. */
+static int open_text(const char *path, struct tvpal_diag *diag)
+{
+    int fd = tvpal_open_regular(path, diag);
+    struct stat st;
+    if (fd >= 0 && fstat(fd, &st) == 0 && (uint64_t)st.st_size > TVPAL_TEXT_MAX) {
+        close(fd);
+        return tvpal_diag_set(diag, TVPAL_E_RANGE, "%s: %llu bytes; a text "
+                              "input is at most %zu MiB", path,
+                              (unsigned long long)st.st_size,
+                              TVPAL_TEXT_MAX >> 20);
+    }
+    return fd;
+}
+
+FILE *tvpal_fopen_text(const char *path, int *rc, struct tvpal_diag *diag)
+{
+    int fd = open_text(path, diag);
+    FILE *f = fd >= 0 ? fdopen(fd, "r") : NULL;
+    if (fd >= 0 && !f) {
+        close(fd);
+        fd = tvpal_diag_set(diag, TVPAL_E_NOMEM, "%s: %s", path,
+                            strerror(errno));
+    }
+    *rc = f ? 0 : fd;
+    return f;
+}
+
 int tvpal_read_file(const char *path, char **out, size_t *len,
                     struct tvpal_diag *diag)
 {
-    FILE *f = fopen(path, "rb");
+    int rc = 0;
+    FILE *f = tvpal_fopen_text(path, &rc, diag);
     if (!f)
-        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
-                              strerror(errno));
+        return rc;
     char *buf = NULL;
     size_t n = 0, cap = 0;
-    int rc = 0;
     for (;;) {
         if (cap - n < 4096) {
             cap = cap ? cap * 2 : 8192;
@@ -134,6 +185,11 @@ int tvpal_read_file(const char *path, char **out, size_t *len,
         }
         size_t k = fread(buf + n, 1, cap - n - 1, f);
         n += k;
+        if (n > TVPAL_TEXT_MAX) { /* grew since the check */
+            rc = tvpal_diag_set(diag, TVPAL_E_RANGE, "%s: more than %zu MiB",
+                                path, TVPAL_TEXT_MAX >> 20);
+            break;
+        }
         if (k == 0) {
             if (ferror(f))
                 rc = tvpal_diag_set(diag, TVPAL_E_READ, "%s: %s", path,

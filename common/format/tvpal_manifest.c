@@ -1,5 +1,6 @@
 /* tvpal_manifest.c: manifest text format (see tvpal_manifest.h). */
 #include "tvpal_manifest.h"
+#include "tvpal_fs.h"
 
 #include <errno.h>
 #include <math.h>
@@ -352,13 +353,13 @@ int tvpal_manifest_load(const char *path, struct tvpal_manifest *m,
 {
     memset(m, 0, sizeof *m);
     m->spacing[0] = m->spacing[1] = m->spacing[2] = 1;  /* absent: unit grid */
-    FILE *f = fopen(path, "r");
+    int rc = 0;
+    FILE *f = tvpal_fopen_text(path, &rc, diag);
     if (!f)
-        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s", strerror(errno));
+        return rc;
     char *line = NULL;
     size_t cap = 0;
     unsigned lineno = 0, seen = 0;
-    int rc = 0;
     while (rc == 0 && getline(&line, &cap, f) > 0) {
         lineno++;
         char *s = trim(line);

@@ -2,11 +2,13 @@
  * backends (see tvpal_input.h).  No format library here: each backend is
  * its own adapter file. */
 #include "tvpal_input_impl.h"
+#include "tvpal_fs.h"
 #ifdef HAVE_INFLATE_ADAPTER
 #include "tvpal_inflate.h"
 #endif
 
 #include <errno.h>
+#include <unistd.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -50,15 +52,20 @@ static int read_head(const char *path, char *head, size_t cap, size_t *n,
                      struct tvpal_diag *diag)
 {
     *n = 0;
-    FILE *fp = fopen(path, "rb");
-    if (!fp)
-        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
-                              strerror(errno));
-    *n = fread(head, 1, cap - 1, fp);
-    int err = ferror(fp);
-    fclose(fp);
+    /* A regular file only: the libraries would block on a FIFO. */
+    int fd = tvpal_open_regular(path, diag);
+    if (fd < 0)
+        return fd;
+    ssize_t k;
+    while ((k = read(fd, head + *n, cap - 1 - *n)) > 0 && *n + (size_t)k < cap - 1)
+        *n += (size_t)k;
+    if (k > 0)
+        *n += (size_t)k;
+    int err = k < 0 ? errno : 0;
+    close(fd);
     if (err)
-        return tvpal_diag_set(diag, TVPAL_E_READ, "%s: read error", path);
+        return tvpal_diag_set(diag, TVPAL_E_READ, "%s: %s", path,
+                              strerror(err));
     head[*n] = 0;
     return 0;
 }

@@ -261,8 +261,10 @@ static void write_frame(struct headless *h, const struct play_row *row)
             play_die(1, "%s: cannot write: %s", path, d.msg);
         free(path);
     }
-    if (h->csv)
+    if (h->csv) { /* flushed per frame: a killed run keeps its rows */
         play_timing_csv_row(h->csv, row);
+        fflush(h->csv);
+    }
 }
 
 static void play_frames(struct headless *h)

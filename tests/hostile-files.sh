@@ -1,0 +1,57 @@
+#!/bin/sh
+# hostile-files: inputs that are not regular files are refused at once
+# (exit 2, a message naming the file), never read forever or waited on: a
+# FIFO and a character device like /dev/zero (both made in the test's own
+# directory) as a transfer function, a --times list, a manifest, a raw
+# input and a tvpal-report reference; a text input beyond 64 MiB is
+# refused; the device node is left as it was.  timing.csv has one row per
+# frame drawn even when tvpal-play is killed.
+. "$(dirname "$0")/lib.sh"
+PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
+D=8x6x5
+"$GEN" --field blobs --dims $D --steps 4 -o "$W/in" > /dev/null || fail gen
+"$ENC" -q --dims $D --window 2 -o "$W/ds" "$W"/in/*.f32 > /dev/null || fail encode
+mkfifo "$W/fifo" || { echo "no mkfifo"; exit 99; }
+nodes="$W/fifo"
+if mknod "$W/zero" c 1 5 2> /dev/null; then nodes="$nodes $W/zero"; else
+    echo "mknod not permitted (not root): the character-device cases are skipped"; fi
+T="timeout 20"
+for n in $nodes; do
+    what=$(basename "$n")
+    if [ -x "$PLAY" ]; then
+        expect_exit 2 "$what: cannot read: not a regular file" $T "$PLAY" "$W/ds" --headless --tf "$n"
+    fi
+    expect_exit 2 "$what: not a regular file" $T "$ENC" -q --dims $D --times "$n" -o "$W/o" "$W"/in/*.f32
+    expect_exit 2 "$what" $T "$ENC" -q --dims $D -o "$W/o" "$W/in/blobs_t0000.f32" "$n"
+    expect_exit 2 "$what: cannot read input: not a regular file" $T "$ENC" -q -o "$W/o" "$n"
+    expect_exit 2 "$what: not a regular file" $T "$REP" -q "$W/ds" --reference "$W"/in/blobs_t000[012].f32 "$n"
+    rm -rf "$W/dsm" && cp -r "$W/ds" "$W/dsm" && rm "$W/dsm/manifest.txt" && ln -s "$n" "$W/dsm/manifest.txt"
+    expect_exit 2 "not a regular file" $T "$INFO" "$W/dsm"
+    expect_exit 2 "not a regular file" $T "$DEC" "$W/dsm" --step 0 -o "$W/x.f32"
+done
+[ -c "$W/zero" ] || [ ! -e "$W/zero" ] && ok "device node untouched" || fail "device node replaced"
+[ -p "$W/fifo" ] && ok "FIFO untouched" || fail "FIFO replaced"
+# A text input beyond 64 MiB (sparse).
+truncate -s 65M "$W/big.tf"
+if [ -x "$PLAY" ]; then
+    expect_exit 2 "big.tf: cannot read: 68157440 bytes; a text input is at most 64 MiB" $T "$PLAY" "$W/ds" --headless --tf "$W/big.tf"
+fi
+expect_exit 2 "big.tf: 68157440 bytes" $T "$ENC" -q --dims $D --times "$W/big.tf" -o "$W/o" "$W"/in/*.f32
+[ ! -e "$W/o" ] && [ ! -e "$W/o.partial" ] && ok "nothing left behind" || fail "output left behind"
+# timing.csv as the frames go: kill tvpal-play after some frames.
+if [ -x "$PLAY" ]; then
+    "$GEN" --field blobs --dims 32x32x32 --steps 400 -o "$W/long" > /dev/null || fail "gen long"
+    "$ENC" -q --dims 32x32x32 --window 4 -o "$W/dl" "$W"/long/*.f32 > /dev/null || fail "encode long"
+    "$PLAY" "$W/dl" --headless -q --size 64x64 --repeat 20 -o "$W/fr" > /dev/null 2>&1 &
+    pid=$!
+    i=0
+    while [ $i -lt 100 ] && [ "$(ls "$W/fr" 2> /dev/null | grep -c png)" -lt 3 ]; do sleep 0.1; i=$((i + 1)); done
+    kill -9 $pid 2> /dev/null
+    wait $pid 2> /dev/null
+    frames=$(ls "$W/fr" | grep -c png)
+    rows=$(($(wc -l < "$W/fr/timing.csv") - 1))
+    [ "$frames" -ge 3 ] && [ "$rows" -ge $((frames - 1)) ] && [ "$rows" -le "$frames" ] \
+        && ok "killed after $frames frames: timing.csv has $rows rows" \
+        || fail "killed after $frames frames: timing.csv has $rows rows"
+fi
+finish
