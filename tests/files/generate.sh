@@ -144,6 +144,10 @@ b = bytearray(shard); u32(b, rec(1) + 4, 2); seal_record(b, 1)
 write("bad-record-step.tvps", b)
 b = bytearray(shard); u32(b, rec(2) + 64 + 16, 5); seal_record(b, 2)
 write("bad-record-chunk.tvps", b)              # chunk w 5, slices are 4x3
+b = bytearray(shard)                           # dims 1x1x100000000:
+struct.pack_into("<3I", b, 16, 1, 1, 100000000)  # 10^8 slices of 1x1
+struct.pack_into("<4I", b, 48, 0, 100000000, 1, 1); seal_header(b)
+write("bad-shard-huge-dims.tvps", b)           # records hold 2 slices
 
 # Manifests: good-1-basic's with one change each.
 text = open(base + "manifest.txt").read()
