@@ -173,6 +173,10 @@ mwrite("bad-manifest-endian.txt", edit("endian", "middle"))
 mwrite("bad-manifest-table.txt", edit("table", "f16"))
 mwrite("bad-manifest-nodes.txt", edit("nodes", "3"))
 mwrite("bad-manifest-window-mismatch.txt", edit("window", "3"))
+mwrite("bad-manifest-table-mismatch.txt", edit("table", "u16"))  # f32 shards
+mwrite("bad-manifest-max-nan.txt", edit("value_max", "nan"))
+mwrite("bad-manifest-min-inf.txt", edit("value_min", "inf"))
+mwrite("bad-manifest-min-above-max.txt", edit("value_min", "2"))
 hist = [l for l in lines if l.startswith("histogram = ")][0].split()[2:]
 mwrite("bad-manifest-histogram-short.txt",
        edit("histogram", " ".join(hist[:63])))
