@@ -132,6 +132,9 @@ static unsigned verify_shard(const char *path, const struct tvpal_manifest *m,
                "manifest\n", path, h->dims[0], h->dims[1], h->dims[2],
                h->steps, h->window, h->rank, h->nodes, h->axis);
         bad = 1;
+    } else if (tvpal_shard_check_table(path, h, m, &d) < 0) {
+        printf("CORRUPT %s\n", d.msg);
+        bad = 1;
     } else {
         bad = verify_records(s, path, h);
         if (!bad)

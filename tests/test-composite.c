@@ -13,6 +13,85 @@
 #define W 37
 #define H 23
 
+/* tvpal_rle_blend of msg[0, bytes) copied into a buffer of exactly bytes
+ * (so that ASan sees any read past its end) into rows [y0, y1) of img.
+ * Returns its return code; *px gets the pixels blended. */
+static int blend_exact(float *img, unsigned y0, unsigned y1,
+                       const unsigned char *msg, size_t bytes, uint64_t *px)
+{
+    unsigned char *copy = malloc(bytes ? bytes : 1);
+    REQUIRE(copy, "malloc");
+    memcpy(copy, msg, bytes);
+    *px = 0;
+    int rc = tvpal_rle_blend(img, W, y0, y1, copy, bytes, 1, px);
+    free(copy);
+    return rc;
+}
+
+/* A message of spans (start, length) pairs, with 8 bytes of pixel data per
+ * pixel the spans claim plus `extra` bytes (negative: fewer); returns its
+ * bytes. */
+static size_t forge(unsigned char *buf, const uint32_t *spans, uint32_t ns,
+                    long extra)
+{
+    size_t px = 0;
+    memcpy(buf, &ns, 4);
+    for (uint32_t k = 0; k < ns; k++) {
+        memcpy(buf + 4 + 8 * (size_t)k, spans + 2 * k, 8);
+        px += spans[2 * k + 1];
+    }
+    size_t n = 4 + 8 * (size_t)ns + (size_t)((long)(8 * px) + extra);
+    memset(buf + 4 + 8 * (size_t)ns, 0x40, n - 4 - 8 * (size_t)ns);
+    return n;
+}
+
+/* Malformed messages are refused (TVPAL_E_FORMAT) before anything is read
+ * past their end or blended; a well-formed one still blends. */
+static void test_malformed(const float *img)
+{
+    static unsigned char msg[1 << 16];
+    static float a[W * H * 4], b[W * H * 4];
+    uint64_t px;
+    memcpy(a, img, sizeof a);
+    memcpy(b, img, sizeof b);
+    const uint32_t row = W;                  /* pixels of one row */
+    const uint32_t ok2[] = {1, 3, 10, 2};
+    size_t n = forge(msg, ok2, 2, 0);
+    CHECK(blend_exact(a, 0, 1, msg, n, &px) == 0 && px == 5,
+          "well-formed: %llu pixels", (unsigned long long)px);
+    memcpy(a, img, sizeof a);
+    struct { const char *what; uint32_t spans[4]; uint32_t ns; long extra;
+             size_t cut; } bad[] = {
+        {"pixel data one pixel short", {1, 3, 10, 2}, 2, -8, 0},
+        {"pixel data one byte short", {1, 3, 10, 2}, 2, -1, 0},
+        {"trailing bytes", {1, 3, 10, 2}, 2, 8, 0},
+        {"run past the rows", {row - 2, 3}, 1, 0, 0},
+        {"run of more pixels than the image", {0, W * H + 1}, 1, 0, 0},
+        {"start past the rows", {row + 5, 1}, 1, 0, 0},
+        {"start near 2^32", {0xFFFFFFF0u, 0x20}, 1, 0, 0},
+        {"empty span", {1, 0}, 1, 0, 0},
+        {"overlapping spans", {1, 3, 2, 2}, 2, 0, 0},
+        {"descending spans", {10, 2, 1, 3}, 2, 0, 0},
+        {"span headers cut", {1, 3, 10, 2}, 2, 0, 4 + 8 + 4},
+        {"count only, spans missing", {1, 3, 10, 2}, 2, 0, 4},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        n = forge(msg, bad[i].spans, bad[i].ns, bad[i].extra);
+        if (bad[i].cut)
+            n = bad[i].cut;
+        int rc = blend_exact(a, 0, 1, msg, n, &px);
+        CHECK(rc == TVPAL_E_FORMAT && px == 0, "%s: rc %d, %llu pixels",
+              bad[i].what, rc, (unsigned long long)px);
+    }
+    /* Shorter than the count, and a count claiming 2^32-1 spans. */
+    CHECK(blend_exact(a, 0, 1, msg, 2, &px) == TVPAL_E_FORMAT, "2 bytes");
+    CHECK(blend_exact(a, 0, 1, msg, 0, &px) == TVPAL_E_FORMAT, "0 bytes");
+    uint32_t huge = 0xFFFFFFFFu;
+    memcpy(msg, &huge, 4);
+    CHECK(blend_exact(a, 0, 1, msg, 12, &px) == TVPAL_E_FORMAT, "2^32-1 spans");
+    CHECK(!memcmp(a, b, sizeof a), "a refused message changed the image");
+}
+
 int main(void)
 {
     static float img[W * H * 4], back[W * H * 4], ref[W * H * 4];
@@ -39,7 +118,8 @@ int main(void)
     CHECK(n == 4 + 8 * (size_t)spans + active * 8, "size: %zu bytes for %zu "
           "active pixels in %u spans", n, active, spans);
     memcpy(ref, back, sizeof ref);
-    uint64_t px = tvpal_rle_blend(ref, W, 5, 17, buf, n, 1);
+    uint64_t px = 0;
+    CHECK(tvpal_rle_blend(ref, W, 5, 17, buf, n, 1, &px) == 0, "blend");
     CHECK(px == active, "blended %llu of %zu", (unsigned long long)px, active);
     double err = 0;
     for (int i = 0; i < W * H; i++)
@@ -51,7 +131,7 @@ int main(void)
         }
     CHECK(err <= 1.0 / 65535, "front blend error %g", err);
     memcpy(ref, back, sizeof ref);
-    tvpal_rle_blend(ref, W, 5, 17, buf, n, 0);
+    CHECK(tvpal_rle_blend(ref, W, 5, 17, buf, n, 0, &px) == 0, "blend behind");
     err = 0;
     for (int i = 5 * W; i < 17 * W; i++)
         for (int c = 0; c < 4; c++) {
@@ -63,7 +143,10 @@ int main(void)
     unsigned char bad[16] = {0};
     uint32_t big[3] = {1, (uint32_t)(W * H), 5};
     memcpy(bad, big, 12);
-    CHECK(tvpal_rle_blend(ref, W, 0, 1, bad, sizeof bad, 1) == 0, "overrun");
+    px = 0;
+    CHECK(tvpal_rle_blend(ref, W, 0, 1, bad, sizeof bad, 1, &px) ==
+          TVPAL_E_FORMAT && px == 0, "overrun");
+    test_malformed(back);
 
     /* One-rank composite: 8-bit output, PNG-writer rounding. */
     struct tvpal_comm self;

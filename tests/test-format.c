@@ -6,7 +6,9 @@
 #include "tvpal_test.h"
 #include "tvpal_schedule.h"
 
+#include <fcntl.h>
 #include <string.h>
+#include <unistd.h>
 
 static struct tvpal_shard_header sample_header(void)
 {
@@ -45,6 +47,68 @@ static uint64_t build_record(const struct tvpal_shard_header *h, uint32_t step,
         n++;
     }
     return tvpal_record_seal(buf, step, h->axis, n, off - TVPAL_RECORD_HEADER_BYTES);
+}
+
+/* Writes a valid shard (4x3x2, axis z, T = 3, N = 2, one node) to path. */
+static void write_small_shard(const char *path)
+{
+    struct tvpal_shard_header h = {
+        .dims = {4, 3, 2}, .steps = 3, .window = 2, .nodes = 1, .axis = 2};
+    uint32_t n;
+    tvpal_axis_geometry(h.dims, 2, &n, &h.slice_w, &h.slice_h);
+    tvpal_slab_range(n, 1, 0, &h.slice_begin, &h.slice_count);
+    struct tvpal_shardw *w;
+    struct tvpal_diag d = {{0}};
+    static unsigned char buf[4 * 4096];
+    REQUIRE(tvpal_shardw_create(&w, path, &h) == 0, "create %s", path);
+    for (uint32_t t = 0; t < h.steps; t++) {
+        uint64_t bytes = build_record(&h, t, buf);
+        REQUIRE(tvpal_shardw_append(w, buf, bytes, &d) == 0, "append: %s",
+                d.msg);
+    }
+    REQUIRE(tvpal_shardw_finish(w, &d) == 0, "finish: %s", d.msg);
+}
+
+/* A shard whose header (valid CRC) claims dims 1x1x100000000 over records
+ * of a 4x3x2 shard: the open must refuse it before anything sized by the
+ * header is allocated (FORMAT.md 8.1 rule 18), not hand a slab 100 GB. */
+static void test_huge_dims(void)
+{
+    const char *tmp = getenv("TMPDIR");
+    char path[4096];
+    snprintf(path, sizeof path, "%s/tvpal-fmt-XXXXXX",
+             tmp && *tmp ? tmp : "/tmp");
+    int fd = mkstemp(path);
+    REQUIRE(fd >= 0, "mkstemp %s", path);
+    close(fd);
+    write_small_shard(path);
+    struct tvpal_shard *s = NULL;
+    struct tvpal_diag d = {{0}};
+    CHECK(tvpal_shard_open(&s, path, &d) == 0, "valid shard: %s", d.msg);
+    tvpal_shard_close(s);
+
+    unsigned char hb[TVPAL_SHARD_HEADER_BYTES];
+    struct tvpal_shard_header h;
+    fd = open(path, O_RDWR);
+    REQUIRE(fd >= 0 && pread(fd, hb, sizeof hb, 0) == (ssize_t)sizeof hb,
+            "read back %s", path);
+    REQUIRE(tvpal_shard_header_decode(hb, &h, &d) == 0, "header: %s", d.msg);
+    h.dims[0] = h.dims[1] = 1;
+    h.dims[2] = 100000000;
+    uint32_t n;
+    tvpal_axis_geometry(h.dims, 2, &n, &h.slice_w, &h.slice_h);
+    tvpal_slab_range(n, 1, 0, &h.slice_begin, &h.slice_count);
+    tvpal_shard_header_encode(&h, hb);
+    REQUIRE(pwrite(fd, hb, sizeof hb, 0) == (ssize_t)sizeof hb, "rewrite");
+    close(fd);
+    s = NULL;
+    d.msg[0] = 0;
+    int rc = tvpal_shard_open(&s, path, &d);
+    CHECK(rc == TVPAL_E_FORMAT && s == NULL && strstr(d.msg, "too small"),
+          "huge dims: rc %d, \"%s\"", rc, d.msg);
+    if (rc == 0)
+        tvpal_shard_close(s);
+    unlink(path);
 }
 
 int main(void)
@@ -304,5 +368,6 @@ int main(void)
             }
             CHECK(next == n && mx - mn <= 1, "n %u k %u", n, k);
         }
+    test_huge_dims();
     return tt_done("test-format");
 }

@@ -16,6 +16,21 @@ char *tvpal_shard_filename(const char *dir, uint32_t rank, unsigned axis)
     return p;
 }
 
+int tvpal_shard_check_table(const char *path,
+                            const struct tvpal_shard_header *h,
+                            const struct tvpal_manifest *m,
+                            struct tvpal_diag *diag)
+{
+    uint32_t shard = h->table_format & TVPAL_TABLE_U16;
+    if (shard == m->table_format)
+        return 0;
+    return tvpal_diag_set(diag, TVPAL_E_MISMATCH,
+                          "%s: header table_format %u (%s tables) does not "
+                          "match the manifest's table = %s", path,
+                          h->table_format, shard ? "16-bit" : "float32",
+                          m->table_format ? "u16" : "f32");
+}
+
 /* Allocates a dataset for dir and loads dir/manifest.txt into it. */
 static int open_manifest(struct tvpal_dataset **out, const char *dir,
                          struct tvpal_diag *diag)
@@ -89,6 +104,9 @@ int tvpal_dataset_open(struct tvpal_dataset **out, const char *dir,
                                     h->axis);
                 goto err;
             }
+            rc = tvpal_shard_check_table(path, h, &ds->m, diag);
+            if (rc < 0)
+                goto err;
             ds->axis_bytes[a] += h->file_bytes;
         }
     }
@@ -164,6 +182,9 @@ int tvpal_dataset_open_node(struct tvpal_dataset **out, const char *node_dir,
                                 h->axis, rank, nranks);
             goto err;
         }
+        rc = tvpal_shard_check_table(path, h, &ds->m, diag);
+        if (rc < 0)
+            goto err;
         ds->axis_bytes[a] = h->file_bytes;
     }
     free(path);

@@ -131,6 +131,12 @@ static int parse_dbl(const char *v, double *out)
     return (errno || *end || end == v) ? -1 : 0;
 }
 
+/* parse_dbl, and the value is finite (not nan or +-inf). */
+static int parse_finite(const char *v, double *out)
+{
+    return parse_dbl(v, out) || !isfinite(*out) ? -1 : 0;
+}
+
 /* Three finite numbers "a b c"; spacing must also be > 0. */
 static int parse_triple(const char *v, double out[3], int positive)
 {
@@ -251,10 +257,10 @@ static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
         bad = parse_u32(v, &m->nodes) || !m->nodes;
         *seen |= K_NODES;
     } else if (!strcmp(k, "value_min")) {
-        bad = parse_dbl(v, &m->value_min);
+        bad = parse_finite(v, &m->value_min);
         *seen |= K_MIN;
     } else if (!strcmp(k, "value_max")) {
-        bad = parse_dbl(v, &m->value_max);
+        bad = parse_finite(v, &m->value_max);
         *seen |= K_MAX;
     } else if (!strcmp(k, "nan_as")) {
         m->has_nan_as = strcmp(v, "none") != 0;
@@ -317,7 +323,8 @@ static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
 }
 
 /* The rules between keys, once all lines are read: every required key
- * present, nodes within the dimensions, one source line per step. */
+ * present, value_min <= value_max, nodes within the dimensions, one
+ * source line per step. */
 static int manifest_check(const struct tvpal_manifest *m, unsigned seen,
                           struct tvpal_diag *diag)
 {
@@ -330,6 +337,10 @@ static int manifest_check(const struct tvpal_manifest *m, unsigned seen,
             return tvpal_diag_set(diag, TVPAL_E_MANIFEST,
                                   "required key \"%s\" is missing",
                                   req[i].name);
+    if (m->value_min > m->value_max)
+        return tvpal_diag_set(diag, TVPAL_E_MANIFEST,
+                              "value_min %.9g exceeds value_max %.9g",
+                              m->value_min, m->value_max);
     uint32_t mind = m->dims[0] < m->dims[1] ? m->dims[0] : m->dims[1];
     mind = m->dims[2] < mind ? m->dims[2] : mind;
     if (m->nodes > mind)

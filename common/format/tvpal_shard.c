@@ -295,6 +295,58 @@ struct tvpal_shard {
     uint64_t max_record;
 };
 
+/* Smallest record bytes for step t that the header's geometry implies:
+ * the 64-byte record header plus one chunk (tvpal_chunk_bytes) for every
+ * slab slice whose window starts at t.  Stops counting once the sum
+ * exceeds cap (returning a value > cap), so the work is bounded by cap
+ * and not by a forged slice_count, and the sum never overflows. */
+static uint64_t record_min_bytes(const struct tvpal_shard_header *h,
+                                 uint32_t t, uint64_t cap)
+{
+    uint64_t need = TVPAL_RECORD_HEADER_BYTES;
+    const uint32_t end = h->slice_begin + h->slice_count;
+    /* Slices with starts(s, t): all at t == 0, else s % N == t % N. */
+    uint32_t s = h->slice_begin, stride = 1;
+    if (t > 0) {
+        uint32_t r = t % h->window;
+        stride = h->window;
+        s += (r + h->window - s % h->window) % h->window;
+    }
+    for (; s < end; s += stride) {
+        uint32_t len = tvpal_schedule_len(s, t, h->window, h->steps);
+        uint64_t cb = tvpal_chunk_bytes(len, h->slice_w, h->slice_h,
+                                        h->table_format);
+        if (cb > cap - need)
+            return cap + 1;
+        need += cb;
+        if (end - s <= stride)
+            break;
+    }
+    return need;
+}
+
+/* Every record of the index is large enough for the chunks the header's
+ * slice geometry implies (8.1 rule 18), so the file size bounds
+ * slice_count * slice_w * slice_h and what a slab allocates from them.
+ * 0, or TVPAL_E_FORMAT naming the first record too small. */
+static int check_record_sizes(const struct tvpal_shard *s,
+                              struct tvpal_diag *diag)
+{
+    for (uint32_t t = 0; t < s->h.steps; t++) {
+        uint64_t have = s->index[t].bytes;
+        uint64_t need = record_min_bytes(&s->h, t, have);
+        if (need > have)
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                                  "record index: entry %u holds %llu bytes, "
+                                  "too small for the chunks of %u slices of "
+                                  "%ux%u the header implies", t,
+                                  (unsigned long long)have,
+                                  s->h.slice_count, s->h.slice_w,
+                                  s->h.slice_h);
+    }
+    return 0;
+}
+
 int tvpal_shard_open(struct tvpal_shard **out, const char *path,
                      struct tvpal_diag *diag)
 {
@@ -379,6 +431,9 @@ int tvpal_shard_open(struct tvpal_shard **out, const char *path,
                             (unsigned long long)s->h.index_offset);
         goto err;
     }
+    rc = check_record_sizes(s, diag);
+    if (rc < 0)
+        goto err;
     free(ib);
     *out = s;
     return 0;

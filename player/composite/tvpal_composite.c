@@ -124,9 +124,11 @@ static int bswap(struct tvpal_compositor *cx, struct tvpal_comm *c,
         if (rc < 0)
             return rc;
         t = tvpal_now();
-        st->pixels_blended += tvpal_rle_blend(img, W, 0, cx->height, cx->rbuf,
-                                              got, 0);
+        rc = tvpal_rle_blend(img, W, 0, cx->height, cx->rbuf, got, 0,
+                             &st->pixels_blended);
         st->blend_ms += (tvpal_now() - t) * 1e3;
+        if (rc < 0)
+            return rc;
         vp = v / 2;
     } else {
         vp = v - E;
@@ -153,9 +155,11 @@ static int bswap(struct tvpal_compositor *cx, struct tvpal_comm *c,
         st->bytes_sent += n;
         t = tvpal_now();
         /* Partner's block is in front when its position is lower. */
-        st->pixels_blended += tvpal_rle_blend(img, W, ky0, ky1, cx->rbuf,
-                                              got, pp < vp);
+        rc = tvpal_rle_blend(img, W, ky0, ky1, cx->rbuf, got, pp < vp,
+                             &st->pixels_blended);
         st->blend_ms += (tvpal_now() - t) * 1e3;
+        if (rc < 0)
+            return rc;
         y0 = ky0;
         y1 = ky1;
     }
@@ -210,8 +214,10 @@ static int gather_root(struct tvpal_compositor *cx, struct tvpal_comm *c,
         buf = cx->rbuf;
         t = tvpal_now();
         /* Received piece lies behind what is accumulated so far. */
-        st->pixels_blended += tvpal_rle_blend(out, W, 0, H, buf, got, 0);
+        rc = tvpal_rle_blend(out, W, 0, H, buf, got, 0, &st->pixels_blended);
         st->blend_ms += (tvpal_now() - t) * 1e3;
+        if (rc < 0)
+            return rc;
     }
     to8(out, (size_t)4 * W * H, out8);
     return 0;

@@ -1,6 +1,7 @@
 /* tvpal_rle.c: the run-length image codec of the compositing messages (see
  * tvpal_rle.h). */
 #include "tvpal_rle.h"
+#include "tvpal_error.h"
 
 #include <string.h>
 #ifdef __SSE2__
@@ -86,24 +87,51 @@ size_t tvpal_rle_encode(const float *img, unsigned width, unsigned y0,
     return (size_t)((unsigned char *)data - buf);
 }
 
-uint64_t tvpal_rle_blend(float *img, unsigned width, unsigned y0, unsigned y1,
-                         const unsigned char *buf, size_t bytes, int front)
+/* Checks the message buf[0, bytes) against rows of n pixels (see
+ * tvpal_rle.h) without reading past bytes; on success *nspans is its span
+ * count.  0 or TVPAL_E_FORMAT. */
+static int rle_check(const unsigned char *buf, size_t bytes, size_t n,
+                     uint32_t *nspans)
+{
+    uint32_t ns;
+    if (bytes < 4)
+        return TVPAL_E_FORMAT;
+    memcpy(&ns, buf, 4);
+    if (ns > (bytes - 4) / 8)
+        return TVPAL_E_FORMAT;
+    size_t left = bytes - 4 - 8 * (size_t)ns; /* pixel bytes */
+    size_t end = 0;                          /* end of the previous span */
+    for (uint32_t k = 0; k < ns; k++) {
+        uint32_t se[2];
+        memcpy(se, buf + 4 + 8 * (size_t)k, 8);
+        if (!se[1] || se[0] < end || se[0] > n || se[1] > n - se[0] ||
+            se[1] > left / 8)
+            return TVPAL_E_FORMAT;
+        left -= 8 * (size_t)se[1];
+        end = (size_t)se[0] + se[1];
+    }
+    if (left)
+        return TVPAL_E_FORMAT;
+    *nspans = ns;
+    return 0;
+}
+
+int tvpal_rle_blend(float *img, unsigned width, unsigned y0, unsigned y1,
+                    const unsigned char *buf, size_t bytes, int front,
+                    uint64_t *blended)
 {
     uint32_t nspans;
-    uint64_t blended = 0;
     const size_t n = (size_t)width * (y1 - y0);
     float *base = img + (size_t)4 * width * y0;
     const float k16 = 1.0f / 65535.0f;
-    if (bytes < 4)
-        return 0;
-    memcpy(&nspans, buf, 4);
+    int rc = rle_check(buf, bytes, n, &nspans);
+    if (rc < 0)
+        return rc;
     const unsigned char *hdr = buf + 4;
     const uint16_t *src = (const uint16_t *)(const void *)(hdr + 8 * (size_t)nspans);
     for (uint32_t k = 0; k < nspans; k++) {
         uint32_t se[2];
         memcpy(se, hdr + 8 * (size_t)k, 8);
-        if (se[0] + (size_t)se[1] > n)
-            break; /* malformed: stop rather than write out of bounds */
         float *d = base + 4 * (size_t)se[0];
         for (uint32_t i = 0; i < se[1]; i++, d += 4, src += 4) {
             float s0 = src[0] * k16, s1 = src[1] * k16, s2 = src[2] * k16,
@@ -122,7 +150,7 @@ uint64_t tvpal_rle_blend(float *img, unsigned width, unsigned y0, unsigned y1,
                 d[3] += keep * s3;
             }
         }
-        blended += se[1];
+        *blended += se[1];
     }
-    return blended;
+    return 0;
 }

@@ -12,14 +12,20 @@
 /* Rows [y0, y1) of an image of `width` premultiplied RGBA floats per row:
  * tvpal_rle_encode writes them to buf, which must hold
  * tvpal_rle_bound(width, y1 - y0) bytes, and returns the bytes written;
- * tvpal_rle_blend blends such an encoding (bytes long) into the same rows
- * of img, received in front of img (front = 1) or behind it, and returns
- * the number of pixels blended.  A malformed encoding blends what lies
- * inside the rows and stops; nothing outside them is written. */
+ * tvpal_rle_blend blends such an encoding (a message of `bytes` bytes)
+ * into the same rows of img, received in front of img (front = 1) or
+ * behind it, and adds the number of pixels blended to *blended.  It checks
+ * the whole message before it blends: the span count and every span lie
+ * within `bytes`, the spans are non-empty, ascending, not overlapping and
+ * inside the rows, and their pixels fill the message exactly.  0, or
+ * TVPAL_E_FORMAT for a malformed message, which then changes nothing; no
+ * byte outside buf[0, bytes) is read and nothing outside the rows is
+ * written. */
 size_t tvpal_rle_bound(unsigned width, unsigned rows);
 size_t tvpal_rle_encode(const float *img, unsigned width, unsigned y0,
                         unsigned y1, unsigned char *buf);
-uint64_t tvpal_rle_blend(float *img, unsigned width, unsigned y0, unsigned y1,
-                         const unsigned char *buf, size_t bytes, int front);
+int tvpal_rle_blend(float *img, unsigned width, unsigned y0, unsigned y1,
+                    const unsigned char *buf, size_t bytes, int front,
+                    uint64_t *blended);
 
 #endif

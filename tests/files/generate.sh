@@ -144,6 +144,10 @@ b = bytearray(shard); u32(b, rec(1) + 4, 2); seal_record(b, 1)
 write("bad-record-step.tvps", b)
 b = bytearray(shard); u32(b, rec(2) + 64 + 16, 5); seal_record(b, 2)
 write("bad-record-chunk.tvps", b)              # chunk w 5, slices are 4x3
+b = bytearray(shard)                           # dims 1x1x100000000:
+struct.pack_into("<3I", b, 16, 1, 1, 100000000)  # 10^8 slices of 1x1
+struct.pack_into("<4I", b, 48, 0, 100000000, 1, 1); seal_header(b)
+write("bad-shard-huge-dims.tvps", b)           # records hold 2 slices
 
 # Manifests: good-1-basic's with one change each.
 text = open(base + "manifest.txt").read()
@@ -169,6 +173,10 @@ mwrite("bad-manifest-endian.txt", edit("endian", "middle"))
 mwrite("bad-manifest-table.txt", edit("table", "f16"))
 mwrite("bad-manifest-nodes.txt", edit("nodes", "3"))
 mwrite("bad-manifest-window-mismatch.txt", edit("window", "3"))
+mwrite("bad-manifest-table-mismatch.txt", edit("table", "u16"))  # f32 shards
+mwrite("bad-manifest-max-nan.txt", edit("value_max", "nan"))
+mwrite("bad-manifest-min-inf.txt", edit("value_min", "inf"))
+mwrite("bad-manifest-min-above-max.txt", edit("value_min", "2"))
 hist = [l for l in lines if l.startswith("histogram = ")][0].split()[2:]
 mwrite("bad-manifest-histogram-short.txt",
        edit("histogram", " ".join(hist[:63])))
