@@ -137,8 +137,7 @@ static int write_output(const char *out, const unsigned char *bytes, size_t nvox
     struct tvpal_diag d = {{0}};
     int rc = tvpal_write_file_atomic(out, bytes, nvox * 4, &d);
     if (rc < 0) {
-        fprintf(stderr, PROG ": %s: cannot write: %s\n", out,
-                d.msg[0] ? d.msg : tvpal_strerror(rc));
+        fprintf(stderr, PROG ": %s\n", d.msg[0] ? d.msg : tvpal_strerror(rc));
         return TVPAL_EXIT_FAIL;
     }
     return 0;
@@ -152,6 +151,16 @@ int main(int argc, char **argv)
         return status;
     struct tvpal_diag diag = {{0}};
     struct tvpal_dataset *ds = NULL;
+    /* Never over the dataset itself, a device node or a link. */
+    if (strcmp(o.out, "-") && tvpal_path_inside(o.out, o.dir)) {
+        fprintf(stderr, PROG ": %s: inside the dataset %s; write it "
+                "elsewhere\n", o.out, o.dir);
+        return TVPAL_EXIT_USAGE;
+    }
+    if (strcmp(o.out, "-") && tvpal_out_check(o.out, &diag) < 0) {
+        fprintf(stderr, PROG ": %s\n", diag.msg);
+        return TVPAL_EXIT_USAGE;
+    }
     int rc = tvpal_dataset_open(&ds, o.dir, &diag);
     if (rc < 0) {
         print_lib_error(rc, &diag);

@@ -770,18 +770,30 @@ static void write_json_doc(FILE *f, const struct report *r)
             8 * r->bytes_axis / r->vts, r->missing, r->mismatch);
 }
 
-/* Writes path with fn.  Returns 0 or TVPAL_EXIT_FAIL (printed). */
+/* Writes path with fn, through tvpal_out (a temporary renamed when
+ * complete; never over the dataset or a device).  Returns 0 or
+ * TVPAL_EXIT_FAIL (printed). */
 static int write_file(const char *path, const struct report *r,
                       void (*fn)(FILE *, const struct report *))
 {
-    FILE *f = fopen(path, "w");
+    struct tvpal_diag d = {{0}};
+    struct tvpal_out o;
+    if (tvpal_path_inside(path, r->dir)) {
+        fprintf(stderr, PROG ": %s: inside the dataset %s; write it "
+                "elsewhere\n", path, r->dir);
+        return TVPAL_EXIT_FAIL;
+    }
+    int rc = tvpal_out_open(&o, path, &d);
+    FILE *f = rc == 0 ? tvpal_out_stream(&o) : NULL;
     if (!f) {
-        fprintf(stderr, PROG ": %s: cannot write: %s\n", path, strerror(errno));
+        tvpal_out_abort(&o);
+        fprintf(stderr, PROG ": cannot write %s\n",
+                d.msg[0] ? d.msg : path);
         return TVPAL_EXIT_FAIL;
     }
     fn(f, r);
-    if (fclose(f) != 0) {
-        fprintf(stderr, PROG ": %s: write error\n", path);
+    if ((rc = tvpal_out_commit(&o, &d)) < 0) {
+        fprintf(stderr, PROG ": %s\n", d.msg[0] ? d.msg : tvpal_strerror(rc));
         return TVPAL_EXIT_FAIL;
     }
     return 0;

@@ -50,7 +50,7 @@ void tvpal_checkpoint_stats_free(struct tvpal_checkpoint_stats *st);
 int tvpal_checkpoint_fingerprint(const char *params, char *const *inputs,
                                  int ninputs, char **out);
 
-/* Atomically replaces DIR/checkpoint (via DIR/checkpoint.tmp) with: steps
+/* Atomically replaces DIR/checkpoint (via a temporary, tvpal_out) with: steps
  * 0 .. done-1 are in every shard, statistics st, job fingerprint.  Only a
  * hash and the length of the fingerprint are stored.  0, TVPAL_E_NOMEM,
  * TVPAL_E_OPEN or TVPAL_E_WRITE, with the cause in diag (optional). */

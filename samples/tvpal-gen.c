@@ -359,30 +359,22 @@ static int step_digits(uint32_t steps)
  * (printed). */
 static int write_single(const struct options *o, float *vol, size_t nvox)
 {
-    char *tmp = NULL;
-    FILE *f = NULL;
-    if (asprintf(&tmp, "%s.tmp", o->single) < 0) {
-        fprintf(stderr, PROG ": out of memory\n");
-        return TVPAL_EXIT_FAIL;
-    }
-    if (!(f = fopen(tmp, "wb"))) {
-        fprintf(stderr, PROG ": %s: cannot create: %s\n", o->single,
-                strerror(errno));
-        free(tmp);
-        return TVPAL_EXIT_FAIL;
-    }
-    int ok = 1;
-    for (uint32_t t = 0; t < o->g.steps && ok; t++) {
+    struct tvpal_diag d = {{0}};
+    struct tvpal_out out;
+    int rc = tvpal_out_open(&out, o->single, &d);
+    for (uint32_t t = 0; rc == 0 && t < o->g.steps; t++) {
         gen_step(&o->g, t, vol);
         tvpal_store_f32le(vol, (unsigned char *)vol, nvox);
-        ok = fwrite(vol, 4, nvox, f) == nvox;
+        rc = tvpal_out_write(&out, vol, nvox * 4, &d);
     }
-    /* Renamed only when every byte reached the file. */
-    ok = fclose(f) == 0 && ok && rename(tmp, o->single) == 0;
-    if (!ok)
-        fprintf(stderr, PROG ": %s: write error\n", o->single);
-    free(tmp);
-    return ok ? 0 : TVPAL_EXIT_FAIL;
+    /* Renamed into place only when every byte reached the file. */
+    if (rc == 0)
+        rc = tvpal_out_commit(&out, &d);
+    else
+        tvpal_out_abort(&out);
+    if (rc < 0)
+        fprintf(stderr, PROG ": %s\n", d.msg[0] ? d.msg : tvpal_strerror(rc));
+    return rc < 0 ? TVPAL_EXIT_FAIL : 0;
 }
 
 /* Creates -o DIR when given, even with --single (which is what is written

@@ -5,7 +5,12 @@
 # directory) as a transfer function, a --times list, a manifest, a raw
 # input and a tvpal-report reference; a text input beyond 64 MiB is
 # refused; the device node is left as it was.  timing.csv has one row per
-# frame drawn even when tvpal-play is killed.
+# frame drawn even when tvpal-play is killed.  Outputs: every program writes
+# through one routine (a unique temporary renamed over the target), so a
+# device node, FIFO or symbolic link at the target is refused and left as
+# it was, a link planted at a predictable temporary name redirects
+# nothing, and tvpal-decode and tvpal-report refuse to write inside the
+# dataset they read.
 . "$(dirname "$0")/lib.sh"
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 D=8x6x5
@@ -38,6 +43,38 @@ if [ -x "$PLAY" ]; then
 fi
 expect_exit 2 "big.tf: 68157440 bytes" $T "$ENC" -q --dims $D --times "$W/big.tf" -o "$W/o" "$W"/in/*.f32
 [ ! -e "$W/o" ] && [ ! -e "$W/o.partial" ] && ok "nothing left behind" || fail "output left behind"
+# Outputs.
+echo victim > "$W/victim"
+if [ -c "$W/zero" ] && mknod "$W/null" c 1 3 2> /dev/null; then
+    expect_exit 2 "null: exists and is not a regular file \(a character device\)" \
+        $T "$DEC" "$W/ds" --step 0 -o "$W/null"
+    [ -c "$W/null" ] && ok "decode: device node left alone" || fail "decode replaced the device node"
+    expect_exit 1 "null: exists and is not a regular file" $T "$REP" -q "$W/ds" --csv "$W/null"
+    expect_exit 1 "null: exists and is not a regular file" $T "$GEN" --field blobs --dims $D --steps 2 --single "$W/null"
+    [ -c "$W/null" ] && ok "report, gen: device node left alone" || fail "device node replaced"
+fi
+expect_exit 2 "fifo: exists and is not a regular file \(a FIFO\)" $T "$DEC" "$W/ds" --step 0 -o "$W/fifo"
+ln -s "$W/victim" "$W/link.f32"
+expect_exit 2 "link.f32: exists and is not a regular file \(a symbolic link\)" $T "$DEC" "$W/ds" --step 0 -o "$W/link.f32"
+ln -s "$W/victim" "$W/out.f32.tmp"
+$T "$DEC" "$W/ds" --step 0 -o "$W/out.f32" 2> "$W/e.txt" && [ "$(stat -c %s "$W/out.f32")" = 960 ] \
+    && ok "a link planted at OUT.tmp redirects nothing" || fail "decode with a planted OUT.tmp: $(cat "$W/e.txt")"
+[ "$(cat "$W/victim")" = victim ] && ok "the link's target is untouched" || fail "victim overwritten"
+ls "$W" | grep -q '^out\.f32\.......$' && fail "temporary left behind" || ok "no temporary left"
+expect_exit 2 "inside the dataset" $T "$DEC" "$W/ds" --step 0 -o "$W/ds/manifest.txt"
+expect_exit 2 "inside the dataset" $T "$DEC" "$W/ds" --step 0 -o "$W/ds/node-0/axis-z.tvps"
+expect_exit 1 "inside the dataset" $T "$REP" -q "$W/ds" --csv "$W/ds/node-0/axis-x.tvps"
+"$INFO" "$W/ds" --verify > /dev/null 2>&1 && ok "the dataset is intact" || fail "the dataset was damaged"
+if [ -x "$PLAY" ]; then
+    mkdir -p "$W/frames" && mkfifo "$W/frames/timing.csv"
+    expect_exit 2 "timing.csv: exists and is not a regular file \(a FIFO\)" \
+        $T "$PLAY" "$W/ds" --headless -q --size 16x16 -o "$W/frames"
+    rm -f "$W/frames/timing.csv" && ln -s "$W/victim" "$W/frames/t0000.png"
+    $T "$PLAY" "$W/ds" --headless -q --size 16x16 -o "$W/frames" > /dev/null 2> "$W/e.txt"
+    grep -q "t0000.png: exists and is not a regular file (a symbolic link)" "$W/e.txt" \
+        && [ "$(cat "$W/victim")" = victim ] && ok "play: a link at a frame's name is refused" \
+        || fail "play frame link: $(cat "$W/e.txt")"
+fi
 # timing.csv as the frames go: kill tvpal-play after some frames.
 if [ -x "$PLAY" ]; then
     "$GEN" --field blobs --dims 32x32x32 --steps 400 -o "$W/long" > /dev/null || fail "gen long"

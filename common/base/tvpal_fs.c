@@ -69,48 +69,184 @@ int tvpal_rmtree(const char *path)
     return rc;
 }
 
-int tvpal_write_file_atomic(const char *path, const void *data, size_t len,
-                            struct tvpal_diag *diag)
+/* The target may be absent or a regular file (lstat: a link is not). */
+int tvpal_out_check(const char *path, struct tvpal_diag *diag)
 {
-    char *tmp;
-    if (asprintf(&tmp, "%s.tmp", path) < 0)
+    struct stat st;
+    if (lstat(path, &st) < 0)
+        return errno == ENOENT ? 0
+               : tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
+                                strerror(errno));
+    if (S_ISREG(st.st_mode))
+        return 0;
+    return tvpal_diag_set(diag, TVPAL_E_EXIST, "%s: exists and is not a "
+                          "regular file (%s); not replaced", path,
+                          S_ISLNK(st.st_mode) ? "a symbolic link"
+                          : S_ISDIR(st.st_mode) ? "a directory"
+                          : S_ISFIFO(st.st_mode) ? "a FIFO"
+                          : S_ISCHR(st.st_mode) ? "a character device"
+                          : S_ISBLK(st.st_mode) ? "a block device"
+                          : "a special file");
+}
+
+int tvpal_out_open(struct tvpal_out *o, const char *path,
+                   struct tvpal_diag *diag)
+{
+    *o = (struct tvpal_out){.fd = -1};
+    int rc = tvpal_out_check(path, diag);
+    if (rc < 0)
+        return rc;
+    if (!(o->path = strdup(path)) ||
+        asprintf(&o->tmp, "%s.XXXXXX", path) < 0) {
+        free(o->path);
+        *o = (struct tvpal_out){.fd = -1};
         return TVPAL_E_NOMEM;
-    int rc = 0;
-    int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (fd < 0) {
-        rc = tvpal_diag_set(diag, TVPAL_E_OPEN, "create %s: %s", tmp,
+    }
+    if ((o->fd = mkostemp(o->tmp, O_CLOEXEC)) < 0) {
+        rc = tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: cannot create: %s", path,
                             strerror(errno));
-        free(tmp);
+        free(o->tmp);
+        free(o->path);
+        *o = (struct tvpal_out){.fd = -1};
         return rc;
     }
-    /* Each failure names the step and errno's text at once: the next
-     * system call (close, unlink) may change errno. */
+    fchmod(o->fd, 0644); /* mkstemp makes 0600; outputs are for sharing */
+    return 0;
+}
+
+FILE *tvpal_out_stream(struct tvpal_out *o)
+{
+    if (!o->stream && o->fd >= 0)
+        o->stream = fdopen(o->fd, "wb");
+    return o->stream;
+}
+
+int tvpal_out_write(struct tvpal_out *o, const void *data, size_t n,
+                    struct tvpal_diag *diag)
+{
     const char *p = data;
-    while (len) {
-        ssize_t k = write(fd, p, len);
+    while (n) {
+        ssize_t k = write(o->fd, p, n);
         if (k < 0) {
             if (errno == EINTR)
                 continue;
-            rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "write %s: %s", tmp,
-                                strerror(errno));
-            break;
+            return tvpal_diag_set(diag, TVPAL_E_WRITE, "write %s: %s",
+                                  o->path, strerror(errno));
         }
         p += k;
-        len -= (size_t)k;
+        n -= (size_t)k;
     }
-    if (rc == 0 && fsync(fd) < 0)
-        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "fsync %s: %s", tmp,
+    return 0;
+}
+
+static void out_clear(struct tvpal_out *o)
+{
+    free(o->tmp);
+    free(o->path);
+    *o = (struct tvpal_out){.fd = -1};
+}
+
+void tvpal_out_abort(struct tvpal_out *o)
+{
+    if (o->stream)
+        fclose(o->stream);
+    else if (o->fd >= 0)
+        close(o->fd);
+    if (o->tmp)
+        unlink(o->tmp);
+    out_clear(o);
+}
+
+int tvpal_out_commit(struct tvpal_out *o, struct tvpal_diag *diag)
+{
+    /* Each failure names the step and errno's text at once: the next
+     * system call (close, unlink) may change errno. */
+    int rc = 0;
+    if (o->stream && fflush(o->stream) != 0)
+        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "write %s: %s", o->path,
                             strerror(errno));
-    if (close(fd) < 0 && rc == 0)
-        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "close %s: %s", tmp,
+    if (rc == 0 && fsync(o->fd) < 0)
+        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "fsync %s: %s", o->path,
                             strerror(errno));
-    if (rc == 0 && rename(tmp, path) < 0)
-        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "rename %s: %s", tmp,
+    int closed = o->stream ? fclose(o->stream) : close(o->fd);
+    o->stream = NULL;
+    o->fd = -1;
+    if (closed != 0 && rc == 0)
+        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "close %s: %s", o->path,
+                            strerror(errno));
+    /* Checked again: something may have been put there meanwhile. */
+    if (rc == 0)
+        rc = tvpal_out_check(o->path, diag);
+    if (rc == 0 && rename(o->tmp, o->path) < 0)
+        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "rename to %s: %s", o->path,
                             strerror(errno));
     if (rc < 0)
-        unlink(tmp);
-    free(tmp);
+        unlink(o->tmp);
+    out_clear(o);
     return rc;
+}
+
+FILE *tvpal_open_log(const char *path, int *rc, struct tvpal_diag *diag)
+{
+    *rc = tvpal_out_check(path, diag);
+    if (*rc < 0)
+        return NULL;
+    int fd = open(path, O_WRONLY | O_CREAT | O_NOFOLLOW | O_NONBLOCK |
+                            O_CLOEXEC, 0644);
+    struct stat st;
+    if (fd < 0 || fstat(fd, &st) < 0 || !S_ISREG(st.st_mode) ||
+        ftruncate(fd, 0) < 0) {
+        *rc = tvpal_diag_set(diag, fd < 0 ? TVPAL_E_OPEN : TVPAL_E_EXIST,
+                             "%s: %s", path, fd < 0 ? strerror(errno)
+                             : "not a regular file; not written");
+        if (fd >= 0)
+            close(fd);
+        return NULL;
+    }
+    int fl = fcntl(fd, F_GETFL);
+    if (fl >= 0)
+        fcntl(fd, F_SETFL, fl & ~O_NONBLOCK);
+    FILE *f = fdopen(fd, "w");
+    if (!f) {
+        *rc = tvpal_diag_set(diag, TVPAL_E_NOMEM, "%s: %s", path,
+                             strerror(errno));
+        close(fd);
+    }
+    return f;
+}
+
+int tvpal_path_inside(const char *path, const char *dir)
+{
+    char *copy = strdup(path);
+    if (!copy)
+        return 0;
+    char *slash = strrchr(copy, '/');
+    const char *pdir = slash ? (slash == copy ? "/" : (*slash = 0, copy)) : ".";
+    char *rp = realpath(pdir, NULL), *rd = realpath(dir, NULL);
+    int inside = 0;
+    if (rp && rd) {
+        size_t n = strlen(rd);
+        inside = !strncmp(rp, rd, n) &&
+                 (rp[n] == 0 || rp[n] == '/' || (n == 1 && rd[0] == '/'));
+    }
+    free(rp);
+    free(rd);
+    free(copy);
+    return inside;
+}
+
+int tvpal_write_file_atomic(const char *path, const void *data, size_t len,
+                            struct tvpal_diag *diag)
+{
+    struct tvpal_out o;
+    int rc = tvpal_out_open(&o, path, diag);
+    if (rc < 0)
+        return rc;
+    if ((rc = tvpal_out_write(&o, data, len, diag)) < 0) {
+        tvpal_out_abort(&o);
+        return rc;
+    }
+    return tvpal_out_commit(&o, diag);
 }
 
 int tvpal_open_regular(const char *path, struct tvpal_diag *diag)

@@ -15,11 +15,63 @@ int tvpal_mkdirs(const char *path, struct tvpal_diag *diag);
 /* Removes a directory tree (files, subdirectories).  Missing is fine. */
 int tvpal_rmtree(const char *path);
 
-/* Writes len bytes to path atomically: path.tmp, fsync, rename.  0,
- * TVPAL_E_NOMEM, TVPAL_E_OPEN (path.tmp cannot be created) or TVPAL_E_WRITE;
- * on failure path is unchanged and path.tmp removed, and diag (optional)
- * gets the cause, e.g. "write out/manifest.txt.tmp: No space left on
- * device". */
+/* Every file a program writes goes through tvpal_out: a new file under a
+ * unique name beside the target (mkstemp: created with O_EXCL, so a link
+ * or file planted at a predictable name cannot redirect the write), made
+ * complete (fsync) and then renamed over the target, so a reader never
+ * sees a half-written file.  The target, when it exists, must be a
+ * regular file: a device node, FIFO, directory or symbolic link there is
+ * refused (TVPAL_E_EXIST) and left alone.  Not thread-safe per object. */
+struct tvpal_out {
+    int fd;          /* the temporary, open for writing */
+    FILE *stream;    /* tvpal_out_stream's, or NULL */
+    char *tmp;       /* owned: its name */
+    char *path;      /* owned: the target */
+};
+
+/* Starts writing path.  0, TVPAL_E_EXIST (see above), TVPAL_E_OPEN (the
+ * temporary cannot be created: e.g. no such directory) or TVPAL_E_NOMEM;
+ * diag gets "PATH: cause".  On failure o holds nothing. */
+int tvpal_out_open(struct tvpal_out *o, const char *path,
+                   struct tvpal_diag *diag);
+
+/* Whether path may be written by tvpal_out_open (absent, or a regular
+ * file): 0 or TVPAL_E_EXIST / TVPAL_E_OPEN with the reason.  For checks
+ * before long work; tvpal_out_open and _commit check again. */
+int tvpal_out_check(const char *path, struct tvpal_diag *diag);
+
+/* A stdio stream on the temporary (owned by o; do not fclose it). */
+FILE *tvpal_out_stream(struct tvpal_out *o);
+
+/* Writes n bytes to the temporary.  0 or TVPAL_E_WRITE (diag). */
+int tvpal_out_write(struct tvpal_out *o, const void *data, size_t n,
+                    struct tvpal_diag *diag);
+
+/* Flushes, fsyncs, closes and renames the temporary over the target (the
+ * target checked again).  0 or TVPAL_E_WRITE / TVPAL_E_EXIST; on failure
+ * the temporary is removed and the target unchanged.  o holds nothing
+ * after, whatever the result. */
+int tvpal_out_commit(struct tvpal_out *o, struct tvpal_diag *diag);
+
+/* Removes the temporary; o holds nothing after.  Safe on a zeroed o. */
+void tvpal_out_abort(struct tvpal_out *o);
+
+/* A file written as it goes rather than atomically (a log such as
+ * timing.csv, flushed by the caller so a killed run keeps its rows):
+ * created or truncated, but only when it is absent or a regular file; a
+ * link, FIFO or device there is refused without opening it for writing
+ * (O_NOFOLLOW, O_NONBLOCK).  NULL on failure, *rc and diag say why. */
+FILE *tvpal_open_log(const char *path, int *rc, struct tvpal_diag *diag);
+
+/* Whether path (existing or not) lies in directory dir or below it, after
+ * resolving links of its directory: a program refuses to write inside
+ * its own input.  1, 0, or 0 when either cannot be resolved. */
+int tvpal_path_inside(const char *path, const char *dir);
+
+/* Writes len bytes to path through tvpal_out (above).  0, TVPAL_E_NOMEM,
+ * TVPAL_E_EXIST, TVPAL_E_OPEN or TVPAL_E_WRITE; on failure path is
+ * unchanged and the temporary removed, and diag (optional) gets the
+ * cause, e.g. "write out/manifest.txt: No space left on device". */
 int tvpal_write_file_atomic(const char *path, const void *data, size_t len,
                             struct tvpal_diag *diag);
 

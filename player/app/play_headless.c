@@ -93,8 +93,10 @@ static void setup_outputs(struct headless *h)
             h->csv_path = h->csv_default;
     }
     if (h->csv_path) {
-        if (!(h->csv = fopen(h->csv_path, "w")))
-            play_die(2, "%s: cannot write: %s", h->csv_path, strerror(errno));
+        struct tvpal_diag d = {{0}};
+        int rc;
+        if (!(h->csv = tvpal_open_log(h->csv_path, &rc, &d)))
+            play_die(2, "cannot write %s", d.msg);
         play_timing_csv_header(h->csv);
     }
     h->digits = 4;

@@ -1,6 +1,7 @@
 /* tvpal_png.c: PNG frames (see tvpal_png.h). */
 #define _GNU_SOURCE
 #include "tvpal_png.h"
+#include "tvpal_fs.h"
 
 #include <errno.h>
 #include <png.h>
@@ -53,17 +54,18 @@ int tvpal_png_write8(const char *path, const uint8_t *rgba8, unsigned width,
 static int write_rgb(const char *path, unsigned width, unsigned height,
                      const uint8_t *rgb8, struct tvpal_diag *diag)
 {
-    char *tmp;
-    if (asprintf(&tmp, "%s.tmp", path) < 0)
-        return TVPAL_E_NOMEM;
-    FILE *f = fopen(tmp, "wb");
-    if (!f) {
-        int rc = tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", tmp,
-                                strerror(errno));
-        free(tmp);
+    /* Through tvpal_out like every output: a unique temporary, renamed
+     * when complete; a device or link at path is refused. */
+    struct tvpal_out o;
+    int rc = tvpal_out_open(&o, path, diag);
+    if (rc < 0)
         return rc;
+    FILE *f = tvpal_out_stream(&o);
+    if (!f) {
+        tvpal_out_abort(&o);
+        return tvpal_diag_set(diag, TVPAL_E_NOMEM, "%s: out of memory", path);
     }
-    int rc = TVPAL_E_WRITE;
+    rc = TVPAL_E_WRITE;
     png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL,
                                               NULL, NULL);
     png_infop info = png ? png_create_info_struct(png) : NULL;
@@ -83,20 +85,12 @@ static int write_rgb(const char *path, unsigned width, unsigned height,
      * holds the cause. */
     int werr = rc < 0 ? errno : 0;
     png_destroy_write_struct(&png, &info);
-    if (fclose(f) != 0 && rc == 0) {
-        rc = TVPAL_E_WRITE;
-        werr = errno;
+    if (rc < 0) {
+        tvpal_out_abort(&o);
+        return tvpal_diag_set(diag, rc, "%s: %s", path,
+                              werr ? strerror(werr) : "PNG encoding failed");
     }
-    if (rc < 0)
-        tvpal_diag_set(diag, rc, "%s: %s", tmp,
-                       werr ? strerror(werr) : "PNG encoding failed");
-    if (rc == 0 && rename(tmp, path) < 0)
-        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "%s: cannot rename to %s: "
-                            "%s", tmp, path, strerror(errno));
-    if (rc < 0)
-        unlink(tmp);
-    free(tmp);
-    return rc;
+    return tvpal_out_commit(&o, diag);
 }
 
 int tvpal_png_read(const char *path, uint8_t **out, unsigned *width,
