@@ -58,5 +58,16 @@ int main(void)
     CHECK(tvpal_parse_double_in("1e999", -1, 1e308, &d) < 0, "1e999 taken");
     CHECK(tvpal_parse_double_in("-360", -360, 360, &d) == 0 && d == -360,
           "-360 refused");
+    /* Lists of doubles: exactly n parts, each a whole finite number. */
+    static const struct { const char *s; int ok; } lists[] = {
+        {"1,2.5,-3", 1}, {"1e300,0,0", 1}, {"1,2", 0}, {"1,2,3,", 0},
+        {"1,2,3,4", 0}, {"1,,3", 0}, {",1,2", 0}, {"1,2,3x", 0},
+        {"1,2,1e999", 0}, {"nan,1,2", 0}, {"1,inf,2", 0}, {"", 0},
+    };
+    for (size_t i = 0; i < sizeof lists / sizeof *lists; i++) {
+        double v3[3];
+        int rc = tvpal_parse_doubles(lists[i].s, ',', 3, v3);
+        CHECK((rc == 0) == lists[i].ok, "list \"%s\": rc %d", lists[i].s, rc);
+    }
     return tt_done("test-cli");
 }

@@ -43,6 +43,23 @@ int tvpal_parse_double_in(const char *s, double lo, double hi, double *out)
     return 0;
 }
 
+int tvpal_parse_doubles(const char *s, char sep, unsigned n, double *out)
+{
+    for (unsigned i = 0; s && i < n; i++) {
+        char part[64];
+        const char *next = strchr(s, sep);
+        size_t len = next ? (size_t)(next - s) : strlen(s);
+        if (len >= sizeof part || (i + 1 < n) != (next != NULL))
+            return -1;
+        memcpy(part, s, len);
+        part[len] = 0;
+        if (tvpal_parse_double(part, &out[i]) < 0)
+            return -1;
+        s = next ? next + 1 : NULL;
+    }
+    return n ? 0 : -1;
+}
+
 int tvpal_parse_u32_pair(const char *s, char sep, uint32_t lo, uint32_t hi,
                          uint32_t out[2])
 {
