@@ -357,8 +357,7 @@ static void parse_option(const struct optspec *sp, const char *arg,
     case OPT_SPACING:
     case OPT_ORIGIN: {
         double *v = sp->kind == OPT_SPACING ? o->spacing : o->origin;
-        char tail;
-        if (sscanf(arg, "%lf,%lf,%lf%c", &v[0], &v[1], &v[2], &tail) != 3)
+        if (tvpal_parse_doubles(arg, ',', 3, v) < 0)
             break;
         int good = 1;
         for (int i = 0; i < 3; i++)

@@ -110,26 +110,70 @@ int tvpal_checkpoint_save(const char *dir, const char *fingerprint,
     return rc;
 }
 
+/* A whole decimal number <= max at *p (digits only: no sign, space or
+ * wrap past max), *p moved past it; 0 or -1. */
+static int take_u64(const char **p, uint64_t max, uint64_t *out)
+{
+    char *end;
+    if (**p < '0' || **p > '9')
+        return -1;
+    errno = 0;
+    unsigned long long v = strtoull(*p, &end, 10);
+    if (errno || v > max)
+        return -1;
+    *p = end;
+    *out = v;
+    return 0;
+}
+
+/* "KEY N" exactly (N as take_u64 takes it, nothing after); 0 or -1. */
+static int keyed_u64(const char *line, const char *key, uint64_t max,
+                     uint64_t *out)
+{
+    size_t n = strlen(key);
+    const char *p = line + n + 1;
+    if (strncmp(line, key, n) || line[n] != ' ' || take_u64(&p, max, out) ||
+        *p)
+        return -1;
+    return 0;
+}
+
+/* "KEY X" with X a double as the writer's %a writes it; 0 or -1. */
+static int keyed_double(const char *line, const char *key, double *out)
+{
+    size_t n = strlen(key);
+    char *end;
+    if (strncmp(line, key, n) || line[n] != ' ' || !line[n + 1])
+        return -1;
+    *out = strtod(line + n + 1, &end);
+    return *end ? -1 : 0;
+}
+
 /* Parses the fixed lines after the fingerprint into *done and st.  Returns
  * 0 or TVPAL_E_FORMAT naming the first bad line. */
 static int parse_head(char **save, uint32_t *done,
                       struct tvpal_checkpoint_stats *st,
                       struct tvpal_diag *diag)
 {
-    static const char *const fmt[] = {"done %u", "loaded %u", "min %la",
-                                      "max %la", "nonfinite %llu",
-                                      "missing %llu"};
-    unsigned d = 0, l = 0;
-    unsigned long long nf = 0, miss = 0;
+    static const char *const key[] = {"done", "loaded", "min", "max",
+                                      "nonfinite", "missing"};
+    static const uint64_t max[] = {UINT32_MAX, UINT32_MAX, 0, 0, UINT64_MAX,
+                                   UINT64_MAX};
+    uint64_t u[6] = {0};
     double lo = 0, hi = 0;
-    void *const dst[] = {&d, &l, &lo, &hi, &nf, &miss};
     for (int i = 0; i < 6; i++) {
         char *line = strtok_r(NULL, "\n", save);
-        if (!line || sscanf(line, fmt[i], dst[i]) != 1)
+        int bad = !line;
+        if (!bad && (i == 2 || i == 3))
+            bad = keyed_double(line, key[i], i == 2 ? &lo : &hi) < 0;
+        else if (!bad)
+            bad = keyed_u64(line, key[i], max[i], &u[i]) < 0;
+        if (bad)
             return tvpal_diag_set(diag, TVPAL_E_FORMAT, "line %d: expected "
-                                  "\"%.*s\"", i + 2,
-                                  (int)strcspn(fmt[i], " "), fmt[i]);
+                                  "\"%s\"", i + 2, key[i]);
     }
+    const uint32_t d = (uint32_t)u[0], l = (uint32_t)u[1];
+    const uint64_t nf = u[4], miss = u[5];
     *done = d;
     st->loaded = l;
     st->vmin = lo;
@@ -149,17 +193,18 @@ static int parse_bins(char **save, struct tvpal_checkpoint_stats *st,
     *sum = 0;
     memset(st->fine, 0, TVPAL_CHECKPOINT_BINS * sizeof *st->fine);
     while ((line = strtok_r(NULL, "\n", save))) {
-        unsigned b;
-        unsigned long long c;
-        if (sscanf(line, "bin %u %llu", &b, &c) != 2 ||
-            b >= TVPAL_CHECKPOINT_BINS || (long)b <= prev)
+        uint64_t b, c;
+        const char *p = line + 4;
+        if (strncmp(line, "bin ", 4) ||
+            take_u64(&p, TVPAL_CHECKPOINT_BINS - 1, &b) < 0 || *p++ != ' ' ||
+            take_u64(&p, UINT64_MAX, &c) < 0 || *p || (long)b <= prev)
             return tvpal_diag_set(diag, TVPAL_E_FORMAT, "bad histogram "
                                   "line \"%.40s\"", line);
         if (__builtin_add_overflow(*sum, (uint64_t)c, sum))
             return tvpal_diag_set(diag, TVPAL_E_FORMAT, "histogram count "
                                   "overflows");
         st->fine[b] = c;
-        prev = b;
+        prev = (long)b;
     }
     return 0;
 }

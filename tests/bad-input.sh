@@ -77,6 +77,12 @@ mkdir -p "$W/notds" && echo keep > "$W/notds/file"
 expect_exit 2 "notds: exists and is not a tvpal dataset" "$ENC" --dims $D --force -o "$W/notds" $IN
 [ "$(cat "$W/notds/file")" = keep ] && ok "non-dataset directory kept" || fail "notds replaced"
 [ "$(cat $IN | cksum)" = "$sum_before" ] && ok "inputs unchanged" || fail "inputs modified"
+# --spacing and --origin: exactly three finite numbers.
+for bad in 1,2 1,2,3,4 1,,3 ,1,2 1,2,3x 1e999,1,1 nan,1,1 ""; do
+    expect_exit 2 "--spacing \"$bad\": expected DX,DY,DZ, three numbers > 0" \
+        "$ENC" --dims $D --spacing "$bad" -o "$W/sp" $IN
+done
+expect_exit 2 "--origin \"0,inf,0\": expected OX,OY,OZ" "$ENC" --dims $D --origin 0,inf,0 -o "$W/sp" $IN
 # The other programs.
 expect_exit 2 "manifest.txt" "$DEC" "$W/nodataset" --step 0 -o "$W/x.f32"
 expect_exit 2 "manifest.txt" "$INFO" "$W/nodataset"

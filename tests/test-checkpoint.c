@@ -237,6 +237,20 @@ static void test_damaged(void)
     tamper("hash changed", "fingerprint ", "fingerprint 0", TVPAL_E_MISMATCH);
     tamper("garbage line", "nonfinite 7\n", "nonfinite 7\nbin x\n",
            TVPAL_E_FORMAT);
+    /* Numbers that sscanf's %u and %llu took wrapped, signed or followed
+     * by text: each would read as the good value. */
+    tamper("done wrapping past 2^32", "done 3\n", "done 4294967299\n",
+           TVPAL_E_FORMAT);
+    tamper("done with trailing text", "done 3\n", "done 3 x\n",
+           TVPAL_E_FORMAT);
+    tamper("class wrapping past 2^32", "bin 5 12\n", "bin 4294967301 12\n",
+           TVPAL_E_FORMAT);
+    tamper("negative count", "bin 5 12\n", "bin 5 -18446744073709551604\n",
+           TVPAL_E_FORMAT);
+    tamper("signed nonfinite", "nonfinite 7\n", "nonfinite +7\n",
+           TVPAL_E_FORMAT);
+    tamper("nonfinite overflowing", "nonfinite 7\n",
+           "nonfinite 18446744073709551623\n", TVPAL_E_FORMAT);
 }
 
 static void test_missing(void)

@@ -14,7 +14,8 @@
  * renderer; a block of missing (NaN) values with the default transparent
  * NaN colour vs the same block transparent by the TF.  Odd shapes: one-texel-wide and one-row slices, slices wider
  * than 64 tiles of 16.  Errors: a frame that does not match the prepared
- * slices is refused. */
+ * slices is refused; extreme views (NaN, infinite, huge angles and zooms)
+ * keep the view finite and draw or are refused, never undefined. */
 #include "tvpal_render_ref.h"
 #include "tvpal_sw.h"
 #include "tvpal_test.h"
@@ -309,6 +310,45 @@ int main(void)
         CHECK(tvpal_sw_draw(sw, &f, img, &d) == TVPAL_E_INVAL && strstr(d.msg, "layer"),
               "layer out of range: %s", d.msg);
         CHECK(tvpal_sw_set_slices(sw, 0, 5, 4, &d) == TVPAL_E_INVAL, "empty slices");
+    }
+
+    /* Extreme views (NaN, infinite or huge angles and zooms): the view's
+     * derived fields stay finite, and a draw either succeeds or refuses
+     * the frame; no conversion out of range on the way. */
+    {
+        static const double xv[][3] = {
+            {NAN, 0, 1}, {0, NAN, 1}, {INFINITY, -INFINITY, 1},
+            {1e308, -1e308, 1}, {1e12, 7e15, 1}, {20, 30, 1e-300},
+            {20, 30, 1e-20}, {20, 30, 1e300}, {20, 30, NAN}, {20, 30, -5},
+            {20, 30, INFINITY}, {20, 30, 0}};
+        for (size_t i = 0; i < sizeof xv / sizeof *xv; i++) {
+            struct tvpal_view v = {.dims = {48, 40, 32}, .width = vo.W,
+                                   .height = vo.H, .ax_deg = xv[i][0],
+                                   .ay_deg = xv[i][1], .zoom = xv[i][2]};
+            struct tvpal_frame f;
+            make_frame(&vo, &v, &f, &tf);
+            int finite = isfinite(v.sx) && isfinite(v.sy) && v.sx > 0 &&
+                         v.sy > 0 && isfinite(v.dcos) && v.dcos > 0 &&
+                         isfinite(v.gap) && v.axis < 3;
+            for (int r = 0; r < 3; r++)
+                for (int c = 0; c < 3; c++)
+                    finite &= isfinite(v.rot[r][c]);
+            CHECK(finite, "view %g,%g zoom %g: derived fields not finite "
+                  "(sx %g sy %g dcos %g)", xv[i][0], xv[i][1], xv[i][2],
+                  v.sx, v.sy, v.dcos);
+            REQUIRE(tvpal_sw_set_slices(sw, f.w, f.h, f.count, &d) == 0,
+                    "%s", d.msg);
+            int rc = tvpal_sw_draw(sw, &f, img, &d);
+            CHECK(rc == 0 || rc == TVPAL_E_INVAL, "view %g,%g zoom %g: "
+                  "draw %d: %s", xv[i][0], xv[i][1], xv[i][2], rc, d.msg);
+        }
+        /* Spacing that breaks the contract counts as isotropic. */
+        struct tvpal_view v = {.dims = {48, 40, 32}, .spacing = {1, NAN, 2},
+                               .width = vo.W, .height = vo.H, .ax_deg = 20,
+                               .ay_deg = 30, .zoom = 1};
+        tvpal_view_setup(&v);
+        CHECK(v.spacing[0] == 0 && v.spacing[1] == 0 && v.spacing[2] == 0 &&
+              isfinite(v.sx) && v.gap == 1, "NaN spacing kept");
     }
 
     /* Unusual frames the player does not make but the contract allows:

@@ -34,6 +34,50 @@ int tvpal_parse_double(const char *s, double *out)
     return 0;
 }
 
+int tvpal_parse_double_in(const char *s, double lo, double hi, double *out)
+{
+    double v;
+    if (tvpal_parse_double(s, &v) < 0 || !(v >= lo && v <= hi))
+        return -1;
+    *out = v;
+    return 0;
+}
+
+int tvpal_parse_doubles(const char *s, char sep, unsigned n, double *out)
+{
+    for (unsigned i = 0; s && i < n; i++) {
+        char part[64];
+        const char *next = strchr(s, sep);
+        size_t len = next ? (size_t)(next - s) : strlen(s);
+        if (len >= sizeof part || (i + 1 < n) != (next != NULL))
+            return -1;
+        memcpy(part, s, len);
+        part[len] = 0;
+        if (tvpal_parse_double(part, &out[i]) < 0)
+            return -1;
+        s = next ? next + 1 : NULL;
+    }
+    return n ? 0 : -1;
+}
+
+int tvpal_parse_u32_pair(const char *s, char sep, uint32_t lo, uint32_t hi,
+                         uint32_t out[2])
+{
+    char first[32];
+    const char *mid = s ? strchr(s, sep) : NULL;
+    uint32_t v[2];
+    if (!mid || (size_t)(mid - s) >= sizeof first)
+        return -1;
+    memcpy(first, s, (size_t)(mid - s));
+    first[mid - s] = 0;
+    if (tvpal_parse_u32(first, lo, hi, &v[0]) < 0 ||
+        tvpal_parse_u32(mid + 1, lo, hi, &v[1]) < 0)
+        return -1;
+    out[0] = v[0];
+    out[1] = v[1];
+    return 0;
+}
+
 int tvpal_parse_axis(const char *s)
 {
     if (s && s[0] && !s[1] && s[0] >= 'x' && s[0] <= 'z')

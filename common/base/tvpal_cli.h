@@ -13,6 +13,18 @@ enum { TVPAL_EXIT_OK = 0, TVPAL_EXIT_FAIL = 1, TVPAL_EXIT_USAGE = 2 };
 int tvpal_parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out);
 /* Finite double; 0 or -1. */
 int tvpal_parse_double(const char *s, double *out);
+/* Finite double in [lo, hi]; 0 or -1 (NaN, infinities and overflow are
+ * refused). */
+int tvpal_parse_double_in(const char *s, double lo, double hi, double *out);
+/* Exactly n finite doubles joined by sep ("1,2,3"), each as
+ * tvpal_parse_double takes it (no empty part, trailing text or overflow);
+ * 0 or -1 (out may be partly written then). */
+int tvpal_parse_doubles(const char *s, char sep, unsigned n, double *out);
+/* Two whole decimal numbers joined by sep ("WxH", "A:B"), each in
+ * [lo, hi] as tvpal_parse_u32 takes them: no sign, space, empty part,
+ * trailing text or overflow.  0 or -1; out is left as it was on -1. */
+int tvpal_parse_u32_pair(const char *s, char sep, uint32_t lo, uint32_t hi,
+                         uint32_t out[2]);
 /* "x" | "y" | "z" -> 0..2; -1 otherwise. */
 int tvpal_parse_axis(const char *s);
 

@@ -15,6 +15,10 @@
 
 #define PROG PLAY_PROG
 
+/* Bounds of the numeric options (also in --help and tvpal-play.1). */
+#define PLAY_SIZE_MAX 16384   /* --size, each side */
+#define PLAY_DEG_MAX 360.0    /* --rotate, --spin: |degrees| */
+
 static void usage(FILE *f)
 {
     fprintf(f,
@@ -32,9 +36,10 @@ static void usage(FILE *f)
 "  -w, --window             interactive window (default with a display)\n"
 "  -s, --steps A:B          timesteps A..B inclusive, 0-based (default all);\n"
 "                           B < A plays backward\n"
-"  -S, --size WxH           image size (default 512x512)\n"
-"  -r, --rotate AX,AY       degrees about x, then about y (default 20,30)\n"
-"  -z, --zoom Z             zoom factor (default 1)\n"
+"  -S, --size WxH           image size, each 1..16384 (default 512x512)\n"
+"  -r, --rotate AX,AY       degrees about x, then about y, each -360..360\n"
+"                           (default 20,30)\n"
+"  -z, --zoom Z             zoom factor, 0.001..1000 (default 1)\n"
 "  -t, --tf FILE            transfer function (samples/tf/README.md: tvpal\n"
 "                           text format or ParaView preset JSON); default:\n"
 "                           one from the data's histogram.  Repeat to give\n"
@@ -44,7 +49,7 @@ static void usage(FILE *f)
 "                           (transparent) or R,G,B[,A], each 0..1, A default\n"
 "                           1; default: the TF file's (transparent unless it\n"
 "                           says)\n"
-"      --opacity S          opacity scale (default 1)\n"
+"      --opacity S          opacity scale, 0..1000 (default 1)\n"
 "      --renderer R         cpu (shear-warp on the CPU), gl (GLSL palette\n"
 "                           shader), ref (CPU reference, slow) or none (read\n"
 "                           and decode only: I/O benchmarks).  Default: cpu\n"
@@ -58,24 +63,29 @@ static void usage(FILE *f)
 "                           (default: 1 to 4, as many as the view shows) or\n"
 "                           1..8 (sharper at close zoom; cost grows as K^2);\n"
 "                           implies --renderer cpu\n"
-"      --scale-z F          stretch z by F (vertical exaggeration; default\n"
-"                           1: the dataset's spacing, its physical shape)\n"
-"      --spin DEG           turn the view DEG degrees about y per frame\n"
+"      --scale-z F          stretch z by F, 0.001..1000 (vertical\n"
+"                           exaggeration; default 1: the dataset's spacing,\n"
+"                           its physical shape)\n"
+"      --spin DEG           turn the view DEG degrees about y per frame,\n"
+"                           -360..360\n"
 "                           (a camera path; crossing axes loads records)\n"
 "Data:\n"
 "  -m, --mode M             incore (records in RAM) or stream (default: from\n"
 "                           disk, O_DIRECT, prefetching)\n"
 "      --io B               uring (default; pread when unavailable) or pread\n"
-"      --prefetch P         timesteps read ahead when streaming (default 4)\n"
+"      --prefetch P         timesteps read ahead when streaming, 0..64\n"
+"                           (default 4)\n"
 "      --no-direct          stream through the page cache\n"
-"      --mem MIB            in-core: keep at most MIB of records in RAM\n"
+"      --mem MIB            in-core: keep at most MIB (1..16777216) of\n"
+"                           records in RAM\n"
 "                           (axes beyond it are dropped or streamed); also\n"
 "                           reports how many timesteps fit in MIB\n"
 "Benchmarking (headless):\n"
-"      --repeat K           draw every frame K times (times the draw alone)\n"
+"      --repeat K           draw every frame K times, 1..100000 (times the\n"
+"                           draw alone)\n"
 "      --tf-cycle           use the next --tf every frame\n"
-"      --jumps K            every K-th frame jumps to a random timestep\n"
-"                           (CSV column jump = 1)\n"
+"      --jumps K            every K-th frame jumps to a random timestep,\n"
+"                           K in 1..1000000 (CSV column jump = 1)\n"
 "Output:\n"
 "  -o, --output DIR         write PNG frames here (created)\n"
 "      --csv FILE           per-frame timings (default DIR/timing.csv)\n"
@@ -89,7 +99,8 @@ static void usage(FILE *f)
 "                           the rank (default OUTDIR/node-%%r)\n"
 "      --composite S        bswap (binary swap, default) or gather (all\n"
 "                           images to rank 0: the baseline)\n"
-"      --autoplay K         window: play K frames from A, then exit\n"
+"      --autoplay K         window: play K frames (1..100000000) from A,\n"
+"                           then exit\n"
 "      --screenshot FILE    window: save the last frame shown as PNG\n"
 "  -q, --quiet              only the closing summary line\n"
 "  -h, --help               this help\n"
@@ -119,7 +130,7 @@ static void usage(FILE *f)
 enum opt_kind {
     OPT_SET,      /* no argument: int field = lo */
     OPT_U32,      /* uint32_t field in [lo, hi] */
-    OPT_DOUBLE,   /* finite double field >= lo (> lo when hi < 0) */
+    OPT_DOUBLE,   /* finite double field in [lo, hi] */
     OPT_TEXT,     /* const char * field = the argument */
     OPT_FN        /* fn(o, arg): 0 or -1 */
 };
@@ -136,23 +147,34 @@ struct opt_def {
 
 #define F(field) offsetof(struct play_opts, field)
 
+/* --size WxH: each 1..PLAY_SIZE_MAX. */
 static int set_size(struct play_opts *o, const char *arg)
 {
-    return sscanf(arg, "%ux%u", &o->width, &o->height) == 2 && o->width &&
-                   o->height && o->width <= 16384 && o->height <= 16384
-               ? 0 : -1;
+    uint32_t wh[2];
+    if (tvpal_parse_u32_pair(arg, 'x', 1, PLAY_SIZE_MAX, wh) < 0)
+        return -1;
+    o->width = wh[0];
+    o->height = wh[1];
+    return 0;
 }
 
+/* --rotate AX,AY: each a finite number of degrees in
+ * [-PLAY_DEG_MAX, PLAY_DEG_MAX]. */
 static int set_rotate(struct play_opts *o, const char *arg)
 {
-    return sscanf(arg, "%lf,%lf", &o->ax, &o->ay) == 2 && isfinite(o->ax) &&
-                   isfinite(o->ay) ? 0 : -1;
-}
-
-static int set_scale_z(struct play_opts *o, const char *arg)
-{
-    return tvpal_parse_double(arg, &o->scale_z) == 0 && o->scale_z > 0 &&
-                   o->scale_z <= 1000 ? 0 : -1;
+    char ax[64];
+    const char *comma = strchr(arg, ',');
+    double a, b;
+    if (!comma || (size_t)(comma - arg) >= sizeof ax)
+        return -1;
+    memcpy(ax, arg, (size_t)(comma - arg));
+    ax[comma - arg] = 0;
+    if (tvpal_parse_double_in(ax, -PLAY_DEG_MAX, PLAY_DEG_MAX, &a) < 0 ||
+        tvpal_parse_double_in(comma + 1, -PLAY_DEG_MAX, PLAY_DEG_MAX, &b) < 0)
+        return -1;
+    o->ax = a;
+    o->ay = b;
+    return 0;
 }
 
 static int set_tf(struct play_opts *o, const char *arg)
@@ -267,31 +289,35 @@ static const struct opt_def opt_table[] = {
     {"window", 'w', OPT_SET, F(window), 1, 0, NULL, NULL},
     {"steps", 's', OPT_TEXT, F(steps), 0, 0, NULL, NULL},
     {"size", 'S', OPT_FN, 0, 0, 0, set_size, "WxH, each 1..16384"},
-    {"rotate", 'r', OPT_FN, 0, 0, 0, set_rotate, "AX,AY in degrees"},
-    {"zoom", 'z', OPT_DOUBLE, F(zoom), 0, -1, NULL, "a number > 0"},
+    {"rotate", 'r', OPT_FN, 0, 0, 0, set_rotate,
+     "AX,AY in degrees, each -360..360"},
+    {"zoom", 'z', OPT_DOUBLE, F(zoom), 0.001, 1000, NULL,
+     "a number in 0.001..1000"},
     {"tf", 't', OPT_FN, 0, 0, 0, set_tf, NULL},
     {"nan-color", K_NAN_COLOR, OPT_FN, 0, 0, 0, set_nan_color,
      "none or R,G,B[,A], each 0..1"},
-    {"opacity", K_OPACITY, OPT_DOUBLE, F(opacity), 0, 0, NULL,
-     "a number >= 0"},
+    {"opacity", K_OPACITY, OPT_DOUBLE, F(opacity), 0, 1000, NULL,
+     "a number in 0..1000"},
     {"renderer", K_RENDERER, OPT_FN, 0, 0, 0, set_renderer,
      "gl, cpu, ref or none"},
     {"fb", K_FB, OPT_FN, 0, 0, 0, set_fb, "8, 16 or 32"},
     {"cpu-scale", K_CPU_SCALE, OPT_FN, 0, 0, 0, set_cpu_scale,
      "auto or 1..8"},
-    {"spin", K_SPIN, OPT_DOUBLE, F(spin), -INFINITY, 0, NULL, "degrees"},
-    {"scale-z", K_SCALE_Z, OPT_FN, 0, 0, 0, set_scale_z,
-     "a factor in (0, 1000]"},
+    {"spin", K_SPIN, OPT_DOUBLE, F(spin), -PLAY_DEG_MAX, PLAY_DEG_MAX, NULL,
+     "degrees in -360..360"},
+    {"scale-z", K_SCALE_Z, OPT_DOUBLE, F(scale_z), 0.001, 1000, NULL,
+     "a factor in 0.001..1000"},
     /* data */
     {"mode", 'm', OPT_FN, 0, 0, 0, set_mode, "incore or stream"},
     {"io", K_IO, OPT_FN, 0, 0, 0, set_io, "uring or pread"},
     {"prefetch", K_PREFETCH, OPT_FN, 0, 0, 0, set_prefetch, "0..64"},
     {"no-direct", K_NO_DIRECT, OPT_SET, F(no_direct), 1, 0, NULL, NULL},
-    {"mem", K_MEM, OPT_U32, F(mem_mib), 1, UINT32_MAX, NULL, "MiB >= 1"},
+    {"mem", K_MEM, OPT_U32, F(mem_mib), 1, 16777216, NULL,
+     "MiB in 1..16777216"},
     /* benchmarking */
     {"repeat", K_REPEAT, OPT_U32, F(repeat), 1, 100000, NULL, "1..100000"},
     {"tf-cycle", K_TF_CYCLE, OPT_SET, F(tf_cycle), 1, 0, NULL, NULL},
-    {"jumps", K_JUMPS, OPT_U32, F(jumps), 1, UINT32_MAX, NULL, "K >= 1"},
+    {"jumps", K_JUMPS, OPT_U32, F(jumps), 1, 1000000, NULL, "1..1000000"},
     /* output */
     {"output", 'o', OPT_TEXT, F(outdir), 0, 0, NULL, NULL},
     {"csv", K_CSV, OPT_TEXT, F(csv_path), 0, 0, NULL, NULL},
@@ -301,8 +327,8 @@ static const struct opt_def opt_table[] = {
     {"shard-dir", K_SHARD_DIR, OPT_TEXT, F(shard_pat), 0, 0, NULL, NULL},
     {"composite", K_COMPOSITE, OPT_FN, 0, 0, 0, set_composite,
      "bswap or gather"},
-    {"autoplay", K_AUTOPLAY, OPT_U32, F(autoplay), 1, UINT32_MAX, NULL,
-     "a frame count >= 1"},
+    {"autoplay", K_AUTOPLAY, OPT_U32, F(autoplay), 1, 100000000, NULL,
+     "a frame count in 1..100000000"},
     {"screenshot", K_SCREENSHOT, OPT_TEXT, F(shot), 0, 0, NULL, NULL},
     {"quiet", 'q', OPT_SET, F(quiet), 1, 0, NULL, NULL},
 };
@@ -337,14 +363,9 @@ static int apply(struct play_opts *o, const struct opt_def *d,
     case OPT_U32:
         return tvpal_parse_u32(arg, (uint32_t)d->lo, (uint32_t)d->hi,
                                (uint32_t *)(void *)(base + d->off));
-    case OPT_DOUBLE: {
-        double v;
-        if (tvpal_parse_double(arg, &v) < 0 || v < d->lo ||
-            (d->hi < 0 && v <= d->lo))
-            return -1;
-        *(double *)(void *)(base + d->off) = v;
-        return 0;
-    }
+    case OPT_DOUBLE:
+        return tvpal_parse_double_in(arg, d->lo, d->hi,
+                                     (double *)(void *)(base + d->off));
     case OPT_TEXT:
         *(const char **)(void *)(base + d->off) = arg;
         return 0;

@@ -8,6 +8,7 @@
  * headless or the window loop.  play.h says where each part lives. */
 #include "play.h"
 #include "play_cluster.h"
+#include "tvpal_cli.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -35,10 +36,15 @@ static void open_dataset(struct play_session *s)
     s->m = tvpal_player_manifest(s->pl);
     s->a = 0;
     s->b = s->m->steps - 1;
-    if (o->steps && (sscanf(o->steps, "%u:%u", &s->a, &s->b) != 2 ||
-                     s->a >= s->m->steps || s->b >= s->m->steps))
+    uint32_t ab[2];
+    if (o->steps && tvpal_parse_u32_pair(o->steps, ':', 0, s->m->steps - 1,
+                                         ab) < 0)
         play_die(2, "--steps \"%s\": expected A:B within 0..%u", o->steps,
                  s->m->steps - 1);
+    if (o->steps) {
+        s->a = ab[0];
+        s->b = ab[1];
+    }
 }
 
 /* Every --tf file (checked now, on every rank), then the default from the

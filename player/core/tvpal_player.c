@@ -246,9 +246,12 @@ static unsigned slice_stride(const struct tvpal_player *p,
                     v->spacing[2] == 0;
     double per_unit = iso ? nmax : v->dims[v->axis] / v->half[v->axis];
     double vpp = fmin(v->sx / v->width, v->sy / v->height) * per_unit;
-    unsigned stride = vpp >= 2.0 ? (unsigned)vpp : 1;
-    stride *= p->reduce;
-    return stride > n ? n : stride;
+    /* Converted only once in [2, n]: any view (huge, zero or NaN vpp)
+     * gives a stride in 1..n, never 0 (s % stride). */
+    unsigned stride = !(vpp >= 2.0) ? 1 : vpp >= n ? n : (unsigned)vpp;
+    if (p->reduce > 1)
+        stride = stride > n / p->reduce ? n : stride * p->reduce;
+    return stride > n ? n : stride < 1 ? 1 : stride;
 }
 
 /* The held slice drawn i-th (back to front). */

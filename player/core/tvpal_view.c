@@ -4,9 +4,40 @@
 #include <math.h>
 #include <string.h>
 
+/* An angle in degrees fit for cos and sin: NaN and infinities are 0; a
+ * huge one is reduced modulo 360 first (d * pi would overflow); ordinary
+ * ones are kept as they are (the same bits as before). */
+static double safe_deg(double d)
+{
+    if (!isfinite(d))
+        return 0;
+    return fabs(d) > 1e9 ? fmod(d, 360.0) : d;
+}
+
+/* The zoom the view uses: NaN and <= 0 are 1, the rest clamped to
+ * [TVPAL_VIEW_ZOOM_MIN, TVPAL_VIEW_ZOOM_MAX] (eye extents stay finite and
+ * non-zero). */
+static double safe_zoom(double z)
+{
+    if (!(z > 0))
+        return 1.0;
+    return z < TVPAL_VIEW_ZOOM_MIN ? TVPAL_VIEW_ZOOM_MIN
+         : z > TVPAL_VIEW_ZOOM_MAX ? TVPAL_VIEW_ZOOM_MAX : z;
+}
+
+/* Spacing usable as given: all three finite and > 0. */
+static int spacing_valid(const double sp[3])
+{
+    for (int i = 0; i < 3; i++)
+        if (!(isfinite(sp[i]) && sp[i] > 0))
+            return 0;
+    return 1;
+}
+
 void tvpal_view_setup(struct tvpal_view *v)
 {
-    const double a = v->ax_deg * M_PI / 180.0, b = v->ay_deg * M_PI / 180.0;
+    const double a = safe_deg(v->ax_deg) * M_PI / 180.0,
+                 b = safe_deg(v->ay_deg) * M_PI / 180.0;
     const double ca = cos(a), sa = sin(a), cb = cos(b), sb = sin(b);
     /* R = Ry(b) Rx(a) */
     const double rx[3][3] = {{1, 0, 0}, {0, ca, -sa}, {0, sa, ca}};
@@ -19,7 +50,10 @@ void tvpal_view_setup(struct tvpal_view *v)
             v->rot[i][j] = s;
         }
     /* Physical extents; on an isotropic grid the same numbers (and bits)
-     * as the voxel counts. */
+     * as the voxel counts.  Spacing that is not valid counts as isotropic
+     * (all three set to 0, so every user of the view agrees). */
+    if (!spacing_valid(v->spacing))
+        v->spacing[0] = v->spacing[1] = v->spacing[2] = 0;
     const int iso = v->spacing[0] == 0 && v->spacing[1] == 0 &&
                     v->spacing[2] == 0;
     double ext[3], emax = 0, smin = 0;
@@ -30,7 +64,7 @@ void tvpal_view_setup(struct tvpal_view *v)
         smin = i == 0 || sp < smin ? sp : smin;
     }
     for (int i = 0; i < 3; i++)
-        v->half[i] = ext[i] / emax;
+        v->half[i] = emax > 0 ? ext[i] / emax : 1.0;   /* no voxels: 1 */
     /* View direction in object space: R^T (0, 0, -1). */
     double d[3] = {-v->rot[2][0], -v->rot[2][1], -v->rot[2][2]};
     unsigned ax = 0;
@@ -42,8 +76,9 @@ void tvpal_view_setup(struct tvpal_view *v)
     v->gap = iso ? 1.0 : v->spacing[ax] / smin;
     /* Farther slices first: larger coordinate along d is farther. */
     v->descending = d[ax] > 0;
-    double zoom = v->zoom > 0 ? v->zoom : 1.0;
-    double aspect = (double)v->width / (double)v->height;
+    double zoom = safe_zoom(v->zoom);
+    double aspect = v->width && v->height
+                        ? (double)v->width / (double)v->height : 1.0;
     /* The box's bounding sphere (radius |half|) fits the shorter side. */
     double r = sqrt(v->half[0] * v->half[0] + v->half[1] * v->half[1] +
                     v->half[2] * v->half[2]);

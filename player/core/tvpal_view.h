@@ -35,8 +35,17 @@ struct tvpal_view {
     double gap;                  /* slice spacing / smallest spacing */
 };
 
-/* Fills the derived fields.  zoom > 0; spacing all 0 (isotropic) or all
- * finite and > 0. */
+/* Zoom range the view honours (tvpal_view_setup clamps to it). */
+#define TVPAL_VIEW_ZOOM_MIN 1e-6
+#define TVPAL_VIEW_ZOOM_MAX 1e6
+
+/* Fills the derived fields; the derived fields are finite for any input.
+ * Meant for: zoom > 0, spacing all 0 (isotropic) or all finite and > 0,
+ * width, height and dims >= 1.  Otherwise, safely: a NaN or infinite
+ * angle is 0 (a huge one is taken modulo 360), a NaN or non-positive zoom
+ * is 1 and the rest is clamped to [TVPAL_VIEW_ZOOM_MIN,
+ * TVPAL_VIEW_ZOOM_MAX], invalid spacing is reset to isotropic (0 0 0), a
+ * zero width or height gives aspect 1. */
 void tvpal_view_setup(struct tvpal_view *v);
 
 /* Object-space corner c (0..3: (0,0), (1,0), (1,1), (0,1) in slice (a, b)

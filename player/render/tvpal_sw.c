@@ -267,6 +267,11 @@ static void eye_to_base(const struct geom *g, unsigned w, unsigned h,
     *tv = (b + g->hb) / (2 * g->hb) * h;
 }
 
+/* Largest intermediate image side setup accepts (fits int and long). */
+#define SW_EXTENT_MAX (1 << 24)
+
+/* The frame's geometry; 0, or TVPAL_E_INVAL for a degenerate or extreme
+ * view (no conversion out of range). */
 static int setup(const struct tvpal_frame *f, unsigned force_k, struct geom *g)
 {
     const struct tvpal_view *v = f->view;
@@ -309,8 +314,14 @@ static int setup(const struct tvpal_frame *f, unsigned force_k, struct geom *g)
     double vmin = fmin(c0 * g->sy, c1 * g->sy), vmax = fmax(c0 * g->sy, c1 * g->sy);
     g->u0 = floor(umin) - 1;
     g->v0 = floor(vmin) - 1;
-    g->wi = (unsigned)ceil((umax + f->w + 1 - g->u0) * g->k);
-    g->hi = (unsigned)ceil((vmax + f->h + 1 - g->v0) * g->k);
+    /* Converted only when in range: a NaN or huge extent (an extreme
+     * view) refuses the frame instead. */
+    double wi = ceil((umax + f->w + 1 - g->u0) * g->k);
+    double hi = ceil((vmax + f->h + 1 - g->v0) * g->k);
+    if (!(wi >= 1 && wi <= SW_EXTENT_MAX && hi >= 1 && hi <= SW_EXTENT_MAX))
+        return TVPAL_E_INVAL;
+    g->wi = (unsigned)wi;
+    g->hi = (unsigned)hi;
     return 0;
 }
 
