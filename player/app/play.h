@@ -39,7 +39,7 @@ struct play_opts {
     struct tvpal_player_opts po;        /* data mode, I/O, prefetch */
     uint32_t mem_mib;
     uint32_t repeat, jumps, autoplay;
-    int tf_cycle, ref_psnr, strict, quiet, no_direct;
+    int tf_cycle, ref_psnr, strict, quiet, no_direct, want_direct;
     const char *outdir, *csv_path, *shot, *shard_pat;
     enum tvpal_compose_kind ckind;
 };

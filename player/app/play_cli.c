@@ -72,9 +72,12 @@ static void usage(FILE *f)
 "Data:\n"
 "  -m, --mode M             incore (records in RAM) or stream (default: from\n"
 "                           disk, O_DIRECT, prefetching)\n"
-"      --io B               uring (default; pread when unavailable) or pread\n"
+"      --io B               auto (default: io_uring, else pread, with a\n"
+"                           warning), uring (io_uring or fail) or pread\n"
 "      --prefetch P         timesteps read ahead when streaming, 0..64\n"
 "                           (default 4)\n"
+"      --direct             O_DIRECT or fail (default: O_DIRECT where the\n"
+"                           file system takes it, else a warning)\n"
 "      --no-direct          stream through the page cache\n"
 "      --mem MIB            in-core: keep at most MIB (1..16777216) of\n"
 "                           records in RAM\n"
@@ -258,7 +261,9 @@ static int set_io(struct play_opts *o, const char *arg)
 {
     if (!strcmp(arg, "pread"))
         o->po.io = TVPAL_IO_PREAD;
-    else if (strcmp(arg, "uring"))
+    else if (!strcmp(arg, "uring"))
+        o->po.io_strict = 1;
+    else if (strcmp(arg, "auto"))
         return -1;
     return 0;
 }
@@ -279,7 +284,7 @@ static int set_composite(struct play_opts *o, const char *arg)
 
 enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
        K_REPEAT, K_TF_CYCLE, K_JUMPS, K_AUTOPLAY, K_SCREENSHOT, K_OPACITY,
-       K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_MEM, K_CSV, K_STRICT,
+       K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_DIRECT, K_MEM, K_CSV, K_STRICT,
        K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR };
 
 /* Grouped as --help groups them. */
@@ -309,7 +314,8 @@ static const struct opt_def opt_table[] = {
      "a factor in 0.001..1000"},
     /* data */
     {"mode", 'm', OPT_FN, 0, 0, 0, set_mode, "incore or stream"},
-    {"io", K_IO, OPT_FN, 0, 0, 0, set_io, "uring or pread"},
+    {"io", K_IO, OPT_FN, 0, 0, 0, set_io, "auto, uring or pread"},
+    {"direct", K_DIRECT, OPT_SET, F(want_direct), 1, 0, NULL, NULL},
     {"prefetch", K_PREFETCH, OPT_FN, 0, 0, 0, set_prefetch, "0..64"},
     {"no-direct", K_NO_DIRECT, OPT_SET, F(no_direct), 1, 0, NULL, NULL},
     {"mem", K_MEM, OPT_U32, F(mem_mib), 1, 16777216, NULL,
@@ -377,7 +383,8 @@ static int apply(struct play_opts *o, const struct opt_def *d,
 
 static void print_version(void)
 {
-    printf(PROG " " PACKAGE_VERSION " (window: %s, gl: %s, mpi: %s)\n",
+    printf(PROG " " PACKAGE_VERSION " (window: %s, gl: %s, mpi: %s, "
+           "uring: %s)\n",
 #ifdef TVPAL_HAVE_WINDOW
            "yes",
 #else
@@ -388,7 +395,13 @@ static void print_version(void)
 #else
            "no",
 #endif
-           tvpal_comm_mpi_built() ? "yes" : "no");
+           tvpal_comm_mpi_built() ? "yes" : "no",
+#ifdef HAVE_LIBURING
+           "yes"
+#else
+           "no"
+#endif
+    );
 }
 
 int play_options_parse(struct play_opts *o, int argc, char **argv)
@@ -430,7 +443,10 @@ int play_options_parse(struct play_opts *o, int argc, char **argv)
         play_die(2, "expected one OUTDIR (try --help)");
     o->dir = argv[optind];
     o->po.mem_budget = (uint64_t)o->mem_mib << 20;
+    if (o->no_direct && o->want_direct)
+        play_die(2, "--direct and --no-direct: choose one");
     o->po.direct = !o->no_direct;
+    o->po.direct_strict = o->want_direct;
     return 0;
 }
 

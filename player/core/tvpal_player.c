@@ -142,6 +142,40 @@ const char *tvpal_player_io_name(const struct tvpal_player *p)
     return p->opts.io == TVPAL_IO_URING ? "uring" : "pread";
 }
 
+static int open_axis(struct tvpal_player *p, unsigned a,
+                     struct tvpal_diag *diag);
+
+int tvpal_player_open_axis(struct tvpal_player *p, unsigned axis,
+                           struct tvpal_diag *diag)
+{
+    if (axis > 2)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "axis %u", axis);
+    return p->ax[axis].stream ? 0 : open_axis(p, axis, diag);
+}
+
+void tvpal_player_io_path(const struct tvpal_player *p, const char **io,
+                          const char **direct, const char **why)
+{
+    unsigned on = 0, files = 0;
+    *io = p->opts.io == TVPAL_IO_URING ? "uring" : "pread";
+    *why = "";
+    int first = 1;
+    for (unsigned a = 0; a < 3; a++) {
+        if (!p->ax[a].stream)
+            continue;
+        struct tvpal_stream_path sp;
+        tvpal_stream_path(p->ax[a].stream, &sp);
+        if (first)
+            *io = sp.io;
+        first = 0;
+        on += sp.direct_files;
+        files += sp.files;
+        if (!(*why)[0])
+            *why = sp.why;
+    }
+    *direct = !on ? "no" : on == files ? "yes" : "some";
+}
+
 void tvpal_player_set_tf(struct tvpal_player *p, const struct tvpal_tf *tf,
                          double opacity_scale)
 {
@@ -207,9 +241,13 @@ static int open_axis(struct tvpal_player *p, unsigned a,
         }
     }
     struct axis_state *x = &p->ax[a];
+    const unsigned policy =
+        (p->opts.direct ? TVPAL_STREAM_DIRECT : 0) |
+        (p->opts.io_strict ? TVPAL_STREAM_STRICT_IO : 0) |
+        (p->opts.direct_strict ? TVPAL_STREAM_STRICT_DIRECT : 0);
     return tvpal_stream_create(&x->stream, x->slabs, p->ds->nshards,
-                               p->opts.io, incore, p->opts.prefetch,
-                               p->opts.direct, diag);
+                               p->opts.io, incore, p->opts.prefetch, policy,
+                               diag);
 }
 
 /* The renderer is told the slices of the axis when it, its owner or the

@@ -26,6 +26,9 @@ struct tvpal_player_opts {
     enum tvpal_io_kind io;        /* out-of-core backend */
     unsigned prefetch;            /* timesteps read ahead */
     int direct;                   /* O_DIRECT where possible */
+    int io_strict;                /* io == URING: io_uring or fail (no
+                                   * fallback to pread) */
+    int direct_strict;            /* O_DIRECT refused is an error */
     uint32_t rank, nranks;        /* nranks > 0: open only node `rank`'s
                                      shards, from the directory given to
                                      tvpal_player_open (cluster mode) */
@@ -56,9 +59,23 @@ void tvpal_player_close(struct tvpal_player *p);   /* NULL is a no-op */
 const struct tvpal_manifest *tvpal_player_manifest(const struct tvpal_player *p);
 const char *tvpal_player_io_name(const struct tvpal_player *p);
 
+/* What the player's streams really do (axes opened so far): the backend
+ * ("uring" or "pread"; the configured one before any axis is open),
+ * whether O_DIRECT is on ("yes", "no", or "some" when only some files
+ * took it), and the first fallback ("" when none).  Borrowed strings. */
+void tvpal_player_io_path(const struct tvpal_player *p, const char **io,
+                          const char **direct, const char **why);
+
 /* The directory the player was opened on (node directory in cluster
  * mode). */
 const char *tvpal_player_dir(const struct tvpal_player *p);
+
+/* Opens the stream of axis (0..2) now rather than at the first frame
+ * that needs it, so that an I/O path refused (TVPAL_E_SYS: io_uring or
+ * O_DIRECT unavailable under io_strict / direct_strict) or a fallback is
+ * known before playing.  0 or the error, diag saying why. */
+int tvpal_player_open_axis(struct tvpal_player *p, unsigned axis,
+                           struct tvpal_diag *diag);
 
 /* Transfer function and opacity scale used from the next frame on (no
  * slice is uploaded again for a TF change). */

@@ -7,6 +7,7 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -44,7 +45,18 @@ struct tvpal_stream {
     int incore;
     unsigned prefetch;
     uint64_t incore_bytes;
+    unsigned policy;             /* TVPAL_STREAM_* bits */
+    unsigned direct_files;       /* parts opened with O_DIRECT */
+    char why[200];               /* the first fallback, or "" */
 };
+
+/* Notes the first fallback (for the start-up line and the summary). */
+static void fell_back(struct tvpal_stream *s, const char *fmt, const char *a,
+                      const char *b)
+{
+    if (!s->why[0])
+        snprintf(s->why, sizeof s->why, fmt, a, b);
+}
 
 static void *aligned(uint64_t bytes)
 {
@@ -124,16 +136,24 @@ static int incore_reap(struct tvpal_io *io, const struct part *p,
     return rc;
 }
 
-static int open_part(struct tvpal_stream *s, struct part *p, int direct,
+static int open_part(struct tvpal_stream *s, struct part *p,
                      struct tvpal_diag *diag)
 {
     const char *path = tvpal_shard_path(p->sh);
     p->fd = -1;
-    if (direct) {
+    if (s->policy & TVPAL_STREAM_DIRECT) {
         p->fd = open(path, O_RDONLY | O_CLOEXEC | O_DIRECT);
         if (p->fd < 0 && errno != EINVAL)
             return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
                                   strerror(errno));
+        if (p->fd < 0 && (s->policy & TVPAL_STREAM_STRICT_DIRECT))
+            return tvpal_diag_set(diag, TVPAL_E_SYS, "%s: the file system "
+                                  "refuses O_DIRECT (EINVAL)", path);
+        if (p->fd < 0)
+            fell_back(s, "O_DIRECT refused by the file system of %s%s: "
+                      "reading through the page cache", path, "");
+        else
+            s->direct_files++;
     }
     if (p->fd < 0) {
         /* e.g. tmpfs: no O_DIRECT; read through the page cache */
@@ -206,22 +226,31 @@ static int alloc_slots(struct part *p, unsigned nslots)
 
 int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
                         unsigned nslabs, enum tvpal_io_kind kind, int incore,
-                        unsigned prefetch, int direct,
+                        unsigned prefetch, unsigned policy,
                         struct tvpal_diag *diag)
 {
     int rc = 0;
     struct tvpal_io *io = NULL;
     struct tvpal_diag d = {{0}};
-    rc = tvpal_io_create(&io, kind, 256, &d);
-    if (rc < 0 && kind == TVPAL_IO_URING) /* kernel, seccomp, container */
-        rc = tvpal_io_create(&io, TVPAL_IO_PREAD, 256, diag);
-    if (rc < 0)
-        return rc;
     struct tvpal_stream *s = calloc(1, sizeof *s);
-    if (!s) {
-        tvpal_io_free(io);
+    if (!s)
         return TVPAL_E_NOMEM;
+    rc = tvpal_io_create(&io, kind, 256, &d);
+    if (rc < 0 && kind == TVPAL_IO_URING && (policy & TVPAL_STREAM_STRICT_IO)) {
+        free(s);
+        return tvpal_diag_set(diag, TVPAL_E_SYS, "io_uring unavailable: %s",
+                              d.msg[0] ? d.msg : tvpal_strerror(rc));
     }
+    if (rc < 0 && kind == TVPAL_IO_URING) { /* kernel, seccomp, container */
+        fell_back(s, "io_uring unavailable (%s%s): reading with pread",
+                  d.msg[0] ? d.msg : tvpal_strerror(rc), "");
+        rc = tvpal_io_create(&io, TVPAL_IO_PREAD, 256, diag);
+    }
+    if (rc < 0) {
+        free(s);
+        return rc;
+    }
+    s->policy = policy;
     s->p = calloc(nslabs, sizeof *s->p);
     s->n = nslabs;
     s->io = io;
@@ -241,7 +270,7 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
     for (unsigned i = 0; i < nslabs && rc == 0; i++) {
         struct part *p = &s->p[i];
         const struct tvpal_shard_header *h = tvpal_shard_hdr(p->sh);
-        rc = open_part(s, p, direct, diag);
+        rc = open_part(s, p, diag);
         if (rc < 0)
             break;
         rc = incore ? load_incore(s, p, diag)
@@ -279,6 +308,15 @@ void tvpal_stream_free(struct tvpal_stream *s)
 const char *tvpal_stream_io_name(const struct tvpal_stream *s)
 {
     return tvpal_io_name(s->io);
+}
+
+void tvpal_stream_path(const struct tvpal_stream *s,
+                       struct tvpal_stream_path *out)
+{
+    out->io = tvpal_io_name(s->io);
+    out->direct_files = s->direct_files;
+    out->files = s->n;
+    out->why = s->why;
 }
 
 static int find_slot(const struct part *p, uint32_t step)

@@ -25,15 +25,33 @@ struct tvpal_stream_stats {
 
 struct tvpal_stream;
 
+/* How a stream reads (tvpal_stream_create's policy, bits). */
+#define TVPAL_STREAM_DIRECT 1u  /* O_DIRECT where the file system takes it */
+#define TVPAL_STREAM_STRICT_IO 2u     /* io_uring asked for but not
+                                       * available is an error */
+#define TVPAL_STREAM_STRICT_DIRECT 4u /* O_DIRECT refused is an error */
+
 /* slabs[i] decodes a shard of the axis (borrowed, outlive the stream).
- * The stream owns its I/O backend of the given kind (io_uring falls back to
- * pread when unavailable), so reads in flight never cross streams.
+ * The stream owns its I/O backend of the given kind, so reads in flight
+ * never cross streams.  Without TVPAL_STREAM_STRICT io_uring falls back to
+ * pread and O_DIRECT to the page cache, and tvpal_stream_path says so.
  * incore: load everything now.  prefetch: timesteps read ahead
- * (out-of-core).  direct: try O_DIRECT. */
+ * (out-of-core). */
 int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
                         unsigned nslabs, enum tvpal_io_kind io, int incore,
-                        unsigned prefetch, int direct,
+                        unsigned prefetch, unsigned policy,
                         struct tvpal_diag *diag);
+
+/* What a stream really does: its backend ("uring" or "pread"), on how
+ * many of its files O_DIRECT is on, and its first fallback ("" when none;
+ * borrowed from the stream). */
+struct tvpal_stream_path {
+    const char *io;
+    unsigned direct_files, files;
+    const char *why;
+};
+void tvpal_stream_path(const struct tvpal_stream *s,
+                       struct tvpal_stream_path *out);
 
 /* "uring" or "pread": the backend in use. */
 const char *tvpal_stream_io_name(const struct tvpal_stream *s);

@@ -1,0 +1,69 @@
+#!/bin/sh
+# play-io: the streamed reads really use io_uring and O_DIRECT where the
+# kernel and the file system offer them (probed here with the system
+# calls themselves, not through tvpal), and say so: the summary's io= and
+# direct=, the start line.  --io uring and --direct refuse a fallback
+# (exit 1, naming why); without them a fallback is a warning.  Where the
+# kernel or file system lacks a feature, that part is skipped out loud,
+# and the test exits 77 when it could check neither.
+. "$(dirname "$0")/lib.sh"
+PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
+[ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
+"$PLAY" --version | grep -q "uring: yes" || URING_BUILT=no
+D=16x16x16
+"$GEN" --field blobs --dims $D --steps 6 -o "$W/in" > /dev/null || fail gen
+"$ENC" -q --dims $D --window 2 -o "$W/ds" "$W"/in/*.f32 > /dev/null || fail encode
+# io_uring_setup(2) and open(O_DIRECT) asked directly of the kernel.
+probe=$("$PY" - "$W/ds/node-0/axis-z.tvps" <<'PY'
+import ctypes, errno, os, sys
+libc = ctypes.CDLL(None, use_errno=True)
+params = ctypes.create_string_buffer(120)
+fd = libc.syscall(425, 4, params)        # __NR_io_uring_setup on x86-64 and arm64
+uring = "yes" if fd >= 0 else "no:" + errno.errorcode.get(ctypes.get_errno(), "?")
+if fd >= 0:
+    os.close(fd)
+try:
+    os.close(os.open(sys.argv[1], os.O_RDONLY | os.O_DIRECT))
+    direct = "yes"
+except OSError as e:
+    direct = "no:" + errno.errorcode.get(e.errno, "?")
+print(uring, direct)
+PY
+) || { echo "probe failed"; exit 99; }
+uring=${probe% *}
+direct=${probe#* }
+echo "kernel: io_uring $uring; file system of $W: O_DIRECT $direct"
+[ "$(uname -m)" = x86_64 ] || [ "$(uname -m)" = aarch64 ] || uring="no:unknown-arch"
+checked=0
+run() { "$PLAY" "$W/ds" --headless -q --size 16x16 "$@" -o "$W/f" 2> "$W/e.txt"; }
+if [ "$uring" = yes ] && [ "${URING_BUILT:-yes}" = yes ]; then
+    line=$(run --io uring) && [ "$(kv io "$line")" = uring ] \
+        && ok "io_uring in use (--io uring)" || fail "--io uring: $line $(cat "$W/e.txt")"
+    line=$(run) && [ "$(kv io "$line")" = uring ] && [ "$(kv mode "$line")" = uring ] \
+        && ok "io_uring by default" || fail "default: $line"
+    checked=$((checked + 1))
+else
+    echo "io_uring not offered here ($uring): its checks are skipped"
+    expect_exit 1 "io_uring unavailable" "$PLAY" "$W/ds" --headless -q --size 16x16 --io uring -o "$W/f"
+    line=$(run) && [ "$(kv io "$line")" = pread ] && grep -q "warning: io_uring unavailable" "$W/e.txt" \
+        && ok "fallback to pread, with a warning" || fail "fallback: $line $(cat "$W/e.txt")"
+fi
+if [ "$direct" = yes ]; then
+    line=$(run --direct) && [ "$(kv direct "$line")" = yes ] \
+        && ok "O_DIRECT on every shard (--direct)" || fail "--direct: $line $(cat "$W/e.txt")"
+    line=$(run) && [ "$(kv direct "$line")" = yes ] && ! grep -q warning "$W/e.txt" \
+        && ok "O_DIRECT by default, no warning" || fail "default direct: $line $(cat "$W/e.txt")"
+    checked=$((checked + 1))
+else
+    echo "O_DIRECT not offered by this file system ($direct): its checks are skipped"
+    expect_exit 1 "refuses O_DIRECT" "$PLAY" "$W/ds" --headless -q --size 16x16 --direct -o "$W/f"
+    line=$(run) && [ "$(kv direct "$line")" = no ] && grep -q "warning: O_DIRECT refused" "$W/e.txt" \
+        && ok "fallback to the page cache, with a warning" || fail "direct fallback: $line $(cat "$W/e.txt")"
+fi
+line=$(run --no-direct) && [ "$(kv direct "$line")" = no ] && ok "--no-direct: direct=no" || fail "--no-direct: $line"
+line=$(run --io pread) && [ "$(kv io "$line")" = pread ] && ok "--io pread: io=pread" || fail "--io pread: $line"
+expect_exit 2 "choose one" "$PLAY" "$W/ds" --headless -q --direct --no-direct -o "$W/f"
+"$PLAY" "$W/ds" --headless --size 16x16 -o "$W/f" 2>&1 >/dev/null | grep -Eq "data streamed \((uring|pread), O_DIRECT (yes|no|some)\)" \
+    && ok "the start line names the I/O path" || fail "start line"
+[ $failures -eq 0 ] && [ $checked -eq 0 ] && { echo "neither io_uring nor O_DIRECT offered here: skipped"; exit 77; }
+finish
