@@ -1,0 +1,50 @@
+/* input_common.h: the body of the input-reader harnesses (vti, vtk,
+ * netcdf, hdf5): the input is written to a temporary file named name and
+ * read as format fmt: tvpal_input_detect, tvpal_input_open, the first
+ * steps (when a step is at most 2^20 voxels), tvpal_input_describe. */
+#ifndef TVPAL_FUZZ_INPUT_COMMON_H
+#define TVPAL_FUZZ_INPUT_COMMON_H
+#include "fuzz_util.h"
+#include "tvpal_input.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+static void read_steps(struct tvpal_input *in)
+{
+    const struct tvpal_input_info *info = tvpal_input_info(in);
+    uint64_t n = (uint64_t)info->dims[0] * info->dims[1] * info->dims[2];
+    if (n == 0 || n > (1u << 20))
+        return;
+    float *v = malloc((size_t)n * sizeof *v);
+    if (!v)
+        abort();
+    struct tvpal_diag d;
+    for (uint32_t t = 0; t < info->steps && t < 3; t++) {
+        (void)tvpal_input_read(in, t, v, &d);
+        (void)tvpal_input_time(in, t);
+    }
+    free(v);
+}
+
+static int fuzz_input(const uint8_t *data, size_t size,
+                      enum tvpal_input_format fmt, const char *name)
+{
+    char *path = strdup(fuzz_write(name, data, size));
+    if (!path)
+        abort();
+    struct tvpal_diag d;
+    enum tvpal_input_format f;
+    (void)tvpal_input_detect(path, NULL, &f, &d);
+    struct tvpal_input *in;
+    if (tvpal_input_open(&in, fmt, &path, 1, NULL, &d) == 0) {
+        read_steps(in);
+        tvpal_input_close(in);
+    }
+    char *text = NULL;
+    if (tvpal_input_describe(path, fmt, &text, &d) == 0)
+        free(text);
+    free(path);
+    return 0;
+}
+#endif
