@@ -2,6 +2,8 @@
 #include "tvpal_io.h"
 
 #include <errno.h>
+#include <inttypes.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -28,9 +30,34 @@ struct tvpal_io {
 #endif
 };
 
+/* Test hook (tvpal_io.h): the byte offset whose reads fail, or -1. */
+static int64_t g_fault_off = -1;
+static pthread_once_t g_fault_once = PTHREAD_ONCE_INIT;
+
+static void fault_read_env(void)
+{
+    const char *v = getenv("TVPAL_IO_FAULT_OFFSET");
+    char *end;
+    if (v && *v) {
+        long long x = strtoll(v, &end, 10);
+        if (!*end && x >= 0)
+            g_fault_off = x;
+    }
+}
+
+/* A completed read of r: EIO instead when it covers the fault offset. */
+static int64_t fault_filter(const struct tvpal_io_req *r, int64_t result)
+{
+    if (g_fault_off >= 0 && (uint64_t)g_fault_off >= r->off &&
+        (uint64_t)g_fault_off < r->off + r->len)
+        return -EIO;
+    return result;
+}
+
 int tvpal_io_create(struct tvpal_io **out, enum tvpal_io_kind kind,
                     unsigned depth, struct tvpal_diag *diag)
 {
+    pthread_once(&g_fault_once, fault_read_env);
     if (depth < 1)
         depth = 1;
     struct tvpal_io *io = calloc(1, sizeof *io);
@@ -182,7 +209,7 @@ int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result,
             if (res > 0)
                 pd->done += (uint64_t)res;
             *tag = pd->r.tag;
-            *result = res < 0 ? res : (int64_t)pd->done;
+            *result = fault_filter(&pd->r, res < 0 ? res : (int64_t)pd->done);
             pd->used = 0;
             io->inflight--;
             return 0;
@@ -208,6 +235,6 @@ int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result,
         got += (uint64_t)k;
     }
     *tag = r->tag;
-    *result = res < 0 ? res : (int64_t)got;
+    *result = fault_filter(r, res < 0 ? res : (int64_t)got);
     return 0;
 }

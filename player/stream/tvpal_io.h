@@ -47,4 +47,10 @@ int tvpal_io_submit(struct tvpal_io *io, const struct tvpal_io_req *r,
 int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result,
                   struct tvpal_diag *diag);
 
+/* Test hook: with TVPAL_IO_FAULT_OFFSET=N in the environment (read once,
+ * at the first tvpal_io_create), every read through either backend that
+ * covers byte N of its file completes with -EIO, as on a failing disk; the
+ * kernel offers no portable way to make a file's reads fail.  Unset: no
+ * effect. */
+
 #endif

@@ -34,6 +34,8 @@ struct part {                /* one shard */
     struct tvpal_shard *sh;
     int fd;
     unsigned char *all;      /* in-core: records region [4096, index) */
+    int *bad;                /* in-core, per step: 0, the errno of a failed
+                              * read, or (< 0) the code of a failed check */
     struct slot *slots;
     unsigned nslots;
 };
@@ -118,8 +120,26 @@ static int submit(struct tvpal_stream *s, unsigned pi, unsigned si,
     return 0;
 }
 
-/* One completion of an in-core load (the tag is the piece's length). */
-static int incore_reap(struct tvpal_io *io, const struct part *p,
+/* In-core pieces: the records region is read in pieces of this size. */
+#define INCORE_PIECE ((uint64_t)64 << 20)
+
+/* Marks the records of p that overlap [off, off + len) of its records
+ * region as unreadable (err: the read's errno). */
+static void incore_mark(struct part *p, uint64_t off, uint64_t len, int err)
+{
+    const struct tvpal_shard_header *h = tvpal_shard_hdr(p->sh);
+    for (uint32_t t = 0; t < h->steps; t++) {
+        const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, t);
+        uint64_t a = e->offset - TVPAL_SHARD_HEADER_BYTES, b = a + e->bytes;
+        if (a < off + len && off < b && !p->bad[t])
+            p->bad[t] = err;
+    }
+}
+
+/* One completion of an in-core load (the tag is the piece's offset in the
+ * records region).  A failed read marks its records, as stream mode does
+ * for a record it cannot read; only waiting itself failing is an error. */
+static int incore_reap(struct tvpal_io *io, struct part *p, uint64_t total,
                        struct tvpal_diag *diag)
 {
     uint64_t tag;
@@ -129,11 +149,10 @@ static int incore_reap(struct tvpal_io *io, const struct part *p,
     if (rc < 0)
         return tvpal_diag_set(diag, rc, "%s: %s", tvpal_shard_path(p->sh),
                               d.msg);
-    if (res != (int64_t)tag)
-        rc = tvpal_diag_set(diag, TVPAL_E_READ, "%s: %s",
-                            tvpal_shard_path(p->sh),
-                            res < 0 ? strerror((int)-res) : "short read");
-    return rc;
+    uint64_t len = total - tag < INCORE_PIECE ? total - tag : INCORE_PIECE;
+    if (res != (int64_t)len)
+        incore_mark(p, tag, len, res < 0 ? (int)-res : EIO);
+    return 0;
 }
 
 static int open_part(struct tvpal_stream *s, struct part *p,
@@ -165,6 +184,31 @@ static int open_part(struct tvpal_stream *s, struct part *p,
     return 0;
 }
 
+/* Reads in-core record t of p alone; clears its mark when that works.
+ * Only the I/O layer failing is an error. */
+static int incore_reread(struct tvpal_io *io, struct part *p, uint32_t t,
+                         struct tvpal_diag *diag)
+{
+    const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, t);
+    struct tvpal_io_req r = {
+        .fd = p->fd, .off = e->offset, .len = e->bytes,
+        .buf = p->all + e->offset - TVPAL_SHARD_HEADER_BYTES, .tag = t};
+    struct tvpal_diag d = {{0}};
+    uint64_t tag;
+    int64_t res;
+    int rc = tvpal_io_submit(io, &r, &d);
+    if (rc == 0)
+        rc = tvpal_io_wait(io, &tag, &res, &d);
+    if (rc < 0)
+        return tvpal_diag_set(diag, rc, "%s: %s", tvpal_shard_path(p->sh),
+                              d.msg);
+    if (res == (int64_t)e->bytes)
+        p->bad[t] = 0;
+    else
+        p->bad[t] = res < 0 ? (int)-res : EIO;
+    return 0;
+}
+
 /* In-core: the shard's records region [4096, index) read into RAM, in
  * pieces of at most 64 MiB (aligned), all queued; then every record
  * verified once. */
@@ -181,14 +225,15 @@ static int load_incore(struct tvpal_stream *s, struct part *p,
                               (unsigned long long)bytes,
                               tvpal_shard_path(p->sh));
     s->incore_bytes += bytes;
-    const uint64_t piece = 64u << 20;
-    for (uint64_t off = 0; off < bytes && rc == 0; off += piece) {
-        uint64_t len = bytes - off < piece ? bytes - off : piece;
+    if (!(p->bad = calloc(h->steps, sizeof *p->bad)))
+        return TVPAL_E_NOMEM;
+    for (uint64_t off = 0; off < bytes && rc == 0; off += INCORE_PIECE) {
+        uint64_t len = bytes - off < INCORE_PIECE ? bytes - off : INCORE_PIECE;
         struct tvpal_io_req r = {
             .fd = p->fd, .off = TVPAL_SHARD_HEADER_BYTES + off,
-            .len = len, .buf = p->all + off, .tag = len};
+            .len = len, .buf = p->all + off, .tag = off};
         while (rc == 0 && tvpal_io_inflight(io) >= tvpal_io_depth(io))
-            rc = incore_reap(io, p, diag);
+            rc = incore_reap(io, p, bytes, diag);
         if (rc == 0) {
             struct tvpal_diag qd = {{0}};
             rc = tvpal_io_submit(io, &r, &qd);
@@ -198,17 +243,38 @@ static int load_incore(struct tvpal_stream *s, struct part *p,
         }
     }
     while (rc == 0 && tvpal_io_inflight(io))
-        rc = incore_reap(io, p, diag);
+        rc = incore_reap(io, p, bytes, diag);
+    /* A failed piece took all its records with it: each is read again on
+     * its own, so only those that are really unreadable stay marked. */
+    for (uint32_t t = 0; t < h->steps && rc == 0; t++)
+        if (p->bad[t] > 0)
+            rc = incore_reread(io, p, t, diag);
+    /* Each record checked once; a bad one is reported when a frame needs
+     * it (the slices keep their previous window), as in stream mode. */
     for (uint32_t t = 0; t < h->steps && rc == 0; t++) {
         const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, t);
-        struct tvpal_diag vd = {{0}};
-        rc = tvpal_record_verify(p->all + e->offset - TVPAL_SHARD_HEADER_BYTES,
-                                 e->bytes, t, h, &vd);
-        if (rc < 0)
-            tvpal_diag_set(diag, rc, "%s: %s", tvpal_shard_path(p->sh),
-                           vd.msg);
+        if (!p->bad[t])
+            p->bad[t] = tvpal_record_verify(
+                p->all + e->offset - TVPAL_SHARD_HEADER_BYTES, e->bytes, t, h,
+                NULL);
     }
     return rc;
+}
+
+/* The error of bad in-core record t of p, for the caller's diag. */
+static int incore_error(const struct part *p, uint32_t t,
+                        struct tvpal_diag *diag)
+{
+    const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, t);
+    if (p->bad[t] > 0)
+        return tvpal_diag_set(diag, TVPAL_E_READ, "%s: record %u: %s",
+                              tvpal_shard_path(p->sh), t,
+                              strerror(p->bad[t]));
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_record_verify(p->all + e->offset - TVPAL_SHARD_HEADER_BYTES,
+                                 e->bytes, t, tvpal_shard_hdr(p->sh), &d);
+    return tvpal_diag_set(diag, rc < 0 ? rc : p->bad[t], "%s: %s",
+                          tvpal_shard_path(p->sh), d.msg);
 }
 
 /* Out-of-core: record buffers for N needed + P prefetched + P of an old
@@ -296,6 +362,7 @@ void tvpal_stream_free(struct tvpal_stream *s)
         if (p->fd >= 0)
             close(p->fd);
         free(p->all);
+        free(p->bad);
         for (unsigned k = 0; p->slots && k < p->nslots; k++)
             free(p->slots[k].buf);
         free(p->slots);
@@ -362,6 +429,11 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
         if (s->incore) {
             for (unsigned i = 0; i < nn; i++) {
                 const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, need[i]);
+                if (p->bad[need[i]]) {
+                    if (!err)
+                        err = incore_error(p, need[i], diag);
+                    continue;
+                }
                 tvpal_slab_apply(p->slab,
                                  p->all + e->offset - TVPAL_SHARD_HEADER_BYTES,
                                  t);
@@ -411,7 +483,7 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
         }
     }
     if (s->incore)
-        return 0;
+        return err;
     /* Wait for the needed records, verify and apply them in step order. */
     for (unsigned pi = 0; pi < s->n; pi++) {
         struct part *p = &s->p[pi];
