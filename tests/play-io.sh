@@ -41,6 +41,15 @@ if [ "$uring" = yes ] && [ "${URING_BUILT:-yes}" = yes ]; then
         && ok "io_uring in use (--io uring)" || fail "--io uring: $line $(cat "$W/e.txt")"
     line=$(run) && [ "$(kv io "$line")" = uring ] && [ "$(kv mode "$line")" = uring ] \
         && ok "io_uring by default" || fail "default: $line"
+    # A jump's reads (the N records it needs, then the prefetch, 2 MiB
+    # records in 1 MiB pieces) go to the kernel in one submission.
+    "$GEN" --field turbulence --dims 256x256x32 --steps 16 -o "$W/big" > /dev/null || fail "gen big"
+    "$ENC" -q --dims 256x256x32 --window 4 -o "$W/dsb" "$W"/big/*.f32 > /dev/null || fail "encode big"
+    line=$("$PLAY" "$W/dsb" --headless -q --size 32x32 --rotate 0,0 --io uring --jumps 1 \
+        --steps 0:15 --renderer none 2> "$W/e.txt")
+    n=$(kv io_submits "$line")
+    [ -n "$n" ] && [ "$n" -le 16 ] && ok "16 jumps: $n submissions, at most one a frame (batched)" \
+        || fail "16 jumps: ${n:-?} submissions: $line $(cat "$W/e.txt")"
     checked=$((checked + 1))
 else
     echo "io_uring not offered here ($uring): its checks are skipped"

@@ -321,10 +321,12 @@ static void print_summary(struct headless *h, double elapsed)
                         h->nframes / (elapsed > 0 ? elapsed : 1e-9));
     const char *io, *direct, *why;
     tvpal_player_io_path(h->s->pl, &io, &direct, &why);
-    printf(" incore_mib=%.1f mode=%s io=%s direct=%s renderer=%s errors=%u\n",
+    printf(" incore_mib=%.1f mode=%s io=%s direct=%s io_submits=%llu "
+           "renderer=%s errors=%u\n",
            tvpal_player_incore_bytes(h->s->pl) / 1048576.0,
-           tvpal_player_io_name(h->s->pl), io, direct, h->pr.r.name,
-           h->errors);
+           tvpal_player_io_name(h->s->pl), io, direct,
+           (unsigned long long)tvpal_player_io_submits(h->s->pl),
+           h->pr.r.name, h->errors);
     if (h->o->ref_psnr)
         printf("psnr_ref=%.3f\n", play_timing_mean_psnr(&h->tot));
 }

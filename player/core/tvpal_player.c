@@ -153,6 +153,15 @@ int tvpal_player_open_axis(struct tvpal_player *p, unsigned axis,
     return p->ax[axis].stream ? 0 : open_axis(p, axis, diag);
 }
 
+uint64_t tvpal_player_io_submits(const struct tvpal_player *p)
+{
+    uint64_t n = 0;
+    for (unsigned a = 0; a < 3; a++)
+        if (p->ax[a].stream)
+            n += tvpal_stream_submits(p->ax[a].stream);
+    return n;
+}
+
 void tvpal_player_io_path(const struct tvpal_player *p, const char **io,
                           const char **direct, const char **why)
 {

@@ -66,6 +66,9 @@ const char *tvpal_player_io_name(const struct tvpal_player *p);
 void tvpal_player_io_path(const struct tvpal_player *p, const char **io,
                           const char **direct, const char **why);
 
+/* Read submissions (system calls) of the open axes' streams so far. */
+uint64_t tvpal_player_io_submits(const struct tvpal_player *p);
+
 /* The directory the player was opened on (node directory in cluster
  * mode). */
 const char *tvpal_player_dir(const struct tvpal_player *p);

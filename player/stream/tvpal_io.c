@@ -17,6 +17,7 @@ struct tvpal_io {
     /* pread: FIFO of pending requests */
     struct tvpal_io_req *q;
     unsigned head;
+    uint64_t submits;     /* io_uring_submit calls (tvpal_io_submits) */
 #ifdef HAVE_LIBURING
     struct io_uring ring;
     int ring_ok;
@@ -148,6 +149,16 @@ static int uring_queue(struct tvpal_io *io, unsigned k,
     io_uring_prep_read(sqe, pd->r.fd, (char *)pd->r.buf + pd->done,
                        (unsigned)(pd->r.len - pd->done), pd->r.off + pd->done);
     io_uring_sqe_set_data64(sqe, k);
+    (void)diag;
+    return 0; /* submitted by tvpal_io_flush or the next wait */
+}
+
+/* Hands every queued read to the kernel in one system call. */
+static int uring_flush(struct tvpal_io *io, struct tvpal_diag *diag)
+{
+    if (!io_uring_sq_ready(&io->ring))
+        return 0;
+    io->submits++;
     int rc = io_uring_submit(&io->ring);
     if (rc < 0)
         return tvpal_diag_set(diag, TVPAL_E_READ, "io_uring_submit: %s",
@@ -155,6 +166,21 @@ static int uring_queue(struct tvpal_io *io, unsigned k,
     return 0;
 }
 #endif
+
+int tvpal_io_flush(struct tvpal_io *io, struct tvpal_diag *diag)
+{
+#ifdef HAVE_LIBURING
+    if (io->kind == TVPAL_IO_URING)
+        return uring_flush(io, diag);
+#endif
+    (void)io, (void)diag;
+    return 0;
+}
+
+uint64_t tvpal_io_submits(const struct tvpal_io *io)
+{
+    return io->submits;
+}
 
 int tvpal_io_submit(struct tvpal_io *io, const struct tvpal_io_req *r,
                     struct tvpal_diag *diag)
@@ -192,7 +218,10 @@ int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result,
     if (io->kind == TVPAL_IO_URING) {
         for (;;) {
             struct io_uring_cqe *cqe;
-            int rc = io_uring_wait_cqe(&io->ring, &cqe);
+            int rc = uring_flush(io, diag);
+            if (rc < 0)
+                return rc;
+            rc = io_uring_wait_cqe(&io->ring, &cqe);
             if (rc < 0)
                 return tvpal_diag_set(diag, TVPAL_E_READ,
                                       "io_uring_wait_cqe: %s", strerror(-rc));

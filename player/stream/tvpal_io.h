@@ -34,11 +34,19 @@ const char *tvpal_io_name(const struct tvpal_io *io);
 unsigned tvpal_io_inflight(const struct tvpal_io *io);
 unsigned tvpal_io_depth(const struct tvpal_io *io);
 
-/* Queues a read.  TVPAL_E_INVAL when depth reads are in flight;
- * TVPAL_E_READ when the kernel refuses the submission (diag: the call and
- * its errno text). */
+/* Queues a read.  TVPAL_E_INVAL when depth reads are in flight.  With
+ * io_uring the queued reads go to the kernel together, in one system
+ * call, at tvpal_io_flush or at the next tvpal_io_wait. */
 int tvpal_io_submit(struct tvpal_io *io, const struct tvpal_io_req *r,
                     struct tvpal_diag *diag);
+
+/* Submits the queued reads now (io_uring: one io_uring_submit; pread:
+ * nothing).  0 or TVPAL_E_READ when the kernel refuses the submission
+ * (diag: the call and its errno text). */
+int tvpal_io_flush(struct tvpal_io *io, struct tvpal_diag *diag);
+
+/* Submission system calls made so far (io_uring; 0 for pread). */
+uint64_t tvpal_io_submits(const struct tvpal_io *io);
 
 /* Waits for one completion: *tag of its request, *result the bytes read or
  * -errno of that read.  TVPAL_E_INVAL when nothing is in flight;

@@ -484,6 +484,13 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
     }
     if (s->incore)
         return err;
+    /* Everything queued above goes to the kernel in one submission. */
+    {
+        struct tvpal_diag fd = {{0}};
+        int rc = tvpal_io_flush(s->io, &fd);
+        if (rc < 0)
+            return tvpal_diag_set(diag, rc, "%s", fd.msg);
+    }
     /* Wait for the needed records, verify and apply them in step order. */
     for (unsigned pi = 0; pi < s->n; pi++) {
         struct part *p = &s->p[pi];
@@ -525,6 +532,11 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
         }
     }
     return err;
+}
+
+uint64_t tvpal_stream_submits(const struct tvpal_stream *s)
+{
+    return tvpal_io_submits(s->io);
 }
 
 uint64_t tvpal_stream_incore_bytes(const struct tvpal_stream *s)

@@ -64,6 +64,10 @@ void tvpal_stream_free(struct tvpal_stream *s);   /* NULL is a no-op */
 int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
                       struct tvpal_stream_stats *st, struct tvpal_diag *diag);
 
+/* Submission system calls of the stream's reads so far (io_uring: a seek
+ * submits its reads, the records it needs and its prefetch, in one). */
+uint64_t tvpal_stream_submits(const struct tvpal_stream *s);
+
 /* Bytes held in RAM by an in-core stream (0 out-of-core). */
 uint64_t tvpal_stream_incore_bytes(const struct tvpal_stream *s);
 
