@@ -36,6 +36,11 @@ for n in $nodes; do
 done
 [ -c "$W/zero" ] || [ ! -e "$W/zero" ] && ok "device node untouched" || fail "device node replaced"
 [ -p "$W/fifo" ] && ok "FIFO untouched" || fail "FIFO replaced"
+# A reference cut short: a clear error (under scripts/check-sanitize, with
+# LeakSanitizer on, nothing leaked on that path).
+head -c 100 "$W/in/blobs_t0001.f32" > "$W/short.f32"
+expect_exit 2 "short.f32: timestep 1: file is shorter than expected" \
+    $T "$REP" -q "$W/ds" --reference "$W/in/blobs_t0000.f32" "$W/short.f32" "$W"/in/blobs_t000[23].f32
 # A text input beyond 64 MiB (sparse).
 truncate -s 65M "$W/big.tf"
 if [ -x "$PLAY" ]; then
