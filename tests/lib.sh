@@ -26,13 +26,18 @@ finish() {
 }
 
 # expect_exit CODE PATTERN CMD...: CMD must exit with CODE and print PATTERN
-# (grep -E) on stderr.
+# (grep -E) on stderr, within TVPAL_EXPECT_TIMEOUT seconds (default 120):
+# bad input gets a message and an exit, never a hang or a signal.
 expect_exit() {
     local want=$1 pat=$2 rc
     shift 2
-    "$@" > "$W/out.txt" 2> "$W/err.txt"
+    timeout -k 5 "${TVPAL_EXPECT_TIMEOUT:-120}" "$@" > "$W/out.txt" 2> "$W/err.txt"
     rc=$?
-    if [ "$rc" -ne "$want" ]; then
+    if [ "$rc" -eq 124 ] || [ "$rc" -eq 137 ]; then
+        fail "hung (killed after ${TVPAL_EXPECT_TIMEOUT:-120} s): $*"
+    elif [ "$rc" -ge 128 ]; then
+        fail "died of signal $((rc - 128)) (expected exit $want): $*"; sed 's/^/    /' "$W/err.txt" >&2
+    elif [ "$rc" -ne "$want" ]; then
         fail "exit $rc (expected $want): $*"; sed 's/^/    /' "$W/err.txt" >&2
     elif ! grep -Eq -- "$pat" "$W/err.txt"; then
         fail "stderr lacks /$pat/: $*"; sed 's/^/    /' "$W/err.txt" >&2
