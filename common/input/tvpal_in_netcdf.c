@@ -25,6 +25,7 @@
  * (float variables) or into one step of scratch in the stored type,
  * allocated at open. */
 #include "tvpal_input_impl.h"
+#include "tvpal_fs.h"
 
 #include <netcdf.h>
 
@@ -34,6 +35,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #define MAX_DIMS 8       /* dims of one variable (time, extras, z, y, x) */
 #define MAX_MISSING 16   /* _FillValue and missing_value's values */
@@ -83,6 +86,136 @@ static int open_fail(struct tvpal_diag *diag, int status, const char *path)
 {
     return ncdf_fail(diag, status, status > 0 ? TVPAL_E_OPEN : TVPAL_E_FORMAT,
                    path, NULL);
+}
+
+/* ------------------------------------------- classic header, bounded */
+
+/* libnetcdf sizes its allocations for a classic (CDF-1, -2, -5) file by
+ * the counts of its header before it reads what they count: a forged
+ * count makes nc_open allocate gigabytes.  Before the library sees such a
+ * file, its header is walked here, without allocating, and every count is
+ * checked against the bytes that remain (a valid header holds each item
+ * it counts); the library still parses and checks everything else. */
+struct cdf_walk {
+    const unsigned char *p;
+    size_t n, at;            /* bytes read from the file; position */
+    int v5;                  /* CDF-5: 8-byte counts */
+    int bad;                 /* a count exceeds the file */
+    int cut;                 /* the header runs past the bytes read */
+};
+
+static uint64_t cdf_get(struct cdf_walk *w, unsigned bytes)
+{
+    if (w->bad || w->cut || w->n - w->at < bytes) {
+        w->cut = 1;
+        return 0;
+    }
+    uint64_t v = 0;
+    for (unsigned i = 0; i < bytes; i++)
+        v = v << 8 | w->p[w->at + i];
+    w->at += bytes;
+    return v;
+}
+
+/* A count of items of at least `each` bytes: must fit in the file. */
+static uint64_t cdf_count(struct cdf_walk *w, uint64_t each, uint64_t fsize)
+{
+    uint64_t c = cdf_get(w, w->v5 ? 8 : 4);
+    if (!w->cut && c > (fsize - w->at) / each)
+        w->bad = 1;
+    return w->bad || w->cut ? 0 : c;
+}
+
+static void cdf_skip(struct cdf_walk *w, uint64_t bytes)
+{
+    if (w->bad || w->cut || w->n - w->at < bytes)
+        w->cut = 1;
+    else
+        w->at += (size_t)bytes;
+}
+
+static void cdf_name(struct cdf_walk *w, uint64_t fsize)
+{
+    uint64_t len = cdf_count(w, 1, fsize);
+    cdf_skip(w, (len + 3) & ~(uint64_t)3);
+}
+
+static unsigned cdf_type_size(uint64_t t)
+{
+    static const unsigned size[12] = {0, 1, 1, 2, 4, 4, 8, 1, 2, 4, 8, 8};
+    return t < 12 ? size[t] : 1;   /* an unknown type: the library says */
+}
+
+static void cdf_atts(struct cdf_walk *w, uint64_t fsize)
+{
+    uint64_t tag = cdf_get(w, 4);
+    uint64_t n = cdf_count(w, 12, fsize); /* name, type, count */
+    for (uint64_t i = 0; tag && i < n && !w->bad && !w->cut; i++) {
+        cdf_name(w, fsize);
+        unsigned sz = cdf_type_size(cdf_get(w, 4));
+        uint64_t k = cdf_count(w, sz, fsize);
+        cdf_skip(w, (k * sz + 3) & ~(uint64_t)3);
+    }
+}
+
+/* 1 when the classic header in p[0 .. n) (of a file of fsize bytes) holds
+ * a count larger than the file could; 0 otherwise, also when the header
+ * runs past the n bytes read (the library checks the rest). */
+static int cdf_header_forged(const unsigned char *p, size_t n, uint64_t fsize)
+{
+    if (n < 8 || memcmp(p, "CDF", 3) || (p[3] != 1 && p[3] != 2 && p[3] != 5))
+        return 0;
+    struct cdf_walk w = {p, n, 4, p[3] == 5, 0, 0};
+    cdf_get(&w, w.v5 ? 8 : 4);                   /* numrecs */
+    uint64_t tag = cdf_get(&w, 4);
+    uint64_t ndims = cdf_count(&w, 8, fsize);    /* name, length */
+    for (uint64_t i = 0; tag && i < ndims && !w.bad && !w.cut; i++) {
+        cdf_name(&w, fsize);
+        cdf_get(&w, w.v5 ? 8 : 4);
+    }
+    cdf_atts(&w, fsize);                          /* global */
+    tag = cdf_get(&w, 4);
+    uint64_t nvars = cdf_count(&w, 24, fsize);
+    for (uint64_t i = 0; tag && i < nvars && !w.bad && !w.cut; i++) {
+        cdf_name(&w, fsize);
+        uint64_t nd = cdf_count(&w, w.v5 ? 8 : 4, fsize);
+        cdf_skip(&w, nd * (w.v5 ? 8 : 4));
+        cdf_atts(&w, fsize);
+        cdf_get(&w, 4);                          /* type */
+        cdf_get(&w, w.v5 ? 8 : 4);               /* vsize */
+        cdf_get(&w, p[3] == 1 ? 4 : 8);          /* begin */
+    }
+    return w.bad;
+}
+
+/* Refuses a classic file whose header counts more than the file holds,
+ * before nc_open allocates for it.  0 or TVPAL_E_FORMAT. */
+static int check_classic_header(const char *path, struct tvpal_diag *diag)
+{
+    int fd = tvpal_open_regular(path, NULL);
+    if (fd < 0)
+        return 0; /* nc_open says why */
+    struct stat st;
+    unsigned char *buf = NULL;
+    size_t n = 0;
+    if (fstat(fd, &st) == 0 && st.st_size >= 8) {
+        size_t want = (uint64_t)st.st_size < ((size_t)16 << 20)
+                          ? (size_t)st.st_size : (size_t)16 << 20;
+        if ((buf = malloc(want))) {
+            ssize_t k;
+            while (n < want && (k = pread(fd, buf + n, want - n, (off_t)n)) > 0)
+                n += (size_t)k;
+        }
+    }
+    close(fd);
+    int forged = buf && cdf_header_forged(buf, n, (uint64_t)st.st_size);
+    free(buf);
+    if (forged)
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: a NetCDF header "
+                              "that counts more items than the file's %lld "
+                              "bytes can hold (damaged or forged)", path,
+                              (long long)st.st_size);
+    return 0;
 }
 
 /* A file of NetCDF-4 format without netCDF's metadata is plain HDF5:
@@ -689,9 +822,15 @@ static int ncdf_open(struct tvpal_input_file **out, const char *path,
         return TVPAL_E_NOMEM;
     }
     f->scale = 1;
+    int rc = check_classic_header(path, diag);
+    if (rc < 0) {
+        free(f->path);
+        free(f);
+        return rc;
+    }
     int st = nc_open(path, NC_NOWRITE, &f->ncid);
-    int rc = st != NC_NOERR ? open_fail(diag, st, path)
-                            : plain_hdf5_fail(f->ncid, path, diag);
+    rc = st != NC_NOERR ? open_fail(diag, st, path)
+                        : plain_hdf5_fail(f->ncid, path, diag);
     if (rc < 0) {
         free(f->path);
         free(f);
@@ -799,9 +938,12 @@ static int ncdf_describe(const char *path, char **text, struct tvpal_diag *diag)
 {
     int ncid, fmt, nv, st;
     *text = NULL;
+    int rc = check_classic_header(path, diag);
+    if (rc < 0)
+        return rc;
     if ((st = nc_open(path, NC_NOWRITE, &ncid)) != NC_NOERR)
         return open_fail(diag, st, path);
-    int rc = plain_hdf5_fail(ncid, path, diag);
+    rc = plain_hdf5_fail(ncid, path, diag);
     if (rc < 0)
         return rc;
     if ((st = nc_inq_format(ncid, &fmt)) != NC_NOERR ||
