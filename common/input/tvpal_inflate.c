@@ -51,25 +51,6 @@ int tvpal_inflate(const void *src, size_t slen, void *dst, size_t cap,
     }
 }
 
-int tvpal_deflate(const void *src, size_t n, int level, void *dst, size_t cap,
-                  size_t *got)
-{
-    /* libdeflate's levels run to 12; zlib's 0..9 map to the same. */
-    struct libdeflate_compressor *c =
-        libdeflate_alloc_compressor(level < 0 ? 6 : level > 9 ? 9 : level);
-    *got = 0;
-    if (!c)
-        return TVPAL_INFLATE_NOMEM;
-    *got = libdeflate_zlib_compress(c, src, n, dst, cap);
-    libdeflate_free_compressor(c);
-    return *got ? TVPAL_INFLATE_OK : TVPAL_INFLATE_SPACE;
-}
-
-size_t tvpal_deflate_bound(size_t n)
-{
-    return libdeflate_zlib_compress_bound(NULL, n);
-}
-
 const char *tvpal_inflate_library(void)
 {
     return "libdeflate " LIBDEFLATE_VERSION_STRING;
@@ -114,21 +95,6 @@ int tvpal_inflate(const void *src, size_t slen, void *dst, size_t cap,
     *got = (size_t)z.total_out;
     inflateEnd(&z);
     return status;
-}
-
-int tvpal_deflate(const void *src, size_t n, int level, void *dst, size_t cap,
-                  size_t *got)
-{
-    uLongf dlen = (uLongf)cap;
-    int rc = compress2(dst, &dlen, src, (uLong)n, level);
-    *got = rc == Z_OK ? (size_t)dlen : 0;
-    return rc == Z_OK ? TVPAL_INFLATE_OK
-           : rc == Z_MEM_ERROR ? TVPAL_INFLATE_NOMEM : TVPAL_INFLATE_SPACE;
-}
-
-size_t tvpal_deflate_bound(size_t n)
-{
-    return (size_t)compressBound((uLong)n);
 }
 
 const char *tvpal_inflate_library(void)

@@ -2,9 +2,9 @@
  * the adapter of zlib and libdeflate (LAYERS.md).
  *
  * With libdeflate (Debian libdeflate-dev) the blocks of .vti files, and the
- * deflate chunks of HDF5 and NetCDF-4 files (tvpal_in_hdf5.c puts it in
- * place of the HDF5 library's own deflate filter), inflate two to three
- * times faster than with zlib, to the same bytes; without it zlib does.
+ * deflate chunks of HDF5 and NetCDF-4 files (read directly by
+ * tvpal_in_hdf5.c), inflate two to three times faster than with zlib, to
+ * the same bytes; without it zlib does.
  * Thread-safe: each thread keeps one libdeflate decompressor, freed when
  * the thread ends.
  */
@@ -24,13 +24,6 @@ enum tvpal_inflate_status {
  * inflated to.  Returns a tvpal_inflate_status. */
 int tvpal_inflate(const void *src, size_t slen, void *dst, size_t cap,
                   size_t *got);
-
-/* Compresses src[0 .. n) at level (0..9) into dst[0 .. cap), zlib format:
- * *got bytes.  Returns TVPAL_INFLATE_OK, _SPACE (cap too small; see
- * tvpal_deflate_bound) or _NOMEM. */
-int tvpal_deflate(const void *src, size_t n, int level, void *dst, size_t cap,
-                  size_t *got);
-size_t tvpal_deflate_bound(size_t n);
 
 /* Text of a status, for messages. */
 const char *tvpal_inflate_why(int status);
