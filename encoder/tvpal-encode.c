@@ -614,22 +614,6 @@ struct loaded {
     double lo, hi;           /* range including the stats' so far */
 };
 
-/* --missing V: the values equal to one become NaN (missing), or --nan-as
- * when given.  Returns how many were replaced by --nan-as. */
-static size_t apply_missing_values(const struct opts *o, float *v, size_t n)
-{
-    if (!o->nmissing || !tvpal_missing_apply(v, n, o->missing, o->nmissing) ||
-        !o->has_nan_as)
-        return 0;
-    size_t k = 0;
-    for (size_t i = 0; i < n; i++)
-        if (v[i] != v[i]) {
-            v[i] = (float)o->nan_as;
-            k++;
-        }
-    return k;
-}
-
 /* Reads the timestep at off of fd into r->raw and converts it into dst, in
  * parallel over contiguous chunks (each thread reads its own part: the
  * page-cache copy is as costly as the conversion); when `stats`, counts
@@ -678,7 +662,14 @@ static void read_convert(struct run *r, int fd, off_t off, float *dst,
                                    o->has_nan_as ? &o->nan_as : NULL, &mybad,
                                    &myrep);
         if (rc == 0)
-            myrep += apply_missing_values(o, dst + a, b - a);
+            /* --missing V: NaN, or counted as replaced by --nan-as */
+            if (o->nmissing) {
+                size_t hits = tvpal_missing_apply(dst + a, b - a, o->missing,
+                                                  o->nmissing,
+                                                  o->has_nan_as ? &o->nan_as
+                                                                : NULL);
+                myrep += o->has_nan_as ? hits : 0;
+            }
         if (rc < 0 && rc != TVPAL_E_READ) {
             /* The data error at the lowest index wins, with its code. */
 #ifdef _OPENMP

@@ -155,13 +155,8 @@ static int open_self_describing(struct options *o,
 static void apply_missing_values(const struct tvpal_manifest *m, float *v,
                                  size_t n)
 {
-    if (!m->nmissing_values ||
-        !tvpal_missing_apply(v, n, m->missing_values, m->nmissing_values) ||
-        !m->has_nan_as)
-        return;
-    for (size_t i = 0; i < n; i++)
-        if (v[i] != v[i])
-            v[i] = (float)m->nan_as;
+    tvpal_missing_apply(v, n, m->missing_values, m->nmissing_values,
+                        m->has_nan_as ? &m->nan_as : NULL);
 }
 
 /* Timestep t of a self-describing reference, with the dataset's NaN

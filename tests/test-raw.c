@@ -65,9 +65,13 @@ int main(void)
               0 && isnan(out[0]), "f64 NaN kept");
     float mv[5] = {1e35f, 3.0f, -999.0f, 0.1f, 1e35f};
     const double vals[2] = {1e35, -999};
-    CHECK(tvpal_missing_apply(mv, 5, vals, 2) == 3 && isnan(mv[0]) &&
+    CHECK(tvpal_missing_apply(mv, 5, vals, 2, NULL) == 3 && isnan(mv[0]) &&
               isnan(mv[2]) && isnan(mv[4]) && mv[1] == 3.0f && mv[3] == 0.1f,
           "--missing values compared as float32");
+    float mr[3] = {-999.0f, 1.0f, -999.0f};
+    const double repl2 = 5;
+    CHECK(tvpal_missing_apply(mr, 3, vals, 2, &repl2) == 2 && mr[0] == 5.0f &&
+              mr[1] == 1.0f && mr[2] == 5.0f, "--missing with --nan-as");
     double repl = -7;
     CHECK(tvpal_raw_convert(in, TVPAL_F32, 0, 4, out, &repl, &badi, &rep) == 0
           && out[1] == -7.0f && out[3] == -7.0f && rep == 2, "nan-as");

@@ -150,8 +150,9 @@ int tvpal_raw_convert(const void *src, enum tvpal_type t, int big_endian,
 }
 
 size_t tvpal_missing_apply(float *v, size_t n, const double *values,
-                           unsigned nvalues)
+                           unsigned nvalues, const double *nan_as)
 {
+    const float to = nan_as ? (float)*nan_as : NAN;
     float m[16];
     unsigned k = nvalues < 16 ? nvalues : 16;
     for (unsigned i = 0; i < k; i++)
@@ -160,7 +161,7 @@ size_t tvpal_missing_apply(float *v, size_t n, const double *values,
     for (size_t i = 0; i < n; i++)
         for (unsigned j = 0; j < k; j++)
             if (v[i] == m[j]) {
-                v[i] = NAN;
+                v[i] = to;
                 hits++;
                 break;
             }

@@ -36,8 +36,9 @@ int tvpal_raw_convert(const void *src, enum tvpal_type t, int big_endian,
 
 /* Missing values given by value (tvpal-encode --missing V): each of the n
  * floats equal to float32(values[k]) for some k < nvalues (at most 16)
- * becomes NaN.  Returns how many did. */
+ * becomes NaN (missing), or *nan_as when nan_as is non-NULL (--nan-as).
+ * Returns how many did. */
 size_t tvpal_missing_apply(float *v, size_t n, const double *values,
-                           unsigned nvalues);
+                           unsigned nvalues, const double *nan_as);
 
 #endif

@@ -24,7 +24,8 @@ static void convert(uint8_t mode, const uint8_t *p, size_t n)
     if (rc < 0 && bad >= count && count)
         abort();    /* the index of the bad element is one of them */
     if (rc == 0 && (mode & 32))
-        (void)tvpal_missing_apply(dst, count, missing, 2);
+        (void)tvpal_missing_apply(dst, count, missing, 2,
+                                  (mode & 16) ? &nan_as : NULL);
     free(dst);
 }
 
