@@ -85,6 +85,7 @@ struct tvpal_h5direct {
     size_t raw_cap;
     unsigned char *work;               /* nthreads * 2 * chunk_bytes */
     int nthreads;
+    char what[160];                    /* "FILE: DATASET", for messages */
 };
 
 void tvpal_input_hdf5_direct_close(struct tvpal_h5direct *d)
@@ -178,7 +179,8 @@ static int direct_plan(struct tvpal_h5direct *d)
 
 /* A reader for dataset dset (borrowed: it must outlive the reader), or
  * *out NULL when the dataset is not the case handled here. */
-static int direct_for(hid_t dset, struct tvpal_h5direct **out)
+static int direct_for(hid_t dset, const char *path, const char *name,
+                      struct tvpal_h5direct **out)
 {
     *out = NULL;
     struct tvpal_h5direct *d = calloc(1, sizeof *d);
@@ -186,6 +188,7 @@ static int direct_for(hid_t dset, struct tvpal_h5direct **out)
         return TVPAL_E_NOMEM;
     d->file = NO_ID;
     d->dset = dset;
+    snprintf(d->what, sizeof d->what, "%s: %s", path, name);
     if (!direct_eligible(dset, d)) {
         free(d);
         return 0;
@@ -207,7 +210,7 @@ int tvpal_input_hdf5_direct_open(struct tvpal_h5direct **out,
     hid_t file = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
     hid_t dset = file >= 0 ? H5Dopen2(file, dataset, H5P_DEFAULT) : NO_ID;
     H5Eclear2(H5E_DEFAULT);
-    int rc = dset >= 0 ? direct_for(dset, out) : 0;
+    int rc = dset >= 0 ? direct_for(dset, path, dataset, out) : 0;
     if (*out) {
         (*out)->file = file;
         return 0;
@@ -281,13 +284,16 @@ static void direct_place(const struct tvpal_h5direct *d, size_t c,
 #endif
 
 int tvpal_input_hdf5_direct_read(struct tvpal_h5direct *d, uint32_t k,
-                                 float *dst)
+                                 float *dst, struct tvpal_diag *diag)
 {
 #ifndef HAVE_INFLATE_ADAPTER
-    (void)d, (void)k, (void)dst;
+    (void)d, (void)k, (void)dst, (void)diag;
     return 1;
 #else
     int rc = direct_fetch(d, k);
+    if (rc < 0)
+        return tvpal_diag_set(diag, rc, "%s: step %u: out of memory",
+                              d->what, k);
     if (rc)
         return rc;
     int64_t bad = -1;
@@ -318,7 +324,9 @@ int tvpal_input_hdf5_direct_read(struct tvpal_h5direct *d, uint32_t k,
                      dst);
     }
     if (bad >= 0)
-        return TVPAL_E_FORMAT;
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: step %u: chunk %lld "
+                              "of %zu does not inflate (corrupt file)",
+                              d->what, k, (long long)bad + 1, d->nchunks);
     atomic_fetch_add(&g_inflated, d->nchunks);
     return 0;
 #endif
@@ -782,7 +790,7 @@ static int h5_open(struct tvpal_input_file **out, const char *path,
         !(f->scratch = malloc(sizeof *f->scratch * f->nvox)))
         rc = TVPAL_E_NOMEM;
     if (rc == 0)
-        rc = direct_for(f->dset, &f->direct);
+        rc = direct_for(f->dset, path, f->var, &f->direct);
     if (rc < 0) {
         h5_close(f);
         return rc;
@@ -807,11 +815,10 @@ static int h5_read(struct tvpal_input_file *f, uint32_t k, float *dst,
     if (k >= f->steps)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: dataset %s: step %u "
                               "of %u", f->path, f->var, k, f->steps);
-    int rc = f->direct ? tvpal_input_hdf5_direct_read(f->direct, k, dst) : 1;
+    int rc = f->direct ? tvpal_input_hdf5_direct_read(f->direct, k, dst, diag)
+                       : 1;
     if (rc < 0)
-        return tvpal_diag_set(diag, rc, "%s: dataset %s: step %u: %s", f->path,
-                              f->var, k, rc == TVPAL_E_NOMEM ? "out of memory"
-                              : "a chunk does not inflate (corrupt file)");
+        return rc;
     if (rc == 0)
         goto read;
     hsize_t start[4] = {0}, count[4];

@@ -16,9 +16,9 @@ int tvpal_input_hdf5_direct_open(struct tvpal_h5direct **out,
 }
 
 int tvpal_input_hdf5_direct_read(struct tvpal_h5direct *d, uint32_t k,
-                                 float *dst)
+                                 float *dst, struct tvpal_diag *diag)
 {
-    (void)d, (void)k, (void)dst;
+    (void)d, (void)k, (void)dst, (void)diag;
     return 1;
 }
 

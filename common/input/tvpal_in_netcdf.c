@@ -884,13 +884,11 @@ static int ncdf_read(struct tvpal_input_file *f, uint32_t k, float *dst,
     size_t start[MAX_DIMS] = {0};
     if (f->tpos >= 0)
         start[f->tpos] = k;
-    int st, rc = f->direct ? tvpal_input_hdf5_direct_read(f->direct, k, dst)
+    int st, rc = f->direct ? tvpal_input_hdf5_direct_read(f->direct, k, dst,
+                                                          diag)
                            : 1;
     if (rc < 0)
-        return tvpal_diag_set(diag, rc, "%s: variable %s: step %u: %s",
-                              f->path, f->var, k, rc == TVPAL_E_NOMEM
-                              ? "out of memory"
-                              : "a chunk does not inflate (corrupt file)");
+        return rc;
     if (rc == 0) {
         if (f->cook)
             for (size_t i = 0; i < f->nvox; i++)

@@ -64,13 +64,14 @@ extern const struct tvpal_input_backend tvpal_input_hdf5;
  * open: *out NULL (and 0) when path's dataset is not such a dataset, or
  * without HDF5.  read: step k (rank 4; rank 3: the one step) into dst;
  * 0, 1 when this step must be read through the library after all (a chunk
- * not stored), or TVPAL_E_FORMAT (a chunk that does not inflate),
- * TVPAL_E_NOMEM.  inflated: chunks inflated so in this process. */
+ * not stored), or TVPAL_E_FORMAT (a chunk that does not inflate) /
+ * TVPAL_E_NOMEM with "FILE: DATASET: step K: ..." in diag.  inflated:
+ * chunks inflated so in this process. */
 struct tvpal_h5direct;
 int tvpal_input_hdf5_direct_open(struct tvpal_h5direct **out,
                                  const char *path, const char *dataset);
 int tvpal_input_hdf5_direct_read(struct tvpal_h5direct *d, uint32_t k,
-                                 float *dst);
+                                 float *dst, struct tvpal_diag *diag);
 void tvpal_input_hdf5_direct_close(struct tvpal_h5direct *d);
 uint64_t tvpal_input_hdf5_inflated(void);
 
