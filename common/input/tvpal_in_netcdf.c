@@ -159,8 +159,8 @@ static void cdf_atts(struct cdf_walk *w, uint64_t fsize)
 }
 
 /* 1 when the classic header in p[0 .. n) (of a file of fsize bytes) holds
- * a count larger than the file could; 0 otherwise, also when the header
- * runs past the n bytes read (the library checks the rest). */
+ * a count larger than the file could; -1 when the header runs past the n
+ * bytes read before showing one (more bytes are needed); else 0. */
 static int cdf_header_forged(const unsigned char *p, size_t n, uint64_t fsize)
 {
     if (n < 8 || memcmp(p, "CDF", 3) || (p[3] != 1 && p[3] != 2 && p[3] != 5))
@@ -185,7 +185,7 @@ static int cdf_header_forged(const unsigned char *p, size_t n, uint64_t fsize)
         cdf_get(&w, w.v5 ? 8 : 4);               /* vsize */
         cdf_get(&w, p[3] == 1 ? 4 : 8);          /* begin */
     }
-    return w.bad;
+    return w.bad ? 1 : w.cut ? -1 : 0;
 }
 
 /* Refuses a classic file whose header counts more than the file holds,
@@ -195,26 +195,35 @@ static int check_classic_header(const char *path, struct tvpal_diag *diag)
     int fd = tvpal_open_regular(path, NULL);
     if (fd < 0)
         return 0; /* nc_open says why */
+    /* The header only: 64 KiB, doubled while the walk needs more, up to
+     * 16 MiB (a header beyond that is left to the library). */
     struct stat st;
     unsigned char *buf = NULL;
-    size_t n = 0;
-    if (fstat(fd, &st) == 0 && st.st_size >= 8) {
-        size_t want = (uint64_t)st.st_size < ((size_t)16 << 20)
-                          ? (size_t)st.st_size : (size_t)16 << 20;
-        if ((buf = malloc(want))) {
-            ssize_t k;
-            while (n < want && (k = pread(fd, buf + n, want - n, (off_t)n)) > 0)
-                n += (size_t)k;
-        }
+    size_t n = 0, want = (size_t)64 << 10;
+    int forged = 0;
+    const uint64_t size = fstat(fd, &st) == 0 ? (uint64_t)st.st_size : 0;
+    while (size >= 8) {
+        if (want > size)
+            want = (size_t)size;
+        unsigned char *nb = realloc(buf, want);
+        if (!nb)
+            break;
+        buf = nb;
+        ssize_t k;
+        while (n < want && (k = pread(fd, buf + n, want - n, (off_t)n)) > 0)
+            n += (size_t)k;
+        forged = cdf_header_forged(buf, n, size);
+        if (forged >= 0 || n < want || n == size || want >= ((size_t)16 << 20))
+            break;
+        want *= 2;
     }
     close(fd);
-    int forged = buf && cdf_header_forged(buf, n, (uint64_t)st.st_size);
     free(buf);
-    if (forged)
+    if (forged > 0)
         return tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: a NetCDF header "
                               "that counts more items than the file's %lld "
                               "bytes can hold (damaged or forged)", path,
-                              (long long)st.st_size);
+                              (long long)size);
     return 0;
 }
 
