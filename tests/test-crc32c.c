@@ -1,4 +1,5 @@
-/* test-crc32c: CRC-32C check value, incremental use and alignment. */
+/* test-crc32c: CRC-32C check value, incremental use, alignment and
+ * combining. */
 #include "tvpal_crc32c.h"
 #include "tvpal_test.h"
 
@@ -39,5 +40,20 @@ int main(void)
         CHECK(tvpal_crc32c_sw(0, buf + off, 1000) == whole,
               "table version = dispatched version at offset %zu", off);
     }
+    /* Combining: CRC(A || B) from CRC(A), CRC(B) and |B|, at every split,
+     * empty parts included. */
+    for (size_t cut = 0; cut <= 1000; cut += 1 + cut / 3) {
+        uint32_t a = tvpal_crc32c(0, buf, cut);
+        uint32_t b = tvpal_crc32c(0, buf + cut, 1000 - cut);
+        CHECK(tvpal_crc32c_combine(a, b, 1000 - cut) ==
+                  tvpal_crc32c(0, buf, 1000), "combine at cut %zu", cut);
+    }
+    /* Three parts joined left to right, as records are from chunks. */
+    uint32_t j = 0;
+    for (size_t at = 0; at < 1000; at += 333) {
+        size_t n = at + 333 > 1000 ? 1000 - at : 333;
+        j = tvpal_crc32c_combine(j, tvpal_crc32c(0, buf + at, n), n);
+    }
+    CHECK(j == tvpal_crc32c(0, buf, 1000), "three parts joined");
     return tt_done("test-crc32c");
 }

@@ -7,6 +7,8 @@
 #include "tvpal_schedule.h"
 
 #include <fcntl.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
 
@@ -69,6 +71,111 @@ static void write_small_shard(const char *path)
     REQUIRE(tvpal_shardw_finish(w, &d) == 0, "finish: %s", d.msg);
 }
 
+/* Reads a whole file into a malloc'ed buffer; *n its size. */
+static unsigned char *slurp(const char *path, size_t *n)
+{
+    FILE *f = fopen(path, "rb");
+    REQUIRE(f, "open %s", path);
+    fseek(f, 0, SEEK_END);
+    *n = (size_t)ftell(f);
+    rewind(f);
+    unsigned char *b = malloc(*n + 1);
+    REQUIRE(b && fread(b, 1, *n, f) == *n, "read %s", path);
+    fclose(f);
+    return b;
+}
+
+/* Placed writing gives the appending writer's file byte for byte, with the
+ * chunks put in a shuffled order and joined in slice order; an
+ * incomplete record, an out-of-order join and a chunk of the wrong size or
+ * slice are refused; progress restored on a reopened file finishes it. */
+static void test_placed(void)
+{
+    static const uint32_t dims[][3] = {{10, 7, 5}, {3, 4, 9}, {17, 2, 6}};
+    static unsigned char rec[1 << 18];
+    for (unsigned v = 0; v < 3 * 3 * 2; v++) {
+        struct tvpal_shard_header h = {
+            .version = TVPAL_FORMAT_VERSION, .steps = 2 + v % 7,
+            .window = 1 + v % 5, .nodes = 1 + v % 2, .rank = v % 2,
+            .axis = v / 2 % 3, .table_format = v % 2};
+        memcpy(h.dims, dims[v / 6], sizeof h.dims);
+        uint32_t n;
+        tvpal_axis_geometry(h.dims, h.axis, &n, &h.slice_w, &h.slice_h);
+        tvpal_slab_range(n, h.nodes, h.rank, &h.slice_begin, &h.slice_count);
+        const char *pa = "test-format-append.tvps", *pp = "test-format-placed.tvps";
+        struct tvpal_shardw *w, *p;
+        struct tvpal_diag d = {{0}};
+        REQUIRE(tvpal_shardw_create(&w, pa, &h) == 0, "create");
+        REQUIRE(tvpal_shardw_create_placed(&p, pp, &h, &d) == 0, "placed: %s",
+                d.msg);
+        for (uint32_t t = 0; t < h.steps; t++) {
+            uint64_t bytes = build_record(&h, t, rec);
+            REQUIRE(tvpal_shardw_append(w, rec, bytes, &d) == 0, "append");
+            /* The record's chunks, put last to first, joined in order. */
+            uint64_t off[64];
+            uint32_t sl[64], crc[64], k = 0;
+            uint64_t pos = TVPAL_RECORD_HEADER_BYTES;
+            for (uint32_t s = h.slice_begin; s < h.slice_begin + h.slice_count;
+                 s++) {
+                if (!tvpal_schedule_starts(s, t, h.window))
+                    continue;
+                off[k] = pos;
+                sl[k++] = s;
+                pos += tvpal_chunk_bytes(tvpal_schedule_len(s, t, h.window,
+                                                            h.steps),
+                                         h.slice_w, h.slice_h,
+                                         h.table_format);
+            }
+            for (uint32_t i = k; i-- > 0;) {
+                uint64_t cb = (i + 1 < k ? off[i + 1] : pos) - off[i];
+                CHECK(tvpal_shardw_put_chunk(p, t, sl[i], rec + off[i], cb,
+                                             &crc[i], &d) == 0,
+                      "put %u/%u: %s", t, sl[i], d.msg);
+                CHECK(tvpal_shardw_put_chunk(p, t, sl[i], rec + off[i],
+                                             cb + 64, &crc[i], NULL) ==
+                          TVPAL_E_INVAL, "wrong size refused");
+            }
+            if (k > 1)
+                CHECK(tvpal_shardw_extend(p, t, sl[1], crc[1]) ==
+                          TVPAL_E_INVAL, "out of order join refused");
+            for (uint32_t i = 0; i < k; i++)
+                CHECK(tvpal_shardw_extend(p, t, sl[i], crc[i]) == 0, "join");
+        }
+        uint32_t foreign = h.slice_begin + h.slice_count;
+        uint32_t c0;
+        CHECK(tvpal_shardw_put_chunk(p, 0, foreign, rec, 64, &c0, NULL) ==
+                  TVPAL_E_INVAL, "slice outside the slab refused");
+        REQUIRE(tvpal_shardw_finish(w, &d) == 0, "finish append: %s", d.msg);
+        /* Reopen: progress from the first writer, as a checkpoint keeps it. */
+        uint64_t filled[16];
+        uint32_t crcs[16];
+        for (uint32_t t = 0; t < h.steps; t++)
+            tvpal_shardw_progress(p, t, &filled[t], &crcs[t]);
+        tvpal_shardw_free(p);
+        REQUIRE(tvpal_shardw_reopen_placed(&p, pp, &h, &d) == 0, "reopen: %s",
+                d.msg);
+        CHECK(tvpal_shardw_finish(p, &d) == TVPAL_E_INVAL &&
+                  strstr(d.msg, "record 0"), "incomplete refused: %s", d.msg);
+        REQUIRE(tvpal_shardw_reopen_placed(&p, pp, &h, &d) == 0, "reopen");
+        for (uint32_t t = 0; t < h.steps; t++)
+            CHECK(tvpal_shardw_set_progress(p, t, filled[t], crcs[t]) == 0,
+                  "set progress");
+        REQUIRE(tvpal_shardw_finish(p, &d) == 0, "finish placed: %s", d.msg);
+        size_t na, np;
+        unsigned char *a = slurp(pa, &na), *b = slurp(pp, &np);
+        CHECK(na == np && !memcmp(a, b, na), "variant %u: placed file = "
+              "appended file (%zu, %zu bytes)", v, na, np);
+        free(a);
+        free(b);
+        /* A file of another size is not reopened. */
+        truncate(pp, 4096);
+        CHECK(tvpal_shardw_reopen_placed(&p, pp, &h, NULL) == TVPAL_E_TRUNC,
+              "short file refused");
+        unlink(pa);
+        unlink(pp);
+    }
+}
+
 /* A shard whose header (valid CRC) claims dims 1x1x100000000 over records
  * of a 4x3x2 shard: the open must refuse it before anything sized by the
  * header is allocated (FORMAT.md 8.1 rule 18), not hand a slab 100 GB. */
@@ -113,6 +220,7 @@ static void test_huge_dims(void)
 
 int main(void)
 {
+    test_placed();
     unsigned char hb[TVPAL_SHARD_HEADER_BYTES];
     struct tvpal_shard_header h = sample_header(), g;
     struct tvpal_diag d;

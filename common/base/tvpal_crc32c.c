@@ -97,3 +97,57 @@ uint32_t tvpal_crc32c_sw(uint32_t crc, const void *data, size_t len)
         crc = (crc >> 8) ^ crc_table[0][(crc ^ *p++) & 0xFF];
     return ~crc;
 }
+
+/* ------------------------------------------------------------- combining */
+
+/* CRC arithmetic over GF(2) modulo the reflected polynomial (zlib's
+ * crc32_combine, after Mark Adler): a CRC is a polynomial, appending n
+ * zero bytes multiplies the register by x^(8n), and the pre- and post-
+ * conditioning cancel out between the two parts. */
+#define CRC32C_POLY 0x82F63B78u
+
+/* a * b modulo the polynomial (reflected: bit 31 is x^0). */
+static uint32_t multmodp(uint32_t a, uint32_t b)
+{
+    uint32_t m = 1u << 31, p = 0;
+    for (;;) {
+        if (a & m) {
+            p ^= b;
+            if ((a & (m - 1)) == 0)
+                break;
+        }
+        m >>= 1;
+        b = b & 1 ? (b >> 1) ^ CRC32C_POLY : b >> 1;
+    }
+    return p;
+}
+
+static uint32_t x2n_table[32]; /* x^(2^k) modulo the polynomial */
+static pthread_once_t x2n_once = PTHREAD_ONCE_INIT;
+
+static void x2n_init(void)
+{
+    uint32_t p = 1u << 30; /* x^1 */
+    x2n_table[0] = p;
+    for (int k = 1; k < 32; k++)
+        x2n_table[k] = p = multmodp(p, p);
+}
+
+/* x^(n * 2^k) modulo the polynomial. */
+static uint32_t x2nmodp(uint64_t n, unsigned k)
+{
+    uint32_t p = 1u << 31; /* x^0 */
+    while (n) {
+        if (n & 1)
+            p = multmodp(x2n_table[k & 31], p);
+        n >>= 1;
+        k++;
+    }
+    return p;
+}
+
+uint32_t tvpal_crc32c_combine(uint32_t crc1, uint32_t crc2, uint64_t len2)
+{
+    pthread_once(&x2n_once, x2n_init);
+    return multmodp(x2nmodp(len2, 3), crc1) ^ crc2;
+}

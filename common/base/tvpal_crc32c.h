@@ -12,6 +12,11 @@
 
 uint32_t tvpal_crc32c(uint32_t crc, const void *data, size_t len);
 
+/* The CRC of A followed by B from crc1 = CRC(A), crc2 = CRC(B) and B's
+ * length: lets chunks written in any order, by any thread, be checksummed
+ * where they are made and joined in file order afterwards (O(log len2)). */
+uint32_t tvpal_crc32c_combine(uint32_t crc1, uint32_t crc2, uint64_t len2);
+
 /* The portable table-driven version (tvpal_crc32c uses the CPU's CRC-32C
  * instruction when it has one); for tests. */
 uint32_t tvpal_crc32c_sw(uint32_t crc, const void *data, size_t len);

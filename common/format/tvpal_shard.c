@@ -59,6 +59,12 @@ struct tvpal_shardw {
     uint32_t done;                    /* records appended */
     uint64_t end;                     /* file offset after them */
     int missing;                      /* a chunk flagged missing entries */
+    /* Placed writing (NULL arrays when appending): per record its offset,
+     * payload bytes, chunk count and progress; per slab slice its chunk's
+     * offset in record 0's payload. */
+    uint64_t *rec_off, *payload, *filled;
+    uint32_t *count, *crc;
+    uint64_t *first_off;
 };
 
 /* Whether a chunk of the sealed record buf says its table has missing
@@ -194,7 +200,7 @@ uint64_t tvpal_shardw_size(const struct tvpal_shardw *w)
 int tvpal_shardw_append(struct tvpal_shardw *w, const unsigned char *buf,
                         uint64_t bytes, struct tvpal_diag *diag)
 {
-    if (w->done >= w->h.steps || bytes % TVPAL_ALIGN)
+    if (w->rec_off || w->done >= w->h.steps || bytes % TVPAL_ALIGN)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "record %u of %u, %llu "
                               "bytes", w->done, w->h.steps,
                               (unsigned long long)bytes);
@@ -212,10 +218,14 @@ int tvpal_shardw_append(struct tvpal_shardw *w, const unsigned char *buf,
     return 0;
 }
 
+static int placed_seal(struct tvpal_shardw *w, struct tvpal_diag *diag);
+
 int tvpal_shardw_finish(struct tvpal_shardw *w, struct tvpal_diag *diag)
 {
     int rc = 0;
     unsigned char *ib = NULL;
+    if (w->rec_off && (rc = placed_seal(w, diag)) < 0)
+        goto out;
     if (w->done != w->h.steps) {
         rc = tvpal_diag_set(diag, TVPAL_E_INVAL, "%u of %u records written",
                             w->done, w->h.steps);
@@ -267,7 +277,226 @@ void tvpal_shardw_free(struct tvpal_shardw *w)
     if (w->fd >= 0)
         close(w->fd);
     free(w->index);
+    free(w->rec_off);
+    free(w->payload);
+    free(w->filled);
+    free(w->count);
+    free(w->crc);
+    free(w->first_off);
     free(w);
+}
+
+/* ---------------------------------------------------------- placed writer */
+
+/* Length of the window starting at t of every slice that starts there, for
+ * t > 0 (record 0 has windows of several lengths: first_off). */
+static uint64_t placed_chunk_bytes(const struct tvpal_shardw *w, uint32_t s,
+                                   uint32_t t)
+{
+    const struct tvpal_shard_header *h = &w->h;
+    return tvpal_chunk_bytes(tvpal_schedule_len(s, t, h->window, h->steps),
+                             h->slice_w, h->slice_h, h->table_format);
+}
+
+/* The layout of every record (FORMAT.md 6.3) from the header alone. */
+static int placed_layout(struct tvpal_shardw *w)
+{
+    const struct tvpal_shard_header *h = &w->h;
+    const uint32_t T = h->steps, N = h->window;
+    w->rec_off = calloc(T, sizeof *w->rec_off);
+    w->payload = calloc(T, sizeof *w->payload);
+    w->filled = calloc(T, sizeof *w->filled);
+    w->count = calloc(T, sizeof *w->count);
+    w->crc = calloc(T, sizeof *w->crc);
+    w->first_off = calloc(h->slice_count, sizeof *w->first_off);
+    if (!w->rec_off || !w->payload || !w->filled || !w->count || !w->crc ||
+        !w->first_off)
+        return TVPAL_E_NOMEM;
+    uint64_t at = TVPAL_SHARD_HEADER_BYTES;
+    for (uint32_t t = 0; t < T; t++) {
+        uint64_t pay = 0;
+        uint32_t n = 0;
+        for (uint32_t k = 0; k < h->slice_count; k++) {
+            uint32_t s = h->slice_begin + k;
+            if (!tvpal_schedule_starts(s, t, N))
+                continue;
+            if (t == 0)
+                w->first_off[k] = pay;
+            pay += placed_chunk_bytes(w, s, t);
+            n++;
+        }
+        w->rec_off[t] = at;
+        w->payload[t] = pay;
+        w->count[t] = n;
+        at += tvpal_round_up(TVPAL_RECORD_HEADER_BYTES + pay, TVPAL_ALIGN);
+    }
+    w->end = at;
+    return 0;
+}
+
+/* Offset of slice s's chunk inside record t's payload, or UINT64_MAX when
+ * s has no window starting at t or is not in the slab.  After record 0
+ * every chunk of a record has the same size. */
+static uint64_t placed_offset(const struct tvpal_shardw *w, uint32_t t,
+                              uint32_t s)
+{
+    const struct tvpal_shard_header *h = &w->h;
+    const uint32_t N = h->window;
+    if (t >= h->steps || s < h->slice_begin ||
+        s - h->slice_begin >= h->slice_count ||
+        !tvpal_schedule_starts(s, t, N))
+        return UINT64_MAX;
+    if (t == 0)
+        return w->first_off[s - h->slice_begin];
+    /* The slab's first slice of phase t mod N, then every N-th. */
+    uint32_t first = h->slice_begin +
+                     (t % N + N - h->slice_begin % N) % N;
+    return (uint64_t)((s - first) / N) * placed_chunk_bytes(w, s, t);
+}
+
+static int placed_open(struct tvpal_shardw **out, const char *path,
+                       const struct tvpal_shard_header *h, int create,
+                       struct tvpal_diag *diag)
+{
+    struct tvpal_shardw *w = NULL;
+    int rc = shardw_alloc(&w, h);
+    if (rc == 0)
+        rc = placed_layout(w);
+    if (rc < 0) {
+        tvpal_shardw_free(w);
+        return rc;
+    }
+    w->fd = create ? open(path, O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0644)
+                   : open(path, O_RDWR | O_CLOEXEC);
+    if (w->fd < 0) {
+        rc = tvpal_diag_set(diag, TVPAL_E_OPEN, "%s", strerror(errno));
+        tvpal_shardw_free(w);
+        return rc;
+    }
+    struct stat st;
+    if (create) {
+        /* The records' room, all zeros (headers included) until finish. */
+        if (ftruncate(w->fd, (off_t)w->end) < 0)
+            rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "cannot size to %llu "
+                                "bytes: %s", (unsigned long long)w->end,
+                                strerror(errno));
+    } else if (fstat(w->fd, &st) < 0) {
+        rc = tvpal_diag_set(diag, TVPAL_E_READ, "%s", strerror(errno));
+    } else if ((uint64_t)st.st_size != w->end) {
+        rc = tvpal_diag_set(diag, (uint64_t)st.st_size < w->end
+                                      ? TVPAL_E_TRUNC : TVPAL_E_MISMATCH,
+                            "%lld bytes; expected %llu",
+                            (long long)st.st_size,
+                            (unsigned long long)w->end);
+    }
+    if (rc < 0) {
+        tvpal_shardw_free(w);
+        return rc;
+    }
+    *out = w;
+    return 0;
+}
+
+int tvpal_shardw_create_placed(struct tvpal_shardw **out, const char *path,
+                               const struct tvpal_shard_header *h,
+                               struct tvpal_diag *diag)
+{
+    return placed_open(out, path, h, 1, diag);
+}
+
+int tvpal_shardw_reopen_placed(struct tvpal_shardw **out, const char *path,
+                               const struct tvpal_shard_header *h,
+                               struct tvpal_diag *diag)
+{
+    return placed_open(out, path, h, 0, diag);
+}
+
+int tvpal_shardw_put_chunk(struct tvpal_shardw *w, uint32_t t, uint32_t s,
+                           const unsigned char *chunk, uint64_t bytes,
+                           uint32_t *crc, struct tvpal_diag *diag)
+{
+    uint64_t off = w->rec_off ? placed_offset(w, t, s) : UINT64_MAX;
+    if (off == UINT64_MAX || bytes != placed_chunk_bytes(w, s, t))
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "no chunk of %llu bytes "
+                              "for slice %u in record %u",
+                              (unsigned long long)bytes, s, t);
+    int rc = pwrite_all(w->fd, chunk, bytes,
+                        w->rec_off[t] + TVPAL_RECORD_HEADER_BYTES + off, diag);
+    if (rc < 0)
+        return rc;
+    *crc = tvpal_crc32c(0, chunk, bytes);
+    struct tvpal_chunk_header ch;
+    if (tvpal_chunk_header_decode(chunk, &ch, NULL) == 0 &&
+        (ch.flags & TVPAL_CHUNK_MISSING))
+        __atomic_store_n(&w->missing, 1, __ATOMIC_RELAXED);
+    return 0;
+}
+
+int tvpal_shardw_extend(struct tvpal_shardw *w, uint32_t t, uint32_t s,
+                        uint32_t crc)
+{
+    uint64_t off = w->rec_off ? placed_offset(w, t, s) : UINT64_MAX;
+    if (off == UINT64_MAX || off != w->filled[t])
+        return TVPAL_E_INVAL;
+    uint64_t bytes = placed_chunk_bytes(w, s, t);
+    w->crc[t] = tvpal_crc32c_combine(w->crc[t], crc, bytes);
+    w->filled[t] += bytes;
+    return 0;
+}
+
+void tvpal_shardw_progress(const struct tvpal_shardw *w, uint32_t t,
+                           uint64_t *filled, uint32_t *crc)
+{
+    *filled = w->filled[t];
+    *crc = w->crc[t];
+}
+
+int tvpal_shardw_set_progress(struct tvpal_shardw *w, uint32_t t,
+                              uint64_t filled, uint32_t crc)
+{
+    if (!w->rec_off || t >= w->h.steps || filled > w->payload[t])
+        return TVPAL_E_INVAL;
+    w->filled[t] = filled;
+    w->crc[t] = crc;
+    return 0;
+}
+
+int tvpal_shardw_missing(const struct tvpal_shardw *w)
+{
+    return __atomic_load_n(&w->missing, __ATOMIC_RELAXED);
+}
+
+void tvpal_shardw_set_missing(struct tvpal_shardw *w, int missing)
+{
+    w->missing = missing != 0;
+}
+
+/* Writes every record header of a placed shard once all payloads are in,
+ * and fills the index as appending would have. */
+static int placed_seal(struct tvpal_shardw *w, struct tvpal_diag *diag)
+{
+    for (uint32_t t = 0; t < w->h.steps; t++) {
+        if (w->filled[t] != w->payload[t])
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "record %u: %llu of "
+                                  "%llu payload bytes written", t,
+                                  (unsigned long long)w->filled[t],
+                                  (unsigned long long)w->payload[t]);
+        struct tvpal_record_header rh = {
+            .step = t, .chunk_count = w->count[t], .axis = w->h.axis,
+            .payload_bytes = w->payload[t], .payload_crc = w->crc[t]};
+        unsigned char hb[TVPAL_RECORD_HEADER_BYTES];
+        tvpal_record_header_encode(&rh, hb);
+        int rc = pwrite_all(w->fd, hb, sizeof hb, w->rec_off[t], diag);
+        if (rc < 0)
+            return rc;
+        w->index[t] = (struct tvpal_index_entry){
+            .offset = w->rec_off[t],
+            .bytes = tvpal_round_up(TVPAL_RECORD_HEADER_BYTES +
+                                        w->payload[t], TVPAL_ALIGN),
+            .step = t, .chunk_count = w->count[t], .crc = w->crc[t]};
+    }
+    w->done = w->h.steps;
+    return 0;
 }
 
 uint64_t tvpal_record_seal(unsigned char *buf, uint32_t step, uint32_t axis,

@@ -45,12 +45,63 @@ uint64_t tvpal_shardw_size(const struct tvpal_shardw *w);
 int tvpal_shardw_append(struct tvpal_shardw *w, const unsigned char *buf,
                         uint64_t bytes, struct tvpal_diag *diag);
 
-/* Writes index and header, fsyncs and closes; frees w whatever the result.
+/* Writes index and header (a placed writer: also every record header,
+ * after checking that every record's payload was added in full, else
+ * TVPAL_E_INVAL naming the record), fsyncs and closes; frees w whatever
+ * the result.
  * When a chunk appended (or kept by resume) has TVPAL_CHUNK_MISSING, the
  * header's table_format gets TVPAL_TABLE_MISSING (FORMAT.md 6.7).
  * 0, TVPAL_E_INVAL (not every step appended), TVPAL_E_NOMEM or
  * TVPAL_E_WRITE, with the cause in diag (optional). */
 int tvpal_shardw_finish(struct tvpal_shardw *w, struct tvpal_diag *diag);
+
+/* ---- placed writing ----
+ * A shard's layout follows from its header alone (FORMAT.md 6.3: which
+ * slices start at each step, every chunk's size), so a chunk can be
+ * written straight to its final place, in any order and by any thread: the
+ * encoder writes each slice-window as soon as it is coded, in passes over
+ * parts of a slab, and never holds a whole record.  Each record's payload
+ * CRC is joined from its chunks' CRCs in slice order (tvpal_shardw_extend);
+ * the record headers, the index and the header are written by
+ * tvpal_shardw_finish, so until then the file is invalid (zero headers).
+ * A writer is placed or appending, never both. */
+
+/* Creates (truncates) path sized to all its records, for placed writing. */
+int tvpal_shardw_create_placed(struct tvpal_shardw **out, const char *path,
+                               const struct tvpal_shard_header *h,
+                               struct tvpal_diag *diag);
+
+/* Reopens a placed shard of the same header for a resumed job: the file
+ * must have exactly the size create_placed gave it (else TVPAL_E_TRUNC or
+ * TVPAL_E_MISMATCH).  Every record's progress starts at nothing: the
+ * caller restores it (tvpal_shardw_set_progress) from its checkpoint. */
+int tvpal_shardw_reopen_placed(struct tvpal_shardw **out, const char *path,
+                               const struct tvpal_shard_header *h,
+                               struct tvpal_diag *diag);
+
+/* Writes the chunk of slice s in record t (bytes = tvpal_chunk_bytes of
+ * its window) at its place and sets *crc to the chunk's CRC-32C.  Safe to
+ * call from several threads at once for different chunks.  0,
+ * TVPAL_E_INVAL (s has no window starting at t, or not in the slab; a size
+ * other than its chunk's) or TVPAL_E_WRITE with the cause in diag. */
+int tvpal_shardw_put_chunk(struct tvpal_shardw *w, uint32_t t, uint32_t s,
+                           const unsigned char *chunk, uint64_t bytes,
+                           uint32_t *crc, struct tvpal_diag *diag);
+
+/* Adds the chunk of slice s (written, with CRC crc) to record t's payload
+ * CRC.  Chunks must be added in ascending slice order: TVPAL_E_INVAL for
+ * any other than the next one of the record.  Not thread-safe. */
+int tvpal_shardw_extend(struct tvpal_shardw *w, uint32_t t, uint32_t s,
+                        uint32_t crc);
+
+/* A record's progress (bytes of payload added, their CRC) and whether a
+ * chunk had missing entries: what a checkpoint keeps to resume. */
+void tvpal_shardw_progress(const struct tvpal_shardw *w, uint32_t t,
+                           uint64_t *filled, uint32_t *crc);
+int tvpal_shardw_set_progress(struct tvpal_shardw *w, uint32_t t,
+                              uint64_t filled, uint32_t crc);
+int tvpal_shardw_missing(const struct tvpal_shardw *w);
+void tvpal_shardw_set_missing(struct tvpal_shardw *w, int missing);
 
 /* Closes without finishing (the file stays invalid); NULL is a no-op. */
 void tvpal_shardw_free(struct tvpal_shardw *w);
