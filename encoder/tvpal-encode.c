@@ -15,6 +15,7 @@
  * the program with the exit code of `enum ending`.
  */
 #define _GNU_SOURCE
+#include "encode_plan.h"
 #include "tvpal_checkpoint.h"
 #include "tvpal_cli.h"
 #include "tvpal_clock.h"
@@ -207,6 +208,7 @@ struct opts {
     int have_spacing, have_origin;
     const char *times_file;           /* --times FILE */
     const char *time_units;           /* --time-units TEXT */
+    uint64_t mem_limit;               /* --mem-limit SIZE, or 0 */
 };
 
 /* How an option's argument is parsed (parse_option). */
@@ -223,6 +225,7 @@ enum optkind {
     OPT_TEXT,      /* the argument into the const char * at field */
     OPT_SPACING,   /* DX,DY,DZ > 0 into spacing */
     OPT_ORIGIN,    /* OX,OY,OZ into origin */
+    OPT_SIZE,      /* bytes ("12G") into the uint64_t at field */
     OPT_HELP,
     OPT_VERSION
 };
@@ -287,6 +290,9 @@ static const struct optspec {
      0, 0, {0}, NULL},
     {"time-units", OPT_LONG_ONLY + 11, OPT_TEXT,
      offsetof(struct opts, time_units), 0, 0, {0}, NULL},
+    {"mem-limit", OPT_LONG_ONLY + 15, OPT_SIZE,
+     offsetof(struct opts, mem_limit), 0, 0, {0},
+     "a size such as 12G, 800M or 1073741824 (bytes)"},
     {"output", 'o', OPT_OUTPUT, 0, 0, 0, {0}, NULL},
     {"force", 'f', OPT_FLAG, offsetof(struct opts, force), 0, 0, {0}, NULL},
     {"quiet", 'q', OPT_FLAG, offsetof(struct opts, quiet), 0, 0, {0}, NULL},
@@ -346,6 +352,10 @@ static void parse_option(const struct optspec *sp, const char *arg,
     }
     case OPT_OUTPUT:
         o->outdir = arg;
+        return;
+    case OPT_SIZE:
+        if (encode_parse_size(arg, (uint64_t *)(void *)(base + sp->field)) < 0)
+            break;
         return;
     case OPT_FORMAT:
         if (tvpal_input_format_parse(arg, &o->format) < 0)
@@ -529,28 +539,39 @@ struct shardjob {
     unsigned axis;
     uint32_t rank;
     struct tvpal_shard_header h;
-    struct tvpal_shardw *w;
-    unsigned char *rec;      /* record buffer */
-    uint64_t rec_cap;
-    uint64_t payload;        /* bytes of chunks this step */
-    uint32_t nchunks;
+    struct tvpal_shardw *w;  /* placed writer (tvpal_shard.h) */
 };
 
 /* A group of `count` slices slice, slice + N, ... of one shard, all with
- * windows of length len starting at the current step, whose chunks follow
- * each other in the record from offset off.  Slices of the x axis are
- * grouped so that one pass over the volume rows gathers them all (they
- * share cache lines); other axes use groups of one. */
+ * windows of length len starting at the current step; their chunks' CRCs
+ * go to jcrc[crc_at ..].  Slices of the x axis are grouped so that one pass
+ * over the box rows gathers them all (they share cache lines); other axes
+ * use groups of one. */
 struct slicejob {
     struct shardjob *sj;
     uint32_t slice;
     uint32_t count;
     uint32_t len;
-    uint64_t off;            /* first chunk's offset in sj->rec */
+    size_t crc_at;
 };
 
 /* Most slices per group: those of one 64-byte line of x (16 floats). */
 #define GROUP_SPAN 16u
+
+/* Bytes of the reading scratch of one thread (raw input is read in blocks
+ * of at most this much, converted into the ring as it comes). */
+#define READ_BLOCK ((size_t)8 << 20)
+
+/* Progress on stderr: a bar redrawn at most 5 times a second on a terminal,
+ * otherwise a line every 30 s, whether a timestep takes a second or an
+ * hour; always at the end.  `work` counts voxel-samples encoded (all axes;
+ * a voxel of a window of length L counts L), out of `total`. */
+struct progress {
+    int tty, quiet;
+    double t0, last;
+    uint64_t work, total;    /* work is added to atomically */
+    uint64_t work_at_start;  /* a resumed job's share already done */
+};
 
 /* One encoding run: the job, its output and the workspaces, set up by
  * main's steps in order and released by run_free. */
@@ -563,26 +584,39 @@ struct run {
     char *partial;           /* OUTDIR.partial */
     char *fp;                /* job fingerprint */
     struct tvpal_checkpoint_stats st;
-    uint32_t start;          /* first step to encode (> 0: resumed) */
-    /* Shards: 3 axes x K nodes, axis-major. */
+    uint64_t start;          /* first unit of work (pass * T + step) */
+    /* Shards: 3 axes x K nodes, axis-major (every node's, or one rank's). */
     struct shardjob *sj;
     uint32_t nshard;
     size_t max_slice_vox, max_jobs;
+    uint64_t max_chunk;      /* bytes of the largest chunk */
+    /* The memory plan and the pass being encoded. */
+    uint64_t limit;
+    char limit_why[128];
+    struct encode_plan plan;
+    const struct encode_pass *pass;
     /* Workspaces: per thread, then shared. */
     int nthreads;
     uint64_t **fine_local;   /* per-thread source histograms */
     size_t group_cap;        /* floats of samples per thread */
     struct tvpal_swenc **enc;
     float **samples, **tables;
+    unsigned char **chunkbuf;   /* per thread: one chunk */
+    unsigned char **scratch;    /* per thread: READ_BLOCK bytes (raw) */
     struct slicejob *jobs;   /* max_jobs */
-    float **ring;            /* N converted timesteps, step t at t % N */
-    void *raw;               /* one source timestep */
+    uint32_t *jcrc;          /* CRC of every chunk of a step */
+    float **ring;            /* N timesteps of the pass's box, step t at
+                              * t % N, box voxels x fastest */
+    float *boxbuf;           /* a self-describing input's box, as read */
     struct tvpal_input *in;  /* self-describing input, or NULL (raw) */
     struct prefetch *pf;     /* reads the input's next step meanwhile */
     uint64_t *dropped;       /* per thread: present values coded missing */
     double *times;           /* [T] time values, or NULL (none known) */
     char time_units[128];
     double t_encode;         /* seconds of the streaming loop */
+    struct progress prog;
+    /* Checkpoint copies of the writers' progress (tvpal_checkpoint.h). */
+    struct tvpal_checkpoint_progress ckp;
 };
 
 static uint32_t fine_bin(float f)
@@ -604,9 +638,9 @@ static float fine_bin_value(uint32_t b)
 
 /* ------------------------------------------------------------- input I/O */
 
-/* What the threads of read_convert found. */
+/* What the threads reading a box found. */
 struct loaded {
-    size_t bad;              /* lowest voxel index of a data error */
+    uint64_t bad;            /* lowest volume voxel index of a data error */
     int rc;                  /* its code (TVPAL_E_NAN or _RANGE), or 0 */
     int read_err;            /* errno of a failed read, -1 at end of file */
     size_t nrep;             /* values replaced by --nan-as */
@@ -614,104 +648,234 @@ struct loaded {
     double lo, hi;           /* range including the stats' so far */
 };
 
-/* Reads the timestep at off of fd into r->raw and converts it into dst, in
- * parallel over contiguous chunks (each thread reads its own part: the
- * page-cache copy is as costly as the conversion); when `stats`, counts
- * the values into the per-thread histograms and res's range. */
-static void read_convert(struct run *r, int fd, off_t off, float *dst,
-                         int stats, struct loaded *res)
+/* Per-thread findings, merged into struct loaded after the loop. */
+struct found {
+    uint64_t bad;
+    int rc, read_err;
+    size_t nrep, nmiss;
+    double lo, hi;
+};
+
+/* Converts n source values at src (type and byte order of the job, or
+ * host float32 when `host_f32`) into dst, applies --missing, and counts
+ * them into the thread's statistics when `stats`.  vox0 is the volume
+ * index of the first, for the error message. */
+static void convert_run(const struct run *r, const void *src, int host_f32,
+                        size_t n, float *dst, uint64_t vox0, int stats,
+                        int tid, struct found *f)
 {
-    /* fd < 0: the timestep is in r->raw already (a reader put it there). */
     const struct opts *o = &r->o;
-    const size_t esz = tvpal_type_size(o->type), nvox = r->nvox;
-    char *raw = r->raw;
-    size_t nrep = 0, nmiss = 0, bad = SIZE_MAX;
-    int rc_all = 0, read_err = 0;
-    double lo = r->st.vmin, hi = r->st.vmax;
+    size_t bad = 0, rep = 0;
+    int rc = tvpal_raw_convert(src, host_f32 ? TVPAL_F32 : o->type,
+#ifdef WORDS_BIGENDIAN
+                               host_f32 ? 1 : o->big_endian,
+#else
+                               host_f32 ? 0 : o->big_endian,
+#endif
+                               n, dst, o->has_nan_as ? &o->nan_as : NULL,
+                               &bad, &rep);
+    if (rc < 0) {
+        if (vox0 + bad < f->bad) {
+            f->bad = vox0 + bad;
+            f->rc = rc;
+        }
+        return;
+    }
+    if (o->nmissing) {
+        size_t hits = tvpal_missing_apply(dst, n, o->missing, o->nmissing,
+                                          o->has_nan_as ? &o->nan_as : NULL);
+        rep += o->has_nan_as ? hits : 0;
+    }
+    if (!stats)
+        return;
+    uint64_t *fine = r->fine_local[tid];
+    double lo = f->lo, hi = f->hi;
+    f->nrep += rep;
+    for (size_t i = 0; i < n; i++) {
+        float v = dst[i];
+        if (v != v) { /* missing: in no figure */
+            f->nmiss++;
+            continue;
+        }
+        lo = v < lo ? v : lo;
+        hi = v > hi ? v : hi;
+        fine[fine_bin(v)]++;
+    }
+    f->lo = lo;
+    f->hi = hi;
+}
+
+/* Reads file range [off, off + n) into buf; 0, or errno (-1: the file
+ * ended first). */
+static int pread_full(int fd, void *buf, size_t n, off_t off)
+{
+    for (size_t got = 0; got < n;) {
+        ssize_t k = pread(fd, (char *)buf + got, n - got, off + (off_t)got);
+        if (k < 0 && errno == EINTR)
+            continue;
+        if (k <= 0)
+            return k < 0 ? errno : -1;
+        got += (size_t)k;
+    }
+    return 0;
+}
+
+/* The box b of the raw timestep at file offset base of fd into dst (box
+ * voxels, x fastest), converted, in parallel over blocks of rows: each
+ * z-plane of the box is read as the one file range that holds its rows
+ * (a y or z slab: only its bytes; an x slab: whole rows, its part used),
+ * in pieces of at most READ_BLOCK bytes, into the reading thread's
+ * scratch. */
+static void read_box_raw(struct run *r, int fd, off_t base,
+                         const struct encode_box *b, float *dst, int stats,
+                         struct loaded *res)
+{
+    const struct opts *o = &r->o;
+    const size_t esz = tvpal_type_size(o->type);
+    const size_t nx = o->dims[0], ny = o->dims[1];
+    const size_t row_bytes = nx * esz;
+    /* Rows per piece: a piece spans whole rows of one plane. */
+    size_t rows = READ_BLOCK / row_bytes;
+    if (rows < 1)
+        rows = 1;
+    if (rows > b->n[1])
+        rows = b->n[1];
+    const size_t pieces_per_plane = (b->n[1] + rows - 1) / rows;
+    const size_t npieces = pieces_per_plane * b->n[2];
+    struct found all = {UINT64_MAX, 0, 0, 0, 0, r->st.vmin, r->st.vmax};
 #ifdef _OPENMP
-#pragma omp parallel reduction(min : lo) reduction(max : hi) \
-    reduction(+ : nrep, nmiss)
+#pragma omp parallel
 #endif
     {
-        int id = 0, nt = 1;
+        int tid = 0;
 #ifdef _OPENMP
-        id = omp_get_thread_num();
-        nt = omp_get_num_threads();
+        tid = omp_get_thread_num();
 #endif
-        size_t a = nvox * (size_t)id / (size_t)nt;
-        size_t b = nvox * (size_t)(id + 1) / (size_t)nt;
-        size_t mybad = 0, myrep = 0;
-        int rc = 0;
-        for (size_t got = a * esz; fd >= 0 && got < b * esz;) {
-            ssize_t k = pread(fd, raw + got, b * esz - got, off + (off_t)got);
-            if (k < 0 && errno == EINTR)
+        struct found f = {UINT64_MAX, 0, 0, 0, 0, all.lo, all.hi};
+        unsigned char *buf = r->scratch[tid];
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 1)
+#endif
+        for (size_t p = 0; p < npieces; p++) {
+            if (f.read_err)
                 continue;
-            if (k <= 0) {
-#ifdef _OPENMP
-#pragma omp atomic write
-#endif
-                read_err = k < 0 ? errno : -1;
-                rc = TVPAL_E_READ;
-                break;
+            const size_t z = b->lo[2] + p / pieces_per_plane;
+            const size_t y0 = b->lo[1] + p % pieces_per_plane * rows;
+            size_t yn = b->lo[1] + b->n[1] - y0;
+            yn = yn < rows ? yn : rows;
+            /* From the first row's first voxel to the last row's last. */
+            const uint64_t v0 = b->lo[0] + nx * (y0 + ny * z);
+            const size_t span = ((yn - 1) * nx + b->n[0]) * esz;
+            int err = pread_full(fd, buf, span, base + (off_t)(v0 * esz));
+            if (err) {
+                f.read_err = err;
+                continue;
             }
-            got += (size_t)k;
+            for (size_t k = 0; k < yn; k++) {
+                const size_t yb = y0 + k - b->lo[1], zb = z - b->lo[2];
+                float *out = dst + (size_t)b->n[0] * (yb + (size_t)b->n[1] * zb);
+                convert_run(r, buf + k * row_bytes, 0, b->n[0], out,
+                            v0 + k * nx, stats, tid, &f);
+            }
         }
-        if (rc == 0)
-            rc = tvpal_raw_convert(raw + a * esz, o->type, o->big_endian,
-                                   b - a, dst + a,
-                                   o->has_nan_as ? &o->nan_as : NULL, &mybad,
-                                   &myrep);
-        if (rc == 0)
-            /* --missing V: NaN, or counted as replaced by --nan-as */
-            if (o->nmissing) {
-                size_t hits = tvpal_missing_apply(dst + a, b - a, o->missing,
-                                                  o->nmissing,
-                                                  o->has_nan_as ? &o->nan_as
-                                                                : NULL);
-                myrep += o->has_nan_as ? hits : 0;
-            }
-        if (rc < 0 && rc != TVPAL_E_READ) {
-            /* The data error at the lowest index wins, with its code. */
 #ifdef _OPENMP
-#pragma omp critical(tvpal_bad)
+#pragma omp critical(tvpal_found)
 #endif
-            if (a + mybad < bad) {
-                bad = a + mybad;
-                rc_all = rc;
+        {
+            if (f.bad < all.bad) {
+                all.bad = f.bad;
+                all.rc = f.rc;
             }
-        } else if (rc == 0 && stats) {
-            uint64_t *fine = r->fine_local[id];
-            nrep += myrep;
-            for (size_t i = a; i < b; i++) {
-                float v = dst[i];
-                if (v != v) { /* missing: in no figure */
-                    nmiss++;
-                    continue;
-                }
-                lo = v < lo ? v : lo;
-                hi = v > hi ? v : hi;
-                fine[fine_bin(v)]++;
-            }
+            if (f.read_err && !all.read_err)
+                all.read_err = f.read_err;
+            all.nrep += f.nrep;
+            all.nmiss += f.nmiss;
+            all.lo = f.lo < all.lo ? f.lo : all.lo;
+            all.hi = f.hi > all.hi ? f.hi : all.hi;
         }
     }
-    *res = (struct loaded){bad, rc_all, read_err, nrep, nmiss, lo, hi};
+    *res = (struct loaded){all.bad, all.rc, all.read_err, all.nrep,
+                           all.nmiss, all.lo, all.hi};
+}
+
+/* The box b of a self-describing step, already read into src (host
+ * float32, box voxels), checked and converted into dst in parallel. */
+static void convert_box(struct run *r, const float *src,
+                        const struct encode_box *b, float *dst, int stats,
+                        struct loaded *res)
+{
+    const size_t rows = (size_t)b->n[1] * b->n[2];
+    const size_t nx = r->o.dims[0], ny = r->o.dims[1];
+    struct found all = {UINT64_MAX, 0, 0, 0, 0, r->st.vmin, r->st.vmax};
+#ifdef _OPENMP
+#pragma omp parallel
+#endif
+    {
+        int tid = 0;
+#ifdef _OPENMP
+        tid = omp_get_thread_num();
+#endif
+        struct found f = {UINT64_MAX, 0, 0, 0, 0, all.lo, all.hi};
+#ifdef _OPENMP
+#pragma omp for schedule(static)
+#endif
+        for (size_t k = 0; k < rows; k++) {
+            const size_t y = b->lo[1] + k % b->n[1], z = b->lo[2] + k / b->n[1];
+            const size_t at = k * b->n[0];
+            convert_run(r, src + at, 1, b->n[0], dst + at,
+                        b->lo[0] + nx * (y + ny * z), stats, tid, &f);
+        }
+#ifdef _OPENMP
+#pragma omp critical(tvpal_found)
+#endif
+        {
+            if (f.bad < all.bad) {
+                all.bad = f.bad;
+                all.rc = f.rc;
+            }
+            all.nrep += f.nrep;
+            all.nmiss += f.nmiss;
+            all.lo = f.lo < all.lo ? f.lo : all.lo;
+            all.hi = f.hi > all.hi ? f.hi : all.hi;
+        }
+    }
+    *res = (struct loaded){all.bad, all.rc, 0, all.nrep, all.nmiss, all.lo,
+                           all.hi};
+}
+
+/* Whether box b is the whole volume (read with tvpal_input_read). */
+static int box_is_whole(const struct run *r, const struct encode_box *b)
+{
+    return b->n[0] == r->o.dims[0] && b->n[1] == r->o.dims[1] &&
+           b->n[2] == r->o.dims[2];
 }
 
 /* A self-describing input is read (and inflated) by its library on one
  * thread; the encoding of a step runs on all of them.  One reader thread
- * reads step t + 1 while step t is converted and encoded, so the two
- * overlap.  The reader is the only thread that calls the input library once
- * it runs (HDF5 and libnetcdf builds need not be thread-safe). */
+ * reads the box of step t + 1 while step t is converted and encoded, so
+ * the two overlap.  The reader is the only thread that calls the input
+ * library once it runs (HDF5 and libnetcdf builds need not be
+ * thread-safe). */
 struct prefetch {
     pthread_t thread;
     pthread_mutex_t mu;
     pthread_cond_t cv;
     struct tvpal_input *in;
-    void *buf;               /* nvox floats: the step being read or read */
+    float *buf;              /* box floats: the step being read or read */
+    struct encode_box box;   /* what to read */
+    int whole;               /* the box is the volume */
     int64_t want, ready;     /* step asked for / in buf (-1: none) */
     int busy, quit, rc;
     struct tvpal_diag d;
 };
+
+static int read_input_box(struct tvpal_input *in, uint32_t t,
+                          const struct encode_box *b, int whole, float *dst,
+                          struct tvpal_diag *d)
+{
+    return whole ? tvpal_input_read(in, t, dst, d)
+                 : tvpal_input_read_box(in, t, b->lo, b->n, dst, d);
+}
 
 static void *prefetch_main(void *arg)
 {
@@ -725,9 +889,11 @@ static void *prefetch_main(void *arg)
         int64_t t = pf->want;
         pf->want = -1;
         pf->busy = 1;
+        struct encode_box box = pf->box;
+        int whole = pf->whole;
         pthread_mutex_unlock(&pf->mu);
         struct tvpal_diag d = {{0}};
-        int rc = tvpal_input_read(pf->in, (uint32_t)t, pf->buf, &d);
+        int rc = read_input_box(pf->in, (uint32_t)t, &box, whole, pf->buf, &d);
         pthread_mutex_lock(&pf->mu);
         pf->busy = 0;
         pf->ready = t;
@@ -739,12 +905,12 @@ static void *prefetch_main(void *arg)
     return NULL;
 }
 
-/* Starts the reader (NULL when threads are not available: then every step
- * is read in place). */
-static struct prefetch *prefetch_start(struct tvpal_input *in, size_t bytes)
+/* Starts the reader with a buffer of `voxels` floats (NULL when threads
+ * are not available: then every step is read in place). */
+static struct prefetch *prefetch_start(struct tvpal_input *in, uint64_t voxels)
 {
     struct prefetch *pf = calloc(1, sizeof *pf);
-    if (!pf || !(pf->buf = malloc(bytes))) {
+    if (!pf || !(pf->buf = malloc(voxels * sizeof(float)))) {
         free(pf);
         return NULL;
     }
@@ -775,19 +941,23 @@ static void prefetch_stop(struct prefetch *pf)
     free(pf);
 }
 
-/* Step t of the input into *raw: from the reader when it has it (the
- * buffers are swapped), else read here; then step t + 1 is asked for. */
+/* The pass's box of step t of the input into r->boxbuf: from the reader
+ * when it has it (the buffers are swapped), else read here; then step
+ * t + 1 of the same pass is asked for. */
 static int input_step(struct run *r, uint32_t t, struct tvpal_diag *d)
 {
     struct prefetch *pf = r->pf;
+    const struct encode_box *b = &r->pass->box;
+    const int whole = box_is_whole(r, b);
     int rc = 1;
     if (pf) {
         pthread_mutex_lock(&pf->mu);
         while (pf->busy || pf->want >= 0)
             pthread_cond_wait(&pf->cv, &pf->mu);
-        if (pf->ready == (int64_t)t) {
-            void *tmp = r->raw;
-            r->raw = pf->buf;
+        if (pf->ready == (int64_t)t &&
+            !memcmp(&pf->box, b, sizeof *b)) {
+            float *tmp = r->boxbuf;
+            r->boxbuf = pf->buf;
             pf->buf = tmp;
             rc = pf->rc;
             *d = pf->d;
@@ -796,9 +966,11 @@ static int input_step(struct run *r, uint32_t t, struct tvpal_diag *d)
         pthread_mutex_unlock(&pf->mu);
     }
     if (rc > 0) /* not read ahead: the reader is idle, so this is safe */
-        rc = tvpal_input_read(r->in, t, r->raw, d);
+        rc = read_input_box(r->in, t, b, whole, r->boxbuf, d);
     if (pf && t + 1 < r->T) {
         pthread_mutex_lock(&pf->mu);
+        pf->box = *b;
+        pf->whole = whole;
         pf->want = t + 1;
         pthread_cond_broadcast(&pf->cv);
         pthread_mutex_unlock(&pf->mu);
@@ -806,18 +978,19 @@ static int input_step(struct run *r, uint32_t t, struct tvpal_diag *d)
     return rc;
 }
 
-/* Reads timestep t of the source into dst (converted), accounting stats
- * when t is not yet in them.  A read error ends the program keeping the
- * partial output (maybe transient); bad data ends it removing it. */
+/* Reads the pass's box of timestep t of the source into dst (converted),
+ * accounting stats when the pass keeps them and t is not yet in them.  A
+ * read error ends the program keeping the partial output (maybe
+ * transient); bad data ends it removing it. */
 static void load_step(struct run *r, uint32_t t, float *dst)
 {
     const struct opts *o = &r->o;
+    const struct encode_box *b = &r->pass->box;
     /* Raw: a file per step, or one of them all; a reader knows its own. */
     const char *path = r->in || o->steps_single ? o->inputs[0] : o->inputs[t];
     const off_t off = o->steps_single ? (off_t)t * (off_t)r->step_bytes : 0;
-    const int stats = t >= r->st.loaded;
+    const int stats = r->pass->stats && t >= r->st.loaded;
     struct loaded res;
-    int fd = -1;
     if (r->in) {
         uint32_t k;
         struct tvpal_diag d = {{0}};
@@ -826,15 +999,16 @@ static void load_step(struct run *r, uint32_t t, float *dst)
         if (rc < 0) /* the file changed or is corrupt: a rerun fails too */
             die_input("timestep %u (step %u of %s): %s", t, k, path,
                       lib_error(rc, &d));
+        convert_box(r, r->boxbuf, b, dst, stats, &res);
     } else {
         struct tvpal_diag d = {{0}};
-        if ((fd = tvpal_open_regular(path, &d)) < 0)
+        int fd = tvpal_open_regular(path, &d);
+        if (fd < 0)
             /* maybe transient (NFS, permissions): keep the partial */
             die_fail("cannot open %s (rerun to resume)", d.msg);
-    }
-    read_convert(r, fd, off, dst, stats, &res);
-    if (fd >= 0)
+        read_box_raw(r, fd, off, b, dst, stats, &res);
         close(fd);
+    }
     if (res.read_err > 0)
         die_fail("%s: timestep %u: %s (rerun to resume)", path, t,
                  strerror(res.read_err));
@@ -842,16 +1016,18 @@ static void load_step(struct run *r, uint32_t t, float *dst)
         die_input("%s: timestep %u: file shrank while encoding (truncated)",
                   path, t);
     if (res.rc < 0) {
-        size_t x = res.bad % o->dims[0], y = res.bad / o->dims[0] % o->dims[1],
-               z = res.bad / o->dims[0] / o->dims[1];
+        uint64_t x = res.bad % o->dims[0], y = res.bad / o->dims[0] % o->dims[1],
+                 z = res.bad / o->dims[0] / o->dims[1];
         if (res.rc == TVPAL_E_NAN)
             die_input("%s: timestep %u: infinite value at voxel "
-                      "(%zu,%zu,%zu); expected finite values or NaN for "
+                      "(%llu,%llu,%llu); expected finite values or NaN for "
                       "missing ones (use --nan-as VALUE to replace them)",
-                      path, t, x, y, z);
-        die_input("%s: timestep %u: value at voxel (%zu,%zu,%zu) exceeds "
-                  "the supported magnitude %g", path, t, x, y, z,
-                  TVPAL_VALUE_MAX);
+                      path, t, (unsigned long long)x, (unsigned long long)y,
+                      (unsigned long long)z);
+        die_input("%s: timestep %u: value at voxel (%llu,%llu,%llu) exceeds "
+                  "the supported magnitude %g", path, t,
+                  (unsigned long long)x, (unsigned long long)y,
+                  (unsigned long long)z, TVPAL_VALUE_MAX);
     }
     if (!stats)
         return;
@@ -862,6 +1038,7 @@ static void load_step(struct run *r, uint32_t t, float *dst)
         }
     r->st.nonfinite += res.nrep;
     r->st.missing += res.nmiss;
+    r->st.counted += encode_box_voxels(b);
     r->st.vmin = res.lo;
     r->st.vmax = res.hi;
     r->st.loaded = t + 1;
@@ -1121,22 +1298,34 @@ static void make_node_dirs(struct run *r)
 
 /* Resumes the partial output of the same job from its checkpoint, or
  * removes a partial output that has none usable; then makes the node
- * directories.  Sets r->fp, r->st and r->start. */
+ * directories.  Sets r->fp, r->st, r->ckp and r->start.  The plan is part
+ * of the job: a rerun under another limit or thread count starts over. */
 static void open_partial(struct run *r)
 {
-    char *params = job_params(&r->o, r->in);
-    if (!params ||
-        tvpal_checkpoint_fingerprint(params, r->o.inputs, r->o.ninputs,
+    char *params = job_params(&r->o, r->in), *withplan = NULL;
+    char key[64];
+    encode_plan_key(&r->plan, key, sizeof key);
+    if (!params || asprintf(&withplan, "%s %s", params, key) < 0 ||
+        tvpal_checkpoint_fingerprint(withplan, r->o.inputs, r->o.ninputs,
                                      &r->fp) < 0 ||
         tvpal_checkpoint_stats_init(&r->st) < 0)
         die_fail("out of memory");
     free(params);
+    free(withplan);
+    const size_t n = (size_t)r->nshard * r->T;
+    r->ckp = (struct tvpal_checkpoint_progress){
+        r->nshard, r->T, calloc(n, sizeof(uint64_t)), calloc(n, sizeof(uint32_t)),
+        calloc(r->nshard, 1)};
+    if (!r->ckp.filled || !r->ckp.crc || !r->ckp.missing)
+        die_fail("out of memory");
     r->start = 0;
     if (tvpal_exists(r->partial)) {
         /* A checkpoint that is missing, of another job or damaged is not
          * an error: the job starts over (FORMAT.md 9.2). */
-        if (tvpal_checkpoint_load(r->partial, r->fp, r->T, r->nvox, &r->start,
-                                  &r->st, NULL) < 0 || r->start == 0) {
+        const uint64_t units = (uint64_t)r->plan.npasses * r->T;
+        if (tvpal_checkpoint_load(r->partial, r->fp, units, r->T, r->nvox,
+                                  &r->start, &r->st, &r->ckp, NULL) < 0 ||
+            r->start == 0 || r->start > units) {
             r->start = 0;
             tvpal_checkpoint_stats_reset(&r->st);
             if (tvpal_rmtree(r->partial) < 0)
@@ -1147,8 +1336,8 @@ static void open_partial(struct run *r)
     make_node_dirs(r);
 }
 
-/* Describes the 3K shards (axis-major) and allocates their record
- * buffers; sets the largest slice and the most slice-windows of a step. */
+/* Describes the 3K shards (axis-major; a rank's 3 under MPI) and the
+ * largest slice, chunk and number of slice-windows of a step. */
 static void setup_shards(struct run *r)
 {
     const struct opts *o = &r->o;
@@ -1161,6 +1350,9 @@ static void setup_shards(struct run *r)
         if ((size_t)w * h > r->max_slice_vox)
             r->max_slice_vox = (size_t)w * h;
         r->max_jobs += n;
+        uint64_t cb = tvpal_chunk_bytes(r->N, w, h, (uint32_t)o->table_format);
+        if (cb > r->max_chunk)
+            r->max_chunk = cb;
         for (uint32_t k = 0; k < o->nodes; k++) {
             struct shardjob *j = &r->sj[a * o->nodes + k];
             j->axis = a;
@@ -1173,20 +1365,126 @@ static void setup_shards(struct run *r)
             memcpy(j->h.dims, o->dims, sizeof o->dims);
             tvpal_slab_range(n, o->nodes, k, &j->h.slice_begin,
                              &j->h.slice_count);
-            /* Largest record: every slice of the slab with a full window. */
-            j->rec_cap = tvpal_round_up(
-                TVPAL_RECORD_HEADER_BYTES +
-                    (uint64_t)j->h.slice_count *
-                        tvpal_chunk_bytes(r->N, w, h, j->h.table_format),
-                TVPAL_ALIGN);
-            if (!(j->rec = malloc(j->rec_cap)))
-                die_fail("out of memory");
         }
     }
 }
 
-/* Creates (start = 0) or resumes the shard writers; reports and returns
- * < 0 on the first failure. */
+/* ------------------------------------------------------------------ plan */
+
+/* The worker threads: -j, else all cores. */
+static void choose_threads(struct run *r)
+{
+    r->nthreads = 1;
+#ifdef _OPENMP
+    if (r->o.threads)
+        omp_set_num_threads((int)r->o.threads);
+    r->nthreads = omp_get_max_threads();
+#endif
+}
+
+/* Samples per thread: one slice-window, or a group of x slices up to
+ * 8 MiB (a group never exceeds GROUP_SPAN slices). */
+static size_t group_floats(const struct run *r)
+{
+    const size_t sw = r->max_slice_vox * r->N;
+    if (sw >= (size_t)2 << 20)
+        return sw;
+    return (size_t)2 << 20 < sw * GROUP_SPAN ? (size_t)2 << 20
+                                             : sw * GROUP_SPAN;
+}
+
+/* Bytes of a thread's reading scratch (raw input): whole rows of one
+ * plane, up to READ_BLOCK (one row at least). */
+static uint64_t scratch_bytes(const struct run *r)
+{
+    const uint64_t row = (uint64_t)r->o.dims[0] * tvpal_type_size(r->o.type);
+    uint64_t rows = READ_BLOCK / row;
+    rows = rows < 1 ? 1 : rows > r->o.dims[1] ? r->o.dims[1] : rows;
+    return rows * row;
+}
+
+/* Bytes of everything but the ring and the box buffers: the program and
+ * its libraries, and per thread the codec's workspace (its largest: with
+ * missing values, --refine or KLT), the samples, a table, a chunk, the
+ * reading scratch and the histogram.  An estimate on the safe side, which
+ * tests hold against the measured peak. */
+static uint64_t fixed_bytes(const struct run *r)
+{
+    const uint64_t sv = r->max_slice_vox, N = r->N;
+    const uint64_t codec = sv * (16 * N + 64) + N * 256 * 16 + (1u << 16);
+    const uint64_t scratch = r->in ? 0 : scratch_bytes(r);
+    const uint64_t per_thread = codec + group_floats(r) * sizeof(float) +
+                                N * 256 * sizeof(float) + r->max_chunk +
+                                scratch +
+                                TVPAL_CHECKPOINT_BINS * sizeof(uint64_t);
+    const uint64_t shards = (uint64_t)r->nshard * r->T * 40 +
+                            (uint64_t)r->max_jobs * 40;
+    /* 16 MiB: the program and its libraries (13 MiB measured). */
+    return ((uint64_t)16 << 20) + (uint64_t)r->nthreads * per_thread + shards;
+}
+
+static void print_size(char *buf, size_t cap, uint64_t b)
+{
+    if (b >= (uint64_t)1 << 30)
+        snprintf(buf, cap, "%.2f GiB", (double)b / (1u << 30));
+    else
+        snprintf(buf, cap, "%.1f MiB", (double)b / (1u << 20));
+}
+
+/* Makes the memory plan (encode_plan.h) before anything is read or
+ * written, and says it; a limit too small for even one slice per pass
+ * ends the program (exit 2) with the smallest that would do. */
+static void make_plan(struct run *r)
+{
+    const struct opts *o = &r->o;
+    if (o->mem_limit)
+        snprintf(r->limit_why, sizeof r->limit_why, "--mem-limit");
+    r->limit = o->mem_limit ? o->mem_limit
+                            : encode_default_limit(1, r->limit_why,
+                                                   sizeof r->limit_why);
+    struct encode_job j = {
+        .N = r->N, .T = r->T, .limit = r->limit, .fixed = fixed_bytes(r),
+        .box_bytes_per_voxel = 4 * r->N + (r->in ? 8 : 0)};
+    memcpy(j.dims, o->dims, sizeof j.dims);
+    memcpy(j.slab_n, o->dims, sizeof j.slab_n);
+    char lim[32], need[32], ring[32];
+    int rc = encode_plan_make(&j, &r->plan);
+    if (rc == TVPAL_E_NOMEM)
+        die_fail("out of memory");
+    print_size(lim, sizeof lim, r->limit);
+    if (rc < 0) {
+        print_size(need, sizeof need, r->plan.min_limit);
+        die_usage("memory limit %s (%s) is too small for %ux%ux%u at "
+                  "--window %u with %d thread%s: one slice per pass needs "
+                  "%s; give --mem-limit %lluM or more (or fewer --threads)",
+                  lim, r->limit_why, o->dims[0], o->dims[1], o->dims[2],
+                  r->N, r->nthreads, r->nthreads == 1 ? "" : "s", need,
+                  (unsigned long long)((r->plan.min_limit + (1u << 20) - 1) >>
+                                       20));
+    }
+    if (o->quiet)
+        return;
+    char desc[96];
+    encode_plan_describe(&r->plan, desc, sizeof desc);
+    print_size(need, sizeof need, r->plan.peak);
+    print_size(ring, sizeof ring,
+               (uint64_t)r->N * r->nvox * sizeof(float) + j.fixed);
+    if (r->plan.npasses == 1)
+        msg("plan: %s; about %s of the memory limit %s (%s)", desc, need,
+            lim, r->limit_why);
+    else
+        msg("plan: %s, reading the input %.2f times: one ring of all %u "
+            "timesteps of a window would need %s, over the memory limit %s "
+            "(%s); each pass needs about %s", desc,
+            (double)r->plan.voxels_read / ((double)r->nvox * r->T), r->N,
+            ring, lim, r->limit_why, need);
+}
+
+/* ---------------------------------------------------------------- output */
+
+/* Creates (start = 0) or reopens the shard writers, restoring a resumed
+ * job's progress (read back and verified); reports and returns < 0 on the
+ * first failure. */
 static int open_writers(struct run *r)
 {
     for (uint32_t q = 0; q < r->nshard; q++) {
@@ -1197,9 +1495,17 @@ static int open_writers(struct run *r)
         if (!path)
             return TVPAL_E_NOMEM;
         if (r->start)
-            rc = tvpal_shardw_resume(&j->w, path, &j->h, r->start, &d);
+            rc = tvpal_shardw_reopen_placed(&j->w, path, &j->h, &d);
         else
-            rc = tvpal_shardw_create(&j->w, path, &j->h);
+            rc = tvpal_shardw_create_placed(&j->w, path, &j->h, &d);
+        for (uint32_t t = 0; rc == 0 && r->start && t < r->T; t++) {
+            size_t i = (size_t)q * r->T + t;
+            if (r->ckp.filled[i])
+                rc = tvpal_shardw_set_progress(j->w, t, r->ckp.filled[i],
+                                               r->ckp.crc[i], &d);
+        }
+        if (rc == 0 && r->start)
+            tvpal_shardw_set_missing(j->w, r->ckp.missing[q]);
         if (rc < 0)
             msg("%s: cannot %s: %s%s%s%s", path,
                 r->start ? "resume" : "create", tvpal_strerror(rc),
@@ -1213,10 +1519,34 @@ static int open_writers(struct run *r)
     return 0;
 }
 
+/* The statistics a checkpoint at unit `u` must hold: every stats pass
+ * before it, and the loaded steps of its own. */
+static uint64_t expected_counted(const struct run *r, uint64_t u)
+{
+    uint64_t c = 0;
+    const uint32_t p = (uint32_t)(u / r->T);
+    for (uint32_t i = 0; i < p && i < r->plan.npasses; i++)
+        if (r->plan.pass[i].stats)
+            c += encode_box_voxels(&r->plan.pass[i].box) * r->T;
+    if (p < r->plan.npasses && r->plan.pass[p].stats)
+        c += encode_box_voxels(&r->plan.pass[p].box) * r->st.loaded;
+    return c;
+}
+
 /* Opens the writers; a partial output that does not verify is removed and
  * the job started over, from empty statistics. */
 static void open_or_restart_writers(struct run *r)
 {
+    if (r->start && r->st.counted != expected_counted(r, r->start)) {
+        msg("%s: the checkpoint's statistics do not match its position; "
+            "starting the job over", r->partial);
+        r->start = 0;
+    }
+    if (!r->start && tvpal_exists(r->partial) && r->st.loaded) {
+        tvpal_checkpoint_stats_reset(&r->st);
+        tvpal_rmtree(r->partial);
+        make_node_dirs(r);
+    }
     while (open_writers(r) < 0) {
         for (uint32_t q = 0; q < r->nshard; q++) {
             tvpal_shardw_free(r->sj[q].w);
@@ -1233,40 +1563,32 @@ static void open_or_restart_writers(struct run *r)
 
 /* ------------------------------------------------------------- workspace */
 
-/* Threads and their workspaces, the ring of N timesteps and the raw
- * buffer: everything the streaming loop uses, allocated once. */
+/* Workspaces of the threads, the ring of N boxes and the box buffers:
+ * everything the streaming loop uses, allocated once, for the plan's
+ * largest box. */
 static void setup_workspace(struct run *r)
 {
     const uint32_t N = r->N;
-    r->nthreads = 1;
-#ifdef _OPENMP
-    if (r->o.threads)
-        omp_set_num_threads((int)r->o.threads);
-    r->nthreads = omp_get_max_threads();
-#endif
     const size_t nt = (size_t)r->nthreads;
+    const uint64_t box = r->plan.box_voxels_max;
     if (!(r->fine_local = calloc(nt, sizeof *r->fine_local)))
         die_fail("out of memory");
     for (size_t i = 0; i < nt; i++)
         if (!(r->fine_local[i] = calloc(TVPAL_CHECKPOINT_BINS,
                                         sizeof(uint64_t))))
             die_fail("out of memory");
-    /* Samples per thread: one slice-window, or a group of x slices up to
-     * 8 MiB (a group never exceeds GROUP_SPAN slices). */
-    const size_t sw = r->max_slice_vox * N;
-    r->group_cap = sw;
-    if (r->group_cap < (size_t)2 << 20)
-        r->group_cap = (size_t)2 << 20 < sw * GROUP_SPAN ? (size_t)2 << 20
-                                                         : sw * GROUP_SPAN;
+    r->group_cap = group_floats(r);
     r->enc = calloc(nt, sizeof *r->enc);
     r->dropped = calloc(nt, sizeof *r->dropped);
     r->samples = calloc(nt, sizeof *r->samples);
     r->tables = calloc(nt, sizeof *r->tables);
+    r->chunkbuf = calloc(nt, sizeof *r->chunkbuf);
+    r->scratch = calloc(nt, sizeof *r->scratch);
     r->jobs = calloc(r->max_jobs, sizeof *r->jobs);
+    r->jcrc = calloc(r->max_jobs, sizeof *r->jcrc);
     r->ring = calloc(N, sizeof *r->ring);
-    r->raw = malloc(r->step_bytes);
-    if (!r->enc || !r->dropped || !r->samples || !r->tables || !r->jobs || !r->ring ||
-        !r->raw)
+    if (!r->enc || !r->dropped || !r->samples || !r->tables || !r->jobs ||
+        !r->ring || !r->chunkbuf || !r->scratch || !r->jcrc)
         die_fail("out of memory");
     for (size_t i = 0; i < nt; i++) {
         if (tvpal_swenc_create(&r->enc[i], r->max_slice_vox, N) < 0 ||
@@ -1278,52 +1600,59 @@ static void setup_workspace(struct run *r)
             die_usage("--transform klt: built without LAPACK (install "
                       "liblapack-dev and reconfigure)");
         if (!(r->samples[i] = malloc(r->group_cap * sizeof(float))) ||
-            !(r->tables[i] = malloc(N * 256 * sizeof(float))))
+            !(r->tables[i] = malloc(N * 256 * sizeof(float))) ||
+            !(r->chunkbuf[i] = malloc(r->max_chunk)) ||
+            (!r->in && !(r->scratch[i] = malloc(scratch_bytes(r)))))
             die_fail("out of memory");
     }
+    if (r->in && !(r->boxbuf = malloc(box * sizeof(float))))
+        die_fail("out of memory for a box of %llu voxels",
+                 (unsigned long long)box);
     for (uint32_t i = 0; i < N; i++)
-        if (!(r->ring[i] = malloc(r->nvox * sizeof(float))))
-            die_fail("out of memory for %u timesteps of %zu voxels", N,
-                     r->nvox);
+        if (!(r->ring[i] = malloc(box * sizeof(float))))
+            die_fail("out of memory for %u timesteps of %llu voxels", N,
+                     (unsigned long long)box);
 }
 
 /* ---------------------------------------------------------------- encoding */
 
-/* Copies the slices of job jb (timesteps t..t+len-1) from the ring into
- * samples: slice g of the group at samples + g * len * w*h, time-major. */
-static void gather(const struct opts *o, float *const *ring,
-                   const struct slicejob *jb, uint32_t t, float *samples)
+/* Copies the slices of job jb (timesteps t..t+len-1) from the ring of the
+ * pass's box into samples: slice g of the group at samples + g * len *
+ * w*h, time-major.  The box holds the slices whole. */
+static void gather(const struct run *r, const struct slicejob *jb, uint32_t t,
+                   float *samples)
 {
-    const size_t nx = o->dims[0], ny = o->dims[1], nz = o->dims[2];
+    const struct encode_box *b = &r->pass->box;
+    const size_t bx = b->n[0], by = b->n[1], bz = b->n[2];
     const unsigned axis = jb->sj->axis;
     const size_t sv = (size_t)jb->sj->h.slice_w * jb->sj->h.slice_h;
-    const uint32_t s = jb->slice, len = jb->len, N = o->window;
+    const uint32_t s = jb->slice - b->lo[axis], len = jb->len, N = r->N;
     for (uint32_t j = 0; j < len; j++) {
-        const float *vol = ring[(t + j) % N];
+        const float *vol = r->ring[(t + j) % N];
         float *out = samples + (size_t)j * sv;
         switch (axis) {
         case 0:
-            for (size_t z = 0; z < nz; z++)
-                for (size_t y = 0; y < ny; y++) {
-                    const float *row = vol + nx * (y + ny * z) + s;
-                    float *dst = out + y + ny * z;
+            for (size_t z = 0; z < bz; z++)
+                for (size_t y = 0; y < by; y++) {
+                    const float *row = vol + bx * (y + by * z) + s;
+                    float *dst = out + y + by * z;
                     for (uint32_t g = 0; g < jb->count; g++)
                         dst[(size_t)g * len * sv] = row[(size_t)g * N];
                 }
             break;
         case 1:
-            for (size_t z = 0; z < nz; z++)
-                memcpy(out + nx * z, vol + nx * (s + ny * z),
-                       nx * sizeof *out);
+            for (size_t z = 0; z < bz; z++)
+                memcpy(out + bx * z, vol + bx * (s + by * z),
+                       bx * sizeof *out);
             break;
         default:
-            memcpy(out, vol + nx * ny * (size_t)s, nx * ny * sizeof *out);
+            memcpy(out, vol + bx * by * (size_t)s, bx * by * sizeof *out);
             break;
         }
     }
 }
 
-/* Encodes one slice-window from samples into its chunk at `chunk`. */
+/* Encodes one slice-window from samples into the chunk buffer. */
 static void encode_chunk(struct tvpal_swenc *enc, float *table,
                          const float *samples, const struct shardjob *j,
                          uint32_t slice, uint32_t t, uint32_t len,
@@ -1348,49 +1677,56 @@ static void encode_chunk(struct tvpal_swenc *enc, float *table,
     memset(chunk + ib, 0, cb - ib);
 }
 
-/* Lists the slice-windows of every shard that start at step t, in record
- * order, into r->jobs (x slices grouped), and lays out each shard's
- * record.  Returns the number of jobs. */
+/* Lists the slice-windows of the pass that start at step t, shard by
+ * shard in slice order (the order their CRCs join), into r->jobs (x slices
+ * grouped).  Returns the number of jobs. */
 static size_t plan_step(struct run *r, uint32_t t)
 {
     const uint32_t N = r->N;
+    const struct encode_pass *ps = r->pass;
     struct slicejob *jobs = r->jobs;
-    size_t njobs = 0;
+    size_t njobs = 0, chunks = 0;
     for (uint32_t q = 0; q < r->nshard; q++) {
         struct shardjob *j = &r->sj[q];
-        uint64_t off = TVPAL_RECORD_HEADER_BYTES;
-        j->nchunks = 0;
+        const unsigned a = j->axis;
+        if (!(ps->axes & (1u << a)))
+            continue;
         const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
-        for (uint32_t k = 0; k < j->h.slice_count; k++) {
-            uint32_t s = j->h.slice_begin + k;
+        uint32_t lo = j->h.slice_begin, hi = lo + j->h.slice_count;
+        lo = lo > ps->s0[a] ? lo : ps->s0[a];
+        hi = hi < ps->s1[a] ? hi : ps->s1[a];
+        for (uint32_t s = lo; s < hi; s++) {
             if (!tvpal_schedule_starts(s, t, N))
                 continue;
             uint32_t len = tvpal_schedule_len(s, t, N, r->T);
-            uint64_t cb = tvpal_chunk_bytes(len, j->h.slice_w, j->h.slice_h,
-                                            j->h.table_format);
             struct slicejob *prev = njobs ? &jobs[njobs - 1] : NULL;
             /* Extend the previous x group when this slice is the next of
              * its phase, in the same line, with the same window, and the
              * group's samples stay within the workspace. */
-            if (j->axis == 0 && prev && prev->sj == j && prev->len == len &&
+            if (a == 0 && prev && prev->sj == j && prev->len == len &&
                 s == prev->slice + prev->count * N &&
                 s / GROUP_SPAN == prev->slice / GROUP_SPAN &&
                 (uint64_t)(prev->count + 1) * len * sv <= r->group_cap)
                 prev->count++;
             else
-                jobs[njobs++] = (struct slicejob){j, s, 1, len, off};
-            off += cb;
-            j->nchunks++;
+                jobs[njobs++] = (struct slicejob){j, s, 1, len, chunks};
+            chunks++;
         }
-        j->payload = off - TVPAL_RECORD_HEADER_BYTES;
     }
     return njobs;
 }
 
-/* Encodes the planned slice-windows of step t into the record buffers,
- * one job per thread at a time. */
+static void report_progress(struct run *r, int last);
+
+/* Encodes the planned slice-windows of step t and writes each chunk in
+ * its place as it is made, one job per thread at a time; then joins the
+ * chunks' CRCs into their records in slice order.  Thread 0 reports
+ * progress between jobs, so a line comes within a long step too. */
 static void encode_step(struct run *r, uint32_t t, size_t njobs)
 {
+    int failed = 0;
+    struct tvpal_diag fail_d = {{0}};
+    const struct shardjob *fail_j = NULL;
 #ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 1)
 #endif
@@ -1404,109 +1740,153 @@ static void encode_step(struct run *r, uint32_t t, size_t njobs)
         const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
         const uint64_t cb = tvpal_chunk_bytes(jb->len, j->h.slice_w,
                                               j->h.slice_h, j->h.table_format);
-        gather(&r->o, r->ring, jb, t, r->samples[tid]);
-        for (uint32_t g = 0; g < jb->count; g++)
+        gather(r, jb, t, r->samples[tid]);
+        for (uint32_t g = 0; g < jb->count; g++) {
+            struct tvpal_diag d = {{0}};
             encode_chunk(r->enc[tid], r->tables[tid],
                          r->samples[tid] + (size_t)g * jb->len * sv, j,
-                         jb->slice + g * r->N, t, jb->len,
-                         j->rec + jb->off + g * cb, &r->dropped[tid]);
-    }
-}
-
-/* Record 0 holds every slice; later records hold one phase (at most
- * ceil(n / N) slices): gives the rest of the record buffers back. */
-static void shrink_records(struct run *r)
-{
-    for (uint32_t q = 0; q < r->nshard; q++) {
-        struct shardjob *j = &r->sj[q];
-        uint64_t cap = tvpal_round_up(
-            TVPAL_RECORD_HEADER_BYTES +
-                (uint64_t)((j->h.slice_count + r->N - 1) / r->N + 1) *
-                    tvpal_chunk_bytes(r->N, j->h.slice_w, j->h.slice_h,
-                                      j->h.table_format),
-            TVPAL_ALIGN);
-        if (cap < j->rec_cap) {
-            unsigned char *nb = realloc(j->rec, cap);
-            if (nb) {
-                j->rec = nb;
-                j->rec_cap = cap;
+                         jb->slice + g * r->N, t, jb->len, r->chunkbuf[tid],
+                         &r->dropped[tid]);
+            if (tvpal_shardw_put_chunk(j->w, t, jb->slice + g * r->N,
+                                       r->chunkbuf[tid], cb,
+                                       &r->jcrc[jb->crc_at + g], &d) < 0) {
+#ifdef _OPENMP
+#pragma omp critical(tvpal_fail)
+#endif
+                if (!failed) {
+                    failed = 1;
+                    fail_d = d;
+                    fail_j = j;
+                }
             }
         }
+        __atomic_add_fetch(&r->prog.work, (uint64_t)sv * jb->len * jb->count,
+                           __ATOMIC_RELAXED);
+        if (tid == 0)
+            report_progress(r, 0);
+    }
+    if (failed)
+        die_fail("%s/node-%u/axis-%c.tvps: %s", r->partial, fail_j->rank,
+                 "xyz"[fail_j->axis], fail_d.msg);
+    for (size_t i = 0; i < njobs; i++) {
+        const struct slicejob *jb = &r->jobs[i];
+        for (uint32_t g = 0; g < jb->count; g++)
+            if (tvpal_shardw_extend(jb->sj->w, t, jb->slice + g * r->N,
+                                    r->jcrc[jb->crc_at + g]) < 0)
+                die_fail("internal error: chunk of slice %u, step %u out of "
+                         "order", jb->slice + g * r->N, t);
     }
 }
 
-/* Seals and appends step t's record to every shard, then saves the
- * checkpoint: after it, a rerun resumes at t + 1. */
-static void write_step(struct run *r, uint32_t t)
+/* Saves the checkpoint after unit u (pass p, step t: u = p T + t + 1): a
+ * rerun resumes after it. */
+static void save_checkpoint(struct run *r, uint64_t u)
 {
     struct tvpal_diag d = {{0}};
-    int rc;
     for (uint32_t q = 0; q < r->nshard; q++) {
-        struct shardjob *j = &r->sj[q];
-        uint64_t bytes = tvpal_record_seal(j->rec, t, j->axis, j->nchunks,
-                                           j->payload);
-        if ((rc = tvpal_shardw_append(j->w, j->rec, bytes, &d)) < 0)
-            die_fail("%s/node-%u/axis-%c.tvps: %s", r->partial, j->rank,
-                     "xyz"[j->axis], lib_error(rc, &d));
+        for (uint32_t t = 0; t < r->T; t++) {
+            size_t i = (size_t)q * r->T + t;
+            tvpal_shardw_progress(r->sj[q].w, t, &r->ckp.filled[i],
+                                  &r->ckp.crc[i]);
+        }
+        r->ckp.missing[q] = (uint8_t)tvpal_shardw_missing(r->sj[q].w);
     }
-    if (t == 0 && r->T > 1)
-        shrink_records(r);
-    if ((rc = tvpal_checkpoint_save(r->partial, r->fp, t + 1, &r->st, &d)) < 0)
+    int rc = tvpal_checkpoint_save(r->partial, r->fp, u, &r->st, &r->ckp, &d);
+    if (rc < 0)
         die_fail("%s/checkpoint: cannot write: %s", r->partial,
                  lib_error(rc, &d));
 }
 
-/* Progress on stderr: a bar redrawn at most 5 times a second on a terminal,
- * otherwise a line every 30 s; always at the last step. */
-struct progress {
-    int tty;
-    double t0, last;
-};
-
-static void report_progress(const struct run *r, struct progress *p,
-                            uint32_t t)
+/* The work (voxel-samples, all axes) of the whole job, and of the units
+ * before u. */
+static uint64_t work_before(const struct run *r, uint64_t u)
 {
-    double now = tvpal_now();
-    if (r->o.quiet || (t + 1 != r->T && now - p->last < (p->tty ? 0.2 : 30.0)))
-        return;
-    char line[256];
-    double el = now - p->t0;
-    double done = (double)(t + 1 - r->start);
-    double rate = done * (double)r->nvox / (el > 0 ? el : 1e-9) / 1e6;
-    double eta = el / done * (double)(r->T - t - 1);
-    tvpal_progress_format(line, sizeof line, t + 1, r->T, "steps", rate,
-                          "Mvox-steps/s", eta, p->tty ? 30 : 0);
-    if (p->tty)
-        fprintf(stderr, "\r%s\033[K%s", line, t + 1 == r->T ? "\n" : "");
-    else
-        fprintf(stderr, PROG ": %s\n", line);
-    p->last = now;
+    uint64_t w = 0;
+    for (uint32_t p = 0; p < r->plan.npasses; p++) {
+        const struct encode_pass *ps = &r->plan.pass[p];
+        uint64_t per_step = 0;
+        for (unsigned a = 0; a < 3; a++)
+            if (ps->axes & (1u << a)) {
+                uint32_t n, sw, sh;
+                tvpal_axis_geometry(r->o.dims, a, &n, &sw, &sh);
+                per_step += (uint64_t)(ps->s1[a] - ps->s0[a]) * sw * sh;
+            }
+        /* Every slice has one sample per step, over its windows. */
+        uint64_t steps = u >= (uint64_t)(p + 1) * r->T ? r->T
+                         : u > (uint64_t)p * r->T ? u - (uint64_t)p * r->T : 0;
+        w += per_step * steps;
+    }
+    return w;
 }
 
-/* The streaming driver: for each step from r->start, reads what its
- * windows need (step t + N - 1 at most), encodes and writes its records
- * and checkpoints.  TVPAL_ENCODE_FAULT_AFTER=S (a test hook) kills the
- * process after S steps, as an interruption would. */
+/* Progress: `last` forces the closing line.  Work done counts the
+ * slice-windows encoded; reading counts as time, so the rate and ETA are
+ * of the whole job. */
+static void report_progress(struct run *r, int last)
+{
+    struct progress *p = &r->prog;
+    double now = tvpal_now();
+    if (p->quiet || (!last && now - p->last < (p->tty ? 0.2 : 30.0)))
+        return;
+    p->last = now;
+    char line[256];
+    const uint64_t done = __atomic_load_n(&p->work, __ATOMIC_RELAXED);
+    const double el = now - p->t0;
+    const double frac = p->total ? (double)done / (double)p->total : 1;
+    const double mine = (double)(done - p->work_at_start);
+    const double rate = mine / 3.0 / (el > 0 ? el : 1e-9) / 1e6;
+    const double eta = mine > 0 ? el / mine * (double)(p->total - done) : -1;
+    const uint32_t pm = (uint32_t)(frac * 1000.0 + 0.5);
+    tvpal_progress_format(line, sizeof line, pm, 1000, "permille", rate,
+                          "Mvox-steps/s", eta, p->tty ? 30 : 0);
+    if (p->tty)
+        fprintf(stderr, "\r%s\033[K%s", line, last ? "\n" : "");
+    else
+        fprintf(stderr, PROG ": %s\n", line);
+}
+
+/* The streaming driver: for each pass of the plan, for each step from
+ * the start, reads the box of what its windows need (step t + N - 1 at
+ * most), encodes and writes its chunks and checkpoints.
+ * TVPAL_ENCODE_FAULT_AFTER=S (a test hook) kills the process after S
+ * units (steps of passes), as an interruption would. */
 static void encode_steps(struct run *r)
 {
-    struct progress p = {isatty(STDERR_FILENO), tvpal_now(), 0};
+    struct progress *p = &r->prog;
     const char *fault = getenv("TVPAL_ENCODE_FAULT_AFTER");
     const long fault_after = fault ? atol(fault) : -1;
-    uint32_t loaded = r->start;
-    p.last = p.t0;
+    p->tty = isatty(STDERR_FILENO);
+    p->quiet = r->o.quiet;
+    p->t0 = p->last = tvpal_now();
+    p->total = work_before(r, (uint64_t)r->plan.npasses * r->T);
+    p->work = p->work_at_start = work_before(r, r->start);
     if (r->start && !r->o.quiet)
-        msg("resuming %s at timestep %u of %u", r->partial, r->start, r->T);
-    for (uint32_t t = r->start; t < r->T; t++) {
-        uint32_t need = t + r->N < r->T ? t + r->N : r->T;
-        for (; loaded < need; loaded++)
-            load_step(r, loaded, r->ring[loaded % r->N]);
-        encode_step(r, t, plan_step(r, t));
-        write_step(r, t);
-        if (fault_after >= 0 && (long)(t + 1) >= fault_after)
-            raise(SIGKILL);
-        report_progress(r, &p, t);
+        msg("resuming %s at timestep %llu of %u%s", r->partial,
+            (unsigned long long)(r->start % r->T), r->T, "");
+    uint64_t u = r->start;
+    for (uint32_t pi = (uint32_t)(u / r->T); pi < r->plan.npasses; pi++) {
+        r->pass = &r->plan.pass[pi];
+        if (u == (uint64_t)pi * r->T)
+            r->st.loaded = 0; /* a new pass: none of its steps counted */
+        uint32_t loaded = (uint32_t)(u - (uint64_t)pi * r->T);
+        for (uint32_t t = loaded; t < r->T; t++) {
+            uint32_t need = t + r->N < r->T ? t + r->N : r->T;
+            for (; loaded < need; loaded++) {
+                load_step(r, loaded, r->ring[loaded % r->N]);
+                report_progress(r, 0);
+            }
+            encode_step(r, t, plan_step(r, t));
+            u = (uint64_t)pi * r->T + t + 1;
+            if (t + 1 == r->T)
+                r->st.loaded = 0;
+            save_checkpoint(r, u);
+            if (fault_after >= 0 && (long)u >= fault_after)
+                raise(SIGKILL);
+            report_progress(r, 0);
+        }
     }
-    r->t_encode = tvpal_now() - p.t0;
+    report_progress(r, 1);
+    r->t_encode = tvpal_now() - p->t0;
 }
 
 /* ------------------------------------------------------------- finishing */
@@ -1747,25 +2127,34 @@ static void run_free(struct run *r)
 {
     prefetch_stop(r->pf);   /* before the input it reads is closed */
     for (uint32_t q = 0; q < r->nshard; q++)
-        free(r->sj[q].rec);
+        tvpal_shardw_free(r->sj[q].w);
     free(r->sj);
-    for (int i = 0; i < r->nthreads; i++) {
+    for (int i = 0; i < r->nthreads && r->enc; i++) {
         tvpal_swenc_free(r->enc[i]);
         free(r->samples[i]);
         free(r->tables[i]);
+        free(r->chunkbuf[i]);
+        free(r->scratch[i]);
         free(r->fine_local[i]);
     }
-    for (uint32_t i = 0; i < r->N; i++)
+    for (uint32_t i = 0; r->ring && i < r->N; i++)
         free(r->ring[i]);
     free(r->ring);
-    free(r->raw);
+    free(r->boxbuf);
     free(r->enc);
     free(r->dropped);
     free(r->samples);
     free(r->tables);
+    free(r->chunkbuf);
+    free(r->scratch);
     free(r->fine_local);
     free(r->jobs);
+    free(r->jcrc);
     free(r->fp);
+    free(r->ckp.filled);
+    free(r->ckp.crc);
+    free(r->ckp.missing);
+    encode_plan_free(&r->plan);
     tvpal_checkpoint_stats_free(&r->st);
     free(r->partial);
     for (int i = 0; i < r->o.ninputs; i++)
@@ -1793,12 +2182,14 @@ int main(int argc, char **argv)
     load_times(&r);
     warn_irregular_times(&r);
     check_output(&r);
-    open_partial(&r);
     setup_shards(&r);
+    choose_threads(&r);
+    make_plan(&r);
+    open_partial(&r);
     open_or_restart_writers(&r);
     setup_workspace(&r);
     if (r.in)
-        r.pf = prefetch_start(r.in, r.step_bytes);
+        r.pf = prefetch_start(r.in, r.plan.box_voxels_max);
     encode_steps(&r);
     check_missing(&r);
     warn_dominating_values(&r);

@@ -28,6 +28,7 @@ void tvpal_checkpoint_stats_reset(struct tvpal_checkpoint_stats *st)
     st->nonfinite = 0;
     st->missing = 0;
     st->loaded = 0;
+    st->counted = 0;
     if (st->fine)
         memset(st->fine, 0, TVPAL_CHECKPOINT_BINS * sizeof *st->fine);
 }
@@ -81,8 +82,9 @@ static char *checkpoint_path(const char *dir)
 }
 
 int tvpal_checkpoint_save(const char *dir, const char *fingerprint,
-                          uint32_t done,
+                          uint64_t done,
                           const struct tvpal_checkpoint_stats *st,
+                          const struct tvpal_checkpoint_progress *pr,
                           struct tvpal_diag *diag)
 {
     char hash[40], *buf = NULL, *path = NULL;
@@ -91,13 +93,25 @@ int tvpal_checkpoint_save(const char *dir, const char *fingerprint,
     FILE *f = open_memstream(&buf, &len);
     if (!f)
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "checkpoint text");
-    fprintf(f, "fingerprint %s\ndone %u\nloaded %u\nmin %a\nmax %a\n"
-            "nonfinite %llu\nmissing %llu\n", hash, done, st->loaded,
-            st->vmin, st->vmax, (unsigned long long)st->nonfinite,
+    fprintf(f, "fingerprint %s\ndone %llu\nloaded %u\ncounted %llu\n"
+            "min %a\nmax %a\nnonfinite %llu\nmissing %llu\n", hash,
+            (unsigned long long)done, st->loaded,
+            (unsigned long long)st->counted, st->vmin, st->vmax,
+            (unsigned long long)st->nonfinite,
             (unsigned long long)st->missing);
     for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++)
         if (st->fine[b])
             fprintf(f, "bin %u %llu\n", b, (unsigned long long)st->fine[b]);
+    for (uint32_t q = 0; pr && q < pr->nshard; q++) {
+        if (pr->missing[q])
+            fprintf(f, "missing-in %u\n", q);
+        for (uint32_t t = 0; t < pr->steps; t++) {
+            size_t i = (size_t)q * pr->steps + t;
+            if (pr->filled[i])
+                fprintf(f, "record %u %u %llu %08x\n", q, t,
+                        (unsigned long long)pr->filled[i], pr->crc[i]);
+        }
+    }
     int rc = fclose(f) != 0 ? TVPAL_E_NOMEM : 0;
     if (rc == 0 && !(path = checkpoint_path(dir)))
         rc = TVPAL_E_NOMEM;
@@ -151,31 +165,31 @@ static int keyed_double(const char *line, const char *key, double *out)
 
 /* Parses the fixed lines after the fingerprint into *done and st.  Returns
  * 0 or TVPAL_E_FORMAT naming the first bad line. */
-static int parse_head(char **save, uint32_t *done,
+static int parse_head(char **save, uint64_t *done,
                       struct tvpal_checkpoint_stats *st,
                       struct tvpal_diag *diag)
 {
-    static const char *const key[] = {"done", "loaded", "min", "max",
-                                      "nonfinite", "missing"};
-    static const uint64_t max[] = {UINT32_MAX, UINT32_MAX, 0, 0, UINT64_MAX,
-                                   UINT64_MAX};
-    uint64_t u[6] = {0};
+    static const char *const key[] = {"done", "loaded", "counted", "min",
+                                      "max", "nonfinite", "missing"};
+    static const uint64_t max[] = {UINT64_MAX, UINT32_MAX, UINT64_MAX, 0, 0,
+                                   UINT64_MAX, UINT64_MAX};
+    uint64_t u[7] = {0};
     double lo = 0, hi = 0;
-    for (int i = 0; i < 6; i++) {
+    for (int i = 0; i < 7; i++) {
         char *line = strtok_r(NULL, "\n", save);
         int bad = !line;
-        if (!bad && (i == 2 || i == 3))
-            bad = keyed_double(line, key[i], i == 2 ? &lo : &hi) < 0;
+        if (!bad && (i == 3 || i == 4))
+            bad = keyed_double(line, key[i], i == 3 ? &lo : &hi) < 0;
         else if (!bad)
             bad = keyed_u64(line, key[i], max[i], &u[i]) < 0;
         if (bad)
             return tvpal_diag_set(diag, TVPAL_E_FORMAT, "line %d: expected "
                                   "\"%s\"", i + 2, key[i]);
     }
-    const uint32_t d = (uint32_t)u[0], l = (uint32_t)u[1];
-    const uint64_t nf = u[4], miss = u[5];
-    *done = d;
-    st->loaded = l;
+    *done = u[0];
+    st->loaded = (uint32_t)u[1];
+    st->counted = u[2];
+    const uint64_t nf = u[5], miss = u[6];
     st->vmin = lo;
     st->vmax = hi;
     st->nonfinite = nf;
@@ -183,18 +197,66 @@ static int parse_head(char **save, uint32_t *done,
     return 0;
 }
 
+/* "record Q T FILLED CRC" into pr (bounds checked); 0 or -1. */
+static int parse_record(const char *line, struct tvpal_checkpoint_progress *pr)
+{
+    uint64_t q, t, filled;
+    const char *p = line + 7;
+    char *end;
+    if (take_u64(&p, UINT32_MAX, &q) < 0 || *p++ != ' ' ||
+        take_u64(&p, UINT32_MAX, &t) < 0 || *p++ != ' ' ||
+        take_u64(&p, UINT64_MAX, &filled) < 0 || *p++ != ' ')
+        return -1;
+    for (int i = 0; i < 8; i++) /* exactly 8 hex digits: no sign, no 0x */
+        if (!((p[i] >= '0' && p[i] <= '9') || (p[i] >= 'a' && p[i] <= 'f')))
+            return -1;
+    errno = 0;
+    unsigned long crc = strtoul(p, &end, 16);
+    if (errno || end != p + 8 || *end || crc > UINT32_MAX || !pr ||
+        q >= pr->nshard || t >= pr->steps)
+        return -1;
+    size_t i = (size_t)q * pr->steps + t;
+    pr->filled[i] = filled;
+    pr->crc[i] = (uint32_t)crc;
+    return 0;
+}
+
 /* Parses the "bin CLASS COUNT" lines (classes ascending) into st->fine and
- * their total into *sum.  Returns 0 or TVPAL_E_FORMAT. */
-static int parse_bins(char **save, struct tvpal_checkpoint_stats *st,
-                      uint64_t *sum, struct tvpal_diag *diag)
+ * their total into *sum, then the shards' "missing-in Q" and "record Q T
+ * FILLED CRC" lines into pr.  Returns 0 or TVPAL_E_FORMAT. */
+static int parse_rest(char **save, struct tvpal_checkpoint_stats *st,
+                      struct tvpal_checkpoint_progress *pr, uint64_t *sum,
+                      struct tvpal_diag *diag)
 {
     char *line;
     long prev = -1;
     *sum = 0;
     memset(st->fine, 0, TVPAL_CHECKPOINT_BINS * sizeof *st->fine);
+    if (pr) {
+        memset(pr->filled, 0, sizeof *pr->filled * pr->nshard * pr->steps);
+        memset(pr->crc, 0, sizeof *pr->crc * pr->nshard * pr->steps);
+        memset(pr->missing, 0, pr->nshard);
+    }
     while ((line = strtok_r(NULL, "\n", save))) {
         uint64_t b, c;
         const char *p = line + 4;
+        if (!strncmp(line, "record ", 7)) {
+            if (parse_record(line, pr) < 0)
+                return tvpal_diag_set(diag, TVPAL_E_FORMAT, "bad progress "
+                                      "line \"%.40s\"", line);
+            prev = TVPAL_CHECKPOINT_BINS; /* no bin after progress */
+            continue;
+        }
+        if (!strncmp(line, "missing-in ", 11)) {
+            p = line + 11;
+            if (take_u64(&p, UINT32_MAX, &b) < 0 || *p || !pr ||
+                b >= pr->nshard)
+                return tvpal_diag_set(diag, TVPAL_E_FORMAT, "bad line "
+                                      "\"%.40s\"", line);
+            pr->missing[b] = 1;
+            prev = TVPAL_CHECKPOINT_BINS;
+            continue;
+        }
         if (strncmp(line, "bin ", 4) ||
             take_u64(&p, TVPAL_CHECKPOINT_BINS - 1, &b) < 0 || *p++ != ' ' ||
             take_u64(&p, UINT64_MAX, &c) < 0 || *p || (long)b <= prev)
@@ -212,8 +274,10 @@ static int parse_bins(char **save, struct tvpal_checkpoint_stats *st,
 /* Parses a checkpoint's text (modified in place); see tvpal_checkpoint_load
  * for what is checked. */
 static int parse_checkpoint(char *text, const char *fingerprint,
-                            uint32_t steps, uint64_t step_voxels,
-                            uint32_t *done, struct tvpal_checkpoint_stats *st,
+                            uint64_t max_done, uint32_t steps,
+                            uint64_t step_voxels, uint64_t *done,
+                            struct tvpal_checkpoint_stats *st,
+                            struct tvpal_checkpoint_progress *pr,
                             struct tvpal_diag *diag)
 {
     char hash[40], *save = NULL;
@@ -230,23 +294,27 @@ static int parse_checkpoint(char *text, const char *fingerprint,
     if (strcmp(line + 12, hash))
         return tvpal_diag_set(diag, TVPAL_E_MISMATCH, "written by another "
                               "job (other options or inputs)");
-    uint64_t sum = 0, want;
+    uint64_t sum = 0, most;
     int rc = parse_head(&save, done, st, diag);
     if (rc == 0)
-        rc = parse_bins(&save, st, &sum, diag);
+        rc = parse_rest(&save, st, pr, &sum, diag);
     if (rc < 0)
         return rc;
-    if (*done > steps || st->loaded > steps || st->loaded < *done)
-        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "done %u, loaded %u of "
-                              "%u steps", *done, st->loaded, steps);
-    if (__builtin_mul_overflow((uint64_t)st->loaded, step_voxels, &want) ||
-        st->missing > want || sum != want - st->missing)
+    if (*done > max_done || st->loaded > steps)
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "done %llu of %llu, "
+                              "loaded %u of %u steps",
+                              (unsigned long long)*done,
+                              (unsigned long long)max_done, st->loaded, steps);
+    if (__builtin_mul_overflow((uint64_t)steps, step_voxels, &most) ||
+        st->counted > most || st->missing > st->counted ||
+        sum != st->counted - st->missing)
         return tvpal_diag_set(diag, TVPAL_E_FORMAT, "histogram holds %llu "
-                              "values; expected %u steps of %llu voxels, "
-                              "%llu of them missing",
-                              (unsigned long long)sum, st->loaded,
-                              (unsigned long long)step_voxels,
-                              (unsigned long long)st->missing);
+                              "values; expected %llu counted, %llu of them "
+                              "missing (at most %u steps of %llu voxels)",
+                              (unsigned long long)sum,
+                              (unsigned long long)st->counted,
+                              (unsigned long long)st->missing, steps,
+                              (unsigned long long)step_voxels);
     if (sum && !(st->vmin <= st->vmax))
         return tvpal_diag_set(diag, TVPAL_E_FORMAT, "min %g > max %g",
                               st->vmin, st->vmax);
@@ -254,8 +322,10 @@ static int parse_checkpoint(char *text, const char *fingerprint,
 }
 
 int tvpal_checkpoint_load(const char *dir, const char *fingerprint,
-                          uint32_t steps, uint64_t step_voxels,
-                          uint32_t *done, struct tvpal_checkpoint_stats *st,
+                          uint64_t max_done, uint32_t steps,
+                          uint64_t step_voxels, uint64_t *done,
+                          struct tvpal_checkpoint_stats *st,
+                          struct tvpal_checkpoint_progress *pr,
                           struct tvpal_diag *diag)
 {
     char *path = checkpoint_path(dir), *text = NULL;
@@ -264,8 +334,8 @@ int tvpal_checkpoint_load(const char *dir, const char *fingerprint,
         tvpal_diag_set(diag, rc, "%s/checkpoint: %s", dir,
                        tvpal_strerror(rc));
     else
-        rc = parse_checkpoint(text, fingerprint, steps, step_voxels, done, st,
-                              diag);
+        rc = parse_checkpoint(text, fingerprint, max_done, steps, step_voxels,
+                              done, st, pr, diag);
     if (rc < 0) {
         *done = 0;
         tvpal_checkpoint_stats_reset(st);

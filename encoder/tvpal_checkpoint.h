@@ -30,7 +30,20 @@ struct tvpal_checkpoint_stats {
     uint64_t nonfinite;      /* NaN/inf values replaced (--nan-as) */
     uint64_t missing;        /* missing values (not in the histogram) */
     uint64_t *fine;          /* TVPAL_CHECKPOINT_BINS counters, owned */
-    uint32_t loaded;         /* timesteps accounted */
+    uint32_t loaded;         /* timesteps of the current pass accounted */
+    uint64_t counted;        /* values accounted: the histogram's sum plus
+                              * missing */
+};
+
+/* What the shards written so far hold (placed writing, tvpal_shard.h):
+ * for each of nshard shards and each of its `steps` records the payload
+ * bytes written and their CRC, and whether a chunk had missing entries.
+ * Arrays shard-major (shard q, record t at q * steps + t), caller-owned. */
+struct tvpal_checkpoint_progress {
+    uint32_t nshard, steps;
+    uint64_t *filled;
+    uint32_t *crc;
+    uint8_t *missing;
 };
 
 /* Allocates st->fine and sets st empty.  0 or TVPAL_E_NOMEM (then st->fine
@@ -50,27 +63,36 @@ void tvpal_checkpoint_stats_free(struct tvpal_checkpoint_stats *st);
 int tvpal_checkpoint_fingerprint(const char *params, char *const *inputs,
                                  int ninputs, char **out);
 
-/* Atomically replaces DIR/checkpoint (via a temporary, tvpal_out) with: steps
- * 0 .. done-1 are in every shard, statistics st, job fingerprint.  Only a
- * hash and the length of the fingerprint are stored.  0, TVPAL_E_NOMEM,
- * TVPAL_E_OPEN or TVPAL_E_WRITE, with the cause in diag (optional). */
+/* Atomically replaces DIR/checkpoint (via a temporary, tvpal_out) with: the
+ * first `done` units of work (pass p, step t counts as p * T + t + 1) are
+ * in the shards, statistics st, the shards' progress pr (may be NULL: none
+ * kept), job fingerprint.  Only a hash and the length of the fingerprint
+ * are stored.  0, TVPAL_E_NOMEM, TVPAL_E_OPEN or TVPAL_E_WRITE, with the
+ * cause in diag (optional). */
 int tvpal_checkpoint_save(const char *dir, const char *fingerprint,
-                          uint32_t done,
+                          uint64_t done,
                           const struct tvpal_checkpoint_stats *st,
+                          const struct tvpal_checkpoint_progress *pr,
                           struct tvpal_diag *diag);
 
-/* Reads DIR/checkpoint of the job `fingerprint` with `steps` timesteps of
- * `step_voxels` voxels.  On success sets *done and overwrites st (whose
- * array must be allocated); the checkpoint is consistent: done <= loaded <=
- * steps and the histogram holds loaded * step_voxels - missing values.  On failure
- * *done is 0 and st is empty, so the caller can start the job over.
+/* Reads DIR/checkpoint of the job `fingerprint` of at most max_done units,
+ * with `steps` timesteps of `step_voxels` voxels.  On success sets *done,
+ * overwrites st (whose array must be allocated) and, when pr is non-NULL,
+ * pr's arrays (sized by pr->nshard and pr->steps; entries not in the
+ * checkpoint are 0); the checkpoint is consistent: done <= max_done,
+ * loaded <= steps, counted <= steps * step_voxels, the histogram holds
+ * counted - missing values and every progress line names a shard and
+ * record of pr.  On failure *done is 0 and st is empty, so the caller can
+ * start the job over.
  * Returns 0, TVPAL_E_OPEN or TVPAL_E_READ (no readable checkpoint),
  * TVPAL_E_MISMATCH (the checkpoint of another job), TVPAL_E_TRUNC (its last
  * line is incomplete), TVPAL_E_FORMAT (a malformed or inconsistent line,
  * named in diag) or TVPAL_E_NOMEM. */
 int tvpal_checkpoint_load(const char *dir, const char *fingerprint,
-                          uint32_t steps, uint64_t step_voxels,
-                          uint32_t *done, struct tvpal_checkpoint_stats *st,
+                          uint64_t max_done, uint32_t steps,
+                          uint64_t step_voxels, uint64_t *done,
+                          struct tvpal_checkpoint_stats *st,
+                          struct tvpal_checkpoint_progress *pr,
                           struct tvpal_diag *diag);
 
 /* Removes DIR/checkpoint (done when the output is complete).  A missing

@@ -45,6 +45,7 @@ static void fill(struct tvpal_checkpoint_stats *st)
     st->vmax = 0x1.23456789abcdep+3; /* needs every bit of %a */
     st->nonfinite = 7;
     st->loaded = 3;
+    st->counted = 30;
     st->fine[0] = 1;
     st->fine[5] = 12;
     st->fine[40000] = 14;
@@ -82,14 +83,16 @@ static void expect_load(const char *what, const char *fp, uint32_t steps,
 {
     struct tvpal_checkpoint_stats st;
     struct tvpal_diag d = {{0}};
-    uint32_t done = 99;
+    uint64_t done = 99;
     REQUIRE(tvpal_checkpoint_stats_init(&st) == 0, "init");
     fill(&st);
-    int rc = tvpal_checkpoint_load(g_dir, fp, steps, vox, &done, &st, &d);
+    int rc = tvpal_checkpoint_load(g_dir, fp, steps, steps, vox, &done, &st,
+                                   NULL, &d);
     CHECK(rc == want, "%s: rc %d (%s), expected %d (%s); diag \"%s\"", what,
           rc, tvpal_strerror(rc), want, tvpal_strerror(want), d.msg);
     if (want < 0) {
-        CHECK(done == 0, "%s: done %u after refusal", what, done);
+        CHECK(done == 0, "%s: done %llu after refusal", what,
+              (unsigned long long)done);
         CHECK(is_empty(&st), "%s: statistics not reset", what);
         CHECK(d.msg[0] != 0, "%s: no detail in diag", what);
     }
@@ -100,17 +103,19 @@ static void test_round_trip(void)
 {
     struct tvpal_checkpoint_stats a, b;
     struct tvpal_diag d = {{0}};
-    uint32_t done = 0;
+    uint64_t done = 0;
     REQUIRE(tvpal_checkpoint_stats_init(&a) == 0 &&
                 tvpal_checkpoint_stats_init(&b) == 0, "init");
     CHECK(is_empty(&a), "init gives empty statistics");
     fill(&a);
-    CHECK(tvpal_checkpoint_save(g_dir, "job A", 2, &a, &d) == 0, "save: %s",
+    CHECK(tvpal_checkpoint_save(g_dir, "job A", 2, &a, NULL, &d) == 0, "save: %s",
           d.msg);
     CHECK(!temporaries_left(), "temporary file left");
-    int rc = tvpal_checkpoint_load(g_dir, "job A", STEPS, VOX, &done, &b, &d);
+    int rc = tvpal_checkpoint_load(g_dir, "job A", STEPS, STEPS, VOX, &done,
+                                   &b, NULL, &d);
     CHECK(rc == 0, "load: %s (%s)", tvpal_strerror(rc), d.msg);
-    CHECK(done == 2, "done %u", done);
+    CHECK(done == 2, "done %llu", (unsigned long long)done);
+    CHECK(b.counted == 30, "counted %llu", (unsigned long long)b.counted);
     CHECK(b.missing == 2, "missing %llu", (unsigned long long)b.missing);
     CHECK(b.loaded == 3 && b.nonfinite == 7, "loaded %u nonfinite %llu",
           b.loaded, (unsigned long long)b.nonfinite);
@@ -121,15 +126,19 @@ static void test_round_trip(void)
     /* Saving again replaces it; diag may be NULL. */
     a.loaded = 4;
     a.fine[7] = 10;
-    CHECK(tvpal_checkpoint_save(g_dir, "job A", 4, &a, NULL) == 0, "resave");
-    CHECK(tvpal_checkpoint_load(g_dir, "job A", STEPS, VOX, &done, &b,
-                                NULL) == 0 && done == 4 && b.fine[7] == 10,
-          "second checkpoint: done %u", done);
+    a.counted += 10;
+    CHECK(tvpal_checkpoint_save(g_dir, "job A", 4, &a, NULL, NULL) == 0,
+          "resave");
+    CHECK(tvpal_checkpoint_load(g_dir, "job A", STEPS, STEPS, VOX, &done, &b,
+                                NULL, NULL) == 0 && done == 4 &&
+              b.fine[7] == 10,
+          "second checkpoint: done %llu", (unsigned long long)done);
     /* Nothing loaded yet: the infinite range survives the text form. */
     tvpal_checkpoint_stats_reset(&a);
-    CHECK(tvpal_checkpoint_save(g_dir, "job A", 0, &a, NULL) == 0, "save 0");
-    CHECK(tvpal_checkpoint_load(g_dir, "job A", STEPS, VOX, &done, &b,
-                                NULL) == 0 && done == 0 && is_empty(&b),
+    CHECK(tvpal_checkpoint_save(g_dir, "job A", 0, &a, NULL, NULL) == 0,
+          "save 0");
+    CHECK(tvpal_checkpoint_load(g_dir, "job A", STEPS, STEPS, VOX, &done, &b,
+                                NULL, NULL) == 0 && done == 0 && is_empty(&b),
           "empty checkpoint round trip");
     tvpal_checkpoint_stats_free(&a);
     tvpal_checkpoint_stats_free(&b);
@@ -161,7 +170,7 @@ static void test_fingerprint(void)
     struct tvpal_checkpoint_stats st;
     REQUIRE(tvpal_checkpoint_stats_init(&st) == 0, "init");
     fill(&st);
-    CHECK(tvpal_checkpoint_save(g_dir, f1, 3, &st, NULL) == 0, "save");
+    CHECK(tvpal_checkpoint_save(g_dir, f1, 3, &st, NULL, NULL) == 0, "save");
     expect_load("other options", f3, STEPS, VOX, TVPAL_E_MISMATCH);
     expect_load("changed input", f4, STEPS, VOX, TVPAL_E_MISMATCH);
     expect_load("same job", f1, STEPS, VOX, 0);
@@ -182,7 +191,7 @@ static void tamper(const char *what, const char *from, const char *to,
     struct tvpal_checkpoint_stats st;
     REQUIRE(tvpal_checkpoint_stats_init(&st) == 0, "init");
     fill(&st);
-    REQUIRE(tvpal_checkpoint_save(g_dir, "job", 3, &st, NULL) == 0, "save");
+    REQUIRE(tvpal_checkpoint_save(g_dir, "job", 3, &st, NULL, NULL) == 0, "save");
     tvpal_checkpoint_stats_free(&st);
     char *text = read_text(), *p = strstr(text, from);
     REQUIRE(p, "%s: \"%s\" not in the checkpoint", what, from);
@@ -200,7 +209,7 @@ static void test_damaged(void)
     struct tvpal_checkpoint_stats st;
     REQUIRE(tvpal_checkpoint_stats_init(&st) == 0, "init");
     fill(&st);
-    REQUIRE(tvpal_checkpoint_save(g_dir, "job", 3, &st, NULL) == 0, "save");
+    REQUIRE(tvpal_checkpoint_save(g_dir, "job", 3, &st, NULL, NULL) == 0, "save");
     char *text = read_text();
     size_t len = strlen(text);
     /* Truncated inside the last line, at a line end (a histogram line
@@ -220,7 +229,8 @@ static void test_damaged(void)
     write_text(text, len);
     expect_load("intact", "job", STEPS, VOX, 0);
     expect_load("fewer steps than loaded", "job", 2, VOX, TVPAL_E_FORMAT);
-    expect_load("other voxel count", "job", STEPS, VOX + 1, TVPAL_E_FORMAT);
+    expect_load("more values than steps of voxels", "job", STEPS, 4,
+                TVPAL_E_FORMAT);
     free(text);
     tvpal_checkpoint_stats_free(&st);
     /* Tampered lines. */
@@ -231,7 +241,9 @@ static void test_damaged(void)
            TVPAL_E_FORMAT);
     tamper("missing changed", "missing 2\n", "missing 3\n", TVPAL_E_FORMAT);
     tamper("missing line gone", "missing 2\n", "", TVPAL_E_FORMAT);
-    tamper("done beyond loaded", "done 3\n", "done 4\n", TVPAL_E_FORMAT);
+    tamper("done beyond the job", "done 3\n", "done 99\n", TVPAL_E_FORMAT);
+    tamper("counted changed", "counted 30\n", "counted 31\n",
+           TVPAL_E_FORMAT);
     tamper("done missing", "done 3\n", "", TVPAL_E_FORMAT);
     tamper("fingerprint line", "fingerprint ", "fingerprnt ", TVPAL_E_FORMAT);
     tamper("hash changed", "fingerprint ", "fingerprint 0", TVPAL_E_MISMATCH);
@@ -239,7 +251,8 @@ static void test_damaged(void)
            TVPAL_E_FORMAT);
     /* Numbers that sscanf's %u and %llu took wrapped, signed or followed
      * by text: each would read as the good value. */
-    tamper("done wrapping past 2^32", "done 3\n", "done 4294967299\n",
+    tamper("done wrapping past 2^64", "done 3\n",
+           "done 18446744073709551619\n",
            TVPAL_E_FORMAT);
     tamper("done with trailing text", "done 3\n", "done 3 x\n",
            TVPAL_E_FORMAT);
@@ -251,6 +264,47 @@ static void test_damaged(void)
            TVPAL_E_FORMAT);
     tamper("nonfinite overflowing", "nonfinite 7\n",
            "nonfinite 18446744073709551623\n", TVPAL_E_FORMAT);
+}
+
+/* Shard progress lines round trip; one naming a shard or record the job
+ * does not have is refused. */
+static void test_progress(void)
+{
+    struct tvpal_checkpoint_stats st;
+    uint64_t filled[2 * 5] = {0}, f2[2 * 5];
+    uint32_t crc[2 * 5] = {0}, c2[2 * 5];
+    uint8_t miss[2] = {0, 1}, m2[2];
+    struct tvpal_checkpoint_progress pr = {2, 5, filled, crc, miss},
+                                     back = {2, 5, f2, c2, m2};
+    filled[0] = 4096;
+    crc[0] = 0xdeadbeef;
+    filled[7] = 128;
+    crc[7] = 0x00000001;
+    REQUIRE(tvpal_checkpoint_stats_init(&st) == 0, "init");
+    fill(&st);
+    REQUIRE(tvpal_checkpoint_save(g_dir, "job", 3, &st, &pr, NULL) == 0,
+            "save");
+    uint64_t done = 0;
+    memset(f2, 0xff, sizeof f2);
+    CHECK(tvpal_checkpoint_load(g_dir, "job", STEPS, STEPS, VOX, &done, &st,
+                                &back, NULL) == 0 && done == 3, "load");
+    CHECK(!memcmp(f2, filled, sizeof f2) && !memcmp(c2, crc, sizeof c2) &&
+              m2[0] == 0 && m2[1] == 1, "progress round trip");
+    struct tvpal_checkpoint_progress small = {1, 5, f2, c2, m2};
+    CHECK(tvpal_checkpoint_load(g_dir, "job", STEPS, STEPS, VOX, &done, &st,
+                                &small, NULL) == TVPAL_E_FORMAT,
+          "record of a shard the job lacks refused");
+    fill(&st);
+    char *text = read_text();
+    char *p = strstr(text, "record 1 2 128 00000001");
+    REQUIRE(p, "record line written: %s", text);
+    memcpy(p + 16, "x", 1);
+    write_text(text, strlen(text));
+    CHECK(tvpal_checkpoint_load(g_dir, "job", STEPS, STEPS, VOX, &done, &st,
+                                &back, NULL) == TVPAL_E_FORMAT,
+          "bad CRC text refused");
+    free(text);
+    tvpal_checkpoint_stats_free(&st);
 }
 
 static void test_missing(void)
@@ -266,7 +320,7 @@ static void test_missing(void)
     fill(&st);
     char nodir[300];
     snprintf(nodir, sizeof nodir, "%s/none", g_dir);
-    int rc = tvpal_checkpoint_save(nodir, "job", 1, &st, &d);
+    int rc = tvpal_checkpoint_save(nodir, "job", 1, &st, NULL, &d);
     CHECK(rc == TVPAL_E_OPEN, "save into a missing directory: %d", rc);
     CHECK(strstr(d.msg, "none/checkpoint: cannot create") &&
               strstr(d.msg, "No such file"),
@@ -283,6 +337,7 @@ int main(void)
     test_round_trip();
     test_fingerprint();
     test_damaged();
+    test_progress();
     test_missing();
     tvpal_rmtree(g_dir);
     return tt_done("test-checkpoint");

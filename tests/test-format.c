@@ -158,8 +158,12 @@ static void test_placed(void)
                   strstr(d.msg, "record 0"), "incomplete refused: %s", d.msg);
         REQUIRE(tvpal_shardw_reopen_placed(&p, pp, &h, &d) == 0, "reopen");
         for (uint32_t t = 0; t < h.steps; t++)
-            CHECK(tvpal_shardw_set_progress(p, t, filled[t], crcs[t]) == 0,
-                  "set progress");
+            CHECK(tvpal_shardw_set_progress(p, t, filled[t], crcs[t], &d) ==
+                      0, "set progress: %s", d.msg);
+        if (filled[0] > 0)
+            CHECK(tvpal_shardw_set_progress(p, 0, filled[0], crcs[0] ^ 1,
+                                            NULL) == TVPAL_E_CHECKSUM,
+                  "progress whose bytes differ refused");
         REQUIRE(tvpal_shardw_finish(p, &d) == 0, "finish placed: %s", d.msg);
         size_t na, np;
         unsigned char *a = slurp(pa, &na), *b = slurp(pp, &np);

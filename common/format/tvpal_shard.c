@@ -452,10 +452,36 @@ void tvpal_shardw_progress(const struct tvpal_shardw *w, uint32_t t,
 }
 
 int tvpal_shardw_set_progress(struct tvpal_shardw *w, uint32_t t,
-                              uint64_t filled, uint32_t crc)
+                              uint64_t filled, uint32_t crc,
+                              struct tvpal_diag *diag)
 {
     if (!w->rec_off || t >= w->h.steps || filled > w->payload[t])
-        return TVPAL_E_INVAL;
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "record %u: %llu payload "
+                              "bytes is more than it has", t,
+                              (unsigned long long)filled);
+    /* Read back what the checkpoint says is there: chunks written after
+     * the last sync may be lost (power loss), and a record must not get a
+     * header whose CRC its bytes do not have. */
+    static const uint64_t block = 1u << 20;
+    unsigned char *buf = malloc(filled < block ? (filled ? filled : 1)
+                                               : block);
+    if (!buf)
+        return TVPAL_E_NOMEM;
+    uint32_t c = 0;
+    uint64_t base = w->rec_off[t] + TVPAL_RECORD_HEADER_BYTES;
+    int rc = 0;
+    for (uint64_t at = 0; at < filled && rc == 0; at += block) {
+        uint64_t n = filled - at < block ? filled - at : block;
+        rc = pread_all(w->fd, buf, n, base + at);
+        c = tvpal_crc32c(c, buf, n);
+    }
+    free(buf);
+    if (rc < 0)
+        return tvpal_diag_set(diag, rc, "record %u: cannot read back", t);
+    if (c != crc)
+        return tvpal_diag_set(diag, TVPAL_E_CHECKSUM, "record %u: the %llu "
+                              "bytes written do not have the checkpoint's "
+                              "CRC", t, (unsigned long long)filled);
     w->filled[t] = filled;
     w->crc[t] = crc;
     return 0;

@@ -95,11 +95,16 @@ int tvpal_shardw_extend(struct tvpal_shardw *w, uint32_t t, uint32_t s,
                         uint32_t crc);
 
 /* A record's progress (bytes of payload added, their CRC) and whether a
- * chunk had missing entries: what a checkpoint keeps to resume. */
+ * chunk had missing entries: what a checkpoint keeps to resume.
+ * set_progress reads the `filled` bytes back and checks their CRC: 0,
+ * TVPAL_E_INVAL (more than the record's payload), TVPAL_E_READ,
+ * TVPAL_E_TRUNC, TVPAL_E_NOMEM or TVPAL_E_CHECKSUM (the bytes are not the
+ * ones the checkpoint saw written), named in diag. */
 void tvpal_shardw_progress(const struct tvpal_shardw *w, uint32_t t,
                            uint64_t *filled, uint32_t *crc);
 int tvpal_shardw_set_progress(struct tvpal_shardw *w, uint32_t t,
-                              uint64_t filled, uint32_t crc);
+                              uint64_t filled, uint32_t crc,
+                              struct tvpal_diag *diag);
 int tvpal_shardw_missing(const struct tvpal_shardw *w);
 void tvpal_shardw_set_missing(struct tvpal_shardw *w, int missing);
 

@@ -494,3 +494,28 @@ uint64_t tvpal_input_inflated_chunks(void)
 {
     return tvpal_input_hdf5_inflated();
 }
+
+/* Provisional box read: the whole step into a scratch step, then the box
+ * cut from it (the backends' own box reads replace this). */
+int tvpal_input_read_box(struct tvpal_input *in, uint32_t t,
+                         const uint32_t lo[3], const uint32_t n[3],
+                         float *dst, struct tvpal_diag *diag)
+{
+    const uint32_t *dm = in->info.dims;
+    for (int a = 0; a < 3; a++)
+        if (n[a] < 1 || lo[a] > dm[a] || n[a] > dm[a] - lo[a])
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "box outside the "
+                                  "volume");
+    size_t nv = (size_t)dm[0] * dm[1] * dm[2];
+    float *all = malloc(nv * sizeof *all);
+    if (!all)
+        return TVPAL_E_NOMEM;
+    int rc = tvpal_input_read(in, t, all, diag);
+    for (size_t z = 0; rc == 0 && z < n[2]; z++)
+        for (size_t y = 0; y < n[1]; y++)
+            memcpy(dst + n[0] * (y + (size_t)n[1] * z),
+                   all + lo[0] + dm[0] * (lo[1] + y + dm[1] * (lo[2] + z)),
+                   n[0] * sizeof *dst);
+    free(all);
+    return rc;
+}

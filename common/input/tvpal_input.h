@@ -125,6 +125,12 @@ enum tvpal_input_format tvpal_input_format(const struct tvpal_input *in);
 int tvpal_input_read(struct tvpal_input *in, uint32_t t, float *dst,
                      struct tvpal_diag *diag);
 
+/* The box [lo, lo + n) (x, y, z) of timestep t into dst: n[0]*n[1]*n[2]
+ * floats, x fastest; the values tvpal_input_read gives there. */
+int tvpal_input_read_box(struct tvpal_input *in, uint32_t t,
+                         const uint32_t lo[3], const uint32_t n[3],
+                         float *dst, struct tvpal_diag *diag);
+
 /* The time value of step t (has_times), else t. */
 double tvpal_input_time(const struct tvpal_input *in, uint32_t t);
 
