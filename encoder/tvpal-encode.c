@@ -568,9 +568,10 @@ struct slicejob {
  * a voxel of a window of length L counts L), out of `total`. */
 struct progress {
     int tty, quiet;
-    double t0, last;
+    double t0, last, interval;  /* seconds between lines */
     uint64_t work, total;    /* work is added to atomically */
     uint64_t work_at_start;  /* a resumed job's share already done */
+    uint64_t unit, units;    /* the step being done (pass * T + step), of */
 };
 
 /* One encoding run: the job, its output and the workspaces, set up by
@@ -1826,7 +1827,7 @@ static void report_progress(struct run *r, int last)
 {
     struct progress *p = &r->prog;
     double now = tvpal_now();
-    if (p->quiet || (!last && now - p->last < (p->tty ? 0.2 : 30.0)))
+    if (p->quiet || (!last && now - p->last < p->interval))
         return;
     p->last = now;
     char line[256];
@@ -1836,9 +1837,12 @@ static void report_progress(struct run *r, int last)
     const double mine = (double)(done - p->work_at_start);
     const double rate = mine / 3.0 / (el > 0 ? el : 1e-9) / 1e6;
     const double eta = mine > 0 ? el / mine * (double)(p->total - done) : -1;
-    const uint32_t pm = (uint32_t)(frac * 1000.0 + 0.5);
-    tvpal_progress_format(line, sizeof line, pm, 1000, "permille", rate,
-                          "Mvox-steps/s", eta, p->tty ? 30 : 0);
+    (void)frac;
+    /* Steps over all passes ("pass-steps" when there are several). */
+    tvpal_progress_format(line, sizeof line, last ? p->units : p->unit,
+                          p->units, r->plan.npasses > 1 ? "pass-steps"
+                                                        : "steps",
+                          rate, "Mvox-steps/s", eta, p->tty ? 30 : 0);
     if (p->tty)
         fprintf(stderr, "\r%s\033[K%s", line, last ? "\n" : "");
     else
@@ -1857,9 +1861,15 @@ static void encode_steps(struct run *r)
     const long fault_after = fault ? atol(fault) : -1;
     p->tty = isatty(STDERR_FILENO);
     p->quiet = r->o.quiet;
+    p->interval = p->tty ? 0.2 : 30.0;
+    /* TVPAL_PROGRESS_INTERVAL=S (a test hook): a line every S seconds. */
+    const char *iv = getenv("TVPAL_PROGRESS_INTERVAL");
+    if (iv && atof(iv) > 0)
+        p->interval = atof(iv);
     p->t0 = p->last = tvpal_now();
     p->total = work_before(r, (uint64_t)r->plan.npasses * r->T);
     p->work = p->work_at_start = work_before(r, r->start);
+    p->units = (uint64_t)r->plan.npasses * r->T;
     if (r->start && !r->o.quiet)
         msg("resuming %s at timestep %llu of %u%s", r->partial,
             (unsigned long long)(r->start % r->T), r->T, "");
@@ -1871,6 +1881,7 @@ static void encode_steps(struct run *r)
         uint32_t loaded = (uint32_t)(u - (uint64_t)pi * r->T);
         for (uint32_t t = loaded; t < r->T; t++) {
             uint32_t need = t + r->N < r->T ? t + r->N : r->T;
+            p->unit = (uint64_t)pi * r->T + t;
             for (; loaded < need; loaded++) {
                 load_step(r, loaded, r->ring[loaded % r->N]);
                 report_progress(r, 0);
@@ -2114,13 +2125,14 @@ static void print_summary(const struct run *r)
     const double vts = (double)r->nvox * r->T, te = r->t_encode;
     printf("encoded %s: steps=%u window=%u nodes=%u bytes=%llu ratio=%.3f "
            "bpv=%.4f seconds=%.3f rate=%.2fM vox-steps/s threads=%d "
-           "missing=%llu\n",
+           "missing=%llu passes=%u\n",
            r->o.outdir, r->T, r->N, r->o.nodes,
            (unsigned long long)total_bytes,
            (double)(r->step_bytes * r->T) / axis_bytes,
            axis_bytes * 8.0 / vts, te,
-           (double)(r->T - r->start) * r->nvox / (te > 0 ? te : 1e-9) / 1e6,
-           r->nthreads, (unsigned long long)r->st.missing);
+           (double)(r->prog.work - r->prog.work_at_start) / 3.0 /
+               (te > 0 ? te : 1e-9) / 1e6,
+           r->nthreads, (unsigned long long)r->st.missing, r->plan.npasses);
 }
 
 static void run_free(struct run *r)
