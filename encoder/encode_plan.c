@@ -83,10 +83,14 @@ int encode_plan_make(const struct encode_job *j, struct encode_plan *p)
             uint32_t s = j->slab_lo[a] + q * (n / P) + (q < n % P ? q : n % P);
             uint32_t k = n / P + (q < n % P);
             add_pass(p, j, a, s, k);
-            uint64_t v = encode_box_voxels(&p->pass[p->npasses - 1].box);
+            const struct encode_box *b = &p->pass[p->npasses - 1].box;
+            uint64_t v = encode_box_voxels(b);
             if (v > p->box_voxels_max)
                 p->box_voxels_max = v;
-            p->voxels_read += v * j->T;
+            /* Read per plane: from the box's first voxel to its last. */
+            p->voxels_read += (uint64_t)b->n[2] *
+                              ((uint64_t)(b->n[1] - 1) * j->dims[0] + b->n[0]) *
+                              j->T;
         }
     }
     p->peak = j->fixed + p->box_voxels_max * bpv;

@@ -65,8 +65,10 @@ struct encode_plan {
     uint64_t peak;               /* estimated bytes of the largest pass */
     uint64_t min_limit;          /* the smallest limit this job can have */
     uint64_t box_voxels_max;     /* largest box: the ring's size */
-    uint64_t voxels_read;        /* box voxels read over all passes and
-                                  * steps */
+    uint64_t voxels_read;        /* voxels of a raw file read over all
+                                  * passes and steps: each plane of a box
+                                  * from its first voxel to its last (an
+                                  * x slab's rows whole) */
 };
 
 /* Makes the plan of job j.  0; TVPAL_E_RANGE when even one slice per pass

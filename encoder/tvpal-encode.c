@@ -19,6 +19,7 @@
 #include "tvpal_checkpoint.h"
 #include "tvpal_cli.h"
 #include "tvpal_clock.h"
+#include "tvpal_comm.h"
 #include "tvpal_dataset.h"
 #include "tvpal_eig.h"
 #include "tvpal_error.h"
@@ -139,9 +140,29 @@ static char *g_partial; /* removed on fatal input errors */
  * the same way, so nothing partial stays behind). */
 enum ending { MSG_ONLY, DIE_USAGE, DIE_FAIL, DIE_INPUT };
 
+/* Under MPI (mpirun -np K, one rank per node shard): this process's
+ * communicator, and the next round of the job's agreement (cluster_round)
+ * that a rank which fails joins with its message, so that rank 0 reports
+ * it and every rank ends, none left waiting.  g_round 0: one process. */
+static struct tvpal_comm g_comm;
+static int g_round;
+#define ROUNDS 3
+
+static void cluster_fail(enum ending how, const char *text)
+    __attribute__((noreturn));
+
 static void say(enum ending how, const char *fmt, va_list ap)
 {
+    if (g_round && g_round <= ROUNDS && how != MSG_ONLY) {
+        char text[900];
+        vsnprintf(text, sizeof text, fmt, ap);
+        cluster_fail(how, text);
+    }
+    if (how == MSG_ONLY && g_round && g_comm.rank > 0)
+        return; /* warnings are the same on every rank: rank 0 says them */
     fputs(PROG ": ", stderr);
+    if (g_round && g_comm.rank > 0)
+        fprintf(stderr, "rank %d: ", g_comm.rank);
     vfprintf(stderr, fmt, ap);
     fputc('\n', stderr);
     if (how == MSG_ONLY)
@@ -209,6 +230,7 @@ struct opts {
     const char *times_file;           /* --times FILE */
     const char *time_units;           /* --time-units TEXT */
     uint64_t mem_limit;               /* --mem-limit SIZE, or 0 */
+    const char *shard_pat;            /* --shard-dir PATTERN (MPI) */
 };
 
 /* How an option's argument is parsed (parse_option). */
@@ -293,6 +315,8 @@ static const struct optspec {
     {"mem-limit", OPT_LONG_ONLY + 15, OPT_SIZE,
      offsetof(struct opts, mem_limit), 0, 0, {0},
      "a size such as 12G, 800M or 1073741824 (bytes)"},
+    {"shard-dir", OPT_LONG_ONLY + 16, OPT_TEXT,
+     offsetof(struct opts, shard_pat), 0, 0, {0}, NULL},
     {"output", 'o', OPT_OUTPUT, 0, 0, 0, {0}, NULL},
     {"force", 'f', OPT_FLAG, offsetof(struct opts, force), 0, 0, {0}, NULL},
     {"quiet", 'q', OPT_FLAG, offsetof(struct opts, quiet), 0, 0, {0}, NULL},
@@ -618,6 +642,16 @@ struct run {
     struct progress prog;
     /* Checkpoint copies of the writers' progress (tvpal_checkpoint.h). */
     struct tvpal_checkpoint_progress ckp;
+    /* MPI: this rank encodes node `node` only; its node directory while
+     * the job runs (also its checkpoint's), and where it goes at the end
+     * (--shard-dir; NULL: it stays inside OUTDIR). */
+    int mpi;
+    uint32_t node;
+    char *ckdir;
+    char *node_final;
+    uint64_t cluster_bytes;  /* rank 0: bytes of every rank's shards, */
+    uint64_t cluster_work;   /* the voxel-samples they encoded, */
+    double cluster_seconds;  /* in this many seconds (the slowest) */
 };
 
 static uint32_t fine_bin(float f)
@@ -1282,19 +1316,44 @@ static void check_output(struct run *r)
 
 /* Creates OUTDIR.partial/node-R/ for every node (after which bad input
  * removes the partial output, see die_input). */
+static char *node_partial(const struct run *r, uint32_t k);
+
 static void make_node_dirs(struct run *r)
 {
-    for (uint32_t k = 0; k < r->o.nodes; k++) {
+    for (uint32_t k = r->mpi ? r->node : 0;
+         k < (r->mpi ? r->node + 1 : r->o.nodes); k++) {
         struct tvpal_diag d = {{0}};
-        char *nd;
-        int rc = asprintf(&nd, "%s/node-%u", r->partial, k) < 0
-                     ? TVPAL_E_NOMEM : tvpal_mkdirs(nd, &d);
+        char *nd = node_partial(r, k);
+        int rc = !nd ? TVPAL_E_NOMEM : tvpal_mkdirs(nd, &d);
         if (rc < 0)
             die_usage("%s: cannot create output directory: %s", r->partial,
                       lib_error(rc, &d));
         free(nd);
     }
-    g_partial = r->partial;
+    g_partial = r->mpi ? r->ckdir : r->partial;
+}
+
+/* Node k's directory while the job runs: OUTDIR.partial/node-k, or with
+ * --shard-dir the pattern's directory plus ".partial".  Malloc'ed. */
+static char *node_partial(const struct run *r, uint32_t k)
+{
+    char *d = tvpal_node_dir(r->partial, r->o.shard_pat, k), *p = NULL;
+    if (!d || !r->o.shard_pat)
+        return d;
+    int n = asprintf(&p, "%s.partial", d);
+    free(d);
+    return n < 0 ? NULL : p;
+}
+
+/* Forgets a partial output: statistics and the start go back to nothing,
+ * and this process's partial directory is removed (the next steps make
+ * the node directories again). */
+static void start_over(struct run *r)
+{
+    r->start = 0;
+    tvpal_checkpoint_stats_reset(&r->st);
+    if (tvpal_exists(r->ckdir) && tvpal_rmtree(r->ckdir) < 0)
+        die_usage("%s: cannot remove stale partial output", r->ckdir);
 }
 
 /* Resumes the partial output of the same job from its checkpoint, or
@@ -1304,8 +1363,11 @@ static void make_node_dirs(struct run *r)
 static void open_partial(struct run *r)
 {
     char *params = job_params(&r->o, r->in), *withplan = NULL;
-    char key[64];
+    char key[96];
     encode_plan_key(&r->plan, key, sizeof key);
+    if (r->mpi)
+        snprintf(key + strlen(key), sizeof key - strlen(key),
+                 " rank=%u", r->node);
     if (!params || asprintf(&withplan, "%s %s", params, key) < 0 ||
         tvpal_checkpoint_fingerprint(withplan, r->o.inputs, r->o.ninputs,
                                      &r->fp) < 0 ||
@@ -1320,19 +1382,14 @@ static void open_partial(struct run *r)
     if (!r->ckp.filled || !r->ckp.crc || !r->ckp.missing)
         die_fail("out of memory");
     r->start = 0;
-    if (tvpal_exists(r->partial)) {
+    if (tvpal_exists(r->ckdir)) {
         /* A checkpoint that is missing, of another job or damaged is not
          * an error: the job starts over (FORMAT.md 9.2). */
         const uint64_t units = (uint64_t)r->plan.npasses * r->T;
-        if (tvpal_checkpoint_load(r->partial, r->fp, units, r->T, r->nvox,
+        if (tvpal_checkpoint_load(r->ckdir, r->fp, units, r->T, r->nvox,
                                   &r->start, &r->st, &r->ckp, NULL) < 0 ||
-            r->start == 0 || r->start > units) {
-            r->start = 0;
-            tvpal_checkpoint_stats_reset(&r->st);
-            if (tvpal_rmtree(r->partial) < 0)
-                die_usage("%s: cannot remove stale partial output",
-                          r->partial);
-        }
+            r->start == 0 || r->start > units)
+            start_over(r);
     }
     make_node_dirs(r);
 }
@@ -1342,7 +1399,8 @@ static void open_partial(struct run *r)
 static void setup_shards(struct run *r)
 {
     const struct opts *o = &r->o;
-    r->nshard = 3 * o->nodes;
+    const uint32_t k0 = r->mpi ? r->node : 0, nk = r->mpi ? 1 : o->nodes;
+    r->nshard = 3 * nk;
     if (!(r->sj = calloc(r->nshard, sizeof *r->sj)))
         die_fail("out of memory");
     for (unsigned a = 0; a < 3; a++) {
@@ -1354,8 +1412,8 @@ static void setup_shards(struct run *r)
         uint64_t cb = tvpal_chunk_bytes(r->N, w, h, (uint32_t)o->table_format);
         if (cb > r->max_chunk)
             r->max_chunk = cb;
-        for (uint32_t k = 0; k < o->nodes; k++) {
-            struct shardjob *j = &r->sj[a * o->nodes + k];
+        for (uint32_t k = k0; k < k0 + nk; k++) {
+            struct shardjob *j = &r->sj[a * nk + (k - k0)];
             j->axis = a;
             j->rank = k;
             j->h = (struct tvpal_shard_header){
@@ -1432,6 +1490,21 @@ static void print_size(char *buf, size_t cap, uint64_t b)
         snprintf(buf, cap, "%.1f MiB", (double)b / (1u << 20));
 }
 
+/* Ranks of this job on this machine, from what the launchers set (Open
+ * MPI, MPICH/Hydra, Slurm); 1 outside MPI. */
+static unsigned local_ranks(const struct run *r)
+{
+    static const char *const vars[] = {"OMPI_COMM_WORLD_LOCAL_SIZE",
+                                       "MPI_LOCALNRANKS",
+                                       "SLURM_NTASKS_PER_NODE"};
+    for (unsigned i = 0; r->mpi && i < 3; i++) {
+        const char *v = getenv(vars[i]);
+        if (v && atoi(v) > 0)
+            return (unsigned)atoi(v);
+    }
+    return 1;
+}
+
 /* Makes the memory plan (encode_plan.h) before anything is read or
  * written, and says it; a limit too small for even one slice per pass
  * ends the program (exit 2) with the smallest that would do. */
@@ -1441,13 +1514,18 @@ static void make_plan(struct run *r)
     if (o->mem_limit)
         snprintf(r->limit_why, sizeof r->limit_why, "--mem-limit");
     r->limit = o->mem_limit ? o->mem_limit
-                            : encode_default_limit(1, r->limit_why,
+                            : encode_default_limit(local_ranks(r),
+                                                   r->limit_why,
                                                    sizeof r->limit_why);
     struct encode_job j = {
         .N = r->N, .T = r->T, .limit = r->limit, .fixed = fixed_bytes(r),
-        .box_bytes_per_voxel = 4 * r->N + (r->in ? 8 : 0)};
+        .box_bytes_per_voxel = 4 * r->N + (r->in ? 8 : 0), .split = r->mpi};
     memcpy(j.dims, o->dims, sizeof j.dims);
     memcpy(j.slab_n, o->dims, sizeof j.slab_n);
+    /* An MPI rank encodes its node's slab of each axis only. */
+    for (unsigned a = 0; r->mpi && a < 3; a++)
+        tvpal_slab_range(o->dims[a], o->nodes, r->node, &j.slab_lo[a],
+                         &j.slab_n[a]);
     char lim[32], need[32], ring[32];
     int rc = encode_plan_make(&j, &r->plan);
     if (rc == TVPAL_E_NOMEM)
@@ -1463,7 +1541,7 @@ static void make_plan(struct run *r)
                   (unsigned long long)((r->plan.min_limit + (1u << 20) - 1) >>
                                        20));
     }
-    if (o->quiet)
+    if (o->quiet || (r->mpi && r->node != 0))
         return;
     char desc[96];
     encode_plan_describe(&r->plan, desc, sizeof desc);
@@ -1473,6 +1551,13 @@ static void make_plan(struct run *r)
     if (r->plan.npasses == 1)
         msg("plan: %s; about %s of the memory limit %s (%s)", desc, need,
             lim, r->limit_why);
+    else if (r->mpi)
+        msg("plan of rank 0 of %d: %s over its node's slabs, reading %.2f "
+            "times the input's bytes (its z and y slabs, and whole rows for "
+            "its x slab); about %s of the memory limit %s (%s)",
+            g_comm.size, desc,
+            (double)r->plan.voxels_read / ((double)r->nvox * r->T), need, lim,
+            r->limit_why);
     else
         msg("plan: %s, reading the input %.2f times: one ring of all %u "
             "timesteps of a window would need %s, over the memory limit %s "
@@ -1483,6 +1568,15 @@ static void make_plan(struct run *r)
 
 /* ---------------------------------------------------------------- output */
 
+/* The file of shard j in its node's directory (malloc'ed). */
+static char *shard_path(const struct run *r, const struct shardjob *j)
+{
+    char *nd = node_partial(r, j->rank), *p = NULL;
+    int n = nd ? asprintf(&p, "%s/axis-%c.tvps", nd, "xyz"[j->axis]) : -1;
+    free(nd);
+    return n < 0 ? NULL : p;
+}
+
 /* Creates (start = 0) or reopens the shard writers, restoring a resumed
  * job's progress (read back and verified); reports and returns < 0 on the
  * first failure. */
@@ -1491,7 +1585,7 @@ static int open_writers(struct run *r)
     for (uint32_t q = 0; q < r->nshard; q++) {
         struct shardjob *j = &r->sj[q];
         struct tvpal_diag d = {{0}};
-        char *path = tvpal_shard_filename(r->partial, j->rank, j->axis);
+        char *path = shard_path(r, j);
         int rc;
         if (!path)
             return TVPAL_E_NOMEM;
@@ -1540,12 +1634,8 @@ static void open_or_restart_writers(struct run *r)
 {
     if (r->start && r->st.counted != expected_counted(r, r->start)) {
         msg("%s: the checkpoint's statistics do not match its position; "
-            "starting the job over", r->partial);
-        r->start = 0;
-    }
-    if (!r->start && tvpal_exists(r->partial) && r->st.loaded) {
-        tvpal_checkpoint_stats_reset(&r->st);
-        tvpal_rmtree(r->partial);
+            "starting the job over", r->ckdir);
+        start_over(r);
         make_node_dirs(r);
     }
     while (open_writers(r) < 0) {
@@ -1554,10 +1644,8 @@ static void open_or_restart_writers(struct run *r)
             r->sj[q].w = NULL;
         }
         if (!r->start)
-            die_input("%s: cannot create the output files", r->partial);
-        r->start = 0;
-        tvpal_checkpoint_stats_reset(&r->st);
-        tvpal_rmtree(r->partial);
+            die_input("%s: cannot create the output files", r->ckdir);
+        start_over(r);
         make_node_dirs(r);
     }
 }
@@ -1767,8 +1855,8 @@ static void encode_step(struct run *r, uint32_t t, size_t njobs)
             report_progress(r, 0);
     }
     if (failed)
-        die_fail("%s/node-%u/axis-%c.tvps: %s", r->partial, fail_j->rank,
-                 "xyz"[fail_j->axis], fail_d.msg);
+        die_fail("%s/axis-%c.tvps: %s", r->ckdir, "xyz"[fail_j->axis],
+                 fail_d.msg);
     for (size_t i = 0; i < njobs; i++) {
         const struct slicejob *jb = &r->jobs[i];
         for (uint32_t g = 0; g < jb->count; g++)
@@ -1792,9 +1880,9 @@ static void save_checkpoint(struct run *r, uint64_t u)
         }
         r->ckp.missing[q] = (uint8_t)tvpal_shardw_missing(r->sj[q].w);
     }
-    int rc = tvpal_checkpoint_save(r->partial, r->fp, u, &r->st, &r->ckp, &d);
+    int rc = tvpal_checkpoint_save(r->ckdir, r->fp, u, &r->st, &r->ckp, &d);
     if (rc < 0)
-        die_fail("%s/checkpoint: cannot write: %s", r->partial,
+        die_fail("%s/checkpoint: cannot write: %s", r->ckdir,
                  lib_error(rc, &d));
 }
 
@@ -1853,14 +1941,20 @@ static void report_progress(struct run *r, int last)
  * the start, reads the box of what its windows need (step t + N - 1 at
  * most), encodes and writes its chunks and checkpoints.
  * TVPAL_ENCODE_FAULT_AFTER=S (a test hook) kills the process after S
- * units (steps of passes), as an interruption would. */
+ * units (steps of passes), as an interruption would; with
+ * TVPAL_ENCODE_FAULT_RANK=R only MPI rank R, and with
+ * TVPAL_ENCODE_FAULT=fail it fails with a message instead. */
 static void encode_steps(struct run *r)
 {
     struct progress *p = &r->prog;
     const char *fault = getenv("TVPAL_ENCODE_FAULT_AFTER");
-    const long fault_after = fault ? atol(fault) : -1;
+    const char *fault_rank = getenv("TVPAL_ENCODE_FAULT_RANK");
+    const char *fault_how = getenv("TVPAL_ENCODE_FAULT");
+    long fault_after = fault ? atol(fault) : -1;
+    if (fault_rank && atol(fault_rank) != (long)r->node)
+        fault_after = -1;
     p->tty = isatty(STDERR_FILENO);
-    p->quiet = r->o.quiet;
+    p->quiet = r->o.quiet || (r->mpi && r->node != 0);
     p->interval = p->tty ? 0.2 : 30.0;
     /* TVPAL_PROGRESS_INTERVAL=S (a test hook): a line every S seconds. */
     const char *iv = getenv("TVPAL_PROGRESS_INTERVAL");
@@ -1870,9 +1964,12 @@ static void encode_steps(struct run *r)
     p->total = work_before(r, (uint64_t)r->plan.npasses * r->T);
     p->work = p->work_at_start = work_before(r, r->start);
     p->units = (uint64_t)r->plan.npasses * r->T;
-    if (r->start && !r->o.quiet)
-        msg("resuming %s at timestep %llu of %u%s", r->partial,
-            (unsigned long long)(r->start % r->T), r->T, "");
+    if (r->start && r->start == p->units && !r->o.quiet)
+        msg("resuming %s: every step is encoded; finishing", r->ckdir);
+    else if (r->start && !r->o.quiet)
+        msg("resuming %s at pass %llu of %u, timestep %llu of %u", r->ckdir,
+            (unsigned long long)(r->start / r->T) + 1, r->plan.npasses,
+            (unsigned long long)(r->start % r->T), r->T);
     uint64_t u = r->start;
     for (uint32_t pi = (uint32_t)(u / r->T); pi < r->plan.npasses; pi++) {
         r->pass = &r->plan.pass[pi];
@@ -1891,13 +1988,150 @@ static void encode_steps(struct run *r)
             if (t + 1 == r->T)
                 r->st.loaded = 0;
             save_checkpoint(r, u);
-            if (fault_after >= 0 && (long)u >= fault_after)
+            if (fault_after >= 0 && (long)u >= fault_after) {
+                if (fault_how && !strcmp(fault_how, "fail"))
+                    die_fail("test fault after %llu steps (rerun to resume)",
+                             (unsigned long long)u);
                 raise(SIGKILL);
+            }
             report_progress(r, 0);
         }
     }
     report_progress(r, 1);
     r->t_encode = tvpal_now() - p->t0;
+}
+
+/* ---------------------------------------------------------------- cluster */
+
+/* Under mpirun -np K --nodes K, rank R encodes only node R's three shards,
+ * reading only the boxes of the input its slabs need, into its own node
+ * directory (OUTDIR.partial/node-R, or --shard-dir's on a node-local
+ * disk).  The ranks then agree in ROUNDS rounds, each a gather of every
+ * rank's state to rank 0 and rank 0's decision sent back:
+ *   1. statistics: rank 0 sums them (each voxel is in one rank's z slab)
+ *      and sends the source range and the manifest;
+ *   2. every rank has finished and verified its shards and node manifest;
+ *   3. every node directory is in place: rank 0 writes OUTDIR and renames
+ *      it into place, the commit.
+ * A rank that fails joins the round it would have reached with its
+ * message: rank 0 prints it, and every rank ends with its code, none left
+ * waiting.  A rank killed outright is ended by the launcher (mpirun ends
+ * the job when a process dies); the checkpoints in the node directories
+ * let the same command resume every rank. */
+
+/* What a rank tells rank 0 in a round. */
+struct round_head {
+    int32_t code;            /* 0 ok, else the exit status */
+    int32_t how;             /* enum ending of a failure */
+    char text[900];          /* its message */
+    double vmin, vmax;       /* round 1: statistics */
+    uint64_t nonfinite, missing, counted, dropped;
+    uint64_t bytes;          /* round 3: bytes of the rank's shards, */
+    uint64_t work;           /* voxel-samples it encoded, */
+    double seconds;          /* in this many seconds */
+};
+
+/* Rank 0's decision. */
+struct round_decision {
+    int32_t code, how, bad_rank, nbad;
+    double vmin, vmax;
+    uint64_t bytes, text_len; /* round 1: the manifest's length */
+};
+
+static struct round_head *g_heads;   /* rank 0: one per rank */
+
+/* Gathers mine (and in round 1 the histogram fine, may be NULL on a
+ * failing rank) to rank 0, which decides; returns the decision on every
+ * rank.  The failure of the lowest rank wins; rank 0 prints it. */
+static struct round_decision cluster_gather(const struct round_head *mine,
+                                            const uint64_t *fine,
+                                            uint64_t *fine_sum)
+{
+    struct tvpal_comm *c = &g_comm;
+    struct round_decision dec = {0};
+    const size_t K = (size_t)c->size;
+    if (c->rank == 0 && !g_heads && !(g_heads = calloc(K, sizeof *g_heads)))
+        c->abort(c, TVPAL_EXIT_FAIL);
+    if (c->gather(c, mine, sizeof *mine, g_heads) < 0)
+        c->abort(c, TVPAL_EXIT_FAIL);
+    if (g_round == 1) {
+        /* The fine histograms, one rank at a time into rank 0's sum. */
+        static uint64_t zero[TVPAL_CHECKPOINT_BINS];
+        const size_t hb = sizeof zero;
+        uint64_t *buf = c->rank == 0 ? malloc(hb * K) : NULL;
+        if (c->rank == 0 && !buf)
+            c->abort(c, TVPAL_EXIT_FAIL);
+        if (c->gather(c, fine ? fine : zero, hb, buf) < 0)
+            c->abort(c, TVPAL_EXIT_FAIL);
+        for (size_t k = 0; c->rank == 0 && k < K; k++)
+            for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++)
+                fine_sum[b] = (k ? fine_sum[b] : 0) + buf[k * TVPAL_CHECKPOINT_BINS + b];
+        free(buf);
+    }
+    if (c->rank == 0) {
+        dec.bad_rank = -1;
+        for (size_t k = 0; k < K; k++)
+            if (g_heads[k].code) {
+                if (dec.bad_rank < 0) {
+                    dec.bad_rank = (int32_t)k;
+                    dec.code = g_heads[k].code;
+                    dec.how = g_heads[k].how;
+                }
+                dec.nbad++;
+            }
+    }
+    return dec;
+}
+
+/* Sends rank 0's decision (and round 1's manifest text) to every rank. */
+static void cluster_decide(struct round_decision *dec, char **text)
+{
+    struct tvpal_comm *c = &g_comm;
+    if (c->bcast(c, dec, sizeof *dec, 0) < 0)
+        c->abort(c, TVPAL_EXIT_FAIL);
+    if (!dec->code && text && dec->text_len) {
+        if (c->rank != 0 && !(*text = calloc(1, dec->text_len + 1)))
+            c->abort(c, TVPAL_EXIT_FAIL);
+        if (c->bcast(c, *text, dec->text_len, 0) < 0)
+            c->abort(c, TVPAL_EXIT_FAIL);
+    }
+}
+
+/* Rank 0 reports the failure decided; every rank removes its node's
+ * partial output when the input was bad (a rerun would fail the same
+ * way), and ends. */
+static void cluster_end_failed(const struct round_decision *dec)
+    __attribute__((noreturn));
+static void cluster_end_failed(const struct round_decision *dec)
+{
+    g_round = ROUNDS + 1;
+    if (g_comm.rank == 0) {
+        const struct round_head *h = &g_heads[dec->bad_rank];
+        if (dec->bad_rank > 0)
+            fprintf(stderr, PROG ": rank %d: %s\n", dec->bad_rank, h->text);
+        else
+            fprintf(stderr, PROG ": %s\n", h->text);
+        if (dec->nbad > 1)
+            fprintf(stderr, PROG ": %d ranks failed; the lowest is shown\n",
+                    dec->nbad);
+    }
+    if (dec->how == DIE_INPUT && g_partial)
+        tvpal_rmtree(g_partial);
+    tvpal_comm_close(&g_comm);
+    exit(dec->code);
+}
+
+static void cluster_fail(enum ending how, const char *text)
+{
+    struct round_head h = {0};
+    h.code = how == DIE_FAIL ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;
+    h.how = how;
+    snprintf(h.text, sizeof h.text, "%s", text);
+    uint64_t *sum = g_comm.rank == 0 ? calloc(TVPAL_CHECKPOINT_BINS, 8) : NULL;
+    struct round_decision dec = cluster_gather(&h, NULL, sum);
+    free(sum);
+    cluster_decide(&dec, NULL);
+    cluster_end_failed(&dec);
 }
 
 /* ------------------------------------------------------------- finishing */
@@ -1982,81 +2216,132 @@ static void build_manifest(const struct run *r, struct tvpal_manifest *m)
         die_fail("out of memory");
 }
 
+/* Finishes this process's shards with the source range (9.1). */
+static void finish_shards(struct run *r)
+{
+    struct tvpal_diag d = {{0}};
+    for (uint32_t q = 0; q < r->nshard; q++) {
+        tvpal_shardw_set_range(r->sj[q].w, r->st.vmin, r->st.vmax);
+        int rc = tvpal_shardw_finish(r->sj[q].w, &d);
+        r->sj[q].w = NULL;
+        if (rc < 0) {
+            char *path = shard_path(r, &r->sj[q]);
+            die_fail("%s: cannot finish: %s", path ? path : "shard",
+                     lib_error(rc, &d));
+        }
+    }
+}
+
+/* The manifest's text (malloc'ed). */
+static char *manifest_text(const struct run *r)
+{
+    struct tvpal_manifest m;
+    char *text = NULL;
+    build_manifest(r, &m);
+    if (tvpal_manifest_format(&m, &text) < 0)
+        die_fail("out of memory");
+    tvpal_manifest_clear(&m);
+    return text;
+}
+
+static void write_manifest(const char *dir, const char *text)
+{
+    struct tvpal_diag d = {{0}};
+    char *path = NULL;
+    int rc = asprintf(&path, "%s/manifest.txt", dir) < 0
+                 ? TVPAL_E_NOMEM
+                 : tvpal_write_file_atomic(path, text, strlen(text), &d);
+    if (rc < 0)
+        die_fail("%s: cannot write manifest: %s", dir, lib_error(rc, &d));
+    free(path);
+}
+
 /* Finishes the shards, then writes the manifest to OUTDIR.partial and to
  * every node directory, and removes the checkpoint (FORMAT.md 9.2, 4). */
 static void finish_partial(struct run *r)
 {
-    struct tvpal_diag d = {{0}};
-    struct tvpal_manifest m;
-    char *text = NULL;
-    int rc;
-    for (uint32_t q = 0; q < r->nshard; q++) {
-        tvpal_shardw_set_range(r->sj[q].w, r->st.vmin, r->st.vmax);
-        rc = tvpal_shardw_finish(r->sj[q].w, &d);
-        r->sj[q].w = NULL;
-        if (rc < 0)
-            die_fail("%s/node-%u/axis-%c.tvps: cannot finish: %s", r->partial,
-                     r->sj[q].rank, "xyz"[r->sj[q].axis], lib_error(rc, &d));
-    }
-    build_manifest(r, &m);
-    if (tvpal_manifest_format(&m, &text) < 0)
-        die_fail("out of memory");
-    for (int k = -1; k < (int)r->o.nodes; k++) {
-        char *path;
-        int ok = k < 0 ? asprintf(&path, "%s/manifest.txt", r->partial)
-                       : asprintf(&path, "%s/node-%d/manifest.txt",
-                                  r->partial, k);
-        rc = ok < 0 ? TVPAL_E_NOMEM
-                    : tvpal_write_file_atomic(path, text, strlen(text),
-                                                   &d);
-        if (rc < 0)
-            die_fail("%s: cannot write manifest: %s", r->partial,
-                     lib_error(rc, &d));
-        free(path);
+    finish_shards(r);
+    char *text = manifest_text(r);
+    write_manifest(r->partial, text);
+    for (uint32_t k = 0; k < r->o.nodes; k++) {
+        char *nd = node_partial(r, k);
+        if (!nd)
+            die_fail("out of memory");
+        write_manifest(nd, text);
+        free(nd);
     }
     free(text);
-    tvpal_manifest_clear(&m);
     tvpal_checkpoint_remove(r->partial, NULL);
     tvpal_fsync_dir(r->partial);
 }
 
 /* Renames OUTDIR.partial to OUTDIR; with --force an existing OUTDIR goes
- * to OUTDIR.old first and is removed after. */
-static void move_into_place(const struct run *r)
+ * to OUTDIR.old first and is removed after.  place_output says what went
+ * wrong in err and returns -1; move_into_place ends the program. */
+static int place_output(const struct run *r, char *err, size_t cap)
 {
     const char *out = r->o.outdir;
     if (tvpal_exists(out)) {
         char *old;
         if (asprintf(&old, "%s.old", out) < 0)
-            die_fail("out of memory");
+            return snprintf(err, cap, "out of memory"), -1;
         tvpal_rmtree(old);
-        if (rename(out, old) < 0 || rename(r->partial, out) < 0)
-            die_fail("%s: cannot replace: %s", out, strerror(errno));
+        if (rename(out, old) < 0 || rename(r->partial, out) < 0) {
+            snprintf(err, cap, "%s: cannot replace: %s", out, strerror(errno));
+            free(old);
+            return -1;
+        }
         tvpal_rmtree(old);
         free(old);
     } else if (rename(r->partial, out) < 0) {
-        die_fail("%s: cannot rename %s into place: %s", out, r->partial,
-                 strerror(errno));
+        snprintf(err, cap, "%s: cannot rename %s into place: %s", out,
+                 r->partial, strerror(errno));
+        return -1;
     }
+    return 0;
+}
+
+static void move_into_place(const struct run *r)
+{
+    char err[600];
+    if (place_output(r, err, sizeof err) < 0)
+        die_fail("%s", err);
 }
 
 /* Every value missing leaves nothing to encode or draw; present values
  * coded as missing (more missing-value patterns in a slice-window than the
  * code has indices for) are reported. */
-static void check_missing(const struct run *r)
+static int all_missing(const struct run *r, char *why, size_t cap)
 {
-    if (!(r->st.vmin <= r->st.vmax))
-        die_input("%s: every value is missing (NaN%s); expected some "
-                  "present values", r->o.inputs[0],
-                  r->o.nmissing ? " or a --missing value" : "");
+    snprintf(why, cap, "%s: every value is missing (NaN%s); expected some "
+             "present values", r->o.inputs[0],
+             r->o.nmissing ? " or a --missing value" : "");
+    return !(r->st.vmin <= r->st.vmax);
+}
+
+static uint64_t dropped_values(const struct run *r)
+{
     uint64_t dropped = 0;
     for (int i = 0; i < r->nthreads; i++)
         dropped += r->dropped[i];
+    return dropped;
+}
+
+static void warn_dropped(uint64_t dropped)
+{
     if (dropped)
         msg("warning: %llu present value%s coded as missing: slice-windows "
             "with more than 128 patterns of missing timesteps (a smaller "
             "--window avoids it)", (unsigned long long)dropped,
             dropped == 1 ? "" : "s");
+}
+
+static void check_missing(const struct run *r)
+{
+    char why[600];
+    if (all_missing(r, why, sizeof why))
+        die_input("%s", why);
+    warn_dropped(dropped_values(r));
 }
 
 /* A few voxels far from all the others (a fill value such as 1e35 left in
@@ -2114,15 +2399,19 @@ static void print_summary(const struct run *r)
 {
     struct tvpal_diag d = {{0}};
     struct tvpal_dataset *ds = NULL;
-    uint64_t total_bytes = 0;
-    if (tvpal_dataset_open(&ds, r->o.outdir, &d) < 0)
+    uint64_t total_bytes = r->cluster_bytes;
+    /* Under MPI every rank has verified its own node directory. */
+    if (!r->mpi && tvpal_dataset_open(&ds, r->o.outdir, &d) < 0)
         die_fail("%s: written dataset does not verify: %s", r->o.outdir,
                  d.msg);
-    for (unsigned a = 0; a < 3; a++)
+    for (unsigned a = 0; !r->mpi && a < 3; a++)
         total_bytes += ds->axis_bytes[a];
     tvpal_dataset_close(ds);
     const double axis_bytes = (double)total_bytes / 3.0;
-    const double vts = (double)r->nvox * r->T, te = r->t_encode;
+    const double vts = (double)r->nvox * r->T;
+    const double te = r->mpi ? r->cluster_seconds : r->t_encode;
+    const uint64_t work = r->mpi ? r->cluster_work
+                                 : r->prog.work - r->prog.work_at_start;
     printf("encoded %s: steps=%u window=%u nodes=%u bytes=%llu ratio=%.3f "
            "bpv=%.4f seconds=%.3f rate=%.2fM vox-steps/s threads=%d "
            "missing=%llu passes=%u\n",
@@ -2130,9 +2419,166 @@ static void print_summary(const struct run *r)
            (unsigned long long)total_bytes,
            (double)(r->step_bytes * r->T) / axis_bytes,
            axis_bytes * 8.0 / vts, te,
-           (double)(r->prog.work - r->prog.work_at_start) / 3.0 /
-               (te > 0 ? te : 1e-9) / 1e6,
-           r->nthreads, (unsigned long long)r->st.missing, r->plan.npasses);
+           (double)work / 3.0 / (te > 0 ? te : 1e-9) / 1e6,
+           r->nthreads * (r->mpi ? g_comm.size : 1),
+           (unsigned long long)r->st.missing, r->plan.npasses);
+}
+
+/* Bytes of this process's shard files. */
+static uint64_t own_shard_bytes(const struct run *r)
+{
+    uint64_t n = 0;
+    for (uint32_t q = 0; q < r->nshard; q++) {
+        char *p = shard_path(r, &r->sj[q]);
+        struct stat st;
+        if (p && stat(p, &st) == 0)
+            n += (uint64_t)st.st_size;
+        free(p);
+    }
+    return n;
+}
+
+/* Puts this rank's --shard-dir node directory in place (with --force an
+ * existing one goes first). */
+static void place_node_dir(const struct run *r)
+{
+    const char *fin = r->node_final;
+    if (tvpal_exists(fin) && tvpal_rmtree(fin) < 0)
+        die_fail("%s: cannot replace: %s", fin, strerror(errno));
+    if (rename(r->ckdir, fin) < 0)
+        die_fail("%s: cannot rename %s into place: %s", fin, r->ckdir,
+                 strerror(errno));
+}
+
+/* Rank 0, round 1: the job's statistics from every rank's; a failure to
+ * report goes into dec (and the lowest rank's text). */
+static void cluster_stats(struct run *r, struct round_decision *dec,
+                          const uint64_t *fine_sum, char **text)
+{
+    struct tvpal_checkpoint_stats *st = &r->st;
+    uint64_t dropped = 0;
+    st->vmin = INFINITY;
+    st->vmax = -INFINITY;
+    st->nonfinite = st->missing = st->counted = 0;
+    for (int k = 0; k < g_comm.size; k++) {
+        const struct round_head *h = &g_heads[k];
+        st->vmin = h->vmin < st->vmin ? h->vmin : st->vmin;
+        st->vmax = h->vmax > st->vmax ? h->vmax : st->vmax;
+        st->nonfinite += h->nonfinite;
+        st->missing += h->missing;
+        st->counted += h->counted;
+        dropped += h->dropped;
+    }
+    memcpy(st->fine, fine_sum, TVPAL_CHECKPOINT_BINS * sizeof *st->fine);
+    if (all_missing(r, g_heads[0].text, sizeof g_heads[0].text)) {
+        *dec = (struct round_decision){TVPAL_EXIT_USAGE, DIE_INPUT, 0, 1,
+                                       0, 0, 0, 0};
+        return;
+    }
+    warn_dropped(dropped);
+    warn_dominating_values(r);
+    *text = manifest_text(r);
+    dec->vmin = st->vmin;
+    dec->vmax = st->vmax;
+    dec->text_len = strlen(*text);
+}
+
+/* MPI: the rounds after encoding (see "cluster" above): statistics, then
+ * every rank's shards and node manifest finished and verified, then the
+ * node directories in place and rank 0's commit of OUTDIR. */
+static void cluster_finish(struct run *r)
+{
+    const int root = g_comm.rank == 0;
+    struct round_head h = {0};
+    h.vmin = r->st.vmin;
+    h.vmax = r->st.vmax;
+    h.nonfinite = r->st.nonfinite;
+    h.missing = r->st.missing;
+    h.counted = r->st.counted;
+    h.dropped = dropped_values(r);
+    uint64_t *sum = root ? calloc(TVPAL_CHECKPOINT_BINS, sizeof *sum) : NULL;
+    if (root && !sum)
+        g_comm.abort(&g_comm, TVPAL_EXIT_FAIL);
+    struct round_decision dec = cluster_gather(&h, r->st.fine, sum);
+    char *text = NULL;
+    if (root && !dec.code)
+        cluster_stats(r, &dec, sum, &text);
+    free(sum);
+    cluster_decide(&dec, &text);
+    if (dec.code)
+        cluster_end_failed(&dec);
+    g_round = 2;
+    r->st.vmin = dec.vmin;
+    r->st.vmax = dec.vmax;
+    finish_shards(r);
+    write_manifest(r->ckdir, text);
+    free(text);
+    struct tvpal_dataset *ds = NULL;
+    struct tvpal_diag d = {{0}};
+    if (tvpal_dataset_open_node(&ds, r->ckdir, r->node, r->o.nodes, &d) < 0)
+        die_fail("%s: written node directory does not verify: %s", r->ckdir,
+                 d.msg);
+    tvpal_dataset_close(ds);
+    memset(&h, 0, sizeof h);
+    dec = cluster_gather(&h, NULL, NULL);
+    cluster_decide(&dec, NULL);
+    if (dec.code)
+        cluster_end_failed(&dec);
+    g_round = 3;
+    tvpal_checkpoint_remove(r->ckdir, NULL);
+    tvpal_fsync_dir(r->ckdir);
+    if (r->node_final)
+        place_node_dir(r);
+    memset(&h, 0, sizeof h);
+    h.work = r->prog.work - r->prog.work_at_start;
+    h.seconds = r->t_encode;
+    h.bytes = own_shard_bytes(r);
+    if (r->node_final) { /* the files have moved */
+        char *keep = r->ckdir;
+        r->ckdir = r->node_final;
+        h.bytes = 0;
+        for (uint32_t q = 0; q < r->nshard; q++) {
+            char *p = NULL;
+            struct stat st;
+            if (asprintf(&p, "%s/axis-%c.tvps", r->node_final,
+                         "xyz"[r->sj[q].axis]) >= 0 && stat(p, &st) == 0)
+                h.bytes += (uint64_t)st.st_size;
+            free(p);
+        }
+        r->ckdir = keep;
+    }
+    dec = cluster_gather(&h, NULL, NULL);
+    if (root && !dec.code) {
+        /* The commit: OUTDIR with its manifest, last.  Its failure is
+         * decided here (the other ranks wait for the decision). */
+        struct tvpal_diag wd = {{0}};
+        char *path = NULL;
+        text = manifest_text(r);
+        int rc = asprintf(&path, "%s/manifest.txt", r->partial) < 0
+                     ? TVPAL_E_NOMEM
+                     : tvpal_write_file_atomic(path, text, strlen(text), &wd);
+        free(path);
+        free(text);
+        tvpal_fsync_dir(r->partial);
+        if (rc < 0)
+            snprintf(g_heads[0].text, sizeof g_heads[0].text, "%s: cannot "
+                     "write manifest: %s", r->partial, lib_error(rc, &wd));
+        else if (place_output(r, g_heads[0].text, sizeof g_heads[0].text) < 0)
+            rc = -1;
+        if (rc < 0)
+            dec = (struct round_decision){TVPAL_EXIT_FAIL, DIE_FAIL, 0, 1,
+                                          0, 0, 0, 0};
+        for (int k = 0; k < g_comm.size; k++) {
+            r->cluster_bytes += g_heads[k].bytes;
+            r->cluster_work += g_heads[k].work;
+            if (g_heads[k].seconds > r->cluster_seconds)
+                r->cluster_seconds = g_heads[k].seconds;
+        }
+    }
+    cluster_decide(&dec, NULL);
+    if (dec.code)
+        cluster_end_failed(&dec);
+    g_round = ROUNDS + 1;
 }
 
 static void run_free(struct run *r)
@@ -2169,6 +2615,10 @@ static void run_free(struct run *r)
     encode_plan_free(&r->plan);
     tvpal_checkpoint_stats_free(&r->st);
     free(r->partial);
+    free(r->ckdir);
+    free(r->node_final);
+    free(g_heads);
+    g_heads = NULL;
     for (int i = 0; i < r->o.ninputs; i++)
         free(r->abs_inputs[i]);
     free(r->abs_inputs);
@@ -2176,10 +2626,64 @@ static void run_free(struct run *r)
     free(r->times);
 }
 
+/* Under an MPI launcher (tvpal_comm_launched): joins the job, one rank
+ * per node shard.  One process otherwise, or as a job of one rank. */
+static void open_cluster(struct run *r, int *argc, char ***argv)
+{
+    struct tvpal_diag d = {{0}};
+    tvpal_comm_self(&g_comm);
+    if (!tvpal_comm_launched(NULL))
+        return;
+    if (tvpal_comm_open(&g_comm, TVPAL_COMM_MPI, argc, argv, &d) < 0)
+        die_usage("started by an MPI launcher, but %s", d.msg);
+    if (g_comm.size > 1) {
+        r->mpi = 1;
+        r->node = (uint32_t)g_comm.rank;
+        g_round = 1; /* failures from here on go through the rounds */
+    }
+}
+
+/* This process's checkpoint directory and, under MPI, its node's final
+ * directory (--shard-dir); the rules --nodes and --shard-dir obey. */
+static void setup_cluster_dirs(struct run *r)
+{
+    const struct opts *o = &r->o;
+    if (o->shard_pat && !r->mpi)
+        die_usage("--shard-dir: for MPI runs (mpirun -np K " PROG
+                  " --nodes K ...); one process writes OUTDIR/node-R");
+    if (r->mpi && o->nodes != (uint32_t)g_comm.size)
+        die_usage("--nodes %u under %d MPI ranks: expected --nodes %d (one "
+                  "rank per node shard)", o->nodes, g_comm.size, g_comm.size);
+    if (o->shard_pat && !strstr(o->shard_pat, "%r"))
+        die_usage("--shard-dir \"%s\": expected %%r (the rank) in it",
+                  o->shard_pat);
+    r->ckdir = r->mpi ? node_partial(r, r->node) : strdup(r->partial);
+    if (!r->ckdir)
+        die_fail("out of memory");
+    if (o->shard_pat) {
+        if (!(r->node_final = tvpal_node_dir(NULL, o->shard_pat, r->node)))
+            die_fail("out of memory");
+        if (tvpal_exists(r->node_final) && !o->force)
+            die_usage("%s: node directory already exists (use --force to "
+                      "replace it)", r->node_final);
+    }
+    if (r->mpi && r->node == 0) {
+        /* OUTDIR.partial holds the node directories (or, with
+         * --shard-dir, only the manifest): a one-process job's checkpoint
+         * there is not this job's. */
+        struct tvpal_diag d = {{0}};
+        if (tvpal_mkdirs(r->partial, &d) < 0)
+            die_usage("%s: cannot create output directory: %s", r->partial,
+                      d.msg);
+        tvpal_checkpoint_remove(r->partial, NULL);
+    }
+}
+
 /* Each step ends the program itself on failure (see `enum ending`). */
 int main(int argc, char **argv)
 {
     struct run r = {0};
+    open_cluster(&r, &argc, &argv);
     int have_dims = parse_options(argc, argv, &r.o);
     order_inputs(&r.o);
     have_dims = open_source(&r, have_dims);
@@ -2194,6 +2698,7 @@ int main(int argc, char **argv)
     load_times(&r);
     warn_irregular_times(&r);
     check_output(&r);
+    setup_cluster_dirs(&r);
     setup_shards(&r);
     choose_threads(&r);
     make_plan(&r);
@@ -2203,11 +2708,17 @@ int main(int argc, char **argv)
     if (r.in)
         r.pf = prefetch_start(r.in, r.plan.box_voxels_max);
     encode_steps(&r);
-    check_missing(&r);
-    warn_dominating_values(&r);
-    finish_partial(&r);
-    move_into_place(&r);
-    print_summary(&r);
+    if (r.mpi) {
+        cluster_finish(&r);
+    } else {
+        check_missing(&r);
+        warn_dominating_values(&r);
+        finish_partial(&r);
+        move_into_place(&r);
+    }
+    if (!r.mpi || r.node == 0)
+        print_summary(&r);
     run_free(&r);
+    tvpal_comm_close(&g_comm);
     return 0;
 }

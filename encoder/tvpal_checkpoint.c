@@ -4,6 +4,7 @@
 #include "tvpal_checkpoint.h"
 #include "tvpal_fs.h"
 
+#include <dirent.h>
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -355,5 +356,20 @@ int tvpal_checkpoint_remove(const char *dir, struct tvpal_diag *diag)
         rc = tvpal_diag_set(diag, TVPAL_E_SYS, "unlink %s: %s", path,
                             strerror(errno));
     free(path);
+    /* The temporaries of saves a kill interrupted ("checkpoint.XXXXXX"). */
+    DIR *dp = opendir(dir);
+    struct dirent *e;
+    while (dp && (e = readdir(dp))) {
+        char *tmp = NULL;
+        if (strncmp(e->d_name, "checkpoint.", 11) ||
+            asprintf(&tmp, "%s/%s", dir, e->d_name) < 0)
+            continue;
+        if (unlink(tmp) < 0 && errno != ENOENT && rc == 0)
+            rc = tvpal_diag_set(diag, TVPAL_E_SYS, "unlink %s: %s", tmp,
+                                strerror(errno));
+        free(tmp);
+    }
+    if (dp)
+        closedir(dp);
     return rc;
 }

@@ -95,8 +95,9 @@ int tvpal_checkpoint_load(const char *dir, const char *fingerprint,
                           struct tvpal_checkpoint_progress *pr,
                           struct tvpal_diag *diag);
 
-/* Removes DIR/checkpoint (done when the output is complete).  A missing
- * file is fine.  0, TVPAL_E_NOMEM or TVPAL_E_SYS (diag has the cause). */
+/* Removes DIR/checkpoint and the temporaries of interrupted saves
+ * (DIR/checkpoint.*), done when the output is complete.  A missing file is
+ * fine.  0, TVPAL_E_NOMEM or TVPAL_E_SYS (diag has the cause). */
 int tvpal_checkpoint_remove(const char *dir, struct tvpal_diag *diag);
 
 #endif

@@ -360,3 +360,24 @@ int tvpal_exists(const char *path)
     struct stat st;
     return lstat(path, &st) == 0;
 }
+
+char *tvpal_node_dir(const char *dir, const char *pattern, uint32_t r)
+{
+    char rs[16], *out = NULL;
+    snprintf(rs, sizeof rs, "%u", r);
+    if (!pattern)
+        return asprintf(&out, "%s/node-%s", dir, rs) < 0 ? NULL : out;
+    size_t cap = strlen(pattern) * 4 + 32, o = 0;
+    if (!(out = malloc(cap)))
+        return NULL;
+    for (const char *q = pattern; *q && o + 16 < cap; q++) {
+        if (q[0] == '%' && q[1] == 'r') {
+            o += (size_t)snprintf(out + o, cap - o, "%s", rs);
+            q++;
+        } else {
+            out[o++] = *q;
+        }
+    }
+    out[o] = 0;
+    return out;
+}

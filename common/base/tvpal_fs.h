@@ -3,6 +3,7 @@
 #define TVPAL_FS_H
 
 #include <stddef.h>
+#include <stdint.h>
 #include <stdio.h>
 
 #include "tvpal_error.h"
@@ -102,5 +103,11 @@ int tvpal_fsync_dir(const char *path);
 
 /* Does path exist (any type)? */
 int tvpal_exists(const char *path);
+
+/* Node r's directory of a dataset: DIR/node-r, or with a pattern (the
+ * --shard-dir of tvpal-play and tvpal-encode: node-local disks) the
+ * pattern with every %r replaced by r.  Malloc'ed; NULL when out of
+ * memory. */
+char *tvpal_node_dir(const char *dir, const char *pattern, uint32_t r);
 
 #endif

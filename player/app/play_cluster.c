@@ -1,6 +1,7 @@
 /* play_cluster.c: see play_cluster.h. */
 #define _GNU_SOURCE
 #include "play_cluster.h"
+#include "tvpal_fs.h"
 
 #include <stdarg.h>
 #include <stdio.h>
@@ -100,21 +101,5 @@ void play_check_all(int rc, const char *msg, int code)
 
 char *play_shard_dir(const char *dir, const char *pattern, int rank)
 {
-    char rs[16], *out = NULL;
-    snprintf(rs, sizeof rs, "%d", rank);
-    if (!pattern)
-        return asprintf(&out, "%s/node-%s", dir, rs) < 0 ? NULL : out;
-    size_t cap = strlen(pattern) * 4 + 32, o = 0;
-    if (!(out = malloc(cap)))
-        return NULL;
-    for (const char *q = pattern; *q && o + 16 < cap; q++) {
-        if (q[0] == '%' && q[1] == 'r') {
-            o += (size_t)snprintf(out + o, cap - o, "%s", rs);
-            q++;
-        } else {
-            out[o++] = *q;
-        }
-    }
-    out[o] = 0;
-    return out;
+    return tvpal_node_dir(dir, pattern, (uint32_t)rank);
 }
