@@ -4,11 +4,17 @@
  *                             playback reads one record per step and shard,
  *                             a jump at most N.
  *   tvpal-check cmp A B       RMSE, max |A-B| and PSNR (peak of A) of two raw
- *                             float32 files, as key=value. */
+ *                             float32 files, as key=value.
+ *   tvpal-check peakrss CMD...  runs CMD, prints its peak resident memory
+ *                             (getrusage of the child) as maxrss_kb=N on
+ *                             stderr and exits with CMD's status. */
 #include "tvpal_dataset.h"
 #include "tvpal_test.h"
 
 #include <string.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 static int seqjump(const char *dir)
 {
@@ -104,12 +110,32 @@ static int cmp(const char *pa, const char *pb)
     return 0;
 }
 
+static int peakrss(char **cmd)
+{
+    pid_t pid = fork();
+    if (pid < 0)
+        return 99;
+    if (pid == 0) {
+        execvp(cmd[0], cmd);
+        _exit(127);
+    }
+    int status;
+    struct rusage ru;
+    if (wait4(pid, &status, 0, &ru) != pid)
+        return 99;
+    fprintf(stderr, "maxrss_kb=%ld\n", ru.ru_maxrss);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
 int main(int argc, char **argv)
 {
+    if (argc >= 3 && !strcmp(argv[1], "peakrss"))
+        return peakrss(argv + 2);
     if (argc == 3 && !strcmp(argv[1], "seqjump"))
         return seqjump(argv[2]);
     if (argc == 4 && !strcmp(argv[1], "cmp"))
         return cmp(argv[2], argv[3]);
-    fprintf(stderr, "usage: tvpal-check seqjump DIR | cmp A B\n");
+    fprintf(stderr, "usage: tvpal-check seqjump DIR | cmp A B | peakrss "
+            "CMD...\n");
     return 99;
 }
