@@ -412,6 +412,45 @@ int tvpal_input_read(struct tvpal_input *in, uint32_t t, float *dst,
     return in->be->read(in->cur, t - in->first[i], dst, diag);
 }
 
+int tvpal_input_read_box(struct tvpal_input *in, uint32_t t,
+                         const uint32_t lo[3], const uint32_t n[3],
+                         float *dst, struct tvpal_diag *diag)
+{
+    const struct tvpal_input_info *fi = &in->info;
+    if (t >= fi->steps)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s: box "
+                              "read of step %u of %u", in->files[0], fi->var,
+                              t, fi->steps);
+    const char *path = tvpal_input_file(in, t, NULL);
+    for (int a = 0; a < 3; a++) {
+        if (n[a] == 0)
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s: "
+                                  "step %u: empty box (size %u %u %u: 0 "
+                                  "on axis %c)", path, fi->var, t, n[0],
+                                  n[1], n[2], "xyz"[a]);
+        if (lo[a] >= fi->dims[a] || n[a] > fi->dims[a] - lo[a])
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s: "
+                                  "step %u: box at %u %u %u of size %u %u "
+                                  "%u is outside the %ux%ux%u grid on axis "
+                                  "%c", path, fi->var, t, lo[0], lo[1],
+                                  lo[2], n[0], n[1], n[2], fi->dims[0],
+                                  fi->dims[1], fi->dims[2], "xyz"[a]);
+    }
+    int i = file_of(in, t);
+    int rc = open_file(in, i, NULL, NULL, diag);
+    if (rc < 0)
+        return rc;
+    return in->be->read_box(in->cur, t - in->first[i], lo, n, dst, diag);
+}
+
+uint64_t tvpal_input_box_scratch(const struct tvpal_input *in,
+                                 const uint32_t n[3])
+{
+    if (!in->cur || !n[0] || !n[1] || !n[2])
+        return 0;
+    return in->be->box_scratch(in->cur, n);
+}
+
 double tvpal_input_time(const struct tvpal_input *in, uint32_t t)
 {
     return in->info.has_times && t < in->info.steps ? in->times[t] : (double)t;

@@ -24,6 +24,15 @@ struct tvpal_input_backend {
     /* Step k of the file into dst (float32, x fastest, missing NaN). */
     int (*read)(struct tvpal_input_file *f, uint32_t k, float *dst,
                 struct tvpal_diag *diag);
+    /* The box [lo, lo + n) of step k into dst (box-dense, as read gives
+     * those voxels); tvpal_input.c has checked k, lo and n against the
+     * series' grid. */
+    int (*read_box)(struct tvpal_input_file *f, uint32_t k,
+                    const uint32_t lo[3], const uint32_t n[3], float *dst,
+                    struct tvpal_diag *diag);
+    /* What read_box holds for a box of size n (tvpal_input_box_scratch). */
+    uint64_t (*box_scratch)(const struct tvpal_input_file *f,
+                            const uint32_t n[3]);
     void (*close)(struct tvpal_input_file *f);
     int (*describe)(const char *path, char **text, struct tvpal_diag *diag);
     /* Non-NULL in a build without the format's library (the _none.c
@@ -73,6 +82,14 @@ int tvpal_input_hdf5_direct_open(struct tvpal_h5direct **out,
 int tvpal_input_hdf5_direct_read(struct tvpal_h5direct *d, uint32_t k,
                                  float *dst, struct tvpal_diag *diag);
 void tvpal_input_hdf5_direct_close(struct tvpal_h5direct *d);
+/* The box [lo, lo + n) (x, y, z) of step k into dst (box-dense): only the
+ * chunks that meet the box, in batches of two per thread.  0, 1 (read
+ * through the library after all) or an error, as direct_read.  scratch:
+ * the bytes it holds (tvpal_input_box_scratch). */
+int tvpal_input_hdf5_direct_read_box(struct tvpal_h5direct *d, uint32_t k,
+                                     const uint32_t lo[3], const uint32_t n[3],
+                                     float *dst, struct tvpal_diag *diag);
+uint64_t tvpal_input_hdf5_direct_scratch(const struct tvpal_h5direct *d);
 uint64_t tvpal_input_hdf5_inflated(void);
 
 /* Helpers the backends share (tvpal_input.c). */
