@@ -1478,8 +1478,12 @@ static uint64_t fixed_bytes(const struct run *r)
                                 TVPAL_CHECKPOINT_BINS * sizeof(uint64_t);
     const uint64_t shards = (uint64_t)r->nshard * r->T * 40 +
                             (uint64_t)r->max_jobs * 40;
+    /* A reader's scratch (tvpal_input_box_scratch): the largest box's. */
+    const uint64_t reader = r->in ? tvpal_input_box_scratch(r->in, r->o.dims)
+                                  : 0;
     /* 16 MiB: the program and its libraries (13 MiB measured). */
-    return ((uint64_t)16 << 20) + (uint64_t)r->nthreads * per_thread + shards;
+    return ((uint64_t)16 << 20) + (uint64_t)r->nthreads * per_thread +
+           shards + reader;
 }
 
 static void print_size(char *buf, size_t cap, uint64_t b)

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """make-vti.py OUTDIR: writes the VTK XML ImageData fixtures of
 tests/test-vti.c into OUTDIR, from the standard library only (zlib, base64,
-struct).
+struct).  make-vti.py --big OUTDIR: the larger grids of its box reads
+(big-*.vti, no .f32: a box must equal the same box of the whole read).
 
 Every good file NAME.vti has NAME.f32 beside it: the values a reader must
 give, as little-endian float32, x fastest.  bad-*.vti are files a reader
@@ -287,5 +288,41 @@ def main():
         f.write(t.replace(b'type="ImageData"', b'type="PolyData"'))
 
 
+def big(o):
+    """Grids for box reads: raw rows past the 4 MiB a batch holds, zlib
+    blocks whose size is not a multiple of the value size (values cut by
+    a block's end), base64 longer than a 64 KiB piece, a converted type."""
+    global BLOCK
+    os.makedirs(o, exist_ok=True)
+
+    def ext(nx, ny, nz):
+        return (0, nx - 1, 0, ny - 1, 0, nz - 1)
+
+    n = 160 * 128 * 64
+    v = [((i * 7919) % 10007) * 0.01 - 50.0 for i in range(n)]
+    zl = 'vtkZLibDataCompressor'
+    vti(os.path.join(o, 'big-raw.vti'), [arr('v', v)],
+        extent=ext(160, 128, 64))
+    BLOCK = 32766
+    vti(os.path.join(o, 'big-zlib.vti'), [arr('v', v[:96 * 80 * 48])],
+        extent=ext(96, 80, 48), compressor=zl)
+    BLOCK = 32764
+    vti(os.path.join(o, 'big-zlib64-be.vti'),
+        [arr('v', v[:64 * 48 * 40], 'Float64')], extent=ext(64, 48, 40),
+        byte_order='BigEndian', header=64, compressor=zl)
+    BLOCK = 1002
+    vti(os.path.join(o, 'big-binary-zlib.vti'),
+        [arr('v', v[:40 * 30 * 20], fmt='binary')], extent=ext(40, 30, 20),
+        compressor=zl)
+    vti(os.path.join(o, 'big-b64.vti'), [arr('v', v[:100 * 80 * 20])],
+        extent=ext(100, 80, 20), encoding='base64')
+    vti(os.path.join(o, 'big-int16.vti'),
+        [arr('v', [int(x * 100) for x in v[:100 * 50 * 30]], 'Int16')],
+        extent=ext(100, 50, 30))
+
+
 if __name__ == '__main__':
-    main()
+    if len(sys.argv) == 3 and sys.argv[1] == '--big':
+        big(sys.argv[2])
+    else:
+        main()

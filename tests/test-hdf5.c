@@ -10,6 +10,7 @@
 
 #include "tvpal_input_impl.h"
 #include "tvpal_test.h"
+#include "tt_box.h"
 
 #include <string.h>
 
@@ -641,6 +642,144 @@ static void test_direct(void)
     tvpal_input_close(in);
 }
 
+/* Dataset name of dims (rank 4) in loc, chunked as chunk (NULL:
+ * contiguous) with deflate (and shuffle first), written from data of
+ * memory type mtype unless NULL (no chunk is then stored); "f" and "i"
+ * have the _FillValue -999. */
+static void dataset_chunked(hid_t loc, const char *name, hid_t ftype,
+                            const hsize_t *dims, const hsize_t *chunk,
+                            int shuffle, hid_t mtype, const void *data)
+{
+    hid_t sp = H5Screate_simple(4, dims, NULL), p = H5Pcreate(H5P_DATASET_CREATE);
+    REQUIRE(sp >= 0 && p >= 0, "dataspace %s", name);
+    if (chunk)
+        REQUIRE(H5Pset_chunk(p, 4, chunk) >= 0 &&
+                (!shuffle || H5Pset_shuffle(p) >= 0) &&
+                H5Pset_deflate(p, 1) >= 0, "chunks of %s", name);
+    hid_t d = H5Dcreate2(loc, name, ftype, sp, H5P_DEFAULT, p, H5P_DEFAULT);
+    REQUIRE(d >= 0, "H5Dcreate2 %s", name);
+    REQUIRE(!data || H5Dwrite(d, mtype, H5S_ALL, H5S_ALL, H5P_DEFAULT,
+                              data) >= 0, "H5Dwrite %s", name);
+    if (!strcmp(name, "f") || !strcmp(name, "i")) {   /* -999 is missing */
+        const float ff = -999;
+        const short fs = -999;
+        if (mtype == H5T_NATIVE_FLOAT)
+            num_attr(d, "_FillValue", H5T_NATIVE_FLOAT, 1, &ff);
+        else
+            num_attr(d, "_FillValue", H5T_NATIVE_SHORT, 1, &fs);
+    }
+    H5Dclose(d);
+    H5Pclose(p);
+    H5Sclose(sp);
+}
+
+/* Box reads against whole reads: every fixture, then larger chunked
+ * datasets (edge chunks cut, shuffled deflate read directly, int16 read in
+ * pieces split along z and along y); a box read directly inflates only
+ * the chunks it meets; the scratch of a slice of a large chunked dataset
+ * stays far below a step. */
+static void test_boxes(void)
+{
+    static const struct {
+        const char *file, *var;
+    } fx[] = {{"one.h5", NULL}, {"steps.h5", "/run/density"},
+              {"types.h5", "/i16"}, {"types.h5", "/d64"},
+              {"types.h5", "/u8"}, {"types.h5", "/u16"},
+              {"types.h5", "/i32"}, {"fill.h5", "/fill"},
+              {"fill.h5", "/ffill"}, {"two.h5", "/g/b"}};
+    struct tvpal_diag g;
+    int rc;
+    for (size_t i = 0; i < sizeof fx / sizeof *fx; i++) {
+        struct tvpal_input *in = open1(TVPAL_IN_AUTO, wpath(fx[i].file),
+                                       fx[i].var, &rc, &g);
+        CHECK(in, "open %s %s: %s", fx[i].file, fx[i].var, g.msg);
+        char name[64];
+        snprintf(name, sizeof name, "%s %s", fx[i].file,
+                 fx[i].var ? fx[i].var : "");
+        if (in)
+            tt_check_boxes(in, name);
+        tvpal_input_close(in);
+    }
+
+    /* mid.h5: 2 steps of 70 x 45 x 37, chunks 32 x 16 x 8 cut at the
+     * edges; every 97th value the fill value -999 */
+    const hsize_t dm[4] = {2, 37, 45, 70}, cm[4] = {1, 8, 16, 32};
+    const size_t nm = 2 * 37 * 45 * 70;
+    const hsize_t db[4] = {1, 150, 100, 80}, cb[4] = {1, 8, 32, 32};
+    const hsize_t dw[4] = {1, 16, 200, 400}, cw[4] = {1, 16, 8, 400};
+    const size_t nbig = 150 * 100 * 80, nwide = 16 * 200 * 400;
+    float *vf = malloc(nm * sizeof *vf);
+    short *vi = malloc(nwide * sizeof *vi);
+    REQUIRE(vf && vi && nwide >= nbig, "memory");
+    for (size_t i = 0; i < nm; i++)
+        vf[i] = i % 97 ? (float)((double)(i * 7919 % 10007) * 0.01 - 50) : -999;
+    for (size_t i = 0; i < nwide; i++)
+        vi[i] = i % 89 ? (short)((int)(i * 7919 % 60001) - 30000) : -999;
+    hid_t f = create(wpath("mid.h5"));
+    dataset_chunked(f, "f", H5T_IEEE_F32LE, dm, cm, 1, H5T_NATIVE_FLOAT, vf);
+    dataset_chunked(f, "c", H5T_IEEE_F32LE, dm, NULL, 0, H5T_NATIVE_FLOAT, vf);
+    dataset_chunked(f, "i", H5T_STD_I16LE, dm, cm, 0, H5T_NATIVE_SHORT, vi);
+    dataset_chunked(f, "big", H5T_STD_I16LE, db, cb, 0, H5T_NATIVE_SHORT, vi);
+    dataset_chunked(f, "wide", H5T_STD_I16LE, dw, cw, 0, H5T_NATIVE_SHORT, vi);
+    H5Fclose(f);
+    free(vf);
+    free(vi);
+    static const char *const mid[] = {"/f", "/c", "/i", "/big", "/wide"};
+    for (size_t i = 0; i < sizeof mid / sizeof *mid; i++) {
+        struct tvpal_input *in = open1(TVPAL_IN_AUTO, wpath("mid.h5"), mid[i],
+                                       &rc, &g);
+        CHECK(in, "open mid.h5 %s: %s", mid[i], g.msg);
+        char name[64];
+        snprintf(name, sizeof name, "mid.h5 %s", mid[i]);
+        if (in)
+            tt_check_boxes_n(in, 8, name);
+        tvpal_input_close(in);
+    }
+#if defined(HAVE_ZLIB) || defined(HAVE_LIBDEFLATE)
+    /* Read directly, a box inflates the chunks it meets and no other: one
+     * for a voxel, 3 x 3 for a z-slice, 5 x 3 for an x-row band. */
+    struct tvpal_input *in = open1(TVPAL_IN_AUTO, wpath("mid.h5"), "/f", &rc,
+                                   &g);
+    REQUIRE(in, "open mid.h5 /f: %s", g.msg);
+    float box[70 * 45];
+    static const struct {
+        uint32_t lo[3], n[3];
+        uint64_t chunks;
+    } meets[] = {{{40, 20, 10}, {1, 1, 1}, 1},
+                 {{0, 0, 36}, {70, 45, 1}, 9},
+                 {{31, 15, 7}, {2, 2, 2}, 8},
+                 {{0, 17, 0}, {1, 1, 37}, 5}};
+    for (size_t i = 0; i < sizeof meets / sizeof *meets; i++) {
+        const uint64_t c0 = tvpal_input_inflated_chunks();
+        rc = tvpal_input_read_box(in, 1, meets[i].lo, meets[i].n, box, &g);
+        CHECK(rc == 0 && tvpal_input_inflated_chunks() - c0 == meets[i].chunks,
+              "mid.h5 /f box %zu: %llu chunks inflated, %llu meet it (%s)", i,
+              (unsigned long long)(tvpal_input_inflated_chunks() - c0),
+              (unsigned long long)meets[i].chunks, g.msg);
+    }
+    tvpal_input_close(in);
+#endif
+
+    /* huge.h5: 1024 x 1024 x 512, 2 steps, chunks 64 x 64 x 16, nothing
+     * written (only opened): a z-slice holds a few chunks' worth */
+    const hsize_t dh[4] = {2, 512, 1024, 1024}, ch[4] = {1, 16, 64, 64};
+    f = create(wpath("huge.h5"));
+    dataset_chunked(f, "f", H5T_IEEE_F32LE, dh, ch, 1, H5T_NATIVE_FLOAT, NULL);
+    dataset_chunked(f, "s", H5T_STD_I16LE, dh, ch, 0, H5T_NATIVE_SHORT, NULL);
+    H5Fclose(f);
+    static const char *const huge[] = {"/f", "/s"};
+    for (size_t i = 0; i < 2; i++) {
+        struct tvpal_input *hin = open1(TVPAL_IN_AUTO, wpath("huge.h5"),
+                                        huge[i], &rc, &g);
+        CHECK(hin, "open huge.h5 %s: %s", huge[i], g.msg);
+        char name[64];
+        snprintf(name, sizeof name, "huge.h5 %s", huge[i]);
+        if (hin)
+            tt_check_box_scratch(hin, 16, name);
+        tvpal_input_close(hin);
+    }
+}
+
 int main(int argc, char **argv)
 {
     if (argc == 3 && !strcmp(argv[1], "--make"))
@@ -660,6 +799,7 @@ int main(int argc, char **argv)
     test_fill();
     test_errors();
     test_netcdf4();
+    test_boxes();
 #if defined(HAVE_ZLIB) || defined(HAVE_LIBDEFLATE)
     test_direct();
 #endif

@@ -7,6 +7,7 @@
 
 #include "tvpal_input_impl.h"
 #include "tvpal_test.h"
+#include "tt_box.h"
 
 #include <stdarg.h>
 #include <string.h>
@@ -153,6 +154,11 @@ static void test_classic(void)
         CHECK(!bad, "step %u: %d values differ", k, bad);
     }
     CHECK(tvpal_input_read(in, 3, buf, &g) == TVPAL_E_INVAL, "step past the end");
+    tt_check_boxes(in, "a.nc T");
+    const uint32_t slice[3] = {4, 3, 1};
+    CHECK(tvpal_input_box_scratch(in, slice) == 0, "classic float: a box "
+          "needs no scratch (%llu)",
+          (unsigned long long)tvpal_input_box_scratch(in, slice));
     tvpal_input_close(in);
 
     /* Errors: an unknown variable lists them; fewer than 3 spatial dims. */
@@ -224,6 +230,7 @@ static void test_64bit(void)
                                  2.25f, 9.75f};
     for (int i = 0; i < 12; i++)
         CHECK(same_float(buf[i], wa[i]), "A[%d] = %g, want %g", i, buf[i], wa[i]);
+    tt_check_boxes(in, "b.nc A");
     tvpal_input_close(in);
 
     in = open1(wpath("b.nc"), "P", NULL, &rc, &g);
@@ -238,6 +245,7 @@ static void test_64bit(void)
         float want = sp[i] == -32767 ? NAN : (float)(sp[i] * 0.5 + 100.0);
         CHECK(same_float(buf[i], want), "P[%d] = %g, want %g", i, buf[i], want);
     }
+    tt_check_boxes(in, "b.nc P");
     tvpal_input_close(in);
 
     /* valid_min of the unpacked type (float, like scale_factor): applies to
@@ -250,6 +258,7 @@ static void test_64bit(void)
         float want = sq[i] < 0 ? NAN : (float)(sq[i] * (double)0.25f + 10.0);
         CHECK(same_float(buf[i], want), "Q[%d] = %g, want %g", i, buf[i], want);
     }
+    tt_check_boxes(in, "b.nc Q");
     tvpal_input_close(in);
 
     char *text = NULL;
@@ -275,6 +284,7 @@ static void test_64bit(void)
           !tvpal_input_info(in)->missing_attrs, "B: u8, no missing attrs");
     CHECK(tvpal_input_read(in, 0, buf, &g) == 0 && buf[0] == 0 && buf[6] == 250 &&
           buf[11] == 255, "read B");
+    tt_check_boxes(in, "d.nc B");
     tvpal_input_close(in);
     in = open1(wpath("d.nc"), "U", NULL, &rc, &g);
     REQUIRE(in, "open U: %s", g.msg);
@@ -282,6 +292,7 @@ static void test_64bit(void)
           tvpal_input_info(in)->missing_attrs, "U: u16, missing attrs");
     CHECK(tvpal_input_read(in, 0, buf, &g) == 0 && buf[6] == 60000 &&
           buf[7] == 65534 && isnan(buf[8]) && buf[11] == 11, "read U");
+    tt_check_boxes(in, "d.nc U");
     tvpal_input_close(in);
     CHECK(tvpal_input_describe(wpath("d.nc"), TVPAL_IN_AUTO, &text, &g) == 0 &&
           !strncmp(text, "netcdf cdf5\n", 12) && strstr(text, "B(z=2, y=2, x=3) ubyte") &&
@@ -365,7 +376,31 @@ static void test_netcdf4(void)
     CHECK(fi->steps == 3 && fi->type == TVPAL_F64 && fi->dims[2] == 2, "W info");
     CHECK(tvpal_input_read(in, 1, buf, &g) == 0 && buf[0] == val(1, 0) &&
           buf[29] == val(1, 29), "read W");
+    tt_check_boxes(in, "c.nc W");
     tvpal_input_close(in);
+
+    /* Box reads of the deflated V and S (read directly, where built so):
+     * a voxel's box inflates the one chunk it is in. */
+    static const char *const vs[] = {"V", "S"};
+    for (int i = 0; i < 2; i++) {
+        in = open1(wpath("c.nc"), vs[i], NULL, &rc, &g);
+        REQUIRE(in, "open %s: %s", vs[i], g.msg);
+        char name[16];
+        snprintf(name, sizeof name, "c.nc %s", vs[i]);
+        tt_check_boxes(in, name);
+        const uint32_t lo[3] = {4, 2, 1}, one[3] = {1, 1, 1};
+        const uint64_t c1 = tvpal_input_inflated_chunks();
+        CHECK(tvpal_input_read_box(in, 1, lo, one, buf, &g) == 0 &&
+              buf[0] == val(1, 29), "%s: a voxel's box: %s", vs[i], g.msg);
+#ifdef HAVE_HDF5
+        CHECK(tvpal_input_inflated_chunks() - c1 == 1, "%s: a voxel's box "
+              "inflates one chunk (%llu)", vs[i],
+              (unsigned long long)(tvpal_input_inflated_chunks() - c1));
+#else
+        (void)c1;
+#endif
+        tvpal_input_close(in);
+    }
     CHECK(!open1(wpath("c.nc"), "E", NULL, &rc, &g) && rc == TVPAL_E_INVAL &&
           strstr(g.msg, "two"), "extra dim of length 2: %d %s", rc, g.msg);
 
@@ -417,6 +452,7 @@ static void test_series(void)
     }
     /* back to the first file */
     CHECK(tvpal_input_read(in, 0, buf, &g) == 0 && buf[3] == val(0, 3), "reread 0");
+    tt_check_boxes(in, "series s1.nc s2.nc");
     tvpal_input_close(in);
 
     in = NULL;
@@ -493,6 +529,7 @@ static int test_shared(void)
     }
     CHECK(out == 0, "contour: %zu values outside valid_range", out);
     printf("test-netcdf: contour T: %zu missing voxels\n", nan);
+    tt_check_boxes_n(in, 8, "contour T");
     tvpal_input_close(in);
 
     in = open1(merc, "T", NULL, &rc, &g);
@@ -504,6 +541,7 @@ static int test_shared(void)
     CHECK(fi->has_times && strstr(fi->time_units, "minutes since"),
           "mercator times from XTIME (%s)", fi->time_units);
     REQUIRE(tvpal_input_read(in, 3, buf, &g) == 0, "mercator read: %s", g.msg);
+    tt_check_boxes_n(in, 8, "mercator T");
     tvpal_input_close(in);
     in = open1(merc, "U", NULL, &rc, &g);
     REQUIRE(in, "mercator U: %s", g.msg);
@@ -511,6 +549,7 @@ static int test_shared(void)
     CHECK(fi->dims[0] == 49 && fi->dims[1] == 48 && fi->dims[2] == 14 &&
           !strcmp(fi->dim_names[0], "west_east_stag"), "U on its staggered x");
     REQUIRE(tvpal_input_read(in, 0, buf, &g) == 0, "mercator U read: %s", g.msg);
+    tt_check_boxes_n(in, 8, "mercator U");
     tvpal_input_close(in);
     CHECK(!open1(merc, "nope", NULL, &rc, &g) && rc == TVPAL_E_INVAL &&
           strstr(g.msg, "Times(Time,DateStrLen)"), "mercator unknown var: %s", g.msg);

@@ -5,6 +5,7 @@
  * must equal the raw steps bit for bit. */
 #include "tvpal_input.h"
 #include "tvpal_test.h"
+#include "tt_box.h"
 
 #include <glob.h>
 #include <stdio.h>
@@ -70,6 +71,7 @@ static void check_good(const char *name, const char *var, const char *expect,
           "expected %.9g", name, bad, first, got[first], want[first]);
     rc = tvpal_input_read(in, 1, got, &g);
     CHECK(rc == TVPAL_E_INVAL, "%s: step 1 of 1 is refused (%d)", name, rc);
+    tt_check_boxes(in, name);
     if (out)
         *out = *info;
     tvpal_input_close(in);
@@ -229,6 +231,40 @@ static void fixtures(void)
     tvpal_input_close(in);
 }
 
+/* Box reads of the larger grids of make-vti.py --big (written into
+ * work/big by main): every box equals the whole read's; the scratch of a
+ * slice stays far below a step. */
+static void big(void)
+{
+    static const char *const names[] = {"big-raw", "big-zlib",
+                                        "big-zlib64-be", "big-binary-zlib",
+                                        "big-b64", "big-int16"};
+    for (size_t i = 0; i < sizeof names / sizeof *names; i++) {
+        char path[4400];
+        snprintf(path, sizeof path, "%s/big/%s.vti", work, names[i]);
+        char *files[1] = {path};
+        struct tvpal_input *in = NULL;
+        struct tvpal_diag g = {{0}};
+        int rc = tvpal_input_open(&in, TVPAL_IN_AUTO, files, 1, NULL, &g);
+        CHECK(rc == 0, "%s: open: %s", names[i], g.msg);
+        if (rc < 0)
+            continue;
+        tt_check_boxes_n(in, 6, names[i]);
+        /* zlib: a block or two; raw float32 z-slices: none */
+        tt_check_box_scratch(in, strstr(names[i], "zlib") ? 4 : 1, names[i]);
+        if (!strcmp(names[i], "big-raw")) {
+            const uint32_t *d = tvpal_input_info(in)->dims;
+            const uint32_t zs[3] = {d[0], d[1], 3}, xs[3] = {2, d[1], d[2]};
+            CHECK(tvpal_input_box_scratch(in, zs) == 0, "big-raw: z-slab "
+                  "boxes read straight into dst");
+            CHECK(tvpal_input_box_scratch(in, xs) == ((size_t)4 << 20),
+                  "big-raw: an x-slab batches rows in 4 MiB (%llu)",
+                  (unsigned long long)tvpal_input_box_scratch(in, xs));
+        }
+        tvpal_input_close(in);
+    }
+}
+
 /* The real series: 20 .vti files of run01; steps 1, 2, 10 and 20 equal the
  * raw files. */
 static int realdata(void)
@@ -285,6 +321,8 @@ static int realdata(void)
         }
         free(got);
         free(want);
+        tt_check_boxes_n(in, 4, "real series");
+        tt_check_box_scratch(in, 4, "real series");
     }
     tvpal_input_close(in);
     globfree(&gl);
@@ -312,7 +350,11 @@ int main(void)
              "'%s/tests/make-vti.py' '%s'", work, work, py, src ? src : ".",
              work);
     REQUIRE(system(cmd) == 0, "%s", cmd);
+    snprintf(cmd, sizeof cmd, "'%s' '%s/tests/make-vti.py' --big '%s/big'",
+             py, src ? src : ".", work);
+    REQUIRE(system(cmd) == 0, "%s", cmd);
     fixtures();
+    big();
     realdata();
     int rc = tt_done("test-vti");
     if (rc == 0) {

@@ -6,12 +6,14 @@
  * visited).
  * Rank 3 is one step (z, y, x, x fastest); rank 4 is (time, z, y, x), time
  * slowest.  Any integer or float type is read, converted by the library:
- * 32-bit floats straight into the caller's floats, the rest through one
- * step of double scratch (exact for every integer up to 2^53, so that
- * missing values compare exactly).  A numeric _FillValue or missing_value
- * attribute makes the voxels of those values NaN; a string units
- * attribute is the units.  Chunked and compressed (gzip) datasets are
- * read by the library, one step's hyperslab per read.
+ * 32-bit floats straight into the caller's floats, the rest through double
+ * scratch (exact for every integer up to 2^53, so that missing values
+ * compare exactly) in pieces of at most TVPAL_BOX_PIECE values cut on the
+ * chunks' edges (tvpal_box_split): no step of scratch.  A numeric
+ * _FillValue or missing_value attribute makes the voxels of those values
+ * NaN; a string units attribute is the units.  Chunked and compressed
+ * (gzip) datasets are read by the library, one step's hyperslab per read;
+ * a box read is the box's hyperslab (read_box).
  *
  * Deflated float32 chunks are read directly and inflated in parallel (see
  * "direct chunk reading" below), for this backend and for NetCDF-4
@@ -48,7 +50,11 @@ struct tvpal_input_file {
     size_t nvox;
     uint32_t steps;
     int is_f32;                /* stored as 32-bit float: no scratch */
-    double *scratch;           /* one step as double (other types) */
+    uint32_t chunk[3];         /* x, y, z chunk sizes; 1 1 1 contiguous */
+    uint64_t cache;            /* the library's chunk cache, bytes */
+    uint64_t chunk_bytes;      /* one chunk as stored (0: contiguous) */
+    double *scratch;           /* a piece as double (other types) */
+    size_t scratch_cap;        /* in values */
     double miss[MAX_MISSING];  /* as the stored type holds them */
     int nmiss;
     struct tvpal_h5direct *direct; /* deflated float32: read directly */
@@ -62,7 +68,9 @@ struct tvpal_input_file {
  * here instead: its compressed chunks are read as they are stored
  * (H5Dread_chunk, serial: the library is not thread-safe), then inflated
  * by tvpal_inflate (libdeflate where built with it: two to three times
- * faster) in parallel, unshuffled and copied into place.  Anything else
+ * faster) in parallel, unshuffled and copied into place.  A box read
+ * (direct_read_box) reads the chunks that meet the box only, two per
+ * thread at a time, and copies the parts inside the box.  Anything else
  * (other filters, an unallocated chunk, a skipped filter) is read through
  * the library as before; the bytes are the same either way. */
 #ifdef HAVE_INFLATE_ADAPTER
@@ -85,6 +93,11 @@ struct tvpal_h5direct {
     size_t raw_cap;
     unsigned char *work;               /* nthreads * 2 * chunk_bytes */
     int nthreads;
+    /* box reads: a batch of chunks (offsets, compressed bytes) */
+    hsize_t *boff;
+    size_t *bat, *blen;
+    unsigned char *braw;
+    size_t braw_cap;
     char what[160];                    /* "FILE: DATASET", for messages */
 };
 
@@ -101,6 +114,10 @@ void tvpal_input_hdf5_direct_close(struct tvpal_h5direct *d)
     free(d->len);
     free(d->raw);
     free(d->work);
+    free(d->boff);
+    free(d->bat);
+    free(d->blen);
+    free(d->braw);
     free(d);
 }
 
@@ -330,6 +347,160 @@ int tvpal_input_hdf5_direct_read(struct tvpal_h5direct *d, uint32_t k,
     atomic_fetch_add(&g_inflated, d->nchunks);
     return 0;
 #endif
+}
+
+#ifdef HAVE_INFLATE_ADAPTER
+/* The part of chunk o (inflated in buf) inside the box [lo, lo + n) into
+ * its place in the box-dense dst. */
+static void direct_place_box(const struct tvpal_h5direct *d, const hsize_t *o,
+                             const float *buf, const uint32_t lo[3],
+                             const uint32_t n[3], float *dst)
+{
+    const int s = d->rank - 3;
+    size_t c[3], o3[3], b[3], e[3];
+    for (int a = 0; a < 3; a++) {
+        c[a] = (size_t)d->chunk[s + 2 - a];
+        o3[a] = (size_t)o[s + 2 - a];
+        b[a] = o3[a] > lo[a] ? o3[a] : lo[a];
+        e[a] = o3[a] + c[a] < (size_t)lo[a] + n[a] ? o3[a] + c[a]
+                                                  : (size_t)lo[a] + n[a];
+    }
+    for (size_t z = b[2]; z < e[2]; z++)
+        for (size_t y = b[1]; y < e[1]; y++)
+            memcpy(dst + (b[0] - lo[0]) + n[0] * ((y - lo[1]) +
+                                                  (size_t)n[1] * (z - lo[2])),
+                   buf + (b[0] - o3[0]) + c[0] * ((y - o3[1]) +
+                                                  c[1] * (z - o3[2])),
+                   (e[0] - b[0]) * sizeof *dst);
+}
+#endif
+
+/* Chunks of a box read handled at once: two per thread. */
+static size_t direct_batch(const struct tvpal_h5direct *d)
+{
+    return 2 * (size_t)d->nthreads;
+}
+
+int tvpal_input_hdf5_direct_read_box(struct tvpal_h5direct *d, uint32_t k,
+                                     const uint32_t lo[3], const uint32_t n[3],
+                                     float *dst, struct tvpal_diag *diag)
+{
+#ifndef HAVE_INFLATE_ADAPTER
+    (void)d, (void)k, (void)lo, (void)n, (void)dst, (void)diag;
+    return 1;
+#else
+    const int s = d->rank - 3;
+    size_t c0[3], per[3], all[3], total = 1;
+    for (int a = 0; a < 3; a++) {
+        const size_t c = (size_t)d->chunk[s + 2 - a];
+        c0[a] = lo[a] / c;
+        per[a] = ((size_t)lo[a] + n[a] - 1) / c - c0[a] + 1;
+        all[a] = ((size_t)d->dims[s + 2 - a] + c - 1) / c;
+        total *= per[a];
+    }
+    const size_t batch = direct_batch(d);
+    if (!d->boff) {
+        hsize_t *off = calloc(batch * (size_t)d->rank, sizeof *off);
+        size_t *at = malloc(batch * sizeof *at), *len = malloc(batch * sizeof *len);
+        if (!off || !at || !len) {
+            free(off);
+            free(at);
+            free(len);
+            return tvpal_diag_set(diag, TVPAL_E_NOMEM, "%s: step %u: out of "
+                                  "memory", d->what, k);
+        }
+        d->boff = off, d->bat = at, d->blen = len;
+    }
+    for (size_t b0 = 0; b0 < total; b0 += batch) {
+        const size_t nb = total - b0 < batch ? total - b0 : batch;
+        size_t sum = 0;
+        for (size_t j = 0; j < nb; j++) {
+            const size_t i = b0 + j;
+            const size_t cx = c0[0] + i % per[0],
+                         cy = c0[1] + i / per[0] % per[1],
+                         cz = c0[2] + i / per[0] / per[1];
+            hsize_t *o = d->boff + j * (size_t)d->rank, sz = 0;
+            if (d->rank == 4)
+                o[0] = k;
+            o[s + 2] = cx * d->chunk[s + 2];
+            o[s + 1] = cy * d->chunk[s + 1];
+            o[s] = cz * d->chunk[s];
+            if (H5Dget_chunk_storage_size(d->dset, o, &sz) < 0 || sz == 0) {
+                H5Eclear2(H5E_DEFAULT);
+                return 1;
+            }
+            d->bat[j] = sum;
+            d->blen[j] = (size_t)sz;
+            sum += (size_t)sz;
+        }
+        if (sum > d->braw_cap) {
+            free(d->braw);
+            d->braw_cap = 0;
+            if (!(d->braw = malloc(sum)))
+                return tvpal_diag_set(diag, TVPAL_E_NOMEM, "%s: step %u: out "
+                                      "of memory", d->what, k);
+            d->braw_cap = sum;
+        }
+        for (size_t j = 0; j < nb; j++) {
+            uint32_t mask = 0;
+            if (H5Dread_chunk(d->dset, H5P_DEFAULT, d->boff + j * (size_t)d->rank,
+                              &mask, d->braw + d->bat[j]) < 0 || mask) {
+                H5Eclear2(H5E_DEFAULT);
+                return 1;
+            }
+        }
+        int64_t bad = -1;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 1) num_threads(d->nthreads)
+#endif
+        for (int64_t j = 0; j < (int64_t)nb; j++) {
+            int id = 0;
+#ifdef _OPENMP
+            id = omp_get_thread_num();
+#endif
+            unsigned char *a = d->work + (size_t)id * 2 * d->chunk_bytes,
+                          *b = a + d->chunk_bytes;
+            size_t got;
+            int z = tvpal_inflate(d->braw + d->bat[j], d->blen[j], a,
+                                  d->chunk_bytes, &got);
+            if (z != TVPAL_INFLATE_OK || got != d->chunk_bytes) {
+#ifdef _OPENMP
+#pragma omp critical(tvpal_h5_chunk)
+#endif
+                if (bad < 0 || j < bad)
+                    bad = j;
+                continue;
+            }
+            if (d->shuffle)
+                unshuffle4(a, d->chunk_bytes / 4, b);
+            direct_place_box(d, d->boff + (size_t)j * (size_t)d->rank,
+                             (const float *)(void *)(d->shuffle ? b : a), lo,
+                             n, dst);
+        }
+        if (bad >= 0) {
+            const hsize_t *o = d->boff + (size_t)bad * (size_t)d->rank;
+            size_t c = ((size_t)(o[s] / d->chunk[s]) * all[1] +
+                        (size_t)(o[s + 1] / d->chunk[s + 1])) * all[0] +
+                       (size_t)(o[s + 2] / d->chunk[s + 2]);
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: step %u: chunk "
+                                  "%zu of %zu does not inflate (corrupt "
+                                  "file)", d->what, k, c + 1, d->nchunks);
+        }
+        atomic_fetch_add(&g_inflated, nb);
+    }
+    return 0;
+#endif
+}
+
+uint64_t tvpal_input_hdf5_direct_scratch(const struct tvpal_h5direct *d)
+{
+    const uint64_t cb = d->chunk_bytes, batch = direct_batch(d);
+    /* work, a batch of compressed chunks (deflate grows incompressible
+     * data by a few bytes per 16 KiB), the chunk tables */
+    return (uint64_t)d->nthreads * 2 * cb + batch * (cb + cb / 1024 + 64) +
+           batch * ((uint64_t)d->rank * sizeof(hsize_t) + 2 * sizeof(size_t)) +
+           (uint64_t)d->nchunks * ((uint64_t)d->rank * sizeof(hsize_t) +
+                                   2 * sizeof(size_t));
 }
 
 uint64_t tvpal_input_hdf5_inflated(void)
@@ -763,6 +934,37 @@ static void h5_close(struct tvpal_input_file *f)
     free(f);
 }
 
+/* Chunk sizes (x, y, z), the bytes of a chunk and of the library's chunk
+ * cache; 1 1 1 and 0 for contiguous data. */
+static void read_chunking(struct tvpal_input_file *f)
+{
+    f->chunk[0] = f->chunk[1] = f->chunk[2] = 1;
+    hid_t dcpl = H5Dget_create_plist(f->dset);
+    hsize_t c[4];
+    if (dcpl >= 0 && H5Pget_layout(dcpl) == H5D_CHUNKED &&
+        H5Pget_chunk(dcpl, f->rank, c) == f->rank) {
+        hid_t t = H5Dget_type(f->dset);
+        f->chunk_bytes = t >= 0 ? H5Tget_size(t) : 8;
+        for (int i = 0; i < f->rank; i++)
+            f->chunk_bytes *= c[i];
+        for (int a = 0; a < 3; a++)
+            f->chunk[a] = c[f->rank - 1 - a] <= UINT32_MAX
+                              ? (uint32_t)c[f->rank - 1 - a] : UINT32_MAX;
+        if (t >= 0)
+            H5Tclose(t);
+        hid_t dapl = H5Dget_access_plist(f->dset);
+        size_t slots, bytes = 0;
+        double w0;
+        if (dapl >= 0 && H5Pget_chunk_cache(dapl, &slots, &bytes, &w0) >= 0)
+            f->cache = bytes;
+        if (dapl >= 0)
+            H5Pclose(dapl);
+    }
+    if (dcpl >= 0)
+        H5Pclose(dcpl);
+    H5Eclear2(H5E_DEFAULT);
+}
+
 static int h5_open(struct tvpal_input_file **out, const char *path,
                    const struct tvpal_input_opts *opts,
                    struct tvpal_input_info *info, double **times,
@@ -786,9 +988,8 @@ static int h5_open(struct tvpal_input_file **out, const char *path,
             rc = h5_fail(diag, TVPAL_E_FORMAT, path, f->var,
                          "cannot make its dataspaces");
     }
-    if (rc == 0 && !f->is_f32 &&
-        !(f->scratch = malloc(sizeof *f->scratch * f->nvox)))
-        rc = TVPAL_E_NOMEM;
+    if (rc == 0)
+        read_chunking(f);
     if (rc == 0)
         rc = direct_for(f->dset, path, f->var, &f->direct);
     if (rc < 0) {
@@ -809,14 +1010,123 @@ static inline int missing(const struct tvpal_input_file *f, double v)
     return 0;
 }
 
-static int h5_read(struct tvpal_input_file *f, uint32_t k, float *dst,
-                   struct tvpal_diag *diag)
+static int check_step(const struct tvpal_input_file *f, uint32_t k,
+                      struct tvpal_diag *diag)
 {
     if (k >= f->steps)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: dataset %s: step %u "
                               "of %u", f->path, f->var, k, f->steps);
-    int rc = f->direct ? tvpal_input_hdf5_direct_read(f->direct, k, dst, diag)
+    return 0;
+}
+
+/* The hyperslab of box [lo, lo + n) of step k into buf as mtype. */
+static int h5_read_slab(struct tvpal_input_file *f, uint32_t k,
+                        const uint32_t lo[3], const uint32_t n[3],
+                        hid_t mtype, void *buf, struct tvpal_diag *diag)
+{
+    hsize_t start[4] = {0}, count[4] = {1, 1, 1, 1};
+    const int s = f->rank - 3;
+    if (f->rank == 4)
+        start[0] = k;
+    for (int a = 0; a < 3; a++) {
+        start[s + 2 - a] = lo[a];
+        count[s + 2 - a] = n[a];
+    }
+    hsize_t m = (hsize_t)n[0] * n[1] * n[2];
+    hid_t ms = NO_ID;
+    if (H5Sselect_hyperslab(f->fspace, H5S_SELECT_SET, start, NULL, count,
+                            NULL) < 0 ||
+        (ms = H5Screate_simple(1, &m, NULL)) < 0)
+        return h5_fail(diag, TVPAL_E_READ, f->path, f->var,
+                       "cannot select a box");
+    herr_t st = H5Dread(f->dset, mtype, ms, f->fspace, H5P_DEFAULT, buf);
+    H5Sclose(ms);
+    if (st < 0) {
+        char what[128];
+        snprintf(what, sizeof what, "cannot read step %u (box at %u %u %u of "
+                 "size %u %u %u)", k, lo[0], lo[1], lo[2], n[0], n[1], n[2]);
+        return h5_fail(diag, TVPAL_E_READ, f->path, f->var, what);
+    }
+    return 0;
+}
+
+static int h5_read_box(struct tvpal_input_file *f, uint32_t k,
+                       const uint32_t lo[3], const uint32_t n[3], float *dst,
+                       struct tvpal_diag *diag)
+{
+    int rc = check_step(f, k, diag);
+    if (rc < 0)
+        return rc;
+    const size_t nbox = (size_t)n[0] * n[1] * n[2];
+    if (f->is_f32) {
+        rc = f->direct ? tvpal_input_hdf5_direct_read_box(f->direct, k, lo, n,
+                                                          dst, diag)
                        : 1;
+        if (rc == 1)
+            rc = h5_read_slab(f, k, lo, n, H5T_NATIVE_FLOAT, dst, diag);
+        for (size_t i = 0; rc == 0 && f->nmiss && i < nbox; i++)
+            if (missing(f, dst[i]))
+                dst[i] = NAN;
+        return rc;
+    }
+    struct tvpal_box_split sp;
+    tvpal_box_split_init(&sp, lo, n, f->chunk, TVPAL_BOX_PIECE);
+    const size_t need = (size_t)tvpal_box_split_most(&sp);
+    if (need > f->scratch_cap) {
+        free(f->scratch);
+        f->scratch_cap = 0;
+        if (!(f->scratch = malloc(need * sizeof *f->scratch)))
+            return TVPAL_E_NOMEM;
+        f->scratch_cap = need;
+    }
+    uint32_t plo[3], pn[3];
+    while (tvpal_box_split_next(&sp, plo, pn)) {
+        rc = h5_read_slab(f, k, plo, pn, H5T_NATIVE_DOUBLE, f->scratch, diag);
+        if (rc < 0)
+            return rc;
+        const double *v = f->scratch;
+        for (uint32_t z = 0; z < pn[2]; z++)
+            for (uint32_t y = 0; y < pn[1]; y++) {
+                float *row = dst + (plo[0] - lo[0]) +
+                             ((size_t)(plo[2] - lo[2] + z) * n[1] +
+                              (plo[1] - lo[1] + y)) * n[0];
+                for (uint32_t x = 0; x < pn[0]; x++, v++)
+                    row[x] = missing(f, *v) ? NAN : (float)*v;
+            }
+    }
+    return 0;
+}
+
+static uint64_t h5_box_scratch(const struct tvpal_input_file *f,
+                               const uint32_t n[3])
+{
+    if (f->is_f32)
+        return f->direct ? tvpal_input_hdf5_direct_scratch(f->direct)
+                         : f->cache + f->chunk_bytes;
+    struct tvpal_box_split sp;
+    const uint32_t zero[3] = {0, 0, 0};
+    tvpal_box_split_init(&sp, zero, n, f->chunk, TVPAL_BOX_PIECE);
+    /* the pieces, the cache and a chunk, the library's conversion buffer
+     * (1 MiB by default) */
+    return tvpal_box_split_most(&sp) * sizeof(double) + f->cache +
+           f->chunk_bytes + ((uint64_t)1 << 20);
+}
+
+static int h5_read(struct tvpal_input_file *f, uint32_t k, float *dst,
+                   struct tvpal_diag *diag)
+{
+    int rc = check_step(f, k, diag);
+    if (rc < 0)
+        return rc;
+    if (!f->is_f32) {
+        const uint32_t zero[3] = {0, 0, 0};
+        uint32_t dims[3];
+        for (int a = 0; a < 3; a++)
+            dims[a] = (uint32_t)f->dims[f->rank - 1 - a];
+        return h5_read_box(f, k, zero, dims, dst, diag);
+    }
+    rc = f->direct ? tvpal_input_hdf5_direct_read(f->direct, k, dst, diag)
+                   : 1;
     if (rc < 0)
         return rc;
     if (rc == 0)
@@ -829,23 +1139,17 @@ static int h5_read(struct tvpal_input_file *f, uint32_t k, float *dst,
                             NULL) < 0)
         return h5_fail(diag, TVPAL_E_READ, f->path, f->var,
                        "cannot select a step");
-    if (H5Dread(f->dset, f->is_f32 ? H5T_NATIVE_FLOAT : H5T_NATIVE_DOUBLE,
-                f->mspace, f->fspace, H5P_DEFAULT,
-                f->is_f32 ? (void *)dst : (void *)f->scratch) < 0) {
+    if (H5Dread(f->dset, H5T_NATIVE_FLOAT, f->mspace, f->fspace, H5P_DEFAULT,
+                dst) < 0) {
         char what[48];
         snprintf(what, sizeof what, "cannot read step %u", k);
         return h5_fail(diag, TVPAL_E_READ, f->path, f->var, what);
     }
 read:
-    if (f->is_f32) {
-        if (f->nmiss)
-            for (size_t i = 0; i < f->nvox; i++)
-                if (missing(f, dst[i]))
-                    dst[i] = NAN;
-    } else {
+    if (f->nmiss)
         for (size_t i = 0; i < f->nvox; i++)
-            dst[i] = missing(f, f->scratch[i]) ? NAN : (float)f->scratch[i];
-    }
+            if (missing(f, dst[i]))
+                dst[i] = NAN;
     return 0;
 }
 
@@ -877,5 +1181,6 @@ static int h5_describe(const char *path, char **text, struct tvpal_diag *diag)
 }
 
 const struct tvpal_input_backend tvpal_input_hdf5 = {
-    .name = "hdf5", .open = h5_open, .read = h5_read, .close = h5_close,
-    .describe = h5_describe};
+    .name = "hdf5", .open = h5_open, .read = h5_read,
+    .read_box = h5_read_box, .box_scratch = h5_box_scratch,
+    .close = h5_close, .describe = h5_describe};

@@ -22,8 +22,12 @@
  * type) is in unpacked units and is tested after unpacking.
  *
  * read() reads one step's hyperslab (nc_get_vara) into the caller's floats
- * (float variables) or into one step of scratch in the stored type,
- * allocated at open. */
+ * (float variables; NetCDF-4 deflated chunks directly, as the HDF5 backend
+ * reads them); other types go through scratch in the stored type, in
+ * pieces of at most TVPAL_BOX_PIECE values cut on the chunks' edges
+ * (tvpal_box_split), so no type needs a step of scratch.  read_box reads
+ * the box's hyperslab (time index first where the variable has time) the
+ * same way, with the same missing values and unpacking. */
 #include "tvpal_input_impl.h"
 #include "tvpal_fs.h"
 
@@ -51,7 +55,11 @@ struct tvpal_input_file {
     size_t steps;
     size_t count[MAX_DIMS];    /* one step: 1 on time and extra dims */
     size_t nvox;
-    void *scratch;             /* one step, stored type; NULL for float */
+    size_t tsize;              /* bytes of a stored value */
+    uint32_t chunk[3];         /* x, y, z chunk sizes; 1 1 1 contiguous */
+    uint64_t cache;            /* the library's chunk cache (NetCDF-4) */
+    void *scratch;             /* a piece, stored type (not float) */
+    size_t scratch_cap;
     double miss[MAX_MISSING];  /* in the stored type's values */
     int nmiss;
     int has_min, has_max, valid_unpacked;
@@ -820,6 +828,26 @@ static int direct_open(struct tvpal_input_file *f)
     return tvpal_input_hdf5_direct_open(&f->direct, f->path, name);
 }
 
+/* Chunk sizes (x, y, z) of a chunked NetCDF-4 variable and the size of
+ * the library's chunk cache for it; 1 1 1 and 0 for contiguous data. */
+static void read_chunking(struct tvpal_input_file *f)
+{
+    int storage = NC_CONTIGUOUS;
+    size_t cs[NC_MAX_VAR_DIMS], cache = 0, nelems;
+    float preempt;
+    f->chunk[0] = f->chunk[1] = f->chunk[2] = 1;
+    if (f->ndims > NC_MAX_VAR_DIMS ||
+        nc_inq_var_chunking(f->ncid, f->varid, &storage, cs) != NC_NOERR ||
+        storage != NC_CHUNKED)
+        return;
+    for (int a = 0; a < 3; a++)
+        f->chunk[a] = cs[f->ndims - 1 - a] > 0 && cs[f->ndims - 1 - a] <= UINT32_MAX
+                          ? (uint32_t)cs[f->ndims - 1 - a] : 1;
+    if (nc_get_var_chunk_cache(f->ncid, f->varid, &cache, &nelems,
+                               &preempt) == NC_NOERR)
+        f->cache = cache;
+}
+
 static int ncdf_open(struct tvpal_input_file **out, const char *path,
                         const struct tvpal_input_opts *opts,
                         struct tvpal_input_info *info, double **times,
@@ -859,13 +887,9 @@ static int ncdf_open(struct tvpal_input_file **out, const char *path,
         text_att(f->ncid, f->varid, "units", info->units, sizeof info->units);
         if (f->xtype == NC_FLOAT)
             rc = direct_open(f);
-        if (f->xtype != NC_FLOAT) {
-            size_t size;
-            if ((st = nc_inq_type(f->ncid, f->xtype, NULL, &size)) != NC_NOERR)
-                rc = ncdf_fail(diag, st, TVPAL_E_FORMAT, path, f->var);
-            else if (!(f->scratch = malloc(f->nvox * size)))
-                rc = TVPAL_E_NOMEM;
-        }
+        if ((st = nc_inq_type(f->ncid, f->xtype, NULL, &f->tsize)) != NC_NOERR)
+            rc = ncdf_fail(diag, st, TVPAL_E_FORMAT, path, f->var);
+        read_chunking(f);
     }
     if (rc == 0 && tdim >= 0)
         rc = read_times(f, tdim, info, times, diag);
@@ -877,56 +901,136 @@ static int ncdf_open(struct tvpal_input_file **out, const char *path,
     return 0;
 }
 
-#define NCDF_COOK(T)                                                     \
+/* The hyperslab of box [lo, lo + n) of step k into buf (the stored type,
+ * or float for float variables). */
+static int ncdf_vara(const struct tvpal_input_file *f, uint32_t k,
+                     const uint32_t lo[3], const uint32_t n[3], void *buf)
+{
+    size_t start[MAX_DIMS] = {0}, count[MAX_DIMS];
+    memcpy(count, f->count, sizeof count);
+    if (f->tpos >= 0)
+        start[f->tpos] = k;
+    for (int a = 0; a < 3; a++) {
+        start[f->ndims - 1 - a] = lo[a];
+        count[f->ndims - 1 - a] = n[a];
+    }
+    return f->xtype == NC_FLOAT
+               ? nc_get_vara_float(f->ncid, f->varid, start, count, buf)
+               : nc_get_vara(f->ncid, f->varid, start, count, buf);
+}
+
+/* A piece pn of stored values (scratch) into its place d of a box of
+ * rows n0 and slices n0 * n1 of dst. */
+#define NCDF_COOK(T)                                                         \
     do {                                                                     \
         const T *s = f->scratch;                                             \
-        for (size_t i = 0; i < f->nvox; i++)                                 \
-            dst[i] = cook(f, (double)s[i]);                                  \
+        for (uint32_t z = 0; z < pn[2]; z++)                                 \
+            for (uint32_t y = 0; y < pn[1]; y++) {                           \
+                float *row = d + ((size_t)z * n[1] + y) * n[0];              \
+                for (uint32_t x = 0; x < pn[0]; x++)                         \
+                    row[x] = cook(f, (double)*s++);                          \
+            }                                                                \
     } while (0)
 
-static int ncdf_read(struct tvpal_input_file *f, uint32_t k, float *dst,
-                        struct tvpal_diag *diag)
+static int check_step(const struct tvpal_input_file *f, uint32_t k,
+                      struct tvpal_diag *diag)
 {
     if (k >= f->steps)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s: step %u "
                               "of %zu", f->path, f->var, k, f->steps);
-    size_t start[MAX_DIMS] = {0};
-    if (f->tpos >= 0)
-        start[f->tpos] = k;
-    int st, rc = f->direct ? tvpal_input_hdf5_direct_read(f->direct, k, dst,
-                                                          diag)
-                           : 1;
+    return 0;
+}
+
+static int ncdf_read_box(struct tvpal_input_file *f, uint32_t k,
+                         const uint32_t lo[3], const uint32_t n[3],
+                         float *dst, struct tvpal_diag *diag)
+{
+    int st, rc = check_step(f, k, diag);
     if (rc < 0)
         return rc;
-    if (rc == 0) {
+    const size_t nbox = (size_t)n[0] * n[1] * n[2];
+    if (f->xtype == NC_FLOAT) {
+        rc = f->direct ? tvpal_input_hdf5_direct_read_box(f->direct, k, lo, n,
+                                                          dst, diag)
+                       : 1;
+        if (rc < 0)
+            return rc;
+        if (rc == 1 && (st = ncdf_vara(f, k, lo, n, dst)) != NC_NOERR)
+            return ncdf_fail(diag, st, TVPAL_E_READ, f->path, f->var);
         if (f->cook)
-            for (size_t i = 0; i < f->nvox; i++)
+            for (size_t i = 0; i < nbox; i++)
                 dst[i] = cook(f, dst[i]);
         return 0;
     }
-    if (f->xtype == NC_FLOAT) {
-        st = nc_get_vara_float(f->ncid, f->varid, start, f->count, dst);
-        if (st == NC_NOERR && f->cook)
-            for (size_t i = 0; i < f->nvox; i++)
-                dst[i] = cook(f, dst[i]);
-    } else {
-        st = nc_get_vara(f->ncid, f->varid, start, f->count, f->scratch);
-        if (st == NC_NOERR)
-            switch (f->xtype) {
-            case NC_BYTE: NCDF_COOK(signed char); break;
-            case NC_UBYTE: NCDF_COOK(unsigned char); break;
-            case NC_SHORT: NCDF_COOK(short); break;
-            case NC_USHORT: NCDF_COOK(unsigned short); break;
-            case NC_INT: NCDF_COOK(int); break;
-            case NC_UINT: NCDF_COOK(unsigned int); break;
-            case NC_INT64: NCDF_COOK(long long); break;
-            case NC_UINT64: NCDF_COOK(unsigned long long); break;
-            default: NCDF_COOK(double); break;   /* NC_DOUBLE */
-            }
+    struct tvpal_box_split sp;
+    tvpal_box_split_init(&sp, lo, n, f->chunk, TVPAL_BOX_PIECE);
+    const size_t need = (size_t)tvpal_box_split_most(&sp) * f->tsize;
+    if (need > f->scratch_cap) {
+        free(f->scratch);
+        f->scratch_cap = 0;
+        if (!(f->scratch = malloc(need)))
+            return TVPAL_E_NOMEM;
+        f->scratch_cap = need;
     }
-    if (st != NC_NOERR)
-        return ncdf_fail(diag, st, TVPAL_E_READ, f->path, f->var);
+    uint32_t plo[3], pn[3];
+    while (tvpal_box_split_next(&sp, plo, pn)) {
+        if ((st = ncdf_vara(f, k, plo, pn, f->scratch)) != NC_NOERR)
+            return ncdf_fail(diag, st, TVPAL_E_READ, f->path, f->var);
+        float *d = dst + (plo[0] - lo[0]) +
+                   ((size_t)(plo[2] - lo[2]) * n[1] + (plo[1] - lo[1])) * n[0];
+        switch (f->xtype) {
+        case NC_BYTE: NCDF_COOK(signed char); break;
+        case NC_UBYTE: NCDF_COOK(unsigned char); break;
+        case NC_SHORT: NCDF_COOK(short); break;
+        case NC_USHORT: NCDF_COOK(unsigned short); break;
+        case NC_INT: NCDF_COOK(int); break;
+        case NC_UINT: NCDF_COOK(unsigned int); break;
+        case NC_INT64: NCDF_COOK(long long); break;
+        case NC_UINT64: NCDF_COOK(unsigned long long); break;
+        default: NCDF_COOK(double); break;   /* NC_DOUBLE */
+        }
+    }
     return 0;
+}
+
+static void grid_of(const struct tvpal_input_file *f, uint32_t dims[3])
+{
+    for (int a = 0; a < 3; a++)
+        dims[a] = (uint32_t)f->count[f->ndims - 1 - a];
+}
+
+static int ncdf_read(struct tvpal_input_file *f, uint32_t k, float *dst,
+                        struct tvpal_diag *diag)
+{
+    int st, rc = check_step(f, k, diag);
+    if (rc < 0)
+        return rc;
+    const uint32_t zero[3] = {0, 0, 0};
+    uint32_t dims[3];
+    grid_of(f, dims);
+    if (f->xtype != NC_FLOAT)
+        return ncdf_read_box(f, k, zero, dims, dst, diag);
+    rc = f->direct ? tvpal_input_hdf5_direct_read(f->direct, k, dst, diag) : 1;
+    if (rc < 0)
+        return rc;
+    if (rc == 1 && (st = ncdf_vara(f, k, zero, dims, dst)) != NC_NOERR)
+        return ncdf_fail(diag, st, TVPAL_E_READ, f->path, f->var);
+    if (f->cook)
+        for (size_t i = 0; i < f->nvox; i++)
+            dst[i] = cook(f, dst[i]);
+    return 0;
+}
+
+static uint64_t ncdf_box_scratch(const struct tvpal_input_file *f,
+                                 const uint32_t n[3])
+{
+    if (f->xtype == NC_FLOAT)
+        return f->direct ? tvpal_input_hdf5_direct_scratch(f->direct)
+                         : f->cache;
+    struct tvpal_box_split sp;
+    const uint32_t zero[3] = {0, 0, 0};
+    tvpal_box_split_init(&sp, zero, n, f->chunk, TVPAL_BOX_PIECE);
+    return tvpal_box_split_most(&sp) * f->tsize + f->cache;
 }
 
 static const char *format_name(int fmt)
@@ -997,5 +1101,6 @@ static int ncdf_describe(const char *path, char **text, struct tvpal_diag *diag)
 }
 
 const struct tvpal_input_backend tvpal_input_netcdf = {
-    .name = "netcdf", .open = ncdf_open, .read = ncdf_read, .close = ncdf_close,
-    .describe = ncdf_describe};
+    .name = "netcdf", .open = ncdf_open, .read = ncdf_read,
+    .read_box = ncdf_read_box, .box_scratch = ncdf_box_scratch,
+    .close = ncdf_close, .describe = ncdf_describe};

@@ -21,7 +21,12 @@
  *
  * Nothing is kept between calls but the path and what open found: read maps
  * the file, parses it again and decodes into dst (float32 arrays in place;
- * other types through one step of scratch).  Errors are TVPAL_E_FORMAT for
+ * other types through one step of scratch).  read_box parses it again as
+ * well and reads the box's values only (decode_box): raw appended rows by
+ * pread (tvpal_input_box_pread), the zlib blocks that meet the box one at
+ * a time (raw: by pread), base64 decoded in order up to the box's end,
+ * ascii parsed whole; its scratch (a batch of rows, one block) is kept
+ * between calls.  Errors are TVPAL_E_FORMAT for
  * a file that is not a readable .vti, with the path and the problem in the
  * diag; TVPAL_E_INVAL for an array that cannot be chosen or is not a scalar
  * field. */
@@ -119,6 +124,13 @@ struct tvpal_input_file {
     struct vti_piece *pcs;
     int npcs;
     float *scratch;
+    /* box reads: what the files hold (the most over the pieces), and the
+     * scratch kept between calls */
+    int has_raw, has_b64;
+    uint64_t blk_max, cmax_max, nb_max;
+    struct tvpal_box_io io;     /* rows of raw data, pieces of base64 */
+    unsigned char *blk, *cbuf;  /* one inflated, one compressed block */
+    size_t blk_cap, cbuf_cap;
 };
 
 /* --------------------------------------------------------- file mapping */
@@ -836,12 +848,19 @@ static void convert(const unsigned char *src, int t, int be, size_t n,
     }
 }
 
+/* The values of an ascii array in order: all are parsed (so that a box
+ * read finds the errors a whole read does), those of the box [lo, lo + n)
+ * of the pdims grid go into dst at x + y * dy + z * dz. */
 static int read_ascii(const struct vti_doc *d, const struct vti_array *a,
-                      size_t n, float *dst)
+                      const uint32_t pdims[3], const uint32_t lo[3],
+                      const uint32_t n[3], float *dst, size_t dy, size_t dz)
 {
     const char *p = (const char *)d->buf + a->text_begin;
     const char *end = (const char *)d->buf + a->text_end;
-    size_t i = 0;
+    const size_t nx = pdims[0], ny = pdims[1];
+    const size_t npts = nx * ny * pdims[2], nrows = (size_t)n[1] * n[2];
+    size_t i = 0, r = 0, x = 0;
+    size_t want = ((size_t)lo[2] * ny + lo[1]) * nx + lo[0];
     for (;; i++) {
         while (p < end && (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r'))
             p++;
@@ -853,10 +872,10 @@ static int read_ascii(const struct vti_doc *d, const struct vti_array *a,
                && k < sizeof tok - 1)
             tok[k++] = *p++;
         tok[k] = 0;
-        if (i >= n)
+        if (i >= npts)
             return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: ascii array %s "
                                   "has more than the %zu values of its extent",
-                                  d->path, a->name, n);
+                                  d->path, a->name, npts);
         char *e;
         float f;
         if (a->t == T_F32)
@@ -867,12 +886,21 @@ static int read_ascii(const struct vti_doc *d, const struct vti_array *a,
             return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: ascii array %s: "
                                   "value %zu is \"%.32s\", not a number",
                                   d->path, a->name, i + 1, tok);
-        dst[i] = f;
+        if (r == nrows || i != want)
+            continue;
+        dst[(r % n[1]) * dy + (r / n[1]) * dz + x] = f;
+        want++;
+        if (++x < n[0])
+            continue;
+        x = 0;
+        if (++r < nrows)
+            want = (((size_t)lo[2] + r / n[1]) * ny + lo[1] + r % n[1]) * nx +
+                   lo[0];
     }
-    if (i < n)
+    if (i < npts)
         return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: ascii array %s has "
                               "%zu values; its extent needs %zu", d->path,
-                              a->name, i, n);
+                              a->name, i, npts);
     return 0;
 }
 
@@ -959,55 +987,74 @@ static int inflate_raw_blocks(const struct vti_doc *d,
     return bad < 0 ? 0 : block_error(d, a, (uint64_t)bad, nb, bad_z);
 }
 
-static int read_binary(const struct vti_doc *d, const struct vti_array *a,
-                       uint64_t nbytes, unsigned char *out)
+/* Where the binary data of array a (binary or appended) starts. */
+static int src_open(const struct vti_doc *d, const struct vti_array *a,
+                    struct src *s)
 {
-    struct src s = {0};
+    memset(s, 0, sizeof *s);
     if (a->fmt == F_BINARY) {
-        s.p = d->buf + a->text_begin;
-        s.end = d->buf + a->text_end;
-        s.b64 = 1;
-    } else {
-        uint64_t room = d->size - d->appended_at;
-        if (a->offset >= room)
-            return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s: "
-                                  "appended offset %llu points past the end "
-                                  "of the file (%llu bytes of appended data)",
-                                  d->path, a->name,
-                                  (unsigned long long)a->offset,
-                                  (unsigned long long)room);
-        s.p = d->buf + d->appended_at + a->offset;
-        s.end = d->buf + d->size;
-        s.b64 = d->appended_base64;
+        s->p = d->buf + a->text_begin;
+        s->end = d->buf + a->text_end;
+        s->b64 = 1;
+        return 0;
     }
+    uint64_t room = d->size - d->appended_at;
+    if (a->offset >= room)
+        return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s: "
+                              "appended offset %llu points past the end "
+                              "of the file (%llu bytes of appended data)",
+                              d->path, a->name, (unsigned long long)a->offset,
+                              (unsigned long long)room);
+    s->p = d->buf + d->appended_at + a->offset;
+    s->end = d->buf + d->size;
+    s->b64 = d->appended_base64;
+    return 0;
+}
+
+/* The header of uncompressed data ([nbytes]) checked, s then at the
+ * values, which must all be there. */
+static int plain_header(const struct vti_doc *d, const struct vti_array *a,
+                        struct src *s, uint64_t nbytes)
+{
+    const unsigned hs = d->header64 ? 8 : 4;
+    unsigned char h[8];
+    size_t got = src_read(s, h, hs);
+    if (got < hs)
+        return truncated(d, a, s, "header", got, hs);
+    uint64_t len = load_uint(h, hs, d->big_endian);
+    if (len != nbytes)
+        return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s holds "
+                              "%llu bytes; its extent needs %llu (%s)",
+                              d->path, a->name, (unsigned long long)len,
+                              (unsigned long long)nbytes,
+                              vti_types[a->t].name);
+    if (src_left(s) < nbytes)
+        return truncated(d, a, s, "data", src_left(s), nbytes);
+    return 0;
+}
+
+/* A compression header: nb blocks of bs bytes (the last of last bytes,
+ * 0: bs), their compressed sizes (csize, malloc'ed), the largest cmax. */
+struct blocks {
+    uint64_t nb, bs, last, cmax;
+    uint64_t *csize;
+};
+
+/* The compression header checked against nbytes and the bytes that
+ * remain; s then at the first block.  b->csize is the caller's to free
+ * (NULL after an error). */
+static int blocks_header(const struct vti_doc *d, const struct vti_array *a,
+                         struct src *s, uint64_t nbytes, struct blocks *b)
+{
     const unsigned hs = d->header64 ? 8 : 4;
     unsigned char h[3 * 8];
-    const char *tn = vti_types[a->t].name;
-
-    if (!d->compressor[0]) {
-        size_t got = src_read(&s, h, hs);
-        if (got < hs)
-            return truncated(d, a, &s, "header", got, hs);
-        uint64_t len = load_uint(h, hs, d->big_endian);
-        if (len != nbytes)
-            return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s holds "
-                                  "%llu bytes; its extent needs %llu (%s)",
-                                  d->path, a->name, (unsigned long long)len,
-                                  (unsigned long long)nbytes, tn);
-        if (src_left(&s) < nbytes)
-            return truncated(d, a, &s, "data", src_left(&s), nbytes);
-        if (!out)
-            return 0;
-        got = src_read(&s, out, (size_t)nbytes);
-        return got < nbytes ? truncated(d, a, &s, "data", got, nbytes) : 0;
-    }
-
-    size_t got = src_read(&s, h, 3 * hs);
+    memset(b, 0, sizeof *b);
+    size_t got = src_read(s, h, 3 * hs);
     if (got < 3 * hs)
-        return truncated(d, a, &s, "compression header", got, 3 * hs);
-    uint64_t nb = load_uint(h, hs, d->big_endian);
-    uint64_t bs = load_uint(h + hs, hs, d->big_endian);
-    uint64_t last = load_uint(h + 2 * hs, hs, d->big_endian);
+        return truncated(d, a, s, "compression header", got, 3 * hs);
+    const uint64_t nb = load_uint(h, hs, d->big_endian);
+    const uint64_t bs = load_uint(h + hs, hs, d->big_endian);
+    const uint64_t last = load_uint(h + 2 * hs, hs, d->big_endian);
     uint64_t total = 0;
     if (nb > 0 && bs > 0 && bs < (uint64_t)1 << 40 && last <= bs &&
         nb <= nbytes / bs + 1)
@@ -1018,58 +1065,90 @@ static int read_binary(const struct vti_doc *d, const struct vti_array *a,
                               "do not make the %llu bytes its extent needs "
                               "(%s)", d->path, a->name, (unsigned long long)nb,
                               (unsigned long long)bs, (unsigned long long)last,
-                              (unsigned long long)nbytes, tn);
-    if (nb > src_left(&s) / hs)
-        return truncated(d, a, &s, "compression header", src_left(&s),
-                         nb * hs);
+                              (unsigned long long)nbytes, vti_types[a->t].name);
+    if (nb > src_left(s) / hs)
+        return truncated(d, a, s, "compression header", src_left(s), nb * hs);
     uint64_t *csize = malloc(sizeof *csize * (size_t)nb);
-    unsigned char *cbuf = NULL;
     if (!csize)
         return TVPAL_E_NOMEM;
     int rc = 0;
     uint64_t sum = 0, cmax = 0;
     for (uint64_t i = 0; i < nb && rc == 0; i++) {
-        got = src_read(&s, h, hs);
+        got = src_read(s, h, hs);
         if (got < hs) {
-            rc = truncated(d, a, &s, "compression header", 3 * hs + i * hs + got,
+            rc = truncated(d, a, s, "compression header", 3 * hs + i * hs + got,
                            (3 + nb) * hs);
             break;
         }
         csize[i] = load_uint(h, hs, d->big_endian);
-        if (csize[i] > ULONG_MAX || csize[i] > src_left(&s))
-            rc = truncated(d, a, &s, "compressed blocks", src_left(&s),
+        if (csize[i] > ULONG_MAX || csize[i] > src_left(s))
+            rc = truncated(d, a, s, "compressed blocks", src_left(s),
                            csize[i]);
         sum += csize[i];
         cmax = csize[i] > cmax ? csize[i] : cmax;
     }
-    if (rc == 0 && sum > src_left(&s))
-        rc = truncated(d, a, &s, "compressed blocks", src_left(&s), sum);
-    if (rc == 0 && out && s.b64 && !(cbuf = malloc((size_t)cmax + 1)))
+    if (rc == 0 && sum > src_left(s))
+        rc = truncated(d, a, s, "compressed blocks", src_left(s), sum);
+    if (rc < 0) {
+        free(csize);
+        return rc;
+    }
+    *b = (struct blocks){nb, bs, last, cmax, csize};
+    return 0;
+}
+
+/* The binary data of array a (binary or appended): checks its header
+ * against nbytes, the size its extent needs, and decodes into out (NULL:
+ * checks the header and the bounds only). */
+static int read_binary(const struct vti_doc *d, const struct vti_array *a,
+                       uint64_t nbytes, unsigned char *out)
+{
+    struct src s;
+    int rc = src_open(d, a, &s);
+    if (rc < 0)
+        return rc;
+    if (!d->compressor[0]) {
+        rc = plain_header(d, a, &s, nbytes);
+        if (rc < 0 || !out)
+            return rc;
+        size_t got = src_read(&s, out, (size_t)nbytes);
+        return got < nbytes ? truncated(d, a, &s, "data", got, nbytes) : 0;
+    }
+    struct blocks b;
+    rc = blocks_header(d, a, &s, nbytes, &b);
+    if (rc < 0)
+        return rc;
+    unsigned char *cbuf = NULL;
+    if (out && s.b64 && !(cbuf = malloc((size_t)b.cmax + 1)))
         rc = TVPAL_E_NOMEM;
     if (rc == 0 && out && !s.b64)
-        rc = inflate_raw_blocks(d, a, s.p, csize, nb, bs, last, out);
-    for (uint64_t i = 0; rc == 0 && out && s.b64 && i < nb; i++) {
-        got = src_read(&s, cbuf, (size_t)csize[i]);
-        if (got < csize[i]) {
-            rc = truncated(d, a, &s, "compressed blocks", got, csize[i]);
+        rc = inflate_raw_blocks(d, a, s.p, b.csize, b.nb, b.bs, b.last, out);
+    for (uint64_t i = 0; rc == 0 && out && s.b64 && i < b.nb; i++) {
+        size_t got = src_read(&s, cbuf, (size_t)b.csize[i]);
+        if (got < b.csize[i]) {
+            rc = truncated(d, a, &s, "compressed blocks", got, b.csize[i]);
             break;
         }
-        uint64_t want = i + 1 == nb && last ? last : bs;
+        uint64_t want = i + 1 == b.nb && b.last ? b.last : b.bs;
         int z;
-        if (inflate_block(cbuf, csize[i], out + i * bs, want, &z))
-            rc = block_error(d, a, i, nb, z);
+        if (inflate_block(cbuf, b.csize[i], out + i * b.bs, want, &z))
+            rc = block_error(d, a, i, b.nb, z);
     }
     free(cbuf);
-    free(csize);
+    free(b.csize);
     return rc;
 }
 
-/* Array a of the doc into dst (n floats). */
-static int decode(const struct vti_doc *d, const struct vti_array *a, size_t n,
-                  float *dst)
+/* Array a of the doc (a grid of dims) into dst. */
+static int decode(const struct vti_doc *d, const struct vti_array *a,
+                  const uint32_t dims[3], float *dst)
 {
-    if (a->fmt == F_ASCII)
-        return read_ascii(d, a, n, dst);
+    const size_t n = (size_t)dims[0] * dims[1] * dims[2];
+    if (a->fmt == F_ASCII) {
+        const uint32_t lo[3] = {0, 0, 0};
+        return read_ascii(d, a, dims, lo, dims, dst, dims[0],
+                          (size_t)dims[0] * dims[1]);
+    }
     unsigned sz = vti_types[a->t].size;
     unsigned char *raw = sz == sizeof *dst ? (unsigned char *)dst
                                            : malloc(n * sz);
@@ -1081,6 +1160,228 @@ static int decode(const struct vti_doc *d, const struct vti_array *a, size_t n,
     if (raw != (unsigned char *)dst)
         free(raw);
     return rc;
+}
+
+/* ------------------------------------------------------------ box reads */
+
+/* The box [lo, lo + n) of a grid of dims values of sz bytes, row by row in
+ * the order of the array's bytes: row r (y = r % n1, z = r / n1) of the
+ * box, pos bytes of it done; a value cut by the end of a block waits in
+ * carry. */
+struct box_cur {
+    const uint32_t *dims, *lo, *n;
+    unsigned sz;
+    int t, be;
+    float *dst;
+    size_t dy, dz;
+    uint64_t r, nrows, pos;
+    unsigned char carry[8];
+    unsigned ncarry;
+};
+
+/* The array byte the box wants next; UINT64_MAX when it has them all. */
+static uint64_t cur_at(const struct box_cur *c)
+{
+    if (c->r >= c->nrows)
+        return UINT64_MAX;
+    const uint64_t y = c->r % c->n[1], z = c->r / c->n[1];
+    return ((((uint64_t)c->lo[2] + z) * c->dims[1] + c->lo[1] + y) *
+                c->dims[0] + c->lo[0]) * c->sz + c->pos;
+}
+
+/* Array bytes [at, at + len) in p: those of the box go into place.  The
+ * caller feeds every byte from cur_at on. */
+static void cur_feed(struct box_cur *c, const unsigned char *p, uint64_t at,
+                     uint64_t len)
+{
+    const uint64_t rowb = (uint64_t)c->n[0] * c->sz;
+    uint64_t want;
+    while ((want = cur_at(c)) < at + len) {
+        uint64_t k = rowb - c->pos < at + len - want ? rowb - c->pos
+                                                     : at + len - want;
+        const unsigned char *q = p + (want - at);
+        float *row = c->dst + (size_t)(c->r % c->n[1]) * c->dy +
+                     (size_t)(c->r / c->n[1]) * c->dz;
+        size_t v = (size_t)(c->pos / c->sz);
+        uint64_t left = k;
+        if (c->ncarry) {
+            unsigned take = c->sz - c->ncarry < left ? c->sz - c->ncarry
+                                                     : (unsigned)left;
+            memcpy(c->carry + c->ncarry, q, take);
+            c->ncarry += take;
+            q += take;
+            left -= take;
+            if (c->ncarry == c->sz) {
+                convert(c->carry, c->t, c->be, 1, row + v++);
+                c->ncarry = 0;
+            }
+        }
+        size_t whole = (size_t)(left / c->sz);
+        convert(q, c->t, c->be, whole, row + v);
+        q += whole * c->sz;
+        left -= whole * c->sz;
+        if (left) {
+            memcpy(c->carry, q, (size_t)left);
+            c->ncarry = (unsigned)left;
+        }
+        c->pos += k;
+        if (c->pos == rowb) {
+            c->r++;
+            c->pos = 0;
+        }
+    }
+}
+
+struct conv_ctx {
+    int t, be;
+};
+
+static void conv_box(const unsigned char *src, size_t count, float *dst,
+                     const void *ctx)
+{
+    const struct conv_ctx *c = ctx;
+    convert(src, c->t, c->be, count, dst);
+}
+
+static int host_big_endian(void)
+{
+    const uint32_t one = 1;
+    return *(const unsigned char *)&one == 0;
+}
+
+static int grow(unsigned char **buf, size_t *cap, size_t len)
+{
+    if (*cap >= len)
+        return 0;
+    free(*buf);
+    *cap = 0;
+    if (!(*buf = malloc(len)))
+        return TVPAL_E_NOMEM;
+    *cap = len;
+    return 0;
+}
+
+#define B64_PIECE ((size_t)64 << 10)
+
+/* The box [lo, lo + n) of array a (a grid of pdims) into dst at x + y * dy
+ * + z * dz: raw appended values by pread (their rows only), zlib blocks
+ * that meet the box only (one block of scratch at a time), base64 decoded
+ * in order up to the box's end, 64 KiB at a time, ascii parsed. */
+static int decode_box(struct tvpal_input_file *f, const struct vti_doc *d,
+                      const struct vti_array *a, const uint32_t pdims[3],
+                      const uint32_t lo[3], const uint32_t n[3], float *dst,
+                      size_t dy, size_t dz)
+{
+    if (a->fmt == F_ASCII)
+        return read_ascii(d, a, pdims, lo, n, dst, dy, dz);
+    const unsigned sz = vti_types[a->t].size;
+    const uint64_t nbytes = (uint64_t)pdims[0] * pdims[1] * pdims[2] * sz;
+    char what[160];
+    snprintf(what, sizeof what, "array %s", a->name);
+    struct src s;
+    int rc = src_open(d, a, &s);
+    if (rc < 0)
+        return rc;
+    struct box_cur c = {pdims, lo, n, sz, a->t, d->big_endian, dst, dy, dz,
+                        0, (uint64_t)n[1] * n[2], 0, {0}, 0};
+    int fd = -1;
+    if (!s.b64 && (fd = open(d->path, O_RDONLY)) < 0)
+        return tvpal_diag_set(d->diag, TVPAL_E_OPEN, "%s: %s", d->path,
+                              strerror(errno));
+    if (!d->compressor[0]) {
+        rc = plain_header(d, a, &s, nbytes);
+        if (rc == 0 && !s.b64) {
+            const struct conv_ctx cc = {a->t, d->big_endian};
+            const int direct = a->t == T_F32 &&
+                               d->big_endian == host_big_endian();
+            rc = tvpal_input_box_pread(fd, (uint64_t)(s.p - d->buf), pdims, sz,
+                                       lo, n, dst, dy, dz,
+                                       direct ? NULL : conv_box, &cc, &f->io,
+                                       d->path, what, d->diag);
+        }
+        uint64_t at = 0, want;
+        while (rc == 0 && s.b64 && (want = cur_at(&c)) != UINT64_MAX) {
+            size_t got;
+            if (want > at && (got = src_read(&s, NULL, (size_t)(want - at))) <
+                                 want - at) {
+                rc = truncated(d, a, &s, "data", at + got, nbytes);
+                break;
+            }
+            at = want;
+            size_t k = nbytes - at < B64_PIECE ? (size_t)(nbytes - at)
+                                               : B64_PIECE;
+            if ((rc = grow(&f->io.buf, &f->io.cap, k)) < 0)
+                break;
+            if ((got = src_read(&s, f->io.buf, k)) < k) {
+                rc = truncated(d, a, &s, "data", at + got, nbytes);
+                break;
+            }
+            cur_feed(&c, f->io.buf, at, k);
+            at += k;
+        }
+        if (fd >= 0)
+            close(fd);
+        return rc;
+    }
+    struct blocks b;
+    rc = blocks_header(d, a, &s, nbytes, &b);
+    if (rc == 0)
+        rc = grow(&f->blk, &f->blk_cap, (size_t)b.bs);
+    if (rc == 0)
+        rc = grow(&f->cbuf, &f->cbuf_cap, (size_t)b.cmax + 1);
+    uint64_t foff = (uint64_t)(s.p - d->buf);   /* raw: block i's offset */
+    for (uint64_t i = 0; rc == 0 && i < b.nb; i++) {
+        const uint64_t b0 = i * b.bs;
+        const uint64_t len = i + 1 == b.nb && b.last ? b.last : b.bs;
+        const uint64_t want = cur_at(&c);
+        if (want == UINT64_MAX)
+            break;
+        if (want >= b0 + len) {   /* a block outside the box */
+            if (s.b64 && src_read(&s, NULL, (size_t)b.csize[i]) < b.csize[i])
+                rc = truncated(d, a, &s, "compressed blocks", 0, b.csize[i]);
+            foff += b.csize[i];
+            continue;
+        }
+        if (s.b64) {
+            size_t got = src_read(&s, f->cbuf, (size_t)b.csize[i]);
+            if (got < b.csize[i])
+                rc = truncated(d, a, &s, "compressed blocks", got, b.csize[i]);
+        } else {
+            rc = tvpal_input_pread(fd, f->cbuf, (size_t)b.csize[i], foff,
+                                   d->path, what, d->diag);
+        }
+        foff += b.csize[i];
+        int z;
+        if (rc == 0 && inflate_block(f->cbuf, b.csize[i], f->blk, len, &z))
+            rc = block_error(d, a, i, b.nb, z);
+        if (rc == 0)
+            cur_feed(&c, f->blk, b0, len);
+    }
+    free(b.csize);
+    if (fd >= 0)
+        close(fd);
+    return rc;
+}
+
+/* What array a of d holds, for box_scratch (the most over the pieces). */
+static void note_layout(struct tvpal_input_file *f, const struct vti_doc *d,
+                        const struct vti_array *a, uint64_t nbytes)
+{
+    struct src s;
+    if (a->fmt == F_ASCII || src_open(d, a, &s) < 0)
+        return;
+    if (!d->compressor[0]) {
+        f->has_raw |= !s.b64;
+        f->has_b64 |= s.b64;
+        return;
+    }
+    struct blocks b;
+    if (blocks_header(d, a, &s, nbytes, &b) < 0)
+        return;
+    free(b.csize);
+    f->blk_max = b.bs > f->blk_max ? b.bs : f->blk_max;
+    f->cmax_max = b.cmax + 1 > f->cmax_max ? b.cmax + 1 : f->cmax_max;
+    f->nb_max = b.nb > f->nb_max ? b.nb : f->nb_max;
 }
 
 /* -------------------------------------------------------- .pvti pieces */
@@ -1113,6 +1414,14 @@ static void diag_note(struct tvpal_diag *diag, const char *what,
 static long long ext_points(const long long *e)
 {
     return (e[1] - e[0] + 1) * (e[3] - e[2] + 1) * (e[5] - e[4] + 1);
+}
+
+/* The points per axis of extent e, into dims (returned). */
+static const uint32_t *piece_dims(const long long *e, uint32_t *dims)
+{
+    for (int a = 0; a < 3; a++)
+        dims[a] = (uint32_t)(e[2 * a + 1] - e[2 * a] + 1);
+    return dims;
 }
 
 /* Loads piece p of the .pvti ppath into *d and chooses array var in it:
@@ -1203,6 +1512,10 @@ static int pieces_open(struct tvpal_input_file *f, struct vti_doc *d,
         int pick = -1;
         int rc = piece_load(&pd, d->path, &f->pcs[i], f->var, f->t, &pick,
                             diag);
+        if (rc == 0)
+            note_layout(f, &pd, &pd.arrays[pick],
+                        (uint64_t)ext_points(f->pcs[i].ext) *
+                            vti_types[f->t].size);
         doc_free(&pd);
         if (rc < 0)
             return rc;
@@ -1224,10 +1537,11 @@ static int pieces_read(struct tvpal_input_file *f, float *dst,
         struct vti_doc d;
         int pick = -1;
         const long long *e = f->pcs[i].ext;
+        uint32_t pdims[3];
         int rc = piece_load(&d, f->path, &f->pcs[i], f->var, f->t, &pick,
                             diag);
         if (rc == 0)
-            rc = decode(&d, &d.arrays[pick], (size_t)ext_points(e), f->scratch);
+            rc = decode(&d, &d.arrays[pick], piece_dims(e, pdims), f->scratch);
         doc_free(&d);
         if (rc < 0)
             return rc;
@@ -1237,6 +1551,52 @@ static int pieces_read(struct tvpal_input_file *f, float *dst,
             for (long long y = e[2]; y <= e[3]; y++, s += px)
                 memcpy(dst + ((size_t)(z - w[4]) * ny + (size_t)(y - w[2])) *
                        nx + (size_t)(e[0] - w[0]), s, px * sizeof *s);
+    }
+    return 0;
+}
+
+/* The box [lo, lo + n) of a .pvti: the part of each piece that meets it,
+ * one piece at a time, straight into its place (later pieces win where
+ * they overlap, as in pieces_read). */
+static int pieces_read_box(struct tvpal_input_file *f, const uint32_t lo[3],
+                           const uint32_t n[3], float *dst,
+                           struct tvpal_diag *diag)
+{
+    const long long *w = f->whole;
+    for (int i = 0; i < f->npcs; i++) {
+        const long long *e = f->pcs[i].ext;
+        uint32_t pdims[3], plo[3], pn[3], b[3];
+        int meets = 1;
+        for (int a = 0; a < 3; a++) {
+            long long p0 = e[2 * a] - w[2 * a], p1 = e[2 * a + 1] - w[2 * a] + 1;
+            long long b0 = p0 > lo[a] ? p0 : lo[a];
+            long long b1 = p1 < (long long)lo[a] + n[a] ? p1
+                                                        : (long long)lo[a] + n[a];
+            if (b0 >= b1) {
+                meets = 0;
+                break;
+            }
+            pdims[a] = (uint32_t)(p1 - p0);
+            plo[a] = (uint32_t)(b0 - p0);
+            pn[a] = (uint32_t)(b1 - b0);
+            b[a] = (uint32_t)b0;
+        }
+        if (!meets)
+            continue;
+        struct vti_doc d;
+        int pick = -1;
+        int rc = piece_load(&d, f->path, &f->pcs[i], f->var, f->t, &pick,
+                            diag);
+        float *at = dst + (b[0] - lo[0]) +
+                    ((size_t)(b[2] - lo[2]) * n[1] + (b[1] - lo[1])) * n[0];
+        if (rc == 0)
+            rc = decode_box(f, &d, &d.arrays[pick], pdims, plo, pn, at, n[0],
+                            (size_t)n[0] * n[1]);
+        if (rc < 0)
+            diag_note(diag, "a piece of", f->path);
+        doc_free(&d);
+        if (rc < 0)
+            return rc;
     }
     return 0;
 }
@@ -1251,6 +1611,9 @@ static void vti_close(struct tvpal_input_file *f)
         free(f->pcs[i].source);
     free(f->pcs);
     free(f->scratch);
+    free(f->io.buf);
+    free(f->blk);
+    free(f->cbuf);
     free(f->path);
     free(f);
 }
@@ -1284,6 +1647,8 @@ static int vti_open(struct tvpal_input_file **out, const char *path,
         f->t = a->t;
         if (d.parallel)
             rc = pieces_open(f, &d, diag);
+        else
+            note_layout(f, &d, a, (uint64_t)n * vti_types[a->t].size);
     }
     if (rc == 0) {
         *out = f;
@@ -1291,6 +1656,23 @@ static int vti_open(struct tvpal_input_file **out, const char *path,
     }
     vti_close(f);
     doc_free(&d);
+    return rc;
+}
+
+/* This file again, checked against what open found. */
+static int reload(struct tvpal_input_file *f, struct vti_doc *d, int *pick,
+                  struct tvpal_diag *diag)
+{
+    struct tvpal_input_info info = {0};
+    int rc = load(d, f->path, diag);
+    if (rc == 0)
+        rc = grid(d, &info);
+    if (rc == 0)
+        rc = choose(d, f->var, pick);
+    if (rc == 0 && (memcmp(info.dims, f->dims, sizeof f->dims) ||
+                    d->arrays[*pick].t != f->t))
+        rc = tvpal_diag_set(diag, TVPAL_E_MISMATCH, "%s: changed since it was "
+                            "opened (array %s)", f->path, f->var);
     return rc;
 }
 
@@ -1303,22 +1685,44 @@ static int vti_read(struct tvpal_input_file *f, uint32_t k, float *dst,
     if (f->npcs)
         return pieces_read(f, dst, diag);
     struct vti_doc d;
-    struct tvpal_input_info info = {0};
     int pick = -1;
-    int rc = load(&d, f->path, diag);
+    int rc = reload(f, &d, &pick, diag);
     if (rc == 0)
-        rc = grid(&d, &info);
-    if (rc == 0)
-        rc = choose(&d, f->var, &pick);
-    if (rc == 0 && (memcmp(info.dims, f->dims, sizeof f->dims) ||
-                    d.arrays[pick].t != f->t))
-        rc = tvpal_diag_set(diag, TVPAL_E_MISMATCH, "%s: changed since it was "
-                            "opened (array %s)", f->path, f->var);
-    if (rc == 0)
-        rc = decode(&d, &d.arrays[pick],
-                    (size_t)f->dims[0] * f->dims[1] * f->dims[2], dst);
+        rc = decode(&d, &d.arrays[pick], f->dims, dst);
     doc_free(&d);
     return rc;
+}
+
+static int vti_read_box(struct tvpal_input_file *f, uint32_t k,
+                        const uint32_t lo[3], const uint32_t n[3], float *dst,
+                        struct tvpal_diag *diag)
+{
+    if (k != 0)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: step %u of a file "
+                              "that holds one", f->path, k);
+    if (f->npcs)
+        return pieces_read_box(f, lo, n, dst, diag);
+    struct vti_doc d;
+    int pick = -1;
+    int rc = reload(f, &d, &pick, diag);
+    if (rc == 0)
+        rc = decode_box(f, &d, &d.arrays[pick], f->dims, lo, n, dst, n[0],
+                        (size_t)n[0] * n[1]);
+    doc_free(&d);
+    return rc;
+}
+
+static uint64_t vti_box_scratch(const struct tvpal_input_file *f,
+                                const uint32_t n[3])
+{
+    const unsigned sz = vti_types[f->t].size;
+    uint64_t bytes = f->blk_max + f->cmax_max + f->nb_max * sizeof(uint64_t);
+    if (f->has_b64)
+        bytes += B64_PIECE;
+    if (f->has_raw)
+        bytes += tvpal_input_box_pread_scratch(
+            f->dims, sz, n, f->t == T_F32 && !host_big_endian());
+    return bytes;
 }
 
 static int vti_describe(const char *path, char **text, struct tvpal_diag *diag);
@@ -1636,5 +2040,6 @@ static int vti_describe(const char *path, char **text, struct tvpal_diag *diag)
 }
 
 const struct tvpal_input_backend tvpal_input_vti = {
-    .name = "vti", .open = vti_open, .read = vti_read, .close = vti_close,
-    .describe = vti_describe};
+    .name = "vti", .open = vti_open, .read = vti_read,
+    .read_box = vti_read_box, .box_scratch = vti_box_scratch,
+    .close = vti_close, .describe = vti_describe};

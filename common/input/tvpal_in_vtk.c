@@ -16,7 +16,10 @@
  *
  * open scans the whole header (ASCII: the numbers too, to find the arrays
  * after the first); read seeks to the chosen array and converts one step
- * through a fixed buffer.  Errors are TVPAL_E_FORMAT for a file that is
+ * through a fixed buffer.  read_box: BINARY preads the box's rows
+ * (tvpal_input_box_pread: whole runs, or batches of short rows, at most 4
+ * MiB of scratch kept between calls); ASCII parses the values in order up
+ * to the box's last one, converting those in the box (no scratch).  Errors are TVPAL_E_FORMAT for a file that is
  * not a readable STRUCTURED_POINTS file, with the path, the line and the
  * problem in the diag; TVPAL_E_INVAL for an array that cannot be chosen. */
 #include "tvpal_input_impl.h"
@@ -27,7 +30,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 /* The legacy type names, bytes per value and the tvpal type info says. */
 static const struct vtk_type {
@@ -76,6 +81,7 @@ struct tvpal_input_file {
     uint32_t dims[3];
     int t, binary;
     long long offset;
+    struct tvpal_box_io io;     /* box reads of BINARY values */
 };
 
 static int bad(struct vtk_hdr *h, int code, const char *fmt, const char *a,
@@ -614,10 +620,95 @@ static int vtk_read(struct tvpal_input_file *f, uint32_t k, float *dst,
     return rc;
 }
 
+static void conv_box(const unsigned char *src, size_t count, float *dst,
+                     const void *ctx)
+{
+    convert_be(src, *(const int *)ctx, count, dst);
+}
+
+static int vtk_read_box(struct tvpal_input_file *f, uint32_t k,
+                        const uint32_t lo[3], const uint32_t n[3], float *dst,
+                        struct tvpal_diag *diag)
+{
+    if (k != 0)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: step %u of a file "
+                              "that holds one", f->path, k);
+    char what[160];
+    snprintf(what, sizeof what, "SCALARS %s", f->var);
+    if (f->binary) {
+        int fd = open(f->path, O_RDONLY);
+        if (fd < 0)
+            return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", f->path,
+                                  strerror(errno));
+        int rc = tvpal_input_box_pread(fd, (uint64_t)f->offset, f->dims,
+                                       vtk_types[f->t].size, lo, n, dst, n[0],
+                                       (size_t)n[0] * n[1], conv_box, &f->t,
+                                       &f->io, f->path, what, diag);
+        close(fd);
+        return rc;
+    }
+    FILE *fp = fopen(f->path, "rb");
+    if (!fp)
+        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", f->path,
+                              strerror(errno));
+    int rc = 0;
+    if (fseeko(fp, f->offset, SEEK_SET) < 0)
+        rc = tvpal_diag_set(diag, TVPAL_E_READ, "%s: seek: %s", f->path,
+                            strerror(errno));
+    /* The values in file order up to the box's last: row r of the box
+     * (y = r % n1, z = r / n1) starts at value `want`. */
+    const size_t nx = f->dims[0], ny = f->dims[1];
+    const size_t nrows = (size_t)n[1] * n[2];
+    const size_t total = nx * ny * f->dims[2];
+    const int single = vtk_types[f->t].size == 4 && vtk_types[f->t].is_float;
+    struct vtk_hdr h = {.path = f->path, .diag = diag, .fp = fp, .line = 0};
+    size_t r = 0, x = 0, i = 0;
+    size_t want = ((size_t)lo[2] * ny + lo[1]) * nx + lo[0];
+    for (; rc == 0 && r < nrows; i++) {
+        char w[64], *e;
+        if (word(&h, w, sizeof w) < 0) {
+            rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: SCALARS %s: the "
+                                "file ends after %zu of %zu values", f->path,
+                                f->var, i, total);
+            break;
+        }
+        if (i < want)
+            continue;
+        float v = single ? strtof(w, &e) : (float)strtod(w, &e);
+        if (e == w || *e) {
+            rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: SCALARS %s: value "
+                                "%zu is \"%.32s\", not a number", f->path,
+                                f->var, i + 1, w);
+            break;
+        }
+        dst[r * n[0] + x] = v;
+        if (++x < n[0]) {
+            want++;
+            continue;
+        }
+        x = 0;
+        if (++r < nrows)
+            want = (((size_t)lo[2] + r / n[1]) * ny + lo[1] + r % n[1]) * nx +
+                   lo[0];
+    }
+    fclose(fp);
+    return rc;
+}
+
+static uint64_t vtk_box_scratch(const struct tvpal_input_file *f,
+                                const uint32_t n[3])
+{
+    return f->binary ? tvpal_input_box_pread_scratch(f->dims,
+                                                     vtk_types[f->t].size, n, 0)
+                     : 0;
+}
+
 static void vtk_close(struct tvpal_input_file *f)
 {
-    if (f)
+    if (f) {
         free(f->path);
+        free(f->io.buf);
+    }
     free(f);
 }
 
@@ -664,5 +755,6 @@ static int vtk_describe(const char *path, char **text, struct tvpal_diag *diag)
 }
 
 const struct tvpal_input_backend tvpal_input_vtk = {
-    .name = "vtk", .open = vtk_open, .read = vtk_read, .close = vtk_close,
-    .describe = vtk_describe};
+    .name = "vtk", .open = vtk_open, .read = vtk_read,
+    .read_box = vtk_read_box, .box_scratch = vtk_box_scratch,
+    .close = vtk_close, .describe = vtk_describe};

@@ -412,6 +412,45 @@ int tvpal_input_read(struct tvpal_input *in, uint32_t t, float *dst,
     return in->be->read(in->cur, t - in->first[i], dst, diag);
 }
 
+int tvpal_input_read_box(struct tvpal_input *in, uint32_t t,
+                         const uint32_t lo[3], const uint32_t n[3],
+                         float *dst, struct tvpal_diag *diag)
+{
+    const struct tvpal_input_info *fi = &in->info;
+    if (t >= fi->steps)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s: box "
+                              "read of step %u of %u", in->files[0], fi->var,
+                              t, fi->steps);
+    const char *path = tvpal_input_file(in, t, NULL);
+    for (int a = 0; a < 3; a++) {
+        if (n[a] == 0)
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s: "
+                                  "step %u: empty box (size %u %u %u: 0 "
+                                  "on axis %c)", path, fi->var, t, n[0],
+                                  n[1], n[2], "xyz"[a]);
+        if (lo[a] >= fi->dims[a] || n[a] > fi->dims[a] - lo[a])
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s: "
+                                  "step %u: box at %u %u %u of size %u %u "
+                                  "%u is outside the %ux%ux%u grid on axis "
+                                  "%c", path, fi->var, t, lo[0], lo[1],
+                                  lo[2], n[0], n[1], n[2], fi->dims[0],
+                                  fi->dims[1], fi->dims[2], "xyz"[a]);
+    }
+    int i = file_of(in, t);
+    int rc = open_file(in, i, NULL, NULL, diag);
+    if (rc < 0)
+        return rc;
+    return in->be->read_box(in->cur, t - in->first[i], lo, n, dst, diag);
+}
+
+uint64_t tvpal_input_box_scratch(const struct tvpal_input *in,
+                                 const uint32_t n[3])
+{
+    if (!in->cur || !n[0] || !n[1] || !n[2])
+        return 0;
+    return in->be->box_scratch(in->cur, n);
+}
+
 double tvpal_input_time(const struct tvpal_input *in, uint32_t t)
 {
     return in->info.has_times && t < in->info.steps ? in->times[t] : (double)t;
@@ -495,27 +534,213 @@ uint64_t tvpal_input_inflated_chunks(void)
     return tvpal_input_hdf5_inflated();
 }
 
-/* Provisional box read: the whole step into a scratch step, then the box
- * cut from it (the backends' own box reads replace this). */
-int tvpal_input_read_box(struct tvpal_input *in, uint32_t t,
-                         const uint32_t lo[3], const uint32_t n[3],
-                         float *dst, struct tvpal_diag *diag)
+/* ------------------------------------------------- box reads of raw data */
+
+int tvpal_input_pread(int fd, unsigned char *p, size_t len, uint64_t off,
+                      const char *path, const char *what,
+                      struct tvpal_diag *diag)
 {
-    const uint32_t *dm = in->info.dims;
-    for (int a = 0; a < 3; a++)
-        if (n[a] < 1 || lo[a] > dm[a] || n[a] > dm[a] - lo[a])
-            return tvpal_diag_set(diag, TVPAL_E_INVAL, "box outside the "
-                                  "volume");
-    size_t nv = (size_t)dm[0] * dm[1] * dm[2];
-    float *all = malloc(nv * sizeof *all);
-    if (!all)
+    while (len > 0) {
+        size_t want = len < ((size_t)1 << 30) ? len : (size_t)1 << 30;
+        ssize_t k = pread(fd, p, want, (off_t)off);
+        if (k < 0 && errno == EINTR)
+            continue;
+        if (k < 0)
+            return tvpal_diag_set(diag, TVPAL_E_READ, "%s: %s: read: %s",
+                                  path, what, strerror(errno));
+        if (k == 0)
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: %s: the file "
+                                  "ends within its values (changed since "
+                                  "it was opened?)", path, what);
+        p += k;
+        len -= (size_t)k;
+        off += (uint64_t)k;
+    }
+    return 0;
+}
+
+/* io->buf of at least len bytes (its contents not kept). */
+static int io_room(struct tvpal_box_io *io, size_t len)
+{
+    if (io->cap >= len)
+        return 0;
+    free(io->buf);
+    io->cap = 0;
+    if (!(io->buf = malloc(len)))
         return TVPAL_E_NOMEM;
-    int rc = tvpal_input_read(in, t, all, diag);
-    for (size_t z = 0; rc == 0 && z < n[2]; z++)
-        for (size_t y = 0; y < n[1]; y++)
-            memcpy(dst + n[0] * (y + (size_t)n[1] * z),
-                   all + lo[0] + dm[0] * (lo[1] + y + dm[1] * (lo[2] + z)),
-                   n[0] * sizeof *dst);
-    free(all);
+    io->cap = len;
+    return 0;
+}
+
+/* count values contiguous at file offset off into d[0 .. count). */
+static int read_dense(int fd, uint64_t off, size_t count, unsigned size,
+                      float *d, tvpal_box_conv conv, const void *ctx,
+                      struct tvpal_box_io *io, const char *path,
+                      const char *what, struct tvpal_diag *diag)
+{
+    if (!conv)
+        return tvpal_input_pread(fd, (unsigned char *)d, count * sizeof *d, off, path,
+                         what, diag);
+    const size_t per = TVPAL_BOX_IO_CAP / size;
+    int rc = 0;
+    for (size_t i = 0; rc == 0 && i < count; i += per) {
+        size_t k = count - i < per ? count - i : per;
+        rc = io_room(io, k * size);
+        if (rc == 0)
+            rc = tvpal_input_pread(fd, io->buf, k * size, off + (uint64_t)i * size,
+                           path, what, diag);
+        if (rc == 0)
+            conv(io->buf, k, d + i, ctx);
+    }
     return rc;
+}
+
+int tvpal_input_box_pread(int fd, uint64_t base, const uint32_t dims[3],
+                          unsigned size, const uint32_t lo[3],
+                          const uint32_t n[3], float *dst, size_t dy,
+                          size_t dz, tvpal_box_conv conv, const void *ctx,
+                          struct tvpal_box_io *io, const char *path,
+                          const char *what, struct tvpal_diag *diag)
+{
+    const uint64_t nx = dims[0], ny = dims[1], ry = n[1];
+    const uint64_t rb = (uint64_t)n[0] * size;
+    const uint64_t nrows = ry * n[2];
+    /* Rows per run contiguous in the file and in dst. */
+    uint64_t per = 1;
+    if (n[0] == dims[0] && dy == n[0]) {
+        per = ry;
+        if (n[1] == dims[1] && dz == (size_t)n[0] * n[1])
+            per = nrows;
+    }
+#define ROW_OFF(r) (base + ((((uint64_t)lo[2] + (r) / ry) * ny + lo[1] +    \
+                             (r) % ry) * nx + lo[0]) * size)
+#define ROW_DST(r) (dst + (size_t)((r) % ry) * dy + (size_t)((r) / ry) * dz)
+    int rc = 0;
+    for (uint64_t r = 0; r < nrows && rc == 0;) {
+        if (per > 1 || rb >= TVPAL_BOX_IO_CAP / 2) {
+            rc = read_dense(fd, ROW_OFF(r), (size_t)(per * n[0]), size,
+                            ROW_DST(r), conv, ctx, io, path, what, diag);
+            r += per;
+            continue;
+        }
+        /* A batch of short rows: one read of them and their gaps. */
+        const uint64_t off = ROW_OFF(r);
+        uint64_t end = off + rb, k = 1;
+        while (r + k < nrows) {
+            uint64_t o = ROW_OFF(r + k);
+            if (o + rb - off > TVPAL_BOX_IO_CAP || o - end > TVPAL_BOX_GAP)
+                break;
+            end = o + rb;
+            k++;
+        }
+        rc = io_room(io, (size_t)(end - off));
+        if (rc == 0)
+            rc = tvpal_input_pread(fd, io->buf, (size_t)(end - off), off, path, what,
+                           diag);
+        for (uint64_t j = 0; rc == 0 && j < k; j++) {
+            const unsigned char *src = io->buf + (ROW_OFF(r + j) - off);
+            if (conv)
+                conv(src, n[0], ROW_DST(r + j), ctx);
+            else
+                memcpy(ROW_DST(r + j), src, (size_t)rb);
+        }
+        r += k;
+    }
+#undef ROW_OFF
+#undef ROW_DST
+    return rc;
+}
+
+uint64_t tvpal_input_box_pread_scratch(const uint32_t dims[3], unsigned size,
+                                       const uint32_t n[3], int direct)
+{
+    const uint64_t rb = (uint64_t)n[0] * size;
+    const uint64_t box = rb * n[1] * n[2];
+    if (n[0] == dims[0] || rb >= TVPAL_BOX_IO_CAP / 2)
+        return direct ? 0 : box < TVPAL_BOX_IO_CAP ? box : TVPAL_BOX_IO_CAP;
+    uint64_t span = (((uint64_t)(n[2] - 1) * dims[1] + (n[1] - 1)) * dims[0] +
+                     n[0]) * size;
+    return span < TVPAL_BOX_IO_CAP ? span : TVPAL_BOX_IO_CAP;
+}
+
+/* ------------------------------------------------ boxes read in pieces */
+
+void tvpal_box_split_init(struct tvpal_box_split *s, const uint32_t lo[3],
+                          const uint32_t n[3], const uint32_t chunk[3],
+                          uint64_t cap)
+{
+    memset(s, 0, sizeof *s);
+    for (int a = 0; a < 3; a++) {
+        s->lo[a] = s->at[a] = lo[a];
+        s->n[a] = s->d[a] = n[a];
+        s->chunk[a] = chunk[a] ? chunk[a] : 1;
+    }
+    const uint64_t n0 = n[0], n1 = n[1], n2 = n[2];
+    if (cap < 1)
+        cap = 1;
+    if (n0 * n1 * n2 <= cap)
+        return;
+    /* Slabs of whole layers of chunks along z. */
+    const uint64_t cz = s->chunk[2], cy = s->chunk[1], cx = s->chunk[0];
+    uint64_t dz = cap / (n0 * n1) / cz * cz;
+    s->split[2] = 1;
+    s->d[2] = (uint32_t)(dz < cz ? cz : dz < n2 ? dz : (n2 + cz - 1) / cz * cz);
+    const uint64_t hz = cz < n2 ? cz : n2;
+    if (n0 * n1 * hz <= cap)
+        return;
+    /* One layer is too large: bands of chunk rows along y, a layer deep. */
+    s->d[2] = (uint32_t)cz;
+    s->split[1] = 1;
+    uint64_t dy = cap / (n0 * hz) / cy * cy;
+    s->d[1] = (uint32_t)(dy < cy ? cy : dy < n1 ? dy : (n1 + cy - 1) / cy * cy);
+    const uint64_t hy = cy < n1 ? cy : n1;
+    if (n0 * hy * hz <= cap)
+        return;
+    /* One band is too large: runs along x, a chunk high and deep. */
+    s->d[1] = (uint32_t)cy;
+    s->split[0] = 1;
+    uint64_t dx = cap / (hy * hz) / cx * cx;
+    s->d[0] = (uint32_t)(dx < cx ? cx : dx < n0 ? dx : (n0 + cx - 1) / cx * cx);
+}
+
+/* Where the piece of axis a that starts at `at` ends. */
+static uint32_t split_end(const struct tvpal_box_split *s, int a, uint32_t at)
+{
+    uint64_t hi = (uint64_t)s->lo[a] + s->n[a];
+    if (!s->split[a])
+        return (uint32_t)hi;
+    uint64_t e = (uint64_t)at / s->chunk[a] * s->chunk[a] + s->d[a];
+    return (uint32_t)(e < hi ? e : hi);
+}
+
+int tvpal_box_split_next(struct tvpal_box_split *s, uint32_t plo[3],
+                         uint32_t pn[3])
+{
+    if (s->done)
+        return 0;
+    uint32_t end[3];
+    for (int a = 0; a < 3; a++) {
+        end[a] = split_end(s, a, s->at[a]);
+        plo[a] = s->at[a];
+        pn[a] = end[a] - s->at[a];
+    }
+    for (int a = 0;; a++) {
+        if (a == 3) {
+            s->done = 1;
+            break;
+        }
+        s->at[a] = end[a];
+        if (s->at[a] < s->lo[a] + s->n[a])
+            break;
+        s->at[a] = s->lo[a];
+    }
+    return 1;
+}
+
+uint64_t tvpal_box_split_most(const struct tvpal_box_split *s)
+{
+    uint64_t v = 1;
+    for (int a = 0; a < 3; a++)
+        v *= s->d[a] < s->n[a] ? s->d[a] : s->n[a];
+    return v;
 }

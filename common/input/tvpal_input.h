@@ -8,8 +8,11 @@
  * values (CF _FillValue, missing_value, outside valid_min/max/range) as NaN,
  * so the encoder's NaN policy (refuse, or --nan-as) applies to them.  A
  * reader holds at most one timestep's worth of scratch: memory does not
- * grow with the files.  Raw files are read by the encoder itself
- * (tvpal_raw.h); this interface is for the formats that say what they hold.
+ * grow with the files.  tvpal_input_read_box reads a part of a timestep
+ * (a slab of slices, one MPI rank's share) without a whole-step buffer,
+ * with the scratch tvpal_input_box_scratch says.  Raw files are read by
+ * the encoder itself (tvpal_raw.h); this interface is for the formats that
+ * say what they hold.
  *
  * Each format is one backend file, the only one that includes its library
  * (LAYERS.md): tvpal_in_netcdf.c (libnetcdf), tvpal_in_hdf5.c (libhdf5),
@@ -125,11 +128,44 @@ enum tvpal_input_format tvpal_input_format(const struct tvpal_input *in);
 int tvpal_input_read(struct tvpal_input *in, uint32_t t, float *dst,
                      struct tvpal_diag *diag);
 
-/* The box [lo, lo + n) (x, y, z) of timestep t into dst: n[0]*n[1]*n[2]
- * floats, x fastest; the values tvpal_input_read gives there. */
+/* The box [lo, lo + n) of timestep t (x, y, z; 1 <= n[a] and lo[a] + n[a]
+ * <= dims[a]) into dst: n[0] * n[1] * n[2] floats, x fastest, box-dense;
+ * missing values NaN: exactly the values tvpal_input_read gives for those
+ * voxels, bit for bit.  Reads only what the box needs where the format
+ * allows (hyperslabs, the HDF5 chunks or VTK blocks that meet the box,
+ * the box's rows of raw data in batches); the scratch it holds is
+ * tvpal_input_box_scratch's.  Errors: TVPAL_E_INVAL (t past the steps, an
+ * n[a] of 0, a box outside the grid: the diag names the file, the
+ * variable, the step and the box), else those of tvpal_input_read. */
 int tvpal_input_read_box(struct tvpal_input *in, uint32_t t,
                          const uint32_t lo[3], const uint32_t n[3],
                          float *dst, struct tvpal_diag *diag);
+
+/* Bytes of scratch memory a box read of size n holds beyond dst (kept by
+ * the reader between calls; and the format library's chunk cache where it
+ * fills one), so that a caller can plan its memory: an upper bound, for
+ * the file open now (the files of a series laid out alike).  0 for an
+ * empty n.  By format:
+ *   netcdf  float: none (classic), the library's chunk cache (NetCDF-4),
+ *           or, deflated chunks being read directly, as hdf5 below; other
+ *           types: pieces of at most 1 Mi values in the stored type (a
+ *           layer, band or run of chunks where one is larger), and the
+ *           cache;
+ *   hdf5    float32: the library's chunk cache and one chunk, or (deflated
+ *           chunks read directly) two compressed chunks per thread, two
+ *           chunks of work per thread and the chunk tables; other types:
+ *           pieces of at most 1 Mi doubles as above, the cache, a chunk
+ *           and the library's 1 MiB conversion buffer;
+ *   vti     raw appended: at most 4 MiB of rows (none for float32 in the
+ *           host's byte order and boxes of whole x-rows); zlib blocks: one
+ *           compressed and one inflated block and the block table; base64:
+ *           a 64 KiB piece; ascii: none (the text is parsed where it is
+ *           mapped); .pvti: the most over its pieces;
+ *   vtk     binary: at most 4 MiB of rows; ascii: none (the values are
+ *           parsed in order up to the box's last).
+ * No format needs a whole timestep. */
+uint64_t tvpal_input_box_scratch(const struct tvpal_input *in,
+                                 const uint32_t n[3]);
 
 /* The time value of step t (has_times), else t. */
 double tvpal_input_time(const struct tvpal_input *in, uint32_t t);

@@ -24,6 +24,15 @@ struct tvpal_input_backend {
     /* Step k of the file into dst (float32, x fastest, missing NaN). */
     int (*read)(struct tvpal_input_file *f, uint32_t k, float *dst,
                 struct tvpal_diag *diag);
+    /* The box [lo, lo + n) of step k into dst (box-dense, as read gives
+     * those voxels); tvpal_input.c has checked k, lo and n against the
+     * series' grid. */
+    int (*read_box)(struct tvpal_input_file *f, uint32_t k,
+                    const uint32_t lo[3], const uint32_t n[3], float *dst,
+                    struct tvpal_diag *diag);
+    /* What read_box holds for a box of size n (tvpal_input_box_scratch). */
+    uint64_t (*box_scratch)(const struct tvpal_input_file *f,
+                            const uint32_t n[3]);
     void (*close)(struct tvpal_input_file *f);
     int (*describe)(const char *path, char **text, struct tvpal_diag *diag);
     /* Non-NULL in a build without the format's library (the _none.c
@@ -73,9 +82,72 @@ int tvpal_input_hdf5_direct_open(struct tvpal_h5direct **out,
 int tvpal_input_hdf5_direct_read(struct tvpal_h5direct *d, uint32_t k,
                                  float *dst, struct tvpal_diag *diag);
 void tvpal_input_hdf5_direct_close(struct tvpal_h5direct *d);
+/* The box [lo, lo + n) (x, y, z) of step k into dst (box-dense): only the
+ * chunks that meet the box, in batches of two per thread.  0, 1 (read
+ * through the library after all) or an error, as direct_read.  scratch:
+ * the bytes it holds (tvpal_input_box_scratch). */
+int tvpal_input_hdf5_direct_read_box(struct tvpal_h5direct *d, uint32_t k,
+                                     const uint32_t lo[3], const uint32_t n[3],
+                                     float *dst, struct tvpal_diag *diag);
+uint64_t tvpal_input_hdf5_direct_scratch(const struct tvpal_h5direct *d);
 uint64_t tvpal_input_hdf5_inflated(void);
 
 /* Helpers the backends share (tvpal_input.c). */
+
+/* Box reads of raw arrays (x fastest, dims[0] x dims[1] x dims[2] values
+ * of `size` bytes at byte base of fd): the box [lo, lo + n) goes into dst,
+ * value (x, y, z) of the box at dst[x + y * dy + z * dz].  Runs that are
+ * contiguous in the file and in dst (whole x-rows) are one pread each,
+ * straight into dst when conv is NULL (float32 as the host stores it);
+ * shorter rows are read in batches of at most TVPAL_BOX_IO_CAP bytes
+ * (the rows and the gaps between them, gaps up to TVPAL_BOX_GAP bytes)
+ * and picked out.  conv(src, count, dst, ctx) turns count stored values
+ * into floats.  io is the scratch, kept by the caller between calls
+ * (free(io->buf)).  Errors: TVPAL_E_READ (the file system's), TVPAL_E_FORMAT
+ * (the file ends within the values), TVPAL_E_NOMEM; the diag says
+ * "PATH: WHAT: ...". */
+#define TVPAL_BOX_IO_CAP ((size_t)4 << 20)
+#define TVPAL_BOX_GAP ((size_t)64 << 10)
+struct tvpal_box_io {
+    unsigned char *buf;
+    size_t cap;
+};
+typedef void (*tvpal_box_conv)(const unsigned char *src, size_t count,
+                               float *dst, const void *ctx);
+int tvpal_input_box_pread(int fd, uint64_t base, const uint32_t dims[3],
+                          unsigned size, const uint32_t lo[3],
+                          const uint32_t n[3], float *dst, size_t dy,
+                          size_t dz, tvpal_box_conv conv, const void *ctx,
+                          struct tvpal_box_io *io, const char *path,
+                          const char *what, struct tvpal_diag *diag);
+/* len bytes at offset off of fd into p (the errors as above). */
+int tvpal_input_pread(int fd, unsigned char *p, size_t len, uint64_t off,
+                      const char *path, const char *what,
+                      struct tvpal_diag *diag);
+/* The most io->buf grows to for such a read of a box of size n. */
+uint64_t tvpal_input_box_pread_scratch(const uint32_t dims[3], unsigned size,
+                                       const uint32_t n[3], int direct);
+
+/* The pieces a box is read in where a backend reads through scratch (the
+ * stored type, converted after): all of it when it has at most cap values;
+ * else slabs of z-slices, then (a slab of one layer of chunks being too
+ * large) bands of y-rows, then runs of x, each cut on multiples of chunk[]
+ * (1 1 1 for contiguous data), so that each chunk of a chunked variable
+ * is in one piece and inflated once.  A piece holds at most
+ * tvpal_box_split_most values: cap, or one chunk's extent clipped to the
+ * box where that is more.  next: 1 and the piece's lo and n, or 0 when
+ * done. */
+struct tvpal_box_split {
+    uint32_t lo[3], n[3], chunk[3], d[3], at[3];
+    int split[3], done;
+};
+void tvpal_box_split_init(struct tvpal_box_split *s, const uint32_t lo[3],
+                          const uint32_t n[3], const uint32_t chunk[3],
+                          uint64_t cap);
+int tvpal_box_split_next(struct tvpal_box_split *s, uint32_t plo[3],
+                         uint32_t pn[3]);
+uint64_t tvpal_box_split_most(const struct tvpal_box_split *s);
+#define TVPAL_BOX_PIECE ((uint64_t)1 << 20)   /* values per piece */
 
 /* src into dst (cap bytes), cut to fit, always terminated. */
 void tvpal_input_copy_str(char *dst, size_t cap, const char *src);
