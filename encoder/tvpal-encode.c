@@ -406,8 +406,9 @@ static void parse_option(const struct optspec *sp, const char *arg,
         usage(stdout);
         exit(0);
     case OPT_VERSION:
-        printf(PROG " " PACKAGE_VERSION " (format %u; inflate: %s)\n",
-               TVPAL_FORMAT_VERSION, tvpal_input_inflate_library());
+        printf(PROG " " PACKAGE_VERSION " (format %u; inflate: %s; mpi: %s)\n",
+               TVPAL_FORMAT_VERSION, tvpal_input_inflate_library(),
+               tvpal_comm_mpi_built() ? "yes" : "no");
         exit(0);
     }
     die_usage("--%s \"%s\": expected %s", sp->name, arg, sp->expect);
@@ -1539,11 +1540,10 @@ static void make_plan(struct run *r)
         print_size(need, sizeof need, r->plan.min_limit);
         die_usage("memory limit %s (%s) is too small for %ux%ux%u at "
                   "--window %u with %d thread%s: one slice per pass needs "
-                  "%s; give --mem-limit %lluM or more (or fewer --threads)",
+                  "%s; give --mem-limit %lluK or more (or fewer --threads)",
                   lim, r->limit_why, o->dims[0], o->dims[1], o->dims[2],
                   r->N, r->nthreads, r->nthreads == 1 ? "" : "s", need,
-                  (unsigned long long)((r->plan.min_limit + (1u << 20) - 1) >>
-                                       20));
+                  (unsigned long long)((r->plan.min_limit + 1023) >> 10));
     }
     if (o->quiet || (r->mpi && r->node != 0))
         return;

@@ -19,8 +19,8 @@ passes_of() { sed -n 's/.*passes=\([0-9]*\).*/\1/p' "$1"; }
 # accepts for ARGS (from its refusal of 1M), well under one pass's ring
 # (MARGIN MiB over, default 3).
 tight() {
-    m=$("$ENC" -j 1 --mem-limit 1M "$@" -o "$W/none" 2>&1 | sed -n 's/.*give --mem-limit \([0-9]*\)M.*/\1/p')
-    echo "$((m + ${MARGIN:-3}))M"
+    m=$("$ENC" -j 1 --mem-limit 1M "$@" -o "$W/none" 2>&1 | sed -n 's/.*give --mem-limit \([0-9]*\)K.*/\1/p')
+    echo "$((m + ${MARGIN:-3} * 1024))K"
 }
 
 # limited NAME ARGS...: encodes into $W/NAME under a tight limit, compares
@@ -33,7 +33,7 @@ limited() {
         > "$W/$name.out" 2> "$W/$name.err" || { fail "$name: limited encode: $(cat "$W/$name.err")"; return; }
     p=$(passes_of "$W/$name.out")
     kb=$(sed -n 's/^maxrss_kb=//p' "$W/$name.err")
-    limkb=$(echo "$lim" | awk '/M$/ { print $0 * 1024 } /K$/ { print $0 + 0 }')
+    limkb=${lim%K}
     diff -r "$W/$name.ref" "$W/$name" > /dev/null \
         && ok "$name: $p passes under $lim, output identical" \
         || fail "$name: output differs from the unlimited encode"
@@ -76,7 +76,7 @@ else
 fi
 
 # Too small: refused before anything is read or written.
-expect_exit 2 "too small .* give --mem-limit [0-9]*M or more" \
+expect_exit 2 "too small .* give --mem-limit [0-9]*K or more" \
     "$ENC" -j 1 --mem-limit 1M --dims $D -o "$W/tiny" "$W"/in/*.f32
 [ ! -e "$W/tiny" ] && [ ! -e "$W/tiny.partial" ] && ok "nothing written when refused" \
     || fail "refused encode left output"
