@@ -15,6 +15,7 @@
  * the program with the exit code of `enum ending`.
  */
 #define _GNU_SOURCE
+#include "encode.h"
 #include "encode_plan.h"
 #include "tvpal_checkpoint.h"
 #include "tvpal_cli.h"
@@ -50,7 +51,6 @@
 #include <omp.h>
 #endif
 
-#define PROG "tvpal-encode"
 
 static void usage(FILE *f)
 {
@@ -131,25 +131,16 @@ static void usage(FILE *f)
 
 /* ------------------------------------------------------------ diagnostics */
 
-static char *g_partial; /* removed on fatal input errors */
+char *g_partial; /* removed on fatal input errors */
 
-/* How a message ends the program: MSG_ONLY returns; the others exit with
- * code 2 (usage or bad input, before any output), 1 (output or system
- * failure: a partial output is kept for a rerun to resume) or 2 after
- * removing the partial output (bad input found mid-run: a rerun would fail
- * the same way, so nothing partial stays behind). */
-enum ending { MSG_ONLY, DIE_USAGE, DIE_FAIL, DIE_INPUT };
 
 /* Under MPI (mpirun -np K, one rank per node shard): this process's
  * communicator, and the next round of the job's agreement (cluster_round)
  * that a rank which fails joins with its message, so that rank 0 reports
  * it and every rank ends, none left waiting.  g_round 0: one process. */
-static struct tvpal_comm g_comm;
-static int g_round;
-#define ROUNDS 3
+struct tvpal_comm g_comm;
+int g_round;
 
-static void cluster_fail(enum ending how, const char *text)
-    __attribute__((noreturn));
 
 static void say(enum ending how, const char *fmt, va_list ap)
 {
@@ -172,10 +163,8 @@ static void say(enum ending how, const char *fmt, va_list ap)
     exit(how == DIE_FAIL ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE);
 }
 
-#define TVPAL_SAY_FN(name, how, attr)                                         \
-    static void name(const char *fmt, ...)                                    \
-        __attribute__((format(printf, 1, 2))) attr;                           \
-    static void name(const char *fmt, ...)                                    \
+#define TVPAL_SAY_FN(name, how)                                               \
+    void name(const char *fmt, ...)                                           \
     {                                                                         \
         va_list ap;                                                           \
         va_start(ap, fmt);                                                    \
@@ -184,16 +173,16 @@ static void say(enum ending how, const char *fmt, va_list ap)
             exit(TVPAL_EXIT_FAIL); /* not reached: say() exited */         \
         va_end(ap);                                                           \
     }
-TVPAL_SAY_FN(msg, MSG_ONLY, )
-TVPAL_SAY_FN(die_usage, DIE_USAGE, __attribute__((noreturn)))
-TVPAL_SAY_FN(die_fail, DIE_FAIL, __attribute__((noreturn)))
-TVPAL_SAY_FN(die_input, DIE_INPUT, __attribute__((noreturn)))
+TVPAL_SAY_FN(msg, MSG_ONLY)
+TVPAL_SAY_FN(die_usage, DIE_USAGE)
+TVPAL_SAY_FN(die_fail, DIE_FAIL)
+TVPAL_SAY_FN(die_input, DIE_INPUT)
 
 /* The text of a library error for a message: the code's message, then the
  * diag's detail in parentheses when it has one.  Library calls promise
  * nothing about errno, so their cause comes from here, never strerror(errno).
  * Returns a static buffer (reports are made by one thread). */
-static const char *lib_error(int rc, const struct tvpal_diag *d)
+const char *lib_error(int rc, const struct tvpal_diag *d)
 {
     static char buf[sizeof ((struct tvpal_diag *)0)->msg + 64];
     if (d && d->msg[0])
@@ -205,33 +194,6 @@ static const char *lib_error(int rc, const struct tvpal_diag *d)
 
 /* ---------------------------------------------------------------- options */
 
-struct opts {
-    uint32_t dims[3];
-    enum tvpal_type type;
-    int big_endian;
-    uint32_t window, nodes, steps_single, threads;
-    int table_format;          /* TVPAL_TABLE_F32 or TVPAL_TABLE_U16 */
-    uint32_t refine;
-    int naive, klt, alloc_mse;
-    int has_nan_as;
-    double nan_as;
-    double missing[TVPAL_MISSING_VALUES_MAX];   /* --missing V */
-    unsigned nmissing;
-    const char *outdir;
-    int force, quiet;
-    char **inputs;
-    int ninputs;
-    enum tvpal_input_format format;   /* --format; AUTO until detected */
-    const char *var, *time_dim;       /* --var, --time-dim */
-    int have_type, have_endian;       /* given on the command line */
-    int sort_natural;                 /* --sort natural */
-    double spacing[3], origin[3];     /* --spacing, --origin */
-    int have_spacing, have_origin;
-    const char *times_file;           /* --times FILE */
-    const char *time_units;           /* --time-units TEXT */
-    uint64_t mem_limit;               /* --mem-limit SIZE, or 0 */
-    const char *shard_pat;            /* --shard-dir PATTERN (MPI) */
-};
 
 /* How an option's argument is parsed (parse_option). */
 enum optkind {
@@ -558,719 +520,6 @@ static void options_line(const struct opts *o, uint32_t T, char *buf,
 #undef OPTS_ADD
 }
 
-/* ------------------------------------------------------------------ state */
-
-struct shardjob {
-    unsigned axis;
-    uint32_t rank;
-    struct tvpal_shard_header h;
-    struct tvpal_shardw *w;  /* placed writer (tvpal_shard.h) */
-};
-
-/* A group of `count` slices slice, slice + N, ... of one shard, all with
- * windows of length len starting at the current step; their chunks' CRCs
- * go to jcrc[crc_at ..].  Slices of the x axis are grouped so that one pass
- * over the box rows gathers them all (they share cache lines); other axes
- * use groups of one. */
-struct slicejob {
-    struct shardjob *sj;
-    uint32_t slice;
-    uint32_t count;
-    uint32_t len;
-    size_t crc_at;
-};
-
-/* Most slices per group: those of one 64-byte line of x (16 floats). */
-#define GROUP_SPAN 16u
-
-/* Bytes of the reading scratch of one thread (raw input is read in blocks
- * of at most this much, converted into the ring as it comes). */
-#define READ_BLOCK ((size_t)8 << 20)
-
-/* Progress on stderr: a bar redrawn at most 5 times a second on a terminal,
- * otherwise a line every 30 s, whether a timestep takes a second or an
- * hour; always at the end.  `work` counts voxel-samples encoded (all axes;
- * a voxel of a window of length L counts L), out of `total`. */
-struct progress {
-    int tty, quiet;
-    double t0, last, interval;  /* seconds between lines */
-    uint64_t work, total;    /* work is added to atomically */
-    uint64_t work_at_start;  /* a resumed job's share already done */
-    uint64_t unit, units;    /* the step being done (pass * T + step), of */
-};
-
-/* One encoding run: the job, its output and the workspaces, set up by
- * main's steps in order and released by run_free. */
-struct run {
-    struct opts o;
-    uint32_t T, N;           /* timesteps, window */
-    size_t nvox;             /* voxels per timestep */
-    uint64_t step_bytes;     /* source bytes per timestep */
-    char **abs_inputs;       /* o.inputs points here once checked */
-    char *partial;           /* OUTDIR.partial */
-    char *fp;                /* job fingerprint */
-    struct tvpal_checkpoint_stats st;
-    uint64_t start;          /* first unit of work (pass * T + step) */
-    /* Shards: 3 axes x K nodes, axis-major (every node's, or one rank's). */
-    struct shardjob *sj;
-    uint32_t nshard;
-    size_t max_slice_vox, max_jobs;
-    uint64_t max_chunk;      /* bytes of the largest chunk */
-    /* The memory plan and the pass being encoded. */
-    uint64_t limit;
-    char limit_why[128];
-    struct encode_plan plan;
-    const struct encode_pass *pass;
-    /* Workspaces: per thread, then shared. */
-    int nthreads;
-    uint64_t **fine_local;   /* per-thread source histograms */
-    size_t group_cap;        /* floats of samples per thread */
-    struct tvpal_swenc **enc;
-    float **samples, **tables;
-    unsigned char **chunkbuf;   /* per thread: one chunk */
-    unsigned char **scratch;    /* per thread: READ_BLOCK bytes (raw) */
-    struct slicejob *jobs;   /* max_jobs */
-    uint32_t *jcrc;          /* CRC of every chunk of a step */
-    float **ring;            /* N timesteps of the pass's box, step t at
-                              * t % N, box voxels x fastest */
-    float *boxbuf;           /* a self-describing input's box, as read */
-    struct tvpal_input *in;  /* self-describing input, or NULL (raw) */
-    struct prefetch *pf;     /* reads the input's next step meanwhile */
-    uint64_t *dropped;       /* per thread: present values coded missing */
-    double *times;           /* [T] time values, or NULL (none known) */
-    char time_units[128];
-    double t_encode;         /* seconds of the streaming loop */
-    struct progress prog;
-    /* Checkpoint copies of the writers' progress (tvpal_checkpoint.h). */
-    struct tvpal_checkpoint_progress ckp;
-    /* MPI: this rank encodes node `node` only; its node directory while
-     * the job runs (also its checkpoint's), and where it goes at the end
-     * (--shard-dir; NULL: it stays inside OUTDIR). */
-    int mpi;
-    uint32_t node;
-    char *ckdir;
-    char *node_final;
-    uint64_t cluster_bytes;  /* rank 0: bytes of every rank's shards, */
-    uint64_t cluster_work;   /* the voxel-samples they encoded, */
-    double cluster_seconds;  /* in this many seconds (the slowest) */
-};
-
-static uint32_t fine_bin(float f)
-{
-    uint32_t u;
-    memcpy(&u, &f, 4);
-    u = (u & 0x80000000u) ? ~u : (u | 0x80000000u);
-    return u >> 16;
-}
-
-static float fine_bin_value(uint32_t b)
-{
-    uint32_t k = (b << 16) | 0x8000u, u;
-    u = (k & 0x80000000u) ? (k & 0x7FFFFFFFu) : ~k;
-    float f;
-    memcpy(&f, &u, 4);
-    return f;
-}
-
-/* ------------------------------------------------------------- input I/O */
-
-/* What the threads reading a box found. */
-struct loaded {
-    uint64_t bad;            /* lowest volume voxel index of a data error */
-    int rc;                  /* its code (TVPAL_E_NAN or _RANGE), or 0 */
-    int read_err;            /* errno of a failed read, -1 at end of file */
-    size_t nrep;             /* values replaced by --nan-as */
-    size_t nmiss;            /* missing values (NaN after conversion) */
-    double lo, hi;           /* range including the stats' so far */
-};
-
-/* Per-thread findings, merged into struct loaded after the loop. */
-struct found {
-    uint64_t bad;
-    int rc, read_err;
-    size_t nrep, nmiss;
-    double lo, hi;
-};
-
-/* Converts n source values at src (type and byte order of the job, or
- * host float32 when `host_f32`) into dst, applies --missing, and counts
- * them into the thread's statistics when `stats`.  vox0 is the volume
- * index of the first, for the error message. */
-static void convert_run(const struct run *r, const void *src, int host_f32,
-                        size_t n, float *dst, uint64_t vox0, int stats,
-                        int tid, struct found *f)
-{
-    const struct opts *o = &r->o;
-    size_t bad = 0, rep = 0;
-    int rc = tvpal_raw_convert(src, host_f32 ? TVPAL_F32 : o->type,
-#ifdef WORDS_BIGENDIAN
-                               host_f32 ? 1 : o->big_endian,
-#else
-                               host_f32 ? 0 : o->big_endian,
-#endif
-                               n, dst, o->has_nan_as ? &o->nan_as : NULL,
-                               &bad, &rep);
-    if (rc < 0) {
-        if (vox0 + bad < f->bad) {
-            f->bad = vox0 + bad;
-            f->rc = rc;
-        }
-        return;
-    }
-    if (o->nmissing) {
-        size_t hits = tvpal_missing_apply(dst, n, o->missing, o->nmissing,
-                                          o->has_nan_as ? &o->nan_as : NULL);
-        rep += o->has_nan_as ? hits : 0;
-    }
-    if (!stats)
-        return;
-    uint64_t *fine = r->fine_local[tid];
-    double lo = f->lo, hi = f->hi;
-    f->nrep += rep;
-    for (size_t i = 0; i < n; i++) {
-        float v = dst[i];
-        if (v != v) { /* missing: in no figure */
-            f->nmiss++;
-            continue;
-        }
-        lo = v < lo ? v : lo;
-        hi = v > hi ? v : hi;
-        fine[fine_bin(v)]++;
-    }
-    f->lo = lo;
-    f->hi = hi;
-}
-
-/* Reads file range [off, off + n) into buf; 0, or errno (-1: the file
- * ended first). */
-static int pread_full(int fd, void *buf, size_t n, off_t off)
-{
-    for (size_t got = 0; got < n;) {
-        ssize_t k = pread(fd, (char *)buf + got, n - got, off + (off_t)got);
-        if (k < 0 && errno == EINTR)
-            continue;
-        if (k <= 0)
-            return k < 0 ? errno : -1;
-        got += (size_t)k;
-    }
-    return 0;
-}
-
-/* The box b of the raw timestep at file offset base of fd into dst (box
- * voxels, x fastest), converted, in parallel over blocks of rows: each
- * z-plane of the box is read as the one file range that holds its rows
- * (a y or z slab: only its bytes; an x slab: whole rows, its part used),
- * in pieces of at most READ_BLOCK bytes, into the reading thread's
- * scratch. */
-static void read_box_raw(struct run *r, int fd, off_t base,
-                         const struct encode_box *b, float *dst, int stats,
-                         struct loaded *res)
-{
-    const struct opts *o = &r->o;
-    const size_t esz = tvpal_type_size(o->type);
-    const size_t nx = o->dims[0], ny = o->dims[1];
-    const size_t row_bytes = nx * esz;
-    /* Rows per piece: a piece spans whole rows of one plane. */
-    size_t rows = READ_BLOCK / row_bytes;
-    if (rows < 1)
-        rows = 1;
-    if (rows > b->n[1])
-        rows = b->n[1];
-    const size_t pieces_per_plane = (b->n[1] + rows - 1) / rows;
-    const size_t npieces = pieces_per_plane * b->n[2];
-    struct found all = {UINT64_MAX, 0, 0, 0, 0, r->st.vmin, r->st.vmax};
-#ifdef _OPENMP
-#pragma omp parallel
-#endif
-    {
-        int tid = 0;
-#ifdef _OPENMP
-        tid = omp_get_thread_num();
-#endif
-        struct found f = {UINT64_MAX, 0, 0, 0, 0, all.lo, all.hi};
-        unsigned char *buf = r->scratch[tid];
-#ifdef _OPENMP
-#pragma omp for schedule(dynamic, 1)
-#endif
-        for (size_t p = 0; p < npieces; p++) {
-            if (f.read_err)
-                continue;
-            const size_t z = b->lo[2] + p / pieces_per_plane;
-            const size_t y0 = b->lo[1] + p % pieces_per_plane * rows;
-            size_t yn = b->lo[1] + b->n[1] - y0;
-            yn = yn < rows ? yn : rows;
-            /* From the first row's first voxel to the last row's last. */
-            const uint64_t v0 = b->lo[0] + nx * (y0 + ny * z);
-            const size_t span = ((yn - 1) * nx + b->n[0]) * esz;
-            int err = pread_full(fd, buf, span, base + (off_t)(v0 * esz));
-            if (err) {
-                f.read_err = err;
-                continue;
-            }
-            for (size_t k = 0; k < yn; k++) {
-                const size_t yb = y0 + k - b->lo[1], zb = z - b->lo[2];
-                float *out = dst + (size_t)b->n[0] * (yb + (size_t)b->n[1] * zb);
-                convert_run(r, buf + k * row_bytes, 0, b->n[0], out,
-                            v0 + k * nx, stats, tid, &f);
-            }
-        }
-#ifdef _OPENMP
-#pragma omp critical(tvpal_found)
-#endif
-        {
-            if (f.bad < all.bad) {
-                all.bad = f.bad;
-                all.rc = f.rc;
-            }
-            if (f.read_err && !all.read_err)
-                all.read_err = f.read_err;
-            all.nrep += f.nrep;
-            all.nmiss += f.nmiss;
-            all.lo = f.lo < all.lo ? f.lo : all.lo;
-            all.hi = f.hi > all.hi ? f.hi : all.hi;
-        }
-    }
-    *res = (struct loaded){all.bad, all.rc, all.read_err, all.nrep,
-                           all.nmiss, all.lo, all.hi};
-}
-
-/* The box b of a self-describing step, already read into src (host
- * float32, box voxels), checked and converted into dst in parallel. */
-static void convert_box(struct run *r, const float *src,
-                        const struct encode_box *b, float *dst, int stats,
-                        struct loaded *res)
-{
-    const size_t rows = (size_t)b->n[1] * b->n[2];
-    const size_t nx = r->o.dims[0], ny = r->o.dims[1];
-    struct found all = {UINT64_MAX, 0, 0, 0, 0, r->st.vmin, r->st.vmax};
-#ifdef _OPENMP
-#pragma omp parallel
-#endif
-    {
-        int tid = 0;
-#ifdef _OPENMP
-        tid = omp_get_thread_num();
-#endif
-        struct found f = {UINT64_MAX, 0, 0, 0, 0, all.lo, all.hi};
-#ifdef _OPENMP
-#pragma omp for schedule(static)
-#endif
-        for (size_t k = 0; k < rows; k++) {
-            const size_t y = b->lo[1] + k % b->n[1], z = b->lo[2] + k / b->n[1];
-            const size_t at = k * b->n[0];
-            convert_run(r, src + at, 1, b->n[0], dst + at,
-                        b->lo[0] + nx * (y + ny * z), stats, tid, &f);
-        }
-#ifdef _OPENMP
-#pragma omp critical(tvpal_found)
-#endif
-        {
-            if (f.bad < all.bad) {
-                all.bad = f.bad;
-                all.rc = f.rc;
-            }
-            all.nrep += f.nrep;
-            all.nmiss += f.nmiss;
-            all.lo = f.lo < all.lo ? f.lo : all.lo;
-            all.hi = f.hi > all.hi ? f.hi : all.hi;
-        }
-    }
-    *res = (struct loaded){all.bad, all.rc, 0, all.nrep, all.nmiss, all.lo,
-                           all.hi};
-}
-
-/* Whether box b is the whole volume (read with tvpal_input_read). */
-static int box_is_whole(const struct run *r, const struct encode_box *b)
-{
-    return b->n[0] == r->o.dims[0] && b->n[1] == r->o.dims[1] &&
-           b->n[2] == r->o.dims[2];
-}
-
-/* A self-describing input is read (and inflated) by its library on one
- * thread; the encoding of a step runs on all of them.  One reader thread
- * reads the box of step t + 1 while step t is converted and encoded, so
- * the two overlap.  The reader is the only thread that calls the input
- * library once it runs (HDF5 and libnetcdf builds need not be
- * thread-safe). */
-struct prefetch {
-    pthread_t thread;
-    pthread_mutex_t mu;
-    pthread_cond_t cv;
-    struct tvpal_input *in;
-    float *buf;              /* box floats: the step being read or read */
-    struct encode_box box;   /* what to read */
-    int whole;               /* the box is the volume */
-    int64_t want, ready;     /* step asked for / in buf (-1: none) */
-    int busy, quit, rc;
-    struct tvpal_diag d;
-};
-
-static int read_input_box(struct tvpal_input *in, uint32_t t,
-                          const struct encode_box *b, int whole, float *dst,
-                          struct tvpal_diag *d)
-{
-    return whole ? tvpal_input_read(in, t, dst, d)
-                 : tvpal_input_read_box(in, t, b->lo, b->n, dst, d);
-}
-
-static void *prefetch_main(void *arg)
-{
-    struct prefetch *pf = arg;
-    pthread_mutex_lock(&pf->mu);
-    for (;;) {
-        while (!pf->quit && pf->want < 0)
-            pthread_cond_wait(&pf->cv, &pf->mu);
-        if (pf->quit)
-            break;
-        int64_t t = pf->want;
-        pf->want = -1;
-        pf->busy = 1;
-        struct encode_box box = pf->box;
-        int whole = pf->whole;
-        pthread_mutex_unlock(&pf->mu);
-        struct tvpal_diag d = {{0}};
-        int rc = read_input_box(pf->in, (uint32_t)t, &box, whole, pf->buf, &d);
-        pthread_mutex_lock(&pf->mu);
-        pf->busy = 0;
-        pf->ready = t;
-        pf->rc = rc;
-        pf->d = d;
-        pthread_cond_broadcast(&pf->cv);
-    }
-    pthread_mutex_unlock(&pf->mu);
-    return NULL;
-}
-
-/* Starts the reader with a buffer of `voxels` floats (NULL when threads
- * are not available: then every step is read in place). */
-static struct prefetch *prefetch_start(struct tvpal_input *in, uint64_t voxels)
-{
-    struct prefetch *pf = calloc(1, sizeof *pf);
-    if (!pf || !(pf->buf = malloc(voxels * sizeof(float)))) {
-        free(pf);
-        return NULL;
-    }
-    pf->in = in;
-    pf->want = pf->ready = -1;
-    pthread_mutex_init(&pf->mu, NULL);
-    pthread_cond_init(&pf->cv, NULL);
-    if (pthread_create(&pf->thread, NULL, prefetch_main, pf) != 0) {
-        free(pf->buf);
-        free(pf);
-        return NULL;
-    }
-    return pf;
-}
-
-static void prefetch_stop(struct prefetch *pf)
-{
-    if (!pf)
-        return;
-    pthread_mutex_lock(&pf->mu);
-    pf->quit = 1;
-    pthread_cond_broadcast(&pf->cv);
-    pthread_mutex_unlock(&pf->mu);
-    pthread_join(pf->thread, NULL);
-    pthread_mutex_destroy(&pf->mu);
-    pthread_cond_destroy(&pf->cv);
-    free(pf->buf);
-    free(pf);
-}
-
-/* The pass's box of step t of the input into r->boxbuf: from the reader
- * when it has it (the buffers are swapped), else read here; then step
- * t + 1 of the same pass is asked for. */
-static int input_step(struct run *r, uint32_t t, struct tvpal_diag *d)
-{
-    struct prefetch *pf = r->pf;
-    const struct encode_box *b = &r->pass->box;
-    const int whole = box_is_whole(r, b);
-    int rc = 1;
-    if (pf) {
-        pthread_mutex_lock(&pf->mu);
-        while (pf->busy || pf->want >= 0)
-            pthread_cond_wait(&pf->cv, &pf->mu);
-        if (pf->ready == (int64_t)t &&
-            !memcmp(&pf->box, b, sizeof *b)) {
-            float *tmp = r->boxbuf;
-            r->boxbuf = pf->buf;
-            pf->buf = tmp;
-            rc = pf->rc;
-            *d = pf->d;
-        }
-        pf->ready = -1;
-        pthread_mutex_unlock(&pf->mu);
-    }
-    if (rc > 0) /* not read ahead: the reader is idle, so this is safe */
-        rc = read_input_box(r->in, t, b, whole, r->boxbuf, d);
-    if (pf && t + 1 < r->T) {
-        pthread_mutex_lock(&pf->mu);
-        pf->box = *b;
-        pf->whole = whole;
-        pf->want = t + 1;
-        pthread_cond_broadcast(&pf->cv);
-        pthread_mutex_unlock(&pf->mu);
-    }
-    return rc;
-}
-
-/* Reads the pass's box of timestep t of the source into dst (converted),
- * accounting stats when the pass keeps them and t is not yet in them.  A
- * read error ends the program keeping the partial output (maybe
- * transient); bad data ends it removing it. */
-static void load_step(struct run *r, uint32_t t, float *dst)
-{
-    const struct opts *o = &r->o;
-    const struct encode_box *b = &r->pass->box;
-    /* Raw: a file per step, or one of them all; a reader knows its own. */
-    const char *path = r->in || o->steps_single ? o->inputs[0] : o->inputs[t];
-    const off_t off = o->steps_single ? (off_t)t * (off_t)r->step_bytes : 0;
-    const int stats = r->pass->stats && t >= r->st.loaded;
-    struct loaded res;
-    if (r->in) {
-        uint32_t k;
-        struct tvpal_diag d = {{0}};
-        path = tvpal_input_file(r->in, t, &k);
-        int rc = input_step(r, t, &d);
-        if (rc < 0) /* the file changed or is corrupt: a rerun fails too */
-            die_input("timestep %u (step %u of %s): %s", t, k, path,
-                      lib_error(rc, &d));
-        convert_box(r, r->boxbuf, b, dst, stats, &res);
-    } else {
-        struct tvpal_diag d = {{0}};
-        int fd = tvpal_open_regular(path, &d);
-        if (fd < 0)
-            /* maybe transient (NFS, permissions): keep the partial */
-            die_fail("cannot open %s (rerun to resume)", d.msg);
-        read_box_raw(r, fd, off, b, dst, stats, &res);
-        close(fd);
-    }
-    if (res.read_err > 0)
-        die_fail("%s: timestep %u: %s (rerun to resume)", path, t,
-                 strerror(res.read_err));
-    if (res.read_err)
-        die_input("%s: timestep %u: file shrank while encoding (truncated)",
-                  path, t);
-    if (res.rc < 0) {
-        uint64_t x = res.bad % o->dims[0], y = res.bad / o->dims[0] % o->dims[1],
-                 z = res.bad / o->dims[0] / o->dims[1];
-        if (res.rc == TVPAL_E_NAN)
-            die_input("%s: timestep %u: infinite value at voxel "
-                      "(%llu,%llu,%llu); expected finite values or NaN for "
-                      "missing ones (use --nan-as VALUE to replace them)",
-                      path, t, (unsigned long long)x, (unsigned long long)y,
-                      (unsigned long long)z);
-        die_input("%s: timestep %u: value at voxel (%llu,%llu,%llu) exceeds "
-                  "the supported magnitude %g", path, t,
-                  (unsigned long long)x, (unsigned long long)y,
-                  (unsigned long long)z, TVPAL_VALUE_MAX);
-    }
-    if (!stats)
-        return;
-    for (int id = 0; id < r->nthreads; id++)
-        for (uint32_t k = 0; k < TVPAL_CHECKPOINT_BINS; k++) {
-            r->st.fine[k] += r->fine_local[id][k];
-            r->fine_local[id][k] = 0;
-        }
-    r->st.nonfinite += res.nrep;
-    r->st.missing += res.nmiss;
-    r->st.counted += encode_box_voxels(b);
-    r->st.vmin = res.lo;
-    r->st.vmax = res.hi;
-    r->st.loaded = t + 1;
-}
-
-static int natural_qsort_cmp(const void *a, const void *b)
-{
-    return tvpal_natural_cmp(*(char *const *)a, *(char *const *)b);
-}
-
-/* Inputs are encoded in the order given.  A shell glob sorts density_10
- * before density_2: --sort natural puts them in numeric order; without it
- * the first pair out of that order is named (a warning, not an error:
- * the order may be meant). */
-static void order_inputs(struct opts *o)
-{
-    if (o->sort_natural) {
-        qsort(o->inputs, (size_t)o->ninputs, sizeof *o->inputs,
-              natural_qsort_cmp);
-        return;
-    }
-    for (int i = 0; i + 1 < o->ninputs; i++)
-        if (tvpal_natural_cmp(o->inputs[i], o->inputs[i + 1]) > 0) {
-            msg("warning: the inputs are not in natural order: %s comes "
-                "before %s (they are encoded in the order given; --sort "
-                "natural sorts them)", o->inputs[i], o->inputs[i + 1]);
-            return;
-        }
-}
-
-/* A self-describing input (NetCDF, VTK ImageData: tvpal_input.h) says its
- * dims and steps itself; --dims and --type, for raw input, must then agree
- * with it, and --steps and --endian do not apply.  The reader delivers
- * float32 in host order, which the encoder then takes as a raw f32 source.
- * Sets r->in, or leaves it NULL for raw input; returns whether the dims are
- * known. */
-static int open_source(struct run *r, int have_dims)
-{
-    struct opts *o = &r->o;
-    struct tvpal_diag d = {{0}};
-    enum tvpal_input_format f = o->format;
-    struct tvpal_input_opts io = {.var = o->var, .time_dim = o->time_dim};
-    if (o->ninputs < 1)
-        return have_dims;
-    if (f == TVPAL_IN_AUTO && tvpal_input_detect(o->inputs[0], &io, &f, &d) < 0)
-    {
-        /* d says "PATH: cause" */
-        size_t n = strlen(o->inputs[0]);
-        const char *cause = !strncmp(d.msg, o->inputs[0], n) &&
-                                    !strncmp(d.msg + n, ": ", 2)
-                                ? d.msg + n + 2 : d.msg;
-        die_usage("%s: cannot read input: %s", o->inputs[0], cause);
-    }
-    if (f == TVPAL_IN_RAW) {
-        if (o->var || o->time_dim)
-            die_usage("--var and --time-dim: for self-describing input "
-                      "(NetCDF, VTK); %s is raw", o->inputs[0]);
-        return have_dims;
-    }
-    int rc = tvpal_input_open(&r->in, f, o->inputs, o->ninputs, &io, &d);
-    if (rc < 0)
-        die_usage("%s", lib_error(rc, &d));
-    const struct tvpal_input_info *in = tvpal_input_info(r->in);
-    if (have_dims && memcmp(o->dims, in->dims, sizeof in->dims))
-        die_usage("%s: variable %s is %ux%ux%u; --dims says %ux%ux%u",
-                  o->inputs[0], in->var, in->dims[0], in->dims[1],
-                  in->dims[2], o->dims[0], o->dims[1], o->dims[2]);
-    if (o->have_type && o->type != in->type)
-        die_usage("%s: variable %s is %s; --type says %s", o->inputs[0],
-                  in->var, tvpal_type_name(in->type),
-                  tvpal_type_name(o->type));
-    if (o->steps_single || o->have_endian)
-        die_usage("--steps and --endian: for raw input only (%s is %s: it "
-                  "says its own steps and byte order)", o->inputs[0],
-                  tvpal_input_format_name(f));
-    for (unsigned a = 0; a < 3; a++)
-        if (in->nonuniform[a])
-            msg("warning: %s: the %c axis (%s) is not evenly spaced; the "
-                "grid is taken as evenly spaced in index", o->inputs[0],
-                "xyz"[a], in->dim_names[a][0] ? in->dim_names[a] : "?");
-    memcpy(o->dims, in->dims, sizeof o->dims);
-    o->type = TVPAL_F32;
-    o->big_endian = 0;
-    o->format = tvpal_input_format(r->in);
-#ifdef WORDS_BIGENDIAN
-    o->big_endian = 1;
-#endif
-    return 1;
-}
-
-/* The steps' time values: --times FILE (T rising numbers, any white
- * space between them), else a time coordinate of the input, else none
- * (the manifest then says nothing and the steps are their indices). */
-static void load_times(struct run *r)
-{
-    const struct opts *o = &r->o;
-    const struct tvpal_input_info *in = r->in ? tvpal_input_info(r->in) : NULL;
-    if (!o->times_file && !(in && in->has_times))
-        return;
-    if (!(r->times = malloc(sizeof *r->times * r->T)))
-        die_fail("out of memory");
-    snprintf(r->time_units, sizeof r->time_units, "%s",
-             o->time_units ? o->time_units : in ? in->time_units : "");
-    for (char *c = r->time_units; *c; c++) /* one manifest line */
-        if ((unsigned char)*c < ' ')
-            *c = ' ';
-    if (!o->times_file) {
-        for (uint32_t t = 0; t < r->T; t++)
-            r->times[t] = tvpal_input_time(r->in, t);
-        return;
-    }
-    struct tvpal_diag d = {{0}};
-    int rc;
-    FILE *f = tvpal_fopen_text(o->times_file, &rc, &d);
-    if (!f)
-        die_usage("--times %s", d.msg);
-    uint32_t n = 0;
-    double v;
-    while (n <= r->T && fscanf(f, "%lf", &v) == 1) {
-        if (!isfinite(v) || (n > 0 && n < r->T && v <= r->times[n - 1]))
-            die_usage("--times %s: value %u (%g): expected a finite number "
-                      "larger than the one before", o->times_file, n + 1, v);
-        if (n < r->T)
-            r->times[n] = v;
-        n++;
-    }
-    int junk = !feof(f);
-    fclose(f);
-    if (junk || n != r->T)
-        die_usage("--times %s: %s%u numbers; expected %u, one per step",
-                  o->times_file, junk ? "not a number after " : "", n, r->T);
-}
-
-/* Windows that straddle a gap in time cost accuracy there (the DCT sees a
- * jump): warn when an interval is more than twice a neighbouring one,
- * naming the steps. */
-static void warn_irregular_times(const struct run *r)
-{
-    char list[160] = "";
-    size_t len = 0;
-    unsigned found = 0;
-    for (uint32_t i = 0; r->times && i + 1 < r->T; i++) {
-        double d = r->times[i + 1] - r->times[i];
-        int gap = (i > 0 && d > 2 * (r->times[i] - r->times[i - 1])) ||
-                  (i + 2 < r->T && d > 2 * (r->times[i + 2] - r->times[i + 1]));
-        if (!gap)
-            continue;
-        if (found++ < 4 && len < sizeof list)
-            len += (size_t)snprintf(list + len, sizeof list - len, "%s%u-%u",
-                                    found > 1 ? ", " : "", i, i + 1);
-    }
-    if (found)
-        msg("warning: irregular time intervals: %u interval%s more than twice "
-            "a neighbour's (steps %s%s); windows that straddle a gap lose "
-            "accuracy there", found, found == 1 ? " is" : "s are", list,
-            found > 4 ? ", ..." : "");
-}
-
-/* Checks the inputs before any output exists: regular readable files of
- * the expected size, named by absolute paths from then on (the manifest
- * must name them from anywhere). */
-static void check_inputs(struct run *r)
-{
-    struct opts *o = &r->o;
-    const uint64_t want = o->steps_single ? r->step_bytes * r->T
-                                          : r->step_bytes;
-    if (!(r->abs_inputs = calloc((size_t)o->ninputs, sizeof *r->abs_inputs)))
-        die_fail("out of memory");
-    for (int i = 0; i < o->ninputs; i++) {
-        struct stat st;
-        const char *p = o->inputs[i];
-        if (strchr(p, '\n'))
-            die_usage("%s: a newline in a file name is not supported", p);
-        if (stat(p, &st) < 0)
-            die_usage("%s: cannot read input: %s", p, strerror(errno));
-        if (!S_ISREG(st.st_mode))
-            die_usage("%s: not a regular file", p);
-        if (access(p, R_OK) < 0)
-            die_usage("%s: cannot read input: %s", p, strerror(errno));
-        if (!r->in && (uint64_t)st.st_size != want) {
-            if (o->steps_single)
-                die_usage("%s: size is %lld bytes; expected %llu (%u timesteps "
-                          "of %ux%ux%u %s)", p, (long long)st.st_size,
-                          (unsigned long long)want, r->T, o->dims[0],
-                          o->dims[1], o->dims[2], tvpal_type_name(o->type));
-            die_usage("%s: size is %lld bytes; expected %llu (one %ux%ux%u %s "
-                      "timestep)", p, (long long)st.st_size,
-                      (unsigned long long)want, o->dims[0], o->dims[1],
-                      o->dims[2], tvpal_type_name(o->type));
-        }
-        if (!(r->abs_inputs[i] = realpath(p, NULL)))
-            die_usage("%s: %s", p, strerror(errno));
-    }
-    o->inputs = r->abs_inputs;
-}
-
 /* ---------------------------------------------------------------- output */
 
 /* Refuses an output that would destroy what it must not: an existing
@@ -1317,7 +566,7 @@ static void check_output(struct run *r)
 
 /* Creates OUTDIR.partial/node-R/ for every node (after which bad input
  * removes the partial output, see die_input). */
-static char *node_partial(const struct run *r, uint32_t k);
+char *node_partial(const struct run *r, uint32_t k);
 
 static void make_node_dirs(struct run *r)
 {
@@ -1336,7 +585,7 @@ static void make_node_dirs(struct run *r)
 
 /* Node k's directory while the job runs: OUTDIR.partial/node-k, or with
  * --shard-dir the pattern's directory plus ".partial".  Malloc'ed. */
-static char *node_partial(const struct run *r, uint32_t k)
+char *node_partial(const struct run *r, uint32_t k)
 {
     char *d = tvpal_node_dir(r->partial, r->o.shard_pat, k), *p = NULL;
     if (!d || !r->o.shard_pat)
@@ -1573,7 +822,7 @@ static void make_plan(struct run *r)
 /* ---------------------------------------------------------------- output */
 
 /* The file of shard j in its node's directory (malloc'ed). */
-static char *shard_path(const struct run *r, const struct shardjob *j)
+char *shard_path(const struct run *r, const struct shardjob *j)
 {
     char *nd = node_partial(r, j->rank), *p = NULL;
     int n = nd ? asprintf(&p, "%s/axis-%c.tvps", nd, "xyz"[j->axis]) : -1;
@@ -2005,139 +1254,6 @@ static void encode_steps(struct run *r)
     r->t_encode = tvpal_now() - p->t0;
 }
 
-/* ---------------------------------------------------------------- cluster */
-
-/* Under mpirun -np K --nodes K, rank R encodes only node R's three shards,
- * reading only the boxes of the input its slabs need, into its own node
- * directory (OUTDIR.partial/node-R, or --shard-dir's on a node-local
- * disk).  The ranks then agree in ROUNDS rounds, each a gather of every
- * rank's state to rank 0 and rank 0's decision sent back:
- *   1. statistics: rank 0 sums them (each voxel is in one rank's z slab)
- *      and sends the source range and the manifest;
- *   2. every rank has finished and verified its shards and node manifest;
- *   3. every node directory is in place: rank 0 writes OUTDIR and renames
- *      it into place, the commit.
- * A rank that fails joins the round it would have reached with its
- * message: rank 0 prints it, and every rank ends with its code, none left
- * waiting.  A rank killed outright is ended by the launcher (mpirun ends
- * the job when a process dies); the checkpoints in the node directories
- * let the same command resume every rank. */
-
-/* What a rank tells rank 0 in a round. */
-struct round_head {
-    int32_t code;            /* 0 ok, else the exit status */
-    int32_t how;             /* enum ending of a failure */
-    char text[900];          /* its message */
-    double vmin, vmax;       /* round 1: statistics */
-    uint64_t nonfinite, missing, counted, dropped;
-    uint64_t bytes;          /* round 3: bytes of the rank's shards, */
-    uint64_t work;           /* voxel-samples it encoded, */
-    double seconds;          /* in this many seconds */
-};
-
-/* Rank 0's decision. */
-struct round_decision {
-    int32_t code, how, bad_rank, nbad;
-    double vmin, vmax;
-    uint64_t bytes, text_len; /* round 1: the manifest's length */
-};
-
-static struct round_head *g_heads;   /* rank 0: one per rank */
-
-/* Gathers mine (and in round 1 the histogram fine, may be NULL on a
- * failing rank) to rank 0, which decides; returns the decision on every
- * rank.  The failure of the lowest rank wins; rank 0 prints it. */
-static struct round_decision cluster_gather(const struct round_head *mine,
-                                            const uint64_t *fine,
-                                            uint64_t *fine_sum)
-{
-    struct tvpal_comm *c = &g_comm;
-    struct round_decision dec = {0};
-    const size_t K = (size_t)c->size;
-    if (c->rank == 0 && !g_heads && !(g_heads = calloc(K, sizeof *g_heads)))
-        c->abort(c, TVPAL_EXIT_FAIL);
-    if (c->gather(c, mine, sizeof *mine, g_heads) < 0)
-        c->abort(c, TVPAL_EXIT_FAIL);
-    if (g_round == 1) {
-        /* The fine histograms, one rank at a time into rank 0's sum. */
-        static uint64_t zero[TVPAL_CHECKPOINT_BINS];
-        const size_t hb = sizeof zero;
-        uint64_t *buf = c->rank == 0 ? malloc(hb * K) : NULL;
-        if (c->rank == 0 && !buf)
-            c->abort(c, TVPAL_EXIT_FAIL);
-        if (c->gather(c, fine ? fine : zero, hb, buf) < 0)
-            c->abort(c, TVPAL_EXIT_FAIL);
-        for (size_t k = 0; c->rank == 0 && k < K; k++)
-            for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++)
-                fine_sum[b] = (k ? fine_sum[b] : 0) + buf[k * TVPAL_CHECKPOINT_BINS + b];
-        free(buf);
-    }
-    if (c->rank == 0) {
-        dec.bad_rank = -1;
-        for (size_t k = 0; k < K; k++)
-            if (g_heads[k].code) {
-                if (dec.bad_rank < 0) {
-                    dec.bad_rank = (int32_t)k;
-                    dec.code = g_heads[k].code;
-                    dec.how = g_heads[k].how;
-                }
-                dec.nbad++;
-            }
-    }
-    return dec;
-}
-
-/* Sends rank 0's decision (and round 1's manifest text) to every rank. */
-static void cluster_decide(struct round_decision *dec, char **text)
-{
-    struct tvpal_comm *c = &g_comm;
-    if (c->bcast(c, dec, sizeof *dec, 0) < 0)
-        c->abort(c, TVPAL_EXIT_FAIL);
-    if (!dec->code && text && dec->text_len) {
-        if (c->rank != 0 && !(*text = calloc(1, dec->text_len + 1)))
-            c->abort(c, TVPAL_EXIT_FAIL);
-        if (c->bcast(c, *text, dec->text_len, 0) < 0)
-            c->abort(c, TVPAL_EXIT_FAIL);
-    }
-}
-
-/* Rank 0 reports the failure decided; every rank removes its node's
- * partial output when the input was bad (a rerun would fail the same
- * way), and ends. */
-static void cluster_end_failed(const struct round_decision *dec)
-    __attribute__((noreturn));
-static void cluster_end_failed(const struct round_decision *dec)
-{
-    g_round = ROUNDS + 1;
-    if (g_comm.rank == 0) {
-        const struct round_head *h = &g_heads[dec->bad_rank];
-        if (dec->bad_rank > 0)
-            fprintf(stderr, PROG ": rank %d: %s\n", dec->bad_rank, h->text);
-        else
-            fprintf(stderr, PROG ": %s\n", h->text);
-        if (dec->nbad > 1)
-            fprintf(stderr, PROG ": %d ranks failed; the lowest is shown\n",
-                    dec->nbad);
-    }
-    if (dec->how == DIE_INPUT && g_partial)
-        tvpal_rmtree(g_partial);
-    tvpal_comm_close(&g_comm);
-    exit(dec->code);
-}
-
-static void cluster_fail(enum ending how, const char *text)
-{
-    struct round_head h = {0};
-    h.code = how == DIE_FAIL ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;
-    h.how = how;
-    snprintf(h.text, sizeof h.text, "%s", text);
-    uint64_t *sum = g_comm.rank == 0 ? calloc(TVPAL_CHECKPOINT_BINS, 8) : NULL;
-    struct round_decision dec = cluster_gather(&h, NULL, sum);
-    free(sum);
-    cluster_decide(&dec, NULL);
-    cluster_end_failed(&dec);
-}
-
 /* ------------------------------------------------------------- finishing */
 
 /* The manifest of the encoded dataset (FORMAT.md 7); m owns its strings. */
@@ -2221,7 +1337,7 @@ static void build_manifest(const struct run *r, struct tvpal_manifest *m)
 }
 
 /* Finishes this process's shards with the source range (9.1). */
-static void finish_shards(struct run *r)
+void finish_shards(struct run *r)
 {
     struct tvpal_diag d = {{0}};
     for (uint32_t q = 0; q < r->nshard; q++) {
@@ -2237,7 +1353,7 @@ static void finish_shards(struct run *r)
 }
 
 /* The manifest's text (malloc'ed). */
-static char *manifest_text(const struct run *r)
+char *manifest_text(const struct run *r)
 {
     struct tvpal_manifest m;
     char *text = NULL;
@@ -2248,7 +1364,7 @@ static char *manifest_text(const struct run *r)
     return text;
 }
 
-static void write_manifest(const char *dir, const char *text)
+void write_manifest(const char *dir, const char *text)
 {
     struct tvpal_diag d = {{0}};
     char *path = NULL;
@@ -2282,7 +1398,7 @@ static void finish_partial(struct run *r)
 /* Renames OUTDIR.partial to OUTDIR; with --force an existing OUTDIR goes
  * to OUTDIR.old first and is removed after.  place_output says what went
  * wrong in err and returns -1; move_into_place ends the program. */
-static int place_output(const struct run *r, char *err, size_t cap)
+int place_output(const struct run *r, char *err, size_t cap)
 {
     const char *out = r->o.outdir;
     if (tvpal_exists(out)) {
@@ -2315,7 +1431,7 @@ static void move_into_place(const struct run *r)
 /* Every value missing leaves nothing to encode or draw; present values
  * coded as missing (more missing-value patterns in a slice-window than the
  * code has indices for) are reported. */
-static int all_missing(const struct run *r, char *why, size_t cap)
+int all_missing(const struct run *r, char *why, size_t cap)
 {
     snprintf(why, cap, "%s: every value is missing (NaN%s); expected some "
              "present values", r->o.inputs[0],
@@ -2323,7 +1439,7 @@ static int all_missing(const struct run *r, char *why, size_t cap)
     return !(r->st.vmin <= r->st.vmax);
 }
 
-static uint64_t dropped_values(const struct run *r)
+uint64_t dropped_values(const struct run *r)
 {
     uint64_t dropped = 0;
     for (int i = 0; i < r->nthreads; i++)
@@ -2331,7 +1447,7 @@ static uint64_t dropped_values(const struct run *r)
     return dropped;
 }
 
-static void warn_dropped(uint64_t dropped)
+void warn_dropped(uint64_t dropped)
 {
     if (dropped)
         msg("warning: %llu present value%s coded as missing: slice-windows "
@@ -2354,7 +1470,7 @@ static void check_missing(const struct run *r)
  * looks excellent.  Warns, naming how many, when the range is more than
  * 1000 times the 0.1..99.9 percentile range or a value is beyond +-1e30
  * (from the source histogram's 65536 classes). */
-static void warn_dominating_values(const struct run *r)
+void warn_dominating_values(const struct run *r)
 {
     const uint64_t *fine = r->st.fine;
     uint64_t total = 0, cum = 0, far = 0, huge = 0;
@@ -2428,163 +1544,6 @@ static void print_summary(const struct run *r)
            (unsigned long long)r->st.missing, r->plan.npasses);
 }
 
-/* Bytes of this process's shard files. */
-static uint64_t own_shard_bytes(const struct run *r)
-{
-    uint64_t n = 0;
-    for (uint32_t q = 0; q < r->nshard; q++) {
-        char *p = shard_path(r, &r->sj[q]);
-        struct stat st;
-        if (p && stat(p, &st) == 0)
-            n += (uint64_t)st.st_size;
-        free(p);
-    }
-    return n;
-}
-
-/* Puts this rank's --shard-dir node directory in place (with --force an
- * existing one goes first). */
-static void place_node_dir(const struct run *r)
-{
-    const char *fin = r->node_final;
-    if (tvpal_exists(fin) && tvpal_rmtree(fin) < 0)
-        die_fail("%s: cannot replace: %s", fin, strerror(errno));
-    if (rename(r->ckdir, fin) < 0)
-        die_fail("%s: cannot rename %s into place: %s", fin, r->ckdir,
-                 strerror(errno));
-}
-
-/* Rank 0, round 1: the job's statistics from every rank's; a failure to
- * report goes into dec (and the lowest rank's text). */
-static void cluster_stats(struct run *r, struct round_decision *dec,
-                          const uint64_t *fine_sum, char **text)
-{
-    struct tvpal_checkpoint_stats *st = &r->st;
-    uint64_t dropped = 0;
-    st->vmin = INFINITY;
-    st->vmax = -INFINITY;
-    st->nonfinite = st->missing = st->counted = 0;
-    for (int k = 0; k < g_comm.size; k++) {
-        const struct round_head *h = &g_heads[k];
-        st->vmin = h->vmin < st->vmin ? h->vmin : st->vmin;
-        st->vmax = h->vmax > st->vmax ? h->vmax : st->vmax;
-        st->nonfinite += h->nonfinite;
-        st->missing += h->missing;
-        st->counted += h->counted;
-        dropped += h->dropped;
-    }
-    memcpy(st->fine, fine_sum, TVPAL_CHECKPOINT_BINS * sizeof *st->fine);
-    if (all_missing(r, g_heads[0].text, sizeof g_heads[0].text)) {
-        *dec = (struct round_decision){TVPAL_EXIT_USAGE, DIE_INPUT, 0, 1,
-                                       0, 0, 0, 0};
-        return;
-    }
-    warn_dropped(dropped);
-    warn_dominating_values(r);
-    *text = manifest_text(r);
-    dec->vmin = st->vmin;
-    dec->vmax = st->vmax;
-    dec->text_len = strlen(*text);
-}
-
-/* MPI: the rounds after encoding (see "cluster" above): statistics, then
- * every rank's shards and node manifest finished and verified, then the
- * node directories in place and rank 0's commit of OUTDIR. */
-static void cluster_finish(struct run *r)
-{
-    const int root = g_comm.rank == 0;
-    struct round_head h = {0};
-    h.vmin = r->st.vmin;
-    h.vmax = r->st.vmax;
-    h.nonfinite = r->st.nonfinite;
-    h.missing = r->st.missing;
-    h.counted = r->st.counted;
-    h.dropped = dropped_values(r);
-    uint64_t *sum = root ? calloc(TVPAL_CHECKPOINT_BINS, sizeof *sum) : NULL;
-    if (root && !sum)
-        g_comm.abort(&g_comm, TVPAL_EXIT_FAIL);
-    struct round_decision dec = cluster_gather(&h, r->st.fine, sum);
-    char *text = NULL;
-    if (root && !dec.code)
-        cluster_stats(r, &dec, sum, &text);
-    free(sum);
-    cluster_decide(&dec, &text);
-    if (dec.code)
-        cluster_end_failed(&dec);
-    g_round = 2;
-    r->st.vmin = dec.vmin;
-    r->st.vmax = dec.vmax;
-    finish_shards(r);
-    write_manifest(r->ckdir, text);
-    free(text);
-    struct tvpal_dataset *ds = NULL;
-    struct tvpal_diag d = {{0}};
-    if (tvpal_dataset_open_node(&ds, r->ckdir, r->node, r->o.nodes, &d) < 0)
-        die_fail("%s: written node directory does not verify: %s", r->ckdir,
-                 d.msg);
-    tvpal_dataset_close(ds);
-    memset(&h, 0, sizeof h);
-    dec = cluster_gather(&h, NULL, NULL);
-    cluster_decide(&dec, NULL);
-    if (dec.code)
-        cluster_end_failed(&dec);
-    g_round = 3;
-    tvpal_checkpoint_remove(r->ckdir, NULL);
-    tvpal_fsync_dir(r->ckdir);
-    if (r->node_final)
-        place_node_dir(r);
-    memset(&h, 0, sizeof h);
-    h.work = r->prog.work - r->prog.work_at_start;
-    h.seconds = r->t_encode;
-    h.bytes = own_shard_bytes(r);
-    if (r->node_final) { /* the files have moved */
-        char *keep = r->ckdir;
-        r->ckdir = r->node_final;
-        h.bytes = 0;
-        for (uint32_t q = 0; q < r->nshard; q++) {
-            char *p = NULL;
-            struct stat st;
-            if (asprintf(&p, "%s/axis-%c.tvps", r->node_final,
-                         "xyz"[r->sj[q].axis]) >= 0 && stat(p, &st) == 0)
-                h.bytes += (uint64_t)st.st_size;
-            free(p);
-        }
-        r->ckdir = keep;
-    }
-    dec = cluster_gather(&h, NULL, NULL);
-    if (root && !dec.code) {
-        /* The commit: OUTDIR with its manifest, last.  Its failure is
-         * decided here (the other ranks wait for the decision). */
-        struct tvpal_diag wd = {{0}};
-        char *path = NULL;
-        text = manifest_text(r);
-        int rc = asprintf(&path, "%s/manifest.txt", r->partial) < 0
-                     ? TVPAL_E_NOMEM
-                     : tvpal_write_file_atomic(path, text, strlen(text), &wd);
-        free(path);
-        free(text);
-        tvpal_fsync_dir(r->partial);
-        if (rc < 0)
-            snprintf(g_heads[0].text, sizeof g_heads[0].text, "%s: cannot "
-                     "write manifest: %s", r->partial, lib_error(rc, &wd));
-        else if (place_output(r, g_heads[0].text, sizeof g_heads[0].text) < 0)
-            rc = -1;
-        if (rc < 0)
-            dec = (struct round_decision){TVPAL_EXIT_FAIL, DIE_FAIL, 0, 1,
-                                          0, 0, 0, 0};
-        for (int k = 0; k < g_comm.size; k++) {
-            r->cluster_bytes += g_heads[k].bytes;
-            r->cluster_work += g_heads[k].work;
-            if (g_heads[k].seconds > r->cluster_seconds)
-                r->cluster_seconds = g_heads[k].seconds;
-        }
-    }
-    cluster_decide(&dec, NULL);
-    if (dec.code)
-        cluster_end_failed(&dec);
-    g_round = ROUNDS + 1;
-}
-
 static void run_free(struct run *r)
 {
     prefetch_stop(r->pf);   /* before the input it reads is closed */
@@ -2621,66 +1580,12 @@ static void run_free(struct run *r)
     free(r->partial);
     free(r->ckdir);
     free(r->node_final);
-    free(g_heads);
-    g_heads = NULL;
+    cluster_free();
     for (int i = 0; i < r->o.ninputs; i++)
         free(r->abs_inputs[i]);
     free(r->abs_inputs);
     tvpal_input_close(r->in);
     free(r->times);
-}
-
-/* Under an MPI launcher (tvpal_comm_launched): joins the job, one rank
- * per node shard.  One process otherwise, or as a job of one rank. */
-static void open_cluster(struct run *r, int *argc, char ***argv)
-{
-    struct tvpal_diag d = {{0}};
-    tvpal_comm_self(&g_comm);
-    if (!tvpal_comm_launched(NULL))
-        return;
-    if (tvpal_comm_open(&g_comm, TVPAL_COMM_MPI, argc, argv, &d) < 0)
-        die_usage("started by an MPI launcher, but %s", d.msg);
-    if (g_comm.size > 1) {
-        r->mpi = 1;
-        r->node = (uint32_t)g_comm.rank;
-        g_round = 1; /* failures from here on go through the rounds */
-    }
-}
-
-/* This process's checkpoint directory and, under MPI, its node's final
- * directory (--shard-dir); the rules --nodes and --shard-dir obey. */
-static void setup_cluster_dirs(struct run *r)
-{
-    const struct opts *o = &r->o;
-    if (o->shard_pat && !r->mpi)
-        die_usage("--shard-dir: for MPI runs (mpirun -np K " PROG
-                  " --nodes K ...); one process writes OUTDIR/node-R");
-    if (r->mpi && o->nodes != (uint32_t)g_comm.size)
-        die_usage("--nodes %u under %d MPI ranks: expected --nodes %d (one "
-                  "rank per node shard)", o->nodes, g_comm.size, g_comm.size);
-    if (o->shard_pat && !strstr(o->shard_pat, "%r"))
-        die_usage("--shard-dir \"%s\": expected %%r (the rank) in it",
-                  o->shard_pat);
-    r->ckdir = r->mpi ? node_partial(r, r->node) : strdup(r->partial);
-    if (!r->ckdir)
-        die_fail("out of memory");
-    if (o->shard_pat) {
-        if (!(r->node_final = tvpal_node_dir(NULL, o->shard_pat, r->node)))
-            die_fail("out of memory");
-        if (tvpal_exists(r->node_final) && !o->force)
-            die_usage("%s: node directory already exists (use --force to "
-                      "replace it)", r->node_final);
-    }
-    if (r->mpi && r->node == 0) {
-        /* OUTDIR.partial holds the node directories (or, with
-         * --shard-dir, only the manifest): a one-process job's checkpoint
-         * there is not this job's. */
-        struct tvpal_diag d = {{0}};
-        if (tvpal_mkdirs(r->partial, &d) < 0)
-            die_usage("%s: cannot create output directory: %s", r->partial,
-                      d.msg);
-        tvpal_checkpoint_remove(r->partial, NULL);
-    }
 }
 
 /* Each step ends the program itself on failure (see `enum ending`). */

@@ -1,0 +1,225 @@
+/* encode.h: the parts of tvpal-encode and what they share.
+ *
+ * tvpal-encode.c has the options, the output directories, the plan's glue,
+ * the workspaces, the streaming driver (passes over steps, chunks written
+ * in place, checkpoints) and the finishing; encode_source.c reads the
+ * input (raw boxes in blocks, self-describing readers with a read-ahead
+ * thread) and checks it; encode_cluster.c is the MPI job (one rank per
+ * node shard) and how its ranks agree on the end.  struct run is the one
+ * state of a run, set up by main's steps in order and released by
+ * run_free.
+ *
+ * Program code, not library code: the functions here report and end the
+ * program themselves (msg, die_*: see enum ending).
+ */
+#ifndef TVPAL_ENCODE_H
+#define TVPAL_ENCODE_H
+
+#include "encode_plan.h"
+#include "tvpal_checkpoint.h"
+#include "tvpal_comm.h"
+#include "tvpal_error.h"
+#include "tvpal_format.h"
+#include "tvpal_input.h"
+#include "tvpal_manifest.h"
+#include "tvpal_raw.h"
+#include "tvpal_shard.h"
+#include "tvpal_swcode.h"
+
+#include <stddef.h>
+#include <stdint.h>
+
+#define PROG "tvpal-encode"
+
+struct opts {
+    uint32_t dims[3];
+    enum tvpal_type type;
+    int big_endian;
+    uint32_t window, nodes, steps_single, threads;
+    int table_format;          /* TVPAL_TABLE_F32 or TVPAL_TABLE_U16 */
+    uint32_t refine;
+    int naive, klt, alloc_mse;
+    int has_nan_as;
+    double nan_as;
+    double missing[TVPAL_MISSING_VALUES_MAX];   /* --missing V */
+    unsigned nmissing;
+    const char *outdir;
+    int force, quiet;
+    char **inputs;
+    int ninputs;
+    enum tvpal_input_format format;   /* --format; AUTO until detected */
+    const char *var, *time_dim;       /* --var, --time-dim */
+    int have_type, have_endian;       /* given on the command line */
+    int sort_natural;                 /* --sort natural */
+    double spacing[3], origin[3];     /* --spacing, --origin */
+    int have_spacing, have_origin;
+    const char *times_file;           /* --times FILE */
+    const char *time_units;           /* --time-units TEXT */
+    uint64_t mem_limit;               /* --mem-limit SIZE, or 0 */
+    const char *shard_pat;            /* --shard-dir PATTERN (MPI) */
+};
+
+/* How a message ends the program: MSG_ONLY returns; the others exit with
+ * code 2 (usage or bad input, before any output), 1 (output or system
+ * failure: a partial output is kept for a rerun to resume) or 2 after
+ * removing the partial output (bad input found mid-run: a rerun would fail
+ * the same way, so nothing partial stays behind). */
+enum ending { MSG_ONLY, DIE_USAGE, DIE_FAIL, DIE_INPUT };
+
+
+struct shardjob {
+    unsigned axis;
+    uint32_t rank;
+    struct tvpal_shard_header h;
+    struct tvpal_shardw *w;  /* placed writer (tvpal_shard.h) */
+};
+
+/* A group of `count` slices slice, slice + N, ... of one shard, all with
+ * windows of length len starting at the current step; their chunks' CRCs
+ * go to jcrc[crc_at ..].  Slices of the x axis are grouped so that one pass
+ * over the box rows gathers them all (they share cache lines); other axes
+ * use groups of one. */
+struct slicejob {
+    struct shardjob *sj;
+    uint32_t slice;
+    uint32_t count;
+    uint32_t len;
+    size_t crc_at;
+};
+
+/* Most slices per group: those of one 64-byte line of x (16 floats). */
+#define GROUP_SPAN 16u
+
+/* Bytes of the reading scratch of one thread (raw input is read in blocks
+ * of at most this much, converted into the ring as it comes). */
+#define READ_BLOCK ((size_t)8 << 20)
+
+/* Progress on stderr: a bar redrawn at most 5 times a second on a terminal,
+ * otherwise a line every 30 s, whether a timestep takes a second or an
+ * hour; always at the end.  `work` counts voxel-samples encoded (all axes;
+ * a voxel of a window of length L counts L), out of `total`. */
+struct progress {
+    int tty, quiet;
+    double t0, last, interval;  /* seconds between lines */
+    uint64_t work, total;    /* work is added to atomically */
+    uint64_t work_at_start;  /* a resumed job's share already done */
+    uint64_t unit, units;    /* the step being done (pass * T + step), of */
+};
+
+/* One encoding run: the job, its output and the workspaces, set up by
+ * main's steps in order and released by run_free. */
+struct prefetch;
+
+struct run {
+    struct opts o;
+    uint32_t T, N;           /* timesteps, window */
+    size_t nvox;             /* voxels per timestep */
+    uint64_t step_bytes;     /* source bytes per timestep */
+    char **abs_inputs;       /* o.inputs points here once checked */
+    char *partial;           /* OUTDIR.partial */
+    char *fp;                /* job fingerprint */
+    struct tvpal_checkpoint_stats st;
+    uint64_t start;          /* first unit of work (pass * T + step) */
+    /* Shards: 3 axes x K nodes, axis-major (every node's, or one rank's). */
+    struct shardjob *sj;
+    uint32_t nshard;
+    size_t max_slice_vox, max_jobs;
+    uint64_t max_chunk;      /* bytes of the largest chunk */
+    /* The memory plan and the pass being encoded. */
+    uint64_t limit;
+    char limit_why[128];
+    struct encode_plan plan;
+    const struct encode_pass *pass;
+    /* Workspaces: per thread, then shared. */
+    int nthreads;
+    uint64_t **fine_local;   /* per-thread source histograms */
+    size_t group_cap;        /* floats of samples per thread */
+    struct tvpal_swenc **enc;
+    float **samples, **tables;
+    unsigned char **chunkbuf;   /* per thread: one chunk */
+    unsigned char **scratch;    /* per thread: READ_BLOCK bytes (raw) */
+    struct slicejob *jobs;   /* max_jobs */
+    uint32_t *jcrc;          /* CRC of every chunk of a step */
+    float **ring;            /* N timesteps of the pass's box, step t at
+                              * t % N, box voxels x fastest */
+    float *boxbuf;           /* a self-describing input's box, as read */
+    struct tvpal_input *in;  /* self-describing input, or NULL (raw) */
+    struct prefetch *pf;     /* reads the input's next step meanwhile */
+    uint64_t *dropped;       /* per thread: present values coded missing */
+    double *times;           /* [T] time values, or NULL (none known) */
+    char time_units[128];
+    double t_encode;         /* seconds of the streaming loop */
+    struct progress prog;
+    /* Checkpoint copies of the writers' progress (tvpal_checkpoint.h). */
+    struct tvpal_checkpoint_progress ckp;
+    /* MPI: this rank encodes node `node` only; its node directory while
+     * the job runs (also its checkpoint's), and where it goes at the end
+     * (--shard-dir; NULL: it stays inside OUTDIR). */
+    int mpi;
+    uint32_t node;
+    char *ckdir;
+    char *node_final;
+    uint64_t cluster_bytes;  /* rank 0: bytes of every rank's shards, */
+    uint64_t cluster_work;   /* the voxel-samples they encoded, */
+    double cluster_seconds;  /* in this many seconds (the slowest) */
+};
+
+
+/* ------------------------------------------------------------ diagnostics */
+
+/* Under MPI (mpirun -np K, one rank per node shard): this process's
+ * communicator, and the next round of the job's agreement
+ * (encode_cluster.c) that a rank which fails joins with its message, so
+ * that rank 0 reports it and every rank ends, none left waiting.  g_round
+ * 0: one process; above ROUNDS: the rounds are over. */
+extern struct tvpal_comm g_comm;
+extern int g_round;
+#define ROUNDS 3
+extern char *g_partial;    /* removed on bad input found mid-run */
+
+void msg(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+void die_usage(const char *fmt, ...)
+    __attribute__((format(printf, 1, 2), noreturn));
+void die_fail(const char *fmt, ...)
+    __attribute__((format(printf, 1, 2), noreturn));
+void die_input(const char *fmt, ...)
+    __attribute__((format(printf, 1, 2), noreturn));
+/* The text of a library error (a static buffer). */
+const char *lib_error(int rc, const struct tvpal_diag *d);
+
+/* ----------------------------------------------- tvpal-encode.c (output) */
+
+char *node_partial(const struct run *r, uint32_t k);
+char *shard_path(const struct run *r, const struct shardjob *j);
+void finish_shards(struct run *r);
+char *manifest_text(const struct run *r);
+void write_manifest(const char *dir, const char *text);
+int place_output(const struct run *r, char *err, size_t cap);
+int all_missing(const struct run *r, char *why, size_t cap);
+uint64_t dropped_values(const struct run *r);
+void warn_dropped(uint64_t dropped);
+void warn_dominating_values(const struct run *r);
+
+/* ------------------------------------------- encode_source.c (the input) */
+
+/* The value at the middle of a class of the fine histogram. */
+float fine_bin_value(uint32_t b);
+void order_inputs(struct opts *o);
+int open_source(struct run *r, int have_dims);
+void load_times(struct run *r);
+void warn_irregular_times(const struct run *r);
+void check_inputs(struct run *r);
+struct prefetch *prefetch_start(struct tvpal_input *in, uint64_t voxels);
+void prefetch_stop(struct prefetch *pf);
+void load_step(struct run *r, uint32_t t, float *dst);
+
+/* -------------------------------------------- encode_cluster.c (the job) */
+
+void open_cluster(struct run *r, int *argc, char ***argv);
+void setup_cluster_dirs(struct run *r);
+void cluster_finish(struct run *r);
+void cluster_fail(enum ending how, const char *text)
+    __attribute__((noreturn));
+void cluster_free(void);
+
+#endif

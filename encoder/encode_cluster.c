@@ -1,0 +1,364 @@
+/* encode_cluster.c: tvpal-encode as an MPI job (see encode.h and the
+ * comment below). */
+#define _GNU_SOURCE
+#include "encode.h"
+#include "tvpal_cli.h"
+#include "tvpal_dataset.h"
+#include "tvpal_fs.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+/* ---------------------------------------------------------------- cluster */
+
+/* Under mpirun -np K --nodes K, rank R encodes only node R's three shards,
+ * reading only the boxes of the input its slabs need, into its own node
+ * directory (OUTDIR.partial/node-R, or --shard-dir's on a node-local
+ * disk).  The ranks then agree in ROUNDS rounds, each a gather of every
+ * rank's state to rank 0 and rank 0's decision sent back:
+ *   1. statistics: rank 0 sums them (each voxel is in one rank's z slab)
+ *      and sends the source range and the manifest;
+ *   2. every rank has finished and verified its shards and node manifest;
+ *   3. every node directory is in place: rank 0 writes OUTDIR and renames
+ *      it into place, the commit.
+ * A rank that fails joins the round it would have reached with its
+ * message: rank 0 prints it, and every rank ends with its code, none left
+ * waiting.  A rank killed outright is ended by the launcher (mpirun ends
+ * the job when a process dies); the checkpoints in the node directories
+ * let the same command resume every rank. */
+
+/* What a rank tells rank 0 in a round. */
+struct round_head {
+    int32_t code;            /* 0 ok, else the exit status */
+    int32_t how;             /* enum ending of a failure */
+    char text[900];          /* its message */
+    double vmin, vmax;       /* round 1: statistics */
+    uint64_t nonfinite, missing, counted, dropped;
+    uint64_t bytes;          /* round 3: bytes of the rank's shards, */
+    uint64_t work;           /* voxel-samples it encoded, */
+    double seconds;          /* in this many seconds */
+};
+
+/* Rank 0's decision. */
+struct round_decision {
+    int32_t code, how, bad_rank, nbad;
+    double vmin, vmax;
+    uint64_t bytes, text_len; /* round 1: the manifest's length */
+};
+
+static struct round_head *g_heads;   /* rank 0: one per rank */
+
+/* Gathers mine (and in round 1 the histogram fine, may be NULL on a
+ * failing rank) to rank 0, which decides; returns the decision on every
+ * rank.  The failure of the lowest rank wins; rank 0 prints it. */
+static struct round_decision cluster_gather(const struct round_head *mine,
+                                            const uint64_t *fine,
+                                            uint64_t *fine_sum)
+{
+    struct tvpal_comm *c = &g_comm;
+    struct round_decision dec = {0};
+    const size_t K = (size_t)c->size;
+    if (c->rank == 0 && !g_heads && !(g_heads = calloc(K, sizeof *g_heads)))
+        c->abort(c, TVPAL_EXIT_FAIL);
+    if (c->gather(c, mine, sizeof *mine, g_heads) < 0)
+        c->abort(c, TVPAL_EXIT_FAIL);
+    if (g_round == 1) {
+        /* The fine histograms, one rank at a time into rank 0's sum. */
+        static uint64_t zero[TVPAL_CHECKPOINT_BINS];
+        const size_t hb = sizeof zero;
+        uint64_t *buf = c->rank == 0 ? malloc(hb * K) : NULL;
+        if (c->rank == 0 && !buf)
+            c->abort(c, TVPAL_EXIT_FAIL);
+        if (c->gather(c, fine ? fine : zero, hb, buf) < 0)
+            c->abort(c, TVPAL_EXIT_FAIL);
+        for (size_t k = 0; c->rank == 0 && k < K; k++)
+            for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++)
+                fine_sum[b] = (k ? fine_sum[b] : 0) + buf[k * TVPAL_CHECKPOINT_BINS + b];
+        free(buf);
+    }
+    if (c->rank == 0) {
+        dec.bad_rank = -1;
+        for (size_t k = 0; k < K; k++)
+            if (g_heads[k].code) {
+                if (dec.bad_rank < 0) {
+                    dec.bad_rank = (int32_t)k;
+                    dec.code = g_heads[k].code;
+                    dec.how = g_heads[k].how;
+                }
+                dec.nbad++;
+            }
+    }
+    return dec;
+}
+
+/* Sends rank 0's decision (and round 1's manifest text) to every rank. */
+static void cluster_decide(struct round_decision *dec, char **text)
+{
+    struct tvpal_comm *c = &g_comm;
+    if (c->bcast(c, dec, sizeof *dec, 0) < 0)
+        c->abort(c, TVPAL_EXIT_FAIL);
+    if (!dec->code && text && dec->text_len) {
+        if (c->rank != 0 && !(*text = calloc(1, dec->text_len + 1)))
+            c->abort(c, TVPAL_EXIT_FAIL);
+        if (c->bcast(c, *text, dec->text_len, 0) < 0)
+            c->abort(c, TVPAL_EXIT_FAIL);
+    }
+}
+
+/* Rank 0 reports the failure decided; every rank removes its node's
+ * partial output when the input was bad (a rerun would fail the same
+ * way), and ends. */
+static void cluster_end_failed(const struct round_decision *dec)
+    __attribute__((noreturn));
+static void cluster_end_failed(const struct round_decision *dec)
+{
+    g_round = ROUNDS + 1;
+    if (g_comm.rank == 0) {
+        const struct round_head *h = &g_heads[dec->bad_rank];
+        if (dec->bad_rank > 0)
+            fprintf(stderr, PROG ": rank %d: %s\n", dec->bad_rank, h->text);
+        else
+            fprintf(stderr, PROG ": %s\n", h->text);
+        if (dec->nbad > 1)
+            fprintf(stderr, PROG ": %d ranks failed; the lowest is shown\n",
+                    dec->nbad);
+    }
+    if (dec->how == DIE_INPUT && g_partial)
+        tvpal_rmtree(g_partial);
+    tvpal_comm_close(&g_comm);
+    exit(dec->code);
+}
+
+void cluster_fail(enum ending how, const char *text)
+{
+    struct round_head h = {0};
+    h.code = how == DIE_FAIL ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;
+    h.how = how;
+    snprintf(h.text, sizeof h.text, "%s", text);
+    uint64_t *sum = g_comm.rank == 0 ? calloc(TVPAL_CHECKPOINT_BINS, 8) : NULL;
+    struct round_decision dec = cluster_gather(&h, NULL, sum);
+    free(sum);
+    cluster_decide(&dec, NULL);
+    cluster_end_failed(&dec);
+}
+
+/* Bytes of this process's shard files. */
+static uint64_t own_shard_bytes(const struct run *r)
+{
+    uint64_t n = 0;
+    for (uint32_t q = 0; q < r->nshard; q++) {
+        char *p = shard_path(r, &r->sj[q]);
+        struct stat st;
+        if (p && stat(p, &st) == 0)
+            n += (uint64_t)st.st_size;
+        free(p);
+    }
+    return n;
+}
+
+/* Puts this rank's --shard-dir node directory in place (with --force an
+ * existing one goes first). */
+static void place_node_dir(const struct run *r)
+{
+    const char *fin = r->node_final;
+    if (tvpal_exists(fin) && tvpal_rmtree(fin) < 0)
+        die_fail("%s: cannot replace: %s", fin, strerror(errno));
+    if (rename(r->ckdir, fin) < 0)
+        die_fail("%s: cannot rename %s into place: %s", fin, r->ckdir,
+                 strerror(errno));
+}
+
+/* Rank 0, round 1: the job's statistics from every rank's; a failure to
+ * report goes into dec (and the lowest rank's text). */
+static void cluster_stats(struct run *r, struct round_decision *dec,
+                          const uint64_t *fine_sum, char **text)
+{
+    struct tvpal_checkpoint_stats *st = &r->st;
+    uint64_t dropped = 0;
+    st->vmin = INFINITY;
+    st->vmax = -INFINITY;
+    st->nonfinite = st->missing = st->counted = 0;
+    for (int k = 0; k < g_comm.size; k++) {
+        const struct round_head *h = &g_heads[k];
+        st->vmin = h->vmin < st->vmin ? h->vmin : st->vmin;
+        st->vmax = h->vmax > st->vmax ? h->vmax : st->vmax;
+        st->nonfinite += h->nonfinite;
+        st->missing += h->missing;
+        st->counted += h->counted;
+        dropped += h->dropped;
+    }
+    memcpy(st->fine, fine_sum, TVPAL_CHECKPOINT_BINS * sizeof *st->fine);
+    if (all_missing(r, g_heads[0].text, sizeof g_heads[0].text)) {
+        *dec = (struct round_decision){TVPAL_EXIT_USAGE, DIE_INPUT, 0, 1,
+                                       0, 0, 0, 0};
+        return;
+    }
+    warn_dropped(dropped);
+    warn_dominating_values(r);
+    *text = manifest_text(r);
+    dec->vmin = st->vmin;
+    dec->vmax = st->vmax;
+    dec->text_len = strlen(*text);
+}
+
+/* MPI: the rounds after encoding (see "cluster" above): statistics, then
+ * every rank's shards and node manifest finished and verified, then the
+ * node directories in place and rank 0's commit of OUTDIR. */
+void cluster_finish(struct run *r)
+{
+    const int root = g_comm.rank == 0;
+    struct round_head h = {0};
+    h.vmin = r->st.vmin;
+    h.vmax = r->st.vmax;
+    h.nonfinite = r->st.nonfinite;
+    h.missing = r->st.missing;
+    h.counted = r->st.counted;
+    h.dropped = dropped_values(r);
+    uint64_t *sum = root ? calloc(TVPAL_CHECKPOINT_BINS, sizeof *sum) : NULL;
+    if (root && !sum)
+        g_comm.abort(&g_comm, TVPAL_EXIT_FAIL);
+    struct round_decision dec = cluster_gather(&h, r->st.fine, sum);
+    char *text = NULL;
+    if (root && !dec.code)
+        cluster_stats(r, &dec, sum, &text);
+    free(sum);
+    cluster_decide(&dec, &text);
+    if (dec.code)
+        cluster_end_failed(&dec);
+    g_round = 2;
+    r->st.vmin = dec.vmin;
+    r->st.vmax = dec.vmax;
+    finish_shards(r);
+    write_manifest(r->ckdir, text);
+    free(text);
+    struct tvpal_dataset *ds = NULL;
+    struct tvpal_diag d = {{0}};
+    if (tvpal_dataset_open_node(&ds, r->ckdir, r->node, r->o.nodes, &d) < 0)
+        die_fail("%s: written node directory does not verify: %s", r->ckdir,
+                 d.msg);
+    tvpal_dataset_close(ds);
+    memset(&h, 0, sizeof h);
+    dec = cluster_gather(&h, NULL, NULL);
+    cluster_decide(&dec, NULL);
+    if (dec.code)
+        cluster_end_failed(&dec);
+    g_round = 3;
+    tvpal_checkpoint_remove(r->ckdir, NULL);
+    tvpal_fsync_dir(r->ckdir);
+    if (r->node_final)
+        place_node_dir(r);
+    memset(&h, 0, sizeof h);
+    h.work = r->prog.work - r->prog.work_at_start;
+    h.seconds = r->t_encode;
+    h.bytes = own_shard_bytes(r);
+    if (r->node_final) { /* the files have moved */
+        char *keep = r->ckdir;
+        r->ckdir = r->node_final;
+        h.bytes = 0;
+        for (uint32_t q = 0; q < r->nshard; q++) {
+            char *p = NULL;
+            struct stat st;
+            if (asprintf(&p, "%s/axis-%c.tvps", r->node_final,
+                         "xyz"[r->sj[q].axis]) >= 0 && stat(p, &st) == 0)
+                h.bytes += (uint64_t)st.st_size;
+            free(p);
+        }
+        r->ckdir = keep;
+    }
+    dec = cluster_gather(&h, NULL, NULL);
+    if (root && !dec.code) {
+        /* The commit: OUTDIR with its manifest, last.  Its failure is
+         * decided here (the other ranks wait for the decision). */
+        struct tvpal_diag wd = {{0}};
+        char *path = NULL;
+        text = manifest_text(r);
+        int rc = asprintf(&path, "%s/manifest.txt", r->partial) < 0
+                     ? TVPAL_E_NOMEM
+                     : tvpal_write_file_atomic(path, text, strlen(text), &wd);
+        free(path);
+        free(text);
+        tvpal_fsync_dir(r->partial);
+        if (rc < 0)
+            snprintf(g_heads[0].text, sizeof g_heads[0].text, "%s: cannot "
+                     "write manifest: %s", r->partial, lib_error(rc, &wd));
+        else if (place_output(r, g_heads[0].text, sizeof g_heads[0].text) < 0)
+            rc = -1;
+        if (rc < 0)
+            dec = (struct round_decision){TVPAL_EXIT_FAIL, DIE_FAIL, 0, 1,
+                                          0, 0, 0, 0};
+        for (int k = 0; k < g_comm.size; k++) {
+            r->cluster_bytes += g_heads[k].bytes;
+            r->cluster_work += g_heads[k].work;
+            if (g_heads[k].seconds > r->cluster_seconds)
+                r->cluster_seconds = g_heads[k].seconds;
+        }
+    }
+    cluster_decide(&dec, NULL);
+    if (dec.code)
+        cluster_end_failed(&dec);
+    g_round = ROUNDS + 1;
+}
+
+/* Under an MPI launcher (tvpal_comm_launched): joins the job, one rank
+ * per node shard.  One process otherwise, or as a job of one rank. */
+void open_cluster(struct run *r, int *argc, char ***argv)
+{
+    struct tvpal_diag d = {{0}};
+    tvpal_comm_self(&g_comm);
+    if (!tvpal_comm_launched(NULL))
+        return;
+    if (tvpal_comm_open(&g_comm, TVPAL_COMM_MPI, argc, argv, &d) < 0)
+        die_usage("started by an MPI launcher, but %s", d.msg);
+    if (g_comm.size > 1) {
+        r->mpi = 1;
+        r->node = (uint32_t)g_comm.rank;
+        g_round = 1; /* failures from here on go through the rounds */
+    }
+}
+
+/* This process's checkpoint directory and, under MPI, its node's final
+ * directory (--shard-dir); the rules --nodes and --shard-dir obey. */
+void setup_cluster_dirs(struct run *r)
+{
+    const struct opts *o = &r->o;
+    if (o->shard_pat && !r->mpi)
+        die_usage("--shard-dir: for MPI runs (mpirun -np K " PROG
+                  " --nodes K ...); one process writes OUTDIR/node-R");
+    if (r->mpi && o->nodes != (uint32_t)g_comm.size)
+        die_usage("--nodes %u under %d MPI ranks: expected --nodes %d (one "
+                  "rank per node shard)", o->nodes, g_comm.size, g_comm.size);
+    if (o->shard_pat && !strstr(o->shard_pat, "%r"))
+        die_usage("--shard-dir \"%s\": expected %%r (the rank) in it",
+                  o->shard_pat);
+    r->ckdir = r->mpi ? node_partial(r, r->node) : strdup(r->partial);
+    if (!r->ckdir)
+        die_fail("out of memory");
+    if (o->shard_pat) {
+        if (!(r->node_final = tvpal_node_dir(NULL, o->shard_pat, r->node)))
+            die_fail("out of memory");
+        if (tvpal_exists(r->node_final) && !o->force)
+            die_usage("%s: node directory already exists (use --force to "
+                      "replace it)", r->node_final);
+    }
+    if (r->mpi && r->node == 0) {
+        /* OUTDIR.partial holds the node directories (or, with
+         * --shard-dir, only the manifest): a one-process job's checkpoint
+         * there is not this job's. */
+        struct tvpal_diag d = {{0}};
+        if (tvpal_mkdirs(r->partial, &d) < 0)
+            die_usage("%s: cannot create output directory: %s", r->partial,
+                      d.msg);
+        tvpal_checkpoint_remove(r->partial, NULL);
+    }
+}
+
+void cluster_free(void)
+{
+    free(g_heads);
+    g_heads = NULL;
+}

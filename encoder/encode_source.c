@@ -1,0 +1,637 @@
+/* encode_source.c: tvpal-encode's input (see encode.h): the source
+ * checked, its times, and each pass's box of every timestep read,
+ * converted to float, checked and counted into the statistics. */
+#define _GNU_SOURCE
+#include "encode.h"
+#include "tvpal_cli.h"
+#include "tvpal_fs.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <limits.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+static uint32_t fine_bin(float f)
+{
+    uint32_t u;
+    memcpy(&u, &f, 4);
+    u = (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+    return u >> 16;
+}
+
+float fine_bin_value(uint32_t b)
+{
+    uint32_t k = (b << 16) | 0x8000u, u;
+    u = (k & 0x80000000u) ? (k & 0x7FFFFFFFu) : ~k;
+    float f;
+    memcpy(&f, &u, 4);
+    return f;
+}
+
+/* ------------------------------------------------------------- input I/O */
+
+/* What the threads reading a box found. */
+struct loaded {
+    uint64_t bad;            /* lowest volume voxel index of a data error */
+    int rc;                  /* its code (TVPAL_E_NAN or _RANGE), or 0 */
+    int read_err;            /* errno of a failed read, -1 at end of file */
+    size_t nrep;             /* values replaced by --nan-as */
+    size_t nmiss;            /* missing values (NaN after conversion) */
+    double lo, hi;           /* range including the stats' so far */
+};
+
+/* Per-thread findings, merged into struct loaded after the loop. */
+struct found {
+    uint64_t bad;
+    int rc, read_err;
+    size_t nrep, nmiss;
+    double lo, hi;
+};
+
+/* Converts n source values at src (type and byte order of the job, or
+ * host float32 when `host_f32`) into dst, applies --missing, and counts
+ * them into the thread's statistics when `stats`.  vox0 is the volume
+ * index of the first, for the error message. */
+static void convert_run(const struct run *r, const void *src, int host_f32,
+                        size_t n, float *dst, uint64_t vox0, int stats,
+                        int tid, struct found *f)
+{
+    const struct opts *o = &r->o;
+    size_t bad = 0, rep = 0;
+    int rc = tvpal_raw_convert(src, host_f32 ? TVPAL_F32 : o->type,
+#ifdef WORDS_BIGENDIAN
+                               host_f32 ? 1 : o->big_endian,
+#else
+                               host_f32 ? 0 : o->big_endian,
+#endif
+                               n, dst, o->has_nan_as ? &o->nan_as : NULL,
+                               &bad, &rep);
+    if (rc < 0) {
+        if (vox0 + bad < f->bad) {
+            f->bad = vox0 + bad;
+            f->rc = rc;
+        }
+        return;
+    }
+    if (o->nmissing) {
+        size_t hits = tvpal_missing_apply(dst, n, o->missing, o->nmissing,
+                                          o->has_nan_as ? &o->nan_as : NULL);
+        rep += o->has_nan_as ? hits : 0;
+    }
+    if (!stats)
+        return;
+    uint64_t *fine = r->fine_local[tid];
+    double lo = f->lo, hi = f->hi;
+    f->nrep += rep;
+    for (size_t i = 0; i < n; i++) {
+        float v = dst[i];
+        if (v != v) { /* missing: in no figure */
+            f->nmiss++;
+            continue;
+        }
+        lo = v < lo ? v : lo;
+        hi = v > hi ? v : hi;
+        fine[fine_bin(v)]++;
+    }
+    f->lo = lo;
+    f->hi = hi;
+}
+
+/* Reads file range [off, off + n) into buf; 0, or errno (-1: the file
+ * ended first). */
+static int pread_full(int fd, void *buf, size_t n, off_t off)
+{
+    for (size_t got = 0; got < n;) {
+        ssize_t k = pread(fd, (char *)buf + got, n - got, off + (off_t)got);
+        if (k < 0 && errno == EINTR)
+            continue;
+        if (k <= 0)
+            return k < 0 ? errno : -1;
+        got += (size_t)k;
+    }
+    return 0;
+}
+
+/* The box b of the raw timestep at file offset base of fd into dst (box
+ * voxels, x fastest), converted, in parallel over blocks of rows: each
+ * z-plane of the box is read as the one file range that holds its rows
+ * (a y or z slab: only its bytes; an x slab: whole rows, its part used),
+ * in pieces of at most READ_BLOCK bytes, into the reading thread's
+ * scratch. */
+static void read_box_raw(struct run *r, int fd, off_t base,
+                         const struct encode_box *b, float *dst, int stats,
+                         struct loaded *res)
+{
+    const struct opts *o = &r->o;
+    const size_t esz = tvpal_type_size(o->type);
+    const size_t nx = o->dims[0], ny = o->dims[1];
+    const size_t row_bytes = nx * esz;
+    /* Rows per piece: a piece spans whole rows of one plane. */
+    size_t rows = READ_BLOCK / row_bytes;
+    if (rows < 1)
+        rows = 1;
+    if (rows > b->n[1])
+        rows = b->n[1];
+    const size_t pieces_per_plane = (b->n[1] + rows - 1) / rows;
+    const size_t npieces = pieces_per_plane * b->n[2];
+    struct found all = {UINT64_MAX, 0, 0, 0, 0, r->st.vmin, r->st.vmax};
+#ifdef _OPENMP
+#pragma omp parallel
+#endif
+    {
+        int tid = 0;
+#ifdef _OPENMP
+        tid = omp_get_thread_num();
+#endif
+        struct found f = {UINT64_MAX, 0, 0, 0, 0, all.lo, all.hi};
+        unsigned char *buf = r->scratch[tid];
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 1)
+#endif
+        for (size_t p = 0; p < npieces; p++) {
+            if (f.read_err)
+                continue;
+            const size_t z = b->lo[2] + p / pieces_per_plane;
+            const size_t y0 = b->lo[1] + p % pieces_per_plane * rows;
+            size_t yn = b->lo[1] + b->n[1] - y0;
+            yn = yn < rows ? yn : rows;
+            /* From the first row's first voxel to the last row's last. */
+            const uint64_t v0 = b->lo[0] + nx * (y0 + ny * z);
+            const size_t span = ((yn - 1) * nx + b->n[0]) * esz;
+            int err = pread_full(fd, buf, span, base + (off_t)(v0 * esz));
+            if (err) {
+                f.read_err = err;
+                continue;
+            }
+            for (size_t k = 0; k < yn; k++) {
+                const size_t yb = y0 + k - b->lo[1], zb = z - b->lo[2];
+                float *out = dst + (size_t)b->n[0] * (yb + (size_t)b->n[1] * zb);
+                convert_run(r, buf + k * row_bytes, 0, b->n[0], out,
+                            v0 + k * nx, stats, tid, &f);
+            }
+        }
+#ifdef _OPENMP
+#pragma omp critical(tvpal_found)
+#endif
+        {
+            if (f.bad < all.bad) {
+                all.bad = f.bad;
+                all.rc = f.rc;
+            }
+            if (f.read_err && !all.read_err)
+                all.read_err = f.read_err;
+            all.nrep += f.nrep;
+            all.nmiss += f.nmiss;
+            all.lo = f.lo < all.lo ? f.lo : all.lo;
+            all.hi = f.hi > all.hi ? f.hi : all.hi;
+        }
+    }
+    *res = (struct loaded){all.bad, all.rc, all.read_err, all.nrep,
+                           all.nmiss, all.lo, all.hi};
+}
+
+/* The box b of a self-describing step, already read into src (host
+ * float32, box voxels), checked and converted into dst in parallel. */
+static void convert_box(struct run *r, const float *src,
+                        const struct encode_box *b, float *dst, int stats,
+                        struct loaded *res)
+{
+    const size_t rows = (size_t)b->n[1] * b->n[2];
+    const size_t nx = r->o.dims[0], ny = r->o.dims[1];
+    struct found all = {UINT64_MAX, 0, 0, 0, 0, r->st.vmin, r->st.vmax};
+#ifdef _OPENMP
+#pragma omp parallel
+#endif
+    {
+        int tid = 0;
+#ifdef _OPENMP
+        tid = omp_get_thread_num();
+#endif
+        struct found f = {UINT64_MAX, 0, 0, 0, 0, all.lo, all.hi};
+#ifdef _OPENMP
+#pragma omp for schedule(static)
+#endif
+        for (size_t k = 0; k < rows; k++) {
+            const size_t y = b->lo[1] + k % b->n[1], z = b->lo[2] + k / b->n[1];
+            const size_t at = k * b->n[0];
+            convert_run(r, src + at, 1, b->n[0], dst + at,
+                        b->lo[0] + nx * (y + ny * z), stats, tid, &f);
+        }
+#ifdef _OPENMP
+#pragma omp critical(tvpal_found)
+#endif
+        {
+            if (f.bad < all.bad) {
+                all.bad = f.bad;
+                all.rc = f.rc;
+            }
+            all.nrep += f.nrep;
+            all.nmiss += f.nmiss;
+            all.lo = f.lo < all.lo ? f.lo : all.lo;
+            all.hi = f.hi > all.hi ? f.hi : all.hi;
+        }
+    }
+    *res = (struct loaded){all.bad, all.rc, 0, all.nrep, all.nmiss, all.lo,
+                           all.hi};
+}
+
+/* Whether box b is the whole volume (read with tvpal_input_read). */
+static int box_is_whole(const struct run *r, const struct encode_box *b)
+{
+    return b->n[0] == r->o.dims[0] && b->n[1] == r->o.dims[1] &&
+           b->n[2] == r->o.dims[2];
+}
+
+/* A self-describing input is read (and inflated) by its library on one
+ * thread; the encoding of a step runs on all of them.  One reader thread
+ * reads the box of step t + 1 while step t is converted and encoded, so
+ * the two overlap.  The reader is the only thread that calls the input
+ * library once it runs (HDF5 and libnetcdf builds need not be
+ * thread-safe). */
+struct prefetch {
+    pthread_t thread;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    struct tvpal_input *in;
+    float *buf;              /* box floats: the step being read or read */
+    struct encode_box box;   /* what to read */
+    int whole;               /* the box is the volume */
+    int64_t want, ready;     /* step asked for / in buf (-1: none) */
+    int busy, quit, rc;
+    struct tvpal_diag d;
+};
+
+static int read_input_box(struct tvpal_input *in, uint32_t t,
+                          const struct encode_box *b, int whole, float *dst,
+                          struct tvpal_diag *d)
+{
+    return whole ? tvpal_input_read(in, t, dst, d)
+                 : tvpal_input_read_box(in, t, b->lo, b->n, dst, d);
+}
+
+static void *prefetch_main(void *arg)
+{
+    struct prefetch *pf = arg;
+    pthread_mutex_lock(&pf->mu);
+    for (;;) {
+        while (!pf->quit && pf->want < 0)
+            pthread_cond_wait(&pf->cv, &pf->mu);
+        if (pf->quit)
+            break;
+        int64_t t = pf->want;
+        pf->want = -1;
+        pf->busy = 1;
+        struct encode_box box = pf->box;
+        int whole = pf->whole;
+        pthread_mutex_unlock(&pf->mu);
+        struct tvpal_diag d = {{0}};
+        int rc = read_input_box(pf->in, (uint32_t)t, &box, whole, pf->buf, &d);
+        pthread_mutex_lock(&pf->mu);
+        pf->busy = 0;
+        pf->ready = t;
+        pf->rc = rc;
+        pf->d = d;
+        pthread_cond_broadcast(&pf->cv);
+    }
+    pthread_mutex_unlock(&pf->mu);
+    return NULL;
+}
+
+/* Starts the reader with a buffer of `voxels` floats (NULL when threads
+ * are not available: then every step is read in place). */
+struct prefetch *prefetch_start(struct tvpal_input *in, uint64_t voxels)
+{
+    struct prefetch *pf = calloc(1, sizeof *pf);
+    if (!pf || !(pf->buf = malloc(voxels * sizeof(float)))) {
+        free(pf);
+        return NULL;
+    }
+    pf->in = in;
+    pf->want = pf->ready = -1;
+    pthread_mutex_init(&pf->mu, NULL);
+    pthread_cond_init(&pf->cv, NULL);
+    if (pthread_create(&pf->thread, NULL, prefetch_main, pf) != 0) {
+        free(pf->buf);
+        free(pf);
+        return NULL;
+    }
+    return pf;
+}
+
+void prefetch_stop(struct prefetch *pf)
+{
+    if (!pf)
+        return;
+    pthread_mutex_lock(&pf->mu);
+    pf->quit = 1;
+    pthread_cond_broadcast(&pf->cv);
+    pthread_mutex_unlock(&pf->mu);
+    pthread_join(pf->thread, NULL);
+    pthread_mutex_destroy(&pf->mu);
+    pthread_cond_destroy(&pf->cv);
+    free(pf->buf);
+    free(pf);
+}
+
+/* The pass's box of step t of the input into r->boxbuf: from the reader
+ * when it has it (the buffers are swapped), else read here; then step
+ * t + 1 of the same pass is asked for. */
+static int input_step(struct run *r, uint32_t t, struct tvpal_diag *d)
+{
+    struct prefetch *pf = r->pf;
+    const struct encode_box *b = &r->pass->box;
+    const int whole = box_is_whole(r, b);
+    int rc = 1;
+    if (pf) {
+        pthread_mutex_lock(&pf->mu);
+        while (pf->busy || pf->want >= 0)
+            pthread_cond_wait(&pf->cv, &pf->mu);
+        if (pf->ready == (int64_t)t &&
+            !memcmp(&pf->box, b, sizeof *b)) {
+            float *tmp = r->boxbuf;
+            r->boxbuf = pf->buf;
+            pf->buf = tmp;
+            rc = pf->rc;
+            *d = pf->d;
+        }
+        pf->ready = -1;
+        pthread_mutex_unlock(&pf->mu);
+    }
+    if (rc > 0) /* not read ahead: the reader is idle, so this is safe */
+        rc = read_input_box(r->in, t, b, whole, r->boxbuf, d);
+    if (pf && t + 1 < r->T) {
+        pthread_mutex_lock(&pf->mu);
+        pf->box = *b;
+        pf->whole = whole;
+        pf->want = t + 1;
+        pthread_cond_broadcast(&pf->cv);
+        pthread_mutex_unlock(&pf->mu);
+    }
+    return rc;
+}
+
+/* Reads the pass's box of timestep t of the source into dst (converted),
+ * accounting stats when the pass keeps them and t is not yet in them.  A
+ * read error ends the program keeping the partial output (maybe
+ * transient); bad data ends it removing it. */
+void load_step(struct run *r, uint32_t t, float *dst)
+{
+    const struct opts *o = &r->o;
+    const struct encode_box *b = &r->pass->box;
+    /* Raw: a file per step, or one of them all; a reader knows its own. */
+    const char *path = r->in || o->steps_single ? o->inputs[0] : o->inputs[t];
+    const off_t off = o->steps_single ? (off_t)t * (off_t)r->step_bytes : 0;
+    const int stats = r->pass->stats && t >= r->st.loaded;
+    struct loaded res;
+    if (r->in) {
+        uint32_t k;
+        struct tvpal_diag d = {{0}};
+        path = tvpal_input_file(r->in, t, &k);
+        int rc = input_step(r, t, &d);
+        if (rc < 0) /* the file changed or is corrupt: a rerun fails too */
+            die_input("timestep %u (step %u of %s): %s", t, k, path,
+                      lib_error(rc, &d));
+        convert_box(r, r->boxbuf, b, dst, stats, &res);
+    } else {
+        struct tvpal_diag d = {{0}};
+        int fd = tvpal_open_regular(path, &d);
+        if (fd < 0)
+            /* maybe transient (NFS, permissions): keep the partial */
+            die_fail("cannot open %s (rerun to resume)", d.msg);
+        read_box_raw(r, fd, off, b, dst, stats, &res);
+        close(fd);
+    }
+    if (res.read_err > 0)
+        die_fail("%s: timestep %u: %s (rerun to resume)", path, t,
+                 strerror(res.read_err));
+    if (res.read_err)
+        die_input("%s: timestep %u: file shrank while encoding (truncated)",
+                  path, t);
+    if (res.rc < 0) {
+        uint64_t x = res.bad % o->dims[0], y = res.bad / o->dims[0] % o->dims[1],
+                 z = res.bad / o->dims[0] / o->dims[1];
+        if (res.rc == TVPAL_E_NAN)
+            die_input("%s: timestep %u: infinite value at voxel "
+                      "(%llu,%llu,%llu); expected finite values or NaN for "
+                      "missing ones (use --nan-as VALUE to replace them)",
+                      path, t, (unsigned long long)x, (unsigned long long)y,
+                      (unsigned long long)z);
+        die_input("%s: timestep %u: value at voxel (%llu,%llu,%llu) exceeds "
+                  "the supported magnitude %g", path, t,
+                  (unsigned long long)x, (unsigned long long)y,
+                  (unsigned long long)z, TVPAL_VALUE_MAX);
+    }
+    if (!stats)
+        return;
+    for (int id = 0; id < r->nthreads; id++)
+        for (uint32_t k = 0; k < TVPAL_CHECKPOINT_BINS; k++) {
+            r->st.fine[k] += r->fine_local[id][k];
+            r->fine_local[id][k] = 0;
+        }
+    r->st.nonfinite += res.nrep;
+    r->st.missing += res.nmiss;
+    r->st.counted += encode_box_voxels(b);
+    r->st.vmin = res.lo;
+    r->st.vmax = res.hi;
+    r->st.loaded = t + 1;
+}
+
+static int natural_qsort_cmp(const void *a, const void *b)
+{
+    return tvpal_natural_cmp(*(char *const *)a, *(char *const *)b);
+}
+
+/* Inputs are encoded in the order given.  A shell glob sorts density_10
+ * before density_2: --sort natural puts them in numeric order; without it
+ * the first pair out of that order is named (a warning, not an error:
+ * the order may be meant). */
+void order_inputs(struct opts *o)
+{
+    if (o->sort_natural) {
+        qsort(o->inputs, (size_t)o->ninputs, sizeof *o->inputs,
+              natural_qsort_cmp);
+        return;
+    }
+    for (int i = 0; i + 1 < o->ninputs; i++)
+        if (tvpal_natural_cmp(o->inputs[i], o->inputs[i + 1]) > 0) {
+            msg("warning: the inputs are not in natural order: %s comes "
+                "before %s (they are encoded in the order given; --sort "
+                "natural sorts them)", o->inputs[i], o->inputs[i + 1]);
+            return;
+        }
+}
+
+/* A self-describing input (NetCDF, VTK ImageData: tvpal_input.h) says its
+ * dims and steps itself; --dims and --type, for raw input, must then agree
+ * with it, and --steps and --endian do not apply.  The reader delivers
+ * float32 in host order, which the encoder then takes as a raw f32 source.
+ * Sets r->in, or leaves it NULL for raw input; returns whether the dims are
+ * known. */
+int open_source(struct run *r, int have_dims)
+{
+    struct opts *o = &r->o;
+    struct tvpal_diag d = {{0}};
+    enum tvpal_input_format f = o->format;
+    struct tvpal_input_opts io = {.var = o->var, .time_dim = o->time_dim};
+    if (o->ninputs < 1)
+        return have_dims;
+    if (f == TVPAL_IN_AUTO && tvpal_input_detect(o->inputs[0], &io, &f, &d) < 0)
+    {
+        /* d says "PATH: cause" */
+        size_t n = strlen(o->inputs[0]);
+        const char *cause = !strncmp(d.msg, o->inputs[0], n) &&
+                                    !strncmp(d.msg + n, ": ", 2)
+                                ? d.msg + n + 2 : d.msg;
+        die_usage("%s: cannot read input: %s", o->inputs[0], cause);
+    }
+    if (f == TVPAL_IN_RAW) {
+        if (o->var || o->time_dim)
+            die_usage("--var and --time-dim: for self-describing input "
+                      "(NetCDF, VTK); %s is raw", o->inputs[0]);
+        return have_dims;
+    }
+    int rc = tvpal_input_open(&r->in, f, o->inputs, o->ninputs, &io, &d);
+    if (rc < 0)
+        die_usage("%s", lib_error(rc, &d));
+    const struct tvpal_input_info *in = tvpal_input_info(r->in);
+    if (have_dims && memcmp(o->dims, in->dims, sizeof in->dims))
+        die_usage("%s: variable %s is %ux%ux%u; --dims says %ux%ux%u",
+                  o->inputs[0], in->var, in->dims[0], in->dims[1],
+                  in->dims[2], o->dims[0], o->dims[1], o->dims[2]);
+    if (o->have_type && o->type != in->type)
+        die_usage("%s: variable %s is %s; --type says %s", o->inputs[0],
+                  in->var, tvpal_type_name(in->type),
+                  tvpal_type_name(o->type));
+    if (o->steps_single || o->have_endian)
+        die_usage("--steps and --endian: for raw input only (%s is %s: it "
+                  "says its own steps and byte order)", o->inputs[0],
+                  tvpal_input_format_name(f));
+    for (unsigned a = 0; a < 3; a++)
+        if (in->nonuniform[a])
+            msg("warning: %s: the %c axis (%s) is not evenly spaced; the "
+                "grid is taken as evenly spaced in index", o->inputs[0],
+                "xyz"[a], in->dim_names[a][0] ? in->dim_names[a] : "?");
+    memcpy(o->dims, in->dims, sizeof o->dims);
+    o->type = TVPAL_F32;
+    o->big_endian = 0;
+    o->format = tvpal_input_format(r->in);
+#ifdef WORDS_BIGENDIAN
+    o->big_endian = 1;
+#endif
+    return 1;
+}
+
+/* The steps' time values: --times FILE (T rising numbers, any white
+ * space between them), else a time coordinate of the input, else none
+ * (the manifest then says nothing and the steps are their indices). */
+void load_times(struct run *r)
+{
+    const struct opts *o = &r->o;
+    const struct tvpal_input_info *in = r->in ? tvpal_input_info(r->in) : NULL;
+    if (!o->times_file && !(in && in->has_times))
+        return;
+    if (!(r->times = malloc(sizeof *r->times * r->T)))
+        die_fail("out of memory");
+    snprintf(r->time_units, sizeof r->time_units, "%s",
+             o->time_units ? o->time_units : in ? in->time_units : "");
+    for (char *c = r->time_units; *c; c++) /* one manifest line */
+        if ((unsigned char)*c < ' ')
+            *c = ' ';
+    if (!o->times_file) {
+        for (uint32_t t = 0; t < r->T; t++)
+            r->times[t] = tvpal_input_time(r->in, t);
+        return;
+    }
+    struct tvpal_diag d = {{0}};
+    int rc;
+    FILE *f = tvpal_fopen_text(o->times_file, &rc, &d);
+    if (!f)
+        die_usage("--times %s", d.msg);
+    uint32_t n = 0;
+    double v;
+    while (n <= r->T && fscanf(f, "%lf", &v) == 1) {
+        if (!isfinite(v) || (n > 0 && n < r->T && v <= r->times[n - 1]))
+            die_usage("--times %s: value %u (%g): expected a finite number "
+                      "larger than the one before", o->times_file, n + 1, v);
+        if (n < r->T)
+            r->times[n] = v;
+        n++;
+    }
+    int junk = !feof(f);
+    fclose(f);
+    if (junk || n != r->T)
+        die_usage("--times %s: %s%u numbers; expected %u, one per step",
+                  o->times_file, junk ? "not a number after " : "", n, r->T);
+}
+
+/* Windows that straddle a gap in time cost accuracy there (the DCT sees a
+ * jump): warn when an interval is more than twice a neighbouring one,
+ * naming the steps. */
+void warn_irregular_times(const struct run *r)
+{
+    char list[160] = "";
+    size_t len = 0;
+    unsigned found = 0;
+    for (uint32_t i = 0; r->times && i + 1 < r->T; i++) {
+        double d = r->times[i + 1] - r->times[i];
+        int gap = (i > 0 && d > 2 * (r->times[i] - r->times[i - 1])) ||
+                  (i + 2 < r->T && d > 2 * (r->times[i + 2] - r->times[i + 1]));
+        if (!gap)
+            continue;
+        if (found++ < 4 && len < sizeof list)
+            len += (size_t)snprintf(list + len, sizeof list - len, "%s%u-%u",
+                                    found > 1 ? ", " : "", i, i + 1);
+    }
+    if (found)
+        msg("warning: irregular time intervals: %u interval%s more than twice "
+            "a neighbour's (steps %s%s); windows that straddle a gap lose "
+            "accuracy there", found, found == 1 ? " is" : "s are", list,
+            found > 4 ? ", ..." : "");
+}
+
+/* Checks the inputs before any output exists: regular readable files of
+ * the expected size, named by absolute paths from then on (the manifest
+ * must name them from anywhere). */
+void check_inputs(struct run *r)
+{
+    struct opts *o = &r->o;
+    const uint64_t want = o->steps_single ? r->step_bytes * r->T
+                                          : r->step_bytes;
+    if (!(r->abs_inputs = calloc((size_t)o->ninputs, sizeof *r->abs_inputs)))
+        die_fail("out of memory");
+    for (int i = 0; i < o->ninputs; i++) {
+        struct stat st;
+        const char *p = o->inputs[i];
+        if (strchr(p, '\n'))
+            die_usage("%s: a newline in a file name is not supported", p);
+        if (stat(p, &st) < 0)
+            die_usage("%s: cannot read input: %s", p, strerror(errno));
+        if (!S_ISREG(st.st_mode))
+            die_usage("%s: not a regular file", p);
+        if (access(p, R_OK) < 0)
+            die_usage("%s: cannot read input: %s", p, strerror(errno));
+        if (!r->in && (uint64_t)st.st_size != want) {
+            if (o->steps_single)
+                die_usage("%s: size is %lld bytes; expected %llu (%u timesteps "
+                          "of %ux%ux%u %s)", p, (long long)st.st_size,
+                          (unsigned long long)want, r->T, o->dims[0],
+                          o->dims[1], o->dims[2], tvpal_type_name(o->type));
+            die_usage("%s: size is %lld bytes; expected %llu (one %ux%ux%u %s "
+                      "timestep)", p, (long long)st.st_size,
+                      (unsigned long long)want, o->dims[0], o->dims[1],
+                      o->dims[2], tvpal_type_name(o->type));
+        }
+        if (!(r->abs_inputs[i] = realpath(p, NULL)))
+            die_usage("%s: %s", p, strerror(errno));
+    }
+    o->inputs = r->abs_inputs;
+}
