@@ -1,18 +1,22 @@
 /* tvpal-encode: encodes a time series of raw volumes into a tvpal dataset
  * (paper section III; format: common/format/FORMAT.md).
  *
- * Streaming: timestep t + N - 1 is read when the records of step t are
- * built, so memory holds N float volumes (a ring) plus the records of one
- * step, never T.  Output goes to OUTDIR.partial/ and is renamed to OUTDIR
- * only when complete; a checkpoint written after every step
- * (tvpal_checkpoint.h) lets a rerun of the same command continue an
- * interrupted job.
+ * Streaming in passes (encode_plan.h): each pass streams the timesteps
+ * of its box of the volume through a ring of N boxes (step t + N - 1 is
+ * read when the windows starting at t are coded), so memory holds N boxes,
+ * never T steps, and stays under the memory limit.  Each chunk is written
+ * in place as it is coded (tvpal_shard.h, placed writing).  Output goes to
+ * OUTDIR.partial/ and is renamed to OUTDIR only when complete; a
+ * checkpoint written after every step of every pass (tvpal_checkpoint.h)
+ * lets a rerun of the same command continue an interrupted job.
  *
  * main runs the steps in order: options (g_optspec, validate_opts), input
- * and output checks, the partial output (resumed or new), shards and
- * workspaces, the streaming driver (encode_steps) and the finishing
- * (finish_partial, move_into_place, print_summary).  A step that fails ends
- * the program with the exit code of `enum ending`.
+ * and output checks, the plan, the partial output (resumed or new),
+ * shards and workspaces, the streaming driver (encode_steps) and the
+ * finishing (finish_partial, move_into_place, print_summary; under MPI
+ * cluster_finish).  The input is encode_source.c's, the MPI job
+ * encode_cluster.c's (encode.h).  A step that fails ends the program with
+ * the exit code of `enum ending`.
  */
 #define _GNU_SOURCE
 #include "encode.h"
