@@ -45,6 +45,7 @@ struct opts {
     unsigned nmissing;
     const char *outdir;
     int force, quiet;
+    int dry_run;                      /* --dry-run: the plan, then exit */
     char **inputs;
     int ninputs;
     enum tvpal_input_format format;   /* --format; AUTO until detected */

@@ -285,6 +285,8 @@ static const struct optspec {
      offsetof(struct opts, shard_pat), 0, 0, {0}, NULL},
     {"output", 'o', OPT_OUTPUT, 0, 0, 0, {0}, NULL},
     {"force", 'f', OPT_FLAG, offsetof(struct opts, force), 0, 0, {0}, NULL},
+    {"dry-run", OPT_LONG_ONLY + 17, OPT_FLAG, offsetof(struct opts, dry_run), 0,
+     0, {0}, NULL},
     {"quiet", 'q', OPT_FLAG, offsetof(struct opts, quiet), 0, 0, {0}, NULL},
     {"help", 'h', OPT_HELP, 0, 0, 0, {0}, NULL},
     {"version", 'V', OPT_VERSION, 0, 0, 0, {0}, NULL},
@@ -821,6 +823,22 @@ static void make_plan(struct run *r)
             "(%s); each pass needs about %s", desc,
             (double)r->plan.voxels_read / ((double)r->nvox * r->T), r->N,
             ring, lim, r->limit_why, need);
+}
+
+/* --dry-run: the plan as key=value on standard output (rank 0). */
+static void print_plan(const struct run *r)
+{
+    if (r->mpi && r->node != 0)
+        return;
+    const double in_bytes = (double)r->step_bytes * r->T;
+    printf("plan %s: passes=%u passes_x=%u passes_y=%u passes_z=%u "
+           "peak_bytes=%llu limit_bytes=%llu input_bytes=%.0f "
+           "read_bytes=%.0f read_factor=%.2f\n", r->o.outdir,
+           r->plan.npasses, r->plan.per_axis[0], r->plan.per_axis[1],
+           r->plan.per_axis[2], (unsigned long long)r->plan.peak,
+           (unsigned long long)r->limit, in_bytes,
+           (double)r->plan.voxels_read * tvpal_type_size(r->o.type),
+           (double)r->plan.voxels_read / ((double)r->nvox * r->T));
 }
 
 /* ---------------------------------------------------------------- output */
@@ -1615,6 +1633,12 @@ int main(int argc, char **argv)
     setup_shards(&r);
     choose_threads(&r);
     make_plan(&r);
+    if (r.o.dry_run) {
+        print_plan(&r);
+        run_free(&r);
+        tvpal_comm_close(&g_comm);
+        return 0;
+    }
     open_partial(&r);
     open_or_restart_writers(&r);
     setup_workspace(&r);

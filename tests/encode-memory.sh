@@ -75,6 +75,16 @@ else
     echo "note: ncgen not installed: NetCDF box reads not tested"
 fi
 
+# --dry-run: the plan of a 2048^3 series (sparse files), nothing written.
+for k in 0 1 2 3; do truncate -s $((2048 * 2048 * 2048 * 4)) "$W/sparse$k.f32"; done
+"$ENC" --dry-run -j 2 --mem-limit 16G --dims 2048x2048x2048 --window 4 -o "$W/big" \
+    "$W"/sparse?.f32 > "$W/plan.out" 2> "$W/plan.err" || fail "dry run: $(cat "$W/plan.err")"
+grep -q "^plan .*: passes=[0-9]* passes_x=[0-9]* .*read_factor=" "$W/plan.out" \
+    && [ ! -e "$W/big" ] && [ ! -e "$W/big.partial" ] \
+    && ok "--dry-run plans 2048^3: $(sed 's/^plan [^:]*: //' "$W/plan.out")" \
+    || fail "dry run: $(cat "$W/plan.out" "$W/plan.err")"
+rm -f "$W"/sparse?.f32
+
 # Too small: refused before anything is read or written.
 expect_exit 2 "too small .* give --mem-limit [0-9]*K or more" \
     "$ENC" -j 1 --mem-limit 1M --dims $D -o "$W/tiny" "$W"/in/*.f32
