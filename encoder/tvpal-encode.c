@@ -581,10 +581,10 @@ static void make_node_dirs(struct run *r)
         struct tvpal_diag d = {{0}};
         char *nd = node_partial(r, k);
         int rc = !nd ? TVPAL_E_NOMEM : tvpal_mkdirs(nd, &d);
+        free(nd);
         if (rc < 0)
             die_usage("%s: cannot create output directory: %s", r->partial,
                       lib_error(rc, &d));
-        free(nd);
     }
     g_partial = r->mpi ? r->ckdir : r->partial;
 }
@@ -1367,9 +1367,10 @@ void finish_shards(struct run *r)
         int rc = tvpal_shardw_finish(r->sj[q].w, &d);
         r->sj[q].w = NULL;
         if (rc < 0) {
-            char *path = shard_path(r, &r->sj[q]);
-            die_fail("%s: cannot finish: %s", path ? path : "shard",
-                     lib_error(rc, &d));
+            char *path = shard_path(r, &r->sj[q]), where[512];
+            snprintf(where, sizeof where, "%s", path ? path : "shard");
+            free(path);
+            die_fail("%s: cannot finish: %s", where, lib_error(rc, &d));
         }
     }
 }

@@ -38,8 +38,15 @@ limited() {
         && ok "$name: $p passes under $lim, output identical" \
         || fail "$name: output differs from the unlimited encode"
     [ "${p:-0}" -gt 3 ] || fail "$name: only ${p:-?} passes under $lim"
-    [ -n "$kb" ] && [ "$kb" -le "$limkb" ] && ok "$name: peak ${kb} KiB <= $lim" \
-        || fail "$name: peak ${kb:-?} KiB over the limit $lim"
+    if [ -n "${ASAN_OPTIONS:-}" ]; then
+        # AddressSanitizer's shadow memory and quarantine are not the
+        # encoder's: the plain build's run holds the limit.
+        echo "note: $name: peak ${kb:-?} KiB not compared under AddressSanitizer"
+    elif [ -n "$kb" ] && [ "$kb" -le "$limkb" ]; then
+        ok "$name: peak ${kb} KiB <= $lim"
+    else
+        fail "$name: peak ${kb:-?} KiB over the limit $lim"
+    fi
     grep -q "plan: .* passes (x [0-9]*, y [0-9]*, z [0-9]*), reading the input" "$W/$name.err" \
         || fail "$name: no plan line: $(cat "$W/$name.err")"
 }
