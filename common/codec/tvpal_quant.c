@@ -171,15 +171,27 @@ static size_t lower_bound(const float *s, size_t lo, size_t n, double t)
     return lo;
 }
 
-/* Sum of squared deviations of s[a..b) from level y (centred coordinate). */
+/* Sample count as double.  Through int64_t, which converts in one
+ * instruction where size_t does not; exact for any count below 2^53. */
+static inline double count_d(size_t c)
+{
+    return (double)(int64_t)c;
+}
+
+/* Sum of squared deviations from level yc (centred coordinate) of a cell of
+ * cnt samples whose centred sum and sum of squares are s1 and s2. */
+static inline double sse_of(double cnt, double s1, double s2, double yc)
+{
+    double d = s2 - 2.0 * yc * s1 + cnt * yc * yc;
+    return d > 0.0 ? d : 0.0;
+}
+
+/* The same for the samples s[a..b), from the prefix sums. */
 static inline double cell_sse(const struct tvpal_quantws *ws, size_t a,
                               size_t b, double yc)
 {
-    double cnt = (double)(b - a);
-    double s1 = ws->p1[b] - ws->p1[a];
-    double s2 = ws->p2[b] - ws->p2[a];
-    double d = s2 - 2.0 * yc * s1 + cnt * yc * yc;
-    return d > 0.0 ? d : 0.0;
+    return sse_of(count_d(b - a), ws->p1[b] - ws->p1[a],
+                  ws->p2[b] - ws->p2[a], yc);
 }
 
 /* First index i in [lo, n) with s[i] >= t, searched outward from hint (the
@@ -211,26 +223,72 @@ static size_t gallop(const float *s, size_t lo, size_t n, double t,
     return lower_bound(s, a, b, t);
 }
 
+/* Linear steps tried from the hint before galloping: late in a Lloyd run
+ * most boundaries move by zero or one sample. */
+#define NEAR_STEPS 4
+
+/* The answer of gallop() (and lower_bound()), found by walking a few steps
+ * from the hint first.  Samples and t are finite, so !(x < t) is x >= t. */
+static inline size_t search_near(const float *s, size_t lo, size_t n,
+                                 double t, size_t hint)
+{
+    size_t h = hint < lo ? lo : hint > n ? n : hint;
+    if (h < n && (double)s[h] < t) {
+        /* invariant: s[h] < t */
+        for (int k = 0; k < NEAR_STEPS; k++) {
+            h++;
+            if (h == n || !((double)s[h] < t))
+                return h;
+        }
+        return gallop(s, lo, n, t, h);
+    }
+    /* invariant: h == n or s[h] >= t */
+    for (int k = 0; k < NEAR_STEPS; k++) {
+        if (h == lo || !((double)s[h - 1] >= t))
+            return h;
+        h--;
+    }
+    return gallop(s, lo, n, t, h);
+}
+
 /* Nearest-neighbour partition of the sorted samples for levels y (centred,
  * sorted): bnd[0] = 0, bnd[L] = n, cell i = [bnd[i], bnd[i+1]).  With
- * use_hint, bnd holds the previous partition on entry.  Returns the total
- * squared error. */
+ * use_hint, bnd holds the previous partition on entry; without, each
+ * boundary is searched from the one before (cells are short when there are
+ * many levels, where the search matters).  Either way each boundary is the
+ * lower bound of its threshold in s[bnd[i-1] ..), as a plain binary search
+ * would find it.  Returns the total
+ * squared error (summed over cells in order) and the number of empty cells
+ * in *nempty.  The prefix sums at each boundary are read once and carried
+ * to the next cell. */
 static double partition(const struct tvpal_quantws *ws, const double *y,
-                        unsigned L, size_t *bnd, int use_hint)
+                        unsigned L, size_t *bnd, int use_hint,
+                        unsigned *nempty)
 {
     const double mean = ws->mean;
-    size_t lo = 0;
+    const float *s = ws->s;
+    const double *p1 = ws->p1, *p2 = ws->p2;
+    const size_t n = ws->n;
+    size_t a = 0;
+    double a1 = p1[0], a2 = p2[0];
     double d = 0.0;
+    unsigned ne = 0;
     bnd[0] = 0;
     for (unsigned i = 1; i < L; i++) {
         double t = 0.5 * (y[i - 1] + y[i]) + mean;
-        lo = use_hint ? gallop(ws->s, lo, ws->n, t, bnd[i])
-                      : lower_bound(ws->s, lo, ws->n, t);
-        bnd[i] = lo;
+        size_t b = search_near(s, a, n, t, use_hint ? bnd[i] : a);
+        double b1 = p1[b], b2 = p2[b];
+        bnd[i] = b;
+        d += sse_of(count_d(b - a), b1 - a1, b2 - a2, y[i - 1]);
+        ne += b == a;
+        a = b;
+        a1 = b1;
+        a2 = b2;
     }
-    bnd[L] = ws->n;
-    for (unsigned i = 0; i < L; i++)
-        d += cell_sse(ws, bnd[i], bnd[i + 1], y[i]);
+    bnd[L] = n;
+    d += sse_of(count_d(n - a), p1[n] - a1, p2[n] - a2, y[L - 1]);
+    ne += n == a;
+    *nempty = ne;
     return d;
 }
 
@@ -255,7 +313,8 @@ static void sort_levels(double *y, unsigned L)
 static double exact_sse(const struct tvpal_quantws *ws, const double *y,
                         unsigned L, size_t *bnd)
 {
-    partition(ws, y, L, bnd, 0);
+    unsigned nempty;
+    partition(ws, y, L, bnd, 0, &nempty);
     double d = 0.0;
     for (unsigned i = 0; i < L; i++) {
         const double lv = y[i] + ws->mean;
@@ -276,11 +335,12 @@ static void centroid_step(const struct tvpal_quantws *ws, double *y,
                           unsigned L)
 {
     size_t bnd[TVPAL_LEVELS_MAX + 1];
-    partition(ws, y, L, bnd, 0);
+    unsigned nempty;
+    partition(ws, y, L, bnd, 0, &nempty);
     for (unsigned i = 0; i < L; i++) {
         size_t a = bnd[i], b = bnd[i + 1];
         if (b > a)
-            y[i] = (ws->p1[b] - ws->p1[a]) / (double)(b - a);
+            y[i] = (ws->p1[b] - ws->p1[a]) / count_d(b - a);
     }
     sort_levels(y, L);
 }
@@ -299,15 +359,100 @@ static void finish(const struct tvpal_quantws *ws, const double *yc,
     q->mse = ws->n ? sse / (double)ws->n : 0.0;
 }
 
+/* Centroid condition with no empty cell: nxt[i] = mean of cell i of the
+ * partition bnd (sorted).  With omega > 0 the over-relaxed step is taken
+ * as well: the centroids go to cent and nxt[i] = cur[i] + omega * (cent[i]
+ * - cur[i]) (sorted).  One pass when the centroids come out sorted, as
+ * they nearly always do; otherwise they are sorted and the step redone. */
+static void centroid_relax(const struct tvpal_quantws *ws,
+                           const size_t *bnd, unsigned L, const double *cur,
+                           double omega, double *cent, double *nxt)
+{
+    const double *p1 = ws->p1;
+    double *c = omega > 0.0 ? cent : nxt;
+    int c_sorted = 1, n_sorted = 1;
+    double a1 = p1[0];
+    for (unsigned i = 0; i < L; i++) {
+        double b1 = p1[bnd[i + 1]];
+        double v = (b1 - a1) / count_d(bnd[i + 1] - bnd[i]);
+        a1 = b1;
+        c[i] = v;
+        c_sorted &= i == 0 || c[i - 1] <= v;
+        if (omega > 0.0) {
+            nxt[i] = cur[i] + omega * (v - cur[i]);
+            n_sorted &= i == 0 || nxt[i - 1] <= nxt[i];
+        }
+    }
+    if (c_sorted && n_sorted)
+        return;
+    sort_levels(c, L);
+    if (omega > 0.0) {
+        for (unsigned i = 0; i < L; i++)
+            nxt[i] = cur[i] + omega * (cent[i] - cur[i]);
+        sort_levels(nxt, L);
+    }
+}
+
+/* Centroid condition with empty cells: non-empty cells go to their means;
+ * each empty cell splits the cell of largest distortion at its centroid
+ * into two halves, each at its own centroid.  nxt receives the levels
+ * (sorted); cur holds the current ones. */
+static void centroid_split(const struct tvpal_quantws *ws, const size_t *bnd,
+                           unsigned L, const double *cur, unsigned nempty,
+                           double *nxt)
+{
+    double sse[TVPAL_LEVELS_MAX];
+    for (unsigned i = 0; i < L; i++) {
+        size_t a = bnd[i], b = bnd[i + 1];
+        if (b > a) {
+            nxt[i] = (ws->p1[b] - ws->p1[a]) / count_d(b - a);
+            sse[i] = cell_sse(ws, a, b, nxt[i]);
+        } else {
+            nxt[i] = cur[i];
+            sse[i] = -1.0;
+        }
+    }
+    for (unsigned i = 0; i < L && nempty; i++) {
+        if (sse[i] >= 0.0)
+            continue;
+        unsigned w = L;
+        double wmax = 0.0;
+        for (unsigned j = 0; j < L; j++)
+            if (sse[j] > wmax) {
+                wmax = sse[j];
+                w = j;
+            }
+        if (w == L)
+            break; /* every cell is exact: nothing left to split */
+        size_t a = bnd[w], b = bnd[w + 1];
+        size_t p = lower_bound(ws->s, a, b, nxt[w] + ws->mean);
+        if (p <= a || p >= b)
+            break; /* cannot happen with sse > 0; be safe */
+        double lo = (ws->p1[p] - ws->p1[a]) / count_d(p - a);
+        double hi = (ws->p1[b] - ws->p1[p]) / count_d(b - p);
+        nxt[w] = lo;
+        nxt[i] = hi;
+        /* The split cells' bounds are only used for later splits of the
+         * same cell this iteration; mark both as done to keep bnd valid. */
+        sse[w] = 0.0;
+        sse[i] = 0.0;
+        nempty--;
+    }
+    sort_levels(nxt, L);
+}
+
 /* Lloyd iterations from y (centred, sorted, L entries); y is overwritten with
- * the best levels seen.  Returns the best total squared error. */
+ * the best levels seen.  Returns the best total squared error.
+ * Each iteration computes the next levels from the current ones into the
+ * other of two buffers, and the best levels are remembered by pointer; they
+ * are copied aside only when the buffer holding them is about to be
+ * overwritten (when an iteration did not improve on the best). */
 static double lloyd(const struct tvpal_quantws *ws, double *y, unsigned L,
                     int max_iter)
 {
     size_t bnd[TVPAL_LEVELS_MAX + 1];
-    double best[TVPAL_LEVELS_MAX];
-    double sse[TVPAL_LEVELS_MAX];
-    double yold[TVPAL_LEVELS_MAX], cent[TVPAL_LEVELS_MAX];
+    double buf[3][TVPAL_LEVELS_MAX], cent[TVPAL_LEVELS_MAX];
+    double *cur = buf[0], *nxt = buf[1], *best = buf[2];
     double best_d = DBL_MAX, prev_d = DBL_MAX;
     /* Over-relaxation (y += omega (centroid - y), omega > 1) speeds up
      * Lloyd's slow linear convergence several-fold; a relaxed step that
@@ -316,76 +461,39 @@ static double lloyd(const struct tvpal_quantws *ws, double *y, unsigned L,
     double omega = 1.8;
     int relaxed = 0;
 
+    memcpy(cur, y, L * sizeof *y);
+    memcpy(best, y, L * sizeof *y);
     for (int it = 0;; it++) {
-        double d = partition(ws, y, L, bnd, it > 0);
+        unsigned nempty;
+        double d = partition(ws, cur, L, bnd, it > 0, &nempty);
         if (relaxed && d >= prev_d) {
-            memcpy(y, cent, L * sizeof *y);
+            memcpy(cur, cent, L * sizeof *cur);
             omega = 1.0 + 0.5 * (omega - 1.0);
-            d = partition(ws, y, L, bnd, 1);
+            d = partition(ws, cur, L, bnd, 1, &nempty);
         }
         relaxed = 0;
         if (d < best_d) {
             best_d = d;
-            memcpy(best, y, L * sizeof *y);
+            best = cur;
         }
         if (d <= 0.0 || it >= max_iter ||
             (prev_d - d) <= LLOYD_REL_TOL * prev_d)
             break;
         prev_d = d;
-
-        /* Centroid condition. */
-        memcpy(yold, y, L * sizeof *y);
-        unsigned nempty = 0;
-        for (unsigned i = 0; i < L; i++) {
-            size_t a = bnd[i], b = bnd[i + 1];
-            if (b > a) {
-                y[i] = (ws->p1[b] - ws->p1[a]) / (double)(b - a);
-                sse[i] = cell_sse(ws, a, b, y[i]);
-            } else {
-                sse[i] = -1.0;
-                nempty++;
-            }
+        if (best == nxt) {
+            memcpy(buf[2], nxt, L * sizeof *nxt);
+            best = buf[2];
         }
-        int split = nempty > 0;
-        /* Empty cells: each splits the cell of largest distortion at its
-         * centroid into two halves, each at its own centroid. */
-        for (unsigned i = 0; i < L && nempty; i++) {
-            if (sse[i] >= 0.0)
-                continue;
-            unsigned w = L;
-            double wmax = 0.0;
-            for (unsigned j = 0; j < L; j++)
-                if (sse[j] > wmax) {
-                    wmax = sse[j];
-                    w = j;
-                }
-            if (w == L)
-                break; /* every cell is exact: nothing left to split */
-            size_t a = bnd[w], b = bnd[w + 1];
-            size_t p = lower_bound(ws->s, a, b, y[w] + ws->mean);
-            if (p <= a || p >= b)
-                break; /* cannot happen with sse > 0; be safe */
-            double lo = (ws->p1[p] - ws->p1[a]) / (double)(p - a);
-            double hi = (ws->p1[b] - ws->p1[p]) / (double)(b - p);
-            y[w] = lo;
-            y[i] = hi;
-            sse[w] = cell_sse(ws, a, p, lo);
-            sse[i] = cell_sse(ws, p, b, hi);
-            /* The split cells' bounds are only used for later splits of the
-             * same cell this iteration; mark w as done to keep bnd valid. */
-            sse[w] = 0.0;
-            sse[i] = 0.0;
-            nempty--;
-            split = 1;
+        if (nempty) {
+            centroid_split(ws, bnd, L, cur, nempty, nxt);
+        } else {
+            relaxed = omega > 1.01;
+            centroid_relax(ws, bnd, L, cur, relaxed ? omega : 0.0, cent,
+                           nxt);
         }
-        sort_levels(y, L);
-        if (!split && omega > 1.01) {
-            memcpy(cent, y, L * sizeof *y);
-            for (unsigned i = 0; i < L; i++)
-                y[i] = yold[i] + omega * (cent[i] - yold[i]);
-            sort_levels(y, L);
-            relaxed = 1;
-        }
+        double *t = cur;
+        cur = nxt;
+        nxt = t;
     }
     memcpy(y, best, L * sizeof *y);
     return best_d;
@@ -484,7 +592,7 @@ void tvpal_quant_fit_lloyd(struct tvpal_quantws *ws, unsigned levels,
     /* Quantile start: level i is the mean of the i-th equal-count block. */
     for (unsigned i = 0; i < levels; i++) {
         size_t a = n * i / levels, b = n * (i + 1) / levels;
-        yq[i] = b > a ? (ws->p1[b] - ws->p1[a]) / (double)(b - a) : 0.0;
+        yq[i] = b > a ? (ws->p1[b] - ws->p1[a]) / count_d(b - a) : 0.0;
     }
     /* Race: both starts run a few iterations, the better one (by the
      * prefix-sum estimate) runs on; the other is dropped. */
