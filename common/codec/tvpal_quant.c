@@ -645,19 +645,53 @@ void tvpal_qcoder_init(struct tvpal_qcoder *c, const struct tvpal_quant *q,
         c->th[i] = (i + 1 < q->nlevels) ? (float)q->thresh[i] : INFINITY;
 }
 
+/* Codes of up to 3 bits (T = 2^bits - 1 <= 7 thresholds): the number of
+ * thresholds <= v, which is what the binary search finds in sorted
+ * thresholds (for any v: NaN counts none, +inf all, like the search).
+ * With T a constant the threshold loop unrolls and the voxel loop
+ * vectorizes. */
+static inline void pack_count(const float *th, unsigned T, unsigned bits,
+                              const float *x, size_t n, uint8_t *idx)
+{
+    for (size_t v = 0; v < n; v++) {
+        const float xv = x[v];
+        uint8_t code = 0;
+        for (unsigned k = 0; k < T; k++)
+            code += xv >= th[k];
+        idx[v] = (uint8_t)((idx[v] << bits) | code);
+    }
+}
+
 void tvpal_qcoder_pack(const struct tvpal_qcoder *c, const float *x, size_t n,
                        uint8_t *idx)
 {
     enum { B = 64 };
     const unsigned bits = c->bits;
     const float *th = c->th;
+    switch (bits) {
+    case 1: pack_count(th, 1, 1, x, n, idx); return;
+    case 2: pack_count(th, 3, 2, x, n, idx); return;
+    case 3: pack_count(th, 7, 3, x, n, idx); return;
+    default: break;
+    }
+    /* The first 3 steps of the binary search compare v with the coarse
+     * thresholds th[k * S - 1], k = 1..7 (S = 2^(bits - 3)), and leave S
+     * times the number of them <= v: counted as above. */
+    const unsigned S = 1u << (bits - 3);
+    const float c1 = th[S - 1], c2 = th[2 * S - 1], c3 = th[3 * S - 1],
+                c4 = th[4 * S - 1], c5 = th[5 * S - 1], c6 = th[6 * S - 1],
+                c7 = th[7 * S - 1];
     unsigned code[B];
     for (size_t v0 = 0; v0 < n; v0 += B) {
         size_t m = n - v0 < B ? n - v0 : B;
         const float *xb = x + v0;
-        for (size_t i = 0; i < m; i++)
-            code[i] = 0;
-        for (unsigned step = (1u << bits) >> 1; step; step >>= 1)
+        for (size_t i = 0; i < m; i++) {
+            const float xv = xb[i];
+            unsigned k = (xv >= c1) + (xv >= c2) + (xv >= c3) + (xv >= c4) +
+                         (xv >= c5) + (xv >= c6) + (xv >= c7);
+            code[i] = k * S;
+        }
+        for (unsigned step = S >> 1; step; step >>= 1)
             for (size_t i = 0; i < m; i++)
                 code[i] += (xb[i] >= th[code[i] + step - 1]) ? step : 0;
         for (size_t i = 0; i < m; i++)
