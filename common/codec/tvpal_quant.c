@@ -307,36 +307,69 @@ static void sort_levels(double *y, unsigned L)
     }
 }
 
+/* Squared errors of the samples of two cells from their levels, each
+ * summed in sample order from 0.0 (as a loop over one cell would), the
+ * two dependency chains interleaved. */
+static void cells_sse2(const float *s, size_t a0, size_t b0, double lv0,
+                       size_t a1, size_t b1, double lv1, double *c0,
+                       double *c1)
+{
+    const size_t n0 = b0 - a0, n1 = b1 - a1, m = n0 < n1 ? n0 : n1;
+    double x0 = 0.0, x1 = 0.0;
+    for (size_t k = 0; k < m; k++) {
+        double e0 = (double)s[a0 + k] - lv0;
+        double e1 = (double)s[a1 + k] - lv1;
+        x0 += e0 * e0;
+        x1 += e1 * e1;
+    }
+    for (size_t k = a0 + m; k < b0; k++) {
+        double e = (double)s[k] - lv0;
+        x0 += e * e;
+    }
+    for (size_t k = a1 + m; k < b1; k++) {
+        double e = (double)s[k] - lv1;
+        x1 += e * e;
+    }
+    *c0 = x0;
+    *c1 = x1;
+}
+
 /* Exact total squared error of levels y (centred, sorted) under the
  * nearest-neighbour partition, summed cell by cell from the samples (no
- * prefix-sum cancellation).  Also returns the partition in bnd. */
+ * prefix-sum cancellation), the cell totals added in cell order.  Cells i
+ * and i + h are summed together for speed (independent chains).  Also
+ * returns the partition in bnd, which holds a hint on entry if hinted. */
 static double exact_sse(const struct tvpal_quantws *ws, const double *y,
-                        unsigned L, size_t *bnd)
+                        unsigned L, size_t *bnd, int hinted)
 {
+    double c[TVPAL_LEVELS_MAX];
     unsigned nempty;
-    partition(ws, y, L, bnd, 0, &nempty);
-    double d = 0.0;
-    for (unsigned i = 0; i < L; i++) {
-        const double lv = y[i] + ws->mean;
-        double c = 0.0;
-        for (size_t k = bnd[i]; k < bnd[i + 1]; k++) {
-            double e = (double)ws->s[k] - lv;
-            c += e * e;
-        }
-        d += c;
+    partition(ws, y, L, bnd, hinted, &nempty);
+    const unsigned h = (L + 1) / 2;
+    for (unsigned i = 0; i + h < L; i++)
+        cells_sse2(ws->s, bnd[i], bnd[i + 1], y[i] + ws->mean, bnd[i + h],
+                   bnd[i + h + 1], y[i + h] + ws->mean, &c[i], &c[i + h]);
+    if (L & 1) { /* cell h - 1 has no partner: pair it with an empty one */
+        double unused;
+        cells_sse2(ws->s, bnd[h - 1], bnd[h], y[h - 1] + ws->mean, 0, 0, 0.0,
+                   &c[h - 1], &unused);
     }
+    double d = 0.0;
+    for (unsigned i = 0; i < L; i++)
+        d += c[i];
     return d;
 }
 
 /* Final centroid step: each level becomes the mean of its cell (the
  * centroid condition), which cannot raise the distortion.  Cell sums come
- * from the median-centred prefix sums, exact to rounding in the bulk. */
+ * from the median-centred prefix sums, exact to rounding in the bulk.
+ * bnd (L + 1) holds a hint partition on entry and the partition of the
+ * levels before the step on return. */
 static void centroid_step(const struct tvpal_quantws *ws, double *y,
-                          unsigned L)
+                          unsigned L, size_t *bnd)
 {
-    size_t bnd[TVPAL_LEVELS_MAX + 1];
     unsigned nempty;
-    partition(ws, y, L, bnd, 0, &nempty);
+    partition(ws, y, L, bnd, 1, &nempty);
     for (unsigned i = 0; i < L; i++) {
         size_t a = bnd[i], b = bnd[i + 1];
         if (b > a)
@@ -442,15 +475,16 @@ static void centroid_split(const struct tvpal_quantws *ws, const size_t *bnd,
 }
 
 /* Lloyd iterations from y (centred, sorted, L entries); y is overwritten with
- * the best levels seen.  Returns the best total squared error.
+ * the best levels seen.  Returns the best total squared error.  bnd (L + 1
+ * entries) holds a hint partition on entry if hinted, and the last
+ * partition computed on return (hints change no result, only speed).
  * Each iteration computes the next levels from the current ones into the
  * other of two buffers, and the best levels are remembered by pointer; they
  * are copied aside only when the buffer holding them is about to be
  * overwritten (when an iteration did not improve on the best). */
 static double lloyd(const struct tvpal_quantws *ws, double *y, unsigned L,
-                    int max_iter)
+                    int max_iter, size_t *bnd, int hinted)
 {
-    size_t bnd[TVPAL_LEVELS_MAX + 1];
     double buf[3][TVPAL_LEVELS_MAX], cent[TVPAL_LEVELS_MAX];
     double *cur = buf[0], *nxt = buf[1], *best = buf[2];
     double best_d = DBL_MAX, prev_d = DBL_MAX;
@@ -465,7 +499,7 @@ static double lloyd(const struct tvpal_quantws *ws, double *y, unsigned L,
     memcpy(best, y, L * sizeof *y);
     for (int it = 0;; it++) {
         unsigned nempty;
-        double d = partition(ws, cur, L, bnd, it > 0, &nempty);
+        double d = partition(ws, cur, L, bnd, hinted || it > 0, &nempty);
         if (relaxed && d >= prev_d) {
             memcpy(cur, cent, L * sizeof *cur);
             omega = 1.0 + 0.5 * (omega - 1.0);
@@ -547,7 +581,7 @@ void tvpal_quant_fit_uniform(struct tvpal_quantws *ws, unsigned levels,
         return;
     }
     uniform_levels(ws, levels, y);
-    double d = exact_sse(ws, y, levels, bnd);
+    double d = exact_sse(ws, y, levels, bnd, 0);
     finish(ws, y, levels, d, bnd, q);
 }
 
@@ -562,9 +596,9 @@ void tvpal_quant_fit_from(struct tvpal_quantws *ws, const double *start,
     }
     for (unsigned i = 0; i < levels; i++)
         y[i] = start[i] - ws->mean;
-    lloyd(ws, y, levels, LLOYD_MAX_ITER);
-    centroid_step(ws, y, levels);
-    double d = exact_sse(ws, y, levels, bnd);
+    lloyd(ws, y, levels, LLOYD_MAX_ITER, bnd, 0);
+    centroid_step(ws, y, levels, bnd);
+    double d = exact_sse(ws, y, levels, bnd, 1);
     finish(ws, y, levels, d, bnd, q);
 }
 
@@ -589,24 +623,30 @@ void tvpal_quant_fit_lloyd(struct tvpal_quantws *ws, unsigned levels,
     }
     uniform_levels(ws, levels, y0);
     memcpy(yu, y0, levels * sizeof *yu);
-    /* Quantile start: level i is the mean of the i-th equal-count block. */
+    /* The uniform quantizer's exact distortion, for the final decision;
+     * its partition is the uniform start's first, given as a hint. */
+    double d0 = exact_sse(ws, y0, levels, b0, 0);
+    memcpy(bu, b0, (levels + 1) * sizeof *bu);
+    /* Quantile start: level i is the mean of the i-th equal-count block;
+     * the blocks are the hint for its first partition. */
     for (unsigned i = 0; i < levels; i++) {
         size_t a = n * i / levels, b = n * (i + 1) / levels;
         yq[i] = b > a ? (ws->p1[b] - ws->p1[a]) / count_d(b - a) : 0.0;
+        bq[i] = a;
     }
+    bq[levels] = n;
     /* Race: both starts run a few iterations, the better one (by the
      * prefix-sum estimate) runs on; the other is dropped. */
-    double eu = lloyd(ws, yu, levels, LLOYD_RACE_ITER);
-    double eq = lloyd(ws, yq, levels, LLOYD_RACE_ITER);
+    double eu = lloyd(ws, yu, levels, LLOYD_RACE_ITER, bu, 1);
+    double eq = lloyd(ws, yq, levels, LLOYD_RACE_ITER, bq, 1);
     double *yb = eq < eu ? yq : yu;
     size_t *bb = eq < eu ? bq : bu;
-    lloyd(ws, yb, levels, LLOYD_MAX_ITER - LLOYD_RACE_ITER);
-    centroid_step(ws, yb, levels);
+    lloyd(ws, yb, levels, LLOYD_MAX_ITER - LLOYD_RACE_ITER, bb, 1);
+    centroid_step(ws, yb, levels, bb);
     /* Decide against the uniform quantizer on exact distortions: the result
      * is never worse than uniform, whatever rounding did in the
      * iterations. */
-    double d0 = exact_sse(ws, y0, levels, b0);
-    double db = exact_sse(ws, yb, levels, bb);
+    double db = exact_sse(ws, yb, levels, bb, 1);
     if (db <= d0)
         finish(ws, yb, levels, db, bb, q);
     else
