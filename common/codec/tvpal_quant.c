@@ -155,20 +155,21 @@ size_t tvpal_quantws_distinct(const struct tvpal_quantws *ws)
     return ws->distinct;
 }
 
-/* First index i in [lo, n) with s[i] >= t (n if none). */
+/* First index i in [lo, n) with s[i] >= t (n if none).  Branch-free
+ * halving (the answer stays in [b, b + len]): the comparisons of a search
+ * are unpredictable, and a mispredicted branch costs more than the select. */
 static size_t lower_bound(const float *s, size_t lo, size_t n, double t)
 {
     size_t len = n - lo;
-    while (len > 0) {
+    const float *b = s + lo;
+    if (len == 0)
+        return lo;
+    while (len > 1) {
         size_t half = len >> 1;
-        if ((double)s[lo + half] < t) {
-            lo += half + 1;
-            len -= half + 1;
-        } else {
-            len = half;
-        }
+        b = (double)b[half] < t ? b + half : b;
+        len -= half;
     }
-    return lo;
+    return (size_t)(b - s) + ((double)b[0] < t);
 }
 
 /* Sample count as double.  Through int64_t, which converts in one
