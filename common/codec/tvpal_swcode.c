@@ -397,6 +397,47 @@ static void table_decode(const struct tvpal_swenc *e, unsigned len,
         table[j * TVPAL_TABLE_ENTRIES + i] = (float)val[j];
 }
 
+/* Per index i: e->cnt[i] voxels, and e->sums[i * len + j] the sum of their
+ * samples j, added in voxel order from 0.0.  Neighbouring voxels often
+ * hold the same index; the sums of such a run are kept in registers
+ * (an inline function, so len is a constant in the calls above) and
+ * written back when the index changes, instead of each addition waiting
+ * for the previous one's store.  The additions are the same, in the same
+ * order. */
+static inline void index_sums(struct tvpal_swenc *e, const float *samples,
+                              size_t nvox, unsigned len, const uint8_t *idx)
+{
+    double acc[TVPAL_NMAX];
+    memset(e->cnt, 0, sizeof e->cnt);
+    memset(e->sums, 0, TVPAL_TABLE_ENTRIES * len * sizeof *e->sums);
+    if (!nvox)
+        return;
+    unsigned cur = idx[0];
+    size_t run = 0;
+    for (unsigned j = 0; j < len; j++)
+        acc[j] = 0.0;
+    for (size_t v = 0; v < nvox; v++) {
+        const unsigned i = idx[v];
+        if (i != cur) {
+            double *s = e->sums + (size_t)cur * len;
+            const double *r = e->sums + (size_t)i * len;
+            for (unsigned j = 0; j < len; j++)
+                s[j] = acc[j];
+            for (unsigned j = 0; j < len; j++)
+                acc[j] = r[j];
+            e->cnt[cur] += run;
+            cur = i;
+            run = 0;
+        }
+        run++;
+        for (unsigned j = 0; j < len; j++)
+            acc[j] += samples[(size_t)j * nvox + v];
+    }
+    for (unsigned j = 0; j < len; j++)
+        e->sums[(size_t)cur * len + j] = acc[j];
+    e->cnt[cur] += run;
+}
+
 /* Decoder table: per-index means of the original samples; returns the
  * number of indices used. */
 static unsigned table_build(struct tvpal_swenc *e, const float *samples,
@@ -404,14 +445,10 @@ static unsigned table_build(struct tvpal_swenc *e, const float *samples,
                             const uint8_t *bits, const double *mean,
                             float *table)
 {
-    memset(e->cnt, 0, sizeof e->cnt);
-    memset(e->sums, 0, TVPAL_TABLE_ENTRIES * len * sizeof *e->sums);
-    for (size_t v = 0; v < nvox; v++) {
-        unsigned i = idx[v];
-        double *s = e->sums + (size_t)i * len;
-        e->cnt[i]++;
-        for (unsigned j = 0; j < len; j++)
-            s[j] += samples[(size_t)j * nvox + v];
+    switch (len) {
+    case 4: index_sums(e, samples, nvox, 4, idx); break;
+    case 8: index_sums(e, samples, nvox, 8, idx); break;
+    default: index_sums(e, samples, nvox, len, idx); break;
     }
     unsigned used = 0;
     for (unsigned i = 0; i < TVPAL_TABLE_ENTRIES; i++) {
