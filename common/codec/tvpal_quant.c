@@ -118,13 +118,9 @@ int tvpal_quantws_load(struct tvpal_quantws *ws, const float *x, size_t n)
     ws->mean = 0.0;
     if (n == 0)
         return 0;
-    double sum = 0.0;
-    for (size_t i = 0; i < n; i++) {
+    for (size_t i = 0; i < n; i++)
         ws->keys[i] = float_key(x[i]);
-        sum += x[i];
-    }
     radix_sort(ws->keys, ws->tmp, n);
-    (void)sum;
     /* Centre on the median: prefix sums of squares around it stay small in
      * the bulk of the data even when far outliers shift the mean. */
     double mean = key_float(ws->keys[n / 2]);
