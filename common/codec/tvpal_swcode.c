@@ -399,11 +399,12 @@ static void table_decode(const struct tvpal_swenc *e, unsigned len,
 
 /* Per index i: e->cnt[i] voxels, and e->sums[i * len + j] the sum of their
  * samples j, added in voxel order from 0.0.  Neighbouring voxels often
- * hold the same index; the sums of such a run are kept in registers
- * (an inline function, so len is a constant in the calls above) and
- * written back when the index changes, instead of each addition waiting
- * for the previous one's store.  The additions are the same, in the same
- * order. */
+ * hold the same index (flat regions); the sums of such a run are kept in
+ * registers (an inline function, so len is a constant in the calls below)
+ * and written back when the index changes, instead of each addition
+ * waiting for the previous one's store.  Where runs are short (turbulent
+ * data) that costs more than it saves, and the plain loop runs instead.
+ * Either way the additions are the same, in the same order. */
 static inline void index_sums(struct tvpal_swenc *e, const float *samples,
                               size_t nvox, unsigned len, const uint8_t *idx)
 {
@@ -412,6 +413,18 @@ static inline void index_sums(struct tvpal_swenc *e, const float *samples,
     memset(e->sums, 0, TVPAL_TABLE_ENTRIES * len * sizeof *e->sums);
     if (!nvox)
         return;
+    size_t changes = 0;
+    for (size_t v = 1; v < nvox; v++)
+        changes += idx[v] != idx[v - 1];
+    if (changes * 3 > nvox) { /* runs shorter than 3 voxels on average */
+        for (size_t v = 0; v < nvox; v++) {
+            double *s = e->sums + (size_t)idx[v] * len;
+            e->cnt[idx[v]]++;
+            for (unsigned j = 0; j < len; j++)
+                s[j] += samples[(size_t)j * nvox + v];
+        }
+        return;
+    }
     unsigned cur = idx[0];
     size_t run = 0;
     for (unsigned j = 0; j < len; j++)
