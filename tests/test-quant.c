@@ -137,6 +137,13 @@ int main(void)
                 }
                 CHECK(mism == 0, "%s: %zu fast codes farther than reference",
                       what, mism);
+                /* pack (counting for the high bits) and the binary search
+                 * of tvpal_qcoder_code give the same codes, exactly. */
+                size_t pdiff = 0;
+                for (size_t i = 0; i < n; i++)
+                    pdiff += idx[i] != tvpal_qcoder_code(&c, x[i]);
+                CHECK(pdiff == 0, "%s: %zu packed codes differ from "
+                      "tvpal_qcoder_code", what, pdiff);
             }
 
     /* The case that breaks quantile-started Lloyd: 256 levels on a 64x64

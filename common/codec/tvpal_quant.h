@@ -88,8 +88,10 @@ static inline unsigned tvpal_qcoder_code(const struct tvpal_qcoder *c, float v)
 }
 
 /* Appends the codes of x[0..n-1] to the indices: idx[v] = idx[v] << bits |
- * code(x[v]).  Voxels are searched in interleaved blocks so that the
- * dependent comparisons of different voxels overlap. */
+ * code(x[v]), the same codes as tvpal_qcoder_code.  The high code bits come
+ * from counting thresholds (vectorized), the rest from the binary search
+ * in interleaved blocks so that the dependent comparisons of different
+ * voxels overlap. */
 void tvpal_qcoder_pack(const struct tvpal_qcoder *c, const float *x, size_t n,
                        uint8_t *idx);
 
