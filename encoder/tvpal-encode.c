@@ -750,6 +750,13 @@ static void print_size(char *buf, size_t cap, uint64_t b)
         snprintf(buf, cap, "%.1f MiB", (double)b / (1u << 20));
 }
 
+/* Boxes in the ring: N, or T when the series is shorter than a window
+ * (step t is at t mod N, and t < T then). */
+static uint32_t ring_slots(const struct run *r)
+{
+    return r->T < r->N ? r->T : r->N;
+}
+
 /* Ranks of this job on this machine, from what the launchers set (Open
  * MPI, MPICH/Hydra, Slurm); 1 outside MPI. */
 static unsigned local_ranks(const struct run *r)
@@ -779,7 +786,8 @@ static void make_plan(struct run *r)
                                                    sizeof r->limit_why);
     struct encode_job j = {
         .N = r->N, .T = r->T, .limit = r->limit, .fixed = fixed_bytes(r),
-        .box_bytes_per_voxel = 4 * r->N + (r->in ? 8 : 0), .split = r->mpi};
+        .box_bytes_per_voxel = 4 * ring_slots(r) + (r->in ? 8 : 0),
+        .split = r->mpi};
     memcpy(j.dims, o->dims, sizeof j.dims);
     memcpy(j.slab_n, o->dims, sizeof j.slab_n);
     /* An MPI rank encodes its node's slab of each axis only. */
@@ -806,7 +814,7 @@ static void make_plan(struct run *r)
     encode_plan_describe(&r->plan, desc, sizeof desc);
     print_size(need, sizeof need, r->plan.peak);
     print_size(ring, sizeof ring,
-               (uint64_t)r->N * r->nvox * sizeof(float) + j.fixed);
+               (uint64_t)ring_slots(r) * r->nvox * sizeof(float) + j.fixed);
     if (r->plan.npasses == 1)
         msg("plan: %s; about %s of the memory limit %s (%s)", desc, need,
             lim, r->limit_why);
@@ -821,8 +829,8 @@ static void make_plan(struct run *r)
         msg("plan: %s, reading the input %.2f times: one ring of all %u "
             "timesteps of a window would need %s, over the memory limit %s "
             "(%s); each pass needs about %s", desc,
-            (double)r->plan.voxels_read / ((double)r->nvox * r->T), r->N,
-            ring, lim, r->limit_why, need);
+            (double)r->plan.voxels_read / ((double)r->nvox * r->T),
+            ring_slots(r), ring, lim, r->limit_why, need);
 }
 
 /* --dry-run: the plan as key=value on standard output (rank 0). */
@@ -950,7 +958,7 @@ static void setup_workspace(struct run *r)
     r->scratch = calloc(nt, sizeof *r->scratch);
     r->jobs = calloc(r->max_jobs, sizeof *r->jobs);
     r->jcrc = calloc(r->max_jobs, sizeof *r->jcrc);
-    r->ring = calloc(N, sizeof *r->ring);
+    r->ring = calloc(ring_slots(r), sizeof *r->ring);
     if (!r->enc || !r->dropped || !r->samples || !r->tables || !r->jobs ||
         !r->ring || !r->chunkbuf || !r->scratch || !r->jcrc)
         die_fail("out of memory");
@@ -972,7 +980,7 @@ static void setup_workspace(struct run *r)
     if (r->in && !(r->boxbuf = malloc(box * sizeof(float))))
         die_fail("out of memory for a box of %llu voxels",
                  (unsigned long long)box);
-    for (uint32_t i = 0; i < N; i++)
+    for (uint32_t i = 0; i < ring_slots(r); i++)
         if (!(r->ring[i] = malloc(box * sizeof(float))))
             die_fail("out of memory for %u timesteps of %llu voxels", N,
                      (unsigned long long)box);
@@ -1581,7 +1589,7 @@ static void run_free(struct run *r)
         free(r->scratch[i]);
         free(r->fine_local[i]);
     }
-    for (uint32_t i = 0; r->ring && i < r->N; i++)
+    for (uint32_t i = 0; r->ring && i < ring_slots(r); i++)
         free(r->ring[i]);
     free(r->ring);
     free(r->boxbuf);
