@@ -345,7 +345,7 @@ void setup_cluster_dirs(struct run *r)
             die_usage("%s: node directory already exists (use --force to "
                       "replace it)", r->node_final);
     }
-    if (r->mpi && r->node == 0) {
+    if (r->mpi && r->node == 0 && !o->dry_run) {
         /* OUTDIR.partial holds the node directories (or, with
          * --shard-dir, only the manifest): a one-process job's checkpoint
          * there is not this job's. */
