@@ -200,6 +200,9 @@ int all_missing(const struct run *r, char *why, size_t cap);
 uint64_t dropped_values(const struct run *r);
 void warn_dropped(uint64_t dropped);
 void warn_dominating_values(const struct run *r);
+/* A progress line when one is due (every 30 s, 0.2 s on a terminal), or
+ * the closing one when `last`; from thread 0 only. */
+void report_progress(struct run *r, int last);
 
 /* ------------------------------------------- encode_source.c (the input) */
 

@@ -15,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 #ifdef _OPENMP
 #include <omp.h>
@@ -178,6 +179,8 @@ static void read_box_raw(struct run *r, int fd, off_t base,
                 convert_run(r, buf + k * row_bytes, 0, b->n[0], out,
                             v0 + k * nx, stats, tid, &f);
             }
+            if (tid == 0) /* a step of hundreds of GiB takes minutes */
+                report_progress(r, 0);
         }
 #ifdef _OPENMP
 #pragma omp critical(tvpal_found)
@@ -342,40 +345,59 @@ void prefetch_stop(struct prefetch *pf)
     free(pf);
 }
 
+/* Waits, holding pf->mu, until the reader is idle, with a progress line
+ * when one is due (a long read: the mutex is let go meanwhile). */
+static void prefetch_wait_idle(struct run *r, struct prefetch *pf)
+{
+    while (pf->busy || pf->want >= 0) {
+        struct timespec until;
+        clock_gettime(CLOCK_REALTIME, &until);
+        until.tv_sec += 1;
+        if (pthread_cond_timedwait(&pf->cv, &pf->mu, &until) != 0) {
+            pthread_mutex_unlock(&pf->mu);
+            report_progress(r, 0);
+            pthread_mutex_lock(&pf->mu);
+        }
+    }
+}
+
+/* Asks the reader (mutex held) for the box b of step t. */
+static void prefetch_ask(struct prefetch *pf, uint32_t t,
+                         const struct encode_box *b, int whole)
+{
+    pf->box = *b;
+    pf->whole = whole;
+    pf->want = t;
+    pthread_cond_broadcast(&pf->cv);
+}
+
 /* The pass's box of step t of the input into r->boxbuf: from the reader
- * when it has it (the buffers are swapped), else read here; then step
- * t + 1 of the same pass is asked for. */
+ * (the buffers are swapped; asked for now when it was not read ahead),
+ * then step t + 1 of the same pass is asked for. */
 static int input_step(struct run *r, uint32_t t, struct tvpal_diag *d)
 {
     struct prefetch *pf = r->pf;
     const struct encode_box *b = &r->pass->box;
     const int whole = box_is_whole(r, b);
-    int rc = 1;
-    if (pf) {
-        pthread_mutex_lock(&pf->mu);
-        while (pf->busy || pf->want >= 0)
-            pthread_cond_wait(&pf->cv, &pf->mu);
-        if (pf->ready == (int64_t)t &&
-            !memcmp(&pf->box, b, sizeof *b)) {
-            float *tmp = r->boxbuf;
-            r->boxbuf = pf->buf;
-            pf->buf = tmp;
-            rc = pf->rc;
-            *d = pf->d;
-        }
-        pf->ready = -1;
-        pthread_mutex_unlock(&pf->mu);
+    if (!pf) /* no reader thread: read here */
+        return read_input_box(r->in, t, b, whole, r->boxbuf, d);
+    /* Every read goes to the reader, so that a long one (a step of
+     * hundreds of GiB, a slow inflate) still gets progress lines here. */
+    pthread_mutex_lock(&pf->mu);
+    prefetch_wait_idle(r, pf);
+    if (pf->ready != (int64_t)t || memcmp(&pf->box, b, sizeof *b)) {
+        prefetch_ask(pf, t, b, whole);
+        prefetch_wait_idle(r, pf);
     }
-    if (rc > 0) /* not read ahead: the reader is idle, so this is safe */
-        rc = read_input_box(r->in, t, b, whole, r->boxbuf, d);
-    if (pf && t + 1 < r->T) {
-        pthread_mutex_lock(&pf->mu);
-        pf->box = *b;
-        pf->whole = whole;
-        pf->want = t + 1;
-        pthread_cond_broadcast(&pf->cv);
-        pthread_mutex_unlock(&pf->mu);
-    }
+    float *tmp = r->boxbuf;
+    r->boxbuf = pf->buf;
+    pf->buf = tmp;
+    int rc = pf->rc;
+    *d = pf->d;
+    pf->ready = -1;
+    if (t + 1 < r->T)
+        prefetch_ask(pf, t + 1, b, whole);
+    pthread_mutex_unlock(&pf->mu);
     return rc;
 }
 

@@ -1088,7 +1088,6 @@ static size_t plan_step(struct run *r, uint32_t t)
     return njobs;
 }
 
-static void report_progress(struct run *r, int last);
 
 /* Encodes the planned slice-windows of step t and writes each chunk in
  * its place as it is made, one job per thread at a time; then joins the
@@ -1194,7 +1193,7 @@ static uint64_t work_before(const struct run *r, uint64_t u)
 /* Progress: `last` forces the closing line.  Work done counts the
  * slice-windows encoded; reading counts as time, so the rate and ETA are
  * of the whole job. */
-static void report_progress(struct run *r, int last)
+void report_progress(struct run *r, int last)
 {
     struct progress *p = &r->prog;
     double now = tvpal_now();
