@@ -248,28 +248,14 @@ void cluster_finish(struct run *r)
     if (dec.code)
         cluster_end_failed(&dec);
     g_round = 3;
+    memset(&h, 0, sizeof h);
+    h.work = r->prog.work - r->prog.work_at_start;
+    h.seconds = r->t_encode;
+    h.bytes = own_shard_bytes(r); /* before a rename moves the files */
     tvpal_checkpoint_remove(r->ckdir, NULL);
     tvpal_fsync_dir(r->ckdir);
     if (r->node_final)
         place_node_dir(r);
-    memset(&h, 0, sizeof h);
-    h.work = r->prog.work - r->prog.work_at_start;
-    h.seconds = r->t_encode;
-    h.bytes = own_shard_bytes(r);
-    if (r->node_final) { /* the files have moved */
-        char *keep = r->ckdir;
-        r->ckdir = r->node_final;
-        h.bytes = 0;
-        for (uint32_t q = 0; q < r->nshard; q++) {
-            char *p = NULL;
-            struct stat st;
-            if (asprintf(&p, "%s/axis-%c.tvps", r->node_final,
-                         "xyz"[r->sj[q].axis]) >= 0 && stat(p, &st) == 0)
-                h.bytes += (uint64_t)st.st_size;
-            free(p);
-        }
-        r->ckdir = keep;
-    }
     dec = cluster_gather(&h, NULL, NULL);
     if (root && !dec.code) {
         /* The commit: OUTDIR with its manifest, last.  Its failure is

@@ -40,8 +40,8 @@ float fine_bin_value(uint32_t b)
 
 /* ------------------------------------------------------------- input I/O */
 
-/* What the threads reading a box found. */
-struct loaded {
+/* What reading a box found: each thread's, then merged (found_merge). */
+struct found {
     uint64_t bad;            /* lowest volume voxel index of a data error */
     int rc;                  /* its code (TVPAL_E_NAN or _RANGE), or 0 */
     int read_err;            /* errno of a failed read, -1 at end of file */
@@ -50,13 +50,27 @@ struct loaded {
     double lo, hi;           /* range including the stats' so far */
 };
 
-/* Per-thread findings, merged into struct loaded after the loop. */
-struct found {
-    uint64_t bad;
-    int rc, read_err;
-    size_t nrep, nmiss;
-    double lo, hi;
-};
+/* No finding yet, over the range so far [lo, hi]. */
+static struct found found_empty(double lo, double hi)
+{
+    return (struct found){UINT64_MAX, 0, 0, 0, 0, lo, hi};
+}
+
+/* A thread's findings into all (under a critical section): the lowest
+ * voxel's data error wins, the first read error, counts and range add. */
+static void found_merge(struct found *all, const struct found *f)
+{
+    if (f->bad < all->bad) {
+        all->bad = f->bad;
+        all->rc = f->rc;
+    }
+    if (f->read_err && !all->read_err)
+        all->read_err = f->read_err;
+    all->nrep += f->nrep;
+    all->nmiss += f->nmiss;
+    all->lo = f->lo < all->lo ? f->lo : all->lo;
+    all->hi = f->hi > all->hi ? f->hi : all->hi;
+}
 
 /* Converts n source values at src (type and byte order of the job, or
  * host float32 when `host_f32`) into dst, applies --missing, and counts
@@ -130,7 +144,7 @@ static int pread_full(int fd, void *buf, size_t n, off_t off)
  * scratch. */
 static void read_box_raw(struct run *r, int fd, off_t base,
                          const struct encode_box *b, float *dst, int stats,
-                         struct loaded *res)
+                         struct found *res)
 {
     const struct opts *o = &r->o;
     const size_t esz = tvpal_type_size(o->type);
@@ -144,7 +158,7 @@ static void read_box_raw(struct run *r, int fd, off_t base,
         rows = b->n[1];
     const size_t pieces_per_plane = (b->n[1] + rows - 1) / rows;
     const size_t npieces = pieces_per_plane * b->n[2];
-    struct found all = {UINT64_MAX, 0, 0, 0, 0, r->st.vmin, r->st.vmax};
+    struct found all = found_empty(r->st.vmin, r->st.vmax);
 #ifdef _OPENMP
 #pragma omp parallel
 #endif
@@ -153,7 +167,7 @@ static void read_box_raw(struct run *r, int fd, off_t base,
 #ifdef _OPENMP
         tid = omp_get_thread_num();
 #endif
-        struct found f = {UINT64_MAX, 0, 0, 0, 0, all.lo, all.hi};
+        struct found f = found_empty(all.lo, all.hi);
         unsigned char *buf = r->scratch[tid];
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 1)
@@ -185,32 +199,20 @@ static void read_box_raw(struct run *r, int fd, off_t base,
 #ifdef _OPENMP
 #pragma omp critical(tvpal_found)
 #endif
-        {
-            if (f.bad < all.bad) {
-                all.bad = f.bad;
-                all.rc = f.rc;
-            }
-            if (f.read_err && !all.read_err)
-                all.read_err = f.read_err;
-            all.nrep += f.nrep;
-            all.nmiss += f.nmiss;
-            all.lo = f.lo < all.lo ? f.lo : all.lo;
-            all.hi = f.hi > all.hi ? f.hi : all.hi;
-        }
+        found_merge(&all, &f);
     }
-    *res = (struct loaded){all.bad, all.rc, all.read_err, all.nrep,
-                           all.nmiss, all.lo, all.hi};
+    *res = all;
 }
 
 /* The box b of a self-describing step, already read into src (host
  * float32, box voxels), checked and converted into dst in parallel. */
 static void convert_box(struct run *r, const float *src,
                         const struct encode_box *b, float *dst, int stats,
-                        struct loaded *res)
+                        struct found *res)
 {
     const size_t rows = (size_t)b->n[1] * b->n[2];
     const size_t nx = r->o.dims[0], ny = r->o.dims[1];
-    struct found all = {UINT64_MAX, 0, 0, 0, 0, r->st.vmin, r->st.vmax};
+    struct found all = found_empty(r->st.vmin, r->st.vmax);
 #ifdef _OPENMP
 #pragma omp parallel
 #endif
@@ -219,7 +221,7 @@ static void convert_box(struct run *r, const float *src,
 #ifdef _OPENMP
         tid = omp_get_thread_num();
 #endif
-        struct found f = {UINT64_MAX, 0, 0, 0, 0, all.lo, all.hi};
+        struct found f = found_empty(all.lo, all.hi);
 #ifdef _OPENMP
 #pragma omp for schedule(static)
 #endif
@@ -232,19 +234,9 @@ static void convert_box(struct run *r, const float *src,
 #ifdef _OPENMP
 #pragma omp critical(tvpal_found)
 #endif
-        {
-            if (f.bad < all.bad) {
-                all.bad = f.bad;
-                all.rc = f.rc;
-            }
-            all.nrep += f.nrep;
-            all.nmiss += f.nmiss;
-            all.lo = f.lo < all.lo ? f.lo : all.lo;
-            all.hi = f.hi > all.hi ? f.hi : all.hi;
-        }
+        found_merge(&all, &f);
     }
-    *res = (struct loaded){all.bad, all.rc, 0, all.nrep, all.nmiss, all.lo,
-                           all.hi};
+    *res = all;
 }
 
 /* Whether box b is the whole volume (read with tvpal_input_read). */
@@ -413,7 +405,7 @@ void load_step(struct run *r, uint32_t t, float *dst)
     const char *path = r->in || o->steps_single ? o->inputs[0] : o->inputs[t];
     const off_t off = o->steps_single ? (off_t)t * (off_t)r->step_bytes : 0;
     const int stats = r->pass->stats && t >= r->st.loaded;
-    struct loaded res;
+    struct found res;
     if (r->in) {
         uint32_t k;
         struct tvpal_diag d = {{0}};

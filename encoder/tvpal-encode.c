@@ -1203,11 +1203,9 @@ void report_progress(struct run *r, int last)
     char line[256];
     const uint64_t done = __atomic_load_n(&p->work, __ATOMIC_RELAXED);
     const double el = now - p->t0;
-    const double frac = p->total ? (double)done / (double)p->total : 1;
     const double mine = (double)(done - p->work_at_start);
     const double rate = mine / 3.0 / (el > 0 ? el : 1e-9) / 1e6;
     const double eta = mine > 0 ? el / mine * (double)(p->total - done) : -1;
-    (void)frac;
     /* Steps over all passes ("pass-steps" when there are several). */
     tvpal_progress_format(line, sizeof line, last ? p->units : p->unit,
                           p->units, r->plan.npasses > 1 ? "pass-steps"
@@ -1255,8 +1253,6 @@ static void encode_steps(struct run *r)
     uint64_t u = r->start;
     for (uint32_t pi = (uint32_t)(u / r->T); pi < r->plan.npasses; pi++) {
         r->pass = &r->plan.pass[pi];
-        if (u == (uint64_t)pi * r->T)
-            r->st.loaded = 0; /* a new pass: none of its steps counted */
         uint32_t loaded = (uint32_t)(u - (uint64_t)pi * r->T);
         for (uint32_t t = loaded; t < r->T; t++) {
             uint32_t need = t + r->N < r->T ? t + r->N : r->T;
@@ -1267,7 +1263,7 @@ static void encode_steps(struct run *r)
             }
             encode_step(r, t, plan_step(r, t));
             u = (uint64_t)pi * r->T + t + 1;
-            if (t + 1 == r->T)
+            if (t + 1 == r->T) /* the next pass has none of its steps */
                 r->st.loaded = 0;
             save_checkpoint(r, u);
             if (fault_after >= 0 && (long)u >= fault_after) {
