@@ -216,6 +216,9 @@ void check_inputs(struct run *r);
 struct prefetch *prefetch_start(struct tvpal_input *in, uint64_t voxels);
 void prefetch_stop(struct prefetch *pf);
 void load_step(struct run *r, uint32_t t, float *dst);
+/* Rows of row_bytes a raw read takes at once: READ_BLOCK's worth, at
+ * least one, at most rows_max (a plane's).  Sizes the reading scratch. */
+size_t read_rows(uint64_t row_bytes, uint32_t rows_max);
 
 /* -------------------------------------------- encode_cluster.c (the job) */
 

@@ -50,6 +50,13 @@ struct found {
     double lo, hi;           /* range including the stats' so far */
 };
 
+size_t read_rows(uint64_t row_bytes, uint32_t rows_max)
+{
+    uint64_t rows = READ_BLOCK / row_bytes;
+    rows = rows < 1 ? 1 : rows > rows_max ? rows_max : rows;
+    return (size_t)rows;
+}
+
 /* No finding yet, over the range so far [lo, hi]. */
 static struct found found_empty(double lo, double hi)
 {
@@ -151,11 +158,7 @@ static void read_box_raw(struct run *r, int fd, off_t base,
     const size_t nx = o->dims[0], ny = o->dims[1];
     const size_t row_bytes = nx * esz;
     /* Rows per piece: a piece spans whole rows of one plane. */
-    size_t rows = READ_BLOCK / row_bytes;
-    if (rows < 1)
-        rows = 1;
-    if (rows > b->n[1])
-        rows = b->n[1];
+    const size_t rows = read_rows(row_bytes, b->n[1]);
     const size_t pieces_per_plane = (b->n[1] + rows - 1) / rows;
     const size_t npieces = pieces_per_plane * b->n[2];
     struct found all = found_empty(r->st.vmin, r->st.vmax);

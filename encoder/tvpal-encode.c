@@ -713,9 +713,7 @@ static size_t group_floats(const struct run *r)
 static uint64_t scratch_bytes(const struct run *r)
 {
     const uint64_t row = (uint64_t)r->o.dims[0] * tvpal_type_size(r->o.type);
-    uint64_t rows = READ_BLOCK / row;
-    rows = rows < 1 ? 1 : rows > r->o.dims[1] ? r->o.dims[1] : rows;
-    return rows * row;
+    return read_rows(row, r->o.dims[1]) * row;
 }
 
 /* Bytes of everything but the ring and the box buffers: the program and
