@@ -35,6 +35,7 @@ struct play_opts {
     const char *renderer_why;           /* why a default or implied choice */
     uint32_t fb_bits, cpu_scale;        /* cpu_scale 0: auto */
     int fb_given, scale_given;
+    int exact;                          /* --exact: no bounded termination */
     int window;                         /* -1 until checked: from $DISPLAY */
     struct tvpal_player_opts po;        /* data mode, I/O, prefetch */
     uint32_t mem_mib;

@@ -63,6 +63,10 @@ static void usage(FILE *f)
 "                           (default: 1 to 4, as many as the view shows) or\n"
 "                           1..8 (sharper at close zoom; cost grows as K^2);\n"
 "                           implies --renderer cpu\n"
+"      --exact              cpu renderer: blend every sample until a pixel is\n"
+"                           fully opaque (default: a pixel stops once its\n"
+"                           remaining transmittance is at most 1/510, which\n"
+"                           changes no 8-bit pixel by more than one level)\n"
 "      --scale-z F          stretch z by F, 0.001..1000 (vertical\n"
 "                           exaggeration; default 1: the dataset's spacing,\n"
 "                           its physical shape)\n"
@@ -285,7 +289,7 @@ static int set_composite(struct play_opts *o, const char *arg)
 enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
        K_REPEAT, K_TF_CYCLE, K_JUMPS, K_AUTOPLAY, K_SCREENSHOT, K_OPACITY,
        K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_DIRECT, K_MEM, K_CSV, K_STRICT,
-       K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR };
+       K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR, K_EXACT };
 
 /* Grouped as --help groups them. */
 static const struct opt_def opt_table[] = {
@@ -308,6 +312,7 @@ static const struct opt_def opt_table[] = {
     {"fb", K_FB, OPT_FN, 0, 0, 0, set_fb, "8, 16 or 32"},
     {"cpu-scale", K_CPU_SCALE, OPT_FN, 0, 0, 0, set_cpu_scale,
      "auto or 1..8"},
+    {"exact", K_EXACT, OPT_SET, F(exact), 1, 0, NULL, NULL},
     {"spin", K_SPIN, OPT_DOUBLE, F(spin), -PLAY_DEG_MAX, PLAY_DEG_MAX, NULL,
      "degrees in -360..360"},
     {"scale-z", K_SCALE_Z, OPT_DOUBLE, F(scale_z), 0.001, 1000, NULL,

@@ -48,7 +48,7 @@ static void setup_renderers(struct headless *h)
     const struct play_opts *o = h->o;
     struct tvpal_diag d = {{0}};
     int rc = play_renderer_open(&h->pr, o->renderer, o->width, o->height,
-                                o->fb_bits, o->cpu_scale, 1, &d);
+                                o->fb_bits, o->cpu_scale, o->exact, 1, &d);
     play_check_all(rc, d.msg, 1);
     if (o->ref_psnr) {
         if (tvpal_ref_create(&h->ref, (size_t)o->width * o->height) < 0 ||

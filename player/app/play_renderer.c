@@ -24,7 +24,7 @@ static int open_gl(struct play_renderer *pr, unsigned width, unsigned height,
 
 int play_renderer_open(struct play_renderer *pr, int kind, unsigned width,
                        unsigned height, unsigned fb_bits, unsigned cpu_scale,
-                       int need_context, struct tvpal_diag *diag)
+                       int exact, int need_context, struct tvpal_diag *diag)
 {
     memset(pr, 0, sizeof *pr);
     pr->fb_bits = fb_bits;
@@ -36,6 +36,7 @@ int play_renderer_open(struct play_renderer *pr, int kind, unsigned width,
         if (tvpal_sw_create(&pr->sw) < 0)
             return tvpal_diag_set(diag, TVPAL_E_NOMEM, "out of memory");
         tvpal_sw_set_scale(pr->sw, cpu_scale);
+        tvpal_sw_set_exact(pr->sw, exact);
         tvpal_sw_renderer(pr->sw, &pr->r);
         return 0;
     case PLAY_REND_REF:

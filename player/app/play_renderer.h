@@ -23,11 +23,12 @@ struct play_renderer {
 /* Opens `kind` (enum play_renderer_kind, not AUTO) for images of
  * width x height.  gl draws into a framebuffer of fb_bits per channel and,
  * with need_context, first makes its own OSMesa context (headless; a window
- * has its GL context already).  cpu_scale: the shear-warp K, 0 for auto.
+ * has its GL context already).  cpu_scale: the shear-warp K, 0 for auto;
+ * exact: the shear-warp stops a pixel only at alpha 1 (tvpal_sw_set_exact).
  * 0 or a TVPAL_E_* code with diag; *pr is then safe to close. */
 int play_renderer_open(struct play_renderer *pr, int kind, unsigned width,
                        unsigned height, unsigned fb_bits, unsigned cpu_scale,
-                       int need_context, struct tvpal_diag *diag);
+                       int exact, int need_context, struct tvpal_diag *diag);
 /* A new image size (the window was resized): gl gets a new framebuffer. */
 int play_renderer_resize(struct play_renderer *pr, unsigned width,
                          unsigned height, struct tvpal_diag *diag);

@@ -99,7 +99,7 @@ static void open_window(struct win_state *w)
     /* Ranks other than 0 draw GL off-screen, in their own context. */
     rc = play_renderer_open(&w->pr, w->use_cpu ? PLAY_REND_CPU : PLAY_REND_GL,
                             w->W, w->H, w->o->fb_bits, w->o->cpu_scale,
-                            !w->leader, &d);
+                            w->o->exact, !w->leader, &d);
     play_check_all(rc, rc < 0 ? d.msg : "", 1);
     if (w->leader && !w->o->quiet) {
         char desc[160];

@@ -40,6 +40,11 @@ struct tvpal_sw {
     int32_t *cov;         /* per intermediate row: covered pixels [lo, hi) */
     size_t cov_cap;       /* rows */
     int threads, skip, simd;
+    int exact;            /* stop only at alpha 1 (tvpal_sw_set_exact) */
+    int runs;             /* skip opaque runs by links (tvpal_sw_set_runs) */
+    float stop;           /* this draw's alpha at which a pixel stops */
+    uint64_t *maps;       /* per thread: stopped pixels of one row */
+    size_t maps_cap;      /* words */
     unsigned force_k;     /* 0: K from the view; else 1..KMAX */
     int avx2;             /* the AVX2 loops run (simd and the CPU has it) */
     uint32_t w, h, layers;
@@ -60,6 +65,7 @@ int tvpal_sw_create(struct tvpal_sw **out)
         return TVPAL_E_NOMEM;
     r->skip = 1;
     r->simd = 1;
+    r->runs = 1;
     *out = r;
     return 0;
 }
@@ -70,6 +76,7 @@ void tvpal_sw_free(struct tvpal_sw *r)
         return;
     free(r->im);
     free(r->cov);
+    free(r->maps);
     free(r->sets);
     free(r->dirty);
     free(r->todo);
@@ -82,6 +89,16 @@ void tvpal_sw_options(struct tvpal_sw *r, int threads, int skip, int simd)
     r->threads = threads;
     r->skip = skip;
     r->simd = simd;
+}
+
+void tvpal_sw_set_exact(struct tvpal_sw *r, int exact)
+{
+    r->exact = exact;
+}
+
+void tvpal_sw_set_runs(struct tvpal_sw *r, int runs)
+{
+    r->runs = runs;
 }
 
 int tvpal_sw_set_scale(struct tvpal_sw *r, unsigned k)
@@ -325,8 +342,33 @@ static int setup(const struct tvpal_frame *f, unsigned force_k, struct geom *g)
     return 0;
 }
 
+/* Words of a stopped-pixel map for a row of wc pixels, with one to spare
+ * (scans and the two-word reads of map_all may touch the word past the
+ * last pixel). */
+static inline size_t map_words(size_t wc)
+{
+    return wc / 64 + 2;
+}
+
 /* One slice row's share of an intermediate row: texels x0..x1 (inclusive,
- * x0 >= 0, x1 + 1 < w), pixel of texel x and phase q at K x + c0 + q. */
+ * x0 >= 0, x1 + 1 < w), pixel of texel x and phase q at K x + c0 + q.
+ *
+ * Stopped pixels (early termination).  A pixel is never blended again once
+ * its alpha has reached `stop` (TVPAL_SW_ALPHA_STOP; NaN, which stops none,
+ * without skipping), or with `exact` once its alpha is exactly 1 (an alpha
+ * that overshot 1 goes on blending, as it always did).  Every kernel leaves
+ * a stopped pixel's bits alone, so testing each pixel and skipping runs
+ * give the same image.
+ *
+ * Opaque runs.  With `map`, a bitmap of the row's stopped pixels (bit i of
+ * word i / 64), a kernel finds the next live pixel and the next stopped one
+ * by bit scans (64 pixels a word), jumps over each run of stopped pixels at
+ * once and composites each run of live pixels with no test per pixel,
+ * marking the pixels it stops (behind it: the runs ahead of the scan do not
+ * change during a slice).  This is the job of Lacroute & Levoy's run links
+ * over opaque pixels of the intermediate image.  Without map each pixel's
+ * alpha is tested.  The kernels are instantiated for exact = 0 and 1 (a
+ * constant in each), so the stopping test is one comparison. */
 struct span {
     float *row;           /* intermediate row */
     long c0;
@@ -335,25 +377,65 @@ struct span {
     float fx[KMAX], fy;
     const uint8_t *ra, *rb;   /* texel rows below and above the sample */
     const float *pal;
-    int skip;
+    float stop;           /* alpha at which a pixel stops (not exact) */
+    int exact;            /* stop only at alpha 1 */
+    uint64_t *map;        /* stopped pixels of the row, or NULL */
 };
 
+#define INLINE static inline __attribute__((always_inline))
+#define STOPPED(exact, a, stop) ((exact) ? (a) == 1.0f : (a) >= (stop))
+
+static inline void map_set(uint64_t *map, long i)
+{
+    map[i >> 6] |= 1ull << (i & 63);
+}
+
+/* The first pixel in [i, end) whose bit is `want` (1: stopped, 0: live),
+ * or end.  The map has a word past end. */
+static inline long map_next(const uint64_t *map, long i, long end, int want)
+{
+    if (i >= end)
+        return end;
+    const uint64_t flip = want ? 0 : ~0ull;
+    long w = i >> 6;
+    uint64_t b = (map[w] ^ flip) & (~0ull << (i & 63));
+    while (!b) {
+        if (++w << 6 >= end)
+            return end;
+        b = map[w] ^ flip;
+    }
+    long r = (w << 6) + __builtin_ctzll(b);
+    return r < end ? r : end;
+}
+
+/* Whether every one of pixels [i, i + n) (n <= 8) has stopped, none has,
+ * or some: 1, 0, -1. */
+static inline int map_all(const uint64_t *map, long i, unsigned n)
+{
+    unsigned b = (unsigned)(i & 63);
+    uint64_t v = map[i >> 6] >> b;
+    if (b + n > 64)
+        v |= map[(i >> 6) + 1] << (64 - b);
+    v &= (1ull << n) - 1;
+    return v == 0 ? 0 : v == (1ull << n) - 1 ? 1 : -1;
+}
+
 /* Pixel q of texel x (-1 .. w - 1) when it is to be blended: inside the
- * stored row, inside the slice (x = -1 and x = w - 1 clamp their texel
- * coordinates: only samples with fx >= 0.5, resp. < 0.5, lie inside) and
- * not opaque (with skipping); else NULL. */
-static inline float *texel_pixel(const struct span *s, int x, int w, unsigned q)
+ * stored row and inside the slice (x = -1 and x = w - 1 clamp their texel
+ * coordinates: only samples with fx >= 0.5, resp. < 0.5, lie inside); its
+ * index in the row, else -1. */
+static inline long texel_pixel(const struct span *s, int x, int w, unsigned q)
 {
     long i = s->c0 + (long)s->k * x + q;
     if (i < 0 || i >= (long)s->wi || (x < 0 && s->fx[q] < 0.5f) ||
         (x == w - 1 && s->fx[q] >= 0.5f))
-        return NULL;
-    float *d = s->row + 4 * i;
-    return s->skip && d[3] == 1.0f ? NULL : d;
+        return -1;
+    return i;
 }
 
 /* span_v4 and texel_v4 blend one RGBA pixel at a time: with SSE2 where the
- * compiler targets it, else in scalar code (the same operations). */
+ * compiler targets it, else in scalar code (the same operations).  The
+ * pixel is tested unless `live` says it is live. */
 #if defined(__SSE2__)
 static inline __m128 vlerp_sse(const struct span *s, int x, __m128 vfy)
 {
@@ -362,28 +444,53 @@ static inline __m128 vlerp_sse(const struct span *s, int x, __m128 vfy)
     return _mm_add_ps(a, _mm_mul_ps(vfy, _mm_sub_ps(b, a)));
 }
 
-/* dst + (1 - dst.a) * (C + fx (Cn - C)), with D = Cn - C. */
-static inline void blend_sse(float *d, __m128 c, __m128 dd, float fx)
+/* Pixel i = dst + (1 - dst.a) * (C + fx (Cn - C)), with D = Cn - C, unless
+ * it has stopped; marks it when it stops. */
+INLINE void blend_px(const struct span *s, long i, __m128 c, __m128 dd,
+                     float fx, const int exact, const int live)
 {
+    float *d = s->row + 4 * i;
+    if (!live && STOPPED(exact, d[3], s->stop))
+        return;
     const __m128 one = _mm_set1_ps(1.0f);
-    __m128 s = _mm_add_ps(c, _mm_mul_ps(_mm_set1_ps(fx), dd));
+    __m128 sm = _mm_add_ps(c, _mm_mul_ps(_mm_set1_ps(fx), dd));
     __m128 dv = _mm_loadu_ps(d);
     __m128 keep = _mm_sub_ps(one, _mm_shuffle_ps(dv, dv, 0xFF));
-    _mm_storeu_ps(d, _mm_add_ps(dv, _mm_mul_ps(keep, s)));
+    __m128 nd = _mm_add_ps(dv, _mm_mul_ps(keep, sm));
+    _mm_storeu_ps(d, nd);
+    float a = _mm_cvtss_f32(_mm_shuffle_ps(nd, nd, 0xFF));
+    if (s->map && STOPPED(exact, a, s->stop))
+        map_set(s->map, i);
 }
 
-static void span_v4(const struct span *s, int x0, int x1)
+INLINE void span_v4_m(const struct span *s, int x0, int x1, const int exact)
 {
     const __m128 vfy = _mm_set1_ps(s->fy);
-    __m128 c = vlerp_sse(s, x0, vfy);
-    for (int x = x0; x <= x1; x++) {
+    const long k = (long)s->k, c0 = s->c0;
+    uint64_t *const map = s->map;
+    int x = x0;
+    __m128 c = vlerp_sse(s, x, vfy);
+    while (x <= x1) {
+        long i = c0 + k * x;
+        int all = map ? map_all(map, i, s->k) : -1;
+        if (all == 1) { /* every pixel of the texel has stopped */
+            long e = map_next(map, i, c0 + k * (x1 + 1), 0);
+            x = (int)((e - c0) / k);
+            if (x > x1)
+                return;
+            c = vlerp_sse(s, x, vfy);
+            continue;
+        }
         __m128 cn = vlerp_sse(s, x + 1, vfy);
         __m128 dd = _mm_sub_ps(cn, c);
-        float *d = s->row + 4 * (s->c0 + (long)s->k * x);
-        for (unsigned q = 0; q < s->k; q++, d += 4)
-            if (!(s->skip && d[3] == 1.0f))
-                blend_sse(d, c, dd, s->fx[q]);
+        if (all == 0)
+            for (unsigned q = 0; q < s->k; q++)
+                blend_px(s, i + q, c, dd, s->fx[q], exact, 1);
+        else
+            for (unsigned q = 0; q < s->k; q++)
+                blend_px(s, i + q, c, dd, s->fx[q], exact, 0);
         c = cn;
+        x++;
     }
 }
 
@@ -391,16 +498,16 @@ static void span_v4(const struct span *s, int x0, int x1)
  * are left out, and at the slice's edges (x = -1, x = w - 1, where the
  * texel coordinates clamp) only the samples inside the slice are blended.
  * The same operations as span_v4. */
-static void texel_v4(const struct span *s, int x, int w)
+INLINE void texel_v4_m(const struct span *s, int x, int w, const int exact)
 {
     const __m128 vfy = _mm_set1_ps(s->fy);
     const int xa = x < 0 ? 0 : x, xb = x + 1 > w - 1 ? w - 1 : x + 1;
     __m128 c = vlerp_sse(s, xa, vfy), cn = vlerp_sse(s, xb, vfy);
     __m128 dd = _mm_sub_ps(cn, c);
     for (unsigned q = 0; q < s->k; q++) {
-        float *d = texel_pixel(s, x, w, q);
-        if (d)
-            blend_sse(d, c, dd, s->fx[q]);
+        long i = texel_pixel(s, x, w, q);
+        if (i >= 0)
+            blend_px(s, i, c, dd, s->fx[q], exact, 0);
     }
 }
 #else
@@ -411,30 +518,48 @@ static inline void vlerp_sc(const struct span *s, int x, float *o)
         o[ch] = a[ch] + s->fy * (b[ch] - a[ch]);
 }
 
-static inline void blend_sc(float *d, const float *c, const float *dd, float fx)
+INLINE void blend_px(const struct span *s, long i, const float *c,
+                     const float *dd, float fx, const int exact, const int live)
 {
+    float *d = s->row + 4 * i;
+    if (!live && STOPPED(exact, d[3], s->stop))
+        return;
     float keep = 1.0f - d[3];
     for (int ch = 0; ch < 4; ch++)
         d[ch] = d[ch] + keep * (c[ch] + fx * dd[ch]);
+    if (s->map && STOPPED(exact, d[3], s->stop))
+        map_set(s->map, i);
 }
 
-static void span_v4(const struct span *s, int x0, int x1)
+INLINE void span_v4_m(const struct span *s, int x0, int x1, const int exact)
 {
     float c[4], cn[4], dd[4];
-    vlerp_sc(s, x0, c);
-    for (int x = x0; x <= x1; x++) {
+    const long k = (long)s->k, c0 = s->c0;
+    uint64_t *const map = s->map;
+    int x = x0;
+    vlerp_sc(s, x, c);
+    while (x <= x1) {
+        long i = c0 + k * x;
+        int all = map ? map_all(map, i, s->k) : -1;
+        if (all == 1) {
+            long e = map_next(map, i, c0 + k * (x1 + 1), 0);
+            x = (int)((e - c0) / k);
+            if (x > x1)
+                return;
+            vlerp_sc(s, x, c);
+            continue;
+        }
         vlerp_sc(s, x + 1, cn);
         for (int ch = 0; ch < 4; ch++)
             dd[ch] = cn[ch] - c[ch];
-        float *d = s->row + 4 * (s->c0 + (long)s->k * x);
-        for (unsigned q = 0; q < s->k; q++, d += 4)
-            if (!(s->skip && d[3] == 1.0f))
-                blend_sc(d, c, dd, s->fx[q]);
+        for (unsigned q = 0; q < s->k; q++)
+            blend_px(s, i + q, c, dd, s->fx[q], exact, all == 0);
         memcpy(c, cn, sizeof c);
+        x++;
     }
 }
 
-static void texel_v4(const struct span *s, int x, int w)
+INLINE void texel_v4_m(const struct span *s, int x, int w, const int exact)
 {
     float c[4], cn[4], dd[4];
     const int xa = x < 0 ? 0 : x, xb = x + 1 > w - 1 ? w - 1 : x + 1;
@@ -443,12 +568,28 @@ static void texel_v4(const struct span *s, int x, int w)
     for (int ch = 0; ch < 4; ch++)
         dd[ch] = cn[ch] - c[ch];
     for (unsigned q = 0; q < s->k; q++) {
-        float *d = texel_pixel(s, x, w, q);
-        if (d)
-            blend_sc(d, c, dd, s->fx[q]);
+        long i = texel_pixel(s, x, w, q);
+        if (i >= 0)
+            blend_px(s, i, c, dd, s->fx[q], exact, 0);
     }
 }
 #endif
+
+static void span_v4(const struct span *s, int x0, int x1)
+{
+    if (s->exact)
+        span_v4_m(s, x0, x1, 1);
+    else
+        span_v4_m(s, x0, x1, 0);
+}
+
+static void texel_v4(const struct span *s, int x, int w)
+{
+    if (s->exact)
+        texel_v4_m(s, x, w, 1);
+    else
+        texel_v4_m(s, x, w, 0);
+}
 
 #ifdef SW_AVX2
 #define AVX2 __attribute__((target("avx2")))
@@ -459,61 +600,178 @@ AVX2 static inline __m256 load2(const float *lo, const float *hi)
                                 _mm_loadu_ps(hi), 1);
 }
 
-/* dst pair + (1 - dst.a) * s, per pixel. */
-AVX2 static inline void blend2(float *d, __m256 s)
+/* Live pixels i, i + 1 = dst + (1 - dst.a) * sm; marks those that stop. */
+AVX2 INLINE void blend2(float *row, uint64_t *map, float stop, long i,
+                        __m256 sm, const int exact)
 {
+    float *d = row + 4 * i;
     __m256 dv = _mm256_loadu_ps(d);
     __m256 keep = _mm256_sub_ps(_mm256_set1_ps(1.0f), _mm256_permute_ps(dv, 0xFF));
-    _mm256_storeu_ps(d, _mm256_add_ps(dv, _mm256_mul_ps(keep, s)));
+    __m256 nd = _mm256_add_ps(dv, _mm256_mul_ps(keep, sm));
+    _mm256_storeu_ps(d, nd);
+    if (map) {
+        __m256 now = exact ? _mm256_cmp_ps(nd, _mm256_set1_ps(1.0f), _CMP_EQ_OQ)
+                           : _mm256_cmp_ps(nd, _mm256_set1_ps(stop), _CMP_GE_OQ);
+        int m = _mm256_movemask_ps(now) & 0x88;   /* the alpha lanes */
+        if (m) {
+            if (m & 0x08)
+                map_set(map, i);
+            if (m & 0x80)
+                map_set(map, i + 1);
+        }
+    }
 }
 
-/* K = 1: two texels (pixels) per step. */
-AVX2 static void span_avx2_k1(const struct span *s, int x0, int x1)
+/* The live run at or after texel *x, for kernels whose texel x has pixels
+ * [c0 + k x, c0 + k x + k): *x moves past stopped pixels to the texel of
+ * the first live one, and *xe gets the last texel all of whose pixels are
+ * live before the next stopped one (x1 at most; *x - 1 when texel *x is
+ * itself partly stopped).  0 when the span has no live pixel left. */
+static inline int live_run(const uint64_t *map, long c0, long k, int *x,
+                           int x1, int *xe)
+{
+    const long end = c0 + k * (x1 + 1);
+    long e = map_next(map, c0 + k * *x, end, 0);
+    if (e >= end)
+        return 0;
+    *x = (int)((e - c0) / k);
+    if ((e - c0) % k) {
+        *xe = *x - 1;
+        return 1;
+    }
+    long st = map_next(map, e, end, 1);
+    *xe = (int)((st - c0) / k) - 1;
+    return 1;
+}
+
+/* K = 1: two texels (pixels) per step over each run of live pixels. */
+AVX2 INLINE void span_avx2_k1_m(const struct span *s, int x0, int x1,
+                                const int exact)
 {
     const __m256 vfy = _mm256_set1_ps(s->fy), vfx = _mm256_set1_ps(s->fx[0]);
+    const __m128 vfy1 = _mm_set1_ps(s->fy);
     const uint8_t *ra = s->ra, *rb = s->rb;
     const float *pal = s->pal;
-    __m128 c = vlerp_sse(s, x0, _mm_set1_ps(s->fy));
-    __m256 vp = _mm256_insertf128_ps(_mm256_castps128_ps256(c), c, 1);
+    float *const row = s->row;
+    uint64_t *const map = s->map;
+    const float stop = s->stop;
+    const long c0 = s->c0;
     int x = x0;
-    for (; x + 1 <= x1; x += 2) {
-        /* vn = [V(x+1) | V(x+2)], cur = [V(x) | V(x+1)] */
-        __m256 a = load2(pal + 4 * ra[x + 1], pal + 4 * ra[x + 2]);
-        __m256 b = load2(pal + 4 * rb[x + 1], pal + 4 * rb[x + 2]);
-        __m256 vn = _mm256_add_ps(a, _mm256_mul_ps(vfy, _mm256_sub_ps(b, a)));
-        __m256 cur = _mm256_permute2f128_ps(vp, vn, 0x21);
-        float *d = s->row + 4 * (s->c0 + x);
-        if (!(s->skip && d[3] == 1.0f && d[7] == 1.0f))
-            blend2(d, _mm256_add_ps(cur, _mm256_mul_ps(vfx, _mm256_sub_ps(vn, cur))));
-        vp = vn;
-    }
-    if (x <= x1) {
-        __m128 cc = _mm256_extractf128_ps(vp, 1);
-        __m128 cn = vlerp_sse(s, x + 1, _mm_set1_ps(s->fy));
-        float *d = s->row + 4 * (s->c0 + x);
-        if (!(s->skip && d[3] == 1.0f))
-            blend_sse(d, cc, _mm_sub_ps(cn, cc), s->fx[0]);
+    while (x <= x1) {
+        int xe = x1;
+        if (map) {
+            if (!live_run(map, c0, 1, &x, x1, &xe))
+                return;
+        }
+        __m128 c = vlerp_sse(s, x, vfy1);
+        __m256 vp = _mm256_insertf128_ps(_mm256_castps128_ps256(c), c, 1);
+        if (!map) {
+            /* No map: a pair with a stopped pixel goes pixel by pixel. */
+            while (x <= x1) {
+                const float *d = row + 4 * (c0 + x);
+                if (x == x1 || STOPPED(exact, d[3], stop) || STOPPED(exact, d[7], stop)) {
+                    __m128 cc = _mm256_extractf128_ps(vp, 1);
+                    c = vlerp_sse(s, x + 1, vfy1);
+                    blend_px(s, c0 + x, cc, _mm_sub_ps(c, cc), s->fx[0], exact, 0);
+                    vp = _mm256_insertf128_ps(_mm256_castps128_ps256(c), c, 1);
+                    x++;
+                    continue;
+                }
+                __m256 a = load2(pal + 4 * ra[x + 1], pal + 4 * ra[x + 2]);
+                __m256 b = load2(pal + 4 * rb[x + 1], pal + 4 * rb[x + 2]);
+                __m256 vn = _mm256_add_ps(a, _mm256_mul_ps(vfy, _mm256_sub_ps(b, a)));
+                __m256 cur = _mm256_permute2f128_ps(vp, vn, 0x21);
+                blend2(row, NULL, stop, c0 + x,
+                       _mm256_add_ps(cur, _mm256_mul_ps(vfx, _mm256_sub_ps(vn, cur))),
+                       exact);
+                vp = vn;
+                x += 2;
+            }
+            return;
+        }
+        for (; x + 1 <= xe; x += 2) {
+            /* vn = [V(x+1) | V(x+2)], cur = [V(x) | V(x+1)] */
+            __m256 a = load2(pal + 4 * ra[x + 1], pal + 4 * ra[x + 2]);
+            __m256 b = load2(pal + 4 * rb[x + 1], pal + 4 * rb[x + 2]);
+            __m256 vn = _mm256_add_ps(a, _mm256_mul_ps(vfy, _mm256_sub_ps(b, a)));
+            __m256 cur = _mm256_permute2f128_ps(vp, vn, 0x21);
+            blend2(row, map, stop, c0 + x,
+                   _mm256_add_ps(cur, _mm256_mul_ps(vfx, _mm256_sub_ps(vn, cur))),
+                   exact);
+            vp = vn;
+        }
+        if (x == xe) {
+            __m128 cc = _mm256_extractf128_ps(vp, 1);
+            __m128 cn = vlerp_sse(s, x + 1, vfy1);
+            blend_px(s, c0 + x, cc, _mm_sub_ps(cn, cc), s->fx[0], exact, 1);
+            x++;
+        }
     }
 }
 
-/* K = 2: the two pixels of a texel in one step. */
-AVX2 static void span_avx2_k2(const struct span *s, int x0, int x1)
+/* K = 2: the two pixels of a texel in one step, over each run of texels
+ * whose pixels are live; a texel half stopped goes pixel by pixel. */
+AVX2 INLINE void span_avx2_k2_m(const struct span *s, int x0, int x1,
+                                const int exact)
 {
     const __m128 vfy = _mm_set1_ps(s->fy);
     const __m256 vfx = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_set1_ps(s->fx[0])),
                                             _mm_set1_ps(s->fx[1]), 1);
-    __m128 c = vlerp_sse(s, x0, vfy);
-    for (int x = x0; x <= x1; x++) {
-        __m128 cn = vlerp_sse(s, x + 1, vfy);
-        __m128 dd = _mm_sub_ps(cn, c);
-        float *d = s->row + 4 * (s->c0 + 2L * x);
-        if (!(s->skip && d[3] == 1.0f && d[7] == 1.0f)) {
+    float *const row = s->row;
+    uint64_t *const map = s->map;
+    const float stop = s->stop;
+    const long c0 = s->c0;
+    int x = x0;
+    while (x <= x1) {
+        int xe = x1;
+        if (map) {
+            if (!live_run(map, c0, 2, &x, x1, &xe))
+                return;
+        }
+        __m128 c = vlerp_sse(s, x, vfy);
+        if (xe < x || !map) {
+            /* A texel with a stopped pixel (or no map): pixel by pixel. */
+            __m128 cn = vlerp_sse(s, x + 1, vfy);
+            __m128 dd = _mm_sub_ps(cn, c);
+            const float *d = row + 4 * (c0 + 2L * x);
+            if (map || STOPPED(exact, d[3], stop) || STOPPED(exact, d[7], stop)) {
+                blend_px(s, c0 + 2L * x, c, dd, s->fx[0], exact, 0);
+                blend_px(s, c0 + 2L * x + 1, c, dd, s->fx[1], exact, 0);
+            } else {
+                __m256 c2 = _mm256_insertf128_ps(_mm256_castps128_ps256(c), c, 1);
+                __m256 d2 = _mm256_insertf128_ps(_mm256_castps128_ps256(dd), dd, 1);
+                blend2(row, NULL, stop, c0 + 2L * x,
+                       _mm256_add_ps(c2, _mm256_mul_ps(vfx, d2)), exact);
+            }
+            x++;
+            continue;
+        }
+        for (; x <= xe; x++) {
+            __m128 cn = vlerp_sse(s, x + 1, vfy);
+            __m128 dd = _mm_sub_ps(cn, c);
             __m256 c2 = _mm256_insertf128_ps(_mm256_castps128_ps256(c), c, 1);
             __m256 d2 = _mm256_insertf128_ps(_mm256_castps128_ps256(dd), dd, 1);
-            blend2(d, _mm256_add_ps(c2, _mm256_mul_ps(vfx, d2)));
+            blend2(row, map, stop, c0 + 2L * x,
+                   _mm256_add_ps(c2, _mm256_mul_ps(vfx, d2)), exact);
+            c = cn;
         }
-        c = cn;
     }
+}
+
+AVX2 static void span_avx2_k1(const struct span *s, int x0, int x1)
+{
+    if (s->exact)
+        span_avx2_k1_m(s, x0, x1, 1);
+    else
+        span_avx2_k1_m(s, x0, x1, 0);
+}
+
+AVX2 static void span_avx2_k2(const struct span *s, int x0, int x1)
+{
+    if (s->exact)
+        span_avx2_k2_m(s, x0, x1, 1);
+    else
+        span_avx2_k2_m(s, x0, x1, 0);
 }
 #endif
 
@@ -527,15 +785,24 @@ static inline long floordiv(long a, long b)
  * slice, front to back. */
 static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
                           const struct geom *g, unsigned j, float *row,
-                          int32_t *cov)
+                          int32_t *cov, uint64_t *map)
 {
     const struct tvpal_view *v = f->view;
     const int w = (int)f->w, h = (int)f->h;
     const unsigned k = g->k, tile = r->tile;
     long cov_lo = g->wc, cov_hi = 0;
     memset(row, 0, sizeof(float) * 4 * g->wc);
+    if (map)
+        memset(map, 0, sizeof *map * map_words(g->wc));
     for (uint32_t n = f->count; n-- > 0;) {
         const struct tvpal_frame_slice *sl = &f->sl[n];
+        if (map && map_next(map, 0, g->wc, 0) >= (long)g->wc) {
+            /* Every pixel of the row has stopped: nothing behind can change
+             * it, and every pixel is covered (it was blended). */
+            cov_lo = 0;
+            cov_hi = g->wc;
+            break;
+        }
         const double c = slice_depth(v, sl->slice);
         const double ty = g->v0 + (g->jo + j + 0.5) / k - c * g->sy;
         if (!(ty >= 0 && ty < h))
@@ -550,7 +817,8 @@ static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
         struct span s = {.row = row, .c0 = (long)c0 - g->io, .k = k, .wi = g->wc,
                          .fy = (float)(yy - yf), .ra = sl->idx + (size_t)w * ya,
                          .rb = sl->idx + (size_t)w * yb, .pal = sl->palette,
-                         .skip = r->skip};
+                         .stop = r->stop, .exact = r->exact && r->skip,
+                         .map = map};
         unsigned qs = 0; /* phases with fx < 0.5 (fx grows with q) */
         for (unsigned q = 0; q < k; q++) {
             double fx = (c0 + q + 0.5) / k + ta - 0.5;
@@ -770,8 +1038,16 @@ static void clip_to_output(const struct tvpal_view *v, const struct warp *wp,
 /* Scratch grows to the largest frame seen, then stays: no allocation per
  * frame in steady playback. */
 static int reserve_scratch(struct tvpal_sw *r, const struct tvpal_frame *f,
-                           const struct geom *g, struct tvpal_diag *diag)
+                           const struct geom *g, int nt, struct tvpal_diag *diag)
 {
+    size_t nwords = map_words(g->wc) * (size_t)nt;
+    if (nwords > r->maps_cap) {
+        uint64_t *nm = realloc(r->maps, sizeof *nm * nwords);
+        if (!nm)
+            return tvpal_diag_set(diag, TVPAL_E_NOMEM, "stopped-pixel maps");
+        r->maps = nm;
+        r->maps_cap = nwords;
+    }
     if (f->count > r->vis_cap) {
         uint64_t *nv = realloc(r->vis, sizeof *nv * f->count * r->trows);
         if (!nv)
@@ -842,14 +1118,16 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "degenerate view");
     setup_warp(f, &g, &wp);
     clip_to_output(v, &wp, r->skip, &g);
-    if ((rc = reserve_scratch(r, f, &g, diag)) < 0)
-        return rc;
-    r->avx2 = r->simd && cpu_avx2();
-    r->k_last = g.k;
     int nt = 1;
 #ifdef _OPENMP
     nt = r->threads > 0 ? r->threads : omp_get_max_threads();
 #endif
+    if ((rc = reserve_scratch(r, f, &g, nt, diag)) < 0)
+        return rc;
+    r->avx2 = r->simd && cpu_avx2();
+    r->k_last = g.k;
+    r->stop = !r->skip ? NAN : TVPAL_SW_ALPHA_STOP;
+    const int use_maps = r->skip && r->runs;
     classify_frame(r, f, nt);
     double t1 = tvpal_now();
     r->t_classify = (t1 - t0) * 1e3;
@@ -860,9 +1138,15 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
 #ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 4) num_threads(nt)
 #endif
-    for (int j = 0; j < hi; j++)
+    for (int j = 0; j < hi; j++) {
+        int tid = 0;
+#ifdef _OPENMP
+        tid = omp_get_thread_num();
+#endif
         composite_row(r, f, &g, (unsigned)j, im + (size_t)4 * g.wc * j,
-                      r->cov + 2 * (size_t)j);
+                      r->cov + 2 * (size_t)j,
+                      use_maps ? r->maps + map_words(g.wc) * tid : NULL);
+    }
     double t2 = tvpal_now();
     r->t_composite = (t2 - t1) * 1e3;
     const int H = (int)v->height;
