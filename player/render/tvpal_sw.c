@@ -41,7 +41,7 @@ struct tvpal_sw {
     size_t cov_cap;       /* rows */
     int threads, skip, simd;
     int exact;            /* stop only at alpha 1 (tvpal_sw_set_exact) */
-    int runs;             /* skip opaque runs by links (tvpal_sw_set_runs) */
+    int runs;             /* skip stopped runs by maps (tvpal_sw_set_runs) */
     float stop;           /* this draw's alpha at which a pixel stops */
     uint64_t *maps;       /* per thread: stopped pixels of one row */
     size_t maps_cap;      /* words */

@@ -37,12 +37,13 @@
  * about 40% of the samples it did.  tvpal_sw_set_exact(r, 1) stops only at
  * alpha 1 (nothing behind can show): the earlier images.
  *
- * Opaque runs cost nothing: each row keeps links over its stopped pixels
- * (Lacroute & Levoy's run links of the intermediate image, path-compressed),
- * so a slice row meets a run of stopped pixels with one lookup instead of a
- * test per pixel, and a row whose pixels have all stopped meets no further
- * slice.  The links change no bit (tvpal_sw_set_runs(r, 0) tests each pixel
- * instead, for tests).
+ * Opaque runs cost nothing: each row keeps a bitmap of its stopped pixels
+ * (the job of Lacroute & Levoy's run links over opaque pixels of the
+ * intermediate image), so a slice row finds its runs of live pixels by bit
+ * scans, 64 pixels a word, jumps over each stopped run at once and
+ * composites each live run with no test per pixel; a row whose pixels have
+ * all stopped meets no further slice.  The maps change no bit
+ * (tvpal_sw_set_runs(r, 0) tests each pixel instead, for tests).
  *
  * Rows of the intermediate image are shared among threads (OpenMP), each
  * row composited by one thread through all slices (it stays in L1): the
@@ -78,7 +79,7 @@ void tvpal_sw_options(struct tvpal_sw *r, int threads, int skip, int simd);
 void tvpal_sw_set_exact(struct tvpal_sw *r, int exact);
 
 /* runs = 1 (the default): stopped pixels are skipped by runs through the
- * links; 0: each pixel is tested.  The same image either way. */
+ * per-row maps; 0: each pixel is tested.  The same image either way. */
 void tvpal_sw_set_runs(struct tvpal_sw *r, int runs);
 
 /* Intermediate pixels per texel: 0 (the default) chooses K from the view
