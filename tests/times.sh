@@ -23,7 +23,7 @@ if [ -x "$PLAY" ]; then
     "$PLAY" "$W/ds" --headless -q --size 48x40 --csv "$W/p.csv" > /dev/null || fail play
     awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "time") c = i }
              NR > 1 { s = s " " $c } END { exit !(c && s == " 0 1.5 3 4.5 6 20") }' "$W/p.csv" \
-        && ok "timing CSV: the time of every frame" || fail "timing CSV time: $(cut -d, -f29 "$W/p.csv" | tr '\n' ' ')"
+        && ok "timing CSV: the time of every frame" || fail "timing CSV time: $(cut -d, -f30 "$W/p.csv" | tr '\n' ' ')"
 fi
 "$ENC" -q --dims $D --window 2 -o "$W/plain" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" || fail "plain encode"
 [ ! -s "$W/e.txt" ] && ! grep -q "^times" "$W/plain/manifest.txt" && ok "no times: no warning, no times key" \

@@ -759,6 +759,17 @@ struct slab_slice {
     uint32_t gen;           /* windows installed so far */
     float *table;           /* window * 256 */
     uint8_t *idx;           /* w * h */
+    /* A window staged for the next install (tvpal_slab_stage): buffers
+     * from the slab's pool, NULL when none. */
+    uint32_t st_wstart, st_wlen;
+    float *st_table;
+    uint8_t *st_idx;
+};
+
+/* A pair of slice buffers not in use (the pool of staged windows). */
+struct slab_buf {
+    float *table;
+    uint8_t *idx;
 };
 
 struct tvpal_slab {
@@ -769,6 +780,11 @@ struct tvpal_slab {
                              * player feeds records itself (slab_apply) and
                              * never needs it */
     uint64_t bytes_read;
+    uint32_t *staged;       /* slices with a staged window, nstaged of them */
+    uint32_t nstaged;
+    struct slab_buf *pool;  /* free buffer pairs, npool of them (at most
+                             * slice_count) */
+    uint32_t npool;
 };
 
 int tvpal_slab_create(struct tvpal_slab **out, struct tvpal_shard *sh)
@@ -779,7 +795,9 @@ int tvpal_slab_create(struct tvpal_slab **out, struct tvpal_shard *sh)
         return TVPAL_E_NOMEM;
     s->sh = sh;
     s->sl = calloc(h->slice_count, sizeof *s->sl);
-    if (!s->sl)
+    s->staged = malloc((h->slice_count ? h->slice_count : 1) * sizeof *s->staged);
+    s->pool = malloc((h->slice_count ? h->slice_count : 1) * sizeof *s->pool);
+    if (!s->sl || !s->staged || !s->pool)
         goto nomem;
     size_t nvox = (size_t)h->slice_w * h->slice_h;
     for (uint32_t k = 0; k < h->slice_count; k++) {
@@ -803,7 +821,15 @@ void tvpal_slab_free(struct tvpal_slab *s)
         for (uint32_t k = 0; k < s->sh->h.slice_count; k++) {
             free(s->sl[k].table);
             free(s->sl[k].idx);
+            free(s->sl[k].st_table);
+            free(s->sl[k].st_idx);
         }
+    for (uint32_t i = 0; s->pool && i < s->npool; i++) {
+        free(s->pool[i].table);
+        free(s->pool[i].idx);
+    }
+    free(s->pool);
+    free(s->staged);
     free(s->sl);
     free(s->rec);
     free(s);
@@ -845,6 +871,90 @@ void tvpal_slab_apply(struct tvpal_slab *s, const unsigned char *rec,
         tvpal_chunk_table(&c, sl->table);
         memcpy(sl->idx, c.indices, nvox);
     }
+}
+
+/* Gives slice sl staging buffers (from the pool, else new ones). */
+static int stage_buffers(struct tvpal_slab *s, struct slab_slice *sl)
+{
+    if (sl->st_idx)
+        return 0;
+    if (s->npool) {
+        s->npool--;
+        sl->st_table = s->pool[s->npool].table;
+        sl->st_idx = s->pool[s->npool].idx;
+        return 0;
+    }
+    const struct tvpal_shard_header *h = &s->sh->h;
+    size_t nvox = (size_t)h->slice_w * h->slice_h;
+    float *t = malloc((size_t)h->window * 256 * sizeof(float));
+    uint8_t *i = malloc(nvox ? nvox : 1);
+    if (!t || !i) {
+        free(t);
+        free(i);
+        return TVPAL_E_NOMEM;
+    }
+    sl->st_table = t;
+    sl->st_idx = i;
+    return 0;
+}
+
+/* Returns the staging buffers of slice sl to the pool. */
+static void unstage_slice(struct tvpal_slab *s, struct slab_slice *sl)
+{
+    s->pool[s->npool++] = (struct slab_buf){sl->st_table, sl->st_idx};
+    sl->st_table = NULL;
+    sl->st_idx = NULL;
+}
+
+int tvpal_slab_stage(struct tvpal_slab *s, const unsigned char *rec,
+                     uint32_t t)
+{
+    const struct tvpal_shard_header *h = &s->sh->h;
+    size_t nvox = (size_t)h->slice_w * h->slice_h;
+    uint64_t pos = 0;
+    struct tvpal_chunk c;
+    while (tvpal_record_next_chunk(rec, &pos, h->table_format, &c)) {
+        if (tvpal_schedule_start(c.h.slice, t, h->window) != c.h.wstart)
+            continue;
+        uint32_t k = c.h.slice - h->slice_begin;
+        struct slab_slice *sl = &s->sl[k];
+        if (!sl->st_idx) {
+            int rc = stage_buffers(s, sl);
+            if (rc < 0)
+                return rc;
+            s->staged[s->nstaged++] = k;
+        }
+        sl->st_wstart = c.h.wstart;
+        sl->st_wlen = c.h.wlen;
+        tvpal_chunk_table(&c, sl->st_table);
+        memcpy(sl->st_idx, c.indices, nvox);
+    }
+    return 0;
+}
+
+void tvpal_slab_install(struct tvpal_slab *s)
+{
+    for (uint32_t n = 0; n < s->nstaged; n++) {
+        struct slab_slice *sl = &s->sl[s->staged[n]];
+        float *t = sl->table;
+        uint8_t *i = sl->idx;
+        sl->table = sl->st_table;
+        sl->idx = sl->st_idx;
+        sl->st_table = t;
+        sl->st_idx = i;
+        sl->wstart = sl->st_wstart;
+        sl->wlen = sl->st_wlen;
+        sl->gen++;
+        unstage_slice(s, sl);
+    }
+    s->nstaged = 0;
+}
+
+void tvpal_slab_unstage(struct tvpal_slab *s)
+{
+    for (uint32_t n = 0; n < s->nstaged; n++)
+        unstage_slice(s, &s->sl[s->staged[n]]);
+    s->nstaged = 0;
 }
 
 int tvpal_slab_seek(struct tvpal_slab *s, uint32_t t, struct tvpal_diag *diag)

@@ -161,6 +161,21 @@ unsigned tvpal_slab_needed(const struct tvpal_slab *slab, uint32_t t,
 void tvpal_slab_apply(struct tvpal_slab *slab, const unsigned char *rec,
                       uint32_t t);
 
+/* Staging: the same as apply, but into spare buffers, leaving what the
+ * slab shows untouched until tvpal_slab_install swaps the staged windows in
+ * (pointer swaps, no copy).  So a window can be prepared while the current
+ * one is drawn, on another thread, as long as only one thread calls into
+ * the slab at a time and nothing reads the slab during install.  Spare
+ * buffers come from a pool that install refills with the windows it
+ * replaces, so in steady playback the slab holds about 1/N more than its
+ * windows.  tvpal_slab_needed still answers for what is installed.
+ * stage: 0 or TVPAL_E_NOMEM (the chunks staged so far stay staged). */
+int tvpal_slab_stage(struct tvpal_slab *slab, const unsigned char *rec,
+                     uint32_t t);
+void tvpal_slab_install(struct tvpal_slab *slab);
+/* Drops what is staged (the buffers go back to the pool). */
+void tvpal_slab_unstage(struct tvpal_slab *slab);
+
 /* needed + read (pread) + apply. */
 int tvpal_slab_seek(struct tvpal_slab *slab, uint32_t t,
                     struct tvpal_diag *diag);

@@ -209,7 +209,8 @@ static void draw_frame(struct headless *h, uint32_t t, struct play_rank_rec *me,
         play_die_rank(1, "compositing failed at step %u", t);
     double comp_ms = (tvpal_now() - c0) * 1e3;
     *me = (struct play_rank_rec){
-        .io = st.io_ms, .up = st.upload_ms + rt.upload_ms, .draw = rt.draw_ms,
+        .io = st.io_ms, .stream = st.stream_ms,
+        .up = st.upload_ms + rt.upload_ms, .draw = rt.draw_ms,
         .read = rt.readback_ms, .enc = cs.encode_ms, .exch = cs.exchange_ms,
         .blend = cs.blend_ms, .comp = comp_ms, .gath = cs.gather_ms,
         .total = (tvpal_now() - f0) * 1e3, .classify = rt.classify_ms,
@@ -223,6 +224,7 @@ static void draw_frame(struct headless *h, uint32_t t, struct play_rank_rec *me,
     *row = (struct play_row){.step = t, .axis = "xyz"[st.axis],
                              .drawn = st.drawn, .skipped = st.skipped,
                              .uploads = st.uploads, .stride = st.stride,
+                             .staged = st.staged,
                              .axis_switch_ms = st.axis_switch_ms,
                              .ranks = play_comm.size, .psnr = NAN,
                              .time = h->s->m->ntimes ? h->s->m->times[t]

@@ -12,6 +12,7 @@ void play_timing_aggregate(const struct play_rank_rec *r, int n,
     for (int i = 0; i < n; i++) {
         const struct play_rank_rec *q = &r[i];
         o->io = fmax(o->io, q->io);
+        o->stream = fmax(o->stream, q->stream);
         o->up = fmax(o->up, q->up);
         o->draw = fmax(o->draw, q->draw);
         o->read = fmax(o->read, q->read);
@@ -57,6 +58,7 @@ static const struct column columns[] = {
     {"step", C_U32, R(step), S_NONE},
     {"axis", C_CHAR, R(axis), S_NONE},
     {"io_ms", C_MS, A(io), S_MEAN},
+    {"stream_ms", C_MS, A(stream), S_MEAN},
     {"upload_ms", C_MS, A(up), S_MEAN},
     {"draw_ms", C_MS, A(draw), S_MEAN},
     {"readback_ms", C_MS, A(read), S_MEAN},
@@ -83,12 +85,13 @@ static const struct column columns[] = {
     {"sw_warp_ms", C_MS, A(warp), S_NONE},
     {"psnr_ref", C_MS, R(psnr), S_MEAN},
     {"time", C_REAL, R(time), S_NONE},
+    {"records_staged", C_U32, R(staged), S_NONE},
 };
 #define NCOLS (sizeof columns / sizeof *columns)
 
 /* The summary line's columns, in its order (after fps= and frames=). */
 static const char *const summary_cols[] = {
-    "io_ms", "upload_ms", "draw_ms", "readback_ms", "composite_ms", "ranks",
+    "io_ms", "stream_ms", "upload_ms", "draw_ms", "readback_ms", "composite_ms", "ranks",
     "bytes_read"};
 
 _Static_assert(NCOLS <= sizeof ((struct play_totals *)0)->sum /

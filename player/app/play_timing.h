@@ -12,7 +12,7 @@
 
 /* One rank's figures for one frame (gathered on rank 0; plain bytes). */
 struct play_rank_rec {
-    double io, up, draw, read, enc, exch, blend, comp, gath, total;
+    double io, stream, up, draw, read, enc, exch, blend, comp, gath, total;
     double classify, accum, warp;   /* cpu renderer phases (0 otherwise) */
     uint64_t bytes_read, bytes_sent, bytes_sent_total, gather_bytes, pixels;
     int rc, fatal;
@@ -24,7 +24,7 @@ struct play_row {
     uint32_t step;
     char axis;
     struct play_rank_rec agg;       /* over ranks (play_timing_aggregate) */
-    uint32_t drawn, skipped, uploads, stride;
+    uint32_t drawn, skipped, uploads, stride, staged;
     double axis_switch_ms;
     int jump, ranks;
     double psnr;                    /* against the reference, or NAN */

@@ -401,8 +401,10 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
         tvpal_diag_set(diag, load_rc, "%s", d.msg);
     st->io_ms = ss.io_wait_ms;
     st->bytes_read = ss.bytes_read;
+    st->staged = ss.records_staged;
 
     double t1 = tvpal_now();
+    st->stream_ms = (t1 - t0) * 1e3 - st->axis_switch_ms;
     int rc = prepare_renderer(p, v->axis, r, diag);
     if (rc < 0)
         return rc;

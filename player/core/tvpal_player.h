@@ -41,8 +41,13 @@ struct tvpal_frame_stats {
     uint32_t step;
     unsigned axis;
     double io_ms, upload_ms, draw_ms, total_ms, axis_switch_ms;
+    double stream_ms;      /* the frame's thread in the stream: waiting for,
+                              verifying and applying records (io_ms is
+                              the waiting part) */
     uint64_t bytes_read;
     uint32_t drawn, skipped, uploads;
+    uint32_t staged;       /* records of the step prepared ahead, off the
+                              frame's thread (tvpal_stream.h) */
     unsigned stride;       /* slices drawn: every stride-th */
     int rendered;          /* 1 when the frame was drawn (maybe with stale
                               slices after a load error) */

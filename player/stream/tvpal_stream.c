@@ -7,6 +7,7 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -40,9 +41,34 @@ struct part {                /* one shard */
     unsigned nslots;
 };
 
+/* The stager: a thread that prepares the next step (reads, verification,
+ * decoding into the slabs' staging buffers) while the current one is drawn.
+ * It and the caller of tvpal_stream_seek never touch the stream at the
+ * same time: seek first waits until the stager is idle, and the stager
+ * only runs between seeks. */
+enum { STAGER_IDLE, STAGER_PENDING, STAGER_RUNNING };
+
+struct stager {
+    pthread_t th;
+    int started, quit;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    int state;                   /* STAGER_*, under mu */
+    uint32_t t;                  /* the job: stage step t, */
+    int dir;                     /* prefetching in direction dir */
+    int have;                    /* a staged step waits for install: */
+    uint32_t staged_t;
+    int rc;                      /* its result, */
+    struct tvpal_diag diag;
+    struct tvpal_stream_stats st;
+};
+
 struct tvpal_stream {
     struct part *p;
     unsigned n;
+    struct stager w;             /* with prefetch > 0 */
+    int have_cur;                /* a seek has brought the slabs to cur_t */
+    uint32_t cur_t;
     struct tvpal_io *io;
     int incore;
     unsigned prefetch;
@@ -51,6 +77,10 @@ struct tvpal_stream {
     unsigned direct_files;       /* parts opened with O_DIRECT */
     char why[200];               /* the first fallback, or "" */
 };
+
+static void *stager_main(void *arg);
+static void stager_wait(struct tvpal_stream *s);
+static void unstage_all(struct tvpal_stream *s);
 
 /* Notes the first fallback (for the start-up line and the summary). */
 static void fell_back(struct tvpal_stream *s, const char *fmt, const char *a,
@@ -342,6 +372,18 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
         rc = incore ? load_incore(s, p, diag)
                     : alloc_slots(p, h->window + 2 * prefetch + 1);
     }
+    if (rc == 0 && prefetch > 0 && nslabs > 0) {
+        struct stager *w = &s->w;
+        if (pthread_mutex_init(&w->mu, NULL) || pthread_cond_init(&w->cv, NULL)) {
+            rc = tvpal_diag_set(diag, TVPAL_E_SYS, "cannot create the stager's lock");
+        } else if (pthread_create(&w->th, NULL, stager_main, s)) {
+            pthread_cond_destroy(&w->cv);
+            pthread_mutex_destroy(&w->mu);
+            rc = tvpal_diag_set(diag, TVPAL_E_SYS, "cannot start the stager thread");
+        } else {
+            w->started = 1;
+        }
+    }
     if (rc < 0) {
         tvpal_stream_free(s);
         return rc;
@@ -354,6 +396,17 @@ void tvpal_stream_free(struct tvpal_stream *s)
 {
     if (!s)
         return;
+    if (s->w.started) {
+        stager_wait(s);
+        pthread_mutex_lock(&s->w.mu);
+        s->w.quit = 1;
+        pthread_cond_broadcast(&s->w.cv);
+        pthread_mutex_unlock(&s->w.mu);
+        pthread_join(s->w.th, NULL);
+        pthread_cond_destroy(&s->w.cv);
+        pthread_mutex_destroy(&s->w.mu);
+        unstage_all(s);
+    }
     /* Nothing may stay in flight into buffers freed here. */
     while (s->io && tvpal_io_inflight(s->io) && reap(s, NULL, NULL) == 0)
         ;
@@ -413,13 +466,13 @@ static int victim(const struct part *p, const uint32_t *wanted, unsigned nw)
     return -1;
 }
 
-int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
-                      struct tvpal_stream_stats *st, struct tvpal_diag *diag)
+/* Applies (stage = 0) or stages (1) into every slab the records that hold
+ * timestep t, reading them first out-of-core; queues the prefetch. */
+static int seek_into(struct tvpal_stream *s, uint32_t t, int dir,
+                     struct tvpal_stream_stats *st, struct tvpal_diag *diag,
+                     int stage)
 {
-    struct tvpal_stream_stats local = {0};
     int err = 0;
-    if (!st)
-        st = &local;
     memset(st, 0, sizeof *st);
     for (unsigned pi = 0; pi < s->n; pi++) {
         struct part *p = &s->p[pi];
@@ -434,9 +487,16 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
                         err = incore_error(p, need[i], diag);
                     continue;
                 }
-                tvpal_slab_apply(p->slab,
-                                 p->all + e->offset - TVPAL_SHARD_HEADER_BYTES,
-                                 t);
+                const unsigned char *rec = p->all + e->offset -
+                                           TVPAL_SHARD_HEADER_BYTES;
+                if (stage) {
+                    int rc = tvpal_slab_stage(p->slab, rec, t);
+                    if (rc < 0)
+                        return tvpal_diag_set(diag, rc, "staging record %u",
+                                              need[i]);
+                } else {
+                    tvpal_slab_apply(p->slab, rec, t);
+                }
                 st->records_applied++;
             }
             continue;
@@ -527,15 +587,124 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
                 }
                 sl->verified = 1;
             }
-            tvpal_slab_apply(p->slab, sl->buf, t);
+            if (stage) {
+                int rc = tvpal_slab_stage(p->slab, sl->buf, t);
+                if (rc < 0)
+                    return tvpal_diag_set(diag, rc, "staging record %u",
+                                          need[i]);
+            } else {
+                tvpal_slab_apply(p->slab, sl->buf, t);
+            }
             st->records_applied++;
         }
     }
     return err;
 }
 
+static void *stager_main(void *arg)
+{
+    struct tvpal_stream *s = arg;
+    struct stager *w = &s->w;
+    pthread_mutex_lock(&w->mu);
+    for (;;) {
+        while (w->state != STAGER_PENDING && !w->quit)
+            pthread_cond_wait(&w->cv, &w->mu);
+        if (w->quit)
+            break;
+        w->state = STAGER_RUNNING;
+        uint32_t t = w->t;
+        int dir = w->dir;
+        pthread_mutex_unlock(&w->mu);
+        struct tvpal_stream_stats st;
+        struct tvpal_diag d = {{0}};
+        int rc = seek_into(s, t, dir, &st, &d, 1);
+        pthread_mutex_lock(&w->mu);
+        w->rc = rc;
+        w->diag = d;
+        w->st = st;
+        w->have = 1;
+        w->staged_t = t;
+        w->state = STAGER_IDLE;
+        pthread_cond_broadcast(&w->cv);
+    }
+    pthread_mutex_unlock(&w->mu);
+    return NULL;
+}
+
+/* Waits until the stager is idle (it then touches nothing). */
+static void stager_wait(struct tvpal_stream *s)
+{
+    struct stager *w = &s->w;
+    if (!w->started)
+        return;
+    pthread_mutex_lock(&w->mu);
+    while (w->state != STAGER_IDLE)
+        pthread_cond_wait(&w->cv, &w->mu);
+    pthread_mutex_unlock(&w->mu);
+}
+
+static void stager_post(struct tvpal_stream *s, uint32_t t, int dir)
+{
+    struct stager *w = &s->w;
+    pthread_mutex_lock(&w->mu);
+    w->t = t;
+    w->dir = dir;
+    w->state = STAGER_PENDING;
+    pthread_cond_broadcast(&w->cv);
+    pthread_mutex_unlock(&w->mu);
+}
+
+static void unstage_all(struct tvpal_stream *s)
+{
+    for (unsigned pi = 0; pi < s->n; pi++)
+        tvpal_slab_unstage(s->p[pi].slab);
+    s->w.have = 0;
+}
+
+int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
+                      struct tvpal_stream_stats *st, struct tvpal_diag *diag)
+{
+    struct tvpal_stream_stats local;
+    if (!st)
+        st = &local;
+    struct stager *w = &s->w;
+    if (!w->started)
+        return seek_into(s, t, dir, st, diag, 0);
+    stager_wait(s);
+    int rc;
+    if (w->have && w->staged_t == t) {
+        /* Prepared while the previous step was drawn: swap it in. */
+        for (unsigned pi = 0; pi < s->n; pi++)
+            tvpal_slab_install(s->p[pi].slab);
+        *st = w->st;
+        st->records_staged = st->records_applied;
+        rc = w->rc;
+        if (rc < 0)
+            tvpal_diag_set(diag, rc, "%s", w->diag.msg);
+        w->have = 0;
+    } else {
+        /* The same step again (a redraw, or a retry of a failed record)
+         * leaves what is staged for the next one: seeking cur_t can only
+         * add windows, so what was staged stays what the next step needs
+         * or more.  Anything else (a jump) drops it. */
+        if (w->have && !(s->have_cur && t == s->cur_t))
+            unstage_all(s);
+        rc = seek_into(s, t, dir, st, diag, 0);
+    }
+    s->have_cur = 1;
+    s->cur_t = t;
+    int64_t next = (int64_t)t + (dir < 0 ? -1 : 1);
+    if (w->have && (int64_t)w->staged_t != next)
+        unstage_all(s);
+    const uint32_t steps = tvpal_shard_hdr(s->p[0].sh)->steps;
+    if (!w->have && next >= 0 && next < steps && s->n)
+        stager_post(s, (uint32_t)next, dir);
+    return rc;
+}
+
 uint64_t tvpal_stream_submits(const struct tvpal_stream *s)
 {
+    stager_wait((struct tvpal_stream *)s); /* its reads count too */
     return tvpal_io_submits(s->io);
 }
 

@@ -7,6 +7,16 @@
  * allows it, so the page cache does not hide the disk) with a prefetch
  * queue of several timesteps ahead of the playhead in the play direction;
  * a jump requests all the (at most N) records it needs at once.
+ *
+ * With prefetch > 0 the work of the next step is done off the caller's
+ * thread: after each seek a stager thread reads, verifies and decodes the
+ * records of the next step in the play direction into the slabs' staging
+ * buffers (tvpal_slab_stage), and the seek to that step only swaps them in
+ * (tvpal_slab_install), while the current step is drawn.  A seek that is
+ * not to the staged step (a jump, a turn) drops it and works as without
+ * a stager.  Images are the same either way.  Not thread-safe otherwise:
+ * one thread calls a stream's functions; the slabs may be read between
+ * seeks (the stager writes only their staging buffers).
  */
 #ifndef TVPAL_STREAM_H
 #define TVPAL_STREAM_H
@@ -19,8 +29,10 @@
 
 struct tvpal_stream_stats {
     uint64_t bytes_read;     /* from disk, this seek (prefetch included) */
-    double io_wait_ms;       /* time spent waiting for reads */
+    double io_wait_ms;       /* time spent waiting for reads (by the
+                                stager, when it prepared the step) */
     unsigned records_applied;
+    unsigned records_staged; /* of those, prepared ahead by the stager */
 };
 
 struct tvpal_stream;
