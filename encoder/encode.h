@@ -58,6 +58,7 @@ struct opts {
     const char *time_units;           /* --time-units TEXT */
     uint64_t mem_limit;               /* --mem-limit SIZE, or 0 */
     const char *shard_pat;            /* --shard-dir PATTERN (MPI) */
+    uint32_t levels;                  /* --levels L: coarser levels */
 };
 
 /* How a message ends the program: MSG_ONLY returns; the others exit with
@@ -163,6 +164,8 @@ struct run {
     uint64_t cluster_bytes;  /* rank 0: bytes of every rank's shards, */
     uint64_t cluster_work;   /* the voxel-samples they encoded, */
     double cluster_seconds;  /* in this many seconds (the slowest) */
+    int level0_done;         /* --levels: level 0 finished by an earlier
+                              * run of the same job (levels.job) */
 };
 
 
@@ -216,6 +219,14 @@ void check_inputs(struct run *r);
 struct prefetch *prefetch_start(struct tvpal_input *in, uint64_t voxels);
 void prefetch_stop(struct prefetch *pf);
 void load_step(struct run *r, uint32_t t, float *dst);
+
+/* ---------------------------------------------------------------- levels */
+/* encode_levels.c.  The dims of level k of a volume of dims d0. */
+void level_dims(const uint32_t d0[3], unsigned k, uint32_t out[3]);
+/* After level 0 is finished in OUTDIR.partial: levels 1..L into
+ * OUTDIR.partial/level-k/ (encode_levels.c says how). */
+void encode_levels(struct run *r);
+void grid_of(const struct run *r, double spacing[3], double origin[3]);
 /* Rows of row_bytes a raw read takes at once: READ_BLOCK's worth, at
  * least one, at most rows_max (a plane's).  Sizes the reading scratch. */
 size_t read_rows(uint64_t row_bytes, uint32_t rows_max);

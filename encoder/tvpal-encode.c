@@ -122,6 +122,11 @@ static void usage(FILE *f)
 "      --table FMT        decoder tables: f32 (default: float32) or u16\n"
 "                         (16-bit scaled per slice-window: half the table\n"
 "                         bytes, error <= (max - min) / 131070 per entry)\n"
+"      --levels L         also L coarser levels of detail (0..8, default\n"
+"                         0), each the 2x2x2 average of the one before\n"
+"                         (missing values left out), encoded the same way\n"
+"                         into OUTDIR/level-1 .. level-L; the player draws\n"
+"                         from the finest whose voxels cover about a pixel\n"
 "Output:\n"
 "  -o, --output OUTDIR    dataset directory (must not exist)\n"
 "  -f, --force            replace an existing OUTDIR\n"
@@ -287,6 +292,8 @@ static const struct optspec {
     {"force", 'f', OPT_FLAG, offsetof(struct opts, force), 0, 0, {0}, NULL},
     {"dry-run", OPT_LONG_ONLY + 17, OPT_FLAG, offsetof(struct opts, dry_run), 0,
      0, {0}, NULL},
+    {"levels", OPT_LONG_ONLY + 18, OPT_U32, offsetof(struct opts, levels), 0,
+     8, {0}, "0..8"},
     {"quiet", 'q', OPT_FLAG, offsetof(struct opts, quiet), 0, 0, {0}, NULL},
     {"help", 'h', OPT_HELP, 0, 0, 0, {0}, NULL},
     {"version", 'V', OPT_VERSION, 0, 0, 0, {0}, NULL},
@@ -456,6 +463,20 @@ static void validate_opts(const struct opts *o, int have_dims,
     if (step_bytes > (uint64_t)INT64_MAX / T)
         die_usage("--steps %u of %ux%ux%u %s: total size overflows", T,
                   d[0], d[1], d[2], tvpal_type_name(o->type));
+    for (unsigned k = 1; k <= o->levels; k++) {
+        uint32_t a[3], b[3];
+        level_dims(d, k - 1, a);
+        level_dims(d, k, b);
+        if (a[0] == b[0] && a[1] == b[1] && a[2] == b[2])
+            die_usage("--levels %u: level %u would be %ux%ux%u again; at "
+                      "most %u level(s) for %ux%ux%u", o->levels, k, b[0],
+                      b[1], b[2], k - 1, d[0], d[1], d[2]);
+        for (unsigned x = 0; x < 3; x++)
+            if (b[x] < o->nodes)
+                die_usage("--levels %u: level %u (%ux%ux%u) has fewer %c "
+                          "slices than --nodes %u", o->levels, k, b[0], b[1],
+                          b[2], "xyz"[x], o->nodes);
+    }
     if (o->klt && !tvpal_eig_available())
         die_usage("--transform klt: built without LAPACK (install "
                   "liblapack-dev and reconfigure)");
@@ -612,6 +633,40 @@ static void start_over(struct run *r)
         die_usage("%s: cannot remove stale partial output", r->ckdir);
 }
 
+/* --levels: OUTDIR.partial/levels.job holds the job's fingerprint once
+ * level 0 is finished (its checkpoint is gone then), so that a rerun
+ * interrupted during the coarser levels keeps level 0. */
+static char *level0_marker(const struct run *r)
+{
+    char *p;
+    return asprintf(&p, "%s/levels.job", r->partial) < 0 ? NULL : p;
+}
+
+static int level0_marker_matches(const struct run *r)
+{
+    char *p = level0_marker(r);
+    FILE *f = p ? fopen(p, "r") : NULL;
+    free(p);
+    if (!f)
+        return 0;
+    /* The fingerprint's length and bytes, then the end of the file. */
+    const size_t n = strlen(r->fp);
+    char *buf = malloc(n + 1);
+    int ok = buf && fread(buf, 1, n + 1, f) == n && !memcmp(buf, r->fp, n);
+    free(buf);
+    fclose(f);
+    return ok && tvpal_exists(r->partial);
+}
+
+static void write_level0_marker(const struct run *r)
+{
+    char *p = level0_marker(r);
+    FILE *f = p ? fopen(p, "w") : NULL;
+    if (!f || fputs(r->fp, f) < 0 || fclose(f) != 0)
+        die_fail("%s: cannot write", p ? p : "levels.job");
+    free(p);
+}
+
 /* Resumes the partial output of the same job from its checkpoint, or
  * removes a partial output that has none usable; then makes the node
  * directories.  Sets r->fp, r->st, r->ckp and r->start.  The plan is part
@@ -638,6 +693,10 @@ static void open_partial(struct run *r)
     if (!r->ckp.filled || !r->ckp.crc || !r->ckp.missing)
         die_fail("out of memory");
     r->start = 0;
+    if (r->o.levels && level0_marker_matches(r)) {
+        r->level0_done = 1;
+        return;
+    }
     if (tvpal_exists(r->ckdir)) {
         /* A checkpoint that is missing, of another job or damaged is not
          * an error: the job starts over (FORMAT.md 9.2). */
@@ -1283,7 +1342,7 @@ static void encode_steps(struct run *r)
 /* The physical grid: --spacing/--origin, else what a self-describing input
  * says (the size of a falling coordinate's step; an axis not evenly spaced
  * counts 1, origin 0), else the unit grid. */
-static void grid_of(const struct run *r, double spacing[3], double origin[3])
+void grid_of(const struct run *r, double spacing[3], double origin[3])
 {
     const struct opts *o = &r->o;
     const struct tvpal_input_info *in = r->in ? tvpal_input_info(r->in) : NULL;
@@ -1319,6 +1378,7 @@ static void build_manifest(const struct run *r, struct tvpal_manifest *m)
     m->nmissing_values = o->nmissing;
     m->single_file = o->steps_single != 0;
     m->source_bytes = r->step_bytes * r->T;
+    m->levels = o->levels;
     grid_of(r, m->spacing, m->origin);
     if (r->times) {
         if (!(m->times = malloc(sizeof *m->times * r->T)))
@@ -1556,16 +1616,34 @@ static void print_summary(const struct run *r)
     const double te = r->mpi ? r->cluster_seconds : r->t_encode;
     const uint64_t work = r->mpi ? r->cluster_work
                                  : r->prog.work - r->prog.work_at_start;
+    /* The coarser levels: their bytes apart (level 0's figures stay
+     * comparable with an encode without levels). */
+    uint64_t level_bytes = 0;
+    for (unsigned k = 1; !r->mpi && k <= r->o.levels; k++) {
+        char *ld;
+        if (asprintf(&ld, "%s/level-%u", r->o.outdir, k) < 0)
+            die_fail("out of memory");
+        if (tvpal_dataset_open(&ds, ld, &d) < 0)
+            die_fail("%s: written level does not verify: %s", ld, d.msg);
+        for (unsigned a = 0; a < 3; a++)
+            level_bytes += ds->axis_bytes[a];
+        tvpal_dataset_close(ds);
+        free(ld);
+    }
+    char lv[96] = "";
+    if (r->o.levels)
+        snprintf(lv, sizeof lv, " levels=%u levels_bytes=%llu", r->o.levels,
+                 (unsigned long long)level_bytes);
     printf("encoded %s: steps=%u window=%u nodes=%u bytes=%llu ratio=%.3f "
            "bpv=%.4f seconds=%.3f rate=%.2fM vox-steps/s threads=%d "
-           "missing=%llu passes=%u\n",
+           "missing=%llu passes=%u%s\n",
            r->o.outdir, r->T, r->N, r->o.nodes,
            (unsigned long long)total_bytes,
            (double)(r->step_bytes * r->T) / axis_bytes,
            axis_bytes * 8.0 / vts, te,
            (double)work / 3.0 / (te > 0 ? te : 1e-9) / 1e6,
            r->nthreads * (r->mpi ? g_comm.size : 1),
-           (unsigned long long)r->st.missing, r->plan.npasses);
+           (unsigned long long)r->st.missing, r->plan.npasses, lv);
 }
 
 static void run_free(struct run *r)
@@ -1641,18 +1719,33 @@ int main(int argc, char **argv)
         tvpal_comm_close(&g_comm);
         return 0;
     }
+    if (r.mpi && r.o.levels)
+        die_usage("--levels: not under MPI yet; encode the levels without "
+                  "mpirun (they are 1/7 of the work)");
     open_partial(&r);
-    open_or_restart_writers(&r);
+    if (!r.level0_done)
+        open_or_restart_writers(&r);
     setup_workspace(&r);
     if (r.in)
         r.pf = prefetch_start(r.in, r.plan.box_voxels_max);
-    encode_steps(&r);
+    if (!r.level0_done)
+        encode_steps(&r);
     if (r.mpi) {
         cluster_finish(&r);
     } else {
-        check_missing(&r);
-        warn_dominating_values(&r);
-        finish_partial(&r);
+        if (!r.level0_done) {
+            check_missing(&r);
+            warn_dominating_values(&r);
+            finish_partial(&r);
+        }
+        if (r.o.levels) {
+            write_level0_marker(&r);
+            encode_levels(&r);
+            char *mk = level0_marker(&r);
+            if (!mk || unlink(mk) < 0)
+                die_fail("%s: cannot remove", mk ? mk : "levels.job");
+            free(mk);
+        }
         move_into_place(&r);
     }
     if (!r.mpi || r.node == 0)

@@ -40,7 +40,10 @@ int tvpal_manifest_format(const struct tvpal_manifest *m, char **out)
     if (!f)
         return TVPAL_E_NOMEM;
     fprintf(f, "# tvpal dataset manifest (spec: common/format/FORMAT.md)\n");
-    fprintf(f, "format = tvpal-dataset\nformat_version = 1\n");
+    /* Version 2 only where it says more than version 1 can (levels), so
+     * that version-1 readers still take every dataset without levels. */
+    fprintf(f, "format = tvpal-dataset\nformat_version = %d\n",
+            m->levels ? 2 : 1);
     fprintf(f, "encoder = %s\n", m->encoder ? m->encoder : "unknown");
     fprintf(f, "options = %s\n", m->options ? m->options : "");
     fprintf(f, "dims = %ux%ux%u\n", m->dims[0], m->dims[1], m->dims[2]);
@@ -50,6 +53,8 @@ int tvpal_manifest_format(const struct tvpal_manifest *m, char **out)
             m->nodes);
     fprintf(f, "axes = x y z\n");
     fprintf(f, "table = %s\n", m->table_format == 1 ? "u16" : "f32");
+    if (m->levels)
+        fprintf(f, "levels = %u\n", m->levels);
     fprintf(f, "value_min = %.9g\nvalue_max = %.9g\n", m->value_min,
             m->value_max);
     if (m->has_nan_as)
@@ -234,10 +239,10 @@ static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
         *seen |= K_FORMAT;
     } else if (!strcmp(k, "format_version")) {
         uint32_t ver;
-        if (parse_u32(v, &ver) || ver != 1)
+        if (parse_u32(v, &ver) || ver < 1 || ver > 2)
             return tvpal_diag_set(diag, TVPAL_E_VERSION,
-                                  "line %u: format_version %s, expected 1",
-                                  lineno, v);
+                                  "line %u: format_version %s, expected 1 "
+                                  "or 2", lineno, v);
     } else if (!strcmp(k, "dims")) {
         bad = tvpal_dims_parse(v, m->dims, NULL) < 0;
         *seen |= K_DIMS;
@@ -281,6 +286,8 @@ static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
             bad = *p < '0' || *p > '9' || errno == ERANGE;
             p = end;
         }
+    } else if (!strcmp(k, "levels")) {
+        bad = parse_u32(v, &m->levels) || m->levels > TVPAL_LEVELS_MAX;
     } else if (!strcmp(k, "table")) {
         bad = strcmp(v, "f32") && strcmp(v, "u16");
         m->table_format = !strcmp(v, "u16");

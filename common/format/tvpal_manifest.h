@@ -15,6 +15,7 @@
 
 #define TVPAL_HIST_BINS 64
 #define TVPAL_MISSING_VALUES_MAX 16
+#define TVPAL_LEVELS_MAX 8
 
 struct tvpal_manifest {
     uint32_t dims[3];
@@ -52,6 +53,9 @@ struct tvpal_manifest {
     char time_units[128];                 /* e.g. "hours since ...", or "" */
     uint64_t source_bytes;
     uint32_t table_format;                /* 0 float32, 1 16-bit scaled */
+    uint32_t levels;                      /* coarser levels of detail in
+                                           * level-1/ .. level-L/ (0: none;
+                                           * at most TVPAL_LEVELS_MAX) */
     char *encoder;                        /* owned strings (may be NULL) */
     char *options;
     size_t nsources;

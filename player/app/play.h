@@ -36,6 +36,9 @@ struct play_opts {
     uint32_t fb_bits, cpu_scale;        /* cpu_scale 0: auto */
     int fb_given, scale_given;
     int exact;                          /* --exact: no bounded termination */
+    uint32_t level;                     /* --level N (with level_given) */
+    int level_given;
+    uint32_t budget_ms;                 /* --budget-ms: window frame budget */
     int window;                         /* -1 until checked: from $DISPLAY */
     struct tvpal_player_opts po;        /* data mode, I/O, prefetch */
     uint32_t mem_mib;
@@ -71,7 +74,39 @@ struct play_session {
     uint32_t a, b;                      /* first and last step */
     struct tvpal_tf tfs[PLAY_MAX_TF + 1]; /* --tf files, then the default */
     unsigned ntf;                       /* --tf count (tfs[ntf]: default) */
+    /* Levels of detail (tvpal-encode --levels): lvl[0] is pl, level k's
+     * player is opened on its first use (play_levels.c); every level gets
+     * the same TF, opacity and slice reduction. */
+    unsigned nlevels;                   /* 1 + the manifest's levels */
+    struct tvpal_player *lvl[TVPAL_LEVELS_MAX + 1];
+    const struct tvpal_tf *tf;
+    double tf_opacity;
+    unsigned reduce;
 };
+
+/* play_levels.c.  After s->pl and s->m are open. */
+void play_levels_init(struct play_session *s);
+/* Output pixels per voxel of level 0 under the set-up view v. */
+double play_level0_pixels_per_voxel(const struct tvpal_view *v);
+/* The level a still frame of view v0 (level 0's, set up) draws from: the
+ * finest whose voxels are at least half an output pixel wide, so 1024^3
+ * seen whole into 512x512 draws from the 512^3 level. */
+unsigned play_level_auto(const struct play_session *s,
+                         const struct tvpal_view *v0);
+/* Level k's player (the coarsest there is when k is beyond it), opened on
+ * first use from OUTDIR/level-k (under MPI its node-r: the encoder's
+ * layout); ends the job when it cannot be opened or does not match. */
+struct tvpal_player *play_level_player(struct play_session *s, unsigned k);
+/* View v0 of level 0 for level k (its player open): the same box, angles,
+ * image and opacity, level k's dims and voxel size. */
+void play_level_view(const struct play_session *s, unsigned k,
+                     const struct tvpal_view *v0, struct tvpal_view *vk);
+void play_set_tf(struct play_session *s, const struct tvpal_tf *tf,
+                 double opacity);
+void play_set_reduce(struct play_session *s, unsigned reduce);
+uint64_t play_levels_incore_bytes(const struct play_session *s);
+/* Closes levels 1.. (level 0 is s->pl, the loops close it). */
+void play_levels_close(struct play_session *s);
 
 /* The loops.  Each returns the exit status (0, or 1 after load errors)
  * and closes s->pl. */

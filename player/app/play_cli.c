@@ -63,6 +63,13 @@ static void usage(FILE *f)
 "                           (default: 1 to 4, as many as the view shows) or\n"
 "                           1..8 (sharper at close zoom; cost grows as K^2);\n"
 "                           implies --renderer cpu\n"
+"      --level N            draw from level of detail N (0: the finest;\n"
+"                           tvpal-encode --levels); default: the finest\n"
+"                           whose voxels are at least half a pixel, and\n"
+"                           in a window coarser while dragging, scrubbing or\n"
+"                           playing faster than --budget-ms allows\n"
+"      --budget-ms MS       window: the frame time to keep to while the view\n"
+"                           moves, 1..100000 (default 66, about 15 fps)\n"
 "      --exact              cpu renderer: blend every sample until a pixel is\n"
 "                           fully opaque (default: a pixel stops once its\n"
 "                           remaining transmittance is at most 1/510, which\n"
@@ -245,6 +252,12 @@ static int set_fb(struct play_opts *o, const char *arg)
                ? 0 : -1;
 }
 
+static int set_level(struct play_opts *o, const char *arg)
+{
+    o->level_given = 1;
+    return tvpal_parse_u32(arg, 0, TVPAL_LEVELS_MAX, &o->level);
+}
+
 static int set_cpu_scale(struct play_opts *o, const char *arg)
 {
     o->scale_given = 1;
@@ -290,7 +303,7 @@ static int set_composite(struct play_opts *o, const char *arg)
 enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
        K_REPEAT, K_TF_CYCLE, K_JUMPS, K_AUTOPLAY, K_SCREENSHOT, K_OPACITY,
        K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_DIRECT, K_MEM, K_CSV, K_STRICT,
-       K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR, K_EXACT };
+       K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR, K_EXACT, K_LEVEL, K_BUDGET };
 
 /* Grouped as --help groups them. */
 static const struct opt_def opt_table[] = {
@@ -314,6 +327,9 @@ static const struct opt_def opt_table[] = {
     {"cpu-scale", K_CPU_SCALE, OPT_FN, 0, 0, 0, set_cpu_scale,
      "auto or 1..8"},
     {"exact", K_EXACT, OPT_SET, F(exact), 1, 0, NULL, NULL},
+    {"level", K_LEVEL, OPT_FN, 0, 0, 0, set_level, "0..8"},
+    {"budget-ms", K_BUDGET, OPT_U32, F(budget_ms), 1, 100000, NULL,
+     "1..100000"},
     {"spin", K_SPIN, OPT_DOUBLE, F(spin), -PLAY_DEG_MAX, PLAY_DEG_MAX, NULL,
      "degrees in -360..360"},
     {"scale-z", K_SCALE_Z, OPT_DOUBLE, F(scale_z), 0.001, 1000, NULL,
@@ -358,7 +374,7 @@ static void defaults(struct play_opts *o)
         .width = 512, .height = 512, .ax = 20, .ay = 30, .zoom = 1,
         .scale_z = 1,
         .opacity = 1, .renderer = PLAY_REND_AUTO, .renderer_why = "",
-        .fb_bits = 32, .window = -1, .repeat = 1,
+        .fb_bits = 32, .window = -1, .repeat = 1, .budget_ms = 66,
         .po = {.incore = 0, .io = TVPAL_IO_URING, .prefetch = 4, .direct = 1},
         .ckind = TVPAL_COMPOSE_BSWAP};
 }

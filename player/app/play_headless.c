@@ -34,7 +34,10 @@ struct headless {
     char *csv_default;
     FILE *csv;
     int quiet, digits;
-    struct tvpal_view v;
+    struct tvpal_view v;            /* level 0's view */
+    unsigned level;                 /* this frame's level of detail, */
+    struct tvpal_player *lpl;       /* its player (s->lvl[level]) */
+    struct tvpal_view vl;           /* and v for it */
     int dir_step;
     uint32_t nframes;
     unsigned errors;
@@ -119,12 +122,23 @@ static void setup_view(struct headless *h)
     h->rng = 0x9E3779B97F4A7C15ull;
 }
 
+/* The level of detail of a frame of view h->v (--level, else the finest
+ * whose voxels cover about a pixel), its player and view. */
+static void choose_level(struct headless *h)
+{
+    h->level = h->o->level_given ? h->o->level
+                                 : play_level_auto(h->s, &h->v);
+    h->lpl = play_level_player(h->s, h->level);
+    play_level_view(h->s, h->level, &h->v, &h->vl);
+}
+
 /* The first frame's axis, opened now: a refused I/O path ends the run
  * before any frame, and the start line says what the reads really do. */
 static void open_first_axis(struct headless *h)
 {
     struct tvpal_diag d = {{0}};
-    if (tvpal_player_open_axis(h->s->pl, h->v.axis, &d) < 0)
+    choose_level(h);
+    if (tvpal_player_open_axis(h->lpl, h->vl.axis, &d) < 0)
         play_die(1, "%s: %s", h->o->dir, d.msg[0] ? d.msg : "cannot open");
 }
 
@@ -133,16 +147,21 @@ static void print_start_line(const struct headless *h)
     const struct tvpal_manifest *m = h->s->m;
     char desc[160];
     const char *io, *direct, *why;
-    tvpal_player_io_path(h->s->pl, &io, &direct, &why);
+    tvpal_player_io_path(h->lpl, &io, &direct, &why);
     /* A fallback is said even with -q: it changes what is measured. */
     if (why[0])
         fprintf(stderr, PROG ": warning: %s\n", why);
     if (h->quiet)
         return;
-    fprintf(stderr, PROG ": %s: %ux%ux%u, %u steps, window %u; axis %c, "
+    char lv[96] = "";
+    if (h->s->nlevels > 1)
+        snprintf(lv, sizeof lv, ", level %u of 0..%u (%ux%ux%u%s)", h->level,
+                 h->s->nlevels - 1, h->vl.dims[0], h->vl.dims[1],
+                 h->vl.dims[2], h->o->level_given ? ", --level" : "");
+    fprintf(stderr, PROG ": %s: %ux%ux%u, %u steps, window %u%s; axis %c, "
             "data %s (%s, O_DIRECT %s), renderer %s (%s%s)\n", h->o->dir,
-            m->dims[0], m->dims[1], m->dims[2], m->steps, m->window,
-            "xyz"[h->v.axis], h->o->po.incore ? "in-core" : "streamed", io,
+            m->dims[0], m->dims[1], m->dims[2], m->steps, m->window, lv,
+            "xyz"[h->vl.axis], h->o->po.incore ? "in-core" : "streamed", io,
             direct, h->pr.r.name,
             play_renderer_describe(&h->pr, desc, sizeof desc),
             h->o->renderer_why);
@@ -171,7 +190,7 @@ static double reference_psnr(struct headless *h, uint32_t t)
 {
     struct tvpal_frame_stats st;
     struct tvpal_diag d = {{0}};
-    if (tvpal_player_frame(h->s->pl, &h->v, t, h->dir_step, &h->rref,
+    if (tvpal_player_frame(h->lpl, &h->vl, t, h->dir_step, &h->rref,
                            h->ref_rgba, &st, &d) < 0 && !st.rendered)
         play_die(2, "step %u: reference: %s", t, d.msg);
     const double *ref = tvpal_ref_image(h->ref);
@@ -191,10 +210,11 @@ static void draw_frame(struct headless *h, uint32_t t, struct play_rank_rec *me,
     struct tvpal_frame_stats st;
     struct tvpal_diag d = {{0}};
     double f0 = tvpal_now();
-    int rc = tvpal_player_frame(h->s->pl, &h->v, t, h->dir_step, &h->pr.r,
+    choose_level(h);
+    int rc = tvpal_player_frame(h->lpl, &h->vl, t, h->dir_step, &h->pr.r,
                                 h->rgba, &st, &d);
     for (uint32_t k = 1; k < h->o->repeat && rc >= 0; k++)
-        rc = tvpal_player_frame(h->s->pl, &h->v, t, h->dir_step, &h->pr.r,
+        rc = tvpal_player_frame(h->lpl, &h->vl, t, h->dir_step, &h->pr.r,
                                 h->rgba, &st, &d);
     if (!st.rendered && rc < 0 && !play_cluster_multi())
         play_die(2, "step %u: %s", t, d.msg);
@@ -224,7 +244,7 @@ static void draw_frame(struct headless *h, uint32_t t, struct play_rank_rec *me,
     *row = (struct play_row){.step = t, .axis = "xyz"[st.axis],
                              .drawn = st.drawn, .skipped = st.skipped,
                              .uploads = st.uploads, .stride = st.stride,
-                             .staged = st.staged,
+                             .staged = st.staged, .level = h->level,
                              .axis_switch_ms = st.axis_switch_ms,
                              .ranks = play_comm.size, .psnr = NAN,
                              .time = h->s->m->ntimes ? h->s->m->times[t]
@@ -297,7 +317,7 @@ static void play_frames(struct headless *h)
             tvpal_view_setup(&h->v);
         }
         if (o->tf_cycle && o->ntf > 1)
-            tvpal_player_set_tf(h->s->pl, &h->s->tfs[i % o->ntf], o->opacity);
+            play_set_tf(h->s, &h->s->tfs[i % o->ntf], o->opacity);
         struct play_rank_rec me;
         struct play_row row;
         draw_frame(h, t, &me, &row);
@@ -322,13 +342,17 @@ static void print_summary(struct headless *h, double elapsed)
     play_timing_summary(stdout, &h->tot,
                         h->nframes / (elapsed > 0 ? elapsed : 1e-9));
     const char *io, *direct, *why;
-    tvpal_player_io_path(h->s->pl, &io, &direct, &why);
+    /* The I/O path of the level drawn last; counts over every level. */
+    tvpal_player_io_path(h->lpl, &io, &direct, &why);
+    uint64_t submits = 0;
+    for (unsigned k = 0; k < h->s->nlevels; k++)
+        if (h->s->lvl[k])
+            submits += tvpal_player_io_submits(h->s->lvl[k]);
     printf(" incore_mib=%.1f mode=%s io=%s direct=%s io_submits=%llu "
            "renderer=%s errors=%u\n",
-           tvpal_player_incore_bytes(h->s->pl) / 1048576.0,
-           tvpal_player_io_name(h->s->pl), io, direct,
-           (unsigned long long)tvpal_player_io_submits(h->s->pl),
-           h->pr.r.name, h->errors);
+           play_levels_incore_bytes(h->s) / 1048576.0,
+           tvpal_player_io_name(h->lpl), io, direct,
+           (unsigned long long)submits, h->pr.r.name, h->errors);
     if (h->o->ref_psnr)
         printf("psnr_ref=%.3f\n", play_timing_mean_psnr(&h->tot));
 }
@@ -339,6 +363,7 @@ static void teardown(struct headless *h)
         fclose(h->csv);
     play_renderer_close(&h->pr);
     tvpal_ref_free(h->ref);
+    play_levels_close(h->s);
     tvpal_player_close(h->s->pl);
     h->s->pl = NULL;
     tvpal_compositor_free(h->cx);

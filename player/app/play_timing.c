@@ -86,6 +86,7 @@ static const struct column columns[] = {
     {"psnr_ref", C_MS, R(psnr), S_MEAN},
     {"time", C_REAL, R(time), S_NONE},
     {"records_staged", C_U32, R(staged), S_NONE},
+    {"level", C_U32, R(level), S_NONE},
 };
 #define NCOLS (sizeof columns / sizeof *columns)
 

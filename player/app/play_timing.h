@@ -25,6 +25,7 @@ struct play_row {
     char axis;
     struct play_rank_rec agg;       /* over ranks (play_timing_aggregate) */
     uint32_t drawn, skipped, uploads, stride, staged;
+    uint32_t level;                 /* level of detail drawn */
     double axis_switch_ms;
     int jump, ranks;
     double psnr;                    /* against the reference, or NAN */

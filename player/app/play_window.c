@@ -6,6 +6,7 @@
 #include "play_cluster.h"
 #include "play_renderer.h"
 #include "tvpal_clock.h"
+#include "tvpal_fs.h"
 #include "tvpal_png.h"
 #include "tvpal_win.h"
 
@@ -18,8 +19,8 @@
 
 /* What rank 0's window tells every rank before each frame. */
 struct win_cmd {
-    int quit, render, reduce, toggle_mode, reload_tf;
-    uint32_t t, tfi, width, height;
+    int quit, render, reduce, toggle_mode, reload_tf, interacting;
+    uint32_t t, tfi, width, height, level;
     int dir;
     double ax, ay, zoom, opacity, scale_z;
 };
@@ -47,6 +48,13 @@ struct win_state {
     uint32_t frames;
     double fps, last;
     char last_err[256];
+    /* Levels of detail: rank 0's running mean of each level's frame time
+     * (ms; 0 until drawn), the level of the last frame and whether it was
+     * coarser than a still frame's. */
+    double level_ms[TVPAL_LEVELS_MAX + 1];
+    unsigned level;
+    int coarse;
+    FILE *csv;                      /* --csv: a line per frame (rank 0) */
 };
 
 static void free_buffers(struct win_state *w)
@@ -173,6 +181,42 @@ static void handle_key(struct win_state *w, int key, struct win_cmd *cmd)
     w->redraw = 1;
 }
 
+/* The view of level 0 that cmd describes. */
+static void cmd_view(const struct win_state *w, const struct win_cmd *cmd,
+                     struct tvpal_view *v)
+{
+    *v = (struct tvpal_view){.width = w->W, .height = w->H, .ax_deg = cmd->ax,
+                             .ay_deg = cmd->ay, .zoom = cmd->zoom};
+    memcpy(v->dims, w->s->m->dims, sizeof v->dims);
+    play_view_spacing(w->s->m, cmd->scale_z, v->spacing);
+    tvpal_view_setup(v);
+}
+
+/* Rank 0: the level of detail of the frame.  --level forces one; a still
+ * frame draws from the finest whose voxels are at least half a pixel;
+ * while the view moves (drag, scrub, play) the first level from there
+ * whose frames keep to --budget-ms, as last measured (a level not yet
+ * drawn is tried), down to the coarsest. */
+static void choose_level(struct win_state *w, struct win_cmd *cmd, int moving)
+{
+    const struct play_session *s = w->s;
+    if (w->o->level_given) {
+        cmd->level = w->o->level;
+        return;
+    }
+    cmd->ax = w->ax;
+    cmd->ay = w->ay;
+    cmd->zoom = w->zoom;
+    cmd->scale_z = w->scale_z;
+    struct tvpal_view v;
+    cmd_view(w, cmd, &v);
+    unsigned k = play_level_auto(s, &v);
+    if (moving)
+        while (k + 1 < s->nlevels && w->level_ms[k] > w->o->budget_ms)
+            k++;
+    cmd->level = k;
+}
+
 /* Rank 0: this frame's input, and the command for every rank. */
 static void read_input(struct win_state *w, struct win_cmd *cmd)
 {
@@ -205,7 +249,7 @@ static void read_input(struct win_state *w, struct win_cmd *cmd)
     }
     /* Reduced quality while the user interacts; refine when idle. */
     int interacting = in.dragging || in.scrubbing;
-    if (!interacting && w->reduced)
+    if (!interacting && (w->reduced || w->coarse))
         w->redraw = 1;
     if (w->playing && !w->redraw) {
         int64_t nt = (int64_t)w->t + w->dir;
@@ -214,7 +258,10 @@ static void read_input(struct win_state *w, struct win_cmd *cmd)
         w->t = (uint32_t)nt;
     }
     cmd->render = w->redraw || w->playing;
-    cmd->reduce = interacting ? 2 : 1;
+    cmd->interacting = interacting;
+    choose_level(w, cmd, interacting || w->playing);
+    /* Without coarser levels, every other slice while interacting. */
+    cmd->reduce = interacting && w->s->nlevels == 1 ? 2 : 1;
     cmd->t = w->t;
     cmd->dir = w->dir;
     cmd->tfi = w->tfi;
@@ -253,8 +300,11 @@ static void toggle_mode(struct win_state *w)
     int rc = tvpal_player_open(&np, w->multi ? tvpal_player_dir(s->pl)
                                              : w->o->dir, &w->po, &d);
     play_check_all(rc, d.msg, 1);
+    play_levels_close(s);   /* reopened in the new mode when drawn */
     tvpal_player_close(s->pl);
     s->pl = np;
+    s->lvl[0] = np;
+    s->o->po.incore = w->po.incore;
     s->m = tvpal_player_manifest(np);
     if (w->leader && !w->o->quiet)
         fprintf(stderr, PROG ": data now %s (%.0f ms)\n",
@@ -278,17 +328,18 @@ static void render(struct win_state *w, const struct win_cmd *cmd,
                    struct tvpal_view *v)
 {
     struct play_session *s = w->s;
-    tvpal_player_set_tf(s->pl, &s->tfs[cmd->tfi], cmd->opacity);
-    tvpal_player_set_reduce(s->pl, (unsigned)cmd->reduce);
+    play_set_tf(s, &s->tfs[cmd->tfi], cmd->opacity);
+    play_set_reduce(s, (unsigned)cmd->reduce);
     w->reduced = cmd->reduce > 1;
-    *v = (struct tvpal_view){.width = w->W, .height = w->H, .ax_deg = cmd->ax,
-                             .ay_deg = cmd->ay, .zoom = cmd->zoom};
-    memcpy(v->dims, s->m->dims, sizeof v->dims);
-    play_view_spacing(s->m, cmd->scale_z, v->spacing);
-    tvpal_view_setup(v);
+    struct tvpal_view v0;
+    cmd_view(w, cmd, &v0);
+    struct tvpal_player *pl = play_level_player(s, cmd->level);
+    play_level_view(s, cmd->level, &v0, v);
+    w->coarse = !w->o->level_given && cmd->level > play_level_auto(s, &v0);
     struct tvpal_frame_stats st;
     struct tvpal_diag d = {{0}};
-    int rc = tvpal_player_frame(s->pl, v, cmd->t, cmd->dir, &w->pr.r, w->img,
+    double f0 = tvpal_now();
+    int rc = tvpal_player_frame(pl, v, cmd->t, cmd->dir, &w->pr.r, w->img,
                                 &st, &d);
     if (rc < 0 && strcmp(d.msg, w->last_err)) {
         snprintf(w->last_err, sizeof w->last_err, "%s", d.msg);
@@ -307,6 +358,15 @@ static void render(struct win_state *w, const struct win_cmd *cmd,
         if (tvpal_composite(w->cx, &play_comm, TVPAL_COMPOSE_BSWAP,
                             !v->descending, w->img, w->final, &cs) < 0)
             play_die_rank(1, "compositing failed at step %u", cmd->t);
+    }
+    double ms = (tvpal_now() - f0) * 1e3;
+    double *m = &w->level_ms[cmd->level];
+    *m = *m > 0 ? 0.7 * *m + 0.3 * ms : ms;
+    w->level = cmd->level;
+    if (w->csv) {
+        fprintf(w->csv, "%u,%u,%u,%d,%.3f\n", w->frames, cmd->t, cmd->level,
+                cmd->interacting, ms);
+        fflush(w->csv);
     }
     w->redraw = 0;
     w->frames++;
@@ -333,12 +393,17 @@ static void present(struct win_state *w, const struct win_cmd *cmd,
     if (m->ntimes)
         snprintf(when, sizeof when, " (%g%s%.40s)", m->times[cmd->t],
                  m->time_units[0] ? " " : "", m->time_units);
-    char title[320];
+    char lv[64] = "";
+    if (w->s->nlevels > 1)
+        snprintf(lv, sizeof lv, " - level %u/%u (%ux%ux%u)", cmd->level,
+                 w->s->nlevels - 1, v->dims[0], v->dims[1], v->dims[2]);
+    char title[384];
     snprintf(title, sizeof title, PROG " - t=%u/%u%s - %.1f fps - %s%s - "
-             "axis %c - %s - %s%s%s", cmd->t, T - 1, when, w->fps,
+             "axis %c%s - %s - %s%s%s", cmd->t, T - 1, when, w->fps,
              tvpal_player_io_name(w->s->pl), w->po.incore ? "" : " stream",
-             "xyz"[v->axis], w->pr.r.name, w->s->tfs[cmd->tfi].name,
-             w->reduced ? " - preview" : "", w->multi ? " - cluster" : "");
+             "xyz"[v->axis], lv, w->pr.r.name, w->s->tfs[cmd->tfi].name,
+             w->reduced || w->coarse ? " - preview" : "",
+             w->multi ? " - cluster" : "");
     tvpal_win_title(w->win, title);
 }
 
@@ -405,7 +470,16 @@ int play_run_window(struct play_session *s)
         .opacity = s->o->opacity, .scale_z = s->o->scale_z, .t = s->a, .dir = s->b >= s->a ? 1 : -1,
         .playing = s->o->autoplay > 0, .redraw = 1, .last = tvpal_now()};
     open_window(&w);
+    if (w.leader && s->o->csv_path) {
+        struct tvpal_diag d = {{0}};
+        int rc;
+        if (!(w.csv = tvpal_open_log(s->o->csv_path, &rc, &d)))
+            play_die(2, "cannot write %s", d.msg);
+        fprintf(w.csv, "frame,step,level,interacting,frame_ms\n");
+    }
     event_loop(&w);
+    if (w.csv && fclose(w.csv) != 0)
+        play_die(1, "%s: write error", s->o->csv_path);
     if (w.leader && w.o->shot && save_shot(&w, w.o->shot) < 0)
         play_die(1, "%s: cannot write", w.o->shot);
     if (w.leader)
@@ -414,6 +488,7 @@ int play_run_window(struct play_session *s)
                play_comm.size, w.pr.r.name);
     play_renderer_close(&w.pr);
     tvpal_win_close(w.win);
+    play_levels_close(s);
     tvpal_player_close(s->pl);
     s->pl = NULL;
     free_buffers(&w);

@@ -34,6 +34,11 @@ static void open_dataset(struct play_session *s)
     free(node_dir);
     play_check_all(rc, d.msg, 2);
     s->m = tvpal_player_manifest(s->pl);
+    play_levels_init(s);
+    if (o->level_given && o->level >= s->nlevels)
+        play_die(2, "--level %u: expected 0..%u (the dataset has %u coarser "
+                 "level%s)", o->level, s->nlevels - 1, s->nlevels - 1,
+                 s->nlevels == 2 ? "" : "s");
     s->a = 0;
     s->b = s->m->steps - 1;
     uint32_t ab[2];
@@ -66,7 +71,7 @@ static void load_tfs(struct play_session *s)
     tvpal_tf_default(m->value_min, m->value_max, m->histogram,
                      TVPAL_HIST_BINS, &s->tfs[s->ntf]);
     play_tf_apply_options(s->o, &s->tfs[s->ntf]);
-    tvpal_player_set_tf(s->pl, &s->tfs[0], s->o->opacity);
+    play_set_tf(s, &s->tfs[0], s->o->opacity);
 }
 
 /* --mem: how many timesteps of one axis the budget holds. */

@@ -74,6 +74,8 @@ void tvpal_view_setup(struct tvpal_view *v)
     v->axis = ax;
     v->dcos = fabs(d[ax]);
     v->gap = iso ? 1.0 : v->spacing[ax] / smin;
+    if (v->opacity_unit > 0 && isfinite(v->opacity_unit))
+        v->gap = (iso ? 1.0 : v->spacing[ax]) / v->opacity_unit;
     /* Farther slices first: larger coordinate along d is farther. */
     v->descending = d[ax] > 0;
     double zoom = safe_zoom(v->zoom);

@@ -12,7 +12,8 @@
  * the TF opacity is per unit of the smallest voxel spacing, corrected for
  * the distance a ray travels between two slices:
  * alpha' = 1 - (1 - alpha)^(gap / |cos theta|), gap = the slice spacing
- * over the smallest spacing (1 on an isotropic grid).
+ * over the smallest spacing (1 on an isotropic grid), or over opacity_unit
+ * where that is set.
  */
 #ifndef TVPAL_VIEW_H
 #define TVPAL_VIEW_H
@@ -23,6 +24,10 @@ struct tvpal_view {
     uint32_t dims[3];
     double spacing[3];           /* voxel size per axis (physical units, any
                                   * scale); 0 in all three: 1 1 1 */
+    double opacity_unit;         /* the length the TF's opacity is per; 0
+                                  * (the default): the smallest spacing.  A
+                                  * coarser level of detail keeps its finest
+                                  * level's, so it looks as opaque */
     unsigned width, height;      /* image size in pixels */
     double ax_deg, ay_deg, zoom;
     /* derived by tvpal_view_setup */
@@ -32,7 +37,8 @@ struct tvpal_view {
     unsigned axis;               /* slice axis */
     int descending;              /* draw slices from high to low index */
     double dcos;                 /* |view direction . axis| */
-    double gap;                  /* slice spacing / smallest spacing */
+    double gap;                  /* slice spacing / smallest spacing (or
+                                  * opacity_unit) */
 };
 
 /* Zoom range the view honours (tvpal_view_setup clamps to it). */

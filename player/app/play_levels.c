@@ -1,0 +1,142 @@
+/* play_levels.c: the levels of detail of the dataset being played (see
+ * play.h). */
+#define _GNU_SOURCE
+#include "play.h"
+#include "play_cluster.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PROG PLAY_PROG
+
+void play_levels_init(struct play_session *s)
+{
+    s->nlevels = 1 + s->m->levels;
+    memset(s->lvl, 0, sizeof s->lvl);
+    s->lvl[0] = s->pl;
+    s->reduce = 1;
+}
+
+/* Output pixels per voxel of level 0 under view v (set up): the voxel's
+ * side as the geometric mean of its three, in eye units, over a pixel's. */
+double play_level0_pixels_per_voxel(const struct tvpal_view *v)
+{
+    double pix = fmin(2 * v->sx / v->width, 2 * v->sy / v->height);
+    double vox = 1;
+    for (int i = 0; i < 3; i++)
+        vox *= 2 * v->half[i] / (v->dims[i] ? v->dims[i] : 1);
+    vox = cbrt(vox);
+    return pix > 0 ? vox / pix : 1;
+}
+
+unsigned play_level_auto(const struct play_session *s,
+                         const struct tvpal_view *v0)
+{
+    double ppv = play_level0_pixels_per_voxel(v0);
+    unsigned k = 0;
+    /* The finest level whose voxels are at least half a pixel wide: no
+     * pixel spans more than two of them along an axis (a finer level's
+     * detail the image cannot show).  A cube seen whole at zoom 1 spans
+     * the image with its diagonal, sqrt 3 sides: 512^3 into 512 pixels
+     * has voxels of 0.58 pixel and draws level 0, 1024^3 its 512^3
+     * level. */
+    while (k + 1 < s->nlevels && !(ppv * (double)(1u << k) >= 0.5))
+        k++;
+    return k;
+}
+
+struct tvpal_player *play_level_player(struct play_session *s, unsigned k)
+{
+    if (k >= s->nlevels)
+        k = s->nlevels - 1;
+    if (s->lvl[k])
+        return s->lvl[k];
+    char *dir = NULL, *node_dir = NULL;
+    if (asprintf(&dir, "%s/level-%u", s->o->dir, k) < 0)
+        play_die_rank(1, "out of memory");
+    /* Under MPI: the level's node directory in the dataset (the encoder's
+     * layout; --shard-dir names level 0's alone). */
+    if (play_cluster_mpi() && !(node_dir = play_shard_dir(dir, NULL, play_comm.rank)))
+        play_die_rank(1, "out of memory");
+    struct tvpal_diag d = {{0}};
+    struct tvpal_player *p = NULL;
+    int rc = tvpal_player_open(&p, node_dir ? node_dir : dir, &s->o->po, &d);
+    if (rc == 0) {
+        const struct tvpal_manifest *m = tvpal_player_manifest(p);
+        if (m->steps != s->m->steps || m->nodes != s->m->nodes) {
+            tvpal_diag_set(&d, TVPAL_E_FORMAT, "%u steps on %u nodes, level "
+                           "0 has %u on %u", m->steps, m->nodes, s->m->steps,
+                           s->m->nodes);
+            rc = TVPAL_E_FORMAT;
+        }
+    }
+    if (rc < 0)
+        play_die_rank(1, "%s: level %u: %s", node_dir ? node_dir : dir, k,
+                      d.msg);
+    free(dir);
+    free(node_dir);
+    if (s->tf)
+        tvpal_player_set_tf(p, s->tf, s->tf_opacity);
+    tvpal_player_set_reduce(p, s->reduce);
+    s->lvl[k] = p;
+    return p;
+}
+
+void play_level_view(const struct play_session *s, unsigned k,
+                     const struct tvpal_view *v0, struct tvpal_view *vk)
+{
+    *vk = *v0;
+    if (k == 0)
+        return;
+    const struct tvpal_manifest *mk =
+        tvpal_player_manifest(((struct play_session *)s)->lvl[k]);
+    /* The same box: level k's voxels are d0 / dk of level 0's; level 0's
+     * spacing (1 on the unit grid) stays the opacity's unit. */
+    double smin = 0;
+    for (int i = 0; i < 3; i++) {
+        double s0 = v0->spacing[i] > 0 ? v0->spacing[i] : 1.0;
+        vk->dims[i] = mk->dims[i];
+        vk->spacing[i] = s0 * v0->dims[i] / mk->dims[i];
+        smin = i == 0 || s0 < smin ? s0 : smin;
+    }
+    vk->opacity_unit = smin;
+    tvpal_view_setup(vk);
+}
+
+void play_set_tf(struct play_session *s, const struct tvpal_tf *tf,
+                 double opacity)
+{
+    s->tf = tf;
+    s->tf_opacity = opacity;
+    for (unsigned k = 0; k < s->nlevels; k++)
+        if (s->lvl[k])
+            tvpal_player_set_tf(s->lvl[k], tf, opacity);
+}
+
+void play_set_reduce(struct play_session *s, unsigned reduce)
+{
+    s->reduce = reduce;
+    for (unsigned k = 0; k < s->nlevels; k++)
+        if (s->lvl[k])
+            tvpal_player_set_reduce(s->lvl[k], reduce);
+}
+
+uint64_t play_levels_incore_bytes(const struct play_session *s)
+{
+    uint64_t b = 0;
+    for (unsigned k = 0; k < s->nlevels; k++)
+        if (s->lvl[k])
+            b += tvpal_player_incore_bytes(s->lvl[k]);
+    return b;
+}
+
+void play_levels_close(struct play_session *s)
+{
+    for (unsigned k = 1; k < s->nlevels; k++) {
+        tvpal_player_close(s->lvl[k]);
+        s->lvl[k] = NULL;
+    }
+    s->lvl[0] = s->pl;
+}

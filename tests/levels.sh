@@ -1,0 +1,210 @@
+#!/bin/sh
+# levels: tvpal-encode --levels L and the player's levels of detail.
+# Encoder: level k is the 2x2x2 average of level k - 1 (odd dims: the last
+# block is shorter), missing values left out of each mean and a block all
+# missing decoding as NaN; each level decodes within a stated PSNR of that
+# average (floor 30 dB, the level-0 encode's own figure is printed beside
+# it); the manifest says format_version 2 and levels; a run stopped during
+# the levels resumes without redoing level 0 and gives the same bytes;
+# impossible level counts are refused up front.  Player: the level chosen
+# for given zooms and sizes matches the rule computed here (the finest
+# level whose voxels are at least half a pixel); --level forces one and
+# refuses one the dataset lacks; a coarse level keeps the image's opacity
+# (mean brightness within 5% of level 0's); streaming reads only the level
+# drawn; a cluster of 2 ranks draws a level as one rank does.
+. "$(dirname "$0")/lib.sh"
+D=41x36x30
+"$GEN" --field turbulence --dims $D --steps 5 -o "$W/in" || fail gen
+# A block of missing values: voxel (0,0,0) in every step (a partly missing
+# 2x2x2 block), and the block x,y,z in 10..11 x 10..11 x 10..11 (wholly
+# missing: level 1 voxel (5,5,5)).
+$PY - "$W"/in/*.f32 <<'PY' || fail "make missing"
+import struct, sys
+nx, ny, nz = 41, 36, 30
+for p in sys.argv[1:]:
+    b = bytearray(open(p, "rb").read())
+    nan = struct.pack("<f", float("nan"))
+    idx = [0] + [x + nx * (y + ny * z) for z in (10, 11) for y in (10, 11) for x in (10, 11)]
+    for i in idx:
+        b[4 * i:4 * i + 4] = nan
+    open(p, "wb").write(b)
+PY
+"$ENC" -q --dims $D --window 4 --levels 2 -o "$W/ds" "$W"/in/*.f32 > "$W/enc.txt" 2>&1 || fail "encode: $(cat "$W/enc.txt")"
+grep -q "levels=2 levels_bytes=[1-9]" "$W/enc.txt" && ok "summary: $(grep -o 'levels=.*' "$W/enc.txt")" \
+    || fail "summary: $(cat "$W/enc.txt")"
+grep -q "^format_version = 2$" "$W/ds/manifest.txt" && grep -q "^levels = 2$" "$W/ds/manifest.txt" \
+    && ok "manifest: format_version 2, levels = 2" || fail "manifest: $(head -n 15 "$W/ds/manifest.txt")"
+grep -q "^dims = 21x18x15$" "$W/ds/level-1/manifest.txt" && grep -q "^dims = 11x9x8$" "$W/ds/level-2/manifest.txt" \
+    && ok "level dims 21x18x15, 11x9x8" || fail "level dims"
+[ ! -e "$W/ds/levels.job" ] && [ -z "$(ls -d "$W"/ds/level-*.src 2>/dev/null)" ] \
+    && ok "no temporaries left in the dataset" || fail "temporaries: $(ls "$W/ds")"
+"$INFO" "$W/ds/level-1" --verify > /dev/null && "$INFO" "$W/ds/level-2" --verify > /dev/null \
+    && ok "levels verify" || fail "level verify"
+# Decode every level at step 2 and compare with the averages made here.
+for k in 0 1 2; do
+    dir=$W/ds; [ $k -gt 0 ] && dir=$W/ds/level-$k
+    "$DEC" "$dir" --step 2 --axis z -o "$W/dec$k.f32" || fail "decode level $k"
+done
+$PY - "$W/in" "$W" <<'PY' > "$W/lv.txt" || fail "compare levels: $(cat "$W/lv.txt")"
+import array, glob, math, sys
+src = sorted(glob.glob(sys.argv[1] + "/*.f32"))[2]
+d = [41, 36, 30]
+v = array.array("f"); v.frombytes(open(src, "rb").read())
+def down(v, d):
+    c = [(n + 1) // 2 for n in d]
+    out = array.array("f", [0.0]) * (c[0] * c[1] * c[2])
+    for z in range(c[2]):
+        for y in range(c[1]):
+            for x in range(c[0]):
+                s, n = 0.0, 0
+                for dz in (0, 1):
+                    for dy in (0, 1):
+                        for dx in (0, 1):
+                            X, Y, Z = 2 * x + dx, 2 * y + dy, 2 * z + dz
+                            if X < d[0] and Y < d[1] and Z < d[2]:
+                                q = v[X + d[0] * (Y + d[1] * Z)]
+                                if q == q:
+                                    s += q; n += 1
+                out[x + c[0] * (y + c[1] * z)] = s / n if n else float("nan")
+    return out, c
+ref = [(v, d)]
+for k in (1, 2):
+    ref.append(down(*ref[-1]))
+lo = min(q for q in v if q == q); hi = max(q for q in v if q == q)
+for k, (r, c) in enumerate(ref):
+    dec = array.array("f"); dec.frombytes(open("%s/dec%d.f32" % (sys.argv[2], k), "rb").read())
+    assert len(dec) == len(r), (k, len(dec), len(r))
+    nan_ok = all((a != a) == (b != b) for a, b in zip(dec, r))
+    e = [(a - b) ** 2 for a, b in zip(dec, r) if b == b]
+    psnr = 10 * math.log10((hi - lo) ** 2 / (sum(e) / len(e)))
+    print("level %d %dx%dx%d psnr %.2f nan_match %d" % (k, c[0], c[1], c[2], psnr, nan_ok))
+PY
+cat "$W/lv.txt"
+for k in 0 1 2; do
+    awk -v k=$k '$2 == k { exit !($5 >= 30 && $7 == 1) }' "$W/lv.txt" \
+        && ok "level $k: decodes within the floor of its 2x2x2 average, missing exactly where it should" \
+        || fail "level $k: $(grep "level $k" "$W/lv.txt")"
+done
+# Refused up front: more levels than halving allows, fewer slices than
+# --nodes.
+expect_exit 2 "level 7 would be 1x1x1 again" "$ENC" -q --dims $D --levels 7 -o "$W/x" "$W"/in/*.f32
+expect_exit 2 "has fewer . slices than --nodes 16" "$ENC" -q --dims $D --nodes 16 --levels 1 -o "$W/x" "$W"/in/*.f32
+[ ! -e "$W/x" ] && [ ! -e "$W/x.partial" ] && ok "nothing written when refused" || fail "refused run wrote output"
+# A run that stops before level 2 resumes: level 0 is kept (its shard is
+# not rewritten), and the bytes equal the uninterrupted run's.
+TVPAL_ENCODE_FAULT_LEVEL=2 "$ENC" -q --dims $D --window 4 --levels 2 -o "$W/r" "$W"/in/*.f32 > /dev/null 2> "$W/r.err"
+[ $? -eq 1 ] && [ -e "$W/r.partial/levels.job" ] && [ -e "$W/r.partial/level-1/manifest.txt" ] && [ ! -e "$W/r" ] \
+    && ok "stopped before level 2: partial output with level 0 and 1, nothing final" || fail "fault: $(cat "$W/r.err")"
+touch -d '2000-01-01' "$W/r.partial/node-0/axis-z.tvps"
+m0=$(stat -c %Y "$W/r.partial/node-0/axis-z.tvps")
+"$ENC" -q --dims $D --window 4 --levels 2 -o "$W/r" "$W"/in/*.f32 > /dev/null || fail "resume"
+[ "$(stat -c %Y "$W/r/node-0/axis-z.tvps")" = "$m0" ] \
+    && ok "resumed: level 0 kept" || fail "resumed: level 0 rewritten"
+same=1
+for f in $(cd "$W/ds" && find . -name '*.tvps'); do cmp -s "$W/ds/$f" "$W/r/$f" || same=0; done
+[ $same = 1 ] && ok "resumed dataset byte-identical to the uninterrupted one" || fail "resumed bytes differ"
+PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
+if [ ! -x "$PLAY" ]; then
+    echo "built without OSMesa/libpng: player part skipped"
+    finish
+fi
+# The level chosen: the rule, computed here from the view's geometry.
+for case in "40x40 1" "80x80 1" "40x40 0.5" "20x20 1" "64x48 2" "160x160 0.3" "40x40 0.2"; do
+    set -- $case
+    size=$1 zoom=$2
+    want=$($PY -c "
+import math
+d = [41, 36, 30]; m = max(d); half = [n / m for n in d]
+r = math.sqrt(sum(h * h for h in half))
+W, H = map(int, '$size'.split('x')); a = W / H; z = $zoom
+sx = r / z * (a if a > 1 else 1); sy = r / z / (a if a < 1 else 1)
+pix = min(2 * sx / W, 2 * sy / H)
+vox = (math.prod(2 * h / n for h, n in zip(half, d))) ** (1 / 3)
+ppv, k = vox / pix, 0
+while k < 2 and ppv * 2 ** k < 0.5: k += 1
+print(k)")
+    "$PLAY" "$W/ds" --headless -q --renderer cpu --size $size --zoom $zoom --steps 0:1 --csv "$W/l.csv" > /dev/null 2>&1 || fail "play $case"
+    got=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "level") c = i } NR == 2 { print $c }' "$W/l.csv")
+    [ "$got" = "$want" ] && ok "size $size zoom $zoom: level $got" || fail "size $size zoom $zoom: level $got, rule says $want"
+done
+"$PLAY" "$W/ds" --headless -q --renderer cpu --size 80x80 --level 1 --steps 0:1 --csv "$W/f.csv" > /dev/null 2>&1 \
+    && [ "$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "level") c = i } NR > 1 { print $c }' "$W/f.csv" | sort -u)" = 1 ] \
+    && ok "--level 1 forces level 1" || fail "--level 1: $(cat "$W/f.csv")"
+expect_exit 2 "^tvpal-play: --level 3: expected 0..2" "$PLAY" "$W/ds" --headless -q --level 3
+expect_exit 2 '^tvpal-play: --level "9": expected 0..8' "$PLAY" "$W/ds" --headless -q --level 9
+# Opacity kept: mean brightness of levels 1 and 2 within 5% of level 0's.
+for k in 0 1 2; do
+    "$PLAY" "$W/ds" --headless -q --renderer cpu --size 96x96 --level $k --steps 2:2 -o "$W/img$k" > /dev/null 2>&1 || fail "play level $k"
+done
+$PY - "$W" <<'PY' > "$W/bright.txt" || fail "brightness"
+import sys
+exec(open(sys.argv[0] if False else "%s/tests/pngdiff.py" % __import__("os").environ["TVPAL_SRCDIR"]).read().split("wa, ha, ba, A = load")[0])
+m = []
+for k in range(3):
+    w, h, b, A = load("%s/img%d/t0002.png" % (sys.argv[1], k))
+    m.append(sum(sum(r) for r in A) / (w * h * b))
+print(" ".join("%.2f" % x for x in m))
+PY
+awk '{ exit !($1 > 0 && ($2 - $1) / $1 < 0.05 && ($1 - $2) / $1 < 0.05 && ($3 - $1) / $1 < 0.05 && ($1 - $3) / $1 < 0.05) }' "$W/bright.txt" \
+    && ok "mean brightness of levels 0, 1, 2: $(cat "$W/bright.txt")" || fail "brightness: $(cat "$W/bright.txt")"
+# Streaming reads only the level drawn.
+b0=$("$PLAY" "$W/ds" --headless -q --renderer cpu --size 64x64 --level 0 | sed 's/.*bytes_read=\([0-9]*\).*/\1/')
+b1=$("$PLAY" "$W/ds" --headless -q --renderer cpu --size 64x64 --level 1 | sed 's/.*bytes_read=\([0-9]*\).*/\1/')
+awk -v a="$b0" -v b="$b1" 'BEGIN { exit !(b > 0 && b * 2 < a) }' \
+    && ok "streamed: level 1 reads $b1 bytes, level 0 $b0" || fail "bytes read: level 0 $b0, level 1 $b1"
+# A cluster of 2 ranks draws level 1 as one rank does: with the gl
+# renderer, whose sort-last compositing is exact, within 1 level (as
+# tests/cluster.sh); without OSMesa, with the cpu renderer, whose per-rank
+# warp differs at the slab seam, no worse than twice level 0's difference
+# plus 6 levels (coarse voxels make the seam twice as wide).
+if command -v mpirun > /dev/null && "$PLAY" --version | grep -q "mpi: yes"; then
+    "$ENC" -q --dims $D --window 4 --nodes 2 --levels 1 -o "$W/k2" "$W"/in/*.f32 > /dev/null || fail "encode --nodes 2"
+    R="--renderer cpu"
+    "$PLAY" --version | grep -q "gl: yes" && R="--renderer gl"
+    for k in 0 1; do
+        "$PLAY" "$W/k2" --headless -q $R --size 64x56 --level $k --steps 1:1 -o "$W/c1-$k" > /dev/null 2>&1 || fail "one rank"
+        mpirun --allow-run-as-root --oversubscribe -np 2 "$PLAY" "$W/k2" --headless -q $R --size 64x56 \
+            --level $k --steps 1:1 --csv "$W/c2-$k.csv" -o "$W/c2-$k" > "$W/c2.txt" 2>&1 || fail "2 ranks: $(cat "$W/c2.txt")"
+        r=$($PY "$TVPAL_SRCDIR/tests/pngdiff.py" "$W/c1-$k/t0001.png" "$W/c2-$k/t0001.png")
+        eval "mx$k=$(echo "$r" | sed 's/max=\([0-9]*\).*/\1/')"
+        eval "r$k=\"$r\""
+    done
+    lv=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "level") c = i } NR == 2 { print $c }' "$W/c2-1.csv")
+    if [ "$R" = "--renderer gl" ]; then tol=1; else tol=$((2 * mx0 + 6)); fi
+    [ "$lv" = 1 ] && [ "$mx1" -le $tol ] && ok "2 ranks ($R) at level $lv: $r1 against one rank (level 0: $r0)" \
+        || fail "2 ranks ($R): level $lv, $r1 (level 0: $r0; tolerance $tol)"
+else
+    echo "no mpirun or built without MPI: cluster part skipped"
+fi
+# The window: coarse while dragging, refined when still.  A budget of 1 ms
+# that no level keeps drives the drag to the coarsest level; after the
+# button is let go the frame is drawn again at the still frame's level.
+if "$PLAY" --version | grep -q "window: yes" && command -v xvfb-run > /dev/null && command -v xdotool > /dev/null; then
+    cat > "$W/drag.sh" <<DRAG
+#!/bin/sh
+"$PLAY" "$W/ds" --window --size 96x96 --budget-ms 1 --csv "$W/win.csv" > "$W/win.txt" 2>&1 &
+pid=\$!
+wid=\$(xdotool search --sync --name tvpal-play | head -n 1)
+sleep 0.5
+xdotool mousemove --window \$wid 40 40
+xdotool mousedown 1
+for i in 1 2 3 4 5 6; do xdotool mousemove_relative 4 0; sleep 0.15; done
+xdotool getwindowname \$wid > "$W/title-drag.txt"
+xdotool mouseup 1
+sleep 0.8
+xdotool getwindowname \$wid > "$W/title-still.txt"
+xdotool key --window \$wid q 2>/dev/null
+wait \$pid
+DRAG
+    timeout 60 xvfb-run -a -s "-screen 0 640x480x24" sh "$W/drag.sh" || fail "driving the window"
+    awk -F, 'NR > 1 && $4 == 1 && $3 == 2 { d++ } END { exit !d }' "$W/win.csv" \
+        && ok "dragging: frames at level 2 ($(awk -F, 'NR > 1 && $4 == 1' "$W/win.csv" | wc -l) while dragging)" \
+        || fail "dragging: no coarse frame: $(head -n 8 "$W/win.csv")"
+    tail -n 1 "$W/win.csv" | awk -F, '{ exit !($4 == 0 && $3 == 0) }' \
+        && ok "still again: refined to level 0 ($(tail -n 1 "$W/win.csv"))" || fail "no refinement: $(tail -n 3 "$W/win.csv")"
+    grep -q "level 2/2 (11x9x8) .* - preview" "$W/title-drag.txt" && grep -q "level 0/2 (41x36x30)" "$W/title-still.txt" \
+        && ok "title shows the level: $(cat "$W/title-drag.txt")" || fail "title: $(cat "$W/title-drag.txt") / $(cat "$W/title-still.txt")"
+else
+    echo "no window build, xvfb-run or xdotool: window part skipped"
+fi
+finish
