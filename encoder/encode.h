@@ -227,6 +227,8 @@ void level_dims(const uint32_t d0[3], unsigned k, uint32_t out[3]);
  * OUTDIR.partial/level-k/ (encode_levels.c says how). */
 void encode_levels(struct run *r);
 void grid_of(const struct run *r, double spacing[3], double origin[3]);
+/* Frees the ring's boxes (run_free frees the rest). */
+void release_ring(struct run *r);
 /* Rows of row_bytes a raw read takes at once: READ_BLOCK's worth, at
  * least one, at most rows_max (a plane's).  Sizes the reading scratch. */
 size_t read_rows(uint64_t row_bytes, uint32_t rows_max);

@@ -340,10 +340,7 @@ void encode_levels(struct run *r)
     const char *fault = getenv("TVPAL_ENCODE_FAULT_LEVEL");
     const unsigned fault_k = fault ? (unsigned)atoi(fault) : 0;
     /* The ring is done with: its memory goes to the slabs read here. */
-    for (uint32_t i = 0; r->ring && r->ring[i]; i++) {
-        free(r->ring[i]);
-        r->ring[i] = NULL;
-    }
+    release_ring(r);
     struct plane_src ps = {.r = r, .level = 0, .slab_t = -1};
     memcpy(ps.dims, r->o.dims, sizeof ps.dims);
     const uint64_t plane = (uint64_t)ps.dims[0] * ps.dims[1];

@@ -1646,6 +1646,14 @@ static void print_summary(const struct run *r)
            (unsigned long long)r->st.missing, r->plan.npasses, lv);
 }
 
+void release_ring(struct run *r)
+{
+    for (uint32_t i = 0; r->ring && i < ring_slots(r); i++) {
+        free(r->ring[i]);
+        r->ring[i] = NULL;
+    }
+}
+
 static void run_free(struct run *r)
 {
     prefetch_stop(r->pf);   /* before the input it reads is closed */
