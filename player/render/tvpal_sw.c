@@ -190,7 +190,9 @@ void tvpal_sw_upload(struct tvpal_sw *r, uint32_t layer)
 
 /* Index sets of every tile of one slice: 256 bits, bit i set iff some
  * texel of the tile holds index i.  Marks in a byte table (stores only, no
- * dependency chain), then packs. */
+ * dependency chain), then packs.  The marks of tile row ty are the value
+ * ty % 255 + 1, so the table is cleared once per 255 tile rows, not per
+ * row. */
 static void build_sets(const struct tvpal_sw *r, uint32_t layer,
                        const uint8_t *idx)
 {
@@ -199,15 +201,32 @@ static void build_sets(const struct tvpal_sw *r, uint32_t layer,
     uint64_t *out = r->sets + (size_t)layer * r->trows * tcols * 4;
     _Alignas(16) uint8_t seen[64][256];
     for (unsigned ty = 0; ty < r->trows; ty++) {
-        memset(seen, 0, sizeof(seen[0]) * tcols);
+        const uint8_t mark = (uint8_t)(ty % 255 + 1);
+        if (mark == 1)
+            memset(seen, 0, sizeof(seen[0]) * tcols);
         uint32_t y1 = (ty + 1) * tile < h ? (ty + 1) * tile : h;
         for (uint32_t y = ty * tile; y < y1; y++) {
             const uint8_t *row = idx + (size_t)w * y;
             for (unsigned tx = 0; tx < tcols; tx++) {
                 uint32_t x0 = tx * tile, x1 = x0 + tile < w ? x0 + tile : w;
                 uint8_t *s = seen[tx];
-                for (uint32_t x = x0; x < x1; x++)
-                    s[row[x]] = 1;
+                uint32_t x = x0;
+                /* Eight indices per 64-bit load (tiles are 16 or more
+                 * wide): a store per texel, no loop step per texel. */
+                for (; x + 8 <= x1; x += 8) {
+                    uint64_t v;
+                    memcpy(&v, row + x, 8);
+                    s[v & 255] = mark;
+                    s[(v >> 8) & 255] = mark;
+                    s[(v >> 16) & 255] = mark;
+                    s[(v >> 24) & 255] = mark;
+                    s[(v >> 32) & 255] = mark;
+                    s[(v >> 40) & 255] = mark;
+                    s[(v >> 48) & 255] = mark;
+                    s[v >> 56] = mark;
+                }
+                for (; x < x1; x++)
+                    s[row[x]] = mark;
             }
         }
         for (unsigned tx = 0; tx < tcols; tx++) {
@@ -215,14 +234,15 @@ static void build_sets(const struct tvpal_sw *r, uint32_t layer,
             for (int q = 0; q < 4; q++) {
                 uint64_t bits = 0;
 #if defined(__SSE2__)
+                const __m128i vm = _mm_set1_epi8((char)mark);
                 for (int c = 0; c < 4; c++) {
                     __m128i v = _mm_load_si128((const __m128i *)&seen[tx][64 * q + 16 * c]);
-                    bits |= (uint64_t)(unsigned)_mm_movemask_epi8(_mm_slli_epi16(v, 7))
+                    bits |= (uint64_t)(unsigned)_mm_movemask_epi8(_mm_cmpeq_epi8(v, vm))
                             << (16 * c);
                 }
 #else
                 for (int i = 0; i < 64; i++)
-                    bits |= (uint64_t)seen[tx][64 * q + i] << i;
+                    bits |= (uint64_t)(seen[tx][64 * q + i] == mark) << i;
 #endif
                 m[q] = bits;
             }
