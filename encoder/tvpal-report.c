@@ -50,6 +50,9 @@ static void usage(FILE *f)
 "                      layout as at encoding); default: the manifest's sources\n"
 "  -c, --csv FILE      per-timestep figures as CSV\n"
 "  -j, --json FILE     everything as JSON\n"
+"  -l, --level K       report level of detail K (tvpal-encode --levels)\n"
+"                      against the source averaged 2x2x2 K times, as the\n"
+"                      encoder made it (default 0: the dataset itself)\n"
 "  -q, --quiet         only the closing summary line\n"
 "  -h, --help          this help\n"
 "  -V, --version       version\n"
@@ -70,6 +73,7 @@ struct options {
     const char *dir;                   /* OUTDIR */
     const char *csv_path, *json_path;  /* NULL: not written */
     int use_ref, quiet;
+    unsigned level;                    /* --level K */
     char **refs;    /* the reference files: the arguments after OUTDIR, or */
     size_t nrefs;   /* the manifest's sources (validate_options decides) */
     struct tvpal_input *src;  /* self-describing references (NetCDF, VTK),
@@ -80,11 +84,12 @@ static const struct option long_options[] = {
     {"reference", no_argument, 0, 'r'},
     {"csv", required_argument, 0, 'c'},
     {"json", required_argument, 0, 'j'},
+    {"level", required_argument, 0, 'l'},
     {"quiet", no_argument, 0, 'q'},
     {"help", no_argument, 0, 'h'},
     {"version", no_argument, 0, 'V'},
     {0, 0, 0, 0}};
-static const char short_options[] = "rc:j:qhV";
+static const char short_options[] = "rc:j:l:qhV";
 
 /* Fills o from argv.  Returns -1 to go on, or the exit status when the
  * program is done: --help, --version or a usage error (message printed). */
@@ -97,6 +102,16 @@ static int parse_options(int argc, char **argv, struct options *o)
         case 'r': o->use_ref = 1; break;
         case 'c': o->csv_path = optarg; break;
         case 'j': o->json_path = optarg; break;
+        case 'l': {
+            uint32_t k;
+            if (tvpal_parse_u32(optarg, 0, TVPAL_LEVELS_MAX, &k) < 0) {
+                fprintf(stderr, PROG ": --level \"%s\": expected 0..%d\n",
+                        optarg, TVPAL_LEVELS_MAX);
+                return TVPAL_EXIT_USAGE;
+            }
+            o->level = k;
+            break;
+        }
         case 'q': o->quiet = 1; break;
         case 'h': usage(stdout); return TVPAL_EXIT_OK;
         case 'V': printf(PROG " " PACKAGE_VERSION "\n"); return TVPAL_EXIT_OK;
@@ -243,6 +258,11 @@ struct axis_sum {
 struct report {
     const struct tvpal_dataset *ds;
     const struct tvpal_manifest *m;
+    /* The source read: m's, or with --level K level 0's (src_nvox voxels
+     * of src_dims, averaged K times into the reference). */
+    const struct tvpal_manifest *src_m;
+    unsigned level;
+    size_t src_nvox;
     const char *dir;
     uint32_t steps;
     size_t nvox;
@@ -309,8 +329,10 @@ static int report_init(struct report *r, const struct tvpal_dataset *ds,
                        const char *dir)
 {
     const struct tvpal_manifest *m = &ds->m;
-    *r = (struct report){.ds = ds, .m = m, .dir = dir, .steps = m->steps};
+    *r = (struct report){.ds = ds, .m = m, .src_m = m, .dir = dir,
+                         .steps = m->steps};
     r->nvox = (size_t)m->dims[0] * m->dims[1] * m->dims[2];
+    r->src_nvox = r->nvox;
     r->src_bytes = (uint64_t)r->nvox * r->steps * tvpal_type_size(m->type);
     r->vts = (double)r->nvox * r->steps;
     r->vmin = INFINITY;
@@ -328,6 +350,7 @@ static int report_init(struct report *r, const struct tvpal_dataset *ds,
  * t - 1 (for flicker), alternating by the parity of t; a reader per axis. */
 struct scan_buffers {
     void *raw;
+    float *full[2];          /* --level: the source step, then averages */
     float *ref[2], *dec[3][2];
     struct tvpal_volreader *vr[3];
 };
@@ -341,16 +364,22 @@ static void buffers_free(struct scan_buffers *b)
     }
     free(b->ref[0]);
     free(b->ref[1]);
+    free(b->full[0]);
+    free(b->full[1]);
     free(b->raw);
 }
 
 /* Returns 0 or -1 (out of memory; what was allocated is in b for
  * buffers_free). */
 static int buffers_alloc(struct scan_buffers *b, struct tvpal_dataset *ds,
-                         size_t nvox)
+                         const struct report *r)
 {
+    const size_t nvox = r->nvox;
     *b = (struct scan_buffers){0};
-    b->raw = malloc(nvox * tvpal_type_size(ds->m.type));
+    b->raw = malloc(r->src_nvox * tvpal_type_size(r->src_m->type));
+    if (r->level && (!(b->full[0] = malloc(r->src_nvox * sizeof(float))) ||
+                     !(b->full[1] = malloc(r->src_nvox * sizeof(float)))))
+        return -1;
     b->ref[0] = malloc(nvox * sizeof(float));
     b->ref[1] = malloc(nvox * sizeof(float));
     if (!b->raw || !b->ref[0] || !b->ref[1])
@@ -464,6 +493,55 @@ static void measure_step(struct step_err *p, size_t nvox, uint32_t t,
                            .missing = (double)miss, .mismatch = (double)bad};
 }
 
+/* One level coarser: each voxel the mean of the present values of its
+ * 2x2x2 block (a shorter block at an odd edge), NaN when none is, as
+ * tvpal-encode --levels makes it (encode_levels.c). */
+static void average_2x2x2(const float *in, const uint32_t d[3], float *out,
+                          uint32_t o[3])
+{
+    for (int a = 0; a < 3; a++)
+        o[a] = (d[a] + 1) / 2;
+    for (uint32_t z = 0; z < o[2]; z++)
+        for (uint32_t y = 0; y < o[1]; y++)
+            for (uint32_t x = 0; x < o[0]; x++) {
+                double s = 0;
+                unsigned n = 0;
+                for (uint32_t Z = 2 * z; Z < 2 * z + 2 && Z < d[2]; Z++)
+                    for (uint32_t Y = 2 * y; Y < 2 * y + 2 && Y < d[1]; Y++)
+                        for (uint32_t X = 2 * x; X < 2 * x + 2 && X < d[0]; X++) {
+                            float v = in[X + (size_t)d[0] * (Y + (size_t)d[1] * Z)];
+                            if (v == v) {
+                                s += v;
+                                n++;
+                            }
+                        }
+                out[x + (size_t)o[0] * (y + (size_t)o[1] * z)] =
+                    n ? (float)(s / n) : NAN;
+            }
+}
+
+/* Step t of the reference into dst: the source, or with --level K the
+ * source averaged K times.  0 or -1 (printed). */
+static int reference_step(struct report *r, char **refs,
+                          struct tvpal_input *src, struct scan_buffers *b,
+                          uint32_t t, float *dst)
+{
+    float *into = r->level ? b->full[0] : dst;
+    if ((src ? read_input_step(r->src_m, src, t, into, r->src_nvox)
+             : read_reference_step(r->src_m, refs, t, b->raw, into,
+                                   r->src_nvox)) < 0)
+        return -1;
+    uint32_t d[3];
+    memcpy(d, r->src_m->dims, sizeof d);
+    for (unsigned k = 0; k < r->level; k++) {
+        uint32_t o[3];
+        float *out = k + 1 == r->level ? dst : b->full[(k + 1) & 1];
+        average_2x2x2(b->full[k & 1], d, out, o);
+        memcpy(d, o, sizeof d);
+    }
+    return 0;
+}
+
 /* The one pass over the timesteps: per step, the reference and the three
  * decoded axes.  Returns 0 or TVPAL_EXIT_USAGE (a reference or a record that
  * cannot be read; printed). */
@@ -473,9 +551,7 @@ static int scan_steps(struct report *r, char **refs, struct tvpal_input *src,
     struct tvpal_diag diag = {{0}};
     for (uint32_t t = 0; t < r->steps; t++) {
         const unsigned cur = t & 1, prev = cur ^ 1;
-        if ((src ? read_input_step(r->m, src, t, b->ref[cur], r->nvox)
-                 : read_reference_step(r->m, refs, t, b->raw, b->ref[cur],
-                                       r->nvox)) < 0)
+        if (reference_step(r, refs, src, b, t, b->ref[cur]) < 0)
             return TVPAL_EXIT_USAGE;
         update_range(r, b->ref[cur]);
         for (unsigned a = 0; a < 3; a++) {
@@ -869,17 +945,44 @@ int main(int argc, char **argv)
     if (status >= 0)
         return status;
     struct tvpal_diag diag = {{0}};
-    struct tvpal_dataset *ds = NULL;
-    int rc = tvpal_dataset_open(&ds, o.dir, &diag);
+    struct tvpal_dataset *ds = NULL, *ds0 = NULL;
+    char *level_dir = NULL;
+    int rc = tvpal_dataset_open(&ds0, o.dir, &diag);
     if (rc < 0) {
         print_lib_error(rc, &diag);
         return TVPAL_EXIT_USAGE;
     }
+    ds = ds0;
+    if (o.level) {
+        /* Level K decodes from OUTDIR/level-K; its reference is level 0's
+         * source, averaged. */
+        if (o.level > ds0->m.levels) {
+            fprintf(stderr, PROG ": --level %u: %s has %u coarser level%s\n",
+                    o.level, o.dir, ds0->m.levels,
+                    ds0->m.levels == 1 ? "" : "s");
+            tvpal_dataset_close(ds0);
+            return TVPAL_EXIT_USAGE;
+        }
+        if (asprintf(&level_dir, "%s/level-%u", o.dir, o.level) < 0 ||
+            (rc = tvpal_dataset_open(&ds, level_dir, &diag)) < 0) {
+            if (level_dir)
+                print_lib_error(rc, &diag);
+            free(level_dir);
+            tvpal_dataset_close(ds0);
+            return TVPAL_EXIT_USAGE;
+        }
+    }
     struct report r = {0};
     struct scan_buffers b = {0};
-    status = validate_options(&o, &ds->m);
-    if (status == 0 && (report_init(&r, ds, o.dir) < 0 ||
-                        buffers_alloc(&b, ds, r.nvox) < 0)) {
+    status = validate_options(&o, &ds0->m);
+    if (status == 0 && report_init(&r, ds, level_dir ? level_dir : o.dir) < 0)
+        status = TVPAL_EXIT_FAIL;
+    if (status == 0 && o.level) {
+        r.src_m = &ds0->m;
+        r.level = o.level;
+        r.src_nvox = (size_t)ds0->m.dims[0] * ds0->m.dims[1] * ds0->m.dims[2];
+    }
+    if (status == 0 && buffers_alloc(&b, ds, &r) < 0) {
         fprintf(stderr, PROG ": out of memory\n");
         status = TVPAL_EXIT_FAIL;
     }
@@ -901,6 +1004,9 @@ int main(int argc, char **argv)
     buffers_free(&b);
     free(r.per);
     tvpal_input_close(o.src);
-    tvpal_dataset_close(ds);
+    if (ds != ds0)
+        tvpal_dataset_close(ds);
+    tvpal_dataset_close(ds0);
+    free(level_dir);
     return status;
 }

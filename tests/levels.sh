@@ -85,6 +85,16 @@ for k in 0 1 2; do
         && ok "level $k: decodes within the floor of its 2x2x2 average, missing exactly where it should" \
         || fail "level $k: $(grep "level $k" "$W/lv.txt")"
 done
+# tvpal-report --level K: the same comparison, by the report (every step
+# and axis), at least the floor; a level the dataset lacks is refused.
+for k in 1 2; do
+    "$REP" "$W/ds" -q --level $k > "$W/rep$k.txt" || fail "report --level $k: $(cat "$W/rep$k.txt")"
+    p=$(sed 's/^psnr=\([0-9.]*\) .*/\1/' "$W/rep$k.txt")
+    awk -v p="$p" 'BEGIN { exit !(p >= 30) }' && grep -q "missing_mismatch=0" "$W/rep$k.txt" \
+        && ok "tvpal-report --level $k: psnr=$p, missing values where the average has them" \
+        || fail "report --level $k: $(cat "$W/rep$k.txt")"
+done
+expect_exit 2 "has 2 coarser levels" "$REP" "$W/ds" -q --level 3
 # Refused up front: more levels than halving allows, fewer slices than
 # --nodes.
 expect_exit 2 "level 7 would be 1x1x1 again" "$ENC" -q --dims $D --levels 7 -o "$W/x" "$W"/in/*.f32
