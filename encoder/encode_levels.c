@@ -325,6 +325,10 @@ static void encode_level(struct run *r, unsigned k, const uint32_t dk[3],
     for (int i = 0; i < a.n; i++)
         free(a.v[i]);
     free(a.v);
+    if (WIFEXITED(status) && WEXITSTATUS(status) == 2)
+        die_fail("level %u (%ux%ux%u): its encode refused the job (its "
+                 "message is above); level 0 is kept in the partial output",
+                 k, dk[0], dk[1], dk[2]);
     if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
         die_fail("level %u (%ux%ux%u): its encode failed (%s %d); rerun to "
                  "resume", k, dk[0], dk[1], dk[2],

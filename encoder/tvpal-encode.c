@@ -865,6 +865,31 @@ static void make_plan(struct run *r)
                   r->N, r->nthreads, r->nthreads == 1 ? "" : "s", need,
                   (unsigned long long)((r->plan.min_limit + 1023) >> 10));
     }
+    /* --levels: each level is encoded by a second process while this one
+     * holds about its fixed bytes (the ring is freed by then); the level's
+     * own plan must fit what is left.  Checked now, before any work. */
+    for (unsigned k = 1; k <= o->levels; k++) {
+        struct encode_job jk = j;
+        level_dims(o->dims, k, jk.dims);
+        memcpy(jk.slab_n, jk.dims, sizeof jk.slab_n);
+        jk.box_bytes_per_voxel = 4 * ring_slots(r); /* raw float32 input */
+        jk.limit = r->limit > j.fixed ? r->limit - j.fixed : 0;
+        struct encode_plan pk = {0};
+        int rk = encode_plan_make(&jk, &pk);
+        uint64_t needk = pk.min_limit + j.fixed;
+        encode_plan_free(&pk);
+        if (rk == TVPAL_E_NOMEM)
+            die_fail("out of memory");
+        if (rk < 0) {
+            print_size(need, sizeof need, needk);
+            die_usage("memory limit %s (%s) is too small for --levels %u: "
+                      "level %u (%ux%ux%u) is encoded by a second process "
+                      "beside this one, together about %s; give --mem-limit "
+                      "%lluK or more", lim, r->limit_why, o->levels, k,
+                      jk.dims[0], jk.dims[1], jk.dims[2], need,
+                      (unsigned long long)((needk + 1023) >> 10));
+        }
+    }
     if (o->quiet || (r->mpi && r->node != 0))
         return;
     char desc[96];

@@ -99,7 +99,14 @@ expect_exit 2 "has 2 coarser levels" "$REP" "$W/ds" -q --level 3
 # --nodes.
 expect_exit 2 "level 7 would be 1x1x1 again" "$ENC" -q --dims $D --levels 7 -o "$W/x" "$W"/in/*.f32
 expect_exit 2 "has fewer . slices than --nodes 16" "$ENC" -q --dims $D --nodes 16 --levels 1 -o "$W/x" "$W"/in/*.f32
+# A memory limit that holds level 0 but not level 1's second process
+# beside it: refused up front, naming the limit that works, which works.
+expect_exit 2 "too small for --levels 1: level 1 .21x18x15. is encoded by a second process" \
+    "$ENC" -q --dims $D --levels 1 --mem-limit 20M -o "$W/x" "$W"/in/*.f32
+need=$(sed -n 's/.*give --mem-limit \([0-9]*K\) or more.*/\1/p' "$W/err.txt")
 [ ! -e "$W/x" ] && [ ! -e "$W/x.partial" ] && ok "nothing written when refused" || fail "refused run wrote output"
+"$ENC" -q --dims $D --levels 1 --mem-limit "$need" -o "$W/x" "$W"/in/*.f32 > /dev/null 2> "$W/need.err" \
+    && ok "the stated minimum, --mem-limit $need, encodes every level" || fail "--mem-limit $need: $(cat "$W/need.err")"
 # A run that stops before level 2 resumes: level 0 is kept (its shard is
 # not rewritten), and the bytes equal the uninterrupted run's.
 TVPAL_ENCODE_FAULT_LEVEL=2 "$ENC" -q --dims $D --window 4 --levels 2 -o "$W/r" "$W"/in/*.f32 > /dev/null 2> "$W/r.err"
