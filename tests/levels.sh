@@ -105,8 +105,14 @@ expect_exit 2 "too small for --levels 1: level 1 .21x18x15. is encoded by a seco
     "$ENC" -q --dims $D --levels 1 --mem-limit 20M -o "$W/x" "$W"/in/*.f32
 need=$(sed -n 's/.*give --mem-limit \([0-9]*K\) or more.*/\1/p' "$W/err.txt")
 [ ! -e "$W/x" ] && [ ! -e "$W/x.partial" ] && ok "nothing written when refused" || fail "refused run wrote output"
-"$ENC" -q --dims $D --levels 1 --mem-limit "$need" -o "$W/x" "$W"/in/*.f32 > /dev/null 2> "$W/need.err" \
-    && ok "the stated minimum, --mem-limit $need, encodes every level" || fail "--mem-limit $need: $(cat "$W/need.err")"
+if [ -n "${ASAN_OPTIONS:-}" ]; then
+    # AddressSanitizer's shadow memory is in this process's resident size,
+    # which the level's process must fit beside: not the plan's estimate.
+    echo "note: the stated minimum is not tried under AddressSanitizer"
+else
+    "$ENC" -q --dims $D --levels 1 --mem-limit "$need" -o "$W/x" "$W"/in/*.f32 > /dev/null 2> "$W/need.err" \
+        && ok "the stated minimum, --mem-limit $need, encodes every level" || fail "--mem-limit $need: $(cat "$W/need.err")"
+fi
 # A run that stops before level 2 resumes: level 0 is kept (its shard is
 # not rewritten), and the bytes equal the uninterrupted run's.
 TVPAL_ENCODE_FAULT_LEVEL=2 "$ENC" -q --dims $D --window 4 --levels 2 -o "$W/r" "$W"/in/*.f32 > /dev/null 2> "$W/r.err"
