@@ -3,8 +3,8 @@
 # tests/levels.sh, so that the sanitizer run can leave MPI's and X's own
 # leaks out of leak checking): a cluster of 2 ranks under mpirun draws a
 # level as one rank does; the window under Xvfb, driven by xdotool, drops
-# to a coarser level while the view is dragged and refines when still (its
-# CSV and title show it).
+# to a coarser level while the view is dragged or the steps play faster than
+# the budget, and refines when still (its CSV and title show it).
 . "$(dirname "$0")/lib.sh"
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
@@ -55,6 +55,9 @@ xdotool getwindowname \$wid > "$W/title-drag.txt"
 xdotool mouseup 1
 sleep 0.8
 xdotool getwindowname \$wid > "$W/title-still.txt"
+cp "$W/win.csv" "$W/win-still.csv"
+xdotool key --window \$wid space; sleep 1.5
+xdotool key --window \$wid space; sleep 0.5
 xdotool key --window \$wid q 2>/dev/null
 wait \$pid
 DRAG
@@ -62,8 +65,15 @@ DRAG
     awk -F, 'NR > 1 && $4 == 1 && $3 == 2 { d++ } END { exit !d }' "$W/win.csv" \
         && ok "dragging: frames at level 2 ($(awk -F, 'NR > 1 && $4 == 1' "$W/win.csv" | wc -l) while dragging)" \
         || fail "dragging: no coarse frame: $(head -n 8 "$W/win.csv")"
-    tail -n 1 "$W/win.csv" | awk -F, '{ exit !($4 == 0 && $3 == 0) }' \
-        && ok "still again: refined to level 0 ($(tail -n 1 "$W/win.csv"))" || fail "no refinement: $(tail -n 3 "$W/win.csv")"
+    tail -n 1 "$W/win-still.csv" | awk -F, '{ exit !($4 == 0 && $3 == 0) }' \
+        && ok "still again: refined to level 0 ($(tail -n 1 "$W/win-still.csv"))" || fail "no refinement: $(tail -n 3 "$W/win-still.csv")"
+    # Playing (space) faster than the budget: coarse frames, and the
+    # playhead moves (every step of the 5 is drawn); stopped, refined.
+    n0=$(wc -l < "$W/win-still.csv")
+    steps=$(tail -n +$((n0 + 1)) "$W/win.csv" | awk -F, '$3 == 2 { print $2 }' | sort -u | wc -l)
+    [ "$steps" -ge 5 ] && ok "playing: $steps steps drawn at level 2" || fail "playing: $steps steps at level 2: $(tail -n 5 "$W/win.csv")"
+    tail -n 1 "$W/win.csv" | awk -F, '{ exit !($3 == 0) }' \
+        && ok "stopped: refined to level 0" || fail "stopped: $(tail -n 3 "$W/win.csv")"
     grep -q "level 2/2 (11x9x8) .* - preview" "$W/title-drag.txt" && grep -q "level 0/2 (41x36x30)" "$W/title-still.txt" \
         && ok "title shows the level: $(cat "$W/title-drag.txt")" || fail "title: $(cat "$W/title-drag.txt") / $(cat "$W/title-still.txt")"
 else

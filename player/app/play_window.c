@@ -247,9 +247,11 @@ static void read_input(struct win_state *w, struct win_cmd *cmd)
         cmd->height = in.height;
         w->redraw = 1;
     }
-    /* Reduced quality while the user interacts; refine when idle. */
+    /* Reduced quality while the user interacts (and coarser levels while
+     * playing); refine when idle, not while playing, where the next step
+     * is drawn anyway. */
     int interacting = in.dragging || in.scrubbing;
-    if (!interacting && (w->reduced || w->coarse))
+    if (!interacting && !w->playing && (w->reduced || w->coarse))
         w->redraw = 1;
     if (w->playing && !w->redraw) {
         int64_t nt = (int64_t)w->t + w->dir;
