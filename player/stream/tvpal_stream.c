@@ -466,138 +466,177 @@ static int victim(const struct part *p, const uint32_t *wanted, unsigned nw)
     return -1;
 }
 
+/* Applies (stage = 0) or stages (1) the verified record of `step` into
+ * the part's slab for timestep t.  0 or TVPAL_E_NOMEM (staging). */
+static int feed_record(struct part *p, const unsigned char *rec, uint32_t t,
+                       uint32_t step, int stage, struct tvpal_diag *diag)
+{
+    if (!stage) {
+        tvpal_slab_apply(p->slab, rec, t);
+        return 0;
+    }
+    int rc = tvpal_slab_stage(p->slab, rec, t);
+    return rc < 0 ? tvpal_diag_set(diag, rc, "staging record %u", step) : 0;
+}
+
+/* In-core: the records that hold t, from RAM (verified when loaded).  A
+ * record that failed to load is the first error; the others still go in. */
+static int seek_incore(struct tvpal_stream *s, uint32_t t,
+                       struct tvpal_stream_stats *st, struct tvpal_diag *diag,
+                       int stage)
+{
+    int err = 0;
+    for (unsigned pi = 0; pi < s->n; pi++) {
+        struct part *p = &s->p[pi];
+        uint32_t need[16];
+        unsigned nn = tvpal_slab_needed(p->slab, t, need);
+        for (unsigned i = 0; i < nn; i++) {
+            if (p->bad[need[i]]) {
+                if (!err)
+                    err = incore_error(p, need[i], diag);
+                continue;
+            }
+            const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, need[i]);
+            int rc = feed_record(p, p->all + e->offset - TVPAL_SHARD_HEADER_BYTES,
+                                 t, need[i], stage, diag);
+            if (rc < 0)
+                return rc;
+            st->records_applied++;
+        }
+    }
+    return err;
+}
+
+/* Queues the reads of part pi: the records t needs, then the prefetch
+ * window in direction dir while the queue has room. */
+static int queue_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
+                      int dir, struct tvpal_stream_stats *st,
+                      struct tvpal_diag *diag)
+{
+    struct part *p = &s->p[pi];
+    const struct tvpal_shard_header *h = tvpal_shard_hdr(p->sh);
+    uint32_t wanted[16 + 64];
+    unsigned nn = tvpal_slab_needed(p->slab, t, wanted), nw = nn;
+    for (unsigned k = 1; k <= s->prefetch && nw < 16 + 64; k++) {
+        int64_t q = (int64_t)t + (dir < 0 ? -(int64_t)k : (int64_t)k);
+        if (q < 0 || q >= h->steps)
+            break;
+        wanted[nw++] = (uint32_t)q;
+    }
+    for (unsigned i = 0; i < nw; i++) {
+        if (find_slot(p, wanted[i]) >= 0)
+            continue;
+        int v = victim(p, wanted, nw);
+        /* After a jump the old prefetches may hold every free slot: wait
+         * for them to land, then they can be reused. */
+        while (v < 0 && i < nn && tvpal_io_inflight(s->io)) {
+            int rc = reap(s, &st->io_wait_ms, diag);
+            if (rc < 0)
+                return rc;
+            v = victim(p, wanted, nw);
+        }
+        if (v < 0) {
+            if (i < nn) /* cannot happen: N + 2P + 1 slots */
+                return tvpal_diag_set(diag, TVPAL_E_NOMEM,
+                                      "no free record buffer");
+            break;
+        }
+        if (i >= nn && tvpal_io_inflight(s->io) + 8 > tvpal_io_depth(s->io))
+            break; /* prefetch only while the queue has room */
+        struct tvpal_diag qd = {{0}};
+        int rc = submit(s, pi, (unsigned)v, wanted[i], &st->io_wait_ms, &qd);
+        if (rc < 0)
+            return tvpal_diag_set(diag, rc, "%s: cannot queue a read%s%s",
+                                  tvpal_shard_path(p->sh),
+                                  qd.msg[0] ? ": " : "", qd.msg);
+        st->bytes_read += tvpal_shard_entry(p->sh, wanted[i])->bytes;
+    }
+    return 0;
+}
+
+/* Checks a landed slot holding `step` once: its length and CRCs.  0, or
+ * the error in d (the slot is then freed, to be read again later). */
+static int verify_slot(struct part *p, struct slot *sl, uint32_t step,
+                       struct tvpal_diag *d)
+{
+    if (sl->verified)
+        return 0;
+    const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, step);
+    int rc;
+    if (sl->result != (int64_t)e->bytes)
+        rc = tvpal_diag_set(d, TVPAL_E_READ, "record %u: %s", step,
+                            sl->result < 0 ? strerror((int)-sl->result)
+                                           : "short read (truncated)");
+    else
+        rc = tvpal_record_verify(sl->buf, e->bytes, step,
+                                 tvpal_shard_hdr(p->sh), d);
+    if (rc < 0) {
+        sl->state = SLOT_FREE;
+        return rc;
+    }
+    sl->verified = 1;
+    return 0;
+}
+
+/* Waits for the records t needs from part pi, verifies and feeds them in
+ * step order; the first failing record goes to *err, the others still go
+ * in.  0, or a failure that ends the seek. */
+static int feed_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
+                     struct tvpal_stream_stats *st, struct tvpal_diag *diag,
+                     int stage, int *err)
+{
+    struct part *p = &s->p[pi];
+    uint32_t need[16];
+    unsigned nn = tvpal_slab_needed(p->slab, t, need);
+    for (unsigned i = 0; i < nn; i++) {
+        int k = find_slot(p, need[i]);
+        if (k < 0)
+            continue; /* cannot happen: queued by queue_part */
+        struct slot *sl = &p->slots[k];
+        while (sl->state == SLOT_INFLIGHT) {
+            int rc = reap(s, &st->io_wait_ms, diag);
+            if (rc < 0)
+                return rc;
+        }
+        struct tvpal_diag d = {{0}};
+        int rc = verify_slot(p, sl, need[i], &d);
+        if (rc < 0) {
+            if (!*err)
+                *err = tvpal_diag_set(diag, rc, "%s: %s",
+                                      tvpal_shard_path(p->sh), d.msg);
+            continue;
+        }
+        if ((rc = feed_record(p, sl->buf, t, need[i], stage, diag)) < 0)
+            return rc;
+        st->records_applied++;
+    }
+    return 0;
+}
+
 /* Applies (stage = 0) or stages (1) into every slab the records that hold
- * timestep t, reading them first out-of-core; queues the prefetch. */
+ * timestep t, reading them first out-of-core; queues the prefetch.  All
+ * parts' reads go to the kernel in one submission before any is waited
+ * for. */
 static int seek_into(struct tvpal_stream *s, uint32_t t, int dir,
                      struct tvpal_stream_stats *st, struct tvpal_diag *diag,
                      int stage)
 {
-    int err = 0;
     memset(st, 0, sizeof *st);
-    for (unsigned pi = 0; pi < s->n; pi++) {
-        struct part *p = &s->p[pi];
-        const struct tvpal_shard_header *h = tvpal_shard_hdr(p->sh);
-        uint32_t need[16];
-        unsigned nn = tvpal_slab_needed(p->slab, t, need);
-        if (s->incore) {
-            for (unsigned i = 0; i < nn; i++) {
-                const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, need[i]);
-                if (p->bad[need[i]]) {
-                    if (!err)
-                        err = incore_error(p, need[i], diag);
-                    continue;
-                }
-                const unsigned char *rec = p->all + e->offset -
-                                           TVPAL_SHARD_HEADER_BYTES;
-                if (stage) {
-                    int rc = tvpal_slab_stage(p->slab, rec, t);
-                    if (rc < 0)
-                        return tvpal_diag_set(diag, rc, "staging record %u",
-                                              need[i]);
-                } else {
-                    tvpal_slab_apply(p->slab, rec, t);
-                }
-                st->records_applied++;
-            }
-            continue;
-        }
-        /* Wanted: the needed records, then the prefetch window. */
-        uint32_t wanted[16 + 64];
-        unsigned nw = 0;
-        for (unsigned i = 0; i < nn; i++)
-            wanted[nw++] = need[i];
-        for (unsigned k = 1; k <= s->prefetch && nw < 16 + 64; k++) {
-            int64_t q = (int64_t)t + (dir < 0 ? -(int64_t)k : (int64_t)k);
-            if (q < 0 || q >= h->steps)
-                break;
-            wanted[nw++] = (uint32_t)q;
-        }
-        for (unsigned i = 0; i < nw; i++) {
-            if (find_slot(p, wanted[i]) >= 0)
-                continue;
-            int v = victim(p, wanted, nw);
-            /* After a jump the old prefetches may hold every free slot:
-             * wait for them to land, then they can be reused. */
-            while (v < 0 && i < nn && tvpal_io_inflight(s->io)) {
-                int rc = reap(s, &st->io_wait_ms, diag);
-                if (rc < 0)
-                    return rc;
-                v = victim(p, wanted, nw);
-            }
-            if (v < 0) {
-                if (i < nn) /* cannot happen: N + 2P + 1 slots */
-                    return tvpal_diag_set(diag, TVPAL_E_NOMEM,
-                                          "no free record buffer");
-                break;
-            }
-            if (i >= nn && tvpal_io_inflight(s->io) + 8 > tvpal_io_depth(s->io))
-                break; /* prefetch only while the queue has room */
-            struct tvpal_diag qd = {{0}};
-            int rc = submit(s, pi, (unsigned)v, wanted[i], &st->io_wait_ms,
-                            &qd);
-            if (rc < 0)
-                return tvpal_diag_set(diag, rc, "%s: cannot queue a read%s%s",
-                                      tvpal_shard_path(p->sh),
-                                      qd.msg[0] ? ": " : "", qd.msg);
-            st->bytes_read += tvpal_shard_entry(p->sh, wanted[i])->bytes;
-        }
-    }
     if (s->incore)
-        return err;
-    /* Everything queued above goes to the kernel in one submission. */
-    {
-        struct tvpal_diag fd = {{0}};
-        int rc = tvpal_io_flush(s->io, &fd);
-        if (rc < 0)
-            return tvpal_diag_set(diag, rc, "%s", fd.msg);
-    }
-    /* Wait for the needed records, verify and apply them in step order. */
+        return seek_incore(s, t, st, diag, stage);
     for (unsigned pi = 0; pi < s->n; pi++) {
-        struct part *p = &s->p[pi];
-        const struct tvpal_shard_header *h = tvpal_shard_hdr(p->sh);
-        uint32_t need[16];
-        unsigned nn = tvpal_slab_needed(p->slab, t, need);
-        for (unsigned i = 0; i < nn; i++) {
-            int k = find_slot(p, need[i]);
-            if (k < 0)
-                continue; /* cannot happen: queued above */
-            struct slot *sl = &p->slots[k];
-            while (sl->state == SLOT_INFLIGHT) {
-                int rc = reap(s, &st->io_wait_ms, diag);
-                if (rc < 0)
-                    return rc;
-            }
-            const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, need[i]);
-            if (!sl->verified) {
-                struct tvpal_diag d = {{0}};
-                int rc = 0;
-                if (sl->result != (int64_t)e->bytes)
-                    rc = tvpal_diag_set(&d, TVPAL_E_READ, "record %u: %s",
-                                        need[i], sl->result < 0
-                                            ? strerror((int)-sl->result)
-                                            : "short read (truncated)");
-                else
-                    rc = tvpal_record_verify(sl->buf, e->bytes, need[i], h, &d);
-                if (rc < 0) {
-                    sl->state = SLOT_FREE; /* retry on a later seek */
-                    if (!err)
-                        err = tvpal_diag_set(diag, rc, "%s: %s",
-                                             tvpal_shard_path(p->sh), d.msg);
-                    continue;
-                }
-                sl->verified = 1;
-            }
-            if (stage) {
-                int rc = tvpal_slab_stage(p->slab, sl->buf, t);
-                if (rc < 0)
-                    return tvpal_diag_set(diag, rc, "staging record %u",
-                                          need[i]);
-            } else {
-                tvpal_slab_apply(p->slab, sl->buf, t);
-            }
-            st->records_applied++;
-        }
+        int rc = queue_part(s, pi, t, dir, st, diag);
+        if (rc < 0)
+            return rc;
     }
+    struct tvpal_diag fd = {{0}};
+    int rc = tvpal_io_flush(s->io, &fd);
+    if (rc < 0)
+        return tvpal_diag_set(diag, rc, "%s", fd.msg);
+    int err = 0;
+    for (unsigned pi = 0; pi < s->n; pi++)
+        if ((rc = feed_part(s, pi, t, st, diag, stage, &err)) < 0)
+            return rc;
     return err;
 }
 
