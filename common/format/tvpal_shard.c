@@ -787,6 +787,22 @@ struct tvpal_slab {
     uint32_t npool;
 };
 
+/* A window's buffers for the slab's slices: its table and indices. */
+static int slice_buffers(const struct tvpal_shard_header *h, float **table,
+                         uint8_t **idx)
+{
+    size_t nvox = (size_t)h->slice_w * h->slice_h;
+    *table = malloc((size_t)h->window * 256 * sizeof(float));
+    *idx = malloc(nvox ? nvox : 1);
+    if (*table && *idx)
+        return 0;
+    free(*table);
+    free(*idx);
+    *table = NULL;
+    *idx = NULL;
+    return TVPAL_E_NOMEM;
+}
+
 int tvpal_slab_create(struct tvpal_slab **out, struct tvpal_shard *sh)
 {
     const struct tvpal_shard_header *h = &sh->h;
@@ -799,13 +815,9 @@ int tvpal_slab_create(struct tvpal_slab **out, struct tvpal_shard *sh)
     s->pool = malloc((h->slice_count ? h->slice_count : 1) * sizeof *s->pool);
     if (!s->sl || !s->staged || !s->pool)
         goto nomem;
-    size_t nvox = (size_t)h->slice_w * h->slice_h;
-    for (uint32_t k = 0; k < h->slice_count; k++) {
-        s->sl[k].table = malloc((size_t)h->window * 256 * sizeof(float));
-        s->sl[k].idx = malloc(nvox ? nvox : 1);
-        if (!s->sl[k].table || !s->sl[k].idx)
+    for (uint32_t k = 0; k < h->slice_count; k++)
+        if (slice_buffers(h, &s->sl[k].table, &s->sl[k].idx) < 0)
             goto nomem;
-    }
     *out = s;
     return 0;
 nomem:
@@ -854,6 +866,19 @@ unsigned tvpal_slab_needed(const struct tvpal_slab *s, uint32_t t,
     return n;
 }
 
+/* The next chunk of rec (from *pos) whose slice's window holding t starts
+ * at the record's step: 1 with c, 0 at the end.  Record 0, say, also holds
+ * the short first windows of slices that need a later record at t. */
+static int next_chunk_at(const struct tvpal_slab *s, const unsigned char *rec,
+                         uint64_t *pos, uint32_t t, struct tvpal_chunk *c)
+{
+    const struct tvpal_shard_header *h = &s->sh->h;
+    while (tvpal_record_next_chunk(rec, pos, h->table_format, c))
+        if (tvpal_schedule_start(c->h.slice, t, h->window) == c->h.wstart)
+            return 1;
+    return 0;
+}
+
 void tvpal_slab_apply(struct tvpal_slab *s, const unsigned char *rec,
                       uint32_t t)
 {
@@ -861,9 +886,7 @@ void tvpal_slab_apply(struct tvpal_slab *s, const unsigned char *rec,
     size_t nvox = (size_t)h->slice_w * h->slice_h;
     uint64_t pos = 0;
     struct tvpal_chunk c;
-    while (tvpal_record_next_chunk(rec, &pos, h->table_format, &c)) {
-        if (tvpal_schedule_start(c.h.slice, t, h->window) != c.h.wstart)
-            continue;
+    while (next_chunk_at(s, rec, &pos, t, &c)) {
         struct slab_slice *sl = &s->sl[c.h.slice - h->slice_begin];
         sl->wstart = c.h.wstart;
         sl->wlen = c.h.wlen;
@@ -884,18 +907,7 @@ static int stage_buffers(struct tvpal_slab *s, struct slab_slice *sl)
         sl->st_idx = s->pool[s->npool].idx;
         return 0;
     }
-    const struct tvpal_shard_header *h = &s->sh->h;
-    size_t nvox = (size_t)h->slice_w * h->slice_h;
-    float *t = malloc((size_t)h->window * 256 * sizeof(float));
-    uint8_t *i = malloc(nvox ? nvox : 1);
-    if (!t || !i) {
-        free(t);
-        free(i);
-        return TVPAL_E_NOMEM;
-    }
-    sl->st_table = t;
-    sl->st_idx = i;
-    return 0;
+    return slice_buffers(&s->sh->h, &sl->st_table, &sl->st_idx);
 }
 
 /* Returns the staging buffers of slice sl to the pool. */
@@ -913,9 +925,7 @@ int tvpal_slab_stage(struct tvpal_slab *s, const unsigned char *rec,
     size_t nvox = (size_t)h->slice_w * h->slice_h;
     uint64_t pos = 0;
     struct tvpal_chunk c;
-    while (tvpal_record_next_chunk(rec, &pos, h->table_format, &c)) {
-        if (tvpal_schedule_start(c.h.slice, t, h->window) != c.h.wstart)
-            continue;
+    while (next_chunk_at(s, rec, &pos, t, &c)) {
         uint32_t k = c.h.slice - h->slice_begin;
         struct slab_slice *sl = &s->sl[k];
         if (!sl->st_idx) {
