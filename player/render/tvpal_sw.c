@@ -664,117 +664,124 @@ static inline int live_run(const uint64_t *map, long c0, long k, int *x,
     return 1;
 }
 
-/* K = 1: two texels (pixels) per step over each run of live pixels. */
+/* K = 1, the pair of texels x, x + 1: vp holds V(x) in its high half on
+ * entry and [V(x+1) | V(x+2)] on return; both pixels are blended (live). */
+struct k1_ctx {      /* a span's K = 1 constants, read once per span */
+    __m256 vfy, vfx;
+    const uint8_t *ra, *rb;
+    const float *pal;
+    float *row;
+    float stop;
+    long c0;
+};
+
+AVX2 INLINE void pair_k1(const struct k1_ctx *k, int x, __m256 *vp,
+                         uint64_t *map, const int exact)
+{
+    __m256 a = load2(k->pal + 4 * k->ra[x + 1], k->pal + 4 * k->ra[x + 2]);
+    __m256 b = load2(k->pal + 4 * k->rb[x + 1], k->pal + 4 * k->rb[x + 2]);
+    __m256 vn = _mm256_add_ps(a, _mm256_mul_ps(k->vfy, _mm256_sub_ps(b, a)));
+    __m256 cur = _mm256_permute2f128_ps(*vp, vn, 0x21); /* [V(x) | V(x+1)] */
+    blend2(k->row, map, k->stop, k->c0 + x,
+           _mm256_add_ps(cur, _mm256_mul_ps(k->vfx, _mm256_sub_ps(vn, cur))),
+           exact);
+    *vp = vn;
+}
+
+/* K = 1, texel x alone (tested unless live); vp as for pair_k1, holding
+ * [V(x+1) | V(x+1)] on return. */
+AVX2 INLINE void single_k1(const struct span *s, int x, __m256 *vp,
+                           const int exact, const int live)
+{
+    __m128 cc = _mm256_extractf128_ps(*vp, 1);
+    __m128 cn = vlerp_sse(s, x + 1, _mm_set1_ps(s->fy));
+    blend_px(s, s->c0 + x, cc, _mm_sub_ps(cn, cc), s->fx[0], exact, live);
+    *vp = _mm256_insertf128_ps(_mm256_castps128_ps256(cn), cn, 1);
+}
+
+AVX2 static inline __m256 dup_v(__m128 c)
+{
+    return _mm256_insertf128_ps(_mm256_castps128_ps256(c), c, 1);
+}
+
+/* K = 1: two texels (pixels) per step over each run of live pixels; with
+ * no map, a pair with a stopped pixel goes pixel by pixel. */
 AVX2 INLINE void span_avx2_k1_m(const struct span *s, int x0, int x1,
                                 const int exact)
 {
-    const __m256 vfy = _mm256_set1_ps(s->fy), vfx = _mm256_set1_ps(s->fx[0]);
     const __m128 vfy1 = _mm_set1_ps(s->fy);
-    const uint8_t *ra = s->ra, *rb = s->rb;
-    const float *pal = s->pal;
-    float *const row = s->row;
     uint64_t *const map = s->map;
-    const float stop = s->stop;
     const long c0 = s->c0;
+    const struct k1_ctx k = {_mm256_set1_ps(s->fy), _mm256_set1_ps(s->fx[0]),
+                             s->ra, s->rb, s->pal, s->row, s->stop, c0};
     int x = x0;
-    while (x <= x1) {
-        int xe = x1;
-        if (map) {
-            if (!live_run(map, c0, 1, &x, x1, &xe))
-                return;
-        }
-        __m128 c = vlerp_sse(s, x, vfy1);
-        __m256 vp = _mm256_insertf128_ps(_mm256_castps128_ps256(c), c, 1);
-        if (!map) {
-            /* No map: a pair with a stopped pixel goes pixel by pixel. */
-            while (x <= x1) {
-                const float *d = row + 4 * (c0 + x);
-                if (x == x1 || STOPPED(exact, d[3], stop) || STOPPED(exact, d[7], stop)) {
-                    __m128 cc = _mm256_extractf128_ps(vp, 1);
-                    c = vlerp_sse(s, x + 1, vfy1);
-                    blend_px(s, c0 + x, cc, _mm_sub_ps(c, cc), s->fx[0], exact, 0);
-                    vp = _mm256_insertf128_ps(_mm256_castps128_ps256(c), c, 1);
-                    x++;
-                    continue;
-                }
-                __m256 a = load2(pal + 4 * ra[x + 1], pal + 4 * ra[x + 2]);
-                __m256 b = load2(pal + 4 * rb[x + 1], pal + 4 * rb[x + 2]);
-                __m256 vn = _mm256_add_ps(a, _mm256_mul_ps(vfy, _mm256_sub_ps(b, a)));
-                __m256 cur = _mm256_permute2f128_ps(vp, vn, 0x21);
-                blend2(row, NULL, stop, c0 + x,
-                       _mm256_add_ps(cur, _mm256_mul_ps(vfx, _mm256_sub_ps(vn, cur))),
-                       exact);
-                vp = vn;
+    if (!map) {
+        __m256 vp = dup_v(vlerp_sse(s, x, vfy1));
+        while (x <= x1) {
+            const float *d = s->row + 4 * (c0 + x);
+            if (x == x1 || STOPPED(exact, d[3], s->stop) ||
+                STOPPED(exact, d[7], s->stop)) {
+                single_k1(s, x, &vp, exact, 0);
+                x++;
+            } else {
+                pair_k1(&k, x, &vp, NULL, exact);
                 x += 2;
             }
-            return;
         }
-        for (; x + 1 <= xe; x += 2) {
-            /* vn = [V(x+1) | V(x+2)], cur = [V(x) | V(x+1)] */
-            __m256 a = load2(pal + 4 * ra[x + 1], pal + 4 * ra[x + 2]);
-            __m256 b = load2(pal + 4 * rb[x + 1], pal + 4 * rb[x + 2]);
-            __m256 vn = _mm256_add_ps(a, _mm256_mul_ps(vfy, _mm256_sub_ps(b, a)));
-            __m256 cur = _mm256_permute2f128_ps(vp, vn, 0x21);
-            blend2(row, map, stop, c0 + x,
-                   _mm256_add_ps(cur, _mm256_mul_ps(vfx, _mm256_sub_ps(vn, cur))),
-                   exact);
-            vp = vn;
-        }
-        if (x == xe) {
-            __m128 cc = _mm256_extractf128_ps(vp, 1);
-            __m128 cn = vlerp_sse(s, x + 1, vfy1);
-            blend_px(s, c0 + x, cc, _mm_sub_ps(cn, cc), s->fx[0], exact, 1);
-            x++;
-        }
+        return;
+    }
+    int xe;
+    while (x <= x1 && live_run(map, c0, 1, &x, x1, &xe)) {
+        __m256 vp = dup_v(vlerp_sse(s, x, vfy1));
+        for (; x + 1 <= xe; x += 2)
+            pair_k1(&k, x, &vp, map, exact);
+        if (x == xe)
+            single_k1(s, x++, &vp, exact, 1);
     }
 }
 
+/* K = 2, the texel x, both pixels live: C = V(x) in, V(x+1) out. */
+AVX2 INLINE void texel_k2(const struct span *s, int x, __m128 *c,
+                          __m128 vfy, __m256 vfx, uint64_t *map,
+                          const int exact)
+{
+    __m128 cn = vlerp_sse(s, x + 1, vfy);
+    __m256 d2 = dup_v(_mm_sub_ps(cn, *c));
+    blend2(s->row, map, s->stop, s->c0 + 2L * x,
+           _mm256_add_ps(dup_v(*c), _mm256_mul_ps(vfx, d2)), exact);
+    *c = cn;
+}
+
 /* K = 2: the two pixels of a texel in one step, over each run of texels
- * whose pixels are live; a texel half stopped goes pixel by pixel. */
+ * whose pixels are live; a texel with a stopped pixel goes pixel by
+ * pixel. */
 AVX2 INLINE void span_avx2_k2_m(const struct span *s, int x0, int x1,
                                 const int exact)
 {
     const __m128 vfy = _mm_set1_ps(s->fy);
     const __m256 vfx = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_set1_ps(s->fx[0])),
                                             _mm_set1_ps(s->fx[1]), 1);
-    float *const row = s->row;
     uint64_t *const map = s->map;
-    const float stop = s->stop;
     const long c0 = s->c0;
-    int x = x0;
+    int x = x0, xe = x1;
     while (x <= x1) {
-        int xe = x1;
-        if (map) {
-            if (!live_run(map, c0, 2, &x, x1, &xe))
-                return;
-        }
+        if (map && !live_run(map, c0, 2, &x, x1, &xe))
+            return;
         __m128 c = vlerp_sse(s, x, vfy);
-        if (xe < x || !map) {
-            /* A texel with a stopped pixel (or no map): pixel by pixel. */
-            __m128 cn = vlerp_sse(s, x + 1, vfy);
-            __m128 dd = _mm_sub_ps(cn, c);
-            const float *d = row + 4 * (c0 + 2L * x);
-            if (map || STOPPED(exact, d[3], stop) || STOPPED(exact, d[7], stop)) {
-                blend_px(s, c0 + 2L * x, c, dd, s->fx[0], exact, 0);
-                blend_px(s, c0 + 2L * x + 1, c, dd, s->fx[1], exact, 0);
-            } else {
-                __m256 c2 = _mm256_insertf128_ps(_mm256_castps128_ps256(c), c, 1);
-                __m256 d2 = _mm256_insertf128_ps(_mm256_castps128_ps256(dd), dd, 1);
-                blend2(row, NULL, stop, c0 + 2L * x,
-                       _mm256_add_ps(c2, _mm256_mul_ps(vfx, d2)), exact);
-            }
+        const float *d = s->row + 4 * (c0 + 2L * x);
+        if (map ? xe < x : STOPPED(exact, d[3], s->stop) || STOPPED(exact, d[7], s->stop)) {
+            __m128 dd = _mm_sub_ps(vlerp_sse(s, x + 1, vfy), c);
+            blend_px(s, c0 + 2L * x, c, dd, s->fx[0], exact, 0);
+            blend_px(s, c0 + 2L * x + 1, c, dd, s->fx[1], exact, 0);
             x++;
             continue;
         }
-        for (; x <= xe; x++) {
-            __m128 cn = vlerp_sse(s, x + 1, vfy);
-            __m128 dd = _mm_sub_ps(cn, c);
-            __m256 c2 = _mm256_insertf128_ps(_mm256_castps128_ps256(c), c, 1);
-            __m256 d2 = _mm256_insertf128_ps(_mm256_castps128_ps256(dd), dd, 1);
-            blend2(row, map, stop, c0 + 2L * x,
-                   _mm256_add_ps(c2, _mm256_mul_ps(vfx, d2)), exact);
-            c = cn;
+        if (!map) {
+            texel_k2(s, x++, &c, vfy, vfx, NULL, exact);
+            continue;
         }
+        for (; x <= xe; x++)
+            texel_k2(s, x, &c, vfy, vfx, map, exact);
     }
 }
 
