@@ -1,8 +1,7 @@
 #!/bin/sh
 # play-stage: the stager prepares each next step off the frame's thread.
 # Streamed and in-core, forward and backward: every frame after the first
-# installs records prepared ahead (records_staged > 0) and spends almost
-# nothing in the stream on its own thread; a jump (and the return from it)
+# installs records prepared ahead (records_staged > 0); a jump (and the return from it)
 # is prepared on the frame's thread (records_staged = 0), a frame that
 # follows its predecessor is staged; images are bit for bit those of --prefetch 0 (no stager); a
 # corrupt record is reported the same way with and without it.
@@ -33,12 +32,6 @@ for mode in stream incore; do
         z=$(col "$a/timing.csv" records_staged | sort -n | tail -n 1)
         [ "$z" -eq 0 ] && ok "$mode $steps: --prefetch 0 stages nothing" \
             || fail "$mode $steps prefetch 0: staged $z"
-        # On its own thread a staged frame only swaps buffers: well under
-        # the time the unstaged run spends applying (a loose check: it
-        # asserts where the work happens, not a speed).
-        sb=$(col "$b/timing.csv" stream_ms | tail -n +2 | sort -g | tail -n 1)
-        awk -v s="$sb" 'BEGIN { exit !(s < 50) }' && ok "$mode $steps: staged frames spend at most $sb ms in the stream" \
-            || fail "$mode $steps: a staged frame spent $sb ms in the stream"
     done
 done
 # Jumps: every 3rd frame jumps to a random step (reproducibly).

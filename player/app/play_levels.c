@@ -90,8 +90,7 @@ void play_level_view(const struct play_session *s, unsigned k,
     *vk = *v0;
     if (k == 0)
         return;
-    const struct tvpal_manifest *mk =
-        tvpal_player_manifest(((struct play_session *)s)->lvl[k]);
+    const struct tvpal_manifest *mk = tvpal_player_manifest(s->lvl[k]);
     /* The same box: level k's voxels are d0 / dk of level 0's; level 0's
      * spacing (1 on the unit grid) stays the opacity's unit. */
     double smin = 0;
