@@ -129,7 +129,7 @@ int main(void)
             struct tvpal_view v = {.dims = {24, 20, 16}, .width = W,
                                    .height = H, .ax_deg = views[vi][0],
                                    .ay_deg = views[vi][1], .zoom = 1.0};
-            struct tvpal_frame f;
+            struct tvpal_frame f = {0};
             make_frame(dims, &v, &f, sl, &smooth, noisy);
             axes_seen |= 1u << v.axis;
             REQUIRE(tvpal_glr_set_slices(r, f.w, f.h, dims[v.axis], &d) == 0,
@@ -162,7 +162,7 @@ int main(void)
     /* Index interpolation vs colour interpolation on a sharp TF. */
     struct tvpal_view v = {.dims = {24, 20, 16}, .width = W, .height = H,
                            .ax_deg = 15, .ay_deg = 25, .zoom = 1.0};
-    struct tvpal_frame f;
+    struct tvpal_frame f = {0};
     make_frame(dims, &v, &f, sl, &sharp, 0);
     tvpal_render_ref(&f, ref);
     tvpal_render_ref_index_interp(&f, ref2);

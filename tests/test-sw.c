@@ -240,7 +240,7 @@ int main(void)
         struct tvpal_view v = {.dims = {48, 40, 32}, .width = vo.W, .height = vo.H,
                                .ax_deg = views[vi][0], .ay_deg = views[vi][1],
                                .zoom = views[vi][2]};
-        struct tvpal_frame f;
+        struct tvpal_frame f = {0};
         const size_t np = (size_t)4 * vo.W * vo.H;
         make_frame(&vo, &v, &f, &tf);
         axes |= 1u << v.axis;
@@ -269,7 +269,7 @@ int main(void)
         /* A TF change every frame: the same image as a fresh start. */
         const struct tvpal_tf *tfs[2] = {&tf2, &tf3};
         for (int t = 0; t < 2; t++) {
-            struct tvpal_frame f2;
+            struct tvpal_frame f2 = {0};
             make_frame(&vo, &v, &f2, tfs[t]);
             tvpal_sw_options(sw, 2, 1, 1);
             REQUIRE(tvpal_sw_draw(sw, &f2, img2, &d) == 0, "%s", d.msg);
@@ -296,7 +296,7 @@ int main(void)
                                    .ay_deg = views[vi][1],
                                    .zoom = views[vi][2]};
             memcpy(v.spacing, grids[gi], sizeof v.spacing);
-            struct tvpal_frame f;
+            struct tvpal_frame f = {0};
             const size_t np = (size_t)4 * vo.W * vo.H;
             make_frame(&vo, &v, &f, &tf);
             tvpal_render_ref(&f, ref);
@@ -319,7 +319,7 @@ int main(void)
     {
         struct tvpal_view v = {.dims = {48, 40, 32}, .width = vo.W, .height = vo.H,
                                .ax_deg = 30, .ay_deg = 40, .zoom = 6};
-        struct tvpal_frame f;
+        struct tvpal_frame f = {0};
         const size_t np = (size_t)4 * vo.W * vo.H;
         make_frame(&vo, &v, &f, &tf3);
         tvpal_render_ref(&f, ref);
@@ -354,7 +354,7 @@ int main(void)
     {
         struct tvpal_view v = {.dims = {48, 40, 32}, .width = vo.W, .height = vo.H,
                                .ax_deg = 25, .ay_deg = 35, .zoom = 1};
-        struct tvpal_frame f;
+        struct tvpal_frame f = {0};
         const size_t np = (size_t)4 * vo.W * vo.H;
         make_frame(&vo, &v, &f, &tf);
         tvpal_sw_options(sw, 2, 1, 1);
@@ -398,7 +398,7 @@ int main(void)
             struct tvpal_view v = {.dims = {48, 40, 32}, .width = vo.W,
                                    .height = vo.H, .ax_deg = xv[i][0],
                                    .ay_deg = xv[i][1], .zoom = xv[i][2]};
-            struct tvpal_frame f;
+            struct tvpal_frame f = {0};
             make_frame(&vo, &v, &f, &tf);
             int finite = isfinite(v.sx) && isfinite(v.sy) && v.sx > 0 &&
                          v.sy > 0 && isfinite(v.dcos) && v.dcos > 0 &&
@@ -431,7 +431,7 @@ int main(void)
     {
         struct tvpal_view v = {.dims = {48, 40, 32}, .width = vo.W, .height = vo.H,
                                .ax_deg = 25, .ay_deg = 35, .zoom = 1};
-        struct tvpal_frame f;
+        struct tvpal_frame f = {0};
         const size_t np = (size_t)4 * vo.W * vo.H;
         make_frame(&vo, &v, &f, &tf);
         /* Every other slice shows the layer of its neighbour, with the
@@ -476,7 +476,7 @@ int main(void)
                                    .height = vo.H, .ax_deg = views[vi][0],
                                    .ay_deg = views[vi][1],
                                    .zoom = views[vi][2]};
-            struct tvpal_frame f;
+            struct tvpal_frame f = {0};
             for (int skip = 0; skip < 2; skip++) {
                 make_block_frame(&vo, &v, &f, &tf, 0.0f);
                 draw_fresh(&f, f.count, 2, skip, 1, img);
@@ -527,7 +527,7 @@ int main(void)
                                    .ax_deg = 360 * urand() - 180,
                                    .ay_deg = 360 * urand() - 180,
                                    .zoom = 0.6 + 5 * urand() * urand()};
-            struct tvpal_frame f;
+            struct tvpal_frame f = {0};
             const size_t npix = (size_t)rv.W * rv.H, np = 4 * npix;
             make_frame(&rv, &v, &f, &rt);
             draw_mode(&f, f.count, 1, 1, 1, 0, 1, img);
@@ -572,7 +572,7 @@ int main(void)
                                    .ax_deg = oddv[vi][0], .ay_deg = oddv[vi][1],
                                    .zoom = oddv[vi][2]};
             memcpy(v.dims, odd[oi].n, sizeof v.dims);
-            struct tvpal_frame f;
+            struct tvpal_frame f = {0};
             const size_t np = (size_t)4 * v.width * v.height;
             make_frame(&odd[oi], &v, &f, &tf2);
             draw_fresh(&f, f.count, 1, 1, 1, img);

@@ -33,7 +33,38 @@ struct tvpal_frame {
     uint32_t w, h;                        /* slice size */
     uint32_t count;                       /* slices to draw */
     const struct tvpal_frame_slice *sl;   /* in drawing order */
+    /* Cross frames (a single-copy dataset: only z slices stored, the view's
+     * axis x or y).  cross = 0: sl are slices of the view's axis, as above.
+     * cross = 1: sl are the z slices held, [z0, z0 + count) with z0 =
+     * sl[0].slice, in ascending order, every one with its palette (a fully
+     * transparent one too: it is the palette of a row); w x h = nx x ny.
+     * The renderer draws the view axis' slices s (0 <= s < dims[axis])
+     * with s % stride == phase, back to front, each cut from the z slices:
+     * texel (a, b) of x slice s is index (s, a) of z slice b, of y slice s
+     * index (a, s) of z slice b, and takes the palette of z slice b.  Only
+     * rows b in [z0, z0 + count) exist: samples outside are not drawn and
+     * the bilinear taps clamp to those rows (a slab of a cluster node draws
+     * its own rows; at a slab boundary the taps across it clamp).  The
+     * palette semantics are those of every frame: each of the four texels
+     * is looked up in its own row's palette, then the colours are
+     * interpolated. */
+    int cross;
+    uint32_t stride, phase;               /* cross frames: s % stride ==
+                                             phase is drawn; stride >= 1 */
 };
+
+/* The view-axis slice geometry of a cross frame: slices of w x h texels
+ * (h = the volume's nz, of which the frame holds rows [z0, z0 + count))
+ * and the count of slices along the view's axis. */
+static inline void tvpal_frame_cross_geometry(const struct tvpal_frame *f,
+                                              uint32_t *w, uint32_t *h,
+                                              uint32_t *n)
+{
+    const struct tvpal_view *v = f->view;
+    *w = v->axis == 0 ? v->dims[1] : v->dims[0];
+    *h = v->dims[2];
+    *n = v->dims[v->axis];
+}
 
 /* palette[i] for i < 256 from the decoded values row[256] of one slice at
  * one timestep; a NaN row[i] (a missing value) takes tf->nan_rgba, scaled,

@@ -32,56 +32,111 @@ static void plane_of(const struct tvpal_view *v, uint32_t s, struct plane *p)
     p->inv[1][1] = p->ea[0] / det;
 }
 
-static void render(const struct tvpal_frame *f, double *rgba, int index_interp)
+/* One drawable slice as the sampler sees it: texel (a, b) of rows
+ * [b0, b1) (b in slice texels) is idx(a, b), looked up in pal(b). */
+struct src {
+    const struct tvpal_frame *f;
+    const struct tvpal_frame_slice *sl;   /* plain frames: the slice */
+    uint32_t s;                           /* cross frames: view-axis slice */
+    int w, h, b0, b1;
+};
+
+static unsigned texel(const struct src *q, int a, int b)
+{
+    if (!q->f->cross)
+        return q->sl->idx[a + (size_t)q->w * b];
+    const struct tvpal_frame_slice *z = &q->f->sl[b - q->b0];
+    const size_t nx = q->f->w;
+    return q->f->view->axis == 0 ? z->idx[q->s + nx * (size_t)a]
+                                 : z->idx[(size_t)a + nx * q->s];
+}
+
+static const float *palette(const struct src *q, int b)
+{
+    return q->f->cross ? q->f->sl[b - q->b0].palette : q->sl->palette;
+}
+
+static void draw_slice(const struct tvpal_frame *f, const struct src *q,
+                       uint32_t s, double *rgba, int index_interp)
 {
     const struct tvpal_view *v = f->view;
     const unsigned W = v->width, H = v->height;
-    const int w = (int)f->w, h = (int)f->h;
-    memset(rgba, 0, sizeof(double) * 4 * W * H);
-    for (uint32_t k = 0; k < f->count; k++) {
-        const struct tvpal_frame_slice *sl = &f->sl[k];
-        struct plane p;
-        plane_of(v, sl->slice, &p);
-        for (unsigned py = 0; py < H; py++)
-            for (unsigned px = 0; px < W; px++) {
-                double ex, ey;
-                tvpal_view_pixel_to_eye(v, px + 0.5, py + 0.5, &ex, &ey);
-                double dx = ex - p.o[0], dy = ey - p.o[1];
-                double u = p.inv[0][0] * dx + p.inv[0][1] * dy;
-                double t = p.inv[1][0] * dx + p.inv[1][1] * dy;
-                if (!(u >= 0 && u < 1 && t >= 0 && t < 1))
-                    continue;
-                double tx = u * w - 0.5, ty = t * h - 0.5;
-                int i0 = (int)floor(tx), j0 = (int)floor(ty);
-                double fx = tx - i0, fy = ty - j0;
-                int ia = i0 < 0 ? 0 : i0, ib = i0 + 1 >= w ? w - 1 : i0 + 1;
-                int ja = j0 < 0 ? 0 : j0, jb = j0 + 1 >= h ? h - 1 : j0 + 1;
-                if (ia > w - 1) ia = w - 1;
-                if (ja > h - 1) ja = h - 1;
-                if (ib < 0) ib = 0;
-                if (jb < 0) jb = 0;
-                const uint8_t *I = sl->idx;
-                unsigned q00 = I[ia + (size_t)w * ja], q10 = I[ib + (size_t)w * ja],
-                         q01 = I[ia + (size_t)w * jb], q11 = I[ib + (size_t)w * jb];
-                double c[4];
-                if (index_interp) {
-                    double q = (1 - fy) * ((1 - fx) * q00 + fx * q10) +
-                               fy * ((1 - fx) * q01 + fx * q11);
-                    unsigned qi = (unsigned)floor(q + 0.5);
-                    for (int ch = 0; ch < 4; ch++)
-                        c[ch] = sl->palette[4 * qi + ch];
-                } else {
-                    for (int ch = 0; ch < 4; ch++)
-                        c[ch] = (1 - fy) * ((1 - fx) * sl->palette[4 * q00 + ch] +
-                                            fx * sl->palette[4 * q10 + ch]) +
-                                fy * ((1 - fx) * sl->palette[4 * q01 + ch] +
-                                      fx * sl->palette[4 * q11 + ch]);
-                }
-                double *d = rgba + 4 * ((size_t)py * W + px);
-                double keep = 1.0 - c[3];
+    const int w = q->w, h = q->h;
+    struct plane p;
+    plane_of(v, s, &p);
+    for (unsigned py = 0; py < H; py++)
+        for (unsigned px = 0; px < W; px++) {
+            double ex, ey;
+            tvpal_view_pixel_to_eye(v, px + 0.5, py + 0.5, &ex, &ey);
+            double dx = ex - p.o[0], dy = ey - p.o[1];
+            double u = p.inv[0][0] * dx + p.inv[0][1] * dy;
+            double t = p.inv[1][0] * dx + p.inv[1][1] * dy;
+            if (!(u >= 0 && u < 1 && t >= 0 && t < 1))
+                continue;
+            double tx = u * w - 0.5, ty = t * h - 0.5;
+            if (!(t * h >= q->b0 && t * h < q->b1))
+                continue;                   /* a row another slab holds */
+            int i0 = (int)floor(tx), j0 = (int)floor(ty);
+            double fx = tx - i0, fy = ty - j0;
+            int ia = i0 < 0 ? 0 : i0, ib = i0 + 1 >= w ? w - 1 : i0 + 1;
+            int ja = j0 < q->b0 ? q->b0 : j0;
+            int jb = j0 + 1 >= q->b1 ? q->b1 - 1 : j0 + 1;
+            if (ia > w - 1) ia = w - 1;
+            if (ja > q->b1 - 1) ja = q->b1 - 1;
+            if (ib < 0) ib = 0;
+            if (jb < q->b0) jb = q->b0;
+            unsigned q00 = texel(q, ia, ja), q10 = texel(q, ib, ja),
+                     q01 = texel(q, ia, jb), q11 = texel(q, ib, jb);
+            const float *pa = palette(q, ja), *pb = palette(q, jb);
+            double c[4];
+            if (index_interp) {
+                /* Indices mixed across rows of different palettes mean
+                 * nothing; this mode is for plain frames (it takes the
+                 * nearer row's palette). */
+                double qq = (1 - fy) * ((1 - fx) * q00 + fx * q10) +
+                            fy * ((1 - fx) * q01 + fx * q11);
+                unsigned qi = (unsigned)floor(qq + 0.5);
+                const float *pn = fy < 0.5 ? pa : pb;
                 for (int ch = 0; ch < 4; ch++)
-                    d[ch] = c[ch] + keep * d[ch];
+                    c[ch] = pn[4 * qi + ch];
+            } else {
+                for (int ch = 0; ch < 4; ch++)
+                    c[ch] = (1 - fy) * ((1 - fx) * pa[4 * q00 + ch] +
+                                        fx * pa[4 * q10 + ch]) +
+                            fy * ((1 - fx) * pb[4 * q01 + ch] +
+                                  fx * pb[4 * q11 + ch]);
             }
+            double *d = rgba + 4 * ((size_t)py * W + px);
+            double keep = 1.0 - c[3];
+            for (int ch = 0; ch < 4; ch++)
+                d[ch] = c[ch] + keep * d[ch];
+        }
+}
+
+static void render(const struct tvpal_frame *f, double *rgba, int index_interp)
+{
+    const struct tvpal_view *v = f->view;
+    memset(rgba, 0, sizeof(double) * 4 * v->width * v->height);
+    if (!f->cross) {
+        for (uint32_t k = 0; k < f->count; k++) {
+            const struct src q = {f, &f->sl[k], 0, (int)f->w, (int)f->h, 0,
+                                  (int)f->h};
+            draw_slice(f, &q, f->sl[k].slice, rgba, index_interp);
+        }
+        return;
+    }
+    if (!f->count || f->stride < 1)
+        return;
+    uint32_t w, h, n;
+    tvpal_frame_cross_geometry(f, &w, &h, &n);
+    const int b0 = (int)f->sl[0].slice;
+    for (uint32_t i = 0; i < n; i++) {
+        uint32_t s = v->descending ? n - 1 - i : i;
+        if (s % f->stride != f->phase)
+            continue;
+        const struct src q = {f, NULL, s, (int)w, (int)h, b0,
+                              b0 + (int)f->count};
+        draw_slice(f, &q, s, rgba, index_interp);
     }
 }
 
