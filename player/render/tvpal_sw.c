@@ -34,6 +34,34 @@
 #define KMAX 8        /* most that can be asked for (tvpal_sw_set_scale) */
 #define TILE_MIN 16   /* tile side; doubled until a row has <= 64 tiles */
 
+/* The transposed indices of the held z slices for one view axis (cross
+ * frames): slice s of w' texels a row, rows k = 0 .. rows - 1 (z slice z0
+ * + k) at idx + (s * rows + k) * w'.  Row k was cut from layer layer[k]
+ * at its generation gen[k] (0: nothing yet); only rows whose layer or
+ * generation changed are cut again, so steady playback re-transposes the
+ * 1/N of the slices whose windows changed. */
+struct cross_copy {
+    uint8_t *idx;
+    size_t cap;           /* bytes */
+    uint32_t *layer, *gen;
+    uint32_t rows, rows_cap, wp, n;   /* layout: rows, w', slices */
+};
+
+/* Per-frame scratch of cross frames (grown, then kept). */
+struct cross_scratch {
+    struct tvpal_frame_slice *sl;   /* the slices drawn */
+    size_t sl_cap;
+    const float **rowpal;           /* per row: its z slice's palette */
+    size_t rowpal_cap;
+    uint64_t *vis, *gvis;           /* drawn slices (resp. z tile groups) x
+                                       rows of cross tiles */
+    size_t vis_cap, gvis_cap;       /* words */
+    uint8_t *hit;                   /* per thread: a byte per z tile row */
+    size_t hit_cap;
+    uint32_t *todo;                 /* rows to cut again */
+    size_t todo_cap;
+};
+
 struct tvpal_sw {
     float *im;            /* intermediate image, RGBA premultiplied */
     size_t cap;           /* floats */
@@ -54,6 +82,10 @@ struct tvpal_sw {
     uint32_t *todo;       /* layers: dirty layers of this frame (scratch) */
     uint64_t *vis;        /* frame slices x trows: visible tile columns */
     size_t vis_cap;       /* frame slices vis holds */
+    uint32_t *ugen;       /* layers: generation of the indices, bumped by
+                             each upload (cross copies compare it) */
+    struct cross_copy xc[2];   /* cross frames: x (0) and y (1) slices */
+    struct cross_scratch xs;
     unsigned k_last;
     double t_classify, t_composite, t_warp;
 };
@@ -81,6 +113,18 @@ void tvpal_sw_free(struct tvpal_sw *r)
     free(r->dirty);
     free(r->todo);
     free(r->vis);
+    free(r->ugen);
+    for (int a = 0; a < 2; a++) {
+        free(r->xc[a].idx);
+        free(r->xc[a].layer);
+        free(r->xc[a].gen);
+    }
+    free(r->xs.sl);
+    free(r->xs.rowpal);
+    free(r->xs.vis);
+    free(r->xs.gvis);
+    free(r->xs.hit);
+    free(r->xs.todo);
     free(r);
 }
 
@@ -158,17 +202,24 @@ int tvpal_sw_set_slices(struct tvpal_sw *r, uint32_t w, uint32_t h,
     uint64_t *sets = malloc(nl * trows * tcols * 4 * sizeof *sets);
     uint8_t *dirty = malloc(nl);
     uint32_t *todo = malloc(nl * sizeof *todo);
-    if (!sets || !dirty || !todo) {
+    uint32_t *ugen = malloc(nl * sizeof *ugen);
+    if (!sets || !dirty || !todo || !ugen) {
         free(sets);
         free(dirty);
         free(todo);
+        free(ugen);
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "tile index sets for "
                               "%u slices of %ux%u", layers, w, h);
     }
     free(r->sets);
     free(r->dirty);
     free(r->todo);
+    free(r->ugen);
     memset(dirty, 1, nl);
+    for (size_t i = 0; i < nl; i++)
+        ugen[i] = 1;
+    r->ugen = ugen;
+    r->xc[0].rows = r->xc[1].rows = 0;   /* cut every row again */
     r->sets = sets;
     r->dirty = dirty;
     r->todo = todo;
@@ -184,8 +235,11 @@ int tvpal_sw_set_slices(struct tvpal_sw *r, uint32_t w, uint32_t h,
 
 void tvpal_sw_upload(struct tvpal_sw *r, uint32_t layer)
 {
-    if (layer < r->layers)
+    if (layer < r->layers) {
         r->dirty[layer] = 1;
+        if (++r->ugen[layer] == 0)
+            r->ugen[layer] = 1;   /* 0 means "nothing cut" */
+    }
 }
 
 /* Index sets of every tile of one slice: 256 bits, bit i set iff some
@@ -309,9 +363,9 @@ static void eye_to_base(const struct geom *g, unsigned w, unsigned h,
 
 /* The frame's geometry; 0, or TVPAL_E_INVAL for a degenerate or extreme
  * view (no conversion out of range). */
-static int setup(const struct tvpal_frame *f, unsigned force_k, struct geom *g)
+static int setup(const struct tvpal_view *v, unsigned w, unsigned h,
+                 unsigned force_k, struct geom *g)
 {
-    const struct tvpal_view *v = f->view;
     const unsigned ax = v->axis;
     const unsigned ua = ax == 0 ? 1 : 0, ub = ax == 2 ? 1 : 2;
     double m00 = v->rot[0][ua], m01 = v->rot[0][ub];
@@ -330,15 +384,15 @@ static int setup(const struct tvpal_frame *f, unsigned force_k, struct geom *g)
     double ra = v->rot[0][ax], rb = v->rot[1][ax];
     double da = g->minv[0][0] * ra + g->minv[0][1] * rb;
     double db = g->minv[1][0] * ra + g->minv[1][1] * rb;
-    g->sx = da / (2 * g->ha) * f->w;
-    g->sy = db / (2 * g->hb) * f->h;
+    g->sx = da / (2 * g->ha) * w;
+    g->sy = db / (2 * g->hb) * h;
     /* K: intermediate pixels per texel, a whole number (the weights of a
      * slice row stay constant), about what the output shows (1 to KAUTO):
      * up to K = KAUTO the warp magnifies by at most 1.25, so zoomed-in views
      * keep their detail and silhouettes their sharpness; beyond (more than
      * 4.25 output pixels per texel) it magnifies, bilinearly. */
-    double texel = 2 * g->ha / f->w;
-    double texel_b = 2 * g->hb / f->h;
+    double texel = 2 * g->ha / w;
+    double texel_b = 2 * g->hb / h;
     texel = texel > texel_b ? texel : texel_b;
     double pix = fmin(2 * v->sx / v->width, 2 * v->sy / v->height);
     double kk = ceil(texel / pix - 0.25);
@@ -353,8 +407,8 @@ static int setup(const struct tvpal_frame *f, unsigned force_k, struct geom *g)
     g->v0 = floor(vmin) - 1;
     /* Converted only when in range: a NaN or huge extent (an extreme
      * view) refuses the frame instead. */
-    double wi = ceil((umax + f->w + 1 - g->u0) * g->k);
-    double hi = ceil((vmax + f->h + 1 - g->v0) * g->k);
+    double wi = ceil((umax + w + 1 - g->u0) * g->k);
+    double hi = ceil((vmax + h + 1 - g->v0) * g->k);
     if (!(wi >= 1 && wi <= SW_EXTENT_MAX && hi >= 1 && hi <= SW_EXTENT_MAX))
         return TVPAL_E_INVAL;
     g->wi = (unsigned)wi;
@@ -396,7 +450,8 @@ struct span {
     unsigned wi;          /* row length (edge pixels are bounds-checked) */
     float fx[KMAX], fy;
     const uint8_t *ra, *rb;   /* texel rows below and above the sample */
-    const float *pal;
+    const float *pala, *palb; /* their palettes (the same but in cross
+                                 frames, where each row has its own) */
     float stop;           /* alpha at which a pixel stops (not exact) */
     int exact;            /* stop only at alpha 1 */
     uint64_t *map;        /* stopped pixels of the row, or NULL */
@@ -459,8 +514,8 @@ static inline long texel_pixel(const struct span *s, int x, int w, unsigned q)
 #if defined(__SSE2__)
 static inline __m128 vlerp_sse(const struct span *s, int x, __m128 vfy)
 {
-    __m128 a = _mm_loadu_ps(s->pal + 4 * s->ra[x]);
-    __m128 b = _mm_loadu_ps(s->pal + 4 * s->rb[x]);
+    __m128 a = _mm_loadu_ps(s->pala + 4 * s->ra[x]);
+    __m128 b = _mm_loadu_ps(s->palb + 4 * s->rb[x]);
     return _mm_add_ps(a, _mm_mul_ps(vfy, _mm_sub_ps(b, a)));
 }
 
@@ -533,7 +588,7 @@ INLINE void texel_v4_m(const struct span *s, int x, int w, const int exact)
 #else
 static inline void vlerp_sc(const struct span *s, int x, float *o)
 {
-    const float *a = s->pal + 4 * s->ra[x], *b = s->pal + 4 * s->rb[x];
+    const float *a = s->pala + 4 * s->ra[x], *b = s->palb + 4 * s->rb[x];
     for (int ch = 0; ch < 4; ch++)
         o[ch] = a[ch] + s->fy * (b[ch] - a[ch]);
 }
@@ -669,7 +724,7 @@ static inline int live_run(const uint64_t *map, long c0, long k, int *x,
 struct k1_ctx {      /* a span's K = 1 constants, read once per span */
     __m256 vfy, vfx;
     const uint8_t *ra, *rb;
-    const float *pal;
+    const float *pala, *palb;
     float *row;
     float stop;
     long c0;
@@ -678,8 +733,8 @@ struct k1_ctx {      /* a span's K = 1 constants, read once per span */
 AVX2 INLINE void pair_k1(const struct k1_ctx *k, int x, __m256 *vp,
                          uint64_t *map, const int exact)
 {
-    __m256 a = load2(k->pal + 4 * k->ra[x + 1], k->pal + 4 * k->ra[x + 2]);
-    __m256 b = load2(k->pal + 4 * k->rb[x + 1], k->pal + 4 * k->rb[x + 2]);
+    __m256 a = load2(k->pala + 4 * k->ra[x + 1], k->pala + 4 * k->ra[x + 2]);
+    __m256 b = load2(k->palb + 4 * k->rb[x + 1], k->palb + 4 * k->rb[x + 2]);
     __m256 vn = _mm256_add_ps(a, _mm256_mul_ps(k->vfy, _mm256_sub_ps(b, a)));
     __m256 cur = _mm256_permute2f128_ps(*vp, vn, 0x21); /* [V(x) | V(x+1)] */
     blend2(k->row, map, k->stop, k->c0 + x,
@@ -713,7 +768,8 @@ AVX2 INLINE void span_avx2_k1_m(const struct span *s, int x0, int x1,
     uint64_t *const map = s->map;
     const long c0 = s->c0;
     const struct k1_ctx k = {_mm256_set1_ps(s->fy), _mm256_set1_ps(s->fx[0]),
-                             s->ra, s->rb, s->pal, s->row, s->stop, c0};
+                             s->ra, s->rb, s->pala, s->palb, s->row, s->stop,
+                             c0};
     int x = x0;
     if (!map) {
         __m256 vp = dup_v(vlerp_sse(s, x, vfy1));
@@ -808,21 +864,33 @@ static inline long floordiv(long a, long b)
     return a >= 0 ? a / b : -((-a + b - 1) / b);
 }
 
+/* What composite_row draws: the frame's slices (plain frames), or the
+ * view-axis slices cut from the z slices (cross frames). */
+struct drawable {
+    const struct tvpal_frame_slice *sl;   /* drawing order, back to front */
+    uint32_t count;
+    int w, h;              /* slice texels; h counts every row of the axis */
+    int rb0, rb1;          /* rows held: [rb0, rb1); idx holds row rb0 first */
+    const float *const *rowpal;   /* NULL: each slice's palette; else row
+                                     b's palette is rowpal[b - rb0] */
+    const uint64_t *vis;   /* count x trows: visible tile columns */
+    unsigned tile, trows;
+};
+
 /* Composites row j of the stored part (global row jo + j) through every
  * slice, front to back. */
-static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
-                          const struct geom *g, unsigned j, float *row,
-                          int32_t *cov, uint64_t *map)
+static void composite_row(const struct tvpal_sw *r, const struct drawable *dr,
+                          const struct tvpal_view *v, const struct geom *g,
+                          unsigned j, float *row, int32_t *cov, uint64_t *map)
 {
-    const struct tvpal_view *v = f->view;
-    const int w = (int)f->w, h = (int)f->h;
-    const unsigned k = g->k, tile = r->tile;
+    const int w = dr->w, rb0 = dr->rb0, rb1 = dr->rb1;
+    const unsigned k = g->k, tile = dr->tile;
     long cov_lo = g->wc, cov_hi = 0;
     memset(row, 0, sizeof(float) * 4 * g->wc);
     if (map)
         memset(map, 0, sizeof *map * map_words(g->wc));
-    for (uint32_t n = f->count; n-- > 0;) {
-        const struct tvpal_frame_slice *sl = &f->sl[n];
+    for (uint32_t n = dr->count; n-- > 0;) {
+        const struct tvpal_frame_slice *sl = &dr->sl[n];
         if (map && map_next(map, 0, g->wc, 0) >= (long)g->wc) {
             /* Every pixel of the row has stopped: nothing behind can change
              * it, and every pixel is covered (it was blended). */
@@ -832,18 +900,22 @@ static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
         }
         const double c = slice_depth(v, sl->slice);
         const double ty = g->v0 + (g->jo + j + 0.5) / k - c * g->sy;
-        if (!(ty >= 0 && ty < h))
+        if (!(ty >= rb0 && ty < rb1))
             continue;
         const double yy = ty - 0.5, yf = floor(yy);
         const int y0 = (int)yf;
-        const int ya = y0 < 0 ? 0 : y0, yb = y0 + 1 >= h ? h - 1 : y0 + 1;
+        const int ya = y0 < rb0 ? rb0 : y0, yb = y0 + 1 >= rb1 ? rb1 - 1 : y0 + 1;
         const double ta = g->u0 - c * g->sx;
         /* Pixel i samples x = (i + 0.5) / K + ta - 0.5; the first pixel
          * whose sample lies at or right of texel 0 is c0. */
         const double c0 = ceil(k * (0.5 - ta) - 0.5);
+        const float *pa = dr->rowpal ? dr->rowpal[ya - rb0] : sl->palette;
+        const float *pb = dr->rowpal ? dr->rowpal[yb - rb0] : sl->palette;
         struct span s = {.row = row, .c0 = (long)c0 - g->io, .k = k, .wi = g->wc,
-                         .fy = (float)(yy - yf), .ra = sl->idx + (size_t)w * ya,
-                         .rb = sl->idx + (size_t)w * yb, .pal = sl->palette,
+                         .fy = (float)(yy - yf),
+                         .ra = sl->idx + (size_t)w * (ya - rb0),
+                         .rb = sl->idx + (size_t)w * (yb - rb0),
+                         .pala = pa, .palb = pb,
                          .stop = r->stop, .exact = r->exact && r->skip,
                          .map = map};
         unsigned qs = 0; /* phases with fx < 0.5 (fx grows with q) */
@@ -857,8 +929,8 @@ static void composite_row(const struct tvpal_sw *r, const struct tvpal_frame *f,
         long first = s.c0 - (long)k + qs, end = s.c0 + (long)k * (w - 1) + qs;
         cov_lo = first < cov_lo ? first : cov_lo;
         cov_hi = end > cov_hi ? end : cov_hi;
-        const uint64_t *vr = r->vis + (size_t)n * r->trows;
-        uint64_t bits = vr[ya / tile] | vr[yb / tile];
+        const uint64_t *vr = dr->vis + (size_t)n * dr->trows;
+        uint64_t bits = vr[(ya - rb0) / tile] | vr[(yb - rb0) / tile];
         /* Texels whose K pixels all lie inside the row: xmin..xmax. */
         const long xmin = -floordiv(s.c0, (long)k);
         const long xmax = floordiv((long)g->wc - (long)k - s.c0, (long)k);
@@ -994,10 +1066,14 @@ static int check_frame(const struct tvpal_sw *r, const struct tvpal_frame *f,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "frame slices %ux%u, "
                               "renderer prepared for %ux%u", f->w, f->h,
                               r->w, r->h);
-    const unsigned ax = v->axis;
-    if (ax > 2 || f->w != v->dims[ax == 0 ? 1 : 0] || f->h != v->dims[ax == 2 ? 1 : 2])
+    const unsigned ax = f->cross ? 2 : v->axis;
+    if (v->axis > 2 || f->w != v->dims[ax == 0 ? 1 : 0] || f->h != v->dims[ax == 2 ? 1 : 2])
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "frame slices %ux%u do not "
                               "match the view's volume", f->w, f->h);
+    if (f->cross && (v->axis == 2 || f->stride < 1 || f->phase >= f->stride))
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "cross frame along axis "
+                              "%u, stride %u phase %u (expected axis x or y, "
+                              "phase < stride)", v->axis, f->stride, f->phase);
     for (uint32_t n = 0; n < f->count; n++) {
         if (f->sl[n].layer >= r->layers)
             return tvpal_diag_set(diag, TVPAL_E_INVAL, "slice layer %u, "
@@ -1006,22 +1082,226 @@ static int check_frame(const struct tvpal_sw *r, const struct tvpal_frame *f,
         if (f->sl[n].slice >= v->dims[ax])
             return tvpal_diag_set(diag, TVPAL_E_INVAL, "slice %u of an axis "
                                   "of %u", f->sl[n].slice, v->dims[ax]);
+        if (f->cross && f->sl[n].slice != f->sl[0].slice + n)
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "cross frame: z slice "
+                                  "%u at position %u after %u (expected "
+                                  "consecutive slices)", f->sl[n].slice, n,
+                                  f->sl[0].slice);
     }
     return 0;
 }
 
-/* Warp: output pixel centre -> eye -> base texel -> intermediate. */
-static void setup_warp(const struct tvpal_frame *f, const struct geom *g,
-                       struct warp *wp)
+/* ------------------------------------------------------- cross frames */
+
+/* Tile side of slices w texels wide (as tvpal_sw_set_slices). */
+static unsigned tile_for(uint32_t w)
+{
+    unsigned tile = TILE_MIN;
+    while ((w + tile - 1) / tile > 64)
+        tile *= 2;
+    return tile;
+}
+
+static int grow(void **p, size_t *cap, size_t need, size_t elem)
+{
+    if (need <= *cap)
+        return 0;
+    void *q = realloc(*p, need * elem);
+    if (!q)
+        return TVPAL_E_NOMEM;
+    *p = q;
+    *cap = need;
+    return 0;
+}
+
+/* Scratch and the transposed copy of a cross frame; the copy's rows are
+ * marked for cutting again when its layout changes. */
+static int reserve_cross(struct tvpal_sw *r, const struct tvpal_frame *f,
+                         int nt, struct tvpal_diag *diag)
+{
+    uint32_t wp, h, n;
+    tvpal_frame_cross_geometry(f, &wp, &h, &n);
+    struct cross_copy *x = &r->xc[f->view->axis];
+    const uint32_t rows = f->count;
+    const unsigned tile = tile_for(wp);
+    const size_t trows = (rows + tile - 1) / tile;
+    const size_t groups = (n + r->tile - 1) / r->tile;
+    struct cross_scratch *xs = &r->xs;
+    if ((size_t)n * rows > SIZE_MAX / (wp ? wp : 1))
+        return tvpal_diag_set(diag, TVPAL_E_OVERFLOW, "transposed indices");
+    if (grow((void **)&x->idx, &x->cap, (size_t)n * rows * wp, 1) < 0)
+        return tvpal_diag_set(diag, TVPAL_E_NOMEM, "transposed indices of "
+                              "%u slices of %ux%u", n, wp, rows);
+    if (rows > x->rows_cap) {
+        uint32_t *g = realloc(x->gen, sizeof *g * rows);
+        uint32_t *l = realloc(x->layer, sizeof *l * rows);
+        if (g)
+            x->gen = g;
+        if (l)
+            x->layer = l;
+        if (!g || !l)
+            return tvpal_diag_set(diag, TVPAL_E_NOMEM, "transposed indices");
+        x->rows_cap = rows;
+    }
+    if (x->rows != rows || x->wp != wp || x->n != n) {
+        memset(x->gen, 0, sizeof *x->gen * rows);
+        x->rows = rows;
+        x->wp = wp;
+        x->n = n;
+    }
+    if (grow((void **)&xs->sl, &xs->sl_cap, n, sizeof *xs->sl) < 0 ||
+        grow((void **)&xs->rowpal, &xs->rowpal_cap, rows, sizeof *xs->rowpal) < 0 ||
+        grow((void **)&xs->vis, &xs->vis_cap, (size_t)n * trows, sizeof *xs->vis) < 0 ||
+        grow((void **)&xs->gvis, &xs->gvis_cap, groups * trows, sizeof *xs->gvis) < 0 ||
+        grow((void **)&xs->hit, &xs->hit_cap, (size_t)nt * r->trows, 1) < 0 ||
+        grow((void **)&xs->todo, &xs->todo_cap, rows, sizeof *xs->todo) < 0)
+        return tvpal_diag_set(diag, TVPAL_E_NOMEM, "cross frame scratch");
+    return 0;
+}
+
+/* Row k of the copy from z slice idx (nx x ny): x slices take its
+ * columns (a blocked transpose), y slices its rows (copies). */
+static void cut_row(struct cross_copy *x, unsigned axis, uint32_t k,
+                    const uint8_t *idx, uint32_t nx, uint32_t ny)
+{
+    const size_t rows = x->rows;
+    if (axis == 1) {       /* y slice s, row k = z row s */
+        for (uint32_t s = 0; s < ny; s++)
+            memcpy(x->idx + ((size_t)s * rows + k) * nx, idx + (size_t)s * nx, nx);
+        return;
+    }
+    enum { B = 16 };       /* x slice s, row k: a = y, idx[s + nx a] */
+    for (uint32_t s0 = 0; s0 < nx; s0 += B) {
+        const uint32_t s1 = s0 + B < nx ? s0 + B : nx;
+        for (uint32_t a0 = 0; a0 < ny; a0 += B) {
+            const uint32_t a1 = a0 + B < ny ? a0 + B : ny;
+            for (uint32_t s = s0; s < s1; s++) {
+                uint8_t *dst = x->idx + ((size_t)s * rows + k) * ny;
+                for (uint32_t a = a0; a < a1; a++)
+                    dst[a] = idx[s + (size_t)nx * a];
+            }
+        }
+    }
+}
+
+/* Visible cross tiles, from the visible z tiles (r->vis, classified for
+ * the z slices' own palettes): a cross tile is drawn when some z tile
+ * under it is visible.  That is conservative (a z tile covers tile-many
+ * slices of the view's axis), never wrong: a transparent texel drawn adds
+ * exactly zero.  Slices of one z tile group (s / tile) share their tiles,
+ * so they are computed per group: gvis[g * trows' + tb]. */
+static void cross_vis(struct tvpal_sw *r, const struct tvpal_frame *f,
+                      uint32_t wp, uint32_t n, int nt, struct drawable *dr)
+{
+    const unsigned axis = f->view->axis, zt = r->tile;
+    const uint32_t rows = f->count;
+    const unsigned tile = dr->tile, trows = dr->trows;
+    const unsigned tcols = (wp + tile - 1) / tile;
+    const uint64_t all = tcols == 64 ? ~0ull : (1ull << tcols) - 1;
+    const int groups = (int)((n + zt - 1) / zt);
+    uint64_t *gv = r->xs.gvis;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
+#endif
+    for (int g = 0; g < groups; g++) {
+        int tid = 0;
+#ifdef _OPENMP
+        tid = omp_get_thread_num();
+#endif
+        uint8_t *hit = r->xs.hit + (size_t)tid * r->trows;
+        for (unsigned tb = 0; tb < trows; tb++) {
+            const uint32_t k0 = tb * tile, k1 = k0 + tile < rows ? k0 + tile : rows;
+            uint64_t bits = 0;
+            if (!r->skip) {
+                bits = all;
+            } else if (axis == 1) {
+                /* y slices: cross tile columns are the z tile columns (both
+                 * tile nx texels alike); z tile row g. */
+                for (uint32_t k = k0; k < k1; k++)
+                    bits |= r->vis[(size_t)k * r->trows + g];
+            } else {
+                /* x slices: z tile column g; cross tile ta spans y, that is
+                 * z tile rows ta tile / zt .. ((ta + 1) tile - 1) / zt. */
+                memset(hit, 0, r->trows);
+                for (uint32_t k = k0; k < k1; k++) {
+                    const uint64_t *zv = r->vis + (size_t)k * r->trows;
+                    for (unsigned ty = 0; ty < r->trows; ty++)
+                        hit[ty] |= (uint8_t)((zv[ty] >> g) & 1);
+                }
+                for (unsigned ta = 0; ta < tcols; ta++) {
+                    unsigned y0 = ta * tile, y1 = y0 + tile < wp ? y0 + tile : wp;
+                    for (unsigned ty = y0 / zt; ty <= (y1 - 1) / zt; ty++)
+                        if (hit[ty]) {
+                            bits |= 1ull << ta;
+                            break;
+                        }
+                }
+            }
+            gv[(size_t)g * trows + tb] = bits;
+        }
+    }
+}
+
+/* A cross frame as a drawable: the rows to cut again are cut (in
+ * parallel), the slices to draw listed in drawing order, rows given their
+ * palettes, and the visible tiles derived. */
+static void prepare_cross(struct tvpal_sw *r, const struct tvpal_frame *f,
+                          int nt, struct drawable *dr)
 {
     const struct tvpal_view *v = f->view;
+    const unsigned axis = v->axis;
+    uint32_t wp, h, n;
+    tvpal_frame_cross_geometry(f, &wp, &h, &n);
+    struct cross_copy *x = &r->xc[axis];
+    struct cross_scratch *xs = &r->xs;
+    const uint32_t rows = f->count;
+    int ntodo = 0;
+    for (uint32_t k = 0; k < rows; k++) {
+        const uint32_t layer = f->sl[k].layer;
+        xs->rowpal[k] = f->sl[k].palette;
+        if (x->gen[k] != r->ugen[layer] || x->layer[k] != layer)
+            xs->todo[ntodo++] = k;
+    }
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 2) num_threads(nt)
+#endif
+    for (int m = 0; m < ntodo; m++) {
+        const uint32_t k = xs->todo[m], layer = f->sl[k].layer;
+        cut_row(x, axis, k, f->sl[k].idx, f->w, f->h);
+        x->layer[k] = layer;
+        x->gen[k] = r->ugen[layer];
+    }
+    uint32_t count = 0;
+    for (uint32_t i = 0; i < n; i++) {
+        const uint32_t s = v->descending ? n - 1 - i : i;
+        if (s % f->stride == f->phase)
+            xs->sl[count++] = (struct tvpal_frame_slice){
+                .slice = s, .idx = x->idx + (size_t)s * rows * wp};
+    }
+    const unsigned tile = tile_for(wp);
+    *dr = (struct drawable){.sl = xs->sl, .count = count, .w = (int)wp,
+                            .h = (int)h, .rb0 = (int)f->sl[0].slice,
+                            .rb1 = (int)(f->sl[0].slice + rows),
+                            .rowpal = xs->rowpal, .vis = xs->vis,
+                            .tile = tile, .trows = (rows + tile - 1) / tile};
+    cross_vis(r, f, wp, n, nt, dr);
+    for (uint32_t i = 0; i < count; i++)
+        memcpy(xs->vis + (size_t)i * dr->trows,
+               xs->gvis + (size_t)(xs->sl[i].slice / r->tile) * dr->trows,
+               sizeof *xs->vis * dr->trows);
+}
+
+/* Warp: output pixel centre -> eye -> base texel -> intermediate. */
+static void setup_warp(const struct tvpal_view *v, unsigned w, unsigned h,
+                       const struct geom *g, struct warp *wp)
+{
     double e0[2], e1[2], e2[2], b0[2], b1[2], b2[2];
     tvpal_view_pixel_to_eye(v, 0.5, 0.5, &e0[0], &e0[1]);
     tvpal_view_pixel_to_eye(v, 1.5, 0.5, &e1[0], &e1[1]);
     tvpal_view_pixel_to_eye(v, 0.5, 1.5, &e2[0], &e2[1]);
-    eye_to_base(g, f->w, f->h, e0[0], e0[1], &b0[0], &b0[1]);
-    eye_to_base(g, f->w, f->h, e1[0], e1[1], &b1[0], &b1[1]);
-    eye_to_base(g, f->w, f->h, e2[0], e2[1], &b2[0], &b2[1]);
+    eye_to_base(g, w, h, e0[0], e0[1], &b0[0], &b0[1]);
+    eye_to_base(g, w, h, e1[0], e1[1], &b1[0], &b1[1]);
+    eye_to_base(g, w, h, e2[0], e2[1], &b2[0], &b2[1]);
     wp->ox = (b0[0] - g->u0) * g->k - 0.5;
     wp->oy = (b0[1] - g->v0) * g->k - 0.5;
     wp->ax = (b1[0] - b0[0]) * g->k;
@@ -1141,9 +1421,12 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
     int rc = check_frame(r, f, diag);
     if (rc < 0)
         return rc;
-    if (setup(f, r->force_k, &g) < 0)
+    uint32_t w = f->w, h = f->h, n;
+    if (f->cross)
+        tvpal_frame_cross_geometry(f, &w, &h, &n);
+    if (setup(v, w, h, r->force_k, &g) < 0)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "degenerate view");
-    setup_warp(f, &g, &wp);
+    setup_warp(v, w, h, &g, &wp);
     clip_to_output(v, &wp, r->skip, &g);
     int nt = 1;
 #ifdef _OPENMP
@@ -1151,11 +1434,20 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
 #endif
     if ((rc = reserve_scratch(r, f, &g, nt, diag)) < 0)
         return rc;
+    if (f->cross && f->count && (rc = reserve_cross(r, f, nt, diag)) < 0)
+        return rc;
     r->avx2 = r->simd && cpu_avx2();
     r->k_last = g.k;
     r->stop = !r->skip ? NAN : TVPAL_SW_ALPHA_STOP;
     const int use_maps = r->skip && r->runs;
     classify_frame(r, f, nt);
+    struct drawable dr = {.sl = f->sl, .count = f->count, .w = (int)w,
+                          .h = (int)h, .rb0 = 0, .rb1 = (int)h,
+                          .vis = r->vis, .tile = r->tile, .trows = r->trows};
+    if (f->cross && f->count)
+        prepare_cross(r, f, nt, &dr);
+    else if (f->cross)
+        dr.count = 0;
     double t1 = tvpal_now();
     r->t_classify = (t1 - t0) * 1e3;
     /* Composite: rows of the intermediate image, in small chunks handed
@@ -1170,7 +1462,7 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
 #ifdef _OPENMP
         tid = omp_get_thread_num();
 #endif
-        composite_row(r, f, &g, (unsigned)j, im + (size_t)4 * g.wc * j,
+        composite_row(r, &dr, v, &g, (unsigned)j, im + (size_t)4 * g.wc * j,
                       r->cov + 2 * (size_t)j,
                       use_maps ? r->maps + map_words(g.wc) * tid : NULL);
     }
