@@ -36,6 +36,7 @@ struct play_opts {
     uint32_t fb_bits, cpu_scale;        /* cpu_scale 0: auto */
     int fb_given, scale_given;
     int exact;                          /* --exact: no bounded termination */
+    int from_z;                         /* --from-z: cross frames always */
     uint32_t level;                     /* --level N (with level_given) */
     int level_given;
     uint32_t budget_ms;                 /* --budget-ms: window frame budget */

@@ -95,6 +95,9 @@ static void usage(FILE *f)
 "                           records in RAM\n"
 "                           (axes beyond it are dropped or streamed); also\n"
 "                           reports how many timesteps fit in MIB\n"
+"      --from-z             draw every view from the z slices, as for a\n"
+"                           single-copy dataset (tvpal-encode --axes z),\n"
+"                           even where x and y are stored (comparisons)\n"
 "Benchmarking (headless):\n"
 "      --repeat K           draw every frame K times, 1..100000 (times the\n"
 "                           draw alone)\n"
@@ -305,7 +308,8 @@ static int set_composite(struct play_opts *o, const char *arg)
 enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
        K_REPEAT, K_TF_CYCLE, K_JUMPS, K_AUTOPLAY, K_SCREENSHOT, K_OPACITY,
        K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_DIRECT, K_MEM, K_CSV, K_STRICT,
-       K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR, K_EXACT, K_LEVEL, K_BUDGET };
+       K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR, K_EXACT, K_LEVEL, K_BUDGET,
+       K_FROM_Z };
 
 /* Grouped as --help groups them. */
 static const struct opt_def opt_table[] = {
@@ -344,6 +348,7 @@ static const struct opt_def opt_table[] = {
     {"no-direct", K_NO_DIRECT, OPT_SET, F(no_direct), 1, 0, NULL, NULL},
     {"mem", K_MEM, OPT_U32, F(mem_mib), 1, 16777216, NULL,
      "MiB in 1..16777216"},
+    {"from-z", K_FROM_Z, OPT_SET, F(from_z), 1, 0, NULL, NULL},
     /* benchmarking */
     {"repeat", K_REPEAT, OPT_U32, F(repeat), 1, 100000, NULL, "1..100000"},
     {"tf-cycle", K_TF_CYCLE, OPT_SET, F(tf_cycle), 1, 0, NULL, NULL},
@@ -467,6 +472,7 @@ int play_options_parse(struct play_opts *o, int argc, char **argv)
         play_die(2, "expected one OUTDIR (try --help)");
     o->dir = argv[optind];
     o->po.mem_budget = (uint64_t)o->mem_mib << 20;
+    o->po.z_only = o->from_z;
     if (o->no_direct && o->want_direct)
         play_die(2, "--direct and --no-direct: choose one");
     o->po.direct = !o->no_direct;

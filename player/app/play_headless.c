@@ -224,7 +224,8 @@ static void draw_frame(struct headless *h, uint32_t t, struct play_rank_rec *me,
     /* Sort-last compositing of the ranks' images (rank 0 gets it). */
     struct tvpal_compose_stats cs;
     double c0 = tvpal_now();
-    if (tvpal_composite(h->cx, &play_comm, h->o->ckind, !h->v.descending,
+    if (tvpal_composite(h->cx, &play_comm, h->o->ckind,
+                        !tvpal_player_slabs_descending(h->lpl, &h->vl),
                         h->rgba, h->final, &cs) < 0)
         play_die_rank(1, "compositing failed at step %u", t);
     double comp_ms = (tvpal_now() - c0) * 1e3;

@@ -358,7 +358,8 @@ static void render(struct win_state *w, const struct win_cmd *cmd,
     if (w->via_final) {
         struct tvpal_compose_stats cs;
         if (tvpal_composite(w->cx, &play_comm, TVPAL_COMPOSE_BSWAP,
-                            !v->descending, w->img, w->final, &cs) < 0)
+                            !tvpal_player_slabs_descending(pl, v), w->img,
+                            w->final, &cs) < 0)
             play_die_rank(1, "compositing failed at step %u", cmd->t);
     }
     double ms = (tvpal_now() - f0) * 1e3;

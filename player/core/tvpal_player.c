@@ -31,7 +31,13 @@ struct tvpal_player {
     struct tvpal_frame_slice *fs;
     float *pal;
     uint8_t *state;                  /* per held slice: enum slice_state */
+    const uint8_t *zero_idx;         /* cross frames: the indices of a z
+                                        slice with no data yet (zeros, with
+                                        the zero palette) */
 };
+
+/* A palette of zeros: a row with no data draws nothing. */
+static const float zero_palette[1024];
 
 /* What the frame does with a held slice (palette pass). */
 enum slice_state { SL_STRIDE, SL_NODATA, SL_CLEAR, SL_DRAW };
@@ -67,6 +73,8 @@ int tvpal_player_open(struct tvpal_player **out, const char *dir,
         }
         x->begin = UINT32_MAX;
         x->held = 0;
+        if (!p->ds->shards[a])
+            continue;                /* not stored (single copy) */
         for (uint32_t k = 0; k < p->ds->nshards; k++) {
             rc = tvpal_slab_create(&x->slabs[k], p->ds->shards[a][k]);
             if (rc < 0)
@@ -87,7 +95,8 @@ int tvpal_player_open(struct tvpal_player **out, const char *dir,
     p->pal = malloc(sizeof(float) * 1024 * nmax);
     p->uploaded_gen = calloc(nmax, sizeof *p->uploaded_gen);
     p->state = malloc(nmax);
-    if (!p->fs || !p->pal || !p->uploaded_gen || !p->state) {
+    p->zero_idx = calloc((size_t)p->ds->m.dims[0] * p->ds->m.dims[1], 1);
+    if (!p->fs || !p->pal || !p->uploaded_gen || !p->state || !p->zero_idx) {
         rc = TVPAL_E_NOMEM;
         goto err;
     }
@@ -119,6 +128,7 @@ void tvpal_player_close(struct tvpal_player *p)
     free(p->pal);
     free(p->uploaded_gen);
     free(p->state);
+    free((void *)p->zero_idx);
     free(p);
 }
 
@@ -144,13 +154,19 @@ const char *tvpal_player_io_name(const struct tvpal_player *p)
 
 static int open_axis(struct tvpal_player *p, unsigned a,
                      struct tvpal_diag *diag);
+static int data_axis(const struct tvpal_player *p, unsigned view_axis);
+static int no_data_axis(const struct tvpal_player *p, unsigned view_axis,
+                        struct tvpal_diag *diag);
 
 int tvpal_player_open_axis(struct tvpal_player *p, unsigned axis,
                            struct tvpal_diag *diag)
 {
     if (axis > 2)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "axis %u", axis);
-    return p->ax[axis].stream ? 0 : open_axis(p, axis, diag);
+    int da = data_axis(p, axis);
+    if (da < 0)
+        return no_data_axis(p, axis, diag);
+    return p->ax[da].stream ? 0 : open_axis(p, (unsigned)da, diag);
 }
 
 uint64_t tvpal_player_io_submits(const struct tvpal_player *p)
@@ -209,13 +225,55 @@ void tvpal_player_set_reduce(struct tvpal_player *p, unsigned k)
 uint64_t tvpal_player_axis_bytes(const struct tvpal_player *p)
 {
     uint64_t b = 0;
-    for (unsigned a = 0; a < 3; a++)
+    unsigned stored = 0;
+    for (unsigned a = 0; a < 3; a++) {
+        if (!p->ds->shards[a])
+            continue;
+        stored++;
         for (uint32_t k = 0; k < p->ds->nshards; k++) {
             const struct tvpal_shard_header *h =
                 tvpal_shard_hdr(p->ds->shards[a][k]);
             b += h->index_offset - TVPAL_SHARD_HEADER_BYTES;
         }
-    return b / 3;
+    }
+    return stored ? b / stored : 0;
+}
+
+/* The axis whose slices draw a view along view_axis: its own where it is
+ * stored, else z (a single-copy dataset: cross frames); -1 when neither
+ * is stored. */
+static int data_axis(const struct tvpal_player *p, unsigned view_axis)
+{
+    if (p->opts.z_only && p->ds->shards[2])
+        return 2;
+    if (p->ds->shards[view_axis])
+        return (int)view_axis;
+    return p->ds->shards[2] ? 2 : -1;
+}
+
+static int no_data_axis(const struct tvpal_player *p, unsigned view_axis,
+                        struct tvpal_diag *diag)
+{
+    char have[4] = "";
+    for (unsigned a = 0, n = 0; a < 3; a++)
+        if (p->ds->shards[a])
+            have[n++] = "xyz"[a];
+    return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s stores axes %s "
+                          "only: a view along %c needs its own axis or z",
+                          p->ds->dir, have, "xyz"[view_axis]);
+}
+
+int tvpal_player_data_axis(const struct tvpal_player *p, unsigned view_axis)
+{
+    return view_axis > 2 ? -1 : data_axis(p, view_axis);
+}
+
+int tvpal_player_slabs_descending(const struct tvpal_player *p,
+                                  const struct tvpal_view *v)
+{
+    if (data_axis(p, v->axis) == (int)v->axis)
+        return v->descending;
+    return -v->rot[2][2] > 0;   /* the view direction's z component */
 }
 
 /* First use of axis a: opens its stream (in-core: loads it).  With a
@@ -312,7 +370,7 @@ static inline uint32_t slice_in_order(const struct axis_state *x,
  * times per slice), and what the frame does with each slice. */
 static void build_palettes(struct tvpal_player *p, const struct axis_state *x,
                            const struct tvpal_view *v, uint32_t t,
-                           unsigned stride)
+                           unsigned stride, int cross)
 {
     const double expo = tvpal_view_opacity_exponent(v) * stride;
     const int held = (int)x->held;
@@ -320,8 +378,11 @@ static void build_palettes(struct tvpal_player *p, const struct axis_state *x,
 #pragma omp parallel for schedule(static)
 #endif
     for (int i = 0; i < held; i++) {
-        uint32_t s = slice_in_order(x, v, (uint32_t)i);
-        if (s % stride != (x->n / 2) % stride) {
+        /* Cross frames: every z slice held, ascending (each is a row of
+         * every slice drawn). */
+        uint32_t s = cross ? x->begin + (uint32_t)i
+                           : slice_in_order(x, v, (uint32_t)i);
+        if (!cross && s % stride != (x->n / 2) % stride) {
             p->state[i] = SL_STRIDE;
             continue;
         }
@@ -335,6 +396,39 @@ static void build_palettes(struct tvpal_player *p, const struct axis_state *x,
         p->state[i] = tvpal_palette_build(&p->tf, row, expo, p->opacity_scale,
                                           pal) ? SL_CLEAR : SL_DRAW;
     }
+}
+
+/* Cross frames: every z slice held, ascending, uploaded when its window
+ * changed; one with no data yet draws as zeros with the zero palette.  A
+ * transparent one stays: it is the palette of a row. */
+static uint32_t list_rows(struct tvpal_player *p, const struct axis_state *x,
+                          struct tvpal_renderer *r,
+                          struct tvpal_frame_stats *st)
+{
+    for (uint32_t i = 0; i < x->held; i++) {
+        const uint32_t s = x->begin + i;
+        struct tvpal_slab *slab = x->slabs[x->slab_of[s]];
+        const uint32_t k = x->local_of[s];
+        const uint8_t *idx = tvpal_slab_indices(slab, k);
+        const float *pal = p->pal + (size_t)1024 * i;
+        if (p->state[i] == SL_NODATA || !idx) {
+            idx = p->zero_idx;
+            pal = zero_palette;
+        } else if (p->state[i] == SL_CLEAR) {
+            st->skipped++;
+        }
+        /* UINT32_MAX: the zeros (0 is "never uploaded"). */
+        uint32_t gen = idx == p->zero_idx ? UINT32_MAX
+                                          : tvpal_slab_generation(slab, k);
+        if (p->uploaded_gen[s] != gen) {
+            r->upload(r->ctx, i, idx);
+            p->uploaded_gen[s] = gen;
+            st->uploads++;
+        }
+        p->fs[i] = (struct tvpal_frame_slice){.slice = s, .layer = i,
+                                              .idx = idx, .palette = pal};
+    }
+    return x->held;
 }
 
 /* In drawing order: uploads of slices whose window changed (serial: a GL
@@ -382,12 +476,18 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
     st->step = t;
     st->axis = v->axis;
     double t0 = tvpal_now();
-    struct axis_state *x = &p->ax[v->axis];
     if (t >= p->ds->m.steps)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u out of range "
                               "(0..%u)", t, p->ds->m.steps - 1);
+    const int da = v->axis <= 2 ? data_axis(p, v->axis) : -1;
+    if (da < 0)
+        return v->axis <= 2 ? no_data_axis(p, v->axis, diag)
+                            : tvpal_diag_set(diag, TVPAL_E_INVAL, "axis %u",
+                                             v->axis);
+    const int cross = da != (int)v->axis;
+    struct axis_state *x = &p->ax[da];
     if (!x->stream) {
-        int rc = open_axis(p, v->axis, diag);
+        int rc = open_axis(p, (unsigned)da, diag);
         if (rc < 0)
             return rc;
         st->axis_switch_ms = (tvpal_now() - t0) * 1e3;
@@ -405,16 +505,19 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
 
     double t1 = tvpal_now();
     st->stream_ms = (t1 - t0) * 1e3 - st->axis_switch_ms;
-    int rc = prepare_renderer(p, v->axis, r, diag);
+    int rc = prepare_renderer(p, (unsigned)da, r, diag);
     if (rc < 0)
         return rc;
-    st->stride = slice_stride(p, v, x->n);
-    build_palettes(p, x, v, t, st->stride);
-    uint32_t count = list_slices(p, x, v, r, st);
-    st->drawn = count;
+    const uint32_t n = v->dims[v->axis];   /* slices along the view */
+    st->stride = slice_stride(p, v, n);
+    build_palettes(p, x, v, t, st->stride, cross);
+    uint32_t count = cross ? list_rows(p, x, r, st) : list_slices(p, x, v, r, st);
+    st->drawn = cross ? (n + st->stride - 1 - (n / 2) % st->stride) / st->stride
+                      : count;
     double t2 = tvpal_now();
     struct tvpal_frame f = {.view = v, .w = x->w, .h = x->h, .count = count,
-                            .sl = p->fs};
+                            .sl = p->fs, .cross = cross, .stride = st->stride,
+                            .phase = (n / 2) % st->stride};
     rc = r->draw(r->ctx, &f, rgba, diag);
     double t3 = tvpal_now();
     st->rendered = rc == 0;

@@ -32,6 +32,10 @@ struct tvpal_player_opts {
     uint32_t rank, nranks;        /* nranks > 0: open only node `rank`'s
                                      shards, from the directory given to
                                      tvpal_player_open (cluster mode) */
+    int z_only;                   /* draw every view from the z slices
+                                     (cross frames), as for a single-copy
+                                     dataset, even where x and y are
+                                     stored: for comparisons */
     uint64_t mem_budget;          /* in-core: bytes of records kept in RAM
                                      over all axes (0: no limit); an axis
                                      that does not fit is streamed */
@@ -78,12 +82,25 @@ uint64_t tvpal_player_io_submits(const struct tvpal_player *p);
  * mode). */
 const char *tvpal_player_dir(const struct tvpal_player *p);
 
-/* Opens the stream of axis (0..2) now rather than at the first frame
- * that needs it, so that an I/O path refused (TVPAL_E_SYS: io_uring or
+/* Opens the stream of the data axis of views along axis (0..2) now
+ * rather than at the first frame that needs it, so that an I/O path refused (TVPAL_E_SYS: io_uring or
  * O_DIRECT unavailable under io_strict / direct_strict) or a fallback is
  * known before playing.  0 or the error, diag saying why. */
 int tvpal_player_open_axis(struct tvpal_player *p, unsigned axis,
                            struct tvpal_diag *diag);
+
+/* The axis whose stored slices draw views along view_axis: view_axis
+ * itself, or 2 for a dataset that does not store it (a single-copy
+ * dataset: the frame is a cross frame, tvpal_frame.h); -1 when neither is
+ * stored (tvpal_player_frame then fails with TVPAL_E_INVAL). */
+int tvpal_player_data_axis(const struct tvpal_player *p, unsigned view_axis);
+
+/* 1 when this node's slabs lie in depth order from the highest to the
+ * lowest slice of the data axis (the order of sort-last compositing):
+ * v->descending for the view's own axis, the sign of the view direction's
+ * z component for cross frames (z slabs). */
+int tvpal_player_slabs_descending(const struct tvpal_player *p,
+                                  const struct tvpal_view *v);
 
 /* Transfer function and opacity scale used from the next frame on (no
  * slice is uploaded again for a TF change). */
