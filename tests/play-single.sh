@@ -1,0 +1,147 @@
+#!/bin/sh
+# play-single: single-copy datasets (tvpal-encode --axes z) played.
+#  - The z shard of a single-copy encode is byte for byte the z shard of
+#    the three-copy encode, and the dataset is about a third of its size.
+#  - Views along x, y, z and between the axes, cpu and gl renderers: the
+#    image against the reference renderer (on the same decoded data, the
+#    player's --ref-psnr) is at least 40 dB, the floor tests/play.sh keeps
+#    for three copies' frames of this size; and the three-copy dataset
+#    drawn from its z slices (--from-z) gives the very same PNG frames as
+#    the single-copy one.
+#  - cpu: 1 and 2 threads give the same bits; a transfer function change
+#    every frame (--tf-cycle) and random jumps (--jumps) give the frames of
+#    plain sequential playback with that transfer function.
+#  - Crossing the principal axes (--spin) streams no record more than a
+#    fixed view (three copies: it reads the other axes' records).
+#  - Cluster (mpirun, K = 2, 3, 5, z slabs): every view within the cpu
+#    cluster tolerance of tests/cluster.sh for views along z and between
+#    axes, and for x and y views within the stated seam tolerance below.
+#  - Old three-copy datasets still play every view from their own axes.
+. "$(dirname "$0")/lib.sh"
+PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
+[ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
+"$ENC" --help | grep -q -- "--axes" || fail "tvpal-encode has no --axes"
+D=40x36x32
+"$GEN" --field turbulence --dims $D --steps 4 -o "$W/in" || fail gen
+"$ENC" -q --dims $D --window 2 -o "$W/xyz" "$W"/in/*.f32 > /dev/null || fail "encode xyz"
+"$ENC" -q --dims $D --window 2 --axes z -o "$W/z" "$W"/in/*.f32 > /dev/null || fail "encode z"
+cmp -s "$W/xyz/node-0/axis-z.tvps" "$W/z/node-0/axis-z.tvps" \
+    && ok "single copy: its z shard is the three-copy one's, byte for byte" \
+    || fail "single copy: the z shards differ"
+[ ! -e "$W/z/node-0/axis-x.tvps" ] && [ ! -e "$W/z/node-0/axis-y.tvps" ] \
+    && ok "single copy: no x or y shard" || fail "single copy has x or y shards"
+bz=$(cat "$W"/z/node-0/*.tvps | wc -c) bx=$(cat "$W"/xyz/node-0/*.tvps | wc -c)
+awk -v a="$bz" -v b="$bx" 'BEGIN { r = a / b; exit !(r > 0.30 && r < 0.37) }' \
+    && ok "single copy: $bz bytes of shards, three copies $bx" \
+    || fail "single copy: $bz bytes against $bx (expected about a third)"
+HAVE_GL=0
+"$PLAY" --version | grep -q "gl: yes" && HAVE_GL=1
+VIEWS="0,0 0,90 90,0 30,60 -80,20 10,130 180,-90"
+for r in cpu gl; do
+    [ $r = gl ] && [ $HAVE_GL = 0 ] && { echo "no OSMesa: gl views skipped"; continue; }
+    worst=100
+    for view in $VIEWS; do
+        line=$("$PLAY" "$W/z" --headless -q --renderer $r --size 96x80 --rotate $view \
+            --ref-psnr -o "$W/$r-z-$view") || fail "$r view $view"
+        p=$(echo "$line" | sed 's/.*psnr_ref=//')
+        worst=$(awk -v a="$worst" -v b="$p" 'BEGIN { print (b < a) ? b : a }')
+        "$PLAY" "$W/xyz" --headless -q --renderer $r --size 96x80 --rotate $view \
+            --from-z -o "$W/$r-f-$view" > /dev/null || fail "$r --from-z $view"
+        for f in "$W/$r-z-$view"/*.png; do
+            cmp -s "$f" "$W/$r-f-$view/$(basename "$f")" \
+                || fail "$r view $view $(basename "$f"): single copy differs from --from-z"
+        done
+    done
+    awk -v p="$worst" 'BEGIN { exit !(p >= 40) }' \
+        && ok "$r: views along and between every axis at least $worst dB against the reference" \
+        || fail "$r: $worst dB against the reference (floor 40)"
+done
+# Threads, TF changes and jumps (cpu).
+for view in 0,90 90,0; do
+    OMP_NUM_THREADS=1 "$PLAY" "$W/z" --headless -q --renderer cpu --size 96x80 --rotate $view \
+        -o "$W/t1-$view" > /dev/null || fail "1 thread"
+    OMP_NUM_THREADS=2 "$PLAY" "$W/z" --headless -q --renderer cpu --size 96x80 --rotate $view \
+        -o "$W/t2-$view" > /dev/null || fail "2 threads"
+    for f in "$W/t1-$view"/*.png; do
+        cmp -s "$f" "$W/t2-$view/$(basename "$f")" || fail "view $view: 1 and 2 threads differ"
+    done
+done
+ok "cpu x and y views: 1 and 2 threads give the same bits"
+TFW=$TVPAL_SRCDIR/samples/tf/warm.tf TFB=$TVPAL_SRCDIR/samples/tf/band.tf
+"$PLAY" "$W/z" --headless -q --renderer cpu --size 96x80 --rotate 0,90 --tf "$TFW" --tf "$TFB" \
+    --tf-cycle -o "$W/cyc" > /dev/null || fail "tf-cycle"
+"$PLAY" "$W/z" --headless -q --renderer cpu --size 96x80 --rotate 0,90 --tf "$TFW" -o "$W/cw" > /dev/null
+"$PLAY" "$W/z" --headless -q --renderer cpu --size 96x80 --rotate 0,90 --tf "$TFB" -o "$W/cb" > /dev/null
+cmp -s "$W/cyc/t0000.png" "$W/cw/t0000.png" && cmp -s "$W/cyc/t0001.png" "$W/cb/t0001.png" \
+    && cmp -s "$W/cyc/t0002.png" "$W/cw/t0002.png" \
+    && ok "a TF change every frame draws what each TF draws alone" || fail "tf-cycle frames differ"
+"$PLAY" "$W/z" --headless -q --renderer cpu --size 96x80 --rotate 90,0 --jumps 1 \
+    --csv "$W/j.csv" -o "$W/jump" > /dev/null || fail "jumps"
+n=0
+for f in "$W/jump"/*.png; do
+    cmp -s "$f" "$W/t2-90,0/$(basename "$f")" || fail "after a jump, $(basename "$f") differs"
+    n=$((n + 1))
+done
+ok "$n frames after random jumps are the sequential ones"
+# Crossing axes reads nothing more (streamed, no prefetch: each step read once).
+br() { sed 's/.*bytes_read=\([0-9]*\).*/\1/'; }
+fixed=$("$PLAY" "$W/z" --headless -q --renderer cpu --size 64x64 --prefetch 0 --steps 0:3 | br)
+spun=$("$PLAY" "$W/z" --headless -q --renderer cpu --size 64x64 --prefetch 0 --steps 0:3 \
+    --spin 60 --csv "$W/spin.csv" | br)
+axes=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "axis") c = i; next }
+                { print $c }' "$W/spin.csv" | sort -u | tr -d '\n')
+[ "$spun" = "$fixed" ] && [ ${#axes} -ge 2 ] \
+    && ok "spin over axes $axes: $spun bytes read, as a fixed view" \
+    || fail "spin over axes $axes read $spun bytes, a fixed view $fixed"
+x3=$("$PLAY" "$W/xyz" --headless -q --renderer cpu --size 64x64 --prefetch 0 --steps 0:3 --spin 60 | br)
+[ "$x3" -gt "$fixed" ] && ok "three copies, the same spin: $x3 bytes (the other axes' records)" \
+    || fail "three copies read $x3 bytes on the spin, expected more than $fixed"
+# Cluster: z slabs, rank order along the view's z (cpu, K = 2, 3, 5).
+# Views along z and between the axes: within the cpu cluster tolerance of
+# tests/cluster.sh (6 levels on at most 5% of the pixels).  Views along x
+# and y cut every slice at the slab boundaries, and a node holds no row
+# of its neighbours: the bilinear taps of the samples within half a row of
+# a boundary clamp to the node's own row, which shows as a seam (measured
+# on this blobs field: up to 50 levels, on at most 2.6% of the pixels).
+# Stated tolerance there: at most 4% of the pixels differ.
+if command -v mpirun > /dev/null && "$PLAY" --version | grep -q "mpi: yes"; then
+    MPI="timeout 300 mpirun --allow-run-as-root --oversubscribe"
+    export LP_NUM_THREADS=1 OMPI_MCA_rmaps_base_oversubscribe=1
+    DC=24x20x16 TF=$TVPAL_SRCDIR/samples/tf/warm.tf
+    "$GEN" --field blobs --dims $DC --steps 3 -o "$W/cin" || fail gen
+    for K in 1 2 3 5; do
+        "$ENC" -q --dims $DC --window 2 --nodes $K --axes z -o "$W/k$K" "$W"/cin/*.f32 > /dev/null \
+            || fail "encode K=$K"
+    done
+    for view in 0,0 30,40 0,90 90,0 20,100; do
+        "$PLAY" "$W/k1" --headless -q --renderer cpu --size 64x56 --rotate $view --tf "$TF" \
+            -o "$W/cref-$view" > /dev/null || fail "one node, $view"
+    done
+    for K in 2 3 5; do
+        for view in 0,0 30,40 0,90 90,0 20,100; do
+            $MPI -np $K "$PLAY" "$W/k$K" --headless -q --renderer cpu --size 64x56 --rotate $view \
+                --tf "$TF" -o "$W/c$K-$view" > "$W/o.txt" 2>&1 \
+                || { fail "K=$K view $view: $(tail -n 3 "$W/o.txt")"; continue; }
+            for t in 0 1 2; do
+                f=$(printf 't%04d.png' $t)
+                r=$($PY "$TVPAL_SRCDIR/tests/pngdiff.py" "$W/cref-$view/$f" "$W/c$K-$view/$f")
+                m=$(echo "$r" | sed 's/max=\([0-9]*\).*/\1/') d=$(echo "$r" | sed 's/.*differing=//')
+                case $view in
+                0,0|30,40) [ "$m" -le 6 ] && awk -v d="$d" 'BEGIN { exit !(d <= 0.05) }' \
+                    || fail "K=$K view $view step $t: $r" ;;
+                *) awk -v d="$d" 'BEGIN { exit !(d <= 0.04) }' || fail "K=$K view $view step $t: $r" ;;
+                esac
+            done
+        done
+        ok "K=$K: z slabs composited within the stated tolerances"
+    done
+else
+    echo "no mpirun or built without MPI: cluster part skipped"
+fi
+# Old three-copy datasets draw x views from their own x slices, not z.
+"$PLAY" "$W/xyz" --headless -q --renderer cpu --size 96x80 --rotate 0,90 -o "$W/own" > /dev/null \
+    || fail "three copies, x view"
+cmp -s "$W/own/t0001.png" "$W/cpu-f-0,90/t0001.png" \
+    && fail "three copies: the x view is drawn from z" \
+    || ok "three copies: the x view is drawn from the x slices"
+finish
