@@ -23,20 +23,40 @@ static const char *vs_src =
     "}\n";
 
 /* Paletted-texture emulation: the four nearest texels (centres at
- * (i + 0.5) / size, clamped to the edge) are looked up in the slice's
- * palette and the colours, not the indices, are interpolated. */
+ * (i + 0.5) / size, clamped to the edge) are looked up in their palette
+ * and the colours, not the indices, are interpolated.  One body, two
+ * programs (compiled after "#define CROSS 0" or "1"):
+ *  - plain: v_layer is the slice's layer; texel p is (p, v_layer), looked
+ *    up in palette row v_layer.
+ *  - cross: v_layer is the view-axis slice s (x or y) and size its
+ *    w x nz; texel (a, b) is (s, a) (x slices) or (a, s) (y slices) of
+ *    the z slice b in layer b - rows.x + rows.z, looked up in that layer's
+ *    palette row; b clamps to the rows held [rows.x, rows.y], so taps
+ *    never reach a row the frame does not hold. */
+static const char *fs_version = "#version 330 core\n";
 static const char *fs_src =
-    "#version 330 core\n"
     "uniform usampler2DArray idx;\n"
-    "uniform sampler2D pal;              // 256 x slices, RGBA32F\n"
+    "uniform sampler2D pal;              // 256 x layers, RGBA32F\n"
     "uniform ivec2 size;\n"
+    "#if CROSS\n"
+    "uniform ivec3 rows;                 // first, last row held; its layer\n"
+    "uniform int xslices;                // 1: x slices, 0: y slices\n"
+    "#endif\n"
     "in vec2 v_uv;\n"
     "flat in int v_layer;\n"
     "out vec4 color;\n"
     "vec4 look(ivec2 p) {\n"
+    "#if CROSS\n"
+    "    p = clamp(p, ivec2(0, rows.x), ivec2(size.x - 1, rows.y));\n"
+    "    int l = p.y - rows.x + rows.z;\n"
+    "    ivec2 q = xslices != 0 ? ivec2(v_layer, p.x) : ivec2(p.x, v_layer);\n"
+    "    uint i = texelFetch(idx, ivec3(q, l), 0).r;\n"
+    "    return texelFetch(pal, ivec2(int(i), l), 0);\n"
+    "#else\n"
     "    p = clamp(p, ivec2(0), size - 1);\n"
     "    uint i = texelFetch(idx, ivec3(p, v_layer), 0).r;\n"
     "    return texelFetch(pal, ivec2(int(i), v_layer), 0);\n"
+    "#endif\n"
     "}\n"
     "void main() {\n"
     "    vec2 t = v_uv * vec2(size) - 0.5;\n"
@@ -50,20 +70,21 @@ static const char *fs_src =
 
 struct tvpal_glr {
     unsigned width, height;
-    GLuint prog, vao, vbo, fbo, rbo, tex_idx, tex_pal;
-    GLint u_size;
+    GLuint prog, prog_cross, vao, vbo, fbo, rbo, tex_idx, tex_pal;
+    GLint u_size, u_size_cross, u_rows, u_xslices;
     uint32_t w, h, count;
-    float *verts;            /* count * 6 * 5 */
+    float *verts;            /* quad_cap * 6 * 5 */
+    size_t quad_cap;
     float *pal;              /* count * 256 * 4 */
     uint64_t uploads;
     double t_upload, t_draw, t_read;
 };
 
-static int compile(GLenum type, const char *src, GLuint *out,
-                   struct tvpal_diag *diag)
+static int compile(GLenum type, GLsizei n, const char *const *src,
+                   GLuint *out, struct tvpal_diag *diag)
 {
     GLuint s = glCreateShader(type);
-    glShaderSource(s, 1, &src, NULL);
+    glShaderSource(s, n, src, NULL);
     glCompileShader(s);
     GLint ok = 0;
     glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
@@ -74,6 +95,42 @@ static int compile(GLenum type, const char *src, GLuint *out,
         return tvpal_diag_set(diag, TVPAL_E_SYS, "shader: %s", log);
     }
     *out = s;
+    return 0;
+}
+
+/* The program of fs_src compiled with CROSS = cross, its samplers bound to
+ * units 0 (idx) and 1 (pal).  Once created, *out is the caller's to delete,
+ * failed link or not. */
+static int link_program(int cross, GLuint *out, struct tvpal_diag *diag)
+{
+    const char *fs[3] = {fs_version,
+                         cross ? "#define CROSS 1\n" : "#define CROSS 0\n",
+                         fs_src};
+    GLuint vs = 0, f = 0;
+    int rc = compile(GL_VERTEX_SHADER, 1, &vs_src, &vs, diag);
+    if (rc < 0)
+        return rc;
+    rc = compile(GL_FRAGMENT_SHADER, 3, fs, &f, diag);
+    if (rc < 0) {
+        glDeleteShader(vs);
+        return rc;
+    }
+    GLuint prog = *out = glCreateProgram();
+    glAttachShader(prog, vs);
+    glAttachShader(prog, f);
+    glLinkProgram(prog);
+    glDeleteShader(vs);
+    glDeleteShader(f);
+    GLint ok = 0;
+    glGetProgramiv(prog, GL_LINK_STATUS, &ok);
+    if (!ok) {
+        char log[200];
+        glGetProgramInfoLog(prog, sizeof log, NULL, log);
+        return tvpal_diag_set(diag, TVPAL_E_SYS, "shader link: %s", log);
+    }
+    glUseProgram(prog);
+    glUniform1i(glGetUniformLocation(prog, "idx"), 0);
+    glUniform1i(glGetUniformLocation(prog, "pal"), 1);
     return 0;
 }
 
@@ -99,33 +156,16 @@ int tvpal_glr_create_fb(struct tvpal_glr **out, unsigned width,
         return TVPAL_E_NOMEM;
     r->width = width;
     r->height = height;
-    GLuint vs = 0, fs = 0;
-    int rc = compile(GL_VERTEX_SHADER, vs_src, &vs, diag);
+    int rc = link_program(0, &r->prog, diag);
     if (rc < 0)
         goto err;
-    rc = compile(GL_FRAGMENT_SHADER, fs_src, &fs, diag);
-    if (rc < 0) {
-        glDeleteShader(vs);
+    rc = link_program(1, &r->prog_cross, diag);
+    if (rc < 0)
         goto err;
-    }
-    r->prog = glCreateProgram();
-    glAttachShader(r->prog, vs);
-    glAttachShader(r->prog, fs);
-    glLinkProgram(r->prog);
-    glDeleteShader(vs);
-    glDeleteShader(fs);
-    GLint ok = 0;
-    glGetProgramiv(r->prog, GL_LINK_STATUS, &ok);
-    if (!ok) {
-        char log[200];
-        glGetProgramInfoLog(r->prog, sizeof log, NULL, log);
-        rc = tvpal_diag_set(diag, TVPAL_E_SYS, "shader link: %s", log);
-        goto err;
-    }
-    glUseProgram(r->prog);
-    glUniform1i(glGetUniformLocation(r->prog, "idx"), 0);
-    glUniform1i(glGetUniformLocation(r->prog, "pal"), 1);
     r->u_size = glGetUniformLocation(r->prog, "size");
+    r->u_size_cross = glGetUniformLocation(r->prog_cross, "size");
+    r->u_rows = glGetUniformLocation(r->prog_cross, "rows");
+    r->u_xslices = glGetUniformLocation(r->prog_cross, "xslices");
 
     glGenVertexArrays(1, &r->vao);
     glBindVertexArray(r->vao);
@@ -195,9 +235,24 @@ void tvpal_glr_free(struct tvpal_glr *r)
         glDeleteVertexArrays(1, &r->vao);
     if (r->prog)
         glDeleteProgram(r->prog);
+    if (r->prog_cross)
+        glDeleteProgram(r->prog_cross);
     free(r->verts);
     free(r->pal);
     free(r);
+}
+
+/* Room in r->verts for n quads; grows only (a frame reuses it). */
+static int reserve_quads(struct tvpal_glr *r, size_t n)
+{
+    if (n <= r->quad_cap)
+        return 0;
+    float *v = realloc(r->verts, sizeof(float) * 30 * n);
+    if (!v)
+        return TVPAL_E_NOMEM;
+    r->verts = v;
+    r->quad_cap = n;
+    return 0;
 }
 
 int tvpal_glr_set_slices(struct tvpal_glr *r, uint32_t w, uint32_t h,
@@ -210,13 +265,10 @@ int tvpal_glr_set_slices(struct tvpal_glr *r, uint32_t w, uint32_t h,
         return tvpal_diag_set(diag, TVPAL_E_SYS,
                               "%u slices of %ux%u exceed the GL limits (%d "
                               "layers, %d texels)", count, w, h, maxl, maxs);
-    float *v = realloc(r->verts, sizeof(float) * 30 * count);
     float *p = realloc(r->pal, sizeof(float) * 1024 * count);
-    if (v)
-        r->verts = v;
     if (p)
         r->pal = p;
-    if (!v || !p)
+    if (!p || reserve_quads(r, count) < 0)
         return TVPAL_E_NOMEM;
     r->w = w;
     r->h = h;
@@ -233,7 +285,6 @@ int tvpal_glr_set_slices(struct tvpal_glr *r, uint32_t w, uint32_t h,
                  GL_FLOAT, NULL);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    glUniform2i(r->u_size, (GLint)w, (GLint)h);
     if (glGetError() != GL_NO_ERROR)
         return tvpal_diag_set(diag, TVPAL_E_SYS,
                               "cannot allocate textures for %u slices of "
@@ -250,34 +301,137 @@ void tvpal_glr_upload(struct tvpal_glr *r, uint32_t layer, const uint8_t *idx)
     r->uploads++;
 }
 
-int tvpal_glr_draw(struct tvpal_glr *r, const struct tvpal_frame *f,
-                   float *rgba, struct tvpal_diag *diag)
+/* Two triangles of the quad with eye-space corners c[0..3] ((0,0), (1,0),
+ * (1,1), (0,1) in slice coordinates) and texture coordinates uv; the
+ * last attribute is the layer (plain) or the slice (cross). */
+static float *put_quad(float *q, const struct tvpal_view *v,
+                       const double c[4][3], const float uv[4][2], float l)
+{
+    static const int tri[6] = {0, 1, 2, 0, 2, 3};
+    for (int i = 0; i < 6; i++) {
+        int ci = tri[i];
+        *q++ = (float)(c[ci][0] / v->sx);
+        *q++ = (float)(c[ci][1] / v->sy);
+        *q++ = uv[ci][0];
+        *q++ = uv[ci][1];
+        *q++ = l;
+    }
+    return q;
+}
+
+/* Palettes of the plain frame's slices into their layers' rows, and its
+ * quads back to front; returns the quad count. */
+static uint32_t plain_quads(struct tvpal_glr *r, const struct tvpal_frame *f)
 {
     const struct tvpal_view *v = f->view;
-    double t0 = tvpal_now();
-    /* Palettes of the drawn slices, in their layers; quads back to front. */
+    static const float uv[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
     float *q = r->verts;
     for (uint32_t k = 0; k < f->count; k++) {
         const struct tvpal_frame_slice *sl = &f->sl[k];
         memcpy(r->pal + (size_t)1024 * sl->layer, sl->palette,
                sizeof(float) * 1024);
-        static const int tri[6] = {0, 1, 2, 0, 2, 3};
-        static const float uv[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
         double c[4][3];
         for (int i = 0; i < 4; i++)
             tvpal_view_slice_corner(v, sl->slice, (unsigned)i, c[i]);
-        for (int i = 0; i < 6; i++) {
-            int ci = tri[i];
-            *q++ = (float)(c[ci][0] / v->sx);
-            *q++ = (float)(c[ci][1] / v->sy);
-            *q++ = uv[ci][0];
-            *q++ = uv[ci][1];
-            *q++ = (float)sl->layer;
-        }
+        q = put_quad(q, v, c, uv, (float)sl->layer);
     }
-    /* Bind our textures every frame: a front end may have used the units
-     * (the window's composited-image texture, say). */
-    glUseProgram(r->prog);
+    return f->count;
+}
+
+/* A cross frame's z slices (their palettes into their layers' rows) and
+ * quads: one per view-axis slice drawn, back to front, cut to the rows
+ * held [z0, z1) (b from z0 / nz to z1 / nz of the slice).  The cut corners
+ * are c0 (1 - t) + c3 t, exact at t = 0 and 1 and the same numbers for
+ * two slabs meeting at a row, so rasterization's edge rule gives each
+ * pixel at a slab boundary to one slab.  The layers must be consecutive
+ * (layer of z slice b = layer of z0 + b - z0), which the shader assumes;
+ * anything else, or a frame the textures do not fit, is refused. */
+static int cross_quads(struct tvpal_glr *r, const struct tvpal_frame *f,
+                       uint32_t *nquads, struct tvpal_diag *diag)
+{
+    const struct tvpal_view *v = f->view;
+    *nquads = 0;
+    if (v->axis > 1)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "a cross frame is drawn "
+                              "along x or y; this view's axis is z");
+    if (f->stride < 1)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "cross frame with "
+                              "stride 0");
+    if (!f->count)
+        return 0;
+    const uint32_t z0 = f->sl[0].slice, l0 = f->sl[0].layer;
+    if (f->w != v->dims[0] || f->h != v->dims[1] || f->w != r->w ||
+        f->h != r->h || z0 > v->dims[2] || f->count > v->dims[2] - z0 ||
+        l0 > r->count || f->count > r->count - l0)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "cross frame of z slices "
+                              "[%u, %u) of %ux%u in layers from %u; the "
+                              "renderer holds %u layers of %ux%u", z0,
+                              z0 + f->count, f->w, f->h, l0, r->count, r->w,
+                              r->h);
+    for (uint32_t k = 0; k < f->count; k++) {
+        const struct tvpal_frame_slice *sl = &f->sl[k];
+        if (sl->slice != z0 + k || sl->layer != l0 + k)
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "cross frame: z "
+                                  "slice %u in layer %u, expected z slice "
+                                  "%u in layer %u", sl->slice, sl->layer,
+                                  z0 + k, l0 + k);
+        memcpy(r->pal + (size_t)1024 * sl->layer, sl->palette,
+               sizeof(float) * 1024);
+    }
+    uint32_t w, h, n;
+    tvpal_frame_cross_geometry(f, &w, &h, &n);
+    if (reserve_quads(r, n) < 0)
+        return TVPAL_E_NOMEM;
+    const double t0 = (double)z0 / h, t1 = (double)(z0 + f->count) / h;
+    const float uv[4][2] = {{0, (float)t0}, {1, (float)t0}, {1, (float)t1},
+                            {0, (float)t1}};
+    float *q = r->verts;
+    for (uint32_t i = 0; i < n; i++) {
+        const uint32_t s = v->descending ? n - 1 - i : i;
+        if (s % f->stride != f->phase)
+            continue;
+        double c[4][3], cut[4][3];
+        for (int k = 0; k < 4; k++)
+            tvpal_view_slice_corner(v, s, (unsigned)k, c[k]);
+        for (int e = 0; e < 3; e++) {
+            cut[0][e] = c[0][e] * (1 - t0) + c[3][e] * t0;
+            cut[1][e] = c[1][e] * (1 - t0) + c[2][e] * t0;
+            cut[2][e] = c[1][e] * (1 - t1) + c[2][e] * t1;
+            cut[3][e] = c[0][e] * (1 - t1) + c[3][e] * t1;
+        }
+        q = put_quad(q, v, cut, uv, (float)s);
+        ++*nquads;
+    }
+    return 0;
+}
+
+int tvpal_glr_draw(struct tvpal_glr *r, const struct tvpal_frame *f,
+                   float *rgba, struct tvpal_diag *diag)
+{
+    double t0 = tvpal_now();
+    uint32_t nq = 0;
+    if (f->cross) {
+        int rc = cross_quads(r, f, &nq, diag);
+        if (rc < 0)
+            return rc;
+    } else {
+        nq = plain_quads(r, f);
+    }
+    /* Bind our program and textures every frame: a front end may have
+     * used them (the window's composited-image texture, say). */
+    if (f->cross) {
+        uint32_t w, h, n;
+        tvpal_frame_cross_geometry(f, &w, &h, &n);
+        const GLint z0 = f->count ? (GLint)f->sl[0].slice : 0;
+        glUseProgram(r->prog_cross);
+        glUniform2i(r->u_size_cross, (GLint)w, (GLint)h);
+        glUniform3i(r->u_rows, z0, z0 + (GLint)f->count - 1,
+                    f->count ? (GLint)f->sl[0].layer : 0);
+        glUniform1i(r->u_xslices, f->view->axis == 0);
+    } else {
+        glUseProgram(r->prog);
+        glUniform2i(r->u_size, (GLint)r->w, (GLint)r->h);
+    }
     glBindVertexArray(r->vao);
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_2D_ARRAY, r->tex_idx);
@@ -286,13 +440,13 @@ int tvpal_glr_draw(struct tvpal_glr *r, const struct tvpal_frame *f,
     glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, 256, (GLsizei)r->count, GL_RGBA,
                     GL_FLOAT, r->pal);
     glBindBuffer(GL_ARRAY_BUFFER, r->vbo);
-    glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(sizeof(float) * 30 * f->count),
+    glBufferData(GL_ARRAY_BUFFER, (GLsizeiptr)(sizeof(float) * 30 * nq),
                  r->verts, GL_STREAM_DRAW);
     double t1 = tvpal_now();
     glBindFramebuffer(GL_FRAMEBUFFER, r->fbo);
     glClearColor(0, 0, 0, 0);
     glClear(GL_COLOR_BUFFER_BIT);
-    glDrawArrays(GL_TRIANGLES, 0, (GLsizei)(6 * f->count));
+    glDrawArrays(GL_TRIANGLES, 0, (GLsizei)(6 * nq));
     glFinish();
     double t2 = tvpal_now();
     if (rgba) {

@@ -3,11 +3,22 @@
  *
  * Slice indices live in a 2D texture array of R8UI, one layer per slice of
  * the current axis, uploaded only when a slice's window changes; palettes
- * (256 x RGBA32F per slice) are one small texture re-uploaded every frame.
+ * (256 x RGBA32F per layer) are one small texture re-uploaded every frame.
  * The fragment shader emulates a paletted texture exactly as
  * tvpal_render_ref does (four texelFetch, palette lookup, bilinear mix of
  * the colours) and blending is "over" into an RGBA32F framebuffer, so 8-bit
- * accumulation does not band.  This file is the only one that includes GL
+ * accumulation does not band.
+ *
+ * Cross frames (tvpal_frame.h; single-copy datasets): the layers are the z
+ * slices held (set_slices(nx, ny, count), as for a z view), so the same
+ * texture array is the volume.  The renderer draws one quad per x or y
+ * slice s drawn, cut to the rows held, and a second program fetches texel
+ * (a, b) at (s, a) or (a, s) of layer b - z0 + (z0's layer), looked up in
+ * that layer's palette row, the rows clamped to those held; interpolation
+ * and blending are the plain path's.  Crossing between z, x and y views of
+ * the same z slices therefore uploads no layer.  A cross frame's z slices
+ * must sit in consecutive layers in ascending order (the player's layer =
+ * slice - first held).  This file is the only one that includes GL
  * headers (with tvpal_osmesa.c and the GLFW front end).
  */
 #ifndef TVPAL_GLR_H
@@ -34,7 +45,8 @@ int tvpal_glr_create_fb(struct tvpal_glr **out, unsigned width,
 void tvpal_glr_free(struct tvpal_glr *r);   /* NULL is a no-op */
 
 /* (Re)allocates the index texture array for `count` slices of w x h (on
- * axis changes); all layers are then undefined until uploaded. */
+ * axis changes of a three-copy dataset; z slices serve every view of a
+ * single-copy one); all layers are then undefined until uploaded. */
 int tvpal_glr_set_slices(struct tvpal_glr *r, uint32_t w, uint32_t h,
                          uint32_t count, struct tvpal_diag *diag);
 
@@ -43,7 +55,10 @@ void tvpal_glr_upload(struct tvpal_glr *r, uint32_t layer,
                       const uint8_t *idx);
 
 /* Draws the frame (palettes uploaded here) and reads the image back as
- * width * height RGBA floats, row 0 at the bottom, when rgba is non-NULL. */
+ * width * height RGBA floats, row 0 at the bottom, when rgba is non-NULL.
+ * A cross frame the layers do not hold as above (other slice size, more
+ * slices than layers, layers not consecutive), along z or with stride 0
+ * is refused with TVPAL_E_INVAL and draws nothing. */
 int tvpal_glr_draw(struct tvpal_glr *r, const struct tvpal_frame *f,
                    float *rgba, struct tvpal_diag *diag);
 
