@@ -44,14 +44,36 @@ struct tvpal_frame {
      * index (a, s) of z slice b, and takes the palette of z slice b.  Only
      * rows b in [z0, z0 + count) exist: samples outside are not drawn and
      * the bilinear taps clamp to those rows (a slab of a cluster node draws
-     * its own rows; at a slab boundary the taps across it clamp).  The
+     * its own rows; at a slab boundary the taps across it clamp, unless
+     * the frame also holds the neighbours' boundary rows, below).  The
      * palette semantics are those of every frame: each of the four texels
      * is looked up in its own row's palette, then the colours are
      * interpolated. */
     int cross;
     uint32_t stride, phase;               /* cross frames: s % stride ==
                                              phase is drawn; stride >= 1 */
+    /* Cross frames: the rows whose samples are drawn, [draw_begin,
+     * draw_end) within the rows held; draw_end == 0: all rows held.  A
+     * cluster node holds its slab and a ghost row on each side (its
+     * neighbours' boundary z slices) and draws its slab's samples: the
+     * taps of those within half a row of the boundary reach the ghost
+     * row, so the nodes' samples are exactly the one node's. */
+    uint32_t draw_begin, draw_end;
 };
+
+/* The rows of a cross frame whose samples are drawn (see above). */
+static inline void tvpal_frame_cross_draw_rows(const struct tvpal_frame *f,
+                                               uint32_t *d0, uint32_t *d1)
+{
+    const uint32_t z0 = f->count ? f->sl[0].slice : 0;
+    if (f->draw_end > f->draw_begin) {
+        *d0 = f->draw_begin;
+        *d1 = f->draw_end;
+    } else {
+        *d0 = z0;
+        *d1 = z0 + f->count;
+    }
+}
 
 /* The view-axis slice geometry of a cross frame: slices of w x h texels
  * (h = the volume's nz, of which the frame holds rows [z0, z0 + count))

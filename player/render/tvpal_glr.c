@@ -382,7 +382,12 @@ static int cross_quads(struct tvpal_glr *r, const struct tvpal_frame *f,
     tvpal_frame_cross_geometry(f, &w, &h, &n);
     if (reserve_quads(r, n) < 0)
         return TVPAL_E_NOMEM;
-    const double t0 = (double)z0 / h, t1 = (double)(z0 + f->count) / h;
+    uint32_t d0, d1;
+    tvpal_frame_cross_draw_rows(f, &d0, &d1);
+    if (d0 < z0 || d1 > z0 + f->count)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "cross frame: rows %u..%u "
+                              "drawn, %u..%u held", d0, d1, z0, z0 + f->count);
+    const double t0 = (double)d0 / h, t1 = (double)d1 / h;
     const float uv[4][2] = {{0, (float)t0}, {1, (float)t0}, {1, (float)t1},
                             {0, (float)t1}};
     float *q = r->verts;

@@ -38,7 +38,8 @@ struct src {
     const struct tvpal_frame *f;
     const struct tvpal_frame_slice *sl;   /* plain frames: the slice */
     uint32_t s;                           /* cross frames: view-axis slice */
-    int w, h, b0, b1;
+    int w, h, b0, b1;                     /* rows held (taps) */
+    int d0, d1;                           /* rows whose samples are drawn */
 };
 
 static unsigned texel(const struct src *q, int a, int b)
@@ -74,7 +75,7 @@ static void draw_slice(const struct tvpal_frame *f, const struct src *q,
             if (!(u >= 0 && u < 1 && t >= 0 && t < 1))
                 continue;
             double tx = u * w - 0.5, ty = t * h - 0.5;
-            if (!(t * h >= q->b0 && t * h < q->b1))
+            if (!(t * h >= q->d0 && t * h < q->d1))
                 continue;                   /* a row another slab holds */
             int i0 = (int)floor(tx), j0 = (int)floor(ty);
             double fx = tx - i0, fy = ty - j0;
@@ -120,7 +121,7 @@ static void render(const struct tvpal_frame *f, double *rgba, int index_interp)
     if (!f->cross) {
         for (uint32_t k = 0; k < f->count; k++) {
             const struct src q = {f, &f->sl[k], 0, (int)f->w, (int)f->h, 0,
-                                  (int)f->h};
+                                  (int)f->h, 0, (int)f->h};
             draw_slice(f, &q, f->sl[k].slice, rgba, index_interp);
         }
         return;
@@ -130,12 +131,14 @@ static void render(const struct tvpal_frame *f, double *rgba, int index_interp)
     uint32_t w, h, n;
     tvpal_frame_cross_geometry(f, &w, &h, &n);
     const int b0 = (int)f->sl[0].slice;
+    uint32_t d0, d1;
+    tvpal_frame_cross_draw_rows(f, &d0, &d1);
     for (uint32_t i = 0; i < n; i++) {
         uint32_t s = v->descending ? n - 1 - i : i;
         if (s % f->stride != f->phase)
             continue;
         const struct src q = {f, NULL, s, (int)w, (int)h, b0,
-                              b0 + (int)f->count};
+                              b0 + (int)f->count, (int)d0, (int)d1};
         draw_slice(f, &q, s, rgba, index_interp);
     }
 }

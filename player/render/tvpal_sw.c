@@ -871,6 +871,7 @@ struct drawable {
     uint32_t count;
     int w, h;              /* slice texels; h counts every row of the axis */
     int rb0, rb1;          /* rows held: [rb0, rb1); idx holds row rb0 first */
+    int db0, db1;          /* rows whose samples are drawn, within them */
     const float *const *rowpal;   /* NULL: each slice's palette; else row
                                      b's palette is rowpal[b - rb0] */
     const uint64_t *vis;   /* count x trows: visible tile columns */
@@ -900,35 +901,44 @@ static void composite_row(const struct tvpal_sw *r, const struct drawable *dr,
         }
         const double c = slice_depth(v, sl->slice);
         const double ty = g->v0 + (g->jo + j + 0.5) / k - c * g->sy;
-        if (!(ty >= rb0 && ty < rb1))
+        if (!(ty >= 0 && ty < dr->h))
             continue;
-        const double yy = ty - 0.5, yf = floor(yy);
-        const int y0 = (int)yf;
-        const int ya = y0 < rb0 ? rb0 : y0, yb = y0 + 1 >= rb1 ? rb1 - 1 : y0 + 1;
         const double ta = g->u0 - c * g->sx;
         /* Pixel i samples x = (i + 0.5) / K + ta - 0.5; the first pixel
          * whose sample lies at or right of texel 0 is c0. */
         const double c0 = ceil(k * (0.5 - ta) - 0.5);
+        const long sc0 = (long)c0 - g->io;
+        float fxq[KMAX];
+        unsigned qs = 0; /* phases with fx < 0.5 (fx grows with q) */
+        for (unsigned q = 0; q < k; q++) {
+            double fx = (c0 + q + 0.5) / k + ta - 0.5;
+            fxq[q] = (float)(fx < 0 ? 0 : fx > 1 ? 1 : fx);
+            qs += fxq[q] < 0.5f;
+        }
+        /* The slice covers pixels c0 - K + qs .. c0 + K (w - 1) + qs - 1
+         * (the same tests as texel_v4), whatever its palette; a row of
+         * the slice that another node holds (cross frames of a slab) is
+         * covered too, by nothing: the warp filters across the slab's
+         * boundary as inside the volume, and the silhouette stays where
+         * the volume ends. */
+        long first = sc0 - (long)k + qs, end = sc0 + (long)k * (w - 1) + qs;
+        cov_lo = first < cov_lo ? first : cov_lo;
+        cov_hi = end > cov_hi ? end : cov_hi;
+        if (!(ty >= dr->db0 && ty < dr->db1))
+            continue;
+        const double yy = ty - 0.5, yf = floor(yy);
+        const int y0 = (int)yf;
+        const int ya = y0 < rb0 ? rb0 : y0, yb = y0 + 1 >= rb1 ? rb1 - 1 : y0 + 1;
         const float *pa = dr->rowpal ? dr->rowpal[ya - rb0] : sl->palette;
         const float *pb = dr->rowpal ? dr->rowpal[yb - rb0] : sl->palette;
-        struct span s = {.row = row, .c0 = (long)c0 - g->io, .k = k, .wi = g->wc,
+        struct span s = {.row = row, .c0 = sc0, .k = k, .wi = g->wc,
                          .fy = (float)(yy - yf),
                          .ra = sl->idx + (size_t)w * (ya - rb0),
                          .rb = sl->idx + (size_t)w * (yb - rb0),
                          .pala = pa, .palb = pb,
                          .stop = r->stop, .exact = r->exact && r->skip,
                          .map = map};
-        unsigned qs = 0; /* phases with fx < 0.5 (fx grows with q) */
-        for (unsigned q = 0; q < k; q++) {
-            double fx = (c0 + q + 0.5) / k + ta - 0.5;
-            s.fx[q] = (float)(fx < 0 ? 0 : fx > 1 ? 1 : fx);
-            qs += s.fx[q] < 0.5f;
-        }
-        /* The slice covers pixels c0 - K + qs .. c0 + K (w - 1) + qs - 1
-         * (the same tests as texel_v4), whatever its palette. */
-        long first = s.c0 - (long)k + qs, end = s.c0 + (long)k * (w - 1) + qs;
-        cov_lo = first < cov_lo ? first : cov_lo;
-        cov_hi = end > cov_hi ? end : cov_hi;
+        memcpy(s.fx, fxq, sizeof fxq);
         const uint64_t *vr = dr->vis + (size_t)n * dr->trows;
         uint64_t bits = vr[(ya - rb0) / tile] | vr[(yb - rb0) / tile];
         /* Texels whose K pixels all lie inside the row: xmin..xmax. */
@@ -1082,6 +1092,13 @@ static int check_frame(const struct tvpal_sw *r, const struct tvpal_frame *f,
         if (f->sl[n].slice >= v->dims[ax])
             return tvpal_diag_set(diag, TVPAL_E_INVAL, "slice %u of an axis "
                                   "of %u", f->sl[n].slice, v->dims[ax]);
+        if (f->cross && n == 0 && f->draw_end > f->draw_begin &&
+            (f->draw_begin < f->sl[0].slice ||
+             f->draw_end > f->sl[0].slice + f->count))
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "cross frame: rows "
+                                  "%u..%u drawn, %u..%u held", f->draw_begin,
+                                  f->draw_end, f->sl[0].slice,
+                                  f->sl[0].slice + f->count);
         if (f->cross && f->sl[n].slice != f->sl[0].slice + n)
             return tvpal_diag_set(diag, TVPAL_E_INVAL, "cross frame: z slice "
                                   "%u at position %u after %u (expected "
@@ -1255,6 +1272,8 @@ static void prepare_cross(struct tvpal_sw *r, const struct tvpal_frame *f,
     struct cross_copy *x = &r->xc[axis];
     struct cross_scratch *xs = &r->xs;
     const uint32_t rows = f->count;
+    uint32_t d0, d1;
+    tvpal_frame_cross_draw_rows(f, &d0, &d1);
     int ntodo = 0;
     for (uint32_t k = 0; k < rows; k++) {
         const uint32_t layer = f->sl[k].layer;
@@ -1282,6 +1301,7 @@ static void prepare_cross(struct tvpal_sw *r, const struct tvpal_frame *f,
     *dr = (struct drawable){.sl = xs->sl, .count = count, .w = (int)wp,
                             .h = (int)h, .rb0 = (int)f->sl[0].slice,
                             .rb1 = (int)(f->sl[0].slice + rows),
+                            .db0 = (int)d0, .db1 = (int)d1,
                             .rowpal = xs->rowpal, .vis = xs->vis,
                             .tile = tile, .trows = (rows + tile - 1) / tile};
     cross_vis(r, f, wp, n, nt, dr);
@@ -1443,6 +1463,7 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
     classify_frame(r, f, nt);
     struct drawable dr = {.sl = f->sl, .count = f->count, .w = (int)w,
                           .h = (int)h, .rb0 = 0, .rb1 = (int)h,
+                          .db0 = 0, .db1 = (int)h,
                           .vis = r->vis, .tile = r->tile, .trows = r->trows};
     if (f->cross && f->count)
         prepare_cross(r, f, nt, &dr);
