@@ -103,3 +103,96 @@ char *play_shard_dir(const char *dir, const char *pattern, int rank)
 {
     return tvpal_node_dir(dir, pattern, (uint32_t)rank);
 }
+
+/* ---------------------------------------------------------- ghost rows */
+
+enum { GHOST_HEAD = 16, GHOST_ROW = 256 * 4 };
+
+static unsigned char *ghost_sbuf, *ghost_rbuf;
+static size_t ghost_cap;
+
+static void put_u32(unsigned char *b, uint32_t v)
+{
+    memcpy(b, &v, 4);
+}
+
+static uint32_t get_u32(const unsigned char *b)
+{
+    uint32_t v;
+    memcpy(&v, b, 4);
+    return v;
+}
+
+/* One side: mine out to peer, theirs in. */
+static int ghost_swap(int peer, const struct tvpal_ghost_row *mine,
+                      struct tvpal_ghost_row *theirs, size_t idx_bytes,
+                      struct tvpal_diag *diag)
+{
+    const int has = mine->slice != UINT32_MAX;
+    const int with_idx = has && mine->send_idx;
+    put_u32(ghost_sbuf, mine->slice);
+    put_u32(ghost_sbuf + 4, mine->gen);
+    put_u32(ghost_sbuf + 8, (uint32_t)with_idx);
+    put_u32(ghost_sbuf + 12, 0);
+    size_t n = GHOST_HEAD;
+    if (has) {
+        memcpy(ghost_sbuf + n, mine->row, GHOST_ROW);
+        n += GHOST_ROW;
+    }
+    if (with_idx) {
+        memcpy(ghost_sbuf + n, mine->idx, idx_bytes);
+        n += idx_bytes;
+    }
+    size_t got = 0;
+    int rc = play_comm.sendrecv(&play_comm, peer, ghost_sbuf, n, ghost_rbuf,
+                                ghost_cap, &got);
+    if (rc < 0)
+        return tvpal_diag_set(diag, rc, "ghost rows: exchange with rank %d "
+                              "failed", peer);
+    if (got < GHOST_HEAD)
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "ghost rows: %zu bytes "
+                              "from rank %d", got, peer);
+    uint32_t slice = get_u32(ghost_rbuf), gen = get_u32(ghost_rbuf + 4);
+    uint32_t idx_in = get_u32(ghost_rbuf + 8);
+    if (slice == UINT32_MAX)
+        return 0;
+    if (got != GHOST_HEAD + GHOST_ROW + (idx_in ? idx_bytes : 0))
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "ghost rows: %zu bytes "
+                              "from rank %d for slice %u", got, peer, slice);
+    memcpy(theirs->row, ghost_rbuf + GHOST_HEAD, GHOST_ROW);
+    if (idx_in)
+        memcpy(theirs->idx, ghost_rbuf + GHOST_HEAD + GHOST_ROW, idx_bytes);
+    theirs->slice = slice;
+    theirs->gen = gen;
+    return 0;
+}
+
+int play_ghost_exchange(void *ctx, const struct tvpal_ghost_row mine[2],
+                        struct tvpal_ghost_row theirs[2], size_t idx_bytes,
+                        struct tvpal_diag *diag)
+{
+    (void)ctx;
+    const size_t need = GHOST_HEAD + GHOST_ROW + idx_bytes;
+    if (need > ghost_cap) {   /* grows once per dataset size, then stays */
+        unsigned char *s = realloc(ghost_sbuf, need), *r;
+        if (s)
+            ghost_sbuf = s;
+        r = s ? realloc(ghost_rbuf, need) : NULL;
+        if (r)
+            ghost_rbuf = r;
+        if (!s || !r)
+            return tvpal_diag_set(diag, TVPAL_E_NOMEM, "ghost row buffers");
+        ghost_cap = need;
+    }
+    const int rank = play_comm.rank, size = play_comm.size;
+    for (int phase = 0; phase < 2; phase++) {
+        const int up = (rank % 2 == 0) == (phase == 0);  /* talk to r + 1 */
+        const int peer = up ? rank + 1 : rank - 1;
+        if (peer < 0 || peer >= size)
+            continue;
+        int rc = ghost_swap(peer, &mine[up], &theirs[up], idx_bytes, diag);
+        if (rc < 0)
+            return rc;
+    }
+    return 0;
+}

@@ -10,6 +10,7 @@
 #define PLAY_CLUSTER_H
 
 #include "tvpal_comm.h"
+#include "tvpal_player.h"
 
 /* The job's communicator: size 1 without an MPI launcher. */
 extern struct tvpal_comm play_comm;
@@ -34,6 +35,16 @@ void play_die_rank(int code, const char *fmt, ...)
 /* Collective: every rank's rc and msg; rank 0 prints each failure naming
  * its rank, and all ranks exit with `code` when any rc < 0. */
 void play_check_all(int rc, const char *msg, int code);
+
+/* The ghost row exchange of cross frames (tvpal_player.h) over play_comm:
+ * rank r swaps its boundary rows with ranks r - 1 and r + 1, pairs (2i,
+ * 2i + 1) first, then (2i + 1, 2i + 2), so no rank waits on a chain.  A
+ * row travels as a 16-byte header (slice, generation, has indices), its
+ * 256 values, and its indices only when they changed since last sent.
+ * ctx is unused. */
+int play_ghost_exchange(void *ctx, const struct tvpal_ghost_row mine[2],
+                        struct tvpal_ghost_row theirs[2], size_t idx_bytes,
+                        struct tvpal_diag *diag);
 
 /* Where rank `rank` finds its shard: pattern with %r replaced by the rank,
  * or DIR/node-RANK without a pattern.  malloc'd; NULL when out of memory. */

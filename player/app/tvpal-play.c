@@ -28,6 +28,7 @@ static void open_dataset(struct play_session *s)
             play_die_rank(1, "out of memory");
         o->po.rank = (uint32_t)play_comm.rank;
         o->po.nranks = (uint32_t)play_comm.size;
+        o->po.ghosts = play_ghost_exchange;
     }
     int rc = tvpal_player_open(&s->pl, node_dir ? node_dir : o->dir, &o->po,
                                &d);

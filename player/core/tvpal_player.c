@@ -34,7 +34,28 @@ struct tvpal_player {
     const uint8_t *zero_idx;         /* cross frames: the indices of a z
                                         slice with no data yet (zeros, with
                                         the zero palette) */
+    /* Ghost rows (cluster cross frames, tvpal_player.h): [0] below the
+     * slab, [1] above; their indices, palettes, and the generations sent
+     * to and uploaded from each side. */
+    struct tvpal_ghost_row gmine[2], gtheirs[2];
+    uint8_t *ghost_idx[2];
+    float *ghost_pal;                /* 2 x 1024 */
+    uint32_t ghost_sent[2], ghost_upl[2];
 };
+
+/* Ghost rows are exchanged (a cluster node with an exchange). */
+static int ghosts_on(const struct tvpal_player *p)
+{
+    return p->opts.ghosts && p->opts.nranks > 1;
+}
+
+/* Layer of the first held slice of axis a: 1 for z with ghost rows (layer
+ * 0 and held + 1 are the ghosts: a cross frame's rows stay in consecutive
+ * layers), else 0. */
+static uint32_t layer0(const struct tvpal_player *p, unsigned a)
+{
+    return a == 2 && ghosts_on(p) ? 1 : 0;
+}
 
 /* A palette of zeros: a row with no data draws nothing. */
 static const float zero_palette[1024];
@@ -91,11 +112,21 @@ int tvpal_player_open(struct tvpal_player **out, const char *dir,
             x->held += h->slice_count;
         }
     }
-    p->fs = calloc(nmax, sizeof *p->fs);
+    p->fs = calloc(nmax + 2, sizeof *p->fs);   /* + ghost rows */
     p->pal = malloc(sizeof(float) * 1024 * nmax);
     p->uploaded_gen = calloc(nmax, sizeof *p->uploaded_gen);
     p->state = malloc(nmax);
-    p->zero_idx = calloc((size_t)p->ds->m.dims[0] * p->ds->m.dims[1], 1);
+    const size_t zbytes = (size_t)p->ds->m.dims[0] * p->ds->m.dims[1];
+    p->zero_idx = calloc(zbytes, 1);
+    if (ghosts_on(p)) {
+        p->ghost_idx[0] = calloc(zbytes, 1);
+        p->ghost_idx[1] = calloc(zbytes, 1);
+        p->ghost_pal = calloc(2048, sizeof(float));
+        if (!p->ghost_idx[0] || !p->ghost_idx[1] || !p->ghost_pal) {
+            rc = TVPAL_E_NOMEM;
+            goto err;
+        }
+    }
     if (!p->fs || !p->pal || !p->uploaded_gen || !p->state || !p->zero_idx) {
         rc = TVPAL_E_NOMEM;
         goto err;
@@ -129,6 +160,9 @@ void tvpal_player_close(struct tvpal_player *p)
     free(p->uploaded_gen);
     free(p->state);
     free((void *)p->zero_idx);
+    free(p->ghost_idx[0]);
+    free(p->ghost_idx[1]);
+    free(p->ghost_pal);
     free(p);
 }
 
@@ -326,10 +360,12 @@ static int prepare_renderer(struct tvpal_player *p, unsigned a,
     const struct axis_state *x = &p->ax[a];
     if (r == p->last_r && r->owner == p && p->r_axis == (int)a)
         return 0;
-    int rc = r->set_slices(r->ctx, x->w, x->h, x->held, diag);
+    int rc = r->set_slices(r->ctx, x->w, x->h, x->held + 2 * layer0(p, a),
+                           diag);
     if (rc < 0)
         return rc;
     memset(p->uploaded_gen, 0, sizeof(uint32_t) * x->n);
+    p->ghost_upl[0] = p->ghost_upl[1] = 0;
     p->last_r = r;
     r->owner = p;
     p->r_axis = (int)a;
@@ -402,9 +438,23 @@ static void build_palettes(struct tvpal_player *p, const struct axis_state *x,
  * changed; one with no data yet draws as zeros with the zero palette.  A
  * transparent one stays: it is the palette of a row. */
 static uint32_t list_rows(struct tvpal_player *p, const struct axis_state *x,
-                          struct tvpal_renderer *r,
+                          uint32_t lay0, struct tvpal_renderer *r,
                           struct tvpal_frame_stats *st)
 {
+    uint32_t count = 0;
+    /* The ghost row below the slab (cluster nodes), in layer 0. */
+    const int lo = lay0 && x->begin > 0 && p->gtheirs[0].slice == x->begin - 1;
+    const int hi = lay0 && p->gtheirs[1].slice == x->begin + x->held;
+    if (lo) {
+        if (p->ghost_upl[0] != p->gtheirs[0].gen) {
+            r->upload(r->ctx, 0, p->ghost_idx[0]);
+            p->ghost_upl[0] = p->gtheirs[0].gen;
+            st->uploads++;
+        }
+        p->fs[count++] = (struct tvpal_frame_slice){
+            .slice = p->gtheirs[0].slice, .layer = 0, .idx = p->ghost_idx[0],
+            .palette = p->ghost_pal};
+    }
     for (uint32_t i = 0; i < x->held; i++) {
         const uint32_t s = x->begin + i;
         struct tvpal_slab *slab = x->slabs[x->slab_of[s]];
@@ -421,21 +471,65 @@ static uint32_t list_rows(struct tvpal_player *p, const struct axis_state *x,
         uint32_t gen = idx == p->zero_idx ? UINT32_MAX
                                           : tvpal_slab_generation(slab, k);
         if (p->uploaded_gen[s] != gen) {
-            r->upload(r->ctx, i, idx);
+            r->upload(r->ctx, i + lay0, idx);
             p->uploaded_gen[s] = gen;
             st->uploads++;
         }
-        p->fs[i] = (struct tvpal_frame_slice){.slice = s, .layer = i,
-                                              .idx = idx, .palette = pal};
+        p->fs[count++] = (struct tvpal_frame_slice){
+            .slice = s, .layer = i + lay0, .idx = idx, .palette = pal};
     }
-    return x->held;
+    if (hi) {
+        const uint32_t layer = x->held + 1;
+        if (p->ghost_upl[1] != p->gtheirs[1].gen) {
+            r->upload(r->ctx, layer, p->ghost_idx[1]);
+            p->ghost_upl[1] = p->gtheirs[1].gen;
+            st->uploads++;
+        }
+        p->fs[count++] = (struct tvpal_frame_slice){
+            .slice = p->gtheirs[1].slice, .layer = layer,
+            .idx = p->ghost_idx[1], .palette = p->ghost_pal + 1024};
+    }
+    return count;
+}
+
+/* Cluster cross frames: this slab's boundary rows out, the neighbours'
+ * in (tvpal_player.h).  Right after the records are read, before anything
+ * that could fail on one node only, so that every node exchanges. */
+static int exchange_ghosts(struct tvpal_player *p, const struct axis_state *x,
+                           uint32_t t, struct tvpal_diag *diag)
+{
+    for (int side = 0; side < 2; side++) {
+        struct tvpal_ghost_row *m = &p->gmine[side];
+        const uint32_t s = side ? x->begin + x->held - 1 : x->begin;
+        struct tvpal_slab *slab = x->slabs[x->slab_of[s]];
+        const uint32_t k = x->local_of[s];
+        const uint8_t *idx = tvpal_slab_indices(slab, k);
+        const float *row = tvpal_slab_row(slab, k, t);
+        m->slice = idx && row && x->held ? s : UINT32_MAX;
+        m->gen = m->slice == UINT32_MAX ? 0 : tvpal_slab_generation(slab, k);
+        m->send_idx = m->slice != UINT32_MAX && m->gen != p->ghost_sent[side];
+        m->idx = (uint8_t *)idx;   /* read only: the exchange sends it */
+        if (row)
+            memcpy(m->row, row, sizeof m->row);
+        p->gtheirs[side].slice = UINT32_MAX;
+        p->gtheirs[side].idx = p->ghost_idx[side];
+    }
+    const size_t bytes = (size_t)p->ds->m.dims[0] * p->ds->m.dims[1];
+    int rc = p->opts.ghosts(p->opts.ghosts_ctx, p->gmine, p->gtheirs, bytes,
+                            diag);
+    if (rc < 0)
+        return rc;
+    for (int side = 0; side < 2; side++)
+        if (p->gmine[side].send_idx)
+            p->ghost_sent[side] = p->gmine[side].gen;
+    return 0;
 }
 
 /* In drawing order: uploads of slices whose window changed (serial: a GL
  * context is not shared among threads) and the frame's slice list.
  * Returns the slices to draw. */
 static uint32_t list_slices(struct tvpal_player *p, const struct axis_state *x,
-                            const struct tvpal_view *v,
+                            const struct tvpal_view *v, uint32_t lay0,
                             struct tvpal_renderer *r,
                             struct tvpal_frame_stats *st)
 {
@@ -450,7 +544,7 @@ static uint32_t list_slices(struct tvpal_player *p, const struct axis_state *x,
         uint32_t s = slice_in_order(x, v, i);
         struct tvpal_slab *slab = x->slabs[x->slab_of[s]];
         uint32_t k = x->local_of[s];
-        const uint32_t layer = s - x->begin;
+        const uint32_t layer = s - x->begin + lay0;
         uint32_t gen = tvpal_slab_generation(slab, k);
         if (p->uploaded_gen[s] != gen) {
             r->upload(r->ctx, layer, tvpal_slab_indices(slab, k));
@@ -459,7 +553,7 @@ static uint32_t list_slices(struct tvpal_player *p, const struct axis_state *x,
         }
         p->fs[count++] = (struct tvpal_frame_slice){
             .slice = s, .layer = layer, .idx = tvpal_slab_indices(slab, k),
-            .palette = p->pal + (size_t)1024 * layer};
+            .palette = p->pal + (size_t)1024 * (s - x->begin)};
     }
     return count;
 }
@@ -505,19 +599,35 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
 
     double t1 = tvpal_now();
     st->stream_ms = (t1 - t0) * 1e3 - st->axis_switch_ms;
+    const uint32_t lay0 = cross ? layer0(p, (unsigned)da) : 0;
+    if (lay0) {
+        int rc = exchange_ghosts(p, x, t, diag);
+        if (rc < 0)
+            return rc;
+    }
     int rc = prepare_renderer(p, (unsigned)da, r, diag);
     if (rc < 0)
         return rc;
     const uint32_t n = v->dims[v->axis];   /* slices along the view */
     st->stride = slice_stride(p, v, n);
     build_palettes(p, x, v, t, st->stride, cross);
-    uint32_t count = cross ? list_rows(p, x, r, st) : list_slices(p, x, v, r, st);
+    uint32_t count = cross ? list_rows(p, x, lay0, r, st)
+                           : list_slices(p, x, v, layer0(p, (unsigned)da), r, st);
+    if (lay0) {   /* the ghost rows' palettes, as the slab's */
+        const double expo = tvpal_view_opacity_exponent(v) * st->stride;
+        for (int side = 0; side < 2; side++)
+            if (p->gtheirs[side].slice < p->ds->m.dims[2])
+                tvpal_palette_build(&p->tf, p->gtheirs[side].row, expo,
+                                    p->opacity_scale, p->ghost_pal + 1024 * side);
+    }
     st->drawn = cross ? (n + st->stride - 1 - (n / 2) % st->stride) / st->stride
                       : count;
     double t2 = tvpal_now();
     struct tvpal_frame f = {.view = v, .w = x->w, .h = x->h, .count = count,
                             .sl = p->fs, .cross = cross, .stride = st->stride,
-                            .phase = (n / 2) % st->stride};
+                            .phase = (n / 2) % st->stride,
+                            .draw_begin = lay0 ? x->begin : 0,
+                            .draw_end = lay0 ? x->begin + x->held : 0};
     rc = r->draw(r->ctx, &f, rgba, diag);
     double t3 = tvpal_now();
     st->rendered = rc == 0;

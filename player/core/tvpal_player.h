@@ -21,6 +21,33 @@
 #include "tvpal_frame.h"
 #include "tvpal_tf.h"
 
+/* Ghost rows of cross frames on a cluster node.  A node holds a slab of z
+ * slices; a view along x or y cuts every slice across the slab's
+ * boundaries, and the samples within half a row of a boundary need the
+ * neighbour's boundary row (tvpal_frame.h, draw_begin).  Each such frame,
+ * the player hands its own first and last z slice to the exchange (mine)
+ * and gets its neighbours' last and first (theirs[0]: the slice below its
+ * slab, theirs[1]: above). */
+struct tvpal_ghost_row {
+    uint32_t slice;       /* z slice; UINT32_MAX: none (no neighbour, or
+                             no data yet) */
+    uint32_t gen;         /* generation of idx (tvpal_slab_generation) */
+    int send_idx;         /* mine: idx changed since it was last sent on
+                             this side, so it must go with the row */
+    uint8_t *idx;         /* nx * ny indices.  mine: the node's (read);
+                             theirs: the player's buffer, which the
+                             exchange fills when the neighbour sends them */
+    float row[256];       /* decoded values at the frame's step */
+};
+
+/* The exchange (the cluster front end's, over its communicator; every
+ * node of the job calls it for the same frames).  Fills theirs[i].slice,
+ * gen and row, and theirs[i].idx when the neighbour sent its indices;
+ * idx_bytes = nx * ny.  0 or a TVPAL_E_* code with diag set. */
+typedef int (*tvpal_ghost_fn)(void *ctx, const struct tvpal_ghost_row mine[2],
+                              struct tvpal_ghost_row theirs[2],
+                              size_t idx_bytes, struct tvpal_diag *diag);
+
 struct tvpal_player_opts {
     int incore;                   /* all records of an axis in RAM */
     enum tvpal_io_kind io;        /* out-of-core backend */
@@ -32,6 +59,10 @@ struct tvpal_player_opts {
     uint32_t rank, nranks;        /* nranks > 0: open only node `rank`'s
                                      shards, from the directory given to
                                      tvpal_player_open (cluster mode) */
+    tvpal_ghost_fn ghosts;        /* nranks > 1: the ghost row exchange of
+                                     cross frames (NULL: taps clamp at the
+                                     slab boundaries, a seam) */
+    void *ghosts_ctx;
     int z_only;                   /* draw every view from the z slices
                                      (cross frames), as for a single-copy
                                      dataset, even where x and y are
