@@ -110,11 +110,12 @@ static int decode_step(struct tvpal_dataset *ds, unsigned axis, uint32_t t,
 {
     struct tvpal_volreader *vr = NULL;
     struct tvpal_diag diag = {{0}};
-    if (tvpal_volreader_create(&vr, ds, axis) < 0) {
-        fprintf(stderr, PROG ": out of memory\n");
-        return TVPAL_EXIT_FAIL;
+    int status = 0, rc = tvpal_volreader_create(&vr, ds, axis, &diag);
+    if (rc < 0) {
+        print_lib_error(rc, &diag);
+        return rc == TVPAL_E_NOMEM ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;
     }
-    int status = 0, rc = tvpal_volreader_read(vr, t, vol, &diag);
+    rc = tvpal_volreader_read(vr, t, vol, &diag);
     if (rc < 0) {
         print_lib_error(rc, &diag);
         status = rc == TVPAL_E_READ ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;

@@ -1404,6 +1404,7 @@ static void build_manifest(const struct run *r, struct tvpal_manifest *m)
     m->single_file = o->steps_single != 0;
     m->source_bytes = r->step_bytes * r->T;
     m->levels = o->levels;
+    m->axes_mask = TVPAL_AXES_ALL;
     grid_of(r, m->spacing, m->origin);
     if (r->times) {
         if (!(m->times = malloc(sizeof *m->times * r->T)))

@@ -388,7 +388,7 @@ static int buffers_alloc(struct scan_buffers *b, struct tvpal_dataset *ds,
         b->dec[a][0] = malloc(nvox * sizeof(float));
         b->dec[a][1] = malloc(nvox * sizeof(float));
         if (!b->dec[a][0] || !b->dec[a][1] ||
-            tvpal_volreader_create(&b->vr[a], ds, a) != 0)
+            tvpal_volreader_create(&b->vr[a], ds, a, NULL) != 0)
             return -1;
     }
     return 0;

@@ -16,10 +16,12 @@ sha() {
 # copy DATASET DEST: a writable copy (the source tree is read-only under
 # distcheck).
 copy() { rm -rf "$2" && cp -R "$1" "$2" && chmod -R u+w "$2"; }
-# sums DIR NAME: one "HASH  NAME/A/T" line per axis and step of DIR.
+# sums DIR NAME: one "HASH  NAME/A/T" line per stored axis and step of DIR
+# (the manifest's axes key, FORMAT.md 2.2; all three without it).
 sums() {
     steps=$(sed -n 's/^steps = //p' "$F/$2/manifest.txt")
-    for a in x y z; do
+    axes=$(sed -n 's/^axes = //p' "$F/$2/manifest.txt" | sed 's/[^xyz]//g; s/./& /g')
+    for a in ${axes:-x y z}; do
         t=0
         while [ "$t" -lt "$steps" ]; do
             h=$("$DEC" "$1" --step $t --axis $a -o - | sha) || h=decode-failed
