@@ -16,12 +16,13 @@
 
 /* ---------------------------------------------------------------- cluster */
 
-/* Under mpirun -np K --nodes K, rank R encodes only node R's three shards,
- * reading only the boxes of the input its slabs need, into its own node
- * directory (OUTDIR.partial/node-R, or --shard-dir's on a node-local
- * disk).  The ranks then agree in ROUNDS rounds, each a gather of every
- * rank's state to rank 0 and rank 0's decision sent back:
- *   1. statistics: rank 0 sums them (each voxel is in one rank's z slab)
+/* Under mpirun -np K --nodes K, rank R encodes only node R's shards (one
+ * per axis encoded), reading only the boxes of the input its slabs need,
+ * into its own node directory (OUTDIR.partial/node-R, or --shard-dir's on
+ * a node-local disk).  The ranks then agree in ROUNDS rounds, each a
+ * gather of every rank's state to rank 0 and rank 0's decision sent back:
+ *   1. statistics: rank 0 sums them (each voxel is in one rank's slab of
+ *      the axis that takes the statistics, encode_plan.c: z if encoded)
  *      and sends the source range and the manifest;
  *   2. every rank has finished and verified its shards and node manifest;
  *   3. every node directory is in place: rank 0 writes OUTDIR and renames
