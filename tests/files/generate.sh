@@ -56,6 +56,9 @@ good good-1-basic blobs 4x3x2 3 --window 2
 # 16-bit tables, two nodes; node 1 of axis z holds one slice (phase 0), so
 # its record 1 holds no chunk.
 good good-2-u16-nodes turbulence 4x3x3 3 --window 2 --nodes 2 --table u16
+# One axis (FORMAT.md 2.2): blobs 4x3x2, T = 3, N = 2, --axes z: node-0 has
+# axis-z.tvps only, the manifest format_version 3 and axes = z.
+good good-4-axis-z blobs 4x3x2 3 --window 2 --axes z
 # Missing values, 16-bit tables (table_format 3): blobs 4x3x2, T = 3, N = 2,
 # voxel (1,1,0) missing at every step and voxel (2,0,1) at step 1 only.
 "$GEN" --field blobs --dims 4x3x2 --steps 3 -o "$tmp/in-good-3-missing" > /dev/null
