@@ -9,7 +9,8 @@
 #include <string.h>
 
 struct axis_state {
-    struct tvpal_slab **slabs;       /* one per shard held */
+    struct tvpal_slab **slabs;       /* one per shard held; NULL for an
+                                      * axis the dataset does not store */
     uint32_t begin, held;            /* slices held: [begin, begin + held) */
     struct tvpal_stream *stream;     /* created on first use */
     uint32_t n, w, h;
@@ -67,6 +68,12 @@ int tvpal_player_open(struct tvpal_player **out, const char *dir,
         }
         x->begin = UINT32_MAX;
         x->held = 0;
+        /* Only the stored axes have shards (FORMAT.md 2.2). */
+        if (!tvpal_dataset_has_axis(p->ds, a)) {
+            free(x->slabs);
+            x->slabs = NULL;
+            continue;
+        }
         for (uint32_t k = 0; k < p->ds->nshards; k++) {
             rc = tvpal_slab_create(&x->slabs[k], p->ds->shards[a][k]);
             if (rc < 0)
@@ -145,11 +152,24 @@ const char *tvpal_player_io_name(const struct tvpal_player *p)
 static int open_axis(struct tvpal_player *p, unsigned a,
                      struct tvpal_diag *diag);
 
+/* An axis the dataset does not store: TVPAL_E_INVAL, saying which it has
+ * (until views are drawn from another axis's slices). */
+static int absent_axis(const struct tvpal_player *p, unsigned axis,
+                       struct tvpal_diag *diag)
+{
+    char axes[4];
+    return tvpal_diag_set(diag, TVPAL_E_INVAL, "axis %c: dataset stores "
+                          "axes %s only", "xyz"[axis],
+                          tvpal_axes_format(p->ds->m.axes_mask, axes));
+}
+
 int tvpal_player_open_axis(struct tvpal_player *p, unsigned axis,
                            struct tvpal_diag *diag)
 {
     if (axis > 2)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "axis %u", axis);
+    if (!tvpal_dataset_has_axis(p->ds, axis))
+        return absent_axis(p, axis, diag);
     return p->ax[axis].stream ? 0 : open_axis(p, axis, diag);
 }
 
@@ -210,12 +230,13 @@ uint64_t tvpal_player_axis_bytes(const struct tvpal_player *p)
 {
     uint64_t b = 0;
     for (unsigned a = 0; a < 3; a++)
-        for (uint32_t k = 0; k < p->ds->nshards; k++) {
+        for (uint32_t k = 0; tvpal_dataset_has_axis(p->ds, a) &&
+                             k < p->ds->nshards; k++) {
             const struct tvpal_shard_header *h =
                 tvpal_shard_hdr(p->ds->shards[a][k]);
             b += h->index_offset - TVPAL_SHARD_HEADER_BYTES;
         }
-    return b / 3;
+    return b / tvpal_axes_count(p->ds->m.axes_mask);
 }
 
 /* First use of axis a: opens its stream (in-core: loads it).  With a
@@ -386,6 +407,8 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
     if (t >= p->ds->m.steps)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u out of range "
                               "(0..%u)", t, p->ds->m.steps - 1);
+    if (!tvpal_dataset_has_axis(p->ds, v->axis))
+        return absent_axis(p, v->axis, diag);
     if (!x->stream) {
         int rc = open_axis(p, v->axis, diag);
         if (rc < 0)
