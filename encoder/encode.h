@@ -171,7 +171,9 @@ struct run {
     uint32_t node;
     char *ckdir;
     char *node_final;
-    uint64_t cluster_bytes;  /* rank 0: bytes of every rank's shards, */
+    uint64_t cluster_bytes;  /* rank 0: bytes of every rank's files and
+                              * OUTDIR's manifest, */
+    uint64_t cluster_shard_bytes; /* of every rank's shards, */
     uint64_t cluster_work;   /* the voxel-samples they encoded, */
     double cluster_seconds;  /* in this many seconds (the slowest) */
     int level0_done;         /* --levels: level 0 finished by an earlier

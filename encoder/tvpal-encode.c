@@ -1657,51 +1657,67 @@ void warn_dominating_values(const struct run *r)
 }
 
 /* Reopens the dataset with the reader (it must verify) and prints the
- * closing key=value line on stdout. */
+ * closing key=value line on stdout.  The headline figures are what the
+ * dataset takes on disk: bytes counts every file of OUTDIR (the stored
+ * axes' shards of every node, the manifests, the levels; under MPI every
+ * rank's node directory, wherever --shard-dir put it, and OUTDIR's
+ * manifest), ratio is the source bytes over them and bpv their bits per
+ * voxel-timestep.  axis_ratio is the source bytes over the bytes of one
+ * stored axis of level 0 (the mean over the stored axes), the figure
+ * ratio was before FORMAT.md 1.6. */
 static void print_summary(const struct run *r)
 {
     struct tvpal_diag d = {{0}};
     struct tvpal_dataset *ds = NULL;
-    uint64_t total_bytes = r->cluster_bytes;
+    uint64_t disk = r->cluster_bytes, shards = r->cluster_shard_bytes;
     /* Under MPI every rank has verified its own node directory. */
-    if (!r->mpi && tvpal_dataset_open(&ds, r->o.outdir, &d) < 0)
-        die_fail("%s: written dataset does not verify: %s", r->o.outdir,
-                 d.msg);
-    for (unsigned a = 0; !r->mpi && a < 3; a++)
-        total_bytes += ds->axis_bytes[a];
-    tvpal_dataset_close(ds);
-    const double axis_bytes = (double)total_bytes / tvpal_axes_count(r->o.axes);
+    if (!r->mpi) {
+        if (tvpal_dataset_open(&ds, r->o.outdir, &d) < 0)
+            die_fail("%s: written dataset does not verify: %s", r->o.outdir,
+                     d.msg);
+        for (unsigned a = 0; a < 3; a++)
+            shards += ds->axis_bytes[a];
+        tvpal_dataset_close(ds);
+        int rc = tvpal_tree_bytes(r->o.outdir, &disk, &d);
+        if (rc < 0)
+            die_fail("%s: cannot size the dataset: %s", r->o.outdir,
+                     lib_error(rc, &d));
+    }
+    const unsigned naxes = tvpal_axes_count(r->o.axes);
+    const double src = (double)(r->step_bytes * r->T);
+    const double axis_bytes = (double)shards / naxes;
     const double vts = (double)r->nvox * r->T;
     const double te = r->mpi ? r->cluster_seconds : r->t_encode;
     const uint64_t work = r->mpi ? r->cluster_work
                                  : r->prog.work - r->prog.work_at_start;
-    /* The coarser levels: their bytes apart (level 0's figures stay
-     * comparable with an encode without levels). */
+    /* The coarser levels' files, also part of bytes (and of ratio and
+     * bpv): what they add is said apart. */
     uint64_t level_bytes = 0;
     for (unsigned k = 1; !r->mpi && k <= r->o.levels; k++) {
         char *ld;
+        uint64_t b = 0;
         if (asprintf(&ld, "%s/level-%u", r->o.outdir, k) < 0)
             die_fail("out of memory");
         if (tvpal_dataset_open(&ds, ld, &d) < 0)
             die_fail("%s: written level does not verify: %s", ld, d.msg);
-        for (unsigned a = 0; a < 3; a++)
-            level_bytes += ds->axis_bytes[a];
         tvpal_dataset_close(ds);
+        int rc = tvpal_tree_bytes(ld, &b, &d);
+        if (rc < 0)
+            die_fail("%s: cannot size the level: %s", ld, lib_error(rc, &d));
+        level_bytes += b;
         free(ld);
     }
-    char lv[96] = "";
+    char lv[96] = "", axes[4];
     if (r->o.levels)
         snprintf(lv, sizeof lv, " levels=%u levels_bytes=%llu", r->o.levels,
                  (unsigned long long)level_bytes);
-    printf("encoded %s: steps=%u window=%u nodes=%u bytes=%llu ratio=%.3f "
-           "bpv=%.4f seconds=%.3f rate=%.2fM vox-steps/s threads=%d "
-           "missing=%llu passes=%u%s\n",
+    printf("encoded %s: steps=%u window=%u nodes=%u axes=%s bytes=%llu "
+           "ratio=%.3f axis_ratio=%.3f bpv=%.4f seconds=%.3f rate=%.2fM "
+           "vox-steps/s threads=%d missing=%llu passes=%u%s\n",
            r->o.outdir, r->T, r->N, r->o.nodes,
-           (unsigned long long)total_bytes,
-           (double)(r->step_bytes * r->T) / axis_bytes,
-           axis_bytes * 8.0 / vts, te,
-           (double)work / tvpal_axes_count(r->o.axes) / (te > 0 ? te : 1e-9) /
-               1e6,
+           tvpal_axes_format(r->o.axes, axes), (unsigned long long)disk,
+           src / (double)disk, src / axis_bytes, (double)disk * 8.0 / vts,
+           te, (double)work / naxes / (te > 0 ? te : 1e-9) / 1e6,
            r->nthreads * (r->mpi ? g_comm.size : 1),
            (unsigned long long)r->st.missing, r->plan.npasses, lv);
 }

@@ -174,7 +174,8 @@ static int print_verify(const char *dir, const struct tvpal_manifest *m)
 }
 
 /* Without --verify: opens the dataset (every shard's header and index) and
- * prints the bytes of each stored axis.  Returns the exit status. */
+ * prints the bytes of each stored axis, then those of every file of the
+ * dataset (what it takes on disk).  Returns the exit status. */
 static int print_axis_bytes(const char *dir, const struct tvpal_manifest *m)
 {
     struct tvpal_dataset *ds = NULL;
@@ -185,15 +186,24 @@ static int print_axis_bytes(const char *dir, const struct tvpal_manifest *m)
         return TVPAL_EXIT_USAGE;
     }
     double vts = (double)m->dims[0] * m->dims[1] * m->dims[2] * m->steps;
+    double src = vts * (double)tvpal_type_size(m->type);
     for (unsigned a = 0; a < 3; a++)
         if (tvpal_dataset_has_axis(ds, a))
             printf("axis_%c_bytes = %llu  (%.4f bits per voxel-timestep, "
-               "ratio %.3f)\n", "xyz"[a],
-               (unsigned long long)ds->axis_bytes[a],
-               8.0 * (double)ds->axis_bytes[a] / vts,
-               vts * (double)tvpal_type_size(m->type) /
-                   (double)ds->axis_bytes[a]);
+                   "axis_ratio %.3f)\n", "xyz"[a],
+                   (unsigned long long)ds->axis_bytes[a],
+                   8.0 * (double)ds->axis_bytes[a] / vts,
+                   src / (double)ds->axis_bytes[a]);
     tvpal_dataset_close(ds);
+    uint64_t disk = 0;
+    rc = tvpal_tree_bytes(dir, &disk, &d);
+    if (rc < 0) {
+        fprintf(stderr, PROG ": %s\n", d.msg[0] ? d.msg : tvpal_strerror(rc));
+        return TVPAL_EXIT_USAGE;
+    }
+    printf("disk_bytes = %llu  (%.4f bits per voxel-timestep, ratio %.3f: "
+           "every file%s)\n", (unsigned long long)disk, 8.0 * (double)disk / vts,
+           src / (double)disk, m->levels ? ", levels included" : "");
     return TVPAL_EXIT_OK;
 }
 

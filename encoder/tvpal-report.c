@@ -3,7 +3,9 @@
  * Per timestep and axis: RMSE, PSNR, max |error| and temporal flicker; per
  * axis and overall: the same plus compression ratio and bits per
  * voxel-timestep, always counting the decoder tables and every byte of the
- * shard files.  PSNR uses peak = max - min of the original over all
+ * files.  The overall ratio and bits are of the bytes on disk (every file
+ * of the dataset directory: all stored axes, manifests, levels); the
+ * per-axis ones (axis_ratio) of one axis's shards.  PSNR uses peak = max - min of the original over all
  * timesteps: PSNR = 10 log10(peak^2 / MSE).  Flicker at t >= 1 is
  * mean |(R[t] - R[t-1]) - (V[t] - V[t-1])| / peak: it exposes jumps at window
  * boundaries that a per-frame error hides.
@@ -63,10 +65,11 @@ static void usage(FILE *f)
 "\n"
 "The last line is a key=value summary: psnr (worst axis), psnr_x, psnr_y,\n"
 "psnr_z (the stored axes'), psnr_min (worst timestep and axis), rmse,\n"
-"max_abs_error and\n"
-"flicker (worst axis), ratio (source bytes / mean bytes of one axis),\n"
-"ratio_8bit, bpv (bits per voxel-timestep of one axis, everything counted),\n"
-"index_bpv, table_bpv, disk_ratio (all three axes stored), steps, window.\n"
+"max_abs_error and flicker (worst axis), ratio (source bytes / bytes on\n"
+"disk: every file of OUTDIR, all stored axes, manifests and levels),\n"
+"axis_ratio (source bytes / mean bytes of one stored axis), ratio_8bit,\n"
+"bpv (bits on disk per voxel-timestep), index_bpv and table_bpv (theirs\n"
+"for the indices and the decoder tables), bytes, steps, window.\n"
 "Exit status: 0 success, 1 failure, 2 bad input.\n");
 }
 
@@ -283,10 +286,12 @@ struct report {
     uint32_t psnr_min_t;
     unsigned psnr_min_a;
     double worst_rmse, worst_max, worst_flick;   /* worst axis */
-    double bytes_axis, idx_mean, tab_mean;       /* mean of the stored axes */
+    double bytes_axis;            /* mean shard bytes of a stored axis */
+    double idx_bytes, tab_bytes;  /* indices and tables, all stored axes */
+    uint64_t disk_bytes;          /* every file of the directory reported */
     double missing, mismatch;     /* reference NaN voxel-steps (per axis
                                    * the same); mismatches, worst axis */
-    double ratio;                 /* source bytes / bytes_axis */
+    double ratio;                 /* source bytes / disk_bytes */
 };
 
 /* Whether the dataset stores axis a (only those are decoded). */
@@ -647,22 +652,30 @@ static void summarize_errors(struct report *r)
     }
 }
 
-/* Bytes per stored axis (files), split into indices, tables and the rest;
- * their means over the stored axes. */
-static void summarize_sizes(struct report *r)
+/* The bytes on disk (every file under the directory reported), and per
+ * stored axis its files, indices and tables.  0 or TVPAL_EXIT_USAGE (the
+ * directory cannot be read; printed). */
+static int summarize_sizes(struct report *r)
 {
     const uint64_t *ab = r->ds->axis_bytes;
     const unsigned na = tvpal_axes_count(r->m->axes_mask);
-    r->bytes_axis = r->idx_mean = r->tab_mean = 0;
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_tree_bytes(r->dir, &r->disk_bytes, &d);
+    if (rc < 0) {
+        print_lib_error(rc, &d);
+        return TVPAL_EXIT_USAGE;
+    }
+    r->bytes_axis = r->idx_bytes = r->tab_bytes = 0;
     for (unsigned a = 0; a < 3; a++) {
         if (!stored(r, a))
             continue;
         payload_bytes(r->m, a, &r->axis[a].idx_bytes, &r->axis[a].tab_bytes);
         r->bytes_axis += (double)ab[a] / na;
-        r->idx_mean += r->axis[a].idx_bytes / na;
-        r->tab_mean += r->axis[a].tab_bytes / na;
+        r->idx_bytes += r->axis[a].idx_bytes;
+        r->tab_bytes += r->axis[a].tab_bytes;
     }
-    r->ratio = (double)r->src_bytes / r->bytes_axis;
+    r->ratio = (double)r->src_bytes / (double)r->disk_bytes;
+    return 0;
 }
 
 /* ------------------------------------------------------------------------
@@ -698,19 +711,26 @@ static void print_text(const struct report *r)
         }
         printf(" %12.6g %10.3g\n", mx, fl);
     }
-    printf("%4s %9s %12s %12s %10s %14s %8s %9s\n", "axis", "psnr",
-           "rmse", "max_abs_err", "flicker", "bytes", "ratio", "bpv");
+    printf("%4s %9s %12s %12s %10s %14s %10s %9s\n", "axis", "psnr",
+           "rmse", "max_abs_err", "flicker", "bytes", "axis_ratio",
+           "axis_bpv");
     for (unsigned a = 0; a < 3; a++)
         if (stored(r, a))
-            printf("%4c %9.3f %12.6g %12.6g %10.3g %14llu %8.3f %9.4f\n",
+            printf("%4c %9.3f %12.6g %12.6g %10.3g %14llu %10.3f %9.4f\n",
                "xyz"[a], r->axis[a].psnr, r->axis[a].rmse, r->axis[a].maxabs,
                r->axis[a].flicker, (unsigned long long)ab[a],
                (double)r->src_bytes / (double)ab[a],
                8.0 * (double)ab[a] / r->vts);
-    printf("bits per voxel-timestep (one axis): %.4f = indices %.4f + "
-           "tables %.4f + headers/padding %.4f\n", 8 * r->bytes_axis / r->vts,
-           8 * r->idx_mean / r->vts, 8 * r->tab_mean / r->vts,
-           8 * (r->bytes_axis - r->idx_mean - r->tab_mean) / r->vts);
+    char axes[4];
+    printf("on disk: %llu bytes (axes %s: shards, manifests%s), ratio "
+           "%.3f\n", (unsigned long long)r->disk_bytes,
+           tvpal_axes_format(m->axes_mask, axes), m->levels ? ", levels" : "",
+           r->ratio);
+    printf("bits per voxel-timestep on disk: %.4f = indices %.4f + tables "
+           "%.4f + headers, padding and manifests%s %.4f\n",
+           8 * (double)r->disk_bytes / r->vts, 8 * r->idx_bytes / r->vts,
+           8 * r->tab_bytes / r->vts, m->levels ? " and levels" : "",
+           8 * ((double)r->disk_bytes - r->idx_bytes - r->tab_bytes) / r->vts);
     printf("worst timestep: %u on axis %c (%.3f dB)\n", r->psnr_min_t,
            "xyz"[r->psnr_min_a], r->psnr_min);
     if (r->missing)
@@ -831,8 +851,9 @@ static void write_json_axes(FILE *f, const struct report *r)
         sep = ",";
         jnum(f, x->psnr);
         fprintf(f, ", \"rmse\": %.9g, \"max_abs_error\": %.9g, "
-                "\"flicker\": %.9g, \"bytes\": %llu, \"ratio\": %.6f, "
-                "\"bpv\": %.6f, \"index_bpv\": %.6f, \"table_bpv\": %.6f}",
+                "\"flicker\": %.9g, \"bytes\": %llu, \"axis_ratio\": %.6f, "
+                "\"axis_bpv\": %.6f, \"index_bpv\": %.6f, "
+                "\"table_bpv\": %.6f}",
                 x->rmse, x->maxabs, x->flicker, (unsigned long long)ab[a],
                 (double)r->src_bytes / (double)ab[a],
                 8.0 * (double)ab[a] / r->vts, 8 * x->idx_bytes / r->vts,
@@ -877,9 +898,11 @@ static void write_json_doc(FILE *f, const struct report *r)
     jnum(f, r->psnr);
     fprintf(f, ", \"psnr_min\": ");
     jnum(f, r->psnr_min);
-    fprintf(f, ", \"ratio\": %.6f, \"bpv\": %.6f, \"missing\": %.0f, "
-            "\"missing_mismatch\": %.0f}\n}\n", r->ratio,
-            8 * r->bytes_axis / r->vts, r->missing, r->mismatch);
+    fprintf(f, ", \"bytes\": %llu, \"ratio\": %.6f, \"axis_ratio\": %.6f, "
+            "\"bpv\": %.6f, \"missing\": %.0f, \"missing_mismatch\": "
+            "%.0f}\n}\n", (unsigned long long)r->disk_bytes, r->ratio,
+            (double)r->src_bytes / r->bytes_axis,
+            8 * (double)r->disk_bytes / r->vts, r->missing, r->mismatch);
 }
 
 /* Writes path with fn, through tvpal_out (a temporary renamed when
@@ -914,7 +937,8 @@ static int write_file(const char *path, const struct report *r,
 /* The closing line's values, in a record for the summary_keys table. */
 struct summary {
     double psnr, psnr_x, psnr_y, psnr_z, psnr_min, rmse, max_abs_error;
-    double flicker, ratio, ratio_8bit, bpv, index_bpv, table_bpv, disk_ratio;
+    double flicker, ratio, axis_ratio, ratio_8bit, bpv, index_bpv, table_bpv;
+    double bytes;
     double steps, window, missing, missing_mismatch;
 };
 #define KEY(name, fmt, kind) {#name, fmt, kind, offsetof(struct summary, name), 0}
@@ -929,11 +953,12 @@ static const struct column summary_keys[] = {
     KEY(max_abs_error, "%.6g", COL_REAL),
     KEY(flicker, "%.6g", COL_REAL),
     KEY(ratio, "%.4f", COL_REAL),
+    KEY(axis_ratio, "%.4f", COL_REAL),
     KEY(ratio_8bit, "%.4f", COL_REAL),
     KEY(bpv, "%.4f", COL_REAL),
     KEY(index_bpv, "%.4f", COL_REAL),
     KEY(table_bpv, "%.4f", COL_REAL),
-    KEY(disk_ratio, "%.4f", COL_REAL),
+    KEY(bytes, "", COL_COUNT),
     KEY(steps, "%u", COL_UINT),
     KEY(window, "%u", COL_UINT),
     KEY(missing, "", COL_COUNT),
@@ -949,9 +974,12 @@ static struct summary summary_of(const struct report *r)
         .psnr_z = r->axis[2].psnr, .psnr_min = r->psnr_min,
         .rmse = r->worst_rmse, .max_abs_error = r->worst_max,
         .flicker = r->worst_flick, .ratio = r->ratio,
-        .ratio_8bit = r->vts / r->bytes_axis, .bpv = 8 * r->bytes_axis / r->vts,
-        .index_bpv = 8 * r->idx_mean / r->vts,
-        .table_bpv = 8 * r->tab_mean / r->vts, .disk_ratio = r->ratio / 3.0,
+        .axis_ratio = (double)r->src_bytes / r->bytes_axis,
+        .ratio_8bit = r->vts / (double)r->disk_bytes,
+        .bpv = 8 * (double)r->disk_bytes / r->vts,
+        .index_bpv = 8 * r->idx_bytes / r->vts,
+        .table_bpv = 8 * r->tab_bytes / r->vts,
+        .bytes = (double)r->disk_bytes,
         .steps = r->steps, .window = r->m->window, .missing = r->missing,
         .missing_mismatch = r->mismatch};
 }
@@ -1037,7 +1065,9 @@ int main(int argc, char **argv)
         status = scan_steps(&r, o.refs, o.src, &b);
     if (status == 0) {
         summarize_errors(&r);
-        summarize_sizes(&r);
+        status = summarize_sizes(&r);
+    }
+    if (status == 0) {
         status = write_outputs(&r, &o);
         if (status == 0 && r.mismatch > 0) {
             /* The dataset does not hold the reference's missing values
