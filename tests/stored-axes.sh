@@ -56,6 +56,7 @@ done
 for a in x y; do
     expect_exit 2 "--axis $a: .* stores axes z only" "$DEC" "$W/z" --step 0 --axis $a -o "$W/no.f32"
 done
+"$TVPAL_BUILDDIR/tests/tvpal-check" seqjump "$W/z" > "$W/sj.txt" 2>&1     && ok "jumps decode as sequential playback; the absent axes' readers refused"     || fail "seqjump: $(cat "$W/sj.txt")"
 [ ! -e "$W/no.f32" ] && ok "no output for a refused axis" || fail "a refused axis wrote output"
 
 # Sizes: about a third on disk; the summary's figures against the files.
