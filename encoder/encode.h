@@ -31,6 +31,13 @@
 
 #define PROG "tvpal-encode"
 
+/* The axes encoded without --axes (a mask of TVPAL_AXIS_BIT, tvpal_manifest.h).
+ * All three for now; the default is to follow measurement (the player
+ * drawing every view from one axis), so it is this one constant (--help
+ * and tvpal-encode.1 name it in words).  The manifest's options line
+ * records --axes when it differs. */
+#define ENCODE_AXES_DEFAULT TVPAL_AXES_ALL
+
 struct opts {
     uint32_t dims[3];
     enum tvpal_type type;
@@ -59,6 +66,8 @@ struct opts {
     uint64_t mem_limit;               /* --mem-limit SIZE, or 0 */
     const char *shard_pat;            /* --shard-dir PATTERN (MPI) */
     uint32_t levels;                  /* --levels L: coarser levels */
+    uint32_t axes;                    /* --axes: the axes encoded, a mask
+                                       * of TVPAL_AXIS_BIT (1..7) */
 };
 
 /* How a message ends the program: MSG_ONLY returns; the others exit with
@@ -122,7 +131,8 @@ struct run {
     char *fp;                /* job fingerprint */
     struct tvpal_checkpoint_stats st;
     uint64_t start;          /* first unit of work (pass * T + step) */
-    /* Shards: 3 axes x K nodes, axis-major (every node's, or one rank's). */
+    /* Shards: the axes encoded x K nodes, axis-major (every node's, or one
+     * rank's). */
     struct shardjob *sj;
     uint32_t nshard;
     size_t max_slice_vox, max_jobs;
@@ -161,7 +171,9 @@ struct run {
     uint32_t node;
     char *ckdir;
     char *node_final;
-    uint64_t cluster_bytes;  /* rank 0: bytes of every rank's shards, */
+    uint64_t cluster_bytes;  /* rank 0: bytes of every rank's files and
+                              * OUTDIR's manifest, */
+    uint64_t cluster_shard_bytes; /* of every rank's shards, */
     uint64_t cluster_work;   /* the voxel-samples they encoded, */
     double cluster_seconds;  /* in this many seconds (the slowest) */
     int level0_done;         /* --levels: level 0 finished by an earlier

@@ -16,12 +16,13 @@
 
 /* ---------------------------------------------------------------- cluster */
 
-/* Under mpirun -np K --nodes K, rank R encodes only node R's three shards,
- * reading only the boxes of the input its slabs need, into its own node
- * directory (OUTDIR.partial/node-R, or --shard-dir's on a node-local
- * disk).  The ranks then agree in ROUNDS rounds, each a gather of every
- * rank's state to rank 0 and rank 0's decision sent back:
- *   1. statistics: rank 0 sums them (each voxel is in one rank's z slab)
+/* Under mpirun -np K --nodes K, rank R encodes only node R's shards (one
+ * per axis encoded), reading only the boxes of the input its slabs need,
+ * into its own node directory (OUTDIR.partial/node-R, or --shard-dir's on
+ * a node-local disk).  The ranks then agree in ROUNDS rounds, each a
+ * gather of every rank's state to rank 0 and rank 0's decision sent back:
+ *   1. statistics: rank 0 sums them (each voxel is in one rank's slab of
+ *      the axis that takes the statistics, encode_plan.c: z if encoded)
  *      and sends the source range and the manifest;
  *   2. every rank has finished and verified its shards and node manifest;
  *   3. every node directory is in place: rank 0 writes OUTDIR and renames
@@ -39,7 +40,9 @@ struct round_head {
     char text[900];          /* its message */
     double vmin, vmax;       /* round 1: statistics */
     uint64_t nonfinite, missing, counted, dropped;
-    uint64_t bytes;          /* round 3: bytes of the rank's shards, */
+    uint64_t bytes;          /* round 3: bytes of the rank's node
+                              * directory (its files), */
+    uint64_t shard_bytes;    /* of its shards, */
     uint64_t work;           /* voxel-samples it encoded, */
     double seconds;          /* in this many seconds */
 };
@@ -147,7 +150,8 @@ void cluster_fail(enum ending how, const char *text)
     cluster_end_failed(&dec);
 }
 
-/* Bytes of this process's shard files. */
+/* Bytes of this process's shard files (the rest of its node directory is
+ * its manifest). */
 static uint64_t own_shard_bytes(const struct run *r)
 {
     uint64_t n = 0;
@@ -251,9 +255,12 @@ void cluster_finish(struct run *r)
     memset(&h, 0, sizeof h);
     h.work = r->prog.work - r->prog.work_at_start;
     h.seconds = r->t_encode;
-    h.bytes = own_shard_bytes(r); /* before a rename moves the files */
     tvpal_checkpoint_remove(r->ckdir, NULL);
     tvpal_fsync_dir(r->ckdir);
+    /* Sizes (the checkpoint gone) before a rename moves the files. */
+    h.shard_bytes = own_shard_bytes(r);
+    if (tvpal_tree_bytes(r->ckdir, &h.bytes, &d) < 0)
+        die_fail("%s: cannot size: %s", r->ckdir, d.msg);
     if (r->node_final)
         place_node_dir(r);
     dec = cluster_gather(&h, NULL, NULL);
@@ -277,8 +284,16 @@ void cluster_finish(struct run *r)
         if (rc < 0)
             dec = (struct round_decision){TVPAL_EXIT_FAIL, DIE_FAIL, 0, 1,
                                           0, 0, 0, 0};
+        /* OUTDIR's own manifest (its node directories are the ranks'). */
+        char *mp = NULL;
+        uint64_t mb = 0;
+        if (rc == 0 && asprintf(&mp, "%s/manifest.txt", r->o.outdir) >= 0 &&
+            tvpal_tree_bytes(mp, &mb, NULL) == 0)
+            r->cluster_bytes = mb;
+        free(mp);
         for (int k = 0; k < g_comm.size; k++) {
             r->cluster_bytes += g_heads[k].bytes;
+            r->cluster_shard_bytes += g_heads[k].shard_bytes;
             r->cluster_work += g_heads[k].work;
             if (g_heads[k].seconds > r->cluster_seconds)
                 r->cluster_seconds = g_heads[k].seconds;

@@ -243,6 +243,10 @@ static void encode_level(struct run *r, unsigned k, const uint32_t dk[3],
     arg_add(&a, "%u", o->window);
     arg_add(&a, "--nodes");
     arg_add(&a, "%u", o->nodes);
+    /* Every level stores level 0's axes (FORMAT.md 2.1). */
+    char axes[4];
+    arg_add(&a, "--axes");
+    arg_add(&a, "%s", tvpal_axes_format(o->axes, axes));
     arg_add(&a, "-j");
     arg_add(&a, "%d", r->nthreads);
     /* The child's share of the limit: what this process does not hold. */

@@ -16,8 +16,10 @@ static uint64_t slice_voxels(const uint32_t dims[3], unsigned a)
     return (uint64_t)dims[(a + 1) % 3] * dims[(a + 2) % 3];
 }
 
+/* stats: the pass's box goes into the statistics (its axis's slabs
+ * partition the part once). */
 static void add_pass(struct encode_plan *p, const struct encode_job *j,
-                     unsigned axis, uint32_t s, uint32_t k)
+                     unsigned axis, uint32_t s, uint32_t k, int stats)
 {
     struct encode_pass *ps = &p->pass[p->npasses++];
     memset(ps, 0, sizeof *ps);
@@ -27,7 +29,7 @@ static void add_pass(struct encode_plan *p, const struct encode_job *j,
     ps->axes = 1u << axis;
     ps->s0[axis] = s;
     ps->s1[axis] = s + k;
-    ps->stats = axis == 2; /* the z slabs partition the part once */
+    ps->stats = stats;
 }
 
 int encode_plan_make(const struct encode_job *j, struct encode_plan *p)
@@ -37,7 +39,8 @@ int encode_plan_make(const struct encode_job *j, struct encode_plan *p)
     const uint64_t nvox = (uint64_t)j->dims[0] * j->dims[1] * j->dims[2];
     uint64_t most_slice = 0;
     for (unsigned a = 0; a < 3; a++)
-        if (j->slab_n[a] && slice_voxels(j->dims, a) > most_slice)
+        if ((j->axes & (1u << a)) && j->slab_n[a] &&
+            slice_voxels(j->dims, a) > most_slice)
             most_slice = slice_voxels(j->dims, a);
     p->min_limit = j->fixed + most_slice * bpv;
     const int whole = j->slab_n[0] == j->dims[0] &&
@@ -48,7 +51,7 @@ int encode_plan_make(const struct encode_job *j, struct encode_plan *p)
             return TVPAL_E_NOMEM;
         struct encode_pass *ps = &p->pass[0];
         memcpy(ps->box.n, j->dims, sizeof ps->box.n);
-        ps->axes = 7;
+        ps->axes = j->axes;
         for (unsigned a = 0; a < 3; a++)
             ps->s1[a] = j->dims[a];
         ps->stats = 1;
@@ -64,7 +67,7 @@ int encode_plan_make(const struct encode_job *j, struct encode_plan *p)
     uint32_t passes[3] = {0};
     uint64_t total = 0;
     for (unsigned a = 0; a < 3; a++) {
-        if (!j->slab_n[a])
+        if (!j->slab_n[a] || !(j->axes & (1u << a)))
             continue;
         uint64_t per = (j->limit - j->fixed) / (slice_voxels(j->dims, a) * bpv);
         if (per > j->slab_n[a])
@@ -74,15 +77,20 @@ int encode_plan_make(const struct encode_job *j, struct encode_plan *p)
     }
     if (!(p->pass = calloc(total ? total : 1, sizeof *p->pass)))
         return TVPAL_E_NOMEM;
-    static const unsigned order[3] = {2, 1, 0}; /* z first: the stats */
+    /* z first, its slabs (contiguous in the file) taking the statistics;
+     * without z, the first axis encoded of y, x takes them. */
+    static const unsigned order[3] = {2, 1, 0};
+    int stats_axis = -1;
     for (unsigned i = 0; i < 3; i++) {
         const unsigned a = order[i];
         const uint32_t n = j->slab_n[a], P = passes[a];
         p->per_axis[a] = P;
+        if (P && stats_axis < 0)
+            stats_axis = (int)a;
         for (uint32_t q = 0; q < P; q++) {
             uint32_t s = j->slab_lo[a] + q * (n / P) + (q < n % P ? q : n % P);
             uint32_t k = n / P + (q < n % P);
-            add_pass(p, j, a, s, k);
+            add_pass(p, j, a, s, k, stats_axis == (int)a);
             const struct encode_box *b = &p->pass[p->npasses - 1].box;
             uint64_t v = encode_box_voxels(b);
             if (v > p->box_voxels_max)
@@ -108,6 +116,16 @@ void encode_plan_describe(const struct encode_plan *p, char *buf, size_t cap)
 {
     if (p->npasses == 1 && p->pass[0].axes == 7) {
         snprintf(buf, cap, "1 pass (all axes from one ring)");
+        return;
+    }
+    if (p->npasses == 1 && p->per_axis[0] + p->per_axis[1] +
+                               p->per_axis[2] == 0) {
+        char names[4], *q = names;
+        for (unsigned a = 0; a < 3; a++)
+            if (p->pass[0].axes & (1u << a))
+                *q++ = "xyz"[a];
+        *q = 0;
+        snprintf(buf, cap, "1 pass (axes %s from one ring)", names);
         return;
     }
     size_t n = (size_t)snprintf(buf, cap, "%u pass%s (", p->npasses,

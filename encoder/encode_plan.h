@@ -4,8 +4,8 @@
  * can be encoded in passes over boxes of it: each pass streams every
  * timestep of its box through a ring of N box-sized float volumes and
  * encodes the slices the box holds whole.  When the ring of the whole
- * volume fits the limit, one pass encodes all three axes from one read of
- * each step (the fastest plan).  Otherwise each axis is encoded in passes
+ * volume fits the limit, one pass encodes every axis of the job (all three,
+ * or the subset of --axes) from one read of each step (the fastest plan).  Otherwise each axis is encoded in passes
  * over slabs of its slices (a z slab is contiguous in an x-fastest file, a
  * y slab is nz runs of rows, an x slab touches every row), each reading
  * its box of every step once: the price of bounded memory is reading the
@@ -49,6 +49,8 @@ struct encode_job {
     uint32_t N, T;
     uint32_t slab_lo[3], slab_n[3]; /* slices of each axis this process
                                      * encodes (all, or an MPI rank's) */
+    unsigned axes;           /* the axes encoded: bit a for axis a (1..7);
+                              * the others get no pass */
     int split;               /* 1: per-axis passes even when one fits (an
                               * MPI rank reads only its slabs) */
     uint64_t limit;          /* bytes */
@@ -61,7 +63,8 @@ struct encode_job {
 struct encode_plan {
     struct encode_pass *pass;    /* npasses, owned: encode_plan_free */
     unsigned npasses;
-    unsigned per_axis[3];        /* passes per axis (0: one pass for all) */
+    unsigned per_axis[3];        /* passes per axis (0: one pass for all,
+                                  * or an axis not encoded) */
     uint64_t peak;               /* estimated bytes of the largest pass */
     uint64_t min_limit;          /* the smallest limit this job can have */
     uint64_t box_voxels_max;     /* largest box: the ring's size */
@@ -77,8 +80,8 @@ int encode_plan_make(const struct encode_job *j, struct encode_plan *p);
 
 void encode_plan_free(struct encode_plan *p);
 
-/* One line for people: "1 pass (all axes)" or "12 passes (x 4, y 4, z
- * 4)" into buf. */
+/* One line for people: "1 pass (all axes from one ring)", "1 pass (axes z
+ * from one ring)" or "12 passes (x 4, y 4, z 4)" into buf. */
 void encode_plan_describe(const struct encode_plan *p, char *buf,
                           size_t cap);
 

@@ -1,8 +1,9 @@
 /* tvpal-decode: reconstructs one timestep of a tvpal dataset as raw
- * little-endian float32 (x fastest), from any of the three axes.
+ * little-endian float32 (x fastest), from any axis the dataset stores.
  *
  * The steps of main: parse and check the options, open the dataset, check
- * --step against it, decode the step, write it (atomically, or to stdout). */
+ * --step and --axis against it, decode the step, write it (atomically, or
+ * to stdout). */
 #define _GNU_SOURCE
 #include "tvpal_cli.h"
 #include "tvpal_dataset.h"
@@ -25,7 +26,8 @@ static void usage(FILE *f)
 "float32, x fastest, decoded from the slices of one axis.\n"
 "\n"
 "  -t, --step T        timestep to decode, 0..steps-1 (required)\n"
-"  -a, --axis A        axis whose slices are decoded: x, y or z (default z)\n"
+"  -a, --axis A        axis whose slices are decoded: x, y or z, one the\n"
+"                      dataset stores (default: z, else y, else x)\n"
 "  -o, --output FILE   output file, written atomically; '-' for stdout\n"
 "  -h, --help          this help\n"
 "  -V, --version       version\n"
@@ -37,7 +39,7 @@ struct options {
     const char *dir;      /* OUTDIR */
     const char *step_s;   /* --step as given: its range is the dataset's */
     const char *out;      /* -o FILE; "-" is stdout */
-    int axis;             /* 0..2 */
+    int axis;             /* 0..2, or -1: the dataset's default */
 };
 
 static const struct option long_options[] = {
@@ -55,7 +57,7 @@ static const char short_options[] = "t:a:o:hV";
 static int parse_options(int argc, char **argv, struct options *o)
 {
     int c;
-    *o = (struct options){.axis = 2};
+    *o = (struct options){.axis = -1};
     while ((c = getopt_long(argc, argv, short_options, long_options, NULL)) != -1) {
         switch (c) {
         case 't': o->step_s = optarg; break;
@@ -95,6 +97,26 @@ static int step_of(const struct options *o, const struct tvpal_dataset *ds,
     return 0;
 }
 
+/* --axis as an axis ds stores, or without it the default one (z when
+ * stored).  Returns 0 or TVPAL_EXIT_USAGE (printed). */
+static int axis_of(const struct options *o, const struct tvpal_dataset *ds,
+                   unsigned *axis)
+{
+    char axes[4];
+    if (o->axis < 0) {
+        *axis = tvpal_dataset_default_axis(ds);
+        return 0;
+    }
+    if (!tvpal_dataset_has_axis(ds, (unsigned)o->axis)) {
+        fprintf(stderr, PROG ": --axis %c: %s stores axes %s only\n",
+                "xyz"[o->axis], o->dir,
+                tvpal_axes_format(ds->m.axes_mask, axes));
+        return TVPAL_EXIT_USAGE;
+    }
+    *axis = (unsigned)o->axis;
+    return 0;
+}
+
 /* A library error: the diag when the function filled it, else the code's
  * text (the library promises nothing about errno). */
 static void print_lib_error(int rc, const struct tvpal_diag *diag)
@@ -110,11 +132,12 @@ static int decode_step(struct tvpal_dataset *ds, unsigned axis, uint32_t t,
 {
     struct tvpal_volreader *vr = NULL;
     struct tvpal_diag diag = {{0}};
-    if (tvpal_volreader_create(&vr, ds, axis) < 0) {
-        fprintf(stderr, PROG ": out of memory\n");
-        return TVPAL_EXIT_FAIL;
+    int status = 0, rc = tvpal_volreader_create(&vr, ds, axis, &diag);
+    if (rc < 0) {
+        print_lib_error(rc, &diag);
+        return rc == TVPAL_E_NOMEM ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;
     }
-    int status = 0, rc = tvpal_volreader_read(vr, t, vol, &diag);
+    rc = tvpal_volreader_read(vr, t, vol, &diag);
     if (rc < 0) {
         print_lib_error(rc, &diag);
         status = rc == TVPAL_E_READ ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;
@@ -168,14 +191,17 @@ int main(int argc, char **argv)
     }
     const size_t nvox = (size_t)ds->m.dims[0] * ds->m.dims[1] * ds->m.dims[2];
     uint32_t t;
+    unsigned axis = 0;
     float *vol = NULL;
     status = step_of(&o, ds, &t);
+    if (status == 0)
+        status = axis_of(&o, ds, &axis);
     if (status == 0 && !(vol = malloc(nvox * sizeof *vol))) {
         fprintf(stderr, PROG ": out of memory\n");
         status = TVPAL_EXIT_FAIL;
     }
     if (status == 0)
-        status = decode_step(ds, (unsigned)o.axis, t, vol);
+        status = decode_step(ds, axis, t, vol);
     if (status == 0) {
         unsigned char *bytes = (unsigned char *)vol; /* convert in place */
         tvpal_store_f32le(vol, bytes, nvox);

@@ -60,8 +60,8 @@ static void usage(FILE *f)
 {
     fprintf(f,
 "Usage: " PROG " [--dims NXxNYxNZ] [options] -o OUTDIR INPUT...\n"
-"Encode a time series of volumes into a tvpal dataset: for each axis, 8-bit\n"
-"indexed slices with per-window decoder tables.  INPUT is raw (one file per\n"
+"Encode a time series of volumes into a tvpal dataset: for each axis (or\n"
+"those of --axes), 8-bit indexed slices with per-window decoder tables.  INPUT is raw (one file per\n"
 "timestep, in time order, or one file holding all timesteps with --steps),\n"
 "or NetCDF, VTK ImageData (.vti, .pvti, a .pvd collection) or legacy VTK\n"
 "files, which say their own dims, type and steps (a NetCDF file may hold\n"
@@ -109,6 +109,10 @@ static void usage(FILE *f)
 "                         N = 1 is the plain 8-bit Lloyd-Max baseline)\n"
 "  -k, --nodes K          split every axis into K slabs, one per node,\n"
 "                         written to OUTDIR/node-R/ (default 1)\n"
+"      --axes LIST        the axes to encode: x, y and z, each at most\n"
+"                         once, in any order (z, xz, xyz; default xyz);\n"
+"                         each is a full copy of the data, so --axes z\n"
+"                         takes a third of the time and the bytes\n"
 "  -j, --threads J        worker threads (default: all cores)\n"
 "      --refine K         up to K iterations of generalized Lloyd (k-means)\n"
 "                         on each slice-window's voxel series after the DCT\n"
@@ -219,6 +223,7 @@ enum optkind {
     OPT_SPACING,   /* DX,DY,DZ > 0 into spacing */
     OPT_ORIGIN,    /* OX,OY,OZ into origin */
     OPT_SIZE,      /* bytes ("12G") into the uint64_t at field */
+    OPT_AXES,      /* a set of axes ("xz") into axes */
     OPT_HELP,
     OPT_VERSION
 };
@@ -253,6 +258,8 @@ static const struct optspec {
      {0}, "a whole number from 1 to " STR(TVPAL_NMAX)},
     {"nodes", 'k', OPT_U32, offsetof(struct opts, nodes), 1, UINT32_MAX,
      {0}, "a whole number >= 1"},
+    {"axes", OPT_LONG_ONLY + 19, OPT_AXES, 0, 0, 0, {0},
+     "one or more of the axes x, y, z, each once (z, xz, xyz)"},
     {"threads", 'j', OPT_U32, offsetof(struct opts, threads), 1, 1024, {0},
      "1..1024"},
     {"table", OPT_LONG_ONLY + 1, OPT_CHOICE,
@@ -356,6 +363,10 @@ static void parse_option(const struct optspec *sp, const char *arg,
         if (encode_parse_size(arg, (uint64_t *)(void *)(base + sp->field)) < 0)
             break;
         return;
+    case OPT_AXES:
+        if (tvpal_axes_parse(arg, &o->axes) < 0)
+            break;
+        return;
     case OPT_FORMAT:
         if (tvpal_input_format_parse(arg, &o->format) < 0)
             break;
@@ -397,7 +408,8 @@ static int parse_options(int argc, char **argv, struct opts *o)
     char shortopts[2 * NOPTS + 1], *so = shortopts;
     int have_dims = 0, c;
     *o = (struct opts){.type = TVPAL_F32, .window = 4, .nodes = 1,
-                       .table_format = TVPAL_TABLE_F32};
+                       .table_format = TVPAL_TABLE_F32,
+                       .axes = ENCODE_AXES_DEFAULT};
     for (size_t i = 0; i < NOPTS; i++) {
         const struct optspec *sp = &g_optspec[i];
         int arg = sp->kind != OPT_FLAG && sp->kind != OPT_HELP &&
@@ -504,6 +516,17 @@ static char *job_params(const struct opts *o, const struct tvpal_input *in)
             return NULL;
         s = t;
     }
+    /* The axes encoded decide which shards exist (a resume with others
+     * starts over); all three keep the fingerprint of earlier versions,
+     * whatever the default. */
+    if (o->axes != TVPAL_AXES_ALL) {
+        char axes[4];
+        n = asprintf(&t, "%s axes=%s", s, tvpal_axes_format(o->axes, axes));
+        free(s);
+        if (n < 0)
+            return NULL;
+        s = t;
+    }
     if (!in)
         return s;
     /* Raw jobs keep the fingerprint of earlier versions (their partial
@@ -544,6 +567,10 @@ static void options_line(const struct opts *o, uint32_t T, char *buf,
         OPTS_ADD(" --transform klt");
     if (o->alloc_mse)
         OPTS_ADD(" --alloc greedy-mse");
+    if (o->axes != ENCODE_AXES_DEFAULT) {
+        char axes[4];
+        OPTS_ADD(" --axes %s", tvpal_axes_format(o->axes, axes));
+    }
 #undef OPTS_ADD
 }
 
@@ -709,16 +736,19 @@ static void open_partial(struct run *r)
     make_node_dirs(r);
 }
 
-/* Describes the 3K shards (axis-major; a rank's 3 under MPI) and the
- * largest slice, chunk and number of slice-windows of a step. */
+/* Describes the shards, K per axis encoded (axis-major; a rank's own under
+ * MPI), and the largest slice, chunk and number of slice-windows of a
+ * step. */
 static void setup_shards(struct run *r)
 {
     const struct opts *o = &r->o;
     const uint32_t k0 = r->mpi ? r->node : 0, nk = r->mpi ? 1 : o->nodes;
-    r->nshard = 3 * nk;
+    r->nshard = tvpal_axes_count(o->axes) * nk;
     if (!(r->sj = calloc(r->nshard, sizeof *r->sj)))
         die_fail("out of memory");
-    for (unsigned a = 0; a < 3; a++) {
+    for (unsigned a = 0, ia = 0; a < 3; a++) {
+        if (!(o->axes & TVPAL_AXIS_BIT(a)))
+            continue;
         uint32_t n, w, h;
         tvpal_axis_geometry(o->dims, a, &n, &w, &h);
         if ((size_t)w * h > r->max_slice_vox)
@@ -728,7 +758,7 @@ static void setup_shards(struct run *r)
         if (cb > r->max_chunk)
             r->max_chunk = cb;
         for (uint32_t k = k0; k < k0 + nk; k++) {
-            struct shardjob *j = &r->sj[a * nk + (k - k0)];
+            struct shardjob *j = &r->sj[ia * nk + (k - k0)];
             j->axis = a;
             j->rank = k;
             j->h = (struct tvpal_shard_header){
@@ -740,6 +770,7 @@ static void setup_shards(struct run *r)
             tvpal_slab_range(n, o->nodes, k, &j->h.slice_begin,
                              &j->h.slice_count);
         }
+        ia++;
     }
 }
 
@@ -844,7 +875,7 @@ static void make_plan(struct run *r)
     struct encode_job j = {
         .N = r->N, .T = r->T, .limit = r->limit, .fixed = fixed_bytes(r),
         .box_bytes_per_voxel = 4 * ring_slots(r) + (r->in ? 8 : 0),
-        .split = r->mpi};
+        .split = r->mpi, .axes = o->axes};
     memcpy(j.dims, o->dims, sizeof j.dims);
     memcpy(j.slab_n, o->dims, sizeof j.slab_n);
     /* An MPI rank encodes its node's slab of each axis only. */
@@ -1250,8 +1281,8 @@ static void save_checkpoint(struct run *r, uint64_t u)
                  lib_error(rc, &d));
 }
 
-/* The work (voxel-samples, all axes) of the whole job, and of the units
- * before u. */
+/* The work (voxel-samples, every axis encoded) of the whole job, and of the
+ * units before u. */
 static uint64_t work_before(const struct run *r, uint64_t u)
 {
     uint64_t w = 0;
@@ -1286,7 +1317,9 @@ void report_progress(struct run *r, int last)
     const uint64_t done = __atomic_load_n(&p->work, __ATOMIC_RELAXED);
     const double el = now - p->t0;
     const double mine = (double)(done - p->work_at_start);
-    const double rate = mine / 3.0 / (el > 0 ? el : 1e-9) / 1e6;
+    /* Source voxel-steps: the work counts each once per axis encoded. */
+    const double rate = mine / tvpal_axes_count(r->o.axes) /
+                        (el > 0 ? el : 1e-9) / 1e6;
     const double eta = mine > 0 ? el / mine * (double)(p->total - done) : -1;
     /* Steps over all passes ("pass-steps" when there are several). */
     tvpal_progress_format(line, sizeof line, last ? p->units : p->unit,
@@ -1404,6 +1437,7 @@ static void build_manifest(const struct run *r, struct tvpal_manifest *m)
     m->single_file = o->steps_single != 0;
     m->source_bytes = r->step_bytes * r->T;
     m->levels = o->levels;
+    m->axes_mask = o->axes;
     grid_of(r, m->spacing, m->origin);
     if (r->times) {
         if (!(m->times = malloc(sizeof *m->times * r->T)))
@@ -1623,50 +1657,67 @@ void warn_dominating_values(const struct run *r)
 }
 
 /* Reopens the dataset with the reader (it must verify) and prints the
- * closing key=value line on stdout. */
+ * closing key=value line on stdout.  The headline figures are what the
+ * dataset takes on disk: bytes counts every file of OUTDIR (the stored
+ * axes' shards of every node, the manifests, the levels; under MPI every
+ * rank's node directory, wherever --shard-dir put it, and OUTDIR's
+ * manifest), ratio is the source bytes over them and bpv their bits per
+ * voxel-timestep.  axis_ratio is the source bytes over the bytes of one
+ * stored axis of level 0 (the mean over the stored axes), the figure
+ * ratio was before FORMAT.md 1.6. */
 static void print_summary(const struct run *r)
 {
     struct tvpal_diag d = {{0}};
     struct tvpal_dataset *ds = NULL;
-    uint64_t total_bytes = r->cluster_bytes;
+    uint64_t disk = r->cluster_bytes, shards = r->cluster_shard_bytes;
     /* Under MPI every rank has verified its own node directory. */
-    if (!r->mpi && tvpal_dataset_open(&ds, r->o.outdir, &d) < 0)
-        die_fail("%s: written dataset does not verify: %s", r->o.outdir,
-                 d.msg);
-    for (unsigned a = 0; !r->mpi && a < 3; a++)
-        total_bytes += ds->axis_bytes[a];
-    tvpal_dataset_close(ds);
-    const double axis_bytes = (double)total_bytes / 3.0;
+    if (!r->mpi) {
+        if (tvpal_dataset_open(&ds, r->o.outdir, &d) < 0)
+            die_fail("%s: written dataset does not verify: %s", r->o.outdir,
+                     d.msg);
+        for (unsigned a = 0; a < 3; a++)
+            shards += ds->axis_bytes[a];
+        tvpal_dataset_close(ds);
+        int rc = tvpal_tree_bytes(r->o.outdir, &disk, &d);
+        if (rc < 0)
+            die_fail("%s: cannot size the dataset: %s", r->o.outdir,
+                     lib_error(rc, &d));
+    }
+    const unsigned naxes = tvpal_axes_count(r->o.axes);
+    const double src = (double)(r->step_bytes * r->T);
+    const double axis_bytes = (double)shards / naxes;
     const double vts = (double)r->nvox * r->T;
     const double te = r->mpi ? r->cluster_seconds : r->t_encode;
     const uint64_t work = r->mpi ? r->cluster_work
                                  : r->prog.work - r->prog.work_at_start;
-    /* The coarser levels: their bytes apart (level 0's figures stay
-     * comparable with an encode without levels). */
+    /* The coarser levels' files, also part of bytes (and of ratio and
+     * bpv): what they add is said apart. */
     uint64_t level_bytes = 0;
     for (unsigned k = 1; !r->mpi && k <= r->o.levels; k++) {
         char *ld;
+        uint64_t b = 0;
         if (asprintf(&ld, "%s/level-%u", r->o.outdir, k) < 0)
             die_fail("out of memory");
         if (tvpal_dataset_open(&ds, ld, &d) < 0)
             die_fail("%s: written level does not verify: %s", ld, d.msg);
-        for (unsigned a = 0; a < 3; a++)
-            level_bytes += ds->axis_bytes[a];
         tvpal_dataset_close(ds);
+        int rc = tvpal_tree_bytes(ld, &b, &d);
+        if (rc < 0)
+            die_fail("%s: cannot size the level: %s", ld, lib_error(rc, &d));
+        level_bytes += b;
         free(ld);
     }
-    char lv[96] = "";
+    char lv[96] = "", axes[4];
     if (r->o.levels)
         snprintf(lv, sizeof lv, " levels=%u levels_bytes=%llu", r->o.levels,
                  (unsigned long long)level_bytes);
-    printf("encoded %s: steps=%u window=%u nodes=%u bytes=%llu ratio=%.3f "
-           "bpv=%.4f seconds=%.3f rate=%.2fM vox-steps/s threads=%d "
-           "missing=%llu passes=%u%s\n",
+    printf("encoded %s: steps=%u window=%u nodes=%u axes=%s bytes=%llu "
+           "ratio=%.3f axis_ratio=%.3f bpv=%.4f seconds=%.3f rate=%.2fM "
+           "vox-steps/s threads=%d missing=%llu passes=%u%s\n",
            r->o.outdir, r->T, r->N, r->o.nodes,
-           (unsigned long long)total_bytes,
-           (double)(r->step_bytes * r->T) / axis_bytes,
-           axis_bytes * 8.0 / vts, te,
-           (double)work / 3.0 / (te > 0 ? te : 1e-9) / 1e6,
+           tvpal_axes_format(r->o.axes, axes), (unsigned long long)disk,
+           src / (double)disk, src / axis_bytes, (double)disk * 8.0 / vts,
+           te, (double)work / naxes / (te > 0 ? te : 1e-9) / 1e6,
            r->nthreads * (r->mpi ? g_comm.size : 1),
            (unsigned long long)r->st.missing, r->plan.npasses, lv);
 }

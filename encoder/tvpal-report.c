@@ -3,13 +3,18 @@
  * Per timestep and axis: RMSE, PSNR, max |error| and temporal flicker; per
  * axis and overall: the same plus compression ratio and bits per
  * voxel-timestep, always counting the decoder tables and every byte of the
- * shard files.  PSNR uses peak = max - min of the original over all
+ * files.  The overall ratio and bits are of the bytes on disk (every file
+ * of the dataset directory: all stored axes, manifests, levels); the
+ * per-axis ones (axis_ratio) of one axis's shards.  PSNR uses peak = max - min of the original over all
  * timesteps: PSNR = 10 log10(peak^2 / MSE).  Flicker at t >= 1 is
  * mean |(R[t] - R[t-1]) - (V[t] - V[t-1])| / peak: it exposes jumps at window
  * boundaries that a per-frame error hides.
  *
+ * Only the axes the dataset stores are decoded and reported (FORMAT.md 2.2):
+ * per-axis figures, rows and keys of the others are left out.
+ *
  * The steps of main: parse and check the options, open the dataset, one pass
- * over the timesteps (read the reference, decode the three axes, accumulate
+ * over the timesteps (read the reference, decode the stored axes, accumulate
  * the per-step errors), the per-axis and overall figures, then the outputs:
  * the text report, the CSV, the JSON and the closing key=value line.  The
  * CSV columns and the keys of the closing line are tables (csv_columns,
@@ -44,7 +49,8 @@ static void usage(FILE *f)
 "Compare the dataset OUTDIR with the original data, per timestep and overall:\n"
 "PSNR (peak = max - min of the original over all timesteps), RMSE, max\n"
 "absolute error, temporal flicker, compression ratio and bits per\n"
-"voxel-timestep (decoder tables and all file overhead included), per axis.\n"
+"voxel-timestep (decoder tables and all file overhead included), per stored\n"
+"axis.\n"
 "\n"
 "  -r, --reference     the remaining arguments are the original files (same\n"
 "                      layout as at encoding); default: the manifest's sources\n"
@@ -58,10 +64,12 @@ static void usage(FILE *f)
 "  -V, --version       version\n"
 "\n"
 "The last line is a key=value summary: psnr (worst axis), psnr_x, psnr_y,\n"
-"psnr_z, psnr_min (worst timestep and axis), rmse, max_abs_error and\n"
-"flicker (worst axis), ratio (source bytes / mean bytes of one axis),\n"
-"ratio_8bit, bpv (bits per voxel-timestep of one axis, everything counted),\n"
-"index_bpv, table_bpv, disk_ratio (all three axes stored), steps, window.\n"
+"psnr_z (the stored axes'), psnr_min (worst timestep and axis), rmse,\n"
+"max_abs_error and flicker (worst axis), ratio (source bytes / bytes on\n"
+"disk: every file of OUTDIR, all stored axes, manifests and levels),\n"
+"axis_ratio (source bytes / mean bytes of one stored axis), ratio_8bit,\n"
+"bpv (bits on disk per voxel-timestep), index_bpv and table_bpv (theirs\n"
+"for the indices and the decoder tables), bytes, steps, window.\n"
 "Exit status: 0 success, 1 failure, 2 bad input.\n");
 }
 
@@ -278,11 +286,19 @@ struct report {
     uint32_t psnr_min_t;
     unsigned psnr_min_a;
     double worst_rmse, worst_max, worst_flick;   /* worst axis */
-    double bytes_axis, idx_mean, tab_mean;       /* mean of the three axes */
+    double bytes_axis;            /* mean shard bytes of a stored axis */
+    double idx_bytes, tab_bytes;  /* indices and tables, all stored axes */
+    uint64_t disk_bytes;          /* every file of the directory reported */
     double missing, mismatch;     /* reference NaN voxel-steps (per axis
                                    * the same); mismatches, worst axis */
-    double ratio;                 /* source bytes / bytes_axis */
+    double ratio;                 /* source bytes / disk_bytes */
 };
+
+/* Whether the dataset stores axis a (only those are decoded). */
+static int stored(const struct report *r, unsigned a)
+{
+    return tvpal_dataset_has_axis(r->ds, a);
+}
 
 static double psnr_of(double mse, double peak)
 {
@@ -346,8 +362,9 @@ static int report_init(struct report *r, const struct tvpal_dataset *ds,
  */
 
 /* Working memory of the pass over the timesteps: the raw bytes of one
- * reference step; the reference and each axis's decoded volume at t and
- * t - 1 (for flicker), alternating by the parity of t; a reader per axis. */
+ * reference step; the reference and each stored axis's decoded volume at t
+ * and t - 1 (for flicker), alternating by the parity of t; a reader per
+ * stored axis (NULL for the others). */
 struct scan_buffers {
     void *raw;
     float *full[2];          /* --level: the source step, then averages */
@@ -385,10 +402,12 @@ static int buffers_alloc(struct scan_buffers *b, struct tvpal_dataset *ds,
     if (!b->raw || !b->ref[0] || !b->ref[1])
         return -1;
     for (unsigned a = 0; a < 3; a++) {
+        if (!stored(r, a))
+            continue;
         b->dec[a][0] = malloc(nvox * sizeof(float));
         b->dec[a][1] = malloc(nvox * sizeof(float));
         if (!b->dec[a][0] || !b->dec[a][1] ||
-            tvpal_volreader_create(&b->vr[a], ds, a) != 0)
+            tvpal_volreader_create(&b->vr[a], ds, a, NULL) != 0)
             return -1;
     }
     return 0;
@@ -542,8 +561,8 @@ static int reference_step(struct report *r, char **refs,
     return 0;
 }
 
-/* The one pass over the timesteps: per step, the reference and the three
- * decoded axes.  Returns 0 or TVPAL_EXIT_USAGE (a reference or a record that
+/* The one pass over the timesteps: per step, the reference and the
+ * decoded stored axes.  Returns 0 or TVPAL_EXIT_USAGE (a reference or a record that
  * cannot be read; printed). */
 static int scan_steps(struct report *r, char **refs, struct tvpal_input *src,
                       struct scan_buffers *b)
@@ -555,6 +574,8 @@ static int scan_steps(struct report *r, char **refs, struct tvpal_input *src,
             return TVPAL_EXIT_USAGE;
         update_range(r, b->ref[cur]);
         for (unsigned a = 0; a < 3; a++) {
+            if (!stored(r, a))
+                continue;
             int rc = tvpal_volreader_read(b->vr[a], t, b->dec[a][cur], &diag);
             if (rc < 0) {
                 print_lib_error(rc, &diag);
@@ -588,12 +609,16 @@ static void payload_bytes(const struct tvpal_manifest *m, unsigned axis,
             }
 }
 
-/* Errors per axis over all timesteps, the worst axis, the worst step. */
+/* Errors per stored axis over all timesteps, the worst axis, the worst
+ * step. */
 static void summarize_errors(struct report *r)
 {
     const uint32_t T = r->steps;
     r->psnr_min = INFINITY;
+    r->psnr = INFINITY;
     for (unsigned a = 0; a < 3; a++) {
+        if (!stored(r, a))
+            continue;
         struct axis_sum *x = &r->axis[a];
         double sse = 0, mx = 0, fl = 0, n = 0, nfl = 0, miss = 0, bad = 0;
         for (uint32_t t = 0; t < T; t++) {
@@ -623,22 +648,34 @@ static void summarize_errors(struct report *r)
         r->worst_rmse = x->rmse > r->worst_rmse ? x->rmse : r->worst_rmse;
         r->worst_max = mx > r->worst_max ? mx : r->worst_max;
         r->worst_flick = x->flicker > r->worst_flick ? x->flicker : r->worst_flick;
+        r->psnr = fmin(r->psnr, x->psnr);
     }
-    r->psnr = fmin(r->axis[0].psnr, fmin(r->axis[1].psnr, r->axis[2].psnr));
 }
 
-/* Bytes per axis (files), split into indices, tables and the rest. */
-static void summarize_sizes(struct report *r)
+/* The bytes on disk (every file under the directory reported), and per
+ * stored axis its files, indices and tables.  0 or TVPAL_EXIT_USAGE (the
+ * directory cannot be read; printed). */
+static int summarize_sizes(struct report *r)
 {
     const uint64_t *ab = r->ds->axis_bytes;
-    r->bytes_axis = (ab[0] + ab[1] + ab[2]) / 3.0;
-    for (unsigned a = 0; a < 3; a++)
+    const unsigned na = tvpal_axes_count(r->m->axes_mask);
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_tree_bytes(r->dir, &r->disk_bytes, &d);
+    if (rc < 0) {
+        print_lib_error(rc, &d);
+        return TVPAL_EXIT_USAGE;
+    }
+    r->bytes_axis = r->idx_bytes = r->tab_bytes = 0;
+    for (unsigned a = 0; a < 3; a++) {
+        if (!stored(r, a))
+            continue;
         payload_bytes(r->m, a, &r->axis[a].idx_bytes, &r->axis[a].tab_bytes);
-    r->idx_mean = (r->axis[0].idx_bytes + r->axis[1].idx_bytes +
-                   r->axis[2].idx_bytes) / 3.0;
-    r->tab_mean = (r->axis[0].tab_bytes + r->axis[1].tab_bytes +
-                   r->axis[2].tab_bytes) / 3.0;
-    r->ratio = (double)r->src_bytes / r->bytes_axis;
+        r->bytes_axis += (double)ab[a] / na;
+        r->idx_bytes += r->axis[a].idx_bytes;
+        r->tab_bytes += r->axis[a].tab_bytes;
+    }
+    r->ratio = (double)r->src_bytes / (double)r->disk_bytes;
+    return 0;
 }
 
 /* ------------------------------------------------------------------------
@@ -656,31 +693,44 @@ static void print_text(const struct report *r)
            m->nodes == 1 ? "" : "s");
     printf("peak (max - min of the original) = %.9g  [%.9g, %.9g]\n",
            r->peak, r->vmin, r->vmax);
-    printf("%6s %9s %9s %9s %12s %10s\n", "step", "psnr_x", "psnr_y",
-           "psnr_z", "max_abs_err", "flicker");
+    printf("%6s", "step");
+    for (unsigned a = 0; a < 3; a++)
+        if (stored(r, a))
+            printf(" %8s%c", "psnr_", "xyz"[a]);
+    printf(" %12s %10s\n", "max_abs_err", "flicker");
     for (uint32_t t = 0; t < r->steps; t++) {
-        double ps[3], mx = 0, fl = 0;
+        double mx = 0, fl = 0;
+        printf("%6u", t);
         for (unsigned a = 0; a < 3; a++) {
-            ps[a] = step_psnr(r, t, a);
+            if (!stored(r, a))
+                continue;
+            printf(" %9.3f", step_psnr(r, t, a));
             mx = step_at(r, t, a)->maxabs > mx ? step_at(r, t, a)->maxabs : mx;
             double f = step_flicker(r, t, a);
             fl = f > fl ? f : fl;
         }
-        printf("%6u %9.3f %9.3f %9.3f %12.6g %10.3g\n", t, ps[0], ps[1],
-               ps[2], mx, fl);
+        printf(" %12.6g %10.3g\n", mx, fl);
     }
-    printf("%4s %9s %12s %12s %10s %14s %8s %9s\n", "axis", "psnr",
-           "rmse", "max_abs_err", "flicker", "bytes", "ratio", "bpv");
+    printf("%4s %9s %12s %12s %10s %14s %10s %9s\n", "axis", "psnr",
+           "rmse", "max_abs_err", "flicker", "bytes", "axis_ratio",
+           "axis_bpv");
     for (unsigned a = 0; a < 3; a++)
-        printf("%4c %9.3f %12.6g %12.6g %10.3g %14llu %8.3f %9.4f\n",
+        if (stored(r, a))
+            printf("%4c %9.3f %12.6g %12.6g %10.3g %14llu %10.3f %9.4f\n",
                "xyz"[a], r->axis[a].psnr, r->axis[a].rmse, r->axis[a].maxabs,
                r->axis[a].flicker, (unsigned long long)ab[a],
                (double)r->src_bytes / (double)ab[a],
                8.0 * (double)ab[a] / r->vts);
-    printf("bits per voxel-timestep (one axis): %.4f = indices %.4f + "
-           "tables %.4f + headers/padding %.4f\n", 8 * r->bytes_axis / r->vts,
-           8 * r->idx_mean / r->vts, 8 * r->tab_mean / r->vts,
-           8 * (r->bytes_axis - r->idx_mean - r->tab_mean) / r->vts);
+    char axes[4];
+    printf("on disk: %llu bytes (axes %s: shards, manifests%s), ratio "
+           "%.3f\n", (unsigned long long)r->disk_bytes,
+           tvpal_axes_format(m->axes_mask, axes), m->levels ? ", levels" : "",
+           r->ratio);
+    printf("bits per voxel-timestep on disk: %.4f = indices %.4f + tables "
+           "%.4f + headers, padding and manifests%s %.4f\n",
+           8 * (double)r->disk_bytes / r->vts, 8 * r->idx_bytes / r->vts,
+           8 * r->tab_bytes / r->vts, m->levels ? " and levels" : "",
+           8 * ((double)r->disk_bytes - r->idx_bytes - r->tab_bytes) / r->vts);
     printf("worst timestep: %u on axis %c (%.3f dB)\n", r->psnr_min_t,
            "xyz"[r->psnr_min_a], r->psnr_min);
     if (r->missing)
@@ -699,6 +749,8 @@ struct column {
     const char *fmt;
     enum col_kind kind;
     size_t off;
+    unsigned axis1;            /* 1 + the axis a per-axis key is of (left
+                                * out for an axis not stored), or 0 */
 };
 
 static void put_value(FILE *f, const struct column *c, const void *rec)
@@ -716,7 +768,7 @@ static void put_value(FILE *f, const struct column *c, const void *rec)
 struct csv_row {
     double step, axis, rmse, psnr, max_abs_error, flicker, time, missing;
 };
-#define CSV_COL(name, fmt, kind) {#name, fmt, kind, offsetof(struct csv_row, name)}
+#define CSV_COL(name, fmt, kind) {#name, fmt, kind, offsetof(struct csv_row, name), 0}
 static const struct column csv_columns[] = {
     CSV_COL(step, "%u", COL_UINT),
     CSV_COL(axis, "%c", COL_CHAR),
@@ -740,7 +792,8 @@ static struct csv_row csv_row_of(const struct report *r, uint32_t t, unsigned a)
         .missing = step_at(r, t, a)->missing};
 }
 
-/* The header (the column names), then one row per timestep and axis. */
+/* The header (the column names), then one row per timestep and stored
+ * axis. */
 static void write_csv_rows(FILE *f, const struct report *r)
 {
     for (size_t c = 0; c < NCSV; c++)
@@ -748,6 +801,8 @@ static void write_csv_rows(FILE *f, const struct report *r)
     fputc('\n', f);
     for (uint32_t t = 0; t < r->steps; t++)
         for (unsigned a = 0; a < 3; a++) {
+            if (!stored(r, a))
+                continue;
             const struct csv_row row = csv_row_of(r, t, a);
             for (size_t c = 0; c < NCSV; c++) {
                 if (c)
@@ -787,13 +842,18 @@ static void write_json_axes(FILE *f, const struct report *r)
     const uint64_t *ab = r->ds->axis_bytes;
     fprintf(f, ",\n  \"source_bytes\": %llu,\n  \"axes\": {",
             (unsigned long long)r->src_bytes);
+    const char *sep = "";
     for (unsigned a = 0; a < 3; a++) {
+        if (!stored(r, a))
+            continue;
         const struct axis_sum *x = &r->axis[a];
-        fprintf(f, "%s\n    \"%c\": {\"psnr\": ", a ? "," : "", "xyz"[a]);
+        fprintf(f, "%s\n    \"%c\": {\"psnr\": ", sep, "xyz"[a]);
+        sep = ",";
         jnum(f, x->psnr);
         fprintf(f, ", \"rmse\": %.9g, \"max_abs_error\": %.9g, "
-                "\"flicker\": %.9g, \"bytes\": %llu, \"ratio\": %.6f, "
-                "\"bpv\": %.6f, \"index_bpv\": %.6f, \"table_bpv\": %.6f}",
+                "\"flicker\": %.9g, \"bytes\": %llu, \"axis_ratio\": %.6f, "
+                "\"axis_bpv\": %.6f, \"index_bpv\": %.6f, "
+                "\"table_bpv\": %.6f}",
                 x->rmse, x->maxabs, x->flicker, (unsigned long long)ab[a],
                 (double)r->src_bytes / (double)ab[a],
                 8.0 * (double)ab[a] / r->vts, 8 * x->idx_bytes / r->vts,
@@ -808,6 +868,8 @@ static void write_json_steps(FILE *f, const struct report *r)
     for (uint32_t t = 0; t < r->steps; t++) {
         fprintf(f, "%s\n    {\"step\": %u", t ? "," : "", t);
         for (unsigned a = 0; a < 3; a++) {
+            if (!stored(r, a))
+                continue;
             fprintf(f, ", \"psnr_%c\": ", "xyz"[a]);
             jnum(f, step_psnr(r, t, a));
             fprintf(f, ", \"max_abs_error_%c\": %.9g, \"flicker_%c\": %.9g",
@@ -836,9 +898,11 @@ static void write_json_doc(FILE *f, const struct report *r)
     jnum(f, r->psnr);
     fprintf(f, ", \"psnr_min\": ");
     jnum(f, r->psnr_min);
-    fprintf(f, ", \"ratio\": %.6f, \"bpv\": %.6f, \"missing\": %.0f, "
-            "\"missing_mismatch\": %.0f}\n}\n", r->ratio,
-            8 * r->bytes_axis / r->vts, r->missing, r->mismatch);
+    fprintf(f, ", \"bytes\": %llu, \"ratio\": %.6f, \"axis_ratio\": %.6f, "
+            "\"bpv\": %.6f, \"missing\": %.0f, \"missing_mismatch\": "
+            "%.0f}\n}\n", (unsigned long long)r->disk_bytes, r->ratio,
+            (double)r->src_bytes / r->bytes_axis,
+            8 * (double)r->disk_bytes / r->vts, r->missing, r->mismatch);
 }
 
 /* Writes path with fn, through tvpal_out (a temporary renamed when
@@ -873,31 +937,35 @@ static int write_file(const char *path, const struct report *r,
 /* The closing line's values, in a record for the summary_keys table. */
 struct summary {
     double psnr, psnr_x, psnr_y, psnr_z, psnr_min, rmse, max_abs_error;
-    double flicker, ratio, ratio_8bit, bpv, index_bpv, table_bpv, disk_ratio;
+    double flicker, ratio, axis_ratio, ratio_8bit, bpv, index_bpv, table_bpv;
+    double bytes;
     double steps, window, missing, missing_mismatch;
 };
-#define KEY(name, fmt, kind) {#name, fmt, kind, offsetof(struct summary, name)}
+#define KEY(name, fmt, kind) {#name, fmt, kind, offsetof(struct summary, name), 0}
+#define AXIS_KEY(name, a) {#name, "%.4f", COL_REAL, offsetof(struct summary, name), a + 1}
 static const struct column summary_keys[] = {
     KEY(psnr, "%.4f", COL_REAL),
-    KEY(psnr_x, "%.4f", COL_REAL),
-    KEY(psnr_y, "%.4f", COL_REAL),
-    KEY(psnr_z, "%.4f", COL_REAL),
+    AXIS_KEY(psnr_x, 0),
+    AXIS_KEY(psnr_y, 1),
+    AXIS_KEY(psnr_z, 2),
     KEY(psnr_min, "%.4f", COL_REAL),
     KEY(rmse, "%.6g", COL_REAL),
     KEY(max_abs_error, "%.6g", COL_REAL),
     KEY(flicker, "%.6g", COL_REAL),
     KEY(ratio, "%.4f", COL_REAL),
+    KEY(axis_ratio, "%.4f", COL_REAL),
     KEY(ratio_8bit, "%.4f", COL_REAL),
     KEY(bpv, "%.4f", COL_REAL),
     KEY(index_bpv, "%.4f", COL_REAL),
     KEY(table_bpv, "%.4f", COL_REAL),
-    KEY(disk_ratio, "%.4f", COL_REAL),
+    KEY(bytes, "", COL_COUNT),
     KEY(steps, "%u", COL_UINT),
     KEY(window, "%u", COL_UINT),
     KEY(missing, "", COL_COUNT),
     KEY(missing_mismatch, "", COL_COUNT),
 };
 #undef KEY
+#undef AXIS_KEY
 
 static struct summary summary_of(const struct report *r)
 {
@@ -906,9 +974,12 @@ static struct summary summary_of(const struct report *r)
         .psnr_z = r->axis[2].psnr, .psnr_min = r->psnr_min,
         .rmse = r->worst_rmse, .max_abs_error = r->worst_max,
         .flicker = r->worst_flick, .ratio = r->ratio,
-        .ratio_8bit = r->vts / r->bytes_axis, .bpv = 8 * r->bytes_axis / r->vts,
-        .index_bpv = 8 * r->idx_mean / r->vts,
-        .table_bpv = 8 * r->tab_mean / r->vts, .disk_ratio = r->ratio / 3.0,
+        .axis_ratio = (double)r->src_bytes / r->bytes_axis,
+        .ratio_8bit = r->vts / (double)r->disk_bytes,
+        .bpv = 8 * (double)r->disk_bytes / r->vts,
+        .index_bpv = 8 * r->idx_bytes / r->vts,
+        .table_bpv = 8 * r->tab_bytes / r->vts,
+        .bytes = (double)r->disk_bytes,
         .steps = r->steps, .window = r->m->window, .missing = r->missing,
         .missing_mismatch = r->mismatch};
 }
@@ -917,8 +988,12 @@ static struct summary summary_of(const struct report *r)
 static void print_summary_line(const struct report *r)
 {
     const struct summary s = summary_of(r);
+    const char *sep = "";
     for (size_t k = 0; k < sizeof summary_keys / sizeof summary_keys[0]; k++) {
-        printf("%s%s=", k ? " " : "", summary_keys[k].name);
+        if (summary_keys[k].axis1 && !stored(r, summary_keys[k].axis1 - 1))
+            continue;
+        printf("%s%s=", sep, summary_keys[k].name);
+        sep = " ";
         put_value(stdout, &summary_keys[k], &s);
     }
     putchar('\n');
@@ -990,7 +1065,9 @@ int main(int argc, char **argv)
         status = scan_steps(&r, o.refs, o.src, &b);
     if (status == 0) {
         summarize_errors(&r);
-        summarize_sizes(&r);
+        status = summarize_sizes(&r);
+    }
+    if (status == 0) {
         status = write_outputs(&r, &o);
         if (status == 0 && r.mismatch > 0) {
             /* The dataset does not hold the reference's missing values

@@ -16,10 +16,12 @@ sha() {
 # copy DATASET DEST: a writable copy (the source tree is read-only under
 # distcheck).
 copy() { rm -rf "$2" && cp -R "$1" "$2" && chmod -R u+w "$2"; }
-# sums DIR NAME: one "HASH  NAME/A/T" line per axis and step of DIR.
+# sums DIR NAME: one "HASH  NAME/A/T" line per stored axis and step of DIR
+# (the manifest's axes key, FORMAT.md 2.2; all three without it).
 sums() {
     steps=$(sed -n 's/^steps = //p' "$F/$2/manifest.txt")
-    for a in x y z; do
+    axes=$(sed -n 's/^axes = //p' "$F/$2/manifest.txt" | sed 's/[^xyz]//g; s/./& /g')
+    for a in ${axes:-x y z}; do
         t=0
         while [ "$t" -lt "$steps" ]; do
             h=$("$DEC" "$1" --step $t --axis $a -o - | sha) || h=decode-failed
@@ -28,13 +30,20 @@ sums() {
         done
     done
 }
-# good DIR NAME: DIR verifies and decodes to NAME's lines of SHA256SUMS.
+# good DIR NAME: DIR verifies and decodes to NAME's lines of SHA256SUMS,
+# and refuses to decode an axis it does not store.
 good() {
+    axes=$(sed -n 's/^axes = //p' "$F/$2/manifest.txt" | sed 's/[^xyz]//g; s/./& /g')
     if "$INFO" "$1" --verify > "$W/v.txt" 2>&1 && grep -q "^verify: ok" "$W/v.txt"; then
         ok "$3 verifies"
     else
         fail "$3 does not verify:"; sed 's/^/    /' "$W/v.txt" >&2
     fi
+    # An axis the dataset does not store is refused, naming what it has.
+    for a in x y z; do
+        case " ${axes:-x y z} " in *" $a "*) continue ;; esac
+        expect_exit 2 "--axis $a: .* stores axes [xyz]+ only" "$DEC" "$1" --step 0 --axis $a -o -
+    done
     sums "$1" "$2" > "$W/got.txt"
     grep "  $2/" "$F/SHA256SUMS" > "$W/want.txt"
     n=$(wc -l < "$W/want.txt")

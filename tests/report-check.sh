@@ -1,7 +1,9 @@
 #!/bin/sh
 # report-check: tvpal-report's PSNR, RMSE, max error, flicker and ratios
-# agree with an independent computation in numpy (0.01 dB, 1e-6 relative);
-# its CSV and JSON outputs agree with its summary line.  Twice: on plain
+# agree with an independent computation in numpy (0.01 dB, 1e-6 relative):
+# ratio and bpv of the bytes on disk (every file of the dataset, as os.walk
+# and stat see them), axis_ratio of the mean bytes of one axis's shards; its
+# CSV and JSON outputs agree with its summary line.  Twice: on plain
 # turbulence, and on turbulence with missing values (a NaN block at every
 # step, one at some steps only, a fill value given by --missing), which
 # every figure leaves out and the report counts.
@@ -80,14 +82,24 @@ close("missing_mismatch", 0, float(kv["missing_mismatch"]), 0)
 sizes = [sum(os.path.getsize("%s/ds-%s/node-%d/axis-%s.tvps" % (w, name, r, a)) for r in range(2))
          for a in "xyz"]
 mean = sum(sizes) / 3.0
-close("ratio", R.size * 4 / mean, float(kv["ratio"]), 1e-3)
-close("bpv", mean * 8 / R.size, float(kv["bpv"]), 1e-3)
+disk = sum(os.path.getsize(os.path.join(d, f))
+           for d, _, fs in os.walk("%s/ds-%s" % (w, name)) for f in fs)
+close("bytes", disk, float(kv["bytes"]), 0)
+close("ratio", R.size * 4 / disk, float(kv["ratio"]), 1e-3)
+close("bpv", disk * 8 / R.size, float(kv["bpv"]), 1e-3)
+close("axis_ratio", R.size * 4 / mean, float(kv["axis_ratio"]), 1e-3)
+# Three axes stored: the one-axis ratio is about three times the disk's.
+close("axis_ratio / ratio", 3.0, float(kv["axis_ratio"]) / float(kv["ratio"]), 0.05)
 j = json.load(open("%s/r-%s.json" % (w, name)))
 close("json psnr", j["summary"]["psnr"], float(kv["psnr"]), 1e-3)
 close("json missing", j["summary"]["missing"], M.sum(), 0)
 close("json bytes x", sizes[0], j["axes"]["x"]["bytes"], 0)
-print("numpy (%s): psnr %.4f ratio %.4f, %d missing; report agrees"
-      % (name, min(psnrs), R.size * 4 / mean, M.sum()))
+close("json axis_ratio x", R.size * 4 / sizes[0], j["axes"]["x"]["axis_ratio"], 1e-3)
+close("json bytes", disk, j["summary"]["bytes"], 0)
+close("json ratio", R.size * 4 / disk, j["summary"]["ratio"], 1e-3)
+close("json axis_ratio", R.size * 4 / mean, j["summary"]["axis_ratio"], 1e-3)
+print("numpy (%s): psnr %.4f ratio %.4f axis_ratio %.4f, %d missing; report agrees"
+      % (name, min(psnrs), R.size * 4 / disk, R.size * 4 / mean, M.sum()))
 sys.exit(1 if bad else 0)
 PY
 }

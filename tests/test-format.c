@@ -1,7 +1,9 @@
 /* test-format: shard header, record and index (de)serialization round trips;
- * every kind of corruption is detected with the right code; slab split. */
+ * every kind of corruption is detected with the right code; slab split;
+ * the manifest's axes key and the format_version it implies. */
 #include "tvpal_crc32c.h"
 #include "tvpal_format.h"
+#include "tvpal_manifest.h"
 #include "tvpal_shard.h"
 #include "tvpal_test.h"
 #include "tvpal_schedule.h"
@@ -222,9 +224,82 @@ static void test_huge_dims(void)
     unlink(path);
 }
 
+/* tvpal_axes_parse and _format (FORMAT.md 3.2), and a manifest of a subset
+ * of the axes: written with format_version 3, read back with its mask. */
+static void test_axes(void)
+{
+    static const struct { const char *s; uint32_t mask; } good[] = {
+        {"z", 4}, {"x", 1}, {"y", 2}, {"xz", 5}, {"zx", 5}, {"xyz", 7},
+        {"zyx", 7}, {"x y z", 7}, {" z\t", 4}, {"y z", 6}};
+    static const char *const bad[] = {"", " ", "q", "zz", "xzx", "x,z",
+                                      "X", "xyzw", "z-", "xy z x"};
+    char buf[4];
+    for (size_t i = 0; i < sizeof good / sizeof *good; i++) {
+        uint32_t m = 99;
+        CHECK(tvpal_axes_parse(good[i].s, &m) == 0 && m == good[i].mask,
+              "axes \"%s\": mask %u, expected %u", good[i].s, m,
+              good[i].mask);
+    }
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        uint32_t m = 99;
+        CHECK(tvpal_axes_parse(bad[i], &m) == TVPAL_E_INVAL && m == 99,
+              "axes \"%s\" taken (mask %u)", bad[i], m);
+    }
+    CHECK(!strcmp(tvpal_axes_format(5, buf), "xz"), "format 5: %s", buf);
+    CHECK(!strcmp(tvpal_axes_format(4, buf), "z"), "format 4: %s", buf);
+    CHECK(!strcmp(tvpal_axes_format(7, buf), "xyz"), "format 7: %s", buf);
+    CHECK(!strcmp(tvpal_axes_format(0, buf), ""), "format 0: %s", buf);
+    CHECK(tvpal_axes_count(5) == 2 && tvpal_axes_count(7) == 3,
+          "axes count");
+
+    /* format_version: 1 plain, 2 levels, 3 a subset (levels or not). */
+    static const struct { uint32_t mask, levels; const char *version,
+                          *axes; } cases[] = {
+        {7, 0, "format_version = 1\n", NULL},
+        {7, 2, "format_version = 2\n", NULL},
+        {4, 0, "format_version = 3\n", "axes = z\n"},
+        {5, 1, "format_version = 3\n", "axes = xz\n"}};
+    const char *tmp = getenv("TMPDIR");
+    char path[4096];
+    snprintf(path, sizeof path, "%s/tvpal-man-XXXXXX",
+             tmp && *tmp ? tmp : "/tmp");
+    int fd = mkstemp(path);
+    REQUIRE(fd >= 0, "mkstemp %s", path);
+    close(fd);
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
+        struct tvpal_manifest m = {.dims = {4, 3, 2}, .steps = 3,
+                                   .window = 2, .nodes = 1,
+                                   .axes_mask = cases[i].mask,
+                                   .levels = cases[i].levels};
+        char *text = NULL;
+        REQUIRE(tvpal_manifest_format(&m, &text) == 0, "format");
+        CHECK(strstr(text, cases[i].version), "case %zu: no \"%s\"", i,
+              cases[i].version);
+        CHECK(cases[i].axes ? strstr(text, cases[i].axes) != NULL
+                            : strstr(text, "\naxes") == NULL,
+              "case %zu: axes line wrong:\n%s", i, text);
+        FILE *f = fopen(path, "w");
+        REQUIRE(f && fputs(text, f) >= 0 && fclose(f) == 0, "write");
+        free(text);
+        struct tvpal_manifest back;
+        struct tvpal_diag d = {{0}};
+        CHECK(tvpal_manifest_load(path, &back, &d) == 0, "load: %s", d.msg);
+        CHECK(back.axes_mask == cases[i].mask, "case %zu: mask %u back", i,
+              back.axes_mask);
+        tvpal_manifest_clear(&back);
+    }
+    struct tvpal_manifest none = {.dims = {4, 3, 2}, .steps = 1,
+                                  .window = 1, .nodes = 1};
+    char *text = NULL;
+    CHECK(tvpal_manifest_format(&none, &text) == TVPAL_E_INVAL && !text,
+          "a manifest without axes formatted");
+    unlink(path);
+}
+
 int main(void)
 {
     test_placed();
+    test_axes();
     unsigned char hb[TVPAL_SHARD_HEADER_BYTES];
     struct tvpal_shard_header h = sample_header(), g;
     struct tvpal_diag d;

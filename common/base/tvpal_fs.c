@@ -69,6 +69,54 @@ int tvpal_rmtree(const char *path)
     return rc;
 }
 
+/* tvpal_tree_bytes below depth levels of directories. */
+static int tree_bytes(const char *path, unsigned depth, uint64_t *sum,
+                      struct tvpal_diag *diag)
+{
+    struct stat st;
+    if (stat(path, &st) < 0)
+        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
+                              strerror(errno));
+    if (S_ISREG(st.st_mode)) {
+        *sum += (uint64_t)st.st_size;
+        return 0;
+    }
+    if (!S_ISDIR(st.st_mode))
+        return 0;
+    if (depth >= 16)
+        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: more than 16 "
+                              "directories deep", path);
+    DIR *d = opendir(path);
+    if (!d)
+        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
+                              strerror(errno));
+    int rc = 0;
+    struct dirent *e;
+    while (rc == 0 && (e = readdir(d))) {
+        if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
+            continue;
+        char *sub;
+        if (asprintf(&sub, "%s/%s", path, e->d_name) < 0) {
+            rc = TVPAL_E_NOMEM;
+            break;
+        }
+        rc = tree_bytes(sub, depth + 1, sum, diag);
+        free(sub);
+    }
+    closedir(d);
+    return rc;
+}
+
+int tvpal_tree_bytes(const char *path, uint64_t *bytes,
+                     struct tvpal_diag *diag)
+{
+    uint64_t sum = 0;
+    int rc = tree_bytes(path, 0, &sum, diag);
+    if (rc == 0)
+        *bytes = sum;
+    return rc;
+}
+
 /* The target may be absent or a regular file (lstat: a link is not). */
 int tvpal_out_check(const char *path, struct tvpal_diag *diag)
 {

@@ -104,6 +104,16 @@ int tvpal_fsync_dir(const char *path);
 /* Does path exist (any type)? */
 int tvpal_exists(const char *path);
 
+/* The bytes path takes as files: the sizes (st_size) of the regular files
+ * under the directory path, in every subdirectory, added up (or path's
+ * own size when it is a file); directories themselves are not counted,
+ * links are followed, at most 16 directories deep.  What `du -b
+ * --apparent-size` gives less its directory entries.  0 with *bytes set,
+ * or TVPAL_E_OPEN (diag, optional, names the path that cannot be read) or
+ * TVPAL_E_NOMEM; *bytes is left as it was on error. */
+int tvpal_tree_bytes(const char *path, uint64_t *bytes,
+                     struct tvpal_diag *diag);
+
 /* Node r's directory of a dataset: DIR/node-r, or with a pattern (the
  * --shard-dir of tvpal-play and tvpal-encode: node-local disks) the
  * pattern with every %r replaced by r.  Malloc'ed; NULL when out of

@@ -58,10 +58,56 @@ static int open_manifest(struct tvpal_dataset **out, const char *dir,
     return 0;
 }
 
+int tvpal_dataset_has_axis(const struct tvpal_dataset *ds, unsigned axis)
+{
+    return axis < 3 && (ds->m.axes_mask & TVPAL_AXIS_BIT(axis)) != 0;
+}
+
+unsigned tvpal_dataset_default_axis(const struct tvpal_dataset *ds)
+{
+    unsigned a = 2;
+    while (a > 0 && !tvpal_dataset_has_axis(ds, a))
+        a--;
+    return a;
+}
+
+/* Opens the shard at path into *out and checks its header against the
+ * manifest m (FORMAT.md 8.3): dims, steps, window, nodes == nodes, rank,
+ * axis, table.  node_msg: the mismatch named as a node's view ("this rank
+ * is R of K") rather than the manifest's.  0 or the error, diag starting
+ * with path. */
+static int open_shard(struct tvpal_shard **out, const char *path,
+                      const struct tvpal_manifest *m, uint32_t nodes,
+                      uint32_t rank, unsigned axis, int node_msg,
+                      struct tvpal_diag *diag)
+{
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_shard_open(out, path, &d);
+    if (rc < 0)
+        return tvpal_diag_set(diag, rc, "%s: %s%s%s", path, tvpal_strerror(rc),
+                              d.msg[0] ? ": " : "", d.msg);
+    const struct tvpal_shard_header *h = tvpal_shard_hdr(*out);
+    if (memcmp(h->dims, m->dims, sizeof h->dims) || h->steps != m->steps ||
+        h->window != m->window || h->nodes != nodes || h->rank != rank ||
+        h->axis != axis) {
+        if (node_msg)
+            return tvpal_diag_set(diag, TVPAL_E_MISMATCH,
+                                  "%s: header says node %u of %u (axis %u); "
+                                  "this rank is %u of %u", path, h->rank,
+                                  h->nodes, h->axis, rank, nodes);
+        return tvpal_diag_set(diag, TVPAL_E_MISMATCH,
+                              "%s: header (dims %ux%ux%u, steps %u, window "
+                              "%u, node %u of %u, axis %u) does not match "
+                              "the manifest", path, h->dims[0], h->dims[1],
+                              h->dims[2], h->steps, h->window, h->rank,
+                              h->nodes, h->axis);
+    }
+    return tvpal_shard_check_table(path, h, m, diag);
+}
+
 int tvpal_dataset_open(struct tvpal_dataset **out, const char *dir,
                        struct tvpal_diag *diag)
 {
-    struct tvpal_diag d = {{0}};
     char *path = NULL;
     struct tvpal_dataset *ds;
     int rc = open_manifest(&ds, dir, diag);
@@ -70,6 +116,8 @@ int tvpal_dataset_open(struct tvpal_dataset **out, const char *dir,
     ds->nshards = ds->m.nodes;
     ds->first_rank = 0;
     for (unsigned a = 0; a < 3; a++) {
+        if (!tvpal_dataset_has_axis(ds, a))
+            continue;
         ds->shards[a] = calloc(ds->m.nodes, sizeof *ds->shards[a]);
         if (!ds->shards[a]) {
             rc = TVPAL_E_NOMEM;
@@ -82,32 +130,11 @@ int tvpal_dataset_open(struct tvpal_dataset **out, const char *dir,
                 rc = TVPAL_E_NOMEM;
                 goto err;
             }
-            d.msg[0] = 0;
-            rc = tvpal_shard_open(&ds->shards[a][r], path, &d);
-            if (rc < 0) {
-                tvpal_diag_set(diag, rc, "%s: %s%s%s", path,
-                               tvpal_strerror(rc), d.msg[0] ? ": " : "",
-                               d.msg);
-                goto err;
-            }
-            const struct tvpal_shard_header *h =
-                tvpal_shard_hdr(ds->shards[a][r]);
-            if (memcmp(h->dims, ds->m.dims, sizeof h->dims) ||
-                h->steps != ds->m.steps || h->window != ds->m.window ||
-                h->nodes != ds->m.nodes || h->rank != r || h->axis != a) {
-                rc = tvpal_diag_set(diag, TVPAL_E_MISMATCH,
-                                    "%s: header (dims %ux%ux%u, steps %u, "
-                                    "window %u, node %u of %u, axis %u) does "
-                                    "not match the manifest", path,
-                                    h->dims[0], h->dims[1], h->dims[2],
-                                    h->steps, h->window, h->rank, h->nodes,
-                                    h->axis);
-                goto err;
-            }
-            rc = tvpal_shard_check_table(path, h, &ds->m, diag);
+            rc = open_shard(&ds->shards[a][r], path, &ds->m, ds->m.nodes, r,
+                            a, 0, diag);
             if (rc < 0)
                 goto err;
-            ds->axis_bytes[a] += h->file_bytes;
+            ds->axis_bytes[a] += tvpal_shard_hdr(ds->shards[a][r])->file_bytes;
         }
     }
     free(path);
@@ -138,7 +165,6 @@ int tvpal_dataset_open_node(struct tvpal_dataset **out, const char *node_dir,
                             uint32_t rank, uint32_t nranks,
                             struct tvpal_diag *diag)
 {
-    struct tvpal_diag d = {{0}};
     char *path = NULL;
     struct tvpal_dataset *ds;
     int rc = open_manifest(&ds, node_dir, diag);
@@ -154,6 +180,8 @@ int tvpal_dataset_open_node(struct tvpal_dataset **out, const char *node_dir,
     ds->nshards = 1;
     ds->first_rank = rank;
     for (unsigned a = 0; a < 3; a++) {
+        if (!tvpal_dataset_has_axis(ds, a))
+            continue;
         ds->shards[a] = calloc(1, sizeof *ds->shards[a]);
         if (!ds->shards[a]) {
             rc = TVPAL_E_NOMEM;
@@ -165,27 +193,11 @@ int tvpal_dataset_open_node(struct tvpal_dataset **out, const char *node_dir,
             rc = TVPAL_E_NOMEM;
             goto err;
         }
-        d.msg[0] = 0;
-        rc = tvpal_shard_open(&ds->shards[a][0], path, &d);
-        if (rc < 0) {
-            tvpal_diag_set(diag, rc, "%s: %s%s%s", path, tvpal_strerror(rc),
-                           d.msg[0] ? ": " : "", d.msg);
-            goto err;
-        }
-        const struct tvpal_shard_header *h = tvpal_shard_hdr(ds->shards[a][0]);
-        if (memcmp(h->dims, ds->m.dims, sizeof h->dims) ||
-            h->steps != ds->m.steps || h->window != ds->m.window ||
-            h->nodes != nranks || h->rank != rank || h->axis != a) {
-            rc = tvpal_diag_set(diag, TVPAL_E_MISMATCH,
-                                "%s: header says node %u of %u (axis %u); this "
-                                "rank is %u of %u", path, h->rank, h->nodes,
-                                h->axis, rank, nranks);
-            goto err;
-        }
-        rc = tvpal_shard_check_table(path, h, &ds->m, diag);
+        rc = open_shard(&ds->shards[a][0], path, &ds->m, nranks, rank, a, 1,
+                        diag);
         if (rc < 0)
             goto err;
-        ds->axis_bytes[a] = h->file_bytes;
+        ds->axis_bytes[a] = tvpal_shard_hdr(ds->shards[a][0])->file_bytes;
     }
     free(path);
     *out = ds;
@@ -203,8 +215,14 @@ struct tvpal_volreader {
 };
 
 int tvpal_volreader_create(struct tvpal_volreader **out,
-                           struct tvpal_dataset *ds, unsigned axis)
+                           struct tvpal_dataset *ds, unsigned axis,
+                           struct tvpal_diag *diag)
 {
+    char axes[4];
+    if (!tvpal_dataset_has_axis(ds, axis))
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "axis %c: dataset stores "
+                              "axes %s only", axis < 3 ? axis_name[axis] : '?',
+                              tvpal_axes_format(ds->m.axes_mask, axes));
     struct tvpal_volreader *r = calloc(1, sizeof *r);
     if (!r)
         return TVPAL_E_NOMEM;

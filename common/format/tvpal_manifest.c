@@ -32,18 +32,60 @@ int tvpal_manifest_add_source(struct tvpal_manifest *m, const char *src)
     return 0;
 }
 
+int tvpal_axes_parse(const char *s, uint32_t *mask)
+{
+    uint32_t got = 0;
+    for (; *s; s++) {
+        if (*s == ' ' || *s == '\t')
+            continue;
+        const char *c = strchr("xyz", *s);
+        if (!c || !*c || (got & TVPAL_AXIS_BIT(c - "xyz")))
+            return TVPAL_E_INVAL;
+        got |= TVPAL_AXIS_BIT(c - "xyz");
+    }
+    if (!got)
+        return TVPAL_E_INVAL;
+    *mask = got;
+    return 0;
+}
+
+char *tvpal_axes_format(uint32_t mask, char buf[4])
+{
+    char *p = buf;
+    for (unsigned a = 0; a < 3 && mask >= 1 && mask <= TVPAL_AXES_ALL; a++)
+        if (mask & TVPAL_AXIS_BIT(a))
+            *p++ = "xyz"[a];
+    *p = 0;
+    return buf;
+}
+
+unsigned tvpal_axes_count(uint32_t mask)
+{
+    return (mask & 1) + (mask >> 1 & 1) + (mask >> 2 & 1);
+}
+
+/* The lowest format_version that describes m (FORMAT.md 3.2, 10.3). */
+static unsigned format_version_of(const struct tvpal_manifest *m)
+{
+    return m->axes_mask != TVPAL_AXES_ALL ? 3 : m->levels ? 2 : 1;
+}
+
 int tvpal_manifest_format(const struct tvpal_manifest *m, char **out)
 {
     char *buf = NULL;
     size_t len = 0;
+    char axes[4];
+    if (m->axes_mask < 1 || m->axes_mask > TVPAL_AXES_ALL)
+        return TVPAL_E_INVAL;
     FILE *f = open_memstream(&buf, &len);
     if (!f)
         return TVPAL_E_NOMEM;
     fprintf(f, "# tvpal dataset manifest (spec: common/format/FORMAT.md)\n");
-    /* Version 2 only where it says more than version 1 can (levels), so
-     * that version-1 readers still take every dataset without levels. */
-    fprintf(f, "format = tvpal-dataset\nformat_version = %d\n",
-            m->levels ? 2 : 1);
+    /* A version above 1 only where the dataset needs it (levels, a subset
+     * of the axes), so that older readers still take every dataset they
+     * can read and refuse the others. */
+    fprintf(f, "format = tvpal-dataset\nformat_version = %u\n",
+            format_version_of(m));
     fprintf(f, "encoder = %s\n", m->encoder ? m->encoder : "unknown");
     fprintf(f, "options = %s\n", m->options ? m->options : "");
     fprintf(f, "dims = %ux%ux%u\n", m->dims[0], m->dims[1], m->dims[2]);
@@ -51,7 +93,9 @@ int tvpal_manifest_format(const struct tvpal_manifest *m, char **out)
     fprintf(f, "endian = %s\n", m->big_endian ? "big" : "little");
     fprintf(f, "steps = %u\nwindow = %u\nnodes = %u\n", m->steps, m->window,
             m->nodes);
-    fprintf(f, "axes = x y z\n");
+    /* Absent means all three (datasets as before the key had a rule). */
+    if (m->axes_mask != TVPAL_AXES_ALL)
+        fprintf(f, "axes = %s\n", tvpal_axes_format(m->axes_mask, axes));
     fprintf(f, "table = %s\n", m->table_format == 1 ? "u16" : "f32");
     if (m->levels)
         fprintf(f, "levels = %u\n", m->levels);
@@ -226,11 +270,12 @@ static int parse_times(struct tvpal_manifest *m, const char *v)
 enum { K_DIMS = 1, K_TYPE = 2, K_STEPS = 4, K_WINDOW = 8, K_NODES = 16,
        K_MIN = 32, K_MAX = 64, K_FORMAT = 128 };
 
-/* Applies one "key = value" line to m, noting required keys in *seen.
- * Unknown keys are ignored (FORMAT.md: later versions may add keys).  0,
- * TVPAL_E_VERSION or TVPAL_E_MANIFEST naming the line. */
+/* Applies one "key = value" line to m, noting required keys in *seen and
+ * the format_version in *version.  Unknown keys are ignored (FORMAT.md:
+ * later versions may add keys).  0, TVPAL_E_VERSION or TVPAL_E_MANIFEST
+ * naming the line. */
 static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
-                        unsigned lineno, unsigned *seen,
+                        unsigned lineno, unsigned *seen, uint32_t *version,
                         struct tvpal_diag *diag)
 {
     int bad = 0;
@@ -238,11 +283,12 @@ static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
         bad = strcmp(v, "tvpal-dataset") != 0;
         *seen |= K_FORMAT;
     } else if (!strcmp(k, "format_version")) {
-        uint32_t ver;
-        if (parse_u32(v, &ver) || ver < 1 || ver > 2)
+        if (parse_u32(v, version) || *version < 1 || *version > 3)
             return tvpal_diag_set(diag, TVPAL_E_VERSION,
                                   "line %u: format_version %s, expected 1 "
-                                  "or 2", lineno, v);
+                                  "to 3", lineno, v);
+    } else if (!strcmp(k, "axes")) {
+        bad = tvpal_axes_parse(v, &m->axes_mask) < 0;
     } else if (!strcmp(k, "dims")) {
         bad = tvpal_dims_parse(v, m->dims, NULL) < 0;
         *seen |= K_DIMS;
@@ -330,10 +376,11 @@ static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
 }
 
 /* The rules between keys, once all lines are read: every required key
- * present, value_min <= value_max, nodes within the dimensions, one
- * source line per step. */
+ * present, a subset of the axes only in format_version 3 or later,
+ * value_min <= value_max, nodes within the dimensions, one source line
+ * per step. */
 static int manifest_check(const struct tvpal_manifest *m, unsigned seen,
-                          struct tvpal_diag *diag)
+                          uint32_t version, struct tvpal_diag *diag)
 {
     static const struct { unsigned bit; const char *name; } req[] = {
         {K_FORMAT, "format"}, {K_DIMS, "dims"}, {K_TYPE, "type"},
@@ -344,6 +391,14 @@ static int manifest_check(const struct tvpal_manifest *m, unsigned seen,
             return tvpal_diag_set(diag, TVPAL_E_MANIFEST,
                                   "required key \"%s\" is missing",
                                   req[i].name);
+    /* A reader of version 1 or 2 would look for the absent axes' shards:
+     * a writer must say 3 (FORMAT.md 3.2). */
+    char axes[4];
+    if (m->axes_mask != TVPAL_AXES_ALL && version < 3)
+        return tvpal_diag_set(diag, TVPAL_E_MANIFEST,
+                              "axes = %s (a subset of the axes) needs "
+                              "format_version 3, not %u",
+                              tvpal_axes_format(m->axes_mask, axes), version);
     if (m->value_min > m->value_max)
         return tvpal_diag_set(diag, TVPAL_E_MANIFEST,
                               "value_min %.9g exceeds value_max %.9g",
@@ -371,6 +426,7 @@ int tvpal_manifest_load(const char *path, struct tvpal_manifest *m,
 {
     memset(m, 0, sizeof *m);
     m->spacing[0] = m->spacing[1] = m->spacing[2] = 1;  /* absent: unit grid */
+    m->axes_mask = TVPAL_AXES_ALL;                        /* absent: all */
     int rc = 0;
     FILE *f = tvpal_fopen_text(path, &rc, diag);
     if (!f)
@@ -378,6 +434,7 @@ int tvpal_manifest_load(const char *path, struct tvpal_manifest *m,
     char *line = NULL;
     size_t cap = 0;
     unsigned lineno = 0, seen = 0;
+    uint32_t version = 1; /* absent: version 1 */
     while (rc == 0 && getline(&line, &cap, f) > 0) {
         lineno++;
         char *s = trim(line);
@@ -390,10 +447,11 @@ int tvpal_manifest_load(const char *path, struct tvpal_manifest *m,
             break;
         }
         *eq = 0;
-        rc = manifest_set(m, trim(s), trim(eq + 1), lineno, &seen, diag);
+        rc = manifest_set(m, trim(s), trim(eq + 1), lineno, &seen, &version,
+                          diag);
     }
     if (rc == 0)
-        rc = manifest_check(m, seen, diag);
+        rc = manifest_check(m, seen, version, diag);
     free(line);
     fclose(f);
     if (rc < 0)

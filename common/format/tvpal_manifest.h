@@ -16,6 +16,9 @@
 #define TVPAL_HIST_BINS 64
 #define TVPAL_MISSING_VALUES_MAX 16
 #define TVPAL_LEVELS_MAX 8
+/* Axes stored, as a mask: bit a for axis a (FORMAT.md 4.1: 0 x, 1 y, 2 z). */
+#define TVPAL_AXES_ALL 7u
+#define TVPAL_AXIS_BIT(a) (1u << (a))
 
 struct tvpal_manifest {
     uint32_t dims[3];
@@ -56,6 +59,11 @@ struct tvpal_manifest {
     uint32_t levels;                      /* coarser levels of detail in
                                            * level-1/ .. level-L/ (0: none;
                                            * at most TVPAL_LEVELS_MAX) */
+    uint32_t axes_mask;                   /* axes whose shards exist
+                                           * (manifest key axes):
+                                           * TVPAL_AXIS_BIT(a) per axis,
+                                           * 1..7; TVPAL_AXES_ALL when the
+                                           * key is absent */
     char *encoder;                        /* owned strings (may be NULL) */
     char *options;
     size_t nsources;
@@ -65,7 +73,10 @@ struct tvpal_manifest {
 /* Frees the owned strings and zeroes m. */
 void tvpal_manifest_clear(struct tvpal_manifest *m);
 
-/* Renders m as text into a malloc'ed string (*out owned by the caller). */
+/* Renders m as text into a malloc'ed string (*out owned by the caller).
+ * format_version is the lowest that describes m (FORMAT.md 3.2): 3 when
+ * m->axes_mask is not TVPAL_AXES_ALL, else 2 with levels, else 1.
+ * TVPAL_E_INVAL when m->axes_mask is not in 1..7, TVPAL_E_NOMEM. */
 int tvpal_manifest_format(const struct tvpal_manifest *m, char **out);
 
 /* Parses path into m, which must hold nothing owned (zeroed or cleared): it
@@ -73,6 +84,21 @@ int tvpal_manifest_format(const struct tvpal_manifest *m, char **out);
  * nothing. */
 int tvpal_manifest_load(const char *path, struct tvpal_manifest *m,
                         struct tvpal_diag *diag);
+
+/* A set of axes as the manifest's axes key and tvpal-encode --axes write
+ * it: the letters x, y, z, each at most once, in any order, with spaces or
+ * tabs between them or not ("z", "xz", "x y z"); at least one.  0 with
+ * *mask set (TVPAL_AXIS_BIT per letter), or TVPAL_E_INVAL (*mask left as
+ * it was). */
+int tvpal_axes_parse(const char *s, uint32_t *mask);
+
+/* The canonical text of mask (1..7): its letters in x, y, z order, no
+ * spaces ("z", "xz", "xyz"), into buf (4 bytes at least); "" for a mask
+ * outside 1..7.  Returns buf. */
+char *tvpal_axes_format(uint32_t mask, char buf[4]);
+
+/* Number of axes in mask (0..3). */
+unsigned tvpal_axes_count(uint32_t mask);
 
 /* Appends a copy of src to m->sources. */
 int tvpal_manifest_add_source(struct tvpal_manifest *m, const char *src);

@@ -65,10 +65,14 @@ struct tvpal_player *play_level_player(struct play_session *s, unsigned k)
     int rc = tvpal_player_open(&p, node_dir ? node_dir : dir, &s->o->po, &d);
     if (rc == 0) {
         const struct tvpal_manifest *m = tvpal_player_manifest(p);
-        if (m->steps != s->m->steps || m->nodes != s->m->nodes) {
-            tvpal_diag_set(&d, TVPAL_E_FORMAT, "%u steps on %u nodes, level "
-                           "0 has %u on %u", m->steps, m->nodes, s->m->steps,
-                           s->m->nodes);
+        if (m->steps != s->m->steps || m->nodes != s->m->nodes ||
+            m->axes_mask != s->m->axes_mask) {
+            char ak[4], a0[4];
+            tvpal_diag_set(&d, TVPAL_E_FORMAT, "%u steps on %u nodes, axes "
+                           "%s; level 0 has %u on %u, axes %s", m->steps,
+                           m->nodes, tvpal_axes_format(m->axes_mask, ak),
+                           s->m->steps, s->m->nodes,
+                           tvpal_axes_format(s->m->axes_mask, a0));
             rc = TVPAL_E_FORMAT;
         }
     }

@@ -9,7 +9,8 @@
 #include <string.h>
 
 struct axis_state {
-    struct tvpal_slab **slabs;       /* one per shard held */
+    struct tvpal_slab **slabs;       /* one per shard held; NULL for an
+                                      * axis the dataset does not store */
     uint32_t begin, held;            /* slices held: [begin, begin + held) */
     struct tvpal_stream *stream;     /* created on first use */
     uint32_t n, w, h;
@@ -94,7 +95,7 @@ int tvpal_player_open(struct tvpal_player **out, const char *dir,
         }
         x->begin = UINT32_MAX;
         x->held = 0;
-        if (!p->ds->shards[a])
+        if (!tvpal_dataset_has_axis(p->ds, a))
             continue;                /* not stored (single copy) */
         for (uint32_t k = 0; k < p->ds->nshards; k++) {
             rc = tvpal_slab_create(&x->slabs[k], p->ds->shards[a][k]);
@@ -192,6 +193,8 @@ static int data_axis(const struct tvpal_player *p, unsigned view_axis);
 static int no_data_axis(const struct tvpal_player *p, unsigned view_axis,
                         struct tvpal_diag *diag);
 
+/* An axis the dataset does not store: TVPAL_E_INVAL, saying which it has
+ * (until views are drawn from another axis's slices). */
 int tvpal_player_open_axis(struct tvpal_player *p, unsigned axis,
                            struct tvpal_diag *diag)
 {
@@ -261,7 +264,7 @@ uint64_t tvpal_player_axis_bytes(const struct tvpal_player *p)
     uint64_t b = 0;
     unsigned stored = 0;
     for (unsigned a = 0; a < 3; a++) {
-        if (!p->ds->shards[a])
+        if (!tvpal_dataset_has_axis(p->ds, a))
             continue;
         stored++;
         for (uint32_t k = 0; k < p->ds->nshards; k++) {
@@ -278,23 +281,22 @@ uint64_t tvpal_player_axis_bytes(const struct tvpal_player *p)
  * is stored. */
 static int data_axis(const struct tvpal_player *p, unsigned view_axis)
 {
-    if (p->opts.z_only && p->ds->shards[2])
+    const int z = tvpal_dataset_has_axis(p->ds, 2);
+    if (p->opts.z_only && z)
         return 2;
-    if (p->ds->shards[view_axis])
+    if (tvpal_dataset_has_axis(p->ds, view_axis))
         return (int)view_axis;
-    return p->ds->shards[2] ? 2 : -1;
+    return z ? 2 : -1;
 }
 
 static int no_data_axis(const struct tvpal_player *p, unsigned view_axis,
                         struct tvpal_diag *diag)
 {
-    char have[4] = "";
-    for (unsigned a = 0, n = 0; a < 3; a++)
-        if (p->ds->shards[a])
-            have[n++] = "xyz"[a];
-    return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s stores axes %s "
-                          "only: a view along %c needs its own axis or z",
-                          p->ds->dir, have, "xyz"[view_axis]);
+    char axes[4];
+    return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s stores axes %s only: a "
+                          "view along %c needs its own axis or z", p->ds->dir,
+                          tvpal_axes_format(p->ds->m.axes_mask, axes),
+                          "xyz"[view_axis]);
 }
 
 int tvpal_player_data_axis(const struct tvpal_player *p, unsigned view_axis)

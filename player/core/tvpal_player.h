@@ -116,7 +116,8 @@ const char *tvpal_player_dir(const struct tvpal_player *p);
 /* Opens the stream of the data axis of views along axis (0..2) now
  * rather than at the first frame that needs it, so that an I/O path refused (TVPAL_E_SYS: io_uring or
  * O_DIRECT unavailable under io_strict / direct_strict) or a fallback is
- * known before playing.  0 or the error, diag saying why. */
+ * known before playing.  0 or the error, diag saying why (TVPAL_E_INVAL
+ * for an axis the dataset does not store). */
 int tvpal_player_open_axis(struct tvpal_player *p, unsigned axis,
                            struct tvpal_diag *diag);
 
@@ -145,14 +146,17 @@ void tvpal_player_set_reduce(struct tvpal_player *p, unsigned k);
 /* Renders timestep t for view v (v->axis etc. must be set up by
  * tvpal_view_setup) into rgba.  dir steers prefetch (+1/-1).  A record
  * that fails to load is reported through the return code and diag; the
- * frame is still drawn with the last good data of the affected slices. */
+ * frame is still drawn with the last good data of the affected slices.
+ * A view whose axis the dataset does not store (tvpal-encode --axes;
+ * tvpal_dataset_has_axis) is not drawn: TVPAL_E_INVAL, diag "axis x:
+ * dataset stores axes z only". */
 int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
                        uint32_t t, int dir, struct tvpal_renderer *r,
                        float *rgba, struct tvpal_frame_stats *st,
                        struct tvpal_diag *diag);
 
-/* Bytes of records one axis holds in RAM in-core (mean over axes) and per
- * timestep: how many timesteps fit in a memory budget. */
+/* Bytes of records one axis holds in RAM in-core (mean over the stored
+ * axes) and per timestep: how many timesteps fit in a memory budget. */
 uint64_t tvpal_player_axis_bytes(const struct tvpal_player *p);
 
 /* Bytes of records held in RAM now (all axes). */

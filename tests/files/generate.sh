@@ -56,6 +56,9 @@ good good-1-basic blobs 4x3x2 3 --window 2
 # 16-bit tables, two nodes; node 1 of axis z holds one slice (phase 0), so
 # its record 1 holds no chunk.
 good good-2-u16-nodes turbulence 4x3x3 3 --window 2 --nodes 2 --table u16
+# One axis (FORMAT.md 2.2): blobs 4x3x2, T = 3, N = 2, --axes z: node-0 has
+# axis-z.tvps only, the manifest format_version 3 and axes = z.
+good good-4-axis-z blobs 4x3x2 3 --window 2 --axes z
 # Missing values, 16-bit tables (table_format 3): blobs 4x3x2, T = 3, N = 2,
 # voxel (1,1,0) missing at every step and voxel (2,0,1) at step 1 only.
 "$GEN" --field blobs --dims 4x3x2 --steps 3 -o "$tmp/in-good-3-missing" > /dev/null
@@ -166,7 +169,7 @@ def mwrite(name, t):
     open(O + "/" + name, "w", newline="").write(t)
 mwrite("bad-manifest-no-window.txt", edit("window", None))
 mwrite("bad-manifest-format.txt", edit("format", "tvpal-dataset-2"))
-mwrite("bad-manifest-version-3.txt", edit("format_version", "3"))
+mwrite("bad-manifest-version-4.txt", edit("format_version", "4"))
 mwrite("bad-manifest-levels-9.txt", edit("table", "f32\nlevels = 9"))
 mwrite("bad-manifest-window-17.txt", edit("window", "17"))
 mwrite("bad-manifest-dims.txt", edit("dims", "4x3"))
@@ -183,16 +186,28 @@ mwrite("bad-manifest-histogram-short.txt",
        edit("histogram", " ".join(hist[:63])))
 mwrite("bad-manifest-histogram-negative.txt",
        edit("histogram", " ".join(["-1"] + hist[1:])))
-mwrite("bad-manifest-no-equals.txt", text.replace("axes = x y z", "axes x y z"))
+mwrite("bad-manifest-no-equals.txt", text.replace("table = f32", "table f32"))
+# The axes key (FORMAT.md 2.2, 3.2): format_version 3 and a bad value, or a
+# good subset under a version that cannot have one.
+def axes(value, version="3"):
+    t = edit("format_version", version)
+    return t.replace("table = f32\n", "axes = " + value + "\ntable = f32\n")
+mwrite("bad-manifest-axes-letter.txt", axes("q"))
+mwrite("bad-manifest-axes-empty.txt", axes(""))
+mwrite("bad-manifest-axes-repeat.txt", axes("zz"))
+mwrite("bad-manifest-axes-version.txt", axes("z", "1"))
 src = [l for l in lines if l.startswith("source = ")]
 mwrite("bad-manifest-sources.txt", text.replace(src[-1] + "\n", ""))
 # Accepted variants of the syntax (Section 3.1): CRLF ends, blank and
 # comment lines, blanks around keys and values, a '#' inside a value, no
-# format_version, unknown keys, a key given twice (the last one counts).
+# format_version, unknown keys, a key given twice (the last one counts),
+# and the axes key as writers before FORMAT.md 1.6 wrote it.
 v = []
 for l in lines:
     if l.startswith("format_version"):
         continue
+    if l.startswith("table = "):
+        v.append("axes = x y z")
     if l.startswith("window = "):
         v += ["window = 9", "\t window\t=  " + l.split(" = ")[1] + "  "]
         continue
@@ -209,7 +224,9 @@ for ds in "$O"/good-*/; do
     ds=${ds%/}
     name=$(basename "$ds")
     steps=$(sed -n 's/^steps = //p' "$ds/manifest.txt")
-    for a in x y z; do
+    # The stored axes (FORMAT.md 2.2): the axes key's letters, else x y z.
+    axes=$(sed -n 's/^axes = //p' "$ds/manifest.txt" | sed 's/[^xyz]//g; s/./& /g')
+    for a in ${axes:-x y z}; do
         t=0
         while [ "$t" -lt "$steps" ]; do
             "$DEC" "$ds" --step $t --axis $a -o - | sha256sum |

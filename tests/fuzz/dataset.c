@@ -65,7 +65,8 @@ static void split_and_write(const uint8_t *data, size_t size)
     }
 }
 
-/* Decodes the first steps along every axis when the volume is small. */
+/* Decodes the first steps along every axis when the volume is small (the
+ * axes not stored must be refused, not read). */
 static void read_volumes(struct tvpal_dataset *ds)
 {
     const uint32_t *dm = ds->m.dims;
@@ -78,8 +79,8 @@ static void read_volumes(struct tvpal_dataset *ds)
     struct tvpal_diag d;
     for (unsigned a = 0; a < 3; a++) {
         struct tvpal_volreader *r;
-        if (tvpal_volreader_create(&r, ds, a) < 0)
-            continue;
+        if (tvpal_volreader_create(&r, ds, a, &d) < 0)
+            continue; /* an axis not stored is refused */
         for (uint32_t t = 0; t < ds->m.steps && t < 3; t++)
             (void)tvpal_volreader_read(r, t, vol, &d);
         tvpal_volreader_free(r);
