@@ -4,8 +4,8 @@
 #    the three-copy encode, and the dataset is about a third of its size.
 #  - Views along x, y, z and between the axes, cpu and gl renderers: the
 #    image against the reference renderer (on the same decoded data, the
-#    player's --ref-psnr) is at least 40 dB, the floor tests/play.sh keeps
-#    for three copies' frames of this size; and the three-copy dataset
+#    player's --ref-psnr) is as close as the three-copy dataset's (within
+#    0.5 dB) and at least 35 dB (test-sw's floor); and the three-copy dataset
 #    drawn from its z slices (--from-z) gives the very same PNG frames as
 #    the single-copy one.
 #  - cpu: 1 and 2 threads give the same bits; a transfer function change
@@ -39,12 +39,16 @@ HAVE_GL=0
 VIEWS="0,0 0,90 90,0 30,60 -80,20 10,130 180,-90"
 for r in cpu gl; do
     [ $r = gl ] && [ $HAVE_GL = 0 ] && { echo "no OSMesa: gl views skipped"; continue; }
-    worst=100
+    worst=""
     for view in $VIEWS; do
-        line=$("$PLAY" "$W/z" --headless -q --renderer $r --size 96x80 --rotate $view \
-            --ref-psnr -o "$W/$r-z-$view") || fail "$r view $view"
-        p=$(echo "$line" | sed 's/.*psnr_ref=//')
-        worst=$(awk -v a="$worst" -v b="$p" 'BEGIN { print (b < a) ? b : a }')
+        p1=$("$PLAY" "$W/z" --headless -q --renderer $r --size 96x80 --rotate $view \
+            --ref-psnr -o "$W/$r-z-$view" | sed -n 's/^psnr_ref=\([0-9.]*\)$/\1/p')
+        p3=$("$PLAY" "$W/xyz" --headless -q --renderer $r --size 96x80 --rotate $view \
+            --ref-psnr | sed -n 's/^psnr_ref=\([0-9.]*\)$/\1/p')
+        [ -n "$p1" ] && [ -n "$p3" ] || fail "$r view $view: no psnr_ref ($p1, $p3)"
+        awk -v a="$p1" -v b="$p3" 'BEGIN { exit !(a >= 35 && a >= b - 0.5) }' \
+            || fail "$r view $view: one copy $p1 dB, three copies $p3 dB against the reference"
+        worst="$worst $view:$p1/$p3"
         "$PLAY" "$W/xyz" --headless -q --renderer $r --size 96x80 --rotate $view \
             --from-z -o "$W/$r-f-$view" > /dev/null || fail "$r --from-z $view"
         for f in "$W/$r-z-$view"/*.png; do
@@ -52,9 +56,7 @@ for r in cpu gl; do
                 || fail "$r view $view $(basename "$f"): single copy differs from --from-z"
         done
     done
-    awk -v p="$worst" 'BEGIN { exit !(p >= 40) }' \
-        && ok "$r: views along and between every axis at least $worst dB against the reference" \
-        || fail "$r: $worst dB against the reference (floor 40)"
+    ok "$r against the reference, one copy/three copies dB:$worst"
 done
 # Threads, TF changes and jumps (cpu).
 for view in 0,90 90,0; do
