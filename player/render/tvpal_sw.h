@@ -45,6 +45,20 @@
  * all stopped meets no further slice.  The maps change no bit
  * (tvpal_sw_set_runs(r, 0) tests each pixel instead, for tests).
  *
+ * Cross frames (tvpal_frame.h: a single-copy dataset's z slices drawn
+ * along x or y).  The renderer keeps, per view axis used, a transposed
+ * copy of the held z slices' indices (one byte per voxel each, allocated
+ * at the first such frame), in which slice s of the view's axis is rows
+ * of texels, row b cut from z slice b; a row is cut again only when its
+ * layer was uploaded since (tvpal_sw_upload), so steady playback cuts the
+ * 1/N of the slices whose windows changed and crossing back to an axis
+ * cuts only what changed meanwhile.  The four texels of a sample come from
+ * two rows, each looked up in its own z slice's palette, then mixed as
+ * always.  Empty space is skipped by tiles derived from the z slices'
+ * tiles (a cross tile is visible when a z tile under it is), which is
+ * conservative: transparent texels drawn add exactly zero, so the image is
+ * that of a plain frame of the transposed slices, bit for bit.
+ *
  * Rows of the intermediate image are shared among threads (OpenMP), each
  * row composited by one thread through all slices (it stays in L1): the
  * image is the same for any thread count.  An AVX2 inner loop is chosen
