@@ -124,7 +124,7 @@ b = bytearray(shard); u32(b, 8, 2)             # CRC left stale on purpose
 write("bad-shard-version-2.tvps", b)
 b = bytearray(shard); b[2000] ^= 0x01          # a reserved byte
 write("bad-shard-header-crc.tvps", b)
-b = bytearray(shard); u32(b, 64, 4); seal_header(b)
+b = bytearray(shard); u32(b, 64, 6); seal_header(b)
 write("bad-shard-table-format.tvps", b)
 write("bad-shard-truncated.tvps", shard[:-4096])
 write("bad-shard-extra.tvps", shard + bytes(4096))
