@@ -23,8 +23,9 @@ static void usage(FILE *f)
     fprintf(f,
 "Usage: " PROG " OUTDIR [--verify]\n"
 "       " PROG " --inspect FILE\n"
-"Print the manifest of the tvpal dataset OUTDIR and its bytes per axis; or,\n"
-"with --inspect, what an input file holds.\n"
+"Print the manifest of the tvpal dataset OUTDIR, its bytes per axis and its\n"
+"chunks by decoder table format (16-bit or float32); or, with --inspect, what\n"
+"an input file holds.\n"
 "\n"
 "  -v, --verify   open every shard (header, index, size, agreement with the\n"
 "                 manifest) and read every record (CRC-32C and layout); each\n"
@@ -172,7 +173,9 @@ static int print_verify(const char *dir, const struct tvpal_manifest *m)
 }
 
 /* Without --verify: opens the dataset (every shard's header and index) and
- * prints the bytes of each axis.  Returns the exit status. */
+ * prints the bytes of each axis and its chunks by decoder table format
+ * (with --table auto, from every chunk header).  Returns the exit
+ * status. */
 static int print_axis_bytes(const char *dir, const struct tvpal_manifest *m)
 {
     struct tvpal_dataset *ds = NULL;
@@ -190,6 +193,27 @@ static int print_axis_bytes(const char *dir, const struct tvpal_manifest *m)
                8.0 * (double)ds->axis_bytes[a] / vts,
                vts * (double)tvpal_type_size(m->type) /
                    (double)ds->axis_bytes[a]);
+    uint64_t n[2] = {0, 0};
+    for (unsigned a = 0; a < 3; a++)
+        for (uint32_t k = 0; k < ds->nshards; k++) {
+            struct tvpal_table_count c;
+            rc = tvpal_shard_count_tables(ds->shards[a][k], &c, &d);
+            if (rc < 0) {
+                fprintf(stderr, PROG ": %s: %s\n",
+                        tvpal_shard_path(ds->shards[a][k]),
+                        d.msg[0] ? d.msg : tvpal_strerror(rc));
+                tvpal_dataset_close(ds);
+                return TVPAL_EXIT_FAIL;
+            }
+            n[0] += c.chunks[0];
+            n[1] += c.chunks[1];
+        }
+    const uint64_t all = n[0] + n[1];
+    printf("tables_u16 = %llu  (chunks with 16-bit decoder tables, all "
+           "axes: %.1f%%)\n", (unsigned long long)n[1],
+           all ? 100.0 * (double)n[1] / (double)all : 0.0);
+    printf("tables_f32 = %llu  (chunks with float32 decoder tables)\n",
+           (unsigned long long)n[0]);
     tvpal_dataset_close(ds);
     return TVPAL_EXIT_OK;
 }

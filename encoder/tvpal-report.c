@@ -61,7 +61,9 @@ static void usage(FILE *f)
 "psnr_z, psnr_min (worst timestep and axis), rmse, max_abs_error and\n"
 "flicker (worst axis), ratio (source bytes / mean bytes of one axis),\n"
 "ratio_8bit, bpv (bits per voxel-timestep of one axis, everything counted),\n"
-"index_bpv, table_bpv, disk_ratio (all three axes stored), steps, window.\n"
+"index_bpv, table_bpv, disk_ratio (all three axes stored), steps, window,\n"
+"missing, missing_mismatch, tables_u16 and tables_f32 (chunks of all axes\n"
+"with 16-bit and float32 decoder tables: tvpal-encode --table).\n"
 "Exit status: 0 success, 1 failure, 2 bad input.\n");
 }
 
@@ -252,7 +254,10 @@ struct step_err {
 /* One axis over all timesteps. */
 struct axis_sum {
     double psnr, rmse, maxabs, flicker;
-    double idx_bytes, tab_bytes;  /* payload, from the window schedule */
+    double idx_bytes, tab_bytes;  /* payload: indices from the window
+                                   * schedule, tables as the chunks hold
+                                   * them (tvpal_shard_count_tables) */
+    double tables[2];             /* chunks with float32, 16-bit tables */
 };
 
 struct report {
@@ -279,6 +284,8 @@ struct report {
     unsigned psnr_min_a;
     double worst_rmse, worst_max, worst_flick;   /* worst axis */
     double bytes_axis, idx_mean, tab_mean;       /* mean of the three axes */
+    double tables[2];             /* chunks of all axes with float32 and
+                                   * 16-bit tables */
     double missing, mismatch;     /* reference NaN voxel-steps (per axis
                                    * the same); mismatches, worst axis */
     double ratio;                 /* source bytes / bytes_axis */
@@ -572,20 +579,35 @@ static int scan_steps(struct report *r, char **refs, struct tvpal_input *src,
  * Per-axis and overall figures
  */
 
-/* Bytes of indices and tables of one axis, from the window schedule. */
-static void payload_bytes(const struct tvpal_manifest *m, unsigned axis,
-                          double *idx, double *tab)
+/* Bytes of indices (from the window schedule) and of tables (as the
+ * shards' chunks store them: with --table auto each chunk has its own
+ * format) of one axis, and its chunks by table format.  0, or a library
+ * error with the shard's path in diag. */
+static int payload_bytes(const struct tvpal_dataset *ds, unsigned axis,
+                         struct axis_sum *x, struct tvpal_diag *diag)
 {
+    const struct tvpal_manifest *m = &ds->m;
     uint32_t n, w, h;
     tvpal_axis_geometry(m->dims, axis, &n, &w, &h);
-    *idx = *tab = 0;
+    x->idx_bytes = x->tab_bytes = x->tables[0] = x->tables[1] = 0;
     for (uint32_t s = 0; s < n; s++)
         for (uint32_t t = 0; t < m->steps; t++)
-            if (tvpal_schedule_starts(s, t, m->window)) {
-                *idx += (double)w * h;
-                *tab += 256.0 * (m->table_format == 1 ? 2 : 4) *
-                        tvpal_schedule_len(s, t, m->window, m->steps);
-            }
+            if (tvpal_schedule_starts(s, t, m->window))
+                x->idx_bytes += (double)w * h;
+    for (uint32_t k = 0; k < ds->nshards; k++) {
+        struct tvpal_shard *sh = ds->shards[axis][k];
+        struct tvpal_table_count c;
+        struct tvpal_diag d = {{0}};
+        int rc = tvpal_shard_count_tables(sh, &c, &d);
+        if (rc < 0)
+            return tvpal_diag_set(diag, rc, "%s: %s", tvpal_shard_path(sh),
+                                  d.msg);
+        for (unsigned u = 0; u < 2; u++) {
+            x->tab_bytes += (double)c.bytes[u];
+            x->tables[u] += (double)c.chunks[u];
+        }
+    }
+    return 0;
 }
 
 /* Errors per axis over all timesteps, the worst axis, the worst step. */
@@ -627,18 +649,25 @@ static void summarize_errors(struct report *r)
     r->psnr = fmin(r->axis[0].psnr, fmin(r->axis[1].psnr, r->axis[2].psnr));
 }
 
-/* Bytes per axis (files), split into indices, tables and the rest. */
-static void summarize_sizes(struct report *r)
+/* Bytes per axis (files), split into indices, tables and the rest, and
+ * the chunks by table format.  0, or a library error (diag). */
+static int summarize_sizes(struct report *r, struct tvpal_diag *diag)
 {
     const uint64_t *ab = r->ds->axis_bytes;
     r->bytes_axis = (ab[0] + ab[1] + ab[2]) / 3.0;
-    for (unsigned a = 0; a < 3; a++)
-        payload_bytes(r->m, a, &r->axis[a].idx_bytes, &r->axis[a].tab_bytes);
+    for (unsigned a = 0; a < 3; a++) {
+        int rc = payload_bytes(r->ds, a, &r->axis[a], diag);
+        if (rc < 0)
+            return rc;
+        r->tables[0] += r->axis[a].tables[0];
+        r->tables[1] += r->axis[a].tables[1];
+    }
     r->idx_mean = (r->axis[0].idx_bytes + r->axis[1].idx_bytes +
                    r->axis[2].idx_bytes) / 3.0;
     r->tab_mean = (r->axis[0].tab_bytes + r->axis[1].tab_bytes +
                    r->axis[2].tab_bytes) / 3.0;
     r->ratio = (double)r->src_bytes / r->bytes_axis;
+    return 0;
 }
 
 /* ------------------------------------------------------------------------
@@ -681,6 +710,11 @@ static void print_text(const struct report *r)
            "tables %.4f + headers/padding %.4f\n", 8 * r->bytes_axis / r->vts,
            8 * r->idx_mean / r->vts, 8 * r->tab_mean / r->vts,
            8 * (r->bytes_axis - r->idx_mean - r->tab_mean) / r->vts);
+    const double chunks = r->tables[0] + r->tables[1];
+    printf("decoder tables: %.0f of %.0f chunks 16-bit (%.1f%%), %.0f "
+           "float32 (table = %s)\n", r->tables[1], chunks,
+           chunks > 0 ? 100 * r->tables[1] / chunks : 0.0, r->tables[0],
+           tvpal_manifest_table_name(m->table_format));
     printf("worst timestep: %u on axis %c (%.3f dB)\n", r->psnr_min_t,
            "xyz"[r->psnr_min_a], r->psnr_min);
     if (r->missing)
@@ -793,11 +827,12 @@ static void write_json_axes(FILE *f, const struct report *r)
         jnum(f, x->psnr);
         fprintf(f, ", \"rmse\": %.9g, \"max_abs_error\": %.9g, "
                 "\"flicker\": %.9g, \"bytes\": %llu, \"ratio\": %.6f, "
-                "\"bpv\": %.6f, \"index_bpv\": %.6f, \"table_bpv\": %.6f}",
+                "\"bpv\": %.6f, \"index_bpv\": %.6f, \"table_bpv\": %.6f, "
+                "\"tables_u16\": %.0f, \"tables_f32\": %.0f}",
                 x->rmse, x->maxabs, x->flicker, (unsigned long long)ab[a],
                 (double)r->src_bytes / (double)ab[a],
                 8.0 * (double)ab[a] / r->vts, 8 * x->idx_bytes / r->vts,
-                8 * x->tab_bytes / r->vts);
+                8 * x->tab_bytes / r->vts, x->tables[1], x->tables[0]);
     }
     fprintf(f, "\n  }");
 }
@@ -874,7 +909,7 @@ static int write_file(const char *path, const struct report *r,
 struct summary {
     double psnr, psnr_x, psnr_y, psnr_z, psnr_min, rmse, max_abs_error;
     double flicker, ratio, ratio_8bit, bpv, index_bpv, table_bpv, disk_ratio;
-    double steps, window, missing, missing_mismatch;
+    double steps, window, missing, missing_mismatch, tables_u16, tables_f32;
 };
 #define KEY(name, fmt, kind) {#name, fmt, kind, offsetof(struct summary, name)}
 static const struct column summary_keys[] = {
@@ -896,6 +931,8 @@ static const struct column summary_keys[] = {
     KEY(window, "%u", COL_UINT),
     KEY(missing, "", COL_COUNT),
     KEY(missing_mismatch, "", COL_COUNT),
+    KEY(tables_u16, "", COL_COUNT),
+    KEY(tables_f32, "", COL_COUNT),
 };
 #undef KEY
 
@@ -910,7 +947,8 @@ static struct summary summary_of(const struct report *r)
         .index_bpv = 8 * r->idx_mean / r->vts,
         .table_bpv = 8 * r->tab_mean / r->vts, .disk_ratio = r->ratio / 3.0,
         .steps = r->steps, .window = r->m->window, .missing = r->missing,
-        .missing_mismatch = r->mismatch};
+        .missing_mismatch = r->mismatch, .tables_u16 = r->tables[1],
+        .tables_f32 = r->tables[0]};
 }
 
 /* The closing key=value line on stdout. */
@@ -990,8 +1028,12 @@ int main(int argc, char **argv)
         status = scan_steps(&r, o.refs, o.src, &b);
     if (status == 0) {
         summarize_errors(&r);
-        summarize_sizes(&r);
-        status = write_outputs(&r, &o);
+        if ((rc = summarize_sizes(&r, &diag)) < 0) {
+            print_lib_error(rc, &diag);
+            status = TVPAL_EXIT_USAGE;
+        }
+        if (status == 0)
+            status = write_outputs(&r, &o);
         if (status == 0 && r.mismatch > 0) {
             /* The dataset does not hold the reference's missing values
              * where they are (another reference, or a defect). */
