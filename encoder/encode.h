@@ -43,7 +43,8 @@ struct opts {
     enum tvpal_type type;
     int big_endian;
     uint32_t window, nodes, steps_single, threads;
-    int table_format;          /* TVPAL_TABLE_F32 or TVPAL_TABLE_U16 */
+    int table_format;          /* the shards': TVPAL_TABLE_F32, _U16 or
+                                * _CHUNK (--table auto, each chunk's own) */
     uint32_t refine;
     int naive, klt, alloc_mse;
     int has_nan_as;
@@ -147,7 +148,9 @@ struct run {
     uint64_t **fine_local;   /* per-thread source histograms */
     size_t group_cap;        /* floats of samples per thread */
     struct tvpal_swenc **enc;
-    float **samples, **tables;
+    float **samples;
+    float **tables;          /* per thread: a table, then (--table auto)
+                              * the values its 16-bit form decodes to */
     unsigned char **chunkbuf;   /* per thread: one chunk */
     unsigned char **scratch;    /* per thread: READ_BLOCK bytes (raw) */
     struct slicejob *jobs;   /* max_jobs */

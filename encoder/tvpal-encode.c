@@ -123,9 +123,13 @@ static void usage(FILE *f)
 "                         rule) or greedy-mse (by measured quantizer error)\n"
 "      --naive            the paper's naive variant (uniform quantizers,\n"
 "                         inverse-DCT tables): a floor for comparisons\n"
-"      --table FMT        decoder tables: f32 (default: float32) or u16\n"
-"                         (16-bit scaled per slice-window: half the table\n"
-"                         bytes, error <= (max - min) / 131070 per entry)\n"
+"      --table FMT        decoder tables: auto (default: per slice-window,\n"
+"                         16-bit where that adds under 1e-4 of the window's\n"
+"                         own squared error, float32 where a wide range or\n"
+"                         exact values need it), f32 (float32 everywhere)\n"
+"                         or u16 (16-bit scaled per slice-window\n"
+"                         everywhere: half the table bytes, error <= (max -\n"
+"                         min) / 131070 per entry)\n"
 "      --levels L         also L coarser levels of detail (0..8, default\n"
 "                         0), each the 2x2x2 average of the one before\n"
 "                         (missing values left out), encoded the same way\n"
@@ -214,6 +218,7 @@ enum optkind {
     OPT_TYPE,      /* sample type into type */
     OPT_U32,       /* whole number in [lo, hi] into the uint32_t at field */
     OPT_CHOICE,    /* choice[i] sets the int at field to i */
+    OPT_TABLE,     /* f32, u16 or auto into table_format (its code) */
     OPT_FLAG,      /* no argument: sets the int at field to 1 */
     OPT_NAN_AS,    /* finite |value| <= TVPAL_VALUE_MAX into nan_as */
     OPT_MISSING,   /* a finite value appended to missing[] */
@@ -262,9 +267,8 @@ static const struct optspec {
      "one or more of the axes x, y, z, each once (z, xz, xyz)"},
     {"threads", 'j', OPT_U32, offsetof(struct opts, threads), 1, 1024, {0},
      "1..1024"},
-    {"table", OPT_LONG_ONLY + 1, OPT_CHOICE,
-     offsetof(struct opts, table_format), 0, 0, {"f32", "u16"},
-     "f32 or u16"},
+    {"table", OPT_LONG_ONLY + 1, OPT_TABLE, 0, 0, 0, {0},
+     "f32, u16 or auto"},
     {"refine", OPT_LONG_ONLY + 2, OPT_U32, offsetof(struct opts, refine), 0,
      TVPAL_REFINE_MAX, {0}, "0.." STR(TVPAL_REFINE_MAX)},
     {"naive", OPT_LONG_ONLY + 3, OPT_FLAG, offsetof(struct opts, naive), 0,
@@ -307,10 +311,6 @@ static const struct optspec {
 };
 #define NOPTS (sizeof g_optspec / sizeof *g_optspec)
 
-/* --table's choices are the format's codes, in order. */
-_Static_assert(TVPAL_TABLE_F32 == 0 && TVPAL_TABLE_U16 == 1,
-               "g_optspec: --table choice i must be table format i");
-
 /* Applies one option's argument to o; a bad one ends the program (exit 2).
  * --help and --version print and exit 0. */
 static void parse_option(const struct optspec *sp, const char *arg,
@@ -342,6 +342,17 @@ static void parse_option(const struct optspec *sp, const char *arg,
     case OPT_FLAG:
         *(int *)(base + sp->field) = 1;
         return;
+    case OPT_TABLE: {
+        /* The manifest's names for the shard formats (FORMAT.md 3.2). */
+        static const uint32_t formats[] = {TVPAL_TABLE_F32, TVPAL_TABLE_U16,
+                                           TVPAL_TABLE_CHUNK};
+        for (size_t i = 0; i < sizeof formats / sizeof *formats; i++)
+            if (!strcmp(arg, tvpal_manifest_table_name(formats[i]))) {
+                o->table_format = (int)formats[i];
+                return;
+            }
+        break;
+    }
     case OPT_NAN_AS:
         if (tvpal_parse_double(arg, &o->nan_as) < 0 ||
             fabs(o->nan_as) > TVPAL_VALUE_MAX)
@@ -408,7 +419,7 @@ static int parse_options(int argc, char **argv, struct opts *o)
     char shortopts[2 * NOPTS + 1], *so = shortopts;
     int have_dims = 0, c;
     *o = (struct opts){.type = TVPAL_F32, .window = 4, .nodes = 1,
-                       .table_format = TVPAL_TABLE_F32,
+                       .table_format = TVPAL_TABLE_CHUNK,
                        .axes = ENCODE_AXES_DEFAULT};
     for (size_t i = 0; i < NOPTS; i++) {
         const struct optspec *sp = &g_optspec[i];
@@ -557,8 +568,11 @@ static void options_line(const struct opts *o, uint32_t T, char *buf,
         OPTS_ADD(" --nan-as %.17g", o->nan_as);
     for (unsigned i = 0; i < o->nmissing; i++)
         OPTS_ADD(" --missing %.9g", (double)(float)o->missing[i]);
-    if ((uint32_t)o->table_format == TVPAL_TABLE_U16)
-        OPTS_ADD(" --table u16");
+    /* --table auto is the default; the others say so, so that the line
+     * gives the same output. */
+    if ((uint32_t)o->table_format != TVPAL_TABLE_CHUNK)
+        OPTS_ADD(" --table %s",
+                 tvpal_manifest_table_name((uint32_t)o->table_format));
     if (o->refine)
         OPTS_ADD(" --refine %u", o->refine);
     if (o->naive)
@@ -817,7 +831,7 @@ static uint64_t fixed_bytes(const struct run *r)
     const uint64_t codec = sv * (16 * N + 64) + N * 256 * 16 + (1u << 16);
     const uint64_t scratch = r->in ? 0 : scratch_bytes(r);
     const uint64_t per_thread = codec + group_floats(r) * sizeof(float) +
-                                N * 256 * sizeof(float) + r->max_chunk +
+                                2 * N * 256 * sizeof(float) + r->max_chunk +
                                 scratch +
                                 TVPAL_CHECKPOINT_BINS * sizeof(uint64_t);
     const uint64_t shards = (uint64_t)r->nshard * r->T * 40 +
@@ -825,9 +839,10 @@ static uint64_t fixed_bytes(const struct run *r)
     /* A reader's scratch (tvpal_input_box_scratch): the largest box's. */
     const uint64_t reader = r->in ? tvpal_input_box_scratch(r->in, r->o.dims)
                                   : 0;
-    /* 16 MiB: the program and its libraries (13 MiB measured). */
+    /* 16 MiB: the program and its libraries (13 MiB measured); a chunk's
+     * buffer for packing a per-chunk shard at finish. */
     return ((uint64_t)16 << 20) + (uint64_t)r->nthreads * per_thread +
-           shards + reader;
+           shards + reader + r->max_chunk;
 }
 
 static void print_size(char *buf, size_t cap, uint64_t b)
@@ -1085,7 +1100,7 @@ static void setup_workspace(struct run *r)
             die_usage("--transform klt: built without LAPACK (install "
                       "liblapack-dev and reconfigure)");
         if (!(r->samples[i] = malloc(r->group_cap * sizeof(float))) ||
-            !(r->tables[i] = malloc(N * 256 * sizeof(float))) ||
+            !(r->tables[i] = malloc(2 * N * 256 * sizeof(float))) ||
             !(r->chunkbuf[i] = malloc(r->max_chunk)) ||
             (!r->in && !(r->scratch[i] = malloc(scratch_bytes(r)))))
             die_fail("out of memory");
@@ -1137,7 +1152,79 @@ static void gather(const struct run *r, const struct slicejob *jb, uint32_t t,
     }
 }
 
-/* Encodes one slice-window from samples into the chunk buffer. */
+/* --table auto's criterion (FORMAT.md 6.7).  A 16-bit entry is off by up
+ * to half a step, (max - min) / 65535 of its table, adding about step^2 /
+ * 12 to the squared error of every voxel that holds it.  That is
+ * negligible where it stays within TABLE_U16_BUDGET of the slice-window's
+ * own coding error: SSE16 - SSE32 <= 1e-4 SSE32, both summed over the
+ * voxels and timesteps with a value, so no window's error grows by more
+ * than 1e-4 of itself and the PSNR of the whole dataset drops by less than
+ * 10 log10(1 + 1e-4) = 0.0005 dB.  The error is measured, not bounded:
+ * the encoder has the samples, the indices and both tables at hand, and
+ * one pass over them costs little beside coding the window.  So float32
+ * stays where 16 bits are coarse against the coding error: a wide range
+ * (one outlier widens every step of its window), and an exact window
+ * (SSE32 = 0: integer data with few distinct values, whose float32 table
+ * holds them exactly) unless the 16-bit table decodes what its voxels
+ * hold exactly too. */
+#define TABLE_U16_BUDGET 1e-4
+
+/* Whether t16, the values a 16-bit table decodes to, errs negligibly more
+ * than t32 on the slice-window (samples[j * nvox + v], indices idx). */
+static int table_u16_negligible(const float *samples, const uint8_t *idx,
+                                size_t nvox, uint32_t len, const float *t32,
+                                const float *t16)
+{
+    if (!memcmp(t32, t16, (size_t)len * 256 * sizeof *t32))
+        return 1;
+    double sse32 = 0, sse16 = 0;
+    for (uint32_t j = 0; j < len; j++) {
+        const float *x = samples + (size_t)j * nvox;
+        const float *a = t32 + (size_t)j * 256, *b = t16 + (size_t)j * 256;
+        for (size_t v = 0; v < nvox; v++) {
+            /* A missing value (NaN sample or entry, the same in both
+             * tables) has no error. */
+            const double e32 = (double)x[v] - a[idx[v]];
+            const double e16 = (double)x[v] - b[idx[v]];
+            if (e32 == e32 && e16 == e16) {
+                sse32 += e32 * e32;
+                sse16 += e16 * e16;
+            }
+        }
+    }
+    return sse16 - sse32 <= TABLE_U16_BUDGET * sse32;
+}
+
+/* --table auto: stores the table of a coded slice-window at dst as 16-bit
+ * when that is negligible (table_u16_negligible), setting TVPAL_CHUNK_U16
+ * in h->flags, else as float32; returns the chunk's format (TVPAL_TABLE_U16
+ * or TVPAL_TABLE_F32).  dec: len * 256 floats of scratch.  dst has a
+ * float32 table's room, before the indices. */
+static uint32_t store_table_auto(const float *table, float *dec,
+                                 const float *samples, const uint8_t *idx,
+                                 size_t nvox, uint32_t len,
+                                 unsigned char *dst,
+                                 struct tvpal_chunk_header *h)
+{
+    tvpal_table_store(table, len, TVPAL_TABLE_U16, dst, h);
+    const struct tvpal_chunk c = {
+        .h = *h, .table = dst,
+        .table_format = TVPAL_TABLE_U16 | ((h->flags & TVPAL_CHUNK_MISSING)
+                                               ? TVPAL_TABLE_MISSING : 0u)};
+    tvpal_chunk_table(&c, dec);
+    if (table_u16_negligible(samples, idx, nvox, len, table, dec)) {
+        h->flags |= TVPAL_CHUNK_U16;
+        return TVPAL_TABLE_U16;
+    }
+    tvpal_table_store(table, len, TVPAL_TABLE_F32, dst, h);
+    return TVPAL_TABLE_F32;
+}
+
+/* Encodes one slice-window from samples into the chunk buffer: a chunk of
+ * the shard's table format, or in a per-chunk shard (--table auto) one of
+ * the format store_table_auto picks, in a float32 chunk's room (the rest
+ * zeros: tvpal_shardw_put_chunk).  table: 2 * len * 256 floats of
+ * scratch. */
 static void encode_chunk(struct tvpal_swenc *enc, float *table,
                          const float *samples, const struct shardjob *j,
                          uint32_t slice, uint32_t t, uint32_t len,
@@ -1145,21 +1232,33 @@ static void encode_chunk(struct tvpal_swenc *enc, float *table,
 {
     const size_t nvox = (size_t)j->h.slice_w * j->h.slice_h;
     const uint32_t tf = j->h.table_format;
-    const size_t tbytes = (size_t)len * 256 * tvpal_table_entry_bytes(tf);
+    unsigned char *const dst = chunk + TVPAL_CHUNK_HEADER_BYTES;
+    /* The indices follow a table of the shard's entry size (a float32
+     * one's in a per-chunk shard: moved down for a 16-bit table). */
+    uint8_t *idx = dst + (size_t)len * 256 * tvpal_table_entry_bytes(tf);
     struct tvpal_swinfo info;
-    tvpal_swenc_encode(enc, samples, nvox, len,
-                       chunk + TVPAL_CHUNK_HEADER_BYTES + tbytes, table, &info);
+    tvpal_swenc_encode(enc, samples, nvox, len, idx, table, &info);
     *dropped += info.dropped;
     struct tvpal_chunk_header ch = {
         .slice = slice, .wstart = t, .wlen = len, .w = j->h.slice_w,
         .h = j->h.slice_h, .used = info.used};
-    tvpal_table_store(table, len, tf, chunk + TVPAL_CHUNK_HEADER_BYTES, &ch);
+    uint32_t ctf = tf;
+    if (tf == TVPAL_TABLE_CHUNK) {
+        ctf = store_table_auto(table, table + (size_t)len * 256, samples, idx,
+                               nvox, len, dst, &ch);
+        uint8_t *to = dst + (size_t)len * 256 * tvpal_table_entry_bytes(ctf);
+        memmove(to, idx, nvox);
+        idx = to;
+    } else {
+        tvpal_table_store(table, len, tf, dst, &ch);
+    }
     memcpy(ch.bits, info.bits, sizeof ch.bits);
     tvpal_chunk_header_encode(&ch, chunk);
-    /* Zero the index padding so output bytes are deterministic. */
-    size_t ib = TVPAL_CHUNK_HEADER_BYTES + tbytes + nvox;
+    /* Zero the index padding (and a 16-bit chunk's unused room) so output
+     * bytes are deterministic. */
+    unsigned char *end = idx + nvox;
     size_t cb = tvpal_chunk_bytes(len, j->h.slice_w, j->h.slice_h, tf);
-    memset(chunk + ib, 0, cb - ib);
+    memset(end, 0, (size_t)(chunk + cb - end));
 }
 
 /* Lists the slice-windows of the pass that start at step t, shard by
@@ -1671,18 +1770,35 @@ static void print_summary(const struct run *r)
     struct tvpal_dataset *ds = NULL;
     uint64_t disk = r->cluster_bytes, shards = r->cluster_shard_bytes;
     /* Under MPI every rank has verified its own node directory. */
+    uint64_t tables[2] = {0, 0};   /* chunks with float32, 16-bit tables */
     if (!r->mpi) {
         if (tvpal_dataset_open(&ds, r->o.outdir, &d) < 0)
             die_fail("%s: written dataset does not verify: %s", r->o.outdir,
                      d.msg);
-        for (unsigned a = 0; a < 3; a++)
+        /* What --table chose, from the chunk headers (under MPI the
+         * ranks' shards may be on other machines: left out). */
+        for (unsigned a = 0; a < 3; a++) {
             shards += ds->axis_bytes[a];
+            for (uint32_t k = 0; tvpal_dataset_has_axis(ds, a) &&
+                                 k < ds->nshards; k++) {
+                struct tvpal_table_count c;
+                if (tvpal_shard_count_tables(ds->shards[a][k], &c, &d) < 0)
+                    die_fail("%s: written dataset does not verify: %s",
+                             tvpal_shard_path(ds->shards[a][k]), d.msg);
+                tables[0] += c.chunks[0];
+                tables[1] += c.chunks[1];
+            }
+        }
         tvpal_dataset_close(ds);
         int rc = tvpal_tree_bytes(r->o.outdir, &disk, &d);
         if (rc < 0)
             die_fail("%s: cannot size the dataset: %s", r->o.outdir,
                      lib_error(rc, &d));
     }
+    char tb[96] = "";
+    if (!r->mpi)
+        snprintf(tb, sizeof tb, " tables_u16=%llu tables_f32=%llu",
+                 (unsigned long long)tables[1], (unsigned long long)tables[0]);
     const unsigned naxes = tvpal_axes_count(r->o.axes);
     const double src = (double)(r->step_bytes * r->T);
     const double axis_bytes = (double)shards / naxes;
@@ -1713,13 +1829,13 @@ static void print_summary(const struct run *r)
                  (unsigned long long)level_bytes);
     printf("encoded %s: steps=%u window=%u nodes=%u axes=%s bytes=%llu "
            "ratio=%.3f axis_ratio=%.3f bpv=%.4f seconds=%.3f rate=%.2fM "
-           "vox-steps/s threads=%d missing=%llu passes=%u%s\n",
+           "vox-steps/s threads=%d missing=%llu passes=%u%s%s\n",
            r->o.outdir, r->T, r->N, r->o.nodes,
            tvpal_axes_format(r->o.axes, axes), (unsigned long long)disk,
            src / (double)disk, src / axis_bytes, (double)disk * 8.0 / vts,
            te, (double)work / naxes / (te > 0 ? te : 1e-9) / 1e6,
            r->nthreads * (r->mpi ? g_comm.size : 1),
-           (unsigned long long)r->st.missing, r->plan.npasses, lv);
+           (unsigned long long)r->st.missing, r->plan.npasses, tb, lv);
 }
 
 void release_ring(struct run *r)

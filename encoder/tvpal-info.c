@@ -23,8 +23,9 @@ static void usage(FILE *f)
     fprintf(f,
 "Usage: " PROG " OUTDIR [--verify]\n"
 "       " PROG " --inspect FILE\n"
-"Print the manifest of the tvpal dataset OUTDIR, the axes it stores and its\n"
-"bytes per stored axis; or, with --inspect, what an input file holds.\n"
+"Print the manifest of the tvpal dataset OUTDIR, the axes it stores, its\n"
+"bytes per stored axis and on disk, and its chunks by decoder table format\n"
+"(16-bit or float32); or, with --inspect, what an input file holds.\n"
 "\n"
 "  -v, --verify   open every shard of the stored axes (header, index, size,\n"
 "                 agreement with the manifest) and read every record\n"
@@ -175,7 +176,9 @@ static int print_verify(const char *dir, const struct tvpal_manifest *m)
 
 /* Without --verify: opens the dataset (every shard's header and index) and
  * prints the bytes of each stored axis, then those of every file of the
- * dataset (what it takes on disk).  Returns the exit status. */
+ * dataset (what it takes on disk), then its chunks by decoder table
+ * format (with --table auto, from every chunk header).  Returns the exit
+ * status. */
 static int print_axis_bytes(const char *dir, const struct tvpal_manifest *m)
 {
     struct tvpal_dataset *ds = NULL;
@@ -194,6 +197,22 @@ static int print_axis_bytes(const char *dir, const struct tvpal_manifest *m)
                    (unsigned long long)ds->axis_bytes[a],
                    8.0 * (double)ds->axis_bytes[a] / vts,
                    src / (double)ds->axis_bytes[a]);
+    uint64_t n[2] = {0, 0};
+    for (unsigned a = 0; a < 3; a++)
+        for (uint32_t k = 0; tvpal_dataset_has_axis(ds, a) && k < ds->nshards;
+             k++) {
+            struct tvpal_table_count c;
+            rc = tvpal_shard_count_tables(ds->shards[a][k], &c, &d);
+            if (rc < 0) {
+                fprintf(stderr, PROG ": %s: %s\n",
+                        tvpal_shard_path(ds->shards[a][k]),
+                        d.msg[0] ? d.msg : tvpal_strerror(rc));
+                tvpal_dataset_close(ds);
+                return TVPAL_EXIT_FAIL;
+            }
+            n[0] += c.chunks[0];
+            n[1] += c.chunks[1];
+        }
     tvpal_dataset_close(ds);
     uint64_t disk = 0;
     rc = tvpal_tree_bytes(dir, &disk, &d);
@@ -204,6 +223,12 @@ static int print_axis_bytes(const char *dir, const struct tvpal_manifest *m)
     printf("disk_bytes = %llu  (%.4f bits per voxel-timestep, ratio %.3f: "
            "every file%s)\n", (unsigned long long)disk, 8.0 * (double)disk / vts,
            src / (double)disk, m->levels ? ", levels included" : "");
+    const uint64_t all = n[0] + n[1];
+    printf("tables_u16 = %llu  (chunks with 16-bit decoder tables, all "
+           "axes: %.1f%%)\n", (unsigned long long)n[1],
+           all ? 100.0 * (double)n[1] / (double)all : 0.0);
+    printf("tables_f32 = %llu  (chunks with float32 decoder tables)\n",
+           (unsigned long long)n[0]);
     return TVPAL_EXIT_OK;
 }
 

@@ -69,7 +69,9 @@ static void usage(FILE *f)
 "disk: every file of OUTDIR, all stored axes, manifests and levels),\n"
 "axis_ratio (source bytes / mean bytes of one stored axis), ratio_8bit,\n"
 "bpv (bits on disk per voxel-timestep), index_bpv and table_bpv (theirs\n"
-"for the indices and the decoder tables), bytes, steps, window.\n"
+"for the indices and the decoder tables), bytes, steps, window, missing,\n"
+"missing_mismatch, tables_u16 and tables_f32 (chunks of the stored axes\n"
+"with 16-bit and float32 decoder tables: tvpal-encode --table).\n"
 "Exit status: 0 success, 1 failure, 2 bad input.\n");
 }
 
@@ -260,7 +262,10 @@ struct step_err {
 /* One axis over all timesteps. */
 struct axis_sum {
     double psnr, rmse, maxabs, flicker;
-    double idx_bytes, tab_bytes;  /* payload, from the window schedule */
+    double idx_bytes, tab_bytes;  /* payload: indices from the window
+                                   * schedule, tables as the chunks hold
+                                   * them (tvpal_shard_count_tables) */
+    double tables[2];             /* chunks with float32, 16-bit tables */
 };
 
 struct report {
@@ -289,6 +294,8 @@ struct report {
     double bytes_axis;            /* mean shard bytes of a stored axis */
     double idx_bytes, tab_bytes;  /* indices and tables, all stored axes */
     uint64_t disk_bytes;          /* every file of the directory reported */
+    double tables[2];             /* chunks of the stored axes with float32
+                                   * and 16-bit tables */
     double missing, mismatch;     /* reference NaN voxel-steps (per axis
                                    * the same); mismatches, worst axis */
     double ratio;                 /* source bytes / disk_bytes */
@@ -593,20 +600,35 @@ static int scan_steps(struct report *r, char **refs, struct tvpal_input *src,
  * Per-axis and overall figures
  */
 
-/* Bytes of indices and tables of one axis, from the window schedule. */
-static void payload_bytes(const struct tvpal_manifest *m, unsigned axis,
-                          double *idx, double *tab)
+/* Bytes of indices (from the window schedule) and of tables (as the
+ * shards' chunks store them: with --table auto each chunk has its own
+ * format) of one axis, and its chunks by table format.  0, or a library
+ * error with the shard's path in diag. */
+static int payload_bytes(const struct tvpal_dataset *ds, unsigned axis,
+                         struct axis_sum *x, struct tvpal_diag *diag)
 {
+    const struct tvpal_manifest *m = &ds->m;
     uint32_t n, w, h;
     tvpal_axis_geometry(m->dims, axis, &n, &w, &h);
-    *idx = *tab = 0;
+    x->idx_bytes = x->tab_bytes = x->tables[0] = x->tables[1] = 0;
     for (uint32_t s = 0; s < n; s++)
         for (uint32_t t = 0; t < m->steps; t++)
-            if (tvpal_schedule_starts(s, t, m->window)) {
-                *idx += (double)w * h;
-                *tab += 256.0 * (m->table_format == 1 ? 2 : 4) *
-                        tvpal_schedule_len(s, t, m->window, m->steps);
-            }
+            if (tvpal_schedule_starts(s, t, m->window))
+                x->idx_bytes += (double)w * h;
+    for (uint32_t k = 0; k < ds->nshards; k++) {
+        struct tvpal_shard *sh = ds->shards[axis][k];
+        struct tvpal_table_count c;
+        struct tvpal_diag d = {{0}};
+        int rc = tvpal_shard_count_tables(sh, &c, &d);
+        if (rc < 0)
+            return tvpal_diag_set(diag, rc, "%s: %s", tvpal_shard_path(sh),
+                                  d.msg);
+        for (unsigned u = 0; u < 2; u++) {
+            x->tab_bytes += (double)c.bytes[u];
+            x->tables[u] += (double)c.chunks[u];
+        }
+    }
+    return 0;
 }
 
 /* Errors per stored axis over all timesteps, the worst axis, the worst
@@ -652,27 +674,28 @@ static void summarize_errors(struct report *r)
     }
 }
 
-/* The bytes on disk (every file under the directory reported), and per
- * stored axis its files, indices and tables.  0 or TVPAL_EXIT_USAGE (the
- * directory cannot be read; printed). */
-static int summarize_sizes(struct report *r)
+/* The bytes on disk (every file under the directory reported), per
+ * stored axis its files, indices and tables (as the chunks store them),
+ * and the chunks by table format.  0, or a library error (diag). */
+static int summarize_sizes(struct report *r, struct tvpal_diag *diag)
 {
     const uint64_t *ab = r->ds->axis_bytes;
     const unsigned na = tvpal_axes_count(r->m->axes_mask);
-    struct tvpal_diag d = {{0}};
-    int rc = tvpal_tree_bytes(r->dir, &r->disk_bytes, &d);
-    if (rc < 0) {
-        print_lib_error(rc, &d);
-        return TVPAL_EXIT_USAGE;
-    }
+    int rc = tvpal_tree_bytes(r->dir, &r->disk_bytes, diag);
+    if (rc < 0)
+        return rc;
     r->bytes_axis = r->idx_bytes = r->tab_bytes = 0;
+    r->tables[0] = r->tables[1] = 0;
     for (unsigned a = 0; a < 3; a++) {
         if (!stored(r, a))
             continue;
-        payload_bytes(r->m, a, &r->axis[a].idx_bytes, &r->axis[a].tab_bytes);
+        if ((rc = payload_bytes(r->ds, a, &r->axis[a], diag)) < 0)
+            return rc;
         r->bytes_axis += (double)ab[a] / na;
         r->idx_bytes += r->axis[a].idx_bytes;
         r->tab_bytes += r->axis[a].tab_bytes;
+        r->tables[0] += r->axis[a].tables[0];
+        r->tables[1] += r->axis[a].tables[1];
     }
     r->ratio = (double)r->src_bytes / (double)r->disk_bytes;
     return 0;
@@ -731,6 +754,11 @@ static void print_text(const struct report *r)
            8 * (double)r->disk_bytes / r->vts, 8 * r->idx_bytes / r->vts,
            8 * r->tab_bytes / r->vts, m->levels ? " and levels" : "",
            8 * ((double)r->disk_bytes - r->idx_bytes - r->tab_bytes) / r->vts);
+    const double chunks = r->tables[0] + r->tables[1];
+    printf("decoder tables: %.0f of %.0f chunks 16-bit (%.1f%%), %.0f "
+           "float32 (table = %s)\n", r->tables[1], chunks,
+           chunks > 0 ? 100 * r->tables[1] / chunks : 0.0, r->tables[0],
+           tvpal_manifest_table_name(m->table_format));
     printf("worst timestep: %u on axis %c (%.3f dB)\n", r->psnr_min_t,
            "xyz"[r->psnr_min_a], r->psnr_min);
     if (r->missing)
@@ -853,11 +881,12 @@ static void write_json_axes(FILE *f, const struct report *r)
         fprintf(f, ", \"rmse\": %.9g, \"max_abs_error\": %.9g, "
                 "\"flicker\": %.9g, \"bytes\": %llu, \"axis_ratio\": %.6f, "
                 "\"axis_bpv\": %.6f, \"index_bpv\": %.6f, "
-                "\"table_bpv\": %.6f}",
+                "\"table_bpv\": %.6f, \"tables_u16\": %.0f, "
+                "\"tables_f32\": %.0f}",
                 x->rmse, x->maxabs, x->flicker, (unsigned long long)ab[a],
                 (double)r->src_bytes / (double)ab[a],
                 8.0 * (double)ab[a] / r->vts, 8 * x->idx_bytes / r->vts,
-                8 * x->tab_bytes / r->vts);
+                8 * x->tab_bytes / r->vts, x->tables[1], x->tables[0]);
     }
     fprintf(f, "\n  }");
 }
@@ -939,7 +968,7 @@ struct summary {
     double psnr, psnr_x, psnr_y, psnr_z, psnr_min, rmse, max_abs_error;
     double flicker, ratio, axis_ratio, ratio_8bit, bpv, index_bpv, table_bpv;
     double bytes;
-    double steps, window, missing, missing_mismatch;
+    double steps, window, missing, missing_mismatch, tables_u16, tables_f32;
 };
 #define KEY(name, fmt, kind) {#name, fmt, kind, offsetof(struct summary, name), 0}
 #define AXIS_KEY(name, a) {#name, "%.4f", COL_REAL, offsetof(struct summary, name), a + 1}
@@ -963,6 +992,8 @@ static const struct column summary_keys[] = {
     KEY(window, "%u", COL_UINT),
     KEY(missing, "", COL_COUNT),
     KEY(missing_mismatch, "", COL_COUNT),
+    KEY(tables_u16, "", COL_COUNT),
+    KEY(tables_f32, "", COL_COUNT),
 };
 #undef KEY
 #undef AXIS_KEY
@@ -981,7 +1012,8 @@ static struct summary summary_of(const struct report *r)
         .table_bpv = 8 * r->tab_bytes / r->vts,
         .bytes = (double)r->disk_bytes,
         .steps = r->steps, .window = r->m->window, .missing = r->missing,
-        .missing_mismatch = r->mismatch};
+        .missing_mismatch = r->mismatch, .tables_u16 = r->tables[1],
+        .tables_f32 = r->tables[0]};
 }
 
 /* The closing key=value line on stdout. */
@@ -1065,7 +1097,10 @@ int main(int argc, char **argv)
         status = scan_steps(&r, o.refs, o.src, &b);
     if (status == 0) {
         summarize_errors(&r);
-        status = summarize_sizes(&r);
+        if ((rc = summarize_sizes(&r, &diag)) < 0) {
+            print_lib_error(rc, &diag);
+            status = TVPAL_EXIT_USAGE;
+        }
     }
     if (status == 0) {
         status = write_outputs(&r, &o);

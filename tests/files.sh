@@ -3,8 +3,9 @@
 # README.md): every good-* dataset verifies and decodes, step by step and
 # axis by axis, to the SHA-256 in SHA256SUMS; good-manifest-variants.txt
 # decodes as good-1-basic; every bad-* file, planted in a copy of
-# good-1-basic, is refused by tvpal-info --verify and tvpal-decode with the
-# exit code and the message that the README's table gives.
+# good-1-basic (bad-u16-*: of good-2-u16-nodes, bad-auto-*: of good-5-auto),
+# is refused by tvpal-info --verify and tvpal-decode with the exit code and
+# the message that the README's table gives.
 . "$(dirname "$0")/lib.sh"
 F=$TVPAL_SRCDIR/tests/files
 [ -f "$F/SHA256SUMS" ] || { echo "no corpus at $F" >&2; exit 99; }
@@ -72,7 +73,12 @@ for f in "$F"/bad-*; do
 done
 while read -r file vrc step drc pat; do
     [ -f "$F/$file" ] || { fail "$file: listed in README.md, not in the corpus"; continue; }
-    copy "$F/good-1-basic" "$W/ds"
+    case $file in
+    bad-u16-*) base=good-2-u16-nodes ;;
+    bad-auto-*) base=good-5-auto ;;
+    *) base=good-1-basic ;;
+    esac
+    copy "$F/$base" "$W/ds"
     case $file in
     *.tvps) cp "$F/$file" "$W/ds/node-0/axis-z.tvps" ;;
     *.txt) cp "$F/$file" "$W/ds/manifest.txt" ;;

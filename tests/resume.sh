@@ -1,8 +1,10 @@
 #!/bin/sh
 # resume: an encode interrupted (SIGKILL after step 5) leaves no valid
 # dataset, only OUTDIR.partial; the same command then finishes the job and
-# the result is byte-identical to an uninterrupted run.  A partial output of
-# a different job is discarded, not resumed.
+# the result is byte-identical to an uninterrupted run, also when every step
+# was encoded and only the finish (which packs the per-chunk tables of
+# --table auto, FORMAT.md 9.1) was left.  A partial output of a different
+# job (another window, another --table) is discarded, not resumed.
 . "$(dirname "$0")/lib.sh"
 D=18x14x10
 "$GEN" --field front --dims $D --steps 12 -o "$W/in" || fail gen
@@ -20,6 +22,18 @@ grep -q "resuming .* timestep 5 of 12" "$W/e.txt" && ok "rerun resumed at step 5
 diff -r "$W/ref" "$W/ds" > /dev/null && ok "resumed output identical" \
     || fail "resumed output differs"
 [ ! -e "$W/ds.partial" ] && ok "partial directory gone" || fail "ds.partial remains"
+# Killed after the last step, before the shards were finished (packed).
+TVPAL_ENCODE_FAULT_AFTER=12 "$ENC" -q --dims $D --window 4 --nodes 2 -o "$W/dp" "$W"/in/*.f32 > /dev/null 2>&1
+"$ENC" --dims $D --window 4 --nodes 2 -o "$W/dp" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" \
+    || fail "rerun dp: $(cat "$W/e.txt")"
+grep -q "every step is encoded; finishing" "$W/e.txt" && diff -r "$W/ref" "$W/dp" > /dev/null \
+    && ok "resumed at the finish: packed output identical" || fail "finish resume: $(cat "$W/e.txt")"
+# A --table f32 partial output is not resumed as --table auto (the job's
+# fingerprint has the table format).
+TVPAL_ENCODE_FAULT_AFTER=5 "$ENC" -q --dims $D --window 4 --nodes 2 --table f32 -o "$W/dt" "$W"/in/*.f32 > /dev/null 2>&1
+"$ENC" -q --dims $D --window 4 --nodes 2 -o "$W/dt" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" || fail "rerun dt"
+! grep -q resuming "$W/e.txt" && diff -r "$W/ref" "$W/dt" > /dev/null \
+    && ok "--table f32 partial not resumed by --table auto" || fail "table format fingerprint: $(cat "$W/e.txt")"
 # A partial output of another job (different window) is started over.
 TVPAL_ENCODE_FAULT_AFTER=3 "$ENC" -q --dims $D --window 2 -o "$W/d2" "$W"/in/*.f32 > /dev/null 2>&1
 "$ENC" -q --dims $D --window 4 -o "$W/d2" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" || fail "rerun d2"

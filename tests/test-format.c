@@ -1,6 +1,8 @@
 /* test-format: shard header, record and index (de)serialization round trips;
  * every kind of corruption is detected with the right code; slab split;
- * the manifest's axes key and the format_version it implies. */
+ * the manifest's axes key and the format_version it implies; the table
+ * format per chunk (table_format 4, 5): mixed chunk sizes, flag
+ * rules, the placed writer's packing, the table count. */
 #include "tvpal_crc32c.h"
 #include "tvpal_format.h"
 #include "tvpal_manifest.h"
@@ -29,6 +31,13 @@ static struct tvpal_shard_header sample_header(void)
     return h;
 }
 
+/* The flags build_record gives the chunk of slice s: in a per-chunk shard
+ * odd slices have 16-bit tables. */
+static uint32_t test_flags(const struct tvpal_shard_header *h, uint32_t s)
+{
+    return h->table_format >= TVPAL_TABLE_CHUNK && s % 2 ? TVPAL_CHUNK_U16 : 0;
+}
+
 /* Builds record `step` for header h into buf (chunks with a recognizable
  * fill); returns its size. */
 static uint64_t build_record(const struct tvpal_shard_header *h, uint32_t step,
@@ -42,9 +51,12 @@ static uint64_t build_record(const struct tvpal_shard_header *h, uint32_t step,
         struct tvpal_chunk_header ch = {
             .slice = s, .wstart = step,
             .wlen = tvpal_schedule_len(s, step, h->window, h->steps),
-            .w = h->slice_w, .h = h->slice_h, .used = 7, .bits = {5, 3}};
+            .w = h->slice_w, .h = h->slice_h, .used = 7, .bits = {5, 3},
+            .flags = test_flags(h, s)};
         tvpal_chunk_header_encode(&ch, buf + off);
-        uint64_t cb = tvpal_chunk_bytes(ch.wlen, ch.w, ch.h, h->table_format);
+        uint64_t cb = tvpal_chunk_bytes(
+            ch.wlen, ch.w, ch.h,
+            tvpal_chunk_table_format(h->table_format, ch.flags));
         memset(buf + off + TVPAL_CHUNK_HEADER_BYTES, (int)(s + 1),
                cb - TVPAL_CHUNK_HEADER_BYTES);
         off += cb;
@@ -90,16 +102,20 @@ static unsigned char *slurp(const char *path, size_t *n)
 /* Placed writing gives the appending writer's file byte for byte, with the
  * chunks put in a shuffled order and joined in slice order; an
  * incomplete record, an out-of-order join and a chunk of the wrong size or
- * slice are refused; progress restored on a reopened file finishes it. */
+ * slice are refused; progress restored on a reopened file finishes it.  A
+ * per-chunk shard (table_format 4, 16-bit chunks at odd slices) is put in
+ * float32 rooms and packed by finish into the same bytes. */
 static void test_placed(void)
 {
     static const uint32_t dims[][3] = {{10, 7, 5}, {3, 4, 9}, {17, 2, 6}};
-    static unsigned char rec[1 << 18];
+    static const uint32_t formats[] = {TVPAL_TABLE_F32, TVPAL_TABLE_U16,
+                                       TVPAL_TABLE_CHUNK};
+    static unsigned char rec[1 << 18], room[1 << 16];
     for (unsigned v = 0; v < 3 * 3 * 2; v++) {
         struct tvpal_shard_header h = {
             .version = TVPAL_FORMAT_VERSION, .steps = 2 + v % 7,
             .window = 1 + v % 5, .nodes = 1 + v % 2, .rank = v % 2,
-            .axis = v / 2 % 3, .table_format = v % 2};
+            .axis = v / 2 % 3, .table_format = formats[v % 3]};
         memcpy(h.dims, dims[v / 6], sizeof h.dims);
         uint32_t n;
         tvpal_axis_geometry(h.dims, h.axis, &n, &h.slice_w, &h.slice_h);
@@ -123,18 +139,28 @@ static void test_placed(void)
                     continue;
                 off[k] = pos;
                 sl[k++] = s;
-                pos += tvpal_chunk_bytes(tvpal_schedule_len(s, t, h.window,
-                                                            h.steps),
-                                         h.slice_w, h.slice_h,
-                                         h.table_format);
+                pos += tvpal_chunk_bytes(
+                    tvpal_schedule_len(s, t, h.window, h.steps), h.slice_w,
+                    h.slice_h,
+                    tvpal_chunk_table_format(h.table_format,
+                                             test_flags(&h, s)));
             }
             for (uint32_t i = k; i-- > 0;) {
+                /* The chunk in its room (its own size but in a per-chunk
+                 * shard), zeros after it. */
                 uint64_t cb = (i + 1 < k ? off[i + 1] : pos) - off[i];
-                CHECK(tvpal_shardw_put_chunk(p, t, sl[i], rec + off[i], cb,
-                                             &crc[i], &d) == 0,
+                uint64_t rb = tvpal_chunk_bytes(
+                    tvpal_schedule_len(sl[i], t, h.window, h.steps),
+                    h.slice_w, h.slice_h, h.table_format);
+                REQUIRE(rb <= sizeof room && cb <= rb, "room %llu",
+                        (unsigned long long)rb);
+                memset(room, 0, rb);
+                memcpy(room, rec + off[i], cb);
+                CHECK(tvpal_shardw_put_chunk(p, t, sl[i], room, rb, &crc[i],
+                                             &d) == 0,
                       "put %u/%u: %s", t, sl[i], d.msg);
-                CHECK(tvpal_shardw_put_chunk(p, t, sl[i], rec + off[i],
-                                             cb + 64, &crc[i], NULL) ==
+                CHECK(tvpal_shardw_put_chunk(p, t, sl[i], room, rb + 64,
+                                             &crc[i], NULL) ==
                           TVPAL_E_INVAL, "wrong size refused");
             }
             if (k > 1)
@@ -169,8 +195,9 @@ static void test_placed(void)
         REQUIRE(tvpal_shardw_finish(p, &d) == 0, "finish placed: %s", d.msg);
         size_t na, np;
         unsigned char *a = slurp(pa, &na), *b = slurp(pp, &np);
-        CHECK(na == np && !memcmp(a, b, na), "variant %u: placed file = "
-              "appended file (%zu, %zu bytes)", v, na, np);
+        CHECK(na == np && !memcmp(a, b, na), "variant %u (table_format %u): "
+              "placed file = appended file (%zu, %zu bytes)", v,
+              h.table_format, na, np);
         free(a);
         free(b);
         /* A file of another size is not reopened. */
@@ -180,6 +207,222 @@ static void test_placed(void)
         unlink(pa);
         unlink(pp);
     }
+}
+
+/* Sets the flags of record rec's first chunk (at byte 64) and reseals the
+ * record's payload CRC. */
+static void set_first_flags(unsigned char *rec, uint32_t step,
+                            const struct tvpal_shard_header *h, uint32_t flags)
+{
+    struct tvpal_record_header rh;
+    tvpal_record_header_decode(rec, &rh, NULL);
+    rec[64 + 28] = (unsigned char)flags;
+    tvpal_record_seal(rec, step, h->axis, rh.chunk_count, rh.payload_bytes);
+}
+
+/* Writes the records build_record makes for h (with the first chunk of
+ * record 0 given flags0) through the appending writer. */
+static void write_shard(const char *path, const struct tvpal_shard_header *h,
+                        uint32_t flags0)
+{
+    static unsigned char rec[1 << 18];
+    struct tvpal_shardw *w;
+    struct tvpal_diag d = {{0}};
+    REQUIRE(tvpal_shardw_create(&w, path, h) == 0, "create %s", path);
+    for (uint32_t t = 0; t < h->steps; t++) {
+        uint64_t bytes = build_record(h, t, rec);
+        if (t == 0)
+            set_first_flags(rec, 0, h, test_flags(h, h->slice_begin) | flags0);
+        REQUIRE(tvpal_shardw_append(w, rec, bytes, &d) == 0, "append: %s",
+                d.msg);
+    }
+    REQUIRE(tvpal_shardw_finish(w, &d) == 0, "finish: %s", d.msg);
+}
+
+/* The table format per chunk (FORMAT.md 6.5-6.7, 8.2): records of mixed
+ * chunk sizes verify and iterate, each chunk with its own format; a flag
+ * the shard's table_format does not define is refused; the missing flag
+ * turns 4 into 5; the table count reads every chunk header; a room that
+ * changed after it was written fails the placed writer's packing. */
+static void test_per_chunk(void)
+{
+    static unsigned char rec[1 << 20];
+    struct tvpal_diag d = {{0}};
+    struct tvpal_shard_header h = sample_header();
+    h.table_format = TVPAL_TABLE_CHUNK;
+    for (uint32_t t = 0; t < h.steps; t++) {
+        uint64_t bytes = build_record(&h, t, rec);
+        CHECK(tvpal_record_verify(rec, bytes, t, &h, &d) == 0,
+              "per-chunk record %u: %s", t, d.msg);
+        uint64_t pos = 0;
+        struct tvpal_chunk c;
+        while (tvpal_record_next_chunk(rec, &pos, h.table_format, &c))
+            CHECK(c.table_format == (c.h.slice % 2 ? TVPAL_TABLE_U16
+                                                   : TVPAL_TABLE_F32) &&
+                      c.indices[0] == (uint8_t)(c.h.slice + 1) &&
+                      c.indices - c.table ==
+                          (ptrdiff_t)c.h.wlen * 256 *
+                              (c.h.slice % 2 ? 2 : 4),
+                  "step %u slice %u: its own format and place", t,
+                  c.h.slice);
+    }
+    /* Flags by table_format: bit 0 in 2, 3, 5; bit 1 in 4, 5; no other.
+     * The first chunk of the sample slab (slice 4) has a float32 table, so
+     * bit 1 is what a table_format 0..3 shard refuses before any size. */
+    static const struct {
+        uint32_t tf, flags;
+        int ok;
+    } rules[] = {{0, 0, 1}, {0, 1, 0}, {0, 2, 0}, {1, 2, 0}, {2, 1, 1},
+                 {3, 1, 1}, {3, 2, 0}, {4, 1, 0}, {5, 1, 1}, {0, 4, 0},
+                 {2, 5, 0}, {5, 4, 0}, {4, 0x80000000u, 0}};
+    for (size_t i = 0; i < sizeof rules / sizeof *rules; i++) {
+        struct tvpal_shard_header g = sample_header();
+        g.table_format = rules[i].tf;
+        REQUIRE(!test_flags(&g, g.slice_begin), "slice %u float32",
+                g.slice_begin);
+        uint64_t bytes = build_record(&g, 0, rec);
+        set_first_flags(rec, 0, &g, rules[i].flags);
+        if (rules[i].flags & 0x80000000u) {
+            rec[64 + 31] = 0x80;
+            struct tvpal_record_header rh;
+            tvpal_record_header_decode(rec, &rh, NULL);
+            tvpal_record_seal(rec, 0, g.axis, rh.chunk_count, rh.payload_bytes);
+        }
+        int rc = tvpal_record_verify(rec, bytes, 0, &g, &d);
+        char want[64];
+        snprintf(want, sizeof want, "flags 0x%x, table_format %u",
+                 rules[i].flags, rules[i].tf);
+        CHECK(rules[i].ok ? rc == 0
+                          : rc == TVPAL_E_FORMAT && strstr(d.msg, want),
+              "table_format %u, flags 0x%x: rc %d (%s)", rules[i].tf,
+              rules[i].flags, rc, rc ? d.msg : "");
+    }
+    /* A 16-bit chunk said float32 no longer fits its record. */
+    {
+        struct tvpal_shard_header g = sample_header();
+        g.table_format = TVPAL_TABLE_CHUNK;
+        uint64_t bytes = build_record(&g, 1, rec); /* slice 5 alone */
+        struct tvpal_chunk c;
+        uint64_t pos = 0, last = 0;
+        while (tvpal_record_next_chunk(rec, &pos, g.table_format, &c))
+            last = (uint64_t)(c.table - rec) - TVPAL_CHUNK_HEADER_BYTES;
+        REQUIRE(c.table_format == TVPAL_TABLE_U16, "last chunk 16-bit");
+        rec[last + 28] = 0;
+        struct tvpal_record_header rh;
+        tvpal_record_header_decode(rec, &rh, NULL);
+        tvpal_record_seal(rec, 1, g.axis, rh.chunk_count, rh.payload_bytes);
+        CHECK(tvpal_record_verify(rec, bytes, 1, &g, &d) == TVPAL_E_FORMAT &&
+                  strstr(d.msg, "overruns the payload") &&
+                  strstr(d.msg, "float32 table (flags 0x0)"),
+              "16-bit chunk said float32: %s", d.msg);
+    }
+    /* Shards: the count of tables, the missing flag, the packing. */
+    const char *path = "test-format-per-chunk.tvps";
+    for (uint32_t tf = 0; tf <= TVPAL_TABLE_CHUNK; tf += 4) {
+        for (uint32_t miss = 0; miss <= 1; miss++) {
+            struct tvpal_shard_header g = sample_header();
+            g.table_format = tf;
+            write_shard(path, &g, miss ? TVPAL_CHUNK_MISSING : 0);
+            struct tvpal_shard *sh;
+            REQUIRE(tvpal_shard_open(&sh, path, &d) == 0, "open: %s", d.msg);
+            const uint32_t want_tf = miss ? tvpal_table_with_missing(tf) : tf;
+            CHECK(tvpal_shard_hdr(sh)->table_format == want_tf,
+                  "table_format %u written as %u (missing %u)", tf,
+                  tvpal_shard_hdr(sh)->table_format, miss);
+            uint64_t want[2] = {0, 0}, wb[2] = {0, 0};
+            for (uint32_t t = 0; t < g.steps; t++) {
+                CHECK(tvpal_shard_read_record(sh, t, rec, sizeof rec, &d) == 0,
+                      "tf %u record %u: %s", want_tf, t, d.msg);
+                uint64_t pos = 0;
+                struct tvpal_chunk c;
+                while (tvpal_record_next_chunk(rec, &pos, want_tf, &c)) {
+                    unsigned u = c.table_format & TVPAL_TABLE_U16;
+                    want[u]++;
+                    wb[u] += (uint64_t)c.h.wlen * 256 * (u ? 2 : 4);
+                }
+            }
+            struct tvpal_table_count n;
+            CHECK(tvpal_shard_count_tables(sh, &n, &d) == 0, "count: %s",
+                  d.msg);
+            CHECK(n.chunks[0] == want[0] && n.chunks[1] == want[1] &&
+                      n.bytes[0] == wb[0] && n.bytes[1] == wb[1] &&
+                      (tf == 0 ? !want[1] : want[0] && want[1]),
+                  "tf %u: count %llu/%llu chunks, expected %llu/%llu",
+                  want_tf, (unsigned long long)n.chunks[0],
+                  (unsigned long long)n.chunks[1],
+                  (unsigned long long)want[0], (unsigned long long)want[1]);
+            tvpal_shard_close(sh);
+        }
+    }
+    /* A damaged chunk header in a per-chunk shard: the count names it. */
+    {
+        struct tvpal_shard_header g = sample_header();
+        g.table_format = TVPAL_TABLE_CHUNK;
+        write_shard(path, &g, 0);
+        int fd = open(path, O_RDWR);
+        REQUIRE(fd >= 0, "open %s", path);
+        unsigned char x = 0;
+        REQUIRE(pwrite(fd, &x, 1, 4096 + 64) == 1, "damage");
+        close(fd);
+        struct tvpal_shard *sh;
+        struct tvpal_table_count n;
+        REQUIRE(tvpal_shard_open(&sh, path, &d) == 0, "open: %s", d.msg);
+        CHECK(tvpal_shard_count_tables(sh, &n, &d) == TVPAL_E_FORMAT &&
+                  strstr(d.msg, "record 0: no chunk header of slice 4"),
+              "damaged chunk header: %s", d.msg);
+        tvpal_shard_close(sh);
+    }
+    /* Packing reads every room back: one that changed since it was put
+     * (the checkpoint's CRC no longer holds) fails the finish; a 16-bit
+     * flag in a shard of table_format 0 is refused at put. */
+    {
+        struct tvpal_shard_header g = sample_header();
+        g.table_format = TVPAL_TABLE_CHUNK;
+        struct tvpal_shardw *w;
+        REQUIRE(tvpal_shardw_create_placed(&w, path, &g, &d) == 0, "placed");
+        static unsigned char room[1 << 16];
+        for (uint32_t t = 0; t < g.steps; t++) {
+            build_record(&g, t, rec);
+            uint64_t pos = 0;
+            struct tvpal_chunk c;
+            while (tvpal_record_next_chunk(rec, &pos, g.table_format, &c)) {
+                const unsigned char *ch = c.table - TVPAL_CHUNK_HEADER_BYTES;
+                uint64_t cb = tvpal_chunk_bytes(c.h.wlen, c.h.w, c.h.h,
+                                                c.table_format);
+                uint64_t rb = tvpal_chunk_bytes(c.h.wlen, c.h.w, c.h.h,
+                                                g.table_format);
+                memset(room, 0, rb);
+                memcpy(room, ch, cb);
+                uint32_t crc;
+                CHECK(tvpal_shardw_put_chunk(w, t, c.h.slice, room, rb, &crc,
+                                             &d) == 0 &&
+                          tvpal_shardw_extend(w, t, c.h.slice, crc) == 0,
+                      "put: %s", d.msg);
+            }
+        }
+        int fd = open(path, O_RDWR);
+        REQUIRE(fd >= 0, "open %s", path);
+        unsigned char x = 0x5A;
+        REQUIRE(pwrite(fd, &x, 1, 4096 + 64 + 200) == 1, "damage");
+        close(fd);
+        CHECK(tvpal_shardw_finish(w, &d) == TVPAL_E_CHECKSUM &&
+                  strstr(d.msg, "record 0: the chunks read back"),
+              "damaged room: %s", d.msg);
+        g.table_format = TVPAL_TABLE_F32;
+        REQUIRE(tvpal_shardw_create_placed(&w, path, &g, &d) == 0, "placed");
+        build_record(&g, 0, rec);
+        set_first_flags(rec, 0, &g, TVPAL_CHUNK_U16);
+        uint32_t crc;
+        uint64_t cb = tvpal_chunk_bytes(tvpal_schedule_len(g.slice_begin, 0,
+                                                           g.window, g.steps),
+                                        g.slice_w, g.slice_h, g.table_format);
+        CHECK(tvpal_shardw_put_chunk(w, 0, g.slice_begin, rec + 64, cb, &crc,
+                                     &d) == TVPAL_E_INVAL &&
+                  strstr(d.msg, "flags 0x2"),
+              "16-bit flag in a float32 shard: %s", d.msg);
+        tvpal_shardw_free(w);
+    }
+    unlink(path);
 }
 
 /* A shard whose header (valid CRC) claims dims 1x1x100000000 over records
@@ -300,6 +543,7 @@ int main(void)
 {
     test_placed();
     test_axes();
+    test_per_chunk();
     unsigned char hb[TVPAL_SHARD_HEADER_BYTES];
     struct tvpal_shard_header h = sample_header(), g;
     struct tvpal_diag d;
@@ -335,13 +579,14 @@ int main(void)
     h.file_bytes += 4096;
     tvpal_shard_header_encode(&h, hb);
     CHECK(tvpal_shard_header_decode(hb, &g, &d) == TVPAL_E_FORMAT, "size");
-    /* table_format 0..3 are defined (2, 3: with missing values). */
-    for (uint32_t tf = 0; tf <= 4; tf++) {
+    /* table_format 0..5 are defined (2, 3, 5: with missing values; 4, 5:
+     * per chunk). */
+    for (uint32_t tf = 0; tf <= 7; tf++) {
         h = sample_header();
         h.table_format = tf;
         tvpal_shard_header_encode(&h, hb);
         int rc = tvpal_shard_header_decode(hb, &g, &d);
-        CHECK(tf <= 3 ? rc == 0 && g.table_format == tf
+        CHECK(tf <= 5 ? rc == 0 && g.table_format == tf
                       : rc == TVPAL_E_FORMAT && strstr(d.msg, "table_format"),
               "table_format %u: %d", tf, rc);
     }

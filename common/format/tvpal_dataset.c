@@ -21,14 +21,19 @@ int tvpal_shard_check_table(const char *path,
                             const struct tvpal_manifest *m,
                             struct tvpal_diag *diag)
 {
-    uint32_t shard = h->table_format & TVPAL_TABLE_U16;
+    /* The shard's format without its missing values: 0, 1 or 4. */
+    uint32_t shard = h->table_format >= TVPAL_TABLE_CHUNK
+                         ? TVPAL_TABLE_CHUNK
+                         : h->table_format & TVPAL_TABLE_U16;
     if (shard == m->table_format)
         return 0;
     return tvpal_diag_set(diag, TVPAL_E_MISMATCH,
                           "%s: header table_format %u (%s tables) does not "
                           "match the manifest's table = %s", path,
-                          h->table_format, shard ? "16-bit" : "float32",
-                          m->table_format ? "u16" : "f32");
+                          h->table_format,
+                          shard == TVPAL_TABLE_CHUNK ? "per-chunk"
+                          : shard ? "16-bit" : "float32",
+                          tvpal_manifest_table_name(m->table_format));
 }
 
 /* Allocates a dataset for dir and loads dir/manifest.txt into it. */

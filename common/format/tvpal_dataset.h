@@ -30,9 +30,9 @@ int tvpal_dataset_has_axis(const struct tvpal_dataset *ds, unsigned axis);
  * axis tools decode by default). */
 unsigned tvpal_dataset_default_axis(const struct tvpal_dataset *ds);
 
-/* The manifest m's table (f32 or u16) agrees with the table encoding of
- * the shard header h read from path (table_format & TVPAL_TABLE_U16;
- * formats 2 and 3 are 0 and 1 with missing values), FORMAT.md 8.3.  0, or
+/* The manifest m's table (f32, u16 or auto) agrees with the table
+ * encoding of the shard header h read from path (0, 1 or 4; formats 2, 3
+ * and 5 are those with missing values), FORMAT.md 8.3.  0, or
  * TVPAL_E_MISMATCH with a message that starts with path. */
 int tvpal_shard_check_table(const char *path,
                             const struct tvpal_shard_header *h,

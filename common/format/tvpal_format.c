@@ -162,8 +162,9 @@ int tvpal_shard_header_decode(const unsigned char *b,
     if (h->table_format > TVPAL_TABLE_MAX)
         return tvpal_diag_set(diag, TVPAL_E_FORMAT,
                               "header: table_format %u, expected 0 (float32), "
-                              "1 (16-bit scaled), 2 or 3 (the same with "
-                              "missing values)", h->table_format);
+                              "1 (16-bit scaled), 4 (per chunk), or 2, 3, 5 "
+                              "(the same with missing values)",
+                              h->table_format);
     if (h->index_offset % TVPAL_ALIGN || h->index_offset < TVPAL_ALIGN ||
         h->index_offset > ((uint64_t)1 << 62) ||
         h->file_bytes != h->index_offset + tvpal_round_up(
@@ -340,13 +341,29 @@ int tvpal_record_verify(const unsigned char *buf, uint64_t bytes,
                                   "%u+%u, %ux%u) inconsistent with the shard",
                                   step, k, ch.slice, ch.wstart, ch.wlen, ch.w,
                                   ch.h);
+        /* A flag the shard's format does not define would be misread:
+         * bit 1 changes the chunk's size, and a later bit could change
+         * its decoding (FORMAT.md 6.6). */
+        if (ch.flags & ~tvpal_chunk_flags_allowed(sh->table_format))
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                                  "record %u: chunk %u (slice %u): flags "
+                                  "0x%x, table_format %u allows 0x%x", step,
+                                  k, ch.slice, ch.flags, sh->table_format,
+                                  tvpal_chunk_flags_allowed(sh->table_format));
         prev = ch.slice;
         expect++;
-        uint64_t cb = tvpal_chunk_bytes(ch.wlen, ch.w, ch.h, sh->table_format);
+        const uint32_t ctf = tvpal_chunk_table_format(sh->table_format,
+                                                      ch.flags);
+        uint64_t cb = tvpal_chunk_bytes(ch.wlen, ch.w, ch.h, ctf);
         if (cb > end - pos)
             return tvpal_diag_set(diag, TVPAL_E_FORMAT,
-                                  "record %u: chunk %u overruns the payload",
-                                  step, k);
+                                  "record %u: chunk %u (slice %u) overruns "
+                                  "the payload: %llu bytes with a %s table "
+                                  "(flags 0x%x), %llu left", step, k,
+                                  ch.slice, (unsigned long long)cb,
+                                  (ctf & TVPAL_TABLE_U16) ? "16-bit"
+                                                          : "float32",
+                                  ch.flags, (unsigned long long)(end - pos));
         pos += cb;
     }
     if (pos != end)
@@ -372,11 +389,11 @@ int tvpal_record_next_chunk(const unsigned char *buf, uint64_t *pos,
     if (*pos >= end)
         return 0;
     tvpal_chunk_header_decode(buf + *pos, &c->h, NULL);
-    c->table_format = table_format;
+    c->table_format = tvpal_chunk_table_format(table_format, c->h.flags);
     c->table = buf + *pos + TVPAL_CHUNK_HEADER_BYTES;
     c->indices = c->table + (size_t)c->h.wlen * 256u *
-                                tvpal_table_entry_bytes(table_format);
-    *pos += tvpal_chunk_bytes(c->h.wlen, c->h.w, c->h.h, table_format);
+                                tvpal_table_entry_bytes(c->table_format);
+    *pos += tvpal_chunk_bytes(c->h.wlen, c->h.w, c->h.h, c->table_format);
     return 1;
 }
 

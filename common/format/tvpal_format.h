@@ -37,9 +37,17 @@
  * chunks flagged TVPAL_CHUNK_MISSING.  Readers before spec 1.5 reject
  * them, as 10.2 says they reject an unknown table_format. */
 #define TVPAL_TABLE_MISSING 2u
-#define TVPAL_TABLE_MAX 3u
-/* Chunk header flags (byte 28): the chunk's table has missing entries. */
+/* Per chunk (FORMAT.md 6.7): 4 = each chunk's flags say whether its table
+ * is 16-bit (TVPAL_CHUNK_U16) or float32; 5 = the same with missing values
+ * (a 16-bit chunk is then read as format 3, a float32 one as format 2).
+ * Readers before spec 1.6 reject them as unknown. */
+#define TVPAL_TABLE_CHUNK 4u
+#define TVPAL_TABLE_CHUNK_MISSING 5u
+#define TVPAL_TABLE_MAX 5u
+/* Chunk header flags (byte 28): the chunk's table has missing entries
+ * (table_format 2, 3, 5); the chunk's table is 16-bit scaled (4, 5). */
 #define TVPAL_CHUNK_MISSING 1u
+#define TVPAL_CHUNK_U16 2u
 #define TVPAL_U16_MISSING 65535u        /* q of a missing u16 entry */
 
 static inline uint64_t tvpal_round_up(uint64_t x, uint64_t a)
@@ -58,7 +66,7 @@ struct tvpal_shard_header {
     uint32_t slice_begin;     /* first slice of the slab (global index) */
     uint32_t slice_count;     /* slices in the slab (>= 1) */
     uint32_t slice_w, slice_h;/* slice size: in-slice index = a + w * b */
-    uint32_t table_format;    /* TVPAL_TABLE_F32 or TVPAL_TABLE_U16 */
+    uint32_t table_format;    /* TVPAL_TABLE_F32 .. TVPAL_TABLE_MAX */
     uint64_t index_offset;    /* aligned; index of `steps` entries */
     uint64_t file_bytes;      /* total file size */
     uint32_t index_crc;
@@ -78,9 +86,9 @@ struct tvpal_chunk_header {
     uint32_t wstart, wlen;    /* window [wstart, wstart + wlen) */
     uint32_t w, h;            /* slice size */
     uint32_t used;            /* distinct indices held by voxels */
-    uint32_t flags;           /* TVPAL_CHUNK_MISSING (table_format >= 2) */
+    uint32_t flags;           /* TVPAL_CHUNK_MISSING, TVPAL_CHUNK_U16 */
     uint8_t bits[16];         /* bits per coefficient */
-    float tmin, tscale;       /* TVPAL_TABLE_U16: value = tmin + q tscale */
+    float tmin, tscale;       /* 16-bit table: value = tmin + q tscale */
 };
 
 struct tvpal_index_entry {
@@ -102,14 +110,56 @@ void tvpal_axis_geometry(const uint32_t dims[3], unsigned axis,
 void tvpal_slab_range(uint32_t n, uint32_t k, uint32_t r, uint32_t *begin,
                       uint32_t *count);
 
-/* Bytes of one table entry in a table format (4 or 2). */
+/* Whether a shard of table_format has missing values (2, 3, 5). */
+static inline int tvpal_table_has_missing(uint32_t table_format)
+{
+    return table_format == TVPAL_TABLE_CHUNK_MISSING ||
+           (table_format < TVPAL_TABLE_CHUNK &&
+            (table_format & TVPAL_TABLE_MISSING));
+}
+
+/* The table_format of a shard of format 0, 1 or 4 once some chunk has
+ * missing entries: 2, 3 or 5 (others unchanged). */
+static inline uint32_t tvpal_table_with_missing(uint32_t table_format)
+{
+    return table_format >= TVPAL_TABLE_CHUNK ? TVPAL_TABLE_CHUNK_MISSING
+                                             : table_format | TVPAL_TABLE_MISSING;
+}
+
+/* The table format (0..3) one chunk is stored in: the shard's own for 0..3;
+ * in a per-chunk shard (4, 5) 1 or 0 as the chunk's flags have
+ * TVPAL_CHUNK_U16 or not, plus TVPAL_TABLE_MISSING in a shard of 5. */
+static inline uint32_t tvpal_chunk_table_format(uint32_t table_format,
+                                                uint32_t flags)
+{
+    if (table_format < TVPAL_TABLE_CHUNK)
+        return table_format;
+    return ((flags & TVPAL_CHUNK_U16) ? TVPAL_TABLE_U16 : TVPAL_TABLE_F32) |
+           (table_format == TVPAL_TABLE_CHUNK_MISSING ? TVPAL_TABLE_MISSING
+                                                      : 0u);
+}
+
+/* The chunk flags a shard of table_format defines (FORMAT.md 6.6): a chunk
+ * with any other bit set is malformed (8.2). */
+static inline uint32_t tvpal_chunk_flags_allowed(uint32_t table_format)
+{
+    uint32_t f = tvpal_table_has_missing(table_format) ? TVPAL_CHUNK_MISSING
+                                                       : 0u;
+    return table_format >= TVPAL_TABLE_CHUNK ? f | TVPAL_CHUNK_U16 : f;
+}
+
+/* Bytes of one table entry of a chunk stored in table format 0..3 (4 or
+ * 2).  For a per-chunk shard (4, 5) the larger, 4: the room any of its
+ * chunks needs (tvpal_chunk_table_format gives a chunk's own). */
 static inline uint32_t tvpal_table_entry_bytes(uint32_t table_format)
 {
-    return (table_format & TVPAL_TABLE_U16) ? 2u : 4u;
+    return table_format < TVPAL_TABLE_CHUNK && (table_format & TVPAL_TABLE_U16)
+               ? 2u : 4u;
 }
 
 /* Bytes of one chunk with window length len, w*h indices and tables in
- * table_format. */
+ * table_format (tvpal_table_entry_bytes: a per-chunk format gives the
+ * room of a float32 chunk). */
 static inline uint64_t tvpal_chunk_bytes(uint32_t len, uint32_t w, uint32_t h,
                                          uint32_t table_format)
 {
@@ -147,7 +197,8 @@ void tvpal_index_entry_decode(const unsigned char *buf,
 /* A parsed chunk inside a record buffer (pointers borrow the buffer). */
 struct tvpal_chunk {
     struct tvpal_chunk_header h;
-    uint32_t table_format;
+    uint32_t table_format;        /* this chunk's, 0..3 (see
+                                   * tvpal_chunk_table_format) */
     const unsigned char *table;   /* wlen * 256 entries LE, row per step */
     const uint8_t *indices;       /* w * h */
 };
@@ -162,7 +213,9 @@ void tvpal_chunk_table(const struct tvpal_chunk *c, float *out);
  * NaN entries are missing: the header gets TVPAL_CHUNK_MISSING, a u16
  * table is then scaled over the finite entries with 65534 steps and a
  * missing entry stored as TVPAL_U16_MISSING.  The shard's table_format
- * must then include TVPAL_TABLE_MISSING (tvpal_shardw_set_missing). */
+ * must then include TVPAL_TABLE_MISSING (tvpal_shardw_set_missing).  In a
+ * per-chunk shard (4, 5) the caller picks 0 or 1 for each chunk and sets
+ * TVPAL_CHUNK_U16 in h->flags after this call for a 16-bit one. */
 void tvpal_table_store(const float *table, uint32_t len,
                        uint32_t table_format, unsigned char *dst,
                        struct tvpal_chunk_header *h);
@@ -175,7 +228,8 @@ int tvpal_record_verify(const unsigned char *buf, uint64_t bytes,
                         struct tvpal_diag *diag);
 
 /* Iterates the chunks of a verified record of a shard with table_format:
- * *pos starts at 0; returns 1 and fills c for each chunk, 0 at the end. */
+ * *pos starts at 0; returns 1 and fills c for each chunk (c->table_format
+ * the chunk's own, 0..3), 0 at the end. */
 int tvpal_record_next_chunk(const unsigned char *buf, uint64_t *pos,
                             uint32_t table_format, struct tvpal_chunk *c);
 

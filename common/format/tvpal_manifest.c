@@ -1,5 +1,6 @@
 /* tvpal_manifest.c: manifest text format (see tvpal_manifest.h). */
 #include "tvpal_manifest.h"
+#include "tvpal_format.h"
 #include "tvpal_fs.h"
 
 #include <errno.h>
@@ -7,6 +8,13 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+const char *tvpal_manifest_table_name(uint32_t table_format)
+{
+    return table_format == TVPAL_TABLE_U16     ? "u16"
+           : table_format == TVPAL_TABLE_CHUNK ? "auto"
+                                               : "f32";
+}
 
 void tvpal_manifest_clear(struct tvpal_manifest *m)
 {
@@ -96,7 +104,7 @@ int tvpal_manifest_format(const struct tvpal_manifest *m, char **out)
     /* Absent means all three (datasets as before the key had a rule). */
     if (m->axes_mask != TVPAL_AXES_ALL)
         fprintf(f, "axes = %s\n", tvpal_axes_format(m->axes_mask, axes));
-    fprintf(f, "table = %s\n", m->table_format == 1 ? "u16" : "f32");
+    fprintf(f, "table = %s\n", tvpal_manifest_table_name(m->table_format));
     if (m->levels)
         fprintf(f, "levels = %u\n", m->levels);
     fprintf(f, "value_min = %.9g\nvalue_max = %.9g\n", m->value_min,
@@ -335,8 +343,14 @@ static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
     } else if (!strcmp(k, "levels")) {
         bad = parse_u32(v, &m->levels) || m->levels > TVPAL_LEVELS_MAX;
     } else if (!strcmp(k, "table")) {
-        bad = strcmp(v, "f32") && strcmp(v, "u16");
-        m->table_format = !strcmp(v, "u16");
+        static const uint32_t formats[] = {TVPAL_TABLE_F32, TVPAL_TABLE_U16,
+                                           TVPAL_TABLE_CHUNK};
+        bad = 1;
+        for (size_t i = 0; i < sizeof formats / sizeof *formats; i++)
+            if (!strcmp(v, tvpal_manifest_table_name(formats[i]))) {
+                m->table_format = formats[i];
+                bad = 0;
+            }
     } else if (!strcmp(k, "source_bytes")) {
         m->source_bytes = strtoull(v, NULL, 10);
     } else if (!strcmp(k, "source_layout")) {

@@ -55,7 +55,9 @@ struct tvpal_manifest {
     uint32_t ntimes;
     char time_units[128];                 /* e.g. "hours since ...", or "" */
     uint64_t source_bytes;
-    uint32_t table_format;                /* 0 float32, 1 16-bit scaled */
+    uint32_t table_format;                /* the key "table": 0 f32 (float32),
+                                           * 1 u16 (16-bit scaled), 4 auto
+                                           * (per chunk; TVPAL_TABLE_*) */
     uint32_t levels;                      /* coarser levels of detail in
                                            * level-1/ .. level-L/ (0: none;
                                            * at most TVPAL_LEVELS_MAX) */
@@ -69,6 +71,9 @@ struct tvpal_manifest {
     size_t nsources;
     char **sources;                       /* owned, nsources entries */
 };
+
+/* The manifest's name of a table format 0, 1 or 4: "f32", "u16", "auto". */
+const char *tvpal_manifest_table_name(uint32_t table_format);
 
 /* Frees the owned strings and zeroes m. */
 void tvpal_manifest_clear(struct tvpal_manifest *m);

@@ -61,10 +61,13 @@ struct tvpal_shardw {
     int missing;                      /* a chunk flagged missing entries */
     /* Placed writing (NULL arrays when appending): per record its offset,
      * payload bytes, chunk count and progress; per slab slice its chunk's
-     * offset in record 0's payload. */
+     * offset in record 0's payload.  A per-chunk shard (table_format 4,
+     * 5) is laid out with float32 room for every chunk until finish packs
+     * it (placed_pack), which moves the records and sets packed. */
     uint64_t *rec_off, *payload, *filled;
     uint32_t *count, *crc;
     uint64_t *first_off;
+    int packed;
 };
 
 /* Whether a chunk of the sealed record buf says its table has missing
@@ -246,10 +249,17 @@ int tvpal_shardw_finish(struct tvpal_shardw *w, struct tvpal_diag *diag)
     w->h.index_crc = tvpal_crc32c(0, ib, ibytes);
     w->h.version = TVPAL_FORMAT_VERSION;
     if (w->missing)
-        w->h.table_format |= TVPAL_TABLE_MISSING;
+        w->h.table_format = tvpal_table_with_missing(w->h.table_format);
     rc = pwrite_all(w->fd, ib, ibytes, w->end, diag);
     if (rc < 0)
         goto out;
+    /* A packed shard is shorter than the room it was written in. */
+    if (w->packed && ftruncate(w->fd, (off_t)w->h.file_bytes) < 0) {
+        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "cannot cut to %llu bytes: "
+                            "%s", (unsigned long long)w->h.file_bytes,
+                            strerror(errno));
+        goto out;
+    }
     unsigned char hb[TVPAL_SHARD_HEADER_BYTES];
     tvpal_shard_header_encode(&w->h, hb);
     /* Header last: the file becomes valid only once everything is there. */
@@ -288,8 +298,8 @@ void tvpal_shardw_free(struct tvpal_shardw *w)
 
 /* ---------------------------------------------------------- placed writer */
 
-/* Length of the window starting at t of every slice that starts there, for
- * t > 0 (record 0 has windows of several lengths: first_off). */
+/* Room of the chunk of slice s in record t: its size, or in a per-chunk
+ * shard the size of a float32 chunk. */
 static uint64_t placed_chunk_bytes(const struct tvpal_shardw *w, uint32_t s,
                                    uint32_t t)
 {
@@ -334,9 +344,9 @@ static int placed_layout(struct tvpal_shardw *w)
     return 0;
 }
 
-/* Offset of slice s's chunk inside record t's payload, or UINT64_MAX when
- * s has no window starting at t or is not in the slab.  After record 0
- * every chunk of a record has the same size. */
+/* Offset of slice s's chunk (its room) inside record t's payload, or
+ * UINT64_MAX when s has no window starting at t or is not in the slab.
+ * After record 0 every chunk of a record has the same room. */
 static uint64_t placed_offset(const struct tvpal_shardw *w, uint32_t t,
                               uint32_t s)
 {
@@ -420,14 +430,21 @@ int tvpal_shardw_put_chunk(struct tvpal_shardw *w, uint32_t t, uint32_t s,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "no chunk of %llu bytes "
                               "for slice %u in record %u",
                               (unsigned long long)bytes, s, t);
+    struct tvpal_chunk_header ch;
+    int have = tvpal_chunk_header_decode(chunk, &ch, NULL) == 0;
+    /* The missing flag is what finish adds to the format: allow it. */
+    if (have && (ch.flags & ~(tvpal_chunk_flags_allowed(w->h.table_format) |
+                              TVPAL_CHUNK_MISSING)))
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "chunk of slice %u in "
+                              "record %u: flags 0x%x in a shard of "
+                              "table_format %u", s, t, ch.flags,
+                              w->h.table_format);
     int rc = pwrite_all(w->fd, chunk, bytes,
                         w->rec_off[t] + TVPAL_RECORD_HEADER_BYTES + off, diag);
     if (rc < 0)
         return rc;
     *crc = tvpal_crc32c(0, chunk, bytes);
-    struct tvpal_chunk_header ch;
-    if (tvpal_chunk_header_decode(chunk, &ch, NULL) == 0 &&
-        (ch.flags & TVPAL_CHUNK_MISSING))
+    if (have && (ch.flags & TVPAL_CHUNK_MISSING))
         __atomic_store_n(&w->missing, 1, __ATOMIC_RELAXED);
     return 0;
 }
@@ -497,16 +514,95 @@ void tvpal_shardw_set_missing(struct tvpal_shardw *w, int missing)
     w->missing = missing != 0;
 }
 
-/* Writes every record header of a placed shard once all payloads are in,
- * and fills the index as appending would have. */
+/* Packs a per-chunk shard (table_format 4, 5), written with float32 room
+ * for every chunk, into the layout of FORMAT.md 6.3 where each chunk takes
+ * its own size (9.1).  In file order, each chunk's room is read and added
+ * to its record's CRC as written (checked against w->crc once the record
+ * is read), and the chunk is written at its packed place.  A packed place
+ * is never after the room it comes from, and a chunk ends no later than
+ * its room, so nothing is overwritten before it is read.  Sets the
+ * records' offsets, payloads and CRCs to the packed ones, w->end and
+ * w->packed.  0, TVPAL_E_NOMEM, TVPAL_E_READ, TVPAL_E_TRUNC,
+ * TVPAL_E_CHECKSUM or TVPAL_E_WRITE, named in diag. */
+static int placed_pack(struct tvpal_shardw *w, struct tvpal_diag *diag)
+{
+    static const unsigned char zero[TVPAL_ALIGN];
+    const struct tvpal_shard_header *h = &w->h;
+    unsigned char *buf = malloc(tvpal_chunk_bytes(h->window, h->slice_w,
+                                                  h->slice_h, h->table_format));
+    if (!buf)
+        return TVPAL_E_NOMEM;
+    int rc = 0;
+    uint64_t at = TVPAL_SHARD_HEADER_BYTES; /* record t's packed offset */
+    for (uint32_t t = 0; t < h->steps && rc == 0; t++) {
+        uint64_t src = w->rec_off[t] + TVPAL_RECORD_HEADER_BYTES, pay = 0;
+        uint32_t room_crc = 0, crc = 0;
+        for (uint32_t k = 0; k < h->slice_count && rc == 0; k++) {
+            const uint32_t s = h->slice_begin + k;
+            if (!tvpal_schedule_starts(s, t, h->window))
+                continue;
+            const uint64_t room = placed_chunk_bytes(w, s, t);
+            rc = pread_all(w->fd, buf, room, src);
+            if (rc < 0) {
+                tvpal_diag_set(diag, rc, "record %u: cannot read back the "
+                               "chunk of slice %u", t, s);
+                break;
+            }
+            room_crc = tvpal_crc32c(room_crc, buf, room);
+            /* The size from the schedule and the chunk's flag; a damaged
+             * room fails the CRC below. */
+            struct tvpal_chunk_header ch = {0};
+            (void)tvpal_chunk_header_decode(buf, &ch, NULL);
+            const uint64_t n = tvpal_chunk_bytes(
+                tvpal_schedule_len(s, t, h->window, h->steps), h->slice_w,
+                h->slice_h, tvpal_chunk_table_format(h->table_format,
+                                                     ch.flags));
+            rc = pwrite_all(w->fd, buf, n,
+                            at + TVPAL_RECORD_HEADER_BYTES + pay, diag);
+            crc = tvpal_crc32c(crc, buf, n);
+            pay += n;
+            src += room;
+        }
+        if (rc == 0 && room_crc != w->crc[t])
+            rc = tvpal_diag_set(diag, TVPAL_E_CHECKSUM, "record %u: the "
+                                "chunks read back do not have the CRC they "
+                                "were written with", t);
+        /* The padding held room of the chunks: zero it (no CRC covers
+         * it, and readers require zeros). */
+        const uint64_t used = TVPAL_RECORD_HEADER_BYTES + pay;
+        const uint64_t total = tvpal_round_up(used, TVPAL_ALIGN);
+        if (rc == 0 && total > used)
+            rc = pwrite_all(w->fd, zero, total - used, at + used, diag);
+        w->rec_off[t] = at;
+        w->payload[t] = w->filled[t] = pay;
+        w->crc[t] = crc;
+        at += total;
+    }
+    free(buf);
+    if (rc == 0) {
+        w->end = at;
+        w->packed = 1;
+    }
+    return rc;
+}
+
+/* Writes every record header of a placed shard once all payloads are in
+ * (a per-chunk shard packed first), and fills the index as appending
+ * would have. */
 static int placed_seal(struct tvpal_shardw *w, struct tvpal_diag *diag)
 {
-    for (uint32_t t = 0; t < w->h.steps; t++) {
+    for (uint32_t t = 0; t < w->h.steps; t++)
         if (w->filled[t] != w->payload[t])
             return tvpal_diag_set(diag, TVPAL_E_INVAL, "record %u: %llu of "
                                   "%llu payload bytes written", t,
                                   (unsigned long long)w->filled[t],
                                   (unsigned long long)w->payload[t]);
+    if (w->h.table_format >= TVPAL_TABLE_CHUNK) {
+        int rc = placed_pack(w, diag);
+        if (rc < 0)
+            return rc;
+    }
+    for (uint32_t t = 0; t < w->h.steps; t++) {
         struct tvpal_record_header rh = {
             .step = t, .chunk_count = w->count[t], .axis = w->h.axis,
             .payload_bytes = w->payload[t], .payload_crc = w->crc[t]};
@@ -567,10 +663,12 @@ static uint64_t record_min_bytes(const struct tvpal_shard_header *h,
         stride = h->window;
         s += (r + h->window - s % h->window) % h->window;
     }
+    /* In a per-chunk shard a chunk is at least a 16-bit one. */
+    const uint32_t tf = h->table_format >= TVPAL_TABLE_CHUNK ? TVPAL_TABLE_U16
+                                                             : h->table_format;
     for (; s < end; s += stride) {
         uint32_t len = tvpal_schedule_len(s, t, h->window, h->steps);
-        uint64_t cb = tvpal_chunk_bytes(len, h->slice_w, h->slice_h,
-                                        h->table_format);
+        uint64_t cb = tvpal_chunk_bytes(len, h->slice_w, h->slice_h, tf);
         if (cb > cap - need)
             return cap + 1;
         need += cb;
@@ -750,6 +848,55 @@ int tvpal_shard_read_record(struct tvpal_shard *s, uint32_t step,
         return tvpal_diag_set(diag, rc, "record %u: %s", step,
                               tvpal_strerror(rc));
     return tvpal_record_verify(buf, e->bytes, step, &s->h, diag);
+}
+
+int tvpal_shard_count_tables(struct tvpal_shard *s,
+                             struct tvpal_table_count *out,
+                             struct tvpal_diag *diag)
+{
+    const struct tvpal_shard_header *h = &s->h;
+    const int per_chunk = h->table_format >= TVPAL_TABLE_CHUNK;
+    *out = (struct tvpal_table_count){{0}, {0}};
+    for (uint32_t t = 0; t < h->steps; t++) {
+        const struct tvpal_index_entry *e = &s->index[t];
+        uint64_t pos = e->offset + TVPAL_RECORD_HEADER_BYTES;
+        const uint64_t end = e->offset + e->bytes;
+        for (uint32_t k = 0; k < h->slice_count; k++) {
+            const uint32_t sl = h->slice_begin + k;
+            if (!tvpal_schedule_starts(sl, t, h->window))
+                continue;
+            const uint32_t len = tvpal_schedule_len(sl, t, h->window,
+                                                    h->steps);
+            uint32_t tf = h->table_format;
+            if (per_chunk) {
+                unsigned char b[TVPAL_CHUNK_HEADER_BYTES];
+                struct tvpal_chunk_header ch;
+                int rc = end - pos < sizeof b ? TVPAL_E_FORMAT
+                                              : pread_all(s->fd, b, sizeof b,
+                                                          pos);
+                if (rc == 0 && (tvpal_chunk_header_decode(b, &ch, NULL) < 0 ||
+                                ch.slice != sl || ch.wlen != len ||
+                                ch.w != h->slice_w || ch.h != h->slice_h ||
+                                (ch.flags &
+                                 ~tvpal_chunk_flags_allowed(h->table_format))))
+                    rc = TVPAL_E_FORMAT;
+                if (rc < 0)
+                    return tvpal_diag_set(diag, rc, "record %u: no chunk "
+                                          "header of slice %u at byte %llu",
+                                          t, sl, (unsigned long long)pos);
+                tf = tvpal_chunk_table_format(h->table_format, ch.flags);
+                pos += tvpal_chunk_bytes(len, h->slice_w, h->slice_h, tf);
+                if (pos > end)
+                    return tvpal_diag_set(diag, TVPAL_E_FORMAT, "record %u: "
+                                          "the chunk of slice %u overruns "
+                                          "the record", t, sl);
+            }
+            const unsigned u = (tf & TVPAL_TABLE_U16) != 0;
+            out->chunks[u]++;
+            out->bytes[u] += (uint64_t)len * 256 * tvpal_table_entry_bytes(tf);
+        }
+    }
+    return 0;
 }
 
 /* -------------------------------------------------------------------- slab */

@@ -47,8 +47,10 @@ int tvpal_shardw_append(struct tvpal_shardw *w, const unsigned char *buf,
 
 /* Writes index and header (a placed writer: also every record header,
  * after checking that every record's payload was added in full, else
- * TVPAL_E_INVAL naming the record), fsyncs and closes; frees w whatever
- * the result.
+ * TVPAL_E_INVAL naming the record; a per-chunk shard is packed first,
+ * reading every chunk back, TVPAL_E_CHECKSUM when a record's bytes are no
+ * longer what was written), fsyncs and closes; frees w whatever the
+ * result.
  * When a chunk appended (or kept by resume) has TVPAL_CHUNK_MISSING, the
  * header's table_format gets TVPAL_TABLE_MISSING (FORMAT.md 6.7).
  * 0, TVPAL_E_INVAL (not every step appended), TVPAL_E_NOMEM or
@@ -80,10 +82,14 @@ int tvpal_shardw_reopen_placed(struct tvpal_shardw **out, const char *path,
                                struct tvpal_diag *diag);
 
 /* Writes the chunk of slice s in record t (bytes = tvpal_chunk_bytes of
- * its window) at its place and sets *crc to the chunk's CRC-32C.  Safe to
- * call from several threads at once for different chunks.  0,
- * TVPAL_E_INVAL (s has no window starting at t, or not in the slab; a size
- * other than its chunk's) or TVPAL_E_WRITE with the cause in diag. */
+ * its window with the shard's table_format) at its place and sets *crc to
+ * the chunk's CRC-32C.  In a per-chunk shard (table_format 4) that is the
+ * room of a float32 chunk: a 16-bit chunk (TVPAL_CHUNK_U16) comes first,
+ * followed by zeros, and finish packs it (FORMAT.md 9.1).  Safe to call
+ * from several threads at once for different chunks.  0, TVPAL_E_INVAL (s
+ * has no window starting at t, or not in the slab; a size other than its
+ * chunk's; chunk flags the shard's format does not take) or TVPAL_E_WRITE
+ * with the cause in diag. */
 int tvpal_shardw_put_chunk(struct tvpal_shardw *w, uint32_t t, uint32_t s,
                            const unsigned char *chunk, uint64_t bytes,
                            uint32_t *crc, struct tvpal_diag *diag);
@@ -137,6 +143,23 @@ uint64_t tvpal_shard_max_record(const struct tvpal_shard *s);
 int tvpal_shard_read_record(struct tvpal_shard *s, uint32_t step,
                             unsigned char *buf, uint64_t cap,
                             struct tvpal_diag *diag);
+
+/* The shard's chunks by the format of their decoder table, [0] float32
+ * and [1] 16-bit (FORMAT.md 6.7), and the bytes of those tables. */
+struct tvpal_table_count {
+    uint64_t chunks[2];
+    uint64_t bytes[2];
+};
+
+/* Counts what tables the chunks of s have.  For table_format 0..3 from the
+ * header alone; for a per-chunk shard (4, 5) from every chunk header (a
+ * 64-byte read each, walked from the start of each record; the records'
+ * CRCs are not checked, tvpal_shard_read_record does that).  0,
+ * TVPAL_E_READ, or TVPAL_E_FORMAT naming the record and slice whose chunk
+ * header is not where the layout puts it. */
+int tvpal_shard_count_tables(struct tvpal_shard *s,
+                             struct tvpal_table_count *out,
+                             struct tvpal_diag *diag);
 
 /* ---- decoding state of one slab ---- */
 /* Holds, for every slice of a shard, the window (decoder table + indices)

@@ -51,14 +51,15 @@ good_encode() {
     cp -r "$tmp/$name" "$O/$name"
 }
 # f32 tables, one node; N = 2 over T = 3 steps: a short first window
-# (odd slices: [0,1)) and a window cut at T (even slices: [2,3)).
-good good-1-basic blobs 4x3x2 3 --window 2
+# (odd slices: [0,1)) and a window cut at T (even slices: [2,3)).  --table
+# f32 is said since the default became auto (table_format 4).
+good good-1-basic blobs 4x3x2 3 --window 2 --table f32
 # 16-bit tables, two nodes; node 1 of axis z holds one slice (phase 0), so
 # its record 1 holds no chunk.
 good good-2-u16-nodes turbulence 4x3x3 3 --window 2 --nodes 2 --table u16
 # One axis (FORMAT.md 2.2): blobs 4x3x2, T = 3, N = 2, --axes z: node-0 has
 # axis-z.tvps only, the manifest format_version 3 and axes = z.
-good good-4-axis-z blobs 4x3x2 3 --window 2 --axes z
+good good-4-axis-z blobs 4x3x2 3 --window 2 --table f32 --axes z
 # Missing values, 16-bit tables (table_format 3): blobs 4x3x2, T = 3, N = 2,
 # voxel (1,1,0) missing at every step and voxel (2,0,1) at step 1 only.
 "$GEN" --field blobs --dims 4x3x2 --steps 3 -o "$tmp/in-good-3-missing" > /dev/null
@@ -74,6 +75,28 @@ for t, f in enumerate(sorted(glob.glob(sys.argv[1] + "/*.f32"))):
     open(f, "wb").write(b)
 PY
 good_encode good-3-missing 4x3x2 --window 2 --table u16
+# The table format per chunk (table_format 4, --table auto): 20x16x3, T = 3,
+# N = 2.  Slice z = 0 is smooth (coded with an error: 16-bit table), z = 1
+# holds the integers 0, 1, 2 (coded exactly, which a 16-bit table would
+# not be: float32), z = 2 is constant (exact in 16 bits too: 16-bit).
+mkdir -p "$tmp/in-good-5-auto"
+"$PY" - "$tmp/in-good-5-auto" <<'PY'
+import math, struct, sys
+nx, ny, nz = 20, 16, 3
+for t in range(3):
+    v = []
+    for z in range(nz):
+        for y in range(ny):
+            for x in range(nx):
+                if z == 0:
+                    v.append(10 * math.sin(0.3 * x + 0.5 * t) * math.cos(0.2 * y))
+                elif z == 1:
+                    v.append(float((x + y + t) % 3))
+                else:
+                    v.append(5.0)
+    open("%s/t%d.f32" % (sys.argv[1], t), "wb").write(struct.pack("<%df" % len(v), *v))
+PY
+good_encode good-5-auto 20x16x3 --window 2 --table auto
 
 # The bad files: each one copy of a good-1-basic file with one fault.
 "$PY" - "$O" <<'PY'
@@ -127,7 +150,7 @@ b = bytearray(shard); u32(b, 8, 2)             # CRC left stale on purpose
 write("bad-shard-version-2.tvps", b)
 b = bytearray(shard); b[2000] ^= 0x01          # a reserved byte
 write("bad-shard-header-crc.tvps", b)
-b = bytearray(shard); u32(b, 64, 4); seal_header(b)
+b = bytearray(shard); u32(b, 64, 6); seal_header(b)
 write("bad-shard-table-format.tvps", b)
 write("bad-shard-truncated.tvps", shard[:-4096])
 write("bad-shard-extra.tvps", shard + bytes(4096))
@@ -147,10 +170,40 @@ b = bytearray(shard); u32(b, rec(1) + 4, 2); seal_record(b, 1)
 write("bad-record-step.tvps", b)
 b = bytearray(shard); u32(b, rec(2) + 64 + 16, 5); seal_record(b, 2)
 write("bad-record-chunk.tvps", b)              # chunk w 5, slices are 4x3
+b = bytearray(shard); u32(b, rec(1) + 64 + 28, 4); seal_record(b, 1)
+write("bad-chunk-flag-reserved.tvps", b)       # flags bit 2: no meaning
 b = bytearray(shard)                           # dims 1x1x100000000:
 struct.pack_into("<3I", b, 16, 1, 1, 100000000)  # 10^8 slices of 1x1
 struct.pack_into("<4I", b, 48, 0, 100000000, 1, 1); seal_header(b)
 write("bad-shard-huge-dims.tvps", b)           # records hold 2 slices
+
+def load(path):
+    """Makes the shard at path the one rec() and seal_*() work on."""
+    global shard, idx
+    shard = bytearray(open(path, "rb").read())
+    idx = struct.unpack_from("<Q", shard, 72)[0]
+def chunks(t):
+    """Offsets of record t's chunks (walked by each one's own size)."""
+    r, tf = rec(t), struct.unpack_from("<I", shard, 64)[0]
+    n, pos, out = struct.unpack_from("<II", shard, r + 8)[0], r + 64, []
+    for _ in range(n):
+        wlen, w, h, flags = struct.unpack_from("<3I4xI", shard, pos + 12)
+        e = 2 if tf in (1, 3) or (tf >= 4 and flags & 2) else 4
+        out.append(pos)
+        pos += 64 + wlen * 256 * e + (w * h + 63) // 64 * 64
+    return out
+# Bad files planted in place of another good dataset's node-0/axis-z.tvps
+# (README.md: bad-u16-* in good-2-u16-nodes, bad-auto-* in good-5-auto).
+load(O + "/good-2-u16-nodes/node-0/axis-z.tvps")
+b = bytearray(shard); u32(b, chunks(1)[0] + 28, 2); seal_record(b, 1)
+write("bad-u16-chunk-flag.tvps", b)            # flags bit 1, table_format 1
+load(O + "/good-5-auto/node-0/axis-z.tvps")
+c = chunks(0)                                  # slices 0 (u16), 1 (f32), 2 (u16)
+assert [struct.unpack_from("<I", shard, o + 28)[0] for o in c] == [2, 0, 2]
+b = bytearray(shard); u32(b, c[2] + 28, 0); seal_record(b, 0)
+write("bad-auto-chunk-size.tvps", b)           # a 16-bit chunk said float32
+b = bytearray(shard); u32(b, c[0] + 28, 3); seal_record(b, 0)
+write("bad-auto-chunk-missing.tvps", b)        # missing flag, table_format 4
 
 # Manifests: good-1-basic's with one change each.
 text = open(base + "manifest.txt").read()
@@ -178,6 +231,7 @@ mwrite("bad-manifest-table.txt", edit("table", "f16"))
 mwrite("bad-manifest-nodes.txt", edit("nodes", "3"))
 mwrite("bad-manifest-window-mismatch.txt", edit("window", "3"))
 mwrite("bad-manifest-table-mismatch.txt", edit("table", "u16"))  # f32 shards
+mwrite("bad-manifest-table-auto.txt", edit("table", "auto"))  # f32 shards
 mwrite("bad-manifest-max-nan.txt", edit("value_max", "nan"))
 mwrite("bad-manifest-min-inf.txt", edit("value_min", "inf"))
 mwrite("bad-manifest-min-above-max.txt", edit("value_min", "2"))

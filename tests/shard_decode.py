@@ -1,0 +1,108 @@
+#!/usr/bin/env python3
+"""shard_decode: an independent reader of tvpal datasets for the tests,
+written from common/format/FORMAT.md alone (numpy, no tvpal code): it walks
+every record of a shard by the chunk headers, stores each chunk's decoder
+table as the chunk says it is stored (6.7: float32, or 16-bit decoded as
+float32(tmin + float32(q * tscale)); table_format 4 and 5 by the chunk's
+flags bit 1) and rebuilds the volume of every step.
+
+    shard_decode.py DATASET AXIS     prints, per step, the SHA-256 of the
+                                     decoded float32 volume (x fastest), as
+                                     tvpal-decode's output would hash
+
+As a module: chunks(dataset, axis) and volumes(dataset, axis).  Checks only
+what it needs to walk the records (no CRCs): the readers under test do the
+checking.
+"""
+import hashlib
+import struct
+import sys
+
+import numpy as np
+
+
+def manifest(ds):
+    m = {}
+    for line in open(ds + "/manifest.txt"):
+        if "=" in line and not line.lstrip().startswith("#"):
+            k, v = line.split("=", 1)
+            m[k.strip()] = v.strip()
+    nx, ny, nz = (int(v) for v in m["dims"].lower().split("x"))
+    return (nx, ny, nz), int(m["steps"]), int(m["window"]), int(m["nodes"])
+
+
+def entry_bytes(tf, flags):
+    """E of a chunk (FORMAT.md 6.5)."""
+    if tf in (1, 3) or (tf in (4, 5) and flags & 2):
+        return 2
+    return 4
+
+
+def chunks(ds, axis):
+    """Every chunk of the axis, in file order: dicts with slice, wstart,
+    wlen, flags, table_format (the shard's), u16 (bool), table (wlen x 256
+    float32) and idx (h x w uint8)."""
+    dims, steps, window, nodes = manifest(ds)
+    out = []
+    for r in range(nodes):
+        b = open("%s/node-%d/axis-%s.tvps" % (ds, r, "xyz"[axis]), "rb").read()
+        tf, = struct.unpack_from("<I", b, 64)
+        w, h = struct.unpack_from("<II", b, 56)
+        index, = struct.unpack_from("<Q", b, 72)
+        for t in range(steps):
+            off, _ = struct.unpack_from("<QQ", b, index + 32 * t)
+            count, = struct.unpack_from("<I", b, off + 8)
+            pos = off + 64
+            for _ in range(count):
+                s, ws, wl, cw, ch, used, flags = struct.unpack_from("<7I", b, pos + 4)
+                tmin, tscale = struct.unpack_from("<ff", b, pos + 48)
+                e = entry_bytes(tf, flags)
+                n = wl * 256
+                raw = b[pos + 64:pos + 64 + n * e]
+                if e == 4:
+                    table = np.frombuffer(raw, "<f4").astype(np.float32)
+                else:
+                    q = np.frombuffer(raw, "<u2")
+                    # Two roundings in binary32, never a fused multiply-add.
+                    p = q.astype(np.float32) * np.float32(tscale)
+                    table = (np.float32(tmin) + p).astype(np.float32)
+                    if tf in (3, 5) and flags & 1:
+                        table[q == 65535] = np.float32(np.nan)
+                ia = pos + 64 + n * e
+                idx = np.frombuffer(b[ia:ia + w * h], np.uint8).reshape(h, w)
+                out.append(dict(slice=s, wstart=ws, wlen=wl, flags=flags,
+                                table_format=tf, u16=(e == 2),
+                                table=table.reshape(wl, 256), idx=idx))
+                pos += 64 + n * e + (w * h + 63) // 64 * 64
+    return out
+
+
+def volumes(ds, axis):
+    """The decoded volume of every step (nz x ny x nx float32), in order."""
+    (nx, ny, nz), steps, window, nodes = manifest(ds)
+    by_start = {}
+    for c in chunks(ds, axis):
+        by_start.setdefault(c["wstart"], []).append(c)
+    current = {}
+    for t in range(steps):
+        # Record t's chunks begin the windows of their slices at t; every
+        # other slice keeps the window it has (FORMAT.md 7.2).
+        for c in by_start.get(t, []):
+            current[c["slice"]] = c
+        vol = np.zeros((nz, ny, nx), np.float32)
+        for s, c in current.items():
+            assert c["wstart"] <= t < c["wstart"] + c["wlen"], (s, t)
+            v = c["table"][t - c["wstart"]][c["idx"]]
+            if axis == 0:
+                vol[:, :, s] = v        # in-slice (y, z)
+            elif axis == 1:
+                vol[:, s, :] = v        # (x, z)
+            else:
+                vol[s] = v              # (x, y)
+        yield vol
+
+
+if __name__ == "__main__":
+    ds, axis = sys.argv[1], "xyz".index(sys.argv[2])
+    for t, vol in enumerate(volumes(ds, axis)):
+        print("%s  %d" % (hashlib.sha256(vol.astype("<f4").tobytes()).hexdigest(), t))
