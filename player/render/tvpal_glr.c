@@ -25,22 +25,27 @@ static const char *vs_src =
 /* Paletted-texture emulation: the four nearest texels (centres at
  * (i + 0.5) / size, clamped to the edge) are looked up in their palette
  * and the colours, not the indices, are interpolated.  One body, two
- * programs (compiled after "#define CROSS 0" or "1"):
+ * programs (compiled after "#define CROSS 0", "1" (y) or "2" (x): no
+ * branch per fetch, which llvmpipe would run both ways):
  *  - plain: v_layer is the slice's layer; texel p is (p, v_layer), looked
  *    up in palette row v_layer.
  *  - cross: v_layer is the view-axis slice s (x or y) and size its
- *    w x nz; texel (a, b) is (s, a) (x slices) or (a, s) (y slices) of
- *    the z slice b in layer b - rows.x + rows.z, looked up in that layer's
- *    palette row; b clamps to the rows held [rows.x, rows.y], so taps
+ *    w x nz; texel (a, b) is (a, s) of the z slice b in layer b - rows.x
+ *    + rows.z (y slices), or (a, b - rows.x) of layer s of the transposed
+ *    copy xt (x slices: texel (s, a) of z slice b, cut on the CPU, since
+ *    a column of a z layer is a row apart per texel), looked up in z slice
+ *    b's palette row; b clamps to the rows held [rows.x, rows.y], so taps
  *    never reach a row the frame does not hold. */
 static const char *fs_version = "#version 330 core\n";
 static const char *fs_src =
     "uniform usampler2DArray idx;\n"
+    "#if CROSS == 2\n"
+    "uniform usampler2DArray xt;         // x slices: [s] rows x ny\n"
+    "#endif\n"
     "uniform sampler2D pal;              // 256 x layers, RGBA32F\n"
     "uniform ivec2 size;\n"
     "#if CROSS\n"
     "uniform ivec3 rows;                 // first, last row held; its layer\n"
-    "uniform int xslices;                // 1: x slices, 0: y slices\n"
     "#endif\n"
     "in vec2 v_uv;\n"
     "flat in int v_layer;\n"
@@ -49,8 +54,11 @@ static const char *fs_src =
     "#if CROSS\n"
     "    p = clamp(p, ivec2(0, rows.x), ivec2(size.x - 1, rows.y));\n"
     "    int l = p.y - rows.x + rows.z;\n"
-    "    ivec2 q = xslices != 0 ? ivec2(v_layer, p.x) : ivec2(p.x, v_layer);\n"
-    "    uint i = texelFetch(idx, ivec3(q, l), 0).r;\n"
+    "#if CROSS == 2\n"
+    "    uint i = texelFetch(xt, ivec3(p.x, p.y - rows.x, v_layer), 0).r;\n"
+    "#else\n"
+    "    uint i = texelFetch(idx, ivec3(p.x, v_layer, l), 0).r;\n"
+    "#endif\n"
     "    return texelFetch(pal, ivec2(int(i), l), 0);\n"
     "#else\n"
     "    p = clamp(p, ivec2(0), size - 1);\n"
@@ -70,14 +78,25 @@ static const char *fs_src =
 
 struct tvpal_glr {
     unsigned width, height;
-    GLuint prog, prog_cross, vao, vbo, fbo, rbo, tex_idx, tex_pal;
-    GLint u_size, u_size_cross, u_rows, u_xslices;
+    GLuint prog, prog_cross[2], vao, vbo, fbo, rbo, tex_idx, tex_pal, tex_xt;
+    GLint u_size, u_size_cross[2], u_rows[2];   /* cross: [0] x, [1] y */
     uint32_t w, h, count;
     float *verts;            /* quad_cap * 6 * 5 */
     size_t quad_cap;
     float *pal;              /* count * 256 * 4 */
     uint64_t uploads;
     double t_upload, t_draw, t_read;
+    /* The transposed copy of x slices (cross frames along x): xt on the
+     * CPU, [s][k][a] = texel (s, a) of row k, ny x rows per slice, and in
+     * tex_xt; row k was cut from layer xt_layer[k] at its generation
+     * xt_gen[k] (0: nothing), compared with ugen (bumped per upload), so
+     * only the rows whose window changed are cut and uploaded again. */
+    uint32_t *ugen;          /* count */
+    uint8_t *xt;
+    size_t xt_cap;
+    uint32_t *xt_gen, *xt_layer;
+    uint32_t xt_rows, xt_rows_cap, xt_n, xt_w;
+    uint32_t *xt_todo;
 };
 
 static int compile(GLenum type, GLsizei n, const char *const *src,
@@ -98,13 +117,15 @@ static int compile(GLenum type, GLsizei n, const char *const *src,
     return 0;
 }
 
-/* The program of fs_src compiled with CROSS = cross, its samplers bound to
+/* The program of fs_src compiled with CROSS = cross (0 plain, 1 y, 2 x
+ * slices), its samplers bound to
  * units 0 (idx) and 1 (pal).  Once created, *out is the caller's to delete,
  * failed link or not. */
 static int link_program(int cross, GLuint *out, struct tvpal_diag *diag)
 {
     const char *fs[3] = {fs_version,
-                         cross ? "#define CROSS 1\n" : "#define CROSS 0\n",
+                         cross == 2 ? "#define CROSS 2\n"
+                         : cross ? "#define CROSS 1\n" : "#define CROSS 0\n",
                          fs_src};
     GLuint vs = 0, f = 0;
     int rc = compile(GL_VERTEX_SHADER, 1, &vs_src, &vs, diag);
@@ -131,6 +152,8 @@ static int link_program(int cross, GLuint *out, struct tvpal_diag *diag)
     glUseProgram(prog);
     glUniform1i(glGetUniformLocation(prog, "idx"), 0);
     glUniform1i(glGetUniformLocation(prog, "pal"), 1);
+    if (cross == 2)
+        glUniform1i(glGetUniformLocation(prog, "xt"), 2);
     return 0;
 }
 
@@ -159,13 +182,14 @@ int tvpal_glr_create_fb(struct tvpal_glr **out, unsigned width,
     int rc = link_program(0, &r->prog, diag);
     if (rc < 0)
         goto err;
-    rc = link_program(1, &r->prog_cross, diag);
-    if (rc < 0)
-        goto err;
+    for (int a = 0; a < 2; a++) {
+        rc = link_program(a == 0 ? 2 : 1, &r->prog_cross[a], diag);
+        if (rc < 0)
+            goto err;
+        r->u_size_cross[a] = glGetUniformLocation(r->prog_cross[a], "size");
+        r->u_rows[a] = glGetUniformLocation(r->prog_cross[a], "rows");
+    }
     r->u_size = glGetUniformLocation(r->prog, "size");
-    r->u_size_cross = glGetUniformLocation(r->prog_cross, "size");
-    r->u_rows = glGetUniformLocation(r->prog_cross, "rows");
-    r->u_xslices = glGetUniformLocation(r->prog_cross, "xslices");
 
     glGenVertexArrays(1, &r->vao);
     glBindVertexArray(r->vao);
@@ -201,6 +225,7 @@ int tvpal_glr_create_fb(struct tvpal_glr **out, unsigned width,
     }
     glGenTextures(1, &r->tex_idx);
     glGenTextures(1, &r->tex_pal);
+    glGenTextures(1, &r->tex_xt);
     glViewport(0, 0, (GLsizei)width, (GLsizei)height);
     glEnable(GL_BLEND);
     glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA); /* premultiplied "over" */
@@ -225,6 +250,13 @@ void tvpal_glr_free(struct tvpal_glr *r)
         glDeleteTextures(1, &r->tex_idx);
     if (r->tex_pal)
         glDeleteTextures(1, &r->tex_pal);
+    if (r->tex_xt)
+        glDeleteTextures(1, &r->tex_xt);
+    free(r->ugen);
+    free(r->xt);
+    free(r->xt_gen);
+    free(r->xt_layer);
+    free(r->xt_todo);
     if (r->rbo)
         glDeleteRenderbuffers(1, &r->rbo);
     if (r->fbo)
@@ -235,8 +267,9 @@ void tvpal_glr_free(struct tvpal_glr *r)
         glDeleteVertexArrays(1, &r->vao);
     if (r->prog)
         glDeleteProgram(r->prog);
-    if (r->prog_cross)
-        glDeleteProgram(r->prog_cross);
+    for (int a = 0; a < 2; a++)
+        if (r->prog_cross[a])
+            glDeleteProgram(r->prog_cross[a]);
     free(r->verts);
     free(r->pal);
     free(r);
@@ -268,8 +301,14 @@ int tvpal_glr_set_slices(struct tvpal_glr *r, uint32_t w, uint32_t h,
     float *p = realloc(r->pal, sizeof(float) * 1024 * count);
     if (p)
         r->pal = p;
-    if (!p || reserve_quads(r, count) < 0)
+    uint32_t *g = realloc(r->ugen, sizeof *g * (count ? count : 1));
+    if (g)
+        r->ugen = g;
+    if (!p || !g || reserve_quads(r, count) < 0)
         return TVPAL_E_NOMEM;
+    for (uint32_t i = 0; i < count; i++)
+        r->ugen[i] = 1;
+    r->xt_rows = 0;   /* the transposed copy is cut again */
     r->w = w;
     r->h = h;
     r->count = count;
@@ -299,6 +338,8 @@ void tvpal_glr_upload(struct tvpal_glr *r, uint32_t layer, const uint8_t *idx)
     glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, (GLint)layer, (GLsizei)r->w,
                     (GLsizei)r->h, 1, GL_RED_INTEGER, GL_UNSIGNED_BYTE, idx);
     r->uploads++;
+    if (layer < r->count && ++r->ugen[layer] == 0)
+        r->ugen[layer] = 1;   /* 0 means "nothing cut" */
 }
 
 /* Two triangles of the quad with eye-space corners c[0..3] ((0,0), (1,0),
@@ -410,6 +451,94 @@ static int cross_quads(struct tvpal_glr *r, const struct tvpal_frame *f,
     return 0;
 }
 
+/* The transposed copy for a cross frame along x: (re)allocated when the
+ * frame's rows or slices change shape, then the rows whose layer or
+ * generation changed are cut on the CPU and uploaded, one
+ * glTexSubImage3D per row (ny x 1 x nx texels, strided in xt): steady
+ * playback uploads the 1/N of the rows whose windows changed. */
+static int update_xt(struct tvpal_glr *r, const struct tvpal_frame *f,
+                     struct tvpal_diag *diag)
+{
+    const uint32_t rows = f->count, nx = f->w, ny = f->h;
+    glActiveTexture(GL_TEXTURE2);
+    glBindTexture(GL_TEXTURE_2D_ARRAY, r->tex_xt);
+    if (r->xt_rows != rows || r->xt_n != nx || r->xt_w != ny) {
+        const size_t bytes = (size_t)nx * ny * rows;
+        if (bytes > r->xt_cap) {
+            uint8_t *b = realloc(r->xt, bytes);
+            if (!b)
+                return tvpal_diag_set(diag, TVPAL_E_NOMEM, "transposed x "
+                                      "slices (%zu bytes)", bytes);
+            r->xt = b;
+            r->xt_cap = bytes;
+        }
+        if (rows > r->xt_rows_cap) {
+            uint32_t *g = realloc(r->xt_gen, sizeof *g * rows);
+            if (g)
+                r->xt_gen = g;
+            uint32_t *l = g ? realloc(r->xt_layer, sizeof *l * rows) : NULL;
+            if (l)
+                r->xt_layer = l;
+            uint32_t *t = l ? realloc(r->xt_todo, sizeof *t * rows) : NULL;
+            if (t)
+                r->xt_todo = t;
+            if (!t)
+                return tvpal_diag_set(diag, TVPAL_E_NOMEM, "transposed x "
+                                      "slices");
+            r->xt_rows_cap = rows;
+        }
+        memset(r->xt_gen, 0, sizeof *r->xt_gen * rows);
+        glTexImage3D(GL_TEXTURE_2D_ARRAY, 0, GL_R8UI, (GLsizei)ny,
+                     (GLsizei)rows, (GLsizei)nx, 0, GL_RED_INTEGER,
+                     GL_UNSIGNED_BYTE, NULL);
+        glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+        glTexParameteri(GL_TEXTURE_2D_ARRAY, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+        r->xt_rows = rows;
+        r->xt_n = nx;
+        r->xt_w = ny;
+    }
+    int ntodo = 0;
+    for (uint32_t k = 0; k < rows; k++) {
+        const uint32_t layer = f->sl[k].layer;
+        if (r->xt_gen[k] != r->ugen[layer] || r->xt_layer[k] != layer)
+            r->xt_todo[ntodo++] = k;
+    }
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 2)
+#endif
+    for (int m = 0; m < ntodo; m++) {
+        const uint32_t k = r->xt_todo[m];
+        const uint8_t *idx = f->sl[k].idx;
+        enum { B = 16 };   /* blocked transpose: row k of every slice s */
+        for (uint32_t s0 = 0; s0 < nx; s0 += B)
+            for (uint32_t a0 = 0; a0 < ny; a0 += B) {
+                const uint32_t s1 = s0 + B < nx ? s0 + B : nx;
+                const uint32_t a1 = a0 + B < ny ? a0 + B : ny;
+                for (uint32_t s = s0; s < s1; s++) {
+                    uint8_t *dst = r->xt + ((size_t)s * rows + k) * ny;
+                    for (uint32_t a = a0; a < a1; a++)
+                        dst[a] = idx[s + (size_t)nx * a];
+                }
+            }
+    }
+    glPixelStorei(GL_UNPACK_ROW_LENGTH, (GLint)ny);
+    glPixelStorei(GL_UNPACK_IMAGE_HEIGHT, (GLint)rows);
+    for (int m = 0; m < ntodo; m++) {
+        const uint32_t k = r->xt_todo[m];
+        glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, (GLint)k, 0, (GLsizei)ny, 1,
+                        (GLsizei)nx, GL_RED_INTEGER, GL_UNSIGNED_BYTE,
+                        r->xt + (size_t)k * ny);
+        r->xt_layer[k] = f->sl[k].layer;
+        r->xt_gen[k] = r->ugen[f->sl[k].layer];
+    }
+    glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
+    glPixelStorei(GL_UNPACK_IMAGE_HEIGHT, 0);
+    if (glGetError() != GL_NO_ERROR)
+        return tvpal_diag_set(diag, TVPAL_E_SYS, "cannot upload the transposed "
+                              "x slices (%ux%ux%u)", ny, rows, nx);
+    return 0;
+}
+
 int tvpal_glr_draw(struct tvpal_glr *r, const struct tvpal_frame *f,
                    float *rgba, struct tvpal_diag *diag)
 {
@@ -417,6 +546,8 @@ int tvpal_glr_draw(struct tvpal_glr *r, const struct tvpal_frame *f,
     uint32_t nq = 0;
     if (f->cross) {
         int rc = cross_quads(r, f, &nq, diag);
+        if (rc == 0 && f->view->axis == 0 && f->count)
+            rc = update_xt(r, f, diag);
         if (rc < 0)
             return rc;
     } else {
@@ -428,11 +559,11 @@ int tvpal_glr_draw(struct tvpal_glr *r, const struct tvpal_frame *f,
         uint32_t w, h, n;
         tvpal_frame_cross_geometry(f, &w, &h, &n);
         const GLint z0 = f->count ? (GLint)f->sl[0].slice : 0;
-        glUseProgram(r->prog_cross);
-        glUniform2i(r->u_size_cross, (GLint)w, (GLint)h);
-        glUniform3i(r->u_rows, z0, z0 + (GLint)f->count - 1,
+        const int a = f->view->axis == 0 ? 0 : 1;
+        glUseProgram(r->prog_cross[a]);
+        glUniform2i(r->u_size_cross[a], (GLint)w, (GLint)h);
+        glUniform3i(r->u_rows[a], z0, z0 + (GLint)f->count - 1,
                     f->count ? (GLint)f->sl[0].layer : 0);
-        glUniform1i(r->u_xslices, f->view->axis == 0);
     } else {
         glUseProgram(r->prog);
         glUniform2i(r->u_size, (GLint)r->w, (GLint)r->h);
@@ -440,6 +571,8 @@ int tvpal_glr_draw(struct tvpal_glr *r, const struct tvpal_frame *f,
     glBindVertexArray(r->vao);
     glActiveTexture(GL_TEXTURE0);
     glBindTexture(GL_TEXTURE_2D_ARRAY, r->tex_idx);
+    glActiveTexture(GL_TEXTURE2);
+    glBindTexture(GL_TEXTURE_2D_ARRAY, r->tex_xt);
     glActiveTexture(GL_TEXTURE1);
     glBindTexture(GL_TEXTURE_2D, r->tex_pal);
     glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, 256, (GLsizei)r->count, GL_RGBA,
