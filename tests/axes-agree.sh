@@ -6,7 +6,7 @@
 CHK=$TVPAL_BUILDDIR/tests/tvpal-check
 D=32x28x24
 "$GEN" --field blobs --dims $D --steps 8 -o "$W/in" || fail gen
-"$ENC" -q --dims $D --window 4 -o "$W/ds" "$W"/in/*.f32 > /dev/null || fail encode
+"$ENC" --axes xyz -q --dims $D --window 4 -o "$W/ds" "$W"/in/*.f32 > /dev/null || fail encode
 for t in 0 3 7; do
     ref=$(printf '%s/in/blobs_t%04d.f32' "$W" $t)
     for a in x y z; do

@@ -35,7 +35,7 @@ TF=$TVPAL_SRCDIR/samples/tf/warm.tf
 "$GEN" --field blobs --dims $D --steps 3 -o "$W/in" || fail gen
 VIEWS="0,0 180,0 90,0 -90,0 0,90 0,-90 30,40"
 for K in 1 2 3 4 5 8; do
-    "$ENC" -q --dims $D --window 2 --nodes $K -o "$W/k$K" "$W"/in/*.f32 > /dev/null || fail "encode K=$K"
+    "$ENC" --axes xyz -q --dims $D --window 2 --nodes $K -o "$W/k$K" "$W"/in/*.f32 > /dev/null || fail "encode K=$K"
 done
 for view in $VIEWS; do
     "$PLAY" "$W/k1" --headless -q $GLR --size 64x56 --rotate $view --tf "$TF" -o "$W/ref-$view" > /dev/null \

@@ -5,7 +5,7 @@
 . "$(dirname "$0")/lib.sh"
 D=20x16x12
 "$GEN" --field turbulence --dims $D --steps 9 -o "$W/in" || fail gen
-"$ENC" -q --dims $D --window 4 -o "$W/good" "$W"/in/*.f32 > /dev/null || fail encode
+"$ENC" --axes xyz -q --dims $D --window 4 -o "$W/good" "$W"/in/*.f32 > /dev/null || fail encode
 "$INFO" "$W/good" --verify > /dev/null && ok "clean dataset verifies" || fail "clean verify"
 fresh() { rm -rf "$W/ds"; cp -r "$W/good" "$W/ds"; }
 # Byte offset of record 5 of node-0/axis-y from the index (entry 5).

@@ -19,7 +19,7 @@ passes_of() { sed -n 's/.*passes=\([0-9]*\).*/\1/p' "$1"; }
 # accepts for ARGS (from its refusal of 1M), well under one pass's ring
 # (MARGIN MiB over, default 3).
 tight() {
-    m=$("$ENC" -j 1 --mem-limit 1M "$@" -o "$W/none" 2>&1 | sed -n 's/.*give --mem-limit \([0-9]*\)K.*/\1/p')
+    m=$("$ENC" --axes xyz -j 1 --mem-limit 1M "$@" -o "$W/none" 2>&1 | sed -n 's/.*give --mem-limit \([0-9]*\)K.*/\1/p')
     echo "$((m + ${MARGIN:-3} * 1024))K"
 }
 
@@ -28,8 +28,8 @@ tight() {
 limited() {
     name=$1; shift
     lim=$(tight "$@")
-    "$ENC" -q "$@" -o "$W/$name.ref" > /dev/null || { fail "$name: unlimited encode"; return; }
-    "$CHECK" peakrss "$ENC" -j 1 --mem-limit "$lim" "$@" -o "$W/$name" \
+    "$ENC" --axes xyz -q "$@" -o "$W/$name.ref" > /dev/null || { fail "$name: unlimited encode"; return; }
+    "$CHECK" peakrss "$ENC" --axes xyz -j 1 --mem-limit "$lim" "$@" -o "$W/$name" \
         > "$W/$name.out" 2> "$W/$name.err" || { fail "$name: limited encode: $(cat "$W/$name.err")"; return; }
     p=$(passes_of "$W/$name.out")
     kb=$(sed -n 's/^maxrss_kb=//p' "$W/$name.err")
@@ -72,8 +72,8 @@ if command -v ncgen > /dev/null 2>&1; then
         echo " ; }"
     } > "$W/box.cdl"
     ncgen -o "$W/box.nc" "$W/box.cdl" || fail ncgen
-    "$ENC" -q --window 4 -o "$W/nc.ref" "$W/box.nc" > /dev/null || fail "nc ref"
-    "$ENC" -q -j 1 --window 4 --mem-limit "$(MARGIN=1 tight --window 4 "$W/box.nc")" \
+    "$ENC" --axes xyz -q --window 4 -o "$W/nc.ref" "$W/box.nc" > /dev/null || fail "nc ref"
+    "$ENC" --axes xyz -q -j 1 --window 4 --mem-limit "$(MARGIN=1 tight --window 4 "$W/box.nc")" \
         -o "$W/nc" "$W/box.nc" > "$W/nc.out" || fail "nc limited"
     diff -r "$W/nc.ref" "$W/nc" > /dev/null && [ "$(passes_of "$W/nc.out")" -gt 3 ] \
         && ok "NetCDF: $(passes_of "$W/nc.out") passes, output identical" \
@@ -84,7 +84,7 @@ fi
 
 # --dry-run: the plan of a 2048^3 series (sparse files), nothing written.
 for k in 0 1 2 3; do truncate -s $((2048 * 2048 * 2048 * 4)) "$W/sparse$k.f32"; done
-"$ENC" --dry-run -j 2 --mem-limit 16G --dims 2048x2048x2048 --window 4 -o "$W/big" \
+"$ENC" --axes xyz --dry-run -j 2 --mem-limit 16G --dims 2048x2048x2048 --window 4 -o "$W/big" \
     "$W"/sparse?.f32 > "$W/plan.out" 2> "$W/plan.err" || fail "dry run: $(cat "$W/plan.err")"
 grep -q "^plan .*: passes=[0-9]* passes_x=[0-9]* .*read_factor=" "$W/plan.out" \
     && [ ! -e "$W/big" ] && [ ! -e "$W/big.partial" ] \
@@ -94,31 +94,31 @@ rm -f "$W"/sparse?.f32
 
 # Too small: refused before anything is read or written.
 expect_exit 2 "too small .* give --mem-limit [0-9]*K or more" \
-    "$ENC" -j 1 --mem-limit 1M --dims $D -o "$W/tiny" "$W"/in/*.f32
+    "$ENC" --axes xyz -j 1 --mem-limit 1M --dims $D -o "$W/tiny" "$W"/in/*.f32
 [ ! -e "$W/tiny" ] && [ ! -e "$W/tiny.partial" ] && ok "nothing written when refused" \
     || fail "refused encode left output"
-expect_exit 2 "mem-limit" "$ENC" --mem-limit 12Q --dims $D -o "$W/bad" "$W"/in/*.f32
+expect_exit 2 "mem-limit" "$ENC" --axes xyz --mem-limit 12Q --dims $D -o "$W/bad" "$W"/in/*.f32
 
 # Interrupted in the middle of a later pass, then resumed.
 L4=$(tight --dims $D --window 4 "$W"/in/*.f32)
-TVPAL_ENCODE_FAULT_AFTER=30 "$ENC" -q -j 1 --mem-limit $L4 --dims $D --window 4 \
+TVPAL_ENCODE_FAULT_AFTER=30 "$ENC" --axes xyz -q -j 1 --mem-limit $L4 --dims $D --window 4 \
     -o "$W/res" "$W"/in/*.f32 > /dev/null 2>&1
 [ -d "$W/res.partial" ] && [ ! -e "$W/res" ] || fail "interrupted pass left $(ls -d "$W"/res*)"
-"$ENC" -j 1 --mem-limit $L4 --dims $D --window 4 -o "$W/res" "$W"/in/*.f32 \
+"$ENC" --axes xyz -j 1 --mem-limit $L4 --dims $D --window 4 -o "$W/res" "$W"/in/*.f32 \
     > /dev/null 2> "$W/res.err" || fail "resume: $(cat "$W/res.err")"
 grep -q "resuming .* at pass [2-9]" "$W/res.err" && diff -r "$W/n4.ref" "$W/res" > /dev/null \
     && ok "interrupted multi-pass encode resumed to the same bytes" \
     || fail "multi-pass resume: $(cat "$W/res.err")"
 # Another limit is another plan: the partial output is started over.
-TVPAL_ENCODE_FAULT_AFTER=15 "$ENC" -q -j 1 --mem-limit $L4 --dims $D --window 4 \
+TVPAL_ENCODE_FAULT_AFTER=15 "$ENC" --axes xyz -q -j 1 --mem-limit $L4 --dims $D --window 4 \
     -o "$W/res2" "$W"/in/*.f32 > /dev/null 2>&1
-"$ENC" -j 1 --dims $D --window 4 -o "$W/res2" "$W"/in/*.f32 > /dev/null 2> "$W/res2.err" \
+"$ENC" --axes xyz -j 1 --dims $D --window 4 -o "$W/res2" "$W"/in/*.f32 > /dev/null 2> "$W/res2.err" \
     && ! grep -q resuming "$W/res2.err" && diff -r "$W/n4.ref" "$W/res2" > /dev/null \
     && ok "a partial output of another plan is started over" \
     || fail "plan change: $(cat "$W/res2.err")"
 
 # Progress within a step: one step of one window, lines every 10 ms.
-TVPAL_PROGRESS_INTERVAL=0.01 "$ENC" -j 1 --dims $D --window 1 -o "$W/prog" \
+TVPAL_PROGRESS_INTERVAL=0.01 "$ENC" --axes xyz -j 1 --dims $D --window 1 -o "$W/prog" \
     "$W/in/turbulence_t0000.f32" > /dev/null 2> "$W/prog.err" || fail "progress encode"
 n=$(grep -c " 0/1 steps .* Mvox-steps/s" "$W/prog.err")
 [ "$n" -ge 1 ] && grep -q "100%  1/1 steps" "$W/prog.err" \

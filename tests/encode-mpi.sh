@@ -9,8 +9,8 @@
 # --nodes is refused.
 . "$(dirname "$0")/lib.sh"
 command -v mpirun > /dev/null || { echo "no mpirun (scripts/setup-deps installs openmpi-bin)"; exit 99; }
-"$ENC" --version | grep -q "mpi: yes" || { echo "built without MPI: skipped (an MPI launch is refused)"; \
-    TVPAL_COMM=mpi "$ENC" --dims 2x2x2 -o "$W/x" /dev/null > /dev/null 2> "$W/nompi.txt"; \
+"$ENC" --axes xyz --version | grep -q "mpi: yes" || { echo "built without MPI: skipped (an MPI launch is refused)"; \
+    TVPAL_COMM=mpi "$ENC" --axes xyz --dims 2x2x2 -o "$W/x" /dev/null > /dev/null 2> "$W/nompi.txt"; \
     grep -q "libopenmpi-dev" "$W/nompi.txt" && exit 77; cat "$W/nompi.txt"; exit 1; }
 MPI="timeout 120 mpirun --allow-run-as-root --oversubscribe"
 export OMPI_MCA_rmaps_base_oversubscribe=1
@@ -19,8 +19,8 @@ D=40x34x30
 IN="$W/in/*.f32"
 
 for K in 1 2 3; do
-    "$ENC" -q --dims $D --window 4 --nodes $K -o "$W/ref$K" $IN > /dev/null || fail "reference K=$K"
-    $MPI -np $K "$ENC" -q --dims $D --window 4 --nodes $K -o "$W/mpi$K" $IN \
+    "$ENC" --axes xyz -q --dims $D --window 4 --nodes $K -o "$W/ref$K" $IN > /dev/null || fail "reference K=$K"
+    $MPI -np $K "$ENC" --axes xyz -q --dims $D --window 4 --nodes $K -o "$W/mpi$K" $IN \
         > "$W/mpi$K.out" 2> "$W/mpi$K.err" || fail "mpirun -np $K: $(cat "$W/mpi$K.err")"
     diff -r "$W/ref$K" "$W/mpi$K" > /dev/null && ok "K=$K: MPI output byte-identical" \
         || fail "K=$K: MPI output differs"
@@ -30,7 +30,7 @@ grep -q "nodes=3 .*threads=" "$W/mpi3.out" && [ "$(wc -l < "$W/mpi3.out")" -eq 1
 
 # Node-local directories: node r's files in PATTERN(r), OUTDIR holds the
 # manifest.
-$MPI -np 2 "$ENC" -q --dims $D --window 4 --nodes 2 --shard-dir "$W/local%r/ds" \
+$MPI -np 2 "$ENC" --axes xyz -q --dims $D --window 4 --nodes 2 --shard-dir "$W/local%r/ds" \
     -o "$W/sd" $IN > /dev/null 2> "$W/sd.err" || fail "--shard-dir: $(cat "$W/sd.err")"
 diff "$W/ref2/manifest.txt" "$W/sd/manifest.txt" > /dev/null \
     && diff -r "$W/ref2/node-0" "$W/local0/ds" > /dev/null \
@@ -40,27 +40,27 @@ diff "$W/ref2/manifest.txt" "$W/sd/manifest.txt" > /dev/null \
     || fail "--shard-dir output: $(ls -R "$W/sd" "$W/local0")"
 
 # Under a memory limit each rank makes several passes over its slabs.
-m=$($MPI -np 2 "$ENC" -j 1 --mem-limit 1M --dims $D --window 8 --nodes 2 -o "$W/none" $IN 2>&1 \
+m=$($MPI -np 2 "$ENC" --axes xyz -j 1 --mem-limit 1M --dims $D --window 8 --nodes 2 -o "$W/none" $IN 2>&1 \
     | sed -n 's/.*give --mem-limit \([0-9]*\)K.*/\1/p' | head -1)
 [ -n "$m" ] && [ ! -e "$W/none" ] && [ ! -e "$W/none.partial/node-1/axis-x.tvps" ] \
     && ok "too small a limit refused by rank 0 before any work" || fail "MPI refusal"
-$MPI -np 2 "$ENC" -j 1 --mem-limit $((m + 300))K --dims $D --window 8 --nodes 2 -o "$W/lim" $IN \
+$MPI -np 2 "$ENC" --axes xyz -j 1 --mem-limit $((m + 300))K --dims $D --window 8 --nodes 2 -o "$W/lim" $IN \
     > "$W/lim.out" 2> "$W/lim.err" || fail "limited: $(cat "$W/lim.err")"
-"$ENC" -q --dims $D --window 8 --nodes 2 -o "$W/ref8" $IN > /dev/null
+"$ENC" --axes xyz -q --dims $D --window 8 --nodes 2 -o "$W/ref8" $IN > /dev/null
 p=$(sed -n 's/.*passes=\([0-9]*\).*/\1/p' "$W/lim.out")
 diff -r "$W/ref8" "$W/lim" > /dev/null && [ "${p:-0}" -gt 3 ] \
     && ok "memory-limited MPI encode: $p passes on rank 0, byte-identical" \
     || fail "memory-limited MPI encode (passes ${p:-?})"
 
 # kill -9 of rank 1 after 7 steps: nothing valid; the rerun completes.
-TVPAL_ENCODE_FAULT_AFTER=7 TVPAL_ENCODE_FAULT_RANK=1 $MPI -np 3 "$ENC" -q --dims $D \
+TVPAL_ENCODE_FAULT_AFTER=7 TVPAL_ENCODE_FAULT_RANK=1 $MPI -np 3 "$ENC" --axes xyz -q --dims $D \
     --window 4 --nodes 3 -o "$W/kill" $IN > /dev/null 2>&1
 rc=$?
 [ $rc -ne 0 ] && [ $rc -ne 124 ] && [ ! -e "$W/kill" ] && [ ! -e "$W/kill.partial/manifest.txt" ] \
     && [ ! -e "$W/kill.partial/node-0/manifest.txt" ] \
     && ok "a rank killed: job ended ($rc), nothing that looks valid" \
     || fail "after kill -9 of a rank: rc $rc, $(ls -R "$W/kill"* | head)"
-$MPI -np 3 "$ENC" --dims $D --window 4 --nodes 3 -o "$W/kill" $IN > /dev/null 2> "$W/kill.err" \
+$MPI -np 3 "$ENC" --axes xyz --dims $D --window 4 --nodes 3 -o "$W/kill" $IN > /dev/null 2> "$W/kill.err" \
     || fail "rerun after kill: $(cat "$W/kill.err")"
 grep -q "resuming" "$W/kill.err" && diff -r "$W/ref3" "$W/kill" > /dev/null \
     && ok "rerun resumed every rank, output byte-identical" \
@@ -68,17 +68,17 @@ grep -q "resuming" "$W/kill.err" && diff -r "$W/ref3" "$W/kill" > /dev/null \
 
 # A rank that fails: rank 0 reports it, every rank ends, the rerun resumes.
 TVPAL_ENCODE_FAULT_AFTER=5 TVPAL_ENCODE_FAULT_RANK=2 TVPAL_ENCODE_FAULT=fail \
-    $MPI -np 3 "$ENC" -q --dims $D --window 4 --nodes 3 -o "$W/fail" $IN > /dev/null 2> "$W/fail.err"
+    $MPI -np 3 "$ENC" --axes xyz -q --dims $D --window 4 --nodes 3 -o "$W/fail" $IN > /dev/null 2> "$W/fail.err"
 rc=$?
 [ $rc -eq 1 ] && grep -q "^tvpal-encode: rank 2: test fault after 5 steps" "$W/fail.err" \
     && [ ! -e "$W/fail" ] && ok "a failing rank: exit 1, rank 0 names it" \
     || fail "failing rank: rc $rc: $(cat "$W/fail.err")"
-$MPI -np 3 "$ENC" -q --dims $D --window 4 --nodes 3 -o "$W/fail" $IN > /dev/null 2>&1 \
+$MPI -np 3 "$ENC" --axes xyz -q --dims $D --window 4 --nodes 3 -o "$W/fail" $IN > /dev/null 2>&1 \
     && diff -r "$W/ref3" "$W/fail" > /dev/null && ok "rerun after a failure: byte-identical" \
     || fail "rerun after a failure"
 
 # Rank count and --nodes must agree.
-$MPI -np 2 "$ENC" --dims $D --nodes 3 -o "$W/bad" $IN > /dev/null 2> "$W/bad.err"
+$MPI -np 2 "$ENC" --axes xyz --dims $D --nodes 3 -o "$W/bad" $IN > /dev/null 2> "$W/bad.err"
 rc=$?
 [ $rc -eq 2 ] && grep -q "expected --nodes 2" "$W/bad.err" && [ "$(grep -c "expected --nodes" "$W/bad.err")" -eq 1 ] \
     && ok "--nodes 3 under 2 ranks refused once, by rank 0" || fail "rank count: rc $rc: $(cat "$W/bad.err")"

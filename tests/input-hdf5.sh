@@ -12,7 +12,7 @@ MK=$TVPAL_BUILDDIR/tests/test-hdf5
 [ "$rc" -eq 77 ] && { echo "built without HDF5 (libhdf5-dev): skipped"; exit 77; }
 [ "$rc" -eq 0 ] || { echo "test-hdf5 --make failed ($rc)"; exit 99; }
 D=9x7x5
-"$ENC" -q --dims $D --window 2 -o "$W/raw" "$W"/raw_t*.f32 > /dev/null || { fail "raw encode"; finish; }
+"$ENC" --axes xyz -q --dims $D --window 2 -o "$W/raw" "$W"/raw_t*.f32 > /dev/null || { fail "raw encode"; finish; }
 "$INFO" --inspect "$W/all.h5" > "$W/inspect.txt" 2>&1 \
     && grep -q '^.*all.h5: hdf5$' "$W/inspect.txt" \
     && grep -qx '/sim/other (5, 7, 9) double units=""' "$W/inspect.txt" \
@@ -23,14 +23,14 @@ same_shards() { # DIR: its shards equal the raw dataset's
         cmp -s "$W/raw/node-0/axis-$a.tvps" "$1/node-0/axis-$a.tvps" || return 1
     done
 }
-"$ENC" -q --var /sim/temp --window 2 -o "$W/ds-all" "$W/all.h5" > /dev/null 2> "$W/e.txt" \
+"$ENC" --axes xyz -q --var /sim/temp --window 2 -o "$W/ds-all" "$W/all.h5" > /dev/null 2> "$W/e.txt" \
     || fail "all.h5 encode: $(cat "$W/e.txt")"
 same_shards "$W/ds-all" && ok "rank 4, chunked gzip: shards identical to raw" || fail "all.h5: shards differ from raw"
 grep -q "^source_format = hdf5" "$W/ds-all/manifest.txt" && grep -q "^source_var = /sim/temp" "$W/ds-all/manifest.txt" \
     && ok "manifest names format and dataset" || fail "manifest: $(grep '^source' "$W/ds-all/manifest.txt")"
-"$ENC" -q --format hdf5 --var sim/temp --window 2 -o "$W/ds-forced" "$W/all.h5" > /dev/null 2> "$W/e.txt" \
+"$ENC" --axes xyz -q --format hdf5 --var sim/temp --window 2 -o "$W/ds-forced" "$W/all.h5" > /dev/null 2> "$W/e.txt" \
     && same_shards "$W/ds-forced" && ok "--format hdf5, relative path" || fail "--format hdf5: $(cat "$W/e.txt")"
-"$ENC" -q --window 2 -o "$W/ds-series" "$W"/s0.h5 "$W"/s1.h5 "$W"/s2.h5 > /dev/null 2> "$W/e.txt" \
+"$ENC" --axes xyz -q --window 2 -o "$W/ds-series" "$W"/s0.h5 "$W"/s1.h5 "$W"/s2.h5 > /dev/null 2> "$W/e.txt" \
     || fail "series encode: $(cat "$W/e.txt")"
 same_shards "$W/ds-series" && ok "series of rank-3 files, the only dataset: shards identical to raw" \
     || fail "series shards differ"
@@ -39,10 +39,10 @@ grep -q "^source_var = /temp" "$W/ds-series/manifest.txt" && ok "series: the onl
 if command -v ncgen > /dev/null; then
     printf 'netcdf n {\ndimensions:\n z = 2 ;\n y = 3 ;\n x = 4 ;\nvariables:\n float T(z, y, x) ;\ndata:\n T = %s ;\n}\n' \
         "$(seq -s ', ' 1 24)" > "$W/n.cdl" && ncgen -k nc4 -o "$W/n.nc" "$W/n.cdl" || fail "ncgen"
-    "$ENC" -q --var T -o "$W/nc-as-nc" "$W/n.nc" "$W/n.nc" > /dev/null 2> "$W/e.txt" \
+    "$ENC" --axes xyz -q --var T -o "$W/nc-as-nc" "$W/n.nc" "$W/n.nc" > /dev/null 2> "$W/e.txt" \
         && grep -q "^source_format = netcdf" "$W/nc-as-nc/manifest.txt" \
         && ok "NetCDF-4 with --var T: read as NetCDF" || fail "NetCDF-4 as NetCDF: $(cat "$W/e.txt")"
-    "$ENC" -q --var /T -o "$W/nc-as-h5" "$W/n.nc" "$W/n.nc" > /dev/null 2> "$W/e.txt" \
+    "$ENC" --axes xyz -q --var /T -o "$W/nc-as-h5" "$W/n.nc" "$W/n.nc" > /dev/null 2> "$W/e.txt" \
         && grep -q "^source_format = hdf5" "$W/nc-as-h5/manifest.txt" \
         && "$REP" -q "$W/nc-as-h5" > /dev/null 2>> "$W/e.txt" \
         && ok "NetCDF-4 with --var /T: read as HDF5, and reported" || fail "NetCDF-4 as HDF5: $(cat "$W/e.txt")"
@@ -58,21 +58,21 @@ ls=$("$REP" -q "$W/ds-series") && [ "$(kv psnr "$ls")" = "$(kv psnr "$lr")" ] \
 # Bad input: exit 2, a message naming the file and the dataset, nothing left.
 bad() { expect_exit "$@"; cat "$W/err.txt" >> "$W/all-err.txt"; }
 nothing_left() { [ ! -e "$W/bad" ] && [ ! -e "$W/bad.partial" ] && ok "nothing left ($1)" || fail "output left ($1)"; }
-bad 2 "all.h5.*/sim/nope.*/sim/temp" "$ENC" -q --var /sim/nope -o "$W/bad" "$W/all.h5"; nothing_left "unknown dataset"
-bad 2 "all.h5.*2 datasets.*/sim/other \(5, 7, 9\).*/sim/temp \(3, 5, 7, 9\)" "$ENC" -q -o "$W/bad" "$W/all.h5"
+bad 2 "all.h5.*/sim/nope.*/sim/temp" "$ENC" --axes xyz -q --var /sim/nope -o "$W/bad" "$W/all.h5"; nothing_left "unknown dataset"
+bad 2 "all.h5.*2 datasets.*/sim/other \(5, 7, 9\).*/sim/temp \(3, 5, 7, 9\)" "$ENC" --axes xyz -q -o "$W/bad" "$W/all.h5"
 nothing_left "two candidates"
-bad 2 "flat.h5.*/flat \(7, 9\).*rank 2" "$ENC" -q --var /flat -o "$W/bad" "$W/flat.h5"; nothing_left "rank 2"
-bad 2 "9x7x5.*--dims|--dims.*9x7x5" "$ENC" -q --var /sim/temp --dims 9x7x6 -o "$W/bad" "$W/all.h5"
+bad 2 "flat.h5.*/flat \(7, 9\).*rank 2" "$ENC" --axes xyz -q --var /flat -o "$W/bad" "$W/flat.h5"; nothing_left "rank 2"
+bad 2 "9x7x5.*--dims|--dims.*9x7x5" "$ENC" --axes xyz -q --var /sim/temp --dims 9x7x6 -o "$W/bad" "$W/all.h5"
 nothing_left "contradicting --dims"
-line=$("$ENC" -q --var /sim/temp --window 2 -o "$W/ds-miss" "$W/fill.h5" 2> "$W/e.txt") \
+line=$("$ENC" --axes xyz -q --var /sim/temp --window 2 -o "$W/ds-miss" "$W/fill.h5" 2> "$W/e.txt") \
     && [ "$(kv missing "$line")" = 1 ] && ok "fill value encoded as missing" \
     || fail "fill value: $line $(cat "$W/e.txt")"
 nan_exactly "$W/ds-miss" 1 9x7x5 "4,2,1"
-"$ENC" -q --var /sim/temp --window 2 --nan-as 10 -o "$W/ds-fill" "$W/fill.h5" > /dev/null 2> "$W/e.txt" \
+"$ENC" --axes xyz -q --var /sim/temp --window 2 --nan-as 10 -o "$W/ds-fill" "$W/fill.h5" > /dev/null 2> "$W/e.txt" \
     && ok "fill value with --nan-as" || fail "--nan-as: $(cat "$W/e.txt")"
-bad 2 "bad.h5.*damaged" "$ENC" -q -o "$W/bad" "$W/bad.h5"; nothing_left "damaged file"
+bad 2 "bad.h5.*damaged" "$ENC" --axes xyz -q -o "$W/bad" "$W/bad.h5"; nothing_left "damaged file"
 bad 2 "bad.h5.*damaged" "$INFO" --inspect "$W/bad.h5"
-bad 2 "raw_t0.f32.*not an HDF5 file" "$ENC" -q --format hdf5 -o "$W/bad" "$W/raw_t0.f32"; nothing_left "not HDF5"
+bad 2 "raw_t0.f32.*not an HDF5 file" "$ENC" --axes xyz -q --format hdf5 -o "$W/bad" "$W/raw_t0.f32"; nothing_left "not HDF5"
 # HDF5 never prints its own error stack
 grep -q "HDF5-DIAG" "$W/all-err.txt" && fail "HDF5 printed its error stack" || ok "no HDF5 error stack on stderr"
 finish

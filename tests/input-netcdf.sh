@@ -61,7 +61,7 @@ for k in nc3 nc6 nc4; do
 done
 ncgen -k nc4 -o "$W/a.nc" "$W/a.cdl" && ncgen -k nc4 -o "$W/b.nc" "$W/b.cdl" || fail "ncgen series"
 ncgen -k nc4 -o "$W/fill.nc" "$W/fill.cdl" || fail "ncgen fill"
-"$ENC" -q --dims $D --window 2 -o "$W/raw" "$W"/raw_t*.f32 > /dev/null || { fail "raw encode"; finish; }
+"$ENC" --axes xyz -q --dims $D --window 2 -o "$W/raw" "$W"/raw_t*.f32 > /dev/null || { fail "raw encode"; finish; }
 if "$INFO" --inspect "$W/all-nc4.nc" 2>&1 | grep -q "built without NetCDF"; then
     echo "built without NetCDF: skipped (and tvpal-info says so)"; exit 77
 fi
@@ -74,13 +74,13 @@ same_shards() { # DIR: its shards equal the raw dataset's
     done
 }
 for k in nc3 nc6 nc4; do
-    "$ENC" -q --var temp --window 2 -o "$W/ds-$k" "$W/all-$k.nc" > /dev/null 2> "$W/e.txt" \
+    "$ENC" --axes xyz -q --var temp --window 2 -o "$W/ds-$k" "$W/all-$k.nc" > /dev/null 2> "$W/e.txt" \
         || { fail "$k encode: $(cat "$W/e.txt")"; continue; }
     same_shards "$W/ds-$k" && ok "$k: shards identical to raw" || fail "$k: shards differ from raw"
     grep -q "^source_format = netcdf" "$W/ds-$k/manifest.txt" && grep -q "^source_var = temp" "$W/ds-$k/manifest.txt" \
         && ok "$k: manifest names format and variable" || fail "$k: manifest"
 done
-"$ENC" -q --var temp --window 2 -o "$W/ds-series" "$W/a.nc" "$W/b.nc" > /dev/null 2> "$W/e.txt" \
+"$ENC" --axes xyz -q --var temp --window 2 -o "$W/ds-series" "$W/a.nc" "$W/b.nc" > /dev/null 2> "$W/e.txt" \
     || fail "series encode: $(cat "$W/e.txt")"
 same_shards "$W/ds-series" && ok "series of 2 + 1 steps: shards identical to raw" || fail "series shards differ"
 grep -q "^source_layout = series" "$W/ds-series/manifest.txt" && ok "series layout" || fail "series layout"
@@ -91,18 +91,18 @@ ls=$("$REP" -q "$W/ds-series") && [ "$(kv psnr "$ls")" = "$(kv psnr "$lr")" ] \
     && ok "report on the series" || fail "series report: $ls"
 # Bad input: exit 2, a message naming the file and the variable, nothing left.
 nothing_left() { [ ! -e "$W/bad" ] && [ ! -e "$W/bad.partial" ] && ok "nothing left ($1)" || fail "output left ($1)"; }
-expect_exit 2 "nope.*temp|temp.*nope" "$ENC" -q --var nope -o "$W/bad" "$W/all-nc4.nc"; nothing_left "unknown var"
-expect_exit 2 "temp" "$ENC" -q -o "$W/bad" "$W/all-nc4.nc"; nothing_left "two candidates"
-expect_exit 2 "9x7x5.*--dims|--dims.*9x7x5" "$ENC" -q --var temp --dims 9x7x6 -o "$W/bad" "$W/all-nc4.nc"
+expect_exit 2 "nope.*temp|temp.*nope" "$ENC" --axes xyz -q --var nope -o "$W/bad" "$W/all-nc4.nc"; nothing_left "unknown var"
+expect_exit 2 "temp" "$ENC" --axes xyz -q -o "$W/bad" "$W/all-nc4.nc"; nothing_left "two candidates"
+expect_exit 2 "9x7x5.*--dims|--dims.*9x7x5" "$ENC" --axes xyz -q --var temp --dims 9x7x6 -o "$W/bad" "$W/all-nc4.nc"
 nothing_left "contradicting --dims"
-expect_exit 2 "--steps and --endian" "$ENC" -q --var temp --steps 3 -o "$W/bad" "$W/all-nc4.nc"; nothing_left "--steps"
+expect_exit 2 "--steps and --endian" "$ENC" --axes xyz -q --var temp --steps 3 -o "$W/bad" "$W/all-nc4.nc"; nothing_left "--steps"
 # A _FillValue is missing: NaN after decoding, there and nowhere else.
-line=$("$ENC" -q --var temp --window 2 -o "$W/ds-miss" "$W/fill.nc" 2> "$W/e.txt") \
+line=$("$ENC" --axes xyz -q --var temp --window 2 -o "$W/ds-miss" "$W/fill.nc" 2> "$W/e.txt") \
     && [ "$(kv missing "$line")" = 1 ] && ok "fill value encoded as missing" \
     || fail "fill value: $line $(cat "$W/e.txt")"
 nan_exactly "$W/ds-miss" 1 9x7x5 "4,2,1"
 nan_exactly "$W/ds-miss" 0 9x7x5 ""
-"$ENC" -q --var temp --window 2 --nan-as 10 -o "$W/ds-fill" "$W/fill.nc" > /dev/null 2> "$W/e.txt" \
+"$ENC" --axes xyz -q --var temp --window 2 --nan-as 10 -o "$W/ds-fill" "$W/fill.nc" > /dev/null 2> "$W/e.txt" \
     && ok "fill value with --nan-as" || fail "--nan-as: $(cat "$W/e.txt")"
 "$REP" -q "$W/ds-fill" > /dev/null 2> "$W/e.txt" && ok "report with --nan-as" || fail "report --nan-as: $(cat "$W/e.txt")"
 # A classic header that counts more than the file holds (libnetcdf would
@@ -114,19 +114,19 @@ lim='ulimit -v 1000000;'
 for f in netcdf-libnetcdf-8GB-malloc netcdf-libnetcdf-attr-oom; do
     cp "$TVPAL_SRCDIR/tests/fuzz/corpus/netcdf/$f" "$W/$f.nc"
     expect_exit 2 "$f.nc: a NetCDF header that counts more items than the file's [0-9]+ bytes can hold" \
-        sh -c "$lim"' exec "$@"' sh "$ENC" -q -o "$W/bad" "$W/$f.nc"
+        sh -c "$lim"' exec "$@"' sh "$ENC" --axes xyz -q -o "$W/bad" "$W/$f.nc"
     nothing_left "forged counts ($f)"
 done
 printf 'CDF\001garbage' > "$W/trunc.nc"
-expect_exit 2 "trunc.nc" "$ENC" -q -o "$W/bad" "$W/trunc.nc"; nothing_left "corrupt file"
+expect_exit 2 "trunc.nc" "$ENC" --axes xyz -q -o "$W/bad" "$W/trunc.nc"; nothing_left "corrupt file"
 # Real model output.
 S=${TVPAL_SHARED:-$TVPAL_SRCDIR/../shared}/data/netcdf
 if [ -r "$S/mercator_sample.nc" ] && [ -r "$S/contour.cdf" ]; then
-    "$ENC" -q --var T -o "$W/wrf" "$S/mercator_sample.nc" > "$W/o.txt" 2> "$W/e.txt" \
+    "$ENC" --axes xyz -q --var T -o "$W/wrf" "$S/mercator_sample.nc" > "$W/o.txt" 2> "$W/e.txt" \
         && grep -q "^dims = 48x48x14" "$W/wrf/manifest.txt" && grep -q "^steps = 4" "$W/wrf/manifest.txt" \
         && ok "WRF T: 48x48x14, 4 steps" || fail "WRF: $(cat "$W/e.txt")"
     l=$("$REP" -q "$W/wrf") && ge "$(kv psnr "$l")" 30 && ok "WRF report psnr $(kv psnr "$l")" || fail "WRF report: $l"
-    "$ENC" -q --var T --nan-as 0 -o "$W/contour" "$S/contour.cdf" > /dev/null 2> "$W/e.txt" \
+    "$ENC" --axes xyz -q --var T --nan-as 0 -o "$W/contour" "$S/contour.cdf" > /dev/null 2> "$W/e.txt" \
         && grep -q "^dims = 36x33x10" "$W/contour/manifest.txt" && grep -q "^steps = 7" "$W/contour/manifest.txt" \
         && ok "contour T: 36x33x10, 7 steps" || fail "contour: $(cat "$W/e.txt")"
     grep -q "the z axis (level) is not evenly spaced" "$W/e.txt" && ok "warning: pressure levels not evenly spaced" \
@@ -136,7 +136,7 @@ if [ -r "$S/mercator_sample.nc" ] && [ -r "$S/contour.cdf" ]; then
     # Its Z has fill values (T has none): missing values, as many as ncdump
     # (netcdf-bin's own reader) shows ("_" or outside valid_range -150..5000),
     # and NaN after decoding at exactly those voxels of step 0.
-    "$ENC" -q --var Z -o "$W/contour-miss" "$S/contour.cdf" > /dev/null 2> "$W/e.txt" || fail "contour missing: $(cat "$W/e.txt")"
+    "$ENC" --axes xyz -q --var Z -o "$W/contour-miss" "$S/contour.cdf" > /dev/null 2> "$W/e.txt" || fail "contour missing: $(cat "$W/e.txt")"
     "$DEC" "$W/contour-miss" --step 0 --axis z -o "$W/c0.f32" || fail "contour decode"
     ncdump -v Z "$S/contour.cdf" > "$W/c.cdl" || fail ncdump
     got=$(sed -n 's/^missing = //p' "$W/contour-miss/manifest.txt")

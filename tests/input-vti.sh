@@ -23,13 +23,13 @@ for v in "$W"/gen/*.vti; do
     D=$("$INFO" --inspect "$v" | sed -n 's/^extent .*(\([0-9]*x[0-9]*x[0-9]*\)).*/\1/p')
     [ -n "$D" ] || { fail "$(basename "$v"): no dims in --inspect"; continue; }
     rm -rf "$W/r" "$W/v"
-    if ! "$ENC" -q --dims $D --window 2 -o "$W/r" "$raw" "$raw" > /dev/null 2> "$W/re.txt"; then
+    if ! "$ENC" --axes xyz -q --dims $D --window 2 -o "$W/r" "$raw" "$raw" > /dev/null 2> "$W/re.txt"; then
         # Values the encoder refuses (infinity) are refused alike.
-        grep -q "infinite value" "$W/re.txt" && expect_exit 2 "infinite value" "$ENC" -q -o "$W/v" "$v" \
+        grep -q "infinite value" "$W/re.txt" && expect_exit 2 "infinite value" "$ENC" --axes xyz -q -o "$W/v" "$v" \
             || fail "$(basename "$v"): raw encode: $(cat "$W/re.txt")"
         continue
     fi
-    "$ENC" -q --window 2 -o "$W/v" "$v" "$v" > /dev/null 2> "$W/e.txt" || { fail "$(basename "$v"): $(cat "$W/e.txt")"; continue; }
+    "$ENC" --axes xyz -q --window 2 -o "$W/v" "$v" "$v" > /dev/null 2> "$W/e.txt" || { fail "$(basename "$v"): $(cat "$W/e.txt")"; continue; }
     same=1
     for a in x y z; do cmp -s "$W/r/node-0/axis-$a.tvps" "$W/v/node-0/axis-$a.tvps" || same=0; done
     [ $same = 1 ] && n=$((n + 1)) || fail "$(basename "$v"): shards differ from raw"
@@ -37,15 +37,15 @@ done
 [ $n -ge 5 ] && ok "$n generated .vti encodings: shards identical to raw" || fail "only $n .vti compared"
 for v in "$W"/gen/bad-*.vti; do
     [ -e "$v" ] || continue
-    expect_exit 2 "$(basename "$v")" "$ENC" -q -o "$W/bad" "$v"
+    expect_exit 2 "$(basename "$v")" "$ENC" --axes xyz -q -o "$W/bad" "$v"
     [ ! -e "$W/bad" ] && [ ! -e "$W/bad.partial" ] || fail "$(basename "$v"): output left"
 done
 S=${TVPAL_SHARED:-$TVPAL_SRCDIR/../shared}/data
 if [ -d "$S/viscous-fingers-run01-vti" ] && [ -r "$S/viscous-fingers-run01/density_t001.f32" ]; then
     raws=""
     for k in $(seq 1 20); do raws="$raws $(printf '%s/viscous-fingers-run01/density_t%03d.f32' "$S" $k)"; done
-    "$ENC" -q --dims 64x64x64 --window 4 -o "$W/vf-raw" $raws > /dev/null || fail "vf raw"
-    "$ENC" -q --window 4 -o "$W/vf-vti" "$S"/viscous-fingers-run01-vti/*.vti > /dev/null 2> "$W/e.txt" \
+    "$ENC" --axes xyz -q --dims 64x64x64 --window 4 -o "$W/vf-raw" $raws > /dev/null || fail "vf raw"
+    "$ENC" --axes xyz -q --window 4 -o "$W/vf-vti" "$S"/viscous-fingers-run01-vti/*.vti > /dev/null 2> "$W/e.txt" \
         || fail "vf vti: $(cat "$W/e.txt")"
     same=1
     for a in x y z; do cmp -s "$W/vf-raw/node-0/axis-$a.tvps" "$W/vf-vti/node-0/axis-$a.tvps" || same=0; done

@@ -26,8 +26,8 @@ enc() {
     while [ "$1" != "--" ]; do raws="$raws $1"; shift; done
     shift
     rm -rf "$W/r" "$W/v"
-    "$ENC" -q --dims 5x4x3 --window 2 -o "$W/r" $raws > /dev/null 2> "$W/re.txt" || { fail "$name raw: $(cat "$W/re.txt")"; return; }
-    "$ENC" -q --window 2 -o "$W/v" "$@" > /dev/null 2> "$W/ve.txt" || { fail "$name: $(cat "$W/ve.txt")"; return; }
+    "$ENC" --axes xyz -q --dims 5x4x3 --window 2 -o "$W/r" $raws > /dev/null 2> "$W/re.txt" || { fail "$name raw: $(cat "$W/re.txt")"; return; }
+    "$ENC" --axes xyz -q --window 2 -o "$W/v" "$@" > /dev/null 2> "$W/ve.txt" || { fail "$name: $(cat "$W/ve.txt")"; return; }
     same_shards "$name" "$W/r" "$W/v"
 }
 
@@ -44,10 +44,10 @@ if [ $vti = 1 ]; then
         && grep -q "^timestep 2.5 $G/series/step-2.vti" "$W/i.txt" && ok "--inspect series.pvd" || fail "--inspect .pvd: $(cat "$W/i.txt")"
     "$INFO" --inspect "$G/pieces.pvti" > "$W/i.txt" 2>&1 && grep -q "vti (VTK XML PImageData" "$W/i.txt" \
         && grep -q "^piece pieces/p0.vti extent 0 2 0 1 0 2" "$W/i.txt" && ok "--inspect pieces.pvti" || fail "--inspect .pvti: $(cat "$W/i.txt")"
-    expect_exit 2 "bad-missing.pvd: its DataSet .*no-such-step.vti" "$ENC" -q -o "$W/bad" "$G/bad-missing.pvd"
-    expect_exit 2 "multi-part collections are not supported" "$ENC" -q -o "$W/bad" "$G/bad-parts.pvd"
-    expect_exit 2 "no-such-piece.vti: No such file.*a piece of .*bad-piece.pvti" "$ENC" -q -o "$W/bad" "$G/bad-piece.pvti"
-    expect_exit 2 "bad-hole.pvti: the Pieces do not cover" "$ENC" -q -o "$W/bad" "$G/bad-hole.pvti"
+    expect_exit 2 "bad-missing.pvd: its DataSet .*no-such-step.vti" "$ENC" --axes xyz -q -o "$W/bad" "$G/bad-missing.pvd"
+    expect_exit 2 "multi-part collections are not supported" "$ENC" --axes xyz -q -o "$W/bad" "$G/bad-parts.pvd"
+    expect_exit 2 "no-such-piece.vti: No such file.*a piece of .*bad-piece.pvti" "$ENC" --axes xyz -q -o "$W/bad" "$G/bad-piece.pvti"
+    expect_exit 2 "bad-hole.pvti: the Pieces do not cover" "$ENC" --axes xyz -q -o "$W/bad" "$G/bad-hole.pvti"
     [ ! -e "$W/bad" ] && [ ! -e "$W/bad.partial" ] || fail "bad .pvd/.pvti: output left"
 fi
 
@@ -60,10 +60,10 @@ enc "--format vtk" "$G/binary-float.f32" "$G/binary-float.f32" -- --format vtk "
 "$INFO" --inspect "$G/two-scalars.vtk" > "$W/i.txt" 2>&1 && grep -q "vtk (legacy VTK 3.0, BINARY big-endian, STRUCTURED_POINTS)" "$W/i.txt" \
     && grep -q "^b double components=1" "$W/i.txt" && ok "--inspect two-scalars.vtk" || fail "--inspect .vtk: $(cat "$W/i.txt")"
 for v in "$G"/bad-*.vtk; do
-    expect_exit 2 "$(basename "$v")" "$ENC" -q -o "$W/bad" "$v"
+    expect_exit 2 "$(basename "$v")" "$ENC" --axes xyz -q -o "$W/bad" "$v"
     [ ! -e "$W/bad" ] && [ ! -e "$W/bad.partial" ] || fail "$(basename "$v"): output left"
 done
-expect_exit 2 "DATASET POLYDATA: only STRUCTURED_POINTS" "$ENC" -q -o "$W/bad" "$G/bad-polydata.vtk"
-expect_exit 2 "no point SCALARS zzz \(point SCALARS: a, b\)" "$ENC" -q --var zzz -o "$W/bad" "$G/two-scalars.vtk"
+expect_exit 2 "DATASET POLYDATA: only STRUCTURED_POINTS" "$ENC" --axes xyz -q -o "$W/bad" "$G/bad-polydata.vtk"
+expect_exit 2 "no point SCALARS zzz \(point SCALARS: a, b\)" "$ENC" --axes xyz -q --var zzz -o "$W/bad" "$G/two-scalars.vtk"
 [ ! -e "$W/bad" ] && [ ! -e "$W/bad.partial" ] || fail "bad .vtk: output left"
 finish

@@ -29,7 +29,7 @@ for p in sys.argv[1:]:
         b[4 * i:4 * i + 4] = nan
     open(p, "wb").write(b)
 PY
-"$ENC" -q --dims $D --window 4 --levels 2 -o "$W/ds" "$W"/in/*.f32 > "$W/enc.txt" 2>&1 || fail "encode: $(cat "$W/enc.txt")"
+"$ENC" --axes xyz -q --dims $D --window 4 --levels 2 -o "$W/ds" "$W"/in/*.f32 > "$W/enc.txt" 2>&1 || fail "encode: $(cat "$W/enc.txt")"
 grep -q "levels=2 levels_bytes=[1-9]" "$W/enc.txt" && ok "summary: $(grep -o 'levels=.*' "$W/enc.txt")" \
     || fail "summary: $(cat "$W/enc.txt")"
 grep -q "^format_version = 2$" "$W/ds/manifest.txt" && grep -q "^levels = 2$" "$W/ds/manifest.txt" \
@@ -97,12 +97,12 @@ done
 expect_exit 2 "has 2 coarser levels" "$REP" "$W/ds" -q --level 3
 # Refused up front: more levels than halving allows, fewer slices than
 # --nodes.
-expect_exit 2 "level 7 would be 1x1x1 again" "$ENC" -q --dims $D --levels 7 -o "$W/x" "$W"/in/*.f32
-expect_exit 2 "has fewer . slices than --nodes 16" "$ENC" -q --dims $D --nodes 16 --levels 1 -o "$W/x" "$W"/in/*.f32
+expect_exit 2 "level 7 would be 1x1x1 again" "$ENC" --axes xyz -q --dims $D --levels 7 -o "$W/x" "$W"/in/*.f32
+expect_exit 2 "has fewer . slices than --nodes 16" "$ENC" --axes xyz -q --dims $D --nodes 16 --levels 1 -o "$W/x" "$W"/in/*.f32
 # A memory limit that holds level 0 but not level 1's second process
 # beside it: refused up front, naming the limit that works, which works.
 expect_exit 2 "too small for --levels 1: level 1 .21x18x15. is encoded by a second process" \
-    "$ENC" -q --dims $D --levels 1 --mem-limit 20M -o "$W/x" "$W"/in/*.f32
+    "$ENC" --axes xyz -q --dims $D --levels 1 --mem-limit 20M -o "$W/x" "$W"/in/*.f32
 need=$(sed -n 's/.*give --mem-limit \([0-9]*K\) or more.*/\1/p' "$W/err.txt")
 [ ! -e "$W/x" ] && [ ! -e "$W/x.partial" ] && ok "nothing written when refused" || fail "refused run wrote output"
 if [ -n "${ASAN_OPTIONS:-}" ]; then
@@ -110,17 +110,17 @@ if [ -n "${ASAN_OPTIONS:-}" ]; then
     # which the level's process must fit beside: not the plan's estimate.
     echo "note: the stated minimum is not tried under AddressSanitizer"
 else
-    "$ENC" -q --dims $D --levels 1 --mem-limit "$need" -o "$W/x" "$W"/in/*.f32 > /dev/null 2> "$W/need.err" \
+    "$ENC" --axes xyz -q --dims $D --levels 1 --mem-limit "$need" -o "$W/x" "$W"/in/*.f32 > /dev/null 2> "$W/need.err" \
         && ok "the stated minimum, --mem-limit $need, encodes every level" || fail "--mem-limit $need: $(cat "$W/need.err")"
 fi
 # A run that stops before level 2 resumes: level 0 is kept (its shard is
 # not rewritten), and the bytes equal the uninterrupted run's.
-TVPAL_ENCODE_FAULT_LEVEL=2 "$ENC" -q --dims $D --window 4 --levels 2 -o "$W/r" "$W"/in/*.f32 > /dev/null 2> "$W/r.err"
+TVPAL_ENCODE_FAULT_LEVEL=2 "$ENC" --axes xyz -q --dims $D --window 4 --levels 2 -o "$W/r" "$W"/in/*.f32 > /dev/null 2> "$W/r.err"
 [ $? -eq 1 ] && [ -e "$W/r.partial/levels.job" ] && [ -e "$W/r.partial/level-1/manifest.txt" ] && [ ! -e "$W/r" ] \
     && ok "stopped before level 2: partial output with level 0 and 1, nothing final" || fail "fault: $(cat "$W/r.err")"
 touch -d '2000-01-01' "$W/r.partial/node-0/axis-z.tvps"
 m0=$(stat -c %Y "$W/r.partial/node-0/axis-z.tvps")
-"$ENC" -q --dims $D --window 4 --levels 2 -o "$W/r" "$W"/in/*.f32 > /dev/null || fail "resume"
+"$ENC" --axes xyz -q --dims $D --window 4 --levels 2 -o "$W/r" "$W"/in/*.f32 > /dev/null || fail "resume"
 [ "$(stat -c %Y "$W/r/node-0/axis-z.tvps")" = "$m0" ] \
     && ok "resumed: level 0 kept" || fail "resumed: level 0 rewritten"
 same=1

@@ -6,7 +6,7 @@
 D=16x13x7
 "$GEN" --field front --dims $D --steps 6 -o "$W/in" || fail gen
 for K in 1 3 7; do
-    "$ENC" -q --dims $D --window 4 --nodes $K -o "$W/k$K" "$W"/in/*.f32 \
+    "$ENC" --axes xyz -q --dims $D --window 4 --nodes $K -o "$W/k$K" "$W"/in/*.f32 \
         > /dev/null || fail "encode K=$K"
     n=$(ls -d "$W/k$K"/node-* | wc -l)
     [ "$n" -eq $K ] && ok "K=$K: $n node directories" || fail "K=$K: $n dirs"
@@ -27,7 +27,7 @@ for K in 1 3 7; do
     [ $K -eq 1 ] || ok "K=$K decodes identically to K=1"
 done
 "$INFO" "$W/k3" --verify > /dev/null && ok "K=3 verifies" || fail "K=3 verify"
-expect_exit 2 "nodes 8.*z axis" "$ENC" -q --dims $D --nodes 8 -o "$W/k8" "$W"/in/*.f32
+expect_exit 2 "nodes 8.*z axis" "$ENC" --axes xyz -q --dims $D --nodes 8 -o "$W/k8" "$W"/in/*.f32
 [ ! -e "$W/k8" ] && [ ! -e "$W/k8.partial" ] && ok "nothing left for K=8" \
     || fail "output left behind for K=8"
 finish

@@ -10,7 +10,7 @@ for case in "1 4" "3 8" "10 4" "11 3" "5 5" "7 16" "11 1"; do
     set -- $case
     T=$1 N=$2
     files=$(ls "$W"/in/*.f32 | head -n "$T")
-    "$ENC" -q --dims $D --window "$N" -o "$W/d-$T-$N" $files > /dev/null \
+    "$ENC" --axes xyz -q --dims $D --window "$N" -o "$W/d-$T-$N" $files > /dev/null \
         || { fail "encode T=$T N=$N"; continue; }
     "$CHK" seqjump "$W/d-$T-$N" > "$W/sj.txt" 2>&1 \
         && ok "T=$T N=$N: jumps = sequential" \

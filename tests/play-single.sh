@@ -23,7 +23,7 @@ PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 "$ENC" --help | grep -q -- "--axes" || fail "tvpal-encode has no --axes"
 D=40x36x32
 "$GEN" --field turbulence --dims $D --steps 4 -o "$W/in" || fail gen
-"$ENC" -q --dims $D --window 2 -o "$W/xyz" "$W"/in/*.f32 > /dev/null || fail "encode xyz"
+"$ENC" -q --dims $D --window 2 --axes xyz -o "$W/xyz" "$W"/in/*.f32 > /dev/null || fail "encode xyz"
 "$ENC" -q --dims $D --window 2 --axes z -o "$W/z" "$W"/in/*.f32 > /dev/null || fail "encode z"
 cmp -s "$W/xyz/node-0/axis-z.tvps" "$W/z/node-0/axis-z.tvps" \
     && ok "single copy: its z shard is the three-copy one's, byte for byte" \

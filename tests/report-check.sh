@@ -27,7 +27,7 @@ PY
 check_case() { # NAME INPUT-DIR ENCODER-OPTIONS...
     name=$1 src=$2
     shift 2
-    "$ENC" -q --dims $D --window 4 --nodes 2 "$@" -o "$W/ds-$name" "$W/$src"/*.f32 > /dev/null \
+    "$ENC" --axes xyz -q --dims $D --window 4 --nodes 2 "$@" -o "$W/ds-$name" "$W/$src"/*.f32 > /dev/null \
         || { fail "encode $name"; return; }
     line=$("$REP" -q "$W/ds-$name" --csv "$W/r-$name.csv" --json "$W/r-$name.json") \
         || { fail "report $name"; return; }

@@ -8,14 +8,14 @@
 . "$(dirname "$0")/lib.sh"
 D=18x14x10
 "$GEN" --field front --dims $D --steps 12 -o "$W/in" || fail gen
-"$ENC" -q --dims $D --window 4 --nodes 2 -o "$W/ref" "$W"/in/*.f32 > /dev/null || fail "reference encode"
-TVPAL_ENCODE_FAULT_AFTER=5 "$ENC" -q --dims $D --window 4 --nodes 2 -o "$W/ds" "$W"/in/*.f32 > /dev/null 2>&1
+"$ENC" --axes xyz -q --dims $D --window 4 --nodes 2 -o "$W/ref" "$W"/in/*.f32 > /dev/null || fail "reference encode"
+TVPAL_ENCODE_FAULT_AFTER=5 "$ENC" --axes xyz -q --dims $D --window 4 --nodes 2 -o "$W/ds" "$W"/in/*.f32 > /dev/null 2>&1
 rc=$?
 [ $rc -ne 0 ] && ok "interrupted run exits $rc" || fail "fault hook did not stop the encoder"
 [ ! -e "$W/ds" ] && [ -d "$W/ds.partial" ] && ok "only ds.partial exists" \
     || fail "after interruption: $(ls "$W")"
 expect_exit 2 "manifest.txt" "$INFO" "$W/ds"
-"$ENC" --dims $D --window 4 --nodes 2 -o "$W/ds" "$W"/in/*.f32 > "$W/o.txt" 2> "$W/e.txt" \
+"$ENC" --axes xyz --dims $D --window 4 --nodes 2 -o "$W/ds" "$W"/in/*.f32 > "$W/o.txt" 2> "$W/e.txt" \
     || fail "rerun failed: $(cat "$W/e.txt")"
 grep -q "resuming .* timestep 5 of 12" "$W/e.txt" && ok "rerun resumed at step 5" \
     || fail "rerun did not resume: $(cat "$W/e.txt")"
@@ -23,28 +23,28 @@ diff -r "$W/ref" "$W/ds" > /dev/null && ok "resumed output identical" \
     || fail "resumed output differs"
 [ ! -e "$W/ds.partial" ] && ok "partial directory gone" || fail "ds.partial remains"
 # Killed after the last step, before the shards were finished (packed).
-TVPAL_ENCODE_FAULT_AFTER=12 "$ENC" -q --dims $D --window 4 --nodes 2 -o "$W/dp" "$W"/in/*.f32 > /dev/null 2>&1
-"$ENC" --dims $D --window 4 --nodes 2 -o "$W/dp" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" \
+TVPAL_ENCODE_FAULT_AFTER=12 "$ENC" --axes xyz -q --dims $D --window 4 --nodes 2 -o "$W/dp" "$W"/in/*.f32 > /dev/null 2>&1
+"$ENC" --axes xyz --dims $D --window 4 --nodes 2 -o "$W/dp" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" \
     || fail "rerun dp: $(cat "$W/e.txt")"
 grep -q "every step is encoded; finishing" "$W/e.txt" && diff -r "$W/ref" "$W/dp" > /dev/null \
     && ok "resumed at the finish: packed output identical" || fail "finish resume: $(cat "$W/e.txt")"
 # A --table f32 partial output is not resumed as --table auto (the job's
 # fingerprint has the table format).
-TVPAL_ENCODE_FAULT_AFTER=5 "$ENC" -q --dims $D --window 4 --nodes 2 --table f32 -o "$W/dt" "$W"/in/*.f32 > /dev/null 2>&1
-"$ENC" -q --dims $D --window 4 --nodes 2 -o "$W/dt" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" || fail "rerun dt"
+TVPAL_ENCODE_FAULT_AFTER=5 "$ENC" --axes xyz -q --dims $D --window 4 --nodes 2 --table f32 -o "$W/dt" "$W"/in/*.f32 > /dev/null 2>&1
+"$ENC" --axes xyz -q --dims $D --window 4 --nodes 2 -o "$W/dt" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" || fail "rerun dt"
 ! grep -q resuming "$W/e.txt" && diff -r "$W/ref" "$W/dt" > /dev/null \
     && ok "--table f32 partial not resumed by --table auto" || fail "table format fingerprint: $(cat "$W/e.txt")"
 # A partial output of another job (different window) is started over.
-TVPAL_ENCODE_FAULT_AFTER=3 "$ENC" -q --dims $D --window 2 -o "$W/d2" "$W"/in/*.f32 > /dev/null 2>&1
-"$ENC" -q --dims $D --window 4 -o "$W/d2" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" || fail "rerun d2"
+TVPAL_ENCODE_FAULT_AFTER=3 "$ENC" --axes xyz -q --dims $D --window 2 -o "$W/d2" "$W"/in/*.f32 > /dev/null 2>&1
+"$ENC" --axes xyz -q --dims $D --window 4 -o "$W/d2" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" || fail "rerun d2"
 ! grep -q resuming "$W/e.txt" && "$INFO" "$W/d2" --verify > /dev/null \
     && grep -q "^window = 4" "$W/d2/manifest.txt" && ok "other job's partial discarded" \
     || fail "stale partial handling"
 # A damaged partial output is started over too.
-TVPAL_ENCODE_FAULT_AFTER=6 "$ENC" -q --dims $D --window 4 -o "$W/d3" "$W"/in/*.f32 > /dev/null 2>&1
+TVPAL_ENCODE_FAULT_AFTER=6 "$ENC" --axes xyz -q --dims $D --window 4 -o "$W/d3" "$W"/in/*.f32 > /dev/null 2>&1
 truncate -s 8192 "$W/d3.partial/node-0/axis-y.tvps"
-"$ENC" -q --dims $D --window 4 -o "$W/d3" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" || fail "rerun d3"
-"$ENC" -q --dims $D --window 4 -o "$W/d4" "$W"/in/*.f32 > /dev/null
+"$ENC" --axes xyz -q --dims $D --window 4 -o "$W/d3" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" || fail "rerun d3"
+"$ENC" --axes xyz -q --dims $D --window 4 -o "$W/d4" "$W"/in/*.f32 > /dev/null
 diff -r "$W/d3" "$W/d4" > /dev/null && grep -q "starting the job over" "$W/e.txt" \
     && ok "damaged partial restarted, output correct" || fail "damaged partial: $(cat "$W/e.txt")"
 finish

@@ -20,7 +20,7 @@ CUBE="$W/cube/*.f32"
 # files_bytes DIR: the sizes of the regular files under DIR, added up.
 files_bytes() { find "$1" -type f -exec stat -c %s {} + | awk '{ s += $1 } END { print s + 0 }'; }
 
-"$ENC" -q --dims $C --window 4 --nodes 2 -o "$W/xyz" $CUBE > "$W/xyz.out" || fail "encode xyz"
+"$ENC" -q --dims $C --window 4 --nodes 2 --axes xyz -o "$W/xyz" $CUBE > "$W/xyz.out" || fail "encode xyz"
 "$ENC" -q --dims $C --window 4 --nodes 2 --axes z -o "$W/z" $CUBE > "$W/z.out" || fail "encode --axes z"
 
 # Only the z shards, byte for byte those of the three-axis encode.
@@ -32,12 +32,17 @@ for r in 0 1; do
         && ok "node-$r/axis-z.tvps is the three-axis encode's" || fail "node-$r/axis-z.tvps differs"
 done
 grep -q "^axes = z$" "$W/z/manifest.txt" && grep -q "^format_version = 3$" "$W/z/manifest.txt" \
-    && grep -q "^options = .* --axes z$" "$W/z/manifest.txt" \
-    && ok "manifest: axes = z, format_version 3, options --axes z" \
+    && ! grep -q -- "--axes" "$W/z/manifest.txt" \
+    && ok "manifest: axes = z, format_version 3, no --axes in options (z is the default)" \
     || fail "manifest: $(head -n 13 "$W/z/manifest.txt")"
 ! grep -q "^axes" "$W/xyz/manifest.txt" && grep -q "^format_version = 1$" "$W/xyz/manifest.txt" \
-    && ! grep -q -- "--axes" "$W/xyz/manifest.txt" \
-    && ok "three axes: no axes key, format_version 1" || fail "xyz manifest: $(head -n 13 "$W/xyz/manifest.txt")"
+    && grep -q "^options = .* --axes xyz$" "$W/xyz/manifest.txt" \
+    && ok "three axes: no axes key, format_version 1, options --axes xyz" \
+    || fail "xyz manifest: $(head -n 13 "$W/xyz/manifest.txt")"
+# The default is one copy: no --axes gives the --axes z dataset, byte for byte.
+"$ENC" -q --dims $C --window 4 --nodes 2 -o "$W/def" $CUBE > /dev/null || fail "encode, default axes"
+cmp -s "$W/def/manifest.txt" "$W/z/manifest.txt" && cmp -s "$W/def/node-1/axis-z.tvps" "$W/z/node-1/axis-z.tvps" \
+    && [ ! -e "$W/def/node-0/axis-x.tvps" ] && ok "the default is --axes z" || fail "the default is not --axes z"
 cmp -s "$W/z/manifest.txt" "$W/z/node-1/manifest.txt" && ok "node manifests are copies" \
     || fail "node-1/manifest.txt differs"
 "$INFO" "$W/z" --verify > "$W/v.txt" 2>&1 && grep -q "^stored_axes = z$" "$W/v.txt" \
@@ -89,7 +94,7 @@ awk -v a="$(kv axis_ratio "$(cat "$W/xyz.out")")" -v r="$(kv ratio "$(cat "$W/xy
 D=30x26x22
 "$GEN" --field blobs --dims $D --steps 6 -o "$W/box" > /dev/null || fail gen
 BOX="$W/box/*.f32"
-"$ENC" -q --dims $D --window 3 -o "$W/b-xyz" $BOX > /dev/null || fail "encode box xyz"
+"$ENC" -q --dims $D --window 3 --axes xyz -o "$W/b-xyz" $BOX > /dev/null || fail "encode box xyz"
 "$ENC" -q --dims $D --window 3 --axes zx -o "$W/b-xz" $BOX > /dev/null || fail "encode --axes zx"
 [ "$(ls "$W/b-xz/node-0" | tr '\n' ' ')" = "axis-x.tvps axis-z.tvps manifest.txt " ] \
     && grep -q "^axes = xz$" "$W/b-xz/manifest.txt" \

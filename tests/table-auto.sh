@@ -21,7 +21,7 @@ for tf in f32 u16 default; do
     o="--table $tf"
     [ $tf = default ] && o=""
     # shellcheck disable=SC2086
-    "$ENC" -q --dims $D --window 4 --nodes 2 $o -o "$W/$tf" "$W"/in/*.f32 > "$W/enc-$tf.txt" \
+    "$ENC" --axes xyz -q --dims $D --window 4 --nodes 2 $o -o "$W/$tf" "$W"/in/*.f32 > "$W/enc-$tf.txt" \
         || fail "encode $tf"
 done
 grep -q "^table = auto" "$W/default/manifest.txt" && ok "default: manifest says table = auto" \
@@ -114,7 +114,7 @@ for t in range(8):
     v.astype("<f4").tofile("%s/out_t%d.f32" % (w, t))
 PY
 for tf in f32 u16 auto; do
-    "$ENC" -q --dims 24x20x16 --window 4 --table $tf -o "$W/out-$tf" "$W"/out_t*.f32 > /dev/null \
+    "$ENC" --axes xyz -q --dims 24x20x16 --window 4 --table $tf -o "$W/out-$tf" "$W"/out_t*.f32 > /dev/null \
         || fail "encode outlier $tf"
 done
 $PY - "$W/out-auto" > "$W/out.txt" <<'PY' || fail "outlier chunks: $(cat "$W/out.txt")"
@@ -152,7 +152,7 @@ for t in range(6):
     (base if t % 3 else 250 - base).astype(np.uint8).tofile("%s/int_t%d.u8" % (sys.argv[1], t))
 PY
 for tf in auto u16; do
-    "$ENC" -q --dims 16x14x12 --type u8 --window 4 --table $tf -o "$W/int-$tf" "$W"/int_t*.u8 > /dev/null \
+    "$ENC" --axes xyz -q --dims 16x14x12 --type u8 --window 4 --table $tf -o "$W/int-$tf" "$W"/int_t*.u8 > /dev/null \
         || fail "encode integers $tf"
 done
 a=$("$REP" -q "$W/int-auto") && u=$("$REP" -q "$W/int-u16") || fail "report integers"
@@ -171,7 +171,7 @@ for t in range(10):
         a[7, 1, 9] = np.nan
     a.tofile("%s/miss_t%d.f32" % (w, t))
 PY
-"$ENC" -q --dims $D --window 4 -o "$W/miss" "$W"/miss_t*.f32 > /dev/null || fail "encode missing"
+"$ENC" --axes xyz -q --dims $D --window 4 -o "$W/miss" "$W"/miss_t*.f32 > /dev/null || fail "encode missing"
 [ "$(od -A n -t u4 -j 64 -N 4 "$W/miss/node-0/axis-z.tvps" | tr -d ' ')" = 5 ] \
     && ok "missing: table_format 5" || fail "missing: table_format"
 nan_exactly "$W/miss" 6 $D "4,3,2 9,1,7"
@@ -201,9 +201,9 @@ fi
 # per chunk: the shards of tests/files/good-1-basic and good-2-u16-nodes.
 F=$TVPAL_SRCDIR/tests/files
 "$GEN" --field blobs --dims 4x3x2 --steps 3 -o "$W/g1" > /dev/null \
-    && "$ENC" -q -j 1 --dims 4x3x2 --window 2 --table f32 -o "$W/g1ds" "$W"/g1/*.f32 > /dev/null || fail "good-1"
+    && "$ENC" --axes xyz -q -j 1 --dims 4x3x2 --window 2 --table f32 -o "$W/g1ds" "$W"/g1/*.f32 > /dev/null || fail "good-1"
 "$GEN" --field turbulence --dims 4x3x3 --steps 3 -o "$W/g2" > /dev/null \
-    && "$ENC" -q -j 1 --dims 4x3x3 --window 2 --nodes 2 --table u16 -o "$W/g2ds" "$W"/g2/*.f32 > /dev/null || fail "good-2"
+    && "$ENC" --axes xyz -q -j 1 --dims 4x3x3 --window 2 --nodes 2 --table u16 -o "$W/g2ds" "$W"/g2/*.f32 > /dev/null || fail "good-2"
 same=1
 for s in node-0/axis-x node-0/axis-y node-0/axis-z; do
     cmp -s "$W/g1ds/$s.tvps" "$F/good-1-basic/$s.tvps" || { same=0; fail "--table f32: $s.tvps differs from the corpus"; }

@@ -8,7 +8,7 @@
 D=10x8x6
 "$GEN" --field turbulence --dims $D --steps 6 -o "$W/in" > /dev/null || exit 99
 printf '0 1.5 3\n4.5 6 20\n' > "$W/t.txt"
-"$ENC" -q --dims $D --window 2 --times "$W/t.txt" --time-units "hours since 2005-08-28" -o "$W/ds" "$W"/in/*.f32 \
+"$ENC" --axes xyz -q --dims $D --window 2 --times "$W/t.txt" --time-units "hours since 2005-08-28" -o "$W/ds" "$W"/in/*.f32 \
     > /dev/null 2> "$W/e.txt" || { fail "encode: $(cat "$W/e.txt")"; finish; }
 grep -q "irregular time intervals: 1 interval is more than twice.*steps 4-5" "$W/e.txt" \
     && ok "warning names the gap 4-5" || fail "no irregular warning: $(cat "$W/e.txt")"
@@ -25,12 +25,12 @@ if [ -x "$PLAY" ]; then
              NR > 1 { s = s " " $c } END { exit !(c && s == " 0 1.5 3 4.5 6 20") }' "$W/p.csv" \
         && ok "timing CSV: the time of every frame" || fail "timing CSV time: $(cut -d, -f30 "$W/p.csv" | tr '\n' ' ')"
 fi
-"$ENC" -q --dims $D --window 2 -o "$W/plain" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" || fail "plain encode"
+"$ENC" --axes xyz -q --dims $D --window 2 -o "$W/plain" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" || fail "plain encode"
 [ ! -s "$W/e.txt" ] && ! grep -q "^times" "$W/plain/manifest.txt" && ok "no times: no warning, no times key" \
     || fail "plain: $(cat "$W/e.txt")"
 printf '0 1 2\n' > "$W/few.txt"; printf '0 1 2 2 3 4\n' > "$W/flat.txt"; printf '0 1 2 x 4 5\n' > "$W/text.txt"
-expect_exit 2 "few.txt: 3 numbers; expected 6" "$ENC" -q --dims $D --times "$W/few.txt" -o "$W/bad" "$W"/in/*.f32
-expect_exit 2 "flat.txt: value 4 .*larger than the one before" "$ENC" -q --dims $D --times "$W/flat.txt" -o "$W/bad" "$W"/in/*.f32
-expect_exit 2 "text.txt: not a number after 3" "$ENC" -q --dims $D --times "$W/text.txt" -o "$W/bad" "$W"/in/*.f32
+expect_exit 2 "few.txt: 3 numbers; expected 6" "$ENC" --axes xyz -q --dims $D --times "$W/few.txt" -o "$W/bad" "$W"/in/*.f32
+expect_exit 2 "flat.txt: value 4 .*larger than the one before" "$ENC" --axes xyz -q --dims $D --times "$W/flat.txt" -o "$W/bad" "$W"/in/*.f32
+expect_exit 2 "text.txt: not a number after 3" "$ENC" --axes xyz -q --dims $D --times "$W/text.txt" -o "$W/bad" "$W"/in/*.f32
 [ ! -e "$W/bad" ] && [ ! -e "$W/bad.partial" ] && ok "nothing left" || fail "output left"
 finish

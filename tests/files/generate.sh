@@ -53,10 +53,10 @@ good_encode() {
 # f32 tables, one node; N = 2 over T = 3 steps: a short first window
 # (odd slices: [0,1)) and a window cut at T (even slices: [2,3)).  --table
 # f32 is said since the default became auto (table_format 4).
-good good-1-basic blobs 4x3x2 3 --window 2 --table f32
+good good-1-basic blobs 4x3x2 3 --window 2 --table f32 --axes xyz
 # 16-bit tables, two nodes; node 1 of axis z holds one slice (phase 0), so
 # its record 1 holds no chunk.
-good good-2-u16-nodes turbulence 4x3x3 3 --window 2 --nodes 2 --table u16
+good good-2-u16-nodes turbulence 4x3x3 3 --window 2 --nodes 2 --table u16 --axes xyz
 # One axis (FORMAT.md 2.2): blobs 4x3x2, T = 3, N = 2, --axes z: node-0 has
 # axis-z.tvps only, the manifest format_version 3 and axes = z.
 good good-4-axis-z blobs 4x3x2 3 --window 2 --table f32 --axes z
@@ -74,7 +74,7 @@ for t, f in enumerate(sorted(glob.glob(sys.argv[1] + "/*.f32"))):
             b[4 * i:4 * i + 4] = nan
     open(f, "wb").write(b)
 PY
-good_encode good-3-missing 4x3x2 --window 2 --table u16
+good_encode good-3-missing 4x3x2 --window 2 --table u16 --axes xyz
 # The table format per chunk (table_format 4, --table auto): 20x16x3, T = 3,
 # N = 2.  Slice z = 0 is smooth (coded with an error: 16-bit table), z = 1
 # holds the integers 0, 1, 2 (coded exactly, which a 16-bit table would
@@ -96,7 +96,7 @@ for t in range(3):
                     v.append(5.0)
     open("%s/t%d.f32" % (sys.argv[1], t), "wb").write(struct.pack("<%df" % len(v), *v))
 PY
-good_encode good-5-auto 20x16x3 --window 2 --table auto
+good_encode good-5-auto 20x16x3 --window 2 --table auto --axes xyz
 
 # The bad files: each one copy of a good-1-basic file with one fault.
 "$PY" - "$O" <<'PY'
