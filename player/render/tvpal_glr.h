@@ -12,11 +12,16 @@
  * Cross frames (tvpal_frame.h; single-copy datasets): the layers are the z
  * slices held (set_slices(nx, ny, count), as for a z view), so the same
  * texture array is the volume.  The renderer draws one quad per x or y
- * slice s drawn, cut to the rows held, and a second program fetches texel
- * (a, b) at (s, a) or (a, s) of layer b - z0 + (z0's layer), looked up in
- * that layer's palette row, the rows clamped to those held; interpolation
- * and blending are the plain path's.  Crossing between z, x and y views of
- * the same z slices therefore uploads no layer.  A cross frame's z slices
+ * slice s drawn, cut to the rows held, and its own program (one for y, one
+ * for x slices) fetches texel (a, b): for y slices at (a, s) of layer b -
+ * z0 + (z0's layer); for x slices from a transposed copy (layer s, row b -
+ * z0: a z layer's column is a row apart per texel), cut on the CPU and
+ * uploaded row by row only where a layer changed since (a byte per voxel
+ * on the CPU and in GL); each texel is looked up in its z slice's palette
+ * row, the rows clamped to those held; interpolation and blending are the
+ * plain path's.  Crossing between z, x and y views of the same z slices
+ * uploads no z layer again (the first x view cuts the transposed copy).
+ * A cross frame's z slices
  * must sit in consecutive layers in ascending order (the player's layer =
  * slice - first held).  This file is the only one that includes GL
  * headers (with tvpal_osmesa.c and the GLFW front end).
