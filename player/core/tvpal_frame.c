@@ -81,3 +81,26 @@ void tvpal_renderer_none(struct tvpal_renderer *r)
                                  .upload = none_upload, .draw = none_draw,
                                  .describe = none_describe};
 }
+
+void tvpal_frame_cut_row(uint8_t *copy, unsigned axis, uint32_t rows,
+                         uint32_t k, const uint8_t *idx, uint32_t nx,
+                         uint32_t ny)
+{
+    if (axis == 1) {       /* y slice s, row k = z row s */
+        for (uint32_t s = 0; s < ny; s++)
+            memcpy(copy + ((size_t)s * rows + k) * nx, idx + (size_t)s * nx, nx);
+        return;
+    }
+    enum { B = 16 };       /* x slice s, row k: texel a = idx[s + nx a] */
+    for (uint32_t s0 = 0; s0 < nx; s0 += B) {
+        const uint32_t s1 = s0 + B < nx ? s0 + B : nx;
+        for (uint32_t a0 = 0; a0 < ny; a0 += B) {
+            const uint32_t a1 = a0 + B < ny ? a0 + B : ny;
+            for (uint32_t s = s0; s < s1; s++) {
+                uint8_t *dst = copy + ((size_t)s * rows + k) * ny;
+                for (uint32_t a = a0; a < a1; a++)
+                    dst[a] = idx[s + (size_t)nx * a];
+            }
+        }
+    }
+}

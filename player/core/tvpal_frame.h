@@ -61,6 +61,16 @@ struct tvpal_frame {
     uint32_t draw_begin, draw_end;
 };
 
+/* Cuts row k of a transposed copy of a cross frame's z slices: copy holds
+ * the slices of view axis `axis` (0 x, 1 y), slice s at copy + s * rows * w'
+ * (w' = ny for x, nx for y), rows of w' texels; row k gets z slice idx (nx
+ * x ny): for x slices its columns (texel (s, a) = idx[s + nx a]), for y
+ * slices its rows.  What both renderers keep for x views (a column of a z
+ * slice is a row apart per texel), and the cpu renderer for y views. */
+void tvpal_frame_cut_row(uint8_t *copy, unsigned axis, uint32_t rows,
+                         uint32_t k, const uint8_t *idx, uint32_t nx,
+                         uint32_t ny);
+
 /* The rows of a cross frame whose samples are drawn (see above). */
 static inline void tvpal_frame_cross_draw_rows(const struct tvpal_frame *f,
                                                uint32_t *d0, uint32_t *d1)

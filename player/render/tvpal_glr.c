@@ -508,18 +508,7 @@ static int update_xt(struct tvpal_glr *r, const struct tvpal_frame *f,
 #endif
     for (int m = 0; m < ntodo; m++) {
         const uint32_t k = r->xt_todo[m];
-        const uint8_t *idx = f->sl[k].idx;
-        enum { B = 16 };   /* blocked transpose: row k of every slice s */
-        for (uint32_t s0 = 0; s0 < nx; s0 += B)
-            for (uint32_t a0 = 0; a0 < ny; a0 += B) {
-                const uint32_t s1 = s0 + B < nx ? s0 + B : nx;
-                const uint32_t a1 = a0 + B < ny ? a0 + B : ny;
-                for (uint32_t s = s0; s < s1; s++) {
-                    uint8_t *dst = r->xt + ((size_t)s * rows + k) * ny;
-                    for (uint32_t a = a0; a < a1; a++)
-                        dst[a] = idx[s + (size_t)nx * a];
-                }
-            }
+        tvpal_frame_cut_row(r->xt, 0, rows, k, f->sl[k].idx, nx, ny);
     }
     glPixelStorei(GL_UNPACK_ROW_LENGTH, (GLint)ny);
     glPixelStorei(GL_UNPACK_IMAGE_HEIGHT, (GLint)rows);

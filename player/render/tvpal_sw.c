@@ -53,9 +53,9 @@ struct cross_scratch {
     size_t sl_cap;
     const float **rowpal;           /* per row: its z slice's palette */
     size_t rowpal_cap;
-    uint64_t *vis, *gvis;           /* drawn slices (resp. z tile groups) x
-                                       rows of cross tiles */
-    size_t vis_cap, gvis_cap;       /* words */
+    uint64_t *gvis;                 /* z tile groups x rows of cross
+                                       tiles: visible tile columns */
+    size_t gvis_cap;                /* words */
     uint8_t *hit;                   /* per thread: a byte per z tile row */
     size_t hit_cap;
     uint32_t *todo;                 /* rows to cut again */
@@ -121,7 +121,6 @@ void tvpal_sw_free(struct tvpal_sw *r)
     }
     free(r->xs.sl);
     free(r->xs.rowpal);
-    free(r->xs.vis);
     free(r->xs.gvis);
     free(r->xs.hit);
     free(r->xs.todo);
@@ -874,7 +873,10 @@ struct drawable {
     int db0, db1;          /* rows whose samples are drawn, within them */
     const float *const *rowpal;   /* NULL: each slice's palette; else row
                                      b's palette is rowpal[b - rb0] */
-    const uint64_t *vis;   /* count x trows: visible tile columns */
+    const uint64_t *vis;   /* rows of trows words: visible tile columns */
+    unsigned vis_group;    /* 0: slice n's row is vis + n trows; else the
+                              slices of one group (slice / vis_group) share
+                              row vis + group trows (cross frames) */
     unsigned tile, trows;
 };
 
@@ -939,7 +941,8 @@ static void composite_row(const struct tvpal_sw *r, const struct drawable *dr,
                          .stop = r->stop, .exact = r->exact && r->skip,
                          .map = map};
         memcpy(s.fx, fxq, sizeof fxq);
-        const uint64_t *vr = dr->vis + (size_t)n * dr->trows;
+        const uint64_t *vr = dr->vis + (size_t)dr->trows *
+                             (dr->vis_group ? sl->slice / dr->vis_group : n);
         uint64_t bits = vr[(ya - rb0) / tile] | vr[(yb - rb0) / tile];
         /* Texels whose K pixels all lie inside the row: xmin..xmax. */
         const long xmin = -floordiv(s.c0, (long)k);
@@ -1168,37 +1171,11 @@ static int reserve_cross(struct tvpal_sw *r, const struct tvpal_frame *f,
     }
     if (grow((void **)&xs->sl, &xs->sl_cap, n, sizeof *xs->sl) < 0 ||
         grow((void **)&xs->rowpal, &xs->rowpal_cap, rows, sizeof *xs->rowpal) < 0 ||
-        grow((void **)&xs->vis, &xs->vis_cap, (size_t)n * trows, sizeof *xs->vis) < 0 ||
         grow((void **)&xs->gvis, &xs->gvis_cap, groups * trows, sizeof *xs->gvis) < 0 ||
         grow((void **)&xs->hit, &xs->hit_cap, (size_t)nt * r->trows, 1) < 0 ||
         grow((void **)&xs->todo, &xs->todo_cap, rows, sizeof *xs->todo) < 0)
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "cross frame scratch");
     return 0;
-}
-
-/* Row k of the copy from z slice idx (nx x ny): x slices take its
- * columns (a blocked transpose), y slices its rows (copies). */
-static void cut_row(struct cross_copy *x, unsigned axis, uint32_t k,
-                    const uint8_t *idx, uint32_t nx, uint32_t ny)
-{
-    const size_t rows = x->rows;
-    if (axis == 1) {       /* y slice s, row k = z row s */
-        for (uint32_t s = 0; s < ny; s++)
-            memcpy(x->idx + ((size_t)s * rows + k) * nx, idx + (size_t)s * nx, nx);
-        return;
-    }
-    enum { B = 16 };       /* x slice s, row k: a = y, idx[s + nx a] */
-    for (uint32_t s0 = 0; s0 < nx; s0 += B) {
-        const uint32_t s1 = s0 + B < nx ? s0 + B : nx;
-        for (uint32_t a0 = 0; a0 < ny; a0 += B) {
-            const uint32_t a1 = a0 + B < ny ? a0 + B : ny;
-            for (uint32_t s = s0; s < s1; s++) {
-                uint8_t *dst = x->idx + ((size_t)s * rows + k) * ny;
-                for (uint32_t a = a0; a < a1; a++)
-                    dst[a] = idx[s + (size_t)nx * a];
-            }
-        }
-    }
 }
 
 /* Visible cross tiles, from the visible z tiles (r->vis, classified for
@@ -1286,7 +1263,7 @@ static void prepare_cross(struct tvpal_sw *r, const struct tvpal_frame *f,
 #endif
     for (int m = 0; m < ntodo; m++) {
         const uint32_t k = xs->todo[m], layer = f->sl[k].layer;
-        cut_row(x, axis, k, f->sl[k].idx, f->w, f->h);
+        tvpal_frame_cut_row(x->idx, axis, x->rows, k, f->sl[k].idx, f->w, f->h);
         x->layer[k] = layer;
         x->gen[k] = r->ugen[layer];
     }
@@ -1302,13 +1279,10 @@ static void prepare_cross(struct tvpal_sw *r, const struct tvpal_frame *f,
                             .h = (int)h, .rb0 = (int)f->sl[0].slice,
                             .rb1 = (int)(f->sl[0].slice + rows),
                             .db0 = (int)d0, .db1 = (int)d1,
-                            .rowpal = xs->rowpal, .vis = xs->vis,
-                            .tile = tile, .trows = (rows + tile - 1) / tile};
+                            .rowpal = xs->rowpal, .vis = xs->gvis,
+                            .vis_group = r->tile, .tile = tile,
+                            .trows = (rows + tile - 1) / tile};
     cross_vis(r, f, wp, n, nt, dr);
-    for (uint32_t i = 0; i < count; i++)
-        memcpy(xs->vis + (size_t)i * dr->trows,
-               xs->gvis + (size_t)(xs->sl[i].slice / r->tile) * dr->trows,
-               sizeof *xs->vis * dr->trows);
 }
 
 /* Warp: output pixel centre -> eye -> base texel -> intermediate. */
