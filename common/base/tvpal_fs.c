@@ -38,58 +38,11 @@ int tvpal_mkdirs(const char *path, struct tvpal_diag *diag)
     return rc;
 }
 
-int tvpal_rmtree(const char *path)
+/* Calls fn(PATH/NAME, ctx) for every entry of the open directory d but .
+ * and .., until fn returns an error; closes d.  0 or the first error. */
+static int each_entry(DIR *d, const char *path,
+                      int (*fn)(const char *sub, void *ctx), void *ctx)
 {
-    struct stat st;
-    if (lstat(path, &st) < 0)
-        return errno == ENOENT ? 0 : TVPAL_E_SYS;
-    if (!S_ISDIR(st.st_mode))
-        return unlink(path) < 0 ? TVPAL_E_SYS : 0;
-    DIR *d = opendir(path);
-    if (!d)
-        return TVPAL_E_SYS;
-    int rc = 0;
-    struct dirent *e;
-    while ((e = readdir(d))) {
-        if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
-            continue;
-        char *sub;
-        if (asprintf(&sub, "%s/%s", path, e->d_name) < 0) {
-            rc = TVPAL_E_NOMEM;
-            break;
-        }
-        rc = tvpal_rmtree(sub);
-        free(sub);
-        if (rc < 0)
-            break;
-    }
-    closedir(d);
-    if (rc == 0 && rmdir(path) < 0)
-        rc = TVPAL_E_SYS;
-    return rc;
-}
-
-/* tvpal_tree_bytes below depth levels of directories. */
-static int tree_bytes(const char *path, unsigned depth, uint64_t *sum,
-                      struct tvpal_diag *diag)
-{
-    struct stat st;
-    if (stat(path, &st) < 0)
-        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
-                              strerror(errno));
-    if (S_ISREG(st.st_mode)) {
-        *sum += (uint64_t)st.st_size;
-        return 0;
-    }
-    if (!S_ISDIR(st.st_mode))
-        return 0;
-    if (depth >= 16)
-        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: more than 16 "
-                              "directories deep", path);
-    DIR *d = opendir(path);
-    if (!d)
-        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
-                              strerror(errno));
     int rc = 0;
     struct dirent *e;
     while (rc == 0 && (e = readdir(d))) {
@@ -100,20 +53,82 @@ static int tree_bytes(const char *path, unsigned depth, uint64_t *sum,
             rc = TVPAL_E_NOMEM;
             break;
         }
-        rc = tree_bytes(sub, depth + 1, sum, diag);
+        rc = fn(sub, ctx);
         free(sub);
     }
     closedir(d);
     return rc;
 }
 
+static int rmtree_entry(const char *sub, void *ctx)
+{
+    (void)ctx;
+    return tvpal_rmtree(sub);
+}
+
+int tvpal_rmtree(const char *path)
+{
+    struct stat st;
+    if (lstat(path, &st) < 0)
+        return errno == ENOENT ? 0 : TVPAL_E_SYS;
+    if (!S_ISDIR(st.st_mode))
+        return unlink(path) < 0 ? TVPAL_E_SYS : 0;
+    DIR *d = opendir(path);
+    if (!d)
+        return TVPAL_E_SYS;
+    int rc = each_entry(d, path, rmtree_entry, NULL);
+    if (rc == 0 && rmdir(path) < 0)
+        rc = TVPAL_E_SYS;
+    return rc;
+}
+
+/* tvpal_tree_bytes below depth levels of directories. */
+struct tree_sum {
+    unsigned depth;
+    uint64_t sum;
+    struct tvpal_diag *diag;
+};
+
+static int tree_bytes(const char *path, struct tree_sum *t);
+
+static int tree_entry(const char *sub, void *ctx)
+{
+    struct tree_sum *t = ctx;
+    t->depth++;
+    int rc = tree_bytes(sub, t);
+    t->depth--;
+    return rc;
+}
+
+static int tree_bytes(const char *path, struct tree_sum *t)
+{
+    struct stat st;
+    if (stat(path, &st) < 0)
+        return tvpal_diag_set(t->diag, TVPAL_E_OPEN, "%s: %s", path,
+                              strerror(errno));
+    if (S_ISREG(st.st_mode)) {
+        t->sum += (uint64_t)st.st_size;
+        return 0;
+    }
+    if (!S_ISDIR(st.st_mode))
+        return 0;
+    if (t->depth >= 16)
+        return tvpal_diag_set(t->diag, TVPAL_E_OPEN, "%s: more than 16 "
+                              "directories deep", path);
+    DIR *d = opendir(path);
+    if (!d)
+        return tvpal_diag_set(t->diag, TVPAL_E_OPEN, "%s: %s", path,
+                              strerror(errno));
+    return each_entry(d, path, tree_entry, t);
+}
+
 int tvpal_tree_bytes(const char *path, uint64_t *bytes,
                      struct tvpal_diag *diag)
 {
-    uint64_t sum = 0;
-    int rc = tree_bytes(path, 0, &sum, diag);
+    struct tree_sum t = {0, 0, diag};
+    int rc = tree_bytes(path, &t);
     if (rc == 0)
-        *bytes = sum;
+        *bytes = t.sum;
     return rc;
 }
 
