@@ -19,7 +19,8 @@
 #define PLAY_SIZE_MAX 16384   /* --size, each side */
 #define PLAY_DEG_MAX 360.0    /* --rotate, --spin: |degrees| */
 
-static void usage(FILE *f)
+/* --help, first part: what the player does, view and frame options. */
+static void usage_view(FILE *f)
 {
     fprintf(f,
 "Usage: " PROG " OUTDIR [options]\n"
@@ -80,7 +81,13 @@ static void usage(FILE *f)
 "      --spin DEG           turn the view DEG degrees about y per frame,\n"
 "                           -360..360\n"
 "                           (a camera path; with three copies crossing axes\n"
-"                           loads records, with one copy nothing)\n"
+"                           loads records, with one copy nothing)\n");
+}
+
+/* --help, second part: data, output, cluster, window keys, exit status. */
+static void usage_data_output(FILE *f)
+{
+    fprintf(f,
 "Data:\n"
 "  -m, --mode M             incore (records in RAM) or stream (default: from\n"
 "                           disk, O_DIRECT, prefetching)\n"
@@ -141,6 +148,12 @@ static void usage(FILE *f)
 "Exit status: 0 success; 1 failure (GL context, writing output) or load\n"
 "errors during playback; 2 bad input or usage, a dataset that cannot be\n"
 "opened, or (with --strict) the first load error.\n");
+}
+
+static void usage(FILE *f)
+{
+    usage_view(f);
+    usage_data_output(f);
 }
 
 /* ---------------------------------------------------------- the table */
