@@ -23,7 +23,7 @@
 enum { NX = 40, NY = 36, NZ = 28, W = 112, H = 96 };
 
 static uint8_t zdata[NZ][NY][NX];
-static uint8_t tdata[NX > NY ? NX : NY][NZ][NX > NY ? NX : NY];
+static uint8_t tdata[NX > NY ? NX : NY][NZ * (NX > NY ? NX : NY)];   /* slice s: NZ rows of w */
 static float pals[NZ][1024], one_pal[1024];
 static struct tvpal_frame_slice zsl[NZ], psl[NX > NY ? NX : NY];
 
@@ -81,19 +81,12 @@ static void plain_frame(const struct tvpal_view *v, uint32_t stride,
     for (uint32_t s = 0; s < n; s++)
         for (uint32_t b = 0; b < NZ; b++)
             for (uint32_t t = 0; t < w; t++)
-                tdata[s][b][t] = a == 0 ? zdata[b][t][s] : zdata[b][s][t];
+                tdata[s][b * w + t] = a == 0 ? zdata[b][t][s] : zdata[b][s][t];
     for (uint32_t i = 0; i < n; i++) {
         uint32_t s = v->descending ? n - 1 - i : i;
         if (s % stride == phase)
-            psl[count++] = (struct tvpal_frame_slice){s, s, &tdata[s][0][0], one_pal};
+            psl[count++] = (struct tvpal_frame_slice){s, s, tdata[s], one_pal};
     }
-    /* tdata rows are (NX > NY ? NX : NY) wide: repack to w. */
-    static uint8_t packed[NX > NY ? NX : NY][NZ * (NX > NY ? NX : NY)];
-    for (uint32_t s = 0; s < n; s++)
-        for (uint32_t b = 0; b < NZ; b++)
-            memcpy(&packed[s][b * w], &tdata[s][b][0], w);
-    for (uint32_t i = 0; i < count; i++)
-        psl[i].idx = packed[psl[i].slice];
     *f = (struct tvpal_frame){.view = v, .w = w, .h = NZ, .count = count, .sl = psl};
 }
 
