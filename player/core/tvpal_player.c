@@ -439,6 +439,24 @@ static void build_palettes(struct tvpal_player *p, const struct axis_state *x,
 /* Cross frames: every z slice held, ascending, uploaded when its window
  * changed; one with no data yet draws as zeros with the zero palette.  A
  * transparent one stays: it is the palette of a row. */
+/* The ghost row of `side` (0 below, 1 above the slab) in `layer`,
+ * uploaded when the neighbour sent new indices. */
+static struct tvpal_frame_slice ghost_slice(struct tvpal_player *p, int side,
+                                            uint32_t layer,
+                                            struct tvpal_renderer *r,
+                                            struct tvpal_frame_stats *st)
+{
+    if (p->ghost_upl[side] != p->gtheirs[side].gen) {
+        r->upload(r->ctx, layer, p->ghost_idx[side]);
+        p->ghost_upl[side] = p->gtheirs[side].gen;
+        st->uploads++;
+    }
+    return (struct tvpal_frame_slice){.slice = p->gtheirs[side].slice,
+                                      .layer = layer,
+                                      .idx = p->ghost_idx[side],
+                                      .palette = p->ghost_pal + 1024 * side};
+}
+
 static uint32_t list_rows(struct tvpal_player *p, const struct axis_state *x,
                           uint32_t lay0, struct tvpal_renderer *r,
                           struct tvpal_frame_stats *st)
@@ -447,16 +465,8 @@ static uint32_t list_rows(struct tvpal_player *p, const struct axis_state *x,
     /* The ghost row below the slab (cluster nodes), in layer 0. */
     const int lo = lay0 && x->begin > 0 && p->gtheirs[0].slice == x->begin - 1;
     const int hi = lay0 && p->gtheirs[1].slice == x->begin + x->held;
-    if (lo) {
-        if (p->ghost_upl[0] != p->gtheirs[0].gen) {
-            r->upload(r->ctx, 0, p->ghost_idx[0]);
-            p->ghost_upl[0] = p->gtheirs[0].gen;
-            st->uploads++;
-        }
-        p->fs[count++] = (struct tvpal_frame_slice){
-            .slice = p->gtheirs[0].slice, .layer = 0, .idx = p->ghost_idx[0],
-            .palette = p->ghost_pal};
-    }
+    if (lo)
+        p->fs[count++] = ghost_slice(p, 0, 0, r, st);
     for (uint32_t i = 0; i < x->held; i++) {
         const uint32_t s = x->begin + i;
         struct tvpal_slab *slab = x->slabs[x->slab_of[s]];
@@ -480,17 +490,8 @@ static uint32_t list_rows(struct tvpal_player *p, const struct axis_state *x,
         p->fs[count++] = (struct tvpal_frame_slice){
             .slice = s, .layer = i + lay0, .idx = idx, .palette = pal};
     }
-    if (hi) {
-        const uint32_t layer = x->held + 1;
-        if (p->ghost_upl[1] != p->gtheirs[1].gen) {
-            r->upload(r->ctx, layer, p->ghost_idx[1]);
-            p->ghost_upl[1] = p->gtheirs[1].gen;
-            st->uploads++;
-        }
-        p->fs[count++] = (struct tvpal_frame_slice){
-            .slice = p->gtheirs[1].slice, .layer = layer,
-            .idx = p->ghost_idx[1], .palette = p->ghost_pal + 1024};
-    }
+    if (hi)
+        p->fs[count++] = ghost_slice(p, 1, x->held + 1, r, st);
     return count;
 }
 
