@@ -94,18 +94,25 @@ static void abort_movie(void)
     open_movie = NULL;
 }
 
-/* Rank 0, -o FILE.mp4|.webm: ffmpeg started now, so that a missing one
- * or an unwritable place is said before any frame is drawn. */
+/* -o FILE.mp4|.webm: rank 0 starts ffmpeg now, so that a missing one or
+ * an unwritable place is said before any frame is drawn (every rank
+ * stops then). */
 static void open_movie_output(struct headless *h)
 {
     const struct play_opts *o = h->o;
     struct tvpal_diag d = {{0}};
+    char msg[300] = "";
+    int rc = 0;
     /* A dead ffmpeg makes a write fail with EPIPE, reported, instead of
      * SIGPIPE ending the run without a word. */
     signal(SIGPIPE, SIG_IGN);
-    if (tvpal_movie_open(&h->movie, h->movie_path, o->width, o->height,
-                         o->fps, &d) < 0)
-        play_die(2, "-o %s: %s", h->movie_path, d.msg);
+    if (h->movie_path &&
+        (rc = tvpal_movie_open(&h->movie, h->movie_path, o->width, o->height,
+                               o->fps, &d)) < 0)
+        snprintf(msg, sizeof msg, "-o %s: %s", h->movie_path, d.msg);
+    play_check_all(rc, msg, 2);
+    if (!h->movie)
+        return;
     if (!open_movie)
         atexit(abort_movie);
     open_movie = h->movie;
@@ -137,7 +144,7 @@ static void setup_outputs(struct headless *h)
         fprintf(stderr, PROG ": warning: no -o or --csv given: frames are "
                 "rendered and timed but not written (-o DIR for PNG frames, "
                 "-o FILE.mp4 for a movie)\n");
-    if (h->movie_path)
+    if (h->o->movie)
         open_movie_output(h);
     if (h->outdir) {
         struct tvpal_diag d = {{0}};
@@ -320,6 +327,8 @@ static void settle_errors(struct headless *h, uint32_t t,
     int stop = 0;
     if (play_comm.rank == 0) {
         const char *keep = h->o->strict ? "" : " (keeping the last good data)";
+        if (row->agg.rc < 0)
+            play_progress_end(&h->progress);   /* messages on a clean line */
         for (int r = 0; r < play_comm.size; r++) {
             const struct play_rank_rec *q = play_cluster_multi() ? &h->recs[r] : me;
             if (q->rc >= 0 || !strcmp(q->msg, h->last_err))
@@ -347,8 +356,10 @@ static void write_frame(struct headless *h, const struct play_row *row)
     if (h->movie) {
         struct tvpal_diag d = {{0}};
         tvpal_png_rgb8(h->final, h->o->width, h->o->height, bg, h->rgb8);
-        if (tvpal_movie_write(h->movie, h->rgb8, &d) < 0)
-            play_die(1, "%s", d.msg);
+        if (tvpal_movie_write(h->movie, h->rgb8, &d) < 0) {
+            abort_movie();   /* the job may end without exit handlers */
+            play_die_rank(1, "%s", d.msg);
+        }
     }
     if (h->outdir) {
         char *path;
@@ -402,7 +413,7 @@ static void close_movie(struct headless *h)
     int rc = tvpal_movie_close(h->movie, &d);
     h->movie = NULL;
     if (rc < 0)
-        play_die(1, "%s", d.msg);
+        play_die_rank(1, "%s", d.msg);
 }
 
 static void print_summary(struct headless *h, double elapsed)
