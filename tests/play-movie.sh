@@ -102,4 +102,10 @@ expect_exit 2 "--fps \"0\": expected frames per second in 0\.1\.\.1000" \
     "$PLAY" "$W/ds" --headless -q --fps 0 -o "$W/mv/g.mp4"
 expect_exit 2 "movies are written headless" "$PLAY" "$W/ds" --window -o "$W/mv/g.mp4"
 expect_exit 2 "g\.partial\.mp4: cannot create" "$PLAY" "$W/ds" --headless -q -o "$W/no/such/g.mp4"
+mkdir -p "$W/h.webm" || exit 99
+expect_exit 2 "h\.webm: is a directory \(a trailing / writes PNG frames into it\)" \
+    "$PLAY" "$W/ds" --headless -q -o "$W/h.webm"
+"$PLAY" "$W/ds" --headless -q --size 16x16 --steps 0:0 -o "$W/h.webm/" > /dev/null \
+    && [ -f "$W/h.webm/t0000.png" ] && ok "-o h.webm/: PNG frames in the directory" \
+    || fail "-o h.webm/: no PNG frame"
 finish

@@ -11,6 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 #include <sys/types.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -206,10 +207,16 @@ static int spawn(struct tvpal_movie *m, int rfd, char *const argv[],
     return 0;
 }
 
-/* The temporary can be created in the movie's directory: said now, before
- * any frame is drawn, rather than by ffmpeg after the first one. */
+/* The temporary can be created in the movie's directory, and the movie's
+ * name is no directory (the rename would fail): said now, before any
+ * frame is drawn, rather than by ffmpeg or rename at the end. */
 static int check_partial(const struct tvpal_movie *m, struct tvpal_diag *diag)
 {
+    struct stat st;
+    if (stat(m->path, &st) == 0 && S_ISDIR(st.st_mode))
+        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: is a directory (a "
+                              "trailing / writes PNG frames into it)",
+                              m->path);
     int fd = open(m->partial, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (fd < 0)
         return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: cannot create: %s",

@@ -25,7 +25,8 @@ enum tvpal_movie_kind {
 };
 
 /* The kind of movie path names by its extension (.mp4, .webm, any case),
- * or TVPAL_MOVIE_NONE. */
+ * or TVPAL_MOVIE_NONE (also for "x.mp4/": a trailing / names a
+ * directory). */
 int tvpal_movie_kind(const char *path);
 
 /* The codec's name for messages ("H.264", "VP9"; "" for NONE). */
@@ -42,8 +43,9 @@ struct tvpal_movie;
 /* Starts ffmpeg writing path (tvpal_movie_kind(path) != NONE) from frames
  * of width x height pixels (each 1..16384) at fps frames per second (> 0).
  * Allocates all it needs now (nothing per frame).  0, or:
- * TVPAL_E_OPEN when ffmpeg is not on PATH or the temporary cannot be
- * created there (no such directory, not writable), TVPAL_E_INVAL for a
+ * TVPAL_E_OPEN when ffmpeg is not on PATH, path is a directory or the
+ * temporary cannot be created (no such directory, not writable),
+ * TVPAL_E_INVAL for a
  * bad argument, TVPAL_E_NOMEM, TVPAL_E_SYS (pipe, spawn); diag (may be
  * NULL) says which. */
 int tvpal_movie_open(struct tvpal_movie **out, const char *path,
