@@ -148,13 +148,17 @@ static void build_argv(const struct tvpal_movie *m, int kind, char size[32],
         argv[n++] = head[i];
     /* H.264 at CRF 18 is visually lossless for most content; VP9 in
      * constant quality mode (-b:v 0) at CRF 30, YouTube's choice for
-     * 720p-1080p. */
+     * 720p-1080p, at speed 4: on 48 turbulence frames of 512x512 1.8 times
+     * as fast as the default speed for 0.3 dB less (41.7 dB against the
+     * PNG frames; H.264: 42.9 dB). */
     const char *mp4[] = {"-c:v", "libx264", "-preset", "medium", "-crf", "18",
                          "-movflags", "+faststart", "-f", "mp4"};
     const char *webm[] = {"-c:v", "libvpx-vp9", "-crf", "30", "-b:v", "0",
-                          "-row-mt", "1", "-f", "webm"};
+                          "-row-mt", "1", "-deadline", "good", "-cpu-used",
+                          "4", "-f", "webm"};
     const char **c = kind == TVPAL_MOVIE_MP4 ? mp4 : webm;
-    for (int i = 0; i < 10; i++)
+    const int nc = kind == TVPAL_MOVIE_MP4 ? 10 : 14;
+    for (int i = 0; i < nc; i++)
         argv[n++] = c[i];
     argv[n++] = "-pix_fmt";
     argv[n++] = "yuv420p";
