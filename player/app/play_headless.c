@@ -125,6 +125,19 @@ static void open_movie_output(struct headless *h)
                 mw, mh);
 }
 
+/* Rank 0, with a movie: the final frame as the PNG frame shows it (the
+ * same RGB rows), sent to ffmpeg. */
+static void write_movie_frame(struct headless *h)
+{
+    static const float bg[3] = {0, 0, 0};
+    struct tvpal_diag d = {{0}};
+    tvpal_png_rgb8(h->final, h->o->width, h->o->height, bg, h->rgb8);
+    if (tvpal_movie_write(h->movie, h->rgb8, &d) < 0) {
+        abort_movie();   /* the job may end without exit handlers */
+        play_die_rank(1, "%s", d.msg);
+    }
+}
+
 /* Rank 0 writes frames or a movie, CSV and the summary.  A movie gets a
  * CSV only with --csv (there is no directory for the default). */
 static void setup_outputs(struct headless *h)
@@ -349,23 +362,17 @@ static void settle_errors(struct headless *h, uint32_t t,
                      ? 1 : 2, "stopped at step %u", t);
 }
 
-/* Rank 0: the frame's PNG or movie frame, and CSV row. */
+/* Rank 0: the frame's PNG and CSV row. */
 static void write_frame(struct headless *h, const struct play_row *row)
 {
-    static const float bg[3] = {0, 0, 0};
-    if (h->movie) {
-        struct tvpal_diag d = {{0}};
-        tvpal_png_rgb8(h->final, h->o->width, h->o->height, bg, h->rgb8);
-        if (tvpal_movie_write(h->movie, h->rgb8, &d) < 0) {
-            abort_movie();   /* the job may end without exit handlers */
-            play_die_rank(1, "%s", d.msg);
-        }
-    }
+    if (h->movie)
+        write_movie_frame(h);
     if (h->outdir) {
         char *path;
         struct tvpal_diag d = {{0}};
         if (asprintf(&path, "%s/t%0*u.png", h->outdir, h->digits, row->step) < 0)
             play_die(1, "out of memory");
+        static const float bg[3] = {0, 0, 0};
         if (tvpal_png_write8(path, h->final, h->o->width, h->o->height, bg,
                              h->rgb8, &d) < 0)
             play_die(1, "%s: cannot write: %s", path, d.msg);
