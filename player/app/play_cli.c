@@ -370,7 +370,9 @@ enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
        K_REPEAT, K_TF_CYCLE, K_JUMPS, K_AUTOPLAY, K_SCREENSHOT, K_OPACITY,
        K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_DIRECT, K_MEM, K_CSV, K_STRICT,
        K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR, K_EXACT, K_LEVEL, K_BUDGET,
-       K_FROM_Z, K_VIEW, K_UP, K_FPS, K_PROGRESS };
+       K_FROM_Z };
+/* Views, movies and progress (apart: the list above grows elsewhere). */
+enum { K_VIEW = 384, K_UP, K_FPS, K_PROGRESS };
 
 /* Grouped as --help groups them. */
 static const struct opt_def opt_table[] = {
@@ -635,16 +637,6 @@ void play_tf_apply_options(const struct play_opts *o, struct tvpal_tf *tf)
         memcpy(tf->nan_rgba, o->nan_rgba, sizeof tf->nan_rgba);
 }
 
-void play_view_named(struct tvpal_view *v, int view, int up)
-{
-    if (view < 0)
-        return;
-    if (up < 0 || tvpal_view_orient(view, up, v->orient) < 0)
-        tvpal_view_orient(view, tvpal_view_default_up(view), v->orient);
-    v->oriented = 1;
-    v->ax_deg = v->ay_deg = 0;
-}
-
 void play_view_spacing(const struct tvpal_manifest *m, double scale_z,
                        double spacing[3])
 {
@@ -655,4 +647,14 @@ void play_view_spacing(const struct tvpal_manifest *m, double scale_z,
      * spacing existed). */
     if (spacing[0] == 1 && spacing[1] == 1 && spacing[2] == 1)
         spacing[0] = spacing[1] = spacing[2] = 0;
+}
+
+void play_view_named(struct tvpal_view *v, int view, int up)
+{
+    if (view < 0)
+        return;
+    if (up < 0 || tvpal_view_orient(view, up, v->orient) < 0)
+        tvpal_view_orient(view, tvpal_view_default_up(view), v->orient);
+    v->oriented = 1;
+    v->ax_deg = v->ay_deg = 0;
 }
