@@ -166,6 +166,28 @@ static void build_argv(const struct tvpal_movie *m, int kind, char size[32],
     argv[n] = NULL;
 }
 
+/* Whether PATH names an executable `name` (an empty entry is the current
+ * directory, as for execvp).  Said before spawning: not every
+ * posix_spawnp reports a failed exec (under valgrind the child exits 127
+ * after the spawn succeeded), and a missing ffmpeg must stop the run
+ * before any frame. */
+static int on_path(const char *name)
+{
+    const char *path = getenv("PATH");
+    char buf[4096];
+    if (!path)
+        path = "/usr/bin:/bin";
+    for (const char *p = path;;) {
+        size_t len = strcspn(p, ":");
+        if (snprintf(buf, sizeof buf, "%.*s%s%s", (int)len, p, len ? "/" : "",
+                     name) < (int)sizeof buf && access(buf, X_OK) == 0)
+            return 1;
+        if (!p[len])
+            return 0;
+        p += len + 1;
+    }
+}
+
 /* Runs ffmpeg with stdin from the pipe's read end rfd, stdout to
  * /dev/null, stderr into m->err, SIGPIPE at its default. */
 static int spawn(struct tvpal_movie *m, int rfd, char *const argv[],
@@ -196,7 +218,9 @@ static int spawn(struct tvpal_movie *m, int rfd, char *const argv[],
     if (!rc)
         rc = posix_spawnattr_setsigmask(&at, &none);
     if (!rc)
-        rc = posix_spawnp(&m->pid, argv[0], &fa, &at, argv, environ);
+        rc = on_path(argv[0]) ? posix_spawnp(&m->pid, argv[0], &fa, &at, argv,
+                                             environ)
+                              : ENOENT;
     posix_spawn_file_actions_destroy(&fa);
     posix_spawnattr_destroy(&at);
     if (rc == ENOENT)
