@@ -6,8 +6,9 @@
 # decoded back is the PNG frame of the same step within 30 dB PSNR (lossy
 # codecs) and far from black (it shows the data); no FILE.partial.EXT is
 # left; --csv gives the timing CSV (no default CSV with a movie); an ffmpeg
-# that dies early (broken pipe) or fails at the end (exit status) is
-# reported with its message, exit 1, and leaves no FILE nor temporary;
+# that dies early (broken pipe), fails at the end (exit status) or writes
+# nothing is reported with its message, exit 1, and leaves no FILE nor
+# temporary;
 # without ffmpeg on PATH the run stops before any frame with exit 2.
 . "$(dirname "$0")/lib.sh"
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
@@ -84,6 +85,10 @@ expect_exit 1 "d\.webm: ffmpeg exited with status 1: fake ffmpeg: late failure" 
 printf '#!/bin/sh\nhead -c 100 > /dev/null\nexit 0\n' > "$W/fake/ffmpeg"
 expect_exit 1 "e\.mp4: ffmpeg stopped reading at frame [0-9]+ \(ffmpeg exited with status 0\)" \
     env PATH="$W/fake:$PATH" "$PLAY" "$W/ds" --headless -q --size 200x200 -o "$W/mv/e.mp4"
+# One that reads every frame and exits 0 but writes nothing.
+printf '#!/bin/sh\ncat > /dev/null\nexit 0\n' > "$W/fake/ffmpeg"
+expect_exit 1 "i\.mp4: ffmpeg exited with status 0 but wrote no movie" \
+    env PATH="$W/fake:$PATH" "$PLAY" "$W/ds" --headless -q --size 64x48 -o "$W/mv/i.mp4"
 left=$(ls "$W/mv" | grep -v '^a\.mp4$\|^b\.webm$')
 [ -z "$left" ] && ok "failed movies leave neither FILE nor FILE.partial" \
     || fail "left behind: $left"

@@ -379,11 +379,16 @@ int tvpal_movie_close(struct tvpal_movie *m, struct tvpal_diag *diag)
     close(m->fd);
     m->fd = -1;
     char why[96], tail[ERR_TAIL + 32];
+    struct stat st;
     int rc = 0;
     if (reap(m, why, sizeof why) < 0) {
         err_tail(m, tail, sizeof tail);
         rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "%s: %s: %s", m->path, why,
                             tail);
+    } else if (stat(m->partial, &st) < 0 || st.st_size == 0) {
+        /* check_partial made it empty: ffmpeg wrote nothing there. */
+        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "%s: ffmpeg exited with "
+                            "status 0 but wrote no movie", m->path);
     } else if (rename(m->partial, m->path) < 0) {
         rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "%s: cannot rename %s: %s",
                             m->path, m->partial, strerror(errno));
