@@ -160,6 +160,14 @@ static void test_log_scale(void)
     CHECK(fabs(c[0] - 0.75) < 1e-6, "preset log midpoint %g", c[0]);
     /* The opacity ramp (no Points) runs along log10 too. */
     CHECK(fabs(tf.rgba[1][3] - 1.0 / 3) < 1e-6, "log ramp %g", tf.rgba[1][3]);
+    /* A log opacity curve: halfway (in log10) between 10 and 100. */
+    CHECK(tvpal_tf_parse_paraview("{\"UseLogScale\": 1, \"RGBPoints\": [1, 0, "
+                                  "0, 0, 100, 1, 1, 1], \"Points\": [1, 0, 0.5, "
+                                  "0, 10, 0, 0.5, 0, 100, 1, 0.5, 0]}", 1, 100,
+                                  &tf, &d) == 0, "%s", d.msg);
+    tvpal_tf_eval(&tf, sqrt(1000.0), c);
+    CHECK(fabs(c[3] - 0.5) < 1e-6 && fabs(c[0] - 0.75) < 1e-6,
+          "log opacity curve %g %g", c[3], c[0]);
     CHECK(tvpal_tf_parse_paraview("{\"UseLogScale\": true, \"RGBPoints\": [1, "
                                   "0, 0, 0, 100, 1, 1, 1], \"Points\": [1, 0, "
                                   "0.5, 0, 100, 1, 0.5, 0]}", NAN, NAN, &tf,
@@ -389,6 +397,23 @@ int main(void)
           "opacity %g", c[3]);
     CHECK(tf.nan_rgba[0] == 0 && tf.nan_rgba[1] == 0 && tf.nan_rgba[2] == 0 &&
           tf.nan_rgba[3] == 0, "preset without NanColor: transparent NaN");
+    /* Opacity follows the Points curve between the colour points too. */
+    CHECK(tvpal_tf_parse_paraview("{\"RGBPoints\": [0, 0, 0, 0, 1, 1, 1, 1], "
+                                  "\"Points\": [0, 0, 0.5, 0, 0.5, 0, 0.5, 0, "
+                                  "1, 1, 0.5, 0]}", 0, 10, &tf, &d) == 0 &&
+          tf.nop == 3 && tf.op_value[1] == 5, "%s", d.msg);
+    tvpal_tf_eval(&tf, 2.5, c);
+    CHECK(c[3] == 0 && fabs(c[0] - 0.25) < 1e-6, "opacity curve at 2.5: %g",
+          c[3]);
+    tvpal_tf_eval(&tf, 7.5, c);
+    CHECK(fabs(c[3] - 0.5) < 1e-6, "opacity curve at 7.5: %g", c[3]);
+    tvpal_tf_eval(&tf, -1, c);
+    CHECK(c[3] == 0 && c[0] == 0, "opacity curve below");
+    d.msg[0] = 0;
+    CHECK(tvpal_tf_parse_paraview("{\"RGBPoints\": [0, 0, 0, 0], \"Points\": "
+                                  "[1, 0, 0.5, 0, 0, 1, 0.5, 0]}", 0, 1, &tf, &d)
+              == TVPAL_E_FORMAT && strstr(d.msg, "Points: x values must not "
+                                          "decrease (point 1)"), "%s", d.msg);
     /* NanColor and NanOpacity as ParaView writes them; NanOpacity defaults
      * to 1 with a NanColor. */
     const char *pvn = "[{\"Name\": \"n\", \"NanColor\": [1, 0.5, 0],\n"

@@ -270,6 +270,14 @@ int tvpal_tf_prepare(struct tvpal_tf *tf, struct tvpal_diag *diag)
                                   "expected values > 0", i + 1, tf->value[i]);
         tf->key[i] = tf->log_scale ? log10(tf->value[i]) : tf->value[i];
     }
+    for (unsigned i = 0; i < tf->nop; i++) {
+        if (tf->log_scale && !(tf->op_value[i] > 0))
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                                  "opacity point %u: value %g with a log "
+                                  "scale; expected values > 0", i + 1,
+                                  tf->op_value[i]);
+        tf->op_key[i] = tf->log_scale ? log10(tf->op_value[i]) : tf->op_value[i];
+    }
     for (unsigned i = 0; i + 1 < tf->npoints && tf->space != TVPAL_TF_RGB; i++)
         prepare_interval(tf, i);
     return 0;
@@ -699,6 +707,11 @@ int tvpal_tf_parse_paraview(const char *json, double vmin, double vmax,
             return tvpal_diag_set(diag, TVPAL_E_FORMAT,
                                   "RGBPoints: x values must not decrease "
                                   "(point %zu)", i / 4);
+    for (size_t i = 4; i < nop; i += 4)
+        if (op[i] < op[i - 4])
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                                  "Points: x values must not decrease "
+                                  "(point %zu)", i / 4);
     int rc = parse_paraview_scale(json, tf, diag);
     if (rc == 0)
         rc = check_log_preset(tf, rgb, nrgb, op, nop, vmin, vmax, diag);
@@ -711,6 +724,13 @@ int tvpal_tf_parse_paraview(const char *json, double vmin, double vmax,
     const double lo = keep ? 0 : axis_key(tf, vmin);
     const double hi = keep ? 0 : axis_key(tf, vmax);
     double span = k1 > k0 ? k1 - k0 : 1.0;
+    /* The opacity curve, placed as the colour points are. */
+    for (size_t i = 0; i < nop; i += 4, tf->nop++) {
+        double v = lo + (axis_key(tf, op[i]) - k0) / span * (hi - lo);
+        tf->op_value[tf->nop] = keep ? op[i] : tf->log_scale ? pow(10.0, v) : v;
+        tf->op_a[tf->nop] = (float)(op[i + 1] < 0 ? 0 : op[i + 1] > 1 ? 1
+                                                                : op[i + 1]);
+    }
     for (size_t i = 0; i < nrgb; i += 4) {
         double x = rgb[i], k = axis_key(tf, x);
         float c[4] = {(float)rgb[i + 1], (float)rgb[i + 2], (float)rgb[i + 3],
@@ -807,15 +827,26 @@ static unsigned find_interval(const double *key, unsigned n, double k)
     return lo;
 }
 
-void tvpal_tf_eval(const struct tvpal_tf *tf, double v, float rgba[4])
+/* Opacity at axis position k from the opacity curve (tf->nop > 0). */
+static float curve_opacity(const struct tvpal_tf *tf, double k)
+{
+    const unsigned n = tf->nop;
+    if (k <= tf->op_key[0] || n == 1)
+        return tf->op_a[0];
+    if (k >= tf->op_key[n - 1])
+        return tf->op_a[n - 1];
+    const unsigned lo = find_interval(tf->op_key, n, k);
+    const double span = tf->op_key[lo + 1] - tf->op_key[lo];
+    const float f = span > 0 ? (float)((k - tf->op_key[lo]) / span) : 1.0f;
+    return tf->op_a[lo] + f * (tf->op_a[lo + 1] - tf->op_a[lo]);
+}
+
+/* Colour and (the points') opacity at axis position k: below the first
+ * point its, above the last its, between two interpolated in the space. */
+static void points_rgba(const struct tvpal_tf *tf, const double *key,
+                        double k, float rgba[4])
 {
     const unsigned n = tf->npoints;
-    /* Linear RGB reads the values themselves: the same arithmetic as
-     * before key existed (frames stay byte-identical). */
-    const double *key = tf->log_scale || tf->space ? tf->key : tf->value;
-    double k = v;
-    if (tf->log_scale)
-        k = v > 0 ? log10(v) : -HUGE_VAL; /* <= 0: below every point */
     if (k <= key[0] || n == 1) {
         memcpy(rgba, tf->rgba[0], sizeof(float) * 4);
         return;
@@ -837,4 +868,17 @@ void tvpal_tf_eval(const struct tvpal_tf *tf, double v, float rgba[4])
     }
     for (int c = 4 - ncol; c < 4; c++)
         rgba[c] = tf->rgba[lo][c] + f * (tf->rgba[hi][c] - tf->rgba[lo][c]);
+}
+
+void tvpal_tf_eval(const struct tvpal_tf *tf, double v, float rgba[4])
+{
+    /* Linear RGB reads the values themselves: the same arithmetic as
+     * before key existed (frames stay byte-identical). */
+    const double *key = tf->log_scale || tf->space ? tf->key : tf->value;
+    double k = v;
+    if (tf->log_scale)
+        k = v > 0 ? log10(v) : -HUGE_VAL; /* <= 0: below every point */
+    points_rgba(tf, key, k, rgba);
+    if (tf->nop)
+        rgba[3] = curve_opacity(tf, tf->log_scale ? k : v);
 }

@@ -65,6 +65,13 @@ struct tvpal_tf {
      * preset's NanColor [r, g, b] and NanOpacity. */
     float nan_rgba[4];
     char name[64];
+    /* A preset's opacity Points, when it has them: opacity then follows
+     * this curve (nop points, op_value non-decreasing, data units like
+     * value, op_a in [0, 1]) instead of the points' rgba[i][3] (which
+     * hold its samples at the colour points).  nop 0: rgba[i][3]. */
+    unsigned nop;
+    double op_value[TVPAL_TF_MAX_POINTS];
+    float op_a[TVPAL_TF_MAX_POINTS];
     int log_scale;                          /* 1: interpolate in log10(value);
                                              * every value > 0 */
     int space;                              /* enum tvpal_tf_space */
@@ -74,8 +81,9 @@ struct tvpal_tf {
      * interval i..i+1's end colours in the space (Lab, HSV with the wrap
      * applied, or Msh with the hue adjusted), [0] and [1], and when split[i]
      * (diverging: white inserted at the middle) [0]..[1] is the first half
-     * and [2]..[3] the second. */
+     * and [2]..[3] the second; op_key[i] is op_value[i] or its log10. */
     double key[TVPAL_TF_MAX_POINTS];
+    double op_key[TVPAL_TF_MAX_POINTS];
     double seg[TVPAL_TF_MAX_POINTS][4][3];
     unsigned char split[TVPAL_TF_MAX_POINTS];
 };
@@ -93,7 +101,10 @@ int tvpal_tf_parse_text(const char *text, double vmin, double vmax,
  * colour, NanOpacity (0..1) its opacity: 1 when only NanColor is given,
  * as in ParaView; black when only NanOpacity is.  ColorSpace: "RGB"
  * (default), "HSV", "Wrapped HSV", "Lab" or "CIELAB", "Diverging", "Step";
- * UseLogScale: 1 or true for a log scale.  The preset's RGBPoints x domain
+ * UseLogScale: 1 or true for a log scale.  Opacity follows the Points
+ * curve (x, opacity, midpoint, sharpness, ...; midpoint and sharpness not
+ * modelled: linear), or without it ramps from 0 to 1 over the RGBPoints
+ * domain, as in ParaView.  The preset's RGBPoints x domain
  * is rescaled onto [vmin, vmax] as ParaView's RescaleTransferFunction does:
  * linearly, or with a log scale logarithmically (log10 x mapped linearly
  * onto [log10 vmin, log10 vmax]; vmin must then be > 0).  vmin and vmax
@@ -119,9 +130,9 @@ void tvpal_tf_default(double vmin, double vmax, const uint64_t *hist,
  * from the colour space to RGB. */
 void tvpal_tf_eval(const struct tvpal_tf *tf, double v, float rgba[4]);
 
-/* Computes key, seg and split from the points, log_scale and space: call
- * after changing any of them.  TVPAL_E_FORMAT when log_scale is set and a
- * point's value is <= 0, or space is unknown. */
+/* Computes key, op_key, seg and split from the points, log_scale and
+ * space: call after changing any of them.  TVPAL_E_FORMAT when log_scale
+ * is set and a point's value is <= 0, or space is unknown. */
 int tvpal_tf_prepare(struct tvpal_tf *tf, struct tvpal_diag *diag);
 
 /* The value at fraction f (0..1) of the TF's domain [value[0],
