@@ -117,6 +117,30 @@ static int near3(const float c[4], const double want[3], double tol)
            fabs(c[2] - want[2]) <= tol;
 }
 
+/* A transfer function the parser must refuse: TVPAL_E_FORMAT with msg in
+ * its message (src: text, or a preset's JSON; lo..hi: the range). */
+struct bad_tf {
+    const char *src, *msg;
+    double lo, hi;
+};
+
+static void check_refused(const struct bad_tf *b, size_t n, int preset,
+                          const char *what)
+{
+    static struct tvpal_tf tf;
+    for (size_t i = 0; i < n; i++) {
+        struct tvpal_diag d = {{0}};
+        int rc = preset ? tvpal_tf_parse_paraview(b[i].src, b[i].lo, b[i].hi,
+                                                  &tf, &d)
+                        : tvpal_tf_parse_text(b[i].src, b[i].lo, b[i].hi, &tf,
+                                              &d);
+        CHECK(rc == TVPAL_E_FORMAT && strstr(d.msg, b[i].msg),
+              "%s %zu: got \"%s\", want \"%s\"", what, i, d.msg, b[i].msg);
+    }
+}
+#define CHECK_REFUSED(table, preset, what) \
+    check_refused(table, sizeof table / sizeof *table, preset, what)
+
 /* Log scale: geometric midpoints, <= 0 below every point, presets rescaled
  * in log space, kept values, and the errors. */
 static void test_log_scale(void)
@@ -176,7 +200,7 @@ static void test_log_scale(void)
     CHECK(tvpal_tf_parse_paraview("{\"UseLogScale\": 0, \"RGBPoints\": [-5, "
                                   "0, 0, 0, 5, 1, 1, 1]}", NAN, NAN, &tf, &d) == 0 &&
           tf.value[0] == -5 && !tf.log_scale, "kept, linear: %s", d.msg);
-    static const struct { const char *json, *msg; double lo, hi; } bad[] = {
+    static const struct bad_tf bad[] = {
         {"{\"UseLogScale\": 1, \"RGBPoints\": [0, 0, 0, 0, 1, 1, 1, 1]}",
          "UseLogScale: RGBPoints x = 0 (point 1); a log scale needs values > 0",
          1, 10},
@@ -187,27 +211,16 @@ static void test_log_scale(void)
         {"{\"UseLogScale\": \"yes\", \"RGBPoints\": [1, 0, 0, 0]}",
          "UseLogScale: malformed", 1, 10},
     };
-    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
-        d.msg[0] = 0;
-        CHECK(tvpal_tf_parse_paraview(bad[i].json, bad[i].lo, bad[i].hi, &tf,
-                                      &d) == TVPAL_E_FORMAT &&
-              strstr(d.msg, bad[i].msg), "bad log preset %zu: \"%s\"", i,
-              d.msg);
-    }
-    static const struct { const char *text, *msg; } badt[] = {
+    CHECK_REFUSED(bad, 1, "bad log preset");
+    static const struct bad_tf badt[] = {
         {"scale log\ndomain data\n0 0 0 0 0\n1 1 1 1 1\n",
-         "point 1: value 0 with a log scale; expected values > 0"},
+         "point 1: value 0 with a log scale; expected values > 0", -1, 1},
         {"scale log\ndomain normalized\n0 0 0 0 0\n", "the value range -1..1 "
-         "includes values <= 0"},
+         "includes values <= 0", -1, 1},
         {"scale logarithmic\n", "line 1: scale \"logarithmic\": expected "
-         "linear or log"},
+         "linear or log", -1, 1},
     };
-    for (size_t i = 0; i < sizeof badt / sizeof *badt; i++) {
-        d.msg[0] = 0;
-        CHECK(tvpal_tf_parse_text(badt[i].text, -1, 1, &tf, &d) ==
-                  TVPAL_E_FORMAT && strstr(d.msg, badt[i].msg),
-              "bad log text %zu: \"%s\"", i, d.msg);
-    }
+    CHECK_REFUSED(badt, 0, "bad log text");
     d.msg[0] = 0;
     CHECK(tvpal_tf_parse_text("domain normalized\n0 0 0 0 0\n", NAN, NAN, &tf,
                               &d) == TVPAL_E_FORMAT &&
@@ -313,18 +326,13 @@ static void test_color_spaces(void)
         ref_lab2rgb(l, want);
     }
     CHECK(near3(c, want, 1e-3) && fabs(c[3] - 0.5) < 1e-6, "log Lab middle");
-    static const struct { const char *json, *msg; } bad[] = {
+    static const struct bad_tf bad[] = {
         {"{\"ColorSpace\": \"Lab/CIEDE2000\", \"RGBPoints\": [0, 0, 0, 0]}",
          "ColorSpace \"Lab/CIEDE2000\": expected \"RGB\", \"HSV\""},
         {"{\"ColorSpace\": 3, \"RGBPoints\": [0, 0, 0, 0]}",
          "ColorSpace \"(not a string)\""},
     };
-    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
-        d.msg[0] = 0;
-        CHECK(tvpal_tf_parse_paraview(bad[i].json, 0, 1, &tf, &d) ==
-                  TVPAL_E_FORMAT && strstr(d.msg, bad[i].msg),
-              "bad colour space %zu: \"%s\"", i, d.msg);
-    }
+    CHECK_REFUSED(bad, 1, "bad colour space");
     d.msg[0] = 0;
     CHECK(tvpal_tf_parse_text("colorspace cmyk\n", 0, 1, &tf, &d) ==
               TVPAL_E_FORMAT && strstr(d.msg, "line 1: colorspace \"cmyk\": "
@@ -365,7 +373,7 @@ int main(void)
     CHECK(tvpal_tf_parse_text("domain data\n0 0 0 0 0\nnan 0 1 0 1\n", 0, 1,
                               &tf, &d) == 0 && tf.nan_rgba[1] == 1.0f &&
           tf.nan_rgba[3] == 1.0f, "nan line after the points");
-    static const struct { const char *text, *msg; } bad[] = {
+    static const struct bad_tf bad[] = {
         {"0 0 0 0 0\n", "line 1: expected \"domain"},
         {"domain weird\n", "line 1: domain \"weird\""},
         {"domain data\n1 0 0 0\n", "line 2: expected 5 numbers"},
@@ -379,12 +387,7 @@ int main(void)
         {"domain data\nnan -1 0 0 1\n0 0 0 0 0\n", "line 2: nan r = -1"},
         {"domain data\nnan 0 nan 0 1\n0 0 0 0 0\n", "line 2: nan g = nan"},
     };
-    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
-        d.msg[0] = 0;
-        CHECK(tvpal_tf_parse_text(bad[i].text, 0, 1, &tf, &d) == TVPAL_E_FORMAT &&
-              strstr(d.msg, bad[i].msg), "bad %zu: got \"%s\", want \"%s\"", i,
-              d.msg, bad[i].msg);
-    }
+    CHECK_REFUSED(bad, 0, "bad");
     const char *pv = "[{\"ColorSpace\": \"RGB\", \"Name\": \"Cool to Warm\", "
                      "\"RGBPoints\": [-1, 0.2, 0.3, 0.8, 0, 0.9, 0.9, 0.9, 1, "
                      "0.7, 0.0, 0.1], \"Points\": [-1, 0, 0.5, 0, 1, 1, 0.5, 0]}]";
@@ -437,7 +440,7 @@ int main(void)
                                   &tf, &d) == 0 && !strcmp(tf.name, "NanColor") &&
           tf.nan_rgba[1] == 1.0f && tf.nan_rgba[3] == 1.0f, "key vs string: %s",
           d.msg);
-    static const struct { const char *json, *msg; } badpv[] = {
+    static const struct bad_tf badpv[] = {
         {"{\"NanColor\": [1, 0], \"RGBPoints\": [0, 0, 0, 0]}",
          "NanColor: malformed; expected [r, g, b]"},
         {"{\"NanColor\": [1, 0, 0, 1], \"RGBPoints\": [0, 0, 0, 0]}",
@@ -453,12 +456,7 @@ int main(void)
         {"{\"NanOpacity\": \"x\", \"RGBPoints\": [0, 0, 0, 0]}",
          "NanOpacity: malformed; expected a number in 0..1"},
     };
-    for (size_t i = 0; i < sizeof badpv / sizeof *badpv; i++) {
-        d.msg[0] = 0;
-        CHECK(tvpal_tf_parse_paraview(badpv[i].json, 0, 1, &tf, &d) ==
-                  TVPAL_E_FORMAT && strstr(d.msg, badpv[i].msg),
-              "bad preset %zu: got \"%s\", want \"%s\"", i, d.msg, badpv[i].msg);
-    }
+    CHECK_REFUSED(badpv, 1, "bad preset");
     CHECK(tvpal_tf_parse_paraview("{\"Name\": \"x\"}", 0, 1, &tf, &d) ==
               TVPAL_E_FORMAT && strstr(d.msg, "RGBPoints: missing"), "%s", d.msg);
     CHECK(tvpal_tf_parse_paraview("{\"RGBPoints\": [0, 1, 1]}", 0, 1, &tf, &d)

@@ -323,18 +323,32 @@ static int check_unit_rgba(const float c[4], const char *what, unsigned line,
     return 0;
 }
 
+/* Reads "[value] r g b a" from the numbers at num of line s (the value
+ * into *v when v is not NULL), r, g, b, a each in [0, 1]; `form` is the
+ * expected line and `what` prefixes a component's name in messages. */
+static int scan_rgba(const char *s, const char *num, double *v, float c[4],
+                     const char *form, const char *what, unsigned line,
+                     struct tvpal_diag *diag)
+{
+    char extra;
+    int k = v ? sscanf(num, "%lf %f %f %f %f %c", v, &c[0], &c[1], &c[2],
+                       &c[3], &extra)
+              : sscanf(num, "%f %f %f %f %c", &c[0], &c[1], &c[2], &c[3],
+                       &extra);
+    if (k != (v ? 5 : 4))
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "line %u: expected %s, "
+                              "got \"%s\"", line, form, s);
+    return check_unit_rgba(c, what, line, diag);
+}
+
 /* The text format's "nan r g b a" line s (after the keyword check). */
 static int parse_nan_line(const char *s, unsigned line, struct tvpal_tf *tf,
                           struct tvpal_diag *diag)
 {
     float c[4];
-    char extra;
-    if (sscanf(s, "%*s %f %f %f %f %c", &c[0], &c[1], &c[2], &c[3],
-               &extra) != 4)
-        return tvpal_diag_set(diag, TVPAL_E_FORMAT,
-                              "line %u: expected \"nan r g b a\" (4 numbers "
-                              "0..1), got \"%s\"", line, s);
-    int rc = check_unit_rgba(c, "nan ", line, diag);
+    const char *num = s + strcspn(s, " \t");
+    int rc = scan_rgba(s, num, NULL, c, "\"nan r g b a\" (4 numbers 0..1)",
+                       "nan ", line, diag);
     if (rc < 0)
         return rc;
     memcpy(tf->nan_rgba, c, sizeof c);
@@ -425,14 +439,8 @@ static int parse_point(const char *s, unsigned line, struct tvpal_tf *tf,
 {
     double v;
     float c[4];
-    char extra;
-    int k = sscanf(s, "%lf %f %f %f %f %c", &v, &c[0], &c[1], &c[2], &c[3],
-                   &extra);
-    if (k != 5)
-        return tvpal_diag_set(diag, TVPAL_E_FORMAT,
-                              "line %u: expected 5 numbers \"value r g b "
-                              "a\", got \"%s\"", line, s);
-    int rc = check_unit_rgba(c, "", line, diag);
+    int rc = scan_rgba(s, s, &v, c, "5 numbers \"value r g b a\"", "", line,
+                       diag);
     if (rc < 0)
         return rc;
     if (!isfinite(v))
