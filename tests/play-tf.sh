@@ -5,9 +5,11 @@
 # "colorspace rgb" the frames it draws without the line; --tf-range MIN:MAX
 # on the data range draws what the default does and another range other
 # frames; --tf-range preset keeps a preset's values (the frames of
-# --tf-range on its own domain); a log TF on a range reaching 0 and a
-# normalized text TF under --tf-range preset are refused (exit 2, the file
-# and the reason); --steps T writes exactly the one frame tT.
+# --tf-range on its own domain); a log TF on a range reaching 0 (pointing
+# to --tf-range when it is the data's) and a normalized text TF under
+# --tf-range preset are refused (exit 2, the file and the reason), and the
+# log TF plays on that data with --tf-range; --steps T writes exactly the
+# one frame tT.
 . "$(dirname "$0")/lib.sh"
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
@@ -72,6 +74,15 @@ play range-a --tf "$W/a.tf" --tf-range 0.2:0.5
 differ range-a a
 expect_exit 2 "^tvpal-play: .*/log\.json: UseLogScale: the value range -1\.\.2 to rescale onto includes values <= 0; a log scale needs a range above 0" \
     "$PLAY" "$W/ds" --headless -q --size 16x16 --steps 0 -o "$W/no" --tf "$W/log.json" --tf-range -1:2
+# Data reaching 0 (here all 0): a log preset asks for --tf-range, and plays
+# with one.
+"$GEN" --field constant --value 0 --dims 8x8x8 --steps 1 -o "$W/in0" > /dev/null || fail gen0
+"$ENC" -q --dims 8x8x8 -o "$W/ds0" "$W"/in0/*.f32 > /dev/null || fail encode0
+expect_exit 2 "^tvpal-play: .*/log\.json: UseLogScale: the value range 0\.\.0 to rescale onto includes values <= 0; a log scale needs a range above 0 \(give one with --tf-range MIN:MAX, MIN > 0\)$" \
+    "$PLAY" "$W/ds0" --headless -q --size 16x16 -o "$W/no" --tf "$W/log.json"
+"$PLAY" "$W/ds0" --headless -q --size 16x16 -o "$W/zero" --tf "$W/log.json" \
+    --tf-range 0.001:1 > "$W/zero.txt" 2>&1 && ok "log preset on 0 with --tf-range" \
+    || fail "log preset on 0 with --tf-range: $(cat "$W/zero.txt")"
 expect_exit 2 "^tvpal-play: .*/a\.tf: domain normalized: no value range to map onto" \
     "$PLAY" "$W/ds" --headless -q --size 16x16 --steps 0 -o "$W/no" --tf "$W/a.tf" --tf-range preset
 finish

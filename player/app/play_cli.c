@@ -591,6 +591,11 @@ int play_tf_load(const struct play_opts *o, const struct tvpal_manifest *m,
         lo = hi = NAN; /* tvpal_tf_load: keep the file's values */
     }
     int rc = tvpal_tf_load(o->tf_files[i], lo, hi, tf, d);
+    if (rc == TVPAL_E_RANGE && o->tf_range == PLAY_TF_DATA) {
+        size_t n = strlen(d->msg);
+        snprintf(d->msg + n, sizeof d->msg - n, " (give one with --tf-range "
+                 "MIN:MAX, MIN > 0)");
+    }
     if (rc == 0)
         play_tf_apply_options(o, tf);
     return rc;

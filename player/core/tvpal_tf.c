@@ -381,7 +381,7 @@ static int place_normalized(struct tvpal_tf *tf, double vmin, double vmax,
                               "value range to map onto (the file's own "
                               "values are kept: use \"domain data\")");
     if (tf->log_scale && !(vmin > 0 && vmax > 0))
-        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "scale log: the value "
+        return tvpal_diag_set(diag, TVPAL_E_RANGE, "scale log: the value "
                               "range %g..%g includes values <= 0; a log "
                               "scale needs a range above 0", vmin, vmax);
     for (unsigned i = 0; i < tf->npoints; i++) {
@@ -660,7 +660,7 @@ static int check_log_preset(const struct tvpal_tf *tf, const double *rgb,
                                   "x = %g (point %zu); a log scale needs "
                                   "values > 0", op[i], i / 4 + 1);
     if (!isnan(vmin) && !(vmin > 0 && vmax > 0))
-        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "UseLogScale: the value "
+        return tvpal_diag_set(diag, TVPAL_E_RANGE, "UseLogScale: the value "
                               "range %g..%g to rescale onto includes values "
                               "<= 0; a log scale needs a range above 0",
                               vmin, vmax);

@@ -92,7 +92,8 @@ struct tvpal_tf {
  * "colorspace" lines; vmin/vmax give the range normalized values map onto
  * (linearly, or geometrically with "scale log": then vmin must be > 0).
  * vmin and vmax both NaN: no range (a file with "domain normalized" is
- * refused). */
+ * refused).  TVPAL_E_FORMAT for a malformed file, TVPAL_E_RANGE for a log
+ * scale whose normalized values would map onto a range reaching 0. */
 int tvpal_tf_parse_text(const char *text, double vmin, double vmax,
                         struct tvpal_tf *tf, struct tvpal_diag *diag);
 
@@ -107,8 +108,9 @@ int tvpal_tf_parse_text(const char *text, double vmin, double vmax,
  * domain, as in ParaView.  The preset's RGBPoints x domain
  * is rescaled onto [vmin, vmax] as ParaView's RescaleTransferFunction does:
  * linearly, or with a log scale logarithmically (log10 x mapped linearly
- * onto [log10 vmin, log10 vmax]; vmin must then be > 0).  vmin and vmax
- * both NaN: the points keep the preset's own x values. */
+ * onto [log10 vmin, log10 vmax]; vmin must then be > 0, else
+ * TVPAL_E_RANGE).  vmin and vmax both NaN: the points keep the preset's
+ * own x values.  TVPAL_E_FORMAT for a malformed preset. */
 int tvpal_tf_parse_paraview(const char *json, double vmin, double vmax,
                             struct tvpal_tf *tf, struct tvpal_diag *diag);
 
