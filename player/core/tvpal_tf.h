@@ -1,8 +1,10 @@
 /* tvpal_tf.h: transfer functions: data value -> colour and opacity.
  *
- * A transfer function is a piecewise-linear map through control points
- * (value, r, g, b, a) with r, g, b, a in [0, 1]; values below the first
- * point take the first point's colour, above the last the last's.  Opacity
+ * A transfer function maps through control points (value, r, g, b, a)
+ * with r, g, b, a in [0, 1], interpolating between them (linearly in RGB
+ * unless a log scale or colour space below says otherwise); values below
+ * the first point take the first point's colour, above the last the
+ * last's.  Opacity
  * a is per unit of reference slice spacing: the renderer corrects it for
  * the actual sampling distance.  Two sources:
  *   - the tvpal text format (samples/tf/README.md), with values in data
