@@ -351,7 +351,9 @@ enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
        K_REPEAT, K_TF_CYCLE, K_JUMPS, K_AUTOPLAY, K_SCREENSHOT, K_OPACITY,
        K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_DIRECT, K_MEM, K_CSV, K_STRICT,
        K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR, K_EXACT, K_LEVEL, K_BUDGET,
-       K_FROM_Z, K_TF_RANGE };
+       K_FROM_Z };
+/* Transfer functions (apart: the list above grows elsewhere). */
+enum { K_TF_RANGE = 512 };
 
 /* Grouped as --help groups them. */
 static const struct opt_def opt_table[] = {
