@@ -226,6 +226,10 @@ static int set_tf(struct play_opts *o, const char *arg)
     return 0;
 }
 
+/* The transfer-function options' keys (apart: the main list grows
+ * elsewhere). */
+enum { K_TF_RANGE = 512 };
+
 /* --tf-range data | preset | MIN:MAX (finite, MIN < MAX). */
 static int set_tf_range(struct play_opts *o, const char *arg)
 {
@@ -352,8 +356,6 @@ enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
        K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_DIRECT, K_MEM, K_CSV, K_STRICT,
        K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR, K_EXACT, K_LEVEL, K_BUDGET,
        K_FROM_Z };
-/* Transfer functions (apart: the list above grows elsewhere). */
-enum { K_TF_RANGE = 512 };
 
 /* Grouped as --help groups them. */
 static const struct opt_def opt_table[] = {
