@@ -3,7 +3,8 @@
  *
  * The steps of main: parse the options, load the manifest and print it
  * with the axes it stores, then either verify every shard (--verify) or
- * open the dataset and print its bytes per stored axis. */
+ * open the dataset and print its bytes per stored axis; with --histogram,
+ * load the manifest and print only its value histogram. */
 #define _GNU_SOURCE
 #include "tvpal_cli.h"
 #include "tvpal_dataset.h"
@@ -22,19 +23,24 @@ static void usage(FILE *f)
 {
     fprintf(f,
 "Usage: " PROG " OUTDIR [--verify]\n"
+"       " PROG " OUTDIR --histogram\n"
 "       " PROG " --inspect FILE\n"
 "Print the manifest of the tvpal dataset OUTDIR, the axes it stores, its\n"
 "bytes per stored axis and on disk, and its chunks by decoder table format\n"
 "(16-bit or float32); or, with --inspect, what an input file holds.\n"
 "\n"
-"  -v, --verify   open every shard of the stored axes (header, index, size,\n"
-"                 agreement with the manifest) and read every record\n"
-"                 (CRC-32C and layout); each corrupt file or record is named\n"
-"  -i, --inspect  FILE is an input for tvpal-encode: print its format and\n"
-"                 its variables with their dims, type and units (NetCDF,\n"
-"                 VTK ImageData)\n"
-"  -h, --help     this help\n"
-"  -V, --version  version\n"
+"  -v, --verify     open every shard of the stored axes (header, index,\n"
+"                   size, agreement with the manifest) and read every record\n"
+"                   (CRC-32C and layout); each corrupt file or record is\n"
+"                   named\n"
+"  -H, --histogram  print only the dataset's value histogram (from the\n"
+"                   manifest): one line per bin, \"BIN LO HI COUNT FRACTION\n"
+"                   BAR\", then a summary line (count, missing, values)\n"
+"  -i, --inspect    FILE is an input for tvpal-encode: print its format and\n"
+"                   its variables with their dims, type and units (NetCDF,\n"
+"                   VTK ImageData)\n"
+"  -h, --help       this help\n"
+"  -V, --version    version\n"
 "\n"
 "Exit status: 0 dataset valid; 1 --verify found corrupt, truncated or missing\n"
 "shard files or records; 2 usage error, unreadable manifest, or (without\n"
@@ -43,16 +49,17 @@ static void usage(FILE *f)
 
 struct options {
     const char *dir;   /* OUTDIR, or the FILE of --inspect */
-    int verify, inspect;
+    int verify, inspect, histogram;
 };
 
 static const struct option long_options[] = {
     {"verify", no_argument, 0, 'v'},
     {"inspect", no_argument, 0, 'i'},
+    {"histogram", no_argument, 0, 'H'},
     {"help", no_argument, 0, 'h'},
     {"version", no_argument, 0, 'V'},
     {0, 0, 0, 0}};
-static const char short_options[] = "vihV";
+static const char short_options[] = "viHhV";
 
 /* Fills o from argv and checks that exactly one OUTDIR is given.  Returns -1
  * to go on, or the exit status when the program is done: --help, --version
@@ -65,6 +72,7 @@ static int parse_options(int argc, char **argv, struct options *o)
         switch (c) {
         case 'v': o->verify = 1; break;
         case 'i': o->inspect = 1; break;
+        case 'H': o->histogram = 1; break;
         case 'h': usage(stdout); return TVPAL_EXIT_OK;
         case 'V': printf(PROG " " PACKAGE_VERSION "\n"); return TVPAL_EXIT_OK;
         default:
@@ -77,8 +85,9 @@ static int parse_options(int argc, char **argv, struct options *o)
                 o->inspect ? "FILE" : "OUTDIR");
         return TVPAL_EXIT_USAGE;
     }
-    if (o->inspect && o->verify) {
-        fprintf(stderr, PROG ": --inspect and --verify: one at a time\n");
+    if (o->inspect + o->verify + o->histogram > 1) {
+        fprintf(stderr, PROG ": --inspect, --verify and --histogram: one at "
+                "a time\n");
         return TVPAL_EXIT_USAGE;
     }
     o->dir = argv[optind];
@@ -232,9 +241,42 @@ static int print_axis_bytes(const char *dir, const struct tvpal_manifest *m)
     return TVPAL_EXIT_OK;
 }
 
-/* Loads dir/manifest.txt into m and prints the file as it is.  Returns 0 or
- * the exit status (printed). */
-static int load_and_print_manifest(const char *dir, struct tvpal_manifest *m)
+/* --histogram: the manifest's TVPAL_HIST_BINS bins over [value_min,
+ * value_max], one line each (bin, its value range, count, share of the
+ * counted values, a bar scaled to the fullest bin), then a summary.  The
+ * counts are the encoder's (approximate at bin edges: FORMAT.md 2.2). */
+static void print_histogram(const char *dir, const struct tvpal_manifest *m)
+{
+    const double lo = m->value_min, hi = m->value_max;
+    const double w = (hi - lo) / TVPAL_HIST_BINS;
+    uint64_t total = 0, peak = 0;
+    for (unsigned i = 0; i < TVPAL_HIST_BINS; i++) {
+        total += m->histogram[i];
+        peak = m->histogram[i] > peak ? m->histogram[i] : peak;
+    }
+    printf("# histogram of %s: %d bins over [%.9g, %.9g] (the last includes "
+           "its top)\n# bin lo hi count fraction bar\n", dir,
+           TVPAL_HIST_BINS, lo, hi);
+    for (unsigned i = 0; i < TVPAL_HIST_BINS; i++) {
+        const uint64_t c = m->histogram[i];
+        int bar = peak ? (int)(40.0 * (double)c / (double)peak + 0.5) : 0;
+        bar = c && !bar ? 1 : bar;
+        printf("%u %.9g %.9g %llu %.6f%s%.*s\n", i, lo + i * w,
+               i + 1 == TVPAL_HIST_BINS ? hi : lo + (i + 1) * w,
+               (unsigned long long)c, total ? (double)c / (double)total : 0.0,
+               bar ? " " : "", bar, "****************************************");
+    }
+    const double values = (double)m->dims[0] * m->dims[1] * m->dims[2] *
+                          m->steps;
+    printf("histogram: bins=%d count=%llu missing=%llu values=%.0f\n",
+           TVPAL_HIST_BINS, (unsigned long long)total,
+           (unsigned long long)m->missing, values);
+}
+
+/* Loads dir/manifest.txt into m and prints the file as it is (unless
+ * quiet).  Returns 0 or the exit status (printed). */
+static int load_and_print_manifest(const char *dir, struct tvpal_manifest *m,
+                                   int quiet)
 {
     char *mpath, *text = NULL;
     struct tvpal_diag d = {{0}};
@@ -249,6 +291,10 @@ static int load_and_print_manifest(const char *dir, struct tvpal_manifest *m)
     }
     /* Loaded and checked a moment ago: a failure to read it again only
      * leaves out the text. */
+    if (quiet) {
+        free(mpath);
+        return 0;
+    }
     if (tvpal_read_file(mpath, &text, NULL, NULL) == 0) {
         fputs(text, stdout);
         free(text);
@@ -292,10 +338,14 @@ int main(int argc, char **argv)
     if (o.inspect)
         return inspect(o.dir);
     struct tvpal_manifest m;
-    status = load_and_print_manifest(o.dir, &m);
+    status = load_and_print_manifest(o.dir, &m, o.histogram);
     if (status != 0)
         return status;
-    status = o.verify ? print_verify(o.dir, &m) : print_axis_bytes(o.dir, &m);
+    if (o.histogram)
+        print_histogram(o.dir, &m);
+    else
+        status = o.verify ? print_verify(o.dir, &m)
+                          : print_axis_bytes(o.dir, &m);
     tvpal_manifest_clear(&m);
     return status;
 }

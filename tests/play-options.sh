@@ -3,7 +3,8 @@
 # range, NaN, infinite, overflowing (wrapping past 2^32), signed, empty or
 # with trailing text are refused with the option, the value and the range
 # (exit 2), never taken wrapped nor crashing the player; the bounds
-# themselves are accepted.
+# themselves are accepted.  --tf-range refuses what is not MIN:MAX with
+# MIN < MAX, data or preset.
 . "$(dirname "$0")/lib.sh"
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
@@ -35,9 +36,12 @@ refuse repeat "1\.\.100000" 0 100001 4294967297
 refuse jumps "1\.\.1000000" 0 1000001 4294967297
 refuse cpu-scale "auto or 1\.\.8" 0 9 4294967297 -1
 refuse fb "8, 16 or 32" 4294967304 24 -8
+refuse tf-range "MIN:MAX \(finite numbers, MIN < MAX\), data or preset" \
+    5:5 5:1 1 1: :1 a:b nan:1 0:nan -inf:1 0:inf 1e999:2e999 "0:1 " Preset ""
 # --steps is checked against the dataset (3 timesteps: 0..2).
-for v in 4294967296:0 0:4294967296 4294967298:1 -1:2 +0:1 1: :1 1 1:2: "0:1 " 0:3; do
-    expect_exit 2 "^tvpal-play: --steps \"$(re "$v")\": expected A:B within 0\.\.2$" \
+for v in 4294967296:0 0:4294967296 4294967298:1 -1:2 +0:1 1: :1 1:2: "0:1 " 0:3 \
+    3 -1 +1 4294967296 "" " 1" x; do
+    expect_exit 2 "^tvpal-play: --steps \"$(re "$v")\": expected T or A:B within 0\.\.2$" \
         "$PLAY" "$W/ds" --headless -q --steps "$v"
 done
 # The bounds are accepted and draw (no crash at the extremes).

@@ -117,7 +117,7 @@ for bad in 2,0,0 1,0 1,0,0, 1,0,0,1,1 red nan,0,0 ""; do
     expect_exit 2 "--nan-color \"$bad\": expected none or R,G,B\[,A\], each 0..1" \
         "$PLAY" "$W/ds" --headless --nan-color "$bad"
 done
-expect_exit 2 "--steps \"0:9\": expected A:B within 0..8" "$PLAY" "$W/ds" --headless --steps 0:9
+expect_exit 2 "--steps \"0:9\": expected T or A:B within 0..8" "$PLAY" "$W/ds" --headless --steps 0:9
 expect_exit 2 "--size" "$PLAY" "$W/ds" --headless --size 0x10
 expect_exit 2 "manifest.txt" "$PLAY" "$W/none" --headless
 expect_exit 2 "--mode" "$PLAY" "$W/ds" --mode fast

@@ -20,10 +20,18 @@ enum play_renderer_kind {
     PLAY_REND_AUTO, PLAY_REND_GL, PLAY_REND_CPU, PLAY_REND_REF, PLAY_REND_NONE
 };
 
+/* --tf-range: what a --tf file's values are placed on. */
+enum play_tf_range {
+    PLAY_TF_DATA,       /* the data range (the default, as ParaView) */
+    PLAY_TF_MINMAX,     /* MIN:MAX */
+    PLAY_TF_PRESET      /* the file's own values */
+};
+
 /* Everything the command line says, after play_options_check. */
 struct play_opts {
     const char *dir;                    /* OUTDIR */
-    const char *steps;                  /* --steps A:B, checked once open */
+    const char *steps;                  /* --steps T or A:B, checked once
+                                         * open */
     unsigned width, height;             /* --size */
     double ax, ay, zoom, opacity, spin;
     int rotate_given;                   /* --rotate */
@@ -32,6 +40,8 @@ struct play_opts {
     double scale_z;                     /* vertical exaggeration (z) */
     const char *tf_files[PLAY_MAX_TF];  /* --tf, in order */
     unsigned ntf;
+    int tf_range;                       /* enum play_tf_range: --tf-range */
+    double tf_lo, tf_hi;                /* its MIN:MAX, MIN < MAX */
     int nan_given;                      /* --nan-color: */
     float nan_rgba[4];                  /* straight RGBA, each in [0, 1] */
     int renderer;                       /* enum play_renderer_kind */
@@ -71,6 +81,11 @@ void play_options_check(struct play_opts *o, int nranks);
  * replaces its NaN colour.  Applied to every --tf file (also when reloaded)
  * and to the default. */
 void play_tf_apply_options(const struct play_opts *o, struct tvpal_tf *tf);
+/* Loads --tf file i onto the range --tf-range says (the data range of m,
+ * MIN:MAX, or the file's own values) and applies the options to it.
+ * Returns 0 or the tvpal_tf_load error, with the reason in d. */
+int play_tf_load(const struct play_opts *o, const struct tvpal_manifest *m,
+                 unsigned i, struct tvpal_tf *tf, struct tvpal_diag *d);
 
 /* The view's voxel spacing: the dataset's, z times scale_z. */
 void play_view_spacing(const struct tvpal_manifest *m, double scale_z,

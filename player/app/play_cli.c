@@ -39,8 +39,8 @@ static void usage_view(FILE *f)
 "      --headless           render off-screen to PNG files (default when\n"
 "                           there is no display)\n"
 "  -w, --window             interactive window (default with a display)\n"
-"  -s, --steps A:B          timesteps A..B inclusive, 0-based (default all);\n"
-"                           B < A plays backward\n"
+"  -s, --steps A:B|T        timesteps A..B inclusive, 0-based (default all);\n"
+"                           B < A plays backward; T alone: the one step T\n"
 "  -S, --size WxH           image size, each 1..16384 (default 512x512)\n"
 "  -r, --rotate AX,AY       degrees about x, then about y, each -360..360\n"
 "                           (default 20,30)\n"
@@ -58,6 +58,13 @@ static void usage_view(FILE *f)
 "                           text format or ParaView preset JSON); default:\n"
 "                           one from the data's histogram.  Repeat to give\n"
 "                           several (the window cycles through them)\n"
+"      --tf-range R         what the --tf files' values are placed on: data\n"
+"                           (default: a preset's domain and normalized values\n"
+"                           rescaled onto the data range, as ParaView does),\n"
+"                           MIN:MAX (onto MIN..MAX instead: absolute values,\n"
+"                           e.g. 20:50 for 20..50 m/s) or preset (each file's\n"
+"                           own values, unrescaled; text files need \"domain\n"
+"                           data\").  Log-scale TFs need a range above 0\n"
 "      --nan-color SPEC     colour of missing values (voxels that decode to\n"
 "                           NaN) for every transfer function: none\n"
 "                           (transparent) or R,G,B[,A], each 0..1, A default\n"
@@ -266,6 +273,31 @@ static int set_tf(struct play_opts *o, const char *arg)
     return 0;
 }
 
+/* The transfer-function options' keys (apart: the main list grows
+ * elsewhere). */
+enum { K_TF_RANGE = 512 };
+
+/* --tf-range data | preset | MIN:MAX (finite, MIN < MAX). */
+static int set_tf_range(struct play_opts *o, const char *arg)
+{
+    const char *colon = strchr(arg, ':');
+    char lo[64];
+    if (!strcmp(arg, "data") || !strcmp(arg, "preset")) {
+        o->tf_range = !strcmp(arg, "data") ? PLAY_TF_DATA : PLAY_TF_PRESET;
+        return 0;
+    }
+    if (!colon || (size_t)(colon - arg) >= sizeof lo)
+        return -1;
+    memcpy(lo, arg, (size_t)(colon - arg));
+    lo[colon - arg] = 0;
+    if (tvpal_parse_double_in(lo, -HUGE_VAL, HUGE_VAL, &o->tf_lo) < 0 ||
+        tvpal_parse_double_in(colon + 1, -HUGE_VAL, HUGE_VAL, &o->tf_hi) < 0 ||
+        !(o->tf_lo < o->tf_hi))
+        return -1;
+    o->tf_range = PLAY_TF_MINMAX;
+    return 0;
+}
+
 /* --nan-color none | R,G,B[,A]: each in [0, 1], A 1 when left out. */
 static int set_nan_color(struct play_opts *o, const char *arg)
 {
@@ -389,6 +421,8 @@ static const struct opt_def opt_table[] = {
     {"zoom", 'z', OPT_DOUBLE, F(zoom), 0.001, 1000, NULL,
      "a number in 0.001..1000"},
     {"tf", 't', OPT_FN, 0, 0, 0, set_tf, NULL},
+    {"tf-range", K_TF_RANGE, OPT_FN, 0, 0, 0, set_tf_range,
+     "MIN:MAX (finite numbers, MIN < MAX), data or preset"},
     {"nan-color", K_NAN_COLOR, OPT_FN, 0, 0, 0, set_nan_color,
      "none or R,G,B[,A], each 0..1"},
     {"opacity", K_OPACITY, OPT_DOUBLE, F(opacity), 0, 1000, NULL,
@@ -635,6 +669,27 @@ void play_tf_apply_options(const struct play_opts *o, struct tvpal_tf *tf)
 {
     if (o->nan_given)
         memcpy(tf->nan_rgba, o->nan_rgba, sizeof tf->nan_rgba);
+}
+
+int play_tf_load(const struct play_opts *o, const struct tvpal_manifest *m,
+                 unsigned i, struct tvpal_tf *tf, struct tvpal_diag *d)
+{
+    double lo = m->value_min, hi = m->value_max;
+    if (o->tf_range == PLAY_TF_MINMAX) {
+        lo = o->tf_lo;
+        hi = o->tf_hi;
+    } else if (o->tf_range == PLAY_TF_PRESET) {
+        lo = hi = NAN; /* tvpal_tf_load: keep the file's values */
+    }
+    int rc = tvpal_tf_load(o->tf_files[i], lo, hi, tf, d);
+    if (rc == TVPAL_E_RANGE && o->tf_range == PLAY_TF_DATA) {
+        size_t n = strlen(d->msg);
+        snprintf(d->msg + n, sizeof d->msg - n, " (give one with --tf-range "
+                 "MIN:MAX, MIN > 0)");
+    }
+    if (rc == 0)
+        play_tf_apply_options(o, tf);
+    return rc;
 }
 
 void play_view_spacing(const struct tvpal_manifest *m, double scale_z,

@@ -292,13 +292,11 @@ static void reload_tf(struct win_state *w, uint32_t tfi)
     struct play_session *s = w->s;
     struct tvpal_tf nt;
     struct tvpal_diag d = {{0}};
-    if (tvpal_tf_load(w->o->tf_files[tfi], s->m->value_min, s->m->value_max,
-                      &nt, &d) < 0) {
+    if (play_tf_load(w->o, s->m, tfi, &nt, &d) < 0) {
         if (w->leader)
             fprintf(stderr, PROG ": %s: %s (keeping the old one)\n",
                     w->o->tf_files[tfi], d.msg);
     } else {
-        play_tf_apply_options(w->o, &nt);
         s->tfs[tfi] = nt;
     }
 }

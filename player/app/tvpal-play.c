@@ -13,6 +13,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #define PROG PLAY_PROG
 
@@ -43,10 +44,16 @@ static void open_dataset(struct play_session *s)
     s->a = 0;
     s->b = s->m->steps - 1;
     uint32_t ab[2];
-    if (o->steps && tvpal_parse_u32_pair(o->steps, ':', 0, s->m->steps - 1,
-                                         ab) < 0)
-        play_die(2, "--steps \"%s\": expected A:B within 0..%u", o->steps,
-                 s->m->steps - 1);
+    /* T alone is the one step T:T. */
+    if (o->steps && (strchr(o->steps, ':')
+                         ? tvpal_parse_u32_pair(o->steps, ':', 0,
+                                                s->m->steps - 1, ab)
+                         : tvpal_parse_u32(o->steps, 0, s->m->steps - 1,
+                                           &ab[0])) < 0)
+        play_die(2, "--steps \"%s\": expected T or A:B within 0..%u",
+                 o->steps, s->m->steps - 1);
+    if (o->steps && !strchr(o->steps, ':'))
+        ab[1] = ab[0];
     if (o->steps) {
         s->a = ab[0];
         s->b = ab[1];
@@ -54,20 +61,19 @@ static void open_dataset(struct play_session *s)
 }
 
 /* Every --tf file (checked now, on every rank), then the default from the
- * data's histogram, each with what the options change (--nan-color). */
+ * data's histogram, each with what the options change (--nan-color,
+ * --tf-range). */
 static void load_tfs(struct play_session *s)
 {
     const struct tvpal_manifest *m = s->m;
     s->ntf = s->o->ntf;
     for (unsigned i = 0; i < s->ntf; i++) {
         struct tvpal_diag d = {{0}};
-        char em[300] = "";
-        int rc = tvpal_tf_load(s->o->tf_files[i], m->value_min, m->value_max,
-                               &s->tfs[i], &d);
+        char em[400] = "";
+        int rc = play_tf_load(s->o, m, i, &s->tfs[i], &d);
         if (rc < 0)
             snprintf(em, sizeof em, "%s: %s", s->o->tf_files[i], d.msg);
         play_check_all(rc, em, 2);
-        play_tf_apply_options(s->o, &s->tfs[i]);
     }
     tvpal_tf_default(m->value_min, m->value_max, m->histogram,
                      TVPAL_HIST_BINS, &s->tfs[s->ntf]);
