@@ -155,7 +155,7 @@ static void usage_data_output(FILE *f)
 "in --shot-dir; what the window shows, HUD included), Q or Esc quit.\n"
 "Mouse: drag the image to rotate, drag or click the slider to scrub.  While\n"
 "dragging or scrubbing every other slice is drawn; the full image follows\n"
-"when idle.  The HUD (top right, shown at start unless --no-hud; needs\n"
+"when idle.  The HUD (top left, shown at start unless --no-hud; needs\n"
 "cairo) and the title show timestep and time, fps, renderer, level of\n"
 "detail and transfer function.\n"
 "\n"

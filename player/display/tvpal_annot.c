@@ -423,7 +423,9 @@ int tvpal_annot_hud(struct tvpal_annot *a, const char *const *lines,
     for (unsigned i = 0; i < nlines; i++)
         w = fmax(w, text_width(a, lines[i]));
     const double bw = w + 2 * m, bh = nlines * lh + m;
-    const double x0 = fmax(0, a->W - bw - m), y0 = m;
+    /* Top left, under the time's line: clear of the legend (right) and
+     * the triad (bottom left). */
+    const double x0 = m, y0 = 2 * m + a->fs * 1.6;
     cairo_t *cr = a->cr;
     cairo_new_path(cr);
     cairo_rectangle(cr, x0, y0, bw, bh);

@@ -100,8 +100,8 @@ int tvpal_annot_draw(struct tvpal_annot *a, const struct tvpal_annot_frame *f,
                      uint8_t *frame, struct tvpal_diag *diag);
 
 /* The window's HUD: nlines lines of text, in fg on a translucent dark
- * box at the top right of frame (same layout as tvpal_annot_draw's
- * frame).  *box (may be NULL) gets the box as x0, y0, w, h with row 0 at
+ * box at the top left of frame, under the time's line (same layout as
+ * tvpal_annot_draw's frame).  *box (may be NULL) gets the box as x0, y0, w, h with row 0 at
  * the top. */
 int tvpal_annot_hud(struct tvpal_annot *a, const char *const *lines,
                     unsigned nlines, const float fg[3], uint8_t *frame,
