@@ -1,7 +1,8 @@
 /* test-annot: the annotations module (tvpal_annot, cairo) on frames it
  * checks pixel by pixel: the legend's rows beside its labels are the
- * transfer function at the labelled values (within one 8-bit level), its
- * ticks are round numbers inside the range; the outline's lines meet at
+ * transfer function at the labelled values (within one 8-bit level), also
+ * when the legend kept from the frame before must be drawn again for a new
+ * TF; its ticks are round numbers inside the range; the outline's lines meet at
  * the given corners; nothing is drawn where nothing was asked, and the
  * rest of the frame is left as it was; the HUD stays in its box; bad
  * sizes and ranges are refused.  The tick arithmetic is checked in every
@@ -107,6 +108,11 @@ static void check_legends(struct tvpal_annot *a)
                                 "0.55 1 0.8 0 0.5\n1 1 1 1 1\n", 20, 50,
                                 &tf, &d) == 0, "%s", d.msg);
     check_legend(a, &tf, tf.value[0], tf.value[tf.npoints - 1]);
+    check_legend(a, &tf, tf.value[0], tf.value[tf.npoints - 1]); /* kept */
+    /* Another TF over the same range: the kept legend is drawn again. */
+    REQUIRE(tvpal_tf_parse_text("domain normalized\n0 1 0 0 0\n1 0 0 1 1\n", 20, 50,
+                                &tf, &d) == 0, "%s", d.msg);
+    check_legend(a, &tf, 20, 50);
     REQUIRE(tvpal_tf_parse_text("domain normalized\n0 1 0 0 0\n1 0 0 1 1\n", -3.7e-5, 2.2e-4,
                                 &tf, &d) == 0, "%s", d.msg);
     check_legend(a, &tf, tf.value[0], tf.value[tf.npoints - 1]);

@@ -22,8 +22,12 @@
  * that each tick falls exactly on a row's centre, so the row beside a
  * label shows the colour of the labelled value itself.
  *
- * Nothing here allocates per frame except what cairo does inside (paths,
- * glyphs).  Not thread-safe per handle. */
+ * The legend is kept from frame to frame (in a second layer) and drawn
+ * again only when its range, its rows' colours, its title or the text
+ * colours change: its labels are most of the drawing's cost.  Nothing
+ * here allocates per frame except what cairo does inside (paths, glyphs).
+ * About 0.7 ms of CPU per 512x512 frame with everything on.  Not
+ * thread-safe per handle. */
 #ifndef TVPAL_ANNOT_H
 #define TVPAL_ANNOT_H
 
