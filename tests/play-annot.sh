@@ -11,7 +11,8 @@
 #    step in the top left corner only;
 #  - the window's HUD (H toggles it) is drawn on the shown image only, and
 #    S saves into --shot-dir (xdotool under Xvfb).
-# Without cairo, --annotate full is refused naming the package (then 77).
+# Without cairo, --annotate full is refused naming the package, and after
+# the checks of --annotate none and --background the rest skips (77).
 . "$(dirname "$0")/lib.sh"
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 FC=$TVPAL_BUILDDIR/tests/tvpal-framecheck
@@ -19,12 +20,6 @@ FC=$TVPAL_BUILDDIR/tests/tvpal-framecheck
 D=24x20x16
 "$GEN" --field blobs --dims $D --steps 3 -o "$W/in" > /dev/null || fail gen
 "$ENC" -q --dims $D --window 2 -o "$W/ds" "$W"/in/*.f32 > /dev/null || fail encode
-if ! "$PLAY" --version | grep -q "annotations: yes"; then
-    expect_exit 2 "--annotate full: built without cairo \(install libcairo2-dev" \
-        "$PLAY" "$W/ds" --headless -q --annotate full -o "$W/x"
-    [ "$failures" -eq 0 ] || finish
-    echo "built without cairo: annotations not drawn, the rest skipped"; exit 77
-fi
 TF=$TVPAL_SRCDIR/samples/tf/warm.tf
 S=320x200
 V="--rotate 25,-35"
@@ -82,6 +77,13 @@ p=$(pixel "$W/none-1,0.5,0.25/t0000.png" 0 0)
 expect_exit 2 "--background \"1,2,0\": expected black, white" "$PLAY" "$W/ds" --headless --background 1,2,0
 expect_exit 2 "--annotate \"some\": expected none, minimal or full" "$PLAY" "$W/ds" --headless --annotate some
 expect_exit 2 "--shot-dir and --no-hud need the window" "$PLAY" "$W/ds" --headless --shot-dir "$W/s"
+if ! "$PLAY" --version | grep -q "annotations: yes"; then
+    expect_exit 2 "--annotate full: built without cairo \(install libcairo2-dev" \
+        "$PLAY" "$W/ds" --headless -q --annotate full -o "$W/x"
+    [ "$failures" -eq 0 ] || finish
+    echo "built without cairo: annotations not drawn, the rest skipped (--annotate none and --background checked)"
+    rm -rf "$W"; exit 77
+fi
 # 2. Only the annotations: a fully transparent TF.
 printf 'name clear\ndomain normalized\n0 0 0.2 1 0\n1 1 0.6 0 0\n' > "$W/clear.tf"
 CL="--size $S $V --zoom 0.7 --tf $W/clear.tf"
