@@ -8,7 +8,8 @@
 #  - the default is full; the outline's corners land on the volume box's
 #    corners projected as tvpal_view projects them (computed here
 #    independently); minimal draws no outline; physical times replace the
-#    step in the top left corner only;
+#    step in the top left corner only; constant data (no value range)
+#    still gets its legend;
 #  - the window's HUD (H toggles it) is drawn on the shown image only, and
 #    S saves into --shot-dir (xdotool under Xvfb).
 # Without cairo, --annotate full is refused naming the package, and after
@@ -109,6 +110,14 @@ if command -v mpirun > /dev/null && "$PLAY" --version | grep -q "mpi: yes"; then
 else
     echo "no mpirun or built without MPI: cluster comparison not run"
 fi
+# Constant data, small and huge (a fill value left in): one value, no
+# range; the legend spans a little around it and the frames are written.
+for v in 1.5 9.96921e36; do
+    "$GEN" --field constant --value $v --dims 8x8x8 --steps 2 -o "$W/cin-$v" > /dev/null || fail "gen constant"
+    "$ENC" -q --dims 8x8x8 -o "$W/cds-$v" "$W"/cin-$v/*.f32 > /dev/null 2>&1 || fail "encode constant"
+    "$PLAY" "$W/cds-$v" --headless -q --size 160x120 -o "$W/cf-$v" > "$W/cf.txt" 2>&1 && [ -f "$W/cf-$v/t0001.png" ] \
+        && ok "constant data ($v): annotated frames" || fail "constant data ($v): $(cat "$W/cf.txt")"
+done
 # The outline: at every projected box corner a lit pixel; 4 pixels out
 # from the silhouette's corners, black (the background); minimal: none.
 py "$W/full/t0001.png" "$W/min/t0001.png" <<'PY' > "$W/outline.txt" 2>&1 \

@@ -56,9 +56,12 @@ static void tf_colour(void *ctx, double value, float rgba[4])
     rgba[3] = (float)(rgba[3] * pa->opacity);
 }
 
-/* The legend's range: the TF's points, else the data's; never empty. */
-static void legend_range(const struct play_session *s, double *lo,
-                         double *hi)
+/* The legend's range: the TF's points, else the data's, else a little
+ * around the one value there is (constant data: a relative width, as
+ * c +- 0.5 is c itself for |c| beyond 2^53).  0, or -1 when there is no
+ * finite range at all (the legend is then left out). */
+static int legend_range(const struct play_session *s, double *lo,
+                        double *hi)
 {
     const struct tvpal_tf *tf = s->tf;
     *lo = tf->value[0];
@@ -68,10 +71,11 @@ static void legend_range(const struct play_session *s, double *lo,
         *hi = s->m->value_max;
     }
     if (!(*lo < *hi)) {
-        const double c = isfinite(*lo) ? *lo : 0;
-        *lo = c - 0.5;
-        *hi = c + 0.5;
+        const double c = isfinite(*lo) ? *lo : 0, h = fmax(0.5, fabs(c) * 1e-6);
+        *lo = c - h;
+        *hi = c + h;
     }
+    return isfinite(*lo) && isfinite(*hi) && *lo < *hi ? 0 : -1;
 }
 
 void play_annot_box_corners(const struct tvpal_view *v, double corner[8][2])
@@ -102,7 +106,8 @@ int play_annot_frame(struct play_annot *pa, const struct play_session *s,
     memcpy(f.halo, pa->halo, sizeof f.halo);
     pa->tf = s->tf;
     pa->opacity = s->tf_opacity;
-    legend_range(s, &f.vmin, &f.vmax);
+    if (legend_range(s, &f.vmin, &f.vmax) < 0)
+        f.what &= ~TVPAL_ANNOT_LEGEND;
     /* The manifest names the variable but holds no units for it: none
      * are printed rather than guessed. */
     snprintf(pa->title, sizeof pa->title, "%s",
