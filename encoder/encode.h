@@ -22,6 +22,7 @@
 #include "tvpal_format.h"
 #include "tvpal_input.h"
 #include "tvpal_manifest.h"
+#include "tvpal_pool.h"
 #include "tvpal_raw.h"
 #include "tvpal_shard.h"
 #include "tvpal_swcode.h"
@@ -121,6 +122,7 @@ struct progress {
 /* One encoding run: the job, its output and the workspaces, set up by
  * main's steps in order and released by run_free. */
 struct prefetch;
+struct found;
 
 struct run {
     struct opts o;
@@ -145,7 +147,9 @@ struct run {
     const struct encode_pass *pass;
     /* Workspaces: per thread, then shared. */
     int nthreads;
+    struct tvpal_pool *pool; /* nthreads threads (the main one is 0) */
     uint64_t **fine_local;   /* per-thread source histograms */
+    struct found *found_local; /* per thread: what a box read found */
     size_t group_cap;        /* floats of samples per thread */
     struct tvpal_swenc **enc;
     float **samples;
@@ -234,6 +238,9 @@ void check_inputs(struct run *r);
 struct prefetch *prefetch_start(struct tvpal_input *in, uint64_t voxels);
 void prefetch_stop(struct prefetch *pf);
 void load_step(struct run *r, uint32_t t, float *dst);
+/* Per-thread findings of a box read for n threads (r->found_local);
+ * NULL when out of memory.  Freed with free(). */
+struct found *encode_found_alloc(size_t n);
 
 /* ---------------------------------------------------------------- levels */
 /* encode_levels.c.  The dims of level k of a volume of dims d0. */

@@ -17,9 +17,6 @@
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 static uint32_t fine_bin(float f)
 {
@@ -63,8 +60,13 @@ static struct found found_empty(double lo, double hi)
     return (struct found){UINT64_MAX, 0, 0, 0, 0, lo, hi};
 }
 
-/* A thread's findings into all (under a critical section): the lowest
- * voxel's data error wins, the first read error, counts and range add. */
+struct found *encode_found_alloc(size_t n)
+{
+    return calloc(n, sizeof(struct found));
+}
+
+/* A thread's findings into all: the lowest voxel's data error wins, the
+ * first read error, counts and range add (in any order: the same result). */
 static void found_merge(struct found *all, const struct found *f)
 {
     if (f->bad < all->bad) {
@@ -143,6 +145,71 @@ static int pread_full(int fd, void *buf, size_t n, off_t off)
     return 0;
 }
 
+/* One box read or conversion, shared by the pool's threads; each thread
+ * counts into r->found_local[tid], merged after the loop. */
+struct box_ctx {
+    struct run *r;
+    const struct encode_box *b;
+    float *dst;
+    int stats;
+    int fd;                         /* read_box_raw: the file, */
+    off_t base;                     /* the step's offset in it, */
+    size_t rows;                    /* rows per piece, */
+    size_t pieces_per_plane;
+    const float *src;               /* convert_box: the box as read */
+};
+
+/* Runs fn over n pieces of c's box on the pool and merges the threads'
+ * findings into *res. */
+static void for_box_threads(struct box_ctx *c, tvpal_pool_fn fn, size_t n,
+                            struct found *res)
+{
+    struct run *r = c->r;
+    struct found all = found_empty(r->st.vmin, r->st.vmax);
+    for (int tid = 0; tid < r->nthreads; tid++)
+        r->found_local[tid] = all;
+    tvpal_pool_for(r->pool, n, fn, c);
+    for (int tid = 0; tid < r->nthreads; tid++)
+        found_merge(&all, &r->found_local[tid]);
+    *res = all;
+}
+
+/* read_box_raw's piece p: rows of one plane of the box, read with one
+ * pread into the thread's scratch and converted into place. */
+static void read_piece(void *arg, size_t p, unsigned tid)
+{
+    const struct box_ctx *c = arg;
+    struct run *r = c->r;
+    const struct encode_box *b = c->b;
+    struct found *f = &r->found_local[tid];
+    if (f->read_err) /* this thread already failed: the step is lost */
+        return;
+    const size_t esz = tvpal_type_size(r->o.type);
+    const size_t nx = r->o.dims[0], ny = r->o.dims[1];
+    const size_t row_bytes = nx * esz;
+    unsigned char *buf = r->scratch[tid];
+    const size_t z = b->lo[2] + p / c->pieces_per_plane;
+    const size_t y0 = b->lo[1] + p % c->pieces_per_plane * c->rows;
+    size_t yn = b->lo[1] + b->n[1] - y0;
+    yn = yn < c->rows ? yn : c->rows;
+    /* From the first row's first voxel to the last row's last. */
+    const uint64_t v0 = b->lo[0] + nx * (y0 + ny * z);
+    const size_t span = ((yn - 1) * nx + b->n[0]) * esz;
+    int err = pread_full(c->fd, buf, span, c->base + (off_t)(v0 * esz));
+    if (err) {
+        f->read_err = err;
+        return;
+    }
+    for (size_t k = 0; k < yn; k++) {
+        const size_t yb = y0 + k - b->lo[1], zb = z - b->lo[2];
+        float *out = c->dst + (size_t)b->n[0] * (yb + (size_t)b->n[1] * zb);
+        convert_run(r, buf + k * row_bytes, 0, b->n[0], out, v0 + k * nx,
+                    c->stats, (int)tid, f);
+    }
+    if (tid == 0) /* a step of hundreds of GiB takes minutes */
+        report_progress(r, 0);
+}
+
 /* The box b of the raw timestep at file offset base of fd into dst (box
  * voxels, x fastest), converted, in parallel over blocks of rows: each
  * z-plane of the box is read as the one file range that holds its rows
@@ -153,58 +220,28 @@ static void read_box_raw(struct run *r, int fd, off_t base,
                          const struct encode_box *b, float *dst, int stats,
                          struct found *res)
 {
-    const struct opts *o = &r->o;
-    const size_t esz = tvpal_type_size(o->type);
-    const size_t nx = o->dims[0], ny = o->dims[1];
-    const size_t row_bytes = nx * esz;
+    const size_t row_bytes = (size_t)r->o.dims[0] *
+                             tvpal_type_size(r->o.type);
     /* Rows per piece: a piece spans whole rows of one plane. */
     const size_t rows = read_rows(row_bytes, b->n[1]);
     const size_t pieces_per_plane = (b->n[1] + rows - 1) / rows;
-    const size_t npieces = pieces_per_plane * b->n[2];
-    struct found all = found_empty(r->st.vmin, r->st.vmax);
-#ifdef _OPENMP
-#pragma omp parallel
-#endif
-    {
-        int tid = 0;
-#ifdef _OPENMP
-        tid = omp_get_thread_num();
-#endif
-        struct found f = found_empty(all.lo, all.hi);
-        unsigned char *buf = r->scratch[tid];
-#ifdef _OPENMP
-#pragma omp for schedule(dynamic, 1)
-#endif
-        for (size_t p = 0; p < npieces; p++) {
-            if (f.read_err)
-                continue;
-            const size_t z = b->lo[2] + p / pieces_per_plane;
-            const size_t y0 = b->lo[1] + p % pieces_per_plane * rows;
-            size_t yn = b->lo[1] + b->n[1] - y0;
-            yn = yn < rows ? yn : rows;
-            /* From the first row's first voxel to the last row's last. */
-            const uint64_t v0 = b->lo[0] + nx * (y0 + ny * z);
-            const size_t span = ((yn - 1) * nx + b->n[0]) * esz;
-            int err = pread_full(fd, buf, span, base + (off_t)(v0 * esz));
-            if (err) {
-                f.read_err = err;
-                continue;
-            }
-            for (size_t k = 0; k < yn; k++) {
-                const size_t yb = y0 + k - b->lo[1], zb = z - b->lo[2];
-                float *out = dst + (size_t)b->n[0] * (yb + (size_t)b->n[1] * zb);
-                convert_run(r, buf + k * row_bytes, 0, b->n[0], out,
-                            v0 + k * nx, stats, tid, &f);
-            }
-            if (tid == 0) /* a step of hundreds of GiB takes minutes */
-                report_progress(r, 0);
-        }
-#ifdef _OPENMP
-#pragma omp critical(tvpal_found)
-#endif
-        found_merge(&all, &f);
-    }
-    *res = all;
+    struct box_ctx c = {.r = r, .b = b, .dst = dst, .stats = stats, .fd = fd,
+                        .base = base, .rows = rows,
+                        .pieces_per_plane = pieces_per_plane};
+    for_box_threads(&c, read_piece, pieces_per_plane * b->n[2], res);
+}
+
+/* convert_box's piece k: row k of the box, from c->src. */
+static void convert_row(void *arg, size_t k, unsigned tid)
+{
+    const struct box_ctx *c = arg;
+    const struct encode_box *b = c->b;
+    const size_t nx = c->r->o.dims[0], ny = c->r->o.dims[1];
+    const size_t y = b->lo[1] + k % b->n[1], z = b->lo[2] + k / b->n[1];
+    const size_t at = k * b->n[0];
+    convert_run(c->r, c->src + at, 1, b->n[0], c->dst + at,
+                b->lo[0] + nx * (y + ny * z), c->stats, (int)tid,
+                &c->r->found_local[tid]);
 }
 
 /* The box b of a self-describing step, already read into src (host
@@ -213,33 +250,9 @@ static void convert_box(struct run *r, const float *src,
                         const struct encode_box *b, float *dst, int stats,
                         struct found *res)
 {
-    const size_t rows = (size_t)b->n[1] * b->n[2];
-    const size_t nx = r->o.dims[0], ny = r->o.dims[1];
-    struct found all = found_empty(r->st.vmin, r->st.vmax);
-#ifdef _OPENMP
-#pragma omp parallel
-#endif
-    {
-        int tid = 0;
-#ifdef _OPENMP
-        tid = omp_get_thread_num();
-#endif
-        struct found f = found_empty(all.lo, all.hi);
-#ifdef _OPENMP
-#pragma omp for schedule(static)
-#endif
-        for (size_t k = 0; k < rows; k++) {
-            const size_t y = b->lo[1] + k % b->n[1], z = b->lo[2] + k / b->n[1];
-            const size_t at = k * b->n[0];
-            convert_run(r, src + at, 1, b->n[0], dst + at,
-                        b->lo[0] + nx * (y + ny * z), stats, tid, &f);
-        }
-#ifdef _OPENMP
-#pragma omp critical(tvpal_found)
-#endif
-        found_merge(&all, &f);
-    }
-    *res = all;
+    struct box_ctx c = {.r = r, .b = b, .dst = dst, .stats = stats,
+                        .fd = -1, .src = src};
+    for_box_threads(&c, convert_row, (size_t)b->n[1] * b->n[2], res);
 }
 
 /* Whether box b is the whole volume (read with tvpal_input_read). */

@@ -51,9 +51,6 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 
 static void usage(FILE *f)
@@ -791,15 +788,12 @@ static void setup_shards(struct run *r)
 
 /* ------------------------------------------------------------------ plan */
 
-/* The worker threads: -j, else all cores. */
+/* The worker threads: -j, else all cores (tvpal_pool_default_threads:
+ * OMP_NUM_THREADS, else the CPUs this process may run on). */
 static void choose_threads(struct run *r)
 {
-    r->nthreads = 1;
-#ifdef _OPENMP
-    if (r->o.threads)
-        omp_set_num_threads((int)r->o.threads);
-    r->nthreads = omp_get_max_threads();
-#endif
+    r->nthreads = r->o.threads ? (int)r->o.threads
+                               : (int)tvpal_pool_default_threads();
 }
 
 /* Samples per thread: one slice-window, or a group of x slices up to
@@ -1072,7 +1066,11 @@ static void setup_workspace(struct run *r)
     const uint32_t N = r->N;
     const size_t nt = (size_t)r->nthreads;
     const uint64_t box = r->plan.box_voxels_max;
-    if (!(r->fine_local = calloc(nt, sizeof *r->fine_local)))
+    int rc = tvpal_pool_create(&r->pool, (unsigned)nt);
+    if (rc < 0)
+        die_fail("cannot start %zu threads: %s", nt, tvpal_strerror(rc));
+    if (!(r->fine_local = calloc(nt, sizeof *r->fine_local)) ||
+        !(r->found_local = encode_found_alloc(nt)))
         die_fail("out of memory");
     for (size_t i = 0; i < nt; i++)
         if (!(r->fine_local[i] = calloc(TVPAL_CHECKPOINT_BINS,
@@ -1302,53 +1300,59 @@ static size_t plan_step(struct run *r, uint32_t t)
 }
 
 
-/* Encodes the planned slice-windows of step t and writes each chunk in
- * its place as it is made, one job per thread at a time; then joins the
- * chunks' CRCs into their records in slice order.  Thread 0 reports
- * progress between jobs, so a line comes within a long step too. */
+/* One step's encoding, shared by the pool's threads (encode_job). */
+struct step_ctx {
+    struct run *r;
+    uint32_t t;
+    int failed;                     /* atomic: the first failure claims it */
+    struct tvpal_diag fail_d;       /* written by that thread only */
+    const struct shardjob *fail_j;
+};
+
+/* Job i of the step: gathers its slices, encodes each slice-window and
+ * writes its chunk in place.  Thread 0 (the main thread) reports progress
+ * between jobs, so a line comes within a long step too. */
+static void encode_job(void *arg, size_t i, unsigned tid)
+{
+    struct step_ctx *c = arg;
+    struct run *r = c->r;
+    const uint32_t t = c->t;
+    const struct slicejob *jb = &r->jobs[i];
+    const struct shardjob *j = jb->sj;
+    const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
+    const uint64_t cb = tvpal_chunk_bytes(jb->len, j->h.slice_w,
+                                          j->h.slice_h, j->h.table_format);
+    gather(r, jb, t, r->samples[tid]);
+    for (uint32_t g = 0; g < jb->count; g++) {
+        struct tvpal_diag d = {{0}};
+        encode_chunk(r->enc[tid], r->tables[tid],
+                     r->samples[tid] + (size_t)g * jb->len * sv, j,
+                     jb->slice + g * r->N, t, jb->len, r->chunkbuf[tid],
+                     &r->dropped[tid]);
+        if (tvpal_shardw_put_chunk(j->w, t, jb->slice + g * r->N,
+                                   r->chunkbuf[tid], cb,
+                                   &r->jcrc[jb->crc_at + g], &d) < 0 &&
+            !__atomic_exchange_n(&c->failed, 1, __ATOMIC_RELAXED)) {
+            c->fail_d = d;
+            c->fail_j = j;
+        }
+    }
+    __atomic_add_fetch(&r->prog.work, (uint64_t)sv * jb->len * jb->count,
+                       __ATOMIC_RELAXED);
+    if (tid == 0)
+        report_progress(r, 0);
+}
+
+/* Encodes the planned slice-windows of step t, one job per thread at a
+ * time, each chunk written in its place as it is made; then joins the
+ * chunks' CRCs into their records in slice order. */
 static void encode_step(struct run *r, uint32_t t, size_t njobs)
 {
-    int failed = 0;
-    struct tvpal_diag fail_d = {{0}};
-    const struct shardjob *fail_j = NULL;
-#ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 1)
-#endif
-    for (size_t i = 0; i < njobs; i++) {
-        int tid = 0;
-#ifdef _OPENMP
-        tid = omp_get_thread_num();
-#endif
-        const struct slicejob *jb = &r->jobs[i];
-        const struct shardjob *j = jb->sj;
-        const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
-        const uint64_t cb = tvpal_chunk_bytes(jb->len, j->h.slice_w,
-                                              j->h.slice_h, j->h.table_format);
-        gather(r, jb, t, r->samples[tid]);
-        for (uint32_t g = 0; g < jb->count; g++) {
-            struct tvpal_diag d = {{0}};
-            encode_chunk(r->enc[tid], r->tables[tid],
-                         r->samples[tid] + (size_t)g * jb->len * sv, j,
-                         jb->slice + g * r->N, t, jb->len, r->chunkbuf[tid],
-                         &r->dropped[tid]);
-            if (tvpal_shardw_put_chunk(j->w, t, jb->slice + g * r->N,
-                                       r->chunkbuf[tid], cb,
-                                       &r->jcrc[jb->crc_at + g], &d) < 0) {
-#ifdef _OPENMP
-#pragma omp critical(tvpal_fail)
-#endif
-                if (!failed) {
-                    failed = 1;
-                    fail_d = d;
-                    fail_j = j;
-                }
-            }
-        }
-        __atomic_add_fetch(&r->prog.work, (uint64_t)sv * jb->len * jb->count,
-                           __ATOMIC_RELAXED);
-        if (tid == 0)
-            report_progress(r, 0);
-    }
+    struct step_ctx c = {.r = r, .t = t};
+    tvpal_pool_for(r->pool, njobs, encode_job, &c);
+    const int failed = c.failed;
+    const struct tvpal_diag fail_d = c.fail_d;
+    const struct shardjob *fail_j = c.fail_j;
     if (failed)
         die_fail("%s/axis-%c.tvps: %s", r->ckdir, "xyz"[fail_j->axis],
                  fail_d.msg);
@@ -1850,6 +1854,7 @@ void release_ring(struct run *r)
 static void run_free(struct run *r)
 {
     prefetch_stop(r->pf);   /* before the input it reads is closed */
+    tvpal_pool_free(r->pool);
     for (uint32_t q = 0; q < r->nshard; q++)
         tvpal_shardw_free(r->sj[q].w);
     free(r->sj);
@@ -1872,6 +1877,7 @@ static void run_free(struct run *r)
     free(r->chunkbuf);
     free(r->scratch);
     free(r->fine_local);
+    free(r->found_local);
     free(r->jobs);
     free(r->jcrc);
     free(r->fp);

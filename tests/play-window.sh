@@ -3,7 +3,9 @@
 # and its framebuffer equals the headless image of the same step, with the
 # default renderer (cpu: Xvfb's GL is llvmpipe) and with --renderer gl; keys sent
 # with xdotool step the playhead (Right x3 from step 0 shows step 3), S
-# saves a screenshot, T cycles the transfer function, Q quits.
+# saves a screenshot, 1 shows the named view +x (= headless --view +x), T
+# cycles the transfer function, Q quits; --view -z --up x in the window
+# draws what it draws headless.
 . "$(dirname "$0")/lib.sh"
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
@@ -32,6 +34,16 @@ for r in default gl; do
     want=$([ $r = gl ] && echo "renderer=gl" || echo "renderer=cpu")
     grep -q "$want" "$W/o.txt" && ok "$r: $(grep -o 'renderer=.*' "$W/o.txt")" || fail "$r: $(cat "$W/o.txt")"
 done
+# A named view with a chosen up axis, in the window and headless.
+"$PLAY" "$W/ds" --headless -q --size 96x80 --tf "$TF" --steps 2:2 --view -z --up x \
+    -o "$W/hlv" > /dev/null || fail "headless --view"
+xvfb-run -a -s "-screen 0 640x480x24" "$PLAY" "$W/ds" --window --no-hud --steps 2:2 --view -z --up x \
+    --size 96x80 --tf "$TF" --autoplay 1 --screenshot "$W/winv.png" > "$W/o.txt" 2>&1 \
+    || fail "window --view: $(cat "$W/o.txt")"
+cmp -s "$W/winv.png" "$W/hlv/t0002.png" && ok "--view -z --up x: window = headless" \
+    || fail "--view -z --up x: the window differs from headless"
+"$PLAY" "$W/ds" --headless -q --size 96x80 --tf "$TF" --steps 3:3 --view +x -o "$W/hlx" \
+    > /dev/null || fail "headless --view +x"
 # 2. Keys through the X server.
 cat > "$W/drive.sh" <<DRIVE
 #!/bin/sh
@@ -42,6 +54,8 @@ wid=\$(xdotool search --sync --name tvpal-play | head -n 1)
 sleep 0.5
 for k in Right Right Right; do xdotool key --window \$wid \$k; sleep 0.3; done
 xdotool key --window \$wid s; sleep 0.5
+xdotool key --window \$wid 1; sleep 0.3
+xdotool key --window \$wid s; sleep 0.5
 xdotool key --window \$wid t; sleep 0.3
 xdotool getwindowname \$wid > "$W/title.txt"
 xdotool key --window \$wid q 2>/dev/null
@@ -50,6 +64,8 @@ DRIVE
 timeout 60 xvfb-run -a -s "-screen 0 640x480x24" sh "$W/drive.sh" || fail "driving the window"
 cmp -s "$W/tvpal-shot-0000.png" "$W/hl/t0003.png" \
     && ok "Right x3 then S: screenshot = headless step 3" || fail "keys: screenshot differs ($(cat "$W/play.txt"))"
+cmp -s "$W/tvpal-shot-0001.png" "$W/hlx/t0003.png" \
+    && ok "key 1 then S: screenshot = headless --view +x" || fail "key 1: the +x view differs"
 grep -q "t=3/8" "$W/title.txt" && grep -q "default" "$W/title.txt" \
     && ok "title: $(cat "$W/title.txt")" || fail "title: $(cat "$W/title.txt")"
 grep -q "last_step=3" "$W/play.txt" && ok "q quits" || fail "quit: $(cat "$W/play.txt")"

@@ -32,6 +32,9 @@ struct play_opts {
     const char *steps;                  /* --steps A:B, checked once open */
     unsigned width, height;             /* --size */
     double ax, ay, zoom, opacity, spin;
+    int rotate_given;                   /* --rotate */
+    int view, up;                       /* --view (tvpal_view_name), --up
+                                         * (0..2); -1 when not given */
     double scale_z;                     /* vertical exaggeration (z) */
     const char *tf_files[PLAY_MAX_TF];  /* --tf, in order */
     unsigned ntf;
@@ -56,6 +59,12 @@ struct play_opts {
     float background[3];                /* --background: RGB, each 0..1 */
     const char *shot_dir;               /* --shot-dir: the S key's PNGs */
     int no_hud;                         /* --no-hud: the HUD starts hidden */
+    int movie;                          /* -o FILE.mp4|.webm: its
+                                         * tvpal_movie_kind, else 0 (-o DIR) */
+    double fps;                         /* --fps: the movie's frame rate */
+    int fps_given;
+    double progress_s;                  /* --progress: seconds between
+                                         * lines when stderr is no terminal */
     enum tvpal_compose_kind ckind;
 };
 
@@ -76,6 +85,12 @@ void play_tf_apply_options(const struct play_opts *o, struct tvpal_tf *tf);
 /* The view's voxel spacing: the dataset's, z times scale_z. */
 void play_view_spacing(const struct tvpal_manifest *m, double scale_z,
                        double spacing[3]);
+
+/* The named view `view` (a tvpal_view_name; < 0: none, v keeps its
+ * angles) with axis `up` pointing up (< 0, or up along the view: the
+ * view's default), in v before tvpal_view_setup: its orientation, angles
+ * 0. */
+void play_view_named(struct tvpal_view *v, int view, int up);
 
 /* The dataset being played and what every front end needs of it. */
 struct play_session {

@@ -4,8 +4,11 @@
 #include "play.h"
 #include "play_cluster.h"
 #include "tvpal_annot.h"
+#include "play_progress.h"
 #include "tvpal_cli.h"
 #include "tvpal_comm.h"
+#include "tvpal_movie.h"
+#include "tvpal_view.h"
 
 #include <getopt.h>
 #include <math.h>
@@ -30,7 +33,8 @@ static void usage_view(FILE *f)
 "(interpolation after the lookup), and blends them in depth order in\n"
 "float, with the cpu shear-warp renderer or the GLSL palette shader (see\n"
 "--renderer).  Headless: with -o DIR, writes DIR/tNNNN.png (NNNN: the\n"
-"timestep) and a per-frame timing CSV; in a window: interactive.\n"
+"timestep) and a per-frame timing CSV, with -o FILE.mp4 or FILE.webm a\n"
+"movie; in a window: interactive.\n"
 "\n"
 "View and frames:\n"
 "      --headless           render off-screen to PNG files (default when\n"
@@ -41,6 +45,15 @@ static void usage_view(FILE *f)
 "  -S, --size WxH           image size, each 1..16384 (default 512x512)\n"
 "  -r, --rotate AX,AY       degrees about x, then about y, each -360..360\n"
 "                           (default 20,30)\n"
+"      --view V             a named view instead of --rotate: +x, -x, +y, -y,\n"
+"                           +z, -z (looking along that axis, as ParaView's\n"
+"                           \"set view direction to +X\": +x looks from the\n"
+"                           -x side) or iso (from the +x+y+z corner); exactly\n"
+"                           axis-aligned images\n"
+"      --up A               x, y or z: the axis pointing up on the screen in\n"
+"                           a named view (default as ParaView: y for +z, -z\n"
+"                           and iso, z for the x and y views); in the window\n"
+"                           also for the view keys\n"
 "  -z, --zoom Z             zoom factor, 0.001..1000 (default 1)\n"
 "  -t, --tf FILE            transfer function (samples/tf/README.md: tvpal\n"
 "                           text format or ParaView preset JSON); default:\n"
@@ -125,9 +138,21 @@ static void usage_data_output(FILE *f)
 "                           K in 1..1000000 (CSV column jump = 1)\n"
 "Output:\n"
 "  -o, --output DIR         write PNG frames here (created)\n"
-"      --csv FILE           per-frame timings (default DIR/timing.csv; in\n"
-"                           the window: frame, step, level, interacting,\n"
-"                           frame_ms)\n"
+"  -o, --output FILE.mp4    write a movie instead: .mp4 (H.264) or .webm\n"
+"                           (VP9), yuv420p, through ffmpeg (Debian: ffmpeg;\n"
+"                           needed on PATH); written as FILE.partial.mp4\n"
+"                           and renamed when complete; an odd width or\n"
+"                           height gets one more column or row (a copy of\n"
+"                           the last: yuv420p needs even sizes)\n"
+"      --fps F              the movie's frames per second, 0.1..1000\n"
+"                           (default 24)\n"
+"      --csv FILE           per-frame timings (default DIR/timing.csv with\n"
+"                           -o DIR, none with a movie; in the window: frame,\n"
+"                           step, level, interacting, frame_ms)\n"
+"      --progress S         headless, when stderr is not a terminal: a\n"
+"                           progress line every S seconds, 0..86400\n"
+"                           (default 10; 0: every frame); on a terminal a\n"
+"                           progress bar with ETA; none with --quiet\n"
 "      --strict             stop at the first read or checksum error\n"
 "      --ref-psnr           also draw every frame with the reference renderer\n"
 "                           and report the image's PSNR against it (CSV\n"
@@ -151,13 +176,14 @@ static void usage_data_output(FILE *f)
 "Window keys: space play/pause, Right/Left (or . ,) step, Home/End first/\n"
 "last, B reverse direction, T next transfer function, R reload it from its\n"
 "file, Up/Down opacity, ] / [ stretch or shrink z, M in-core/out-of-core,\n"
-"+/- or wheel zoom, H show/hide the HUD, S screenshot (tvpal-shot-NNNN.png\n"
-"in --shot-dir; what the window shows, HUD included), Q or Esc quit.\n"
-"Mouse: drag the image to rotate, drag or click the slider to scrub.  While\n"
-"dragging or scrubbing every other slice is drawn; the full image follows\n"
-"when idle.  The HUD (top left, shown at start unless --no-hud; needs\n"
-"cairo) and the title show timestep and time, fps, renderer, level of\n"
-"detail and transfer function.\n"
+"+/- or wheel zoom, 1 2 3 4 5 6 the views +x -x +y -y +z -z and 0 iso\n"
+"(as --view, with --up), H show/hide the HUD, S screenshot\n"
+"(tvpal-shot-NNNN.png in --shot-dir; what the window shows, HUD included),\n"
+"Q or Esc quit.  Mouse: drag the image to rotate, drag or click the slider\n"
+"to scrub.  While dragging or scrubbing every other slice is drawn; the\n"
+"full image follows when idle.  The HUD (top left, shown at start unless\n"
+"--no-hud; needs cairo) and the title show timestep and time, fps,\n"
+"renderer, level of detail and transfer function.\n"
 "\n"
 "A record that fails to load is reported (file, record); the affected\n"
 "slices keep their last good data and playback continues, unless --strict.\n"
@@ -224,7 +250,28 @@ static int set_rotate(struct play_opts *o, const char *arg)
         return -1;
     o->ax = a;
     o->ay = b;
+    o->rotate_given = 1;
     return 0;
+}
+
+static int set_view(struct play_opts *o, const char *arg)
+{
+    o->view = tvpal_view_name_parse(arg);
+    return o->view < 0 ? -1 : 0;
+}
+
+static int set_up(struct play_opts *o, const char *arg)
+{
+    if (strlen(arg) != 1 || !strchr("xyz", arg[0]))
+        return -1;
+    o->up = arg[0] - 'x';
+    return 0;
+}
+
+static int set_fps(struct play_opts *o, const char *arg)
+{
+    o->fps_given = 1;
+    return tvpal_parse_double_in(arg, 0.1, 1000, &o->fps);
 }
 
 static int set_tf(struct play_opts *o, const char *arg)
@@ -381,6 +428,8 @@ enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
        K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_DIRECT, K_MEM, K_CSV, K_STRICT,
        K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR, K_EXACT, K_LEVEL, K_BUDGET,
        K_FROM_Z, K_ANNOTATE, K_BACKGROUND, K_SHOT_DIR, K_NO_HUD };
+/* Views, movies and progress (apart: the list above grows elsewhere). */
+enum { K_VIEW = 384, K_UP, K_FPS, K_PROGRESS };
 
 /* Grouped as --help groups them. */
 static const struct opt_def opt_table[] = {
@@ -391,6 +440,9 @@ static const struct opt_def opt_table[] = {
     {"size", 'S', OPT_FN, 0, 0, 0, set_size, "WxH, each 1..16384"},
     {"rotate", 'r', OPT_FN, 0, 0, 0, set_rotate,
      "AX,AY in degrees, each -360..360"},
+    {"view", K_VIEW, OPT_FN, 0, 0, 0, set_view,
+     "+x, -x, +y, -y, +z, -z or iso"},
+    {"up", K_UP, OPT_FN, 0, 0, 0, set_up, "x, y or z"},
     {"zoom", 'z', OPT_DOUBLE, F(zoom), 0.001, 1000, NULL,
      "a number in 0.001..1000"},
     {"tf", 't', OPT_FN, 0, 0, 0, set_tf, NULL},
@@ -430,7 +482,10 @@ static const struct opt_def opt_table[] = {
     {"jumps", K_JUMPS, OPT_U32, F(jumps), 1, 1000000, NULL, "1..1000000"},
     /* output */
     {"output", 'o', OPT_TEXT, F(outdir), 0, 0, NULL, NULL},
+    {"fps", K_FPS, OPT_FN, 0, 0, 0, set_fps, "frames per second in 0.1..1000"},
     {"csv", K_CSV, OPT_TEXT, F(csv_path), 0, 0, NULL, NULL},
+    {"progress", K_PROGRESS, OPT_DOUBLE, F(progress_s), 0, 86400, NULL,
+     "seconds in 0..86400"},
     {"strict", K_STRICT, OPT_SET, F(strict), 1, 0, NULL, NULL},
     {"ref-psnr", K_REF_PSNR, OPT_SET, F(ref_psnr), 1, 0, NULL, NULL},
     /* cluster and window */
@@ -460,6 +515,7 @@ static void defaults(struct play_opts *o)
         .opacity = 1, .renderer = PLAY_REND_AUTO, .renderer_why = "",
         .fb_bits = 32, .window = -1, .repeat = 1, .budget_ms = 66,
         .annotate = PLAY_ANNOT_AUTO,
+        .view = -1, .up = -1, .fps = 24, .progress_s = PLAY_PROGRESS_EVERY_S,
         .po = {.incore = 0, .io = TVPAL_IO_URING, .prefetch = 4, .direct = 1},
         .ckind = TVPAL_COMPOSE_BSWAP};
 }
@@ -593,12 +649,43 @@ static void check_annotate(struct play_opts *o)
                  tvpal_annot_describe());
 }
 
+/* --view and --rotate, --up with the view. */
+static void check_view_options(const struct play_opts *o)
+{
+    if (o->view >= 0 && o->rotate_given)
+        play_die(2, "--view and --rotate: choose one (--view %s is a "
+                 "rotation of its own)", tvpal_view_name_str(o->view));
+    double orient[3][3];
+    if (o->view >= 0 && o->up >= 0 &&
+        tvpal_view_orient(o->view, o->up, orient) < 0)
+        play_die(2, "--up %c: the view %s looks along %c; choose another "
+                 "axis", "xyz"[o->up], tvpal_view_name_str(o->view),
+                 "xyz"[o->up]);
+    if (o->up >= 0 && o->view < 0 && !o->window)
+        play_die(2, "--up: the up axis of a named view; give --view (or, "
+                 "in the window, press a view key)");
+}
+
+/* -o FILE.mp4|.webm: a movie, headless; --fps belongs to it. */
+static void check_movie_options(struct play_opts *o)
+{
+    o->movie = o->outdir ? tvpal_movie_kind(o->outdir) : TVPAL_MOVIE_NONE;
+    if (o->movie && o->window > 0)
+        play_die(2, "-o %s: movies are written headless (--headless)",
+                 o->outdir);
+    if (o->fps_given && !o->movie)
+        play_die(2, "--fps: the frame rate of a movie; only with -o FILE.mp4 "
+                 "or -o FILE.webm");
+}
+
 void play_options_check(struct play_opts *o, int nranks)
 {
     check_renderer_options(o);
     check_annotate(o);
+    check_movie_options(o);
     if (o->window < 0)
         o->window = getenv("DISPLAY") && *getenv("DISPLAY") && !o->outdir;
+    check_view_options(o);
     if (o->window) {
         if (o->ref_psnr)
             play_die(2, "--ref-psnr: headless only");
@@ -639,4 +726,14 @@ void play_view_spacing(const struct tvpal_manifest *m, double scale_z,
      * spacing existed). */
     if (spacing[0] == 1 && spacing[1] == 1 && spacing[2] == 1)
         spacing[0] = spacing[1] = spacing[2] = 0;
+}
+
+void play_view_named(struct tvpal_view *v, int view, int up)
+{
+    if (view < 0)
+        return;
+    if (up < 0 || tvpal_view_orient(view, up, v->orient) < 0)
+        tvpal_view_orient(view, tvpal_view_default_up(view), v->orient);
+    v->oriented = 1;
+    v->ax_deg = v->ay_deg = 0;
 }

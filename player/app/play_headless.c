@@ -1,18 +1,22 @@
 /* play_headless.c: the headless loop of tvpal-play: renders a range of
  * timesteps off-screen, composites the ranks' images (sort-last), and on
- * rank 0 writes PNG frames, the timing CSV and the summary line. */
+ * rank 0 writes PNG frames or a movie, the timing CSV, the progress and
+ * the summary line. */
 #define _GNU_SOURCE
 #include "play.h"
 #include "play_annot.h"
 #include "play_cluster.h"
+#include "play_progress.h"
 #include "play_renderer.h"
 #include "play_timing.h"
 #include "tvpal_clock.h"
 #include "tvpal_fs.h"
+#include "tvpal_movie.h"
 #include "tvpal_png.h"
 
 #include <errno.h>
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -33,8 +37,11 @@ struct headless {
     struct play_annot pa;           /* rank 0 with frames to write */
     struct play_rank_rec *recs;     /* rank 0: one per rank */
     const char *outdir, *csv_path;  /* rank 0 only */
+    const char *movie_path;         /* rank 0, -o FILE.mp4|.webm */
+    struct tvpal_movie *movie;      /* its ffmpeg, while open */
     char *csv_default;
     FILE *csv;
+    struct play_progress progress;
     int quiet, digits;
     struct tvpal_view v;            /* level 0's view */
     unsigned level;                 /* this frame's level of detail, */
@@ -79,16 +86,81 @@ static void setup_buffers(struct headless *h)
         play_die_rank(1, "out of memory");
 }
 
-/* Rank 0 writes frames, CSV and the summary. */
+/* The movie being written, for play_die's exit: a run that stops leaves
+ * no movie and no temporary. */
+static struct tvpal_movie *open_movie;
+
+static void abort_movie(void)
+{
+    tvpal_movie_abort(open_movie);
+    open_movie = NULL;
+}
+
+/* -o FILE.mp4|.webm: rank 0 starts ffmpeg now, so that a missing one or
+ * an unwritable place is said before any frame is drawn (every rank
+ * stops then). */
+static void open_movie_output(struct headless *h)
+{
+    const struct play_opts *o = h->o;
+    struct tvpal_diag d = {{0}};
+    char msg[300] = "";
+    int rc = 0;
+    /* A dead ffmpeg makes a write fail with EPIPE, reported, instead of
+     * SIGPIPE ending the run without a word. */
+    signal(SIGPIPE, SIG_IGN);
+    if (h->movie_path &&
+        (rc = tvpal_movie_open(&h->movie, h->movie_path, o->width, o->height,
+                               o->fps, &d)) < 0)
+        snprintf(msg, sizeof msg, "-o %s: %s", h->movie_path, d.msg);
+    play_check_all(rc, msg, 2);
+    if (!h->movie)
+        return;
+    if (!open_movie)
+        atexit(abort_movie);
+    open_movie = h->movie;
+    unsigned mw, mh;
+    tvpal_movie_size(o->width, o->height, &mw, &mh);
+    if ((mw != o->width || mh != o->height) && !h->quiet)
+        fprintf(stderr, PROG ": %s: frames of %ux%u padded to %ux%u (the "
+                "movie's yuv420p needs even sizes; the added column or row "
+                "repeats the last)\n", h->movie_path, o->width, o->height,
+                mw, mh);
+}
+
+/* Rank 0, with a movie: the final frame as the PNG frame shows it (the
+ * same RGB rows), sent to ffmpeg. */
+static void write_movie_frame(struct headless *h)
+{
+    struct tvpal_diag d = {{0}};
+    tvpal_png_rgb8(h->final, h->o->width, h->o->height, h->o->background,
+                   h->rgb8);
+    if (tvpal_movie_write(h->movie, h->rgb8, &d) < 0) {
+        abort_movie();   /* the job may end without exit handlers */
+        play_die_rank(1, "%s", d.msg);
+    }
+}
+
+/* Rank 0 writes frames or a movie, CSV and the summary.  A movie gets a
+ * CSV only with --csv (there is no directory for the default). */
 static void setup_outputs(struct headless *h)
 {
-    h->outdir = h->o->outdir;
+    h->outdir = h->o->movie ? NULL : h->o->outdir;
+    h->movie_path = h->o->movie ? h->o->outdir : NULL;
     h->csv_path = h->o->csv_path;
     h->quiet = h->o->quiet;
     if (play_comm.rank != 0) {
-        h->outdir = h->csv_path = NULL;
+        h->outdir = h->csv_path = h->movie_path = NULL;
         h->quiet = 1;
     }
+    /* Drawing and timing without writing is a benchmark's run; anyone
+     * else has forgotten -o. */
+    if (play_comm.rank == 0 && !h->o->outdir && !h->csv_path && !h->quiet &&
+        h->o->renderer != PLAY_REND_NONE)
+        fprintf(stderr, PROG ": warning: no -o or --csv given: frames are "
+                "rendered and timed but not written (-o DIR for PNG frames, "
+                "-o FILE.mp4 for a movie)\n");
+    if (h->o->movie)
+        open_movie_output(h);
     if (h->outdir) {
         struct tvpal_diag d = {{0}};
         if (tvpal_mkdirs(h->outdir, &d) < 0)
@@ -97,7 +169,7 @@ static void setup_outputs(struct headless *h)
             asprintf(&h->csv_default, "%s/timing.csv", h->outdir) >= 0)
             h->csv_path = h->csv_default;
     }
-    if (h->outdir) {
+    if (h->outdir || h->movie_path) {   /* annotations: what is written */
         struct tvpal_diag d = {{0}};
         if (play_annot_open(&h->pa, h->o, 0, h->o->width, h->o->height,
                             &d) < 0)
@@ -123,6 +195,7 @@ static void setup_view(struct headless *h)
                                .zoom = o->zoom};
     memcpy(h->v.dims, h->s->m->dims, sizeof h->v.dims);
     play_view_spacing(h->s->m, o->scale_z, h->v.spacing);
+    play_view_named(&h->v, o->view, o->up);
     tvpal_view_setup(&h->v);
     h->dir_step = h->s->b >= h->s->a ? 1 : -1;
     h->nframes = (h->s->b >= h->s->a ? h->s->b - h->s->a
@@ -275,6 +348,8 @@ static void settle_errors(struct headless *h, uint32_t t,
     int stop = 0;
     if (play_comm.rank == 0) {
         const char *keep = h->o->strict ? "" : " (keeping the last good data)";
+        if (row->agg.rc < 0)
+            play_progress_end(&h->progress);   /* messages on a clean line */
         for (int r = 0; r < play_comm.size; r++) {
             const struct play_rank_rec *q = play_cluster_multi() ? &h->recs[r] : me;
             if (q->rc >= 0 || !strcmp(q->msg, h->last_err))
@@ -307,6 +382,8 @@ static void annotate_frame(struct headless *h, uint32_t t)
 /* Rank 0: the frame's PNG and CSV row. */
 static void write_frame(struct headless *h, const struct play_row *row)
 {
+    if (h->movie)
+        write_movie_frame(h);
     if (h->outdir) {
         char *path;
         struct tvpal_diag d = {{0}};
@@ -347,7 +424,20 @@ static void play_frames(struct headless *h)
         play_timing_add(&h->tot, &row);
         annotate_frame(h, t);
         write_frame(h, &row);
+        play_progress_update(&h->progress, i + 1);
     }
+    play_progress_end(&h->progress);
+}
+
+/* Rank 0: ffmpeg finishes the movie; it is renamed into place. */
+static void close_movie(struct headless *h)
+{
+    struct tvpal_diag d = {{0}};
+    open_movie = NULL;
+    int rc = tvpal_movie_close(h->movie, &d);
+    h->movie = NULL;
+    if (rc < 0)
+        play_die_rank(1, "%s", d.msg);
 }
 
 static void print_summary(struct headless *h, double elapsed)
@@ -355,6 +445,13 @@ static void print_summary(struct headless *h, double elapsed)
     if (h->csv && fclose(h->csv) != 0)
         play_die(1, "%s: write error", h->csv_path);
     h->csv = NULL;
+    if (h->movie) {
+        close_movie(h);
+        if (!h->quiet)
+            fprintf(stderr, PROG ": %u frames in %s (%s, %g fps)\n",
+                    h->nframes, h->movie_path,
+                    tvpal_movie_codec(h->o->movie), h->o->fps);
+    }
     if (!h->quiet && h->outdir)
         fprintf(stderr, PROG ": %u frames in %s/\n", h->nframes, h->outdir);
     play_timing_summary(stdout, &h->tot,
@@ -403,6 +500,9 @@ int play_run_headless(struct play_session *s)
     setup_view(&h);
     open_first_axis(&h);
     print_start_line(&h);
+    if (play_comm.rank == 0)
+        play_progress_start(&h.progress, stderr, h.quiet, s->o->progress_s,
+                            h.nframes);
     const double t_start = tvpal_now();
     play_frames(&h);
     if (play_comm.rank == 0)

@@ -24,6 +24,7 @@ struct win_cmd {
     int quit, render, reduce, toggle_mode, reload_tf, interacting;
     uint32_t t, tfi, width, height, level;
     int dir;
+    int view;                       /* named view (-1: none; up: --up) */
     double ax, ay, zoom, opacity, scale_z;
 };
 
@@ -46,6 +47,7 @@ struct win_state {
     struct tvpal_player_opts po;
     /* The view and playback state rank 0 steers. */
     double ax, ay, zoom, opacity, scale_z;
+    int view;                       /* the named view the angles turn */
     unsigned tfi, shots;
     uint32_t t;
     int dir, playing, redraw, reduced, status;
@@ -214,6 +216,13 @@ static void handle_key(struct win_state *w, int key, struct win_cmd *cmd)
     }
     case TVPAL_KEY_HUD: w->hud = w->pa.a && !w->hud; break;
     case TVPAL_KEY_QUIT: cmd->quit = 1; break;
+    default:
+        /* A named view: its orientation, the angles (drag) from 0. */
+        if (key >= TVPAL_KEY_VIEW && key < TVPAL_KEY_VIEW + TVPAL_KEY_VIEWS) {
+            w->view = key - TVPAL_KEY_VIEW;
+            w->ax = w->ay = 0;
+        }
+        break;
     }
     w->redraw = 1;
 }
@@ -222,8 +231,10 @@ static void handle_key(struct win_state *w, int key, struct win_cmd *cmd)
 static void cmd_view(const struct win_state *w, const struct win_cmd *cmd,
                      struct tvpal_view *v)
 {
-    *v = (struct tvpal_view){.width = w->W, .height = w->H, .ax_deg = cmd->ax,
-                             .ay_deg = cmd->ay, .zoom = cmd->zoom};
+    *v = (struct tvpal_view){.width = w->W, .height = w->H, .zoom = cmd->zoom};
+    play_view_named(v, cmd->view, w->o->up);
+    v->ax_deg = cmd->ax;
+    v->ay_deg = cmd->ay;
     memcpy(v->dims, w->s->m->dims, sizeof v->dims);
     play_view_spacing(w->s->m, cmd->scale_z, v->spacing);
     tvpal_view_setup(v);
@@ -243,6 +254,7 @@ static void choose_level(struct win_state *w, struct win_cmd *cmd, int moving)
     }
     cmd->ax = w->ax;
     cmd->ay = w->ay;
+    cmd->view = w->view;
     cmd->zoom = w->zoom;
     cmd->scale_z = w->scale_z;
     struct tvpal_view v;
@@ -306,6 +318,7 @@ static void read_input(struct win_state *w, struct win_cmd *cmd)
     cmd->tfi = w->tfi;
     cmd->ax = w->ax;
     cmd->ay = w->ay;
+    cmd->view = w->view;
     cmd->zoom = w->zoom;
     cmd->opacity = w->opacity;
     cmd->scale_z = w->scale_z;
@@ -559,7 +572,9 @@ int play_run_window(struct play_session *s)
     struct win_state w = {
         .s = s, .o = s->o, .leader = play_comm.rank == 0,
         .multi = play_cluster_multi(), .W = s->o->width, .H = s->o->height,
-        .po = s->o->po, .ax = s->o->ax, .ay = s->o->ay, .zoom = s->o->zoom,
+        .po = s->o->po, .ax = s->o->view >= 0 ? 0 : s->o->ax,
+        .ay = s->o->view >= 0 ? 0 : s->o->ay, .view = s->o->view,
+        .zoom = s->o->zoom,
         .opacity = s->o->opacity, .scale_z = s->o->scale_z, .t = s->a, .dir = s->b >= s->a ? 1 : -1,
         .playing = s->o->autoplay > 0, .redraw = 1, .last = tvpal_now()};
     open_window(&w);

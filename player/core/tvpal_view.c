@@ -34,6 +34,63 @@ static int spacing_valid(const double sp[3])
     return 1;
 }
 
+static const char *const view_names[TVPAL_VIEW_NAMES] = {
+    "+x", "-x", "+y", "-y", "+z", "-z", "iso"};
+
+int tvpal_view_name_parse(const char *s)
+{
+    for (int i = 0; s && i < TVPAL_VIEW_NAMES; i++)
+        if (!strcmp(s, view_names[i]))
+            return i;
+    return -1;
+}
+
+const char *tvpal_view_name_str(int name)
+{
+    return name >= 0 && name < TVPAL_VIEW_NAMES ? view_names[name] : "?";
+}
+
+int tvpal_view_default_up(int name)
+{
+    return name == TVPAL_VIEW_PZ || name == TVPAL_VIEW_NZ ||
+                   name == TVPAL_VIEW_ISO ? 1 : 2;
+}
+
+static void cross(const double a[3], const double b[3], double c[3])
+{
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+int tvpal_view_orient(int name, int up, double orient[3][3])
+{
+    if (name < 0 || name >= TVPAL_VIEW_NAMES || up < 0 || up > 2 ||
+        (name != TVPAL_VIEW_ISO && name / 2 == up))
+        return TVPAL_E_INVAL;
+    double d[3] = {0, 0, 0}, u[3] = {0, 0, 0}, r[3];
+    u[up] = 1;
+    if (name == TVPAL_VIEW_ISO) {
+        /* u minus its part along d, normalized: up's projection. */
+        const double k = -1 / sqrt(3.0);
+        d[0] = d[1] = d[2] = k;
+        for (int i = 0; i < 3; i++)
+            u[i] -= k * d[i];
+        double n = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+        for (int i = 0; i < 3; i++)
+            u[i] /= n;
+    } else {
+        d[name / 2] = name % 2 ? -1 : 1;   /* exact: 0 and +-1 */
+    }
+    cross(d, u, r);   /* screen right = view direction x up */
+    for (int i = 0; i < 3; i++) {
+        orient[0][i] = r[i];
+        orient[1][i] = u[i];
+        orient[2][i] = -d[i];   /* eye z points towards the viewer */
+    }
+    return 0;
+}
+
 void tvpal_view_setup(struct tvpal_view *v)
 {
     const double a = safe_deg(v->ax_deg) * M_PI / 180.0,
@@ -49,6 +106,18 @@ void tvpal_view_setup(struct tvpal_view *v)
                 s += ry[i][k] * rx[k][j];
             v->rot[i][j] = s;
         }
+    /* A named view's orientation comes first (on the right); without
+     * one the angles' matrix is used as it is (the same bits as before
+     * named views existed). */
+    if (v->oriented) {
+        double t[3][3];
+        memcpy(t, v->rot, sizeof t);
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++)
+                v->rot[i][j] = t[i][0] * v->orient[0][j] +
+                               t[i][1] * v->orient[1][j] +
+                               t[i][2] * v->orient[2][j];
+    }
     /* Physical extents; on an isotropic grid the same numbers (and bits)
      * as the voxel counts.  Spacing that is not valid counts as isotropic
      * (all three set to 0, so every user of the view agrees). */

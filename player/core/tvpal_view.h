@@ -8,6 +8,10 @@
  * projects orthographically along -z onto [-1, 1]^2 / zoom, widened for
  * the image aspect ratio.  Rays go along -z in eye space.
  *
+ * A named view (tvpal_view_orient) puts the volume in its orientation
+ * first: then the rotation is Ry(ay) Rx(ax) O, and with ax = ay = 0
+ * exactly O, whose entries are 0 and +-1 for the views along an axis.
+ *
  * Slices of the axis most orthogonal to the view are drawn back to front;
  * the TF opacity is per unit of the smallest voxel spacing, corrected for
  * the distance a ray travels between two slices:
@@ -20,6 +24,8 @@
 
 #include <stdint.h>
 
+#include "tvpal_error.h"
+
 struct tvpal_view {
     uint32_t dims[3];
     double spacing[3];           /* voxel size per axis (physical units, any
@@ -30,6 +36,8 @@ struct tvpal_view {
                                   * level's, so it looks as opaque */
     unsigned width, height;      /* image size in pixels */
     double ax_deg, ay_deg, zoom;
+    int oriented;                /* 1: orient applies (a named view) */
+    double orient[3][3];         /* object -> the named view's eye frame */
     /* derived by tvpal_view_setup */
     double rot[3][3];            /* object -> eye */
     double half[3];              /* half extents of the box per axis */
@@ -40,6 +48,31 @@ struct tvpal_view {
     double gap;                  /* slice spacing / smallest spacing (or
                                   * opacity_unit) */
 };
+
+/* Named views, as ParaView's camera buttons ("Set view direction to
+ * +X"): TVPAL_VIEW_PX looks along +x (from the -x side), TVPAL_VIEW_NX
+ * along -x, and so on; TVPAL_VIEW_ISO looks along (-1, -1, -1), from the
+ * +x+y+z corner (ParaView's isometric view). */
+enum tvpal_view_name {
+    TVPAL_VIEW_PX, TVPAL_VIEW_NX, TVPAL_VIEW_PY, TVPAL_VIEW_NY,
+    TVPAL_VIEW_PZ, TVPAL_VIEW_NZ, TVPAL_VIEW_ISO, TVPAL_VIEW_NAMES
+};
+
+/* "+x", "-x", "+y", "-y", "+z", "-z" or "iso" -> its tvpal_view_name, or
+ * -1; and back. */
+int tvpal_view_name_parse(const char *s);
+const char *tvpal_view_name_str(int name);
+
+/* The axis (0 x, 1 y, 2 z) a named view shows pointing up by default, as
+ * ParaView: y for the z views and iso, z for the x and y views. */
+int tvpal_view_default_up(int name);
+
+/* The orientation of named view `name` with axis `up` (0..2) pointing up
+ * on the screen (for iso: up's projection): rows are the object-space
+ * directions of the screen's right, its up and the way towards the
+ * viewer.  0, or TVPAL_E_INVAL when up is the view's own axis (or name or
+ * up is out of range); orient is then unchanged. */
+int tvpal_view_orient(int name, int up, double orient[3][3]);
 
 /* Zoom range the view honours (tvpal_view_setup clamps to it). */
 #define TVPAL_VIEW_ZOOM_MIN 1e-6

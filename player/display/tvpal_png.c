@@ -32,9 +32,8 @@ int tvpal_png_write(const char *path, const float *rgba, unsigned width,
     return write_rgb(path, width, height, rgb8, diag);
 }
 
-int tvpal_png_write8(const char *path, const uint8_t *rgba8, unsigned width,
-                     unsigned height, const float bg[3], uint8_t *rgb8,
-                     struct tvpal_diag *diag)
+void tvpal_png_rgb8(const uint8_t *rgba8, unsigned width, unsigned height,
+                    const float bg[3], uint8_t *rgb8)
 {
     for (unsigned y = 0; y < height; y++) {
         const uint8_t *src = rgba8 + 4 * (size_t)(height - 1 - y) * width;
@@ -44,6 +43,13 @@ int tvpal_png_write8(const char *path, const uint8_t *rgba8, unsigned width,
                 dst[3 * x + c] = tvpal_png_over8(src[4 * x + c],
                                                  src[4 * x + 3], bg[c]);
     }
+}
+
+int tvpal_png_write8(const char *path, const uint8_t *rgba8, unsigned width,
+                     unsigned height, const float bg[3], uint8_t *rgb8,
+                     struct tvpal_diag *diag)
+{
+    tvpal_png_rgb8(rgba8, width, height, bg, rgb8);
     return write_rgb(path, width, height, rgb8, diag);
 }
 

@@ -32,6 +32,11 @@ int tvpal_png_write8(const char *path, const uint8_t *rgba8, unsigned width,
                      unsigned height, const float bg[3], uint8_t *rgb8,
                     struct tvpal_diag *diag);
 
+/* The 8-bit RGB rows (top row first) that tvpal_png_write8 writes, into
+ * rgb8 (3 * width * height bytes): the frame a movie shows. */
+void tvpal_png_rgb8(const uint8_t *rgba8, unsigned width, unsigned height,
+                    const float bg[3], uint8_t *rgb8);
+
 /* Reads an 8-bit RGB or RGBA PNG (tests): *out malloc'ed, 3 bytes per
  * pixel, top row first. */
 int tvpal_png_read(const char *path, uint8_t **out, unsigned *width,

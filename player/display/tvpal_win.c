@@ -58,6 +58,11 @@ static void on_key(GLFWwindow *gw, int key, int sc, int action, int mods)
     case GLFW_KEY_Q: case GLFW_KEY_ESCAPE: push_key(w->in, TVPAL_KEY_QUIT); break;
     case GLFW_KEY_RIGHT_BRACKET: push_key(w->in, TVPAL_KEY_SCALE_Z_UP); break;
     case GLFW_KEY_LEFT_BRACKET: push_key(w->in, TVPAL_KEY_SCALE_Z_DOWN); break;
+    case GLFW_KEY_1: case GLFW_KEY_2: case GLFW_KEY_3: case GLFW_KEY_4:
+    case GLFW_KEY_5: case GLFW_KEY_6:
+        push_key(w->in, TVPAL_KEY_VIEW + (key - GLFW_KEY_1));
+        break;
+    case GLFW_KEY_0: push_key(w->in, TVPAL_KEY_VIEW + 6); break;
     default: break;
     }
 }
