@@ -4,7 +4,8 @@
 #    it had annotations (tests/tvpal-framecheck: the bare frame path), and
 #    --background C that frame over C (empty pixels exactly C);
 #  - with a fully transparent TF only the annotations show: identical with
-#    the cpu and gl renderers and on rank 0 of a 2-rank cluster;
+#    the cpu and gl renderers and on rank 0 of a 2-rank cluster, and in a
+#    movie (-o FILE.mp4, with ffmpeg) as in the PNG frames;
 #  - the default is full; the outline's corners land on the volume box's
 #    corners projected as tvpal_view projects them (computed here
 #    independently); minimal draws no outline; physical times replace the
@@ -109,6 +110,37 @@ if command -v mpirun > /dev/null && "$PLAY" --version | grep -q "mpi: yes"; then
         || fail "2 ranks: annotations differ"
 else
     echo "no mpirun or built without MPI: cluster comparison not run"
+fi
+# A movie (-o FILE.mp4) is written from the same annotated frame, over the
+# background: its first frame (H.264, lossy) is far closer to the annotated
+# PNG than to the bare one, and its empty corner is the background.
+if command -v ffmpeg > /dev/null; then
+    for a in full none; do
+        "$PLAY" "$W/ds" --headless -q $CL --annotate $a --background darkgray --steps 0:1 \
+            -o "$W/png-$a" > /dev/null || fail "play png $a"
+    done
+    "$PLAY" "$W/ds" --headless -q $CL --background darkgray --steps 0:1 -o "$W/m.mp4" \
+        > /dev/null 2>&1 || fail "play movie"
+    ffmpeg -v error -i "$W/m.mp4" -frames:v 1 "$W/m0.png" || fail "decode the movie"
+    py "$W/m0.png" "$W/png-full/t0000.png" "$W/png-none/t0000.png" <<'PY' > "$W/movie.txt" 2>&1 \
+        && ok "movie: $(cat "$W/movie.txt")" || fail "movie: $(cat "$W/movie.txt")"
+import os, sys
+exec(open(os.environ["IMG"]).read())
+w, h, b, m = flat(sys.argv[1])
+_, _, bf, f = flat(sys.argv[2])
+_, _, bn, n = flat(sys.argv[3])
+def mad(x, bx):
+    return sum(abs(m[i * b + c] - x[i * bx + c]) for i in range(w * h) for c in range(3)) / (3 * w * h)
+df, dn = mad(f, bf), mad(n, bn)
+corner = list(m[(5 * w + w // 2) * b:(5 * w + w // 2) * b + 3])
+if not (df * 3 < dn and all(abs(c - 51) <= 3 for c in corner)):
+    sys.exit("mean difference %.3f to the annotated frame, %.3f to the bare one; "
+             "top centre %s (darkgray is 51)" % (df, dn, corner))
+print("mean difference %.3f to the annotated PNG, %.3f to the bare one; background %s"
+      % (df, dn, corner))
+PY
+else
+    echo "no ffmpeg: movie check not run"
 fi
 # Constant data, small and huge (a fill value left in): one value, no
 # range; the legend spans a little around it and the frames are written.
