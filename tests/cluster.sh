@@ -154,7 +154,7 @@ within "$r" && ok "--shard-dir: $r" || fail "--shard-dir: $r"
 if "$PLAY" --version | grep -q "window: yes" && command -v xvfb-run > /dev/null \
    && command -v xdotool > /dev/null; then
     "$PLAY" "$W/k1" --headless -q $GLR --size 64x56 --rotate 30,40 --tf "$TF" -o "$W/ref-w" > /dev/null
-    timeout 120 xvfb-run -a -s "-screen 0 640x480x24" $MPI -np 3 "$PLAY" "$W/k3" --window $GLR \
+    timeout 120 xvfb-run -a -s "-screen 0 640x480x24" $MPI -np 3 "$PLAY" "$W/k3" --window --no-hud $GLR \
         --steps 1:1 --size 64x56 --rotate 30,40 --tf "$TF" --autoplay 1 \
         --screenshot "$W/win3.png" > "$W/o.txt" 2>&1 || fail "cluster window: $(tail -n 3 "$W/o.txt")"
     cmp -s "$W/win3.png" "$W/ref-w/t0001.png" && ok "K=3 window shows the single-node frame" \
@@ -163,7 +163,7 @@ if "$PLAY" --version | grep -q "window: yes" && command -v xvfb-run > /dev/null 
     # frame as the headless CPU run of the same ranks.
     $MPI -np 3 "$PLAY" "$W/k3" --headless -q --renderer cpu --steps 1:1 --size 64x56 \
         --rotate 30,40 --tf "$TF" -o "$W/c3cpu" > /dev/null 2>&1 || fail "K=3 cpu headless"
-    timeout 120 xvfb-run -a -s "-screen 0 640x480x24" $MPI -np 3 "$PLAY" "$W/k3" --window \
+    timeout 120 xvfb-run -a -s "-screen 0 640x480x24" $MPI -np 3 "$PLAY" "$W/k3" --window --no-hud \
         --steps 1:1 --size 64x56 --rotate 30,40 --tf "$TF" --autoplay 1 \
         --screenshot "$W/win3cpu.png" > "$W/o.txt" 2>&1 || fail "cluster cpu window: $(tail -n 3 "$W/o.txt")"
     grep -q "renderer cpu (shear-warp.*default: the window's GL is .*draws on the CPU" "$W/o.txt" \
@@ -174,7 +174,7 @@ if "$PLAY" --version | grep -q "window: yes" && command -v xvfb-run > /dev/null 
     cat > "$W/drive.sh" <<DRIVE
 #!/bin/sh
 cd "$W"
-$MPI -np 3 "$PLAY" "$W/k3" --window $GLR --size 64x56 --rotate 30,40 --tf "$TF" > "$W/play.txt" 2>&1 &
+$MPI -np 3 "$PLAY" "$W/k3" --window --no-hud $GLR --size 64x56 --rotate 30,40 --tf "$TF" > "$W/play.txt" 2>&1 &
 pid=\$!
 wid=\$(xdotool search --sync --name tvpal-play | head -n 1)
 sleep 1

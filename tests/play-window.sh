@@ -25,7 +25,7 @@ for r in default gl; do
     hl=$([ $r = gl ] && echo hlgl || echo hl)
     for t in 0 5; do
         xvfb-run -a -s "-screen 0 640x480x24" "$PLAY" "$W/ds" --window $ropt --steps $t:$t \
-            --size 96x80 --tf "$TF" --autoplay 1 --screenshot "$W/win$r$t.png" > "$W/o.txt" 2>&1 \
+            --size 96x80 --tf "$TF" --no-hud --autoplay 1 --screenshot "$W/win$r$t.png" > "$W/o.txt" 2>&1 \
             || { fail "window run: $(cat "$W/o.txt")"; continue; }
         cmp -s "$W/win$r$t.png" "$(printf '%s/%s/t%04d.png' "$W" $hl $t)" \
             && ok "$r renderer, step $t: window framebuffer = headless image" \
@@ -37,7 +37,7 @@ done
 # A named view with a chosen up axis, in the window and headless.
 "$PLAY" "$W/ds" --headless -q --size 96x80 --tf "$TF" --steps 2:2 --view -z --up x \
     -o "$W/hlv" > /dev/null || fail "headless --view"
-xvfb-run -a -s "-screen 0 640x480x24" "$PLAY" "$W/ds" --window --steps 2:2 --view -z --up x \
+xvfb-run -a -s "-screen 0 640x480x24" "$PLAY" "$W/ds" --window --no-hud --steps 2:2 --view -z --up x \
     --size 96x80 --tf "$TF" --autoplay 1 --screenshot "$W/winv.png" > "$W/o.txt" 2>&1 \
     || fail "window --view: $(cat "$W/o.txt")"
 cmp -s "$W/winv.png" "$W/hlv/t0002.png" && ok "--view -z --up x: window = headless" \
@@ -48,7 +48,7 @@ cmp -s "$W/winv.png" "$W/hlv/t0002.png" && ok "--view -z --up x: window = headle
 cat > "$W/drive.sh" <<DRIVE
 #!/bin/sh
 cd "$W"
-"$PLAY" "$W/ds" --window --steps 0:8 --size 96x80 --tf "$TF" > "$W/play.txt" 2>&1 &
+"$PLAY" "$W/ds" --window --no-hud --steps 0:8 --size 96x80 --tf "$TF" > "$W/play.txt" 2>&1 &
 pid=\$!
 wid=\$(xdotool search --sync --name tvpal-play | head -n 1)
 sleep 0.5

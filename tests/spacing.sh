@@ -43,14 +43,14 @@ RENDERERS=cpu
 "$PLAY" --version | grep -q "gl: yes" && RENDERERS="cpu gl"
 for r in $RENDERERS; do
     # --rotate 90,0: the z axis is the image's vertical.
-    "$PLAY" "$W/phys" --headless -q --renderer $r --size 160x160 --rotate 90,0 --tf "$W/solid.tf" --steps 0:0 -o "$W/p-$r" > /dev/null \
+    "$PLAY" "$W/phys" --headless -q --renderer $r --size 160x160 --rotate 90,0 --annotate none --tf "$W/solid.tf" --steps 0:0 -o "$W/p-$r" > /dev/null \
         || { fail "$r: play"; continue; }
     a=$(aspect "$W/p-$r/t0000.png")
     awk -v a="$a" 'BEGIN { exit !(a > 0.94 && a < 1.06) }' && ok "$r: the sphere is round (aspect $a)" || fail "$r: aspect $a, expected 1"
-    "$PLAY" "$W/flat" --headless -q --renderer $r --size 160x160 --rotate 90,0 --tf "$W/solid.tf" --steps 0:0 -o "$W/f-$r" > /dev/null || fail "$r: play flat"
+    "$PLAY" "$W/flat" --headless -q --renderer $r --size 160x160 --rotate 90,0 --annotate none --tf "$W/solid.tf" --steps 0:0 -o "$W/f-$r" > /dev/null || fail "$r: play flat"
     a=$(aspect "$W/f-$r/t0000.png")
     awk -v a="$a" 'BEGIN { exit !(a > 0.22 && a < 0.29) }' && ok "$r: without spacing, the 1:4 pancake (aspect $a)" || fail "$r: flat aspect $a, expected 0.25"
-    "$PLAY" "$W/phys" --headless -q --renderer $r --size 160x160 --rotate 90,0 --tf "$W/solid.tf" --steps 0:0 --scale-z 2 -o "$W/z-$r" > /dev/null || fail "$r: play --scale-z"
+    "$PLAY" "$W/phys" --headless -q --renderer $r --size 160x160 --rotate 90,0 --annotate none --tf "$W/solid.tf" --steps 0:0 --scale-z 2 -o "$W/z-$r" > /dev/null || fail "$r: play --scale-z"
     a=$(aspect "$W/z-$r/t0000.png")
     awk -v a="$a" 'BEGIN { exit !(a > 1.88 && a < 2.12) }' && ok "$r: --scale-z 2 stretches it 2:1 (aspect $a)" || fail "$r: --scale-z 2 aspect $a"
 done

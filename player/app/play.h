@@ -27,6 +27,12 @@ enum play_tf_range {
     PLAY_TF_PRESET      /* the file's own values */
 };
 
+/* --annotate: what the final frame shows (play_annot.h); AUTO is full
+ * where cairo is built in, else none. */
+enum play_annot_level {
+    PLAY_ANNOT_AUTO = -1, PLAY_ANNOT_NONE, PLAY_ANNOT_MINIMAL, PLAY_ANNOT_FULL
+};
+
 /* Everything the command line says, after play_options_check. */
 struct play_opts {
     const char *dir;                    /* OUTDIR */
@@ -59,6 +65,10 @@ struct play_opts {
     uint32_t repeat, jumps, autoplay;
     int tf_cycle, ref_psnr, strict, quiet, no_direct, want_direct;
     const char *outdir, *csv_path, *shot, *shard_pat;
+    int annotate;                       /* enum play_annot_level */
+    float background[3];                /* --background: RGB, each 0..1 */
+    const char *shot_dir;               /* --shot-dir: the S key's PNGs */
+    int no_hud;                         /* --no-hud: the HUD starts hidden */
     int movie;                          /* -o FILE.mp4|.webm: its
                                          * tvpal_movie_kind, else 0 (-o DIR) */
     double fps;                         /* --fps: the movie's frame rate */

@@ -3,6 +3,7 @@
  * options (see play.h). */
 #include "play.h"
 #include "play_cluster.h"
+#include "tvpal_annot.h"
 #include "play_progress.h"
 #include "tvpal_cli.h"
 #include "tvpal_comm.h"
@@ -101,7 +102,17 @@ static void usage_view(FILE *f)
 "      --spin DEG           turn the view DEG degrees about y per frame,\n"
 "                           -360..360\n"
 "                           (a camera path; with three copies crossing axes\n"
-"                           loads records, with one copy nothing)\n");
+"                           loads records, with one copy nothing)\n"
+"Annotations (drawn into the final image: PNG frames, movies and the window\n"
+"alike, on rank 0 after compositing; need cairo):\n"
+"      --annotate A         none, minimal (a colour legend of the transfer\n"
+"                           function with value labels and the variable's\n"
+"                           name, and the time, or the step where the dataset\n"
+"                           has no times) or full (default: minimal, the\n"
+"                           volume's outline and an x, y, z triad); none\n"
+"                           without cairo\n"
+"      --background C       the colour behind the volume: black (default),\n"
+"                           white, gray, darkgray or R,G,B, each 0..1\n");
 }
 
 /* --help, second part: data, output, cluster, window keys, exit status. */
@@ -162,6 +173,9 @@ static void usage_data_output(FILE *f)
 "      --autoplay K         window: play K frames (1..100000000) from A,\n"
 "                           then exit\n"
 "      --screenshot FILE    window: save the last frame shown as PNG\n"
+"      --shot-dir DIR       window: where S saves tvpal-shot-NNNN.png\n"
+"                           (created; default: the current directory)\n"
+"      --no-hud             window: start with the HUD hidden (H shows it)\n"
 "  -q, --quiet              only the closing summary line\n"
 "  -h, --help               this help\n"
 "  -V, --version            version\n"
@@ -170,11 +184,13 @@ static void usage_data_output(FILE *f)
 "last, B reverse direction, T next transfer function, R reload it from its\n"
 "file, Up/Down opacity, ] / [ stretch or shrink z, M in-core/out-of-core,\n"
 "+/- or wheel zoom, 1 2 3 4 5 6 the views +x -x +y -y +z -z and 0 iso\n"
-"(as --view, with --up), S\n"
-"screenshot (tvpal-shot-NNNN.png), Q or Esc quit.  Mouse: drag the image to\n"
-"rotate, drag or click the slider to scrub.  While dragging or scrubbing\n"
-"every other slice is drawn; the full image follows when idle.  The title\n"
-"shows timestep, fps, data mode, axis and transfer function.\n"
+"(as --view, with --up), H show/hide the HUD, S screenshot\n"
+"(tvpal-shot-NNNN.png in --shot-dir; what the window shows, HUD included),\n"
+"Q or Esc quit.  Mouse: drag the image to rotate, drag or click the slider\n"
+"to scrub.  While dragging or scrubbing every other slice is drawn; the\n"
+"full image follows when idle.  The HUD (top left, shown at start unless\n"
+"--no-hud; needs cairo) and the title show timestep and time, fps,\n"
+"renderer, level of detail and transfer function.\n"
 "\n"
 "A record that fails to load is reported (file, record); the affected\n"
 "slices keep their last good data and playback continues, unless --strict.\n"
@@ -298,21 +314,16 @@ static int set_tf_range(struct play_opts *o, const char *arg)
     return 0;
 }
 
-/* --nan-color none | R,G,B[,A]: each in [0, 1], A 1 when left out. */
-static int set_nan_color(struct play_opts *o, const char *arg)
+/* A colour "R,G,B" or, with max 4, "R,G,B,A": each in [0, 1], into c
+ * (entries not given are left as they are).  0 or -1. */
+static int parse_colour(const char *arg, unsigned max, float *c)
 {
-    float c[4] = {0, 0, 0, 1};
-    o->nan_given = 1;
-    if (!strcmp(arg, "none")) {
-        memset(o->nan_rgba, 0, sizeof o->nan_rgba);
-        return 0;
-    }
     unsigned n = 0;
     for (const char *p = arg;;) {
         char num[64];
         size_t len = strcspn(p, ",");
         double v;
-        if (n == 4 || len >= sizeof num)
+        if (n == max || len >= sizeof num)
             return -1;
         memcpy(num, p, len);
         num[len] = 0;
@@ -323,10 +334,56 @@ static int set_nan_color(struct play_opts *o, const char *arg)
             break;
         p += len + 1;
     }
-    if (n < 3)
+    return n < 3 ? -1 : 0;
+}
+
+/* --nan-color none | R,G,B[,A]: each in [0, 1], A 1 when left out. */
+static int set_nan_color(struct play_opts *o, const char *arg)
+{
+    float c[4] = {0, 0, 0, 1};
+    o->nan_given = 1;
+    if (!strcmp(arg, "none")) {
+        memset(o->nan_rgba, 0, sizeof o->nan_rgba);
+        return 0;
+    }
+    if (parse_colour(arg, 4, c) < 0)
         return -1;
     memcpy(o->nan_rgba, c, sizeof c);
     return 0;
+}
+
+/* --background NAME | R,G,B (each 0..1). */
+static int set_background(struct play_opts *o, const char *arg)
+{
+    static const struct {
+        const char *name;
+        float rgb[3];
+    } named[] = {{"black", {0, 0, 0}}, {"white", {1, 1, 1}},
+                 {"gray", {0.5f, 0.5f, 0.5f}}, {"grey", {0.5f, 0.5f, 0.5f}},
+                 {"darkgray", {0.2f, 0.2f, 0.2f}},
+                 {"darkgrey", {0.2f, 0.2f, 0.2f}}};
+    for (size_t i = 0; i < sizeof named / sizeof *named; i++)
+        if (!strcmp(arg, named[i].name)) {
+            memcpy(o->background, named[i].rgb, sizeof o->background);
+            return 0;
+        }
+    float c[3];
+    if (parse_colour(arg, 3, c) < 0)
+        return -1;
+    memcpy(o->background, c, sizeof c);
+    return 0;
+}
+
+/* --annotate none | minimal | full. */
+static int set_annotate(struct play_opts *o, const char *arg)
+{
+    static const char *const names[] = {"none", "minimal", "full"};
+    for (int i = 0; i < 3; i++)
+        if (!strcmp(arg, names[i])) {
+            o->annotate = PLAY_ANNOT_NONE + i;
+            return 0;
+        }
+    return -1;
 }
 
 static int set_renderer(struct play_opts *o, const char *arg)
@@ -402,7 +459,7 @@ enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
        K_REPEAT, K_TF_CYCLE, K_JUMPS, K_AUTOPLAY, K_SCREENSHOT, K_OPACITY,
        K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_DIRECT, K_MEM, K_CSV, K_STRICT,
        K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR, K_EXACT, K_LEVEL, K_BUDGET,
-       K_FROM_Z };
+       K_FROM_Z, K_ANNOTATE, K_BACKGROUND, K_SHOT_DIR, K_NO_HUD };
 /* Views, movies and progress (apart: the list above grows elsewhere). */
 enum { K_VIEW = 384, K_UP, K_FPS, K_PROGRESS };
 
@@ -440,6 +497,10 @@ static const struct opt_def opt_table[] = {
      "degrees in -360..360"},
     {"scale-z", K_SCALE_Z, OPT_DOUBLE, F(scale_z), 0.001, 1000, NULL,
      "a factor in 0.001..1000"},
+    {"annotate", K_ANNOTATE, OPT_FN, 0, 0, 0, set_annotate,
+     "none, minimal or full"},
+    {"background", K_BACKGROUND, OPT_FN, 0, 0, 0, set_background,
+     "black, white, gray, darkgray or R,G,B, each 0..1"},
     /* data */
     {"mode", 'm', OPT_FN, 0, 0, 0, set_mode, "incore or stream"},
     {"io", K_IO, OPT_FN, 0, 0, 0, set_io, "auto, uring or pread"},
@@ -468,6 +529,8 @@ static const struct opt_def opt_table[] = {
     {"autoplay", K_AUTOPLAY, OPT_U32, F(autoplay), 1, 100000000, NULL,
      "a frame count in 1..100000000"},
     {"screenshot", K_SCREENSHOT, OPT_TEXT, F(shot), 0, 0, NULL, NULL},
+    {"shot-dir", K_SHOT_DIR, OPT_TEXT, F(shot_dir), 0, 0, NULL, NULL},
+    {"no-hud", K_NO_HUD, OPT_SET, F(no_hud), 1, 0, NULL, NULL},
     {"quiet", 'q', OPT_SET, F(quiet), 1, 0, NULL, NULL},
 };
 #define NOPTS (sizeof opt_table / sizeof *opt_table)
@@ -485,6 +548,7 @@ static void defaults(struct play_opts *o)
         .scale_z = 1,
         .opacity = 1, .renderer = PLAY_REND_AUTO, .renderer_why = "",
         .fb_bits = 32, .window = -1, .repeat = 1, .budget_ms = 66,
+        .annotate = PLAY_ANNOT_AUTO,
         .view = -1, .up = -1, .fps = 24, .progress_s = PLAY_PROGRESS_EVERY_S,
         .po = {.incore = 0, .io = TVPAL_IO_URING, .prefetch = 4, .direct = 1},
         .ckind = TVPAL_COMPOSE_BSWAP};
@@ -517,7 +581,7 @@ static int apply(struct play_opts *o, const struct opt_def *d,
 static void print_version(void)
 {
     printf(PROG " " PACKAGE_VERSION " (window: %s, gl: %s, mpi: %s, "
-           "uring: %s)\n",
+           "uring: %s, annotations: %s)\n",
 #ifdef TVPAL_HAVE_WINDOW
            "yes",
 #else
@@ -530,11 +594,11 @@ static void print_version(void)
 #endif
            tvpal_comm_mpi_built() ? "yes" : "no",
 #ifdef HAVE_LIBURING
-           "yes"
+           "yes",
 #else
-           "no"
+           "no",
 #endif
-    );
+           tvpal_annot_available() ? "yes" : "no");
 }
 
 int play_options_parse(struct play_opts *o, int argc, char **argv)
@@ -606,6 +670,19 @@ static void check_renderer_options(struct play_opts *o)
                  "resolution; only with --renderer cpu");
 }
 
+/* --annotate: full by default where cairo is built in; minimal and full
+ * refused without it (naming the package), none always possible. */
+static void check_annotate(struct play_opts *o)
+{
+    if (o->annotate == PLAY_ANNOT_AUTO)
+        o->annotate = tvpal_annot_available() ? PLAY_ANNOT_FULL
+                                              : PLAY_ANNOT_NONE;
+    else if (o->annotate != PLAY_ANNOT_NONE && !tvpal_annot_available())
+        play_die(2, "--annotate %s: %s; --annotate none draws none",
+                 o->annotate == PLAY_ANNOT_FULL ? "full" : "minimal",
+                 tvpal_annot_describe());
+}
+
 /* --view and --rotate, --up with the view. */
 static void check_view_options(const struct play_opts *o)
 {
@@ -638,6 +715,7 @@ static void check_movie_options(struct play_opts *o)
 void play_options_check(struct play_opts *o, int nranks)
 {
     check_renderer_options(o);
+    check_annotate(o);
     check_movie_options(o);
     if (o->window < 0)
         o->window = getenv("DISPLAY") && *getenv("DISPLAY") && !o->outdir;
@@ -651,8 +729,9 @@ void play_options_check(struct play_opts *o, int nranks)
                      o->renderer == PLAY_REND_REF ? "ref" : "none");
         return; /* the window's GL decides an automatic choice */
     }
-    if (o->autoplay || o->shot)
-        play_die(2, "--autoplay and --screenshot need the window (--window)");
+    if (o->autoplay || o->shot || o->shot_dir || o->no_hud)
+        play_die(2, "--autoplay, --screenshot, --shot-dir and --no-hud need "
+                 "the window (--window)");
     /* Headless GL is OSMesa, a software rasterizer: the CPU renderer is
      * the faster one there. */
     if (o->renderer == PLAY_REND_AUTO) {

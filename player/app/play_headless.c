@@ -4,6 +4,7 @@
  * the summary line. */
 #define _GNU_SOURCE
 #include "play.h"
+#include "play_annot.h"
 #include "play_cluster.h"
 #include "play_progress.h"
 #include "play_renderer.h"
@@ -33,6 +34,7 @@ struct headless {
     float *rgba;                    /* this rank's image */
     uint8_t *final, *rgb8;          /* composited frame (rank 0), PNG rows */
     struct tvpal_compositor *cx;
+    struct play_annot pa;           /* rank 0 with frames to write */
     struct play_rank_rec *recs;     /* rank 0: one per rank */
     const char *outdir, *csv_path;  /* rank 0 only */
     const char *movie_path;         /* rank 0, -o FILE.mp4|.webm */
@@ -129,9 +131,9 @@ static void open_movie_output(struct headless *h)
  * same RGB rows), sent to ffmpeg. */
 static void write_movie_frame(struct headless *h)
 {
-    static const float bg[3] = {0, 0, 0};
     struct tvpal_diag d = {{0}};
-    tvpal_png_rgb8(h->final, h->o->width, h->o->height, bg, h->rgb8);
+    tvpal_png_rgb8(h->final, h->o->width, h->o->height, h->o->background,
+                   h->rgb8);
     if (tvpal_movie_write(h->movie, h->rgb8, &d) < 0) {
         abort_movie();   /* the job may end without exit handlers */
         play_die_rank(1, "%s", d.msg);
@@ -166,6 +168,12 @@ static void setup_outputs(struct headless *h)
         if (!h->csv_path &&
             asprintf(&h->csv_default, "%s/timing.csv", h->outdir) >= 0)
             h->csv_path = h->csv_default;
+    }
+    if (h->outdir || h->movie_path) {   /* annotations: what is written */
+        struct tvpal_diag d = {{0}};
+        if (play_annot_open(&h->pa, h->o, 0, h->o->width, h->o->height,
+                            &d) < 0)
+            play_die(1, "%s", d.msg);
     }
     if (h->csv_path) {
         struct tvpal_diag d = {{0}};
@@ -362,6 +370,15 @@ static void settle_errors(struct headless *h, uint32_t t,
                      ? 1 : 2, "stopped at step %u", t);
 }
 
+/* Rank 0: the annotations (--annotate) drawn into the final frame, which
+ * every output writes from (after this). */
+static void annotate_frame(struct headless *h, uint32_t t)
+{
+    struct tvpal_diag d = {{0}};
+    if (play_annot_frame(&h->pa, h->s, &h->v, t, h->final, &d) < 0)
+        play_die(1, "step %u: %s", t, d.msg);
+}
+
 /* Rank 0: the frame's PNG and CSV row. */
 static void write_frame(struct headless *h, const struct play_row *row)
 {
@@ -372,9 +389,8 @@ static void write_frame(struct headless *h, const struct play_row *row)
         struct tvpal_diag d = {{0}};
         if (asprintf(&path, "%s/t%0*u.png", h->outdir, h->digits, row->step) < 0)
             play_die(1, "out of memory");
-        static const float bg[3] = {0, 0, 0};
-        if (tvpal_png_write8(path, h->final, h->o->width, h->o->height, bg,
-                             h->rgb8, &d) < 0)
+        if (tvpal_png_write8(path, h->final, h->o->width, h->o->height,
+                             h->o->background, h->rgb8, &d) < 0)
             play_die(1, "%s: cannot write: %s", path, d.msg);
         free(path);
     }
@@ -406,6 +422,7 @@ static void play_frames(struct headless *h)
         if (play_comm.rank != 0)
             continue;
         play_timing_add(&h->tot, &row);
+        annotate_frame(h, t);
         write_frame(h, &row);
         play_progress_update(&h->progress, i + 1);
     }
@@ -465,6 +482,7 @@ static void teardown(struct headless *h)
     tvpal_player_close(h->s->pl);
     h->s->pl = NULL;
     tvpal_compositor_free(h->cx);
+    play_annot_close(&h->pa);
     free(h->final);
     free(h->recs);
     free(h->rgba);

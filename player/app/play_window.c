@@ -2,7 +2,9 @@
  * window and its input; before each frame it tells every rank what to do
  * (a win_cmd), so that under MPI all ranks stay on the same timestep and
  * view, and the frame reaches the window through the compositor. */
+#define _GNU_SOURCE
 #include "play.h"
+#include "play_annot.h"
 #include "play_cluster.h"
 #include "play_renderer.h"
 #include "tvpal_clock.h"
@@ -34,10 +36,12 @@ struct win_state {
     struct play_renderer pr;
     int use_cpu;
     unsigned W, H;
-    /* The CPU image reaches the window as the compositor's 8-bit frame
-     * (with one rank: this rank's image rounded), like a cluster's. */
-    int via_final;
+    /* The annotations and the HUD (rank 0; pa.a NULL without cairo). */
+    struct play_annot pa;
+    int hud;                        /* the HUD is shown (H) */
+    int flat_bg;                    /* --background is not black */
     uint8_t *rgb, *rgb8, *final;    /* window pixels, PNG rows, composite */
+    uint8_t *show;                  /* final over the background, + HUD */
     float *scratch, *img;
     struct tvpal_compositor *cx;
     struct tvpal_player_opts po;
@@ -59,6 +63,16 @@ struct win_state {
     FILE *csv;                      /* --csv: a line per frame (rank 0) */
 };
 
+/* Whether the frame reaches the window as the compositor's 8-bit frame
+ * (with one rank: this rank's image rounded), as a cluster's and the cpu
+ * renderer's do, rather than by a blit of the GL renderer's framebuffer:
+ * also whenever something is drawn into it (annotations, HUD) or under it
+ * (a background other than black).  The same on every rank. */
+static int via_final(const struct win_state *w)
+{
+    return w->multi || w->use_cpu || w->pa.what || w->hud || w->flat_bg;
+}
+
 static void free_buffers(struct win_state *w)
 {
     free(w->rgb);
@@ -66,26 +80,43 @@ static void free_buffers(struct win_state *w)
     free(w->scratch);
     free(w->img);
     free(w->final);
+    free(w->show);
     tvpal_compositor_free(w->cx);
-    w->rgb = w->rgb8 = w->final = NULL;
+    w->rgb = w->rgb8 = w->final = w->show = NULL;
     w->scratch = w->img = NULL;
     w->cx = NULL;
 }
 
-/* Buffers for W x H (again after a resize). */
+/* Buffers for W x H (again after a resize); the 8-bit path's too, since
+ * the HUD key may switch to it at any time. */
 static void alloc_buffers(struct win_state *w)
 {
     const size_t n = (size_t)w->W * w->H;
     w->rgb = malloc(3 * n);
     w->rgb8 = malloc(3 * n);
     w->scratch = malloc(sizeof(float) * 4 * n);
-    w->img = w->via_final ? malloc(sizeof(float) * 4 * n) : NULL;
-    w->final = w->via_final ? malloc(4 * n) : NULL;
-    if (!w->rgb || !w->rgb8 || !w->scratch ||
-        (w->via_final && (!w->img || !w->final ||
-                          tvpal_compositor_create(&w->cx, w->W, w->H,
-                                                  play_comm.size) < 0)))
+    w->img = malloc(sizeof(float) * 4 * n);
+    w->final = malloc(4 * n);
+    w->show = malloc(4 * n);
+    if (!w->rgb || !w->rgb8 || !w->scratch || !w->img || !w->final ||
+        !w->show ||
+        tvpal_compositor_create(&w->cx, w->W, w->H, play_comm.size) < 0)
         play_die_rank(1, "out of memory");
+}
+
+/* Rank 0: annotations and HUD for W x H (again after a resize).  The HUD
+ * needs cairo; without it the window has the title only. */
+static void open_annot(struct win_state *w)
+{
+    struct tvpal_diag d = {{0}};
+    int was = w->pa.a != NULL, hud = w->hud;
+    play_annot_close(&w->pa);
+    if (!w->leader)
+        return;
+    if (play_annot_open(&w->pa, w->o, tvpal_annot_available(), w->W, w->H,
+                        &d) < 0)
+        play_die(1, "%s", d.msg);
+    w->hud = was ? hud : w->pa.a && !w->o->no_hud;
 }
 
 /* The window on rank 0, and the renderer: the leader's choice (its
@@ -117,7 +148,9 @@ static void open_window(struct win_state *w)
                 play_renderer_describe(&w->pr, desc, sizeof desc),
                 *why ? "; " : "", why);
     }
-    w->via_final = w->multi || w->use_cpu;
+    const float *bg = w->o->background;
+    w->flat_bg = bg[0] != 0 || bg[1] != 0 || bg[2] != 0;
+    open_annot(w);   /* rank 0; via_final() holds on every rank when multi */
     alloc_buffers(w);
 }
 
@@ -171,13 +204,17 @@ static void handle_key(struct win_state *w, int key, struct win_cmd *cmd)
     case TVPAL_KEY_SCALE_Z_UP: w->scale_z = fmin(w->scale_z * 1.25, 1000); break;
     case TVPAL_KEY_SCALE_Z_DOWN: w->scale_z = fmax(w->scale_z * 0.8, 1e-3); break;
     case TVPAL_KEY_SHOT: {
-        char name[64];
-        snprintf(name, sizeof name, "tvpal-shot-%04u.png", w->shots++);
+        char *name;
+        if (asprintf(&name, "%s/tvpal-shot-%04u.png",
+                     w->o->shot_dir ? w->o->shot_dir : ".", w->shots++) < 0)
+            play_die(1, "out of memory");
         tvpal_win_read(w->win, w->rgb);
         if (save_shot(w, name) == 0 && !w->o->quiet)
             fprintf(stderr, PROG ": saved %s\n", name);
+        free(name);
         break;
     }
+    case TVPAL_KEY_HUD: w->hud = w->pa.a && !w->hud; break;
     case TVPAL_KEY_QUIT: cmd->quit = 1; break;
     default:
         /* A named view: its orientation, the angles (drag) from 0. */
@@ -334,6 +371,7 @@ static void resize(struct win_state *w, unsigned width, unsigned height)
     play_check_all(rc, d.msg, 1);
     free_buffers(w);
     alloc_buffers(w);
+    open_annot(w);
 }
 
 /* Every rank: draws the command's frame (and composites it). */
@@ -352,8 +390,9 @@ static void render(struct win_state *w, const struct win_cmd *cmd,
     struct tvpal_frame_stats st;
     struct tvpal_diag d = {{0}};
     double f0 = tvpal_now();
-    int rc = tvpal_player_frame(pl, v, cmd->t, cmd->dir, &w->pr.r, w->img,
-                                &st, &d);
+    const int flat = via_final(w);
+    int rc = tvpal_player_frame(pl, v, cmd->t, cmd->dir, &w->pr.r,
+                                flat ? w->img : NULL, &st, &d);
     if (rc < 0 && strcmp(d.msg, w->last_err)) {
         snprintf(w->last_err, sizeof w->last_err, "%s", d.msg);
         if (w->multi)
@@ -366,7 +405,7 @@ static void render(struct win_state *w, const struct win_cmd *cmd,
         if (!st.rendered)
             play_die_rank(2, "cannot render step %u", cmd->t);
     }
-    if (w->via_final) {
+    if (flat) {
         struct tvpal_compose_stats cs;
         if (tvpal_composite(w->cx, &play_comm, TVPAL_COMPOSE_BSWAP,
                             !tvpal_player_slabs_descending(pl, v), w->img,
@@ -386,18 +425,62 @@ static void render(struct win_state *w, const struct win_cmd *cmd,
     w->frames++;
 }
 
+/* Rank 0: the HUD's lines (step and time, TF, renderer, fps, level of
+ * detail) over the frame in w->show. */
+static void draw_hud(struct win_state *w, const struct win_cmd *cmd,
+                     const struct tvpal_view *v, const char *when)
+{
+    char l[5][96];
+    const struct play_session *s = w->s;
+    snprintf(l[0], sizeof l[0], "step %u/%u%s", cmd->t, s->m->steps - 1, when);
+    snprintf(l[1], sizeof l[1], "TF %s", s->tfs[cmd->tfi].name);
+    snprintf(l[2], sizeof l[2], "renderer %s%s", w->pr.r.name,
+             w->multi ? ", cluster" : "");
+    snprintf(l[3], sizeof l[3], "%.1f fps", w->fps);
+    snprintf(l[4], sizeof l[4], "level %u/%u (%ux%ux%u)%s", cmd->level,
+             s->nlevels - 1, v->dims[0], v->dims[1], v->dims[2],
+             w->reduced || w->coarse ? " preview" : "");
+    const char *const lines[5] = {l[0], l[1], l[2], l[3], l[4]};
+    static const float fg[3] = {1, 1, 1};
+    struct tvpal_diag d = {{0}};
+    if (tvpal_annot_hud(w->pa.a, lines, 5, fg, w->show, NULL, &d) < 0)
+        play_die(1, "%s", d.msg);
+}
+
+/* Rank 0: the 8-bit frame into the window: annotated, over the
+ * background, with the HUD on top (on a copy: the HUD is the window's,
+ * not the frame's). */
+static void show_final(struct win_state *w, const struct win_cmd *cmd,
+                       const struct tvpal_view *v, const char *when)
+{
+    struct tvpal_view v0;
+    struct tvpal_diag d = {{0}};
+    cmd_view(w, cmd, &v0);
+    if (play_annot_frame(&w->pa, w->s, &v0, cmd->t, w->final, &d) < 0)
+        play_die(1, "step %u: %s", cmd->t, d.msg);
+    const uint8_t *img = w->final;
+    if (w->hud || w->flat_bg) {
+        const float *bg = w->o->background;
+        const size_t n = (size_t)w->W * w->H;
+        for (size_t i = 0; i < n; i++) {
+            const uint8_t *p = w->final + 4 * i;
+            uint8_t *q = w->show + 4 * i;
+            for (int c = 0; c < 3; c++)
+                q[c] = tvpal_png_over8(p[c], p[3], bg[c]);
+            q[3] = 255;
+        }
+        if (w->hud)
+            draw_hud(w, cmd, v, when);
+        img = w->show;
+    }
+    tvpal_win_show(w->win, img, w->W, w->H);
+}
+
 /* Rank 0: shows the frame, the slider and the title. */
 static void present(struct win_state *w, const struct win_cmd *cmd,
                     const struct tvpal_view *v)
 {
     const uint32_t T = w->s->m->steps;
-    if (w->via_final)
-        tvpal_win_show(w->win, w->final, w->W, w->H);
-    else
-        tvpal_glr_blit(w->pr.glr, 0, TVPAL_SLIDER_HEIGHT);
-    if (w->o->shot)
-        tvpal_win_read(w->win, w->rgb);
-    tvpal_win_present(w->win, T > 1 ? (double)cmd->t / (T - 1) : 0.0);
     double now = tvpal_now();
     double inst = now > w->last ? 1.0 / (now - w->last) : 0;
     w->fps = w->frames > 1 ? 0.8 * w->fps + 0.2 * inst : inst;
@@ -407,6 +490,13 @@ static void present(struct win_state *w, const struct win_cmd *cmd,
     if (m->ntimes)
         snprintf(when, sizeof when, " (%g%s%.40s)", m->times[cmd->t],
                  m->time_units[0] ? " " : "", m->time_units);
+    if (via_final(w))
+        show_final(w, cmd, v, when);
+    else
+        tvpal_glr_blit(w->pr.glr, 0, TVPAL_SLIDER_HEIGHT);
+    if (w->o->shot)
+        tvpal_win_read(w->win, w->rgb);
+    tvpal_win_present(w->win, T > 1 ? (double)cmd->t / (T - 1) : 0.0);
     char lv[64] = "";
     if (w->s->nlevels > 1)
         snprintf(lv, sizeof lv, " - level %u/%u (%ux%ux%u)", cmd->level,
@@ -486,6 +576,12 @@ int play_run_window(struct play_session *s)
         .opacity = s->o->opacity, .scale_z = s->o->scale_z, .t = s->a, .dir = s->b >= s->a ? 1 : -1,
         .playing = s->o->autoplay > 0, .redraw = 1, .last = tvpal_now()};
     open_window(&w);
+    if (w.leader && s->o->shot_dir) {
+        struct tvpal_diag d = {{0}};
+        if (tvpal_mkdirs(s->o->shot_dir, &d) < 0)
+            play_die(2, "--shot-dir %s: cannot create: %s", s->o->shot_dir,
+                     d.msg);
+    }
     if (w.leader && s->o->csv_path) {
         struct tvpal_diag d = {{0}};
         int rc;
@@ -503,6 +599,7 @@ int play_run_window(struct play_session *s)
                w.frames, w.t, w.fps, tvpal_player_io_name(s->pl),
                play_comm.size, w.pr.r.name);
     play_renderer_close(&w.pr);
+    play_annot_close(&w.pa);
     tvpal_win_close(w.win);
     play_levels_close(s);
     tvpal_player_close(s->pl);

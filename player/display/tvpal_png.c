@@ -38,14 +38,10 @@ void tvpal_png_rgb8(const uint8_t *rgba8, unsigned width, unsigned height,
     for (unsigned y = 0; y < height; y++) {
         const uint8_t *src = rgba8 + 4 * (size_t)(height - 1 - y) * width;
         uint8_t *dst = rgb8 + 3 * (size_t)y * width;
-        for (unsigned x = 0; x < width; x++) {
-            float keep = 1.0f - src[4 * x + 3] * (1.0f / 255.0f);
-            for (int c = 0; c < 3; c++) {
-                float v = src[4 * x + c] * (1.0f / 255.0f) + keep * bg[c];
-                v = v < 0 ? 0 : v > 1 ? 1 : v;
-                dst[3 * x + c] = (uint8_t)(v * 255.0f + 0.5f);
-            }
-        }
+        for (unsigned x = 0; x < width; x++)
+            for (int c = 0; c < 3; c++)
+                dst[3 * x + c] = tvpal_png_over8(src[4 * x + c],
+                                                 src[4 * x + 3], bg[c]);
     }
 }
 

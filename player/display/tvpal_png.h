@@ -15,6 +15,18 @@ int tvpal_png_write(const char *path, const float *rgba, unsigned width,
                     unsigned height, const float bg[3], uint8_t *rgb8,
                     struct tvpal_diag *diag);
 
+/* One channel c of a premultiplied 8-bit colour of alpha a over an opaque
+ * background channel bg (0..1), rounded to 8 bits: how tvpal_png_write8
+ * flattens a frame (the window flattens its frames the same way, so that
+ * its screenshots equal the headless PNGs). */
+static inline uint8_t tvpal_png_over8(uint8_t c, uint8_t a, float bg)
+{
+    float keep = 1.0f - a * (1.0f / 255.0f);
+    float v = c * (1.0f / 255.0f) + keep * bg;
+    v = v < 0 ? 0 : v > 1 ? 1 : v;
+    return (uint8_t)(v * 255.0f + 0.5f);
+}
+
 /* The same from premultiplied 8-bit RGBA (tvpal_composite's output). */
 int tvpal_png_write8(const char *path, const uint8_t *rgba8, unsigned width,
                      unsigned height, const float bg[3], uint8_t *rgb8,

@@ -54,6 +54,7 @@ static void on_key(GLFWwindow *gw, int key, int sc, int action, int mods)
     case GLFW_KEY_EQUAL: case GLFW_KEY_KP_ADD: push_key(w->in, TVPAL_KEY_ZOOM_IN); break;
     case GLFW_KEY_MINUS: case GLFW_KEY_KP_SUBTRACT: push_key(w->in, TVPAL_KEY_ZOOM_OUT); break;
     case GLFW_KEY_S: push_key(w->in, TVPAL_KEY_SHOT); break;
+    case GLFW_KEY_H: push_key(w->in, TVPAL_KEY_HUD); break;
     case GLFW_KEY_Q: case GLFW_KEY_ESCAPE: push_key(w->in, TVPAL_KEY_QUIT); break;
     case GLFW_KEY_RIGHT_BRACKET: push_key(w->in, TVPAL_KEY_SCALE_Z_UP); break;
     case GLFW_KEY_LEFT_BRACKET: push_key(w->in, TVPAL_KEY_SCALE_Z_DOWN); break;

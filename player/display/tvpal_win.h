@@ -30,6 +30,7 @@ enum {
     TVPAL_KEY_TF_RELOAD, TVPAL_KEY_OPACITY_UP, TVPAL_KEY_OPACITY_DOWN,
     TVPAL_KEY_MODE, TVPAL_KEY_ZOOM_IN, TVPAL_KEY_ZOOM_OUT, TVPAL_KEY_SHOT,
     TVPAL_KEY_QUIT, TVPAL_KEY_SCALE_Z_UP, TVPAL_KEY_SCALE_Z_DOWN,
+    TVPAL_KEY_HUD,
     /* Named views: keys 1..6 are TVPAL_KEY_VIEW + 0..5 (+x -x +y -y +z
      * -z, tvpal_view_name's order), key 0 is TVPAL_KEY_VIEW + 6 (iso). */
     TVPAL_KEY_VIEW
