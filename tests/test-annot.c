@@ -67,7 +67,8 @@ static void check_legend(struct tvpal_annot *a, const struct tvpal_tf *tf,
 {
     struct tvpal_diag d = {{0}};
     struct tvpal_annot_frame f = {.what = TVPAL_ANNOT_LEGEND, .vmin = lo,
-                                  .vmax = hi, .colour = tf_colour,
+                                  .vmax = hi, .log_scale = tf->log_scale,
+                                  .colour = tf_colour,
                                   .colour_ctx = (void *)tf, .title = "rho",
                                   .fg = {1, 1, 1}};
     memset(frame, 0, sizeof frame);
@@ -117,6 +118,25 @@ static void check_legends(struct tvpal_annot *a)
                                 &tf, &d) == 0, "%s", d.msg);
     check_legend(a, &tf, tf.value[0], tf.value[tf.npoints - 1]);
     check_legend(a, &tf, -1e6, 3e6);
+    /* A log-scale TF over six decades: a log bar, ticks at whole decades
+     * (a linear bar would put 1..1e5 in its lowest rows), each row beside
+     * a label the TF's colour at that value. */
+    REQUIRE(tvpal_tf_parse_text("scale log\ndomain normalized\n0 0 0 1 0.5\n"
+                                "0.5 1 1 1 0.5\n1 1 0 0 1\n", 1, 1e6,
+                                &tf, &d) == 0, "%s", d.msg);
+    check_legend(a, &tf, 1, 1e6);
+    struct tvpal_annot_legend L;
+    tvpal_annot_legend(a, &L);
+    CHECK(L.nticks >= 4, "log legend: %u ticks", L.nticks);
+    for (unsigned i = 0; i < L.nticks; i++) {
+        const double e = log10(L.tick_value[i]);
+        CHECK(fabs(e - nearbyint(e)) < 1e-9, "log tick %g is a power of ten",
+              L.tick_value[i]);
+    }
+    /* Evenly spaced decades: rows between successive ticks agree. */
+    for (unsigned i = 2; i < L.nticks; i++)
+        CHECK(L.tick_row[i - 2] - L.tick_row[i - 1] ==
+              L.tick_row[i - 1] - L.tick_row[i], "decades evenly spaced");
 }
 
 /* An outline's lines meet at the corners of a box (half extents 1, 0.8,

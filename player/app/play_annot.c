@@ -108,6 +108,9 @@ int play_annot_frame(struct play_annot *pa, const struct play_session *s,
     pa->opacity = s->tf_opacity;
     if (legend_range(s, &f.vmin, &f.vmax) < 0)
         f.what &= ~TVPAL_ANNOT_LEGEND;
+    /* A log-scale TF gets a log bar (its points are > 0; a range from the
+     * data may reach 0, and is then shown linearly). */
+    f.log_scale = s->tf->log_scale && f.vmin > 0;
     /* The manifest names the variable but holds no units for it: none
      * are printed rather than guessed. */
     snprintf(pa->title, sizeof pa->title, "%s",

@@ -33,6 +33,7 @@ struct tvpal_annot {
     struct tvpal_annot_legend legend;
     int lg_valid;
     double lg_range[2];
+    int lg_log;
     float lg_fg[3], lg_halo[3];
     char lg_title[160];
     float (*lg_rows)[4], (*rows)[4];  /* each bar row's colour: the cached
@@ -318,20 +319,48 @@ static double scale_value(const struct scale *s, long k)
     return s->t0 + (double)k * s->step / (double)s->q;
 }
 
-/* A scale of about `rows` rows over [vmin, vmax] whose ticks fall on row
- * centres; 0 ticks: -1. */
+/* The bar's coordinate of value v: v, or log10 v on a log bar. */
+static double bar_coord(const struct tvpal_annot_frame *f, double v)
+{
+    return f->log_scale ? log10(v) : v;
+}
+
+/* The value at bar coordinate c (bar_coord's inverse). */
+static double bar_value(const struct tvpal_annot_frame *f, double c)
+{
+    return f->log_scale ? pow(10.0, c) : c;
+}
+
+/* Tick coordinates over [lo, hi]: round numbers, and on a log bar whole
+ * decades when at least two fit (1, 10, 100 rather than 10^0.2 steps). */
+static unsigned bar_ticks(const struct tvpal_annot_frame *f, double lo,
+                          double hi, double *ticks, double *step)
+{
+    unsigned n = tvpal_annot_ticks(lo, hi, 5, 8, ticks, step);
+    if (!f->log_scale || *step >= 1 || floor(hi) - ceil(lo) < 1)
+        return n;
+    *step = 1;
+    n = 0;
+    for (double k = ceil(lo); k <= hi && n < 8; k++)
+        ticks[n++] = k;
+    return n;
+}
+
+/* A scale of about `rows` rows over the bar's coordinates of [vmin, vmax]
+ * whose ticks fall on row centres; 0 ticks: -1. */
 static int make_scale(const struct tvpal_annot_frame *f, double rows,
                       double *ticks, unsigned *nticks, struct scale *s)
 {
-    *nticks = tvpal_annot_ticks(f->vmin, f->vmax, 5, 8, ticks, &s->step);
+    const double lo = bar_coord(f, f->vmin), hi = bar_coord(f, f->vmax);
+    *nticks = bar_ticks(f, lo, hi, ticks, &s->step);
     if (*nticks == 0)
         return -1;
-    const double span = f->vmax - f->vmin;
+    const double span = hi - lo;
     s->t0 = ticks[0];
     s->q = lround(rows * s->step / span);
     s->q = s->q < 1 ? 1 : s->q;
-    s->kmin = (long)ceil((f->vmin - s->t0) / s->step * (double)s->q - 1e-9);
-    s->kmax = (long)floor((f->vmax - s->t0) / s->step * (double)s->q + 1e-9);
+    s->kmin = (long)ceil((lo - s->t0) / s->step * (double)s->q - 1e-9);
+    s->kmax = (long)floor((hi - s->t0) / s->step * (double)s->q + 1e-9);
     return s->kmax >= s->kmin ? 0 : -1;
 }
 
@@ -380,9 +409,14 @@ static int legend_layout(struct tvpal_annot *a,
     const double m = a->fs * 0.8, gap = a->fs * 0.4;
     double label_w = 0;
     for (unsigned i = 0; i < L->nticks; i++) {
-        L->tick_value[i] = scale_value(&s, (long)i * s.q);
-        tvpal_annot_tick_label(L->tick_value[i], s.step, L->tick_label[i],
-                               sizeof L->tick_label[i]);
+        const double c = scale_value(&s, (long)i * s.q);
+        L->tick_value[i] = bar_value(f, c);
+        if (f->log_scale) /* as few digits as tell decades apart */
+            snprintf(L->tick_label[i], sizeof L->tick_label[i], "%.3g",
+                     L->tick_value[i]);
+        else
+            tvpal_annot_tick_label(c, s.step, L->tick_label[i],
+                                   sizeof L->tick_label[i]);
         label_w = fmax(label_w, text_width(a, L->tick_label[i]));
     }
     L->w = 2 * (unsigned)lround(a->fs * 0.7);
@@ -396,7 +430,8 @@ static int legend_layout(struct tvpal_annot *a,
     for (unsigned i = 0; i < L->nticks; i++)
         L->tick_row[i] = L->y0 + (unsigned)(s.kmax - (long)i * s.q);
     for (unsigned r = 0; r < L->h; r++)
-        f->colour(f->colour_ctx, scale_value(&s, s.kmax - (long)r), a->rows[r]);
+        f->colour(f->colour_ctx, bar_value(f, scale_value(&s, s.kmax - (long)r)),
+                  a->rows[r]);
     return 0;
 }
 
@@ -406,7 +441,8 @@ static int legend_cached(const struct tvpal_annot *a,
                          const struct tvpal_annot_legend *L)
 {
     const char *title = f->title ? f->title : "";
-    return a->lg_valid && a->lg_range[0] == f->vmin &&
+    return a->lg_valid && a->lg_log == f->log_scale &&
+           a->lg_range[0] == f->vmin &&
            a->lg_range[1] == f->vmax && L->h == a->legend.h &&
            !memcmp(a->lg_fg, f->fg, sizeof a->lg_fg) &&
            !memcmp(a->lg_halo, f->halo, sizeof a->lg_halo) &&
@@ -453,6 +489,7 @@ static void legend_render(struct tvpal_annot *a,
     a->lg_box = lg->dirty;
     a->cur = &a->ov;
     a->lg_valid = 1;
+    a->lg_log = f->log_scale;
     a->lg_range[0] = f->vmin;
     a->lg_range[1] = f->vmax;
     memcpy(a->lg_fg, f->fg, sizeof a->lg_fg);

@@ -52,8 +52,13 @@ typedef void (*tvpal_annot_colour_fn)(void *ctx, double value,
 struct tvpal_annot_frame {
     unsigned what;                  /* TVPAL_ANNOT_* bits; 0: draw nothing */
     float fg[3], halo[3];           /* text and line colour, its halo; 0..1 */
-    /* legend: the bar spans [vmin, vmax] (finite, vmin < vmax) */
+    /* legend: the bar spans [vmin, vmax] (finite, vmin < vmax); with
+     * log_scale (a log-scale TF: vmin > 0) its rows and ticks are evenly
+     * spaced in log10 of the value, the ticks at powers of ten where the
+     * range holds two or more, and the colour function is still called
+     * with values, not their logs */
     double vmin, vmax;
+    int log_scale;
     tvpal_annot_colour_fn colour;
     void *colour_ctx;
     const char *title;              /* above the bar, or NULL */
