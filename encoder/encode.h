@@ -65,6 +65,7 @@ struct opts {
     int have_spacing, have_origin;
     const char *times_file;           /* --times FILE */
     const char *time_units;           /* --time-units TEXT */
+    const char *units;                /* --units TEXT */
     uint64_t mem_limit;               /* --mem-limit SIZE, or 0 */
     const char *shard_pat;            /* --shard-dir PATTERN (MPI) */
     uint32_t levels;                  /* --levels L: coarser levels */
@@ -167,6 +168,7 @@ struct run {
     uint64_t *dropped;       /* per thread: present values coded missing */
     double *times;           /* [T] time values, or NULL (none known) */
     char time_units[128];
+    char units[64];          /* the values' units, or "" (load_times) */
     double t_encode;         /* seconds of the streaming loop */
     struct progress prog;
     /* Checkpoint copies of the writers' progress (tvpal_checkpoint.h). */

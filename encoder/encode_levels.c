@@ -301,6 +301,10 @@ static void encode_level(struct run *r, unsigned k, const uint32_t dk[3],
             arg_add(&a, "%s", r->time_units);
         }
     }
+    if (r->units[0]) {
+        arg_add(&a, "--units");
+        arg_add(&a, "%s", r->units);
+    }
     arg_add(&a, "-q");
     arg_add(&a, "-o");
     arg_add(&a, "%s", out);

@@ -560,22 +560,34 @@ int open_source(struct run *r, int have_dims)
     return 1;
 }
 
+/* Control characters of s (a manifest value) become spaces: one line. */
+static void one_line(char *s)
+{
+    for (; *s; s++)
+        if ((unsigned char)*s < ' ')
+            *s = ' ';
+}
+
 /* The steps' time values: --times FILE (T rising numbers, any white
  * space between them), else a time coordinate of the input, else none
- * (the manifest then says nothing and the steps are their indices). */
+ * (the manifest then says nothing and the steps are their indices); and
+ * the values' units: --units, else the input variable's. */
 void load_times(struct run *r)
 {
     const struct opts *o = &r->o;
     const struct tvpal_input_info *in = r->in ? tvpal_input_info(r->in) : NULL;
+    /* The values' units go with the times: what the manifest says of the
+     * physical meaning of the data. */
+    snprintf(r->units, sizeof r->units, "%s",
+             o->units ? o->units : in ? in->units : "");
+    one_line(r->units);
     if (!o->times_file && !(in && in->has_times))
         return;
     if (!(r->times = malloc(sizeof *r->times * r->T)))
         die_fail("out of memory");
     snprintf(r->time_units, sizeof r->time_units, "%s",
              o->time_units ? o->time_units : in ? in->time_units : "");
-    for (char *c = r->time_units; *c; c++) /* one manifest line */
-        if ((unsigned char)*c < ' ')
-            *c = ' ';
+    one_line(r->time_units);
     if (!o->times_file) {
         for (uint32_t t = 0; t < r->T; t++)
             r->times[t] = tvpal_input_time(r->in, t);

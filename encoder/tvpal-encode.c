@@ -92,6 +92,9 @@ static void usage(FILE *f)
 "      --times FILE       the time value of every step (T numbers, rising;\n"
 "                         default: a NetCDF time coordinate, else 0..T-1)\n"
 "      --time-units TEXT  their units (default: the coordinate's)\n"
+"      --units TEXT       the values' units, shown by the player's legend\n"
+"                         (default: the variable's units attribute, else\n"
+"                         none)\n"
 "      --missing V        source value V marks a missing value (repeatable,\n"
 "                         up to 16; compared as float32).  Missing values\n"
 "                         (also NaN, and NetCDF/HDF5 _FillValue,\n"
@@ -292,6 +295,8 @@ static const struct optspec {
      0, 0, {0}, NULL},
     {"time-units", OPT_LONG_ONLY + 11, OPT_TEXT,
      offsetof(struct opts, time_units), 0, 0, {0}, NULL},
+    {"units", OPT_LONG_ONLY + 20, OPT_TEXT, offsetof(struct opts, units), 0,
+     0, {0}, NULL},
     {"mem-limit", OPT_LONG_ONLY + 15, OPT_SIZE,
      offsetof(struct opts, mem_limit), 0, 0, {0},
      "a size such as 12G, 800M or 1073741824 (bytes)"},
@@ -1550,6 +1555,7 @@ static void build_manifest(const struct run *r, struct tvpal_manifest *m)
         m->ntimes = r->T;
         snprintf(m->time_units, sizeof m->time_units, "%s", r->time_units);
     }
+    snprintf(m->units, sizeof m->units, "%s", r->units);
     if (r->in) {
         /* One file of all steps, one file per step, or files of several
          * steps each (series). */

@@ -78,12 +78,16 @@ for k in nc3 nc6 nc4; do
         || { fail "$k encode: $(cat "$W/e.txt")"; continue; }
     same_shards "$W/ds-$k" && ok "$k: shards identical to raw" || fail "$k: shards differ from raw"
     grep -q "^source_format = netcdf" "$W/ds-$k/manifest.txt" && grep -q "^source_var = temp" "$W/ds-$k/manifest.txt" \
-        && ok "$k: manifest names format and variable" || fail "$k: manifest"
+        && grep -qx "units = K" "$W/ds-$k/manifest.txt" \
+        && ok "$k: manifest names format, variable and its units" || fail "$k: manifest"
 done
 "$ENC" --axes xyz -q --var temp --window 2 -o "$W/ds-series" "$W/a.nc" "$W/b.nc" > /dev/null 2> "$W/e.txt" \
     || fail "series encode: $(cat "$W/e.txt")"
 same_shards "$W/ds-series" && ok "series of 2 + 1 steps: shards identical to raw" || fail "series shards differ"
 grep -q "^source_layout = series" "$W/ds-series/manifest.txt" && ok "series layout" || fail "series layout"
+"$ENC" --axes z -q --var temp --window 2 --units "degC" -o "$W/ds-units" "$W/all-nc4.nc" > /dev/null 2> "$W/e.txt" \
+    && grep -qx "units = degC" "$W/ds-units/manifest.txt" && ok "--units overrides the attribute" \
+    || fail "--units: $(cat "$W/e.txt") $(grep units "$W/ds-units/manifest.txt")"
 lr=$("$REP" -q "$W/raw") && ln=$("$REP" -q "$W/ds-nc4") || fail "report"
 [ "$(kv psnr "$lr")" = "$(kv psnr "$ln")" ] && [ "$(kv rmse "$lr")" = "$(kv rmse "$ln")" ] \
     && ok "report: psnr $(kv psnr "$ln") as from raw" || fail "report differs: $lr / $ln"

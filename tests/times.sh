@@ -14,6 +14,11 @@ grep -q "irregular time intervals: 1 interval is more than twice.*steps 4-5" "$W
     && ok "warning names the gap 4-5" || fail "no irregular warning: $(cat "$W/e.txt")"
 grep -q "^times = 0 1.5 3 4.5 6 20$" "$W/ds/manifest.txt" && grep -q "^time_units = hours since 2005-08-28$" "$W/ds/manifest.txt" \
     && ok "manifest: times and units" || fail "manifest: $(grep '^time' "$W/ds/manifest.txt")"
+grep -q "^units" "$W/ds/manifest.txt" && fail "raw input without --units: a units line" || ok "raw input: no units"
+# --units on raw input, kept by the levels (each level a dataset of its own).
+"$ENC" --axes z -q --dims $D --window 2 --levels 1 --units "m s-1" -o "$W/u" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" \
+    && grep -qx "units = m s-1" "$W/u/manifest.txt" && grep -qx "units = m s-1" "$W/u/level-1/manifest.txt" \
+    && ok "--units in the manifest and the level's" || fail "--units: $(cat "$W/e.txt")"
 "$REP" -q "$W/ds" --csv "$W/r.csv" > /dev/null || fail report
 awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "time") c = i }
          NR > 1 && $1 == 5 && $c == 20 { n++ } END { exit !(c && n == 3) }' "$W/r.csv" \

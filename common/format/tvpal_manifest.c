@@ -136,6 +136,8 @@ int tvpal_manifest_format(const struct tvpal_manifest *m, char **out)
         fprintf(f, "source_format = %s\n", m->source_format);
         fprintf(f, "source_var = %s\n", m->source_var ? m->source_var : "");
     }
+    if (m->units[0])
+        fprintf(f, "units = %s\n", m->units);
     /* The physical grid, unless it is the default one (or unset: 0). */
     const double *sp = m->spacing, *o = m->origin;
     if ((sp[0] || sp[1] || sp[2]) && (sp[0] != 1 || sp[1] != 1 || sp[2] != 1))
@@ -366,6 +368,10 @@ static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
         bad = parse_triple(v, m->origin, 0) < 0;
     } else if (!strcmp(k, "times")) {
         bad = parse_times(m, v) < 0;
+    } else if (!strcmp(k, "units")) {
+        bad = strlen(v) >= sizeof m->units;
+        if (!bad)
+            strcpy(m->units, v);
     } else if (!strcmp(k, "time_units")) {
         bad = strlen(v) >= sizeof m->time_units;
         if (!bad)

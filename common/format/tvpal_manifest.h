@@ -54,6 +54,9 @@ struct tvpal_manifest {
                                            * time values of the steps */
     uint32_t ntimes;
     char time_units[128];                 /* e.g. "hours since ...", or "" */
+    char units[64];                       /* the values' units (the source
+                                           * variable's units attribute,
+                                           * or --units), or "" */
     uint64_t source_bytes;
     uint32_t table_format;                /* the key "table": 0 f32 (float32),
                                            * 1 u16 (16-bit scaled), 4 auto

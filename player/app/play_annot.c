@@ -111,10 +111,14 @@ int play_annot_frame(struct play_annot *pa, const struct play_session *s,
     /* A log-scale TF gets a log bar (its points are > 0; a range from the
      * data may reach 0, and is then shown linearly). */
     f.log_scale = s->tf->log_scale && f.vmin > 0;
-    /* The manifest names the variable but holds no units for it: none
-     * are printed rather than guessed. */
-    snprintf(pa->title, sizeof pa->title, "%s",
-             m->source_var ? m->source_var : "");
+    /* The variable and its units as the manifest has them ("T [K]"); no
+     * units are guessed where it has none. */
+    const char *var = m->source_var ? m->source_var : "";
+    if (m->units[0])
+        snprintf(pa->title, sizeof pa->title, "%s%s[%s]", var, *var ? " " : "",
+                 m->units);
+    else
+        snprintf(pa->title, sizeof pa->title, "%s", var);
     if (m->ntimes && t < m->ntimes)
         snprintf(pa->time, sizeof pa->time, "t = %g%s%s", m->times[t],
                  m->time_units[0] ? " " : "", m->time_units);
