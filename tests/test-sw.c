@@ -11,7 +11,9 @@
  * function that leaves most tiles empty and an opaque one that saturates
  * pixels); the AVX2 and SSE2 inner loops; a TF change every frame vs a fresh
  * renderer with that TF; new slice data announced by upload vs a fresh
- * renderer; a block of missing (NaN) values with the default transparent
+ * renderer; lazily built tile sets (a dense TF decides every tile by a
+ * probe; tiles whose visible texels no probe reads get sets, drawn as
+ * without skipping; sets kept until an upload); a block of missing (NaN) values with the default transparent
  * NaN colour vs the same block transparent by the TF.  Early termination
  * (the default, a pixel stops at transmittance 1/510): over 48 random views
  * and TFs, a third of them with opaque plateaus, no 8-bit pixel differs
@@ -383,6 +385,66 @@ int main(void)
         CHECK(tvpal_sw_draw(sw, &f, img, &d) == TVPAL_E_INVAL && strstr(d.msg, "layer"),
               "layer out of range: %s", d.msg);
         CHECK(tvpal_sw_set_slices(sw, 0, 5, 4, &d) == TVPAL_E_INVAL, "empty slices");
+    }
+
+    /* Lazy classification (tile sets built only where probes cannot
+     * decide).  A dense TF: every tile is proved visible by a probe, no set
+     * is built.  Then slices transparent but for two texels of each tile
+     * that no probe reads (its corners): every tile's set is built, the
+     * corners are drawn, the image is that of drawing every tile; the
+     * next frame builds none (the sets are kept) and after an upload only
+     * that layer's are built again. */
+    {
+        struct tvpal_view v = {.dims = {48, 40, 32}, .width = vo.W, .height = vo.H,
+                               .ax_deg = 25, .ay_deg = 35, .zoom = 1};
+        struct tvpal_frame f = {0};
+        struct tvpal_sw_counts c;
+        const size_t np = (size_t)4 * vo.W * vo.H;
+        struct tvpal_sw *lz;
+        REQUIRE(tvpal_sw_create(&lz) == 0, "create");
+        tvpal_sw_options(lz, 2, 1, 1);
+        make_frame(&vo, &v, &f, &tf2);
+        const unsigned long tiles = (unsigned long)f.count * ((f.w + 15) / 16) *
+                                    ((f.h + 15) / 16);
+        REQUIRE(tvpal_sw_set_slices(lz, f.w, f.h, f.count, &d) == 0, "%s", d.msg);
+        REQUIRE(tvpal_sw_draw(lz, &f, img, &d) == 0, "%s", d.msg);
+        tvpal_sw_counts(lz, &c);
+        CHECK(c.probed == tiles && c.built == 0, "dense TF: %lu of %lu tiles "
+              "probed, %lu sets built", c.probed, tiles, c.built);
+        make_frame(&vo, &v, &f, &tf);   /* index 0 transparent, 255 not */
+        for (uint32_t k = 0; k < f.count; k++) {
+            uint8_t *I = idx_store + (size_t)sl[k].slice * f.w * f.h;
+            memset(I, 0, (size_t)f.w * f.h);
+            for (uint32_t y = 0; y < f.h; y += 16)
+                for (uint32_t x = 0; x < f.w; x += 16) {
+                    I[x + (size_t)f.w * y] = 255;
+                    uint32_t x1 = x + 15 < f.w ? x + 15 : f.w - 1;
+                    uint32_t y1 = y + 15 < f.h ? y + 15 : f.h - 1;
+                    I[x1 + (size_t)f.w * y1] = 255;
+                }
+            tvpal_sw_upload(lz, sl[k].layer);
+        }
+        REQUIRE(tvpal_sw_draw(lz, &f, img, &d) == 0, "%s", d.msg);
+        tvpal_sw_counts(lz, &c);
+        CHECK(c.probed == 0 && c.built == tiles, "probes missed: %lu probed, "
+              "%lu of %lu sets built", c.probed, c.built, tiles);
+        draw_fresh(&f, f.count, 1, 0, 1, img2);
+        CHECK(!memcmp(img, img2, sizeof(float) * np), "lazy sets changed pixels");
+        double energy = 0;
+        for (size_t i = 3; i < np; i += 4)
+            energy += img[i];
+        CHECK(energy > 0, "the corner texels were not drawn");
+        REQUIRE(tvpal_sw_draw(lz, &f, img2, &d) == 0, "%s", d.msg);
+        tvpal_sw_counts(lz, &c);
+        CHECK(c.probed == 0 && c.built == 0 && !memcmp(img, img2, sizeof(float) * np),
+              "kept sets: %lu probed, %lu built, or pixels changed", c.probed, c.built);
+        tvpal_sw_upload(lz, sl[3].layer);
+        REQUIRE(tvpal_sw_draw(lz, &f, img2, &d) == 0, "%s", d.msg);
+        tvpal_sw_counts(lz, &c);
+        CHECK(c.built == tiles / f.count && !memcmp(img, img2, sizeof(float) * np),
+              "one upload: %lu sets built (expected %lu), or pixels changed",
+              c.built, tiles / f.count);
+        tvpal_sw_free(lz);
     }
 
     /* Extreme views (NaN, infinite or huge angles and zooms): the view's

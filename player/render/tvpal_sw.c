@@ -1,9 +1,9 @@
 /* tvpal_sw.c: shear-warp CPU palette renderer (see tvpal_sw.h).
  *
  * Three phases per frame, each a parallel loop:
- *   classify:  tile index sets of slices whose indices changed, then the
- *              visible tiles of every slice (its set meets the palette's
- *              non-zero entries);
+ *   classify:  the visible tiles of every slice (a probe or its index set
+ *              meets the palette's non-zero entries), building the sets
+ *              a probe could not spare;
  *   composite: per intermediate row, front to back through the slices,
  *              runs of visible tiles only; per texel one vertical lerp
  *              (constant weight fy for the row), then K horizontal lerps
@@ -78,8 +78,11 @@ struct tvpal_sw {
     uint32_t w, h, layers;
     unsigned tile, tcols, trows;
     uint64_t *sets;       /* layers x trows x tcols x 4 words: index sets */
-    uint8_t *dirty;       /* layers: indices changed since the sets */
-    uint32_t *todo;       /* layers: dirty layers of this frame (scratch) */
+    uint64_t *built;      /* layers x trows: tile columns whose set is
+                             current (cleared by tvpal_sw_upload) */
+    uint32_t *first;      /* layers: the layer's first frame slice (scratch) */
+    uint32_t *todo;       /* layers: those first frame slices (scratch) */
+    struct tvpal_sw_counts counts;   /* of the last draw */
     uint64_t *vis;        /* frame slices x trows: visible tile columns */
     size_t vis_cap;       /* frame slices vis holds */
     uint32_t *ugen;       /* layers: generation of the indices, bumped by
@@ -110,7 +113,8 @@ void tvpal_sw_free(struct tvpal_sw *r)
     free(r->cov);
     free(r->maps);
     free(r->sets);
-    free(r->dirty);
+    free(r->built);
+    free(r->first);
     free(r->todo);
     free(r->vis);
     free(r->ugen);
@@ -160,6 +164,11 @@ void tvpal_sw_times(const struct tvpal_sw *r, double *classify_ms,
     *warp_ms = r->t_warp;
 }
 
+void tvpal_sw_counts(const struct tvpal_sw *r, struct tvpal_sw_counts *c)
+{
+    *c = r->counts;
+}
+
 unsigned tvpal_sw_scale(const struct tvpal_sw *r)
 {
     return r->k_last;
@@ -199,28 +208,31 @@ int tvpal_sw_set_slices(struct tvpal_sw *r, uint32_t w, uint32_t h,
         return tvpal_diag_set(diag, TVPAL_E_OVERFLOW, "tile index sets for "
                               "%u slices of %ux%u", layers, w, h);
     uint64_t *sets = malloc(nl * trows * tcols * 4 * sizeof *sets);
-    uint8_t *dirty = malloc(nl);
+    uint64_t *built = calloc(nl * trows, sizeof *built);   /* none built */
+    uint32_t *first = malloc(nl * sizeof *first);
     uint32_t *todo = malloc(nl * sizeof *todo);
     uint32_t *ugen = malloc(nl * sizeof *ugen);
-    if (!sets || !dirty || !todo || !ugen) {
+    if (!sets || !built || !first || !todo || !ugen) {
         free(sets);
-        free(dirty);
+        free(built);
+        free(first);
         free(todo);
         free(ugen);
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "tile index sets for "
                               "%u slices of %ux%u", layers, w, h);
     }
     free(r->sets);
-    free(r->dirty);
+    free(r->built);
+    free(r->first);
     free(r->todo);
     free(r->ugen);
-    memset(dirty, 1, nl);
     for (size_t i = 0; i < nl; i++)
         ugen[i] = 1;
     r->ugen = ugen;
     r->xc[0].rows = r->xc[1].rows = 0;   /* cut every row again */
     r->sets = sets;
-    r->dirty = dirty;
+    r->built = built;
+    r->first = first;
     r->todo = todo;
     r->w = w;
     r->h = h;
@@ -235,78 +247,95 @@ int tvpal_sw_set_slices(struct tvpal_sw *r, uint32_t w, uint32_t h,
 void tvpal_sw_upload(struct tvpal_sw *r, uint32_t layer)
 {
     if (layer < r->layers) {
-        r->dirty[layer] = 1;
+        memset(r->built + (size_t)layer * r->trows, 0, sizeof *r->built * r->trows);
         if (++r->ugen[layer] == 0)
             r->ugen[layer] = 1;   /* 0 means "nothing cut" */
     }
 }
 
-/* Index sets of every tile of one slice: 256 bits, bit i set iff some
- * texel of the tile holds index i.  Marks in a byte table (stores only, no
- * dependency chain), then packs.  The marks of tile row ty are the value
- * ty % 255 + 1, so the table is cleared once per 255 tile rows, not per
- * row. */
-static void build_sets(const struct tvpal_sw *r, uint32_t layer,
-                       const uint8_t *idx)
+/* Classification, lazily.  A tile is visible for a palette iff it holds an
+ * index whose entry is not all zero.  Its exact index set (256 bits, bit i
+ * set iff some texel holds index i) answers that for any palette, but
+ * building it reads every texel.  So a tile whose set is not current is
+ * first probed: 16 texels spread over it (centres of a 4 x 4 grid of
+ * blocks) are looked up in the palette's non-zero table, and one non-zero
+ * entry proves the tile visible with no set at all.  Only a tile none of
+ * whose probes is visible gets its set built (then kept until the layer's
+ * next upload) and tested.  Either way the answer is exactly the set's:
+ * the visible tiles, and so the image, are those of building every set.
+ * Under a dense TF most tiles of changed slices are decided by their first
+ * probe, which is what stops a steady frame from reading all of 1/N of
+ * the volume to classify it. */
+
+/* Marks of the texels of tile (tx, ty) of `idx` in seen (a byte per
+ * index: mark where present), packed into the tile's set m[0..3]. */
+static void build_tile(const struct tvpal_sw *r, const uint8_t *idx,
+                       unsigned tx, unsigned ty, uint8_t seen[256],
+                       uint8_t mark, uint64_t m[4])
 {
-    const unsigned tile = r->tile, tcols = r->tcols;
-    const uint32_t w = r->w, h = r->h;
-    uint64_t *out = r->sets + (size_t)layer * r->trows * tcols * 4;
-    _Alignas(16) uint8_t seen[64][256];
-    for (unsigned ty = 0; ty < r->trows; ty++) {
-        const uint8_t mark = (uint8_t)(ty % 255 + 1);
-        if (mark == 1)
-            memset(seen, 0, sizeof(seen[0]) * tcols);
-        uint32_t y1 = (ty + 1) * tile < h ? (ty + 1) * tile : h;
-        for (uint32_t y = ty * tile; y < y1; y++) {
-            const uint8_t *row = idx + (size_t)w * y;
-            for (unsigned tx = 0; tx < tcols; tx++) {
-                uint32_t x0 = tx * tile, x1 = x0 + tile < w ? x0 + tile : w;
-                uint8_t *s = seen[tx];
-                uint32_t x = x0;
-                /* Eight indices per 64-bit load (tiles are 16 or more
-                 * wide): a store per texel, no loop step per texel. */
-                for (; x + 8 <= x1; x += 8) {
-                    uint64_t v;
-                    memcpy(&v, row + x, 8);
-                    s[v & 255] = mark;
-                    s[(v >> 8) & 255] = mark;
-                    s[(v >> 16) & 255] = mark;
-                    s[(v >> 24) & 255] = mark;
-                    s[(v >> 32) & 255] = mark;
-                    s[(v >> 40) & 255] = mark;
-                    s[(v >> 48) & 255] = mark;
-                    s[v >> 56] = mark;
-                }
-                for (; x < x1; x++)
-                    s[row[x]] = mark;
-            }
+    const uint32_t w = r->w, tile = r->tile;
+    const uint32_t x0 = tx * tile, x1 = x0 + tile < w ? x0 + tile : w;
+    const uint32_t y1 = (ty + 1) * tile < r->h ? (ty + 1) * tile : r->h;
+    for (uint32_t y = ty * tile; y < y1; y++) {
+        const uint8_t *row = idx + (size_t)w * y;
+        uint32_t x = x0;
+        /* Eight indices per 64-bit load (tiles are 16 or more wide): a
+         * store per texel, no loop step per texel. */
+        for (; x + 8 <= x1; x += 8) {
+            uint64_t v;
+            memcpy(&v, row + x, 8);
+            seen[v & 255] = mark;
+            seen[(v >> 8) & 255] = mark;
+            seen[(v >> 16) & 255] = mark;
+            seen[(v >> 24) & 255] = mark;
+            seen[(v >> 32) & 255] = mark;
+            seen[(v >> 40) & 255] = mark;
+            seen[(v >> 48) & 255] = mark;
+            seen[v >> 56] = mark;
         }
-        for (unsigned tx = 0; tx < tcols; tx++) {
-            uint64_t *m = out + 4 * ((size_t)ty * tcols + tx);
-            for (int q = 0; q < 4; q++) {
-                uint64_t bits = 0;
+        for (; x < x1; x++)
+            seen[row[x]] = mark;
+    }
+    for (int q = 0; q < 4; q++) {
+        uint64_t bits = 0;
 #if defined(__SSE2__)
-                const __m128i vm = _mm_set1_epi8((char)mark);
-                for (int c = 0; c < 4; c++) {
-                    __m128i v = _mm_load_si128((const __m128i *)&seen[tx][64 * q + 16 * c]);
-                    bits |= (uint64_t)(unsigned)_mm_movemask_epi8(_mm_cmpeq_epi8(v, vm))
-                            << (16 * c);
-                }
-#else
-                for (int i = 0; i < 64; i++)
-                    bits |= (uint64_t)(seen[tx][64 * q + i] == mark) << i;
-#endif
-                m[q] = bits;
-            }
+        const __m128i vm = _mm_set1_epi8((char)mark);
+        for (int c = 0; c < 4; c++) {
+            __m128i v = _mm_loadu_si128((const __m128i *)&seen[64 * q + 16 * c]);
+            bits |= (uint64_t)(unsigned)_mm_movemask_epi8(_mm_cmpeq_epi8(v, vm))
+                    << (16 * c);
         }
+#else
+        for (int i = 0; i < 64; i++)
+            bits |= (uint64_t)(seen[64 * q + i] == mark) << i;
+#endif
+        m[q] = bits;
     }
 }
 
-/* Visible tile columns of each tile row of one slice for its palette: a
- * tile is visible iff it holds an index whose entry is not all zero. */
+/* Whether one of the 16 probes of tile (tx, ty) holds an index that
+ * nz[] says is visible. */
+static int probe_tile(const struct tvpal_sw *r, const uint8_t *idx,
+                      unsigned tx, unsigned ty, const uint8_t nz[256])
+{
+    const uint32_t w = r->w, tile = r->tile;
+    const uint32_t x0 = tx * tile, y0 = ty * tile;
+    const uint32_t nx = (x0 + tile < w ? x0 + tile : w) - x0;
+    const uint32_t ny = (y0 + tile < r->h ? y0 + tile : r->h) - y0;
+    for (uint32_t i = 0; i < 4; i++) {
+        const uint8_t *row = idx + (size_t)w * (y0 + (2 * i + 1) * ny / 8);
+        for (uint32_t j = 0; j < 4; j++)
+            if (nz[row[x0 + (2 * j + 1) * nx / 8]])
+                return 1;
+    }
+    return 0;
+}
+
+/* Visible tile columns of each tile row of one slice for its palette,
+ * lazily (above); counts what decided each tile.  Writes the layer's sets
+ * and built bits: a layer is classified by one thread at a time. */
 static void classify(const struct tvpal_sw *r, const struct tvpal_frame_slice *sl,
-                     uint64_t *out)
+                     uint64_t *out, struct tvpal_sw_counts *cnt)
 {
     const uint64_t all = r->tcols == 64 ? ~0ull : (1ull << r->tcols) - 1;
     if (!r->skip) {
@@ -315,17 +344,42 @@ static void classify(const struct tvpal_sw *r, const struct tvpal_frame_slice *s
         return;
     }
     uint64_t vm[4] = {0, 0, 0, 0};
+    uint8_t nz[256];
     const float *p = sl->palette;
-    for (int i = 0; i < 256; i++)
-        if (p[4 * i] != 0.0f || p[4 * i + 1] != 0.0f || p[4 * i + 2] != 0.0f ||
-            p[4 * i + 3] != 0.0f)
-            vm[i >> 6] |= 1ull << (i & 63);
-    const uint64_t *s = r->sets + (size_t)sl->layer * r->trows * r->tcols * 4;
+    for (int i = 0; i < 256; i++) {
+        nz[i] = p[4 * i] != 0.0f || p[4 * i + 1] != 0.0f ||
+                p[4 * i + 2] != 0.0f || p[4 * i + 3] != 0.0f;
+        vm[i >> 6] |= (uint64_t)nz[i] << (i & 63);
+    }
+    if (!(vm[0] | vm[1] | vm[2] | vm[3])) {   /* a transparent palette */
+        memset(out, 0, sizeof *out * r->trows);
+        return;
+    }
+    _Alignas(16) uint8_t seen[256];
+    uint8_t mark = 0;
+    uint64_t *sets = r->sets + (size_t)sl->layer * r->trows * r->tcols * 4;
+    uint64_t *built = r->built + (size_t)sl->layer * r->trows;
     for (unsigned ty = 0; ty < r->trows; ty++) {
         uint64_t bits = 0;
-        for (unsigned tx = 0; tx < r->tcols; tx++, s += 4)
+        for (unsigned tx = 0; tx < r->tcols; tx++) {
+            uint64_t *s = sets + 4 * ((size_t)ty * r->tcols + tx);
+            if (!(built[ty] >> tx & 1)) {
+                if (probe_tile(r, sl->idx, tx, ty, nz)) {
+                    bits |= 1ull << tx;
+                    cnt->probed++;
+                    continue;
+                }
+                if (mark++ == 0) {   /* marks 1..255, then clear */
+                    memset(seen, 0, sizeof seen);
+                    mark = 1;
+                }
+                build_tile(r, sl->idx, tx, ty, seen, mark, s);
+                built[ty] |= 1ull << tx;
+                cnt->built++;
+            }
             if ((s[0] & vm[0]) | (s[1] & vm[1]) | (s[2] & vm[2]) | (s[3] & vm[3]))
                 bits |= 1ull << tx;
+        }
         out[ty] = bits;
     }
 }
@@ -1375,34 +1429,38 @@ static int reserve_scratch(struct tvpal_sw *r, const struct tvpal_frame *f,
     return 0;
 }
 
-/* Classify: index sets of the layers whose data changed (each once,
- * whichever frame slices show it), then the visible tiles of every frame
- * slice for its own palette. */
+/* Classify: the visible tiles of every frame slice for its own palette,
+ * building the sets it needs (classify).  A layer's sets are written by
+ * one thread: the first frame slice of each layer is classified in
+ * parallel, any further one (a layer shown twice, which the player never
+ * does) after, in order. */
 static void classify_frame(struct tvpal_sw *r, const struct tvpal_frame *f,
                            int nt)
 {
     const int count = (int)f->count;
-    int ntodo = 0;
-    for (int n = 0; n < count; n++) {
-        const uint32_t layer = f->sl[n].layer;
-        if (r->dirty[layer] == 1) {
-            r->dirty[layer] = 2;
-            r->todo[ntodo++] = (uint32_t)n;
-        }
-    }
-#ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 4) num_threads(nt)
-#endif
-    for (int m = 0; m < ntodo; m++) {
-        const struct tvpal_frame_slice *sl = &f->sl[r->todo[m]];
-        build_sets(r, sl->layer, sl->idx);
-        r->dirty[sl->layer] = 0;
-    }
-#ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 8) num_threads(nt)
-#endif
+    int nfirst = 0;
     for (int n = 0; n < count; n++)
-        classify(r, &f->sl[n], r->vis + (size_t)n * r->trows);
+        r->first[f->sl[n].layer] = UINT32_MAX;
+    for (int n = 0; n < count; n++)
+        if (r->first[f->sl[n].layer] == UINT32_MAX) {
+            r->first[f->sl[n].layer] = (uint32_t)n;
+            r->todo[nfirst++] = (uint32_t)n;
+        }
+    unsigned long probed = 0, built = 0;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 8) num_threads(nt) reduction(+ : probed, built)
+#endif
+    for (int m = 0; m < nfirst; m++) {
+        struct tvpal_sw_counts c = {0, 0};
+        const uint32_t n = r->todo[m];
+        classify(r, &f->sl[n], r->vis + (size_t)n * r->trows, &c);
+        probed += c.probed;
+        built += c.built;
+    }
+    r->counts = (struct tvpal_sw_counts){probed, built};
+    for (int n = 0; n < count; n++)
+        if (r->first[f->sl[n].layer] != (uint32_t)n)
+            classify(r, &f->sl[n], r->vis + (size_t)n * r->trows, &r->counts);
 }
 
 int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,

@@ -13,12 +13,14 @@
  * the slice's palette, colours interpolated, premultiplied "over"); only
  * the resampling differs.
  *
- * Only what the frame needs is done.  Each slice is cut into square tiles;
- * when a slice's indices change (tvpal_sw_upload) the set of indices each
- * tile holds is rebuilt, once per upload.  Every frame a tile is visible iff
- * it holds an index whose palette entry is not fully transparent, and only
- * runs of visible tiles are composited (a transparent entry is all zero, so
- * skipping adds exactly nothing).
+ * Only what the frame needs is done.  Each slice is cut into square tiles.
+ * Every frame a tile is visible iff it holds an index whose palette entry
+ * is not fully transparent, and only runs of visible tiles are composited
+ * (a transparent entry is all zero, so skipping adds exactly nothing).  The
+ * set of indices a tile holds answers that for any palette; it is built
+ * only when a frame needs it: after an upload (tvpal_sw_upload) a tile is
+ * first probed at 16 texels, and one visible probe decides it with no set;
+ * a tile with none gets its set built, kept until the next upload.
  *
  * Early termination with a bound.  A pixel of the intermediate image stops
  * accumulating once its remaining transmittance 1 - alpha is at most
@@ -125,6 +127,15 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
  * changed slices, visible tiles), compositing, warp. */
 void tvpal_sw_times(const struct tvpal_sw *r, double *classify_ms,
                     double *composite_ms, double *warp_ms);
+
+/* What decided the visible tiles of the last draw's slices whose index
+ * sets were not current (see "lazily" in tvpal_sw.c): tiles proved
+ * visible by a probe, with no set built, and sets built.  For tests and
+ * reports. */
+struct tvpal_sw_counts {
+    unsigned long probed, built;
+};
+void tvpal_sw_counts(const struct tvpal_sw *r, struct tvpal_sw_counts *c);
 
 /* Intermediate pixels per texel (K) of the last draw, and the inner loops
  * used ("avx2": AVX2 for K = 1 and 2, SSE2 otherwise; "sse2"; "scalar"),
