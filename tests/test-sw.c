@@ -9,7 +9,8 @@
  * 20 dB).  Exact (bit-identical) comparisons: 1, 2 and 3 threads; empty-space
  * skipping and early termination on and off (with a sparse transfer
  * function that leaves most tiles empty and an opaque one that saturates
- * pixels); the AVX2 and SSE2 inner loops; a TF change every frame vs a fresh
+ * pixels); the AVX2 and SSE2 inner loops; bands of 1, 7 and 32 rows
+ * composited together against the default (4); a TF change every frame vs a fresh
  * renderer with that TF; new slice data announced by upload vs a fresh
  * renderer; lazily built tile sets (a dense TF decides every tile by a
  * probe; tiles whose visible texels no probe reads get sets, drawn as
@@ -19,8 +20,8 @@
  * and TFs, a third of them with opaque plateaus, no 8-bit pixel differs
  * from --exact by more than one level and no channel by more than 1/510;
  * the stopped-pixel maps (opaque runs skipped) against a test per pixel,
- * threads and SSE2/AVX2 give the same bits; each opaque TF really stops
- * early.  The identity tests above run in --exact mode, where stopping
+ * threads, bands of 1 and 5 rows and SSE2/AVX2 give the same bits; each
+ * opaque TF really stops early.  The identity tests above run in --exact mode, where stopping
  * changes no bit.  Odd shapes: one-texel-wide and one-row slices, slices wider
  * than 64 tiles of 16.  Errors: a frame that does not match the prepared
  * slices is refused; extreme views (NaN, infinite, huge angles and zooms)
@@ -137,6 +138,22 @@ static void draw_fresh(const struct tvpal_frame *f, uint32_t layers, int threads
                        int skip, int simd, float *img)
 {
     draw_mode(f, layers, threads, skip, simd, 1, 1, img);
+}
+
+/* draw_mode's defaults but `band` rows composited together; exact as
+ * for draw_mode. */
+static void draw_band(const struct tvpal_frame *f, uint32_t layers, int threads,
+                      int exact, unsigned band, float *img)
+{
+    struct tvpal_sw *sw;
+    struct tvpal_diag d = {{0}};
+    REQUIRE(tvpal_sw_create(&sw) == 0, "create");
+    tvpal_sw_options(sw, threads, 1, 1);
+    tvpal_sw_set_exact(sw, exact);
+    REQUIRE(tvpal_sw_set_band(sw, band) == 0, "band %u", band);
+    REQUIRE(tvpal_sw_set_slices(sw, f->w, f->h, layers, &d) == 0, "%s", d.msg);
+    REQUIRE(tvpal_sw_draw(sw, f, img, &d) == 0, "%s", d.msg);
+    tvpal_sw_free(sw);
 }
 
 /* The largest difference between the 8-bit pixels (as tvpal_png writes
@@ -264,6 +281,10 @@ int main(void)
         }
         draw_fresh(&f, f.count, 2, 0, 1, img2);
         CHECK(!memcmp(img, img2, sizeof(float) * np), "skipping changed pixels (sparse TF)");
+        for (unsigned band = 1; band <= 32; band += band == 1 ? 6 : 25) {
+            draw_band(&f, f.count, 2, 1, band, img2);
+            CHECK(!memcmp(img, img2, sizeof(float) * np), "band %u changed pixels", band);
+        }
         if (avx2) {
             draw_fresh(&f, f.count, 2, 1, 0, img2);
             CHECK(!memcmp(img, img2, sizeof(float) * np), "SSE2 vs AVX2 differ (K %u)", k);
@@ -345,6 +366,9 @@ int main(void)
             REQUIRE(tvpal_sw_draw(fk, &f, img2, &d) == 0, "%s", d.msg);
             CHECK(!memcmp(img, img2, sizeof(float) * np), "K %u: options changed pixels", k);
             CHECK(k != 0 || tvpal_sw_set_scale(fk, 9) == TVPAL_E_INVAL, "K 9 accepted");
+            CHECK(k != 0 || (tvpal_sw_set_band(fk, 0) == TVPAL_E_INVAL &&
+                             tvpal_sw_set_band(fk, 33) == TVPAL_E_INVAL),
+                  "band 0 or 33 accepted");
             tvpal_sw_free(fk);
         }
         CHECK(p[8] >= p[0] - 0.01, "K 8 (%.2f dB) worse than auto (%.2f dB)", p[8], p[0]);
@@ -599,6 +623,9 @@ int main(void)
             draw_mode(&f, f.count, 3, 1, 0, 0, 1, img2);
             CHECK(!memcmp(img, img2, sizeof(float) * np),
                   "case %d: SSE2 or threads changed pixels", n);
+            draw_band(&f, f.count, 2, 0, n % 2 ? 1 : 5, img2);
+            CHECK(!memcmp(img, img2, sizeof(float) * np),
+                  "case %d: band %d changed pixels", n, n % 2 ? 1 : 5);
             draw_mode(&f, f.count, 2, 1, 1, 1, 1, img2);
             double dm;
             int lv = max_level_diff(img, img2, npix, &dm);

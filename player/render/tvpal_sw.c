@@ -4,8 +4,9 @@
  *   classify:  the visible tiles of every slice (a probe or its index set
  *              meets the palette's non-zero entries), building the sets
  *              a probe could not spare;
- *   composite: per intermediate row, front to back through the slices,
- *              runs of visible tiles only; per texel one vertical lerp
+ *   composite: per band of intermediate rows, front to back through the
+ *              slices (each slice through the band's rows), runs of
+ *              visible tiles only; per texel one vertical lerp
  *              (constant weight fy for the row), then K horizontal lerps
  *              (constant weights fx[q]) and K blends;
  *   warp:      per output pixel, bilinear from the intermediate image.
@@ -33,6 +34,8 @@
 #define KAUTO 4       /* most intermediate pixels per texel chosen alone */
 #define KMAX 8        /* most that can be asked for (tvpal_sw_set_scale) */
 #define TILE_MIN 16   /* tile side; doubled until a row has <= 64 tiles */
+#define BAND 4        /* intermediate rows composited together by default */
+#define BAND_MAX 32   /* most that tvpal_sw_set_band takes */
 
 /* The transposed indices of the held z slices for one view axis (cross
  * frames): slice s of w' texels a row, rows k = 0 .. rows - 1 (z slice z0
@@ -70,6 +73,7 @@ struct tvpal_sw {
     int threads, skip, simd;
     int exact;            /* stop only at alpha 1 (tvpal_sw_set_exact) */
     int runs;             /* skip stopped runs by maps (tvpal_sw_set_runs) */
+    unsigned band;        /* rows composited together (tvpal_sw_set_band) */
     float stop;           /* this draw's alpha at which a pixel stops */
     uint64_t *maps;       /* per thread: stopped pixels of one row */
     size_t maps_cap;      /* words */
@@ -101,6 +105,7 @@ int tvpal_sw_create(struct tvpal_sw **out)
     r->skip = 1;
     r->simd = 1;
     r->runs = 1;
+    r->band = BAND;
     *out = r;
     return 0;
 }
@@ -146,6 +151,14 @@ void tvpal_sw_set_exact(struct tvpal_sw *r, int exact)
 void tvpal_sw_set_runs(struct tvpal_sw *r, int runs)
 {
     r->runs = runs;
+}
+
+int tvpal_sw_set_band(struct tvpal_sw *r, unsigned rows)
+{
+    if (rows < 1 || rows > BAND_MAX)
+        return TVPAL_E_INVAL;
+    r->band = rows;
+    return 0;
 }
 
 int tvpal_sw_set_scale(struct tvpal_sw *r, unsigned k)
@@ -934,121 +947,179 @@ struct drawable {
     unsigned tile, trows;
 };
 
-/* Composites row j of the stored part (global row jo + j) through every
- * slice, front to back. */
-static void composite_row(const struct tvpal_sw *r, const struct drawable *dr,
-                          const struct tvpal_view *v, const struct geom *g,
-                          unsigned j, float *row, int32_t *cov, uint64_t *map)
+/* What every row of a band shares for one slice: its depth, the texel
+ * shift, the first pixel c0 whose sample lies at or right of texel 0, the
+ * K phase weights and the pixels the slice covers. */
+struct slice_step {
+    double c, ta;
+    long sc0;             /* c0 in stored-row pixels */
+    float fx[KMAX];
+    long first, end;      /* covered pixels [first, end) of any row it meets */
+};
+
+static void slice_step(const struct geom *g, const struct tvpal_view *v,
+                       int w, uint32_t slice, struct slice_step *st)
 {
-    const int w = dr->w, rb0 = dr->rb0, rb1 = dr->rb1;
-    const unsigned k = g->k, tile = dr->tile;
-    long cov_lo = g->wc, cov_hi = 0;
-    memset(row, 0, sizeof(float) * 4 * g->wc);
-    if (map)
-        memset(map, 0, sizeof *map * map_words(g->wc));
-    for (uint32_t n = dr->count; n-- > 0;) {
-        const struct tvpal_frame_slice *sl = &dr->sl[n];
-        if (map && map_next(map, 0, g->wc, 0) >= (long)g->wc) {
-            /* Every pixel of the row has stopped: nothing behind can change
-             * it, and every pixel is covered (it was blended). */
-            cov_lo = 0;
-            cov_hi = g->wc;
-            break;
+    const unsigned k = g->k;
+    st->c = slice_depth(v, slice);
+    st->ta = g->u0 - st->c * g->sx;
+    /* Pixel i samples x = (i + 0.5) / K + ta - 0.5. */
+    const double c0 = ceil(k * (0.5 - st->ta) - 0.5);
+    st->sc0 = (long)c0 - g->io;
+    unsigned qs = 0; /* phases with fx < 0.5 (fx grows with q) */
+    for (unsigned q = 0; q < k; q++) {
+        double fx = (c0 + q + 0.5) / k + st->ta - 0.5;
+        st->fx[q] = (float)(fx < 0 ? 0 : fx > 1 ? 1 : fx);
+        qs += st->fx[q] < 0.5f;
+    }
+    /* The slice covers pixels c0 - K + qs .. c0 + K (w - 1) + qs - 1
+     * (the same tests as texel_v4), whatever its palette; a row of the
+     * slice that another node holds (cross frames of a slab) is covered
+     * too, by nothing: the warp filters across the slab's boundary as
+     * inside the volume, and the silhouette stays where the volume ends. */
+    st->first = st->sc0 - (long)k + qs;
+    st->end = st->sc0 + (long)k * (w - 1) + qs;
+}
+
+/* The visible texel runs `bits` (tile columns) of one slice row, through
+ * the inner loops; edge texels (the slice's, and those only partly inside
+ * the stored row, outside xmin..xmax) pixel by pixel. */
+static void draw_runs(const struct tvpal_sw *r, const struct span *s,
+                      uint64_t bits, int w, unsigned tile, long xmin, long xmax)
+{
+    while (bits) {
+        unsigned t0 = (unsigned)__builtin_ctzll(bits);
+        uint64_t sh = bits >> t0;
+        unsigned len = ~sh == 0 ? 64 - t0 : (unsigned)__builtin_ctzll(~sh);
+        unsigned t1 = t0 + len;
+        bits = t1 >= 64 ? 0 : bits & ~((1ull << t1) - 1);
+        /* Texels [a, b) are visible: pixels whose x0 is a - 1 .. b - 1
+         * may sample them (x0 = -1 and w - 1 are the clamped edges). */
+        long a = (long)t0 * tile, b = (long)t1 * tile < w ? (long)t1 * tile : w;
+        long lo = a - 1, hi = b - 1;
+        if (lo < 0) {
+            texel_v4(s, -1, w);         /* samples with fx >= 0.5 */
+            lo = 0;
         }
-        const double c = slice_depth(v, sl->slice);
-        const double ty = g->v0 + (g->jo + j + 0.5) / k - c * g->sy;
-        if (!(ty >= 0 && ty < dr->h))
-            continue;
-        const double ta = g->u0 - c * g->sx;
-        /* Pixel i samples x = (i + 0.5) / K + ta - 0.5; the first pixel
-         * whose sample lies at or right of texel 0 is c0. */
-        const double c0 = ceil(k * (0.5 - ta) - 0.5);
-        const long sc0 = (long)c0 - g->io;
-        float fxq[KMAX];
-        unsigned qs = 0; /* phases with fx < 0.5 (fx grows with q) */
-        for (unsigned q = 0; q < k; q++) {
-            double fx = (c0 + q + 0.5) / k + ta - 0.5;
-            fxq[q] = (float)(fx < 0 ? 0 : fx > 1 ? 1 : fx);
-            qs += fxq[q] < 0.5f;
+        if (hi == w - 1) {
+            texel_v4(s, w - 1, w);      /* samples with fx < 0.5 */
+            hi = w - 2;
         }
-        /* The slice covers pixels c0 - K + qs .. c0 + K (w - 1) + qs - 1
-         * (the same tests as texel_v4), whatever its palette; a row of
-         * the slice that another node holds (cross frames of a slab) is
-         * covered too, by nothing: the warp filters across the slab's
-         * boundary as inside the volume, and the silhouette stays where
-         * the volume ends. */
-        long first = sc0 - (long)k + qs, end = sc0 + (long)k * (w - 1) + qs;
-        cov_lo = first < cov_lo ? first : cov_lo;
-        cov_hi = end > cov_hi ? end : cov_hi;
-        if (!(ty >= dr->db0 && ty < dr->db1))
+        /* Texels only partly inside the stored row (clipping). */
+        if (lo < xmin) {
+            if (xmin - 1 >= lo && xmin - 1 <= hi)
+                texel_v4(s, (int)(xmin - 1), w);
+            lo = xmin;
+        }
+        if (hi > xmax) {
+            if (xmax + 1 <= hi && xmax + 1 >= lo)
+                texel_v4(s, (int)(xmax + 1), w);
+            hi = xmax;
+        }
+        if (lo > hi)
             continue;
-        const double yy = ty - 0.5, yf = floor(yy);
-        const int y0 = (int)yf;
-        const int ya = y0 < rb0 ? rb0 : y0, yb = y0 + 1 >= rb1 ? rb1 - 1 : y0 + 1;
-        const float *pa = dr->rowpal ? dr->rowpal[ya - rb0] : sl->palette;
-        const float *pb = dr->rowpal ? dr->rowpal[yb - rb0] : sl->palette;
-        struct span s = {.row = row, .c0 = sc0, .k = k, .wi = g->wc,
-                         .fy = (float)(yy - yf),
-                         .ra = sl->idx + (size_t)w * (ya - rb0),
-                         .rb = sl->idx + (size_t)w * (yb - rb0),
-                         .pala = pa, .palb = pb,
-                         .stop = r->stop, .exact = r->exact && r->skip,
-                         .map = map};
-        memcpy(s.fx, fxq, sizeof fxq);
-        const uint64_t *vr = dr->vis + (size_t)dr->trows *
-                             (dr->vis_group ? sl->slice / dr->vis_group : n);
-        uint64_t bits = vr[(ya - rb0) / tile] | vr[(yb - rb0) / tile];
-        /* Texels whose K pixels all lie inside the row: xmin..xmax. */
-        const long xmin = -floordiv(s.c0, (long)k);
-        const long xmax = floordiv((long)g->wc - (long)k - s.c0, (long)k);
-        while (bits) {
-            unsigned t0 = (unsigned)__builtin_ctzll(bits);
-            uint64_t sh = bits >> t0;
-            unsigned len = ~sh == 0 ? 64 - t0 : (unsigned)__builtin_ctzll(~sh);
-            unsigned t1 = t0 + len;
-            bits = t1 >= 64 ? 0 : bits & ~((1ull << t1) - 1);
-            /* Texels [a, b) are visible: pixels whose x0 is a - 1 .. b - 1
-             * may sample them (x0 = -1 and w - 1 are the clamped edges). */
-            long a = (long)t0 * tile, b = (long)t1 * tile < w ? (long)t1 * tile : w;
-            long lo = a - 1, hi = b - 1;
-            if (lo < 0) {
-                texel_v4(&s, -1, w);         /* samples with fx >= 0.5 */
-                lo = 0;
-            }
-            if (hi == w - 1) {
-                texel_v4(&s, w - 1, w);      /* samples with fx < 0.5 */
-                hi = w - 2;
-            }
-            /* Texels only partly inside the stored row (clipping). */
-            if (lo < xmin) {
-                if (xmin - 1 >= lo && xmin - 1 <= hi)
-                    texel_v4(&s, (int)(xmin - 1), w);
-                lo = xmin;
-            }
-            if (hi > xmax) {
-                if (xmax + 1 <= hi && xmax + 1 >= lo)
-                    texel_v4(&s, (int)(xmax + 1), w);
-                hi = xmax;
-            }
-            if (lo > hi)
-                continue;
 #ifdef SW_AVX2
-            if (r->avx2 && k == 1) {
-                span_avx2_k1(&s, (int)lo, (int)hi);
-                continue;
-            }
-            if (r->avx2 && k == 2) {
-                span_avx2_k2(&s, (int)lo, (int)hi);
-                continue;
-            }
+        if (r->avx2 && s->k == 1) {
+            span_avx2_k1(s, (int)lo, (int)hi);
+            continue;
+        }
+        if (r->avx2 && s->k == 2) {
+            span_avx2_k2(s, (int)lo, (int)hi);
+            continue;
+        }
 #endif
-            span_v4(&s, (int)lo, (int)hi);
+        span_v4(s, (int)lo, (int)hi);
+    }
+}
+
+/* One row of the band (stored row j, global jo + j) through slice n:
+ * widens the row's coverage [*lo, *hi) and composites what it samples. */
+static void slice_row(const struct tvpal_sw *r, const struct drawable *dr,
+                      const struct geom *g, const struct slice_step *st,
+                      uint32_t n, unsigned j, float *row, uint64_t *map,
+                      long *lo, long *hi)
+{
+    const struct tvpal_frame_slice *sl = &dr->sl[n];
+    const int w = dr->w, rb0 = dr->rb0, rb1 = dr->rb1;
+    const unsigned k = g->k;
+    const double ty = g->v0 + (g->jo + j + 0.5) / k - st->c * g->sy;
+    if (!(ty >= 0 && ty < dr->h))
+        return;
+    *lo = st->first < *lo ? st->first : *lo;
+    *hi = st->end > *hi ? st->end : *hi;
+    if (!(ty >= dr->db0 && ty < dr->db1))
+        return;
+    const double yy = ty - 0.5, yf = floor(yy);
+    const int y0 = (int)yf;
+    const int ya = y0 < rb0 ? rb0 : y0, yb = y0 + 1 >= rb1 ? rb1 - 1 : y0 + 1;
+    const float *pa = dr->rowpal ? dr->rowpal[ya - rb0] : sl->palette;
+    const float *pb = dr->rowpal ? dr->rowpal[yb - rb0] : sl->palette;
+    struct span s = {.row = row, .c0 = st->sc0, .k = k, .wi = g->wc,
+                     .fy = (float)(yy - yf),
+                     .ra = sl->idx + (size_t)w * (ya - rb0),
+                     .rb = sl->idx + (size_t)w * (yb - rb0),
+                     .pala = pa, .palb = pb,
+                     .stop = r->stop, .exact = r->exact && r->skip,
+                     .map = map};
+    memcpy(s.fx, st->fx, sizeof s.fx);
+    const uint64_t *vr = dr->vis + (size_t)dr->trows *
+                         (dr->vis_group ? sl->slice / dr->vis_group : n);
+    const uint64_t bits = vr[(ya - rb0) / dr->tile] | vr[(yb - rb0) / dr->tile];
+    /* Texels whose K pixels all lie inside the row: xmin..xmax. */
+    const long xmin = -floordiv(s.c0, (long)k);
+    const long xmax = floordiv((long)g->wc - (long)k - s.c0, (long)k);
+    draw_runs(r, &s, bits, w, dr->tile, xmin, xmax);
+}
+
+/* Composites the band of stored rows j0 .. j0 + nb - 1 (nb <= BAND_MAX)
+ * through every slice, front to back: slices outside, rows inside, so a
+ * slice's palette (4 KiB) and index rows are fetched once per band, not
+ * once per row (a row through 512 slices meets 2 MiB of palettes, more
+ * than L2 holds).  Each pixel still meets the slices in the same order
+ * with the same operations: the bits of row-by-row compositing.  maps:
+ * nb stopped-pixel maps of map_words(wc) words, or NULL. */
+static void composite_band(const struct tvpal_sw *r, const struct drawable *dr,
+                           const struct tvpal_view *v, const struct geom *g,
+                           unsigned j0, unsigned nb, float *im, int32_t *cov,
+                           uint64_t *maps)
+{
+    const size_t mw = map_words(g->wc);
+    long lo[BAND_MAX], hi[BAND_MAX];
+    unsigned live = 0;   /* rows not yet all stopped: bit b */
+    for (unsigned b = 0; b < nb; b++) {
+        memset(im + (size_t)4 * g->wc * (j0 + b), 0, sizeof(float) * 4 * g->wc);
+        if (maps)
+            memset(maps + mw * b, 0, sizeof *maps * mw);
+        lo[b] = g->wc;
+        hi[b] = 0;
+        live |= 1u << b;
+    }
+    for (uint32_t n = dr->count; n-- > 0 && live;) {
+        struct slice_step st;
+        slice_step(g, v, dr->w, dr->sl[n].slice, &st);
+        for (unsigned b = 0; b < nb; b++) {
+            if (!(live >> b & 1))
+                continue;
+            uint64_t *map = maps ? maps + mw * b : NULL;
+            if (map && map_next(map, 0, g->wc, 0) >= (long)g->wc) {
+                /* Every pixel of the row has stopped: nothing behind can
+                 * change it, and every pixel is covered (it was blended). */
+                lo[b] = 0;
+                hi[b] = g->wc;
+                live &= ~(1u << b);
+                continue;
+            }
+            slice_row(r, dr, g, &st, n, j0 + b, im + (size_t)4 * g->wc * (j0 + b),
+                      map, &lo[b], &hi[b]);
         }
     }
-    cov[0] = (int32_t)(cov_lo < 0 ? 0 : cov_lo);
-    cov[1] = (int32_t)(cov_hi > (long)g->wc ? (long)g->wc : cov_hi);
-    if (cov[1] < cov[0])
-        cov[0] = cov[1] = 0;
+    for (unsigned b = 0; b < nb; b++) {
+        int32_t *c = cov + 2 * (size_t)(j0 + b);
+        c[0] = (int32_t)(lo[b] < 0 ? 0 : lo[b]);
+        c[1] = (int32_t)(hi[b] > (long)g->wc ? (long)g->wc : hi[b]);
+        if (c[1] < c[0])
+            c[0] = c[1] = 0;
+    }
 }
 
 /* Output row py from the stored part of the intermediate image (origin
@@ -1395,7 +1466,7 @@ static void clip_to_output(const struct tvpal_view *v, const struct warp *wp,
 static int reserve_scratch(struct tvpal_sw *r, const struct tvpal_frame *f,
                            const struct geom *g, int nt, struct tvpal_diag *diag)
 {
-    size_t nwords = map_words(g->wc) * (size_t)nt;
+    size_t nwords = map_words(g->wc) * r->band * (size_t)nt;
     if (nwords > r->maps_cap) {
         uint64_t *nm = realloc(r->maps, sizeof *nm * nwords);
         if (!nm)
@@ -1503,21 +1574,22 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
         dr.count = 0;
     double t1 = tvpal_now();
     r->t_classify = (t1 - t0) * 1e3;
-    /* Composite: rows of the intermediate image, in small chunks handed
-     * out dynamically (rows near the edges meet fewer slices). */
-    const int hi = (int)g.hc;
-    float *im = r->im;
+    /* Composite: bands of rows of the intermediate image, handed out
+     * dynamically (rows near the edges meet fewer slices). */
+    const unsigned band = r->band;
+    const int nbands = (int)((g.hc + band - 1) / band);
 #ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 4) num_threads(nt)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
 #endif
-    for (int j = 0; j < hi; j++) {
+    for (int m = 0; m < nbands; m++) {
         int tid = 0;
 #ifdef _OPENMP
         tid = omp_get_thread_num();
 #endif
-        composite_row(r, &dr, v, &g, (unsigned)j, im + (size_t)4 * g.wc * j,
-                      r->cov + 2 * (size_t)j,
-                      use_maps ? r->maps + map_words(g.wc) * tid : NULL);
+        const unsigned j0 = (unsigned)m * band;
+        composite_band(r, &dr, v, &g, j0, g.hc - j0 < band ? g.hc - j0 : band,
+                       r->im, r->cov,
+                       use_maps ? r->maps + map_words(g.wc) * band * tid : NULL);
     }
     double t2 = tvpal_now();
     r->t_composite = (t2 - t1) * 1e3;
@@ -1526,7 +1598,7 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
 #pragma omp parallel for schedule(static) num_threads(nt)
 #endif
     for (int py = 0; py < H; py++)
-        warp_row(im, r->cov, g.io, g.jo, g.wc, g.hc, &wp, v->width, (unsigned)py,
+        warp_row(r->im, r->cov, g.io, g.jo, g.wc, g.hc, &wp, v->width, (unsigned)py,
                  rgba + (size_t)4 * v->width * py);
     r->t_warp = (tvpal_now() - t2) * 1e3;
     return 0;

@@ -61,9 +61,12 @@
  * conservative: transparent texels drawn add exactly zero, so the image is
  * that of a plain frame of the transposed slices, bit for bit.
  *
- * Rows of the intermediate image are shared among threads (OpenMP), each
- * row composited by one thread through all slices (it stays in L1): the
- * image is the same for any thread count.  An AVX2 inner loop is chosen
+ * Rows of the intermediate image are shared among threads (OpenMP) in
+ * bands of a few rows, each band composited by one thread through all
+ * slices, a slice through every row of the band before the next (the rows
+ * stay in L1, and a slice's palette and index rows are fetched once per
+ * band rather than once per row): the image is the same for any thread
+ * count and band.  An AVX2 inner loop is chosen
  * at run time where the CPU has it; it performs the same float operations
  * in the same order as the SSE2 loop (no fused multiply-add: the player
  * library is built with -ffp-contract=off), so both give the same bits.  No allocation per frame once the largest image and the
@@ -97,6 +100,13 @@ void tvpal_sw_set_exact(struct tvpal_sw *r, int exact);
 /* runs = 1 (the default): stopped pixels are skipped by runs through the
  * per-row maps; 0: each pixel is tested.  The same image either way. */
 void tvpal_sw_set_runs(struct tvpal_sw *r, int runs);
+
+/* Rows of the intermediate image composited together (1..32; 4 by
+ * default): each slice goes through a band of rows before the next, so
+ * its palette and index rows are fetched once per band.  The same image
+ * for any band (each pixel meets the same operations in the same order);
+ * for tests and benchmarks.  TVPAL_E_INVAL outside 1..32. */
+int tvpal_sw_set_band(struct tvpal_sw *r, unsigned rows);
 
 /* Intermediate pixels per texel: 0 (the default) chooses K from the view
  * (1..4, see above); 1..8 forces it (speed against sharpness: the cost
