@@ -574,14 +574,21 @@ static inline long texel_pixel(const struct span *s, int x, int w, unsigned q)
     return i;
 }
 
+/* Palette entry i (RGBA): the offset in size_t, so that it costs one
+ * shift of the loaded byte, not a shift and a sign extension. */
+static inline const float *entry(const float *pal, uint8_t i)
+{
+    return pal + 4 * (size_t)i;
+}
+
 /* span_v4 and texel_v4 blend one RGBA pixel at a time: with SSE2 where the
  * compiler targets it, else in scalar code (the same operations).  The
  * pixel is tested unless `live` says it is live. */
 #if defined(__SSE2__)
 static inline __m128 vlerp_sse(const struct span *s, int x, __m128 vfy)
 {
-    __m128 a = _mm_loadu_ps(s->pala + 4 * s->ra[x]);
-    __m128 b = _mm_loadu_ps(s->palb + 4 * s->rb[x]);
+    __m128 a = _mm_loadu_ps(entry(s->pala, s->ra[x]));
+    __m128 b = _mm_loadu_ps(entry(s->palb, s->rb[x]));
     return _mm_add_ps(a, _mm_mul_ps(vfy, _mm_sub_ps(b, a)));
 }
 
@@ -654,7 +661,7 @@ INLINE void texel_v4_m(const struct span *s, int x, int w, const int exact)
 #else
 static inline void vlerp_sc(const struct span *s, int x, float *o)
 {
-    const float *a = s->pala + 4 * s->ra[x], *b = s->palb + 4 * s->rb[x];
+    const float *a = entry(s->pala, s->ra[x]), *b = entry(s->palb, s->rb[x]);
     for (int ch = 0; ch < 4; ch++)
         o[ch] = a[ch] + s->fy * (b[ch] - a[ch]);
 }
@@ -741,26 +748,30 @@ AVX2 static inline __m256 load2(const float *lo, const float *hi)
                                 _mm_loadu_ps(hi), 1);
 }
 
-/* Live pixels i, i + 1 = dst + (1 - dst.a) * sm; marks those that stop. */
-AVX2 INLINE void blend2(float *row, uint64_t *map, float stop, long i,
-                        __m256 sm, const int exact)
+/* Live pixels i, i + 1 = dst + (1 - dst.a) * sm.  Returns the alpha
+ * lanes of those that stopped (0x08: pixel i, 0x80: i + 1), for
+ * mark_stops; 0 without a map. */
+AVX2 INLINE unsigned blend2(float *row, uint64_t *map, float stop, long i,
+                            __m256 sm, const int exact)
 {
     float *d = row + 4 * i;
     __m256 dv = _mm256_loadu_ps(d);
     __m256 keep = _mm256_sub_ps(_mm256_set1_ps(1.0f), _mm256_permute_ps(dv, 0xFF));
     __m256 nd = _mm256_add_ps(dv, _mm256_mul_ps(keep, sm));
     _mm256_storeu_ps(d, nd);
-    if (map) {
-        __m256 now = exact ? _mm256_cmp_ps(nd, _mm256_set1_ps(1.0f), _CMP_EQ_OQ)
-                           : _mm256_cmp_ps(nd, _mm256_set1_ps(stop), _CMP_GE_OQ);
-        int m = _mm256_movemask_ps(now) & 0x88;   /* the alpha lanes */
-        if (m) {
-            if (m & 0x08)
-                map_set(map, i);
-            if (m & 0x80)
-                map_set(map, i + 1);
-        }
-    }
+    if (!map)
+        return 0;
+    __m256 now = exact ? _mm256_cmp_ps(nd, _mm256_set1_ps(1.0f), _CMP_EQ_OQ)
+                       : _mm256_cmp_ps(nd, _mm256_set1_ps(stop), _CMP_GE_OQ);
+    return (unsigned)_mm256_movemask_ps(now) & 0x88;
+}
+
+/* Marks the pixels blend2 said stopped: lane bit 4 q + 3 of m is pixel
+ * i + q (the masks of consecutive pairs shifted by 8 each). */
+static inline void mark_stops(uint64_t *map, long i, unsigned m)
+{
+    for (; m; m &= m - 1)
+        map_set(map, i + (__builtin_ctz(m) >> 2));
 }
 
 /* The live run at or after texel *x, for kernels whose texel x has pixels
@@ -786,7 +797,8 @@ static inline int live_run(const uint64_t *map, long c0, long k, int *x,
 }
 
 /* K = 1, the pair of texels x, x + 1: vp holds V(x) in its high half on
- * entry and [V(x+1) | V(x+2)] on return; both pixels are blended (live). */
+ * entry and [V(x+1) | V(x+2)] on return; both pixels are blended (live);
+ * returns blend2's stops, unmarked. */
 struct k1_ctx {      /* a span's K = 1 constants, read once per span */
     __m256 vfy, vfx;
     const uint8_t *ra, *rb;
@@ -796,17 +808,18 @@ struct k1_ctx {      /* a span's K = 1 constants, read once per span */
     long c0;
 };
 
-AVX2 INLINE void pair_k1(const struct k1_ctx *k, int x, __m256 *vp,
-                         uint64_t *map, const int exact)
+AVX2 INLINE unsigned pair_k1(const struct k1_ctx *k, int x, __m256 *vp,
+                             uint64_t *map, const int exact)
 {
-    __m256 a = load2(k->pala + 4 * k->ra[x + 1], k->pala + 4 * k->ra[x + 2]);
-    __m256 b = load2(k->palb + 4 * k->rb[x + 1], k->palb + 4 * k->rb[x + 2]);
+    __m256 a = load2(entry(k->pala, k->ra[x + 1]), entry(k->pala, k->ra[x + 2]));
+    __m256 b = load2(entry(k->palb, k->rb[x + 1]), entry(k->palb, k->rb[x + 2]));
     __m256 vn = _mm256_add_ps(a, _mm256_mul_ps(k->vfy, _mm256_sub_ps(b, a)));
     __m256 cur = _mm256_permute2f128_ps(*vp, vn, 0x21); /* [V(x) | V(x+1)] */
-    blend2(k->row, map, k->stop, k->c0 + x,
-           _mm256_add_ps(cur, _mm256_mul_ps(k->vfx, _mm256_sub_ps(vn, cur))),
-           exact);
+    unsigned m = blend2(k->row, map, k->stop, k->c0 + x,
+                        _mm256_add_ps(cur, _mm256_mul_ps(k->vfx, _mm256_sub_ps(vn, cur))),
+                        exact);
     *vp = vn;
+    return m;
 }
 
 /* K = 1, texel x alone (tested unless live); vp as for pair_k1, holding
@@ -855,8 +868,18 @@ AVX2 INLINE void span_avx2_k1_m(const struct span *s, int x0, int x1,
     int xe;
     while (x <= x1 && live_run(map, c0, 1, &x, x1, &xe)) {
         __m256 vp = dup_v(vlerp_sse(s, x, vfy1));
-        for (; x + 1 <= xe; x += 2)
-            pair_k1(&k, x, &vp, map, exact);
+        /* Two pairs a step: one test of their stops, one loop step. */
+        for (; x + 3 <= xe; x += 4) {
+            unsigned m = pair_k1(&k, x, &vp, map, exact);
+            m |= pair_k1(&k, x + 2, &vp, map, exact) << 8;
+            if (m)
+                mark_stops(map, c0 + x, m);
+        }
+        for (; x + 1 <= xe; x += 2) {
+            unsigned m = pair_k1(&k, x, &vp, map, exact);
+            if (m)
+                mark_stops(map, c0 + x, m);
+        }
         if (x == xe)
             single_k1(s, x++, &vp, exact, 1);
     }
@@ -869,8 +892,10 @@ AVX2 INLINE void texel_k2(const struct span *s, int x, __m128 *c,
 {
     __m128 cn = vlerp_sse(s, x + 1, vfy);
     __m256 d2 = dup_v(_mm_sub_ps(cn, *c));
-    blend2(s->row, map, s->stop, s->c0 + 2L * x,
-           _mm256_add_ps(dup_v(*c), _mm256_mul_ps(vfx, d2)), exact);
+    unsigned m = blend2(s->row, map, s->stop, s->c0 + 2L * x,
+                        _mm256_add_ps(dup_v(*c), _mm256_mul_ps(vfx, d2)), exact);
+    if (m)
+        mark_stops(map, s->c0 + 2L * x, m);
     *c = cn;
 }
 
