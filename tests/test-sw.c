@@ -13,8 +13,8 @@
  * composited together against the default (4); a TF change every frame vs a fresh
  * renderer with that TF; new slice data announced by upload vs a fresh
  * renderer; lazily built tile sets (a dense TF decides every tile by a
- * probe; tiles whose visible texels no probe reads get sets, drawn as
- * without skipping; sets kept until an upload); a block of missing (NaN) values with the default transparent
+ * probe, then by the index it found; tiles whose visible texels no probe
+ * reads get sets, drawn as without skipping; sets kept until an upload); a block of missing (NaN) values with the default transparent
  * NaN colour vs the same block transparent by the TF.  Early termination
  * (the default, a pixel stops at transmittance 1/510): over 48 random views
  * and TFs, a third of them with opaque plateaus, no 8-bit pixel differs
@@ -413,7 +413,7 @@ int main(void)
 
     /* Lazy classification (tile sets built only where probes cannot
      * decide).  A dense TF: every tile is proved visible by a probe, no set
-     * is built.  Then slices transparent but for two texels of each tile
+     * is built; drawn again, by the index its probe found (no probe).  Then slices transparent but for two texels of each tile
      * that no probe reads (its corners): every tile's set is built, the
      * corners are drawn, the image is that of drawing every tile; the
      * next frame builds none (the sets are kept) and after an upload only
@@ -435,6 +435,12 @@ int main(void)
         tvpal_sw_counts(lz, &c);
         CHECK(c.probed == tiles && c.built == 0, "dense TF: %lu of %lu tiles "
               "probed, %lu sets built", c.probed, tiles, c.built);
+        REQUIRE(tvpal_sw_draw(lz, &f, img2, &d) == 0, "%s", d.msg);
+        tvpal_sw_counts(lz, &c);
+        CHECK(c.witnessed == tiles && c.probed == 0 && c.built == 0 &&
+              !memcmp(img, img2, sizeof(float) * np), "dense TF again: %lu "
+              "witnessed, %lu probed, %lu built of %lu, or pixels changed",
+              c.witnessed, c.probed, c.built, tiles);
         make_frame(&vo, &v, &f, &tf);   /* index 0 transparent, 255 not */
         for (uint32_t k = 0; k < f.count; k++) {
             uint8_t *I = idx_store + (size_t)sl[k].slice * f.w * f.h;
@@ -450,8 +456,9 @@ int main(void)
         }
         REQUIRE(tvpal_sw_draw(lz, &f, img, &d) == 0, "%s", d.msg);
         tvpal_sw_counts(lz, &c);
-        CHECK(c.probed == 0 && c.built == tiles, "probes missed: %lu probed, "
-              "%lu of %lu sets built", c.probed, c.built, tiles);
+        CHECK(c.witnessed == 0 && c.probed == 0 && c.built == tiles, "probes "
+              "missed: %lu witnessed, %lu probed, %lu of %lu sets built",
+              c.witnessed, c.probed, c.built, tiles);
         draw_fresh(&f, f.count, 1, 0, 1, img2);
         CHECK(!memcmp(img, img2, sizeof(float) * np), "lazy sets changed pixels");
         double energy = 0;

@@ -84,6 +84,10 @@ struct tvpal_sw {
     uint64_t *sets;       /* layers x trows x tcols x 4 words: index sets */
     uint64_t *built;      /* layers x trows: tile columns whose set is
                              current (cleared by tvpal_sw_upload) */
+    uint8_t *wit;         /* layers x trows x tcols: a visible index a
+                             probe found in the tile (its witness) */
+    uint64_t *witv;       /* layers x trows: tiles whose witness is
+                             current (cleared by tvpal_sw_upload) */
     uint32_t *first;      /* layers: the layer's first frame slice (scratch) */
     uint32_t *todo;       /* layers: those first frame slices (scratch) */
     struct tvpal_sw_counts counts;   /* of the last draw */
@@ -119,6 +123,8 @@ void tvpal_sw_free(struct tvpal_sw *r)
     free(r->maps);
     free(r->sets);
     free(r->built);
+    free(r->wit);
+    free(r->witv);
     free(r->first);
     free(r->todo);
     free(r->vis);
@@ -222,12 +228,16 @@ int tvpal_sw_set_slices(struct tvpal_sw *r, uint32_t w, uint32_t h,
                               "%u slices of %ux%u", layers, w, h);
     uint64_t *sets = malloc(nl * trows * tcols * 4 * sizeof *sets);
     uint64_t *built = calloc(nl * trows, sizeof *built);   /* none built */
+    uint8_t *wit = malloc(nl * trows * tcols);
+    uint64_t *witv = calloc(nl * trows, sizeof *witv);     /* none found */
     uint32_t *first = malloc(nl * sizeof *first);
     uint32_t *todo = malloc(nl * sizeof *todo);
     uint32_t *ugen = malloc(nl * sizeof *ugen);
-    if (!sets || !built || !first || !todo || !ugen) {
+    if (!sets || !built || !wit || !witv || !first || !todo || !ugen) {
         free(sets);
         free(built);
+        free(wit);
+        free(witv);
         free(first);
         free(todo);
         free(ugen);
@@ -236,6 +246,8 @@ int tvpal_sw_set_slices(struct tvpal_sw *r, uint32_t w, uint32_t h,
     }
     free(r->sets);
     free(r->built);
+    free(r->wit);
+    free(r->witv);
     free(r->first);
     free(r->todo);
     free(r->ugen);
@@ -245,6 +257,8 @@ int tvpal_sw_set_slices(struct tvpal_sw *r, uint32_t w, uint32_t h,
     r->xc[0].rows = r->xc[1].rows = 0;   /* cut every row again */
     r->sets = sets;
     r->built = built;
+    r->wit = wit;
+    r->witv = witv;
     r->first = first;
     r->todo = todo;
     r->w = w;
@@ -261,6 +275,7 @@ void tvpal_sw_upload(struct tvpal_sw *r, uint32_t layer)
 {
     if (layer < r->layers) {
         memset(r->built + (size_t)layer * r->trows, 0, sizeof *r->built * r->trows);
+        memset(r->witv + (size_t)layer * r->trows, 0, sizeof *r->witv * r->trows);
         if (++r->ugen[layer] == 0)
             r->ugen[layer] = 1;   /* 0 means "nothing cut" */
     }
@@ -278,7 +293,10 @@ void tvpal_sw_upload(struct tvpal_sw *r, uint32_t layer)
  * the visible tiles, and so the image, are those of building every set.
  * Under a dense TF most tiles of changed slices are decided by their first
  * probe, which is what stops a steady frame from reading all of 1/N of
- * the volume to classify it. */
+ * the volume to classify it.  The visible index a probe found is kept as
+ * the tile's witness until the layer's next upload: while the palettes of
+ * later frames keep it visible, the tile is decided by one byte, with no
+ * read of the slice's indices (1/16 of a slice's bytes for its probes). */
 
 /* Marks of the texels of tile (tx, ty) of `idx` in seen (a byte per
  * index: mark where present), packed into the tile's set m[0..3]. */
@@ -326,8 +344,8 @@ static void build_tile(const struct tvpal_sw *r, const uint8_t *idx,
     }
 }
 
-/* Whether one of the 16 probes of tile (tx, ty) holds an index that
- * nz[] says is visible. */
+/* The first of the 16 probes of tile (tx, ty) that holds an index nz[]
+ * says is visible: that index, or -1 when none does. */
 static int probe_tile(const struct tvpal_sw *r, const uint8_t *idx,
                       unsigned tx, unsigned ty, const uint8_t nz[256])
 {
@@ -339,9 +357,9 @@ static int probe_tile(const struct tvpal_sw *r, const uint8_t *idx,
         const uint8_t *row = idx + (size_t)w * (y0 + (2 * i + 1) * ny / 8);
         for (uint32_t j = 0; j < 4; j++)
             if (nz[row[x0 + (2 * j + 1) * nx / 8]])
-                return 1;
+                return row[x0 + (2 * j + 1) * nx / 8];
     }
-    return 0;
+    return -1;
 }
 
 /* Visible tile columns of each tile row of one slice for its palette,
@@ -372,12 +390,23 @@ static void classify(const struct tvpal_sw *r, const struct tvpal_frame_slice *s
     uint8_t mark = 0;
     uint64_t *sets = r->sets + (size_t)sl->layer * r->trows * r->tcols * 4;
     uint64_t *built = r->built + (size_t)sl->layer * r->trows;
+    uint64_t *witv = r->witv + (size_t)sl->layer * r->trows;
+    uint8_t *wit = r->wit + (size_t)sl->layer * r->trows * r->tcols;
     for (unsigned ty = 0; ty < r->trows; ty++) {
         uint64_t bits = 0;
         for (unsigned tx = 0; tx < r->tcols; tx++) {
             uint64_t *s = sets + 4 * ((size_t)ty * r->tcols + tx);
             if (!(built[ty] >> tx & 1)) {
-                if (probe_tile(r, sl->idx, tx, ty, nz)) {
+                uint8_t *wt = wit + (size_t)ty * r->tcols + tx;
+                if (witv[ty] >> tx & 1 && nz[*wt]) {
+                    bits |= 1ull << tx;
+                    cnt->witnessed++;
+                    continue;
+                }
+                const int found = probe_tile(r, sl->idx, tx, ty, nz);
+                if (found >= 0) {
+                    *wt = (uint8_t)found;
+                    witv[ty] |= 1ull << tx;
                     bits |= 1ull << tx;
                     cnt->probed++;
                     continue;
@@ -1542,18 +1571,19 @@ static void classify_frame(struct tvpal_sw *r, const struct tvpal_frame *f,
             r->first[f->sl[n].layer] = (uint32_t)n;
             r->todo[nfirst++] = (uint32_t)n;
         }
-    unsigned long probed = 0, built = 0;
+    unsigned long witnessed = 0, probed = 0, built = 0;
 #ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 8) num_threads(nt) reduction(+ : probed, built)
+#pragma omp parallel for schedule(dynamic, 8) num_threads(nt) reduction(+ : witnessed, probed, built)
 #endif
     for (int m = 0; m < nfirst; m++) {
-        struct tvpal_sw_counts c = {0, 0};
+        struct tvpal_sw_counts c = {0, 0, 0};
         const uint32_t n = r->todo[m];
         classify(r, &f->sl[n], r->vis + (size_t)n * r->trows, &c);
+        witnessed += c.witnessed;
         probed += c.probed;
         built += c.built;
     }
-    r->counts = (struct tvpal_sw_counts){probed, built};
+    r->counts = (struct tvpal_sw_counts){witnessed, probed, built};
     for (int n = 0; n < count; n++)
         if (r->first[f->sl[n].layer] != (uint32_t)n)
             classify(r, &f->sl[n], r->vis + (size_t)n * r->trows, &r->counts);

@@ -19,8 +19,9 @@
  * (a transparent entry is all zero, so skipping adds exactly nothing).  The
  * set of indices a tile holds answers that for any palette; it is built
  * only when a frame needs it: after an upload (tvpal_sw_upload) a tile is
- * first probed at 16 texels, and one visible probe decides it with no set;
- * a tile with none gets its set built, kept until the next upload.
+ * first probed at 16 texels, and one visible probe decides it with no set
+ * (the index found decides it in later frames while it stays visible); a
+ * tile with none gets its set built, kept until the next upload.
  *
  * Early termination with a bound.  A pixel of the intermediate image stops
  * accumulating once its remaining transmittance 1 - alpha is at most
@@ -140,10 +141,10 @@ void tvpal_sw_times(const struct tvpal_sw *r, double *classify_ms,
 
 /* What decided the visible tiles of the last draw's slices whose index
  * sets were not current (see "lazily" in tvpal_sw.c): tiles proved
- * visible by a probe, with no set built, and sets built.  For tests and
- * reports. */
+ * visible by the index an earlier probe found (their witness), by a
+ * probe, and sets built.  For tests and reports. */
 struct tvpal_sw_counts {
-    unsigned long probed, built;
+    unsigned long witnessed, probed, built;
 };
 void tvpal_sw_counts(const struct tvpal_sw *r, struct tvpal_sw_counts *c);
 
