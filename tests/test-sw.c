@@ -117,9 +117,11 @@ static double psnr(const float *a, const double *b, size_t n)
 }
 
 /* Draws f with a fresh renderer and the given options; exact: stop only
- * at alpha 1; runs: skip stopped pixels by links. */
-static void draw_mode(const struct tvpal_frame *f, uint32_t layers, int threads,
-                      int skip, int simd, int exact, int runs, float *img)
+ * at alpha 1; runs: skip stopped pixels by links; band: rows composited
+ * together (0: the default). */
+static void draw_band_mode(const struct tvpal_frame *f, uint32_t layers,
+                           int threads, int skip, int simd, int exact, int runs,
+                           unsigned band, float *img)
 {
     struct tvpal_sw *sw;
     struct tvpal_diag d = {{0}};
@@ -127,9 +129,16 @@ static void draw_mode(const struct tvpal_frame *f, uint32_t layers, int threads,
     tvpal_sw_options(sw, threads, skip, simd);
     tvpal_sw_set_exact(sw, exact);
     tvpal_sw_set_runs(sw, runs);
+    REQUIRE(band == 0 || tvpal_sw_set_band(sw, band) == 0, "band %u", band);
     REQUIRE(tvpal_sw_set_slices(sw, f->w, f->h, layers, &d) == 0, "%s", d.msg);
     REQUIRE(tvpal_sw_draw(sw, f, img, &d) == 0, "%s", d.msg);
     tvpal_sw_free(sw);
+}
+
+static void draw_mode(const struct tvpal_frame *f, uint32_t layers, int threads,
+                      int skip, int simd, int exact, int runs, float *img)
+{
+    draw_band_mode(f, layers, threads, skip, simd, exact, runs, 0, img);
 }
 
 /* The identity tests of skipping, SIMD and threads against drawing every
@@ -138,22 +147,6 @@ static void draw_fresh(const struct tvpal_frame *f, uint32_t layers, int threads
                        int skip, int simd, float *img)
 {
     draw_mode(f, layers, threads, skip, simd, 1, 1, img);
-}
-
-/* draw_mode's defaults but `band` rows composited together; exact as
- * for draw_mode. */
-static void draw_band(const struct tvpal_frame *f, uint32_t layers, int threads,
-                      int exact, unsigned band, float *img)
-{
-    struct tvpal_sw *sw;
-    struct tvpal_diag d = {{0}};
-    REQUIRE(tvpal_sw_create(&sw) == 0, "create");
-    tvpal_sw_options(sw, threads, 1, 1);
-    tvpal_sw_set_exact(sw, exact);
-    REQUIRE(tvpal_sw_set_band(sw, band) == 0, "band %u", band);
-    REQUIRE(tvpal_sw_set_slices(sw, f->w, f->h, layers, &d) == 0, "%s", d.msg);
-    REQUIRE(tvpal_sw_draw(sw, f, img, &d) == 0, "%s", d.msg);
-    tvpal_sw_free(sw);
 }
 
 /* The largest difference between the 8-bit pixels (as tvpal_png writes
@@ -282,7 +275,7 @@ int main(void)
         draw_fresh(&f, f.count, 2, 0, 1, img2);
         CHECK(!memcmp(img, img2, sizeof(float) * np), "skipping changed pixels (sparse TF)");
         for (unsigned band = 1; band <= 32; band += band == 1 ? 6 : 25) {
-            draw_band(&f, f.count, 2, 1, band, img2);
+            draw_band_mode(&f, f.count, 2, 1, 1, 1, 1, band, img2);
             CHECK(!memcmp(img, img2, sizeof(float) * np), "band %u changed pixels", band);
         }
         if (avx2) {
@@ -630,7 +623,7 @@ int main(void)
             draw_mode(&f, f.count, 3, 1, 0, 0, 1, img2);
             CHECK(!memcmp(img, img2, sizeof(float) * np),
                   "case %d: SSE2 or threads changed pixels", n);
-            draw_band(&f, f.count, 2, 0, n % 2 ? 1 : 5, img2);
+            draw_band_mode(&f, f.count, 2, 1, 1, 0, 1, n % 2 ? 1 : 5, img2);
             CHECK(!memcmp(img, img2, sizeof(float) * np),
                   "case %d: band %d changed pixels", n, n % 2 ? 1 : 5);
             draw_mode(&f, f.count, 2, 1, 1, 1, 1, img2);
