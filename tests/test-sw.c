@@ -9,16 +9,19 @@
  * 20 dB).  Exact (bit-identical) comparisons: 1, 2 and 3 threads; empty-space
  * skipping and early termination on and off (with a sparse transfer
  * function that leaves most tiles empty and an opaque one that saturates
- * pixels); the AVX2 and SSE2 inner loops; a TF change every frame vs a fresh
+ * pixels); the AVX2 and SSE2 inner loops; bands of 1, 7 and 32 rows
+ * composited together against the default (4); a TF change every frame vs a fresh
  * renderer with that TF; new slice data announced by upload vs a fresh
- * renderer; a block of missing (NaN) values with the default transparent
+ * renderer; lazily built tile sets (a dense TF decides every tile by a
+ * probe, then by the index it found; tiles whose visible texels no probe
+ * reads get sets, drawn as without skipping; sets kept until an upload); a block of missing (NaN) values with the default transparent
  * NaN colour vs the same block transparent by the TF.  Early termination
  * (the default, a pixel stops at transmittance 1/510): over 48 random views
  * and TFs, a third of them with opaque plateaus, no 8-bit pixel differs
  * from --exact by more than one level and no channel by more than 1/510;
  * the stopped-pixel maps (opaque runs skipped) against a test per pixel,
- * threads and SSE2/AVX2 give the same bits; each opaque TF really stops
- * early.  The identity tests above run in --exact mode, where stopping
+ * threads, bands of 1 and 5 rows and SSE2/AVX2 give the same bits; each
+ * opaque TF really stops early.  The identity tests above run in --exact mode, where stopping
  * changes no bit.  Odd shapes: one-texel-wide and one-row slices, slices wider
  * than 64 tiles of 16.  Errors: a frame that does not match the prepared
  * slices is refused; extreme views (NaN, infinite, huge angles and zooms)
@@ -114,9 +117,11 @@ static double psnr(const float *a, const double *b, size_t n)
 }
 
 /* Draws f with a fresh renderer and the given options; exact: stop only
- * at alpha 1; runs: skip stopped pixels by links. */
-static void draw_mode(const struct tvpal_frame *f, uint32_t layers, int threads,
-                      int skip, int simd, int exact, int runs, float *img)
+ * at alpha 1; runs: skip stopped pixels by links; band: rows composited
+ * together (0: the default). */
+static void draw_band_mode(const struct tvpal_frame *f, uint32_t layers,
+                           int threads, int skip, int simd, int exact, int runs,
+                           unsigned band, float *img)
 {
     struct tvpal_sw *sw;
     struct tvpal_diag d = {{0}};
@@ -124,9 +129,16 @@ static void draw_mode(const struct tvpal_frame *f, uint32_t layers, int threads,
     tvpal_sw_options(sw, threads, skip, simd);
     tvpal_sw_set_exact(sw, exact);
     tvpal_sw_set_runs(sw, runs);
+    REQUIRE(band == 0 || tvpal_sw_set_band(sw, band) == 0, "band %u", band);
     REQUIRE(tvpal_sw_set_slices(sw, f->w, f->h, layers, &d) == 0, "%s", d.msg);
     REQUIRE(tvpal_sw_draw(sw, f, img, &d) == 0, "%s", d.msg);
     tvpal_sw_free(sw);
+}
+
+static void draw_mode(const struct tvpal_frame *f, uint32_t layers, int threads,
+                      int skip, int simd, int exact, int runs, float *img)
+{
+    draw_band_mode(f, layers, threads, skip, simd, exact, runs, 0, img);
 }
 
 /* The identity tests of skipping, SIMD and threads against drawing every
@@ -262,6 +274,10 @@ int main(void)
         }
         draw_fresh(&f, f.count, 2, 0, 1, img2);
         CHECK(!memcmp(img, img2, sizeof(float) * np), "skipping changed pixels (sparse TF)");
+        for (unsigned band = 1; band <= 32; band += band == 1 ? 6 : 25) {
+            draw_band_mode(&f, f.count, 2, 1, 1, 1, 1, band, img2);
+            CHECK(!memcmp(img, img2, sizeof(float) * np), "band %u changed pixels", band);
+        }
         if (avx2) {
             draw_fresh(&f, f.count, 2, 1, 0, img2);
             CHECK(!memcmp(img, img2, sizeof(float) * np), "SSE2 vs AVX2 differ (K %u)", k);
@@ -343,6 +359,9 @@ int main(void)
             REQUIRE(tvpal_sw_draw(fk, &f, img2, &d) == 0, "%s", d.msg);
             CHECK(!memcmp(img, img2, sizeof(float) * np), "K %u: options changed pixels", k);
             CHECK(k != 0 || tvpal_sw_set_scale(fk, 9) == TVPAL_E_INVAL, "K 9 accepted");
+            CHECK(k != 0 || (tvpal_sw_set_band(fk, 0) == TVPAL_E_INVAL &&
+                             tvpal_sw_set_band(fk, 33) == TVPAL_E_INVAL),
+                  "band 0 or 33 accepted");
             tvpal_sw_free(fk);
         }
         CHECK(p[8] >= p[0] - 0.01, "K 8 (%.2f dB) worse than auto (%.2f dB)", p[8], p[0]);
@@ -383,6 +402,73 @@ int main(void)
         CHECK(tvpal_sw_draw(sw, &f, img, &d) == TVPAL_E_INVAL && strstr(d.msg, "layer"),
               "layer out of range: %s", d.msg);
         CHECK(tvpal_sw_set_slices(sw, 0, 5, 4, &d) == TVPAL_E_INVAL, "empty slices");
+    }
+
+    /* Lazy classification (tile sets built only where probes cannot
+     * decide).  A dense TF: every tile is proved visible by a probe, no set
+     * is built; drawn again, by the index its probe found (no probe).  Then slices transparent but for two texels of each tile
+     * that no probe reads (its corners): every tile's set is built, the
+     * corners are drawn, the image is that of drawing every tile; the
+     * next frame builds none (the sets are kept) and after an upload only
+     * that layer's are built again. */
+    {
+        struct tvpal_view v = {.dims = {48, 40, 32}, .width = vo.W, .height = vo.H,
+                               .ax_deg = 25, .ay_deg = 35, .zoom = 1};
+        struct tvpal_frame f = {0};
+        struct tvpal_sw_counts c;
+        const size_t np = (size_t)4 * vo.W * vo.H;
+        struct tvpal_sw *lz;
+        REQUIRE(tvpal_sw_create(&lz) == 0, "create");
+        tvpal_sw_options(lz, 2, 1, 1);
+        make_frame(&vo, &v, &f, &tf2);
+        const unsigned long tiles = (unsigned long)f.count * ((f.w + 15) / 16) *
+                                    ((f.h + 15) / 16);
+        REQUIRE(tvpal_sw_set_slices(lz, f.w, f.h, f.count, &d) == 0, "%s", d.msg);
+        REQUIRE(tvpal_sw_draw(lz, &f, img, &d) == 0, "%s", d.msg);
+        tvpal_sw_counts(lz, &c);
+        CHECK(c.probed == tiles && c.built == 0, "dense TF: %lu of %lu tiles "
+              "probed, %lu sets built", c.probed, tiles, c.built);
+        REQUIRE(tvpal_sw_draw(lz, &f, img2, &d) == 0, "%s", d.msg);
+        tvpal_sw_counts(lz, &c);
+        CHECK(c.witnessed == tiles && c.probed == 0 && c.built == 0 &&
+              !memcmp(img, img2, sizeof(float) * np), "dense TF again: %lu "
+              "witnessed, %lu probed, %lu built of %lu, or pixels changed",
+              c.witnessed, c.probed, c.built, tiles);
+        make_frame(&vo, &v, &f, &tf);   /* index 0 transparent, 255 not */
+        for (uint32_t k = 0; k < f.count; k++) {
+            uint8_t *I = idx_store + (size_t)sl[k].slice * f.w * f.h;
+            memset(I, 0, (size_t)f.w * f.h);
+            for (uint32_t y = 0; y < f.h; y += 16)
+                for (uint32_t x = 0; x < f.w; x += 16) {
+                    I[x + (size_t)f.w * y] = 255;
+                    uint32_t x1 = x + 15 < f.w ? x + 15 : f.w - 1;
+                    uint32_t y1 = y + 15 < f.h ? y + 15 : f.h - 1;
+                    I[x1 + (size_t)f.w * y1] = 255;
+                }
+            tvpal_sw_upload(lz, sl[k].layer);
+        }
+        REQUIRE(tvpal_sw_draw(lz, &f, img, &d) == 0, "%s", d.msg);
+        tvpal_sw_counts(lz, &c);
+        CHECK(c.witnessed == 0 && c.probed == 0 && c.built == tiles, "probes "
+              "missed: %lu witnessed, %lu probed, %lu of %lu sets built",
+              c.witnessed, c.probed, c.built, tiles);
+        draw_fresh(&f, f.count, 1, 0, 1, img2);
+        CHECK(!memcmp(img, img2, sizeof(float) * np), "lazy sets changed pixels");
+        double energy = 0;
+        for (size_t i = 3; i < np; i += 4)
+            energy += img[i];
+        CHECK(energy > 0, "the corner texels were not drawn");
+        REQUIRE(tvpal_sw_draw(lz, &f, img2, &d) == 0, "%s", d.msg);
+        tvpal_sw_counts(lz, &c);
+        CHECK(c.probed == 0 && c.built == 0 && !memcmp(img, img2, sizeof(float) * np),
+              "kept sets: %lu probed, %lu built, or pixels changed", c.probed, c.built);
+        tvpal_sw_upload(lz, sl[3].layer);
+        REQUIRE(tvpal_sw_draw(lz, &f, img2, &d) == 0, "%s", d.msg);
+        tvpal_sw_counts(lz, &c);
+        CHECK(c.built == tiles / f.count && !memcmp(img, img2, sizeof(float) * np),
+              "one upload: %lu sets built (expected %lu), or pixels changed",
+              c.built, tiles / f.count);
+        tvpal_sw_free(lz);
     }
 
     /* Extreme views (NaN, infinite or huge angles and zooms): the view's
@@ -537,6 +623,9 @@ int main(void)
             draw_mode(&f, f.count, 3, 1, 0, 0, 1, img2);
             CHECK(!memcmp(img, img2, sizeof(float) * np),
                   "case %d: SSE2 or threads changed pixels", n);
+            draw_band_mode(&f, f.count, 2, 1, 1, 0, 1, n % 2 ? 1 : 5, img2);
+            CHECK(!memcmp(img, img2, sizeof(float) * np),
+                  "case %d: band %d changed pixels", n, n % 2 ? 1 : 5);
             draw_mode(&f, f.count, 2, 1, 1, 1, 1, img2);
             double dm;
             int lv = max_level_diff(img, img2, npix, &dm);

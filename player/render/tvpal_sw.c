@@ -1,11 +1,12 @@
 /* tvpal_sw.c: shear-warp CPU palette renderer (see tvpal_sw.h).
  *
  * Three phases per frame, each a parallel loop:
- *   classify:  tile index sets of slices whose indices changed, then the
- *              visible tiles of every slice (its set meets the palette's
- *              non-zero entries);
- *   composite: per intermediate row, front to back through the slices,
- *              runs of visible tiles only; per texel one vertical lerp
+ *   classify:  the visible tiles of every slice (a probe or its index set
+ *              meets the palette's non-zero entries), building the sets
+ *              a probe could not spare;
+ *   composite: per band of intermediate rows, front to back through the
+ *              slices (each slice through the band's rows), runs of
+ *              visible tiles only; per texel one vertical lerp
  *              (constant weight fy for the row), then K horizontal lerps
  *              (constant weights fx[q]) and K blends;
  *   warp:      per output pixel, bilinear from the intermediate image.
@@ -33,6 +34,8 @@
 #define KAUTO 4       /* most intermediate pixels per texel chosen alone */
 #define KMAX 8        /* most that can be asked for (tvpal_sw_set_scale) */
 #define TILE_MIN 16   /* tile side; doubled until a row has <= 64 tiles */
+#define BAND 4        /* intermediate rows composited together by default */
+#define BAND_MAX 32   /* most that tvpal_sw_set_band takes */
 
 /* The transposed indices of the held z slices for one view axis (cross
  * frames): slice s of w' texels a row, rows k = 0 .. rows - 1 (z slice z0
@@ -70,6 +73,7 @@ struct tvpal_sw {
     int threads, skip, simd;
     int exact;            /* stop only at alpha 1 (tvpal_sw_set_exact) */
     int runs;             /* skip stopped runs by maps (tvpal_sw_set_runs) */
+    unsigned band;        /* rows composited together (tvpal_sw_set_band) */
     float stop;           /* this draw's alpha at which a pixel stops */
     uint64_t *maps;       /* per thread: stopped pixels of one row */
     size_t maps_cap;      /* words */
@@ -78,8 +82,15 @@ struct tvpal_sw {
     uint32_t w, h, layers;
     unsigned tile, tcols, trows;
     uint64_t *sets;       /* layers x trows x tcols x 4 words: index sets */
-    uint8_t *dirty;       /* layers: indices changed since the sets */
-    uint32_t *todo;       /* layers: dirty layers of this frame (scratch) */
+    uint64_t *built;      /* layers x trows: tile columns whose set is
+                             current (cleared by tvpal_sw_upload) */
+    uint8_t *wit;         /* layers x trows x tcols: a visible index a
+                             probe found in the tile (its witness) */
+    uint64_t *witv;       /* layers x trows: tiles whose witness is
+                             current (cleared by tvpal_sw_upload) */
+    uint32_t *first;      /* layers: the layer's first frame slice (scratch) */
+    uint32_t *todo;       /* layers: those first frame slices (scratch) */
+    struct tvpal_sw_counts counts;   /* of the last draw */
     uint64_t *vis;        /* frame slices x trows: visible tile columns */
     size_t vis_cap;       /* frame slices vis holds */
     uint32_t *ugen;       /* layers: generation of the indices, bumped by
@@ -98,6 +109,7 @@ int tvpal_sw_create(struct tvpal_sw **out)
     r->skip = 1;
     r->simd = 1;
     r->runs = 1;
+    r->band = BAND;
     *out = r;
     return 0;
 }
@@ -110,7 +122,10 @@ void tvpal_sw_free(struct tvpal_sw *r)
     free(r->cov);
     free(r->maps);
     free(r->sets);
-    free(r->dirty);
+    free(r->built);
+    free(r->wit);
+    free(r->witv);
+    free(r->first);
     free(r->todo);
     free(r->vis);
     free(r->ugen);
@@ -144,6 +159,14 @@ void tvpal_sw_set_runs(struct tvpal_sw *r, int runs)
     r->runs = runs;
 }
 
+int tvpal_sw_set_band(struct tvpal_sw *r, unsigned rows)
+{
+    if (rows < 1 || rows > BAND_MAX)
+        return TVPAL_E_INVAL;
+    r->band = rows;
+    return 0;
+}
+
 int tvpal_sw_set_scale(struct tvpal_sw *r, unsigned k)
 {
     if (k > KMAX)
@@ -158,6 +181,11 @@ void tvpal_sw_times(const struct tvpal_sw *r, double *classify_ms,
     *classify_ms = r->t_classify;
     *composite_ms = r->t_composite;
     *warp_ms = r->t_warp;
+}
+
+void tvpal_sw_counts(const struct tvpal_sw *r, struct tvpal_sw_counts *c)
+{
+    *c = r->counts;
 }
 
 unsigned tvpal_sw_scale(const struct tvpal_sw *r)
@@ -199,28 +227,39 @@ int tvpal_sw_set_slices(struct tvpal_sw *r, uint32_t w, uint32_t h,
         return tvpal_diag_set(diag, TVPAL_E_OVERFLOW, "tile index sets for "
                               "%u slices of %ux%u", layers, w, h);
     uint64_t *sets = malloc(nl * trows * tcols * 4 * sizeof *sets);
-    uint8_t *dirty = malloc(nl);
+    uint64_t *built = calloc(nl * trows, sizeof *built);   /* none built */
+    uint8_t *wit = malloc(nl * trows * tcols);
+    uint64_t *witv = calloc(nl * trows, sizeof *witv);     /* none found */
+    uint32_t *first = malloc(nl * sizeof *first);
     uint32_t *todo = malloc(nl * sizeof *todo);
     uint32_t *ugen = malloc(nl * sizeof *ugen);
-    if (!sets || !dirty || !todo || !ugen) {
+    if (!sets || !built || !wit || !witv || !first || !todo || !ugen) {
         free(sets);
-        free(dirty);
+        free(built);
+        free(wit);
+        free(witv);
+        free(first);
         free(todo);
         free(ugen);
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "tile index sets for "
                               "%u slices of %ux%u", layers, w, h);
     }
     free(r->sets);
-    free(r->dirty);
+    free(r->built);
+    free(r->wit);
+    free(r->witv);
+    free(r->first);
     free(r->todo);
     free(r->ugen);
-    memset(dirty, 1, nl);
     for (size_t i = 0; i < nl; i++)
         ugen[i] = 1;
     r->ugen = ugen;
     r->xc[0].rows = r->xc[1].rows = 0;   /* cut every row again */
     r->sets = sets;
-    r->dirty = dirty;
+    r->built = built;
+    r->wit = wit;
+    r->witv = witv;
+    r->first = first;
     r->todo = todo;
     r->w = w;
     r->h = h;
@@ -235,78 +274,99 @@ int tvpal_sw_set_slices(struct tvpal_sw *r, uint32_t w, uint32_t h,
 void tvpal_sw_upload(struct tvpal_sw *r, uint32_t layer)
 {
     if (layer < r->layers) {
-        r->dirty[layer] = 1;
+        memset(r->built + (size_t)layer * r->trows, 0, sizeof *r->built * r->trows);
+        memset(r->witv + (size_t)layer * r->trows, 0, sizeof *r->witv * r->trows);
         if (++r->ugen[layer] == 0)
             r->ugen[layer] = 1;   /* 0 means "nothing cut" */
     }
 }
 
-/* Index sets of every tile of one slice: 256 bits, bit i set iff some
- * texel of the tile holds index i.  Marks in a byte table (stores only, no
- * dependency chain), then packs.  The marks of tile row ty are the value
- * ty % 255 + 1, so the table is cleared once per 255 tile rows, not per
- * row. */
-static void build_sets(const struct tvpal_sw *r, uint32_t layer,
-                       const uint8_t *idx)
+/* Classification, lazily.  A tile is visible for a palette iff it holds an
+ * index whose entry is not all zero.  Its exact index set (256 bits, bit i
+ * set iff some texel holds index i) answers that for any palette, but
+ * building it reads every texel.  So a tile whose set is not current is
+ * first probed: 16 texels spread over it (centres of a 4 x 4 grid of
+ * blocks) are looked up in the palette's non-zero table, and one non-zero
+ * entry proves the tile visible with no set at all.  Only a tile none of
+ * whose probes is visible gets its set built (then kept until the layer's
+ * next upload) and tested.  Either way the answer is exactly the set's:
+ * the visible tiles, and so the image, are those of building every set.
+ * Under a dense TF most tiles of changed slices are decided by their first
+ * probe, which is what stops a steady frame from reading all of 1/N of
+ * the volume to classify it.  The visible index a probe found is kept as
+ * the tile's witness until the layer's next upload: while the palettes of
+ * later frames keep it visible, the tile is decided by one byte, with no
+ * read of the slice's indices (1/16 of a slice's bytes for its probes). */
+
+/* Marks of the texels of tile (tx, ty) of `idx` in seen (a byte per
+ * index: mark where present), packed into the tile's set m[0..3]. */
+static void build_tile(const struct tvpal_sw *r, const uint8_t *idx,
+                       unsigned tx, unsigned ty, uint8_t seen[256],
+                       uint8_t mark, uint64_t m[4])
 {
-    const unsigned tile = r->tile, tcols = r->tcols;
-    const uint32_t w = r->w, h = r->h;
-    uint64_t *out = r->sets + (size_t)layer * r->trows * tcols * 4;
-    _Alignas(16) uint8_t seen[64][256];
-    for (unsigned ty = 0; ty < r->trows; ty++) {
-        const uint8_t mark = (uint8_t)(ty % 255 + 1);
-        if (mark == 1)
-            memset(seen, 0, sizeof(seen[0]) * tcols);
-        uint32_t y1 = (ty + 1) * tile < h ? (ty + 1) * tile : h;
-        for (uint32_t y = ty * tile; y < y1; y++) {
-            const uint8_t *row = idx + (size_t)w * y;
-            for (unsigned tx = 0; tx < tcols; tx++) {
-                uint32_t x0 = tx * tile, x1 = x0 + tile < w ? x0 + tile : w;
-                uint8_t *s = seen[tx];
-                uint32_t x = x0;
-                /* Eight indices per 64-bit load (tiles are 16 or more
-                 * wide): a store per texel, no loop step per texel. */
-                for (; x + 8 <= x1; x += 8) {
-                    uint64_t v;
-                    memcpy(&v, row + x, 8);
-                    s[v & 255] = mark;
-                    s[(v >> 8) & 255] = mark;
-                    s[(v >> 16) & 255] = mark;
-                    s[(v >> 24) & 255] = mark;
-                    s[(v >> 32) & 255] = mark;
-                    s[(v >> 40) & 255] = mark;
-                    s[(v >> 48) & 255] = mark;
-                    s[v >> 56] = mark;
-                }
-                for (; x < x1; x++)
-                    s[row[x]] = mark;
-            }
+    const uint32_t w = r->w, tile = r->tile;
+    const uint32_t x0 = tx * tile, x1 = x0 + tile < w ? x0 + tile : w;
+    const uint32_t y1 = (ty + 1) * tile < r->h ? (ty + 1) * tile : r->h;
+    for (uint32_t y = ty * tile; y < y1; y++) {
+        const uint8_t *row = idx + (size_t)w * y;
+        uint32_t x = x0;
+        /* Eight indices per 64-bit load (tiles are 16 or more wide): a
+         * store per texel, no loop step per texel. */
+        for (; x + 8 <= x1; x += 8) {
+            uint64_t v;
+            memcpy(&v, row + x, 8);
+            seen[v & 255] = mark;
+            seen[(v >> 8) & 255] = mark;
+            seen[(v >> 16) & 255] = mark;
+            seen[(v >> 24) & 255] = mark;
+            seen[(v >> 32) & 255] = mark;
+            seen[(v >> 40) & 255] = mark;
+            seen[(v >> 48) & 255] = mark;
+            seen[v >> 56] = mark;
         }
-        for (unsigned tx = 0; tx < tcols; tx++) {
-            uint64_t *m = out + 4 * ((size_t)ty * tcols + tx);
-            for (int q = 0; q < 4; q++) {
-                uint64_t bits = 0;
+        for (; x < x1; x++)
+            seen[row[x]] = mark;
+    }
+    for (int q = 0; q < 4; q++) {
+        uint64_t bits = 0;
 #if defined(__SSE2__)
-                const __m128i vm = _mm_set1_epi8((char)mark);
-                for (int c = 0; c < 4; c++) {
-                    __m128i v = _mm_load_si128((const __m128i *)&seen[tx][64 * q + 16 * c]);
-                    bits |= (uint64_t)(unsigned)_mm_movemask_epi8(_mm_cmpeq_epi8(v, vm))
-                            << (16 * c);
-                }
-#else
-                for (int i = 0; i < 64; i++)
-                    bits |= (uint64_t)(seen[tx][64 * q + i] == mark) << i;
-#endif
-                m[q] = bits;
-            }
+        const __m128i vm = _mm_set1_epi8((char)mark);
+        for (int c = 0; c < 4; c++) {
+            __m128i v = _mm_loadu_si128((const __m128i *)&seen[64 * q + 16 * c]);
+            bits |= (uint64_t)(unsigned)_mm_movemask_epi8(_mm_cmpeq_epi8(v, vm))
+                    << (16 * c);
         }
+#else
+        for (int i = 0; i < 64; i++)
+            bits |= (uint64_t)(seen[64 * q + i] == mark) << i;
+#endif
+        m[q] = bits;
     }
 }
 
-/* Visible tile columns of each tile row of one slice for its palette: a
- * tile is visible iff it holds an index whose entry is not all zero. */
+/* The first of the 16 probes of tile (tx, ty) that holds an index nz[]
+ * says is visible: that index, or -1 when none does. */
+static int probe_tile(const struct tvpal_sw *r, const uint8_t *idx,
+                      unsigned tx, unsigned ty, const uint8_t nz[256])
+{
+    const uint32_t w = r->w, tile = r->tile;
+    const uint32_t x0 = tx * tile, y0 = ty * tile;
+    const uint32_t nx = (x0 + tile < w ? x0 + tile : w) - x0;
+    const uint32_t ny = (y0 + tile < r->h ? y0 + tile : r->h) - y0;
+    for (uint32_t i = 0; i < 4; i++) {
+        const uint8_t *row = idx + (size_t)w * (y0 + (2 * i + 1) * ny / 8);
+        for (uint32_t j = 0; j < 4; j++)
+            if (nz[row[x0 + (2 * j + 1) * nx / 8]])
+                return row[x0 + (2 * j + 1) * nx / 8];
+    }
+    return -1;
+}
+
+/* Visible tile columns of each tile row of one slice for its palette,
+ * lazily (above); counts what decided each tile.  Writes the layer's sets
+ * and built bits: a layer is classified by one thread at a time. */
 static void classify(const struct tvpal_sw *r, const struct tvpal_frame_slice *sl,
-                     uint64_t *out)
+                     uint64_t *out, struct tvpal_sw_counts *cnt)
 {
     const uint64_t all = r->tcols == 64 ? ~0ull : (1ull << r->tcols) - 1;
     if (!r->skip) {
@@ -315,17 +375,53 @@ static void classify(const struct tvpal_sw *r, const struct tvpal_frame_slice *s
         return;
     }
     uint64_t vm[4] = {0, 0, 0, 0};
+    uint8_t nz[256];
     const float *p = sl->palette;
-    for (int i = 0; i < 256; i++)
-        if (p[4 * i] != 0.0f || p[4 * i + 1] != 0.0f || p[4 * i + 2] != 0.0f ||
-            p[4 * i + 3] != 0.0f)
-            vm[i >> 6] |= 1ull << (i & 63);
-    const uint64_t *s = r->sets + (size_t)sl->layer * r->trows * r->tcols * 4;
+    for (int i = 0; i < 256; i++) {
+        nz[i] = p[4 * i] != 0.0f || p[4 * i + 1] != 0.0f ||
+                p[4 * i + 2] != 0.0f || p[4 * i + 3] != 0.0f;
+        vm[i >> 6] |= (uint64_t)nz[i] << (i & 63);
+    }
+    if (!(vm[0] | vm[1] | vm[2] | vm[3])) {   /* a transparent palette */
+        memset(out, 0, sizeof *out * r->trows);
+        return;
+    }
+    _Alignas(16) uint8_t seen[256];
+    uint8_t mark = 0;
+    uint64_t *sets = r->sets + (size_t)sl->layer * r->trows * r->tcols * 4;
+    uint64_t *built = r->built + (size_t)sl->layer * r->trows;
+    uint64_t *witv = r->witv + (size_t)sl->layer * r->trows;
+    uint8_t *wit = r->wit + (size_t)sl->layer * r->trows * r->tcols;
     for (unsigned ty = 0; ty < r->trows; ty++) {
         uint64_t bits = 0;
-        for (unsigned tx = 0; tx < r->tcols; tx++, s += 4)
+        for (unsigned tx = 0; tx < r->tcols; tx++) {
+            uint64_t *s = sets + 4 * ((size_t)ty * r->tcols + tx);
+            if (!(built[ty] >> tx & 1)) {
+                uint8_t *wt = wit + (size_t)ty * r->tcols + tx;
+                if (witv[ty] >> tx & 1 && nz[*wt]) {
+                    bits |= 1ull << tx;
+                    cnt->witnessed++;
+                    continue;
+                }
+                const int found = probe_tile(r, sl->idx, tx, ty, nz);
+                if (found >= 0) {
+                    *wt = (uint8_t)found;
+                    witv[ty] |= 1ull << tx;
+                    bits |= 1ull << tx;
+                    cnt->probed++;
+                    continue;
+                }
+                if (mark++ == 0) {   /* marks 1..255, then clear */
+                    memset(seen, 0, sizeof seen);
+                    mark = 1;
+                }
+                build_tile(r, sl->idx, tx, ty, seen, mark, s);
+                built[ty] |= 1ull << tx;
+                cnt->built++;
+            }
             if ((s[0] & vm[0]) | (s[1] & vm[1]) | (s[2] & vm[2]) | (s[3] & vm[3]))
                 bits |= 1ull << tx;
+        }
         out[ty] = bits;
     }
 }
@@ -507,14 +603,21 @@ static inline long texel_pixel(const struct span *s, int x, int w, unsigned q)
     return i;
 }
 
+/* Palette entry i (RGBA): the offset in size_t, so that it costs one
+ * shift of the loaded byte, not a shift and a sign extension. */
+static inline const float *entry(const float *pal, uint8_t i)
+{
+    return pal + 4 * (size_t)i;
+}
+
 /* span_v4 and texel_v4 blend one RGBA pixel at a time: with SSE2 where the
  * compiler targets it, else in scalar code (the same operations).  The
  * pixel is tested unless `live` says it is live. */
 #if defined(__SSE2__)
 static inline __m128 vlerp_sse(const struct span *s, int x, __m128 vfy)
 {
-    __m128 a = _mm_loadu_ps(s->pala + 4 * s->ra[x]);
-    __m128 b = _mm_loadu_ps(s->palb + 4 * s->rb[x]);
+    __m128 a = _mm_loadu_ps(entry(s->pala, s->ra[x]));
+    __m128 b = _mm_loadu_ps(entry(s->palb, s->rb[x]));
     return _mm_add_ps(a, _mm_mul_ps(vfy, _mm_sub_ps(b, a)));
 }
 
@@ -587,7 +690,7 @@ INLINE void texel_v4_m(const struct span *s, int x, int w, const int exact)
 #else
 static inline void vlerp_sc(const struct span *s, int x, float *o)
 {
-    const float *a = s->pala + 4 * s->ra[x], *b = s->palb + 4 * s->rb[x];
+    const float *a = entry(s->pala, s->ra[x]), *b = entry(s->palb, s->rb[x]);
     for (int ch = 0; ch < 4; ch++)
         o[ch] = a[ch] + s->fy * (b[ch] - a[ch]);
 }
@@ -674,26 +777,30 @@ AVX2 static inline __m256 load2(const float *lo, const float *hi)
                                 _mm_loadu_ps(hi), 1);
 }
 
-/* Live pixels i, i + 1 = dst + (1 - dst.a) * sm; marks those that stop. */
-AVX2 INLINE void blend2(float *row, uint64_t *map, float stop, long i,
-                        __m256 sm, const int exact)
+/* Live pixels i, i + 1 = dst + (1 - dst.a) * sm.  Returns the alpha
+ * lanes of those that stopped (0x08: pixel i, 0x80: i + 1), for
+ * mark_stops; 0 without a map. */
+AVX2 INLINE unsigned blend2(float *row, uint64_t *map, float stop, long i,
+                            __m256 sm, const int exact)
 {
     float *d = row + 4 * i;
     __m256 dv = _mm256_loadu_ps(d);
     __m256 keep = _mm256_sub_ps(_mm256_set1_ps(1.0f), _mm256_permute_ps(dv, 0xFF));
     __m256 nd = _mm256_add_ps(dv, _mm256_mul_ps(keep, sm));
     _mm256_storeu_ps(d, nd);
-    if (map) {
-        __m256 now = exact ? _mm256_cmp_ps(nd, _mm256_set1_ps(1.0f), _CMP_EQ_OQ)
-                           : _mm256_cmp_ps(nd, _mm256_set1_ps(stop), _CMP_GE_OQ);
-        int m = _mm256_movemask_ps(now) & 0x88;   /* the alpha lanes */
-        if (m) {
-            if (m & 0x08)
-                map_set(map, i);
-            if (m & 0x80)
-                map_set(map, i + 1);
-        }
-    }
+    if (!map)
+        return 0;
+    __m256 now = exact ? _mm256_cmp_ps(nd, _mm256_set1_ps(1.0f), _CMP_EQ_OQ)
+                       : _mm256_cmp_ps(nd, _mm256_set1_ps(stop), _CMP_GE_OQ);
+    return (unsigned)_mm256_movemask_ps(now) & 0x88;
+}
+
+/* Marks the pixels blend2 said stopped: lane bit 4 q + 3 of m is pixel
+ * i + q (the masks of consecutive pairs shifted by 8 each). */
+static inline void mark_stops(uint64_t *map, long i, unsigned m)
+{
+    for (; m; m &= m - 1)
+        map_set(map, i + (__builtin_ctz(m) >> 2));
 }
 
 /* The live run at or after texel *x, for kernels whose texel x has pixels
@@ -719,7 +826,8 @@ static inline int live_run(const uint64_t *map, long c0, long k, int *x,
 }
 
 /* K = 1, the pair of texels x, x + 1: vp holds V(x) in its high half on
- * entry and [V(x+1) | V(x+2)] on return; both pixels are blended (live). */
+ * entry and [V(x+1) | V(x+2)] on return; both pixels are blended (live);
+ * returns blend2's stops, unmarked. */
 struct k1_ctx {      /* a span's K = 1 constants, read once per span */
     __m256 vfy, vfx;
     const uint8_t *ra, *rb;
@@ -729,17 +837,18 @@ struct k1_ctx {      /* a span's K = 1 constants, read once per span */
     long c0;
 };
 
-AVX2 INLINE void pair_k1(const struct k1_ctx *k, int x, __m256 *vp,
-                         uint64_t *map, const int exact)
+AVX2 INLINE unsigned pair_k1(const struct k1_ctx *k, int x, __m256 *vp,
+                             uint64_t *map, const int exact)
 {
-    __m256 a = load2(k->pala + 4 * k->ra[x + 1], k->pala + 4 * k->ra[x + 2]);
-    __m256 b = load2(k->palb + 4 * k->rb[x + 1], k->palb + 4 * k->rb[x + 2]);
+    __m256 a = load2(entry(k->pala, k->ra[x + 1]), entry(k->pala, k->ra[x + 2]));
+    __m256 b = load2(entry(k->palb, k->rb[x + 1]), entry(k->palb, k->rb[x + 2]));
     __m256 vn = _mm256_add_ps(a, _mm256_mul_ps(k->vfy, _mm256_sub_ps(b, a)));
     __m256 cur = _mm256_permute2f128_ps(*vp, vn, 0x21); /* [V(x) | V(x+1)] */
-    blend2(k->row, map, k->stop, k->c0 + x,
-           _mm256_add_ps(cur, _mm256_mul_ps(k->vfx, _mm256_sub_ps(vn, cur))),
-           exact);
+    unsigned m = blend2(k->row, map, k->stop, k->c0 + x,
+                        _mm256_add_ps(cur, _mm256_mul_ps(k->vfx, _mm256_sub_ps(vn, cur))),
+                        exact);
     *vp = vn;
+    return m;
 }
 
 /* K = 1, texel x alone (tested unless live); vp as for pair_k1, holding
@@ -788,8 +897,18 @@ AVX2 INLINE void span_avx2_k1_m(const struct span *s, int x0, int x1,
     int xe;
     while (x <= x1 && live_run(map, c0, 1, &x, x1, &xe)) {
         __m256 vp = dup_v(vlerp_sse(s, x, vfy1));
-        for (; x + 1 <= xe; x += 2)
-            pair_k1(&k, x, &vp, map, exact);
+        /* Two pairs a step: one test of their stops, one loop step. */
+        for (; x + 3 <= xe; x += 4) {
+            unsigned m = pair_k1(&k, x, &vp, map, exact);
+            m |= pair_k1(&k, x + 2, &vp, map, exact) << 8;
+            if (m)
+                mark_stops(map, c0 + x, m);
+        }
+        for (; x + 1 <= xe; x += 2) {
+            unsigned m = pair_k1(&k, x, &vp, map, exact);
+            if (m)
+                mark_stops(map, c0 + x, m);
+        }
         if (x == xe)
             single_k1(s, x++, &vp, exact, 1);
     }
@@ -802,8 +921,10 @@ AVX2 INLINE void texel_k2(const struct span *s, int x, __m128 *c,
 {
     __m128 cn = vlerp_sse(s, x + 1, vfy);
     __m256 d2 = dup_v(_mm_sub_ps(cn, *c));
-    blend2(s->row, map, s->stop, s->c0 + 2L * x,
-           _mm256_add_ps(dup_v(*c), _mm256_mul_ps(vfx, d2)), exact);
+    unsigned m = blend2(s->row, map, s->stop, s->c0 + 2L * x,
+                        _mm256_add_ps(dup_v(*c), _mm256_mul_ps(vfx, d2)), exact);
+    if (m)
+        mark_stops(map, s->c0 + 2L * x, m);
     *c = cn;
 }
 
@@ -880,121 +1001,179 @@ struct drawable {
     unsigned tile, trows;
 };
 
-/* Composites row j of the stored part (global row jo + j) through every
- * slice, front to back. */
-static void composite_row(const struct tvpal_sw *r, const struct drawable *dr,
-                          const struct tvpal_view *v, const struct geom *g,
-                          unsigned j, float *row, int32_t *cov, uint64_t *map)
+/* What every row of a band shares for one slice: its depth, the texel
+ * shift, the first pixel c0 whose sample lies at or right of texel 0, the
+ * K phase weights and the pixels the slice covers. */
+struct slice_step {
+    double c, ta;
+    long sc0;             /* c0 in stored-row pixels */
+    float fx[KMAX];
+    long first, end;      /* covered pixels [first, end) of any row it meets */
+};
+
+static void slice_step(const struct geom *g, const struct tvpal_view *v,
+                       int w, uint32_t slice, struct slice_step *st)
 {
-    const int w = dr->w, rb0 = dr->rb0, rb1 = dr->rb1;
-    const unsigned k = g->k, tile = dr->tile;
-    long cov_lo = g->wc, cov_hi = 0;
-    memset(row, 0, sizeof(float) * 4 * g->wc);
-    if (map)
-        memset(map, 0, sizeof *map * map_words(g->wc));
-    for (uint32_t n = dr->count; n-- > 0;) {
-        const struct tvpal_frame_slice *sl = &dr->sl[n];
-        if (map && map_next(map, 0, g->wc, 0) >= (long)g->wc) {
-            /* Every pixel of the row has stopped: nothing behind can change
-             * it, and every pixel is covered (it was blended). */
-            cov_lo = 0;
-            cov_hi = g->wc;
-            break;
+    const unsigned k = g->k;
+    st->c = slice_depth(v, slice);
+    st->ta = g->u0 - st->c * g->sx;
+    /* Pixel i samples x = (i + 0.5) / K + ta - 0.5. */
+    const double c0 = ceil(k * (0.5 - st->ta) - 0.5);
+    st->sc0 = (long)c0 - g->io;
+    unsigned qs = 0; /* phases with fx < 0.5 (fx grows with q) */
+    for (unsigned q = 0; q < k; q++) {
+        double fx = (c0 + q + 0.5) / k + st->ta - 0.5;
+        st->fx[q] = (float)(fx < 0 ? 0 : fx > 1 ? 1 : fx);
+        qs += st->fx[q] < 0.5f;
+    }
+    /* The slice covers pixels c0 - K + qs .. c0 + K (w - 1) + qs - 1
+     * (the same tests as texel_v4), whatever its palette; a row of the
+     * slice that another node holds (cross frames of a slab) is covered
+     * too, by nothing: the warp filters across the slab's boundary as
+     * inside the volume, and the silhouette stays where the volume ends. */
+    st->first = st->sc0 - (long)k + qs;
+    st->end = st->sc0 + (long)k * (w - 1) + qs;
+}
+
+/* The visible texel runs `bits` (tile columns) of one slice row, through
+ * the inner loops; edge texels (the slice's, and those only partly inside
+ * the stored row, outside xmin..xmax) pixel by pixel. */
+static void draw_runs(const struct tvpal_sw *r, const struct span *s,
+                      uint64_t bits, int w, unsigned tile, long xmin, long xmax)
+{
+    while (bits) {
+        unsigned t0 = (unsigned)__builtin_ctzll(bits);
+        uint64_t sh = bits >> t0;
+        unsigned len = ~sh == 0 ? 64 - t0 : (unsigned)__builtin_ctzll(~sh);
+        unsigned t1 = t0 + len;
+        bits = t1 >= 64 ? 0 : bits & ~((1ull << t1) - 1);
+        /* Texels [a, b) are visible: pixels whose x0 is a - 1 .. b - 1
+         * may sample them (x0 = -1 and w - 1 are the clamped edges). */
+        long a = (long)t0 * tile, b = (long)t1 * tile < w ? (long)t1 * tile : w;
+        long lo = a - 1, hi = b - 1;
+        if (lo < 0) {
+            texel_v4(s, -1, w);         /* samples with fx >= 0.5 */
+            lo = 0;
         }
-        const double c = slice_depth(v, sl->slice);
-        const double ty = g->v0 + (g->jo + j + 0.5) / k - c * g->sy;
-        if (!(ty >= 0 && ty < dr->h))
-            continue;
-        const double ta = g->u0 - c * g->sx;
-        /* Pixel i samples x = (i + 0.5) / K + ta - 0.5; the first pixel
-         * whose sample lies at or right of texel 0 is c0. */
-        const double c0 = ceil(k * (0.5 - ta) - 0.5);
-        const long sc0 = (long)c0 - g->io;
-        float fxq[KMAX];
-        unsigned qs = 0; /* phases with fx < 0.5 (fx grows with q) */
-        for (unsigned q = 0; q < k; q++) {
-            double fx = (c0 + q + 0.5) / k + ta - 0.5;
-            fxq[q] = (float)(fx < 0 ? 0 : fx > 1 ? 1 : fx);
-            qs += fxq[q] < 0.5f;
+        if (hi == w - 1) {
+            texel_v4(s, w - 1, w);      /* samples with fx < 0.5 */
+            hi = w - 2;
         }
-        /* The slice covers pixels c0 - K + qs .. c0 + K (w - 1) + qs - 1
-         * (the same tests as texel_v4), whatever its palette; a row of
-         * the slice that another node holds (cross frames of a slab) is
-         * covered too, by nothing: the warp filters across the slab's
-         * boundary as inside the volume, and the silhouette stays where
-         * the volume ends. */
-        long first = sc0 - (long)k + qs, end = sc0 + (long)k * (w - 1) + qs;
-        cov_lo = first < cov_lo ? first : cov_lo;
-        cov_hi = end > cov_hi ? end : cov_hi;
-        if (!(ty >= dr->db0 && ty < dr->db1))
+        /* Texels only partly inside the stored row (clipping). */
+        if (lo < xmin) {
+            if (xmin - 1 >= lo && xmin - 1 <= hi)
+                texel_v4(s, (int)(xmin - 1), w);
+            lo = xmin;
+        }
+        if (hi > xmax) {
+            if (xmax + 1 <= hi && xmax + 1 >= lo)
+                texel_v4(s, (int)(xmax + 1), w);
+            hi = xmax;
+        }
+        if (lo > hi)
             continue;
-        const double yy = ty - 0.5, yf = floor(yy);
-        const int y0 = (int)yf;
-        const int ya = y0 < rb0 ? rb0 : y0, yb = y0 + 1 >= rb1 ? rb1 - 1 : y0 + 1;
-        const float *pa = dr->rowpal ? dr->rowpal[ya - rb0] : sl->palette;
-        const float *pb = dr->rowpal ? dr->rowpal[yb - rb0] : sl->palette;
-        struct span s = {.row = row, .c0 = sc0, .k = k, .wi = g->wc,
-                         .fy = (float)(yy - yf),
-                         .ra = sl->idx + (size_t)w * (ya - rb0),
-                         .rb = sl->idx + (size_t)w * (yb - rb0),
-                         .pala = pa, .palb = pb,
-                         .stop = r->stop, .exact = r->exact && r->skip,
-                         .map = map};
-        memcpy(s.fx, fxq, sizeof fxq);
-        const uint64_t *vr = dr->vis + (size_t)dr->trows *
-                             (dr->vis_group ? sl->slice / dr->vis_group : n);
-        uint64_t bits = vr[(ya - rb0) / tile] | vr[(yb - rb0) / tile];
-        /* Texels whose K pixels all lie inside the row: xmin..xmax. */
-        const long xmin = -floordiv(s.c0, (long)k);
-        const long xmax = floordiv((long)g->wc - (long)k - s.c0, (long)k);
-        while (bits) {
-            unsigned t0 = (unsigned)__builtin_ctzll(bits);
-            uint64_t sh = bits >> t0;
-            unsigned len = ~sh == 0 ? 64 - t0 : (unsigned)__builtin_ctzll(~sh);
-            unsigned t1 = t0 + len;
-            bits = t1 >= 64 ? 0 : bits & ~((1ull << t1) - 1);
-            /* Texels [a, b) are visible: pixels whose x0 is a - 1 .. b - 1
-             * may sample them (x0 = -1 and w - 1 are the clamped edges). */
-            long a = (long)t0 * tile, b = (long)t1 * tile < w ? (long)t1 * tile : w;
-            long lo = a - 1, hi = b - 1;
-            if (lo < 0) {
-                texel_v4(&s, -1, w);         /* samples with fx >= 0.5 */
-                lo = 0;
-            }
-            if (hi == w - 1) {
-                texel_v4(&s, w - 1, w);      /* samples with fx < 0.5 */
-                hi = w - 2;
-            }
-            /* Texels only partly inside the stored row (clipping). */
-            if (lo < xmin) {
-                if (xmin - 1 >= lo && xmin - 1 <= hi)
-                    texel_v4(&s, (int)(xmin - 1), w);
-                lo = xmin;
-            }
-            if (hi > xmax) {
-                if (xmax + 1 <= hi && xmax + 1 >= lo)
-                    texel_v4(&s, (int)(xmax + 1), w);
-                hi = xmax;
-            }
-            if (lo > hi)
-                continue;
 #ifdef SW_AVX2
-            if (r->avx2 && k == 1) {
-                span_avx2_k1(&s, (int)lo, (int)hi);
-                continue;
-            }
-            if (r->avx2 && k == 2) {
-                span_avx2_k2(&s, (int)lo, (int)hi);
-                continue;
-            }
+        if (r->avx2 && s->k == 1) {
+            span_avx2_k1(s, (int)lo, (int)hi);
+            continue;
+        }
+        if (r->avx2 && s->k == 2) {
+            span_avx2_k2(s, (int)lo, (int)hi);
+            continue;
+        }
 #endif
-            span_v4(&s, (int)lo, (int)hi);
+        span_v4(s, (int)lo, (int)hi);
+    }
+}
+
+/* One row of the band (stored row j, global jo + j) through slice n:
+ * widens the row's coverage [*lo, *hi) and composites what it samples. */
+static void slice_row(const struct tvpal_sw *r, const struct drawable *dr,
+                      const struct geom *g, const struct slice_step *st,
+                      uint32_t n, unsigned j, float *row, uint64_t *map,
+                      long *lo, long *hi)
+{
+    const struct tvpal_frame_slice *sl = &dr->sl[n];
+    const int w = dr->w, rb0 = dr->rb0, rb1 = dr->rb1;
+    const unsigned k = g->k;
+    const double ty = g->v0 + (g->jo + j + 0.5) / k - st->c * g->sy;
+    if (!(ty >= 0 && ty < dr->h))
+        return;
+    *lo = st->first < *lo ? st->first : *lo;
+    *hi = st->end > *hi ? st->end : *hi;
+    if (!(ty >= dr->db0 && ty < dr->db1))
+        return;
+    const double yy = ty - 0.5, yf = floor(yy);
+    const int y0 = (int)yf;
+    const int ya = y0 < rb0 ? rb0 : y0, yb = y0 + 1 >= rb1 ? rb1 - 1 : y0 + 1;
+    const float *pa = dr->rowpal ? dr->rowpal[ya - rb0] : sl->palette;
+    const float *pb = dr->rowpal ? dr->rowpal[yb - rb0] : sl->palette;
+    struct span s = {.row = row, .c0 = st->sc0, .k = k, .wi = g->wc,
+                     .fy = (float)(yy - yf),
+                     .ra = sl->idx + (size_t)w * (ya - rb0),
+                     .rb = sl->idx + (size_t)w * (yb - rb0),
+                     .pala = pa, .palb = pb,
+                     .stop = r->stop, .exact = r->exact && r->skip,
+                     .map = map};
+    memcpy(s.fx, st->fx, sizeof s.fx);
+    const uint64_t *vr = dr->vis + (size_t)dr->trows *
+                         (dr->vis_group ? sl->slice / dr->vis_group : n);
+    const uint64_t bits = vr[(ya - rb0) / dr->tile] | vr[(yb - rb0) / dr->tile];
+    /* Texels whose K pixels all lie inside the row: xmin..xmax. */
+    const long xmin = -floordiv(s.c0, (long)k);
+    const long xmax = floordiv((long)g->wc - (long)k - s.c0, (long)k);
+    draw_runs(r, &s, bits, w, dr->tile, xmin, xmax);
+}
+
+/* Composites the band of stored rows j0 .. j0 + nb - 1 (nb <= BAND_MAX)
+ * through every slice, front to back: slices outside, rows inside, so a
+ * slice's palette (4 KiB) and index rows are fetched once per band, not
+ * once per row (a row through 512 slices meets 2 MiB of palettes, more
+ * than L2 holds).  Each pixel still meets the slices in the same order
+ * with the same operations: the bits of row-by-row compositing.  maps:
+ * nb stopped-pixel maps of map_words(wc) words, or NULL. */
+static void composite_band(const struct tvpal_sw *r, const struct drawable *dr,
+                           const struct tvpal_view *v, const struct geom *g,
+                           unsigned j0, unsigned nb, float *im, int32_t *cov,
+                           uint64_t *maps)
+{
+    const size_t mw = map_words(g->wc);
+    long lo[BAND_MAX], hi[BAND_MAX];
+    unsigned live = 0;   /* rows not yet all stopped: bit b */
+    for (unsigned b = 0; b < nb; b++) {
+        memset(im + (size_t)4 * g->wc * (j0 + b), 0, sizeof(float) * 4 * g->wc);
+        if (maps)
+            memset(maps + mw * b, 0, sizeof *maps * mw);
+        lo[b] = g->wc;
+        hi[b] = 0;
+        live |= 1u << b;
+    }
+    for (uint32_t n = dr->count; n-- > 0 && live;) {
+        struct slice_step st;
+        slice_step(g, v, dr->w, dr->sl[n].slice, &st);
+        for (unsigned b = 0; b < nb; b++) {
+            if (!(live >> b & 1))
+                continue;
+            uint64_t *map = maps ? maps + mw * b : NULL;
+            if (map && map_next(map, 0, g->wc, 0) >= (long)g->wc) {
+                /* Every pixel of the row has stopped: nothing behind can
+                 * change it, and every pixel is covered (it was blended). */
+                lo[b] = 0;
+                hi[b] = g->wc;
+                live &= ~(1u << b);
+                continue;
+            }
+            slice_row(r, dr, g, &st, n, j0 + b, im + (size_t)4 * g->wc * (j0 + b),
+                      map, &lo[b], &hi[b]);
         }
     }
-    cov[0] = (int32_t)(cov_lo < 0 ? 0 : cov_lo);
-    cov[1] = (int32_t)(cov_hi > (long)g->wc ? (long)g->wc : cov_hi);
-    if (cov[1] < cov[0])
-        cov[0] = cov[1] = 0;
+    for (unsigned b = 0; b < nb; b++) {
+        int32_t *c = cov + 2 * (size_t)(j0 + b);
+        c[0] = (int32_t)(lo[b] < 0 ? 0 : lo[b]);
+        c[1] = (int32_t)(hi[b] > (long)g->wc ? (long)g->wc : hi[b]);
+        if (c[1] < c[0])
+            c[0] = c[1] = 0;
+    }
 }
 
 /* Output row py from the stored part of the intermediate image (origin
@@ -1341,7 +1520,7 @@ static void clip_to_output(const struct tvpal_view *v, const struct warp *wp,
 static int reserve_scratch(struct tvpal_sw *r, const struct tvpal_frame *f,
                            const struct geom *g, int nt, struct tvpal_diag *diag)
 {
-    size_t nwords = map_words(g->wc) * (size_t)nt;
+    size_t nwords = map_words(g->wc) * r->band * (size_t)nt;
     if (nwords > r->maps_cap) {
         uint64_t *nm = realloc(r->maps, sizeof *nm * nwords);
         if (!nm)
@@ -1375,34 +1554,39 @@ static int reserve_scratch(struct tvpal_sw *r, const struct tvpal_frame *f,
     return 0;
 }
 
-/* Classify: index sets of the layers whose data changed (each once,
- * whichever frame slices show it), then the visible tiles of every frame
- * slice for its own palette. */
+/* Classify: the visible tiles of every frame slice for its own palette,
+ * building the sets it needs (classify).  A layer's sets are written by
+ * one thread: the first frame slice of each layer is classified in
+ * parallel, any further one (a layer shown twice, which the player never
+ * does) after, in order. */
 static void classify_frame(struct tvpal_sw *r, const struct tvpal_frame *f,
                            int nt)
 {
     const int count = (int)f->count;
-    int ntodo = 0;
-    for (int n = 0; n < count; n++) {
-        const uint32_t layer = f->sl[n].layer;
-        if (r->dirty[layer] == 1) {
-            r->dirty[layer] = 2;
-            r->todo[ntodo++] = (uint32_t)n;
-        }
-    }
-#ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 4) num_threads(nt)
-#endif
-    for (int m = 0; m < ntodo; m++) {
-        const struct tvpal_frame_slice *sl = &f->sl[r->todo[m]];
-        build_sets(r, sl->layer, sl->idx);
-        r->dirty[sl->layer] = 0;
-    }
-#ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 8) num_threads(nt)
-#endif
+    int nfirst = 0;
     for (int n = 0; n < count; n++)
-        classify(r, &f->sl[n], r->vis + (size_t)n * r->trows);
+        r->first[f->sl[n].layer] = UINT32_MAX;
+    for (int n = 0; n < count; n++)
+        if (r->first[f->sl[n].layer] == UINT32_MAX) {
+            r->first[f->sl[n].layer] = (uint32_t)n;
+            r->todo[nfirst++] = (uint32_t)n;
+        }
+    unsigned long witnessed = 0, probed = 0, built = 0;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 8) num_threads(nt) reduction(+ : witnessed, probed, built)
+#endif
+    for (int m = 0; m < nfirst; m++) {
+        struct tvpal_sw_counts c = {0, 0, 0};
+        const uint32_t n = r->todo[m];
+        classify(r, &f->sl[n], r->vis + (size_t)n * r->trows, &c);
+        witnessed += c.witnessed;
+        probed += c.probed;
+        built += c.built;
+    }
+    r->counts = (struct tvpal_sw_counts){witnessed, probed, built};
+    for (int n = 0; n < count; n++)
+        if (r->first[f->sl[n].layer] != (uint32_t)n)
+            classify(r, &f->sl[n], r->vis + (size_t)n * r->trows, &r->counts);
 }
 
 int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
@@ -1445,21 +1629,22 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
         dr.count = 0;
     double t1 = tvpal_now();
     r->t_classify = (t1 - t0) * 1e3;
-    /* Composite: rows of the intermediate image, in small chunks handed
-     * out dynamically (rows near the edges meet fewer slices). */
-    const int hi = (int)g.hc;
-    float *im = r->im;
+    /* Composite: bands of rows of the intermediate image, handed out
+     * dynamically (rows near the edges meet fewer slices). */
+    const unsigned band = r->band;
+    const int nbands = (int)((g.hc + band - 1) / band);
 #ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 4) num_threads(nt)
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
 #endif
-    for (int j = 0; j < hi; j++) {
+    for (int m = 0; m < nbands; m++) {
         int tid = 0;
 #ifdef _OPENMP
         tid = omp_get_thread_num();
 #endif
-        composite_row(r, &dr, v, &g, (unsigned)j, im + (size_t)4 * g.wc * j,
-                      r->cov + 2 * (size_t)j,
-                      use_maps ? r->maps + map_words(g.wc) * tid : NULL);
+        const unsigned j0 = (unsigned)m * band;
+        composite_band(r, &dr, v, &g, j0, g.hc - j0 < band ? g.hc - j0 : band,
+                       r->im, r->cov,
+                       use_maps ? r->maps + map_words(g.wc) * band * tid : NULL);
     }
     double t2 = tvpal_now();
     r->t_composite = (t2 - t1) * 1e3;
@@ -1468,7 +1653,7 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
 #pragma omp parallel for schedule(static) num_threads(nt)
 #endif
     for (int py = 0; py < H; py++)
-        warp_row(im, r->cov, g.io, g.jo, g.wc, g.hc, &wp, v->width, (unsigned)py,
+        warp_row(r->im, r->cov, g.io, g.jo, g.wc, g.hc, &wp, v->width, (unsigned)py,
                  rgba + (size_t)4 * v->width * py);
     r->t_warp = (tvpal_now() - t2) * 1e3;
     return 0;

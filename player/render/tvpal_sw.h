@@ -13,12 +13,15 @@
  * the slice's palette, colours interpolated, premultiplied "over"); only
  * the resampling differs.
  *
- * Only what the frame needs is done.  Each slice is cut into square tiles;
- * when a slice's indices change (tvpal_sw_upload) the set of indices each
- * tile holds is rebuilt, once per upload.  Every frame a tile is visible iff
- * it holds an index whose palette entry is not fully transparent, and only
- * runs of visible tiles are composited (a transparent entry is all zero, so
- * skipping adds exactly nothing).
+ * Only what the frame needs is done.  Each slice is cut into square tiles.
+ * Every frame a tile is visible iff it holds an index whose palette entry
+ * is not fully transparent, and only runs of visible tiles are composited
+ * (a transparent entry is all zero, so skipping adds exactly nothing).  The
+ * set of indices a tile holds answers that for any palette; it is built
+ * only when a frame needs it: after an upload (tvpal_sw_upload) a tile is
+ * first probed at 16 texels, and one visible probe decides it with no set
+ * (the index found decides it in later frames while it stays visible); a
+ * tile with none gets its set built, kept until the next upload.
  *
  * Early termination with a bound.  A pixel of the intermediate image stops
  * accumulating once its remaining transmittance 1 - alpha is at most
@@ -59,9 +62,12 @@
  * conservative: transparent texels drawn add exactly zero, so the image is
  * that of a plain frame of the transposed slices, bit for bit.
  *
- * Rows of the intermediate image are shared among threads (OpenMP), each
- * row composited by one thread through all slices (it stays in L1): the
- * image is the same for any thread count.  An AVX2 inner loop is chosen
+ * Rows of the intermediate image are shared among threads (OpenMP) in
+ * bands of a few rows, each band composited by one thread through all
+ * slices, a slice through every row of the band before the next (the rows
+ * stay in L1, and a slice's palette and index rows are fetched once per
+ * band rather than once per row): the image is the same for any thread
+ * count and band.  An AVX2 inner loop is chosen
  * at run time where the CPU has it; it performs the same float operations
  * in the same order as the SSE2 loop (no fused multiply-add: the player
  * library is built with -ffp-contract=off), so both give the same bits.  No allocation per frame once the largest image and the
@@ -96,6 +102,13 @@ void tvpal_sw_set_exact(struct tvpal_sw *r, int exact);
  * per-row maps; 0: each pixel is tested.  The same image either way. */
 void tvpal_sw_set_runs(struct tvpal_sw *r, int runs);
 
+/* Rows of the intermediate image composited together (1..32; 4 by
+ * default): each slice goes through a band of rows before the next, so
+ * its palette and index rows are fetched once per band.  The same image
+ * for any band (each pixel meets the same operations in the same order);
+ * for tests and benchmarks.  TVPAL_E_INVAL outside 1..32. */
+int tvpal_sw_set_band(struct tvpal_sw *r, unsigned rows);
+
 /* Intermediate pixels per texel: 0 (the default) chooses K from the view
  * (1..4, see above); 1..8 forces it (speed against sharpness: the cost
  * grows as K^2).  TVPAL_E_INVAL for k > 8. */
@@ -125,6 +138,15 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
  * changed slices, visible tiles), compositing, warp. */
 void tvpal_sw_times(const struct tvpal_sw *r, double *classify_ms,
                     double *composite_ms, double *warp_ms);
+
+/* What decided the visible tiles of the last draw's slices whose index
+ * sets were not current (see "lazily" in tvpal_sw.c): tiles proved
+ * visible by the index an earlier probe found (their witness), by a
+ * probe, and sets built.  For tests and reports. */
+struct tvpal_sw_counts {
+    unsigned long witnessed, probed, built;
+};
+void tvpal_sw_counts(const struct tvpal_sw *r, struct tvpal_sw_counts *c);
 
 /* Intermediate pixels per texel (K) of the last draw, and the inner loops
  * used ("avx2": AVX2 for K = 1 and 2, SSE2 otherwise; "sse2"; "scalar"),
