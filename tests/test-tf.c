@@ -344,6 +344,86 @@ static void test_color_spaces(void)
           "space name");
 }
 
+/* The largest difference between tf's tabulated colours and the exact
+ * conversion (tab_cells 0), over 20001 values across its domain. */
+static double tab_error(const struct tvpal_tf *tf)
+{
+    static struct tvpal_tf exact;
+    exact = *tf;
+    exact.tab_cells = 0;
+    const double a = tf->key[0], b = tf->key[tf->npoints - 1];
+    double worst = 0;
+    for (int i = 0; i <= 20000; i++) {
+        double k = a + (b - a) * i / 20000.0;
+        double v = tf->log_scale ? pow(10.0, k) : k;
+        float t[4], e[4];
+        tvpal_tf_eval(tf, v, t);
+        tvpal_tf_eval(&exact, v, e);
+        for (int c = 0; c < 4; c++)
+            worst = fmax(worst, fabs((double)t[c] - e[c]));
+    }
+    return worst;
+}
+
+/* Lab and diverging TFs are tabulated (a palette entry then costs what an
+ * RGB one does) within an eighth of an 8-bit level of the exact colours
+ * (1/2048; measured here over 20001 values, not only where
+ * tvpal_tf_prepare checks): two-point maps (4096 cells an interval), and
+ * 255 smooth points on a log scale, the densest, whose intervals get the
+ * fewest cells (16).  255 random points turn too sharply for 16 cells and
+ * keep the exact conversion. */
+static void test_tabulated(void)
+{
+    static struct tvpal_tf tf;
+    struct tvpal_diag d = {{0}};
+    static const char *const spaces[] = {"diverging", "lab"};
+    static char text[255 * 64 + 128];
+    uint64_t rng = 42;
+    for (int sp = 0; sp < 2; sp++) {
+        for (int kind = 0; kind < 3; kind++) { /* 2 points, smooth, random */
+            const unsigned n = kind ? 255 : 2;
+            int at = snprintf(text, sizeof text, "colorspace %s\n%s"
+                              "domain normalized\n", spaces[sp],
+                              kind ? "scale log\n" : "");
+            for (unsigned i = 0; i < n; i++) {
+                const double f = (double)i / (n - 1);
+                /* smooth: blue to yellow to red, sampled as presets are */
+                double c[3] = {f < 0.5 ? 2 * f : 1, f < 0.5 ? 2 * f : 2 - 2 * f,
+                               f < 0.5 ? 1 - 2 * f : 0};
+                for (int k = 0; kind == 2 && k < 3; k++) {
+                    rng = rng * 6364136223846793005ull + 1442695040888963407ull;
+                    c[k] = (double)(rng >> 11) / 9007199254740992.0;
+                }
+                at += snprintf(text + at, sizeof text - at, "%.6f %.4f %.4f "
+                               "%.4f 0.5\n", f, c[0], c[1], c[2]);
+            }
+            REQUIRE(tvpal_tf_parse_text(text, 1, 1000, &tf, &d) == 0, "%s",
+                    d.msg);
+            const double e = tab_error(&tf);
+            printf("%s, %u %s points: %u cells an interval, largest "
+                   "difference to the exact colour %.2e\n", spaces[sp], n,
+                   kind == 2 ? "random" : "smooth", tf.tab_cells, e);
+            if (kind == 2)
+                CHECK(tf.tab_cells == 0 && e == 0, "%s, random points: "
+                      "exact conversion kept", spaces[sp]);
+            else
+                CHECK(tf.tab_cells >= 16 && tf.tab_cells % 2 == 0,
+                      "%s, %u points: tabulated (%u cells)", spaces[sp], n,
+                      tf.tab_cells);
+            CHECK(e <= 1.0 / 2048, "%s, %u points: table off by %g",
+                  spaces[sp], n, e);
+        }
+    }
+    /* RGB, HSV (kinks at the hue sextants) and Step: exact, no table. */
+    static const char *const exact[] = {"rgb", "hsv", "wrapped-hsv", "step"};
+    for (int i = 0; i < 4; i++) {
+        snprintf(text, sizeof text, "colorspace %s\ndomain data\n0 0 0 1 1\n"
+                 "1 1 1 0 1\n", exact[i]);
+        CHECK(tvpal_tf_parse_text(text, 0, 1, &tf, &d) == 0 &&
+              tf.tab_cells == 0, "%s: not tabulated", exact[i]);
+    }
+}
+
 int main(void)
 {
     struct tvpal_tf tf;
@@ -551,5 +631,6 @@ int main(void)
     CHECK(zero, "all NaN: every entry exactly 0");
     test_log_scale();
     test_color_spaces();
+    test_tabulated();
     return tt_done("test-tf");
 }

@@ -250,6 +250,70 @@ static void prepare_interval(struct tvpal_tf *tf, unsigned i)
     }
 }
 
+static void tab_color(const struct tvpal_tf *tf, unsigned i, double s,
+                      float rgb[3]);
+
+/* Whether the table stays within TAB_TOL of the exact colours at the
+ * middle of every cell (where linear interpolation errs most): a TF whose
+ * colours turn sharply within a cell (random neighbours, gamut clipping)
+ * keeps the exact conversion. */
+#define TAB_TOL (1.0 / 2048)   /* an eighth of an 8-bit level */
+static int table_holds(const struct tvpal_tf *tf)
+{
+    const unsigned cells = tf->tab_cells;
+    for (unsigned i = 0; i + 1 < tf->npoints; i++)
+        for (unsigned j = 0; j < cells; j++) {
+            const double s = (j + 0.5) / cells;
+            double exact[3];
+            float t[3];
+            space_color(tf, i, s, exact);
+            tab_color(tf, i, s, t);
+            for (int c = 0; c < 3; c++) {
+                double e = exact[c] < 0 ? 0 : exact[c] > 1 ? 1 : exact[c];
+                if (fabs(t[c] - e) > TAB_TOL)
+                    return 0;
+            }
+        }
+    return 1;
+}
+
+/* tf->tab for a Lab or diverging TF of two or more points (see
+ * tvpal_tf.h) when it holds, else tab_cells 0. */
+static void tabulate(struct tvpal_tf *tf)
+{
+    tf->tab_cells = 0;
+    if ((tf->space != TVPAL_TF_LAB && tf->space != TVPAL_TF_DIVERGING) ||
+        tf->npoints < 2)
+        return;
+    unsigned cells = (TVPAL_TF_TAB_CELLS / (tf->npoints - 1)) & ~1u;
+    cells = cells < 16 ? 16 : cells;
+    for (unsigned i = 0; i + 1 < tf->npoints; i++)
+        for (unsigned j = 0; j <= cells; j++) {
+            double rgb[3];
+            space_color(tf, i, (double)j / cells, rgb);
+            float *e = tf->tab[i * (cells + 1) + j];
+            for (int c = 0; c < 3; c++)
+                e[c] = (float)(rgb[c] < 0 ? 0 : rgb[c] > 1 ? 1 : rgb[c]);
+        }
+    tf->tab_cells = cells;
+    if (!table_holds(tf))
+        tf->tab_cells = 0;
+}
+
+/* Colour at s (0..1) of interval i from the table. */
+static void tab_color(const struct tvpal_tf *tf, unsigned i, double s,
+                      float rgb[3])
+{
+    const unsigned cells = tf->tab_cells;
+    const double x = s * cells;
+    unsigned j = (unsigned)x;
+    j = j >= cells ? cells - 1 : j;
+    const float t = (float)(x - j);
+    const float *a = tf->tab[i * (cells + 1) + j], *b = a + 3;
+    for (int c = 0; c < 3; c++)
+        rgb[c] = a[c] + t * (b[c] - a[c]);
+}
+
 static const char *const space_names[] = {"RGB", "HSV", "Wrapped HSV", "Lab",
                                           "Diverging", "Step"};
 
@@ -280,6 +344,7 @@ int tvpal_tf_prepare(struct tvpal_tf *tf, struct tvpal_diag *diag)
     }
     for (unsigned i = 0; i + 1 < tf->npoints && tf->space != TVPAL_TF_RGB; i++)
         prepare_interval(tf, i);
+    tabulate(tf);
     return 0;
 }
 
@@ -867,7 +932,10 @@ static void points_rgba(const struct tvpal_tf *tf, const double *key,
     double span = key[hi] - key[lo];
     float f = span > 0 ? (float)((k - key[lo]) / span) : 1.0f;
     int ncol = 4;
-    if (tf->space != TVPAL_TF_RGB) {
+    if (tf->tab_cells) {
+        tab_color(tf, lo, span > 0 ? (k - key[lo]) / span : 1.0, rgba);
+        ncol = 1; /* opacity only, below */
+    } else if (tf->space != TVPAL_TF_RGB) {
         double rgb[3];
         space_color(tf, lo, span > 0 ? (k - key[lo]) / span : 1.0, rgb);
         for (int c = 0; c < 3; c++)

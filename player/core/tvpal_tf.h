@@ -39,6 +39,10 @@
 #include "tvpal_error.h"
 
 #define TVPAL_TF_MAX_POINTS 256
+/* Cells of the colour table of a Lab or diverging TF over all its
+ * intervals (tvpal_tf.tab), and the table's entries at most. */
+#define TVPAL_TF_TAB_CELLS 4096
+#define TVPAL_TF_TAB_MAX (TVPAL_TF_TAB_CELLS + TVPAL_TF_MAX_POINTS)
 
 /* The space colours are interpolated in between two points (a preset's
  * ColorSpace), computed as VTK's vtkColorTransferFunction::GetTable does
@@ -88,6 +92,22 @@ struct tvpal_tf {
     double op_key[TVPAL_TF_MAX_POINTS];
     double seg[TVPAL_TF_MAX_POINTS][4][3];
     unsigned char split[TVPAL_TF_MAX_POINTS];
+    /* Lab and diverging colours, tabulated by tvpal_tf_prepare: interval
+     * i's colour at s = j / tab_cells of the way (j = 0..tab_cells) is
+     * tab[i * (tab_cells + 1) + j], and tvpal_tf_eval interpolates
+     * linearly between neighbours, as ParaView's volume mappers sample the
+     * colour function into a table.  The conversion from the space to RGB
+     * (three pow, a cos and a sin) is then done once per entry, not per
+     * palette entry per frame: a palette costs what an RGB one does.
+     * tab_cells is even, so a diverging interval's white midpoint is an
+     * entry, and at least 16.  The table is kept only when it is within
+     * 1/2048 (an eighth of an 8-bit level) of the exact colour at the
+     * middle of every cell, where linear interpolation errs most.  0: not
+     * tabulated (RGB; HSV, whose hue sextants have kinks; Step; a Lab or
+     * diverging TF that turns too sharply within a cell), and the exact
+     * conversion per value (a test sets 0 to compare). */
+    unsigned tab_cells;
+    float tab[TVPAL_TF_TAB_MAX][3];
 };
 
 /* Parses the text format (samples/tf/README.md), with its "scale" and
