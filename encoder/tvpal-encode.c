@@ -1355,12 +1355,9 @@ static void encode_step(struct run *r, uint32_t t, size_t njobs)
 {
     struct step_ctx c = {.r = r, .t = t};
     tvpal_pool_for(r->pool, njobs, encode_job, &c);
-    const int failed = c.failed;
-    const struct tvpal_diag fail_d = c.fail_d;
-    const struct shardjob *fail_j = c.fail_j;
-    if (failed)
-        die_fail("%s/axis-%c.tvps: %s", r->ckdir, "xyz"[fail_j->axis],
-                 fail_d.msg);
+    if (c.failed)
+        die_fail("%s/axis-%c.tvps: %s", r->ckdir, "xyz"[c.fail_j->axis],
+                 c.fail_d.msg);
     for (size_t i = 0; i < njobs; i++) {
         const struct slicejob *jb = &r->jobs[i];
         for (uint32_t g = 0; g < jb->count; g++)
