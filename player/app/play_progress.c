@@ -1,9 +1,9 @@
 /* play_progress.c: progress of headless tvpal-play (see play_progress.h). */
 #include "play_progress.h"
 #include "play.h"
+#include "tvpal_cli.h"
 #include "tvpal_clock.h"
 
-#include <math.h>
 #include <unistd.h>
 
 #define PROG PLAY_PROG
@@ -18,22 +18,6 @@ void play_progress_start(struct play_progress *p, FILE *f, int quiet,
     p->t0 = p->last = tvpal_now();
 }
 
-/* "1:02:03", "2:03" or "3 s" for s seconds; "?" when unknown. */
-static void hms(double s, char *out, size_t cap)
-{
-    if (!(s >= 0) || s > 1e8) {
-        snprintf(out, cap, "?");
-        return;
-    }
-    unsigned long t = (unsigned long)(s + 0.5);
-    if (t >= 3600)
-        snprintf(out, cap, "%lu:%02lu:%02lu", t / 3600, t / 60 % 60, t % 60);
-    else if (t >= 60)
-        snprintf(out, cap, "%lu:%02lu", t / 60, t % 60);
-    else
-        snprintf(out, cap, "%lu s", t);
-}
-
 void play_progress_update(struct play_progress *p, uint32_t done)
 {
     if (!p->f)
@@ -45,21 +29,16 @@ void play_progress_update(struct play_progress *p, uint32_t done)
         return;   /* a log gets no line for the end: the summary says it */
     p->last = now;
     const double fps = el > 0 ? done / el : 0;
-    char eta[32];
-    hms(fps > 0 ? (p->total - done) / fps : NAN, eta, sizeof eta);
-    const unsigned pct = (unsigned)(100.0 * done / (p->total ? p->total : 1));
+    /* The encoder's line, so both programs report alike. */
+    char line[256];
+    tvpal_progress_format(line, sizeof line, done, p->total, "frames", fps,
+                          "fps", fps > 0 ? (p->total - done) / fps : -1,
+                          p->tty ? BAR : 0);
     if (!p->tty) {
-        fprintf(p->f, PROG ": %u/%u frames (%u%%), %.2f fps, ETA %s\n", done,
-                p->total, pct, fps, eta);
+        fprintf(p->f, PROG ": %s\n", line);
         return;
     }
-    char bar[BAR + 1];
-    const unsigned full = (unsigned)((uint64_t)BAR * done / (p->total ? p->total : 1));
-    for (unsigned i = 0; i < BAR; i++)
-        bar[i] = i < full ? '#' : '.';
-    bar[BAR] = 0;
-    fprintf(p->f, "\r[%s] %u/%u frames %3u%% %.2f fps ETA %s\033[K", bar,
-            done, p->total, pct, fps, eta);
+    fprintf(p->f, "\r%s\033[K", line);
     fflush(p->f);
     p->drawn = 1;
 }
