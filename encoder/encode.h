@@ -67,6 +67,9 @@ struct opts {
     const char *time_units;           /* --time-units TEXT */
     const char *units;                /* --units TEXT */
     uint64_t mem_limit;               /* --mem-limit SIZE, or 0 */
+    uint32_t checkpoint_every;        /* --checkpoint-every SECONDS: the
+                                       * least time between checkpoints
+                                       * (0: after every step) */
     const char *shard_pat;            /* --shard-dir PATTERN (MPI) */
     uint32_t levels;                  /* --levels L: coarser levels */
     uint32_t axes;                    /* --axes: the axes encoded, a mask
@@ -171,6 +174,8 @@ struct run {
     char units[64];          /* the values' units, or "" (load_times) */
     double t_encode;         /* seconds of the streaming loop */
     struct progress prog;
+    double ckpt_last;        /* when the last checkpoint was saved (or the
+                              * steps began) */
     /* Checkpoint copies of the writers' progress (tvpal_checkpoint.h). */
     struct tvpal_checkpoint_progress ckp;
     /* MPI: this rank encodes node `node` only; its node directory while

@@ -257,6 +257,8 @@ static void encode_level(struct run *r, unsigned k, const uint32_t dk[3],
                  (unsigned long long)r->limit);
     arg_add(&a, "--mem-limit");
     arg_add(&a, "%llu", (unsigned long long)(r->limit - held));
+    arg_add(&a, "--checkpoint-every");
+    arg_add(&a, "%u", o->checkpoint_every);
     arg_add(&a, "--table");
     arg_add(&a, "%s", tvpal_manifest_table_name((uint32_t)o->table_format));
     if (o->refine) {

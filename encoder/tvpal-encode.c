@@ -140,6 +140,8 @@ static void usage(FILE *f)
 "  -o, --output OUTDIR    dataset directory (must not exist)\n"
 "  -f, --force            replace an existing OUTDIR\n"
 "  -q, --quiet            no progress output\n"
+"      --checkpoint-every S  save the resume checkpoint at most every S\n"
+"                         seconds (default 10; 0: after every timestep)\n"
 "  -h, --help             this help\n"
 "  -V, --version          version\n"
 "\n"
@@ -300,6 +302,9 @@ static const struct optspec {
     {"mem-limit", OPT_LONG_ONLY + 15, OPT_SIZE,
      offsetof(struct opts, mem_limit), 0, 0, {0},
      "a size such as 12G, 800M or 1073741824 (bytes)"},
+    {"checkpoint-every", OPT_LONG_ONLY + 21, OPT_U32,
+     offsetof(struct opts, checkpoint_every), 0, 86400, {0},
+     "a whole number of seconds, 0..86400"},
     {"shard-dir", OPT_LONG_ONLY + 16, OPT_TEXT,
      offsetof(struct opts, shard_pat), 0, 0, {0}, NULL},
     {"output", 'o', OPT_OUTPUT, 0, 0, 0, {0}, NULL},
@@ -423,6 +428,7 @@ static int parse_options(int argc, char **argv, struct opts *o)
     int have_dims = 0, c;
     *o = (struct opts){.type = TVPAL_F32, .window = 4, .nodes = 1,
                        .table_format = TVPAL_TABLE_CHUNK,
+                       .checkpoint_every = 10,
                        .axes = ENCODE_AXES_DEFAULT};
     for (size_t i = 0; i < NOPTS; i++) {
         const struct optspec *sp = &g_optspec[i];
@@ -1387,6 +1393,23 @@ static void save_checkpoint(struct run *r, uint64_t u)
                  lib_error(rc, &d));
 }
 
+/* Whether the checkpoint is saved after unit u.  A checkpoint is text of
+ * O(histogram classes + shards x steps) and an fsync: saved after every
+ * step it was about 8% of the CPU time of a small encode (64^3 x 99).  So
+ * it is saved once --checkpoint-every seconds have passed since the last
+ * (a rerun after a crash redoes at most that much work), after the last
+ * unit (a rerun then only finishes), and at a test fault, so that the test
+ * hooks' resume points stay where they say. */
+static int checkpoint_due(struct run *r, uint64_t u, int faulting)
+{
+    double now = tvpal_now();
+    if (!faulting && u != (uint64_t)r->plan.npasses * r->T &&
+        now - r->ckpt_last < (double)r->o.checkpoint_every)
+        return 0;
+    r->ckpt_last = now;
+    return 1;
+}
+
 /* The work (voxel-samples, every axis encoded) of the whole job, and of the
  * units before u. */
 static uint64_t work_before(const struct run *r, uint64_t u)
@@ -1444,7 +1467,10 @@ void report_progress(struct run *r, int last)
  * TVPAL_ENCODE_FAULT_AFTER=S (a test hook) kills the process after S
  * units (steps of passes), as an interruption would; with
  * TVPAL_ENCODE_FAULT_RANK=R only MPI rank R, and with
- * TVPAL_ENCODE_FAULT=fail it fails with a message instead. */
+ * TVPAL_ENCODE_FAULT=fail it fails with a message instead (both after
+ * saving the checkpoint of unit S); with TVPAL_ENCODE_FAULT=nosave it is
+ * killed without saving it, so a rerun resumes from the checkpoint before,
+ * if any (checkpoint_due). */
 static void encode_steps(struct run *r)
 {
     struct progress *p = &r->prog;
@@ -1461,7 +1487,7 @@ static void encode_steps(struct run *r)
     const char *iv = getenv("TVPAL_PROGRESS_INTERVAL");
     if (iv && atof(iv) > 0)
         p->interval = atof(iv);
-    p->t0 = p->last = tvpal_now();
+    p->t0 = p->last = r->ckpt_last = tvpal_now();
     p->total = work_before(r, (uint64_t)r->plan.npasses * r->T);
     p->work = p->work_at_start = work_before(r, r->start);
     p->units = (uint64_t)r->plan.npasses * r->T;
@@ -1486,8 +1512,11 @@ static void encode_steps(struct run *r)
             u = (uint64_t)pi * r->T + t + 1;
             if (t + 1 == r->T) /* the next pass has none of its steps */
                 r->st.loaded = 0;
-            save_checkpoint(r, u);
-            if (fault_after >= 0 && (long)u >= fault_after) {
+            int faulting = fault_after >= 0 && (long)u >= fault_after;
+            int nosave = faulting && fault_how && !strcmp(fault_how, "nosave");
+            if (!nosave && checkpoint_due(r, u, faulting))
+                save_checkpoint(r, u);
+            if (faulting) {
                 if (fault_how && !strcmp(fault_how, "fail"))
                     die_fail("test fault after %llu steps (rerun to resume)",
                              (unsigned long long)u);

@@ -5,6 +5,9 @@
 # was encoded and only the finish (which packs the per-chunk tables of
 # --table auto, FORMAT.md 9.1) was left.  A partial output of a different
 # job (another window, another --table) is discarded, not resumed.
+# Checkpoints are saved at most every --checkpoint-every seconds: killed
+# with its latest unsaved, a job resumes from the checkpoint before it (0:
+# every step) or, with none saved yet, starts over.
 . "$(dirname "$0")/lib.sh"
 D=18x14x10
 "$GEN" --field front --dims $D --steps 12 -o "$W/in" || fail gen
@@ -47,4 +50,17 @@ truncate -s 8192 "$W/d3.partial/node-0/axis-y.tvps"
 "$ENC" --axes xyz -q --dims $D --window 4 -o "$W/d4" "$W"/in/*.f32 > /dev/null
 diff -r "$W/d3" "$W/d4" > /dev/null && grep -q "starting the job over" "$W/e.txt" \
     && ok "damaged partial restarted, output correct" || fail "damaged partial: $(cat "$W/e.txt")"
+# --checkpoint-every: killed after step 7 without saving its checkpoint.
+TVPAL_ENCODE_FAULT=nosave TVPAL_ENCODE_FAULT_AFTER=7 "$ENC" --checkpoint-every 0 -q --dims $D --window 4 -o "$W/c0" "$W"/in/*.f32 > /dev/null 2>&1
+"$ENC" --dims $D --window 4 -o "$W/c0" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" || fail "rerun c0: $(cat "$W/e.txt")"
+"$ENC" -q --dims $D --window 4 -o "$W/cref" "$W"/in/*.f32 > /dev/null || fail "reference z encode"
+grep -q "resuming .* timestep 6 of 12" "$W/e.txt" && diff -r "$W/cref" "$W/c0" > /dev/null \
+    && ok "--checkpoint-every 0: resumed at the step before the unsaved one" || fail "checkpoint-every 0: $(cat "$W/e.txt")"
+TVPAL_ENCODE_FAULT=nosave TVPAL_ENCODE_FAULT_AFTER=7 "$ENC" --checkpoint-every 3600 -q --dims $D --window 4 -o "$W/c1" "$W"/in/*.f32 > /dev/null 2>&1
+[ -d "$W/c1.partial" ] && [ ! -e "$W/c1.partial/checkpoint" ] && ok "--checkpoint-every 3600: no checkpoint within the hour" \
+    || fail "checkpoint-every 3600 saved one: $(ls "$W/c1.partial")"
+"$ENC" --dims $D --window 4 -o "$W/c1" "$W"/in/*.f32 > /dev/null 2> "$W/e.txt" || fail "rerun c1: $(cat "$W/e.txt")"
+! grep -q resuming "$W/e.txt" && diff -r "$W/cref" "$W/c1" > /dev/null \
+    && ok "no checkpoint: the job starts over, output identical" || fail "checkpoint-every 3600: $(cat "$W/e.txt")"
+expect_exit 2 "checkpoint-every" "$ENC" --checkpoint-every -1 --dims $D -o "$W/cx" "$W"/in/*.f32
 finish
