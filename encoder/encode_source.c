@@ -8,6 +8,9 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 #include <limits.h>
 #include <math.h>
 #include <pthread.h>
@@ -81,6 +84,80 @@ static void found_merge(struct found *all, const struct found *f)
     all->hi = f->hi > all->hi ? f->hi : all->hi;
 }
 
+/* The largest float32 whose value is at most TVPAL_VALUE_MAX: for a float
+ * f, fabs(f) <= TVPAL_VALUE_MAX exactly when fabsf(f) <= VALUE_MAX_F
+ * (false for NaN and infinities too). */
+#define VALUE_MAX_F 9.99999993e36f
+/* In [2^122, 2^123), where floats are 2^99 apart. */
+_Static_assert((double)VALUE_MAX_F >= 0x1p122 &&
+                   (double)VALUE_MAX_F < 0x1p123 &&
+                   (double)VALUE_MAX_F <= TVPAL_VALUE_MAX &&
+                   (double)VALUE_MAX_F + 0x1p99 > TVPAL_VALUE_MAX,
+               "VALUE_MAX_F is the largest float <= TVPAL_VALUE_MAX");
+
+/* The common case of convert_run, host float32 with no --missing, in one
+ * pass: copies src to dst if every value is finite and within
+ * TVPAL_VALUE_MAX, and returns 0 otherwise (dst partly written, nothing
+ * counted: the general path then does it all).  The minimum and maximum go
+ * into *lo and *hi as the general path's loop would set them ("v < lo ? v :
+ * lo" in order); values compare equal only as -0 and +0, where a vector's
+ * lanes could pick another zero than the first, so a zero extreme is found
+ * again in order.  With fine, each value is counted into its class. */
+static int convert_f32_plain(const float *src, size_t n, float *dst,
+                             uint64_t *fine, double *lo, double *hi)
+{
+    size_t i = 0;
+    float mn = INFINITY, mx = -INFINITY;
+    int bad = 0;
+#if defined(__SSE2__)
+    const __m128 lim = _mm_set1_ps(VALUE_MAX_F);
+    const __m128 absmask = _mm_castsi128_ps(_mm_set1_epi32(0x7FFFFFFF));
+    __m128 vmin = _mm_set1_ps(INFINITY), vmax = _mm_set1_ps(-INFINITY);
+    __m128 vbad = _mm_setzero_ps();
+    for (; i + 4 <= n; i += 4) {
+        __m128 x = _mm_loadu_ps(src + i);
+        _mm_storeu_ps(dst + i, x);
+        /* not (|x| <= lim): true for NaN as well */
+        vbad = _mm_or_ps(vbad, _mm_cmpnle_ps(_mm_and_ps(x, absmask), lim));
+        vmin = _mm_min_ps(vmin, x);
+        vmax = _mm_max_ps(vmax, x);
+    }
+    bad = _mm_movemask_ps(vbad) != 0;
+    float l[4], h[4];
+    _mm_storeu_ps(l, vmin);
+    _mm_storeu_ps(h, vmax);
+    for (int k = 0; k < 4; k++) {
+        mn = l[k] < mn ? l[k] : mn;
+        mx = h[k] > mx ? h[k] : mx;
+    }
+#endif
+    for (; i < n; i++) {
+        float v = src[i];
+        dst[i] = v;
+        bad |= !(fabsf(v) <= VALUE_MAX_F);
+        mn = v < mn ? v : mn;
+        mx = v > mx ? v : mx;
+    }
+    if (bad)
+        return 0;
+    double l0 = *lo, h0 = *hi;
+    if (n && (mn == 0.0f || mx == 0.0f)) { /* which zero came first */
+        for (size_t k = 0; k < n; k++) {
+            l0 = src[k] < l0 ? src[k] : l0;
+            h0 = src[k] > h0 ? src[k] : h0;
+        }
+    } else if (n) {
+        l0 = mn < l0 ? mn : l0;
+        h0 = mx > h0 ? mx : h0;
+    }
+    *lo = l0;
+    *hi = h0;
+    if (fine)
+        for (size_t k = 0; k < n; k++)
+            fine[fine_bin(src[k])]++;
+    return 1;
+}
+
 /* Converts n source values at src (type and byte order of the job, or
  * host float32 when `host_f32`) into dst, applies --missing, and counts
  * them into the thread's statistics when `stats`.  vox0 is the volume
@@ -91,6 +168,15 @@ static void convert_run(const struct run *r, const void *src, int host_f32,
 {
     const struct opts *o = &r->o;
     size_t bad = 0, rep = 0;
+#ifdef WORDS_BIGENDIAN
+    const int host_order = o->big_endian;
+#else
+    const int host_order = !o->big_endian;
+#endif
+    if ((host_f32 || (o->type == TVPAL_F32 && host_order)) && !o->nmissing &&
+        convert_f32_plain(src, n, dst, stats ? r->fine_local[tid] : NULL,
+                          &f->lo, &f->hi))
+        return;
     int rc = tvpal_raw_convert(src, host_f32 ? TVPAL_F32 : o->type,
 #ifdef WORDS_BIGENDIAN
                                host_f32 ? 1 : o->big_endian,
