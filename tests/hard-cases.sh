@@ -83,7 +83,7 @@ for case in constant twovalued outlier dynrange shock short; do
         tol=0
         if [ "$base" = inf ]; then
             [ "$p" = inf ] && ok "$case $v: exact too" || fail "$case $v: $p, plain was exact"
-        elif ge "$p" "$(awk -v b="$base" -v t="$tol" 'BEGIN { print b - t }')"; then
+        elif ge "$p" "$(awk -v b="$base" -v t="$tol" 'BEGIN { printf "%.17g", b - t }')"; then
             ok "$case $v: $p >= plain $base - $tol"
         else
             fail "$case $v: $p worse than plain $base"
