@@ -25,7 +25,8 @@ static uint32_t fine_bin(float f)
 {
     uint32_t u;
     memcpy(&u, &f, 4);
-    u = (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+    /* (u & sign) ? ~u : u | sign, as u ^ (all ones or the sign bit) */
+    u ^= (0u - (u >> 31)) | 0x80000000u;
     return u >> 16;
 }
 
@@ -102,18 +103,20 @@ _Static_assert((double)VALUE_MAX_F >= 0x1p122 &&
  * into *lo and *hi as the general path's loop would set them ("v < lo ? v :
  * lo" in order); values compare equal only as -0 and +0, where a vector's
  * lanes could pick another zero than the first, so a zero extreme is found
- * again in order.  With fine, each value is counted into its class. */
+ * again in order when the run holds zeros of both signs.  With fine, each
+ * value is counted into its class. */
 static int convert_f32_plain(const float *src, size_t n, float *dst,
                              uint64_t *fine, double *lo, double *hi)
 {
     size_t i = 0;
     float mn = INFINITY, mx = -INFINITY;
-    int bad = 0;
+    int bad = 0, negzero = 0, poszero = 0;
 #if defined(__SSE2__)
     const __m128 lim = _mm_set1_ps(VALUE_MAX_F);
     const __m128 absmask = _mm_castsi128_ps(_mm_set1_epi32(0x7FFFFFFF));
+    const __m128 zero = _mm_setzero_ps();
     __m128 vmin = _mm_set1_ps(INFINITY), vmax = _mm_set1_ps(-INFINITY);
-    __m128 vbad = _mm_setzero_ps();
+    __m128 vbad = zero, vneg0 = zero, vpos0 = zero;
     for (; i + 4 <= n; i += 4) {
         __m128 x = _mm_loadu_ps(src + i);
         _mm_storeu_ps(dst + i, x);
@@ -121,8 +124,14 @@ static int convert_f32_plain(const float *src, size_t n, float *dst,
         vbad = _mm_or_ps(vbad, _mm_cmpnle_ps(_mm_and_ps(x, absmask), lim));
         vmin = _mm_min_ps(vmin, x);
         vmax = _mm_max_ps(vmax, x);
+        /* zeros, by the sign bit: set for -0 in vneg0, for +0 in vpos0 */
+        __m128 z = _mm_cmpeq_ps(x, zero);
+        vneg0 = _mm_or_ps(vneg0, _mm_and_ps(z, x));
+        vpos0 = _mm_or_ps(vpos0, _mm_andnot_ps(x, z));
     }
     bad = _mm_movemask_ps(vbad) != 0;
+    negzero = _mm_movemask_ps(vneg0) != 0;
+    poszero = _mm_movemask_ps(vpos0) != 0;
     float l[4], h[4];
     _mm_storeu_ps(l, vmin);
     _mm_storeu_ps(h, vmax);
@@ -137,11 +146,14 @@ static int convert_f32_plain(const float *src, size_t n, float *dst,
         bad |= !(fabsf(v) <= VALUE_MAX_F);
         mn = v < mn ? v : mn;
         mx = v > mx ? v : mx;
+        negzero |= v == 0.0f && signbit(v);
+        poszero |= v == 0.0f && !signbit(v);
     }
     if (bad)
         return 0;
     double l0 = *lo, h0 = *hi;
-    if (n && (mn == 0.0f || mx == 0.0f)) { /* which zero came first */
+    if (negzero && poszero && (mn == 0.0f || mx == 0.0f)) {
+        /* which zero came first */
         for (size_t k = 0; k < n; k++) {
             l0 = src[k] < l0 ? src[k] : l0;
             h0 = src[k] > h0 ? src[k] : h0;
