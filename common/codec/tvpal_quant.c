@@ -10,9 +10,15 @@
 /* Iteration limits: Lloyd converges linearly; past ~60 iterations the gain is
  * far below what the float decoder table can represent. */
 #define LLOYD_MAX_ITER 200
-/* Both starts run this many iterations; only the better one continues. */
-#define LLOYD_RACE_ITER 24
-#define LLOYD_REL_TOL 1e-8
+/* Both starts run this many iterations; only the better one continues.
+ * Lloyd stops once an iteration lowers the distortion by less than
+ * LLOYD_REL_TOL of it (4e-6 dB).  Against 24 and 1e-8 these cut the
+ * encoder's instructions by 8% on the viscous-fingers series (64^3 x 99,
+ * N = 4), for a PSNR 0.004 dB higher there and 0.0015 dB lower on 256^3
+ * turbulence: an earlier race picks the other start now and then, either
+ * way. */
+#define LLOYD_RACE_ITER 8
+#define LLOYD_REL_TOL 1e-6
 
 struct tvpal_quantws {
     size_t capacity;
