@@ -78,15 +78,16 @@ static inline float key_float(uint32_t k)
     return f;
 }
 
-/* LSD radix sort, 3 passes of 11 bits; a pass whose digit is the same for all
- * keys is skipped (common: coefficient values often share exponent bits).
- * One body for two counter types (COUNT_T): 32-bit counters, a smaller
- * histogram that sorts 5-10% faster, whenever n fits them, and size_t
- * otherwise. */
+/* LSD radix sort, 3 passes of 11, 11 and 10 bits; a pass whose digit is
+ * the same for all keys is skipped (common: coefficient values often share
+ * exponent bits).  Returns the buffer that holds the sorted keys (keys or
+ * tmp: no copy back).  One body for two counter types (COUNT_T): 32-bit
+ * counters, a smaller histogram that sorts 5-10% faster, whenever n fits
+ * them, and size_t otherwise. */
 #define RADIX_SORT_BODY(COUNT_T)                                             \
     {                                                                        \
         COUNT_T hist[3][2048];                                               \
-        memset(hist, 0, sizeof hist);                                        \
+        memset(hist, 0, sizeof hist[0] * 2 + sizeof hist[2] / 2);            \
         for (size_t i = 0; i < n; i++) {                                     \
             uint32_t k = keys[i];                                            \
             hist[0][k & 0x7FF]++;                                            \
@@ -96,12 +97,13 @@ static inline float key_float(uint32_t k)
         uint32_t *src = keys, *dst = tmp;                                    \
         for (int pass = 0; pass < 3; pass++) {                               \
             unsigned shift = 11u * (unsigned)pass;                           \
+            int bins = pass < 2 ? 2048 : 1024;                               \
             COUNT_T *h = hist[pass];                                         \
             uint32_t first = (src[0] >> shift) & 0x7FF;                      \
             if (h[first] == n)                                               \
                 continue;                                                    \
             COUNT_T sum = 0;                                                 \
-            for (int b = 0; b < 2048; b++) {                                 \
+            for (int b = 0; b < bins; b++) {                                 \
                 COUNT_T c = h[b];                                            \
                 h[b] = sum;                                                  \
                 sum += c;                                                    \
@@ -114,22 +116,22 @@ static inline float key_float(uint32_t k)
             src = dst;                                                       \
             dst = t;                                                         \
         }                                                                    \
-        if (src != keys)                                                     \
-            memcpy(keys, src, n * sizeof *keys);                             \
+        return src;                                                          \
     }
 
-static void radix_sort_u32(uint32_t *keys, uint32_t *tmp, size_t n)
+static const uint32_t *radix_sort_u32(uint32_t *keys, uint32_t *tmp,
+                                      size_t n)
 RADIX_SORT_BODY(uint32_t)
 
-static void radix_sort_size(uint32_t *keys, uint32_t *tmp, size_t n)
+static const uint32_t *radix_sort_size(uint32_t *keys, uint32_t *tmp,
+                                       size_t n)
 RADIX_SORT_BODY(size_t)
 
-static void radix_sort(uint32_t *keys, uint32_t *tmp, size_t n)
+static const uint32_t *radix_sort(uint32_t *keys, uint32_t *tmp, size_t n)
 {
     if (n <= UINT32_MAX)
-        radix_sort_u32(keys, tmp, n);
-    else
-        radix_sort_size(keys, tmp, n);
+        return radix_sort_u32(keys, tmp, n);
+    return radix_sort_size(keys, tmp, n);
 }
 
 int tvpal_quantws_load(struct tvpal_quantws *ws, const float *x, size_t n)
@@ -143,18 +145,18 @@ int tvpal_quantws_load(struct tvpal_quantws *ws, const float *x, size_t n)
         return 0;
     for (size_t i = 0; i < n; i++)
         ws->keys[i] = float_key(x[i]);
-    radix_sort(ws->keys, ws->tmp, n);
+    const uint32_t *keys = radix_sort(ws->keys, ws->tmp, n);
     /* Centre on the median: prefix sums of squares around it stay small in
      * the bulk of the data even when far outliers shift the mean. */
-    double mean = key_float(ws->keys[n / 2]);
+    double mean = key_float(keys[n / 2]);
     ws->mean = mean;
     double a1 = 0.0, a2 = 0.0;
     size_t distinct = 0;
-    uint32_t prev = ~ws->keys[0];
+    uint32_t prev = ~keys[0];
     ws->p1[0] = 0.0;
     ws->p2[0] = 0.0;
     for (size_t i = 0; i < n; i++) {
-        uint32_t k = ws->keys[i];
+        uint32_t k = keys[i];
         distinct += (k != prev);
         prev = k;
         float f = key_float(k);
