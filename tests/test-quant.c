@@ -46,8 +46,9 @@ static void fill(enum dist d, size_t n)
 
 /* NN: each sample's code is a nearest level (ties either way). Centroid:
  * each non-empty cell's level is within 0.5% of its width of the cell
- * mean: Lloyd stops when an iteration gains less than 1e-9 relative, which
- * leaves the levels that close to the fixed point. */
+ * mean: Lloyd stops when an iteration gains less than 1e-6 relative, which
+ * leaves the levels that close to the fixed point.  The cells' counts are
+ * those of the sorted samples, so a bad sort fails here. */
 static void check_conditions(const struct tvpal_quant *q, size_t n,
                              const char *what)
 {
@@ -91,7 +92,8 @@ int main(void)
 {
     REQUIRE(tvpal_quantws_create(&ws, NMAX) == 0, "workspace");
 
-    /* Never worse than uniform, many distributions, sizes and levels. */
+    /* Never worse than uniform, many distributions, sizes and levels
+     * (4096 samples sort with 11-bit digits, 65536 with 16-bit ones). */
     static const size_t sizes[] = {1000, 4096, 65536};
     static const unsigned levels[] = {2, 4, 16, 64, 256};
     for (int d = 0; d < D_COUNT; d++)

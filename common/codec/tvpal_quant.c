@@ -20,10 +20,19 @@
 #define LLOYD_RACE_ITER 8
 #define LLOYD_REL_TOL 1e-6
 
+/* From this many samples on, the radix sort takes 2 passes of 16-bit
+ * digits instead of 3 of 11 bits: its 2 x 65536 counters cost more than
+ * the pass they save below it (256^3 turbulence's DCT coefficients, this
+ * 2-core EPYC: 9.4 against 12.4 ns a key at 65536 keys, 5.9 against 10.4
+ * at 262144; 13.5 against 12.5 at 16384). */
+#define RADIX16_MIN 32768
+
 struct tvpal_quantws {
     size_t capacity;
     size_t n;
     uint32_t *keys, *tmp;   /* radix sort buffers */
+    uint32_t *hist16;       /* 2 x 65536 counters, when capacity reaches
+                             * RADIX16_MIN (and n fits 32 bits) */
     float *s;               /* sorted samples */
     double *p1, *p2;        /* prefix sums of (s - mean) and its square, n+1 */
     double mean;            /* centre of p1/p2: the median (robust to outliers) */
@@ -42,7 +51,10 @@ int tvpal_quantws_create(struct tvpal_quantws **out, size_t capacity)
     ws->s = malloc(cap * sizeof *ws->s);
     ws->p1 = malloc((cap + 1) * sizeof *ws->p1);
     ws->p2 = malloc((cap + 1) * sizeof *ws->p2);
-    if (!ws->keys || !ws->tmp || !ws->s || !ws->p1 || !ws->p2) {
+    if (cap >= RADIX16_MIN && cap <= UINT32_MAX)
+        ws->hist16 = malloc(2 * 65536 * sizeof *ws->hist16);
+    if (!ws->keys || !ws->tmp || !ws->s || !ws->p1 || !ws->p2 ||
+        (cap >= RADIX16_MIN && cap <= UINT32_MAX && !ws->hist16)) {
         tvpal_quantws_free(ws);
         return TVPAL_E_NOMEM;
     }
@@ -56,6 +68,7 @@ void tvpal_quantws_free(struct tvpal_quantws *ws)
         return;
     free(ws->keys);
     free(ws->tmp);
+    free(ws->hist16);
     free(ws->s);
     free(ws->p1);
     free(ws->p2);
@@ -127,11 +140,47 @@ static const uint32_t *radix_sort_size(uint32_t *keys, uint32_t *tmp,
                                        size_t n)
 RADIX_SORT_BODY(size_t)
 
-static const uint32_t *radix_sort(uint32_t *keys, uint32_t *tmp, size_t n)
+/* LSD radix sort in 2 passes of 16-bit digits with the 2 x 65536
+ * counters hist (n <= UINT32_MAX); otherwise as above. */
+static const uint32_t *radix_sort16(uint32_t *keys, uint32_t *tmp, size_t n,
+                                    uint32_t *hist)
 {
+    memset(hist, 0, 2 * 65536 * sizeof *hist);
+    for (size_t i = 0; i < n; i++) {
+        uint32_t k = keys[i];
+        hist[k & 0xFFFF]++;
+        hist[65536 + (k >> 16)]++;
+    }
+    uint32_t *src = keys, *dst = tmp;
+    for (int pass = 0; pass < 2; pass++) {
+        unsigned shift = 16u * (unsigned)pass;
+        uint32_t *h = hist + 65536 * pass;
+        if (h[(src[0] >> shift) & 0xFFFF] == n)
+            continue;
+        uint32_t sum = 0;
+        for (int b = 0; b < 65536; b++) {
+            uint32_t c = h[b];
+            h[b] = sum;
+            sum += c;
+        }
+        for (size_t i = 0; i < n; i++) {
+            uint32_t k = src[i];
+            dst[h[(k >> shift) & 0xFFFF]++] = k;
+        }
+        uint32_t *t = src;
+        src = dst;
+        dst = t;
+    }
+    return src;
+}
+
+static const uint32_t *radix_sort(struct tvpal_quantws *ws, size_t n)
+{
+    if (n >= RADIX16_MIN && ws->hist16)
+        return radix_sort16(ws->keys, ws->tmp, n, ws->hist16);
     if (n <= UINT32_MAX)
-        return radix_sort_u32(keys, tmp, n);
-    return radix_sort_size(keys, tmp, n);
+        return radix_sort_u32(ws->keys, ws->tmp, n);
+    return radix_sort_size(ws->keys, ws->tmp, n);
 }
 
 int tvpal_quantws_load(struct tvpal_quantws *ws, const float *x, size_t n)
@@ -145,7 +194,7 @@ int tvpal_quantws_load(struct tvpal_quantws *ws, const float *x, size_t n)
         return 0;
     for (size_t i = 0; i < n; i++)
         ws->keys[i] = float_key(x[i]);
-    const uint32_t *keys = radix_sort(ws->keys, ws->tmp, n);
+    const uint32_t *keys = radix_sort(ws, n);
     /* Centre on the median: prefix sums of squares around it stay small in
      * the bulk of the data even when far outliers shift the mean. */
     double mean = key_float(keys[n / 2]);
