@@ -6,6 +6,9 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 /* Iteration limits: Lloyd converges linearly; past ~60 iterations the gain is
  * far below what the float decoder table can represent. */
@@ -91,13 +94,41 @@ static inline float key_float(uint32_t k)
     return f;
 }
 
+/* Exclusive prefix sums of h[0..bins) in place (bins a multiple of 4):
+ * h[b] becomes the sum of the counts before it.  Four counts a step with
+ * SSE2 (the same sums: integers), where the loop of one count a step was
+ * an eighth of a 256^2 slice's sort at 16-bit digits. */
+static void exclusive_scan(uint32_t *h, int bins)
+{
+    int b = 0;
+    uint32_t sum = 0;
+#if defined(__SSE2__)
+    __m128i run = _mm_setzero_si128(); /* the sum so far, in every lane */
+    for (; b + 4 <= bins; b += 4) {
+        __m128i c = _mm_loadu_si128((const __m128i *)(h + b));
+        __m128i x = _mm_add_epi32(c, _mm_slli_si128(c, 4));
+        x = _mm_add_epi32(x, _mm_slli_si128(x, 8)); /* inclusive sums */
+        /* exclusive: the inclusive sums shifted up a lane, plus the run */
+        _mm_storeu_si128((__m128i *)(h + b),
+                         _mm_add_epi32(run, _mm_slli_si128(x, 4)));
+        run = _mm_add_epi32(run, _mm_shuffle_epi32(x, 0xFF));
+    }
+    sum = (uint32_t)_mm_cvtsi128_si32(run);
+#endif
+    for (; b < bins; b++) {
+        uint32_t c = h[b];
+        h[b] = sum;
+        sum += c;
+    }
+}
+
 /* LSD radix sort, 3 passes of 11, 11 and 10 bits; a pass whose digit is
  * the same for all keys is skipped (common: coefficient values often share
  * exponent bits).  Returns the buffer that holds the sorted keys (keys or
- * tmp: no copy back).  One body for two counter types (COUNT_T): 32-bit
- * counters, a smaller histogram that sorts 5-10% faster, whenever n fits
- * them, and size_t otherwise. */
-#define RADIX_SORT_BODY(COUNT_T)                                             \
+ * tmp: no copy back).  One body for two counter types (COUNT_T, with its
+ * prefix sums SCAN): 32-bit counters, a smaller histogram that sorts 5-10%
+ * faster, whenever n fits them, and size_t otherwise. */
+#define RADIX_SORT_BODY(COUNT_T, SCAN)                                       \
     {                                                                        \
         COUNT_T hist[3][2048];                                               \
         memset(hist, 0, sizeof hist[0] * 2 + sizeof hist[2] / 2);            \
@@ -115,12 +146,7 @@ static inline float key_float(uint32_t k)
             uint32_t first = (src[0] >> shift) & 0x7FF;                      \
             if (h[first] == n)                                               \
                 continue;                                                    \
-            COUNT_T sum = 0;                                                 \
-            for (int b = 0; b < bins; b++) {                                 \
-                COUNT_T c = h[b];                                            \
-                h[b] = sum;                                                  \
-                sum += c;                                                    \
-            }                                                                \
+            SCAN(h, bins);                                                   \
             for (size_t i = 0; i < n; i++) {                                 \
                 uint32_t k = src[i];                                         \
                 dst[h[(k >> shift) & 0x7FF]++] = k;                          \
@@ -132,13 +158,24 @@ static inline float key_float(uint32_t k)
         return src;                                                          \
     }
 
+/* Exclusive prefix sums of size_t counts (radix_sort_size). */
+static void exclusive_scan_size(size_t *h, int bins)
+{
+    size_t sum = 0;
+    for (int b = 0; b < bins; b++) {
+        size_t c = h[b];
+        h[b] = sum;
+        sum += c;
+    }
+}
+
 static const uint32_t *radix_sort_u32(uint32_t *keys, uint32_t *tmp,
                                       size_t n)
-RADIX_SORT_BODY(uint32_t)
+RADIX_SORT_BODY(uint32_t, exclusive_scan)
 
 static const uint32_t *radix_sort_size(uint32_t *keys, uint32_t *tmp,
                                        size_t n)
-RADIX_SORT_BODY(size_t)
+RADIX_SORT_BODY(size_t, exclusive_scan_size)
 
 /* LSD radix sort in 2 passes of 16-bit digits with the 2 x 65536
  * counters hist (n <= UINT32_MAX); otherwise as above. */
@@ -157,12 +194,7 @@ static const uint32_t *radix_sort16(uint32_t *keys, uint32_t *tmp, size_t n,
         uint32_t *h = hist + 65536 * pass;
         if (h[(src[0] >> shift) & 0xFFFF] == n)
             continue;
-        uint32_t sum = 0;
-        for (int b = 0; b < 65536; b++) {
-            uint32_t c = h[b];
-            h[b] = sum;
-            sum += c;
-        }
+        exclusive_scan(h, 65536);
         for (size_t i = 0; i < n; i++) {
             uint32_t k = src[i];
             dst[h[(k >> shift) & 0xFFFF]++] = k;
