@@ -167,6 +167,8 @@ struct run {
                               * t % N, box voxels x fastest */
     float *boxbuf;           /* a self-describing input's box, as read */
     struct tvpal_input *in;  /* self-describing input, or NULL (raw) */
+    struct tvpal_pool *in_pool;  /* its reading thread's team (-j threads)
+                                  * for compressed chunks, or NULL */
     struct prefetch *pf;     /* reads the input's next step meanwhile */
     uint64_t *dropped;       /* per thread: present values coded missing */
     double *times;           /* [T] time values, or NULL (none known) */

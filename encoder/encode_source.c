@@ -627,6 +627,12 @@ int open_source(struct run *r, int have_dims)
                       "(NetCDF, VTK); %s is raw", o->inputs[0]);
         return have_dims;
     }
+    /* Compressed blocks and chunks inflate on a team of their own: the
+     * prefetch thread drives it while the encoding team works. */
+    unsigned nt = o->threads ? o->threads : tvpal_pool_default_threads();
+    if (nt > 1 && tvpal_pool_create(&r->in_pool, nt) < 0)
+        die_fail("out of memory");
+    io.pool = r->in_pool;
     int rc = tvpal_input_open(&r->in, f, o->inputs, o->ninputs, &io, &d);
     if (rc < 0)
         die_usage("%s", lib_error(rc, &d));

@@ -1927,6 +1927,7 @@ static void run_free(struct run *r)
         free(r->abs_inputs[i]);
     free(r->abs_inputs);
     tvpal_input_close(r->in);
+    tvpal_pool_free(r->in_pool);
     free(r->times);
 }
 

@@ -26,6 +26,7 @@
 #include "tvpal_fs.h"
 #include "tvpal_format.h"
 #include "tvpal_input.h"
+#include "tvpal_pool.h"
 #include "tvpal_raw.h"
 #include "tvpal_schedule.h"
 
@@ -88,6 +89,8 @@ struct options {
     size_t nrefs;   /* the manifest's sources (validate_options decides) */
     struct tvpal_input *src;  /* self-describing references (NetCDF, VTK),
                                * or NULL for raw ones */
+    struct tvpal_pool *src_pool;  /* inflates their compressed chunks (all
+                                   * cores), or NULL */
 };
 
 static const struct option long_options[] = {
@@ -159,6 +162,12 @@ static int open_self_describing(struct options *o,
         fprintf(stderr, PROG ": no reference files\n");
         return TVPAL_EXIT_USAGE;
     }
+    if (tvpal_pool_default_threads() > 1 &&
+        tvpal_pool_create(&o->src_pool, tvpal_pool_default_threads()) < 0) {
+        fprintf(stderr, PROG ": out of memory\n");
+        return TVPAL_EXIT_FAIL;
+    }
+    io.pool = o->src_pool;
     rc = tvpal_input_open(&o->src, f, o->refs, (int)o->nrefs, &io, &d);
     if (rc < 0) {
         fprintf(stderr, PROG ": %s\n", d.msg[0] ? d.msg : tvpal_strerror(rc));
@@ -1116,6 +1125,7 @@ int main(int argc, char **argv)
     buffers_free(&b);
     free(r.per);
     tvpal_input_close(o.src);
+    tvpal_pool_free(o.src_pool);
     if (ds != ds0)
         tvpal_dataset_close(ds);
     tvpal_dataset_close(ds0);

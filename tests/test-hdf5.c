@@ -3,12 +3,14 @@
  * integer and double types, fill and missing values, two candidates, a
  * rank-2 dataset, a damaged file, a non-HDF5 file), and the format choice
  * between NetCDF-4 (ncgen) and plain HDF5: dims, steps, type, values, NaN,
- * the errors and their listings, describe, no HDF5 handle left open.
+ * the errors and their listings, describe, no HDF5 handle left open;
+ * direct chunk reads (boxes, a damaged chunk) also on a pool of threads.
  * `test-hdf5 --make DIR` writes the files of tests/input-hdf5.sh instead.
  * Skipped (77) without HDF5 support. */
 #include "config.h"
 
 #include "tvpal_input_impl.h"
+#include "tvpal_pool.h"
 #include "tvpal_test.h"
 #include "tt_box.h"
 
@@ -209,12 +211,15 @@ static void make_fixtures(void)
 
 /* ---------------------------------------------------------------- tests */
 
+/* The pool compressed chunks inflate on (NULL: the reading thread). */
+static struct tvpal_pool *g_pool;
+
 static struct tvpal_input *open1(enum tvpal_input_format fmt, const char *file,
                                  const char *var, int *rc, struct tvpal_diag *g)
 {
     struct tvpal_input *in = NULL;
     char *files[1] = {(char *)file};
-    struct tvpal_input_opts o = {var, NULL};
+    struct tvpal_input_opts o = {.var = var, .pool = g_pool};
     g->msg[0] = 0;
     *rc = tvpal_input_open(&in, fmt, files, 1, &o, g);
     return *rc == 0 ? in : NULL;
@@ -331,7 +336,7 @@ static void test_steps(void)
 
     /* a series of two files of 3 steps */
     char *files[2] = {(char *)wpath("steps.h5"), (char *)wpath("steps.h5")};
-    struct tvpal_input_opts o = {"/run/density", NULL};
+    struct tvpal_input_opts o = {.var = "/run/density"};
     in = NULL;
     rc = tvpal_input_open(&in, TVPAL_IN_HDF5, files, 2, &o, &g);
     REQUIRE(rc == 0, "series: %s", g.msg);
@@ -803,6 +808,14 @@ int main(int argc, char **argv)
 #if defined(HAVE_ZLIB) || defined(HAVE_LIBDEFLATE)
     test_direct();
 #endif
+    /* Chunks read directly again, inflated on a pool of 3 threads. */
+    REQUIRE(tvpal_pool_create(&g_pool, 3) == 0, "pool");
+    test_boxes();
+#if defined(HAVE_ZLIB) || defined(HAVE_LIBDEFLATE)
+    test_direct();
+#endif
+    tvpal_pool_free(g_pool);
+    g_pool = NULL;
     ssize_t left = H5Fget_obj_count((hid_t)H5F_OBJ_ALL, H5F_OBJ_ALL);
     CHECK(left == 0, "%zd HDF5 handles left open by the reader", left);
     int rc = tt_done("test-hdf5");

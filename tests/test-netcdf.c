@@ -86,7 +86,7 @@ static struct tvpal_input *open1(const char *file, const char *var,
 {
     struct tvpal_input *in = NULL;
     char *files[1] = {(char *)file};
-    struct tvpal_input_opts o = {var, time_dim};
+    struct tvpal_input_opts o = {.var = var, .time_dim = time_dim};
     g->msg[0] = 0;
     *rc = tvpal_input_open(&in, TVPAL_IN_AUTO, files, 1, &o, g);
     return *rc == 0 ? in : NULL;

@@ -1,9 +1,11 @@
 /* test-vti: the VTK ImageData reader on the fixtures of tests/make-vti.py
  * (every encoding, both header types, both byte orders, the types, grids,
- * array choice, describe, each bad file with its code and a diag naming it)
- * and on the real viscous-fingers .vti series of ../shared/data, which
+ * array choice, describe, each bad file with its code and a diag naming it;
+ * compressed blocks inflated on the reading thread and on a pool) and on
+ * the real viscous-fingers .vti series of ../shared/data, which
  * must equal the raw steps bit for bit. */
 #include "tvpal_input.h"
+#include "tvpal_pool.h"
 #include "tvpal_test.h"
 #include "tt_box.h"
 
@@ -39,12 +41,17 @@ static const char *fixture(const char *name, const char *ext)
 }
 
 /* Reads fixture name (var: opts.var) and compares with name.f32 (or
- * expect's .f32); returns the info through *out when non-NULL. */
-static void check_good(const char *name, const char *var, const char *expect,
-                       enum tvpal_type type, struct tvpal_input_info *out)
+ * expect's .f32); returns the info through *out when non-NULL.  Once
+ * inflating on the reading thread, once on a pool of 3 threads. */
+static struct tvpal_pool *g_pool;
+
+static void check_good_on(const char *name, const char *var,
+                          const char *expect, enum tvpal_type type,
+                          struct tvpal_input_info *out,
+                          struct tvpal_pool *pool)
 {
     char *files[1] = {(char *)fixture(name, ".vti")};
-    struct tvpal_input_opts opts = {var, NULL};
+    struct tvpal_input_opts opts = {.var = var, .pool = pool};
     struct tvpal_input *in = NULL;
     struct tvpal_diag g = {{0}};
     int rc = tvpal_input_open(&in, TVPAL_IN_AUTO, files, 1, &opts, &g);
@@ -77,13 +84,21 @@ static void check_good(const char *name, const char *var, const char *expect,
     tvpal_input_close(in);
 }
 
+static void check_good(const char *name, const char *var, const char *expect,
+                       enum tvpal_type type, struct tvpal_input_info *out)
+{
+    check_good_on(name, var, expect, type, out, NULL);
+    check_good_on(name, var, expect, type, out, g_pool);
+}
+
 /* Opening (and, if that passes, reading) fixture name must fail with code,
  * with a diag naming the file and holding what. */
-static void check_bad(const char *name, enum tvpal_input_format fmt,
-                      const char *var, int code, const char *what)
+static void check_bad_on(const char *name, enum tvpal_input_format fmt,
+                         const char *var, int code, const char *what,
+                         struct tvpal_pool *pool)
 {
     char *files[1] = {(char *)fixture(name, ".vti")};
-    struct tvpal_input_opts opts = {var, NULL};
+    struct tvpal_input_opts opts = {.var = var, .pool = pool};
     struct tvpal_input *in = NULL;
     struct tvpal_diag g = {{0}};
     int rc = tvpal_input_open(&in, fmt, files, 1, &opts, &g);
@@ -99,6 +114,15 @@ static void check_bad(const char *name, enum tvpal_input_format fmt,
     CHECK(strstr(g.msg, what) != NULL, "%s: the diag says \"%s\": %s", name,
           what, g.msg);
     printf("  %s: %s\n", name, g.msg);
+}
+
+/* check_bad_on, on the reading thread and on a pool: with blocks inflated
+ * in any order, the lowest failing one is reported. */
+static void check_bad(const char *name, enum tvpal_input_format fmt,
+                      const char *var, int code, const char *what)
+{
+    check_bad_on(name, fmt, var, code, what, NULL);
+    check_bad_on(name, fmt, var, code, what, g_pool);
 }
 
 static void fixtures(void)
@@ -353,6 +377,7 @@ int main(void)
     snprintf(cmd, sizeof cmd, "'%s' '%s/tests/make-vti.py' --big '%s/big'",
              py, src ? src : ".", work);
     REQUIRE(system(cmd) == 0, "%s", cmd);
+    REQUIRE(tvpal_pool_create(&g_pool, 3) == 0, "pool");
     fixtures();
     big();
     realdata();

@@ -35,7 +35,7 @@ static void check_good(const char *name, const char *var,
                        enum tvpal_type type, struct tvpal_input_info *out)
 {
     char *files[1] = {(char *)fixture(name)};
-    struct tvpal_input_opts opts = {var, NULL};
+    struct tvpal_input_opts opts = {.var = var};
     struct tvpal_input *in = NULL;
     struct tvpal_diag g = {{0}};
     int rc = tvpal_input_open(&in, TVPAL_IN_AUTO, files, 1, &opts, &g);
@@ -84,7 +84,7 @@ static void check_bad(const char *name, const char *var, int code,
                       const char *what, const char *also)
 {
     char *files[1] = {(char *)fixture(name)};
-    struct tvpal_input_opts opts = {var, NULL};
+    struct tvpal_input_opts opts = {.var = var};
     struct tvpal_input *in = NULL;
     struct tvpal_diag g = {{0}};
     int rc = tvpal_input_open(&in, TVPAL_IN_AUTO, files, 1, &opts, &g);

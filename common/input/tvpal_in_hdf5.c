@@ -24,10 +24,9 @@
  * goes into the diag next to the file and the dataset. */
 #include "tvpal_input_impl.h"
 
+#include "tvpal_pool.h"
+
 #include <hdf5.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 #include <stdatomic.h>
 
 #include <errno.h>
@@ -92,7 +91,8 @@ struct tvpal_h5direct {
     unsigned char *raw;
     size_t raw_cap;
     unsigned char *work;               /* nthreads * 2 * chunk_bytes */
-    int nthreads;
+    int nthreads;                      /* the pool's, or 1 */
+    struct tvpal_pool *pool;           /* borrowed (tvpal_input_opts) */
     /* box reads: a batch of chunks (offsets, compressed bytes) */
     hsize_t *boff;
     size_t *bat, *blen;
@@ -178,10 +178,7 @@ static int direct_plan(struct tvpal_h5direct *d)
     d->off = calloc(n * (size_t)d->rank, sizeof *d->off);
     d->at = malloc(n * sizeof *d->at);
     d->len = malloc(n * sizeof *d->len);
-    d->nthreads = 1;
-#ifdef _OPENMP
-    d->nthreads = omp_get_max_threads();
-#endif
+    d->nthreads = d->pool ? (int)tvpal_pool_threads(d->pool) : 1;
     d->work = malloc((size_t)d->nthreads * 2 * d->chunk_bytes);
     if (!d->off || !d->at || !d->len || !d->work)
         return TVPAL_E_NOMEM;
@@ -197,13 +194,14 @@ static int direct_plan(struct tvpal_h5direct *d)
 /* A reader for dataset dset (borrowed: it must outlive the reader), or
  * *out NULL when the dataset is not the case handled here. */
 static int direct_for(hid_t dset, const char *path, const char *name,
-                      struct tvpal_h5direct **out)
+                      struct tvpal_pool *pool, struct tvpal_h5direct **out)
 {
     *out = NULL;
     struct tvpal_h5direct *d = calloc(1, sizeof *d);
     if (!d)
         return TVPAL_E_NOMEM;
     d->file = NO_ID;
+    d->pool = pool;
     d->dset = dset;
     snprintf(d->what, sizeof d->what, "%s: %s", path, name);
     if (!direct_eligible(dset, d)) {
@@ -220,14 +218,15 @@ static int direct_for(hid_t dset, const char *path, const char *name,
 }
 
 int tvpal_input_hdf5_direct_open(struct tvpal_h5direct **out,
-                                 const char *path, const char *dataset)
+                                 const char *path, const char *dataset,
+                                 struct tvpal_pool *pool)
 {
     *out = NULL;
     quiet();
     hid_t file = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
     hid_t dset = file >= 0 ? H5Dopen2(file, dataset, H5P_DEFAULT) : NO_ID;
     H5Eclear2(H5E_DEFAULT);
-    int rc = dset >= 0 ? direct_for(dset, path, dataset, out) : 0;
+    int rc = dset >= 0 ? direct_for(dset, path, dataset, pool, out) : 0;
     if (*out) {
         (*out)->file = file;
         return 0;
@@ -300,6 +299,76 @@ static void direct_place(const struct tvpal_h5direct *d, size_t c,
 }
 #endif
 
+#ifdef HAVE_INFLATE_ADAPTER
+/* Chunks inflated in parallel on the reader's pool (or its thread): chunk
+ * i of the batch is src + at[i], len[i] bytes; each thread inflates into
+ * its own part of d->work, and places the chunk into dst with place.  The
+ * lowest chunk that does not inflate goes into bad (INT64_MAX: none), as a
+ * serial loop would report it. */
+static void direct_place_box(const struct tvpal_h5direct *d, const hsize_t *o,
+                             const float *buf, const uint32_t lo[3],
+                             const uint32_t n[3], float *dst);
+
+struct chunk_job {
+    struct tvpal_h5direct *d;
+    const unsigned char *src;
+    const size_t *at, *len;
+    float *dst;
+    const uint32_t *lo, *n;     /* box reads: the box */
+    int64_t bad;                /* atomic minimum */
+    void (*place)(const struct chunk_job *job, size_t i, const float *buf);
+};
+
+static void whole_chunk(const struct chunk_job *job, size_t i,
+                        const float *buf)
+{
+    direct_place(job->d, i, buf, job->dst);
+}
+
+static void box_chunk(const struct chunk_job *job, size_t i, const float *buf)
+{
+    const struct tvpal_h5direct *d = job->d;
+    direct_place_box(d, d->boff + i * (size_t)d->rank, buf, job->lo, job->n,
+                     job->dst);
+}
+
+static void chunk_body(void *arg, size_t i, unsigned tid)
+{
+    struct chunk_job *job = arg;
+    const struct tvpal_h5direct *d = job->d;
+    unsigned char *a = d->work + (size_t)tid * 2 * d->chunk_bytes,
+                  *b = a + d->chunk_bytes;
+    size_t got;
+    int z = tvpal_inflate(job->src + job->at[i], job->len[i], a,
+                          d->chunk_bytes, &got);
+    if (z != TVPAL_INFLATE_OK || got != d->chunk_bytes) {
+        int64_t cur = __atomic_load_n(&job->bad, __ATOMIC_RELAXED);
+        while ((int64_t)i < cur &&
+               !__atomic_compare_exchange_n(&job->bad, &cur, (int64_t)i, 0,
+                                            __ATOMIC_RELAXED,
+                                            __ATOMIC_RELAXED))
+            ;
+        return;
+    }
+    if (d->shuffle)
+        unshuffle4(a, d->chunk_bytes / 4, b);
+    job->place(job, i, (const float *)(void *)(d->shuffle ? b : a));
+}
+
+static void run_chunks(struct tvpal_h5direct *d, struct chunk_job *job,
+                       size_t count,
+                       void (*place)(const struct chunk_job *, size_t,
+                                     const float *))
+{
+    job->place = place;
+    if (d->pool)
+        tvpal_pool_for(d->pool, count, chunk_body, job);
+    else
+        for (size_t i = 0; i < count; i++)
+            chunk_body(job, i, 0);
+}
+#endif
+
 int tvpal_input_hdf5_direct_read(struct tvpal_h5direct *d, uint32_t k,
                                  float *dst, struct tvpal_diag *diag)
 {
@@ -313,33 +382,10 @@ int tvpal_input_hdf5_direct_read(struct tvpal_h5direct *d, uint32_t k,
                               d->what, k);
     if (rc)
         return rc;
-    int64_t bad = -1;
-#ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 1) num_threads(d->nthreads)
-#endif
-    for (int64_t c = 0; c < (int64_t)d->nchunks; c++) {
-        int id = 0;
-#ifdef _OPENMP
-        id = omp_get_thread_num();
-#endif
-        unsigned char *a = d->work + (size_t)id * 2 * d->chunk_bytes,
-                      *b = a + d->chunk_bytes;
-        size_t got;
-        int z = tvpal_inflate(d->raw + d->at[c], d->len[c], a, d->chunk_bytes,
-                              &got);
-        if (z != TVPAL_INFLATE_OK || got != d->chunk_bytes) {
-#ifdef _OPENMP
-#pragma omp critical(tvpal_h5_chunk)
-#endif
-            if (bad < 0 || c < bad)
-                bad = c;
-            continue;
-        }
-        if (d->shuffle)
-            unshuffle4(a, d->chunk_bytes / 4, b);
-        direct_place(d, (size_t)c, (const float *)(void *)(d->shuffle ? b : a),
-                     dst);
-    }
+    struct chunk_job job = {.d = d, .src = d->raw, .at = d->at,
+                            .len = d->len, .dst = dst, .bad = INT64_MAX};
+    run_chunks(d, &job, d->nchunks, whole_chunk);
+    int64_t bad = job.bad == INT64_MAX ? -1 : job.bad;
     if (bad >= 0)
         return tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: step %u: chunk %lld "
                               "of %zu does not inflate (corrupt file)",
@@ -449,34 +495,11 @@ int tvpal_input_hdf5_direct_read_box(struct tvpal_h5direct *d, uint32_t k,
                 return 1;
             }
         }
-        int64_t bad = -1;
-#ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 1) num_threads(d->nthreads)
-#endif
-        for (int64_t j = 0; j < (int64_t)nb; j++) {
-            int id = 0;
-#ifdef _OPENMP
-            id = omp_get_thread_num();
-#endif
-            unsigned char *a = d->work + (size_t)id * 2 * d->chunk_bytes,
-                          *b = a + d->chunk_bytes;
-            size_t got;
-            int z = tvpal_inflate(d->braw + d->bat[j], d->blen[j], a,
-                                  d->chunk_bytes, &got);
-            if (z != TVPAL_INFLATE_OK || got != d->chunk_bytes) {
-#ifdef _OPENMP
-#pragma omp critical(tvpal_h5_chunk)
-#endif
-                if (bad < 0 || j < bad)
-                    bad = j;
-                continue;
-            }
-            if (d->shuffle)
-                unshuffle4(a, d->chunk_bytes / 4, b);
-            direct_place_box(d, d->boff + (size_t)j * (size_t)d->rank,
-                             (const float *)(void *)(d->shuffle ? b : a), lo,
-                             n, dst);
-        }
+        struct chunk_job job = {.d = d, .src = d->braw, .at = d->bat,
+                                .len = d->blen, .dst = dst, .lo = lo,
+                                .n = n, .bad = INT64_MAX};
+        run_chunks(d, &job, nb, box_chunk);
+        int64_t bad = job.bad == INT64_MAX ? -1 : job.bad;
         if (bad >= 0) {
             const hsize_t *o = d->boff + (size_t)bad * (size_t)d->rank;
             size_t c = ((size_t)(o[s] / d->chunk[s]) * all[1] +
@@ -991,7 +1014,7 @@ static int h5_open(struct tvpal_input_file **out, const char *path,
     if (rc == 0)
         read_chunking(f);
     if (rc == 0)
-        rc = direct_for(f->dset, path, f->var, &f->direct);
+        rc = direct_for(f->dset, path, f->var, opts->pool, &f->direct);
     if (rc < 0) {
         h5_close(f);
         return rc;

@@ -8,9 +8,10 @@ const struct tvpal_input_backend tvpal_input_hdf5 = {
                "package libhdf5-dev and reconfigure)"};
 
 int tvpal_input_hdf5_direct_open(struct tvpal_h5direct **out,
-                                 const char *path, const char *dataset)
+                                 const char *path, const char *dataset,
+                                 struct tvpal_pool *pool)
 {
-    (void)path, (void)dataset;
+    (void)path, (void)dataset, (void)pool;
     *out = NULL;
     return 0;
 }

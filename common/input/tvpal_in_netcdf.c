@@ -816,7 +816,7 @@ static void ncdf_close(struct tvpal_input_file *f)
  * the HDF5 dataset of the same name, whose deflated chunks the HDF5
  * backend can read faster than libnetcdf does (f->direct stays NULL when
  * it cannot). */
-static int direct_open(struct tvpal_input_file *f)
+static int direct_open(struct tvpal_input_file *f, struct tvpal_pool *pool)
 {
     int fmt;
     char name[NC_MAX_NAME + 2];
@@ -825,7 +825,7 @@ static int direct_open(struct tvpal_input_file *f)
         !((f->ndims == 4 && f->tpos == 0) || (f->ndims == 3 && f->tpos < 0)))
         return 0;
     snprintf(name, sizeof name, "/%s", f->var);
-    return tvpal_input_hdf5_direct_open(&f->direct, f->path, name);
+    return tvpal_input_hdf5_direct_open(&f->direct, f->path, name, pool);
 }
 
 /* Chunk sizes (x, y, z) of a chunked NetCDF-4 variable and the size of
@@ -886,7 +886,7 @@ static int ncdf_open(struct tvpal_input_file **out, const char *path,
         tvpal_input_copy_str(info->var, sizeof info->var, f->var);
         text_att(f->ncid, f->varid, "units", info->units, sizeof info->units);
         if (f->xtype == NC_FLOAT)
-            rc = direct_open(f);
+            rc = direct_open(f, opts->pool);
         if ((st = nc_inq_type(f->ncid, f->xtype, NULL, &f->tsize)) != NC_NOERR)
             rc = ncdf_fail(diag, st, TVPAL_E_FORMAT, path, f->var);
         read_chunking(f);

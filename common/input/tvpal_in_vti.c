@@ -32,6 +32,7 @@
  * field. */
 #include "tvpal_inflate.h"
 #include "tvpal_input_impl.h"
+#include "tvpal_pool.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -112,6 +113,7 @@ struct vti_doc {
     int in_cell, skip_piece;
     int rc;                     /* an error a handler met */
     struct tvpal_diag *diag;
+    struct tvpal_pool *pool;    /* reads: the file's (tvpal_input_opts) */
 };
 
 struct tvpal_input_file {
@@ -119,6 +121,7 @@ struct tvpal_input_file {
     char var[128];              /* the array open chose */
     uint32_t dims[3];
     int t;
+    struct tvpal_pool *pool;    /* borrowed (tvpal_input_opts), or NULL */
     /* .pvti: the whole extent, the pieces and one piece of scratch */
     long long whole[6];
     struct vti_piece *pcs;
@@ -949,9 +952,34 @@ static int inflate_block(const unsigned char *c, uint64_t csize,
 }
 
 /* Raw (not base64) compressed blocks lie one after the other at c: each
- * inflates on its own, so the threads share them (the encoder's other
- * threads wait for the step meanwhile).  The lowest failing block is
- * reported, as a serial loop would. */
+ * inflates on its own, so the threads of d->pool share them (the
+ * encoder's other threads wait for the step meanwhile).  The lowest
+ * failing block is reported, as a serial loop would. */
+struct blocks_job {
+    const unsigned char *c;
+    const uint64_t *csize, *at;
+    uint64_t nb, bs, last;
+    unsigned char *out;
+    int64_t bad;                /* the lowest failing block (atomic
+                                 * minimum); INT64_MAX: none */
+};
+
+static void block_body(void *arg, size_t i, unsigned tid)
+{
+    struct blocks_job *j = arg;
+    (void)tid;
+    uint64_t want = (uint64_t)i + 1 == j->nb && j->last ? j->last : j->bs;
+    int z;
+    if (!inflate_block(j->c + j->at[i], j->csize[i],
+                       j->out + (uint64_t)i * j->bs, want, &z))
+        return;
+    int64_t cur = __atomic_load_n(&j->bad, __ATOMIC_RELAXED);
+    while ((int64_t)i < cur &&
+           !__atomic_compare_exchange_n(&j->bad, &cur, (int64_t)i, 0,
+                                        __ATOMIC_RELAXED, __ATOMIC_RELAXED))
+        ;
+}
+
 static int inflate_raw_blocks(const struct vti_doc *d,
                               const struct vti_array *a,
                               const unsigned char *c, const uint64_t *csize,
@@ -964,27 +992,25 @@ static int inflate_raw_blocks(const struct vti_doc *d,
     at[0] = 0;
     for (uint64_t i = 0; i < nb; i++)
         at[i + 1] = at[i] + csize[i];
-    int64_t bad = -1;
-    int bad_z = TVPAL_INFLATE_OK;
-#ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 1)
-#endif
-    for (int64_t i = 0; i < (int64_t)nb; i++) {
-        uint64_t want = (uint64_t)i + 1 == nb && last ? last : bs;
+    struct blocks_job j = {.c = c, .csize = csize, .at = at, .nb = nb,
+                           .bs = bs, .last = last, .out = out,
+                           .bad = INT64_MAX};
+    if (d->pool)
+        tvpal_pool_for(d->pool, (size_t)nb, block_body, &j);
+    else
+        for (uint64_t i = 0; i < nb; i++)
+            block_body(&j, (size_t)i, 0);
+    int rc = 0;
+    if (j.bad != INT64_MAX) {
+        /* the lowest failing block's status: it fails the same way again */
+        const uint64_t i = (uint64_t)j.bad;
         int z;
-        if (inflate_block(c + at[i], csize[i], out + (uint64_t)i * bs, want,
-                          &z)) {
-#ifdef _OPENMP
-#pragma omp critical(tvpal_vti_block)
-#endif
-            if (bad < 0 || i < bad) {
-                bad = i;
-                bad_z = z;
-            }
-        }
+        inflate_block(c + at[i], csize[i], out + i * bs,
+                      i + 1 == nb && last ? last : bs, &z);
+        rc = block_error(d, a, i, nb, z);
     }
     free(at);
-    return bad < 0 ? 0 : block_error(d, a, (uint64_t)bad, nb, bad_z);
+    return rc;
 }
 
 /* Where the binary data of array a (binary or appended) starts. */
@@ -1540,6 +1566,7 @@ static int pieces_read(struct tvpal_input_file *f, float *dst,
         uint32_t pdims[3];
         int rc = piece_load(&d, f->path, &f->pcs[i], f->var, f->t, &pick,
                             diag);
+        d.pool = f->pool;
         if (rc == 0)
             rc = decode(&d, &d.arrays[pick], piece_dims(e, pdims), f->scratch);
         doc_free(&d);
@@ -1587,6 +1614,7 @@ static int pieces_read_box(struct tvpal_input_file *f, const uint32_t lo[3],
         int pick = -1;
         int rc = piece_load(&d, f->path, &f->pcs[i], f->var, f->t, &pick,
                             diag);
+        d.pool = f->pool;
         float *at = dst + (b[0] - lo[0]) +
                     ((size_t)(b[2] - lo[2]) * n[1] + (b[1] - lo[1])) * n[0];
         if (rc == 0)
@@ -1645,6 +1673,7 @@ static int vti_open(struct tvpal_input_file **out, const char *path,
         memcpy(f->var, info->var, sizeof f->var);
         memcpy(f->dims, info->dims, sizeof f->dims);
         f->t = a->t;
+        f->pool = opts->pool;
         if (d.parallel)
             rc = pieces_open(f, &d, diag);
         else
@@ -1665,6 +1694,7 @@ static int reload(struct tvpal_input_file *f, struct vti_doc *d, int *pick,
 {
     struct tvpal_input_info info = {0};
     int rc = load(d, f->path, diag);
+    d->pool = f->pool;
     if (rc == 0)
         rc = grid(d, &info);
     if (rc == 0)

@@ -63,6 +63,7 @@ int tvpal_input_format_parse(const char *s, enum tvpal_input_format *f);
  * (TVPAL_IN_HDF5) reads any HDF5 file as HDF5.  tvpal_input_open with
  * TVPAL_IN_AUTO detects with its opts. */
 struct tvpal_input_opts;
+struct tvpal_pool;
 int tvpal_input_detect(const char *path, const struct tvpal_input_opts *opts,
                        enum tvpal_input_format *f, struct tvpal_diag *diag);
 
@@ -76,6 +77,12 @@ struct tvpal_input_opts {
                              * unlimited one, else the dimension a CF time
                              * coordinate (units "... since ...") names,
                              * else the first of a 4-D variable */
+    struct tvpal_pool *pool;  /* the threads that inflate compressed
+                             * blocks and chunks (VTK XML, HDF5 and
+                             * NetCDF-4): borrowed, it must outlive the
+                             * input, and only the thread that reads may
+                             * drive it (tvpal_pool.h); NULL: the reading
+                             * thread alone */
 };
 
 /* What a series holds, from its files. */

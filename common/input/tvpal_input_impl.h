@@ -69,7 +69,8 @@ extern const struct tvpal_input_backend tvpal_input_hdf5;
 
 /* Direct chunk reading (tvpal_in_hdf5.c): a float32 dataset chunked one
  * step deep and compressed by deflate (with or without shuffle) is read
- * chunk by chunk as stored and inflated in parallel by tvpal_inflate.
+ * chunk by chunk as stored and inflated by tvpal_inflate, in parallel on
+ * pool (tvpal_input_opts.pool; NULL: on the calling thread).
  * open: *out NULL (and 0) when path's dataset is not such a dataset, or
  * without HDF5.  read: step k (rank 4; rank 3: the one step) into dst;
  * 0, 1 when this step must be read through the library after all (a chunk
@@ -78,7 +79,8 @@ extern const struct tvpal_input_backend tvpal_input_hdf5;
  * chunks inflated so in this process. */
 struct tvpal_h5direct;
 int tvpal_input_hdf5_direct_open(struct tvpal_h5direct **out,
-                                 const char *path, const char *dataset);
+                                 const char *path, const char *dataset,
+                                 struct tvpal_pool *pool);
 int tvpal_input_hdf5_direct_read(struct tvpal_h5direct *d, uint32_t k,
                                  float *dst, struct tvpal_diag *diag);
 void tvpal_input_hdf5_direct_close(struct tvpal_h5direct *d);
