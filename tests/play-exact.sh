@@ -1,7 +1,7 @@
 #!/bin/sh
 # play-exact: early termination's bound through the whole player.  PNG
 # frames drawn by the cpu renderer with the default early termination
-# (a pixel stops at transmittance 1/510) and with --exact differ by at most
+# (a pixel stops at transmittance 1/272) and with --exact differ by at most
 # one 8-bit level in every pixel, for views along and between the axes,
 # dense and opaque transfer functions, opacity scaled up to saturate
 # pixels, K = 1..4, 1 and 2 threads; on the saturated cases the frames

@@ -94,7 +94,7 @@ static void usage_view(FILE *f)
 "                           moves, 1..100000 (default 66, about 15 fps)\n"
 "      --exact              cpu renderer: blend every sample until a pixel is\n"
 "                           fully opaque (default: a pixel stops once its\n"
-"                           remaining transmittance is at most 1/510, which\n"
+"                           remaining transmittance is at most 1/272, which\n"
 "                           changes no 8-bit pixel by more than one level)\n"
 "      --scale-z F          stretch z by F, 0.001..1000 (vertical\n"
 "                           exaggeration; default 1: the dataset's spacing,\n"

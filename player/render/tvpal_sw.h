@@ -24,21 +24,39 @@
  * tile with none gets its set built, kept until the next upload.
  *
  * Early termination with a bound.  A pixel of the intermediate image stops
- * accumulating once its remaining transmittance 1 - alpha is at most
- * 1/510 (alpha >= TVPAL_SW_ALPHA_STOP).  Why that changes no 8-bit output
- * pixel by more than one level: with premultiplied colours c <= alpha <= 1
- * (what the player builds), everything behind a pixel of transmittance T,
- * background included, adds T * (C_behind + (1 - A_behind) bg), which lies
- * in [0, T] per channel, so stopping moves each channel of the pixel, and
- * of every bilinear mix of pixels the warp makes, by at most T <= 1/510,
- * half an 8-bit level; the over-compositing of cluster ranks multiplies it
- * by a front transmittance <= 1.  Values within half a level of each other
- * round (v * 255 + 0.5, truncated) to at most one level apart.  Float
- * accumulation reaches alpha 1 itself only below a transmittance of about
- * 6e-8, ln(1 / 6e-8) = 16.6 optical depths into the volume; 1/510 is
- * reached at ln 510 = 6.2, so in a uniformly dense volume a pixel blends
- * about 40% of the samples it did.  tvpal_sw_set_exact(r, 1) stops only at
- * alpha 1 (nothing behind can show): the earlier images.
+ * accumulating once its remaining transmittance T = 1 - alpha is at most
+ * 1/272 (alpha >= TVPAL_SW_ALPHA_STOP; 1 - alpha is exact in float above
+ * 1/2).  Why that changes no 8-bit output pixel by more than one level.
+ * Colours are premultiplied, c <= alpha <= 1 (what the player builds), so
+ * all that lies behind the pixel adds T X, X a premultiplied colour in
+ * [0, 1]: stopping lowers each channel and alpha by T X, in [0, T], and
+ * over a background b the channel c + (1 - alpha) b moves by
+ * T (X_c - X_alpha b), in [-T, T].  The warp's bilinear mixes are convex,
+ * so they move by at most T too, and the over-compositing of cluster ranks
+ * moves a pixel by at most the transmittance in front of the front-most
+ * rank that stopped, again <= T.  Two values at most 1/255 apart round to
+ * 8 bits (clamped, v * 255 + 0.5 truncated: any monotone rounding) at most
+ * one level apart, as floor(u) - floor(w) < u - w + 1 <= 2.  So T could be
+ * nearly 1/255; 1/272 leaves 1/255 - 1/272 = 2.45e-4 = 16 steps of 1/65535
+ * for rounding: the warp's weights and the 8-bit conversion (about 1e-7
+ * each); --exact's own blends behind the stop, which can gain at most half
+ * an ulp (3e-8) each beyond what its alpha accounts for (one step per 500
+ * slices); and a cluster's messages, 16-bit (tvpal_rle.c), whose rounding
+ * adds up to two steps to the difference per message a pixel passes
+ * through (one per binary-swap stage; 1/256 would leave one step, not
+ * enough for two ranks).  The player rounds premultiplied RGBA to 8 bits
+ * before it puts the background behind (tvpal_png_over8): on one node
+ * colour and alpha move the same way, by 0 or 1 level each, and
+ * c8 + (255 - a8) b moves by at most one level; in a cluster with a
+ * background other than black a rank's remainder can darken a pixel while
+ * raising its alpha, and the two roundings can add up to two levels (at
+ * any threshold).  Float accumulation reaches alpha 1 itself only below a
+ * transmittance of about 6e-8, ln(1 / 6e-8) = 16.6 optical depths into the
+ * volume; 1/272 is reached at ln 272 = 5.6 (1/510, the earlier threshold,
+ * at 6.2), so in a uniformly dense volume a pixel blends about a third of
+ * the samples it would without stopping, 10% fewer than at 1/510.
+ * tvpal_sw_set_exact(r, 1) stops only at alpha 1 (nothing behind can
+ * show): the images of earlier builds.
  *
  * Opaque runs cost nothing: each row keeps a bitmap of its stopped pixels
  * (the job of Lacroute & Levoy's run links over opaque pixels of the
@@ -90,9 +108,9 @@ void tvpal_sw_free(struct tvpal_sw *r);   /* NULL is a no-op */
  * simd (1: AVX2 where the CPU has it, the default; 0: SSE2 only). */
 void tvpal_sw_options(struct tvpal_sw *r, int threads, int skip, int simd);
 
-/* Alpha at which a pixel stops by default: remaining transmittance 1/510
+/* Alpha at which a pixel stops by default: remaining transmittance 1/272
  * (see above). */
-#define TVPAL_SW_ALPHA_STOP (1.0f - 1.0f / 510.0f)
+#define TVPAL_SW_ALPHA_STOP (1.0f - 1.0f / 272.0f)
 
 /* exact = 1: a pixel stops only at alpha 1 (the images of --exact); 0 (the
  * default): at TVPAL_SW_ALPHA_STOP.  Without skipping no pixel stops. */
