@@ -1,6 +1,8 @@
 /* test-pool: tvpal_pool's parallel loop runs every index exactly once,
  * with thread ids in range and the caller as thread 0, for loops shorter
- * and longer than the team, back to back; the environment's thread count;
+ * and longer than the team (a NULL pool: the caller alone), back to back;
+ * tvpal_pool_lowest finds the first failing index; the environment's
+ * thread count;
  * and idle threads sleep instead of spinning (the reason the pool exists):
  * a 4-thread team left idle for 200 ms of serial gaps uses a small share
  * of one CPU, where libgomp's default spin burns them whole. */
@@ -52,6 +54,21 @@ static double cpu_seconds(void)
            ru.ru_stime.tv_sec + ru.ru_stime.tv_usec * 1e-6;
 }
 
+/* Fails (tvpal_pool_lowest) at i >= from and at every positive multiple
+ * of 7, the later ones first in time where threads race. */
+struct low {
+    int64_t lowest;
+    size_t from;
+};
+
+static void fail_some(void *arg, size_t i, unsigned tid)
+{
+    struct low *l = arg;
+    (void)tid;
+    if (i >= l->from || (i && i % 7 == 0))
+        tvpal_pool_lowest(&l->lowest, (int64_t)i);
+}
+
 int main(void)
 {
     struct tvpal_pool *p = NULL;
@@ -60,19 +77,22 @@ int main(void)
               TVPAL_E_INVAL, "too many threads");
     tvpal_pool_free(NULL);
 
-    static const unsigned teams[] = {1, 2, 3, 8};
+    /* team 0: a NULL pool, the caller alone */
+    static const unsigned teams[] = {0, 1, 2, 3, 8};
     static const size_t sizes[] = {0, 1, 2, 3, 7, 64, MAXN};
     static struct ctx c;
     for (size_t k = 0; k < sizeof teams / sizeof *teams; k++) {
-        REQUIRE(tvpal_pool_create(&p, teams[k]) == 0, "create %u",
-                teams[k]);
-        CHECK(tvpal_pool_threads(p) == teams[k], "threads");
+        p = NULL;
+        if (teams[k])
+            REQUIRE(tvpal_pool_create(&p, teams[k]) == 0, "create %u",
+                    teams[k]);
+        CHECK(tvpal_pool_threads(p) == (teams[k] ? teams[k] : 1), "threads");
         /* Back to back, twice over, so a late thread of one loop would
          * show in the next. */
         for (int rep = 0; rep < 2; rep++)
             for (size_t s = 0; s < sizeof sizes / sizeof *sizes; s++) {
                 memset(&c, 0, sizeof c);
-                c.nthreads = teams[k];
+                c.nthreads = teams[k] ? teams[k] : 1;
                 c.caller = pthread_self();
                 tvpal_pool_for(p, sizes[s], body, &c);
                 size_t wrong = 0;
@@ -85,6 +105,21 @@ int main(void)
             }
         tvpal_pool_free(p);
     }
+
+    /* tvpal_pool_lowest: the first failing index, whichever thread met it
+     * first (every index from 1000 on fails, and every 7th below). */
+    REQUIRE(tvpal_pool_create(&p, 4) == 0, "create 4");
+    for (int rep = 0; rep < 20; rep++) {
+        struct low l = {.lowest = INT64_MAX, .from = 1000 - rep};
+        tvpal_pool_for(p, MAXN, fail_some, &l);
+        CHECK(l.lowest == 7, "lowest failing index %lld, expected 7",
+              (long long)l.lowest);
+        struct low none = {.lowest = INT64_MAX, .from = MAXN};
+        tvpal_pool_for(p, 6, fail_some, &none);
+        CHECK(none.lowest == INT64_MAX, "no failure: %lld",
+              (long long)none.lowest);
+    }
+    tvpal_pool_free(p);
 
     /* Idle threads sleep: 40 loops with 5 ms of serial sleep between. */
     REQUIRE(tvpal_pool_create(&p, 4) == 0, "create 4");

@@ -125,7 +125,7 @@ void tvpal_pool_free(struct tvpal_pool *p)
 
 unsigned tvpal_pool_threads(const struct tvpal_pool *p)
 {
-    return p->nthreads;
+    return p ? p->nthreads : 1;
 }
 
 void tvpal_pool_for(struct tvpal_pool *p, size_t n, tvpal_pool_fn fn,
@@ -133,8 +133,8 @@ void tvpal_pool_for(struct tvpal_pool *p, size_t n, tvpal_pool_fn fn,
 {
     if (n == 0)
         return;
-    /* One index, or one thread: no one to wake. */
-    if (p->nthreads == 1 || n == 1) {
+    /* One index, or one thread (or none but the caller): no one to wake. */
+    if (!p || p->nthreads == 1 || n == 1) {
         for (size_t i = 0; i < n; i++)
             fn(ctx, i, 0);
         return;

@@ -17,12 +17,15 @@
  * (tid 1 .. nthreads - 1); it returns when all have returned, and what
  * they wrote is then visible to the caller.  Which tid runs which i is not
  * fixed: results must not depend on it.  One loop at a time: the pool is
- * not reentrant and is driven by one thread.
+ * not reentrant and is driven by one thread at a time.  A NULL pool is a
+ * team of one: the caller runs the loop (tid 0), so code that may or may
+ * not be given threads has one loop for both.
  */
 #ifndef TVPAL_POOL_H
 #define TVPAL_POOL_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #define TVPAL_POOL_THREADS_MAX 1024
 
@@ -39,11 +42,25 @@ int tvpal_pool_create(struct tvpal_pool **out, unsigned nthreads);
 /* Ends the threads and frees the pool; NULL is a no-op. */
 void tvpal_pool_free(struct tvpal_pool *p);
 
+/* Its threads, the caller included; 1 for NULL. */
 unsigned tvpal_pool_threads(const struct tvpal_pool *p);
 
-/* The parallel loop (see the contract above); n 0 returns at once. */
+/* The parallel loop (see the contract above); n 0 returns at once; p NULL
+ * runs it on the caller. */
 void tvpal_pool_for(struct tvpal_pool *p, size_t n, tvpal_pool_fn fn,
                     void *ctx);
+
+/* For a loop body that fails at index i: lowers *lowest to i (atomically;
+ * start it at INT64_MAX), so that after the loop it holds the first
+ * failing index, the one a serial loop would have stopped at. */
+static inline void tvpal_pool_lowest(int64_t *lowest, int64_t i)
+{
+    int64_t cur = __atomic_load_n(lowest, __ATOMIC_RELAXED);
+    while (i < cur && !__atomic_compare_exchange_n(lowest, &cur, i, 0,
+                                                   __ATOMIC_RELAXED,
+                                                   __ATOMIC_RELAXED))
+        ;
+}
 
 /* The threads the machine offers this process: OMP_NUM_THREADS when set
  * to a whole number 1..TVPAL_POOL_THREADS_MAX (as the OpenMP programs of

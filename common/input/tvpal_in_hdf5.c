@@ -178,7 +178,7 @@ static int direct_plan(struct tvpal_h5direct *d)
     d->off = calloc(n * (size_t)d->rank, sizeof *d->off);
     d->at = malloc(n * sizeof *d->at);
     d->len = malloc(n * sizeof *d->len);
-    d->nthreads = d->pool ? (int)tvpal_pool_threads(d->pool) : 1;
+    d->nthreads = (int)tvpal_pool_threads(d->pool);
     d->work = malloc((size_t)d->nthreads * 2 * d->chunk_bytes);
     if (!d->off || !d->at || !d->len || !d->work)
         return TVPAL_E_NOMEM;
@@ -304,7 +304,7 @@ static void direct_place(const struct tvpal_h5direct *d, size_t c,
  * i of the batch is src + at[i], len[i] bytes; each thread inflates into
  * its own part of d->work, and places the chunk into dst with place.  The
  * lowest chunk that does not inflate goes into bad (INT64_MAX: none), as a
- * serial loop would report it. */
+ * serial loop would report it (tvpal_pool_lowest). */
 static void direct_place_box(const struct tvpal_h5direct *d, const hsize_t *o,
                              const float *buf, const uint32_t lo[3],
                              const uint32_t n[3], float *dst);
@@ -342,12 +342,7 @@ static void chunk_body(void *arg, size_t i, unsigned tid)
     int z = tvpal_inflate(job->src + job->at[i], job->len[i], a,
                           d->chunk_bytes, &got);
     if (z != TVPAL_INFLATE_OK || got != d->chunk_bytes) {
-        int64_t cur = __atomic_load_n(&job->bad, __ATOMIC_RELAXED);
-        while ((int64_t)i < cur &&
-               !__atomic_compare_exchange_n(&job->bad, &cur, (int64_t)i, 0,
-                                            __ATOMIC_RELAXED,
-                                            __ATOMIC_RELAXED))
-            ;
+        tvpal_pool_lowest(&job->bad, (int64_t)i);
         return;
     }
     if (d->shuffle)
@@ -355,18 +350,6 @@ static void chunk_body(void *arg, size_t i, unsigned tid)
     job->place(job, i, (const float *)(void *)(d->shuffle ? b : a));
 }
 
-static void run_chunks(struct tvpal_h5direct *d, struct chunk_job *job,
-                       size_t count,
-                       void (*place)(const struct chunk_job *, size_t,
-                                     const float *))
-{
-    job->place = place;
-    if (d->pool)
-        tvpal_pool_for(d->pool, count, chunk_body, job);
-    else
-        for (size_t i = 0; i < count; i++)
-            chunk_body(job, i, 0);
-}
 #endif
 
 int tvpal_input_hdf5_direct_read(struct tvpal_h5direct *d, uint32_t k,
@@ -383,10 +366,11 @@ int tvpal_input_hdf5_direct_read(struct tvpal_h5direct *d, uint32_t k,
     if (rc)
         return rc;
     struct chunk_job job = {.d = d, .src = d->raw, .at = d->at,
-                            .len = d->len, .dst = dst, .bad = INT64_MAX};
-    run_chunks(d, &job, d->nchunks, whole_chunk);
-    int64_t bad = job.bad == INT64_MAX ? -1 : job.bad;
-    if (bad >= 0)
+                            .len = d->len, .dst = dst, .bad = INT64_MAX,
+                            .place = whole_chunk};
+    tvpal_pool_for(d->pool, d->nchunks, chunk_body, &job);
+    const int64_t bad = job.bad;
+    if (bad != INT64_MAX)
         return tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: step %u: chunk %lld "
                               "of %zu does not inflate (corrupt file)",
                               d->what, k, (long long)bad + 1, d->nchunks);
@@ -497,10 +481,11 @@ int tvpal_input_hdf5_direct_read_box(struct tvpal_h5direct *d, uint32_t k,
         }
         struct chunk_job job = {.d = d, .src = d->braw, .at = d->bat,
                                 .len = d->blen, .dst = dst, .lo = lo,
-                                .n = n, .bad = INT64_MAX};
-        run_chunks(d, &job, nb, box_chunk);
-        int64_t bad = job.bad == INT64_MAX ? -1 : job.bad;
-        if (bad >= 0) {
+                                .n = n, .bad = INT64_MAX,
+                                .place = box_chunk};
+        tvpal_pool_for(d->pool, nb, chunk_body, &job);
+        const int64_t bad = job.bad;
+        if (bad != INT64_MAX) {
             const hsize_t *o = d->boff + (size_t)bad * (size_t)d->rank;
             size_t c = ((size_t)(o[s] / d->chunk[s]) * all[1] +
                         (size_t)(o[s + 1] / d->chunk[s + 1])) * all[0] +

@@ -970,14 +970,9 @@ static void block_body(void *arg, size_t i, unsigned tid)
     (void)tid;
     uint64_t want = (uint64_t)i + 1 == j->nb && j->last ? j->last : j->bs;
     int z;
-    if (!inflate_block(j->c + j->at[i], j->csize[i],
-                       j->out + (uint64_t)i * j->bs, want, &z))
-        return;
-    int64_t cur = __atomic_load_n(&j->bad, __ATOMIC_RELAXED);
-    while ((int64_t)i < cur &&
-           !__atomic_compare_exchange_n(&j->bad, &cur, (int64_t)i, 0,
-                                        __ATOMIC_RELAXED, __ATOMIC_RELAXED))
-        ;
+    if (inflate_block(j->c + j->at[i], j->csize[i],
+                      j->out + (uint64_t)i * j->bs, want, &z))
+        tvpal_pool_lowest(&j->bad, (int64_t)i);
 }
 
 static int inflate_raw_blocks(const struct vti_doc *d,
@@ -995,11 +990,7 @@ static int inflate_raw_blocks(const struct vti_doc *d,
     struct blocks_job j = {.c = c, .csize = csize, .at = at, .nb = nb,
                            .bs = bs, .last = last, .out = out,
                            .bad = INT64_MAX};
-    if (d->pool)
-        tvpal_pool_for(d->pool, (size_t)nb, block_body, &j);
-    else
-        for (uint64_t i = 0; i < nb; i++)
-            block_body(&j, (size_t)i, 0);
+    tvpal_pool_for(d->pool, (size_t)nb, block_body, &j);
     int rc = 0;
     if (j.bad != INT64_MAX) {
         /* the lowest failing block's status: it fails the same way again */
