@@ -54,10 +54,11 @@ int tvpal_quantws_create(struct tvpal_quantws **out, size_t capacity)
     ws->s = malloc(cap * sizeof *ws->s);
     ws->p1 = malloc((cap + 1) * sizeof *ws->p1);
     ws->p2 = malloc((cap + 1) * sizeof *ws->p2);
-    if (cap >= RADIX16_MIN && cap <= UINT32_MAX)
+    const int sort16 = cap >= RADIX16_MIN && cap <= UINT32_MAX;
+    if (sort16)
         ws->hist16 = malloc(2 * 65536 * sizeof *ws->hist16);
     if (!ws->keys || !ws->tmp || !ws->s || !ws->p1 || !ws->p2 ||
-        (cap >= RADIX16_MIN && cap <= UINT32_MAX && !ws->hist16)) {
+        (sort16 && !ws->hist16)) {
         tvpal_quantws_free(ws);
         return TVPAL_E_NOMEM;
     }
@@ -122,6 +123,23 @@ static void exclusive_scan(uint32_t *h, int bins)
     }
 }
 
+/* One LSD pass over the digit (k >> shift) & mask, counts h (COUNT_T *)
+ * with prefix sums SCAN over bins: scatters src into dst and swaps them,
+ * or does nothing when every key has the same digit (h holds n there). */
+#define RADIX_PASS(h, SCAN, bins, shift, mask, src, dst, n)                  \
+    do {                                                                     \
+        if (h[(src[0] >> (shift)) & (mask)] == (n))                          \
+            break;                                                           \
+        SCAN(h, bins);                                                       \
+        for (size_t i_ = 0; i_ < (n); i_++) {                                \
+            uint32_t k_ = src[i_];                                           \
+            dst[h[(k_ >> (shift)) & (mask)]++] = k_;                         \
+        }                                                                    \
+        uint32_t *t_ = src;                                                  \
+        src = dst;                                                           \
+        dst = t_;                                                            \
+    } while (0)
+
 /* LSD radix sort, 3 passes of 11, 11 and 10 bits; a pass whose digit is
  * the same for all keys is skipped (common: coefficient values often share
  * exponent bits).  Returns the buffer that holds the sorted keys (keys or
@@ -140,20 +158,9 @@ static void exclusive_scan(uint32_t *h, int bins)
         }                                                                    \
         uint32_t *src = keys, *dst = tmp;                                    \
         for (int pass = 0; pass < 3; pass++) {                               \
-            unsigned shift = 11u * (unsigned)pass;                           \
-            int bins = pass < 2 ? 2048 : 1024;                               \
             COUNT_T *h = hist[pass];                                         \
-            uint32_t first = (src[0] >> shift) & 0x7FF;                      \
-            if (h[first] == n)                                               \
-                continue;                                                    \
-            SCAN(h, bins);                                                   \
-            for (size_t i = 0; i < n; i++) {                                 \
-                uint32_t k = src[i];                                         \
-                dst[h[(k >> shift) & 0x7FF]++] = k;                          \
-            }                                                                \
-            uint32_t *t = src;                                               \
-            src = dst;                                                       \
-            dst = t;                                                         \
+            RADIX_PASS(h, SCAN, pass < 2 ? 2048 : 1024, 11u * (unsigned)pass, \
+                       0x7FFu, src, dst, n);                                 \
         }                                                                    \
         return src;                                                          \
     }
@@ -190,18 +197,9 @@ static const uint32_t *radix_sort16(uint32_t *keys, uint32_t *tmp, size_t n,
     }
     uint32_t *src = keys, *dst = tmp;
     for (int pass = 0; pass < 2; pass++) {
-        unsigned shift = 16u * (unsigned)pass;
         uint32_t *h = hist + 65536 * pass;
-        if (h[(src[0] >> shift) & 0xFFFF] == n)
-            continue;
-        exclusive_scan(h, 65536);
-        for (size_t i = 0; i < n; i++) {
-            uint32_t k = src[i];
-            dst[h[(k >> shift) & 0xFFFF]++] = k;
-        }
-        uint32_t *t = src;
-        src = dst;
-        dst = t;
+        RADIX_PASS(h, exclusive_scan, 65536, 16u * (unsigned)pass, 0xFFFFu,
+                   src, dst, n);
     }
     return src;
 }
