@@ -630,8 +630,10 @@ int open_source(struct run *r, int have_dims)
     /* Compressed blocks and chunks inflate on a team of their own: the
      * prefetch thread drives it while the encoding team works. */
     unsigned nt = o->threads ? o->threads : tvpal_pool_default_threads();
-    if (nt > 1 && tvpal_pool_create(&r->in_pool, nt) < 0)
-        die_fail("out of memory");
+    int prc = nt > 1 ? tvpal_pool_create(&r->in_pool, nt) : 0;
+    if (prc < 0)
+        die_fail("%u threads to read %s: %s", nt, o->inputs[0],
+                 lib_error(prc, NULL));
     io.pool = r->in_pool;
     int rc = tvpal_input_open(&r->in, f, o->inputs, o->ninputs, &io, &d);
     if (rc < 0)

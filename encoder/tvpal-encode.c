@@ -1398,9 +1398,8 @@ static void save_checkpoint(struct run *r, uint64_t u)
  * step it took 0.13 of 0.90 CPU-seconds of a small encode (64^3 x 99,
  * N = 4; medians of 7).  So it is saved once --checkpoint-every seconds
  * have passed since the last (a rerun after a crash redoes at most that
- * much work), after the last
- * unit (a rerun then only finishes), and at a test fault, so that the test
- * hooks' resume points stay where they say. */
+ * much work), after the last unit (a rerun then only finishes), and at a
+ * test fault, so that the test hooks' resume points stay where they say. */
 static int checkpoint_due(struct run *r, uint64_t u, int faulting)
 {
     double now = tvpal_now();

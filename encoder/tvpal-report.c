@@ -162,9 +162,11 @@ static int open_self_describing(struct options *o,
         fprintf(stderr, PROG ": no reference files\n");
         return TVPAL_EXIT_USAGE;
     }
-    if (tvpal_pool_default_threads() > 1 &&
-        tvpal_pool_create(&o->src_pool, tvpal_pool_default_threads()) < 0) {
-        fprintf(stderr, PROG ": out of memory\n");
+    const unsigned nt = tvpal_pool_default_threads();
+    rc = nt > 1 ? tvpal_pool_create(&o->src_pool, nt) : 0;
+    if (rc < 0) {
+        fprintf(stderr, PROG ": %u threads to read %s: %s\n", nt, o->refs[0],
+                tvpal_strerror(rc));
         return TVPAL_EXIT_FAIL;
     }
     io.pool = o->src_pool;
