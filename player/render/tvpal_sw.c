@@ -760,8 +760,28 @@ static void span_v4(const struct span *s, int x0, int x1)
         span_v4_m(s, x0, x1, 0);
 }
 
+/* Whether texel x has nothing to blend: each of its pixels lies outside
+ * the row or the slice, or (with a map) has stopped.  Asked before the
+ * texel's indices and palette entries are read: the edge texels are the
+ * first read of their index rows, a miss to memory at each of the 512 x
+ * 512 row visits of a 512^3 frame, and at one edge of the sheared slices
+ * their pixels have long stopped. */
+static inline int texel_done(const struct span *s, int x, int w)
+{
+    if (!s->map)
+        return 0;
+    for (unsigned q = 0; q < s->k; q++) {
+        const long i = texel_pixel(s, x, w, q);
+        if (i >= 0 && !(s->map[i >> 6] >> (i & 63) & 1))
+            return 0;
+    }
+    return 1;
+}
+
 static void texel_v4(const struct span *s, int x, int w)
 {
+    if (texel_done(s, x, w))
+        return;
     if (s->exact)
         texel_v4_m(s, x, w, 1);
     else
