@@ -59,10 +59,11 @@ int main(void)
     /* Long inputs go through the hardware version's three interleaved
      * stripes of 8 KiB (block 24576 bytes): lengths around one and several
      * blocks, odd starts and an incremental call that starts mid-block
-     * against the table version. */
+     * against the table version (without SSE4.2 both are the table
+     * version, and these checks compare it with itself). */
     const size_t big = 5 * 24576 + 100;
     unsigned char *lb = malloc(big + 8);
-    CHECK(lb != NULL, "malloc");
+    REQUIRE(lb != NULL, "malloc");
     for (size_t i = 0; i < big + 8; i++)
         lb[i] = (unsigned char)tt_rand64();
     const size_t lens[] = {24575, 24576, 24577, 24576 + 7, 2 * 24576,
