@@ -797,11 +797,12 @@ AVX2 static inline __m256 load2(const float *lo, const float *hi)
                                 _mm_loadu_ps(hi), 1);
 }
 
-/* Live pixels i, i + 1 = dst + (1 - dst.a) * sm.  Returns the alpha
- * lanes of those that stopped (0x08: pixel i, 0x80: i + 1), for
- * mark_stops; 0 without a map. */
-AVX2 INLINE unsigned blend2(float *row, uint64_t *map, float stop, long i,
-                            __m256 sm, const int exact)
+/* Live pixels i, i + 1 = dst + (1 - dst.a) * sm.  Returns the lanes of
+ * the new pixels that are at or past the stop, all lanes compared (only
+ * lanes 3 and 7, the alphas, say anything: pixel i, i + 1); zero without a
+ * map. */
+AVX2 INLINE __m256 blend2v(float *row, uint64_t *map, float stop, long i,
+                           __m256 sm, const int exact)
 {
     float *d = row + 4 * i;
     __m256 dv = _mm256_loadu_ps(d);
@@ -809,10 +810,30 @@ AVX2 INLINE unsigned blend2(float *row, uint64_t *map, float stop, long i,
     __m256 nd = _mm256_add_ps(dv, _mm256_mul_ps(keep, sm));
     _mm256_storeu_ps(d, nd);
     if (!map)
-        return 0;
-    __m256 now = exact ? _mm256_cmp_ps(nd, _mm256_set1_ps(1.0f), _CMP_EQ_OQ)
-                       : _mm256_cmp_ps(nd, _mm256_set1_ps(stop), _CMP_GE_OQ);
+        return _mm256_setzero_ps();
+    return exact ? _mm256_cmp_ps(nd, _mm256_set1_ps(1.0f), _CMP_EQ_OQ)
+                 : _mm256_cmp_ps(nd, _mm256_set1_ps(stop), _CMP_GE_OQ);
+}
+
+/* The stops of blend2v's lanes as bits (0x08: pixel i, 0x80: i + 1), for
+ * mark_stops. */
+AVX2 static inline unsigned stop_bits(__m256 now)
+{
     return (unsigned)_mm256_movemask_ps(now) & 0x88;
+}
+
+/* Whether any alpha lane of now is set: one test for several pairs' stops
+ * (their compare masks or-ed), which are rare, before taking them apart. */
+AVX2 static inline int any_stop(__m256 now)
+{
+    const __m256 alpha = _mm256_castsi256_ps(_mm256_set_epi32(-1, 0, 0, 0, -1, 0, 0, 0));
+    return !_mm256_testz_ps(now, alpha);
+}
+
+AVX2 INLINE unsigned blend2(float *row, uint64_t *map, float stop, long i,
+                            __m256 sm, const int exact)
+{
+    return stop_bits(blend2v(row, map, stop, i, sm, exact));
 }
 
 /* Marks the pixels blend2 said stopped: lane bit 4 q + 3 of m is pixel
@@ -847,7 +868,7 @@ static inline int live_run(const uint64_t *map, long c0, long k, int *x,
 
 /* K = 1, the pair of texels x, x + 1: vp holds V(x) in its high half on
  * entry and [V(x+1) | V(x+2)] on return; both pixels are blended (live);
- * returns blend2's stops, unmarked. */
+ * returns blend2v's compare lanes (the stops, unmarked). */
 struct k1_ctx {      /* a span's K = 1 constants, read once per span */
     __m256 vfy, vfx;
     const uint8_t *ra, *rb;
@@ -857,18 +878,18 @@ struct k1_ctx {      /* a span's K = 1 constants, read once per span */
     long c0;
 };
 
-AVX2 INLINE unsigned pair_k1(const struct k1_ctx *k, int x, __m256 *vp,
-                             uint64_t *map, const int exact)
+AVX2 INLINE __m256 pair_k1(const struct k1_ctx *k, int x, __m256 *vp,
+                           uint64_t *map, const int exact)
 {
     __m256 a = load2(entry(k->pala, k->ra[x + 1]), entry(k->pala, k->ra[x + 2]));
     __m256 b = load2(entry(k->palb, k->rb[x + 1]), entry(k->palb, k->rb[x + 2]));
     __m256 vn = _mm256_add_ps(a, _mm256_mul_ps(k->vfy, _mm256_sub_ps(b, a)));
     __m256 cur = _mm256_permute2f128_ps(*vp, vn, 0x21); /* [V(x) | V(x+1)] */
-    unsigned m = blend2(k->row, map, k->stop, k->c0 + x,
-                        _mm256_add_ps(cur, _mm256_mul_ps(k->vfx, _mm256_sub_ps(vn, cur))),
-                        exact);
+    __m256 now = blend2v(k->row, map, k->stop, k->c0 + x,
+                         _mm256_add_ps(cur, _mm256_mul_ps(k->vfx, _mm256_sub_ps(vn, cur))),
+                         exact);
     *vp = vn;
-    return m;
+    return now;
 }
 
 /* K = 1, texel x alone (tested unless live); vp as for pair_k1, holding
@@ -919,13 +940,13 @@ AVX2 INLINE void span_avx2_k1_m(const struct span *s, int x0, int x1,
         __m256 vp = dup_v(vlerp_sse(s, x, vfy1));
         /* Two pairs a step: one test of their stops, one loop step. */
         for (; x + 3 <= xe; x += 4) {
-            unsigned m = pair_k1(&k, x, &vp, map, exact);
-            m |= pair_k1(&k, x + 2, &vp, map, exact) << 8;
-            if (m)
-                mark_stops(map, c0 + x, m);
+            __m256 n0 = pair_k1(&k, x, &vp, map, exact);
+            __m256 n1 = pair_k1(&k, x + 2, &vp, map, exact);
+            if (any_stop(_mm256_or_ps(n0, n1)))
+                mark_stops(map, c0 + x, stop_bits(n0) | stop_bits(n1) << 8);
         }
         for (; x + 1 <= xe; x += 2) {
-            unsigned m = pair_k1(&k, x, &vp, map, exact);
+            unsigned m = stop_bits(pair_k1(&k, x, &vp, map, exact));
             if (m)
                 mark_stops(map, c0 + x, m);
         }
