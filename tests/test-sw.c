@@ -24,7 +24,8 @@
  * threads, bands of 1 and 5 rows and SSE2/AVX2 give the same bits; each
  * opaque TF really stops early.  The identity tests above run in --exact mode, where stopping
  * changes no bit.  Odd shapes: one-texel-wide and one-row slices, slices wider
- * than 64 tiles of 16.  Errors: a frame that does not match the prepared
+ * than 64 tiles of 16.  Slice edges: a one-colour slice draws as that
+ * colour or nothing, no partial pixel (an undrawn edge texel leaves one).  Errors: a frame that does not match the prepared
  * slices is refused; extreme views (NaN, infinite, huge angles and zooms)
  * keep the view finite and draw or are refused, never undefined. */
 #include "tvpal_render_ref.h"
@@ -692,6 +693,68 @@ int main(void)
                    v.dims[0], v.dims[1], v.dims[2], oddv[vi][0], oddv[vi][1],
                    oddv[vi][2], "xyz"[v.axis], p);
         }
+    /* Slice edges: a volume of one slice, of one colour C.  Compositing
+     * puts C on every intermediate pixel the slice covers, its edge
+     * texels' included (the clamped samples of texels -1 and w - 1), and
+     * the warp mixes covered taps only, so every output pixel is C or 0: a
+     * partial pixel means an edge sample went undrawn (dropping texel
+     * w - 1 gives thousands).  K = 1, 2 and 3, with and without
+     * stopped-pixel maps, both SIMD paths, views turned and zoomed a
+     * little.  One slice lies at depth 0, so its samples have phases
+     * fx = (q + 0.5) / K - 1/2 mod 1: at K = 1 only texel w - 1 has a
+     * sample inside the slice; texel -1's (fx >= 0.5) comes at K = 2 and 3
+     * here, and at K = 1 in the sheared slices of the views above. */
+    {
+        const uint32_t ew = 37, eh = 23;
+        const float C[4] = {0.3f, 0.2f, 0.1f, 0.5f};
+        for (int i = 0; i < 1024; i++)
+            pal_store[i] = C[i % 4];
+        memset(idx_store, 0, (size_t)ew * eh);
+        int partial = 0, full = 0, runs = 0;
+        for (int vi = 0; vi < 24; vi++) {
+            struct tvpal_view v = {.dims = {ew, eh, 1}, .width = 97, .height = 71,
+                                   .ax_deg = -9 + 0.77 * vi, .ay_deg = 7 - 0.61 * vi,
+                                   .zoom = 1.1 + 0.013 * vi};
+            tvpal_view_setup(&v);
+            REQUIRE(v.axis == 2, "view %d: axis %c, not z", vi, "xyz"[v.axis]);
+            sl[0] = (struct tvpal_frame_slice){0, 0, idx_store, pal_store};
+            struct tvpal_frame f = {.view = &v, .w = ew, .h = eh, .count = 1, .sl = sl};
+            const size_t npix = (size_t)v.width * v.height;
+            for (int mode = 0; mode < 12; mode++) {
+                const int simd = mode & 1, maps = mode >> 1 & 1;
+                const unsigned k = 1 + (unsigned)mode / 4;
+                if (simd && !avx2)
+                    continue;
+                struct tvpal_sw *es;
+                REQUIRE(tvpal_sw_create(&es) == 0, "create");
+                tvpal_sw_options(es, 1, 1, simd);
+                tvpal_sw_set_runs(es, maps);
+                REQUIRE(tvpal_sw_set_scale(es, k) == 0, "K %u", k);
+                REQUIRE(tvpal_sw_set_slices(es, ew, eh, 1, &d) == 0, "%s", d.msg);
+                REQUIRE(tvpal_sw_draw(es, &f, img, &d) == 0, "%s", d.msg);
+                tvpal_sw_free(es);
+                runs++;
+                for (size_t i = 0; i < npix; i++) {
+                    int is_c = 1, is_0 = 1;
+                    for (int c = 0; c < 4; c++) {
+                        is_c &= fabsf(img[4 * i + c] - C[c]) <= 1e-5f;
+                        is_0 &= fabsf(img[4 * i + c]) <= 1e-5f;
+                    }
+                    full += is_c;
+                    if (!is_c && !is_0 && partial++ < 3)
+                        printf("slice edges view %d K %u simd %d maps %d: pixel "
+                               "(%zu, %zu) = %g %g %g %g\n", vi, k, simd, maps,
+                               i % v.width, i / v.width, img[4 * i],
+                               img[4 * i + 1], img[4 * i + 2], img[4 * i + 3]);
+                }
+            }
+        }
+        CHECK(partial == 0 && full > 0, "slice edges: %d partial pixels "
+              "(%d full) over %d draws", partial, full, runs);
+        printf("slice edges: %d draws, %d pixels C, %d partial\n", runs, full,
+               partial);
+    }
+
     tvpal_sw_free(sw);
     free(idx_store);
     free(pal_store);
