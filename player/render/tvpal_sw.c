@@ -788,6 +788,29 @@ static void texel_v4(const struct span *s, int x, int w)
         texel_v4_m(s, x, w, 0);
 }
 
+/* texel_v4 for K = 1, inline: one pixel at most, tested before anything is
+ * read.  The slice's edge texels come at every row visit, and at 512^3 the
+ * call and texel_done's loop cost as much as the blend. */
+INLINE void texel_k1(const struct span *s, int x, int w)
+{
+    const long i = texel_pixel(s, x, w, 0);
+    if (i < 0 || (s->map && s->map[i >> 6] >> (i & 63) & 1))
+        return;
+    if (s->exact)
+        texel_v4_m(s, x, w, 1);
+    else
+        texel_v4_m(s, x, w, 0);
+}
+
+/* Texel x (-1 .. w - 1) pixel by pixel (texel_v4). */
+INLINE void texel_edge(const struct span *s, int x, int w)
+{
+    if (s->k == 1)
+        texel_k1(s, x, w);
+    else
+        texel_v4(s, x, w);
+}
+
 #ifdef SW_AVX2
 #define AVX2 __attribute__((target("avx2")))
 
@@ -1039,17 +1062,18 @@ struct drawable {
     unsigned vis_group;    /* 0: slice n's row is vis + n trows; else the
                               slices of one group (slice / vis_group) share
                               row vis + group trows (cross frames) */
-    unsigned tile, trows;
+    unsigned tile, trows;  /* tile: a power of two (tile_for) */
 };
 
 /* What every row of a band shares for one slice: its depth, the texel
  * shift, the first pixel c0 whose sample lies at or right of texel 0, the
  * K phase weights and the pixels the slice covers. */
 struct slice_step {
-    double c, ta;
+    double c, csy, ta;    /* csy = c * sy, the row offset's slice term */
     long sc0;             /* c0 in stored-row pixels */
     float fx[KMAX];
     long first, end;      /* covered pixels [first, end) of any row it meets */
+    long xmin, xmax;      /* texels whose K pixels all lie inside a row */
 };
 
 static void slice_step(const struct geom *g, const struct tvpal_view *v,
@@ -1057,6 +1081,7 @@ static void slice_step(const struct geom *g, const struct tvpal_view *v,
 {
     const unsigned k = g->k;
     st->c = slice_depth(v, slice);
+    st->csy = st->c * g->sy;
     st->ta = g->u0 - st->c * g->sx;
     /* Pixel i samples x = (i + 0.5) / K + ta - 0.5. */
     const double c0 = ceil(k * (0.5 - st->ta) - 0.5);
@@ -1074,6 +1099,8 @@ static void slice_step(const struct geom *g, const struct tvpal_view *v,
      * inside the volume, and the silhouette stays where the volume ends. */
     st->first = st->sc0 - (long)k + qs;
     st->end = st->sc0 + (long)k * (w - 1) + qs;
+    st->xmin = -floordiv(st->sc0, (long)k);
+    st->xmax = floordiv((long)g->wc - (long)k - st->sc0, (long)k);
 }
 
 /* The visible texel runs `bits` (tile columns) of one slice row, through
@@ -1093,11 +1120,11 @@ static void draw_runs(const struct tvpal_sw *r, const struct span *s,
         long a = (long)t0 * tile, b = (long)t1 * tile < w ? (long)t1 * tile : w;
         long lo = a - 1, hi = b - 1;
         if (lo < 0) {
-            texel_v4(s, -1, w);         /* samples with fx >= 0.5 */
+            texel_edge(s, -1, w);       /* samples with fx >= 0.5 */
             lo = 0;
         }
         if (hi == w - 1) {
-            texel_v4(s, w - 1, w);      /* samples with fx < 0.5 */
+            texel_edge(s, w - 1, w);    /* samples with fx < 0.5 */
             hi = w - 2;
         }
         /* Texels only partly inside the stored row (clipping). */
@@ -1127,17 +1154,19 @@ static void draw_runs(const struct tvpal_sw *r, const struct span *s,
     }
 }
 
-/* One row of the band (stored row j, global jo + j) through slice n:
- * widens the row's coverage [*lo, *hi) and composites what it samples. */
+/* One row of the band through slice n: widens the row's coverage
+ * [*lo, *hi) and composites what it samples.  yrow: the row's term of the
+ * slice row it samples, v0 + (jo + j + 0.5) / K for stored row j (global
+ * jo + j), computed once per band. */
 static void slice_row(const struct tvpal_sw *r, const struct drawable *dr,
                       const struct geom *g, const struct slice_step *st,
-                      uint32_t n, unsigned j, float *row, uint64_t *map,
+                      uint32_t n, double yrow, float *row, uint64_t *map,
                       long *lo, long *hi)
 {
     const struct tvpal_frame_slice *sl = &dr->sl[n];
     const int w = dr->w, rb0 = dr->rb0, rb1 = dr->rb1;
     const unsigned k = g->k;
-    const double ty = g->v0 + (g->jo + j + 0.5) / k - st->c * g->sy;
+    const double ty = yrow - st->csy;
     if (!(ty >= 0 && ty < dr->h))
         return;
     *lo = st->first < *lo ? st->first : *lo;
@@ -1159,11 +1188,9 @@ static void slice_row(const struct tvpal_sw *r, const struct drawable *dr,
     memcpy(s.fx, st->fx, sizeof s.fx);
     const uint64_t *vr = dr->vis + (size_t)dr->trows *
                          (dr->vis_group ? sl->slice / dr->vis_group : n);
-    const uint64_t bits = vr[(ya - rb0) / dr->tile] | vr[(yb - rb0) / dr->tile];
-    /* Texels whose K pixels all lie inside the row: xmin..xmax. */
-    const long xmin = -floordiv(s.c0, (long)k);
-    const long xmax = floordiv((long)g->wc - (long)k - s.c0, (long)k);
-    draw_runs(r, &s, bits, w, dr->tile, xmin, xmax);
+    const unsigned ts = (unsigned)__builtin_ctz(dr->tile);
+    const uint64_t bits = vr[(unsigned)(ya - rb0) >> ts] | vr[(unsigned)(yb - rb0) >> ts];
+    draw_runs(r, &s, bits, w, dr->tile, st->xmin, st->xmax);
 }
 
 /* Composites the band of stored rows j0 .. j0 + nb - 1 (nb <= BAND_MAX)
@@ -1180,8 +1207,10 @@ static void composite_band(const struct tvpal_sw *r, const struct drawable *dr,
 {
     const size_t mw = map_words(g->wc);
     long lo[BAND_MAX], hi[BAND_MAX];
+    double yrow[BAND_MAX];
     unsigned live = 0;   /* rows not yet all stopped: bit b */
     for (unsigned b = 0; b < nb; b++) {
+        yrow[b] = g->v0 + (g->jo + j0 + b + 0.5) / g->k;
         memset(im + (size_t)4 * g->wc * (j0 + b), 0, sizeof(float) * 4 * g->wc);
         if (maps)
             memset(maps + mw * b, 0, sizeof *maps * mw);
@@ -1204,7 +1233,7 @@ static void composite_band(const struct tvpal_sw *r, const struct drawable *dr,
                 live &= ~(1u << b);
                 continue;
             }
-            slice_row(r, dr, g, &st, n, j0 + b, im + (size_t)4 * g->wc * (j0 + b),
+            slice_row(r, dr, g, &st, n, yrow[b], im + (size_t)4 * g->wc * (j0 + b),
                       map, &lo[b], &hi[b]);
         }
     }
