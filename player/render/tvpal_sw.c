@@ -196,7 +196,7 @@ unsigned tvpal_sw_scale(const struct tvpal_sw *r)
 static int cpu_avx2(void)
 {
 #ifdef SW_AVX2
-    return __builtin_cpu_supports("avx2");
+    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
 #else
     return 0;
 #endif
@@ -812,7 +812,44 @@ INLINE void texel_edge(const struct span *s, int x, int w)
 }
 
 #ifdef SW_AVX2
-#define AVX2 __attribute__((target("avx2")))
+/* The AVX2 loops (K = 1 and 2) fuse each multiply with its add (FMA, on
+ * every CPU with AVX2 that cpu_avx2 accepts): six instructions fewer per
+ * four blends, and one rounding instead of two.  So their pixels differ
+ * from the SSE2 loops' in the last bits (and, where a pixel's alpha ends
+ * next to the stop, by whether one more sample is blended: less than
+ * 1/272).  Every operation on a pixel's way through these loops is fused
+ * the same way, the single pixels and run starts as the pairs (vlerp_fma,
+ * blend_fma), so that the runs, the per-pixel tests, threads and bands give
+ * the same bits among themselves.  Edge texels (texel_v4) take the SSE2
+ * operations in every mode. */
+#define AVX2 __attribute__((target("avx2,fma")))
+
+/* V(x) = A + fy (B - A), fused: vlerp_sse's value as the AVX2 loops
+ * compute it. */
+AVX2 static inline __m128 vlerp_fma(const struct span *s, int x, __m128 vfy)
+{
+    __m128 a = _mm_loadu_ps(entry(s->pala, s->ra[x]));
+    __m128 b = _mm_loadu_ps(entry(s->palb, s->rb[x]));
+    return _mm_fmadd_ps(vfy, _mm_sub_ps(b, a), a);
+}
+
+/* blend_px with fused operations: pixel i = dst + (1 - dst.a) (C + fx D),
+ * unless it has stopped (tested unless live); marks it when it stops. */
+AVX2 INLINE void blend_fma(const struct span *s, long i, __m128 c, __m128 dd,
+                           float fx, const int exact, const int live)
+{
+    float *d = s->row + 4 * i;
+    if (!live && STOPPED(exact, d[3], s->stop))
+        return;
+    __m128 sm = _mm_fmadd_ps(_mm_set1_ps(fx), dd, c);
+    __m128 dv = _mm_loadu_ps(d);
+    __m128 keep = _mm_sub_ps(_mm_set1_ps(1.0f), _mm_shuffle_ps(dv, dv, 0xFF));
+    __m128 nd = _mm_fmadd_ps(keep, sm, dv);
+    _mm_storeu_ps(d, nd);
+    float a = _mm_cvtss_f32(_mm_shuffle_ps(nd, nd, 0xFF));
+    if (s->map && STOPPED(exact, a, s->stop))
+        map_set(s->map, i);
+}
 
 AVX2 static inline __m256 load2(const float *lo, const float *hi)
 {
@@ -830,7 +867,7 @@ AVX2 INLINE __m256 blend2v(float *row, uint64_t *map, float stop, long i,
     float *d = row + 4 * i;
     __m256 dv = _mm256_loadu_ps(d);
     __m256 keep = _mm256_sub_ps(_mm256_set1_ps(1.0f), _mm256_permute_ps(dv, 0xFF));
-    __m256 nd = _mm256_add_ps(dv, _mm256_mul_ps(keep, sm));
+    __m256 nd = _mm256_fmadd_ps(keep, sm, dv);
     _mm256_storeu_ps(d, nd);
     if (!map)
         return _mm256_setzero_ps();
@@ -906,10 +943,10 @@ AVX2 INLINE __m256 pair_k1(const struct k1_ctx *k, int x, __m256 *vp,
 {
     __m256 a = load2(entry(k->pala, k->ra[x + 1]), entry(k->pala, k->ra[x + 2]));
     __m256 b = load2(entry(k->palb, k->rb[x + 1]), entry(k->palb, k->rb[x + 2]));
-    __m256 vn = _mm256_add_ps(a, _mm256_mul_ps(k->vfy, _mm256_sub_ps(b, a)));
+    __m256 vn = _mm256_fmadd_ps(k->vfy, _mm256_sub_ps(b, a), a);
     __m256 cur = _mm256_permute2f128_ps(*vp, vn, 0x21); /* [V(x) | V(x+1)] */
     __m256 now = blend2v(k->row, map, k->stop, k->c0 + x,
-                         _mm256_add_ps(cur, _mm256_mul_ps(k->vfx, _mm256_sub_ps(vn, cur))),
+                         _mm256_fmadd_ps(k->vfx, _mm256_sub_ps(vn, cur), cur),
                          exact);
     *vp = vn;
     return now;
@@ -921,8 +958,8 @@ AVX2 INLINE void single_k1(const struct span *s, int x, __m256 *vp,
                            const int exact, const int live)
 {
     __m128 cc = _mm256_extractf128_ps(*vp, 1);
-    __m128 cn = vlerp_sse(s, x + 1, _mm_set1_ps(s->fy));
-    blend_px(s, s->c0 + x, cc, _mm_sub_ps(cn, cc), s->fx[0], exact, live);
+    __m128 cn = vlerp_fma(s, x + 1, _mm_set1_ps(s->fy));
+    blend_fma(s, s->c0 + x, cc, _mm_sub_ps(cn, cc), s->fx[0], exact, live);
     *vp = _mm256_insertf128_ps(_mm256_castps128_ps256(cn), cn, 1);
 }
 
@@ -944,7 +981,7 @@ AVX2 INLINE void span_avx2_k1_m(const struct span *s, int x0, int x1,
                              c0};
     int x = x0;
     if (!map) {
-        __m256 vp = dup_v(vlerp_sse(s, x, vfy1));
+        __m256 vp = dup_v(vlerp_fma(s, x, vfy1));
         while (x <= x1) {
             const float *d = s->row + 4 * (c0 + x);
             if (x == x1 || STOPPED(exact, d[3], s->stop) ||
@@ -960,7 +997,7 @@ AVX2 INLINE void span_avx2_k1_m(const struct span *s, int x0, int x1,
     }
     int xe;
     while (x <= x1 && live_run(map, c0, 1, &x, x1, &xe)) {
-        __m256 vp = dup_v(vlerp_sse(s, x, vfy1));
+        __m256 vp = dup_v(vlerp_fma(s, x, vfy1));
         /* Two pairs a step: one test of their stops, one loop step. */
         for (; x + 3 <= xe; x += 4) {
             __m256 n0 = pair_k1(&k, x, &vp, map, exact);
@@ -983,10 +1020,10 @@ AVX2 INLINE void texel_k2(const struct span *s, int x, __m128 *c,
                           __m128 vfy, __m256 vfx, uint64_t *map,
                           const int exact)
 {
-    __m128 cn = vlerp_sse(s, x + 1, vfy);
+    __m128 cn = vlerp_fma(s, x + 1, vfy);
     __m256 d2 = dup_v(_mm_sub_ps(cn, *c));
     unsigned m = blend2(s->row, map, s->stop, s->c0 + 2L * x,
-                        _mm256_add_ps(dup_v(*c), _mm256_mul_ps(vfx, d2)), exact);
+                        _mm256_fmadd_ps(vfx, d2, dup_v(*c)), exact);
     if (m)
         mark_stops(map, s->c0 + 2L * x, m);
     *c = cn;
@@ -1007,12 +1044,12 @@ AVX2 INLINE void span_avx2_k2_m(const struct span *s, int x0, int x1,
     while (x <= x1) {
         if (map && !live_run(map, c0, 2, &x, x1, &xe))
             return;
-        __m128 c = vlerp_sse(s, x, vfy);
+        __m128 c = vlerp_fma(s, x, vfy);
         const float *d = s->row + 4 * (c0 + 2L * x);
         if (map ? xe < x : STOPPED(exact, d[3], s->stop) || STOPPED(exact, d[7], s->stop)) {
-            __m128 dd = _mm_sub_ps(vlerp_sse(s, x + 1, vfy), c);
-            blend_px(s, c0 + 2L * x, c, dd, s->fx[0], exact, 0);
-            blend_px(s, c0 + 2L * x + 1, c, dd, s->fx[1], exact, 0);
+            __m128 dd = _mm_sub_ps(vlerp_fma(s, x + 1, vfy), c);
+            blend_fma(s, c0 + 2L * x, c, dd, s->fx[0], exact, 0);
+            blend_fma(s, c0 + 2L * x + 1, c, dd, s->fx[1], exact, 0);
             x++;
             continue;
         }

@@ -86,9 +86,12 @@
  * stay in L1, and a slice's palette and index rows are fetched once per
  * band rather than once per row): the image is the same for any thread
  * count and band.  An AVX2 inner loop is chosen
- * at run time where the CPU has it; it performs the same float operations
- * in the same order as the SSE2 loop (no fused multiply-add: the player
- * library is built with -ffp-contract=off), so both give the same bits.  No allocation per frame once the largest image and the
+ * at run time where the CPU has AVX2 and FMA; it fuses each multiply with
+ * its add, where the SSE2 loop rounds twice, so the two differ in the last
+ * bits (and, with early termination, where a pixel's alpha ends next to
+ * the stop, by one sample: less than 1/272).  Each loop's own operations
+ * are fixed (the player library is built with -ffp-contract=off, so the
+ * compiler fuses nothing else).  No allocation per frame once the largest image and the
  * slice set (tvpal_sw_set_slices) have been seen.
  */
 #ifndef TVPAL_SW_H
@@ -105,7 +108,8 @@ void tvpal_sw_free(struct tvpal_sw *r);   /* NULL is a no-op */
 
 /* Options for tests and benchmarks: threads (0 = OpenMP's default),
  * skip (empty-space skipping and early termination; 1 by default),
- * simd (1: AVX2 where the CPU has it, the default; 0: SSE2 only). */
+ * simd (1: AVX2 and FMA where the CPU has them, the default; 0: SSE2
+ * only). */
 void tvpal_sw_options(struct tvpal_sw *r, int threads, int skip, int simd);
 
 /* Alpha at which a pixel stops by default: remaining transmittance 1/272
@@ -167,7 +171,8 @@ struct tvpal_sw_counts {
 void tvpal_sw_counts(const struct tvpal_sw *r, struct tvpal_sw_counts *c);
 
 /* Intermediate pixels per texel (K) of the last draw, and the inner loops
- * used ("avx2": AVX2 for K = 1 and 2, SSE2 otherwise; "sse2"; "scalar"),
+ * used ("avx2": AVX2 with FMA for K = 1 and 2, SSE2 otherwise; "sse2";
+ * "scalar"),
  * for reports. */
 unsigned tvpal_sw_scale(const struct tvpal_sw *r);
 const char *tvpal_sw_simd_name(const struct tvpal_sw *r);
