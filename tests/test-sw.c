@@ -435,8 +435,11 @@ int main(void)
     }
 
     /* Lazy classification (tile sets built only where probes cannot
-     * decide).  A dense TF: every tile is proved visible by a probe, no set
-     * is built; drawn again, by the index its probe found (no probe).  Then slices transparent but for two texels of each tile
+     * decide).  A dense TF, every palette entry visible: every tile is
+     * visible, decided with no probe and no set, the image that of drawing
+     * every tile.  The same with one entry (255) made transparent: every
+     * tile is proved visible by a probe, no set is built; drawn again, by
+     * the index its probe found (no probe).  Then slices transparent but for two texels of each tile
      * that no probe reads (its corners): every tile's set is built, the
      * corners are drawn, the image is that of drawing every tile; the
      * next frame builds none (the sets are kept) and after an upload only
@@ -454,6 +457,15 @@ int main(void)
         const unsigned long tiles = (unsigned long)f.count * ((f.w + 15) / 16) *
                                     ((f.h + 15) / 16);
         REQUIRE(tvpal_sw_set_slices(lz, f.w, f.h, f.count, &d) == 0, "%s", d.msg);
+        REQUIRE(tvpal_sw_draw(lz, &f, img, &d) == 0, "%s", d.msg);
+        tvpal_sw_counts(lz, &c);
+        draw_fresh(&f, f.count, 1, 0, 1, img2);
+        CHECK(c.witnessed == 0 && c.probed == 0 && c.built == 0 &&
+              !memcmp(img, img2, sizeof(float) * np), "every entry visible: "
+              "%lu witnessed, %lu probed, %lu built, or pixels changed",
+              c.witnessed, c.probed, c.built);
+        for (uint32_t k = 0; k < f.count; k++)
+            memset(pal_store + (size_t)1024 * sl[k].slice + 4 * 255, 0, 4 * sizeof(float));
         REQUIRE(tvpal_sw_draw(lz, &f, img, &d) == 0, "%s", d.msg);
         tvpal_sw_counts(lz, &c);
         CHECK(c.probed == tiles && c.built == 0, "dense TF: %lu of %lu tiles "
