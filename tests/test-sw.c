@@ -10,7 +10,8 @@
  * skipping and early termination on and off (with a sparse transfer
  * function that leaves most tiles empty and an opaque one that saturates
  * pixels); the AVX2 and SSE2 inner loops; bands of 1, 7 and 32 rows
- * composited together against the default (4); a TF change every frame vs a fresh
+ * composited together against the default (4 to 32, from the L2 cache's
+ * size: a power of two, 7 when set to 7); a TF change every frame vs a fresh
  * renderer with that TF; new slice data announced by upload vs a fresh
  * renderer; lazily built tile sets (a dense TF decides every tile by a
  * probe, then by the index it found; tiles whose visible texels no probe
@@ -389,6 +390,12 @@ int main(void)
             CHECK(simd_diff(img, img2, np, &simd_worst) <= SIMD_TOL, "K %u: options and SSE2 "
                   "changed pixels", k);
             CHECK(k != 0 || tvpal_sw_set_scale(fk, 9) == TVPAL_E_INVAL, "K 9 accepted");
+            const unsigned band = tvpal_sw_band(fk);
+            CHECK(band >= 4 && band <= 32 && !(band & (band - 1)),
+                  "default band %u", band);
+            REQUIRE(tvpal_sw_set_band(fk, 7) == 0, "band 7");
+            REQUIRE(tvpal_sw_draw(fk, &f, img2, &d) == 0, "%s", d.msg);
+            CHECK(tvpal_sw_band(fk) == 7, "band 7 set, %u used", tvpal_sw_band(fk));
             CHECK(k != 0 || (tvpal_sw_set_band(fk, 0) == TVPAL_E_INVAL &&
                              tvpal_sw_set_band(fk, 33) == TVPAL_E_INVAL),
                   "band 0 or 33 accepted");

@@ -124,12 +124,16 @@ void tvpal_sw_set_exact(struct tvpal_sw *r, int exact);
  * per-row maps; 0: each pixel is tested.  The same image either way. */
 void tvpal_sw_set_runs(struct tvpal_sw *r, int runs);
 
-/* Rows of the intermediate image composited together (1..32; 4 by
- * default): each slice goes through a band of rows before the next, so
- * its palette and index rows are fetched once per band.  The same image
+/* Rows of the intermediate image composited together (1..32): each slice
+ * goes through a band of rows before the next, so its palette and index
+ * rows are fetched once per band.  By default a draw chooses from the L2
+ * cache's size (sysconf) and the row length: 4 to 32 rows, the rows
+ * taking at most a quarter of L2; 4 where L2 is unknown.  The same image
  * for any band (each pixel meets the same operations in the same order);
- * for tests and benchmarks.  TVPAL_E_INVAL outside 1..32. */
+ * setting one is for tests and benchmarks.  TVPAL_E_INVAL outside 1..32.
+ * tvpal_sw_band: the band of the last draw (0 before any). */
 int tvpal_sw_set_band(struct tvpal_sw *r, unsigned rows);
+unsigned tvpal_sw_band(const struct tvpal_sw *r);
 
 /* Intermediate pixels per texel: 0 (the default) chooses K from the view
  * (1..4, see above); 1..8 forces it (speed against sharpness: the cost
