@@ -747,31 +747,32 @@ int main(void)
                    v.dims[0], v.dims[1], v.dims[2], oddv[vi][0], oddv[vi][1],
                    oddv[vi][2], "xyz"[v.axis], p);
         }
-    /* Slice edges: a volume of one slice, of one colour C.  Compositing
-     * puts C on every intermediate pixel the slice covers, its edge
-     * texels' included (the clamped samples of texels -1 and w - 1), and
-     * the warp mixes covered taps only, so every output pixel is C or 0: a
-     * partial pixel means an edge sample went undrawn (dropping texel
-     * w - 1 gives thousands).  K = 1, 2 and 3, with and without
-     * stopped-pixel maps, both SIMD paths, views turned and zoomed a
-     * little.  One slice lies at depth 0, so its samples have phases
-     * fx = (q + 0.5) / K - 1/2 mod 1: at K = 1 only texel w - 1 has a
-     * sample inside the slice; texel -1's (fx >= 0.5) comes at K = 2 and 3
-     * here, and at K = 1 in the sheared slices of the views above. */
+    /* Slice edges: one slice of one colour C drawn alone (a frame of one
+     * of the volume's 3 slices, as the player leaves transparent slices
+     * out).  Compositing puts C on every intermediate pixel the slice
+     * covers, its edge texels' included (the clamped samples of texels -1
+     * and w - 1), and the warp mixes covered taps only, so every output
+     * pixel is C or 0: a partial pixel means an edge sample went undrawn
+     * (dropping texel -1 or w - 1 gives thousands).  K = 1, 2 and 3, with
+     * and without stopped-pixel maps, both SIMD paths, views turned and
+     * zoomed a little; the slice drawn moves from view to view, so that
+     * the shear puts it at fractions of a pixel and both phases of the
+     * edge texels (fx < 0.5: texel w - 1 has a sample inside the slice;
+     * fx >= 0.5: texel -1 has) occur at every K. */
     {
-        const uint32_t ew = 37, eh = 23;
+        const uint32_t ew = 37, eh = 23, ed = 3;
         const float C[4] = {0.3f, 0.2f, 0.1f, 0.5f};
         for (int i = 0; i < 1024; i++)
             pal_store[i] = C[i % 4];
         memset(idx_store, 0, (size_t)ew * eh);
         int partial = 0, full = 0, runs = 0;
         for (int vi = 0; vi < 24; vi++) {
-            struct tvpal_view v = {.dims = {ew, eh, 1}, .width = 97, .height = 71,
+            struct tvpal_view v = {.dims = {ew, eh, ed}, .width = 97, .height = 71,
                                    .ax_deg = -9 + 0.77 * vi, .ay_deg = 7 - 0.61 * vi,
                                    .zoom = 1.1 + 0.013 * vi};
             tvpal_view_setup(&v);
             REQUIRE(v.axis == 2, "view %d: axis %c, not z", vi, "xyz"[v.axis]);
-            sl[0] = (struct tvpal_frame_slice){0, 0, idx_store, pal_store};
+            sl[0] = (struct tvpal_frame_slice){(uint32_t)vi % ed, 0, idx_store, pal_store};
             struct tvpal_frame f = {.view = &v, .w = ew, .h = eh, .count = 1, .sl = sl};
             const size_t npix = (size_t)v.width * v.height;
             for (int mode = 0; mode < 12; mode++) {
