@@ -6,29 +6,38 @@
  * so it is a little blurrier than the reference's direct sampling of each
  * slice at the output pixel; 35 dB is about 2/255 RMS on [0,1] images, far
  * below what a wrong shear, order or palette would give (those land under
- * 20 dB).  Exact (bit-identical) comparisons: 1, 2 and 3 threads; empty-space
- * skipping and early termination on and off (with a sparse transfer
- * function that leaves most tiles empty and an opaque one that saturates
- * pixels); the AVX2 and SSE2 inner loops; bands of 1, 7 and 32 rows
- * composited together against the default (4 to 32, from the L2 cache's
- * size: a power of two, 7 when set to 7); a TF change every frame vs a fresh
- * renderer with that TF; new slice data announced by upload vs a fresh
- * renderer; lazily built tile sets (a dense TF decides every tile by a
+ * 20 dB).
+ *
+ * Exact (bit-identical) comparisons, within one SIMD path: 1, 2 and 3
+ * threads; empty-space skipping and early termination on and off (with a
+ * sparse transfer function that leaves most tiles empty and an opaque one
+ * that saturates pixels); bands of 1, 7 and 32 rows composited together
+ * against the default (4 to 32, from the L2 cache's size: a power of two,
+ * 7 when set to 7); a TF change every frame vs a fresh renderer with that
+ * TF; new slice data announced by upload vs a fresh renderer; lazily built
+ * tile sets (a palette with every entry visible decides every tile with no
+ * probe; a dense TF with one transparent entry decides every tile by a
  * probe, then by the index it found; tiles whose visible texels no probe
- * reads get sets, drawn as without skipping; sets kept until an upload); a block of missing (NaN) values with the default transparent
- * NaN colour vs the same block transparent by the TF.  Early termination
- * (the default, a pixel stops at transmittance 1/272): over 48 random views
- * and TFs, a third of them with opaque plateaus, no 8-bit pixel differs
- * from --exact by more than one level and no channel by more than 1/272,
- * and some channel by more than 0.9 / 272 (the bound is nearly reached);
- * the stopped-pixel maps (opaque runs skipped) against a test per pixel,
- * threads, bands of 1 and 5 rows and SSE2/AVX2 give the same bits; each
- * opaque TF really stops early.  The identity tests above run in --exact mode, where stopping
- * changes no bit.  Odd shapes: one-texel-wide and one-row slices, slices wider
- * than 64 tiles of 16.  Slice edges: a one-colour slice draws as that
- * colour or nothing, no partial pixel (an undrawn edge texel leaves one).  Errors: a frame that does not match the prepared
- * slices is refused; extreme views (NaN, infinite, huge angles and zooms)
- * keep the view finite and draw or are refused, never undefined. */
+ * reads get sets, drawn as without skipping; sets kept until an upload); a
+ * block of missing (NaN) values with the default transparent NaN colour vs
+ * the same block transparent by the TF.  These run in --exact mode, where
+ * stopping changes no bit.  The AVX2 loops (FMA) against the SSE2 loops:
+ * within SIMD_TOL per channel in --exact mode (below).
+ *
+ * Early termination (the default, a pixel stops at transmittance 1/272):
+ * over 48 random views and TFs, a third of them with opaque plateaus, no
+ * 8-bit pixel differs from --exact by more than one level and no channel
+ * by more than 1/272, and some channel by more than 0.9 / 272 (the bound
+ * is nearly reached); the stopped-pixel maps (opaque runs skipped) against
+ * a test per pixel, threads and bands of 1 and 5 rows give the same bits,
+ * SSE2 against AVX2 within 1/272; each opaque TF really stops early.
+ *
+ * Odd shapes: one-texel-wide and one-row slices, slices wider than 64
+ * tiles of 16.  Slice edges: a one-colour slice draws as that colour or
+ * nothing, no partial pixel (an undrawn edge texel leaves some).  Errors: a
+ * frame that does not match the prepared slices is refused; extreme views
+ * (NaN, infinite, huge angles and zooms) keep the view finite and draw or
+ * are refused, never undefined. */
 #include "tvpal_render_ref.h"
 #include "tvpal_sw.h"
 #include "tvpal_test.h"
