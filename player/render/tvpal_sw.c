@@ -822,37 +822,30 @@ static inline int texel_done(const struct span *s, int x, int w)
     return 1;
 }
 
-static void texel_v4(const struct span *s, int x, int w)
+/* Blends the pixels of texel x (-1 .. w - 1) that lie inside, by
+ * texel_v4_m. */
+static void texel_blend(const struct span *s, int x, int w)
 {
-    if (texel_done(s, x, w))
-        return;
     if (s->exact)
         texel_v4_m(s, x, w, 1);
     else
         texel_v4_m(s, x, w, 0);
 }
 
-/* texel_v4 for K = 1, inline: one pixel at most, tested before anything is
- * read.  The slice's edge texels come at every row visit, and at 512^3 the
- * call and texel_done's loop cost as much as the blend. */
-INLINE void texel_k1(const struct span *s, int x, int w)
+/* Texel x pixel by pixel, its pixels tested before anything is read.  The
+ * slice's edge texels come at every row visit: at K = 1 (one pixel) the
+ * test is inline, where texel_done's loop over K pixels cost as much as
+ * the blend at 512^3. */
+INLINE void texel_v4(const struct span *s, int x, int w)
 {
-    const long i = texel_pixel(s, x, w, 0);
-    if (i < 0 || (s->map && s->map[i >> 6] >> (i & 63) & 1))
+    if (s->k == 1) {
+        const long i = texel_pixel(s, x, w, 0);
+        if (i < 0 || (s->map && s->map[i >> 6] >> (i & 63) & 1))
+            return;
+    } else if (texel_done(s, x, w)) {
         return;
-    if (s->exact)
-        texel_v4_m(s, x, w, 1);
-    else
-        texel_v4_m(s, x, w, 0);
-}
-
-/* Texel x (-1 .. w - 1) pixel by pixel (texel_v4). */
-INLINE void texel_edge(const struct span *s, int x, int w)
-{
-    if (s->k == 1)
-        texel_k1(s, x, w);
-    else
-        texel_v4(s, x, w);
+    }
+    texel_blend(s, x, w);
 }
 
 #ifdef SW_AVX2
@@ -1201,11 +1194,11 @@ static void draw_runs(const struct tvpal_sw *r, const struct span *s,
         long a = (long)t0 * tile, b = (long)t1 * tile < w ? (long)t1 * tile : w;
         long lo = a - 1, hi = b - 1;
         if (lo < 0) {
-            texel_edge(s, -1, w);       /* samples with fx >= 0.5 */
+            texel_v4(s, -1, w);         /* samples with fx >= 0.5 */
             lo = 0;
         }
         if (hi == w - 1) {
-            texel_edge(s, w - 1, w);    /* samples with fx < 0.5 */
+            texel_v4(s, w - 1, w);      /* samples with fx < 0.5 */
             hi = w - 2;
         }
         /* Texels only partly inside the stored row (clipping). */
