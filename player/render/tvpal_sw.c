@@ -1660,11 +1660,13 @@ static void clip_to_output(const struct tvpal_view *v, const struct warp *wp,
 }
 
 /* Scratch grows to the largest frame seen, then stays: no allocation per
- * frame in steady playback. */
+ * frame in steady playback.  band: rows composited together (a map each,
+ * per thread). */
 static int reserve_scratch(struct tvpal_sw *r, const struct tvpal_frame *f,
-                           const struct geom *g, int nt, struct tvpal_diag *diag)
+                           const struct geom *g, unsigned band, int nt,
+                           struct tvpal_diag *diag)
 {
-    size_t nwords = map_words(g->wc) * band_rows(r, g->wc) * (size_t)nt;
+    size_t nwords = map_words(g->wc) * band * (size_t)nt;
     if (nwords > r->maps_cap) {
         uint64_t *nm = realloc(r->maps, sizeof *nm * nwords);
         if (!nm)
@@ -1754,7 +1756,8 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
 #ifdef _OPENMP
     nt = r->threads > 0 ? r->threads : omp_get_max_threads();
 #endif
-    if ((rc = reserve_scratch(r, f, &g, nt, diag)) < 0)
+    const unsigned band = band_rows(r, g.wc);
+    if ((rc = reserve_scratch(r, f, &g, band, nt, diag)) < 0)
         return rc;
     if (f->cross && f->count && (rc = reserve_cross(r, f, nt, diag)) < 0)
         return rc;
@@ -1775,7 +1778,6 @@ int tvpal_sw_draw(struct tvpal_sw *r, const struct tvpal_frame *f,
     r->t_classify = (t1 - t0) * 1e3;
     /* Composite: bands of rows of the intermediate image, handed out
      * dynamically (rows near the edges meet fewer slices). */
-    const unsigned band = band_rows(r, g.wc);
     r->band_last = band;
     const int nbands = (int)((g.hc + band - 1) / band);
 #ifdef _OPENMP
