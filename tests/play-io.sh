@@ -50,6 +50,24 @@ if [ "$uring" = yes ] && [ "${URING_BUILT:-yes}" = yes ]; then
     n=$(kv io_submits "$line")
     [ -n "$n" ] && [ "$n" -le 16 ] && ok "16 jumps: $n submissions, at most one a frame (batched)" \
         || fail "16 jumps: ${n:-?} submissions: $line $(cat "$W/e.txt")"
+    # The record buffers are registered with io_uring (fixed buffers): the
+    # stager's reads then skip pinning pages per read.  Root (or any user
+    # whose RLIMIT_MEMLOCK allows it) gets them; others are told why on the
+    # start line, and read as before.
+    line=$(run) && fx=$(kv fixed "$line") && nfx=$(kv fixed_reads "$line")
+    if [ "$(id -u)" = 0 ] || [ "$(ulimit -l)" = unlimited ]; then
+        [ "$fx" = yes ] && [ "${nfx:-0}" -gt 0 ] \
+            && ok "fixed buffers: fixed=yes, $nfx reads into them" \
+            || fail "fixed buffers: $line $(cat "$W/e.txt")"
+        "$PLAY" "$W/ds" --headless --size 16x16 -o "$W/f" 2>&1 >/dev/null | grep -q "O_DIRECT [a-z]*, fixed buffers yes)" \
+            && ok "the start line says fixed buffers yes" || fail "start line: no fixed buffers"
+    else
+        [ "$fx" = yes ] || "$PLAY" "$W/ds" --headless --size 16x16 -o "$W/f" 2>&1 >/dev/null \
+            | grep -q "fixed buffers no (io_uring_register_buffers" \
+            && ok "fixed buffers: $fx (not root), said" || fail "fixed buffers refused, not said: $line"
+    fi
+    line=$(run --mode incore) && [ "$(kv fixed "$line")" = no ] && [ "$(kv fixed_reads "$line")" = 0 ] \
+        && ok "in-core: no record buffers, fixed=no" || fail "in-core fixed: $line"
     checked=$((checked + 1))
 else
     echo "io_uring not offered here ($uring): its checks are skipped"
@@ -72,7 +90,7 @@ fi
 line=$(run --no-direct) && [ "$(kv direct "$line")" = no ] && ok "--no-direct: direct=no" || fail "--no-direct: $line"
 line=$(run --io pread) && [ "$(kv io "$line")" = pread ] && ok "--io pread: io=pread" || fail "--io pread: $line"
 expect_exit 2 "choose one" "$PLAY" "$W/ds" --headless -q --direct --no-direct -o "$W/f"
-"$PLAY" "$W/ds" --headless --size 16x16 -o "$W/f" 2>&1 >/dev/null | grep -Eq "data streamed \((uring|pread), O_DIRECT (yes|no|some)\)" \
+"$PLAY" "$W/ds" --headless --size 16x16 -o "$W/f" 2>&1 >/dev/null | grep -Eq "data streamed \((uring|pread), O_DIRECT (yes|no|some), fixed buffers (yes|no|some)" \
     && ok "the start line names the I/O path" || fail "start line"
 # A read that fails (EIO, injected by tvpal_io's test hook at a byte of
 # record 2 of the z shard): every mode and backend reports the real cause

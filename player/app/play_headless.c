@@ -227,11 +227,11 @@ static void print_start_line(const struct headless *h)
 {
     const struct tvpal_manifest *m = h->s->m;
     char desc[160];
-    const char *io, *direct, *why;
-    tvpal_player_io_path(h->lpl, &io, &direct, &why);
+    struct tvpal_io_path ip;
+    tvpal_player_io_path(h->lpl, &ip);
     /* A fallback is said even with -q: it changes what is measured. */
-    if (why[0])
-        fprintf(stderr, PROG ": warning: %s\n", why);
+    if (ip.why[0])
+        fprintf(stderr, PROG ": warning: %s\n", ip.why);
     if (h->quiet)
         return;
     char lv[96] = "";
@@ -239,11 +239,18 @@ static void print_start_line(const struct headless *h)
         snprintf(lv, sizeof lv, ", level %u of 0..%u (%ux%ux%u%s)", h->level,
                  h->s->nlevels - 1, h->vl.dims[0], h->vl.dims[1],
                  h->vl.dims[2], h->o->level_given ? ", --level" : "");
+    /* Without fixed buffers every read pins its pages: said, not warned
+     * of (RLIMIT_MEMLOCK refuses them to most users). */
+    char fx[240] = "";
+    if (!h->o->po.incore)
+        snprintf(fx, sizeof fx, ", fixed buffers %s%s%s%s", ip.fixed,
+                 ip.fixed_why[0] ? " (" : "", ip.fixed_why,
+                 ip.fixed_why[0] ? ")" : "");
     fprintf(stderr, PROG ": %s: %ux%ux%u, %u steps, window %u%s; axis %c, "
-            "data %s (%s, O_DIRECT %s), renderer %s (%s%s)\n", h->o->dir,
+            "data %s (%s, O_DIRECT %s%s), renderer %s (%s%s)\n", h->o->dir,
             m->dims[0], m->dims[1], m->dims[2], m->steps, m->window, lv,
-            "xyz"[h->vl.axis], h->o->po.incore ? "in-core" : "streamed", io,
-            direct, h->pr.r.name,
+            "xyz"[h->vl.axis], h->o->po.incore ? "in-core" : "streamed",
+            ip.io, ip.direct, fx, h->pr.r.name,
             play_renderer_describe(&h->pr, desc, sizeof desc),
             h->o->renderer_why);
 }
@@ -456,18 +463,19 @@ static void print_summary(struct headless *h, double elapsed)
         fprintf(stderr, PROG ": %u frames in %s/\n", h->nframes, h->outdir);
     play_timing_summary(stdout, &h->tot,
                         h->nframes / (elapsed > 0 ? elapsed : 1e-9));
-    const char *io, *direct, *why;
+    struct tvpal_io_path ip;
     /* The I/O path of the level drawn last; counts over every level. */
-    tvpal_player_io_path(h->lpl, &io, &direct, &why);
+    tvpal_player_io_path(h->lpl, &ip);
     uint64_t submits = 0;
     for (unsigned k = 0; k < h->s->nlevels; k++)
         if (h->s->lvl[k])
             submits += tvpal_player_io_submits(h->s->lvl[k]);
-    printf(" incore_mib=%.1f mode=%s io=%s direct=%s io_submits=%llu "
-           "renderer=%s errors=%u\n",
+    printf(" incore_mib=%.1f mode=%s io=%s direct=%s fixed=%s fixed_reads=%llu "
+           "io_submits=%llu renderer=%s errors=%u\n",
            play_levels_incore_bytes(h->s) / 1048576.0,
-           tvpal_player_io_name(h->lpl), io, direct,
-           (unsigned long long)submits, h->pr.r.name, h->errors);
+           tvpal_player_io_name(h->lpl), ip.io, ip.direct, ip.fixed,
+           (unsigned long long)ip.fixed_reads, (unsigned long long)submits,
+           h->pr.r.name, h->errors);
     if (h->o->ref_psnr)
         printf("psnr_ref=%.3f\n", play_timing_mean_psnr(&h->tot));
 }

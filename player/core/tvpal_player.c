@@ -215,27 +215,31 @@ uint64_t tvpal_player_io_submits(const struct tvpal_player *p)
     return n;
 }
 
-void tvpal_player_io_path(const struct tvpal_player *p, const char **io,
-                          const char **direct, const char **why)
+void tvpal_player_io_path(const struct tvpal_player *p,
+                          struct tvpal_io_path *out)
 {
-    unsigned on = 0, files = 0;
-    *io = p->opts.io == TVPAL_IO_URING ? "uring" : "pread";
-    *why = "";
-    int first = 1;
+    unsigned on = 0, files = 0, fixed = 0, streams = 0;
+    *out = (struct tvpal_io_path){
+        .io = p->opts.io == TVPAL_IO_URING ? "uring" : "pread",
+        .why = "", .fixed_why = ""};
     for (unsigned a = 0; a < 3; a++) {
         if (!p->ax[a].stream)
             continue;
         struct tvpal_stream_path sp;
         tvpal_stream_path(p->ax[a].stream, &sp);
-        if (first)
-            *io = sp.io;
-        first = 0;
+        if (!streams++)
+            out->io = sp.io;
         on += sp.direct_files;
         files += sp.files;
-        if (!(*why)[0])
-            *why = sp.why;
+        fixed += sp.fixed > 0;
+        out->fixed_reads += sp.fixed_reads;
+        if (!out->why[0])
+            out->why = sp.why;
+        if (!out->fixed_why[0])
+            out->fixed_why = sp.fixed_why;
     }
-    *direct = !on ? "no" : on == files ? "yes" : "some";
+    out->direct = !on ? "no" : on == files ? "yes" : "some";
+    out->fixed = !fixed ? "no" : fixed == streams ? "yes" : "some";
 }
 
 void tvpal_player_set_tf(struct tvpal_player *p, const struct tvpal_tf *tf,

@@ -99,12 +99,22 @@ void tvpal_player_close(struct tvpal_player *p);   /* NULL is a no-op */
 const struct tvpal_manifest *tvpal_player_manifest(const struct tvpal_player *p);
 const char *tvpal_player_io_name(const struct tvpal_player *p);
 
-/* What the player's streams really do (axes opened so far): the backend
- * ("uring" or "pread"; the configured one before any axis is open),
- * whether O_DIRECT is on ("yes", "no", or "some" when only some files
- * took it), and the first fallback ("" when none).  Borrowed strings. */
-void tvpal_player_io_path(const struct tvpal_player *p, const char **io,
-                          const char **direct, const char **why);
+/* What the player's streams really do (axes opened so far).  Borrowed
+ * strings. */
+struct tvpal_io_path {
+    const char *io;        /* "uring" or "pread" (the configured one before
+                            * any axis is open) */
+    const char *direct;    /* O_DIRECT: "yes", "no", or "some" when only
+                            * some files took it */
+    const char *why;       /* the first fallback, "" when none */
+    const char *fixed;     /* record buffers registered with io_uring:
+                            * "yes", "no", "some"; "no" in-core (no record
+                            * buffers) */
+    const char *fixed_why; /* streamed without them: why, or "" */
+    uint64_t fixed_reads;  /* reads into registered buffers so far */
+};
+void tvpal_player_io_path(const struct tvpal_player *p,
+                          struct tvpal_io_path *out);
 
 /* Read submissions (system calls) of the open axes' streams so far. */
 uint64_t tvpal_player_io_submits(const struct tvpal_player *p);

@@ -6,6 +6,7 @@
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/uio.h>
 #include <unistd.h>
 #ifdef HAVE_LIBURING
 #include <liburing.h>
@@ -18,6 +19,7 @@ struct tvpal_io {
     struct tvpal_io_req *q;
     unsigned head;
     uint64_t submits;     /* io_uring_submit calls (tvpal_io_submits) */
+    uint64_t fixed_reads; /* reads queued into registered buffers */
 #ifdef HAVE_LIBURING
     struct io_uring ring;
     int ring_ok;
@@ -28,6 +30,10 @@ struct tvpal_io {
         uint64_t done;
         int used;
     } *pend;
+    /* Registered buffers (tvpal_io_register), nfixed of them. */
+    unsigned char **fixed;
+    uint64_t *fixed_len;
+    unsigned nfixed;
 #endif
 };
 
@@ -114,9 +120,11 @@ void tvpal_io_free(struct tvpal_io *io)
             io_uring_cqe_seen(&io->ring, cqe);
             io->inflight--;
         }
-        io_uring_queue_exit(&io->ring);
+        io_uring_queue_exit(&io->ring); /* drops the registration */
     }
     free(io->pend);
+    free(io->fixed);
+    free(io->fixed_len);
 #endif
     free(io->q);
     free(io);
@@ -138,6 +146,17 @@ unsigned tvpal_io_depth(const struct tvpal_io *io)
 }
 
 #ifdef HAVE_LIBURING
+/* The registered buffer holding all of [p, p + len), or -1. */
+static int fixed_index(const struct tvpal_io *io, const unsigned char *p,
+                       uint64_t len)
+{
+    for (unsigned i = 0; i < io->nfixed; i++)
+        if (p >= io->fixed[i] &&
+            (uint64_t)(p - io->fixed[i]) + len <= io->fixed_len[i])
+            return (int)i;
+    return -1;
+}
+
 /* Queues the remaining part of pending read k. */
 static int uring_queue(struct tvpal_io *io, unsigned k,
                        struct tvpal_diag *diag)
@@ -146,8 +165,16 @@ static int uring_queue(struct tvpal_io *io, unsigned k,
     struct io_uring_sqe *sqe = io_uring_get_sqe(&io->ring);
     if (!sqe)
         return TVPAL_E_INVAL;
-    io_uring_prep_read(sqe, pd->r.fd, (char *)pd->r.buf + pd->done,
-                       (unsigned)(pd->r.len - pd->done), pd->r.off + pd->done);
+    unsigned char *dst = (unsigned char *)pd->r.buf + pd->done;
+    unsigned len = (unsigned)(pd->r.len - pd->done);
+    int fi = fixed_index(io, dst, len);
+    if (fi >= 0) {
+        io_uring_prep_read_fixed(sqe, pd->r.fd, dst, len,
+                                 pd->r.off + pd->done, fi);
+        io->fixed_reads++;
+    } else {
+        io_uring_prep_read(sqe, pd->r.fd, dst, len, pd->r.off + pd->done);
+    }
     io_uring_sqe_set_data64(sqe, k);
     (void)diag;
     return 0; /* submitted by tvpal_io_flush or the next wait */
@@ -166,6 +193,71 @@ static int uring_flush(struct tvpal_io *io, struct tvpal_diag *diag)
     return 0;
 }
 #endif
+
+#ifdef HAVE_LIBURING
+static void fixed_forget(struct tvpal_io *io)
+{
+    free(io->fixed);
+    free(io->fixed_len);
+    io->fixed = NULL;
+    io->fixed_len = NULL;
+    io->nfixed = 0;
+}
+#endif
+
+int tvpal_io_register(struct tvpal_io *io, void *const *bufs,
+                      const uint64_t *lens, unsigned n,
+                      struct tvpal_diag *diag)
+{
+#ifdef HAVE_LIBURING
+    if (io->kind == TVPAL_IO_URING && !io->nfixed && n && !io->inflight) {
+        struct iovec *iov = calloc(n, sizeof *iov);
+        io->fixed = calloc(n, sizeof *io->fixed);
+        io->fixed_len = calloc(n, sizeof *io->fixed_len);
+        if (!iov || !io->fixed || !io->fixed_len) {
+            free(iov);
+            fixed_forget(io);
+            return TVPAL_E_NOMEM;
+        }
+        for (unsigned i = 0; i < n; i++) {
+            iov[i] = (struct iovec){.iov_base = bufs[i], .iov_len = lens[i]};
+            io->fixed[i] = bufs[i];
+            io->fixed_len[i] = lens[i];
+        }
+        int rc = io_uring_register_buffers(&io->ring, iov, n);
+        free(iov);
+        if (rc < 0) {
+            fixed_forget(io);
+            return tvpal_diag_set(diag, TVPAL_E_SYS,
+                                  "io_uring_register_buffers (%u buffers): "
+                                  "%s%s", n, strerror(-rc), rc == -ENOMEM
+                                  ? "; RLIMIT_MEMLOCK (ulimit -l) too low"
+                                  : "");
+        }
+        io->nfixed = n;
+        return 0;
+    }
+#endif
+    (void)bufs, (void)lens, (void)n;
+    return tvpal_diag_set(diag, TVPAL_E_SYS, io->kind == TVPAL_IO_URING
+                          ? "buffers already registered, or reads queued"
+                          : "the pread backend has no fixed buffers");
+}
+
+unsigned tvpal_io_registered(const struct tvpal_io *io)
+{
+#ifdef HAVE_LIBURING
+    return io->nfixed;
+#else
+    (void)io;
+    return 0;
+#endif
+}
+
+uint64_t tvpal_io_fixed_reads(const struct tvpal_io *io)
+{
+    return io->fixed_reads;
+}
 
 int tvpal_io_flush(struct tvpal_io *io, struct tvpal_diag *diag)
 {

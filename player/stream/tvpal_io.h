@@ -55,6 +55,27 @@ uint64_t tvpal_io_submits(const struct tvpal_io *io);
 int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result,
                   struct tvpal_diag *diag);
 
+/* Registers the n buffers bufs[i] of lens[i] bytes with io_uring as fixed
+ * buffers: the kernel faults their pages in and pins them once, here,
+ * instead of for every read.  For O_DIRECT reads into memory not yet
+ * touched that per-read work (page faults, zeroing, pinning) was most of
+ * the reading thread's kernel time.  A later read whose whole range lies
+ * in one of them uses it (IORING_OP_READ_FIXED); other reads are as
+ * before.  At most one registration per io, before any read is queued;
+ * the buffers must outlive the io.  0, or TVPAL_E_SYS with diag saying
+ * why (the pread backend; the kernel refusing: RLIMIT_MEMLOCK without
+ * CAP_IPC_LOCK, a buffer over 1 GiB): reads then work unregistered. */
+int tvpal_io_register(struct tvpal_io *io, void *const *bufs,
+                      const uint64_t *lens, unsigned n,
+                      struct tvpal_diag *diag);
+
+/* Buffers registered by tvpal_io_register (0: none). */
+unsigned tvpal_io_registered(const struct tvpal_io *io);
+
+/* Reads queued into registered buffers so far (a test asserts that the
+ * fixed path is really taken). */
+uint64_t tvpal_io_fixed_reads(const struct tvpal_io *io);
+
 /* Test hook: with TVPAL_IO_FAULT_OFFSET=N in the environment (read once,
  * at the first tvpal_io_create), every read through either backend that
  * covers byte N of its file completes with -EIO, as on a failing disk; the

@@ -76,6 +76,8 @@ struct tvpal_stream {
     unsigned policy;             /* TVPAL_STREAM_* bits */
     unsigned direct_files;       /* parts opened with O_DIRECT */
     char why[200];               /* the first fallback, or "" */
+    char fixed_why[200];         /* why the record buffers are not
+                                  * registered, or "" */
 };
 
 static void *stager_main(void *arg);
@@ -320,6 +322,59 @@ static int alloc_slots(struct part *p, unsigned nslots)
     return 0;
 }
 
+/* The most bytes of any record but record 0 (record 0 alone when it is the
+ * only one).  Record 0 holds the first window of every slice, N times a
+ * later record's slices, and is read at a start or a jump to it only. */
+static uint64_t steady_record_bytes(const struct tvpal_shard *sh)
+{
+    const uint32_t steps = tvpal_shard_hdr(sh)->steps;
+    uint64_t m = 0;
+    for (uint32_t t = steps > 1 ? 1 : 0; t < steps; t++) {
+        uint64_t b = tvpal_shard_entry(sh, t)->bytes;
+        m = b > m ? b : m;
+    }
+    return m;
+}
+
+/* Out-of-core: registers the record buffers with the I/O layer, so the
+ * kernel faults in and pins their pages once instead of for every read;
+ * where it cannot, touches them instead.  Either way no frame pays for
+ * fresh pages under a read: measured, zeroing and charging 4 KiB pages was
+ * most of the stager's kernel time until every buffer had been used once.
+ * Only the part of each buffer a record after record 0 can fill is
+ * registered (and committed now): the rest of it only ever holds record 0.
+ * That is the memory N + 2P + 1 steps of playing commit anyway. */
+static int register_slots(struct tvpal_stream *s)
+{
+    unsigned n = 0;
+    for (unsigned i = 0; i < s->n; i++)
+        n += s->p[i].nslots;
+    void **bufs = calloc(n ? n : 1, sizeof *bufs);
+    uint64_t *lens = calloc(n ? n : 1, sizeof *lens);
+    if (!bufs || !lens) {
+        free(bufs);
+        free(lens);
+        return TVPAL_E_NOMEM;
+    }
+    n = 0;
+    for (unsigned i = 0; i < s->n; i++) {
+        const uint64_t len = steady_record_bytes(s->p[i].sh);
+        for (unsigned k = 0; k < s->p[i].nslots && len; k++) {
+            bufs[n] = s->p[i].slots[k].buf;
+            lens[n++] = len;
+        }
+    }
+    struct tvpal_diag d = {{0}};
+    if (n && tvpal_io_register(s->io, bufs, lens, n, &d) < 0) {
+        snprintf(s->fixed_why, sizeof s->fixed_why, "%s", d.msg);
+        for (unsigned i = 0; i < n; i++)
+            memset(bufs[i], 0, lens[i]);
+    }
+    free(bufs);
+    free(lens);
+    return 0;
+}
+
 int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
                         unsigned nslabs, enum tvpal_io_kind kind, int incore,
                         unsigned prefetch, unsigned policy,
@@ -372,6 +427,8 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
         rc = incore ? load_incore(s, p, diag)
                     : alloc_slots(p, h->window + 2 * prefetch + 1);
     }
+    if (rc == 0 && !incore)
+        rc = register_slots(s);
     if (rc == 0 && prefetch > 0 && nslabs > 0) {
         struct stager *w = &s->w;
         if (pthread_mutex_init(&w->mu, NULL) || pthread_cond_init(&w->cv, NULL)) {
@@ -433,10 +490,14 @@ const char *tvpal_stream_io_name(const struct tvpal_stream *s)
 void tvpal_stream_path(const struct tvpal_stream *s,
                        struct tvpal_stream_path *out)
 {
+    stager_wait((struct tvpal_stream *)s); /* its reads count too */
     out->io = tvpal_io_name(s->io);
     out->direct_files = s->direct_files;
     out->files = s->n;
     out->why = s->why;
+    out->fixed = tvpal_io_registered(s->io);
+    out->fixed_reads = tvpal_io_fixed_reads(s->io);
+    out->fixed_why = s->fixed_why;
 }
 
 static int find_slot(const struct part *p, uint32_t step)

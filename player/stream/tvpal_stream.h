@@ -61,6 +61,9 @@ struct tvpal_stream_path {
     const char *io;
     unsigned direct_files, files;
     const char *why;
+    unsigned fixed;             /* record buffers registered with io_uring */
+    uint64_t fixed_reads;       /* reads queued into them so far */
+    const char *fixed_why;      /* out-of-core without them: why, or "" */
 };
 void tvpal_stream_path(const struct tvpal_stream *s,
                        struct tvpal_stream_path *out);

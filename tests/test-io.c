@@ -1,0 +1,243 @@
+/* test-io: the read layer (tvpal_io) on a file of known bytes:
+ *  - both backends read what the file holds, whole, in pieces, and short
+ *    at its end;
+ *  - io_uring fixed buffers (tvpal_io_register): a read whose whole range
+ *    lies in a registered buffer takes the fixed path, counted by
+ *    tvpal_io_fixed_reads, and reads the same bytes; a read into the
+ *    unregistered tail of a buffer, one straddling the end of the
+ *    registered part, and one into another buffer take the plain path; a
+ *    second registration and the pread backend are refused with
+ *    TVPAL_E_SYS, and reads go on working after a refusal;
+ *  - the fault hook fails a fixed read as it fails a plain one.
+ * O_DIRECT where the file system offers it (the player's path), else the
+ * page cache, said.  io_uring missing: its part skipped, said; exit 77
+ * when nothing but pread could be checked.  Registration refused to a
+ * user without CAP_IPC_LOCK (RLIMIT_MEMLOCK): said, its checks skipped;
+ * as root it must work. */
+#define _GNU_SOURCE
+#include "tvpal_io.h"
+#include "tvpal_test.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#define MIB (1u << 20)
+#define FILE_BYTES (4 * MIB)
+
+static unsigned char expect_byte(uint64_t i)
+{
+    return (unsigned char)(i * 7 + (i >> 12) * 13 + 1);
+}
+
+/* Reads [off, off + len) of fd into buf through io, waits for it; the
+ * bytes it got (or -errno).  *fixed: whether the read took the fixed
+ * path. */
+static int64_t read_one(struct tvpal_io *io, int fd, uint64_t off,
+                        uint64_t len, void *buf, int *fixed)
+{
+    struct tvpal_diag d = {{0}};
+    struct tvpal_io_req r = {.fd = fd, .off = off, .len = len, .buf = buf,
+                             .tag = 42};
+    uint64_t before = tvpal_io_fixed_reads(io), tag = 0;
+    int64_t res = 0;
+    REQUIRE(tvpal_io_submit(io, &r, &d) == 0, "submit: %s", d.msg);
+    REQUIRE(tvpal_io_wait(io, &tag, &res, &d) == 0, "wait: %s", d.msg);
+    CHECK(tag == 42, "tag %llu", (unsigned long long)tag);
+    if (fixed)
+        *fixed = tvpal_io_fixed_reads(io) > before;
+    return res;
+}
+
+/* Whether buf holds the file's bytes [off, off + len). */
+static int holds(const unsigned char *buf, uint64_t off, uint64_t len)
+{
+    for (uint64_t i = 0; i < len; i++)
+        if (buf[i] != expect_byte(off + i))
+            return 0;
+    return 1;
+}
+
+static void *aligned_buf(size_t bytes)
+{
+    void *p = NULL;
+    REQUIRE(posix_memalign(&p, 4096, bytes) == 0, "out of memory");
+    memset(p, 0xEE, bytes);
+    return p;
+}
+
+static void check_pread(int fd, unsigned char *buf)
+{
+    struct tvpal_io *io;
+    struct tvpal_diag d = {{0}};
+    REQUIRE(tvpal_io_create(&io, TVPAL_IO_PREAD, 4, &d) == 0, "%s", d.msg);
+    void *bufs[1] = {buf};
+    uint64_t lens[1] = {MIB};
+    CHECK(tvpal_io_register(io, bufs, lens, 1, &d) == TVPAL_E_SYS,
+          "pread registered buffers");
+    CHECK(tvpal_io_registered(io) == 0, "pread: %u registered",
+          tvpal_io_registered(io));
+    int fixed = -1;
+    CHECK(read_one(io, fd, MIB, MIB, buf, &fixed) == MIB, "pread: 1 MiB");
+    CHECK(holds(buf, MIB, MIB) && !fixed, "pread: bytes or path wrong");
+    CHECK(read_one(io, fd, FILE_BYTES - MIB, 2 * MIB, buf, NULL) == MIB,
+          "pread: short read at the end");
+    tvpal_io_free(io);
+}
+
+/* io_uring with two registered buffers: a, of which the first MiB is
+ * registered (2 MiB long), and b (2 MiB, all registered); c is not. */
+static int check_fixed(int fd, unsigned char *a, unsigned char *b,
+                       unsigned char *c)
+{
+    struct tvpal_io *io;
+    struct tvpal_diag d = {{0}};
+    if (tvpal_io_create(&io, TVPAL_IO_URING, 8, &d) < 0) {
+        printf("test-io: io_uring unavailable here (%s): its checks skipped\n",
+               d.msg);
+        return 0;
+    }
+    void *bufs[2] = {a, b};
+    uint64_t lens[2] = {MIB, 2 * MIB};
+    int rc = tvpal_io_register(io, bufs, lens, 2, &d);
+    if (rc < 0 && geteuid() != 0) {
+        printf("test-io: fixed buffers refused (%s): not root, their checks "
+               "skipped\n", d.msg);
+        CHECK(rc == TVPAL_E_SYS, "refusal code %d", rc);
+        CHECK(tvpal_io_registered(io) == 0, "refused, yet registered");
+        int fixed = -1;
+        CHECK(read_one(io, fd, 0, MIB, a, &fixed) == MIB && holds(a, 0, MIB)
+              && !fixed, "a read after the refusal");
+        tvpal_io_free(io);
+        return 1;
+    }
+    CHECK(rc == 0, "register: %s", d.msg);
+    CHECK(tvpal_io_registered(io) == 2, "%u registered",
+          tvpal_io_registered(io));
+    CHECK(tvpal_io_register(io, bufs, lens, 2, &d) == TVPAL_E_SYS,
+          "a second registration accepted");
+    CHECK(tvpal_io_registered(io) == 2, "the second registration changed it");
+
+    int fixed = -1;
+    CHECK(read_one(io, fd, 0, MIB, a, &fixed) == MIB, "into a");
+    CHECK(holds(a, 0, MIB), "a: wrong bytes");
+    CHECK(fixed == 1, "a's registered part: not the fixed path");
+
+    CHECK(read_one(io, fd, MIB, MIB, a + MIB, &fixed) == MIB, "a's tail");
+    CHECK(holds(a + MIB, MIB, MIB), "a's tail: wrong bytes");
+    CHECK(fixed == 0, "a's unregistered tail took the fixed path");
+
+    CHECK(read_one(io, fd, 2 * MIB, MIB, a + MIB / 2, &fixed) == MIB,
+          "straddling");
+    CHECK(holds(a + MIB / 2, 2 * MIB, MIB), "straddling: wrong bytes");
+    CHECK(fixed == 0, "a read over the registered end took the fixed path");
+
+    CHECK(read_one(io, fd, MIB, 2 * MIB, b, &fixed) == 2 * MIB, "into b");
+    CHECK(holds(b, MIB, 2 * MIB), "b: wrong bytes");
+    CHECK(fixed == 1, "b: not the fixed path");
+
+    /* At the end of the file: short, on the fixed path. */
+    CHECK(read_one(io, fd, FILE_BYTES - MIB, 2 * MIB, b, &fixed) == MIB,
+          "short read at the end");
+    CHECK(holds(b, FILE_BYTES - MIB, MIB) && fixed == 1,
+          "short fixed read: bytes or path wrong");
+
+    CHECK(read_one(io, fd, 3 * MIB, 4096, c, &fixed) == 4096, "into c");
+    CHECK(holds(c, 3 * MIB, 4096) && fixed == 0,
+          "unregistered c: bytes or path wrong");
+    tvpal_io_free(io);
+    return 1;
+}
+
+/* The fault hook (TVPAL_IO_FAULT_OFFSET, read at the first create) fails
+ * a fixed read that covers the offset, and only that one. */
+static void check_fault(int fd, unsigned char *b)
+{
+    struct tvpal_io *io;
+    struct tvpal_diag d = {{0}};
+    if (tvpal_io_create(&io, TVPAL_IO_URING, 8, &d) < 0)
+        return;
+    void *bufs[1] = {b};
+    uint64_t lens[1] = {2 * MIB};
+    if (tvpal_io_register(io, bufs, lens, 1, &d) == 0) {
+        int fixed = -1;
+        CHECK(read_one(io, fd, 2 * MIB, MIB, b, &fixed) == -EIO && fixed == 1,
+              "a fixed read over the fault offset did not fail");
+        CHECK(read_one(io, fd, 0, MIB, b, &fixed) == MIB && fixed == 1,
+              "a fixed read away from the fault offset failed");
+    }
+    tvpal_io_free(io);
+}
+
+/* Opens path for the checks: O_DIRECT where offered. */
+static int open_file(const char *path, int say)
+{
+    int fd = open(path, O_RDONLY | O_DIRECT);
+    if (fd < 0 && errno == EINVAL) {
+        if (say)
+            printf("test-io: the file system of %s refuses O_DIRECT: "
+                   "reading through the page cache\n", path);
+        fd = open(path, O_RDONLY);
+    }
+    REQUIRE(fd >= 0, "open %s: %s", path, strerror(errno));
+    return fd;
+}
+
+int main(int argc, char **argv)
+{
+    if (argc == 3 && !strcmp(argv[1], "--fault")) {
+        /* The child of the fault check, its environment set. */
+        unsigned char *b = aligned_buf(2 * MIB);
+        int fd = open_file(argv[2], 0);
+        check_fault(fd, b);
+        close(fd);
+        free(b);
+        return tt_failures ? 1 : 0;
+    }
+    const char *dir = getenv("TMPDIR");
+    char path[4096];
+    snprintf(path, sizeof path, "%s/test-io.XXXXXX",
+             dir && *dir ? dir : "/tmp");
+    int wfd = mkstemp(path);
+    REQUIRE(wfd >= 0, "mkstemp %s: %s", path, strerror(errno));
+    unsigned char *all = aligned_buf(FILE_BYTES);
+    for (uint64_t i = 0; i < FILE_BYTES; i++)
+        all[i] = expect_byte(i);
+    REQUIRE(write(wfd, all, FILE_BYTES) == (ssize_t)FILE_BYTES, "write %s",
+            path);
+    close(wfd);
+    free(all);
+
+    int fd = open_file(path, 1);
+    unsigned char *a = aligned_buf(2 * MIB), *b = aligned_buf(2 * MIB),
+                  *c = aligned_buf(2 * MIB);
+    check_pread(fd, a);
+    int uring = check_fixed(fd, a, b, c);
+    close(fd);
+    free(a);
+    free(b);
+    free(c);
+
+    /* The hook is read once per process, at its first create: checked in
+     * a fresh one. */
+    if (uring) {
+        fflush(stdout);
+        pid_t pid = fork();
+        REQUIRE(pid >= 0, "fork");
+        if (pid == 0) {
+            char off[32];
+            snprintf(off, sizeof off, "%u", 2 * MIB + 4096);
+            setenv("TVPAL_IO_FAULT_OFFSET", off, 1);
+            execl("/proc/self/exe", argv[0], "--fault", path, (char *)NULL);
+            _exit(99);
+        }
+        int status = 0;
+        REQUIRE(waitpid(pid, &status, 0) == pid, "waitpid");
+        CHECK(WIFEXITED(status) && WEXITSTATUS(status) == 0,
+              "fault hook on fixed reads (status %d)", status);
+    }
+    unlink(path);
+    int rc = tt_done("test-io");
+    return rc ? rc : uring ? 0 : 77;
+}
