@@ -2,7 +2,9 @@
  * every kind of corruption is detected with the right code; slab split;
  * the manifest's axes key and the format_version it implies; the table
  * format per chunk (table_format 4, 5): mixed chunk sizes, flag
- * rules, the placed writer's packing, the table count. */
+ * rules, the placed writer's packing, the table count; staging with the
+ * CRC summed on the way (tvpal_slab_stage_verify) against plain staging,
+ * and its refusal of a corrupt record. */
 #include "tvpal_crc32c.h"
 #include "tvpal_format.h"
 #include "tvpal_manifest.h"
@@ -539,11 +541,167 @@ static void test_axes(void)
     unlink(path);
 }
 
+/* Whether slabs a and b show the same thing at t: every slice's
+ * generation, and the indices and palette row (bit for bit) of those
+ * ever loaded. */
+static int slabs_equal(const struct tvpal_slab *a, const struct tvpal_slab *b,
+                       const struct tvpal_shard_header *h, uint32_t t)
+{
+    const size_t nvox = (size_t)h->slice_w * h->slice_h;
+    for (uint32_t k = 0; k < h->slice_count; k++) {
+        if (tvpal_slab_generation(a, k) != tvpal_slab_generation(b, k))
+            return 0;
+        if (!tvpal_slab_generation(a, k))
+            continue; /* never loaded: nothing shown */
+        if (memcmp(tvpal_slab_indices(a, k), tvpal_slab_indices(b, k), nvox) ||
+            memcmp(tvpal_slab_row(a, k, t), tvpal_slab_row(b, k, t),
+                   256 * sizeof(float)))
+            return 0;
+    }
+    return 1;
+}
+
+/* Moves slab `ref` (tvpal_slab_stage of the records read and verified)
+ * and slab `chk` (tvpal_slab_stage_verify after tvpal_record_verify_layout)
+ * to t; the record of step `bad` gets payload byte `flip` flipped first
+ * (none when bad is UINT32_MAX): chk must refuse it with
+ * TVPAL_E_CHECKSUM, ref is not given it.  Then both install. */
+static void stage_both(struct tvpal_shard *sh, struct tvpal_slab *ref,
+                       struct tvpal_slab *chk, uint32_t t, uint32_t bad,
+                       uint64_t flip, unsigned *refused)
+{
+    static unsigned char rec[1 << 20];
+    const struct tvpal_shard_header *h = tvpal_shard_hdr(sh);
+    struct tvpal_diag d = {{0}};
+    uint32_t need[16], need2[16];
+    unsigned n = tvpal_slab_needed(ref, t, need);
+    CHECK(tvpal_slab_needed(chk, t, need2) == n &&
+          !memcmp(need, need2, n * sizeof *need), "t %u: needed differs", t);
+    for (unsigned i = 0; i < n; i++) {
+        REQUIRE(tvpal_shard_read_record(sh, need[i], rec, sizeof rec, &d) == 0,
+                "record %u: %s", need[i], d.msg);
+        uint64_t bytes = tvpal_shard_entry(sh, need[i])->bytes;
+        if (need[i] == bad) {
+            rec[TVPAL_RECORD_HEADER_BYTES + flip] ^= 0x08;
+            CHECK(tvpal_record_verify_layout(rec, bytes, need[i], h, &d) == 0,
+                  "layout of record %u with a flipped payload byte: %s",
+                  need[i], d.msg);
+            CHECK(tvpal_slab_stage_verify(chk, rec, t) == TVPAL_E_CHECKSUM,
+                  "t %u: record %u with byte %llu flipped staged", t, need[i],
+                  (unsigned long long)flip);
+            (*refused)++;
+            continue;
+        }
+        CHECK(tvpal_record_verify_layout(rec, bytes, need[i], h, &d) == 0,
+              "layout of record %u: %s", need[i], d.msg);
+        CHECK(tvpal_slab_stage(ref, rec, t) == 0, "stage %u", need[i]);
+        CHECK(tvpal_slab_stage_verify(chk, rec, t) == 0,
+              "t %u: stage_verify of record %u", t, need[i]);
+    }
+    tvpal_slab_install(ref);
+    tvpal_slab_install(chk);
+}
+
+/* The payload offset of the first table byte of the chunk of `slice` in
+ * record `step` of sh. */
+static uint64_t chunk_data_offset(struct tvpal_shard *sh, uint32_t step,
+                                  uint32_t slice)
+{
+    static unsigned char rec[1 << 20];
+    struct tvpal_diag d = {{0}};
+    REQUIRE(tvpal_shard_read_record(sh, step, rec, sizeof rec, &d) == 0, "%s",
+            d.msg);
+    uint64_t pos = 0;
+    struct tvpal_chunk c;
+    while (tvpal_record_next_chunk(rec, &pos, tvpal_shard_hdr(sh)->table_format, &c))
+        if (c.h.slice == slice)
+            return (uint64_t)(c.table - rec) - TVPAL_RECORD_HEADER_BYTES;
+    REQUIRE(0, "record %u has no chunk of slice %u", step, slice);
+    return 0;
+}
+
+/* tvpal_slab_stage_verify stages what tvpal_slab_stage stages, bit for bit,
+ * through forward play and jumps, in a float32 and a per-chunk shard; a
+ * record whose payload CRC fails leaves nothing staged (its slices show
+ * their last window; the other records of the same step go in), also when
+ * the flipped byte is in a chunk the step does not stage (record 0 at a
+ * later step): the CRC covers the whole payload. */
+static void test_stage_verify(void)
+{
+    const char *path = "test-format-stage.tvps";
+    for (uint32_t tf = 0; tf <= TVPAL_TABLE_CHUNK; tf += 4) {
+        struct tvpal_shard_header g = sample_header();
+        uint32_t n;
+        g.table_format = tf;
+        g.nodes = 1;
+        g.rank = 0;
+        tvpal_axis_geometry(g.dims, 0, &n, &g.slice_w, &g.slice_h);
+        tvpal_slab_range(n, 1, 0, &g.slice_begin, &g.slice_count);
+        write_shard(path, &g, 0);
+        struct tvpal_shard *sh;
+        struct tvpal_slab *ref, *chk;
+        struct tvpal_diag d = {{0}};
+        REQUIRE(tvpal_shard_open(&sh, path, &d) == 0, "open: %s", d.msg);
+        REQUIRE(tvpal_slab_create(&ref, sh) == 0 && tvpal_slab_create(&chk, sh) == 0,
+                "slabs");
+        const struct tvpal_shard_header *h = tvpal_shard_hdr(sh);
+        unsigned refused = 0;
+        /* A fresh slab jumping to t = 1 needs records 0 and 1.  A byte
+         * flipped in record 0's chunk of a slice whose first window is
+         * [0, 1), not staged at t = 1: refused; record 1 goes in. */
+        uint32_t s1 = 0;
+        while (s1 < h->slice_count &&
+               tvpal_schedule_len(s1, 0, h->window, h->steps) != 1)
+            s1++;
+        REQUIRE(s1 < h->slice_count, "no slice with a first window of 1");
+        stage_both(sh, ref, chk, 1, 0, chunk_data_offset(sh, 0, s1), &refused);
+        CHECK(refused == 1 && slabs_equal(ref, chk, h, 1),
+              "tf %u: a bad record 0 at t = 1", tf);
+        /* Forward; record 5 bad (its last payload byte) at t = 5, read
+         * again good at t = 6. */
+        struct tvpal_record_header rh;
+        static unsigned char r5[1 << 20];
+        REQUIRE(tvpal_shard_read_record(sh, 5, r5, sizeof r5, &d) == 0, "%s", d.msg);
+        tvpal_record_header_decode(r5, &rh, NULL);
+        for (uint32_t t = 2; t < h->steps; t++) {
+            stage_both(sh, ref, chk, t, t == 5 ? 5 : UINT32_MAX,
+                       rh.payload_bytes - 1, &refused);
+            CHECK(slabs_equal(ref, chk, h, t), "tf %u: forward t %u", tf, t);
+        }
+        CHECK(refused == 2, "tf %u: %u refusals", tf, refused);
+        /* Jumps back and forth, all good. */
+        static const uint32_t jumps[] = {2, 8, 0, 6, 3};
+        for (size_t j = 0; j < sizeof jumps / sizeof *jumps; j++) {
+            stage_both(sh, ref, chk, jumps[j], UINT32_MAX, 0, &refused);
+            CHECK(slabs_equal(ref, chk, h, jumps[j]), "tf %u: jump to %u", tf,
+                  jumps[j]);
+        }
+        /* A record refused while others of the same step were staged
+         * before it: theirs stay staged. */
+        tvpal_slab_free(ref);
+        tvpal_slab_free(chk);
+        REQUIRE(tvpal_slab_create(&ref, sh) == 0 && tvpal_slab_create(&chk, sh) == 0,
+                "slabs");
+        uint32_t need[16];
+        unsigned nn = tvpal_slab_needed(ref, 7, need);
+        CHECK(nn >= 2, "t 7 from nothing needs %u records", nn);
+        const uint64_t pos = TVPAL_CHUNK_HEADER_BYTES + 10; /* chunk 0's data */
+        stage_both(sh, ref, chk, 7, need[nn - 1], pos, &refused);
+        CHECK(refused == 3 && slabs_equal(ref, chk, h, 7),
+              "tf %u: the last of %u records bad", tf, nn);
+        tvpal_slab_free(ref);
+        tvpal_slab_free(chk);
+        tvpal_shard_close(sh);
+    }
+    unlink(path);
+}
+
 int main(void)
 {
     test_placed();
     test_axes();
     test_per_chunk();
+    test_stage_verify();
     unsigned char hb[TVPAL_SHARD_HEADER_BYTES];
     struct tvpal_shard_header h = sample_header(), g;
     struct tvpal_diag d;

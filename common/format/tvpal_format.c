@@ -277,9 +277,10 @@ void tvpal_index_entry_decode(const unsigned char *b,
     e->crc = get32(b + 24);
 }
 
-int tvpal_record_verify(const unsigned char *buf, uint64_t bytes,
-                        uint32_t step, const struct tvpal_shard_header *sh,
-                        struct tvpal_diag *diag)
+/* tvpal_record_verify, with (crc = 1) or without the payload CRC. */
+static int record_verify(const unsigned char *buf, uint64_t bytes,
+                         uint32_t step, const struct tvpal_shard_header *sh,
+                         int crc, struct tvpal_diag *diag)
 {
     struct tvpal_record_header rh;
     if (bytes < TVPAL_RECORD_HEADER_BYTES)
@@ -298,8 +299,8 @@ int tvpal_record_verify(const unsigned char *buf, uint64_t bytes,
                               "record %u: payload of %llu bytes exceeds the "
                               "record", step,
                               (unsigned long long)rh.payload_bytes);
-    if (tvpal_crc32c(0, buf + TVPAL_RECORD_HEADER_BYTES, rh.payload_bytes) !=
-        rh.payload_crc)
+    if (crc && tvpal_crc32c(0, buf + TVPAL_RECORD_HEADER_BYTES,
+                            rh.payload_bytes) != rh.payload_crc)
         return tvpal_diag_set(diag, TVPAL_E_CHECKSUM,
                               "record %u: payload CRC-32C mismatch", step);
     uint64_t pos = TVPAL_RECORD_HEADER_BYTES;
@@ -378,6 +379,21 @@ int tvpal_record_verify(const unsigned char *buf, uint64_t bytes,
                                   "record %u: non-zero padding at byte %llu",
                                   step, (unsigned long long)i);
     return 0;
+}
+
+int tvpal_record_verify(const unsigned char *buf, uint64_t bytes,
+                        uint32_t step, const struct tvpal_shard_header *sh,
+                        struct tvpal_diag *diag)
+{
+    return record_verify(buf, bytes, step, sh, 1, diag);
+}
+
+int tvpal_record_verify_layout(const unsigned char *buf, uint64_t bytes,
+                               uint32_t step,
+                               const struct tvpal_shard_header *sh,
+                               struct tvpal_diag *diag)
+{
+    return record_verify(buf, bytes, step, sh, 0, diag);
 }
 
 int tvpal_record_next_chunk(const unsigned char *buf, uint64_t *pos,

@@ -227,6 +227,16 @@ int tvpal_record_verify(const unsigned char *buf, uint64_t bytes,
                         uint32_t step, const struct tvpal_shard_header *sh,
                         struct tvpal_diag *diag);
 
+/* All of tvpal_record_verify but the payload CRC, for a reader that sums
+ * the CRC itself as it consumes the chunks (tvpal_slab_stage_verify), so
+ * that the record is read from memory once.  Until that CRC is checked
+ * the chunks' contents are unverified; their placement is safe to walk
+ * with tvpal_record_next_chunk. */
+int tvpal_record_verify_layout(const unsigned char *buf, uint64_t bytes,
+                               uint32_t step,
+                               const struct tvpal_shard_header *sh,
+                               struct tvpal_diag *diag);
+
 /* Iterates the chunks of a verified record of a shard with table_format:
  * *pos starts at 0; returns 1 and fills c for each chunk (c->table_format
  * the chunk's own, 0..3), 0 at the end. */

@@ -1065,26 +1065,85 @@ static void unstage_slice(struct tvpal_slab *s, struct slab_slice *sl)
     sl->st_idx = NULL;
 }
 
-int tvpal_slab_stage(struct tvpal_slab *s, const unsigned char *rec,
-                     uint32_t t)
+/* Stages chunk c into its slice's staging buffers. */
+static int stage_chunk(struct tvpal_slab *s, const struct tvpal_chunk *c)
 {
     const struct tvpal_shard_header *h = &s->sh->h;
-    size_t nvox = (size_t)h->slice_w * h->slice_h;
+    uint32_t k = c->h.slice - h->slice_begin;
+    struct slab_slice *sl = &s->sl[k];
+    if (!sl->st_idx) {
+        int rc = stage_buffers(s, sl);
+        if (rc < 0)
+            return rc;
+        s->staged[s->nstaged++] = k;
+    }
+    sl->st_wstart = c->h.wstart;
+    sl->st_wlen = c->h.wlen;
+    tvpal_chunk_table(c, sl->st_table);
+    memcpy(sl->st_idx, c->indices, (size_t)h->slice_w * h->slice_h);
+    return 0;
+}
+
+/* Takes back what stage_chunk staged of every chunk of rec whose window
+ * holds t: those slices show their installed window again. */
+static void unstage_record(struct tvpal_slab *s, const unsigned char *rec,
+                           uint32_t t)
+{
+    const struct tvpal_shard_header *h = &s->sh->h;
     uint64_t pos = 0;
     struct tvpal_chunk c;
     while (next_chunk_at(s, rec, &pos, t, &c)) {
         uint32_t k = c.h.slice - h->slice_begin;
-        struct slab_slice *sl = &s->sl[k];
-        if (!sl->st_idx) {
-            int rc = stage_buffers(s, sl);
-            if (rc < 0)
-                return rc;
-            s->staged[s->nstaged++] = k;
-        }
-        sl->st_wstart = c.h.wstart;
-        sl->st_wlen = c.h.wlen;
-        tvpal_chunk_table(&c, sl->st_table);
-        memcpy(sl->st_idx, c.indices, nvox);
+        if (!s->sl[k].st_idx)
+            continue;
+        unstage_slice(s, &s->sl[k]);
+        for (uint32_t n = 0; n < s->nstaged; n++)
+            if (s->staged[n] == k) {
+                s->staged[n] = s->staged[--s->nstaged];
+                break;
+            }
+    }
+}
+
+int tvpal_slab_stage(struct tvpal_slab *s, const unsigned char *rec,
+                     uint32_t t)
+{
+    uint64_t pos = 0;
+    struct tvpal_chunk c;
+    while (next_chunk_at(s, rec, &pos, t, &c)) {
+        int rc = stage_chunk(s, &c);
+        if (rc < 0)
+            return rc;
+    }
+    return 0;
+}
+
+int tvpal_slab_stage_verify(struct tvpal_slab *s, const unsigned char *rec,
+                            uint32_t t)
+{
+    const struct tvpal_shard_header *h = &s->sh->h;
+    struct tvpal_record_header rh;
+    tvpal_record_header_decode(rec, &rh, NULL);
+    /* Each chunk is summed just before it is staged: the copy then reads
+     * it from cache (a chunk of a 512^2 slice is 260 KB), not from
+     * memory a second time. */
+    uint64_t pos = TVPAL_RECORD_HEADER_BYTES, summed = pos;
+    uint32_t crc = 0;
+    struct tvpal_chunk c;
+    while (tvpal_record_next_chunk(rec, &pos, h->table_format, &c)) {
+        crc = tvpal_crc32c(crc, rec + summed, pos - summed);
+        summed = pos;
+        if (tvpal_schedule_start(c.h.slice, t, h->window) != c.h.wstart)
+            continue;
+        int rc = stage_chunk(s, &c);
+        if (rc < 0)
+            return rc;
+    }
+    crc = tvpal_crc32c(crc, rec + summed,
+                       TVPAL_RECORD_HEADER_BYTES + rh.payload_bytes - summed);
+    if (crc != rh.payload_crc) {
+        unstage_record(s, rec, t);
+        return TVPAL_E_CHECKSUM;
     }
     return 0;
 }

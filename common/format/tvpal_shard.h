@@ -195,6 +195,16 @@ void tvpal_slab_apply(struct tvpal_slab *slab, const unsigned char *rec,
  * stage: 0 or TVPAL_E_NOMEM (the chunks staged so far stay staged). */
 int tvpal_slab_stage(struct tvpal_slab *slab, const unsigned char *rec,
                      uint32_t t);
+
+/* tvpal_slab_stage for a record whose layout is verified
+ * (tvpal_record_verify_layout) but not yet its payload CRC: the CRC is
+ * summed chunk by chunk, each chunk just before it is staged, so the
+ * record is read from memory once instead of twice.  0; TVPAL_E_CHECKSUM
+ * when the CRC does not match, and then nothing of rec stays staged (its
+ * slices show what they showed before); TVPAL_E_NOMEM (as
+ * tvpal_slab_stage). */
+int tvpal_slab_stage_verify(struct tvpal_slab *slab, const unsigned char *rec,
+                            uint32_t t);
 void tvpal_slab_install(struct tvpal_slab *slab);
 /* Drops what is staged (the buffers go back to the pool). */
 void tvpal_slab_unstage(struct tvpal_slab *slab);

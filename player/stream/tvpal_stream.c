@@ -639,6 +639,34 @@ static int verify_slot(struct part *p, struct slot *sl, uint32_t step,
     return 0;
 }
 
+/* Stages the landed, unchecked record of `step` in slot sl for timestep
+ * t, checking it on the way: its layout first, then its CRC summed chunk
+ * by chunk as the chunks are staged (tvpal_slab_stage_verify), so the
+ * record is read from memory once, not once to check it and again to
+ * stage it.  0: staged and the slot verified.  A failed check: as
+ * verify_slot (the same message; nothing of the record stays staged).
+ * Staging out of memory: 0 with *fatal set. */
+static int stage_checked(struct part *p, struct slot *sl, uint32_t t,
+                         uint32_t step, struct tvpal_diag *d, int *fatal)
+{
+    const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, step);
+    if (sl->result != (int64_t)e->bytes ||
+        tvpal_record_verify_layout(sl->buf, e->bytes, step,
+                                   tvpal_shard_hdr(p->sh), NULL) < 0)
+        return verify_slot(p, sl, step, d); /* its message, CRC first */
+    int rc = tvpal_slab_stage_verify(p->slab, sl->buf, t);
+    if (rc == TVPAL_E_CHECKSUM) {
+        sl->state = SLOT_FREE;
+        return tvpal_diag_set(d, rc, "record %u: payload CRC-32C mismatch",
+                              step);
+    }
+    if (rc < 0)
+        *fatal = rc;
+    else
+        sl->verified = 1;
+    return 0;
+}
+
 /* Waits for the records t needs from part pi, verifies and feeds them in
  * step order; the first failing record goes to *err, the others still go
  * in.  0, or a failure that ends the seek. */
@@ -660,14 +688,18 @@ static int feed_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
                 return rc;
         }
         struct tvpal_diag d = {{0}};
-        int rc = verify_slot(p, sl, need[i], &d);
+        int fatal = 0, fed = stage && !sl->verified;
+        int rc = fed ? stage_checked(p, sl, t, need[i], &d, &fatal)
+                     : verify_slot(p, sl, need[i], &d);
+        if (fatal)
+            return tvpal_diag_set(diag, fatal, "staging record %u", need[i]);
         if (rc < 0) {
             if (!*err)
                 *err = tvpal_diag_set(diag, rc, "%s: %s",
                                       tvpal_shard_path(p->sh), d.msg);
             continue;
         }
-        if ((rc = feed_record(p, sl->buf, t, need[i], stage, diag)) < 0)
+        if (!fed && (rc = feed_record(p, sl->buf, t, need[i], stage, diag)) < 0)
             return rc;
         st->records_applied++;
     }

@@ -1,6 +1,7 @@
 /* Harness: the pure decoders of tvpal_format.c on one buffer, no I/O: a
  * 4096-byte shard header (tvpal_shard_header_decode), then one record
- * (tvpal_record_header_decode, tvpal_record_verify against that header,
+ * (tvpal_record_header_decode, tvpal_record_verify and
+ * tvpal_record_verify_layout against that header,
  * tvpal_record_next_chunk and tvpal_chunk_table), then 64 bytes decoded as
  * a chunk header and 32 as an index entry.  The header's and the record's
  * CRC-32Cs are re-sealed first, as a forger would. */
@@ -43,7 +44,15 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (tvpal_shard_header_decode(b, &h, &d) == 0) {
         if (bytes >= TVPAL_RECORD_HEADER_BYTES)
             (void)tvpal_record_header_decode(rec, &rh, &d);
-        if (tvpal_record_verify(rec, bytes, rh.step, &h, &d) == 0)
+        int full = tvpal_record_verify(rec, bytes, rh.step, &h, &d);
+        /* The layout check alone is what the streaming stager trusts
+         * before it walks the chunks, summing the CRC as it goes: it
+         * must accept whatever the full check accepts, and its walk must
+         * be as safe. */
+        int layout = tvpal_record_verify_layout(rec, bytes, rh.step, &h, &d);
+        if (full == 0 && layout != 0)
+            abort();
+        if (layout == 0)
             walk_chunks(rec, &h);
     }
     free(b);
