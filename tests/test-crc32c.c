@@ -1,5 +1,5 @@
 /* test-crc32c: CRC-32C check value, incremental use, alignment and
- * combining. */
+ * combining; the CRC summed while copying (tvpal_crc32c_copy). */
 #include "tvpal_crc32c.h"
 #include "tvpal_test.h"
 
@@ -77,6 +77,30 @@ int main(void)
             CHECK(tvpal_crc32c(part, lb + off + 5000, lens[li] - 5000) == hw,
                   "striped length %zu offset %zu, resumed at 5000",
                   lens[li], off);
+            /* Summed while copied: the same CRC, every byte copied, and
+             * not one byte written around the destination (guards),
+             * from any start and destination alignment, resumed. */
+            for (size_t doff = 0; doff < 8; doff += 5) {
+                unsigned char *dst = malloc(lens[li] + 16);
+                REQUIRE(dst != NULL, "malloc");
+                memset(dst, 0xA5, lens[li] + 16);
+                uint32_t c = tvpal_crc32c_copy(0, dst + doff, lb + off, 777);
+                c = tvpal_crc32c_copy(c, dst + doff + 777, lb + off + 777,
+                                      lens[li] - 777);
+                CHECK(c == hw, "copy: length %zu offsets %zu/%zu", lens[li],
+                      off, doff);
+                CHECK(!memcmp(dst + doff, lb + off, lens[li]),
+                      "copy: bytes, length %zu offsets %zu/%zu", lens[li],
+                      off, doff);
+                int guard = 1;
+                for (size_t g = 0; g < doff; g++)
+                    guard &= dst[g] == 0xA5;
+                for (size_t g = doff + lens[li]; g < lens[li] + 16; g++)
+                    guard &= dst[g] == 0xA5;
+                CHECK(guard, "copy: wrote outside, length %zu offsets %zu/%zu",
+                      lens[li], off, doff);
+                free(dst);
+            }
         }
     memset(lb, 0, big);
     CHECK(tvpal_crc32c(0, lb, big) == tvpal_crc32c_sw(0, lb, big),

@@ -103,12 +103,23 @@ static inline uint32_t shift_over(int s, uint32_t r)
            shift_tab[s][2][(r >> 16) & 255] ^ shift_tab[s][3][r >> 24];
 }
 
-__attribute__((target("sse4.2"))) static uint32_t crc_hw(uint32_t crc,
-                                                         const unsigned char *p,
-                                                         size_t len)
+/* The CRC of p[0..len), copying it to dst on the way when dst is not
+ * NULL (a constant in each caller below, so the stores disappear from
+ * crc_hw): the copy then costs stores only, the bytes being in registers
+ * already.  The stripes' stores bypass the caches (movnti): the copy is
+ * the player's staged indices, read only from the next frame on, and
+ * written with ordinary stores every line would first be read from memory
+ * and then push the renderer's lines out (measured on the stager: 1656
+ * samples of the fused loop with ordinary stores, 1424 with these, 1708
+ * for a CRC pass and a memcpy). */
+__attribute__((target("sse4.2"), always_inline)) static inline uint32_t
+crc_hw_core(uint32_t crc, const unsigned char *p, size_t len,
+            unsigned char *dst)
 {
     uint64_t c = ~crc;
     while (len && ((uintptr_t)p & 7)) {
+        if (dst)
+            *dst++ = *p;
         c = __builtin_ia32_crc32qi((uint32_t)c, *p++);
         len--;
     }
@@ -121,6 +132,14 @@ __attribute__((target("sse4.2"))) static uint32_t crc_hw(uint32_t crc,
             memcpy(&v0, p + i, 8);
             memcpy(&v1, p + STRIPE + i, 8);
             memcpy(&v2, p + 2 * STRIPE + i, 8);
+            if (dst) {
+                __builtin_ia32_movnti64((long long *)(dst + i),
+                                        (long long)v0);
+                __builtin_ia32_movnti64((long long *)(dst + STRIPE + i),
+                                        (long long)v1);
+                __builtin_ia32_movnti64((long long *)(dst + 2 * STRIPE + i),
+                                        (long long)v2);
+            }
             c = __builtin_ia32_crc32di(c, v0);
             c1 = __builtin_ia32_crc32di(c1, v1);
             c2 = __builtin_ia32_crc32di(c2, v2);
@@ -128,18 +147,43 @@ __attribute__((target("sse4.2"))) static uint32_t crc_hw(uint32_t crc,
         c = shift_over(1, (uint32_t)c) ^ shift_over(0, (uint32_t)c1) ^
             (uint32_t)c2;
         p += 3 * STRIPE;
+        if (dst) {
+            __builtin_ia32_sfence(); /* ordered before any later store */
+            dst += 3 * STRIPE;
+        }
         len -= 3 * STRIPE;
     }
     while (len >= 8) {
         uint64_t v;
         memcpy(&v, p, 8);
+        if (dst) {
+            memcpy(dst, &v, 8);
+            dst += 8;
+        }
         c = __builtin_ia32_crc32di(c, v);
         p += 8;
         len -= 8;
     }
-    while (len--)
+    while (len--) {
+        if (dst)
+            *dst++ = *p;
         c = __builtin_ia32_crc32qi((uint32_t)c, *p++);
+    }
     return ~(uint32_t)c;
+}
+
+__attribute__((target("sse4.2"))) static uint32_t crc_hw(uint32_t crc,
+                                                         const unsigned char *p,
+                                                         size_t len)
+{
+    return crc_hw_core(crc, p, len, NULL);
+}
+
+__attribute__((target("sse4.2"))) static uint32_t
+crc_hw_copy(uint32_t crc, unsigned char *dst, const unsigned char *p,
+            size_t len)
+{
+    return crc_hw_core(crc, p, len, dst);
 }
 
 static int have_hw;
@@ -161,6 +205,18 @@ uint32_t tvpal_crc32c(uint32_t crc, const void *data, size_t len)
         return crc_hw(crc, data, len);
 #endif
     return tvpal_crc32c_sw(crc, data, len);
+}
+
+uint32_t tvpal_crc32c_copy(uint32_t crc, void *dst, const void *src,
+                           size_t len)
+{
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+    pthread_once(&hw_once, hw_init);
+    if (have_hw)
+        return crc_hw_copy(crc, dst, src, len);
+#endif
+    memcpy(dst, src, len);
+    return tvpal_crc32c_sw(crc, dst, len);
 }
 
 uint32_t tvpal_crc32c_sw(uint32_t crc, const void *data, size_t len)

@@ -12,6 +12,12 @@
 
 uint32_t tvpal_crc32c(uint32_t crc, const void *data, size_t len);
 
+/* tvpal_crc32c(crc, src, len), copying src to dst (len bytes, not
+ * overlapping) in the same pass: one read of src instead of two where the
+ * bytes are both checked and kept (the player's stager). */
+uint32_t tvpal_crc32c_copy(uint32_t crc, void *dst, const void *src,
+                           size_t len);
+
 /* The CRC of A followed by B from crc1 = CRC(A), crc2 = CRC(B) and B's
  * length: lets chunks written in any order, by any thread, be checksummed
  * where they are made and joined in file order afterwards (O(log len2)). */

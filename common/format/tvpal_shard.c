@@ -1065,8 +1065,10 @@ static void unstage_slice(struct tvpal_slab *s, struct slab_slice *sl)
     sl->st_idx = NULL;
 }
 
-/* Stages chunk c into its slice's staging buffers. */
-static int stage_chunk(struct tvpal_slab *s, const struct tvpal_chunk *c)
+/* Stages chunk c into its slice's staging buffers.  With crc, the
+ * indices are copied with their CRC summed on the way, onto *crc. */
+static int stage_chunk(struct tvpal_slab *s, const struct tvpal_chunk *c,
+                       uint32_t *crc)
 {
     const struct tvpal_shard_header *h = &s->sh->h;
     uint32_t k = c->h.slice - h->slice_begin;
@@ -1080,7 +1082,11 @@ static int stage_chunk(struct tvpal_slab *s, const struct tvpal_chunk *c)
     sl->st_wstart = c->h.wstart;
     sl->st_wlen = c->h.wlen;
     tvpal_chunk_table(c, sl->st_table);
-    memcpy(sl->st_idx, c->indices, (size_t)h->slice_w * h->slice_h);
+    const size_t nvox = (size_t)h->slice_w * h->slice_h;
+    if (crc)
+        *crc = tvpal_crc32c_copy(*crc, sl->st_idx, c->indices, nvox);
+    else
+        memcpy(sl->st_idx, c->indices, nvox);
     return 0;
 }
 
@@ -1111,7 +1117,7 @@ int tvpal_slab_stage(struct tvpal_slab *s, const unsigned char *rec,
     uint64_t pos = 0;
     struct tvpal_chunk c;
     while (next_chunk_at(s, rec, &pos, t, &c)) {
-        int rc = stage_chunk(s, &c);
+        int rc = stage_chunk(s, &c, NULL);
         if (rc < 0)
             return rc;
     }
@@ -1124,20 +1130,23 @@ int tvpal_slab_stage_verify(struct tvpal_slab *s, const unsigned char *rec,
     const struct tvpal_shard_header *h = &s->sh->h;
     struct tvpal_record_header rh;
     tvpal_record_header_decode(rec, &rh, NULL);
-    /* Each chunk is summed just before it is staged: the copy then reads
-     * it from cache (a chunk of a 512^2 slice is 260 KB), not from
-     * memory a second time. */
-    uint64_t pos = TVPAL_RECORD_HEADER_BYTES, summed = pos;
+    /* One pass over the record: a staged chunk's header and table (and
+     * the chunks before it that this step does not stage) are summed just
+     * before the table is converted, from cache; its indices, most of its
+     * bytes, are summed as they are copied. */
+    const size_t nvox = (size_t)h->slice_w * h->slice_h;
+    uint64_t pos = 0, summed = TVPAL_RECORD_HEADER_BYTES;
     uint32_t crc = 0;
     struct tvpal_chunk c;
     while (tvpal_record_next_chunk(rec, &pos, h->table_format, &c)) {
-        crc = tvpal_crc32c(crc, rec + summed, pos - summed);
-        summed = pos;
         if (tvpal_schedule_start(c.h.slice, t, h->window) != c.h.wstart)
-            continue;
-        int rc = stage_chunk(s, &c);
+            continue; /* summed with what follows */
+        const uint64_t at = (uint64_t)(c.indices - rec);
+        crc = tvpal_crc32c(crc, rec + summed, at - summed);
+        int rc = stage_chunk(s, &c, &crc);
         if (rc < 0)
             return rc;
+        summed = at + nvox;
     }
     crc = tvpal_crc32c(crc, rec + summed,
                        TVPAL_RECORD_HEADER_BYTES + rh.payload_bytes - summed);
