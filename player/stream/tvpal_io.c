@@ -30,10 +30,11 @@ struct tvpal_io {
         uint64_t done;
         int used;
     } *pend;
-    /* Registered buffers (tvpal_io_register), nfixed of them. */
+    /* The fixed-buffer table (tvpal_io_register), nfixed entries, nfilled
+     * of them filled (fixed[i] NULL: empty). */
     unsigned char **fixed;
     uint64_t *fixed_len;
-    unsigned nfixed;
+    unsigned nfixed, nfilled;
 #endif
 };
 
@@ -151,7 +152,7 @@ static int fixed_index(const struct tvpal_io *io, const unsigned char *p,
                        uint64_t len)
 {
     for (unsigned i = 0; i < io->nfixed; i++)
-        if (p >= io->fixed[i] &&
+        if (io->fixed[i] && p >= io->fixed[i] &&
             (uint64_t)(p - io->fixed[i]) + len <= io->fixed_len[i])
             return (int)i;
     return -1;
@@ -194,60 +195,75 @@ static int uring_flush(struct tvpal_io *io, struct tvpal_diag *diag)
 }
 #endif
 
-#ifdef HAVE_LIBURING
-static void fixed_forget(struct tvpal_io *io)
-{
-    free(io->fixed);
-    free(io->fixed_len);
-    io->fixed = NULL;
-    io->fixed_len = NULL;
-    io->nfixed = 0;
-}
-#endif
-
-int tvpal_io_register(struct tvpal_io *io, void *const *bufs,
-                      const uint64_t *lens, unsigned n,
+int tvpal_io_register(struct tvpal_io *io, unsigned n,
                       struct tvpal_diag *diag)
 {
 #ifdef HAVE_LIBURING
     if (io->kind == TVPAL_IO_URING && !io->nfixed && n && !io->inflight) {
-        struct iovec *iov = calloc(n, sizeof *iov);
         io->fixed = calloc(n, sizeof *io->fixed);
         io->fixed_len = calloc(n, sizeof *io->fixed_len);
-        if (!iov || !io->fixed || !io->fixed_len) {
-            free(iov);
-            fixed_forget(io);
-            return TVPAL_E_NOMEM;
-        }
-        for (unsigned i = 0; i < n; i++) {
-            iov[i] = (struct iovec){.iov_base = bufs[i], .iov_len = lens[i]};
-            io->fixed[i] = bufs[i];
-            io->fixed_len[i] = lens[i];
-        }
-        int rc = io_uring_register_buffers(&io->ring, iov, n);
-        free(iov);
+        int rc = io->fixed && io->fixed_len
+                     ? io_uring_register_buffers_sparse(&io->ring, n)
+                     : -ENOMEM;
         if (rc < 0) {
-            fixed_forget(io);
+            free(io->fixed);
+            free(io->fixed_len);
+            io->fixed = NULL;
+            io->fixed_len = NULL;
             return tvpal_diag_set(diag, TVPAL_E_SYS,
-                                  "io_uring_register_buffers (%u buffers): "
-                                  "%s%s", n, strerror(-rc), rc == -ENOMEM
-                                  ? "; RLIMIT_MEMLOCK (ulimit -l) too low"
-                                  : "");
+                                  "io_uring_register_buffers_sparse (%u): %s",
+                                  n, strerror(-rc));
         }
         io->nfixed = n;
         return 0;
     }
 #endif
-    (void)bufs, (void)lens, (void)n;
+    (void)n;
     return tvpal_diag_set(diag, TVPAL_E_SYS, io->kind == TVPAL_IO_URING
-                          ? "buffers already registered, or reads queued"
+                          ? "a table already registered, or reads queued"
                           : "the pread backend has no fixed buffers");
+}
+
+int tvpal_io_register_buffer(struct tvpal_io *io, unsigned i, void *buf,
+                             uint64_t len, struct tvpal_diag *diag)
+{
+#ifdef HAVE_LIBURING
+    if (i < io->nfixed && !io->fixed[i]) {
+        struct iovec iov = {.iov_base = buf, .iov_len = len};
+        int rc = io_uring_register_buffers_update_tag(&io->ring, i, &iov,
+                                                      NULL, 1);
+        if (rc < 0)
+            return tvpal_diag_set(diag, TVPAL_E_SYS,
+                                  "io_uring_register_buffers_update_tag "
+                                  "(%llu bytes): %s%s",
+                                  (unsigned long long)len, strerror(-rc),
+                                  rc == -ENOMEM
+                                      ? "; RLIMIT_MEMLOCK (ulimit -l) too low"
+                                      : "");
+        io->fixed[i] = buf;
+        io->fixed_len[i] = len;
+        io->nfilled++;
+        return 0;
+    }
+#endif
+    (void)i, (void)buf, (void)len;
+    return tvpal_diag_set(diag, TVPAL_E_SYS, "no table entry %u to fill", i);
+}
+
+unsigned tvpal_io_table(const struct tvpal_io *io)
+{
+#ifdef HAVE_LIBURING
+    return io->nfixed;
+#else
+    (void)io;
+    return 0;
+#endif
 }
 
 unsigned tvpal_io_registered(const struct tvpal_io *io)
 {
 #ifdef HAVE_LIBURING
-    return io->nfixed;
+    return io->nfilled;
 #else
     (void)io;
     return 0;

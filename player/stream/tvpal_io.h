@@ -55,21 +55,29 @@ uint64_t tvpal_io_submits(const struct tvpal_io *io);
 int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result,
                   struct tvpal_diag *diag);
 
-/* Registers the n buffers bufs[i] of lens[i] bytes with io_uring as fixed
- * buffers: the kernel faults their pages in and pins them once, here,
- * instead of for every read.  For O_DIRECT reads into memory not yet
- * touched that per-read work (page faults, zeroing, pinning) was most of
- * the reading thread's kernel time.  A later read whose whole range lies
- * in one of them uses it (IORING_OP_READ_FIXED); other reads are as
- * before.  At most one registration per io, before any read is queued;
- * the buffers must outlive the io.  0, or TVPAL_E_SYS with diag saying
- * why (the pread backend; the kernel refusing: RLIMIT_MEMLOCK without
- * CAP_IPC_LOCK, a buffer over 1 GiB): reads then work unregistered. */
-int tvpal_io_register(struct tvpal_io *io, void *const *bufs,
-                      const uint64_t *lens, unsigned n,
+/* io_uring fixed buffers: a table of n entries, empty at first
+ * (tvpal_io_register), each filled once with tvpal_io_register_buffer.
+ * The kernel faults a buffer's pages in and pins them when it is filled,
+ * instead of for every read into it: for O_DIRECT reads that per-read
+ * work (page faults, zeroing, pinning) was most of the reading thread's
+ * kernel time.  A read whose whole range lies in a filled entry uses it
+ * (IORING_OP_READ_FIXED); other reads are as before.  Filling an entry
+ * when its buffer is first used, not all at once, keeps the cost where
+ * the memory is first needed: measured, 13 buffers of 269 MB (1024^3,
+ * N = 4) filled at once took 4.7 s in 4 KiB pages.
+ * register: at most once per io, before any read is queued.  0, or
+ * TVPAL_E_SYS with diag saying why (the pread backend; a kernel without
+ * sparse tables, before 5.19): reads then work unregistered.
+ * register_buffer: entry i (< n) not yet filled; the buffer must outlive
+ * the io.  0, or TVPAL_E_SYS with diag saying why (RLIMIT_MEMLOCK without
+ * CAP_IPC_LOCK, a buffer over 1 GiB): reads into it work unregistered. */
+int tvpal_io_register(struct tvpal_io *io, unsigned n,
                       struct tvpal_diag *diag);
+int tvpal_io_register_buffer(struct tvpal_io *io, unsigned i, void *buf,
+                             uint64_t len, struct tvpal_diag *diag);
 
-/* Buffers registered by tvpal_io_register (0: none). */
+/* Entries of the table (0: none) and how many are filled. */
+unsigned tvpal_io_table(const struct tvpal_io *io);
 unsigned tvpal_io_registered(const struct tvpal_io *io);
 
 /* Reads queued into registered buffers so far (a test asserts that the

@@ -61,9 +61,12 @@ struct tvpal_stream_path {
     const char *io;
     unsigned direct_files, files;
     const char *why;
-    unsigned fixed;             /* record buffers registered with io_uring */
+    unsigned fixed;             /* 1: the record buffers go into an io_uring
+                                 * fixed-buffer table as they are first
+                                 * used, none refused so far */
     uint64_t fixed_reads;       /* reads queued into them so far */
-    const char *fixed_why;      /* out-of-core without them: why, or "" */
+    const char *fixed_why;      /* out-of-core without them (or some of
+                                 * them): why, or "" */
 };
 void tvpal_stream_path(const struct tvpal_stream *s,
                        struct tvpal_stream_path *out);
