@@ -50,6 +50,36 @@ if [ "$uring" = yes ] && [ "${URING_BUILT:-yes}" = yes ]; then
     n=$(kv io_submits "$line")
     [ -n "$n" ] && [ "$n" -le 16 ] && ok "16 jumps: $n submissions, at most one a frame (batched)" \
         || fail "16 jumps: ${n:-?} submissions: $line $(cat "$W/e.txt")"
+    # A jump reads only the records its frame needs (at most the N that
+    # hold step t): the prefetch goes to the device after them, from the
+    # stager, so that it does not share the device with the reads the
+    # frame waits for.
+    "$PLAY" "$W/dsb" --headless -q --size 32x32 --rotate 0,0 --jumps 3 --renderer none \
+        --csv "$W/jumps.csv" > /dev/null 2> "$W/e.txt" || fail "jumps every 3rd frame"
+    r=$("$PY" - "$W/dsb/node-0/axis-z.tvps" "$W/jumps.csv" 4 <<'PY'
+import csv, struct, sys
+b = open(sys.argv[1], "rb").read()
+idx, n = struct.unpack_from("<Q", b, 72)[0], int(sys.argv[3])
+sizes = []
+while idx + 32 * (len(sizes) + 1) <= len(b):
+    size = struct.unpack_from("<Q", b, idx + 32 * len(sizes) + 8)[0]
+    if size == 0:
+        break
+    sizes.append(size)
+jumps, over = 0, []
+for row in csv.DictReader(open(sys.argv[2])):
+    if row["jump"] == "1":
+        jumps += 1
+        t = int(row["step"])
+        bound = sum(sizes[max(0, t - n + 1):t + 1])
+        if int(row["bytes_read"]) > bound:
+            over.append("step %d: %s > %d" % (t, row["bytes_read"], bound))
+print(jumps, len(over), "; ".join(over[:3]))
+PY
+)
+    set -- $r
+    [ "${1:-0}" -gt 0 ] && [ "$2" = 0 ] && ok "$1 jumps: none read more than its N records" \
+        || fail "jumps reading the prefetch too: $r"
     # The record buffers are registered with io_uring (fixed buffers): the
     # stager's reads then skip pinning pages per read.  Root (or any user
     # whose RLIMIT_MEMLOCK allows it) gets them; others are told why on the
