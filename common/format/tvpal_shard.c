@@ -1013,15 +1013,21 @@ unsigned tvpal_slab_needed(const struct tvpal_slab *s, uint32_t t,
     return n;
 }
 
-/* The next chunk of rec (from *pos) whose slice's window holding t starts
- * at the record's step: 1 with c, 0 at the end.  Record 0, say, also holds
- * the short first windows of slices that need a later record at t. */
+/* Whether chunk c is the window of its slice that holds t.  Record 0,
+ * say, also holds the short first windows of slices that need a later
+ * record at t. */
+static int chunk_holds(const struct tvpal_slab *s, const struct tvpal_chunk *c,
+                       uint32_t t)
+{
+    return tvpal_schedule_start(c->h.slice, t, s->sh->h.window) == c->h.wstart;
+}
+
+/* The next chunk of rec (from *pos) that holds t: 1 with c, 0 at the end. */
 static int next_chunk_at(const struct tvpal_slab *s, const unsigned char *rec,
                          uint64_t *pos, uint32_t t, struct tvpal_chunk *c)
 {
-    const struct tvpal_shard_header *h = &s->sh->h;
-    while (tvpal_record_next_chunk(rec, pos, h->table_format, c))
-        if (tvpal_schedule_start(c->h.slice, t, h->window) == c->h.wstart)
+    while (tvpal_record_next_chunk(rec, pos, s->sh->h.table_format, c))
+        if (chunk_holds(s, c, t))
             return 1;
     return 0;
 }
@@ -1139,7 +1145,7 @@ int tvpal_slab_stage_verify(struct tvpal_slab *s, const unsigned char *rec,
     uint32_t crc = 0;
     struct tvpal_chunk c;
     while (tvpal_record_next_chunk(rec, &pos, h->table_format, &c)) {
-        if (tvpal_schedule_start(c.h.slice, t, h->window) != c.h.wstart)
+        if (!chunk_holds(s, &c, t))
             continue; /* summed with what follows */
         const uint64_t at = (uint64_t)(c.indices - rec);
         crc = tvpal_crc32c(crc, rec + summed, at - summed);

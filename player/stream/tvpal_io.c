@@ -20,6 +20,8 @@ struct tvpal_io {
     unsigned head;
     uint64_t submits;     /* io_uring_submit calls (tvpal_io_submits) */
     uint64_t fixed_reads; /* reads queued into registered buffers */
+    unsigned nfixed;      /* entries of the fixed-buffer table (0: none), */
+    unsigned nfilled;     /* how many of them are filled */
 #ifdef HAVE_LIBURING
     struct io_uring ring;
     int ring_ok;
@@ -30,11 +32,10 @@ struct tvpal_io {
         uint64_t done;
         int used;
     } *pend;
-    /* The fixed-buffer table (tvpal_io_register), nfixed entries, nfilled
-     * of them filled (fixed[i] NULL: empty). */
+    /* The fixed-buffer table (tvpal_io_register): fixed[i] NULL where
+     * entry i is empty. */
     unsigned char **fixed;
     uint64_t *fixed_len;
-    unsigned nfixed, nfilled;
 #endif
 };
 
@@ -246,28 +247,18 @@ int tvpal_io_register_buffer(struct tvpal_io *io, unsigned i, void *buf,
         return 0;
     }
 #endif
-    (void)i, (void)buf, (void)len;
+    (void)io, (void)i, (void)buf, (void)len;
     return tvpal_diag_set(diag, TVPAL_E_SYS, "no table entry %u to fill", i);
 }
 
 unsigned tvpal_io_table(const struct tvpal_io *io)
 {
-#ifdef HAVE_LIBURING
     return io->nfixed;
-#else
-    (void)io;
-    return 0;
-#endif
 }
 
 unsigned tvpal_io_registered(const struct tvpal_io *io)
 {
-#ifdef HAVE_LIBURING
     return io->nfilled;
-#else
-    (void)io;
-    return 0;
-#endif
 }
 
 uint64_t tvpal_io_fixed_reads(const struct tvpal_io *io)
