@@ -49,6 +49,7 @@ struct headless {
     struct tvpal_view vl;           /* and v for it */
     int dir_step;
     uint32_t nframes;
+    uint32_t cur;                   /* the step of the last frame */
     unsigned errors;
     char last_err[256];
     struct play_totals tot;
@@ -255,19 +256,28 @@ static void print_start_line(const struct headless *h)
             h->o->renderer_why);
 }
 
-/* Timestep of frame i; every --jumps K-th frame a reproducible random one
- * (xorshift). */
+/* Timestep of frame i: the next of A..B after the previous frame's (from
+ * A again past B); every --jumps K-th frame a reproducible random one of
+ * A..B (xorshift), from which playback goes on, as after a click on the
+ * slider: so the frames that are not jumps are steady ones. */
 static uint32_t frame_step(struct headless *h, uint32_t i, int *jump)
 {
+    const uint32_t a = h->s->a, b = h->s->b;
+    const uint32_t lo = a < b ? a : b, n = h->nframes;
     *jump = 0;
     if (h->o->jumps && i > 0 && i % h->o->jumps == 0) {
         h->rng ^= h->rng << 13;
         h->rng ^= h->rng >> 7;
         h->rng ^= h->rng << 17;
         *jump = 1;
-        return (uint32_t)(h->rng % h->s->m->steps);
+        h->cur = lo + (uint32_t)(h->rng % n);
+    } else if (i == 0) {
+        h->cur = a;
+    } else {
+        int64_t next = (int64_t)h->cur + h->dir_step;
+        h->cur = next < lo || next >= (int64_t)lo + n ? a : (uint32_t)next;
     }
-    return h->s->a + (uint32_t)((int)i * h->dir_step);
+    return h->cur;
 }
 
 /* PSNR of this rank's float image against the reference renderer's
