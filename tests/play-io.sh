@@ -50,6 +50,15 @@ if [ "$uring" = yes ] && [ "${URING_BUILT:-yes}" = yes ]; then
     n=$(kv io_submits "$line")
     [ -n "$n" ] && [ "$n" -le 16 ] && ok "16 jumps: $n submissions, at most one a frame (batched)" \
         || fail "16 jumps: ${n:-?} submissions: $line $(cat "$W/e.txt")"
+    # --read-ahead 1 (MiB, under one 2 MiB record): a jump's records go
+    # to the device one at a time, each as the one before it lands, so a
+    # jump needing several makes several submissions.
+    line=$("$PLAY" "$W/dsb" --headless -q --size 32x32 --rotate 0,0 --io uring --jumps 1 \
+        --steps 0:15 --renderer none --read-ahead 1 2> "$W/e.txt")
+    n1=$(kv io_submits "$line")
+    [ -n "$n1" ] && [ "$n1" -gt "$n" ] \
+        && ok "--read-ahead 1: 16 jumps in $n1 submissions (records in turn), against $n" \
+        || fail "--read-ahead 1: ${n1:-?} submissions, not more than $n: $line $(cat "$W/e.txt")"
     # A jump reads only the records its frame needs (at most the N that
     # hold step t): the prefetch goes to the device after them, from the
     # stager, so that it does not share the device with the reads the

@@ -62,6 +62,7 @@ struct play_opts {
     int window;                         /* -1 until checked: from $DISPLAY */
     struct tvpal_player_opts po;        /* data mode, I/O, prefetch */
     uint32_t mem_mib;
+    uint32_t read_ahead_mib;            /* --read-ahead (0: the default) */
     uint32_t repeat, jumps, autoplay;
     int tf_cycle, ref_psnr, strict, quiet, no_direct, want_direct;
     const char *outdir, *csv_path, *shot, *shard_pat;

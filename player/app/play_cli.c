@@ -127,6 +127,9 @@ static void usage_data_output(FILE *f)
 "      --prefetch P         timesteps read ahead when streaming, 0..64\n"
 "                           (default 4); above 0 a stager thread also\n"
 "                           prepares the next step while one is drawn\n"
+"      --read-ahead MIB     streaming: a step's records are read in turn,\n"
+"                           each checked while the next is read, as many\n"
+"                           at once as fit in MIB, 1..65536 (default 32)\n"
 "      --direct             O_DIRECT or fail (default: O_DIRECT where the\n"
 "                           file system takes it, else a warning)\n"
 "      --no-direct          stream through the page cache\n"
@@ -460,7 +463,8 @@ enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
        K_REPEAT, K_TF_CYCLE, K_JUMPS, K_AUTOPLAY, K_SCREENSHOT, K_OPACITY,
        K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_DIRECT, K_MEM, K_CSV, K_STRICT,
        K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR, K_EXACT, K_LEVEL, K_BUDGET,
-       K_FROM_Z, K_ANNOTATE, K_BACKGROUND, K_SHOT_DIR, K_NO_HUD };
+       K_FROM_Z, K_ANNOTATE, K_BACKGROUND, K_SHOT_DIR, K_NO_HUD,
+       K_READ_AHEAD };
 /* Views, movies and progress (apart: the list above grows elsewhere). */
 enum { K_VIEW = 384, K_UP, K_FPS, K_PROGRESS };
 
@@ -507,6 +511,8 @@ static const struct opt_def opt_table[] = {
     {"io", K_IO, OPT_FN, 0, 0, 0, set_io, "auto, uring or pread"},
     {"direct", K_DIRECT, OPT_SET, F(want_direct), 1, 0, NULL, NULL},
     {"prefetch", K_PREFETCH, OPT_FN, 0, 0, 0, set_prefetch, "0..64"},
+    {"read-ahead", K_READ_AHEAD, OPT_U32, F(read_ahead_mib), 1, 65536, NULL,
+     "MiB in 1..65536"},
     {"no-direct", K_NO_DIRECT, OPT_SET, F(no_direct), 1, 0, NULL, NULL},
     {"mem", K_MEM, OPT_U32, F(mem_mib), 1, 16777216, NULL,
      "MiB in 1..16777216"},
@@ -641,6 +647,7 @@ int play_options_parse(struct play_opts *o, int argc, char **argv)
         play_die(2, "expected one OUTDIR (try --help)");
     o->dir = argv[optind];
     o->po.mem_budget = (uint64_t)o->mem_mib << 20;
+    o->po.read_ahead = (uint64_t)o->read_ahead_mib << 20;
     o->po.z_only = o->from_z;
     if (o->no_direct && o->want_direct)
         play_die(2, "--direct and --no-direct: choose one");

@@ -353,8 +353,10 @@ static int open_axis(struct tvpal_player *p, unsigned a,
         (p->opts.io_strict ? TVPAL_STREAM_STRICT_IO : 0) |
         (p->opts.direct_strict ? TVPAL_STREAM_STRICT_DIRECT : 0);
     return tvpal_stream_create(&x->stream, x->slabs, p->ds->nshards,
-                               p->opts.io, incore, p->opts.prefetch, policy,
-                               diag);
+                               p->opts.io, incore, p->opts.prefetch,
+                               p->opts.read_ahead ? p->opts.read_ahead
+                                                  : TVPAL_STREAM_READ_AHEAD,
+                               policy, diag);
 }
 
 /* The renderer is told the slices of the axis when it, its owner or the

@@ -52,6 +52,9 @@ struct tvpal_player_opts {
     int incore;                   /* all records of an axis in RAM */
     enum tvpal_io_kind io;        /* out-of-core backend */
     unsigned prefetch;            /* timesteps read ahead */
+    uint64_t read_ahead;          /* bytes of a step's records read at
+                                   * once (tvpal_stream_create; 0: its
+                                   * default) */
     int direct;                   /* O_DIRECT where possible */
     int io_strict;                /* io == URING: io_uring or fail (no
                                    * fallback to pread) */

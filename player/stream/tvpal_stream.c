@@ -76,6 +76,7 @@ struct tvpal_stream {
     struct tvpal_io *io;
     int incore;
     unsigned prefetch;
+    uint64_t ahead_bytes;        /* a step's reads in flight (read_ahead) */
     uint64_t incore_bytes;
     unsigned policy;             /* TVPAL_STREAM_* bits */
     unsigned direct_files;       /* parts opened with O_DIRECT */
@@ -397,8 +398,8 @@ static void fill_slot(struct tvpal_stream *s, struct part *p, struct slot *sl)
 
 int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
                         unsigned nslabs, enum tvpal_io_kind kind, int incore,
-                        unsigned prefetch, unsigned policy,
-                        struct tvpal_diag *diag)
+                        unsigned prefetch, uint64_t read_ahead,
+                        unsigned policy, struct tvpal_diag *diag)
 {
     int rc = 0;
     struct tvpal_io *io = NULL;
@@ -427,6 +428,7 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
     s->io = io;
     s->incore = incore;
     s->prefetch = prefetch;
+    s->ahead_bytes = read_ahead;
     if (!s->p) {
         tvpal_io_free(io);
         free(s);
@@ -588,50 +590,77 @@ static int seek_incore(struct tvpal_stream *s, uint32_t t,
     return err;
 }
 
-/* Queues the reads of part pi: the records t needs (prefetch = 0), or
- * (1) those of the prefetch window in direction dir not held yet, while
- * the queue has room.  The buffers of both stay reserved either way. */
-static int queue_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
-                      int dir, int prefetch, struct tvpal_stream_stats *st,
-                      struct tvpal_diag *diag)
+/* The steps part p wants at t: the nn it needs (*nn, ascending), then
+ * those of the prefetch window in direction dir.  The count. */
+static unsigned wanted_steps(const struct tvpal_stream *s,
+                             const struct part *p, uint32_t t, int dir,
+                             uint32_t wanted[16 + 64], unsigned *nn)
 {
-    struct part *p = &s->p[pi];
-    const struct tvpal_shard_header *h = tvpal_shard_hdr(p->sh);
-    uint32_t wanted[16 + 64];
-    unsigned nn = tvpal_slab_needed(p->slab, t, wanted), nw = nn;
+    const uint32_t steps = tvpal_shard_hdr(p->sh)->steps;
+    unsigned nw = *nn = tvpal_slab_needed(p->slab, t, wanted);
     for (unsigned k = 1; k <= s->prefetch && nw < 16 + 64; k++) {
         int64_t q = (int64_t)t + (dir < 0 ? -(int64_t)k : (int64_t)k);
-        if (q < 0 || q >= h->steps)
+        if (q < 0 || q >= steps)
             break;
         wanted[nw++] = (uint32_t)q;
     }
-    for (unsigned i = prefetch ? nn : 0; i < (prefetch ? nw : nn); i++) {
-        if (find_slot(p, wanted[i]) >= 0)
-            continue;
-        int v = victim(p, wanted, nw);
-        /* After a jump the old prefetches may hold every free slot: wait
-         * for them to land, then they can be reused. */
-        while (v < 0 && i < nn && tvpal_io_inflight(s->io)) {
-            int rc = reap(s, &st->io_wait_ms, diag);
-            if (rc < 0)
-                return rc;
-            v = victim(p, wanted, nw);
-        }
-        if (v < 0) {
-            if (i < nn) /* cannot happen: N + 2P + 1 slots */
-                return tvpal_diag_set(diag, TVPAL_E_NOMEM,
-                                      "no free record buffer");
-            break;
-        }
-        if (i >= nn && tvpal_io_inflight(s->io) + 8 > tvpal_io_depth(s->io))
-            break; /* prefetch only while the queue has room */
-        struct tvpal_diag qd = {{0}};
-        int rc = submit(s, pi, (unsigned)v, wanted[i], &st->io_wait_ms, &qd);
+    return nw;
+}
+
+/* Queues the read of wanted[i] (of nw, the first nn needed) into a record
+ * buffer of part pi, unless one holds it or has it in flight.  A needed
+ * record waits for a buffer to come free; a prefetched one is not queued
+ * (1) when none is free or the queue is nearly full.  0, 1, or an error. */
+static int queue_step(struct tvpal_stream *s, unsigned pi,
+                      const uint32_t *wanted, unsigned nw, unsigned nn,
+                      unsigned i, struct tvpal_stream_stats *st,
+                      struct tvpal_diag *diag)
+{
+    struct part *p = &s->p[pi];
+    if (find_slot(p, wanted[i]) >= 0)
+        return 0;
+    int v = victim(p, wanted, nw);
+    /* After a jump the old prefetches may hold every free slot: wait for
+     * them to land, then they can be reused. */
+    while (v < 0 && i < nn && tvpal_io_inflight(s->io)) {
+        int rc = reap(s, &st->io_wait_ms, diag);
         if (rc < 0)
-            return tvpal_diag_set(diag, rc, "%s: cannot queue a read%s%s",
-                                  tvpal_shard_path(p->sh),
-                                  qd.msg[0] ? ": " : "", qd.msg);
-        st->bytes_read += tvpal_shard_entry(p->sh, wanted[i])->bytes;
+            return rc;
+        v = victim(p, wanted, nw);
+    }
+    if (v < 0) {
+        if (i < nn) /* cannot happen: N + 2P + 1 slots */
+            return tvpal_diag_set(diag, TVPAL_E_NOMEM, "no free record buffer");
+        return 1;
+    }
+    if (i >= nn && tvpal_io_inflight(s->io) + 8 > tvpal_io_depth(s->io))
+        return 1; /* prefetch only while the queue has room */
+    struct tvpal_diag qd = {{0}};
+    int rc = submit(s, pi, (unsigned)v, wanted[i], &st->io_wait_ms, &qd);
+    if (rc < 0)
+        return tvpal_diag_set(diag, rc, "%s: cannot queue a read%s%s",
+                              tvpal_shard_path(p->sh), qd.msg[0] ? ": " : "",
+                              qd.msg);
+    st->bytes_read += tvpal_shard_entry(p->sh, wanted[i])->bytes;
+    return 0;
+}
+
+/* Queues the reads of part pi: the first `ahead` of the records t needs
+ * (prefetch = 0; feed_part queues the others as these land), or (1)
+ * those of the prefetch window in direction dir not held yet, while the
+ * queue has room.  The buffers of both stay reserved either way. */
+static int queue_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
+                      int dir, int prefetch, unsigned ahead,
+                      struct tvpal_stream_stats *st, struct tvpal_diag *diag)
+{
+    uint32_t wanted[16 + 64];
+    unsigned nn, nw = wanted_steps(s, &s->p[pi], t, dir, wanted, &nn);
+    unsigned from = prefetch ? nn : 0;
+    unsigned to = prefetch ? nw : ahead < nn ? ahead : nn;
+    for (unsigned i = from; i < to; i++) {
+        int rc = queue_step(s, pi, wanted, nw, nn, i, st, diag);
+        if (rc != 0)
+            return rc < 0 ? rc : 0;
     }
     return 0;
 }
@@ -688,18 +717,37 @@ static int stage_checked(struct part *p, struct slot *sl, uint32_t t,
     return 0;
 }
 
+/* How many of the records a step needs are in flight at once, counting
+ * the one being waited for: enough for s->ahead_bytes, at least one.
+ *
+ * A device may finish a submission as a whole: on a Firecracker VM the 4
+ * records of a 512^3 jump (N = 4, 34 MB each) all landed after 62 ms,
+ * and the CPU then checked and staged them in another 17; one at a time,
+ * each landed about 13 ms after the one before (the same rate) and was
+ * staged while the next was read: 55 ms in all instead of 71.  A fast
+ * NVMe device wants a few dozen 1 MiB reads in flight to reach its rate,
+ * so small records go several at a time (the default, 32 MiB). */
+static unsigned read_ahead(const struct tvpal_stream *s, const struct part *p)
+{
+    uint64_t b = p->steady_bytes ? p->steady_bytes : 1;
+    uint64_t k = (s->ahead_bytes + b - 1) / b;
+    return k < 1 ? 1 : k < 16 ? (unsigned)k : 16;
+}
+
 /* Waits for the records t needs from part pi, verifies and feeds them in
- * step order; the first failing record goes to *err, the others still go
- * in.  0, or a failure that ends the seek. */
+ * step order, queueing the reads of the later ones `ahead` records in
+ * advance (seek_into queued the first); the first failing record goes to
+ * *err, the others still go in.  0, or a failure that ends the seek. */
 static int feed_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
-                     struct tvpal_stream_stats *st, struct tvpal_diag *diag,
-                     int stage, int *err)
+                     int dir, unsigned ahead, struct tvpal_stream_stats *st,
+                     struct tvpal_diag *diag, int stage, int *err)
 {
     struct part *p = &s->p[pi];
-    uint32_t need[16];
-    unsigned nn = tvpal_slab_needed(p->slab, t, need);
+    /* what t needs before anything is fed (applying changes the answer) */
+    uint32_t wanted[16 + 64];
+    unsigned nn, nw = wanted_steps(s, p, t, dir, wanted, &nn);
     for (unsigned i = 0; i < nn; i++) {
-        int k = find_slot(p, need[i]);
+        int k = find_slot(p, wanted[i]);
         if (k < 0)
             continue; /* cannot happen: queued by queue_part */
         struct slot *sl = &p->slots[k];
@@ -708,44 +756,57 @@ static int feed_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
             if (rc < 0)
                 return rc;
         }
+        if (i + ahead < nn) {
+            struct tvpal_diag fd = {{0}};
+            int rc = queue_step(s, pi, wanted, nw, nn, i + ahead, st, diag);
+            if (rc == 0 && (rc = tvpal_io_flush(s->io, &fd)) < 0)
+                tvpal_diag_set(diag, rc, "%s", fd.msg);
+            if (rc < 0)
+                return rc;
+        }
         struct tvpal_diag d = {{0}};
         int fatal = 0, fed = stage && !sl->verified;
-        int rc = fed ? stage_checked(p, sl, t, need[i], &d, &fatal)
-                     : verify_slot(p, sl, need[i], &d);
+        int rc = fed ? stage_checked(p, sl, t, wanted[i], &d, &fatal)
+                     : verify_slot(p, sl, wanted[i], &d);
         if (fatal)
-            return tvpal_diag_set(diag, fatal, "staging record %u", need[i]);
+            return tvpal_diag_set(diag, fatal, "staging record %u", wanted[i]);
         if (rc < 0) {
             if (!*err)
                 *err = tvpal_diag_set(diag, rc, "%s: %s",
                                       tvpal_shard_path(p->sh), d.msg);
             continue;
         }
-        if (!fed && (rc = feed_record(p, sl->buf, t, need[i], stage, diag)) < 0)
+        if (!fed && (rc = feed_record(p, sl->buf, t, wanted[i], stage, diag)) < 0)
             return rc;
         st->records_applied++;
     }
     return 0;
 }
 
-/* Applies (stage = 0) or stages (1) into every slab the records that hold
- * timestep t, reading them first out-of-core; queues the prefetch.  All
- * parts' reads go to the kernel in one submission before any is waited
- * for. */
+/* How seek_into feeds: applied in place, or staged (each unchecked record
+ * summed as it is staged: one pass over it, not two); and whether it
+ * queues the prefetch after. */
+enum { SEEK_APPLY = 0, SEEK_STAGE = 1, SEEK_PREFETCH = 2 };
+
+/* Applies or stages (how & SEEK_STAGE) into every slab the records that
+ * hold timestep t, reading them first out-of-core (read_ahead of them at
+ * a time; all parts' first ones in one submission); with SEEK_PREFETCH
+ * queues the prefetch after. */
 static int seek_into(struct tvpal_stream *s, uint32_t t, int dir,
                      struct tvpal_stream_stats *st, struct tvpal_diag *diag,
-                     int stage)
+                     unsigned how)
 {
+    const int stage = (how & SEEK_STAGE) != 0;
     memset(st, 0, sizeof *st);
     if (s->incore)
         return seek_incore(s, t, st, diag, stage);
     /* The records t needs go to the device alone, and the prefetch only
      * once they are in: reads queued together share the device, and a
      * 512^3 jump at N = 4 waited for 169 MB instead of its 136 (the next
-     * step, staged after it, for 5 records instead of 1).  A step prepared
-     * on the caller's thread (a jump, the first frame) queues no prefetch
-     * where a stager is posted right after it to do so. */
+     * step, staged after it, for 5 records instead of 1). */
     for (unsigned pi = 0; pi < s->n; pi++) {
-        int rc = queue_part(s, pi, t, dir, 0, st, diag);
+        int rc = queue_part(s, pi, t, dir, 0, read_ahead(s, &s->p[pi]), st,
+                            diag);
         if (rc < 0)
             return rc;
     }
@@ -755,12 +816,13 @@ static int seek_into(struct tvpal_stream *s, uint32_t t, int dir,
         return tvpal_diag_set(diag, rc, "%s", fd.msg);
     int err = 0;
     for (unsigned pi = 0; pi < s->n; pi++)
-        if ((rc = feed_part(s, pi, t, st, diag, stage, &err)) < 0)
+        if ((rc = feed_part(s, pi, t, dir, read_ahead(s, &s->p[pi]), st, diag,
+                            stage, &err)) < 0)
             return rc;
-    if (!stage && s->w.started)
+    if (!(how & SEEK_PREFETCH))
         return err;
     for (unsigned pi = 0; pi < s->n; pi++)
-        if ((rc = queue_part(s, pi, t, dir, 1, st, diag)) < 0)
+        if ((rc = queue_part(s, pi, t, dir, 1, 0, st, diag)) < 0)
             return rc;
     if ((rc = tvpal_io_flush(s->io, &fd)) < 0)
         return tvpal_diag_set(diag, rc, "%s", fd.msg);
@@ -783,7 +845,7 @@ static void *stager_main(void *arg)
         pthread_mutex_unlock(&w->mu);
         struct tvpal_stream_stats st;
         struct tvpal_diag d = {{0}};
-        int rc = seek_into(s, t, dir, &st, &d, 1);
+        int rc = seek_into(s, t, dir, &st, &d, SEEK_STAGE | SEEK_PREFETCH);
         pthread_mutex_lock(&w->mu);
         w->rc = rc;
         w->diag = d;
@@ -835,7 +897,7 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
         st = &local;
     struct stager *w = &s->w;
     if (!w->started)
-        return seek_into(s, t, dir, st, diag, 0);
+        return seek_into(s, t, dir, st, diag, SEEK_APPLY | SEEK_PREFETCH);
     stager_wait(s);
     int rc;
     if (w->have && w->staged_t == t) {
@@ -855,7 +917,7 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
          * or more.  Anything else (a jump) drops it. */
         if (w->have && !(s->have_cur && t == s->cur_t))
             unstage_all(s);
-        rc = seek_into(s, t, dir, st, diag, 0);
+        rc = seek_into(s, t, dir, st, diag, SEEK_APPLY);
     }
     s->have_cur = 1;
     s->cur_t = t;

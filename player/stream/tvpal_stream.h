@@ -48,11 +48,15 @@ struct tvpal_stream;
  * never cross streams.  Without TVPAL_STREAM_STRICT io_uring falls back to
  * pread and O_DIRECT to the page cache, and tvpal_stream_path says so.
  * incore: load everything now.  prefetch: timesteps read ahead
- * (out-of-core). */
+ * (out-of-core).  read_ahead: bytes of the records one step needs that
+ * are read at once (out-of-core): they go in turn, each checked while the
+ * next is read, as many together as fit in read_ahead, at least one;
+ * TVPAL_STREAM_READ_AHEAD is the player's default. */
+#define TVPAL_STREAM_READ_AHEAD ((uint64_t)32 << 20)
 int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
                         unsigned nslabs, enum tvpal_io_kind io, int incore,
-                        unsigned prefetch, unsigned policy,
-                        struct tvpal_diag *diag);
+                        unsigned prefetch, uint64_t read_ahead,
+                        unsigned policy, struct tvpal_diag *diag);
 
 /* What a stream really does: its backend ("uring" or "pread"), on how
  * many of its files O_DIRECT is on, and its first fallback ("" when none;
