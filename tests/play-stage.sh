@@ -74,4 +74,29 @@ cmp -s "$W/b0.err" "$W/b4.err" && cmp -s "$W/b0.rc" "$W/b4.rc" && [ "$(cat "$W/b
 same=1
 for f in "$W/b0"/t*.png; do cmp -s "$f" "$W/b4/$(basename "$f")" || same=0; done
 [ $same = 1 ] && ok "corrupt record: frames identical (the last good data stays)" || fail "corrupt: frames differ"
+# Jumps onto the corrupt record (steps 6..9 need record 6; --jumps 1
+# from step 2 goes 7 8 8 6 6 3 9).  A jump is staged and installed on the
+# frame's thread with the stager (the CRC summed as the record is staged,
+# the bad record's slices unstaged), checked and applied in place without
+# it: the same frames, messages and status; reading the records one at a
+# time (--read-ahead 1) too.
+for pf in "0" "4" "4 --read-ahead 1"; do
+    n=$(echo "$pf" | tr -d ' -')
+    "$PLAY" "$W/bad" --headless -q --renderer cpu --size 64x56 --steps 2:9 --jumps 1 --prefetch $pf \
+        -o "$W/bj$n" > /dev/null 2> "$W/bj$n.err"
+    echo $? > "$W/bj$n.rc"
+done
+same=1
+for f in "$W/bj0"/t*.png; do
+    cmp -s "$f" "$W/bj4/$(basename "$f")" && cmp -s "$f" "$W/bj4readahead1/$(basename "$f")" || same=0
+done
+# a jump from before step 6 onto 6..9: the slices of record 6 must keep
+# their window from before the jump
+into=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "jump") j = i; next }
+                $j == 1 && $1 >= 6 && prev < 6 { n++ } { prev = $1 } END { print n + 0 }' "$W/bj4/timing.csv")
+cmp -s "$W/bj0.err" "$W/bj4.err" && cmp -s "$W/bj0.err" "$W/bj4readahead1.err" \
+    && [ "$(cat "$W/bj0.rc")" = 1 ] && [ "$(cat "$W/bj4.rc")" = 1 ] && [ $same = 1 ] \
+    && [ "$into" -ge 1 ] && grep -q "record 6.*CRC-32C mismatch" "$W/bj4.err" \
+    && ok "$into jump(s) onto a corrupt record: the same frames, report and status 1 with and without the stager" \
+    || fail "jumps onto a corrupt record: frames same=$same, jumps into 6..9: $into; $(cat "$W/bj0.err") vs $(cat "$W/bj4.err")"
 finish
