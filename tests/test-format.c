@@ -696,12 +696,117 @@ static void test_stage_verify(void)
     unlink(path);
 }
 
+/* Borrowing (tvpal_slab_borrow): a slab that points its slices at the
+ * records shows what a copying slab shows, bit for bit, through applied
+ * and staged steps, jumps and a refused record; tvpal_slab_borrows names
+ * the records it points into; detaching a record copies its windows in
+ * (the record may then be overwritten without a change), and detaching
+ * all leaves nothing borrowed. */
+static void test_borrow(void)
+{
+    const char *path = "test-format-borrow.tvps";
+    struct tvpal_shard_header g = sample_header();
+    uint32_t n;
+    g.table_format = TVPAL_TABLE_CHUNK;
+    g.nodes = 1;
+    g.rank = 0;
+    tvpal_axis_geometry(g.dims, 0, &n, &g.slice_w, &g.slice_h);
+    tvpal_slab_range(n, 1, 0, &g.slice_begin, &g.slice_count);
+    write_shard(path, &g, 0);
+    struct tvpal_shard *sh;
+    struct tvpal_slab *cp, *bw;
+    struct tvpal_diag d = {{0}};
+    REQUIRE(tvpal_shard_open(&sh, path, &d) == 0, "open: %s", d.msg);
+    REQUIRE(tvpal_slab_create(&cp, sh) == 0 && tvpal_slab_create(&bw, sh) == 0,
+            "slabs");
+    tvpal_slab_borrow(bw, 1);
+    const struct tvpal_shard_header *h = tvpal_shard_hdr(sh);
+    REQUIRE(h->steps <= 16, "%u steps", h->steps);
+    static unsigned char recs[16][1 << 16];
+    for (uint32_t r = 0; r < h->steps; r++)
+        REQUIRE(tvpal_shard_read_record(sh, r, recs[r], sizeof recs[r], &d) == 0,
+                "record %u: %s", r, d.msg);
+    /* t: applied in place (odd steps of the walk) or staged and installed */
+    static const uint32_t walk[] = {0, 1, 2, 3, 4, 5, 2, 8, 7, 0, 6, 7, 3};
+    for (size_t w = 0; w < sizeof walk / sizeof *walk; w++) {
+        const uint32_t t = walk[w];
+        uint32_t need[16];
+        unsigned nn = tvpal_slab_needed(bw, t, need);
+        for (unsigned i = 0; i < nn; i++) {
+            if (w % 2) {
+                tvpal_slab_apply(cp, recs[need[i]], t);
+                tvpal_slab_apply(bw, recs[need[i]], t);
+            } else {
+                CHECK(tvpal_slab_stage(cp, recs[need[i]], t) == 0 &&
+                          tvpal_slab_stage_verify(bw, recs[need[i]], t) == 0,
+                      "t %u: staging record %u", t, need[i]);
+            }
+        }
+        tvpal_slab_install(cp);
+        tvpal_slab_install(bw);
+        CHECK(slabs_equal(cp, bw, h, t), "walk %zu: t %u differs", w, t);
+        /* exactly the records whose windows hold t */
+        for (uint32_t r = 0; r < h->steps; r++) {
+            int holds = 0;
+            for (uint32_t k = 0; k < h->slice_count && !holds; k++)
+                holds = tvpal_schedule_start(h->slice_begin + k, t, h->window) == r;
+            CHECK(tvpal_slab_borrows(bw, r) == holds, "t %u: record %u borrowed %d, "
+                  "holds a window at t %d", t, r, tvpal_slab_borrows(bw, r), holds);
+        }
+        CHECK(!tvpal_slab_borrows(cp, UINT32_MAX), "the copying slab borrows");
+    }
+    /* A refused record leaves its slices on their borrowed windows. */
+    const uint32_t t = 4;
+    uint32_t need[16];
+    unsigned nn = tvpal_slab_needed(bw, t, need);
+    REQUIRE(nn > 0, "nothing needed at t %u", t);
+    static unsigned char bad[1 << 16];
+    memcpy(bad, recs[need[0]], sizeof bad);
+    bad[TVPAL_RECORD_HEADER_BYTES + TVPAL_CHUNK_HEADER_BYTES + 10] ^= 0x10;
+    CHECK(tvpal_slab_stage_verify(bw, bad, t) == TVPAL_E_CHECKSUM,
+          "a flipped byte staged");
+    for (unsigned i = 1; i < nn; i++) {
+        CHECK(tvpal_slab_stage(cp, recs[need[i]], t) == 0 &&
+                  tvpal_slab_stage_verify(bw, recs[need[i]], t) == 0,
+              "staging record %u", need[i]);
+    }
+    tvpal_slab_install(cp);
+    tvpal_slab_install(bw);
+    CHECK(slabs_equal(cp, bw, h, t), "a refused record: the slabs differ");
+    memset(bad, 0xA5, sizeof bad);
+    CHECK(slabs_equal(cp, bw, h, t), "the refused record is shown");
+    /* Detach one record, then scribble over it: nothing changes. */
+    uint32_t r = UINT32_MAX;
+    for (uint32_t q = 0; q < h->steps && r == UINT32_MAX; q++)
+        if (tvpal_slab_borrows(bw, q))
+            r = q;
+    REQUIRE(r != UINT32_MAX, "nothing borrowed at t %u", t);
+    static unsigned char keep[1 << 16];
+    memcpy(keep, recs[r], sizeof keep);
+    tvpal_slab_detach(bw, r);
+    CHECK(!tvpal_slab_borrows(bw, r), "record %u borrowed after detach", r);
+    memset(recs[r], 0x5A, sizeof recs[r]);
+    CHECK(slabs_equal(cp, bw, h, t), "record %u overwritten after detach", r);
+    memcpy(recs[r], keep, sizeof keep);
+    /* Detach everything; then no record shows through. */
+    tvpal_slab_detach(bw, UINT32_MAX);
+    CHECK(!tvpal_slab_borrows(bw, UINT32_MAX), "borrowed after detaching all");
+    for (uint32_t q = 0; q < h->steps; q++)
+        memset(recs[q], 0x77, sizeof recs[q]);
+    CHECK(slabs_equal(cp, bw, h, t), "records overwritten after detaching all");
+    tvpal_slab_free(cp);
+    tvpal_slab_free(bw);
+    tvpal_shard_close(sh);
+    unlink(path);
+}
+
 int main(void)
 {
     test_placed();
     test_axes();
     test_per_chunk();
     test_stage_verify();
+    test_borrow();
     unsigned char hb[TVPAL_SHARD_HEADER_BYTES];
     struct tvpal_shard_header h = sample_header(), g;
     struct tvpal_diag d;

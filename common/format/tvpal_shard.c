@@ -905,12 +905,15 @@ struct slab_slice {
     uint32_t wstart, wlen;  /* loaded window; wlen 0 = nothing loaded */
     uint32_t gen;           /* windows installed so far */
     float *table;           /* window * 256 */
-    uint8_t *idx;           /* w * h */
+    uint8_t *idx;           /* w * h, the slice's own */
+    const uint8_t *view;    /* the indices shown: idx, or (borrowing)
+                             * those of record wstart */
     /* A window staged for the next install (tvpal_slab_stage): buffers
-     * from the slab's pool, NULL when none. */
+     * from the slab's pool, NULL when none; st_view as view. */
     uint32_t st_wstart, st_wlen;
     float *st_table;
     uint8_t *st_idx;
+    const uint8_t *st_view;
 };
 
 /* A pair of slice buffers not in use (the pool of staged windows). */
@@ -932,6 +935,7 @@ struct tvpal_slab {
     struct slab_buf *pool;  /* free buffer pairs, npool of them (at most
                              * slice_count) */
     uint32_t npool;
+    int borrow;             /* tvpal_slab_borrow */
 };
 
 /* A window's buffers for the slab's slices: its table and indices. */
@@ -962,9 +966,11 @@ int tvpal_slab_create(struct tvpal_slab **out, struct tvpal_shard *sh)
     s->pool = malloc((h->slice_count ? h->slice_count : 1) * sizeof *s->pool);
     if (!s->sl || !s->staged || !s->pool)
         goto nomem;
-    for (uint32_t k = 0; k < h->slice_count; k++)
+    for (uint32_t k = 0; k < h->slice_count; k++) {
         if (slice_buffers(h, &s->sl[k].table, &s->sl[k].idx) < 0)
             goto nomem;
+        s->sl[k].view = s->sl[k].idx;
+    }
     *out = s;
     return 0;
 nomem:
@@ -1032,8 +1038,9 @@ static int next_chunk_at(const struct tvpal_slab *s, const unsigned char *rec,
     return 0;
 }
 
-void tvpal_slab_apply(struct tvpal_slab *s, const unsigned char *rec,
-                      uint32_t t)
+/* apply, borrowing the record's indices or (borrow = 0) copying them */
+static void apply_record(struct tvpal_slab *s, const unsigned char *rec,
+                         uint32_t t, int borrow)
 {
     const struct tvpal_shard_header *h = &s->sh->h;
     size_t nvox = (size_t)h->slice_w * h->slice_h;
@@ -1045,8 +1052,19 @@ void tvpal_slab_apply(struct tvpal_slab *s, const unsigned char *rec,
         sl->wlen = c.h.wlen;
         sl->gen++;
         tvpal_chunk_table(&c, sl->table);
-        memcpy(sl->idx, c.indices, nvox);
+        if (borrow) {
+            sl->view = c.indices;
+        } else {
+            memcpy(sl->idx, c.indices, nvox);
+            sl->view = sl->idx;
+        }
     }
+}
+
+void tvpal_slab_apply(struct tvpal_slab *s, const unsigned char *rec,
+                      uint32_t t)
+{
+    apply_record(s, rec, t, s->borrow);
 }
 
 /* Gives slice sl staging buffers (from the pool, else new ones). */
@@ -1069,6 +1087,7 @@ static void unstage_slice(struct tvpal_slab *s, struct slab_slice *sl)
     s->pool[s->npool++] = (struct slab_buf){sl->st_table, sl->st_idx};
     sl->st_table = NULL;
     sl->st_idx = NULL;
+    sl->st_view = NULL;
 }
 
 /* Stages chunk c into its slice's staging buffers.  With crc, the
@@ -1089,10 +1108,17 @@ static int stage_chunk(struct tvpal_slab *s, const struct tvpal_chunk *c,
     sl->st_wlen = c->h.wlen;
     tvpal_chunk_table(c, sl->st_table);
     const size_t nvox = (size_t)h->slice_w * h->slice_h;
-    if (crc)
-        *crc = tvpal_crc32c_copy(*crc, sl->st_idx, c->indices, nvox);
-    else
-        memcpy(sl->st_idx, c->indices, nvox);
+    if (s->borrow) {
+        if (crc)
+            *crc = tvpal_crc32c(*crc, c->indices, nvox);
+        sl->st_view = c->indices;
+    } else {
+        if (crc)
+            *crc = tvpal_crc32c_copy(*crc, sl->st_idx, c->indices, nvox);
+        else
+            memcpy(sl->st_idx, c->indices, nvox);
+        sl->st_view = sl->st_idx;
+    }
     return 0;
 }
 
@@ -1169,6 +1195,7 @@ void tvpal_slab_install(struct tvpal_slab *s)
         struct slab_slice *sl = &s->sl[s->staged[n]];
         float *t = sl->table;
         uint8_t *i = sl->idx;
+        sl->view = sl->st_view; /* st_idx, which becomes idx, or borrowed */
         sl->table = sl->st_table;
         sl->idx = sl->st_idx;
         sl->st_table = t;
@@ -1204,14 +1231,72 @@ int tvpal_slab_seek(struct tvpal_slab *s, uint32_t t, struct tvpal_diag *diag)
         if (rc < 0)
             return rc;
         s->bytes_read += s->sh->index[steps[i]].bytes;
-        tvpal_slab_apply(s, s->rec, t);
+        apply_record(s, s->rec, t, 0); /* s->rec is reused: copied */
     }
     return 0;
 }
 
 const uint8_t *tvpal_slab_indices(const struct tvpal_slab *s, uint32_t k)
 {
-    return s->sl[k].idx;
+    return s->sl[k].view;
+}
+
+void tvpal_slab_borrow(struct tvpal_slab *s, int on)
+{
+    s->borrow = on;
+}
+
+/* Whether slice sl shows or has staged a window borrowed from the record
+ * of `step` (any record: UINT32_MAX): 1 shown, 2 staged, 3 both. */
+static int slice_borrows(const struct slab_slice *sl, uint32_t step)
+{
+    int b = 0;
+    if (sl->view != sl->idx && (step == UINT32_MAX || sl->wstart == step))
+        b |= 1;
+    if (sl->st_view && sl->st_view != sl->st_idx &&
+        (step == UINT32_MAX || sl->st_wstart == step))
+        b |= 2;
+    return b;
+}
+
+int tvpal_slab_borrows(const struct tvpal_slab *s, uint32_t step)
+{
+    for (uint32_t k = 0; k < s->sh->h.slice_count; k++)
+        if (slice_borrows(&s->sl[k], step))
+            return 1;
+    return 0;
+}
+
+void tvpal_slab_detach_stale(struct tvpal_slab *s, uint32_t t)
+{
+    const struct tvpal_shard_header *h = &s->sh->h;
+    const size_t nvox = (size_t)h->slice_w * h->slice_h;
+    for (uint32_t k = 0; k < h->slice_count; k++) {
+        struct slab_slice *sl = &s->sl[k];
+        if (sl->view != sl->idx &&
+            tvpal_schedule_start(h->slice_begin + k, t, h->window) != sl->wstart) {
+            memcpy(sl->idx, sl->view, nvox);
+            sl->view = sl->idx;
+        }
+    }
+}
+
+void tvpal_slab_detach(struct tvpal_slab *s, uint32_t step)
+{
+    const struct tvpal_shard_header *h = &s->sh->h;
+    const size_t nvox = (size_t)h->slice_w * h->slice_h;
+    for (uint32_t k = 0; k < h->slice_count; k++) {
+        struct slab_slice *sl = &s->sl[k];
+        int b = slice_borrows(sl, step);
+        if (b & 1) {
+            memcpy(sl->idx, sl->view, nvox);
+            sl->view = sl->idx;
+        }
+        if (b & 2) {
+            memcpy(sl->st_idx, sl->st_view, nvox);
+            sl->st_view = sl->st_idx;
+        }
+    }
 }
 
 const float *tvpal_slab_row(const struct tvpal_slab *s, uint32_t k,
@@ -1244,7 +1329,7 @@ void tvpal_slab_scatter(const struct tvpal_slab *s, uint32_t t, float *vol)
     for (uint32_t k = 0; k < h->slice_count; k++) {
         const uint32_t sidx = h->slice_begin + k;
         const float *row = tvpal_slab_row(s, k, t);
-        const uint8_t *idx = s->sl[k].idx;
+        const uint8_t *idx = s->sl[k].view;
         if (!row)
             continue;
         for (uint32_t b = 0; b < hh; b++)

@@ -209,6 +209,27 @@ void tvpal_slab_install(struct tvpal_slab *slab);
 /* Drops what is staged (the buffers go back to the pool). */
 void tvpal_slab_unstage(struct tvpal_slab *slab);
 
+/* Borrowing (off at creation): with on, tvpal_slab_apply and the staging
+ * calls no longer copy a record's indices into the slab but point the
+ * slices at them, inside rec: no copy, and for stage_verify a read of
+ * the indices instead of a read and a write.  The caller then keeps
+ * every such record unchanged and allocated while a slice shows or has
+ * staged a window from it (tvpal_slab_borrows), or copies those windows
+ * in first (tvpal_slab_detach).  The window of a slice starts at the step
+ * of the record that holds it, so "record step" names it.  Switching off
+ * detaches nothing. */
+void tvpal_slab_borrow(struct tvpal_slab *slab, int on);
+/* Whether a slice shows or has staged indices borrowed from the record of
+ * `step` (UINT32_MAX: from any record). */
+int tvpal_slab_borrows(const struct tvpal_slab *slab, uint32_t step);
+/* Copies the indices borrowed from the record of `step` (UINT32_MAX: all)
+ * into the slab's own buffers: the record may then change.  What the
+ * slab shows stays the same, generations included. */
+void tvpal_slab_detach(struct tvpal_slab *slab, uint32_t step);
+/* Copies in the borrowed windows shown that do not hold t: those of
+ * slices whose record for t failed, which keep an older window. */
+void tvpal_slab_detach_stale(struct tvpal_slab *slab, uint32_t t);
+
 /* needed + read (pread) + apply. */
 int tvpal_slab_seek(struct tvpal_slab *slab, uint32_t t,
                     struct tvpal_diag *diag);
