@@ -349,8 +349,10 @@ static uint64_t steady_record_bytes(const struct tvpal_shard *sh)
     return m;
 }
 
-/* Out-of-core: record buffers for N needed + P prefetched + P of an old
- * prefetch window still in flight after a jump + 1 (nslots). */
+/* Out-of-core: record buffers (nslots) for the N records whose windows
+ * are shown (the slab borrows their indices) + N needed by a jump + P
+ * prefetched + P of an old prefetch window still in flight after a jump
+ * + 1 (the step staged). */
 static int alloc_slots(struct part *p, unsigned nslots)
 {
     p->nslots = nslots;
@@ -447,7 +449,13 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
         if (rc < 0)
             break;
         rc = incore ? load_incore(s, p, diag)
-                    : alloc_slots(p, h->window + 2 * prefetch + 1);
+                    : alloc_slots(p, 2 * h->window + 2 * prefetch + 1);
+        /* The slices show their indices where the records are, not a
+         * copy: in-core in RAM for as long as the stream; streamed in the
+         * record buffers, which are not reused while a slice shows or
+         * has staged a window from them (victim). */
+        if (rc == 0)
+            tvpal_slab_borrow(p->slab, 1);
     }
     if (rc == 0 && !incore)
         register_table(s);
@@ -486,9 +494,15 @@ void tvpal_stream_free(struct tvpal_stream *s)
         pthread_mutex_destroy(&s->w.mu);
         unstage_all(s);
     }
-    /* Nothing may stay in flight into buffers freed here. */
+    /* Nothing may stay in flight into buffers freed here, and the slabs
+     * (which outlive the stream) must not show them. */
     while (s->io && tvpal_io_inflight(s->io) && reap(s, NULL, NULL) == 0)
         ;
+    for (unsigned i = 0; i < s->n; i++)
+        if (s->p[i].slab) {
+            tvpal_slab_detach(s->p[i].slab, UINT32_MAX);
+            tvpal_slab_borrow(s->p[i].slab, 0);
+        }
     for (unsigned i = 0; i < s->n; i++) {
         struct part *p = &s->p[i];
         if (p->fd >= 0)
@@ -530,22 +544,35 @@ static int find_slot(const struct part *p, uint32_t step)
     return -1;
 }
 
-/* A slot to reuse: free, or ready/bad and not wanted (wanted[] = steps
- * needed now or in the prefetch window). */
-static int victim(const struct part *p, const uint32_t *wanted, unsigned nw)
+/* A slot to reuse: free, or landed, not wanted (wanted[] = steps needed
+ * now or in the prefetch window) and not shown or staged by the slab
+ * (which borrows the records' indices).  With detach (the caller's
+ * thread, while nothing draws), failing that, a landed unwanted slot
+ * the slab borrows from, its windows copied into the slab first: cannot
+ * happen with the slots alloc_slots counts, unless records failed. */
+static int victim(const struct part *p, const uint32_t *wanted, unsigned nw,
+                  int detach)
 {
     for (unsigned k = 0; k < p->nslots; k++)
         if (p->slots[k].state == SLOT_FREE)
             return (int)k;
-    for (unsigned k = 0; k < p->nslots; k++) {
-        if (p->slots[k].state == SLOT_INFLIGHT)
-            continue;
-        int keep = 0;
-        for (unsigned i = 0; i < nw && !keep; i++)
-            keep = p->slots[k].step == wanted[i];
-        if (!keep)
-            return (int)k;
-    }
+    for (int pass = 0; pass < 1 + (detach != 0); pass++)
+        for (unsigned k = 0; k < p->nslots; k++) {
+            const struct slot *sl = &p->slots[k];
+            if (sl->state == SLOT_INFLIGHT)
+                continue;
+            int keep = 0;
+            for (unsigned i = 0; i < nw && !keep; i++)
+                keep = sl->step == wanted[i];
+            if (keep)
+                continue;
+            if (!tvpal_slab_borrows(p->slab, sl->step))
+                return (int)k;
+            if (pass == 1) {
+                tvpal_slab_detach(p->slab, sl->step);
+                return (int)k;
+            }
+        }
     return -1;
 }
 
@@ -609,27 +636,28 @@ static unsigned wanted_steps(const struct tvpal_stream *s,
 
 /* Queues the read of wanted[i] (of nw, the first nn needed) into a record
  * buffer of part pi, unless one holds it or has it in flight.  A needed
- * record waits for a buffer to come free; a prefetched one is not queued
- * (1) when none is free or the queue is nearly full.  0, 1, or an error. */
+ * record waits for a buffer to come free (here: on the caller's thread,
+ * see victim); a prefetched one is not queued (1) when none is free or
+ * the queue is nearly full.  0, 1, or an error. */
 static int queue_step(struct tvpal_stream *s, unsigned pi,
                       const uint32_t *wanted, unsigned nw, unsigned nn,
-                      unsigned i, struct tvpal_stream_stats *st,
+                      unsigned i, int here, struct tvpal_stream_stats *st,
                       struct tvpal_diag *diag)
 {
     struct part *p = &s->p[pi];
     if (find_slot(p, wanted[i]) >= 0)
         return 0;
-    int v = victim(p, wanted, nw);
+    int v = victim(p, wanted, nw, here && i < nn);
     /* After a jump the old prefetches may hold every free slot: wait for
      * them to land, then they can be reused. */
     while (v < 0 && i < nn && tvpal_io_inflight(s->io)) {
         int rc = reap(s, &st->io_wait_ms, diag);
         if (rc < 0)
             return rc;
-        v = victim(p, wanted, nw);
+        v = victim(p, wanted, nw, here);
     }
     if (v < 0) {
-        if (i < nn) /* cannot happen: N + 2P + 1 slots */
+        if (i < nn) /* cannot happen: 2N + 2P + 1 slots */
             return tvpal_diag_set(diag, TVPAL_E_NOMEM, "no free record buffer");
         return 1;
     }
@@ -650,7 +678,7 @@ static int queue_step(struct tvpal_stream *s, unsigned pi,
  * those of the prefetch window in direction dir not held yet, while the
  * queue has room.  The buffers of both stay reserved either way. */
 static int queue_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
-                      int dir, int prefetch, unsigned ahead,
+                      int dir, int prefetch, unsigned ahead, int here,
                       struct tvpal_stream_stats *st, struct tvpal_diag *diag)
 {
     uint32_t wanted[16 + 64];
@@ -658,7 +686,7 @@ static int queue_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
     unsigned from = prefetch ? nn : 0;
     unsigned to = prefetch ? nw : ahead < nn ? ahead : nn;
     for (unsigned i = from; i < to; i++) {
-        int rc = queue_step(s, pi, wanted, nw, nn, i, st, diag);
+        int rc = queue_step(s, pi, wanted, nw, nn, i, here, st, diag);
         if (rc != 0)
             return rc < 0 ? rc : 0;
     }
@@ -739,8 +767,9 @@ static unsigned read_ahead(const struct tvpal_stream *s, const struct part *p)
  * advance (seek_into queued the first); the first failing record goes to
  * *err, the others still go in.  0, or a failure that ends the seek. */
 static int feed_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
-                     int dir, unsigned ahead, struct tvpal_stream_stats *st,
-                     struct tvpal_diag *diag, int stage, int *err)
+                     int dir, unsigned ahead, int here,
+                     struct tvpal_stream_stats *st, struct tvpal_diag *diag,
+                     int stage, int *err)
 {
     struct part *p = &s->p[pi];
     /* what t needs before anything is fed (applying changes the answer) */
@@ -758,7 +787,8 @@ static int feed_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
         }
         if (i + ahead < nn) {
             struct tvpal_diag fd = {{0}};
-            int rc = queue_step(s, pi, wanted, nw, nn, i + ahead, st, diag);
+            int rc = queue_step(s, pi, wanted, nw, nn, i + ahead, here, st,
+                                diag);
             if (rc == 0 && (rc = tvpal_io_flush(s->io, &fd)) < 0)
                 tvpal_diag_set(diag, rc, "%s", fd.msg);
             if (rc < 0)
@@ -786,7 +816,8 @@ static int feed_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
 /* How seek_into feeds: applied in place, or staged (each unchecked record
  * summed as it is staged: one pass over it, not two); and whether it
  * queues the prefetch after. */
-enum { SEEK_APPLY = 0, SEEK_STAGE = 1, SEEK_PREFETCH = 2 };
+enum { SEEK_APPLY = 0, SEEK_STAGE = 1, SEEK_PREFETCH = 2,
+       SEEK_HERE = 4 /* on the caller's thread: nothing draws meanwhile */ };
 
 /* Applies or stages (how & SEEK_STAGE) into every slab the records that
  * hold timestep t, reading them first out-of-core (read_ahead of them at
@@ -796,7 +827,7 @@ static int seek_into(struct tvpal_stream *s, uint32_t t, int dir,
                      struct tvpal_stream_stats *st, struct tvpal_diag *diag,
                      unsigned how)
 {
-    const int stage = (how & SEEK_STAGE) != 0;
+    const int stage = (how & SEEK_STAGE) != 0, here = (how & SEEK_HERE) != 0;
     memset(st, 0, sizeof *st);
     if (s->incore)
         return seek_incore(s, t, st, diag, stage);
@@ -805,8 +836,8 @@ static int seek_into(struct tvpal_stream *s, uint32_t t, int dir,
      * 512^3 jump at N = 4 waited for 169 MB instead of its 136 (the next
      * step, staged after it, for 5 records instead of 1). */
     for (unsigned pi = 0; pi < s->n; pi++) {
-        int rc = queue_part(s, pi, t, dir, 0, read_ahead(s, &s->p[pi]), st,
-                            diag);
+        int rc = queue_part(s, pi, t, dir, 0, read_ahead(s, &s->p[pi]), here,
+                            st, diag);
         if (rc < 0)
             return rc;
     }
@@ -816,13 +847,13 @@ static int seek_into(struct tvpal_stream *s, uint32_t t, int dir,
         return tvpal_diag_set(diag, rc, "%s", fd.msg);
     int err = 0;
     for (unsigned pi = 0; pi < s->n; pi++)
-        if ((rc = feed_part(s, pi, t, dir, read_ahead(s, &s->p[pi]), st, diag,
-                            stage, &err)) < 0)
+        if ((rc = feed_part(s, pi, t, dir, read_ahead(s, &s->p[pi]), here, st,
+                            diag, stage, &err)) < 0)
             return rc;
     if (!(how & SEEK_PREFETCH))
         return err;
     for (unsigned pi = 0; pi < s->n; pi++)
-        if ((rc = queue_part(s, pi, t, dir, 1, 0, st, diag)) < 0)
+        if ((rc = queue_part(s, pi, t, dir, 1, 0, here, st, diag)) < 0)
             return rc;
     if ((rc = tvpal_io_flush(s->io, &fd)) < 0)
         return tvpal_diag_set(diag, rc, "%s", fd.msg);
@@ -889,6 +920,16 @@ static void unstage_all(struct tvpal_stream *s)
     s->w.have = 0;
 }
 
+/* Streamed, the slices show their indices in the record buffers: those
+ * of slices whose record for t failed (an older window) are copied in,
+ * so that the buffers pinned for what is shown stay the N records of t
+ * (alloc_slots counts on it). */
+static void detach_stale(struct tvpal_stream *s, uint32_t t)
+{
+    for (unsigned pi = 0; pi < s->n && !s->incore; pi++)
+        tvpal_slab_detach_stale(s->p[pi].slab, t);
+}
+
 /* A step the stager did not prepare (a jump, the first frame, a redraw),
  * on the caller's thread; the stager, posted right after, prefetches.
  * Streamed, once the slabs show a step and nothing is staged, the records
@@ -897,8 +938,9 @@ static void unstage_all(struct tvpal_stream *s)
  * last good window.  Measured on a 512^3 jump (N = 4, Firecracker VM):
  * 4.5 ms a record against 6.5 checked and then applied, and reads landing
  * every 12.5 ms against 14 (the two passes slow the virtual disk too).
- * The price: the pool of spare windows grows to one per slice, the
- * slab's windows twice, at the first such jump.  Otherwise (in-core: the
+ * The price: the pool of spare windows grows to one per slice at the
+ * first such jump (their tables; their index buffers stay untouched
+ * while the slab borrows the records').  Otherwise (in-core: the
  * records were checked when loaded; the first frame: no window to keep;
  * something staged for the next step, which an install would show too),
  * or where staging runs out of memory, the records are checked, then
@@ -907,11 +949,11 @@ static int seek_here(struct tvpal_stream *s, uint32_t t, int dir,
                      struct tvpal_stream_stats *st, struct tvpal_diag *diag)
 {
     if (s->incore || !s->have_cur || s->w.have)
-        return seek_into(s, t, dir, st, diag, SEEK_APPLY);
-    int rc = seek_into(s, t, dir, st, diag, SEEK_STAGE);
+        return seek_into(s, t, dir, st, diag, SEEK_APPLY | SEEK_HERE);
+    int rc = seek_into(s, t, dir, st, diag, SEEK_STAGE | SEEK_HERE);
     if (rc == TVPAL_E_NOMEM) {
         unstage_all(s);
-        return seek_into(s, t, dir, st, diag, SEEK_APPLY);
+        return seek_into(s, t, dir, st, diag, SEEK_APPLY | SEEK_HERE);
     }
     for (unsigned pi = 0; pi < s->n; pi++)
         tvpal_slab_install(s->p[pi].slab);
@@ -925,10 +967,14 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
     if (!st)
         st = &local;
     struct stager *w = &s->w;
-    if (!w->started)
-        return seek_into(s, t, dir, st, diag, SEEK_APPLY | SEEK_PREFETCH);
-    stager_wait(s);
     int rc;
+    if (!w->started) {
+        rc = seek_into(s, t, dir, st, diag,
+                       SEEK_APPLY | SEEK_PREFETCH | SEEK_HERE);
+        detach_stale(s, t);
+        return rc;
+    }
+    stager_wait(s);
     if (w->have && w->staged_t == t) {
         /* Prepared while the previous step was drawn: swap it in. */
         for (unsigned pi = 0; pi < s->n; pi++)
@@ -950,6 +996,7 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
     }
     s->have_cur = 1;
     s->cur_t = t;
+    detach_stale(s, t);
     int64_t next = (int64_t)t + (dir < 0 ? -1 : 1);
     if (w->have && (int64_t)w->staged_t != next)
         unstage_all(s);
