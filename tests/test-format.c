@@ -620,6 +620,26 @@ static uint64_t chunk_data_offset(struct tvpal_shard *sh, uint32_t step,
     return 0;
 }
 
+/* Writes a one-node shard of sample_header() with table format tf to
+ * path, opens it (*sh) and creates two slabs of it (*a, *b). */
+static void open_two_slabs(const char *path, uint32_t tf,
+                           struct tvpal_shard **sh, struct tvpal_slab **a,
+                           struct tvpal_slab **b)
+{
+    struct tvpal_shard_header g = sample_header();
+    uint32_t n;
+    g.table_format = tf;
+    g.nodes = 1;
+    g.rank = 0;
+    tvpal_axis_geometry(g.dims, 0, &n, &g.slice_w, &g.slice_h);
+    tvpal_slab_range(n, 1, 0, &g.slice_begin, &g.slice_count);
+    write_shard(path, &g, 0);
+    struct tvpal_diag d = {{0}};
+    REQUIRE(tvpal_shard_open(sh, path, &d) == 0, "open: %s", d.msg);
+    REQUIRE(tvpal_slab_create(a, *sh) == 0 && tvpal_slab_create(b, *sh) == 0,
+            "slabs");
+}
+
 /* tvpal_slab_stage_verify stages what tvpal_slab_stage stages, bit for bit,
  * through forward play and jumps, in a float32 and a per-chunk shard; a
  * record whose payload CRC fails leaves nothing staged (its slices show
@@ -630,20 +650,10 @@ static void test_stage_verify(void)
 {
     const char *path = "test-format-stage.tvps";
     for (uint32_t tf = 0; tf <= TVPAL_TABLE_CHUNK; tf += 4) {
-        struct tvpal_shard_header g = sample_header();
-        uint32_t n;
-        g.table_format = tf;
-        g.nodes = 1;
-        g.rank = 0;
-        tvpal_axis_geometry(g.dims, 0, &n, &g.slice_w, &g.slice_h);
-        tvpal_slab_range(n, 1, 0, &g.slice_begin, &g.slice_count);
-        write_shard(path, &g, 0);
         struct tvpal_shard *sh;
         struct tvpal_slab *ref, *chk;
         struct tvpal_diag d = {{0}};
-        REQUIRE(tvpal_shard_open(&sh, path, &d) == 0, "open: %s", d.msg);
-        REQUIRE(tvpal_slab_create(&ref, sh) == 0 && tvpal_slab_create(&chk, sh) == 0,
-                "slabs");
+        open_two_slabs(path, tf, &sh, &ref, &chk);
         const struct tvpal_shard_header *h = tvpal_shard_hdr(sh);
         unsigned refused = 0;
         /* A fresh slab jumping to t = 1 needs records 0 and 1.  A byte
@@ -705,20 +715,10 @@ static void test_stage_verify(void)
 static void test_borrow(void)
 {
     const char *path = "test-format-borrow.tvps";
-    struct tvpal_shard_header g = sample_header();
-    uint32_t n;
-    g.table_format = TVPAL_TABLE_CHUNK;
-    g.nodes = 1;
-    g.rank = 0;
-    tvpal_axis_geometry(g.dims, 0, &n, &g.slice_w, &g.slice_h);
-    tvpal_slab_range(n, 1, 0, &g.slice_begin, &g.slice_count);
-    write_shard(path, &g, 0);
     struct tvpal_shard *sh;
     struct tvpal_slab *cp, *bw;
     struct tvpal_diag d = {{0}};
-    REQUIRE(tvpal_shard_open(&sh, path, &d) == 0, "open: %s", d.msg);
-    REQUIRE(tvpal_slab_create(&cp, sh) == 0 && tvpal_slab_create(&bw, sh) == 0,
-            "slabs");
+    open_two_slabs(path, TVPAL_TABLE_CHUNK, &sh, &cp, &bw);
     tvpal_slab_borrow(bw, 1);
     const struct tvpal_shard_header *h = tvpal_shard_hdr(sh);
     REQUIRE(h->steps <= 16, "%u steps", h->steps);

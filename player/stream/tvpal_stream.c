@@ -642,14 +642,15 @@ static int queue_step(struct tvpal_stream *s, unsigned pi,
     struct part *p = &s->p[pi];
     if (find_slot(p, wanted[i]) >= 0)
         return 0;
-    int v = victim(p, wanted, nw, here && i < nn);
+    const int detach = here && i < nn; /* only for a needed record */
+    int v = victim(p, wanted, nw, detach);
     /* After a jump the old prefetches may hold every free slot: wait for
      * them to land, then they can be reused. */
     while (v < 0 && i < nn && tvpal_io_inflight(s->io)) {
         int rc = reap(s, &st->io_wait_ms, diag);
         if (rc < 0)
             return rc;
-        v = victim(p, wanted, nw, here);
+        v = victim(p, wanted, nw, detach);
     }
     if (v < 0) {
         if (i < nn) /* cannot happen: 2N + 2P + 1 slots */
