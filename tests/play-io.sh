@@ -35,6 +35,9 @@ direct=${probe#* }
 echo "kernel: io_uring $uring; file system of $W: O_DIRECT $direct"
 [ "$(uname -m)" = x86_64 ] || [ "$(uname -m)" = aarch64 ] || uring="no:unknown-arch"
 checked=0
+# 16 steps of 2 MiB records (N = 4), for the reads of jumps and buffers.
+"$GEN" --field turbulence --dims 256x256x32 --steps 16 -o "$W/big" > /dev/null || fail "gen big"
+"$ENC" -q --dims 256x256x32 --window 4 -o "$W/dsb" "$W"/big/*.f32 > /dev/null || fail "encode big"
 run() { "$PLAY" "$W/ds" --headless -q --size 16x16 "$@" -o "$W/f" 2> "$W/e.txt"; }
 if [ "$uring" = yes ] && [ "${URING_BUILT:-yes}" = yes ]; then
     line=$(run --io uring) && [ "$(kv io "$line")" = uring ] \
@@ -43,8 +46,6 @@ if [ "$uring" = yes ] && [ "${URING_BUILT:-yes}" = yes ]; then
         && ok "io_uring by default" || fail "default: $line"
     # A jump's reads (the N records it needs, then the prefetch, 2 MiB
     # records in 1 MiB pieces) go to the kernel in one submission.
-    "$GEN" --field turbulence --dims 256x256x32 --steps 16 -o "$W/big" > /dev/null || fail "gen big"
-    "$ENC" -q --dims 256x256x32 --window 4 -o "$W/dsb" "$W"/big/*.f32 > /dev/null || fail "encode big"
     line=$("$PLAY" "$W/dsb" --headless -q --size 32x32 --rotate 0,0 --io uring --jumps 1 \
         --steps 0:15 --renderer none 2> "$W/e.txt")
     n=$(kv io_submits "$line")
@@ -128,6 +129,26 @@ else
 fi
 line=$(run --no-direct) && [ "$(kv direct "$line")" = no ] && ok "--no-direct: direct=no" || fail "--no-direct: $line"
 line=$(run --io pread) && [ "$(kv io "$line")" = pread ] && ok "--io pread: io=pread" || fail "--io pread: $line"
+# Playing forward, a stream reads into the buffers of the N records shown,
+# the P prefetched and the one staged, N + P + 1, and no more: a buffer's
+# first read faults in its pages (the others are for jumps).  Jumps may
+# use them all, 2N + 2P + 1.
+for io in uring pread; do
+    [ $io = uring ] && { [ "$uring" = yes ] && [ "${URING_BUILT:-yes}" = yes ] || continue; }
+    for pf in 4 8; do
+        line=$("$PLAY" "$W/dsb" --headless -q --size 32x32 --renderer none --io $io \
+            --prefetch $pf 2> "$W/e.txt") && nb=$(kv buffers "$line") \
+            && [ "$nb" -gt 0 ] && [ "$nb" -le $((4 + pf + 1)) ] \
+            && ok "$io, prefetch $pf: 16 steps forward in $nb buffers (N + P + 1 = $((4 + pf + 1)))" \
+            || fail "$io, prefetch $pf: ${nb:-?} buffers: $line $(cat "$W/e.txt")"
+    done
+done
+line=$("$PLAY" "$W/dsb" --headless -q --size 32x32 --renderer none --jumps 1 2> "$W/e.txt") \
+    && nb=$(kv buffers "$line") && [ "$nb" -gt 9 ] && [ "$nb" -le 17 ] \
+    && ok "16 jumps: $nb buffers (at most 2N + 2P + 1 = 17)" \
+    || fail "16 jumps: ${nb:-?} buffers: $line $(cat "$W/e.txt")"
+line=$(run --mode incore) && [ "$(kv buffers "$line")" = 0 ] \
+    && ok "in-core: no record buffers (buffers=0)" || fail "in-core buffers: $line"
 expect_exit 2 "choose one" "$PLAY" "$W/ds" --headless -q --direct --no-direct -o "$W/f"
 "$PLAY" "$W/ds" --headless --size 16x16 -o "$W/f" 2>&1 >/dev/null | grep -Eq "data streamed \((uring|pread), O_DIRECT (yes|no|some), fixed buffers (yes|no|some)" \
     && ok "the start line names the I/O path" || fail "start line"

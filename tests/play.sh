@@ -14,7 +14,7 @@ D=24x20x16
 "$ENC" -q --dims $D --window 4 -o "$W/ds" "$W"/in/*.f32 > /dev/null || fail encode
 TF=$TVPAL_SRCDIR/samples/tf/warm.tf
 line=$("$PLAY" "$W/ds" --headless -q --size 96x80 --tf "$TF" -o "$W/f-stream") || fail "play"
-echo "$line" | grep -Eq '^fps=[0-9.]+ frames=9 io_ms=[0-9.]+ stream_ms=[0-9.]+ upload_ms=[0-9.]+ draw_ms=[0-9.]+ readback_ms=[0-9.]+ composite_ms=[0-9.]+ ranks=1 bytes_read=[0-9]+ incore_mib=[0-9.]+ mode=(uring|pread) io=(uring|pread) direct=(yes|no|some) fixed=(yes|no|some) fixed_reads=[0-9]+ io_submits=[0-9]+ renderer=cpu errors=0$' \
+echo "$line" | grep -Eq '^fps=[0-9.]+ frames=9 io_ms=[0-9.]+ stream_ms=[0-9.]+ upload_ms=[0-9.]+ draw_ms=[0-9.]+ readback_ms=[0-9.]+ composite_ms=[0-9.]+ ranks=1 bytes_read=[0-9]+ incore_mib=[0-9.]+ mode=(uring|pread) io=(uring|pread) direct=(yes|no|some) fixed=(yes|no|some) fixed_reads=[0-9]+ buffers=[0-9]+ io_submits=[0-9]+ renderer=cpu errors=0$' \
     && ok "summary: $line" || fail "summary: $line"
 n=$(ls "$W/f-stream"/t*.png | wc -l)
 [ "$n" -eq 9 ] && ok "9 PNG frames" || fail "$n frames"

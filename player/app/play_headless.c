@@ -481,10 +481,11 @@ static void print_summary(struct headless *h, double elapsed)
         if (h->s->lvl[k])
             submits += tvpal_player_io_submits(h->s->lvl[k]);
     printf(" incore_mib=%.1f mode=%s io=%s direct=%s fixed=%s fixed_reads=%llu "
-           "io_submits=%llu renderer=%s errors=%u\n",
+           "buffers=%u io_submits=%llu renderer=%s errors=%u\n",
            play_levels_incore_bytes(h->s) / 1048576.0,
            tvpal_player_io_name(h->lpl), ip.io, ip.direct, ip.fixed,
-           (unsigned long long)ip.fixed_reads, (unsigned long long)submits,
+           (unsigned long long)ip.fixed_reads, ip.buffers,
+           (unsigned long long)submits,
            h->pr.r.name, h->errors);
     if (h->o->ref_psnr)
         printf("psnr_ref=%.3f\n", play_timing_mean_psnr(&h->tot));

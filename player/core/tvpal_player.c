@@ -233,6 +233,7 @@ void tvpal_player_io_path(const struct tvpal_player *p,
         files += sp.files;
         fixed += sp.fixed > 0;
         out->fixed_reads += sp.fixed_reads;
+        out->buffers += sp.buffers;
         if (!out->why[0])
             out->why = sp.why;
         if (!out->fixed_why[0])

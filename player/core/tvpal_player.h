@@ -115,6 +115,7 @@ struct tvpal_io_path {
                             * buffers) */
     const char *fixed_why; /* streamed without them: why, or "" */
     uint64_t fixed_reads;  /* reads into registered buffers so far */
+    unsigned buffers;      /* streamed record buffers read into so far */
 };
 void tvpal_player_io_path(const struct tvpal_player *p,
                           struct tvpal_io_path *out);

@@ -69,6 +69,9 @@ struct tvpal_stream_path {
                                  * fixed-buffer table as they are first
                                  * used, none refused so far */
     uint64_t fixed_reads;       /* reads queued into them so far */
+    unsigned buffers;           /* record buffers read into so far (their
+                                 * pages are in): out-of-core, about
+                                 * N + P + 1 a file in steady playback */
     const char *fixed_why;      /* out-of-core without them (or some of
                                  * them): why, or "" */
 };
