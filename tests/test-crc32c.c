@@ -1,10 +1,108 @@
 /* test-crc32c: CRC-32C check value, incremental use, alignment and
- * combining; the CRC summed while copying (tvpal_crc32c_copy). */
+ * combining; the CRC summed while copying (tvpal_crc32c_copy); every
+ * implementation the CPU has against the table version, and the fastest
+ * one really chosen where /proc/cpuinfo lists its features. */
 #include "tvpal_crc32c.h"
 #include "tvpal_test.h"
 
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+/* Does /proc/cpuinfo's first "flags" line list every one of names
+ * (space-separated)?  -1: no /proc/cpuinfo (not Linux, or hidden). */
+static int cpu_has(const char *names)
+{
+    FILE *f = fopen("/proc/cpuinfo", "r");
+    if (!f)
+        return -1;
+    static char line[8192];
+    int found = 0;
+    while (fgets(line, sizeof line, f))
+        if (!strncmp(line, "flags", 5)) {
+            found = 1;
+            break;
+        }
+    fclose(f);
+    if (!found)
+        return -1;
+    char want[256];
+    snprintf(want, sizeof want, "%s", names);
+    for (char *w = strtok(want, " "); w; w = strtok(NULL, " ")) {
+        char pat[64];
+        snprintf(pat, sizeof pat, " %s", w);
+        const char *at = line;
+        int ok = 0;
+        while ((at = strstr(at, pat))) {
+            at += strlen(pat);
+            if (*at == ' ' || *at == '\n' || *at == 0) {
+                ok = 1;
+                break;
+            }
+        }
+        if (!ok)
+            return 0;
+    }
+    return 1;
+}
+
+/* Each implementation up to the CPU's best against the table version:
+ * lengths around the folding's 256-byte block and 16-byte lanes, every
+ * start alignment within a cache line, start values other than 0, and a
+ * CRC resumed mid-input from another implementation. */
+static void test_impls(void)
+{
+    const enum tvpal_crc32c_impl best = tvpal_crc32c_impl();
+    const int vp = cpu_has("avx512f avx512vl vpclmulqdq pclmulqdq sse4_2");
+    const int sse = cpu_has("sse4_2");
+    printf("crc32c: %s (cpuinfo: vpclmulqdq set %d, sse4.2 %d)\n",
+           tvpal_crc32c_impl_name(best), vp, sse);
+#if defined(__x86_64__)
+    if (vp == 1)
+        CHECK(best == TVPAL_CRC32C_VPCLMUL, "the CPU folds with VPCLMULQDQ, "
+              "tvpal_crc32c uses %s", tvpal_crc32c_impl_name(best));
+    else if (sse == 1)
+        CHECK(best == TVPAL_CRC32C_SSE42, "the CPU has SSE4.2, tvpal_crc32c "
+              "uses %s", tvpal_crc32c_impl_name(best));
+#endif
+    const size_t n = 70000;
+    unsigned char *b = malloc(n + 64);
+    REQUIRE(b != NULL, "malloc");
+    for (size_t i = 0; i < n + 64; i++)
+        b[i] = (unsigned char)tt_rand64();
+    const size_t lens[] = {0, 1, 15, 16, 17, 255, 256, 257, 271, 272, 287,
+                           511, 512, 513, 767, 1024, 4096 + 15, 65536 + 255,
+                           n};
+    for (int impl = TVPAL_CRC32C_TABLE; impl <= (int)best; impl++) {
+        const char *name = tvpal_crc32c_impl_name(impl);
+        for (size_t li = 0; li < sizeof lens / sizeof *lens; li++)
+            for (size_t off = 0; off < 64; off += 1 + off / 4) {
+                uint32_t init = (uint32_t)tt_rand64();
+                uint32_t ref = tvpal_crc32c_sw(init, b + off, lens[li]);
+                CHECK(tvpal_crc32c_with(impl, init, b + off, lens[li]) == ref,
+                      "%s: length %zu offset %zu", name, lens[li], off);
+            }
+        for (int r = 0; r < 300; r++) {
+            size_t len = (size_t)(tt_rand64() % 3000), off = tt_rand64() % 64;
+            size_t cut = len ? (size_t)(tt_rand64() % len) : 0;
+            uint32_t whole = tvpal_crc32c_sw(0, b + off, len);
+            uint32_t c = tvpal_crc32c_with(impl, 0, b + off, cut);
+            c = tvpal_crc32c_with(TVPAL_CRC32C_TABLE + (r % 3), c, b + off + cut,
+                                  len - cut);
+            CHECK(c == whole, "%s: length %zu offset %zu resumed at %zu", name,
+                  len, off, cut);
+        }
+        memset(b, 0, n);
+        CHECK(tvpal_crc32c_with(impl, 0, b, n) == tvpal_crc32c_sw(0, b, n),
+              "%s: zeros", name);
+        memset(b, 0xFF, n);
+        CHECK(tvpal_crc32c_with(impl, ~0u, b, n) == tvpal_crc32c_sw(~0u, b, n),
+              "%s: ones", name);
+        for (size_t i = 0; i < n + 64; i++)
+            b[i] = (unsigned char)tt_rand64();
+    }
+    free(b);
+}
 
 int main(void)
 {
@@ -56,11 +154,13 @@ int main(void)
         j = tvpal_crc32c_combine(j, tvpal_crc32c(0, buf + at, n), n);
     }
     CHECK(j == tvpal_crc32c(0, buf, 1000), "three parts joined");
-    /* Long inputs go through the hardware version's three interleaved
-     * stripes of 8 KiB (block 24576 bytes): lengths around one and several
-     * blocks, odd starts and an incremental call that starts mid-block
-     * against the table version (without SSE4.2 both are the table
-     * version, and these checks compare it with itself). */
+    /* Long inputs through the dispatched version (folding where the CPU
+     * has VPCLMULQDQ; test_impls checks each implementation) and the copy,
+     * which goes through the SSE4.2 version's three interleaved stripes of
+     * 8 KiB (block 24576 bytes): lengths around one and several blocks,
+     * odd starts and an incremental call that starts mid-block against the
+     * table version (without SSE4.2 all are the table version, and these
+     * checks compare it with itself). */
     const size_t big = 5 * 24576 + 100;
     unsigned char *lb = malloc(big + 8);
     REQUIRE(lb != NULL, "malloc");
@@ -106,5 +206,6 @@ int main(void)
     CHECK(tvpal_crc32c(0, lb, big) == tvpal_crc32c_sw(0, lb, big),
           "striped zeros");
     free(lb);
+    test_impls();
     return tt_done("test-crc32c");
 }

@@ -1,9 +1,15 @@
-/* tvpal_crc32c.c: table-driven CRC-32C, slicing by 8 (portable C, ~1 byte per
- * cycle).  Tables are built once, on first use, under pthread_once. */
+/* tvpal_crc32c.c: CRC-32C three ways, the fastest the CPU has chosen once:
+ * folding with VPCLMULQDQ (AVX-512: 256 bytes a step, memory speed), the
+ * SSE4.2 CRC instruction in three interleaved chains (8 bytes a cycle),
+ * and a table-driven slicing by 8 (portable C, ~1 byte per cycle).
+ * Tables and constants are built once, on first use, under pthread_once. */
 #include "tvpal_crc32c.h"
 
 #include <pthread.h>
 #include <string.h>
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#endif
 
 static uint32_t crc_table[8][256];
 static pthread_once_t crc_once = PTHREAD_ONCE_INIT;
@@ -186,33 +192,168 @@ crc_hw_copy(uint32_t crc, unsigned char *dst, const unsigned char *p,
     return crc_hw_core(crc, p, len, dst);
 }
 
-static int have_hw;
+/* ------------------------------------------------ VPCLMULQDQ folding */
+
+/* Carry-less multiplication folds the input 16 bytes at a time: a lane X
+ * (its first 8 bytes X0, the higher powers, and its next 8 X1) moved D
+ * bytes further is X0 x^(8D + 64) + X1 x^(8D) modulo the polynomial, and
+ * two multiplications by 32-bit constants give a 96-bit value with that
+ * remainder, added (xor) into the lane D bytes on.  Reflected, a product
+ * comes out one bit low, so the constant for a shift by n bits is
+ * x^(n - 33) (fold_constants; checked against the published CRC-32C
+ * constants for 64 bytes, 0x740eef02 and 0x9e4addf8).  Four 64-byte
+ * registers of four lanes each take 256 bytes a step: two VPCLMULQDQ per
+ * 64 bytes, so the loop runs at the memory's speed (a 34 MB record from
+ * RAM: 2.2 ms with the CRC instruction, 1.2 ms folded).  At the end the
+ * lanes fold into one, and the CRC instruction over its 16 bytes from a
+ * zero register gives the CRC: the folded value has the input's
+ * remainder.  The incoming CRC is added into the input's first 4 bytes,
+ * as the register's start value is. */
+#define FOLD_MIN 256 /* shorter inputs go to the CRC instruction */
+
+struct fold_k {
+    uint64_t k[2]; /* the constants for X0 and X1, by D bytes */
+};
+static struct fold_k fold_256, fold_64, fold_48, fold_32, fold_16;
+
+static struct fold_k fold_constants(uint64_t bytes)
+{
+    return (struct fold_k){{x2nmodp(8 * bytes + 31, 0),
+                            x2nmodp(8 * bytes - 33, 0)}};
+}
+
+static pthread_once_t fold_once = PTHREAD_ONCE_INIT;
+
+static void fold_init(void)
+{
+    pthread_once(&x2n_once, x2n_init);
+    fold_256 = fold_constants(256);
+    fold_64 = fold_constants(64);
+    fold_48 = fold_constants(48);
+    fold_32 = fold_constants(32);
+    fold_16 = fold_constants(16);
+}
+
+#define FOLD_TARGET \
+    __attribute__((target("avx512f,avx512vl,vpclmulqdq,pclmul,sse4.2")))
+
+FOLD_TARGET static inline __m128i fold_k128(const struct fold_k *k)
+{
+    return _mm_set_epi64x((long long)k->k[1], (long long)k->k[0]);
+}
+
+/* x moved over its distance, plus d. */
+FOLD_TARGET static inline __m512i fold512(__m512i x, __m512i k, __m512i d)
+{
+    return _mm512_ternarylogic_epi64(_mm512_clmulepi64_epi128(x, k, 0x00),
+                                     _mm512_clmulepi64_epi128(x, k, 0x11), d,
+                                     0x96); /* a ^ b ^ c */
+}
+
+FOLD_TARGET static inline __m128i fold128(__m128i x, __m128i k, __m128i d)
+{
+    return _mm_xor_si128(_mm_xor_si128(_mm_clmulepi64_si128(x, k, 0x00),
+                                       _mm_clmulepi64_si128(x, k, 0x11)),
+                         d);
+}
+
+/* The CRC of p[0..len), len >= FOLD_MIN. */
+FOLD_TARGET static uint32_t crc_fold(uint32_t crc, const unsigned char *p,
+                                     size_t len)
+{
+    __m512i k = _mm512_broadcast_i32x4(fold_k128(&fold_256));
+    __m512i x0 = _mm512_loadu_si512(p), x1 = _mm512_loadu_si512(p + 64),
+            x2 = _mm512_loadu_si512(p + 128), x3 = _mm512_loadu_si512(p + 192);
+    x0 = _mm512_xor_si512(x0, _mm512_zextsi128_si512(
+                                  _mm_cvtsi32_si128((int)~crc)));
+    p += 256;
+    len -= 256;
+    for (; len >= 256; p += 256, len -= 256) {
+        x0 = fold512(x0, k, _mm512_loadu_si512(p));
+        x1 = fold512(x1, k, _mm512_loadu_si512(p + 64));
+        x2 = fold512(x2, k, _mm512_loadu_si512(p + 128));
+        x3 = fold512(x3, k, _mm512_loadu_si512(p + 192));
+    }
+    k = _mm512_broadcast_i32x4(fold_k128(&fold_64));
+    x1 = fold512(x0, k, x1);
+    x2 = fold512(x1, k, x2);
+    x3 = fold512(x2, k, x3);
+    /* x3's four lanes, 48, 32 and 16 bytes before its end, into the last */
+    __m128i a = _mm512_extracti32x4_epi32(x3, 3);
+    a = fold128(_mm512_extracti32x4_epi32(x3, 0), fold_k128(&fold_48), a);
+    a = fold128(_mm512_extracti32x4_epi32(x3, 1), fold_k128(&fold_32), a);
+    a = fold128(_mm512_extracti32x4_epi32(x3, 2), fold_k128(&fold_16), a);
+    const __m128i k16 = fold_k128(&fold_16);
+    for (; len >= 16; p += 16, len -= 16)
+        a = fold128(a, k16, _mm_loadu_si128((const __m128i *)p));
+    uint64_t c = _mm_crc32_u64(0, (uint64_t)_mm_cvtsi128_si64(a));
+    c = _mm_crc32_u64(c, (uint64_t)_mm_extract_epi64(a, 1));
+    while (len--)
+        c = _mm_crc32_u8((uint32_t)c, *p++);
+    return ~(uint32_t)c;
+}
+
+static enum tvpal_crc32c_impl best = TVPAL_CRC32C_TABLE;
 static void hw_init(void)
 {
     __builtin_cpu_init();
-    have_hw = __builtin_cpu_supports("sse4.2");
+    if (__builtin_cpu_supports("sse4.2"))
+        best = TVPAL_CRC32C_SSE42;
+    if (best == TVPAL_CRC32C_SSE42 && __builtin_cpu_supports("avx512f") &&
+        __builtin_cpu_supports("avx512vl") &&
+        __builtin_cpu_supports("vpclmulqdq") &&
+        __builtin_cpu_supports("pclmul")) {
+        pthread_once(&fold_once, fold_init);
+        best = TVPAL_CRC32C_VPCLMUL;
+    }
 }
 static pthread_once_t hw_once = PTHREAD_ONCE_INIT;
+#define HAVE_HW_CRC 1
 #endif
 
-uint32_t tvpal_crc32c_sw(uint32_t crc, const void *data, size_t len);
-
-uint32_t tvpal_crc32c(uint32_t crc, const void *data, size_t len)
+enum tvpal_crc32c_impl tvpal_crc32c_impl(void)
 {
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#ifdef HAVE_HW_CRC
     pthread_once(&hw_once, hw_init);
-    if (have_hw)
+    return best;
+#else
+    return TVPAL_CRC32C_TABLE;
+#endif
+}
+
+const char *tvpal_crc32c_impl_name(enum tvpal_crc32c_impl impl)
+{
+    switch (impl) {
+    case TVPAL_CRC32C_VPCLMUL: return "vpclmulqdq";
+    case TVPAL_CRC32C_SSE42: return "sse4.2";
+    default: return "table";
+    }
+}
+
+uint32_t tvpal_crc32c_with(enum tvpal_crc32c_impl impl, uint32_t crc,
+                           const void *data, size_t len)
+{
+    if (impl > tvpal_crc32c_impl())
+        impl = tvpal_crc32c_impl();
+#ifdef HAVE_HW_CRC
+    if (impl == TVPAL_CRC32C_VPCLMUL && len >= FOLD_MIN)
+        return crc_fold(crc, data, len);
+    if (impl >= TVPAL_CRC32C_SSE42)
         return crc_hw(crc, data, len);
 #endif
     return tvpal_crc32c_sw(crc, data, len);
 }
 
+uint32_t tvpal_crc32c(uint32_t crc, const void *data, size_t len)
+{
+    return tvpal_crc32c_with(TVPAL_CRC32C_VPCLMUL, crc, data, len);
+}
+
 uint32_t tvpal_crc32c_copy(uint32_t crc, void *dst, const void *src,
                            size_t len)
 {
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-    pthread_once(&hw_once, hw_init);
-    if (have_hw)
+#ifdef HAVE_HW_CRC
+    if (tvpal_crc32c_impl() >= TVPAL_CRC32C_SSE42)
         return crc_hw_copy(crc, dst, src, len);
 #endif
     memcpy(dst, src, len);

@@ -27,4 +27,24 @@ uint32_t tvpal_crc32c_combine(uint32_t crc1, uint32_t crc2, uint64_t len2);
  * instruction when it has one); for tests. */
 uint32_t tvpal_crc32c_sw(uint32_t crc, const void *data, size_t len);
 
+/* The implementations, slowest first: tables (any CPU), the SSE4.2 CRC
+ * instruction, folding with VPCLMULQDQ (AVX-512; inputs of 256 bytes and
+ * more, shorter ones by the instruction). */
+enum tvpal_crc32c_impl {
+    TVPAL_CRC32C_TABLE,
+    TVPAL_CRC32C_SSE42,
+    TVPAL_CRC32C_VPCLMUL
+};
+
+/* The fastest this CPU has: the one tvpal_crc32c uses. */
+enum tvpal_crc32c_impl tvpal_crc32c_impl(void);
+
+/* "table", "sse4.2" or "vpclmulqdq". */
+const char *tvpal_crc32c_impl_name(enum tvpal_crc32c_impl impl);
+
+/* tvpal_crc32c by impl, or by the fastest this CPU has when it lacks impl:
+ * for tests and benchmarks that compare them. */
+uint32_t tvpal_crc32c_with(enum tvpal_crc32c_impl impl, uint32_t crc,
+                           const void *data, size_t len);
+
 #endif

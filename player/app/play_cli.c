@@ -7,6 +7,7 @@
 #include "play_progress.h"
 #include "tvpal_cli.h"
 #include "tvpal_comm.h"
+#include "tvpal_crc32c.h"
 #include "tvpal_movie.h"
 #include "tvpal_view.h"
 
@@ -588,7 +589,7 @@ static int apply(struct play_opts *o, const struct opt_def *d,
 static void print_version(void)
 {
     printf(PROG " " PACKAGE_VERSION " (window: %s, gl: %s, mpi: %s, "
-           "uring: %s, annotations: %s)\n",
+           "uring: %s, annotations: %s, crc32c: %s)\n",
 #ifdef TVPAL_HAVE_WINDOW
            "yes",
 #else
@@ -605,7 +606,8 @@ static void print_version(void)
 #else
            "no",
 #endif
-           tvpal_annot_available() ? "yes" : "no");
+           tvpal_annot_available() ? "yes" : "no",
+           tvpal_crc32c_impl_name(tvpal_crc32c_impl()));
 }
 
 int play_options_parse(struct play_opts *o, int argc, char **argv)
