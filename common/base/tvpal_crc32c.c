@@ -222,8 +222,7 @@ static struct fold_k fold_constants(uint64_t bytes)
                             x2nmodp(8 * bytes - 33, 0)}};
 }
 
-static pthread_once_t fold_once = PTHREAD_ONCE_INIT;
-
+/* Once, from hw_init. */
 static void fold_init(void)
 {
     pthread_once(&x2n_once, x2n_init);
@@ -303,7 +302,7 @@ static void hw_init(void)
         __builtin_cpu_supports("avx512vl") &&
         __builtin_cpu_supports("vpclmulqdq") &&
         __builtin_cpu_supports("pclmul")) {
-        pthread_once(&fold_once, fold_init);
+        fold_init();
         best = TVPAL_CRC32C_VPCLMUL;
     }
 }
@@ -333,8 +332,9 @@ const char *tvpal_crc32c_impl_name(enum tvpal_crc32c_impl impl)
 uint32_t tvpal_crc32c_with(enum tvpal_crc32c_impl impl, uint32_t crc,
                            const void *data, size_t len)
 {
-    if (impl > tvpal_crc32c_impl())
-        impl = tvpal_crc32c_impl();
+    const enum tvpal_crc32c_impl have = tvpal_crc32c_impl();
+    if (impl > have)
+        impl = have;
 #ifdef HAVE_HW_CRC
     if (impl == TVPAL_CRC32C_VPCLMUL && len >= FOLD_MIN)
         return crc_fold(crc, data, len);

@@ -23,8 +23,8 @@ uint32_t tvpal_crc32c_copy(uint32_t crc, void *dst, const void *src,
  * where they are made and joined in file order afterwards (O(log len2)). */
 uint32_t tvpal_crc32c_combine(uint32_t crc1, uint32_t crc2, uint64_t len2);
 
-/* The portable table-driven version (tvpal_crc32c uses the CPU's CRC-32C
- * instruction when it has one); for tests. */
+/* The portable table-driven version (tvpal_crc32c uses the fastest
+ * implementation the CPU has, below); for tests. */
 uint32_t tvpal_crc32c_sw(uint32_t crc, const void *data, size_t len);
 
 /* The implementations, slowest first: tables (any CPU), the SSE4.2 CRC

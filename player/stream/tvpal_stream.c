@@ -562,33 +562,32 @@ static int find_slot(const struct part *p, uint32_t step)
 static int victim(const struct part *p, const uint32_t *wanted, unsigned nw,
                   int need, int detach)
 {
+    int fresh = -1; /* a free buffer never read into */
     for (unsigned k = 0; k < p->nslots; k++)
-        if (p->slots[k].state == SLOT_FREE &&
-            (need || p->slots[k].touched))
-            return (int)k;
-    for (int pass = 0; pass < 2 + (detach != 0); pass++)
-        for (unsigned k = 0; k < p->nslots; k++) {
-            const struct slot *sl = &p->slots[k];
-            if (pass == 1) {
-                if (sl->state == SLOT_FREE)
-                    return (int)k; /* prefetch: never read into */
-                continue;
-            }
-            if (sl->state != SLOT_READY)
-                continue;
-            int keep = 0;
-            for (unsigned i = 0; i < nw && !keep; i++)
-                keep = sl->step == wanted[i];
-            if (keep)
-                continue;
-            if (!tvpal_slab_borrows(p->slab, sl->step))
+        if (p->slots[k].state == SLOT_FREE) {
+            if (need || p->slots[k].touched)
                 return (int)k;
-            if (pass == 2) {
-                tvpal_slab_detach(p->slab, sl->step);
-                return (int)k;
-            }
+            if (fresh < 0)
+                fresh = (int)k;
         }
-    return -1;
+    int borrowed = -1; /* landed, unwanted, but shown or staged */
+    for (unsigned k = 0; k < p->nslots; k++) {
+        const struct slot *sl = &p->slots[k];
+        int keep = sl->state != SLOT_READY;
+        for (unsigned i = 0; i < nw && !keep; i++)
+            keep = sl->step == wanted[i];
+        if (keep)
+            continue;
+        if (!tvpal_slab_borrows(p->slab, sl->step))
+            return (int)k;
+        if (borrowed < 0)
+            borrowed = (int)k;
+    }
+    if (fresh >= 0)
+        return fresh;
+    if (detach && borrowed >= 0)
+        tvpal_slab_detach(p->slab, p->slots[borrowed].step);
+    return detach ? borrowed : -1;
 }
 
 /* Applies (stage = 0) or stages (1) the verified record of `step` into
