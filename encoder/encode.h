@@ -254,10 +254,15 @@ struct found *encode_found_alloc(size_t n);
 /* ---------------------------------------------------------------- levels */
 /* encode_levels.c.  The dims of level k of a volume of dims d0. */
 void level_dims(const uint32_t d0[3], unsigned k, uint32_t out[3]);
+/* The spacing sk and origin ok of a level of dims dk over level 0's grid
+ * (s0, o0, dims d0): the same extent, its voxels' centres inside. */
+void level_grid(const double s0[3], const double o0[3], const uint32_t d0[3],
+                const uint32_t dk[3], double sk[3], double ok[3]);
 /* After level 0 is finished in OUTDIR.partial: levels 1..L into
  * OUTDIR.partial/level-k/ (encode_levels.c says how). */
 void encode_levels(struct run *r);
 void grid_of(const struct run *r, double spacing[3], double origin[3]);
+void check_grid(const struct run *r);
 /* Frees the ring's boxes (run_free frees the rest). */
 void release_ring(struct run *r);
 /* Rows of row_bytes a raw read takes at once: READ_BLOCK's worth, at

@@ -5,6 +5,7 @@
 #include "tvpal_cli.h"
 #include "tvpal_dataset.h"
 #include "tvpal_fs.h"
+#include "tvpal_manifest.h"
 
 #include <errno.h>
 #include <math.h>
@@ -273,13 +274,24 @@ void cluster_finish(struct run *r)
         int rc = asprintf(&path, "%s/manifest.txt", r->partial) < 0
                      ? TVPAL_E_NOMEM
                      : tvpal_write_file_atomic(path, text, strlen(text), &wd);
-        free(path);
         free(text);
         tvpal_fsync_dir(r->partial);
         if (rc < 0)
             snprintf(g_heads[0].text, sizeof g_heads[0].text, "%s: cannot "
                      "write manifest: %s", r->partial, lib_error(rc, &wd));
-        else if (place_output(r, g_heads[0].text, sizeof g_heads[0].text) < 0)
+        /* Read back before it replaces anything (the nodes verified
+         * their own directories). */
+        struct tvpal_manifest m = {0};
+        if (rc == 0 && (rc = tvpal_manifest_load(path, &m, &wd)) < 0)
+            snprintf(g_heads[0].text, sizeof g_heads[0].text, "%s: written "
+                     "manifest does not verify: %s (%s)", r->partial,
+                     lib_error(rc, &wd), tvpal_exists(r->o.outdir)
+                         ? "the existing dataset is left as it was"
+                         : "nothing was put in place");
+        tvpal_manifest_clear(&m);
+        free(path);
+        if (rc == 0 &&
+            place_output(r, g_heads[0].text, sizeof g_heads[0].text) < 0)
             rc = -1;
         if (rc < 0)
             dec = (struct round_decision){TVPAL_EXIT_FAIL, DIE_FAIL, 0, 1,

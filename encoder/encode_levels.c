@@ -40,6 +40,15 @@ void level_dims(const uint32_t d0[3], unsigned k, uint32_t out[3])
     }
 }
 
+void level_grid(const double s0[3], const double o0[3], const uint32_t d0[3],
+                const uint32_t dk[3], double sk[3], double ok[3])
+{
+    for (int i = 0; i < 3; i++) {
+        sk[i] = s0[i] * d0[i] / dk[i];
+        ok[i] = o0[i] + 0.5 * (sk[i] - s0[i]);
+    }
+}
+
 /* Where a level's fine planes come from: level 0 through load_step (the
  * source, converted as encoded), a coarser one from its raw float32 files. */
 struct plane_src {
@@ -276,10 +285,7 @@ static void encode_level(struct run *r, unsigned k, const uint32_t dk[3],
         arg_add(&a, "greedy-mse");
     }
     double sk[3], ok[3];
-    for (int i = 0; i < 3; i++) {
-        sk[i] = s0[i] * o->dims[i] / dk[i];
-        ok[i] = o0[i] + 0.5 * (sk[i] - s0[i]);
-    }
+    level_grid(s0, o0, o->dims, dk, sk, ok);
     arg_add(&a, "--spacing");
     arg_add(&a, "%.17g,%.17g,%.17g", sk[0], sk[1], sk[2]);
     arg_add(&a, "--origin");

@@ -400,7 +400,9 @@ static void parse_option(const struct optspec *sp, const char *arg,
             break;
         int good = 1;
         for (int i = 0; i < 3; i++)
-            good &= isfinite(v[i]) && fabs(v[i]) <= 1e300 &&
+            /* the manifest's rule: what it would not read back is
+             * refused here (and a level's grid in check_grid) */
+            good &= tvpal_manifest_number_ok(v[i]) &&
                     (sp->kind == OPT_ORIGIN || v[i] > 0);
         if (!good)
             break;
@@ -1548,6 +1550,39 @@ void grid_of(const struct run *r, double spacing[3], double origin[3])
     }
 }
 
+/* The grid and times of every manifest this job writes (level 0's and
+ * each coarser level's), by the reader's rule (tvpal_manifest_check_grid),
+ * before any work: a value a dataset could not read back is refused,
+ * naming where it came from. */
+void check_grid(const struct run *r)
+{
+    const struct opts *o = &r->o;
+    double s0[3], o0[3];
+    grid_of(r, s0, o0);
+    for (unsigned k = 0; k <= o->levels; k++) {
+        double sk[3], ok[3];
+        uint32_t dk[3];
+        level_dims(o->dims, k, dk);
+        level_grid(s0, o0, o->dims, dk, sk, ok);
+        if (k == 0) {   /* level 0's own, not through a product */
+            memcpy(sk, s0, sizeof sk);
+            memcpy(ok, o0, sizeof ok);
+        }
+        struct tvpal_diag d = {{0}};
+        if (tvpal_manifest_check_grid(sk, ok, k ? NULL : r->times,
+                                      k || !r->times ? 0 : r->T, &d) == 0)
+            continue;
+        const char *from = !strncmp(d.msg, "spacing", 7)
+                               ? (o->have_spacing ? "--spacing" : o->inputs[0])
+                           : !strncmp(d.msg, "origin", 6)
+                               ? (o->have_origin ? "--origin" : o->inputs[0])
+                           : o->times_file ? o->times_file : o->inputs[0];
+        if (k)
+            die_usage("%s: level %u (--levels): %s", from, k, d.msg);
+        die_usage("%s: %s", from, d.msg);
+    }
+}
+
 static void build_manifest(const struct run *r, struct tvpal_manifest *m)
 {
     const struct opts *o = &r->o;
@@ -1685,8 +1720,17 @@ int place_output(const struct run *r, char *err, size_t cap)
         if (asprintf(&old, "%s.old", out) < 0)
             return snprintf(err, cap, "out of memory"), -1;
         tvpal_rmtree(old);
-        if (rename(out, old) < 0 || rename(r->partial, out) < 0) {
+        if (rename(out, old) < 0) {
             snprintf(err, cap, "%s: cannot replace: %s", out, strerror(errno));
+            free(old);
+            return -1;
+        }
+        if (rename(r->partial, out) < 0) {
+            /* the old dataset back where it was */
+            int e = errno;
+            rename(old, out);
+            snprintf(err, cap, "%s: cannot replace (left as it was): %s", out,
+                     strerror(e));
             free(old);
             return -1;
         }
@@ -1792,50 +1836,86 @@ void warn_dominating_values(const struct run *r)
             r->st.vmax);
 }
 
-/* Reopens the dataset with the reader (it must verify) and prints the
- * closing key=value line on stdout.  The headline figures are what the
- * dataset takes on disk: bytes counts every file of OUTDIR (the stored
- * axes' shards of every node, the manifests, the levels; under MPI every
- * rank's node directory, wherever --shard-dir put it, and OUTDIR's
- * manifest), ratio is the source bytes over them and bpv their bits per
- * voxel-timestep.  axis_ratio is the source bytes over the bytes of one
- * stored axis of level 0 (the mean over the stored axes), the figure
- * ratio was before FORMAT.md 1.6. */
-static void print_summary(const struct run *r)
+/* What the written dataset takes, found by reading it back. */
+struct written {
+    uint64_t disk, shards;      /* every file; the stored axes' shards */
+    uint64_t tables[2];         /* chunks with float32, 16-bit tables */
+    uint64_t level_bytes;       /* the coarser levels' files */
+};
+
+/* Ends the program: the dataset at dir, about to be moved into place,
+ * does not verify.  What OUTDIR held stays as it was. */
+static void die_unverified(const struct run *r, const char *what,
+                           const char *dir, const char *why)
+{
+    die_fail("%s: written %s does not verify: %s (%s)", dir, what, why,
+             tvpal_exists(r->o.outdir) ? "the existing dataset is left as it "
+                                         "was" : "nothing was put in place");
+}
+
+/* Reopens the dataset in OUTDIR.partial with the reader, every level of
+ * it, before it is moved into place: what a failure here finds (a value
+ * the manifest reader refuses, a shard that does not read back) must not
+ * replace a good dataset.  The headline figures are what the dataset
+ * takes on disk: disk counts every file (the stored axes' shards of every
+ * node, the manifests, the levels).  Not under MPI: every rank verifies
+ * its own node directory, and rank 0 the manifest (cluster_finish). */
+static void verify_written(const struct run *r, struct written *w)
 {
     struct tvpal_diag d = {{0}};
     struct tvpal_dataset *ds = NULL;
-    uint64_t disk = r->cluster_bytes, shards = r->cluster_shard_bytes;
-    /* Under MPI every rank has verified its own node directory. */
-    uint64_t tables[2] = {0, 0};   /* chunks with float32, 16-bit tables */
-    if (!r->mpi) {
-        if (tvpal_dataset_open(&ds, r->o.outdir, &d) < 0)
-            die_fail("%s: written dataset does not verify: %s", r->o.outdir,
-                     d.msg);
-        /* What --table chose, from the chunk headers (under MPI the
-         * ranks' shards may be on other machines: left out). */
-        for (unsigned a = 0; a < 3; a++) {
-            shards += ds->axis_bytes[a];
-            for (uint32_t k = 0; tvpal_dataset_has_axis(ds, a) &&
-                                 k < ds->nshards; k++) {
-                struct tvpal_table_count c;
-                if (tvpal_shard_count_tables(ds->shards[a][k], &c, &d) < 0)
-                    die_fail("%s: written dataset does not verify: %s",
-                             tvpal_shard_path(ds->shards[a][k]), d.msg);
-                tables[0] += c.chunks[0];
-                tables[1] += c.chunks[1];
-            }
+    const char *dir = r->partial;
+    *w = (struct written){0};
+    if (tvpal_dataset_open(&ds, dir, &d) < 0)
+        die_unverified(r, "dataset", dir, d.msg);
+    /* What --table chose, from the chunk headers. */
+    for (unsigned a = 0; a < 3; a++) {
+        w->shards += ds->axis_bytes[a];
+        for (uint32_t k = 0; tvpal_dataset_has_axis(ds, a) &&
+                             k < ds->nshards; k++) {
+            struct tvpal_table_count c;
+            if (tvpal_shard_count_tables(ds->shards[a][k], &c, &d) < 0)
+                die_unverified(r, "dataset",
+                               tvpal_shard_path(ds->shards[a][k]), d.msg);
+            w->tables[0] += c.chunks[0];
+            w->tables[1] += c.chunks[1];
         }
-        tvpal_dataset_close(ds);
-        int rc = tvpal_tree_bytes(r->o.outdir, &disk, &d);
-        if (rc < 0)
-            die_fail("%s: cannot size the dataset: %s", r->o.outdir,
-                     lib_error(rc, &d));
     }
+    tvpal_dataset_close(ds);
+    int rc = tvpal_tree_bytes(dir, &w->disk, &d);
+    if (rc < 0)
+        die_fail("%s: cannot size the dataset: %s", dir, lib_error(rc, &d));
+    for (unsigned k = 1; k <= r->o.levels; k++) {
+        char *ld;
+        uint64_t b = 0;
+        if (asprintf(&ld, "%s/level-%u", dir, k) < 0)
+            die_fail("out of memory");
+        if (tvpal_dataset_open(&ds, ld, &d) < 0)
+            die_unverified(r, "level", ld, d.msg);
+        tvpal_dataset_close(ds);
+        rc = tvpal_tree_bytes(ld, &b, &d);
+        if (rc < 0)
+            die_fail("%s: cannot size the level: %s", ld, lib_error(rc, &d));
+        w->level_bytes += b;
+        free(ld);
+    }
+}
+
+/* Prints the closing key=value line on stdout: ratio is the source bytes
+ * over the dataset's bytes on disk and bpv their bits per voxel-timestep
+ * (under MPI every rank's node directory, wherever --shard-dir put it,
+ * and OUTDIR's manifest).  axis_ratio is the source bytes over the bytes
+ * of one stored axis of level 0 (the mean over the stored axes), the
+ * figure ratio was before FORMAT.md 1.6. */
+static void print_summary(const struct run *r, const struct written *w)
+{
+    const uint64_t disk = r->mpi ? r->cluster_bytes : w->disk;
+    const uint64_t shards = r->mpi ? r->cluster_shard_bytes : w->shards;
     char tb[96] = "";
-    if (!r->mpi)
+    if (!r->mpi)   /* under MPI the shards may be on other machines */
         snprintf(tb, sizeof tb, " tables_u16=%llu tables_f32=%llu",
-                 (unsigned long long)tables[1], (unsigned long long)tables[0]);
+                 (unsigned long long)w->tables[1],
+                 (unsigned long long)w->tables[0]);
     const unsigned naxes = tvpal_axes_count(r->o.axes);
     const double src = (double)(r->step_bytes * r->T);
     const double axis_bytes = (double)shards / naxes;
@@ -1845,25 +1925,10 @@ static void print_summary(const struct run *r)
                                  : r->prog.work - r->prog.work_at_start;
     /* The coarser levels' files, also part of bytes (and of ratio and
      * bpv): what they add is said apart. */
-    uint64_t level_bytes = 0;
-    for (unsigned k = 1; !r->mpi && k <= r->o.levels; k++) {
-        char *ld;
-        uint64_t b = 0;
-        if (asprintf(&ld, "%s/level-%u", r->o.outdir, k) < 0)
-            die_fail("out of memory");
-        if (tvpal_dataset_open(&ds, ld, &d) < 0)
-            die_fail("%s: written level does not verify: %s", ld, d.msg);
-        tvpal_dataset_close(ds);
-        int rc = tvpal_tree_bytes(ld, &b, &d);
-        if (rc < 0)
-            die_fail("%s: cannot size the level: %s", ld, lib_error(rc, &d));
-        level_bytes += b;
-        free(ld);
-    }
     char lv[96] = "", axes[4];
     if (r->o.levels)
         snprintf(lv, sizeof lv, " levels=%u levels_bytes=%llu", r->o.levels,
-                 (unsigned long long)level_bytes);
+                 (unsigned long long)w->level_bytes);
     printf("encoded %s: steps=%u window=%u nodes=%u axes=%s bytes=%llu "
            "ratio=%.3f axis_ratio=%.3f bpv=%.4f seconds=%.3f rate=%.2fM "
            "vox-steps/s threads=%d missing=%llu passes=%u%s%s\n",
@@ -1934,6 +1999,7 @@ static void run_free(struct run *r)
 int main(int argc, char **argv)
 {
     struct run r = {0};
+    struct written w = {0};
     open_cluster(&r, &argc, &argv);
     int have_dims = parse_options(argc, argv, &r.o);
     order_inputs(&r.o);
@@ -1947,6 +2013,7 @@ int main(int argc, char **argv)
     r.step_bytes = (uint64_t)r.nvox * tvpal_type_size(r.o.type);
     check_inputs(&r);
     load_times(&r);
+    check_grid(&r);
     warn_irregular_times(&r);
     check_output(&r);
     setup_cluster_dirs(&r);
@@ -1986,10 +2053,11 @@ int main(int argc, char **argv)
                 die_fail("%s: cannot remove", mk ? mk : "levels.job");
             free(mk);
         }
+        verify_written(&r, &w);
         move_into_place(&r);
     }
     if (!r.mpi || r.node == 0)
-        print_summary(&r);
+        print_summary(&r, &w);
     run_free(&r);
     tvpal_comm_close(&g_comm);
     return 0;

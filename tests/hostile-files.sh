@@ -10,7 +10,13 @@
 # device node, FIFO or symbolic link at the target is refused and left as
 # it was, a link planted at a predictable temporary name redirects
 # nothing, and tvpal-decode and tvpal-report refuse to write inside the
-# dataset they read.
+# dataset they read.  Files named inside others (a .pvd's DataSets, a
+# .pvti's pieces, the files of a series after the first) are checked as
+# top-level inputs are.  A .vti that shrinks while it is read (truncated by
+# tests/fault.so at a set byte, and in a race with truncate) gets a message
+# naming it, never SIGBUS.  An encode that fails after writing (the new
+# dataset or a level does not read back, the rename into place fails: made
+# to fail by tests/fault.so) leaves the dataset it was to replace as it was.
 . "$(dirname "$0")/lib.sh"
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 D=8x6x5
@@ -80,6 +86,106 @@ if [ -x "$PLAY" ]; then
         && [ "$(cat "$W/victim")" = victim ] && ok "play: a link at a frame's name is refused" \
         || fail "play frame link: $(cat "$W/e.txt")"
 fi
+# Files named inside others go through the same checks as a top-level
+# input: a FIFO as a .pvd's DataSet or a .pvti's piece is refused at once
+# (it blocked the encoder for ever).
+vti_file() {   # PATH NX NY NZ: a float32 .vti with raw appended data
+    "$PY" - "$@" <<'PY'
+import struct, sys
+p, nx, ny, nz = sys.argv[1], *map(int, sys.argv[2:])
+n = nx * ny * nz
+head = ('<?xml version="1.0"?>\n<VTKFile type="ImageData" version="1.0" '
+        'byte_order="LittleEndian" header_type="UInt64">\n'
+        '<ImageData WholeExtent="0 %d 0 %d 0 %d" Origin="0 0 0" Spacing="1 1 1">\n'
+        '<Piece Extent="0 %d 0 %d 0 %d"><PointData Scalars="v">'
+        '<DataArray type="Float32" Name="v" format="appended" offset="0"/>'
+        '</PointData></Piece></ImageData>\n<AppendedData encoding="raw">\n_'
+        % (nx - 1, ny - 1, nz - 1, nx - 1, ny - 1, nz - 1))
+with open(p, "wb") as f:
+    f.write(head.encode())
+    f.write(struct.pack("<Q", 4 * n))
+    row = struct.pack("<%df" % nx, *[float(i % 7) for i in range(nx)])
+    f.write(row * (ny * nz))
+    f.write(b"\n</AppendedData>\n</VTKFile>\n")
+PY
+}
+mkdir -p "$W/coll" && vti_file "$W/coll/a.vti" 4 3 2 && mkfifo "$W/coll/f.vti" || fail "collection files"
+cat > "$W/coll/s.pvd" <<'XML'
+<?xml version="1.0"?>
+<VTKFile type="Collection" version="0.1"><Collection>
+<DataSet timestep="0" file="a.vti"/><DataSet timestep="1" file="f.vti"/>
+</Collection></VTKFile>
+XML
+cat > "$W/coll/p.pvti" <<'XML'
+<?xml version="1.0"?>
+<VTKFile type="PImageData" version="1.0" byte_order="LittleEndian">
+<PImageData WholeExtent="0 3 0 2 0 1" Origin="0 0 0" Spacing="1 1 1">
+<PPointData Scalars="v"><PDataArray type="Float32" Name="v"/></PPointData>
+<Piece Extent="0 3 0 2 0 1" Source="f.vti"/></PImageData></VTKFile>
+XML
+expect_exit 2 "s.pvd: its DataSet .*f.vti: not a regular file \(a FIFO\)" $T "$ENC" -q -o "$W/o" "$W/coll/s.pvd"
+expect_exit 2 "f.vti: not a regular file \(a FIFO\).*a piece of .*p.pvti" $T "$ENC" -q -o "$W/o" "$W/coll/p.pvti"
+expect_exit 2 "f.vti: not a regular file \(a FIFO\)" $T "$ENC" -q -o "$W/o" "$W/coll/a.vti" "$W/coll/f.vti"
+[ ! -e "$W/o" ] && [ ! -e "$W/o.partial" ] && ok "collections: nothing left behind" || fail "output left behind"
+
+# A file that shrinks while the encoder reads it (a simulation rewriting
+# its output, a copy in progress): a message naming it and exit 2, never
+# SIGBUS.  Deterministic first, with tests/fault.so truncating the file
+# at the data's first read past its middle; then as a race, truncated by
+# another process while it is read.
+SHIM=$TVPAL_BUILDDIR/tests/fault.so
+# env LD_PRELOAD=... (ASan: its runtime is then not first, which it allows)
+ASAN_SHIM="${ASAN_OPTIONS:+$ASAN_OPTIONS:}verify_asan_link_order=0"
+vti_file "$W/big.vti" 128 128 64 || fail "big vti"
+if [ -f "$SHIM" ]; then
+    env LD_PRELOAD="$SHIM" ASAN_OPTIONS="$ASAN_SHIM" TVPAL_FAULT=shrink:big.vti TVPAL_SHRINK_AT=2000000 \
+        $T "$ENC" -q -o "$W/o" "$W/big.vti" > "$W/out.txt" 2> "$W/err.txt"
+    rc=$?
+    [ $rc -eq 2 ] && grep -q "big.vti: its data: the file ends at byte 2000000, before byte .*: it shrank while being read" "$W/err.txt" \
+        && [ ! -e "$W/o" ] && ok "a .vti that shrinks as it is read: exit 2, named" \
+        || { fail "shrinking .vti: exit $rc"; sed 's/^/    /' "$W/err.txt" >&2; }
+else
+    fail "tests/fault.so not built"
+fi
+for i in 1 2 3 4 5; do
+    vti_file "$W/race.vti" 128 128 128 || fail "race vti"
+    rm -rf "$W/o" "$W/o.partial"
+    "$ENC" -q -o "$W/o" "$W/race.vti" > /dev/null 2> "$W/err.txt" &
+    pid=$!
+    sleep "0.0$((2 * i))"
+    truncate -s 1000 "$W/race.vti"
+    wait $pid
+    rc=$?
+    if [ $rc -ge 128 ]; then
+        fail "truncated while read (round $i): died of signal $((rc - 128))"
+    elif [ $rc -ne 0 ] && ! grep -q "race.vti" "$W/err.txt"; then
+        fail "truncated while read (round $i): exit $rc without naming the file: $(cat "$W/err.txt")"
+    else
+        ok "truncated while read (round $i): exit $rc: $(head -c 160 "$W/err.txt")"
+    fi
+done
+
+# An encode that fails after it has written leaves the dataset it was to
+# replace (--force) as it was: the new dataset does not read back (its
+# manifest cannot be opened), a level does not, or the rename into place
+# fails (the old one is put back).  tests/fault.so makes the call fail.
+if [ -f "$SHIM" ]; then
+    rm -rf "$W/keep" && cp -R "$W/ds" "$W/keep"
+    expect_exit 1 "written dataset does not verify: .*the existing dataset is left as it was" \
+        env LD_PRELOAD="$SHIM" ASAN_OPTIONS="$ASAN_SHIM" TVPAL_FAULT=open:ds.partial/manifest.txt $T "$ENC" -q -f --dims $D --window 2 -o "$W/ds" "$W"/in/*.f32
+    diff -r "$W/keep" "$W/ds" > /dev/null && [ ! -e "$W/ds.old" ] \
+        && ok "unverified: the old dataset is as it was" || fail "unverified: the old dataset changed"
+    expect_exit 1 "does not verify|level 1" \
+        env LD_PRELOAD="$SHIM" ASAN_OPTIONS="$ASAN_SHIM" TVPAL_FAULT=open:level-1/manifest.txt $T "$ENC" -q -f --levels 1 --dims $D --window 2 -o "$W/ds" "$W"/in/*.f32
+    diff -r "$W/keep" "$W/ds" > /dev/null && ok "a level unverified: the old dataset is as it was" \
+        || fail "a level unverified: the old dataset changed"
+    expect_exit 1 "ds: cannot replace \(left as it was\)" \
+        env LD_PRELOAD="$SHIM" ASAN_OPTIONS="$ASAN_SHIM" TVPAL_FAULT=rename:ds.partial $T "$ENC" -q -f --dims $D --window 2 -o "$W/ds" "$W"/in/*.f32
+    diff -r "$W/keep" "$W/ds" > /dev/null && [ ! -e "$W/ds.old" ] \
+        && ok "rename failed: the old dataset is back" || fail "rename failed: the old dataset changed or is gone"
+    "$INFO" "$W/ds" --verify > /dev/null 2>&1 && ok "the dataset still verifies" || fail "the dataset does not verify"
+fi
+
 # timing.csv as the frames go: kill tvpal-play after some frames.
 if [ -x "$PLAY" ]; then
     "$GEN" --field blobs --dims 32x32x32 --steps 400 -o "$W/long" > /dev/null || fail "gen long"

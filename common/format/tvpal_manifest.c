@@ -4,6 +4,7 @@
 #include "tvpal_fs.h"
 
 #include <errno.h>
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -182,12 +183,43 @@ static int parse_u32(const char *v, uint32_t *out)
     return 0;
 }
 
+int tvpal_manifest_number_ok(double v)
+{
+    return isfinite(v) && (v == 0 || fabs(v) >= DBL_MIN);
+}
+
+int tvpal_manifest_check_grid(const double spacing[3], const double origin[3],
+                              const double *times, uint32_t ntimes,
+                              struct tvpal_diag *diag)
+{
+    static const char why[] = "a finite number, 0 or of magnitude at least "
+                              "2.2250738585072014e-308, expected";
+    for (int a = 0; a < 3; a++) {
+        if (!tvpal_manifest_number_ok(spacing[a]) || spacing[a] == 0)
+            return tvpal_diag_set(diag, TVPAL_E_RANGE, "spacing on axis %c "
+                                  "is %.17g (a finite non-zero number of "
+                                  "magnitude at least 2.2250738585072014e-308 "
+                                  "expected)", "xyz"[a], spacing[a]);
+        if (!tvpal_manifest_number_ok(origin[a]))
+            return tvpal_diag_set(diag, TVPAL_E_RANGE, "origin on axis %c is "
+                                  "%.17g (%s)", "xyz"[a], origin[a], why);
+    }
+    for (uint32_t t = 0; times && t < ntimes; t++)
+        if (!tvpal_manifest_number_ok(times[t]))
+            return tvpal_diag_set(diag, TVPAL_E_RANGE, "the time of step %u "
+                                  "is %.17g (%s)", t, times[t], why);
+    return 0;
+}
+
+/* A number as the manifest holds it (tvpal_manifest_number_ok): strtod
+ * says ERANGE for what overflows and for subnormals. */
 static int parse_dbl(const char *v, double *out)
 {
     char *end;
     errno = 0;
     *out = strtod(v, &end);
-    return (errno || *end || end == v) ? -1 : 0;
+    return (errno || *end || end == v || !tvpal_manifest_number_ok(*out))
+               ? -1 : 0;
 }
 
 /* parse_dbl, and the value is finite (not nan or +-inf). */
@@ -204,7 +236,8 @@ static int parse_triple(const char *v, double out[3], int positive)
     for (int i = 0; i < 3; i++) {
         errno = 0;
         out[i] = strtod(p, &end);
-        if (end == p || errno || !isfinite(out[i]) || (positive && !(out[i] > 0)))
+        if (end == p || errno || !tvpal_manifest_number_ok(out[i]) ||
+            (positive && !(out[i] > 0)))
             return -1;
         p = end;
     }
@@ -241,7 +274,7 @@ static int parse_missing_values(struct tvpal_manifest *m, const char *v)
         char *end;
         errno = 0;
         double x = strtod(p, &end);
-        if (end == p || errno || !isfinite(x) ||
+        if (end == p || errno || !tvpal_manifest_number_ok(x) ||
             m->nmissing_values == TVPAL_MISSING_VALUES_MAX)
             return -1;
         m->missing_values[m->nmissing_values++] = x;
@@ -263,7 +296,8 @@ static int parse_times(struct tvpal_manifest *m, const char *v)
         char *end;
         errno = 0;
         double t = strtod(p, &end);
-        if (end == p || errno || !isfinite(t) || m->ntimes == UINT32_MAX)
+        if (end == p || errno || !tvpal_manifest_number_ok(t) ||
+            m->ntimes == UINT32_MAX)
             return -1;
         if (m->ntimes == cap) {
             cap = cap ? 2 * cap : 64;

@@ -108,6 +108,23 @@ char *tvpal_axes_format(uint32_t mask, char buf[4]);
 /* Number of axes in mask (0..3). */
 unsigned tvpal_axes_count(uint32_t mask);
 
+/* The rule the manifest reader applies to every number it reads back
+ * (spacing, origin, times, value range, missing values): a finite value
+ * that is 0 or normal.  A subnormal (1e-310) is written as "%.17g" and read
+ * back with ERANGE, so a dataset holding one would not open: writers check
+ * their numbers with this before any work.  1 or 0. */
+int tvpal_manifest_number_ok(double v);
+
+/* The grid and times a dataset would hold, checked by the reader's rule:
+ * each spacing and origin tvpal_manifest_number_ok, a spacing also
+ * non-zero (the reader wants > 0; a writer stores |spacing|), and each of
+ * times[0..ntimes) (times may be NULL).  0, or TVPAL_E_RANGE with diag
+ * naming the key, the axis or step, and the value ("spacing on axis z is
+ * 1e-310: ..."). */
+int tvpal_manifest_check_grid(const double spacing[3], const double origin[3],
+                              const double *times, uint32_t ntimes,
+                              struct tvpal_diag *diag);
+
 /* Appends a copy of src to m->sources. */
 int tvpal_manifest_add_source(struct tvpal_manifest *m, const char *src);
 

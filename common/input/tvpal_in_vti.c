@@ -19,7 +19,16 @@
  * padded quad as the end of one stream and goes on with the next, which
  * reads both layouts (and a header written with its blocks).
  *
- * Nothing is kept between calls but the path and what open found: read maps
+ * The reader never maps a file: a mapped file that shrinks under its reader
+ * (a simulation rewriting its output, a copy in progress on a shared file
+ * system) kills the process with SIGBUS at the first page past its new
+ * end, where a read returns short and the reader says which file shrank.
+ * Every byte comes by pread: the XML in pieces (load), array data straight
+ * into its destination or through a window (struct src).  Every file is
+ * opened as a regular file (tvpal_open_regular): a FIFO named in a .pvd or
+ * a .pvti would block for ever.
+ *
+ * Nothing is kept between calls but the path and what open found: read opens
  * the file, parses it again and decodes into dst (float32 arrays in place;
  * other types through one step of scratch).  read_box parses it again as
  * well and reads the box's values only (decode_box): raw appended rows by
@@ -30,9 +39,11 @@
  * a file that is not a readable .vti, with the path and the problem in the
  * diag; TVPAL_E_INVAL for an array that cannot be chosen or is not a scalar
  * field. */
+#include "tvpal_fs.h"
 #include "tvpal_inflate.h"
 #include "tvpal_input_impl.h"
 #include "tvpal_pool.h"
+#include "tvpal_size.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -41,7 +52,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -90,8 +100,8 @@ struct vti_piece {
 
 struct vti_doc {
     const char *path;
-    const unsigned char *buf;   /* the mapped file */
-    size_t size;
+    int fd;                     /* the file, open; -1 when none */
+    uint64_t size;              /* its bytes when it was opened */
     int big_endian, header64;
     char byte_order[32], header_type[32], compressor[64];
     int have_image, have_whole, have_direction;
@@ -136,15 +146,15 @@ struct tvpal_input_file {
     size_t blk_cap, cbuf_cap;
 };
 
-/* --------------------------------------------------------- file mapping */
+/* ---------------------------------------------------------- file access */
 
-static int map_file(const char *path, const unsigned char **buf, size_t *size,
-                    struct tvpal_diag *diag)
+/* Opens path, a regular file, into d->fd and d->size. */
+static int open_doc_file(struct vti_doc *d, const char *path,
+                         struct tvpal_diag *diag)
 {
-    int fd = open(path, O_RDONLY);
+    int fd = tvpal_open_regular(path, diag);
     if (fd < 0)
-        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
-                              strerror(errno));
+        return fd;
     struct stat st;
     if (fstat(fd, &st) < 0) {
         int e = errno;
@@ -156,20 +166,113 @@ static int map_file(const char *path, const unsigned char **buf, size_t *size,
         return tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: empty file, not a "
                               "VTK ImageData file", path);
     }
-    if ((uint64_t)st.st_size > SIZE_MAX) {
-        close(fd);
-        return tvpal_diag_set(diag, TVPAL_E_OVERFLOW, "%s: too large to map",
-                              path);
-    }
-    void *p = mmap(NULL, (size_t)st.st_size, PROT_READ, MAP_PRIVATE, fd, 0);
-    int e = errno;
-    close(fd);
-    if (p == MAP_FAILED)
-        return tvpal_diag_set(diag, TVPAL_E_READ, "%s: mmap: %s", path,
-                              strerror(e));
-    *buf = p;
-    *size = (size_t)st.st_size;
+    d->fd = fd;
+    d->size = (uint64_t)st.st_size;
     return 0;
+}
+
+/* len bytes of d's file at off into p: TVPAL_E_TRUNC, naming the file,
+ * where it is shorter now than it was at open (tvpal_input_pread). */
+static int doc_pread(const struct vti_doc *d, void *p, size_t len,
+                     uint64_t off, const char *what)
+{
+    return tvpal_input_pread(d->fd, p, len, off, d->path, what, d->diag);
+}
+
+/* Bytes [off, end) of a file, read through a window: raw, or base64 text
+ * decoded as it is read (src_read: white space is skipped, and a padded
+ * quad ends one encoded stream with the next one following). */
+#define SRC_WINDOW ((size_t)32 << 10)
+struct src {
+    const struct vti_doc *d;
+    uint64_t off, end;          /* the bytes [off, end) are not yet read */
+    unsigned char win[SRC_WINDOW];
+    size_t wpos, wlen;          /* win[wpos, wlen): read, not yet taken */
+    int b64;
+    unsigned char pend[3];
+    unsigned npend, ipend;
+    int bad;                    /* a character that is not base64 */
+    int err;                    /* a read failed (its diag said why): the
+                                 * code; then s ends there */
+};
+
+static int src_range(struct src *s, const struct vti_doc *d, uint64_t off,
+                     uint64_t end, int b64)
+{
+    s->d = d;
+    s->off = off;
+    s->end = end > d->size ? d->size : end;
+    s->wpos = s->wlen = 0;
+    s->b64 = b64;
+    s->npend = s->ipend = 0;
+    s->bad = s->err = 0;
+    return 0;
+}
+
+/* The window refilled: 0 at the end of s or after a failed read. */
+static int src_fill(struct src *s)
+{
+    if (s->err || s->off >= s->end)
+        return 0;
+    size_t k = s->end - s->off < SRC_WINDOW ? (size_t)(s->end - s->off)
+                                            : SRC_WINDOW;
+    int rc = doc_pread(s->d, s->win, k, s->off, "its data");
+    if (rc < 0) {
+        s->err = rc;
+        return 0;
+    }
+    s->off += k;
+    s->wpos = 0;
+    s->wlen = k;
+    return 1;
+}
+
+/* The next byte, or -1 at the end (or after a failed read: s->err). */
+static inline int src_getc(struct src *s)
+{
+    if (s->wpos == s->wlen && !src_fill(s))
+        return -1;
+    return s->win[s->wpos++];
+}
+
+/* The file offset of the next byte of s (raw: of the next value). */
+static uint64_t src_pos(const struct src *s)
+{
+    return s->off - (s->wlen - s->wpos);
+}
+
+/* Up to n raw bytes into out (NULL: skipped); how many there were.  What
+ * the window does not hold goes straight into out. */
+static size_t src_take(struct src *s, unsigned char *out, size_t n)
+{
+    size_t got = 0;
+    while (got < n && !s->err) {
+        if (s->wpos < s->wlen) {
+            size_t k = s->wlen - s->wpos < n - got ? s->wlen - s->wpos
+                                                   : n - got;
+            if (out)
+                memcpy(out + got, s->win + s->wpos, k);
+            s->wpos += k;
+            got += k;
+            continue;
+        }
+        const uint64_t room = s->end - s->off;
+        if (room == 0)
+            break;
+        if (n - got < SRC_WINDOW && out) {
+            src_fill(s);
+            continue;
+        }
+        size_t k = n - got < room ? n - got : (size_t)room;
+        int rc = out ? doc_pread(s->d, out + got, k, s->off, "its data") : 0;
+        if (rc < 0) {
+            s->err = rc;
+            break;
+        }
+        s->off += k;
+        got += k;
+    }
+    return got;
 }
 
 /* ------------------------------------------------------------ XML parse */
@@ -183,9 +286,10 @@ static void doc_free(struct vti_doc *d)
         free(d->pcs[i].source);
     free(d->pcs);
     free(d->scalars);
-    if (d->buf)
-        munmap((void *)d->buf, d->size);
+    if (d->fd >= 0)
+        close(d->fd);
     memset(d, 0, sizeof *d);
+    d->fd = -1;
 }
 
 static const char *attr(const XML_Char **atts, const char *name)
@@ -531,53 +635,99 @@ static int feed(struct vti_doc *d, const unsigned char *buf, size_t n,
     return d->rc;
 }
 
-/* Maps path and parses its XML into *d (owned by the caller: doc_free, also
- * after an error). */
+/* Pieces of the XML read and fed to expat at a time. */
+#define XML_PIECE ((size_t)1 << 20)
+/* The most bytes the <AppendedData ...> tag may take. */
+#define TAG_MAX ((size_t)64 << 10)
+
+/* The <AppendedData ...> tag at byte at (buf: TAG_MAX bytes of scratch):
+ * fed to expat with the elements it leaves open closed after it, and
+ * d->appended_at set to the first byte after the '_' marker that follows
+ * it (white space between them skipped). */
+static int appended_data(struct vti_doc *d, uint64_t at, unsigned char *buf)
+{
+    const size_t n = d->size - at < TAG_MAX ? (size_t)(d->size - at) : TAG_MAX;
+    int rc = doc_pread(d, buf, n, at, "XML");
+    if (rc < 0)
+        return rc;
+    const unsigned char *gt = memchr(buf, '>', n);
+    if (!gt)
+        return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: the <AppendedData> "
+                              "tag is not closed (truncated file?)", d->path);
+    const int empty = gt[-1] == '/';
+    static const char close_data[] = "</AppendedData>\n</VTKFile>\n";
+    const char *rest = empty ? close_data + 16 : close_data;
+    rc = feed(d, buf, (size_t)(gt + 1 - buf), 0);
+    if (rc == 0)
+        rc = feed(d, (const unsigned char *)rest, strlen(rest), 1);
+    if (rc < 0 || empty)
+        return rc;
+    struct src s;
+    src_range(&s, d, at + (uint64_t)(gt + 1 - buf), d->size, 0);
+    int c;
+    while ((c = src_getc(&s)) == ' ' || c == '\t' || c == '\n' || c == '\r')
+        ;
+    if (s.err)
+        return s.err;
+    if (c != '_')
+        return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: AppendedData "
+                              "has no '_' marker before its data", d->path);
+    d->appended_at = src_pos(&s);
+    return 0;
+}
+
+/* Opens path and parses its XML into *d (owned by the caller: doc_free,
+ * also after an error). */
 static int load(struct vti_doc *d, const char *path, struct tvpal_diag *diag)
 {
     memset(d, 0, sizeof *d);
+    d->fd = -1;
     d->path = path;
     d->diag = diag;
     d->cur = -1;
     d->spacing[0] = d->spacing[1] = d->spacing[2] = 1;
-    int rc = map_file(path, &d->buf, &d->size, diag);
+    int rc = open_doc_file(d, path, diag);
     if (rc < 0)
         return rc;
-    if (!(d->xp = XML_ParserCreate(NULL)))
+    unsigned char *buf = malloc(XML_PIECE > TAG_MAX ? XML_PIECE : TAG_MAX);
+    if (!buf || !(d->xp = XML_ParserCreate(NULL))) {
+        free(buf);
         return TVPAL_E_NOMEM;
+    }
     XML_SetUserData(d->xp, d);
     XML_SetElementHandler(d->xp, on_start, on_end);
     XML_SetCharacterDataHandler(d->xp, on_text);
 
     /* As VTK does, the XML ends at <AppendedData ...>: the element is
-     * closed for expat, and its data begins after the '_' marker. */
-    const unsigned char *tag = find(d->buf, d->size, "<AppendedData");
-    if (!tag) {
-        rc = feed(d, d->buf, d->size, 1);
-    } else {
-        const unsigned char *end = d->buf + d->size;
-        const unsigned char *gt = memchr(tag, '>', (size_t)(end - tag));
-        if (!gt) {
-            rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: the <AppendedData> "
-                                "tag is not closed (truncated file?)", path);
-        } else {
-            int empty = gt[-1] == '/';
-            static const char close_data[] = "</AppendedData>\n</VTKFile>\n";
-            const char *rest = empty ? close_data + 16 : close_data;
-            rc = feed(d, d->buf, (size_t)(gt + 1 - d->buf), 0);
+     * closed for expat, and its data begins after the '_' marker.  The
+     * last bytes of a piece, which may begin the tag, wait for the next. */
+    static const char tag[] = "<AppendedData";
+    const size_t keep = sizeof tag - 2;
+    uint64_t pos = 0;   /* bytes fed */
+    size_t have = 0;    /* buf[0, have): the bytes from pos on, read */
+    for (;;) {
+        size_t k = XML_PIECE - have;
+        if (k > d->size - pos - have)
+            k = (size_t)(d->size - pos - have);
+        if (k && (rc = doc_pread(d, buf + have, k, pos + have, "XML")) < 0)
+            break;
+        have += k;
+        const int eof = pos + have == d->size;
+        const unsigned char *t = find(buf, have, tag);
+        if (t) {
+            rc = feed(d, buf, (size_t)(t - buf), 0);
             if (rc == 0)
-                rc = feed(d, (const unsigned char *)rest, strlen(rest), 1);
-            const unsigned char *p = gt + 1;
-            while (!empty && p < end && (*p == ' ' || *p == '\t' ||
-                                         *p == '\n' || *p == '\r'))
-                p++;
-            if (rc == 0 && !empty && (p == end || *p != '_'))
-                rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: AppendedData "
-                                    "has no '_' marker before its data", path);
-            if (!empty && p < end)
-                d->appended_at = (size_t)(p + 1 - d->buf);
+                rc = appended_data(d, pos + (uint64_t)(t - buf), buf);
+            break;
         }
+        const size_t n = eof ? have : have - (have < keep ? have : keep);
+        if ((rc = feed(d, buf, n, eof)) < 0 || eof)
+            break;
+        memmove(buf, buf + n, have - n);
+        pos += n;
+        have -= n;
     }
+    free(buf);
     XML_ParserFree(d->xp);
     d->xp = NULL;
     if (rc == 0 && !d->have_whole)
@@ -607,11 +757,12 @@ static int grid(const struct vti_doc *d, struct tvpal_input_info *info)
          * the first point of the grid is at extent start. */
         info->origin[i] = d->origin[i] + (double)lo * d->spacing[i];
     }
-    uint64_t n = (uint64_t)info->dims[0] * info->dims[1] * info->dims[2];
-    if (n > SIZE_MAX / 8)
-        return tvpal_diag_set(d->diag, TVPAL_E_OVERFLOW, "%s: %ux%ux%u "
-                              "points overflow", d->path, info->dims[0],
-                              info->dims[1], info->dims[2]);
+    size_t n;
+    if (tvpal_points(info->dims, sizeof(double), &n) < 0)
+        return tvpal_diag_set(d->diag, TVPAL_E_OVERFLOW, "%s: WholeExtent of "
+                              "%ux%ux%u points: more than can be addressed",
+                              d->path, info->dims[0], info->dims[1],
+                              info->dims[2]);
     if (d->have_direction)
         for (int i = 0; i < 9; i++)
             if (d->direction[i] != (i % 4 == 0 ? 1.0 : 0.0))
@@ -722,16 +873,6 @@ static int choose(const struct vti_doc *d, const char *var, int *out)
 
 /* --------------------------------------------------------- byte sources */
 
-/* Raw bytes, or base64 text decoded as it is read: white space is skipped,
- * and a padded quad ends one encoded stream with the next one following. */
-struct src {
-    const unsigned char *p, *end;
-    int b64;
-    unsigned char pend[3];
-    unsigned npend, ipend;
-    int bad;                    /* a character that is not base64 */
-};
-
 static int b64_value(unsigned char c)
 {
     if (c >= 'A' && c <= 'Z') return c - 'A';
@@ -747,14 +888,8 @@ static int b64_value(unsigned char c)
 /* Up to n bytes into out (NULL: skip them); returns how many there were. */
 static size_t src_read(struct src *s, unsigned char *out, size_t n)
 {
-    if (!s->b64) {
-        size_t k = (size_t)(s->end - s->p);
-        k = k < n ? k : n;
-        if (out)
-            memcpy(out, s->p, k);
-        s->p += k;
-        return k;
-    }
+    if (!s->b64)
+        return src_take(s, out, n);
     size_t got = 0;
     while (got < n) {
         if (s->ipend < s->npend) {
@@ -764,9 +899,9 @@ static size_t src_read(struct src *s, unsigned char *out, size_t n)
             got++;
             continue;
         }
-        int v[4], k = 0;
-        while (k < 4 && s->p < s->end) {
-            int c = b64_value(*s->p++);
+        int v[4], k = 0, ch;
+        while (k < 4 && (ch = src_getc(s)) >= 0) {
+            int c = b64_value((unsigned char)ch);
             if (c == -2)
                 continue;
             if (c == -1) {
@@ -800,8 +935,10 @@ static size_t src_read(struct src *s, unsigned char *out, size_t n)
 /* The most bytes the rest of s can hold (base64: an upper bound). */
 static size_t src_left(const struct src *s)
 {
-    size_t k = (size_t)(s->end - s->p);
-    return s->b64 ? k / 4 * 3 + 3 + (s->npend - s->ipend) : k;
+    uint64_t k = s->end - s->off + (s->wlen - s->wpos);
+    if (s->b64)
+        k = k / 4 * 3 + 3 + (s->npend - s->ipend);
+    return k > SIZE_MAX ? SIZE_MAX : (size_t)k;
 }
 
 static uint64_t load_uint(const unsigned char *p, unsigned size, int be)
@@ -858,22 +995,25 @@ static int read_ascii(const struct vti_doc *d, const struct vti_array *a,
                       const uint32_t pdims[3], const uint32_t lo[3],
                       const uint32_t n[3], float *dst, size_t dy, size_t dz)
 {
-    const char *p = (const char *)d->buf + a->text_begin;
-    const char *end = (const char *)d->buf + a->text_end;
+    struct src s;
+    src_range(&s, d, a->text_begin, a->text_end, 0);
+    int c = src_getc(&s);
     const size_t nx = pdims[0], ny = pdims[1];
     const size_t npts = nx * ny * pdims[2], nrows = (size_t)n[1] * n[2];
     size_t i = 0, r = 0, x = 0;
     size_t want = ((size_t)lo[2] * ny + lo[1]) * nx + lo[0];
     for (;; i++) {
-        while (p < end && (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r'))
-            p++;
-        if (p == end)
+        while (c == ' ' || c == '\t' || c == '\n' || c == '\r')
+            c = src_getc(&s);
+        if (c < 0)
             break;
         char tok[64];
         size_t k = 0;
-        while (p < end && !(*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r')
-               && k < sizeof tok - 1)
-            tok[k++] = *p++;
+        while (c >= 0 && !(c == ' ' || c == '\t' || c == '\n' || c == '\r')
+               && k < sizeof tok - 1) {
+            tok[k++] = (char)c;
+            c = src_getc(&s);
+        }
         tok[k] = 0;
         if (i >= npts)
             return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: ascii array %s "
@@ -900,6 +1040,8 @@ static int read_ascii(const struct vti_doc *d, const struct vti_array *a,
             want = (((size_t)lo[2] + r / n[1]) * ny + lo[1] + r % n[1]) * nx +
                    lo[0];
     }
+    if (s.err)
+        return s.err;
     if (i < npts)
         return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: ascii array %s has "
                               "%zu values; its extent needs %zu", d->path,
@@ -911,6 +1053,8 @@ static int truncated(const struct vti_doc *d, const struct vti_array *a,
                      const struct src *s, const char *what, uint64_t got,
                      uint64_t want)
 {
+    if (s->err)
+        return s->err;
     if (s->bad)
         return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s: a "
                               "character that is not base64 in its %s",
@@ -951,55 +1095,76 @@ static int inflate_block(const unsigned char *c, uint64_t csize,
     return *z != TVPAL_INFLATE_OK || got != want;
 }
 
-/* Raw (not base64) compressed blocks lie one after the other at c: each
- * inflates on its own, so the threads of d->pool share them (the
- * encoder's other threads wait for the step meanwhile).  The lowest
- * failing block is reported, as a serial loop would. */
+/* Raw (not base64) compressed blocks lie one after the other in the file:
+ * they are read in batches of about BLOCK_BATCH bytes (one block at
+ * least) and each inflates on its own, so the threads of d->pool share a
+ * batch (the encoder's other threads wait for the step meanwhile).  The
+ * lowest failing block is reported, as a serial loop would. */
+#define BLOCK_BATCH ((uint64_t)32 << 20)
 struct blocks_job {
-    const unsigned char *c;
-    const uint64_t *csize, *at;
-    uint64_t nb, bs, last;
+    const unsigned char *c;     /* the batch: blocks first .. */
+    const uint64_t *csize, *at; /* at[i]: block i's offset in the blocks */
+    uint64_t first, nb, bs, last;
     unsigned char *out;
     int64_t bad;                /* the lowest failing block (atomic
                                  * minimum); INT64_MAX: none */
 };
 
+static int block_inflate(const struct blocks_job *j, uint64_t i, int *z)
+{
+    uint64_t want = i + 1 == j->nb && j->last ? j->last : j->bs;
+    return inflate_block(j->c + (j->at[i] - j->at[j->first]), j->csize[i],
+                         j->out + i * j->bs, want, z);
+}
+
 static void block_body(void *arg, size_t i, unsigned tid)
 {
     struct blocks_job *j = arg;
     (void)tid;
-    uint64_t want = (uint64_t)i + 1 == j->nb && j->last ? j->last : j->bs;
     int z;
-    if (inflate_block(j->c + j->at[i], j->csize[i],
-                      j->out + (uint64_t)i * j->bs, want, &z))
-        tvpal_pool_lowest(&j->bad, (int64_t)i);
+    if (block_inflate(j, j->first + i, &z))
+        tvpal_pool_lowest(&j->bad, (int64_t)(j->first + i));
 }
 
 static int inflate_raw_blocks(const struct vti_doc *d,
-                              const struct vti_array *a,
-                              const unsigned char *c, const uint64_t *csize,
-                              uint64_t nb, uint64_t bs, uint64_t last,
-                              unsigned char *out)
+                              const struct vti_array *a, uint64_t foff,
+                              const uint64_t *csize, uint64_t nb, uint64_t bs,
+                              uint64_t last, unsigned char *out)
 {
     uint64_t *at = malloc(sizeof *at * (size_t)(nb + 1));
     if (!at)
         return TVPAL_E_NOMEM;
     at[0] = 0;
+    uint64_t most = 0;   /* the largest batch */
     for (uint64_t i = 0; i < nb; i++)
         at[i + 1] = at[i] + csize[i];
-    struct blocks_job j = {.c = c, .csize = csize, .at = at, .nb = nb,
-                           .bs = bs, .last = last, .out = out,
-                           .bad = INT64_MAX};
-    tvpal_pool_for(d->pool, (size_t)nb, block_body, &j);
-    int rc = 0;
-    if (j.bad != INT64_MAX) {
-        /* the lowest failing block's status: it fails the same way again */
-        const uint64_t i = (uint64_t)j.bad;
-        int z;
-        inflate_block(c + at[i], csize[i], out + i * bs,
-                      i + 1 == nb && last ? last : bs, &z);
-        rc = block_error(d, a, i, nb, z);
+    for (uint64_t i = 0, j; i < nb; i = j) {
+        for (j = i + 1; j < nb && at[j + 1] - at[i] <= BLOCK_BATCH; j++)
+            ;
+        most = at[j] - at[i] > most ? at[j] - at[i] : most;
     }
+    unsigned char *c = malloc((size_t)most + 1);
+    struct blocks_job job = {.c = c, .csize = csize, .at = at, .nb = nb,
+                             .bs = bs, .last = last, .out = out,
+                             .bad = INT64_MAX};
+    int rc = c ? 0 : TVPAL_E_NOMEM;
+    for (uint64_t i = 0, j; rc == 0 && i < nb; i = j) {
+        for (j = i + 1; j < nb && at[j + 1] - at[i] <= BLOCK_BATCH; j++)
+            ;
+        rc = doc_pread(d, c, (size_t)(at[j] - at[i]), foff + at[i],
+                       "its compressed blocks");
+        job.first = i;
+        if (rc == 0)
+            tvpal_pool_for(d->pool, (size_t)(j - i), block_body, &job);
+        if (rc == 0 && job.bad != INT64_MAX) {
+            /* the lowest failing block's status: it fails the same way
+             * again */
+            int z;
+            block_inflate(&job, (uint64_t)job.bad, &z);
+            rc = block_error(d, a, (uint64_t)job.bad, nb, z);
+        }
+    }
+    free(c);
     free(at);
     return rc;
 }
@@ -1008,13 +1173,8 @@ static int inflate_raw_blocks(const struct vti_doc *d,
 static int src_open(const struct vti_doc *d, const struct vti_array *a,
                     struct src *s)
 {
-    memset(s, 0, sizeof *s);
-    if (a->fmt == F_BINARY) {
-        s->p = d->buf + a->text_begin;
-        s->end = d->buf + a->text_end;
-        s->b64 = 1;
-        return 0;
-    }
+    if (a->fmt == F_BINARY)
+        return src_range(s, d, a->text_begin, a->text_end, 1);
     uint64_t room = d->size - d->appended_at;
     if (a->offset >= room)
         return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s: "
@@ -1022,10 +1182,8 @@ static int src_open(const struct vti_doc *d, const struct vti_array *a,
                               "of the file (%llu bytes of appended data)",
                               d->path, a->name, (unsigned long long)a->offset,
                               (unsigned long long)room);
-    s->p = d->buf + d->appended_at + a->offset;
-    s->end = d->buf + d->size;
-    s->b64 = d->appended_base64;
-    return 0;
+    return src_range(s, d, d->appended_at + a->offset, d->size,
+                     d->appended_base64);
 }
 
 /* The header of uncompressed data ([nbytes]) checked, s then at the
@@ -1139,7 +1297,8 @@ static int read_binary(const struct vti_doc *d, const struct vti_array *a,
     if (out && s.b64 && !(cbuf = malloc((size_t)b.cmax + 1)))
         rc = TVPAL_E_NOMEM;
     if (rc == 0 && out && !s.b64)
-        rc = inflate_raw_blocks(d, a, s.p, b.csize, b.nb, b.bs, b.last, out);
+        rc = inflate_raw_blocks(d, a, src_pos(&s), b.csize, b.nb, b.bs,
+                                b.last, out);
     for (uint64_t i = 0; rc == 0 && out && s.b64 && i < b.nb; i++) {
         size_t got = src_read(&s, cbuf, (size_t)b.csize[i]);
         if (got < b.csize[i]) {
@@ -1301,17 +1460,14 @@ static int decode_box(struct tvpal_input_file *f, const struct vti_doc *d,
         return rc;
     struct box_cur c = {pdims, lo, n, sz, a->t, d->big_endian, dst, dy, dz,
                         0, (uint64_t)n[1] * n[2], 0, {0}, 0};
-    int fd = -1;
-    if (!s.b64 && (fd = open(d->path, O_RDONLY)) < 0)
-        return tvpal_diag_set(d->diag, TVPAL_E_OPEN, "%s: %s", d->path,
-                              strerror(errno));
+    const int fd = d->fd;
     if (!d->compressor[0]) {
         rc = plain_header(d, a, &s, nbytes);
         if (rc == 0 && !s.b64) {
             const struct conv_ctx cc = {a->t, d->big_endian};
             const int direct = a->t == T_F32 &&
                                d->big_endian == host_big_endian();
-            rc = tvpal_input_box_pread(fd, (uint64_t)(s.p - d->buf), pdims, sz,
+            rc = tvpal_input_box_pread(fd, src_pos(&s), pdims, sz,
                                        lo, n, dst, dy, dz,
                                        direct ? NULL : conv_box, &cc, &f->io,
                                        d->path, what, d->diag);
@@ -1336,8 +1492,6 @@ static int decode_box(struct tvpal_input_file *f, const struct vti_doc *d,
             cur_feed(&c, f->io.buf, at, k);
             at += k;
         }
-        if (fd >= 0)
-            close(fd);
         return rc;
     }
     struct blocks b;
@@ -1346,7 +1500,7 @@ static int decode_box(struct tvpal_input_file *f, const struct vti_doc *d,
         rc = grow(&f->blk, &f->blk_cap, (size_t)b.bs);
     if (rc == 0)
         rc = grow(&f->cbuf, &f->cbuf_cap, (size_t)b.cmax + 1);
-    uint64_t foff = (uint64_t)(s.p - d->buf);   /* raw: block i's offset */
+    uint64_t foff = src_pos(&s);   /* raw: block i's offset */
     for (uint64_t i = 0; rc == 0 && i < b.nb; i++) {
         const uint64_t b0 = i * b.bs;
         const uint64_t len = i + 1 == b.nb && b.last ? b.last : b.bs;
@@ -1375,8 +1529,6 @@ static int decode_box(struct tvpal_input_file *f, const struct vti_doc *d,
             cur_feed(&c, f->blk, b0, len);
     }
     free(b.csize);
-    if (fd >= 0)
-        close(fd);
     return rc;
 }
 
@@ -1477,8 +1629,99 @@ static int piece_load(struct vti_doc *d, const char *ppath,
     return rc;
 }
 
+static int cmp_ll(const void *a, const void *b)
+{
+    const long long x = *(const long long *)a, y = *(const long long *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* The index of x in the sorted v[0..n), where it is. */
+static size_t index_of(const long long *v, size_t n, long long x)
+{
+    size_t lo = 0;
+    while (n > 1) {
+        size_t h = n / 2;
+        if (v[lo + h] <= x)
+            lo += h;
+        n -= h;
+    }
+    return lo;
+}
+
+/* The most blocks the coverage check below marks (pieces times blocks):
+ * a few thousand pieces on a regular decomposition take a millionth of
+ * it. */
+#define COVER_WORK ((uint64_t)1 << 32)
+
+/* Whether the pieces of f (inside its whole extent) cover it.  The piece
+ * boundaries cut each axis into at most 2 * npcs + 1 runs, and the grid of
+ * these blocks, a byte per block, is marked piece by piece: memory and time
+ * follow the pieces, not the points a file claims.  The first point in
+ * none is named. */
+static int pieces_cover(const struct tvpal_input_file *f, const char *path,
+                        struct tvpal_diag *diag)
+{
+    const long long *w = f->whole;
+    const size_t np = (size_t)f->npcs, cap = 2 * np + 2;
+    long long *b[3] = {NULL, NULL, NULL};
+    size_t nb[3] = {0, 0, 0};
+    unsigned char *seen = NULL;
+    int rc = 0;
+    for (int a = 0; a < 3 && rc == 0; a++) {
+        if (!(b[a] = malloc(sizeof *b[a] * cap))) {
+            rc = TVPAL_E_NOMEM;
+            break;
+        }
+        size_t k = 0;
+        b[a][k++] = w[2 * a];
+        b[a][k++] = w[2 * a + 1] + 1;
+        for (size_t i = 0; i < np; i++) {
+            b[a][k++] = f->pcs[i].ext[2 * a];
+            b[a][k++] = f->pcs[i].ext[2 * a + 1] + 1;
+        }
+        qsort(b[a], k, sizeof *b[a], cmp_ll);
+        nb[a] = 1;
+        for (size_t i = 1; i < k; i++)
+            if (b[a][i] != b[a][nb[a] - 1])
+                b[a][nb[a]++] = b[a][i];
+    }
+    const size_t cx = nb[0] - 1, cy = nb[1] - 1, cz = nb[2] - 1;
+    uint64_t cells = 0, work = 0;
+    if (rc == 0 && (tvpal_mul3(cx, cy, cz, &cells) < 0 ||
+                    tvpal_mul(cells, np, &work) < 0 || work > COVER_WORK))
+        rc = tvpal_diag_set(diag, TVPAL_E_RANGE, "%s: %zu Pieces cut the "
+                            "WholeExtent into %zux%zux%zu blocks: too many "
+                            "to check that they cover it", path, np, cx, cy,
+                            cz);
+    if (rc == 0 && !(seen = calloc((size_t)cells, 1)))
+        rc = TVPAL_E_NOMEM;
+    for (size_t i = 0; rc == 0 && i < np; i++) {
+        const long long *e = f->pcs[i].ext;
+        size_t lo[3], hi[3];
+        for (int a = 0; a < 3; a++) {
+            lo[a] = index_of(b[a], nb[a], e[2 * a]);
+            hi[a] = index_of(b[a], nb[a], e[2 * a + 1] + 1);
+        }
+        for (size_t z = lo[2]; z < hi[2]; z++)
+            for (size_t y = lo[1]; y < hi[1]; y++)
+                memset(seen + (z * cy + y) * cx + lo[0], 1, hi[0] - lo[0]);
+    }
+    size_t hole = 0;
+    while (rc == 0 && hole < cells && seen[hole])
+        hole++;
+    if (rc == 0 && hole < cells)
+        rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: the Pieces do not "
+                            "cover the WholeExtent: point (%lld,%lld,%lld) "
+                            "is in none", path, b[0][hole % cx],
+                            b[1][hole / cx % cy], b[2][hole / cx / cy]);
+    free(seen);
+    for (int a = 0; a < 3; a++)
+        free(b[a]);
+    return rc;
+}
+
 /* The pieces of the .pvti d into f: resolved, inside the whole extent,
- * covering it (a byte per point, for this check only), each one readable. */
+ * covering it (pieces_cover), each one readable. */
 static int pieces_open(struct tvpal_input_file *f, struct vti_doc *d,
                        struct tvpal_diag *diag)
 {
@@ -1503,32 +1746,13 @@ static int pieces_open(struct tvpal_input_file *f, struct vti_doc *d,
                                       e[2], e[3], e[4], e[5]);
         most = ext_points(e) > most ? ext_points(e) : most;
     }
-    size_t nx = (size_t)f->dims[0], ny = f->dims[1], nz = f->dims[2];
-    unsigned char *seen = calloc(nx * ny * nz, 1);
-    if (!seen)
-        return TVPAL_E_NOMEM;
-    for (int i = 0; i < f->npcs; i++) {
-        const long long *e = f->pcs[i].ext;
-        for (long long z = e[4]; z <= e[5]; z++)
-            for (long long y = e[2]; y <= e[3]; y++)
-                memset(seen + ((size_t)(z - w[4]) * ny + (size_t)(y - w[2])) *
-                       nx + (size_t)(e[0] - w[0]), 1, (size_t)(e[1] - e[0] + 1));
-    }
-    size_t hole = 0;
-    while (hole < nx * ny * nz && seen[hole])
-        hole++;
-    free(seen);
-    if (hole < nx * ny * nz)
-        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: the Pieces do not "
-                              "cover the WholeExtent: point (%lld,%lld,%lld) "
-                              "is in none", d->path, w[0] + (long long)(hole % nx),
-                              w[2] + (long long)(hole / nx % ny),
-                              w[4] + (long long)(hole / nx / ny));
+    int rc = pieces_cover(f, d->path, diag);
+    if (rc < 0)
+        return rc;
     for (int i = 0; i < f->npcs; i++) {
         struct vti_doc pd;
         int pick = -1;
-        int rc = piece_load(&pd, d->path, &f->pcs[i], f->var, f->t, &pick,
-                            diag);
+        rc = piece_load(&pd, d->path, &f->pcs[i], f->var, f->t, &pick, diag);
         if (rc == 0)
             note_layout(f, &pd, &pd.arrays[pick],
                         (uint64_t)ext_points(f->pcs[i].ext) *
@@ -1860,9 +2084,13 @@ int tvpal_input_vtk_collection(const char *path, char ***files,
     *files = NULL;
     *times = NULL;
     *n = 0;
-    FILE *fp = fopen(path, "rb");
-    if (!fp)   /* not ours to say: the backend reports it */
+    int fd = tvpal_open_regular(path, NULL);
+    FILE *fp = fd >= 0 ? fdopen(fd, "rb") : NULL;
+    if (!fp) {   /* not ours to say: the backend reports it */
+        if (fd >= 0)
+            close(fd);
         return 0;
+    }
     struct pvd_doc p = {0};
     p.path = path;
     p.diag = diag;
@@ -1934,12 +2162,14 @@ int tvpal_input_vtk_collection(const char *path, char ***files,
         }
         if (tl)
             tl[i] = p.sets[i].t;
-        FILE *df = fopen(fl[i], "rb");
-        if (!df)
-            rc = tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: its DataSet %s: %s",
-                                path, fl[i], strerror(errno));
+        /* As a file given by itself: regular (a FIFO would block the
+         * reader for ever), readable. */
+        struct tvpal_diag dd;
+        int df = tvpal_open_regular(fl[i], &dd);
+        if (df < 0)
+            rc = tvpal_diag_set(diag, df, "%s: its DataSet %s", path, dd.msg);
         else
-            fclose(df);
+            close(df);
     }
     for (int i = 0; i < p.n; i++) {
         free(p.sets[i].file);

@@ -23,6 +23,8 @@
  * not a readable STRUCTURED_POINTS file, with the path, the line and the
  * problem in the diag; TVPAL_E_INVAL for an array that cannot be chosen. */
 #include "tvpal_input_impl.h"
+#include "tvpal_fs.h"
+#include "tvpal_size.h"
 
 #include <errno.h>
 #include <math.h>
@@ -347,9 +349,14 @@ static int scan(struct vtk_hdr *h, const char *path, struct tvpal_diag *diag)
     h->path = path;
     h->diag = diag;
     h->spacing[0] = h->spacing[1] = h->spacing[2] = 1;
-    if (!(h->fp = fopen(path, "rb")))
-        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", path,
+    int fd = tvpal_open_regular(path, diag);   /* a FIFO would block */
+    if (fd < 0)
+        return fd;
+    if (!(h->fp = fdopen(fd, "rb"))) {
+        close(fd);
+        return tvpal_diag_set(diag, TVPAL_E_NOMEM, "%s: %s", path,
                               strerror(errno));
+    }
     struct stat st;
     if (fstat(fileno(h->fp), &st) < 0)
         return tvpal_diag_set(diag, TVPAL_E_READ, "%s: %s", path,
@@ -408,6 +415,10 @@ static int scan(struct vtk_hdr *h, const char *path, struct tvpal_diag *diag)
                                "size 0 or too large", NULL, NULL);
                 h->dims[i] = (uint32_t)v[i];
             }
+            size_t points;
+            if (tvpal_points(h->dims, sizeof(double), &points) < 0)
+                return bad(h, TVPAL_E_OVERFLOW, "DIMENSIONS: more points "
+                           "than can be addressed", NULL, NULL);
             h->have_dims = 1;
         } else if (!strcasecmp(w, "SPACING") || !strcasecmp(w, "ASPECT_RATIO")) {
             if ((rc = want_doubles(h, h->spacing, w)) < 0)

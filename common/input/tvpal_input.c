@@ -6,8 +6,11 @@
 #ifdef HAVE_INFLATE_ADAPTER
 #include "tvpal_inflate.h"
 #endif
+#include "tvpal_manifest.h"
+#include "tvpal_size.h"
 
 #include <errno.h>
+#include <sys/stat.h>
 #include <unistd.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -168,6 +171,29 @@ static int check_same_grid(const struct tvpal_input_info *a,
     return 0;
 }
 
+static int file_of(const struct tvpal_input *in, uint32_t t);
+
+/* What a file's grid must be for a dataset to hold it: points that can
+ * be addressed, and spacing and origin by the manifest reader's rule
+ * (tvpal_manifest_check_grid): a value a dataset could not read back is
+ * refused here, naming the file and the variable, before any work. */
+static int check_file_grid(const char *path,
+                           const struct tvpal_input_info *info,
+                           struct tvpal_diag *diag)
+{
+    size_t n;
+    if (tvpal_points(info->dims, sizeof(double), &n) < 0)
+        return tvpal_diag_set(diag, TVPAL_E_OVERFLOW, "%s: variable %s: "
+                              "%ux%ux%u points: more than can be addressed",
+                              path, info->var, info->dims[0], info->dims[1],
+                              info->dims[2]);
+    struct tvpal_diag g;
+    if (tvpal_manifest_check_grid(info->spacing, info->origin, NULL, 0, &g))
+        return tvpal_diag_set(diag, TVPAL_E_RANGE, "%s: variable %s: %s",
+                              path, info->var, g.msg);
+    return 0;
+}
+
 /* Opens file i into in->cur (closing another). */
 static int open_file(struct tvpal_input *in, int i, struct tvpal_input_info *info,
                      double **times, struct tvpal_diag *diag)
@@ -186,8 +212,21 @@ static int open_file(struct tvpal_input *in, int i, struct tvpal_input_info *inf
     /* What a file says nothing about: the unit grid, no times. */
     *info = (struct tvpal_input_info){.spacing = {1, 1, 1}};
     *times = NULL;
-    int rc = in->be->open(&in->cur, in->files[i], &in->opts, info, times,
+    /* Every file of a series, and every file a collection names, as a file
+     * given by itself: a regular file (a FIFO would block the format's
+     * library for ever). */
+    int rc = tvpal_open_regular(in->files[i], diag);
+    if (rc >= 0) {
+        close(rc);
+        rc = in->be->open(&in->cur, in->files[i], &in->opts, info, times,
                           diag);
+    }
+    if (rc == 0)
+        rc = check_file_grid(in->files[i], info, diag);
+    if (rc < 0 && in->cur) {
+        in->be->close(in->cur);
+        in->cur = NULL;
+    }
     free(t);
     in->cur_i = i;
     if (rc < 0)
@@ -355,6 +394,20 @@ int tvpal_input_open(struct tvpal_input **out, enum tvpal_input_format fmt,
         in->info.has_times = 1;
     }
     free(coll_times);
+    for (uint32_t t = 0; rc == 0 && in->info.has_times && t < in->info.steps;
+         t++)
+        if (!tvpal_manifest_number_ok(in->times[t])) {
+            /* a collection's timestep is the collection's; else the
+             * file's time coordinate */
+            const int i = file_of(in, t);
+            const char *of = in->listed_in[i] ? in->listed_in[i]
+                                              : in->files[i];
+            rc = tvpal_diag_set(diag, TVPAL_E_RANGE, "%s: the time of step "
+                                "%u (%s) is %.17g: a finite number, 0 or of "
+                                "magnitude at least 2.2250738585072014e-308, "
+                                "expected (a dataset could not hold it)", of,
+                                t, in->files[i], in->times[t]);
+        }
     if (rc == 0 && in->info.steps == 0)
         rc = tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s has no "
                             "timesteps", files[0], in->info.var);
@@ -548,10 +601,17 @@ int tvpal_input_pread(int fd, unsigned char *p, size_t len, uint64_t off,
         if (k < 0)
             return tvpal_diag_set(diag, TVPAL_E_READ, "%s: %s: read: %s",
                                   path, what, strerror(errno));
-        if (k == 0)
-            return tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: %s: the file "
-                                  "ends within its values (changed since "
-                                  "it was opened?)", path, what);
+        if (k == 0) {
+            /* The size was checked when the file was opened: it shrank
+             * since (rewritten by a simulation, a copy in progress). */
+            struct stat st;
+            long long now = fstat(fd, &st) == 0 ? (long long)st.st_size : -1;
+            return tvpal_diag_set(diag, TVPAL_E_TRUNC, "%s: %s: the file "
+                                  "ends at byte %lld, before byte %llu: it "
+                                  "shrank while being read (rewritten, or "
+                                  "still being copied?)", path, what, now,
+                                  (unsigned long long)(off + len));
+        }
         p += k;
         len -= (size_t)k;
         off += (uint64_t)k;
