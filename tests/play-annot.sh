@@ -203,6 +203,17 @@ set -- $(changed "$W/full/t0002.png" "$W/times/t0002.png")
 [ "${1:-0}" -gt 0 ] && [ "$4" -le 160 ] && [ "$5" -le 50 ] \
     && ok "times: $1 pixels differ, all within (0..$4, 0..$5)" \
     || fail "times: ${1:-no} pixels differ, up to (${4:-}, ${5:-}); expected some, in the top left"
+# Units that are not valid UTF-8 (a Latin-1 degree sign, as old files
+# have it): every frame drawn, U+FFFD for the byte, one warning for the run.
+"$ENC" -q --dims $D --window 2 --units "$(printf 'T [\260C]')" -o "$W/dsu" "$W"/in/*.f32 > /dev/null \
+    || fail "encode --units latin-1"
+"$PLAY" "$W/dsu" --headless -q $CL -o "$W/units" > /dev/null 2> "$W/units.txt"
+rc=$?
+n=$(ls "$W/units" | grep -c '\.png$')
+w=$(grep -c "warning: the manifest's units is not valid UTF-8 (a byte 0xb0)" "$W/units.txt")
+[ $rc -eq 0 ] && [ "$n" -eq 3 ] && [ "$w" -eq 1 ] \
+    && ok "units not valid UTF-8: $n frames, warned once" \
+    || { fail "units not valid UTF-8: exit $rc, $n frames, $w warnings"; sed 's/^/    /' "$W/units.txt" >&2; }
 # 3. The window: S with the HUD, H, S without; both in --shot-dir.
 if "$PLAY" --version | grep -q "window: yes" && command -v xvfb-run > /dev/null \
    && command -v xdotool > /dev/null; then

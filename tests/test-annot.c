@@ -4,12 +4,14 @@
  * when the legend kept from the frame before must be drawn again for a new
  * TF; its ticks are round numbers inside the range; the outline's lines meet at
  * the given corners; nothing is drawn where nothing was asked, and the
- * rest of the frame is left as it was; the HUD stays in its box; bad
+ * rest of the frame is left as it was; the HUD stays in its box; labels
+ * that are not valid UTF-8 are drawn as their U+FFFD-repaired copies; bad
  * sizes and ranges are refused.  The tick arithmetic is checked in every
  * build; the drawing skips (77), saying so, without cairo. */
 #include "tvpal_annot.h"
 #include "tvpal_test.h"
 #include "tvpal_tf.h"
+#include "tvpal_utf8.h"
 
 enum { WD = 320, HT = 240 };
 
@@ -213,6 +215,44 @@ static void check_untouched_and_hud(struct tvpal_annot *a)
           changed_in);
 }
 
+/* Labels read from files that are not valid UTF-8 (a Latin-1 "\xb0C"
+ * units attribute) are drawn, each invalid byte as U+FFFD, exactly as the
+ * repaired string is: the frame never fails for a label. */
+static void check_bad_utf8(struct tvpal_annot *a)
+{
+    static const char *bad[] = {"T [\xb0" "C]", "\xff\xfe", "a\xe2\x82",
+                                "\xed\xa0\x80 surrogate",
+                                "\xc0\xaf overlong"};
+    static uint8_t want[WD * HT * 4];
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        char fixed[64];
+        CHECK(tvpal_utf8_repair(fixed, sizeof fixed, bad[i]) > 0 &&
+              !fixed[tvpal_utf8_valid_prefix(fixed)], "%zu repaired", i);
+        struct tvpal_diag d = {{0}};
+        struct tvpal_tf tf;
+        REQUIRE(tvpal_tf_parse_text("domain normalized\n0 1 0 0 0\n1 0 0 1 "
+                                    "1\n", 0, 1, &tf, &d) == 0, "%s", d.msg);
+        struct tvpal_annot_frame f = {.what = TVPAL_ANNOT_LEGEND |
+                                              TVPAL_ANNOT_TIME,
+                                      .vmin = 0, .vmax = 1,
+                                      .colour = tf_colour,
+                                      .colour_ctx = &tf, .title = fixed,
+                                      .time_text = fixed, .fg = {1, 1, 1}};
+        memset(want, 0, sizeof want);
+        CHECK(tvpal_annot_draw(a, &f, want, &d) == 0, "repaired: %s", d.msg);
+        f.title = f.time_text = bad[i];
+        memset(frame, 0, sizeof frame);
+        CHECK(tvpal_annot_draw(a, &f, frame, &d) == 0, "label %zu not valid "
+              "UTF-8: %s", i, d.msg);
+        CHECK(!memcmp(frame, want, sizeof frame), "label %zu drawn as its "
+              "repaired copy", i);
+        const char *lines[] = {bad[i]};
+        static const float fg[3] = {1, 1, 1};
+        CHECK(tvpal_annot_hud(a, lines, 1, fg, frame, NULL, &d) == 0,
+              "HUD line %zu: %s", i, d.msg);
+    }
+}
+
 static void check_errors(struct tvpal_annot *a)
 {
     struct tvpal_annot *b = NULL;
@@ -243,6 +283,7 @@ int main(void)
     check_legends(a);
     check_outline(a);
     check_untouched_and_hud(a);
+    check_bad_utf8(a);
     check_errors(a);
     tvpal_annot_free(a);
     return tt_done("test-annot");

@@ -1,5 +1,6 @@
 /* play_annot.c: see play_annot.h. */
 #include "play_annot.h"
+#include "tvpal_utf8.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -92,6 +93,23 @@ void play_annot_box_corners(const struct tvpal_view *v, double corner[8][2])
     }
 }
 
+/* Labels that are not valid UTF-8 are drawn with U+FFFD for the bytes
+ * that are not (tvpal_annot): said once per run, naming the key. */
+static void warn_text(struct play_annot *pa, const struct tvpal_manifest *m)
+{
+    const char *keys[3] = {"units", "time_units", "source_var"};
+    const char *vals[3] = {m->units, m->time_units,
+                           m->source_var ? m->source_var : ""};
+    for (int i = 0; i < 3 && !pa->warned_text; i++)
+        if (vals[i][tvpal_utf8_valid_prefix(vals[i])]) {
+            fprintf(stderr, PLAY_PROG ": warning: the manifest's %s is not valid "
+                    "UTF-8 (a byte 0x%02x): drawn with U+FFFD for its "
+                    "invalid bytes\n", keys[i], (unsigned char)
+                    vals[i][tvpal_utf8_valid_prefix(vals[i])]);
+            pa->warned_text = 1;
+        }
+}
+
 int play_annot_frame(struct play_annot *pa, const struct play_session *s,
                      const struct tvpal_view *v, uint32_t t, uint8_t *frame,
                      struct tvpal_diag *diag)
@@ -124,6 +142,7 @@ int play_annot_frame(struct play_annot *pa, const struct play_session *s,
                  m->time_units[0] ? " " : "", m->time_units);
     else
         snprintf(pa->time, sizeof pa->time, "step %u", t);
+    warn_text(pa, m);
     play_annot_box_corners(v, f.corner);
     for (int i = 0; i < 3; i++) {
         f.axis_dir[i][0] = v->rot[0][i];

@@ -18,6 +18,7 @@ struct play_annot {
     const struct tvpal_tf *tf;      /* the legend's: the frame's TF, */
     double opacity;                 /* at its opacity scale */
     char title[160], time[192];
+    int warned_text;                /* a label not valid UTF-8 was said */
 };
 
 /* What --annotate LEVEL draws (TVPAL_ANNOT_* bits): none 0, minimal the

@@ -1,6 +1,7 @@
 /* tvpal_annot.c: annotations and the window HUD with cairo (see
  * tvpal_annot.h; the only file that includes cairo). */
 #include "tvpal_annot.h"
+#include "tvpal_utf8.h"
 
 #include <cairo.h>
 #include <math.h>
@@ -238,6 +239,18 @@ static void over_overlay(struct tvpal_annot *a, const struct layer *l,
 
 /* ------------------------------------------------------ text and lines */
 
+/* s as cairo will draw it: itself when it is valid UTF-8, else a copy in
+ * buf with U+FFFD for each invalid byte (cairo refuses such a string, and
+ * would fail the frame for a label read from a file). */
+#define TEXT_MAX 512
+static const char *drawable(const char *s, char buf[TEXT_MAX])
+{
+    if (!s[tvpal_utf8_valid_prefix(s)])
+        return s;
+    tvpal_utf8_repair(buf, TEXT_MAX, s);
+    return buf;
+}
+
 /* Text with its left baseline at (x, y), in fg over a halo: the glyphs
  * drawn in the halo colour one pixel off in eight directions, then in fg
  * (cairo's glyph cache makes this several times cheaper than stroking the
@@ -249,6 +262,8 @@ static void text(struct tvpal_annot *a, double x, double y, const char *s,
                                           {-1, 0}, {1, 0}, {-1, 1},
                                           {0, 1}, {1, 1}};
     cairo_t *cr = a->cur->cr;
+    char buf[TEXT_MAX];
+    s = drawable(s, buf);
     cairo_text_extents_t e;
     cairo_text_extents(cr, s, &e);
     dirty_add(a, x + e.x_bearing - 2, y + e.y_bearing - 2,
@@ -266,8 +281,9 @@ static void text(struct tvpal_annot *a, double x, double y, const char *s,
 
 static double text_width(struct tvpal_annot *a, const char *s)
 {
+    char buf[TEXT_MAX];
     cairo_text_extents_t e;
-    cairo_text_extents(a->cur->cr, s, &e);
+    cairo_text_extents(a->cur->cr, drawable(s, buf), &e);
     return e.x_advance;
 }
 
@@ -618,7 +634,8 @@ int tvpal_annot_hud(struct tvpal_annot *a, const char *const *lines,
     cairo_set_source_rgb(cr, fg[0], fg[1], fg[2]);
     for (unsigned i = 0; i < nlines; i++) {
         cairo_move_to(cr, x0 + m, y0 + m / 2 + (i + 1) * lh - (lh - ascent(a)));
-        cairo_show_text(cr, lines[i]);
+        char buf[TEXT_MAX];
+        cairo_show_text(cr, drawable(lines[i], buf));
     }
     if (box) {
         box[0] = (unsigned)x0;
