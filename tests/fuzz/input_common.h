@@ -1,11 +1,14 @@
 /* input_common.h: the body of the input-reader harnesses (vti, vtk,
  * netcdf, hdf5): the input is written to a temporary file named name and
- * read as format fmt: tvpal_input_detect, tvpal_input_open, the first
- * steps (when a step is at most 2^20 voxels), tvpal_input_describe. */
+ * read as format fmt: tvpal_input_detect, tvpal_input_open, the grid and
+ * times it reports (check_grid), the first steps (when a step is at most
+ * 2^20 voxels), tvpal_input_describe. */
 #ifndef TVPAL_FUZZ_INPUT_COMMON_H
 #define TVPAL_FUZZ_INPUT_COMMON_H
 #include "fuzz_util.h"
 #include "tvpal_input.h"
+#include "tvpal_manifest.h"
+#include "tvpal_size.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -27,6 +30,39 @@ static void read_steps(struct tvpal_input *in)
     free(v);
 }
 
+/* What a reader accepts, a dataset must be able to hold: points that can
+ * be addressed, and a grid and times by the manifest reader's rule
+ * (tvpal_manifest_check_grid).  A reader that lets through what the
+ * encoder would write and then fail to read back aborts here. */
+static void check_grid(struct tvpal_input *in)
+{
+    const struct tvpal_input_info *info = tvpal_input_info(in);
+    size_t n;
+    if (tvpal_points(info->dims, sizeof(double), &n) < 0)
+        abort();
+    if (tvpal_manifest_check_grid(info->spacing, info->origin, NULL, 0,
+                                  NULL) < 0)
+        abort();
+    for (uint32_t t = 0; info->has_times && t < info->steps && t < 65536;
+         t++)
+        if (!tvpal_manifest_number_ok(tvpal_input_time(in, t)))
+            abort();
+}
+
+/* Opens files[0..nfiles) as format fmt, checks its grid and reads its
+ * first steps. */
+static void open_and_read(char **files, int nfiles,
+                          enum tvpal_input_format fmt)
+{
+    struct tvpal_diag d;
+    struct tvpal_input *in;
+    if (tvpal_input_open(&in, fmt, files, nfiles, NULL, &d) == 0) {
+        check_grid(in);
+        read_steps(in);
+        tvpal_input_close(in);
+    }
+}
+
 static int fuzz_input(const uint8_t *data, size_t size,
                       enum tvpal_input_format fmt, const char *name)
 {
@@ -36,11 +72,7 @@ static int fuzz_input(const uint8_t *data, size_t size,
     struct tvpal_diag d;
     enum tvpal_input_format f;
     (void)tvpal_input_detect(path, NULL, &f, &d);
-    struct tvpal_input *in;
-    if (tvpal_input_open(&in, fmt, &path, 1, NULL, &d) == 0) {
-        read_steps(in);
-        tvpal_input_close(in);
-    }
+    open_and_read(&path, 1, fmt);
     char *text = NULL;
     if (tvpal_input_describe(path, fmt, &text, &d) == 0)
         free(text);
