@@ -15,6 +15,8 @@
 #include "tt_box.h"
 
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #ifndef HAVE_HDF5
 int main(void)
@@ -469,6 +471,58 @@ static void test_errors(void)
           "plain HDF5 as netcdf: %d %s", rc, g.msg);
 }
 
+/* Files an HDF5 file names (an external link's target, a dataset's
+ * external storage) are checked as top-level inputs are: a FIFO there is
+ * refused at once, naming it, instead of blocking the library for ever
+ * (alarm: a hang fails the test).  A regular target still reads. */
+static void test_named_files(void)
+{
+    struct tvpal_diag g;
+    int rc;
+    REQUIRE(mkfifo(wpath("fifo.h5"), 0600) == 0 &&
+            mkfifo(wpath("fifo.raw"), 0600) == 0, "mkfifo");
+    static float v[2 * 3 * 4];
+    for (int i = 0; i < 24; i++)
+        v[i] = val(0, i);
+    write_text(wpath("ext.raw"), (const char *)v, sizeof v);
+    hid_t f = create(wpath("named.h5"));
+    REQUIRE(H5Lcreate_external("fifo.h5", "/d", f, "to_fifo", H5P_DEFAULT,
+                               H5P_DEFAULT) >= 0, "external link");
+    const hsize_t dims[3] = {2, 3, 4};
+    const char *names[2] = {"ext_fifo", "ext_good"};
+    const char *files[2] = {wpath("fifo.raw"), wpath("ext.raw")};
+    for (int k = 0; k < 2; k++) {
+        hid_t s = H5Screate_simple(3, dims, NULL);
+        hid_t p = H5Pcreate(H5P_DATASET_CREATE);
+        REQUIRE(H5Pset_external(p, files[k], 0, sizeof v) >= 0, "external");
+        hid_t d = H5Dcreate2(f, names[k], H5T_IEEE_F32LE, s, H5P_DEFAULT, p,
+                             H5P_DEFAULT);
+        REQUIRE(d >= 0, "external dataset %s", names[k]);
+        H5Dclose(d);
+        H5Pclose(p);
+        H5Sclose(s);
+    }
+    H5Fclose(f);
+    alarm(60);
+    CHECK(!open1(TVPAL_IN_HDF5, wpath("named.h5"), "/to_fifo", &rc, &g) &&
+          rc == TVPAL_E_OPEN && strstr(g.msg, "named.h5") &&
+          strstr(g.msg, "fifo.h5: not a regular file (a FIFO)"),
+          "external link to a FIFO: %d %s", rc, g.msg);
+    CHECK(!open1(TVPAL_IN_HDF5, wpath("named.h5"), "/ext_fifo", &rc, &g) &&
+          rc == TVPAL_E_OPEN && strstr(g.msg, "/ext_fifo: its external "
+                                       "storage") &&
+          strstr(g.msg, "fifo.raw: not a regular file (a FIFO)"),
+          "external storage in a FIFO: %d %s", rc, g.msg);
+    struct tvpal_input *in = open1(TVPAL_IN_HDF5, wpath("named.h5"),
+                                   "/ext_good", &rc, &g);
+    float got[24];
+    CHECK(in && tvpal_input_read(in, 0, got, &g) == 0 &&
+          !memcmp(got, v, sizeof v), "external storage in a regular file "
+          "reads: %s", g.msg);
+    tvpal_input_close(in);
+    alarm(0);
+}
+
 /* NetCDF-4 (ncgen) stays NetCDF under AUTO; a dataset path reads it as
  * HDF5. */
 static void test_netcdf4(void)
@@ -803,6 +857,7 @@ int main(int argc, char **argv)
     test_types();
     test_fill();
     test_errors();
+    test_named_files();
     test_netcdf4();
     test_boxes();
 #if defined(HAVE_ZLIB) || defined(HAVE_LIBDEFLATE)

@@ -23,6 +23,7 @@
  * for the process (H5Eset_auto2), and the innermost message of the stack
  * goes into the diag next to the file and the dataset. */
 #include "tvpal_input_impl.h"
+#include "tvpal_fs.h"
 
 #include "tvpal_pool.h"
 
@@ -35,6 +36,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #define NO_ID ((hid_t)-1)
 #define MAX_MISSING 16   /* _FillValue and missing_value's values */
@@ -797,6 +800,96 @@ static void list_datasets(char *out, size_t cap, hid_t file, int all)
     tvpal_input_copy_str(out, cap, tmp);
 }
 
+/* ------------------------------------------ files named inside the file */
+
+/* The files an HDF5 file names are opened by the library, not by tvpal:
+ * the targets of external links and a dataset's external storage.  Each
+ * is checked as a top-level input is (tvpal_open_regular: a FIFO there
+ * would block the library for ever), where the library looks for it: as
+ * named (from the working directory) and beside the file that names it. */
+struct named_file {
+    const char *parent;         /* the file that names it */
+    char bad[sizeof ((struct tvpal_diag *)0)->msg];  /* why it was refused */
+};
+
+/* 0, or -1 with c->bad set: name (as given, or beside c->parent) exists
+ * and is not a regular file. */
+static int check_named(struct named_file *c, const char *name)
+{
+    char beside[4096];
+    const char *slash = strrchr(c->parent, '/');
+    int k = name[0] == '/' || !slash ? -1
+            : snprintf(beside, sizeof beside, "%.*s/%s",
+                       (int)(slash - c->parent), c->parent, name);
+    const char *cand[2] = {name, k > 0 && (size_t)k < sizeof beside ? beside
+                                                                    : NULL};
+    for (int i = 0; i < 2; i++) {
+        struct stat st;
+        if (!cand[i] || stat(cand[i], &st) < 0)
+            continue;
+        struct tvpal_diag d;
+        int fd = tvpal_open_regular(cand[i], &d);
+        if (fd < 0) {
+            snprintf(c->bad, sizeof c->bad, "%s", d.msg);
+            return -1;
+        }
+        close(fd);
+    }
+    return 0;
+}
+
+/* The library's callback before it follows an external link. */
+static herr_t on_elink(const char *parent_file, const char *parent_group,
+                       const char *child_file, const char *child_object,
+                       unsigned *acc_flags, hid_t fapl, void *op)
+{
+    (void)parent_file, (void)parent_group, (void)child_object;
+    (void)acc_flags, (void)fapl;
+    return check_named(op, child_file) < 0 ? -1 : 0;
+}
+
+/* H5Oopen(file, path) with every external link on the path checked:
+ * < 0 with c->bad set when one names a file that is not regular. */
+static hid_t open_checked(hid_t file, const char *path, struct named_file *c)
+{
+    hid_t lapl = H5Pcreate(H5P_LINK_ACCESS);
+    if (lapl < 0 || H5Pset_elink_cb(lapl, on_elink, c) < 0) {
+        if (lapl >= 0)
+            H5Pclose(lapl);
+        return H5Oopen(file, path, H5P_DEFAULT);
+    }
+    hid_t o = H5Oopen(file, path, lapl);
+    H5Pclose(lapl);
+    return o;
+}
+
+/* The dataset's external storage files (H5Pset_external), each checked. */
+static int check_external_storage(const struct tvpal_input_file *f,
+                                  struct tvpal_diag *diag)
+{
+    hid_t dcpl = H5Dget_create_plist(f->dset);
+    int n = dcpl >= 0 ? H5Pget_external_count(dcpl) : 0;
+    struct named_file c = {.parent = f->path};
+    int rc = 0;
+    for (int i = 0; i < n && rc == 0; i++) {
+        char name[4096];
+        off_t off;
+        hsize_t size;
+        if (H5Pget_external(dcpl, (unsigned)i, sizeof name, name, &off,
+                            &size) < 0)
+            continue;
+        name[sizeof name - 1] = 0;
+        if (check_named(&c, name) < 0)
+            rc = tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: dataset %s: its "
+                                "external storage: %s", f->path, f->var,
+                                c.bad);
+    }
+    if (dcpl >= 0)
+        H5Pclose(dcpl);
+    H5Eclear2(H5E_DEFAULT);
+    return rc;
+}
+
 /* The dataset to read: opts->var, or the only candidate.  Opens f->dset
  * and sets f->var. */
 static int choose_dataset(struct tvpal_input_file *f,
@@ -816,8 +909,12 @@ static int choose_dataset(struct tvpal_input_file *f,
             return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: dataset path %s "
                                   "is too long (at most %zu characters)",
                                   f->path, opts->var, sizeof f->var - 2);
-        hid_t o = H5Oopen(f->file, f->var, H5P_DEFAULT);
+        struct named_file c = {.parent = f->path};
+        hid_t o = open_checked(f->file, f->var, &c);
         H5Eclear2(H5E_DEFAULT);
+        if (o < 0 && c.bad[0])
+            return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s: an external "
+                                  "link to %s", f->path, f->var, c.bad);
         if (o >= 0 && H5Iget_type(o) == H5I_DATASET) {
             f->dset = o;
             return 0;
@@ -987,6 +1084,8 @@ static int h5_open(struct tvpal_input_file **out, const char *path,
     int rc = open_file(path, &f->file, diag);
     if (rc == 0)
         rc = choose_dataset(f, opts, diag);
+    if (rc == 0)
+        rc = check_external_storage(f, diag);
     if (rc == 0)
         rc = read_layout(f, info, diag);
     if (rc == 0) {

@@ -166,8 +166,10 @@ int tvpal_input_read_box(struct tvpal_input *in, uint32_t t,
  *   vti     raw appended: at most 4 MiB of rows (none for float32 in the
  *           host's byte order and boxes of whole x-rows); zlib blocks: one
  *           compressed and one inflated block and the block table; base64:
- *           a 64 KiB piece; ascii: none (the text is parsed where it is
- *           mapped); .pvti: the most over its pieces;
+ *           a 64 KiB piece; ascii: none (the text is parsed as it is
+ *           read, through a 32 KiB window on the stack); .pvti: the most
+ *           over its pieces; besides, while a call runs, the XML is read
+ *           in pieces of 1 MiB (freed before it returns);
  *   vtk     binary: at most 4 MiB of rows; ascii: none (the values are
  *           parsed in order up to the box's last).
  * No format needs a whole timestep. */
