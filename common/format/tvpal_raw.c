@@ -1,5 +1,6 @@
 /* tvpal_raw.c: raw element conversion (see tvpal_raw.h). */
 #include "tvpal_raw.h"
+#include "tvpal_size.h"
 
 #include <errno.h>
 #include <math.h>
@@ -55,10 +56,9 @@ int tvpal_dims_parse(const char *s, uint32_t dims[3], struct tvpal_diag *diag)
                                   "dims \"%s\": every dimension must be at "
                                   "least 1", s);
         dims[i] = (uint32_t)v;
-        if (total > (UINT64_MAX / 8) / v)
+        if (tvpal_mul(total, v, &total) < 0 || total > UINT64_MAX / 8)
             return tvpal_diag_set(diag, TVPAL_E_OVERFLOW,
                                   "dims \"%s\": volume size overflows", s);
-        total *= v;
         p = end;
         if (i < 2) {
             if (*p != 'x' && *p != 'X')
