@@ -8,7 +8,9 @@
 # left; --csv gives the timing CSV (no default CSV with a movie); an ffmpeg
 # that dies early (broken pipe), fails at the end (exit status) or writes
 # nothing is reported with its message, exit 1, and leaves no FILE nor
-# temporary;
+# temporary; a link or FIFO at FILE is refused and left alone, a link at
+# the old temporary name FILE.partial.EXT redirects nothing, and a full
+# disk (a small tmpfs) fails the run and keeps an older movie;
 # without ffmpeg on PATH the run stops before any frame with exit 2.
 . "$(dirname "$0")/lib.sh"
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
@@ -106,11 +108,50 @@ expect_exit 2 "--fps: the frame rate of a movie" "$PLAY" "$W/ds" --headless -q -
 expect_exit 2 "--fps \"0\": expected frames per second in 0\.1\.\.1000" \
     "$PLAY" "$W/ds" --headless -q --fps 0 -o "$W/mv/g.mp4"
 expect_exit 2 "movies are written headless" "$PLAY" "$W/ds" --window -o "$W/mv/g.mp4"
-expect_exit 2 "g\.partial\.mp4: cannot create" "$PLAY" "$W/ds" --headless -q -o "$W/no/such/g.mp4"
+expect_exit 2 "g\.mp4: cannot create a temporary beside it" "$PLAY" "$W/ds" --headless -q -o "$W/no/such/g.mp4"
 mkdir -p "$W/h.webm" || exit 99
 expect_exit 2 "h\.webm: is a directory \(a trailing / writes PNG frames into it\)" \
     "$PLAY" "$W/ds" --headless -q -o "$W/h.webm"
 "$PLAY" "$W/ds" --headless -q --size 16x16 --steps 0:0 -o "$W/h.webm/" > /dev/null \
     && [ -f "$W/h.webm/t0000.png" ] && ok "-o h.webm/: PNG frames in the directory" \
     || fail "-o h.webm/: no PNG frame"
+
+# 6. A movie goes through the same safe output as every file: a link or
+# FIFO at its name is refused and left alone; a link planted at the old
+# predictable temporary name (FILE.partial.EXT) redirects nothing (the
+# temporary has a unique name and ffmpeg writes it through a descriptor).
+mkdir -p "$W/safe" && echo victim > "$W/safe/victim" || exit 99
+ln -s "$W/safe/victim" "$W/safe/l.mp4"
+expect_exit 2 "l\.mp4: exists and is not a regular file \(a symbolic link\)" \
+    "$PLAY" "$W/ds" --headless -q --size 32x32 -o "$W/safe/l.mp4"
+mkfifo "$W/safe/p.mp4" || exit 99
+expect_exit 2 "p\.mp4: exists and is not a regular file \(a FIFO\)" \
+    "$PLAY" "$W/ds" --headless -q --size 32x32 -o "$W/safe/p.mp4"
+ln -s "$W/safe/victim" "$W/safe/m.partial.mp4"
+"$PLAY" "$W/ds" --headless -q --size 32x32 -o "$W/safe/m.mp4" > /dev/null 2> "$W/err.txt" \
+    && [ "$(probe "$W/safe/m.mp4" | cut -d, -f6)" = 7 ] \
+    && ok "a link at FILE.partial.mp4: the movie written beside it, 7 frames" \
+    || fail "planted FILE.partial.mp4: $(cat "$W/err.txt")"
+[ "$(cat "$W/safe/victim")" = victim ] && [ -L "$W/safe/l.mp4" ] && [ -p "$W/safe/p.mp4" ] \
+    && ok "links, their target and the FIFO are untouched" || fail "a link, its target or the FIFO changed"
+ls "$W/safe" | grep -q 'partial-' && fail "a temporary was left: $(ls "$W/safe")" \
+    || ok "no temporary left"
+
+# 7. A full disk: ffmpeg may exit 0 after failed writes, leaving a file
+# without its index.  The run fails (exit 1, ffmpeg's words) and an older
+# movie of that name stays.  On a 12 KiB tmpfs (skipped out loud where
+# mounting is not permitted).
+mkdir -p "$W/full" || exit 99
+if mount -t tmpfs -o size=12k tmpfs "$W/full" 2> /dev/null; then
+    echo "an older movie" > "$W/full/old.mp4"
+    expect_exit 1 "old\.mp4: .*(No space left on device|holds .* of its 7 frames)" \
+        "$PLAY" "$W/ds" --headless -q --size 256x256 -o "$W/full/old.mp4"
+    [ "$(cat "$W/full/old.mp4")" = "an older movie" ] && ok "disk full: the older movie stays" \
+        || fail "disk full: the older movie was replaced"
+    ls "$W/full" | grep -q 'partial-' && fail "disk full: a temporary was left" \
+        || ok "disk full: no temporary left"
+    umount "$W/full"
+else
+    echo "mount -t tmpfs not permitted: the full-disk case is skipped"
+fi
 finish

@@ -2,6 +2,7 @@
  * The only file of the tree that runs ffmpeg. */
 #define _GNU_SOURCE
 #include "tvpal_movie.h"
+#include "tvpal_fs.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -28,8 +29,15 @@ struct tvpal_movie {
     unsigned w, h, mw, mh;      /* frame size, movie frame size (even) */
     uint8_t *pad;               /* mw x mh frame, when it differs */
     uint64_t frames;
+    int out;                    /* the temporary, open (ffmpeg writes it
+                                 * as its fd 3), or -1 */
     char *path, *partial;       /* owned */
 };
+
+/* ffmpeg writes the temporary through the descriptor it inherits, not by
+ * name: a link or FIFO put at the name after it was made redirects
+ * nothing. */
+#define CHILD_OUT "/proc/self/fd/3"
 
 int tvpal_movie_kind(const char *path)
 {
@@ -56,15 +64,34 @@ void tvpal_movie_size(unsigned width, unsigned height, unsigned *mw,
     *mh = height + (height & 1);
 }
 
-/* FILE.EXT -> FILE.partial.EXT: the same directory (rename stays within
- * one file system) and extension (players and ffmpeg see the type). */
-static char *partial_name(const char *path)
+/* The temporary FILE.partial-XXXXXX.EXT, made with a unique name
+ * (mkstemps: O_EXCL, so nothing planted at a predictable name is
+ * followed) in the movie's directory (the rename stays within one file
+ * system), with its extension (players and ffmpeg see the type).  Into
+ * m->partial and m->out. */
+static int make_partial(struct tvpal_movie *m, struct tvpal_diag *diag)
 {
-    const char *dot = strrchr(path, '.');
-    char *p = NULL;
-    if (asprintf(&p, "%.*s.partial%s", (int)(dot - path), path, dot) < 0)
-        return NULL;
-    return p;
+    const char *dot = strrchr(m->path, '.');
+    if (asprintf(&m->partial, "%.*s.partial-XXXXXX%s",
+                 (int)(dot - m->path), m->path, dot) < 0) {
+        m->partial = NULL;
+        return tvpal_diag_set(diag, TVPAL_E_NOMEM, "out of memory");
+    }
+    m->out = mkstemps(m->partial, (int)strlen(dot));
+    if (m->out < 0)
+        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: cannot create a "
+                              "temporary beside it: %s", m->path,
+                              strerror(errno));
+    mode_t um = umask(0);
+    umask(um);
+    if (fchmod(m->out, 0666 & ~um) < 0 ||
+        fcntl(m->out, F_SETFD, FD_CLOEXEC) < 0) {
+        int e = errno;
+        unlink(m->partial);
+        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", m->partial,
+                              strerror(e));
+    }
+    return 0;
 }
 
 /* The end of ffmpeg's error output as one line (its last ERR_TAIL bytes,
@@ -128,6 +155,8 @@ static void movie_free(struct tvpal_movie *m)
         close(m->fd);
     if (m->err)
         fclose(m->err);
+    if (m->out >= 0)
+        close(m->out);
     free(m->pad);
     free(m->path);
     free(m->partial);
@@ -162,7 +191,7 @@ static void build_argv(const struct tvpal_movie *m, int kind, char size[32],
         argv[n++] = c[i];
     argv[n++] = "-pix_fmt";
     argv[n++] = "yuv420p";
-    argv[n++] = m->partial;
+    argv[n++] = CHILD_OUT;
     argv[n] = NULL;
 }
 
@@ -209,6 +238,8 @@ static int spawn(struct tvpal_movie *m, int rfd, char *const argv[],
     if (!rc)
         rc = posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
     if (!rc)
+        rc = posix_spawn_file_actions_adddup2(&fa, m->out, 3);
+    if (!rc)
         rc = posix_spawn_file_actions_adddup2(&fa, fileno(m->err), 2);
     if (!rc)
         rc = posix_spawnattr_setflags(&at, POSIX_SPAWN_SETSIGDEF |
@@ -235,22 +266,19 @@ static int spawn(struct tvpal_movie *m, int rfd, char *const argv[],
     return 0;
 }
 
-/* The temporary can be created in the movie's directory, and the movie's
- * name is no directory (the rename would fail): said now, before any
- * frame is drawn, rather than by ffmpeg or rename at the end. */
-static int check_partial(const struct tvpal_movie *m, struct tvpal_diag *diag)
+/* The movie's name may be replaced (absent, or a regular file: a link,
+ * FIFO or device there is refused and left alone, as for every output,
+ * tvpal_out_check) and the temporary can be made beside it: said now,
+ * before any frame is drawn, rather than at the end. */
+static int check_partial(struct tvpal_movie *m, struct tvpal_diag *diag)
 {
     struct stat st;
     if (stat(m->path, &st) == 0 && S_ISDIR(st.st_mode))
         return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: is a directory (a "
                               "trailing / writes PNG frames into it)",
                               m->path);
-    int fd = open(m->partial, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (fd < 0)
-        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: cannot create: %s",
-                              m->partial, strerror(errno));
-    close(fd);
-    return 0;
+    int rc = tvpal_out_check(m->path, diag);
+    return rc < 0 ? rc : make_partial(m, diag);
 }
 
 int tvpal_movie_open(struct tvpal_movie **out, const char *path,
@@ -269,12 +297,11 @@ int tvpal_movie_open(struct tvpal_movie **out, const char *path,
     struct tvpal_movie *m = calloc(1, sizeof *m);
     if (!m)
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "out of memory");
-    m->fd = -1;
+    m->fd = m->out = -1;
     m->w = width;
     m->h = height;
     tvpal_movie_size(width, height, &m->mw, &m->mh);
-    if (!(m->path = strdup(path)) || !(m->partial = partial_name(path)) ||
-        !(m->err = tmpfile()) ||
+    if (!(m->path = strdup(path)) || !(m->err = tmpfile()) ||
         ((m->mw != width || m->mh != height) &&
          !(m->pad = calloc((size_t)3 * m->mw * m->mh, 1)))) {
         movie_free(m);
@@ -294,7 +321,8 @@ int tvpal_movie_open(struct tvpal_movie **out, const char *path,
         m->fd = p[1];
     }
     if (rc < 0) {
-        unlink(m->partial);
+        if (m->out >= 0)
+            unlink(m->partial);
         movie_free(m);
         return rc;
     }
@@ -366,6 +394,76 @@ uint64_t tvpal_movie_frames(const struct tvpal_movie *m)
     return m->frames;
 }
 
+/* What ffmpeg wrote, checked before it replaces anything: ffmpeg can
+ * exit with status 0 after writes that failed (a full disk), leaving a
+ * file without its index.  It must have said nothing at -loglevel error,
+ * and ffprobe (Debian's ffmpeg package has it) must find every frame sent
+ * in it: the packets are counted, not decoded. */
+static int check_written(struct tvpal_movie *m, struct tvpal_diag *diag)
+{
+    char tail[ERR_TAIL + 32];
+    long said = -1;
+    if (m->err && fflush(m->err) == 0 && fseek(m->err, 0, SEEK_END) == 0)
+        said = ftell(m->err);
+    if (said > 0) {
+        err_tail(m, tail, sizeof tail);
+        return tvpal_diag_set(diag, TVPAL_E_WRITE, "%s: ffmpeg exited with "
+                              "status 0 but reported errors: %s", m->path,
+                              tail);
+    }
+    if (!on_path("ffprobe"))
+        return 0;
+    char path[64];
+    snprintf(path, sizeof path, "/proc/%d/fd/%d", (int)getpid(), m->out);
+    const char *argv[] = {"ffprobe", "-v", "error", "-count_packets",
+                          "-select_streams", "v:0", "-show_entries",
+                          "stream=nb_read_packets", "-of", "csv=p=0", path,
+                          NULL};
+    int p[2];
+    if (pipe2(p, O_CLOEXEC) < 0)
+        return tvpal_diag_set(diag, TVPAL_E_SYS, "pipe: %s", strerror(errno));
+    posix_spawn_file_actions_t fa;
+    pid_t pid = 0;
+    int rc = posix_spawn_file_actions_init(&fa);
+    if (!rc)
+        rc = posix_spawn_file_actions_adddup2(&fa, p[1], 1);
+    if (!rc)
+        rc = posix_spawn_file_actions_adddup2(&fa, fileno(m->err), 2);
+    if (!rc)
+        rc = posix_spawnp(&pid, "ffprobe", &fa, NULL, (char *const *)argv,
+                          environ);
+    posix_spawn_file_actions_destroy(&fa);
+    close(p[1]);
+    char out[64] = "";
+    size_t n = 0;
+    ssize_t k;
+    while (!rc && n < sizeof out - 1 &&
+           ((k = read(p[0], out + n, sizeof out - 1 - n)) > 0 ||
+            (k < 0 && errno == EINTR)))
+        n += k > 0 ? (size_t)k : 0;
+    while (n > 0 && (out[n - 1] == '\n' || out[n - 1] == '\r'))
+        n--;
+    out[n] = 0;
+    close(p[0]);
+    int st = 0;
+    while (!rc && waitpid(pid, &st, 0) < 0 && errno == EINTR)
+        ;
+    if (rc)
+        return tvpal_diag_set(diag, TVPAL_E_SYS, "cannot run ffprobe: %s",
+                              strerror(rc));
+    char *end;
+    unsigned long long got = strtoull(out, &end, 10);
+    if (!WIFEXITED(st) || WEXITSTATUS(st) || end == out ||
+        got != m->frames) {
+        err_tail(m, tail, sizeof tail);
+        return tvpal_diag_set(diag, TVPAL_E_WRITE, "%s: the movie ffmpeg "
+                              "wrote holds %s of its %llu frames (disk "
+                              "full?): %s", m->path, end == out ? "none" : out,
+                              (unsigned long long)m->frames, tail);
+    }
+    return 0;
+}
+
 int tvpal_movie_close(struct tvpal_movie *m, struct tvpal_diag *diag)
 {
     if (!m)
@@ -385,14 +483,22 @@ int tvpal_movie_close(struct tvpal_movie *m, struct tvpal_diag *diag)
         err_tail(m, tail, sizeof tail);
         rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "%s: %s: %s", m->path, why,
                             tail);
-    } else if (stat(m->partial, &st) < 0 || st.st_size == 0) {
-        /* check_partial made it empty: ffmpeg wrote nothing there. */
+    } else if (fstat(m->out, &st) < 0 || st.st_size == 0) {
+        /* make_partial made it empty: ffmpeg wrote nothing there. */
         rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "%s: ffmpeg exited with "
                             "status 0 but wrote no movie", m->path);
-    } else if (rename(m->partial, m->path) < 0) {
+    } else {
+        rc = check_written(m, diag);
+    }
+    if (rc == 0 && fsync(m->out) < 0)
+        rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "%s: %s: %s", m->path,
+                            m->partial, strerror(errno));
+    /* The target checked again, just before: a link or FIFO put there
+     * meanwhile is refused, and an older movie stays. */
+    if (rc == 0 && (rc = tvpal_out_check(m->path, diag)) == 0 &&
+        rename(m->partial, m->path) < 0)
         rc = tvpal_diag_set(diag, TVPAL_E_WRITE, "%s: cannot rename %s: %s",
                             m->path, m->partial, strerror(errno));
-    }
     if (rc < 0)
         unlink(m->partial);
     movie_free(m);

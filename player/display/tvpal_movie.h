@@ -3,10 +3,16 @@
  * file that runs ffmpeg (LAYERS.md).
  *
  * ffmpeg is found on PATH when the movie is opened (Debian package ffmpeg,
- * a run-time dependency).  The movie is written to a temporary name in the
- * same directory, FILE.partial.EXT, and renamed to FILE only when ffmpeg
- * has read every frame and exited with status 0: a failed or interrupted
- * run never leaves a FILE that looks complete.
+ * a run-time dependency).  The movie is written to a temporary with a
+ * unique name in the same directory, FILE.partial-XXXXXX.EXT (made with
+ * O_EXCL; ffmpeg writes it through the descriptor it inherits, so nothing
+ * planted at a name is followed), and renamed to FILE only when ffmpeg has
+ * read every frame, exited with status 0 without reporting an error, and
+ * ffprobe finds every frame in what it wrote (ffmpeg may exit 0 after
+ * failed writes on a full disk): a failed or interrupted run never leaves
+ * a FILE that looks complete, nor replaces an older one.  FILE must be
+ * absent or a regular file (tvpal_out_check): a link, FIFO or device there
+ * is refused and left alone.
  *
  * The caller ignores SIGPIPE (signal(SIGPIPE, SIG_IGN)): when ffmpeg dies,
  * a frame write then fails with EPIPE and is reported, instead of the
