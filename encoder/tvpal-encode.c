@@ -161,6 +161,11 @@ char *g_partial; /* removed on fatal input errors */
 struct tvpal_comm g_comm;
 int g_round;
 
+/* This process's lock on its partial output (take_lock), removed when it
+ * ends, whatever the ending. */
+static char *g_lock_path;
+static int g_lock_fd = -1;
+
 
 static void say(enum ending how, const char *fmt, va_list ap)
 {
@@ -180,6 +185,7 @@ static void say(enum ending how, const char *fmt, va_list ap)
         return;
     if (how == DIE_INPUT && g_partial)
         tvpal_rmtree(g_partial);
+    tvpal_lock_release(g_lock_path, g_lock_fd);
     exit(how == DIE_FAIL ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE);
 }
 
@@ -723,8 +729,40 @@ static void write_level0_marker(const struct run *r)
  * removes a partial output that has none usable; then makes the node
  * directories.  Sets r->fp, r->st, r->ckp and r->start.  The plan is part
  * of the job: a rerun under another limit or thread count starts over. */
+/* One job at a time writes a partial output: two encodes of one OUTDIR
+ * started together mixed their shards into a dataset that did not
+ * verify.  The lock is OUTDIR.partial.lock, beside the partial output,
+ * held until the process ends.  Under MPI rank 0 takes it (OUTDIR is on
+ * a file system every rank sees) and tells every rank before any of them
+ * touches its node directory, so that a second job stops on every rank
+ * at once, having changed nothing. */
+static void take_lock(const struct run *r)
+{
+    struct {
+        int rc;
+        char text[400];
+    } res = {0, ""};
+    if (!r->mpi || r->node == 0) {
+        struct tvpal_diag d = {{0}};
+        if (asprintf(&g_lock_path, "%s.lock", r->partial) < 0)
+            die_fail("out of memory");
+        res.rc = tvpal_lock_take(g_lock_path, &g_lock_fd, &d);
+        if (res.rc == TVPAL_E_EXIST)
+            snprintf(res.text, sizeof res.text, "%s: another encode is "
+                     "writing it (its lock %s); wait for it or stop it",
+                     r->partial, d.msg);
+        else if (res.rc < 0)
+            snprintf(res.text, sizeof res.text, "%s", d.msg);
+    }
+    if (r->mpi && g_comm.bcast(&g_comm, &res, sizeof res, 0) < 0)
+        die_fail("cannot share the lock's state between the ranks");
+    if (res.rc < 0)
+        die_fail("%s", res.text);
+}
+
 static void open_partial(struct run *r)
 {
+    take_lock(r);
     char *params = job_params(&r->o, r->in), *withplan = NULL;
     char key[96];
     encode_plan_key(&r->plan, key, sizeof key);
@@ -2056,6 +2094,10 @@ int main(int argc, char **argv)
         verify_written(&r, &w);
         move_into_place(&r);
     }
+    tvpal_lock_release(g_lock_path, g_lock_fd);
+    g_lock_fd = -1;
+    free(g_lock_path);
+    g_lock_path = NULL;
     if (!r.mpi || r.node == 0)
         print_summary(&r, &w);
     run_free(&r);

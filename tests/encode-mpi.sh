@@ -82,4 +82,22 @@ $MPI -np 2 "$ENC" --axes xyz --dims $D --nodes 3 -o "$W/bad" $IN > /dev/null 2> 
 rc=$?
 [ $rc -eq 2 ] && grep -q "expected --nodes 2" "$W/bad.err" && [ "$(grep -c "expected --nodes" "$W/bad.err")" -eq 1 ] \
     && ok "--nodes 3 under 2 ranks refused once, by rank 0" || fail "rank count: rc $rc: $(cat "$W/bad.err")"
+
+# Another job holds OUTDIR.partial's lock (here flock(1)): every rank stops
+# before touching its node directory, rank 0 says why, once.
+if command -v flock > /dev/null; then
+    mkdir -p "$W/held.partial/node-1" && echo mine > "$W/held.partial/node-1/other-job"
+    flock "$W/held.partial.lock" sleep 60 &
+    fpid=$!
+    sleep 0.5
+    $MPI -np 2 "$ENC" --axes xyz -q --dims $D --window 4 --nodes 2 -o "$W/held" $IN > /dev/null 2> "$W/held.err"
+    rc=$?
+    kill $fpid 2> /dev/null; wait $fpid 2> /dev/null
+    [ $rc -eq 1 ] && [ "$(grep -c "another encode is writing it" "$W/held.err")" -eq 1 ] \
+        && [ "$(cat "$W/held.partial/node-1/other-job")" = mine ] \
+        && ok "a locked OUTDIR.partial: every rank stopped, the other job's files untouched" \
+        || fail "locked under MPI: rc $rc: $(cat "$W/held.err")"
+else
+    echo "no flock(1) (util-linux): the locked case is skipped"
+fi
 finish

@@ -17,6 +17,7 @@
 # naming it, never SIGBUS.  An encode that fails after writing (the new
 # dataset or a level does not read back, the rename into place fails: made
 # to fail by tests/fault.so) leaves the dataset it was to replace as it was.
+# One encode at a time writes an OUTDIR.partial (a lock file beside it).
 . "$(dirname "$0")/lib.sh"
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 D=8x6x5
@@ -185,6 +186,38 @@ if [ -f "$SHIM" ]; then
         && ok "rename failed: the old dataset is back" || fail "rename failed: the old dataset changed or is gone"
     "$INFO" "$W/ds" --verify > /dev/null 2>&1 && ok "the dataset still verifies" || fail "the dataset does not verify"
 fi
+
+# One job at a time writes OUTDIR.partial: a lock held (here by flock(1))
+# stops a second encode at once, saying so; two encodes of one OUTDIR
+# started together leave one good dataset (before, their shards mixed
+# into one that did not verify), the other saying why it stopped.
+if command -v flock > /dev/null; then
+    flock "$W/lk.partial.lock" sleep 30 &
+    fpid=$!
+    sleep 0.5
+    expect_exit 1 "lk\.partial: another encode is writing it \(its lock .*lk\.partial\.lock: held by another process\)" \
+        $T "$ENC" -q --dims $D --window 2 -o "$W/lk" "$W"/in/*.f32
+    kill $fpid 2> /dev/null; wait $fpid 2> /dev/null
+    [ ! -e "$W/lk" ] && [ ! -e "$W/lk.partial" ] && ok "locked out: nothing written" \
+        || fail "locked out: output written"
+else
+    echo "no flock(1) (util-linux): the held-lock case is skipped"
+fi
+"$GEN" --field turbulence --dims 48x48x48 --steps 24 -o "$W/tw" > /dev/null || fail "gen tw"
+"$ENC" -q --dims 48x48x48 -o "$W/two" "$W"/tw/*.f32 > "$W/two1.txt" 2>&1 &
+p1=$!
+"$ENC" -q --dims 48x48x48 -o "$W/two" "$W"/tw/*.f32 > "$W/two2.txt" 2>&1 &
+p2=$!
+wait $p1; r1=$?
+wait $p2; r2=$?
+if [ $((r1 == 0)) -ne $((r2 == 0)) ] && "$INFO" "$W/two" --verify > /dev/null 2>&1 &&
+   grep -Eq "another encode is writing it|already exists" "$W/two1.txt" "$W/two2.txt"; then
+    ok "two encodes of one OUTDIR: one dataset that verifies (exits $r1, $r2), the other said why"
+else
+    fail "two encodes of one OUTDIR: exits $r1 and $r2: $(cat "$W/two1.txt" "$W/two2.txt")"
+fi
+[ ! -e "$W/two.partial" ] && [ ! -e "$W/two.partial.lock" ] && ok "no partial output or lock left" \
+    || fail "left: $(ls -d "$W"/two.* 2> /dev/null)"
 
 # timing.csv as the frames go: kill tvpal-play after some frames.
 if [ -x "$PLAY" ]; then

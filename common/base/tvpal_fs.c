@@ -9,6 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -443,4 +444,67 @@ char *tvpal_node_dir(const char *dir, const char *pattern, uint32_t r)
     }
     out[o] = 0;
     return out;
+}
+
+/* The holder's id from the lock file, as text ("by process 123"). */
+static void lock_holder(int fd, char *out, size_t cap)
+{
+    char b[32];
+    ssize_t k = pread(fd, b, sizeof b - 1, 0);
+    long pid = 0;
+    if (k > 0) {
+        b[k] = 0;
+        pid = strtol(b, NULL, 10);
+    }
+    if (pid > 0)
+        snprintf(out, cap, "by process %ld", pid);
+    else
+        snprintf(out, cap, "by another process");
+}
+
+int tvpal_lock_take(const char *path, int *fd, struct tvpal_diag *diag)
+{
+    *fd = -1;
+    for (int tries = 0; tries < 8; tries++) {
+        int f = open(path, O_RDWR | O_CREAT | O_NOFOLLOW | O_CLOEXEC, 0644);
+        if (f < 0)
+            return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: cannot make the "
+                                  "lock: %s", path, strerror(errno));
+        if (flock(f, LOCK_EX | LOCK_NB) < 0) {
+            int e = errno;
+            char who[48];
+            lock_holder(f, who, sizeof who);
+            close(f);
+            if (e == EWOULDBLOCK)
+                return tvpal_diag_set(diag, TVPAL_E_EXIST, "%s: held %s",
+                                      path, who);
+            return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: flock: %s", path,
+                                  strerror(e));
+        }
+        /* The file locked must still be the one at path: a holder that
+         * finished removed it, and a third process may have made a new
+         * one meanwhile. */
+        struct stat a, b;
+        if (fstat(f, &a) == 0 && stat(path, &b) == 0 && a.st_dev == b.st_dev &&
+            a.st_ino == b.st_ino) {
+            char pid[32];
+            int n = snprintf(pid, sizeof pid, "%ld\n", (long)getpid());
+            if (ftruncate(f, 0) < 0 || pwrite(f, pid, (size_t)n, 0) != n) {
+                /* the id is for messages only: the lock holds */
+            }
+            *fd = f;
+            return 0;
+        }
+        close(f);
+    }
+    return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: the lock file keeps "
+                          "changing", path);
+}
+
+void tvpal_lock_release(const char *path, int fd)
+{
+    if (fd < 0)
+        return;
+    unlink(path);
+    close(fd);
 }

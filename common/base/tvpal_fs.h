@@ -98,6 +98,20 @@ FILE *tvpal_fopen_text(const char *path, int *rc, struct tvpal_diag *diag);
 int tvpal_read_file(const char *path, char **out, size_t *len,
                     struct tvpal_diag *diag);
 
+/* An exclusive lock on path for one job (flock, advisory: every tvpal
+ * writer of that output takes it): the file is created when absent and
+ * holds the holder's process id.  Taken without waiting: 0 with *fd
+ * (keep it open; the lock goes with the process), or TVPAL_E_EXIST when
+ * another process holds it (diag: "PATH: held by process PID"; "by
+ * another process" where its id is not written), TVPAL_E_OPEN when it
+ * cannot be made.  A lock file removed by its holder while this one
+ * waited is taken again, so two processes never both hold path. */
+int tvpal_lock_take(const char *path, int *fd, struct tvpal_diag *diag);
+
+/* Removes path and releases the lock (fd from tvpal_lock_take; -1: a
+ * no-op). */
+void tvpal_lock_release(const char *path, int fd);
+
 /* fsync of a directory, so that renames in it are durable. */
 int tvpal_fsync_dir(const char *path);
 
