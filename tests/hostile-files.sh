@@ -127,6 +127,16 @@ XML
 expect_exit 2 "s.pvd: its DataSet .*f.vti: not a regular file \(a FIFO\)" $T "$ENC" -q -o "$W/o" "$W/coll/s.pvd"
 expect_exit 2 "f.vti: not a regular file \(a FIFO\).*a piece of .*p.pvti" $T "$ENC" -q -o "$W/o" "$W/coll/p.pvti"
 expect_exit 2 "f.vti: not a regular file \(a FIFO\)" $T "$ENC" -q -o "$W/o" "$W/coll/a.vti" "$W/coll/f.vti"
+# Collections that list themselves or each other are refused by name,
+# never followed (tvpal-info --inspect overflowed its stack).
+printf '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1"><Collection>\n<DataSet timestep="0" file="%s"/>\n</Collection></VTKFile>\n' self.pvd > "$W/coll/self.pvd"
+printf '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1"><Collection>\n<DataSet timestep="0" file="%s"/>\n</Collection></VTKFile>\n' m2.pvd > "$W/coll/m1.pvd"
+printf '<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1"><Collection>\n<DataSet timestep="0" file="%s"/>\n</Collection></VTKFile>\n' m1.pvd > "$W/coll/m2.pvd"
+for c in self m1; do
+    expect_exit 2 "a \.pvd collection .* where an ImageData file was expected \(listed in .*$c\.pvd\)" \
+        $T "$INFO" --inspect "$W/coll/$c.pvd"
+    expect_exit 2 "where an ImageData file was expected" $T "$ENC" -q -o "$W/o" "$W/coll/$c.pvd"
+done
 [ ! -e "$W/o" ] && [ ! -e "$W/o.partial" ] && ok "collections: nothing left behind" || fail "output left behind"
 
 # A file that shrinks while the encoder reads it (a simulation rewriting

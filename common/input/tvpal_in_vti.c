@@ -1970,7 +1970,8 @@ static uint64_t vti_box_scratch(const struct tvpal_input_file *f,
     return bytes;
 }
 
-static int vti_describe(const char *path, char **text, struct tvpal_diag *diag);
+static int describe_file(const char *path, char **text,
+                         struct tvpal_diag *diag);
 
 /* -------------------------------------------------- .pvd collections */
 
@@ -2191,12 +2192,15 @@ int tvpal_input_vtk_collection(const char *path, char ***files,
 
 /* ------------------------------------------------------------- describe */
 
-/* A .pvd: its DataSets, then what the first one holds. */
+/* A .pvd: its DataSets, then what the first one holds, read as an
+ * ImageData file (a DataSet that is a collection itself, this one or
+ * another, is refused by name, not followed: a .pvd that lists itself
+ * recursed until the stack overflowed). */
 static int describe_collection(const char *path, char **files, double *times,
                                int n, char **text, struct tvpal_diag *diag)
 {
     char *first = NULL;
-    int rc = vti_describe(files[0], &first, diag);
+    int rc = describe_file(files[0], &first, diag);
     size_t cap = 256 + (first ? strlen(first) : 0);
     for (int i = 0; i < n; i++)
         cap += strlen(files[i]) + 48;
@@ -2221,7 +2225,6 @@ static int describe_collection(const char *path, char **files, double *times,
 
 static int vti_describe(const char *path, char **text, struct tvpal_diag *diag)
 {
-    struct vti_doc d;
     *text = NULL;
     char **files = NULL;
     double *times = NULL;
@@ -2237,7 +2240,15 @@ static int vti_describe(const char *path, char **text, struct tvpal_diag *diag)
     }
     if (rc < 0)
         return rc;
-    rc = load(&d, path, diag);
+    return describe_file(path, text, diag);
+}
+
+/* What the .vti or .pvti path holds. */
+static int describe_file(const char *path, char **text,
+                         struct tvpal_diag *diag)
+{
+    struct vti_doc d;
+    int rc = load(&d, path, diag);
     if (rc < 0) {
         doc_free(&d);
         return rc;
