@@ -1891,6 +1891,58 @@ static void die_unverified(const struct run *r, const char *what,
                                          "was" : "nothing was put in place");
 }
 
+/* Level 0 finished by an earlier run of this job, which may have asked for
+ * other --levels (the levels do not change level 0's shards, so the job
+ * is the same): its manifests are made to name this run's levels, and the
+ * earlier run's levels beyond them go.  A resume with another --levels
+ * wrote a manifest naming levels that were not on disk. */
+static void adopt_level0(const struct run *r)
+{
+    char *mp = NULL, *text = NULL;
+    struct tvpal_manifest m = {0};
+    struct tvpal_diag d = {{0}};
+    if (asprintf(&mp, "%s/manifest.txt", r->partial) < 0)
+        die_fail("out of memory");
+    if (tvpal_manifest_load(mp, &m, &d) < 0)
+        die_fail("%s: level 0's manifest: %s (remove %s to start over)", mp,
+                 d.msg, r->partial);
+    free(mp);
+    if (m.levels == r->o.levels) {
+        tvpal_manifest_clear(&m);
+        return;
+    }
+    if (!r->o.quiet)
+        msg("resuming with --levels %u (the earlier run asked for %u): level "
+            "0 kept", r->o.levels, m.levels);
+    m.levels = r->o.levels;
+    if (tvpal_manifest_format(&m, &text) < 0)
+        die_fail("out of memory");
+    tvpal_manifest_clear(&m);
+    write_manifest(r->partial, text);
+    for (uint32_t k = 0; k < r->o.nodes; k++) {
+        char *nd = node_partial(r, k);
+        if (!nd)
+            die_fail("out of memory");
+        write_manifest(nd, text);
+        free(nd);
+    }
+    free(text);
+    for (unsigned k = r->o.levels + 1; k <= TVPAL_LEVELS_MAX; k++) {
+        static const char *const sfx[] = {"", ".src", ".partial",
+                                          ".partial.lock"};
+        for (int i = 0; i < 4; i++) {
+            char *p = NULL;
+            if (asprintf(&p, "%s/level-%u%s", r->partial, k, sfx[i]) < 0)
+                die_fail("out of memory");
+            if (i == 3)
+                unlink(p);
+            else
+                tvpal_rmtree(p);
+            free(p);
+        }
+    }
+}
+
 /* Reopens the dataset in OUTDIR.partial with the reader, every level of
  * it, before it is moved into place: what a failure here finds (a value
  * the manifest reader refuses, a shard that does not read back) must not
@@ -1919,7 +1971,14 @@ static void verify_written(const struct run *r, struct written *w)
             w->tables[1] += c.chunks[1];
         }
     }
+    const uint32_t levels = ds->m.levels;
     tvpal_dataset_close(ds);
+    if (levels != r->o.levels) {
+        char why[96];
+        snprintf(why, sizeof why, "its manifest names %u levels; %u were "
+                 "encoded", levels, r->o.levels);
+        die_unverified(r, "dataset", dir, why);
+    }
     int rc = tvpal_tree_bytes(dir, &w->disk, &d);
     if (rc < 0)
         die_fail("%s: cannot size the dataset: %s", dir, lib_error(rc, &d));
@@ -2068,7 +2127,9 @@ int main(int argc, char **argv)
         die_usage("--levels: not under MPI yet; encode the levels without "
                   "mpirun (they are 1/7 of the work)");
     open_partial(&r);
-    if (!r.level0_done)
+    if (r.level0_done)
+        adopt_level0(&r);
+    else
         open_or_restart_writers(&r);
     setup_workspace(&r);
     if (r.in)

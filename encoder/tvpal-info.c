@@ -31,7 +31,8 @@ static void usage(FILE *f)
 "\n"
 "  -v, --verify     open every shard of the stored axes (header, index,\n"
 "                   size, agreement with the manifest) and read every record\n"
-"                   (CRC-32C and layout); each corrupt file or record is\n"
+"                   (CRC-32C and layout), of level 0 and of every level\n"
+"                   the manifest names; each corrupt file or record is\n"
 "                   named\n"
 "  -H, --histogram  print only the dataset's value histogram (from the\n"
 "                   manifest): one line per bin, \"BIN LO HI COUNT FRACTION\n"
@@ -171,10 +172,44 @@ static unsigned verify(const char *dir, const struct tvpal_manifest *m)
     return bad;
 }
 
+/* Verifies the coarser levels the manifest m of dir names (level-1 ..
+ * level-L, FORMAT.md 2.1): each is a dataset of the same steps whose
+ * shards verify; a level named but missing is a problem. */
+static unsigned verify_levels(const char *dir, const struct tvpal_manifest *m)
+{
+    unsigned bad = 0;
+    for (uint32_t k = 1; k <= m->levels; k++) {
+        char *ld = NULL, *mp = NULL;
+        if (asprintf(&ld, "%s/level-%u", dir, k) < 0 ||
+            asprintf(&mp, "%s/manifest.txt", ld) < 0) {
+            free(ld);
+            return bad + 1;
+        }
+        struct tvpal_manifest lm = {0};
+        struct tvpal_diag d = {{0}};
+        if (tvpal_manifest_load(mp, &lm, &d) < 0) {
+            printf("CORRUPT %s: level %u of the %u the manifest names: %s\n",
+                   ld, k, m->levels, d.msg);
+            bad++;
+        } else if (lm.steps != m->steps || lm.levels) {
+            printf("CORRUPT %s: level %u has %u steps and %u levels of its "
+                   "own (%u and none expected)\n", ld, k, lm.steps,
+                   lm.levels, m->steps);
+            bad++;
+        } else {
+            bad += verify(ld, &lm);
+        }
+        tvpal_manifest_clear(&lm);
+        free(mp);
+        free(ld);
+    }
+    return bad;
+}
+
 /* --verify: every shard, then the verdict.  Returns the exit status. */
 static int print_verify(const char *dir, const struct tvpal_manifest *m)
 {
-    unsigned bad = verify(dir, m);
+    unsigned bad = verify(dir, m) + verify_levels(dir, m);
     printf("verify: %s (%u problem%s)\n", bad ? "FAILED" : "ok", bad,
            bad == 1 ? "" : "s");
     if (bad)

@@ -126,6 +126,23 @@ m0=$(stat -c %Y "$W/r.partial/node-0/axis-z.tvps")
 same=1
 for f in $(cd "$W/ds" && find . -name '*.tvps'); do cmp -s "$W/ds/$f" "$W/r/$f" || same=0; done
 [ $same = 1 ] && ok "resumed dataset byte-identical to the uninterrupted one" || fail "resumed bytes differ"
+# Resumed with another --levels (1: fewer than the earlier run asked for):
+# level 0 kept, the manifests name the levels on disk, and tvpal-info
+# --verify checks every level the manifest names (it said ok for a
+# manifest naming a level that was not there).
+rm -rf "$W/r1" "$W/r1.partial"
+TVPAL_ENCODE_FAULT_LEVEL=2 "$ENC" --axes xyz -q --dims $D --window 4 --levels 2 -o "$W/r1" "$W"/in/*.f32 > /dev/null 2>&1
+"$ENC" --axes xyz --dims $D --window 4 --levels 1 -o "$W/r1" "$W"/in/*.f32 > /dev/null 2> "$W/r1.err" \
+    && grep -q "resuming with --levels 1 (the earlier run asked for 2): level 0 kept" "$W/r1.err" \
+    && [ "$(grep -c '^levels = 1$' "$W/r1/manifest.txt" "$W/r1/node-0/manifest.txt" | grep -c ':1$')" = 2 ] \
+    && [ ! -e "$W/r1/level-2" ] && "$INFO" "$W/r1" --verify > /dev/null \
+    && ok "resumed with --levels 1 after 2: manifests name 1 level, it verifies" \
+    || fail "resumed with other --levels: $(cat "$W/r1.err")"
+sed 's/^levels = 1$/levels = 2/' "$W/r1/manifest.txt" > "$W/m.txt" && cp "$W/m.txt" "$W/r1/manifest.txt"
+"$INFO" "$W/r1" --verify > "$W/v.txt" 2>&1
+[ $? -eq 1 ] && grep -q "CORRUPT .*level-2: level 2 of the 2 the manifest names" "$W/v.txt" \
+    && ok "verify: a level the manifest names but the disk lacks is a problem" \
+    || fail "verify with a missing level: $(cat "$W/v.txt")"
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 if [ ! -x "$PLAY" ]; then
     echo "built without OSMesa/libpng: player part skipped"
