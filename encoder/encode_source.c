@@ -706,19 +706,24 @@ void load_times(struct run *r)
         die_usage("--times %s", d.msg);
     uint32_t n = 0;
     double v;
-    while (n <= r->T && fscanf(f, "%lf", &v) == 1) {
-        if (!isfinite(v) || (n > 0 && n < r->T && v <= r->times[n - 1]))
+    /* Every number is read (the count says how many there are). */
+    while (fscanf(f, "%lf", &v) == 1) {
+        if (n < r->T && (!isfinite(v) || (n > 0 && v <= r->times[n - 1])))
             die_usage("--times %s: value %u (%g): expected a finite number "
                       "larger than the one before", o->times_file, n + 1, v);
         if (n < r->T)
             r->times[n] = v;
-        n++;
+        if (n < UINT32_MAX)
+            n++;
     }
     int junk = !feof(f);
     fclose(f);
-    if (junk || n != r->T)
-        die_usage("--times %s: %s%u numbers; expected %u, one per step",
-                  o->times_file, junk ? "not a number after " : "", n, r->T);
+    if (junk)
+        die_usage("--times %s: not a number after %u numbers (one per step "
+                  "expected, %u of them)", o->times_file, n, r->T);
+    if (n != r->T)
+        die_usage("--times %s: %u numbers; expected %u, one per step",
+                  o->times_file, n, r->T);
 }
 
 /* Windows that straddle a gap in time cost accuracy there (the DCT sees a

@@ -296,9 +296,11 @@ static const struct optspec {
     {"sort", OPT_LONG_ONLY + 9, OPT_CHOICE, offsetof(struct opts, sort_natural),
      0, 0, {"none", "natural"}, "none or natural"},
     {"spacing", OPT_LONG_ONLY + 12, OPT_SPACING, 0, 0, 0, {0},
-     "DX,DY,DZ, three numbers > 0"},
+     "DX,DY,DZ, three numbers > 0, each from 2.2250738585072014e-308 to "
+     "1.7976931348623157e+308 (what a manifest holds)"},
     {"origin", OPT_LONG_ONLY + 13, OPT_ORIGIN, 0, 0, 0, {0},
-     "OX,OY,OZ, three numbers"},
+     "OX,OY,OZ, three finite numbers, each 0 or of magnitude from "
+     "2.2250738585072014e-308 to 1.7976931348623157e+308"},
     {"times", OPT_LONG_ONLY + 10, OPT_TEXT, offsetof(struct opts, times_file),
      0, 0, {0}, NULL},
     {"time-units", OPT_LONG_ONLY + 11, OPT_TEXT,
@@ -756,8 +758,10 @@ static void take_lock(const struct run *r)
     }
     if (r->mpi && g_comm.bcast(&g_comm, &res, sizeof res, 0) < 0)
         die_fail("cannot share the lock's state between the ranks");
+    if (res.rc == TVPAL_E_EXIST)
+        die_fail("%s", res.text);   /* the other job may end: exit 1 */
     if (res.rc < 0)
-        die_fail("%s", res.text);
+        die_usage("%s", res.text);  /* no such directory, not writable */
 }
 
 static void open_partial(struct run *r)

@@ -83,6 +83,12 @@ for bad in 1,2 1,2,3,4 1,,3 ,1,2 1,2,3x 1e999,1,1 nan,1,1 ""; do
         "$ENC" --axes xyz --dims $D --spacing "$bad" -o "$W/sp" $IN
 done
 expect_exit 2 "--origin \"0,inf,0\": expected OX,OY,OZ" "$ENC" --axes xyz --dims $D --origin 0,inf,0 -o "$W/sp" $IN
+# The manifest's range, said: a subnormal is refused, 1e308 is a spacing.
+expect_exit 2 "--spacing \"1e-310,1,1\": expected .* from 2.2250738585072014e-308 to 1.7976931348623157e\+308" \
+    "$ENC" --axes xyz --dims $D --spacing 1e-310,1,1 -o "$W/sp" $IN
+"$ENC" --axes xyz -q --dims $D --spacing 1e308,1,1 -o "$W/sp" $IN > /dev/null && "$INFO" "$W/sp" --verify > /dev/null \
+    && ok "--spacing 1e308,1,1 encodes and verifies" || fail "--spacing 1e308"
+rm -rf "$W/sp"
 # The other programs.
 expect_exit 2 "manifest.txt" "$DEC" "$W/nodataset" --step 0 -o "$W/x.f32"
 expect_exit 2 "manifest.txt" "$INFO" "$W/nodataset"

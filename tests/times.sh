@@ -37,5 +37,11 @@ printf '0 1 2\n' > "$W/few.txt"; printf '0 1 2 2 3 4\n' > "$W/flat.txt"; printf 
 expect_exit 2 "few.txt: 3 numbers; expected 6" "$ENC" --axes xyz -q --dims $D --times "$W/few.txt" -o "$W/bad" "$W"/in/*.f32
 expect_exit 2 "flat.txt: value 4 .*larger than the one before" "$ENC" --axes xyz -q --dims $D --times "$W/flat.txt" -o "$W/bad" "$W"/in/*.f32
 expect_exit 2 "text.txt: not a number after 3" "$ENC" --axes xyz -q --dims $D --times "$W/text.txt" -o "$W/bad" "$W"/in/*.f32
+# Too many values: their count, not "not a number" after T + 1 of them.
+seq 0 20 > "$W/many.txt"
+expect_exit 2 "many.txt: 21 numbers; expected 6, one per step" "$ENC" --axes xyz -q --dims $D --times "$W/many.txt" -o "$W/bad" "$W"/in/*.f32
+# A subnormal time: the manifest could not hold it.
+printf '0 1e-310 1 2 3 4\n' > "$W/sub.txt"
+expect_exit 2 "sub.txt: the time of step 1 is 9.99.*e-311" "$ENC" --axes xyz -q --dims $D --times "$W/sub.txt" -o "$W/bad" "$W"/in/*.f32
 [ ! -e "$W/bad" ] && [ ! -e "$W/bad.partial" ] && ok "nothing left" || fail "output left"
 finish

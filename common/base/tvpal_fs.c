@@ -468,8 +468,8 @@ int tvpal_lock_take(const char *path, int *fd, struct tvpal_diag *diag)
     for (int tries = 0; tries < 8; tries++) {
         int f = open(path, O_RDWR | O_CREAT | O_NOFOLLOW | O_CLOEXEC, 0644);
         if (f < 0)
-            return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: cannot make the "
-                                  "lock: %s", path, strerror(errno));
+            return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: cannot create "
+                                  "the lock: %s", path, strerror(errno));
         if (flock(f, LOCK_EX | LOCK_NB) < 0) {
             int e = errno;
             char who[48];
