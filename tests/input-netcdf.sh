@@ -162,4 +162,25 @@ PY
 else
     echo "no $S: the real-data part is skipped"
 fi
+# A missing_value list of 20 values (more than the 15 read before, when the
+# whole list was ignored and its values became data): the voxels of its
+# last value are missing.
+"$PY" - "$W/m20.cdl" <<'PY'
+import sys
+vals = ", ".join("%d.f" % (-1000 - i) for i in range(19)) + ", -999.f"
+open(sys.argv[1], "w").write("""netcdf m20 {
+dimensions:
+ z = 2 ; y = 3 ; x = 2 ;
+variables:
+ float v(z, y, x) ;
+  v:missing_value = %s ;
+data:
+ v = 1, 2, -999, 4, 5, 6, 7, -999, 9, 10, 11, -1005 ;
+}
+""" % vals)
+PY
+ncgen -o "$W/m20.nc" "$W/m20.cdl" || fail "ncgen m20"
+l=$("$ENC" -q -o "$W/m20" "$W/m20.nc" 2> "$W/m20.err")
+[ "$(kv missing "$l")" = 3 ] && ok "missing_value of 20 values: 3 voxels missing" \
+    || fail "missing_value of 20 values: $l $(cat "$W/m20.err")"
 finish

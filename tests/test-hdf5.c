@@ -523,6 +523,43 @@ static void test_named_files(void)
     alarm(0);
 }
 
+/* A missing_value list: 20 values are all read (16 at most were, and a
+ * longer list was ignored whole, its values taken as data); 70, more than
+ * the reader holds, are refused by name. */
+static void test_missing_list(void)
+{
+    static float v[2 * 3 * 4];
+    double miss[70];
+    for (int i = 0; i < 70; i++)
+        miss[i] = -1000 - i;
+    for (int i = 0; i < 24; i++)
+        v[i] = i % 5 == 0 ? -1019.0f : (float)i;
+    hid_t f = create(wpath("misslist.h5"));
+    const hsize_t dims[3] = {2, 3, 4};
+    hid_t d = dataset(f, "m20", H5T_IEEE_F32LE, 3, dims, H5T_NATIVE_FLOAT, v, 0);
+    num_attr(d, "missing_value", H5T_NATIVE_DOUBLE, 20, miss);
+    H5Dclose(d);
+    d = dataset(f, "m70", H5T_IEEE_F32LE, 3, dims, H5T_NATIVE_FLOAT, v, 0);
+    num_attr(d, "missing_value", H5T_NATIVE_DOUBLE, 70, miss);
+    H5Dclose(d);
+    H5Fclose(f);
+    struct tvpal_diag g;
+    int rc;
+    struct tvpal_input *in = open1(TVPAL_IN_HDF5, wpath("misslist.h5"), "/m20",
+                                   &rc, &g);
+    float got[24];
+    int nan = 0;
+    CHECK(in && tvpal_input_read(in, 0, got, &g) == 0, "m20: %s", g.msg);
+    for (int i = 0; in && i < 24; i++)
+        nan += isnan(got[i]);
+    CHECK(nan == 5, "missing_value of 20 values: %d of 5 voxels missing", nan);
+    tvpal_input_close(in);
+    CHECK(!open1(TVPAL_IN_HDF5, wpath("misslist.h5"), "/m70", &rc, &g) &&
+          rc == TVPAL_E_RANGE && strstr(g.msg, "/m70: its missing_value "
+                                        "holds 70 values; at most 63"),
+          "missing_value of 70 values: %d %s", rc, g.msg);
+}
+
 /* NetCDF-4 (ncgen) stays NetCDF under AUTO; a dataset path reads it as
  * HDF5. */
 static void test_netcdf4(void)
@@ -858,6 +895,7 @@ int main(int argc, char **argv)
     test_fill();
     test_errors();
     test_named_files();
+    test_missing_list();
     test_netcdf4();
     test_boxes();
 #if defined(HAVE_ZLIB) || defined(HAVE_LIBDEFLATE)

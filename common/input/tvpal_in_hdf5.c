@@ -40,7 +40,7 @@
 #include <unistd.h>
 
 #define NO_ID ((hid_t)-1)
-#define MAX_MISSING 16   /* _FillValue and missing_value's values */
+#define MAX_MISSING 64   /* _FillValue and missing_value's values */
 #define MAX_RANK 32      /* H5S_MAX_RANK */
 
 struct tvpal_input_file {
@@ -666,6 +666,24 @@ static int num_att(hid_t obj, const char *name, double *v, int max)
     return got;
 }
 
+/* The number of values of attribute name of obj; 0 when it has none. */
+static long att_len(hid_t obj, const char *name)
+{
+    if (H5Aexists(obj, name) <= 0) {
+        H5Eclear2(H5E_DEFAULT);
+        return 0;
+    }
+    hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
+    hid_t s = a >= 0 ? H5Aget_space(a) : NO_ID;
+    hssize_t n = s >= 0 ? H5Sget_simple_extent_npoints(s) : 0;
+    if (s >= 0)
+        H5Sclose(s);
+    if (a >= 0)
+        H5Aclose(a);
+    H5Eclear2(H5E_DEFAULT);
+    return n > 0 ? (long)n : 0;
+}
+
 /* A scalar string attribute (fixed or variable length) into buf; 1 when
  * found, else 0 and "". */
 static int text_att(hid_t obj, const char *name, char *buf, size_t cap)
@@ -1008,6 +1026,13 @@ static int read_layout(struct tvpal_input_file *f,
     f->steps = rank == 4 ? (uint32_t)dims[0] : 1;
 
     double v[MAX_MISSING];
+    /* A missing_value list longer than is read would be ignored whole,
+     * and its values taken as data: refused instead. */
+    const long mlen = att_len(f->dset, "missing_value");
+    if (mlen > MAX_MISSING - 1)
+        return tvpal_diag_set(diag, TVPAL_E_RANGE, "%s: dataset %s: its "
+                              "missing_value holds %ld values; at most %d are "
+                              "read", f->path, f->var, mlen, MAX_MISSING - 1);
     int n = num_att(f->dset, "_FillValue", v, MAX_MISSING);
     n += num_att(f->dset, "missing_value", v + n, MAX_MISSING - n);
     for (int i = 0; i < n; i++)

@@ -43,7 +43,7 @@
 #include <unistd.h>
 
 #define MAX_DIMS 8       /* dims of one variable (time, extras, z, y, x) */
-#define MAX_MISSING 16   /* _FillValue and missing_value's values */
+#define MAX_MISSING 64   /* _FillValue and missing_value's values */
 #define MAX_TIME_DIMS 32 /* dims of a file that look like time */
 
 struct tvpal_input_file {
@@ -879,6 +879,15 @@ static int ncdf_open(struct tvpal_input_file **out, const char *path,
         rc = ncdf_fail(diag, st, TVPAL_E_FORMAT, path, NULL);
     if (rc == 0)
         rc = read_grid(f, opts, info, &tdim, diag);
+    /* A missing_value list longer than is read would be ignored whole,
+     * and its values taken as data: refused instead. */
+    nc_type mt;
+    size_t mlen;
+    if (rc == 0 && nc_inq_att(f->ncid, f->varid, "missing_value", &mt,
+                              &mlen) == NC_NOERR && mlen > MAX_MISSING - 1)
+        rc = tvpal_diag_set(diag, TVPAL_E_RANGE, "%s: variable %s: its "
+                            "missing_value holds %zu values; at most %d are "
+                            "read", path, f->var, mlen, MAX_MISSING - 1);
     if (rc == 0) {
         info->missing_attrs = (uint64_t)read_cf_atts(f);
         info->type = stored_type(f);
