@@ -162,6 +162,23 @@ PY
 else
     echo "no $S: the real-data part is skipped"
 fi
+# Times across files must increase, as --times must: files whose times
+# overlap or repeat, or that run backwards, are refused naming both.
+for pair in "a 0,3 b 3,6 overlap" "c 0,3 d 0,3 repeat" "e 6,9 f 0,3 backwards"; do
+    set -- $pair
+    for f in "$1 $2" "$3 $4"; do
+        set -- $f
+        printf 'netcdf %s {\ndimensions:\n time = 2 ; z = 1 ; y = 2 ; x = 2 ;\nvariables:\n double time(time) ;\n  time:units = "hours since 2000-01-01" ;\n float v(time, z, y, x) ;\ndata:\n time = %s ;\n v = 1, 2, 3, 4, 5, 6, 7, 8 ;\n}\n' "$1" "$2" > "$W/tm-$1.cdl"
+        ncgen -o "$W/tm-$1.nc" "$W/tm-$1.cdl" || fail "ncgen $1"
+    done
+done
+expect_exit 2 "tm-b.nc: the time of step 2 \(3, .*tm-b.nc\) is not after step 1's \(3, .*tm-a.nc\)" \
+    "$ENC" -q -o "$W/tm" "$W/tm-a.nc" "$W/tm-b.nc"
+expect_exit 2 "tm-d.nc: the time of step 2 \(0, .*\) is not after step 1's \(3, .*tm-c.nc\)" \
+    "$ENC" -q -o "$W/tm" "$W/tm-c.nc" "$W/tm-d.nc"
+expect_exit 2 "the time of step 2 \(0, .*tm-f.nc\) is not after step 1's \(9, .*tm-e.nc\)" \
+    "$ENC" -q -o "$W/tm" "$W/tm-e.nc" "$W/tm-f.nc"
+[ ! -e "$W/tm" ] && [ ! -e "$W/tm.partial" ] && ok "times out of order: nothing left" || fail "output left"
 # A missing_value list of 20 values (more than the 15 read before, when the
 # whole list was ignored and its values became data): the voxels of its
 # last value are missing.

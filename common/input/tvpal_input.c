@@ -408,6 +408,22 @@ int tvpal_input_open(struct tvpal_input **out, enum tvpal_input_format fmt,
                                 "expected (a dataset could not hold it)", of,
                                 t, in->files[i], in->times[t]);
         }
+    /* The times must increase, as --times must: files given out of order,
+     * or whose times repeat or overlap, would be encoded as a series that
+     * runs backwards or stands still. */
+    for (uint32_t t = 1; rc == 0 && in->info.has_times && t < in->info.steps;
+         t++)
+        if (!(in->times[t] > in->times[t - 1])) {
+            const int i = file_of(in, t), h = file_of(in, t - 1);
+            rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: the time of step "
+                                "%u (%.17g, %s) is not after step %u's "
+                                "(%.17g, %s): times must increase (files in "
+                                "time order, none repeated)",
+                                in->listed_in[i] ? in->listed_in[i]
+                                                 : in->files[i],
+                                t, in->times[t], in->files[i], t - 1,
+                                in->times[t - 1], in->files[h]);
+        }
     if (rc == 0 && in->info.steps == 0)
         rc = tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: variable %s has no "
                             "timesteps", files[0], in->info.var);
