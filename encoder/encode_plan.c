@@ -6,6 +6,7 @@
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
+#include <sys/resource.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -197,6 +198,25 @@ static uint64_t cgroup_limit(const char **which)
     return 0;
 }
 
+/* The address space this process may still take under its limit (ulimit
+ * -v, RLIMIT_AS): the limit less what it holds now (the size in
+ * /proc/self/statm: code, libraries, thread stacks); 0 when unlimited. */
+static uint64_t address_space_left(void)
+{
+    struct rlimit rl;
+    if (getrlimit(RLIMIT_AS, &rl) < 0 || rl.rlim_cur == RLIM_INFINITY)
+        return 0;
+    unsigned long long pages = 0;
+    FILE *f = fopen("/proc/self/statm", "r");
+    if (f) {
+        if (fscanf(f, "%llu", &pages) != 1)
+            pages = 0;
+        fclose(f);
+    }
+    const uint64_t held = (uint64_t)pages * (uint64_t)sysconf(_SC_PAGESIZE);
+    return (uint64_t)rl.rlim_cur > held ? (uint64_t)rl.rlim_cur - held : 1;
+}
+
 uint64_t encode_default_limit(unsigned local_ranks, char *why, size_t cap)
 {
     long pages = sysconf(_SC_PHYS_PAGES), psize = sysconf(_SC_PAGESIZE);
@@ -217,5 +237,14 @@ uint64_t encode_default_limit(unsigned local_ranks, char *why, size_t cap)
     else
         snprintf(why, cap, "3/4 of %s (%.1f GiB)", which,
                  (double)base / (1u << 30));
+    /* A process's own address-space limit counts too (it was ignored: a
+     * job under ulimit -v planned for the machine and ran out of memory
+     * halfway). */
+    const uint64_t as = address_space_left();
+    if (as && as / 4 * 3 < lim) {
+        lim = as / 4 * 3;
+        snprintf(why, cap, "3/4 of the address space left under ulimit -v "
+                 "(%.2f GiB)", (double)as / (1u << 30));
+    }
     return lim;
 }
