@@ -731,6 +731,31 @@ static void write_level0_marker(const struct run *r)
  * removes a partial output that has none usable; then makes the node
  * directories.  Sets r->fp, r->st, r->ckp and r->start.  The plan is part
  * of the job: a rerun under another limit or thread count starts over. */
+/* The files a job reads, for its fingerprint: the inputs given, then (a
+ * self-describing series) every file of the series in order, those a .pvd
+ * lists included: a rewritten DataSet resumed the job with old and new
+ * steps mixed.  *files (malloc'ed) borrows the names; their count, or -1
+ * out of memory. */
+static int job_files(const struct run *r, char ***files)
+{
+    const uint32_t T = r->in ? tvpal_input_info(r->in)->steps : 0;
+    char **f = malloc(sizeof *f * ((size_t)r->o.ninputs + T + 1));
+    if (!f)
+        return -1;
+    int n = 0;
+    for (int i = 0; i < r->o.ninputs; i++)
+        f[n++] = r->o.inputs[i];
+    const char *last = NULL;
+    for (uint32_t t = 0; t < T; t++) {
+        const char *p = tvpal_input_file(r->in, t, NULL);
+        if (p != last)
+            f[n++] = (char *)p;
+        last = p;
+    }
+    *files = f;
+    return n;
+}
+
 /* One job at a time writes a partial output: two encodes of one OUTDIR
  * started together mixed their shards into a dataset that did not
  * verify.  The lock is OUTDIR.partial.lock, beside the partial output,
@@ -773,11 +798,18 @@ static void open_partial(struct run *r)
     if (r->mpi)
         snprintf(key + strlen(key), sizeof key - strlen(key),
                  " rank=%u", r->node);
-    if (!params || asprintf(&withplan, "%s %s", params, key) < 0 ||
-        tvpal_checkpoint_fingerprint(withplan, r->o.inputs, r->o.ninputs,
-                                     &r->fp) < 0 ||
+    char **files = NULL;
+    int nfiles = job_files(r, &files);
+    /* Raw jobs keep the fingerprint of earlier versions (their partial
+     * outputs still resume); a self-describing series' files (those a
+     * .pvd lists too) are named with a CRC of their first 4 KiB. */
+    if (!params || nfiles < 0 ||
+        asprintf(&withplan, "%s %s", params, key) < 0 ||
+        tvpal_checkpoint_fingerprint(withplan, files, nfiles,
+                                     r->in ? 4096 : 0, &r->fp) < 0 ||
         tvpal_checkpoint_stats_init(&r->st) < 0)
         die_fail("out of memory");
+    free(files);
     free(params);
     free(withplan);
     const size_t n = (size_t)r->nshard * r->T;

@@ -2,6 +2,7 @@
  * the text layout is common/format/FORMAT.md 9.2). */
 #define _GNU_SOURCE
 #include "tvpal_checkpoint.h"
+#include "tvpal_crc32c.h"
 #include "tvpal_fs.h"
 
 #include <dirent.h>
@@ -40,8 +41,23 @@ void tvpal_checkpoint_stats_free(struct tvpal_checkpoint_stats *st)
     st->fine = NULL;
 }
 
+/* The CRC-32C of the first n bytes of path (fewer where it is shorter;
+ * 0 where it cannot be read). */
+static uint32_t head_crc(const char *path, unsigned n)
+{
+    unsigned char buf[4096];
+    if (n > sizeof buf)
+        n = sizeof buf;
+    int fd = tvpal_open_regular(path, NULL);
+    if (fd < 0)
+        return 0;
+    ssize_t k = pread(fd, buf, n, 0);
+    close(fd);
+    return k > 0 ? tvpal_crc32c(0, buf, (size_t)k) : 0;
+}
+
 int tvpal_checkpoint_fingerprint(const char *params, char *const *inputs,
-                                 int ninputs, char **out)
+                                 int ninputs, unsigned head_bytes, char **out)
 {
     char *buf = NULL;
     size_t len = 0;
@@ -55,6 +71,8 @@ int tvpal_checkpoint_fingerprint(const char *params, char *const *inputs,
             memset(&st, 0, sizeof st);
         fprintf(f, " %s:%lld:%lld.%09ld", inputs[i], (long long)st.st_size,
                 (long long)st.st_mtim.tv_sec, st.st_mtim.tv_nsec);
+        if (head_bytes)
+            fprintf(f, ":%08x", head_crc(inputs[i], head_bytes));
     }
     if (fclose(f) != 0) {
         free(buf);

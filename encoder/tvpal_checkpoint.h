@@ -58,10 +58,12 @@ void tvpal_checkpoint_stats_free(struct tvpal_checkpoint_stats *st);
 
 /* Builds the identity of a job: params (the encoding options as text, no
  * newline) followed by " PATH:SIZE:MTIME_SEC.MTIME_NSEC" for each input (an
- * input that cannot be stat'ed counts as size 0, time 0).  *out is
- * malloc'ed, freed by the caller.  0 or TVPAL_E_NOMEM. */
+ * input that cannot be stat'ed counts as size 0, time 0), and with
+ * head_bytes > 0 ":CRC" of the CRC-32C of its first head_bytes bytes (a
+ * file rewritten within the clock's resolution, to the same size).
+ * *out is malloc'ed, freed by the caller.  0 or TVPAL_E_NOMEM. */
 int tvpal_checkpoint_fingerprint(const char *params, char *const *inputs,
-                                 int ninputs, char **out);
+                                 int ninputs, unsigned head_bytes, char **out);
 
 /* Atomically replaces DIR/checkpoint (via a temporary, tvpal_out) with: the
  * first `done` units of work (pass p, step t counts as p * T + t + 1) are

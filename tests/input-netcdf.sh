@@ -179,6 +179,35 @@ expect_exit 2 "tm-d.nc: the time of step 2 \(0, .*\) is not after step 1's \(3, 
 expect_exit 2 "the time of step 2 \(0, .*tm-f.nc\) is not after step 1's \(9, .*tm-e.nc\)" \
     "$ENC" -q -o "$W/tm" "$W/tm-e.nc" "$W/tm-f.nc"
 [ ! -e "$W/tm" ] && [ ! -e "$W/tm.partial" ] && ok "times out of order: nothing left" || fail "output left"
+# Long variable names (200 characters, the same first 190) are read whole:
+# they were cut to 127, so a job on one resumed another's steps and
+# tvpal-report looked for the cut name.
+a=$(printf 'v%.0s' $(seq 1 190))
+"$PY" - "$W/long.cdl" "$a" <<'PY'
+import sys
+a = sys.argv[2]
+open(sys.argv[1], "w").write("""netcdf long {
+dimensions:
+ t = 6 ; z = 2 ; y = 3 ; x = 4 ;
+variables:
+ float %sAAAAAAAAAA(t, z, y, x) ;
+ float %sBBBBBBBBBB(t, z, y, x) ;
+data:
+ %sAAAAAAAAAA = %s ;
+ %sBBBBBBBBBB = %s ;
+}
+""" % (a, a, a, ", ".join(str(i % 17) for i in range(144)), a,
+       ", ".join(str(i % 13 + 100) for i in range(144))))
+PY
+ncgen -o "$W/long.nc" "$W/long.cdl" || fail "ncgen long"
+TVPAL_ENCODE_FAULT_AFTER=3 "$ENC" -q --var "${a}AAAAAAAAAA" --window 2 -o "$W/lv" "$W/long.nc" > /dev/null 2>&1
+"$ENC" --var "${a}BBBBBBBBBB" --window 2 -o "$W/lv" "$W/long.nc" > /dev/null 2> "$W/lv.err"
+if ! grep -q resuming "$W/lv.err" && grep -q "^source_var = ${a}BBBBBBBBBB$" "$W/lv/manifest.txt" &&
+   "$REP" -q "$W/lv" > "$W/lv.rep" 2>&1; then
+    ok "200-character variable names: read whole, no resume of the other's job, report reads it"
+else
+    fail "long variable names: $(cat "$W/lv.err" "$W/lv.rep" 2> /dev/null | head -n 5)"
+fi
 # A missing_value list of 20 values (more than the 15 read before, when the
 # whole list was ignored and its values became data): the voxels of its
 # last value are missing.

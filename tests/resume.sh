@@ -63,4 +63,49 @@ TVPAL_ENCODE_FAULT=nosave TVPAL_ENCODE_FAULT_AFTER=7 "$ENC" --checkpoint-every 3
 ! grep -q resuming "$W/e.txt" && diff -r "$W/cref" "$W/c1" > /dev/null \
     && ok "no checkpoint: the job starts over, output identical" || fail "checkpoint-every 3600: $(cat "$W/e.txt")"
 expect_exit 2 "checkpoint-every" "$ENC" --checkpoint-every -1 --dims $D -o "$W/cx" "$W"/in/*.f32
+
+# A .pvd whose DataSet files are rewritten between the runs (same size,
+# same modification time: only their bytes differ) starts over: the
+# checkpoint names every file the collection lists, with a CRC of its
+# head.  It resumed with old and new steps mixed.  And the same job
+# untouched still resumes.
+vti_series() {   # DIR SEED: 12 raw-appended .vti files of D and a .pvd
+    "$PY" - "$1" "$2" "$D" <<'PY'
+import os, struct, sys
+d, seed, dims = sys.argv[1], int(sys.argv[2]), [int(v) for v in sys.argv[3].split("x")]
+os.makedirs(d, exist_ok=True)
+nx, ny, nz = dims
+n = nx * ny * nz
+sets = []
+for t in range(12):
+    vals = [float((i * 7 + t * 13 + seed) % 101) for i in range(n)]
+    head = ('<?xml version="1.0"?>\n<VTKFile type="ImageData" version="1.0" '
+            'byte_order="LittleEndian" header_type="UInt64">\n<ImageData WholeExtent='
+            '"0 %d 0 %d 0 %d" Origin="0 0 0" Spacing="1 1 1">\n<Piece Extent="0 %d 0 %d 0 %d">'
+            '<PointData Scalars="v"><DataArray type="Float32" Name="v" format="appended" '
+            'offset="0"/></PointData></Piece></ImageData>\n<AppendedData encoding="raw">\n_'
+            % (nx - 1, ny - 1, nz - 1, nx - 1, ny - 1, nz - 1))
+    with open("%s/s%02d.vti" % (d, t), "wb") as f:
+        f.write(head.encode() + struct.pack("<Q", 4 * n) + struct.pack("<%df" % n, *vals))
+        f.write(b"\n</AppendedData>\n</VTKFile>\n")
+    sets.append('<DataSet timestep="%d" file="s%02d.vti"/>' % (t, t))
+open(d + "/s.pvd", "w").write('<?xml version="1.0"?>\n<VTKFile type="Collection" '
+    'version="0.1"><Collection>\n' + "\n".join(sets) + '\n</Collection></VTKFile>\n')
+PY
+}
+vti_series "$W/pa" 1 && vti_series "$W/pb" 2 || fail "vti series"
+"$ENC" --axes xyz -q --window 4 -o "$W/pref" "$W/pb/s.pvd" > /dev/null || fail "pvd reference"
+TVPAL_ENCODE_FAULT_AFTER=5 "$ENC" --axes xyz -q --window 4 -o "$W/pv" "$W/pa/s.pvd" > /dev/null 2>&1
+for f in "$W"/pa/s*.vti; do   # the new bytes, the old size and time
+    touch -r "$f" "$W/t.stamp" && cp "$W/pb/$(basename "$f")" "$f" && touch -r "$W/t.stamp" "$f"
+done
+"$ENC" --axes xyz --window 4 -o "$W/pv" "$W/pa/s.pvd" > /dev/null 2> "$W/e.txt" || fail "pvd rerun: $(cat "$W/e.txt")"
+! grep -q resuming "$W/e.txt" && diff -r -x manifest.txt "$W/pref" "$W/pv" > /dev/null \
+    && ok "rewritten DataSets: the job starts over, the new steps only" \
+    || fail "rewritten DataSets resumed: $(grep resuming "$W/e.txt")"
+rm -rf "$W/pv"
+TVPAL_ENCODE_FAULT_AFTER=5 "$ENC" --axes xyz -q --window 4 -o "$W/pv" "$W/pb/s.pvd" > /dev/null 2>&1
+"$ENC" --axes xyz --window 4 -o "$W/pv" "$W/pb/s.pvd" > /dev/null 2> "$W/e.txt" || fail "pvd resume"
+grep -q "resuming .* timestep 5 of 12" "$W/e.txt" && diff -r "$W/pref" "$W/pv" > /dev/null \
+    && ok "an untouched .pvd job resumes, output identical" || fail "pvd resume: $(cat "$W/e.txt")"
 finish

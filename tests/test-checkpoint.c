@@ -154,9 +154,9 @@ static void test_fingerprint(void)
     REQUIRE(tvpal_write_file_atomic(in0, "abcd", 4, NULL) == 0 &&
                 tvpal_write_file_atomic(in1, "efgh", 4, NULL) == 0, "inputs");
     char *f1 = NULL, *f2 = NULL, *f3 = NULL, *f4 = NULL;
-    CHECK(tvpal_checkpoint_fingerprint("window=4", ins, 2, &f1) == 0 &&
-              tvpal_checkpoint_fingerprint("window=4", ins, 2, &f2) == 0 &&
-              tvpal_checkpoint_fingerprint("window=2", ins, 2, &f3) == 0,
+    CHECK(tvpal_checkpoint_fingerprint("window=4", ins, 2, 0, &f1) == 0 &&
+              tvpal_checkpoint_fingerprint("window=4", ins, 2, 0, &f2) == 0 &&
+              tvpal_checkpoint_fingerprint("window=2", ins, 2, 0, &f3) == 0,
           "fingerprint");
     CHECK(f1 && f2 && !strcmp(f1, f2), "same job, different fingerprints");
     CHECK(f1 && f3 && strcmp(f1, f3), "other options, same fingerprint");
@@ -164,7 +164,7 @@ static void test_fingerprint(void)
           "layout: \"%s\"", f1 ? f1 : "");
     /* An input that changed size is another job. */
     REQUIRE(tvpal_write_file_atomic(in1, "efghij", 6, NULL) == 0, "input changed");
-    CHECK(tvpal_checkpoint_fingerprint("window=4", ins, 2, &f4) == 0 && f4 &&
+    CHECK(tvpal_checkpoint_fingerprint("window=4", ins, 2, 0, &f4) == 0 && f4 &&
               strcmp(f1, f4), "changed input, same fingerprint");
     /* The checkpoint of one job is refused by the other. */
     struct tvpal_checkpoint_stats st;

@@ -46,7 +46,7 @@
 struct tvpal_input_file {
     hid_t file, dset, fspace, mspace;
     char *path;
-    char var[128];             /* the dataset's path, from the root */
+    char var[TVPAL_INPUT_VAR_MAX];  /* the dataset's path, from the root */
     int rank;                  /* 3 or 4 */
     hsize_t dims[4];
     size_t nvox;

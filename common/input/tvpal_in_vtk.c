@@ -79,7 +79,7 @@ struct vtk_hdr {
 
 struct tvpal_input_file {
     char *path;
-    char var[128];
+    char var[TVPAL_INPUT_VAR_MAX];
     uint32_t dims[3];
     int t, binary;
     long long offset;
@@ -529,6 +529,10 @@ static int vtk_open(struct tvpal_input_file **out, const char *path,
     int rc = scan(&h, path, diag);
     if (rc == 0)
         rc = choose(&h, opts->var, &pick);
+    if (rc == 0 && strlen(h.arrays[pick].name) >= sizeof info->var)
+        rc = tvpal_diag_set(diag, TVPAL_E_RANGE, "%s: array name of %zu "
+                            "characters (at most %zu are read)", path,
+                            strlen(h.arrays[pick].name), sizeof info->var - 1);
     struct tvpal_input_file *f = NULL;
     if (rc == 0 && (!(f = calloc(1, sizeof *f)) || !(f->path = strdup(path))))
         rc = TVPAL_E_NOMEM;
@@ -645,7 +649,7 @@ static int vtk_read_box(struct tvpal_input_file *f, uint32_t k,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: step %u of a file "
                               "that holds one", f->path, k);
     char what[160];
-    snprintf(what, sizeof what, "SCALARS %s", f->var);
+    snprintf(what, sizeof what, "SCALARS %.140s", f->var);
     if (f->binary) {
         int fd = open(f->path, O_RDONLY);
         if (fd < 0)

@@ -85,13 +85,20 @@ struct tvpal_input_opts {
                              * thread alone */
 };
 
+/* The longest variable name or dataset path read, with its NUL: NetCDF's
+ * names (NC_MAX_NAME, 256) fit; a VTK array or HDF5 path beyond it is
+ * refused by name.  A name cut short would name another variable (a
+ * resume of another job, a report reading the wrong one). */
+#define TVPAL_INPUT_VAR_MAX 512
+
 /* What a series holds, from its files. */
 struct tvpal_input_info {
     uint32_t dims[3];           /* x, y, z */
     uint32_t steps;             /* over all files */
     enum tvpal_type type;       /* the stored type (f32 after CF unpacking
                                  * of packed integers, f64 for doubles) */
-    char var[128];              /* the variable read */
+    char var[TVPAL_INPUT_VAR_MAX];  /* the variable read, whole (a
+                                 * longer name is refused, never cut) */
     char units[64];             /* its units attribute, or "" */
     char dim_names[3][64];      /* x, y, z dimension names, or "" */
     double spacing[3], origin[3];  /* 1 and 0 where the file says nothing;
