@@ -54,6 +54,7 @@ struct opts {
     unsigned nmissing;
     const char *outdir;
     int force, quiet;
+    int allow_external;               /* HDF5 data in other files read */
     int dry_run;                      /* --dry-run: the plan, then exit */
     char **inputs;
     int ninputs;

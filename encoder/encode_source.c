@@ -609,7 +609,8 @@ int open_source(struct run *r, int have_dims)
     struct opts *o = &r->o;
     struct tvpal_diag d = {{0}};
     enum tvpal_input_format f = o->format;
-    struct tvpal_input_opts io = {.var = o->var, .time_dim = o->time_dim};
+    struct tvpal_input_opts io = {.var = o->var, .time_dim = o->time_dim,
+                                  .allow_external = o->allow_external};
     if (o->ninputs < 1)
         return have_dims;
     if (f == TVPAL_IN_AUTO && tvpal_input_detect(o->inputs[0], &io, &f, &d) < 0)

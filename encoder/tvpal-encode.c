@@ -76,6 +76,10 @@ static void usage(FILE *f)
 "      --time-dim NAME    NetCDF: the time dimension (default: the\n"
 "                         unlimited one, or the one a CF time coordinate\n"
 "                         names)\n"
+"      --allow-external   HDF5: read a dataset whose data lives in other\n"
+"                         files (an external link on its path, external\n"
+"                         storage, a virtual dataset's sources); refused\n"
+"                         by default, naming the file\n"
 "      --sort ORDER       none (default: as given; a warning names the first\n"
 "                         pair of numbered names out of natural order) or\n"
 "                         natural (density_2 before density_10)\n"
@@ -317,6 +321,8 @@ static const struct optspec {
      offsetof(struct opts, shard_pat), 0, 0, {0}, NULL},
     {"output", 'o', OPT_OUTPUT, 0, 0, 0, {0}, NULL},
     {"force", 'f', OPT_FLAG, offsetof(struct opts, force), 0, 0, {0}, NULL},
+    {"allow-external", OPT_LONG_ONLY + 22, OPT_FLAG,
+     offsetof(struct opts, allow_external), 0, 0, {0}, NULL},
     {"dry-run", OPT_LONG_ONLY + 17, OPT_FLAG, offsetof(struct opts, dry_run), 0,
      0, {0}, NULL},
     {"levels", OPT_LONG_ONLY + 18, OPT_U32, offsetof(struct opts, levels), 0,

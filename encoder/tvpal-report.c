@@ -61,6 +61,8 @@ static void usage(FILE *f)
 "                      against the source averaged 2x2x2 K times, as the\n"
 "                      encoder made it (default 0: the dataset itself)\n"
 "  -q, --quiet         only the closing summary line\n"
+"      --allow-external HDF5 references whose data lives in other files\n"
+"                      (as tvpal-encode --allow-external read them)\n"
 "  -h, --help          this help\n"
 "  -V, --version       version\n"
 "\n"
@@ -84,6 +86,7 @@ struct options {
     const char *dir;                   /* OUTDIR */
     const char *csv_path, *json_path;  /* NULL: not written */
     int use_ref, quiet;
+    int allow_external;                /* --allow-external (HDF5) */
     unsigned level;                    /* --level K */
     char **refs;    /* the reference files: the arguments after OUTDIR, or */
     size_t nrefs;   /* the manifest's sources (validate_options decides) */
@@ -99,6 +102,7 @@ static const struct option long_options[] = {
     {"json", required_argument, 0, 'j'},
     {"level", required_argument, 0, 'l'},
     {"quiet", no_argument, 0, 'q'},
+    {"allow-external", no_argument, 0, 'X'},
     {"help", no_argument, 0, 'h'},
     {"version", no_argument, 0, 'V'},
     {0, 0, 0, 0}};
@@ -126,6 +130,7 @@ static int parse_options(int argc, char **argv, struct options *o)
             break;
         }
         case 'q': o->quiet = 1; break;
+        case 'X': o->allow_external = 1; break;
         case 'h': usage(stdout); return TVPAL_EXIT_OK;
         case 'V': printf(PROG " " PACKAGE_VERSION "\n"); return TVPAL_EXIT_OK;
         default:
@@ -151,7 +156,8 @@ static int open_self_describing(struct options *o,
 {
     enum tvpal_input_format f;
     struct tvpal_diag d = {{0}};
-    struct tvpal_input_opts io = {.var = m->source_var};
+    struct tvpal_input_opts io = {.var = m->source_var,
+                                  .allow_external = o->allow_external};
     int rc = tvpal_input_format_parse(m->source_format, &f);
     if (rc < 0) {
         fprintf(stderr, PROG ": source_format \"%s\": expected raw, netcdf, "

@@ -216,15 +216,24 @@ static void make_fixtures(void)
 /* The pool compressed chunks inflate on (NULL: the reading thread). */
 static struct tvpal_pool *g_pool;
 
-static struct tvpal_input *open1(enum tvpal_input_format fmt, const char *file,
-                                 const char *var, int *rc, struct tvpal_diag *g)
+static struct tvpal_input *open1x(enum tvpal_input_format fmt,
+                                  const char *file, const char *var,
+                                  int allow_external, int *rc,
+                                  struct tvpal_diag *g)
 {
     struct tvpal_input *in = NULL;
     char *files[1] = {(char *)file};
-    struct tvpal_input_opts o = {.var = var, .pool = g_pool};
+    struct tvpal_input_opts o = {.var = var, .pool = g_pool,
+                                 .allow_external = allow_external};
     g->msg[0] = 0;
     *rc = tvpal_input_open(&in, fmt, files, 1, &o, g);
     return *rc == 0 ? in : NULL;
+}
+
+static struct tvpal_input *open1(enum tvpal_input_format fmt, const char *file,
+                                 const char *var, int *rc, struct tvpal_diag *g)
+{
+    return open1x(fmt, file, var, 0, rc, g);
 }
 
 static int same_float(float a, float b)
@@ -472,9 +481,12 @@ static void test_errors(void)
 }
 
 /* Files an HDF5 file names (an external link's target, a dataset's
- * external storage) are checked as top-level inputs are: a FIFO there is
+ * external storage, a virtual dataset's sources) are not read unless
+ * allowed (allow_external, tvpal-encode --allow-external), each named;
+ * when allowed they are checked as top-level inputs are: a FIFO there is
  * refused at once, naming it, instead of blocking the library for ever
- * (alarm: a hang fails the test).  A regular target still reads. */
+ * (alarm: a hang fails the test), a missing virtual source is refused
+ * (it read as fill values).  Regular targets then read. */
 static void test_named_files(void)
 {
     struct tvpal_diag g;
@@ -503,23 +515,65 @@ static void test_named_files(void)
         H5Sclose(s);
     }
     H5Fclose(f);
+    /* a virtual dataset of ext.raw's values, through a source file */
+    hid_t src = create(wpath("vsrc.h5"));
+    H5Dclose(dataset(src, "d", H5T_IEEE_F32LE, 3, dims, H5T_NATIVE_FLOAT, v,
+                     0));
+    H5Fclose(src);
+    f = H5Fopen(wpath("named.h5"), H5F_ACC_RDWR, H5P_DEFAULT);
+    REQUIRE(f >= 0, "reopen named.h5");
+    hid_t vs = H5Screate_simple(3, dims, NULL), ss = H5Screate_simple(3, dims,
+                                                                      NULL);
+    hid_t vp = H5Pcreate(H5P_DATASET_CREATE);
+    REQUIRE(H5Pset_virtual(vp, vs, wpath("vsrc.h5"), "/d", ss) >= 0, "vds");
+    hid_t vd = H5Dcreate2(f, "virt", H5T_IEEE_F32LE, vs, H5P_DEFAULT, vp,
+                          H5P_DEFAULT);
+    REQUIRE(vd >= 0, "virtual dataset");
+    H5Dclose(vd);
+    H5Pclose(vp);
+    H5Sclose(vs);
+    H5Sclose(ss);
+    H5Fclose(f);
     alarm(60);
     CHECK(!open1(TVPAL_IN_HDF5, wpath("named.h5"), "/to_fifo", &rc, &g) &&
+          rc == TVPAL_E_INVAL && strstr(g.msg, "external link to fifo.h5") &&
+          strstr(g.msg, "--allow-external"), "external link, not allowed: "
+          "%d %s", rc, g.msg);
+    CHECK(!open1(TVPAL_IN_HDF5, wpath("named.h5"), "/ext_good", &rc, &g) &&
+          rc == TVPAL_E_INVAL && strstr(g.msg, "ext.raw (external storage)") &&
+          strstr(g.msg, "--allow-external"), "external storage, not "
+          "allowed: %d %s", rc, g.msg);
+    CHECK(!open1(TVPAL_IN_HDF5, wpath("named.h5"), "/virt", &rc, &g) &&
+          rc == TVPAL_E_INVAL && strstr(g.msg, "is virtual, its data in") &&
+          strstr(g.msg, "vsrc.h5") && strstr(g.msg, "--allow-external"),
+          "virtual dataset, not allowed: %d %s", rc, g.msg);
+    CHECK(!open1x(TVPAL_IN_HDF5, wpath("named.h5"), "/to_fifo", 1, &rc, &g) &&
           rc == TVPAL_E_OPEN && strstr(g.msg, "named.h5") &&
           strstr(g.msg, "fifo.h5: not a regular file (a FIFO)"),
           "external link to a FIFO: %d %s", rc, g.msg);
-    CHECK(!open1(TVPAL_IN_HDF5, wpath("named.h5"), "/ext_fifo", &rc, &g) &&
+    CHECK(!open1x(TVPAL_IN_HDF5, wpath("named.h5"), "/ext_fifo", 1, &rc, &g) &&
           rc == TVPAL_E_OPEN && strstr(g.msg, "/ext_fifo: its external "
                                        "storage") &&
           strstr(g.msg, "fifo.raw: not a regular file (a FIFO)"),
           "external storage in a FIFO: %d %s", rc, g.msg);
-    struct tvpal_input *in = open1(TVPAL_IN_HDF5, wpath("named.h5"),
-                                   "/ext_good", &rc, &g);
+    struct tvpal_input *in = open1x(TVPAL_IN_HDF5, wpath("named.h5"),
+                                    "/ext_good", 1, &rc, &g);
     float got[24];
     CHECK(in && tvpal_input_read(in, 0, got, &g) == 0 &&
           !memcmp(got, v, sizeof v), "external storage in a regular file "
           "reads: %s", g.msg);
     tvpal_input_close(in);
+    in = open1x(TVPAL_IN_HDF5, wpath("named.h5"), "/virt", 1, &rc, &g);
+    memset(got, 0, sizeof got);
+    CHECK(in && tvpal_input_read(in, 0, got, &g) == 0 &&
+          !memcmp(got, v, sizeof v), "a virtual dataset, allowed, reads: %s",
+          g.msg);
+    tvpal_input_close(in);
+    REQUIRE(unlink(wpath("vsrc.h5")) == 0, "unlink vsrc.h5");
+    CHECK(!open1x(TVPAL_IN_HDF5, wpath("named.h5"), "/virt", 1, &rc, &g) &&
+          rc == TVPAL_E_OPEN && strstr(g.msg, "virtual source") &&
+          strstr(g.msg, "is missing"), "a virtual dataset's missing source: "
+          "%d %s", rc, g.msg);
     alarm(0);
 }
 

@@ -827,6 +827,8 @@ static void list_datasets(char *out, size_t cap, hid_t file, int all)
  * named (from the working directory) and beside the file that names it. */
 struct named_file {
     const char *parent;         /* the file that names it */
+    int allow;                  /* opts->allow_external */
+    int external;               /* a link to another file was met */
     char bad[sizeof ((struct tvpal_diag *)0)->msg];  /* why it was refused */
 };
 
@@ -863,7 +865,13 @@ static herr_t on_elink(const char *parent_file, const char *parent_group,
 {
     (void)parent_file, (void)parent_group, (void)child_object;
     (void)acc_flags, (void)fapl;
-    return check_named(op, child_file) < 0 ? -1 : 0;
+    struct named_file *c = op;
+    if (!c->allow) {
+        c->external = 1;
+        snprintf(c->bad, sizeof c->bad, "%s", child_file);
+        return -1;
+    }
+    return check_named(c, child_file) < 0 ? -1 : 0;
 }
 
 /* H5Oopen(file, path) with every external link on the path checked:
@@ -881,14 +889,58 @@ static hid_t open_checked(hid_t file, const char *path, struct named_file *c)
     return o;
 }
 
-/* The dataset's external storage files (H5Pset_external), each checked. */
-static int check_external_storage(const struct tvpal_input_file *f,
+/* A virtual dataset's source files (H5Pset_virtual): refused unless
+ * allowed; each must then exist and be a regular file (a missing source
+ * reads as fill values, silently). */
+static int check_virtual_sources(const struct tvpal_input_file *f, hid_t dcpl,
+                                 int allow, struct tvpal_diag *diag)
+{
+    size_t n = 0;
+    if (H5Pget_layout(dcpl) != H5D_VIRTUAL ||
+        H5Pget_virtual_count(dcpl, &n) < 0)
+        return 0;
+    struct named_file c = {.parent = f->path};
+    for (size_t i = 0; i < n; i++) {
+        char name[4096];
+        if (H5Pget_virtual_filename(dcpl, i, name, sizeof name) < 0)
+            continue;
+        name[sizeof name - 1] = 0;
+        if (!strcmp(name, "."))   /* the file itself */
+            continue;
+        if (!allow)
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: dataset %s is "
+                                  "virtual, its data in %s: not read "
+                                  "unless --allow-external is given",
+                                  f->path, f->var, name);
+        char beside[4096];
+        const char *slash = strrchr(f->path, '/');
+        struct stat st;
+        int k = name[0] == '/' || !slash ? -1
+                : snprintf(beside, sizeof beside, "%.*s/%s",
+                           (int)(slash - f->path), f->path, name);
+        if (stat(name, &st) < 0 &&
+            (k < 0 || (size_t)k >= sizeof beside || stat(beside, &st) < 0))
+            return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: dataset %s: its "
+                                  "virtual source %s is missing (it would "
+                                  "read as fill values)", f->path, f->var,
+                                  name);
+        if (check_named(&c, name) < 0)
+            return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: dataset %s: its "
+                                  "virtual source: %s", f->path, f->var,
+                                  c.bad);
+    }
+    return 0;
+}
+
+/* The dataset's external storage files (H5Pset_external) and virtual
+ * sources: refused unless allowed, each checked when allowed. */
+static int check_external_storage(const struct tvpal_input_file *f, int allow,
                                   struct tvpal_diag *diag)
 {
     hid_t dcpl = H5Dget_create_plist(f->dset);
     int n = dcpl >= 0 ? H5Pget_external_count(dcpl) : 0;
     struct named_file c = {.parent = f->path};
-    int rc = 0;
+    int rc = dcpl >= 0 ? check_virtual_sources(f, dcpl, allow, diag) : 0;
     for (int i = 0; i < n && rc == 0; i++) {
         char name[4096];
         off_t off;
@@ -897,7 +949,12 @@ static int check_external_storage(const struct tvpal_input_file *f,
                             &size) < 0)
             continue;
         name[sizeof name - 1] = 0;
-        if (check_named(&c, name) < 0)
+        if (!allow)
+            rc = tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: dataset %s keeps "
+                                "its data in %s (external storage): not read "
+                                "unless --allow-external is given", f->path,
+                                f->var, name);
+        else if (check_named(&c, name) < 0)
             rc = tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: dataset %s: its "
                                 "external storage: %s", f->path, f->var,
                                 c.bad);
@@ -927,9 +984,15 @@ static int choose_dataset(struct tvpal_input_file *f,
             return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: dataset path %s "
                                   "is too long (at most %zu characters)",
                                   f->path, opts->var, sizeof f->var - 2);
-        struct named_file c = {.parent = f->path};
+        struct named_file c = {.parent = f->path,
+                               .allow = opts->allow_external};
         hid_t o = open_checked(f->file, f->var, &c);
         H5Eclear2(H5E_DEFAULT);
+        if (o < 0 && c.external)
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: %s crosses an "
+                                  "external link to %s: not followed unless "
+                                  "--allow-external is given", f->path,
+                                  f->var, c.bad);
         if (o < 0 && c.bad[0])
             return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s: an external "
                                   "link to %s", f->path, f->var, c.bad);
@@ -1110,7 +1173,7 @@ static int h5_open(struct tvpal_input_file **out, const char *path,
     if (rc == 0)
         rc = choose_dataset(f, opts, diag);
     if (rc == 0)
-        rc = check_external_storage(f, diag);
+        rc = check_external_storage(f, opts->allow_external, diag);
     if (rc == 0)
         rc = read_layout(f, info, diag);
     if (rc == 0) {

@@ -77,6 +77,12 @@ struct tvpal_input_opts {
                              * unlimited one, else the dimension a CF time
                              * coordinate (units "... since ...") names,
                              * else the first of a 4-D variable */
+    int allow_external;     /* HDF5: read a dataset whose bytes live in
+                             * other files (an external link on its
+                             * path, external storage, a virtual
+                             * dataset's sources); 0: refused, naming
+                             * the file, since such a small file can
+                             * read any file the user can */
     struct tvpal_pool *pool;  /* the threads that inflate compressed
                              * blocks and chunks (VTK XML, HDF5 and
                              * NetCDF-4): borrowed, it must outlive the
