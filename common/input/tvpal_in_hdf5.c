@@ -524,9 +524,18 @@ uint64_t tvpal_input_hdf5_inflated(void)
 
 /* ---------------------------------------------------------------- errors */
 
+/* The library's automatic error printing off, in the calling thread (a
+ * thread-safe libhdf5 keeps one error stack per thread: a step read by the
+ * encoder's prefetch thread printed some 30 lines of HDF5-DIAG for a
+ * missing filter).  Every entry point calls it; the diag says what
+ * failed, from the stack (h5_fail). */
 static void quiet(void)
 {
-    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+    static __thread int done;
+    if (!done) {
+        H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+        done = 1;
+    }
 }
 
 /* Keeps the description of the innermost frame (the last of a downward
@@ -1249,6 +1258,7 @@ static int h5_read_box(struct tvpal_input_file *f, uint32_t k,
                        const uint32_t lo[3], const uint32_t n[3], float *dst,
                        struct tvpal_diag *diag)
 {
+    quiet();
     int rc = check_step(f, k, diag);
     if (rc < 0)
         return rc;
@@ -1310,6 +1320,7 @@ static uint64_t h5_box_scratch(const struct tvpal_input_file *f,
 static int h5_read(struct tvpal_input_file *f, uint32_t k, float *dst,
                    struct tvpal_diag *diag)
 {
+    quiet();
     int rc = check_step(f, k, diag);
     if (rc < 0)
         return rc;
@@ -1350,6 +1361,7 @@ read:
 
 static int h5_describe(const char *path, char **text, struct tvpal_diag *diag)
 {
+    quiet();
     hid_t file;
     *text = NULL;
     int rc = open_file(path, &file, diag);
