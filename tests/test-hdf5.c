@@ -622,6 +622,33 @@ static void test_missing_list(void)
  * and the library prints nothing (its automatic HDF5-DIAG stack, some 30
  * lines, was printed by a thread other than the one that opened the
  * file, such as the encoder's prefetch thread). */
+/* Chunks claimed far larger than the data (an extendible dataset of
+ * 2x3x4 values in chunks of 64x1024x1024, none written: a few KB on
+ * disk) are refused at open, before anything is allocated for them. */
+static void test_huge_chunks(void)
+{
+    const hsize_t dims[3] = {2, 3, 4}, maxd[3] = {H5S_UNLIMITED,
+                                                  H5S_UNLIMITED,
+                                                  H5S_UNLIMITED};
+    const hsize_t chunk[3] = {64, 1024, 1024};
+    hid_t f = create(wpath("bigchunk.h5"));
+    hid_t sp = H5Screate_simple(3, dims, maxd);
+    hid_t p = H5Pcreate(H5P_DATASET_CREATE);
+    REQUIRE(H5Pset_chunk(p, 3, chunk) >= 0, "chunk");
+    hid_t d = H5Dcreate2(f, "d", H5T_IEEE_F32LE, sp, H5P_DEFAULT, p,
+                         H5P_DEFAULT);
+    REQUIRE(d >= 0, "dataset of huge chunks");
+    H5Dclose(d);
+    H5Pclose(p);
+    H5Sclose(sp);
+    H5Fclose(f);
+    int rc;
+    struct tvpal_diag g;
+    CHECK(!open1(TVPAL_IN_HDF5, wpath("bigchunk.h5"), "/d", &rc, &g) &&
+          rc == TVPAL_E_RANGE && strstr(g.msg, "chunks of 268435456 bytes"),
+          "huge chunks: %d %s", rc, g.msg);
+}
+
 #define ID_FILTER 32100
 static size_t id_filter(unsigned flags, size_t cd_n, const unsigned cd[],
                         size_t n, size_t *buf_size, void **buf)
@@ -1029,6 +1056,7 @@ int main(int argc, char **argv)
     test_named_files();
     test_missing_list();
     test_missing_filter();
+    test_huge_chunks();
     test_netcdf4();
     test_boxes();
 #if defined(HAVE_ZLIB) || defined(HAVE_LIBDEFLATE)

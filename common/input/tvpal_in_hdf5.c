@@ -26,6 +26,7 @@
 #include "tvpal_fs.h"
 
 #include "tvpal_pool.h"
+#include "tvpal_size.h"
 
 #include <hdf5.h>
 #include <stdatomic.h>
@@ -1138,17 +1139,39 @@ static void h5_close(struct tvpal_input_file *f)
 
 /* Chunk sizes (x, y, z), the bytes of a chunk and of the library's chunk
  * cache; 1 1 1 and 0 for contiguous data. */
-static void read_chunking(struct tvpal_input_file *f)
+/* The most bytes a chunk may take: the reader allocates a chunk (and the
+ * library fills one) whatever the file holds, so a small file claiming
+ * chunks larger than its data would have it allocate what it claims. */
+static uint64_t chunk_bytes_max(const struct tvpal_input_file *f,
+                                uint64_t elem)
+{
+    uint64_t step;
+    if (tvpal_mul(f->nvox, elem, &step) < 0 || step > UINT64_MAX / 4)
+        return UINT64_MAX;
+    return step * 4 > ((uint64_t)16 << 20) ? step * 4 : (uint64_t)16 << 20;
+}
+
+static int read_chunking(struct tvpal_input_file *f, struct tvpal_diag *diag)
 {
     f->chunk[0] = f->chunk[1] = f->chunk[2] = 1;
     hid_t dcpl = H5Dget_create_plist(f->dset);
     hsize_t c[4];
+    int rc = 0;
     if (dcpl >= 0 && H5Pget_layout(dcpl) == H5D_CHUNKED &&
         H5Pget_chunk(dcpl, f->rank, c) == f->rank) {
         hid_t t = H5Dget_type(f->dset);
-        f->chunk_bytes = t >= 0 ? H5Tget_size(t) : 8;
-        for (int i = 0; i < f->rank; i++)
-            f->chunk_bytes *= c[i];
+        const uint64_t elem = t >= 0 ? H5Tget_size(t) : 8;
+        uint64_t cb = elem;
+        for (int i = 0; i < f->rank && rc == 0; i++)
+            if (tvpal_mul(cb, c[i], &cb) < 0)
+                cb = UINT64_MAX;
+        if (cb > chunk_bytes_max(f, elem))
+            rc = tvpal_diag_set(diag, TVPAL_E_RANGE, "%s: dataset %s: chunks "
+                                "of %llu bytes, more than 4 times a step of "
+                                "its data (%llu values): refused", f->path,
+                                f->var, (unsigned long long)cb,
+                                (unsigned long long)f->nvox);
+        f->chunk_bytes = (size_t)cb;
         for (int a = 0; a < 3; a++)
             f->chunk[a] = c[f->rank - 1 - a] <= UINT32_MAX
                               ? (uint32_t)c[f->rank - 1 - a] : UINT32_MAX;
@@ -1165,6 +1188,7 @@ static void read_chunking(struct tvpal_input_file *f)
     if (dcpl >= 0)
         H5Pclose(dcpl);
     H5Eclear2(H5E_DEFAULT);
+    return rc;
 }
 
 static int h5_open(struct tvpal_input_file **out, const char *path,
@@ -1193,7 +1217,7 @@ static int h5_open(struct tvpal_input_file **out, const char *path,
                          "cannot make its dataspaces");
     }
     if (rc == 0)
-        read_chunking(f);
+        rc = read_chunking(f, diag);
     if (rc == 0)
         rc = direct_for(f->dset, path, f->var, opts->pool, &f->direct);
     if (rc < 0) {
