@@ -1772,10 +1772,9 @@ void write_manifest(const char *dir, const char *text)
 
 /* Finishes the shards, then writes the manifest to OUTDIR.partial and to
  * every node directory, and removes the checkpoint (FORMAT.md 9.2, 4). */
-static void finish_partial(struct run *r)
+/* text as the manifest of OUTDIR.partial and of every node directory. */
+static void write_manifests(const struct run *r, const char *text)
 {
-    finish_shards(r);
-    char *text = manifest_text(r);
     write_manifest(r->partial, text);
     for (uint32_t k = 0; k < r->o.nodes; k++) {
         char *nd = node_partial(r, k);
@@ -1784,6 +1783,13 @@ static void finish_partial(struct run *r)
         write_manifest(nd, text);
         free(nd);
     }
+}
+
+static void finish_partial(struct run *r)
+{
+    finish_shards(r);
+    char *text = manifest_text(r);
+    write_manifests(r, text);
     free(text);
     tvpal_checkpoint_remove(r->partial, NULL);
     tvpal_fsync_dir(r->partial);
@@ -1960,14 +1966,7 @@ static void adopt_level0(const struct run *r)
     if (tvpal_manifest_format(&m, &text) < 0)
         die_fail("out of memory");
     tvpal_manifest_clear(&m);
-    write_manifest(r->partial, text);
-    for (uint32_t k = 0; k < r->o.nodes; k++) {
-        char *nd = node_partial(r, k);
-        if (!nd)
-            die_fail("out of memory");
-        write_manifest(nd, text);
-        free(nd);
-    }
+    write_manifests(r, text);
     free(text);
     for (unsigned k = r->o.levels + 1; k <= TVPAL_LEVELS_MAX; k++) {
         static const char *const sfx[] = {"", ".src", ".partial",
