@@ -73,6 +73,26 @@ nan_exactly "$W/ds-miss" 1 9x7x5 "4,2,1"
 bad 2 "bad.h5.*damaged" "$ENC" --axes xyz -q -o "$W/bad" "$W/bad.h5"; nothing_left "damaged file"
 bad 2 "bad.h5.*damaged" "$INFO" --inspect "$W/bad.h5"
 bad 2 "raw_t0.f32.*not an HDF5 file" "$ENC" --axes xyz -q --format hdf5 -o "$W/bad" "$W/raw_t0.f32"; nothing_left "not HDF5"
+# units as h5py writes them: a variable-length UTF-8 string never reached
+# the manifest, a fixed-length one (numpy bytes) lost its last character.
+if "$PY" -c "import h5py" 2> /dev/null; then
+    "$PY" - "$W/h5py.h5" <<'PY' || fail "h5py"
+import sys, h5py, numpy as np
+with h5py.File(sys.argv[1], "w") as f:
+    f.create_dataset("T", data=np.arange(24, dtype="f4").reshape(2, 3, 4)).attrs["units"] = "K"
+    f.create_dataset("R", data=np.arange(24, dtype="f4").reshape(2, 3, 4)).attrs["units"] = np.bytes_("kg m-3")
+PY
+    for vu in "T K" "R kg m-3"; do
+        set -- $vu
+        v=$1; shift
+        rm -rf "$W/hu"
+        "$ENC" -q --var "/$v" -o "$W/hu" "$W/h5py.h5" > /dev/null 2>> "$W/all-err.txt" || fail "encode h5py /$v"
+        grep -qx "units = $*" "$W/hu/manifest.txt" && ok "h5py units of /$v: $*" \
+            || fail "h5py units of /$v: $(grep '^units' "$W/hu/manifest.txt")"
+    done
+else
+    echo "no h5py (python3-h5py): the h5py units case is skipped"
+fi
 # HDF5 never prints its own error stack
 grep -q "HDF5-DIAG" "$W/all-err.txt" && fail "HDF5 printed its error stack" || ok "no HDF5 error stack on stderr"
 finish

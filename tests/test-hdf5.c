@@ -622,6 +622,53 @@ static void test_missing_list(void)
  * and the library prints nothing (its automatic HDF5-DIAG stack, some 30
  * lines, was printed by a thread other than the one that opened the
  * file, such as the encoder's prefetch thread). */
+/* units as h5py writes them: a variable-length UTF-8 string (the read
+ * failed: no conversion between character sets), and a fixed-length
+ * null-padded one of the string's own length (its last character was
+ * lost: "kg m-"). */
+static void test_units_h5py(void)
+{
+    static float v[24];
+    const hsize_t dims[3] = {2, 3, 4};
+    hid_t f = create(wpath("units.h5"));
+    const char *names[2] = {"vlen_utf8", "fixed_nullpad"};
+    const char *want[2] = {"m s-1 \xc2\xb0", "kg m-3"};
+    for (int k = 0; k < 2; k++) {
+        hid_t d = dataset(f, names[k], H5T_IEEE_F32LE, 3, dims,
+                          H5T_NATIVE_FLOAT, v, 0);
+        hid_t t = H5Tcopy(H5T_C_S1);
+        if (k == 0) {
+            H5Tset_size(t, H5T_VARIABLE);
+            H5Tset_cset(t, H5T_CSET_UTF8);
+        } else {
+            H5Tset_size(t, strlen(want[k]));
+            H5Tset_strpad(t, H5T_STR_NULLPAD);
+        }
+        hid_t sp = H5Screate(H5S_SCALAR);
+        hid_t a = H5Acreate2(d, "units", t, sp, H5P_DEFAULT, H5P_DEFAULT);
+        REQUIRE(a >= 0 && H5Awrite(a, t, k == 0 ? (const void *)&want[k]
+                                                : (const void *)want[k]) >= 0,
+                "units %s", names[k]);
+        H5Aclose(a);
+        H5Sclose(sp);
+        H5Tclose(t);
+        H5Dclose(d);
+    }
+    H5Fclose(f);
+    for (int k = 0; k < 2; k++) {
+        int rc;
+        struct tvpal_diag g;
+        char var[32];
+        snprintf(var, sizeof var, "/%s", names[k]);
+        struct tvpal_input *in = open1(TVPAL_IN_HDF5, wpath("units.h5"), var,
+                                       &rc, &g);
+        CHECK(in && !strcmp(tvpal_input_info(in)->units, want[k]),
+              "%s units: \"%s\" (\"%s\" expected) %s", names[k],
+              in ? tvpal_input_info(in)->units : "", want[k], g.msg);
+        tvpal_input_close(in);
+    }
+}
+
 /* Chunks claimed far larger than the data (an extendible dataset of
  * 2x3x4 values in chunks of 64x1024x1024, none written: a few KB on
  * disk) are refused at open, before anything is allocated for them. */
@@ -1057,6 +1104,7 @@ int main(int argc, char **argv)
     test_missing_list();
     test_missing_filter();
     test_huge_chunks();
+    test_units_h5py();
     test_netcdf4();
     test_boxes();
 #if defined(HAVE_ZLIB) || defined(HAVE_LIBDEFLATE)

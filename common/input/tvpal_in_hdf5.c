@@ -708,8 +708,11 @@ static int text_att(hid_t obj, const char *name, char *buf, size_t cap)
     hid_t s = a >= 0 ? H5Aget_space(a) : NO_ID;
     hid_t mt = NO_ID;
     int got = 0;
+    /* The memory type in the stored character set (h5py writes UTF-8, and
+     * the library converts between no two sets: the read failed). */
     if (t >= 0 && s >= 0 && H5Tget_class(t) == H5T_STRING &&
-        H5Sget_simple_extent_npoints(s) == 1 && (mt = H5Tcopy(H5T_C_S1)) >= 0) {
+        H5Sget_simple_extent_npoints(s) == 1 && (mt = H5Tcopy(H5T_C_S1)) >= 0 &&
+        H5Tset_cset(mt, H5Tget_cset(t)) >= 0) {
         if (H5Tis_variable_str(t) > 0) {
             char *v = NULL;
             if (H5Tset_size(mt, H5T_VARIABLE) >= 0 && H5Aread(a, mt, &v) >= 0) {
@@ -718,9 +721,13 @@ static int text_att(hid_t obj, const char *name, char *buf, size_t cap)
             }
             H5free_memory(v);
         } else {
+            /* One byte more than stored: a null-terminated memory string
+             * of the stored size keeps room for its NUL and lost the last
+             * character of a null- or space-padded one ("kg m-"). */
             size_t size = H5Tget_size(t);
             char *v = size ? malloc(size + 1) : NULL;
-            if (v && H5Tset_size(mt, size) >= 0 && H5Aread(a, mt, v) >= 0) {
+            if (v && H5Tset_size(mt, size + 1) >= 0 &&
+                H5Aread(a, mt, v) >= 0) {
                 v[size] = 0;
                 tvpal_input_copy_str(buf, cap, v);
                 got = 1;
