@@ -208,6 +208,34 @@ if ! grep -q resuming "$W/lv.err" && grep -q "^source_var = ${a}BBBBBBBBBB$" "$W
 else
     fail "long variable names: $(cat "$W/lv.err" "$W/lv.rep" 2> /dev/null | head -n 5)"
 fi
+# Evenly spaced float32 coordinates are even at their own precision (x in
+# float32 steps of 0.1, z from 0.035 in steps of 0.2 up to 19.835, as the
+# Isabel CF file has them: both were called uneven and drawn with spacing
+# 1); a truly uneven axis still warns and falls back.
+"$PY" - "$W" <<'PY'
+import struct, sys
+f32 = lambda v: struct.unpack("<f", struct.pack("<f", v))[0]
+z = [f32(f32(0.035) + f32(i * f32(0.2))) for i in range(100)]
+x = [f32(i * 0.1) for i in range(8)]
+for name, xs in (("even32", ", ".join(repr(v) for v in x)),
+                 ("uneven", "0, 0.1, 0.2, 0.35, 0.4, 0.5, 0.6, 0.7")):
+    open("%s/%s.cdl" % (sys.argv[1], name), "w").write(
+        "netcdf %s {\ndimensions: z = 100 ; y = 2 ; x = 8 ;\n"
+        "variables: float z(z) ; float y(y) ; float x(x) ; float v(z, y, x) ;\n"
+        "data: z = %s ;\n y = 0, 1 ;\n x = %s ;\n v = %s ;\n}\n"
+        % (name, ", ".join(repr(v) for v in z), xs,
+           ", ".join(str(i % 7) for i in range(1600))))
+PY
+for n in even32 uneven; do
+    ncgen -o "$W/$n.nc" "$W/$n.cdl" || fail "ncgen $n"
+    "$ENC" -q -o "$W/$n" "$W/$n.nc" > /dev/null 2> "$W/$n.err" || fail "encode $n: $(cat "$W/$n.err")"
+done
+sp=$(sed -n 's/^spacing = //p' "$W/even32/manifest.txt")
+echo "$sp" | awk '{ exit !($1 > 0.0999999 && $1 < 0.1000001 && $3 > 0.1999999 && $3 < 0.2000001) }' \
+    && [ ! -s "$W/even32.err" ] && ok "float32 coordinates in steps of 0.1 and 0.2: spacing $sp, no warning" \
+    || fail "float32 coordinates: spacing $sp $(cat "$W/even32.err")"
+grep -q "the x axis (x) is not evenly spaced" "$W/uneven.err" && grep -q "^spacing = 1 1 0.2" "$W/uneven/manifest.txt" \
+    && ok "a truly uneven axis: warned, spacing 1" || fail "uneven axis: $(cat "$W/uneven.err")"
 # A missing_value list of 20 values (more than the 15 read before, when the
 # whole list was ignored and its values became data): the voxels of its
 # last value are missing.

@@ -647,10 +647,24 @@ static int read_axis(struct tvpal_input_file *f, int dimid, size_t len,
     }
     *origin = c[0];
     if (len > 1) {
+        /* Even at the coordinate's own precision: values stored as float32
+         * (or rounded to it) are each off by up to half a float32 ulp, so
+         * an axis in steps of 0.1 up to 20 differs from its mean step by
+         * some 1e-6 of a value: 1e-6 of the step alone called it uneven,
+         * and its spacing fell back to 1. */
+        nc_type ct = NC_DOUBLE;
+        nc_inq_vartype(f->ncid, cv, &ct);
+        const double eps = ct == NC_DOUBLE || ct == NC_INT64 ||
+                                   ct == NC_UINT64
+                               ? 0x1p-52 : ct == NC_FLOAT ? 0x1p-24 : 0;
+        double cmax = 0;
+        for (size_t i = 0; i < len; i++)
+            cmax = fabs(c[i]) > cmax ? fabs(c[i]) : cmax;
         double step = (c[len - 1] - c[0]) / (double)(len - 1);
+        const double tol = fmax(1e-6 * fabs(step), 4 * eps * cmax);
         int even = step != 0 && isfinite(step);
         for (size_t i = 1; even && i < len; i++)
-            even = fabs((c[i] - c[i - 1]) - step) <= 1e-6 * fabs(step);
+            even = fabs((c[i] - c[i - 1]) - step) <= tol;
         if (even)
             *spacing = step;
         else
