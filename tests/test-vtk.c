@@ -159,15 +159,34 @@ static void pvd(void)
         }
         tvpal_input_close(in);
     }
-    /* Two collections strung together: six steps. */
+    /* Two collections strung together: six steps, their times in order;
+     * two whose times repeat (the same steps twice) are refused, as
+     * --times refuses them. */
+    FILE *lp = fopen(fixture("later.pvd"), "wb");
+    REQUIRE(lp && fputs("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" "
+                        "version=\"0.1\"><Collection>\n"
+                        "<DataSet timestep=\"3\" file=\"series/step-0.vti\"/>\n"
+                        "<DataSet timestep=\"4\" file=\"series/step-1.vti\"/>\n"
+                        "<DataSet timestep=\"5\" file=\"series/step-2.vti\"/>\n"
+                        "</Collection></VTKFile>\n", lp) >= 0 &&
+            fclose(lp) == 0, "later.pvd");
     char *two[2] = {(char *)fixture("series.pvd"),
-                    (char *)fixture("unsorted.pvd")};
+                    (char *)fixture("later.pvd")};
     struct tvpal_input *in = NULL;
     struct tvpal_diag g = {{0}};
     int rc = tvpal_input_open(&in, TVPAL_IN_AUTO, two, 2, NULL, &g);
     CHECK(rc == 0 && tvpal_input_info(in)->steps == 6 &&
-          tvpal_input_time(in, 3) == 0.5, "two collections: %d (%s)", rc,
+          tvpal_input_time(in, 3) == 3, "two collections: %d (%s)", rc,
           g.msg);
+    tvpal_input_close(in);
+    in = NULL;
+    char *again[2] = {(char *)fixture("series.pvd"),
+                      (char *)fixture("unsorted.pvd")};
+    rc = tvpal_input_open(&in, TVPAL_IN_AUTO, again, 2, NULL, &g);
+    CHECK(rc == TVPAL_E_FORMAT && strstr(g.msg, "unsorted.pvd: the time of "
+                                         "step 3 (0.5") &&
+          strstr(g.msg, "is not after step 2's (2.5"),
+          "two collections of the same times: %d (%s)", rc, g.msg);
     tvpal_input_close(in);
     in = NULL;
     char *mixed[2] = {(char *)fixture("series.pvd"),
