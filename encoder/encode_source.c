@@ -636,7 +636,11 @@ int open_source(struct run *r, int have_dims)
         die_fail("%u threads to read %s: %s", nt, o->inputs[0],
                  lib_error(prc, NULL));
     io.pool = r->in_pool;
-    int rc = tvpal_input_open(&r->in, f, o->inputs, o->ninputs, &io, &d);
+    /* AUTO again when the format was found here: the reader then checks
+     * that every file is of the first one's format. */
+    int rc = tvpal_input_open(&r->in, o->format == TVPAL_IN_AUTO
+                                          ? TVPAL_IN_AUTO : f,
+                              o->inputs, o->ninputs, &io, &d);
     if (rc < 0)
         die_usage("%s", lib_error(rc, &d));
     const struct tvpal_input_info *in = tvpal_input_info(r->in);

@@ -317,7 +317,18 @@ static int load_and_print_manifest(const char *dir, struct tvpal_manifest *m,
     struct tvpal_diag d = {{0}};
     if (asprintf(&mpath, "%s/manifest.txt", dir) < 0)
         return TVPAL_EXIT_FAIL;
-    int rc = tvpal_manifest_load(mpath, m, &d);
+    int rc = tvpal_dataset_check_dir(dir, &d);
+    if (rc < 0) {
+        fprintf(stderr, PROG ": %s\n", d.msg);
+        free(mpath);
+        return TVPAL_EXIT_USAGE;
+    }
+    rc = tvpal_manifest_load(mpath, m, &d);
+    if (rc < 0 && !strncmp(d.msg, mpath, strlen(mpath))) {
+        fprintf(stderr, PROG ": %s\n", d.msg);   /* it names the file */
+        free(mpath);
+        return TVPAL_EXIT_USAGE;
+    }
     if (rc < 0) {
         fprintf(stderr, PROG ": %s: %s%s%s\n", mpath, tvpal_strerror(rc),
                 d.msg[0] ? ": " : "", d.msg);

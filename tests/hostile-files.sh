@@ -137,6 +137,19 @@ for c in self m1; do
         $T "$INFO" --inspect "$W/coll/$c.pvd"
     expect_exit 2 "where an ImageData file was expected" $T "$ENC" -q -o "$W/o" "$W/coll/$c.pvd"
 done
+# A file of another format in a series is named (a legacy .vtk after a
+# .vti was parsed as XML: "not well-formed"); an input file given where a
+# dataset is expected is called a file, once (the path came twice).
+printf '# vtk DataFile Version 3.0\nx\nASCII\nDATASET STRUCTURED_POINTS\nDIMENSIONS 4 3 2\nORIGIN 0 0 0\nSPACING 1 1 1\nPOINT_DATA 24\nSCALARS v float 1\nLOOKUP_TABLE default\n%s\n' "$(seq -s ' ' 1 24)" > "$W/coll/b.vtk"
+expect_exit 2 "b\.vtk: a vtk file in a series of vti files \(.*a\.vti is one\)" $T "$ENC" -q -o "$W/o" "$W/coll/a.vti" "$W/coll/b.vtk"
+for cmd in "$INFO" "$DEC --step 0 -o $W/x.f32"; do
+    set -- $cmd
+    prog=$1; shift
+    expect_exit 2 "a\.vti: a file, not a dataset directory \(an input file\? tvpal-info --inspect" \
+        $T "$prog" "$W/coll/a.vti" "$@"
+    grep -q "manifest.txt" "$W/err.txt" && fail "$(basename "$prog"): names manifest.txt of a file" \
+        || ok "$(basename "$prog"): a file given as a dataset, said once"
+done
 [ ! -e "$W/o" ] && [ ! -e "$W/o.partial" ] && ok "collections: nothing left behind" || fail "output left behind"
 
 # A file that shrinks while the encoder reads it (a simulation rewriting

@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 static const char axis_name[3] = {'x', 'y', 'z'};
 
@@ -36,6 +37,16 @@ int tvpal_shard_check_table(const char *path,
                           tvpal_manifest_table_name(m->table_format));
 }
 
+int tvpal_dataset_check_dir(const char *dir, struct tvpal_diag *diag)
+{
+    struct stat st;
+    if (stat(dir, &st) == 0 && !S_ISDIR(st.st_mode))
+        return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: a file, not a dataset "
+                              "directory (an input file? tvpal-info --inspect "
+                              "%s describes it)", dir, dir);
+    return 0;
+}
+
 /* Allocates a dataset for dir and loads dir/manifest.txt into it. */
 static int open_manifest(struct tvpal_dataset **out, const char *dir,
                          struct tvpal_diag *diag)
@@ -48,11 +59,17 @@ static int open_manifest(struct tvpal_dataset **out, const char *dir,
         free(ds);
         return TVPAL_E_NOMEM;
     }
-    if (asprintf(&path, "%s/manifest.txt", dir) < 0) {
+    if ((rc = tvpal_dataset_check_dir(dir, diag)) < 0) {
+        path = NULL;
+    } else if (asprintf(&path, "%s/manifest.txt", dir) < 0) {
         path = NULL;
         rc = TVPAL_E_NOMEM;
     } else if ((rc = tvpal_manifest_load(path, &ds->m, &d)) < 0) {
-        tvpal_diag_set(diag, rc, "%s: %s", path, d.msg);
+        /* an open error names the file already; a parse error does not */
+        if (!strncmp(d.msg, path, strlen(path)))
+            tvpal_diag_set(diag, rc, "%s", d.msg);
+        else
+            tvpal_diag_set(diag, rc, "%s: %s", path, d.msg);
     }
     free(path);
     if (rc < 0) {

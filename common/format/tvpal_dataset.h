@@ -42,6 +42,12 @@ int tvpal_shard_check_table(const char *path,
 /* Path of node r's shard of an axis under dir (malloc'ed; caller frees). */
 char *tvpal_shard_filename(const char *dir, uint32_t rank, unsigned axis);
 
+/* Whether dir can be a dataset: 0 when it is a directory or absent (the
+ * manifest's open then says so), else TVPAL_E_OPEN with "DIR: a file, not
+ * a dataset directory" (an input file given where a dataset was
+ * expected: tvpal-info --inspect describes those). */
+int tvpal_dataset_check_dir(const char *dir, struct tvpal_diag *diag);
+
 /* Opens dir/manifest.txt and every shard of the axes it stores, checking
  * that they agree (FORMAT.md 8.3).  On error, diag starts with the path of
  * the file at fault. */

@@ -119,6 +119,7 @@ static const struct tvpal_input_backend *backend_of(enum tvpal_input_format f)
 struct tvpal_input {
     const struct tvpal_input_backend *be;
     enum tvpal_input_format fmt;   /* the format read (never AUTO) */
+    int detected;              /* fmt came from files[0]'s bytes (AUTO) */
     struct tvpal_input_opts opts;
     struct tvpal_input_info info;
     char **files;              /* copies of the paths */
@@ -173,6 +174,29 @@ static int check_same_grid(const struct tvpal_input_info *a,
 
 static int file_of(const struct tvpal_input *in, uint32_t t);
 
+/* A series found by its first file's bytes is of that format throughout:
+ * a NetCDF file after a .vti was parsed as XML ("not well-formed").  Said
+ * by name (a format given with --format is read as given). */
+static int check_same_format(const struct tvpal_input *in, int i,
+                             struct tvpal_diag *diag)
+{
+    enum tvpal_input_format f;
+    if (!in->detected || i == 0 ||
+        tvpal_input_detect(in->files[i], &in->opts, &f, NULL) < 0 ||
+        f == in->fmt || f == TVPAL_IN_RAW)
+        return 0;
+    /* NetCDF-4 read as HDF5 (a dataset path) and the like are one file
+     * format */
+    if ((f == TVPAL_IN_NETCDF || f == TVPAL_IN_HDF5) &&
+        (in->fmt == TVPAL_IN_NETCDF || in->fmt == TVPAL_IN_HDF5))
+        return 0;
+    return tvpal_diag_set(diag, TVPAL_E_MISMATCH, "%s: a %s file in a series "
+                          "of %s files (%s is one): every file of a series "
+                          "is of one format", in->files[i],
+                          tvpal_input_format_name(f),
+                          tvpal_input_format_name(in->fmt), in->files[0]);
+}
+
 /* What a file's grid must be for a dataset to hold it: points that can
  * be addressed, and spacing and origin by the manifest reader's rule
  * (tvpal_manifest_check_grid): a value a dataset could not read back is
@@ -218,6 +242,9 @@ static int open_file(struct tvpal_input *in, int i, struct tvpal_input_info *inf
     int rc = tvpal_open_regular(in->files[i], diag);
     if (rc >= 0) {
         close(rc);
+        rc = check_same_format(in, i, diag);
+    }
+    if (rc >= 0) {
         rc = in->be->open(&in->cur, in->files[i], &in->opts, info, times,
                           diag);
     }
@@ -355,6 +382,7 @@ int tvpal_input_open(struct tvpal_input **out, enum tvpal_input_format fmt,
     if (nfiles < 1)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "no input files");
     int rc = 0;
+    const int detected = fmt == TVPAL_IN_AUTO;
     if (fmt == TVPAL_IN_AUTO &&
         (rc = tvpal_input_detect(files[0], opts, &fmt, diag)) < 0)
         return rc;
@@ -371,6 +399,7 @@ int tvpal_input_open(struct tvpal_input **out, enum tvpal_input_format fmt,
         return TVPAL_E_NOMEM;
     in->be = be;
     in->fmt = fmt;
+    in->detected = detected;
     in->opts = opts ? *opts : (struct tvpal_input_opts){0};
     in->cur_i = -1;
     rc = expand_files(in, files, nfiles, diag);
