@@ -81,6 +81,11 @@ import sys, h5py, numpy as np
 with h5py.File(sys.argv[1], "w") as f:
     f.create_dataset("T", data=np.arange(24, dtype="f4").reshape(2, 3, 4)).attrs["units"] = "K"
     f.create_dataset("R", data=np.arange(24, dtype="f4").reshape(2, 3, 4)).attrs["units"] = np.bytes_("kg m-3")
+    # CF packing: int16 counts 0..920 in steps of 40, K = counts * 0.01 + 273.15
+    p = f.create_dataset("P", data=(np.arange(24, dtype="i2") * 40).reshape(2, 3, 4))
+    p.attrs["scale_factor"] = np.float32(0.01)
+    p.attrs["add_offset"] = np.float32(273.15)
+    p.attrs["units"] = "K"
 PY
     for vu in "T K" "R kg m-3"; do
         set -- $vu
@@ -90,6 +95,15 @@ PY
         grep -qx "units = $*" "$W/hu/manifest.txt" && ok "h5py units of /$v: $*" \
             || fail "h5py units of /$v: $(grep '^units' "$W/hu/manifest.txt")"
     done
+    # packed values unpacked, as the NetCDF reader unpacks them (they were
+    # encoded as the raw counts 0..920)
+    rm -rf "$W/hp"
+    "$ENC" -q --var /P -o "$W/hp" "$W/h5py.h5" > /dev/null 2>> "$W/all-err.txt" || fail "encode h5py /P"
+    lo=$(sed -n 's/^value_min = //p' "$W/hp/manifest.txt"); hi=$(sed -n 's/^value_max = //p' "$W/hp/manifest.txt")
+    awk -v a="$lo" -v b="$hi" 'BEGIN { exit !(a > 273.149 && a < 273.151 && b > 282.349 && b < 282.351) }' \
+        && grep -qx "type = f32" "$W/hp/manifest.txt" \
+        && ok "h5py packed int16 (scale_factor, add_offset): $lo .. $hi K" \
+        || fail "h5py packed: $lo .. $hi"
 else
     echo "no h5py (python3-h5py): the h5py units case is skipped"
 fi

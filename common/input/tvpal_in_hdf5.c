@@ -60,6 +60,10 @@ struct tvpal_input_file {
     size_t scratch_cap;        /* in values */
     double miss[MAX_MISSING];  /* as the stored type holds them */
     int nmiss;
+    int packed;                /* CF scale_factor / add_offset: values are
+                                * stored * scale + offset (after the
+                                * missing-value test, in stored units) */
+    double scale, offset;
     struct tvpal_h5direct *direct; /* deflated float32: read directly */
 };
 
@@ -1121,6 +1125,23 @@ static int read_layout(struct tvpal_input_file *f,
             f->miss[f->nmiss++] = f->is_f32 && fabs(v[i]) <= 3.4e38
                                       ? (double)(float)v[i] : v[i];
     info->missing_attrs = n > 0;
+    /* CF packing, as the NetCDF reader applies it: a packed int16 was
+     * encoded as its raw counts (0..999 labelled K instead of 273..283). */
+    double sc[1] = {1}, of[1] = {0};
+    const int has_scale = num_att(f->dset, "scale_factor", sc, 1) == 1;
+    const int has_offset = num_att(f->dset, "add_offset", of, 1) == 1;
+    if ((has_scale || has_offset) && (sc[0] != 1 || of[0] != 0)) {
+        if (!isfinite(sc[0]) || !isfinite(of[0]) || sc[0] == 0)
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: dataset %s: "
+                                  "scale_factor %g, add_offset %g (finite, "
+                                  "a non-zero scale expected)", f->path,
+                                  f->var, sc[0], of[0]);
+        f->packed = 1;
+        f->scale = sc[0];
+        f->offset = of[0];
+        f->is_f32 = 0;   /* unpacked through doubles, not read directly */
+        info->type = TVPAL_F32;
+    }
     text_att(f->dset, "units", info->units, sizeof info->units);
     return 0;
 }
@@ -1225,7 +1246,7 @@ static int h5_open(struct tvpal_input_file **out, const char *path,
     }
     if (rc == 0)
         rc = read_chunking(f, diag);
-    if (rc == 0)
+    if (rc == 0 && !f->packed)
         rc = direct_for(f->dset, path, f->var, opts->pool, &f->direct);
     if (rc < 0) {
         h5_close(f);
@@ -1327,7 +1348,9 @@ static int h5_read_box(struct tvpal_input_file *f, uint32_t k,
                              ((size_t)(plo[2] - lo[2] + z) * n[1] +
                               (plo[1] - lo[1] + y)) * n[0];
                 for (uint32_t x = 0; x < pn[0]; x++, v++)
-                    row[x] = missing(f, *v) ? NAN : (float)*v;
+                    row[x] = missing(f, *v) ? NAN
+                             : f->packed ? (float)(*v * f->scale + f->offset)
+                                         : (float)*v;
             }
     }
     return 0;
