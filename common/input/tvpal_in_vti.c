@@ -1877,10 +1877,6 @@ static int vti_open(struct tvpal_input_file **out, const char *path,
     if (rc == 0 && !d.parallel && d.arrays[pick].fmt != F_ASCII)
         rc = read_binary(&d, &d.arrays[pick],
                          (uint64_t)n * vti_types[d.arrays[pick].t].size, NULL);
-    if (rc == 0 && strlen(d.arrays[pick].name) >= sizeof info->var)
-        rc = tvpal_diag_set(diag, TVPAL_E_RANGE, "%s: array name of %zu "
-                            "characters (at most %zu are read)", path,
-                            strlen(d.arrays[pick].name), sizeof info->var - 1);
     struct tvpal_input_file *f = NULL;
     if (rc == 0 && (!(f = calloc(1, sizeof *f)) || !(f->path = strdup(path))))
         rc = TVPAL_E_NOMEM;
