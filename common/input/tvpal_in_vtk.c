@@ -343,13 +343,11 @@ static void hdr_free(struct vtk_hdr *h)
 
 /* Reads the header of path and finds its arrays into *h (hdr_free, also
  * after an error). */
-static int scan(struct vtk_hdr *h, const char *path, struct tvpal_diag *diag)
+/* Opens path (a regular file: a FIFO would block) into h->fp, h->size. */
+static int open_file(struct vtk_hdr *h, const char *path,
+                     struct tvpal_diag *diag)
 {
-    memset(h, 0, sizeof *h);
-    h->path = path;
-    h->diag = diag;
-    h->spacing[0] = h->spacing[1] = h->spacing[2] = 1;
-    int fd = tvpal_open_regular(path, diag);   /* a FIFO would block */
+    int fd = tvpal_open_regular(path, diag);
     if (fd < 0)
         return fd;
     if (!(h->fp = fdopen(fd, "rb"))) {
@@ -362,6 +360,13 @@ static int scan(struct vtk_hdr *h, const char *path, struct tvpal_diag *diag)
         return tvpal_diag_set(diag, TVPAL_E_READ, "%s: %s", path,
                               strerror(errno));
     h->size = (long long)st.st_size;
+    return 0;
+}
+
+/* The lines before the dataset's keywords: the version, the title, ASCII
+ * or BINARY, DATASET STRUCTURED_POINTS. */
+static int read_preamble(struct vtk_hdr *h)
+{
     char line[512], w[128];
     h->line = 1;
     if (!fgets(line, sizeof line, h->fp) ||
@@ -399,27 +404,51 @@ static int scan(struct vtk_hdr *h, const char *path, struct tvpal_diag *diag)
     if (strcasecmp(w, "STRUCTURED_POINTS"))
         return bad(h, TVPAL_E_FORMAT, "DATASET %s: only STRUCTURED_POINTS "
                    "(image data) is read from legacy VTK files", w, NULL);
+    return 0;
+}
 
+/* DIMENSIONS NX NY NZ: each 1..INT32_MAX, their product addressable. */
+static int read_dims(struct vtk_hdr *h)
+{
+    long long v[3];
+    int rc = 0;
+    for (int i = 0; i < 3 && rc == 0; i++)
+        rc = want_long(h, &v[i], "DIMENSIONS");
+    if (rc < 0)
+        return rc;
+    for (int i = 0; i < 3; i++) {
+        if (v[i] < 1 || v[i] > INT32_MAX)
+            return bad(h, TVPAL_E_FORMAT, "DIMENSIONS: an axis of size 0 or "
+                       "too large", NULL, NULL);
+        h->dims[i] = (uint32_t)v[i];
+    }
+    size_t points;
+    if (tvpal_points(h->dims, sizeof(double), &points) < 0)
+        return bad(h, TVPAL_E_OVERFLOW, "DIMENSIONS: more points than can be "
+                   "addressed", NULL, NULL);
+    h->have_dims = 1;
+    return 0;
+}
+
+static int scan(struct vtk_hdr *h, const char *path, struct tvpal_diag *diag)
+{
+    memset(h, 0, sizeof *h);
+    h->path = path;
+    h->diag = diag;
+    h->spacing[0] = h->spacing[1] = h->spacing[2] = 1;
+    int rc = open_file(h, path, diag);
+    if (rc == 0)
+        rc = read_preamble(h);
+    if (rc < 0)
+        return rc;
+    char w[128];
     uint64_t count = 0;
     int section = -1;   /* -1 none yet, 0 POINT_DATA, 1 CELL_DATA */
     while ((rc = word(h, w, sizeof w)) == 0) {
         long long v[3];
         if (!strcasecmp(w, "DIMENSIONS")) {
-            for (int i = 0; i < 3 && rc == 0; i++)
-                rc = want_long(h, &v[i], "DIMENSIONS");
-            if (rc < 0)
+            if ((rc = read_dims(h)) < 0)
                 return rc;
-            for (int i = 0; i < 3; i++) {
-                if (v[i] < 1 || v[i] > INT32_MAX)
-                    return bad(h, TVPAL_E_FORMAT, "DIMENSIONS: an axis of "
-                               "size 0 or too large", NULL, NULL);
-                h->dims[i] = (uint32_t)v[i];
-            }
-            size_t points;
-            if (tvpal_points(h->dims, sizeof(double), &points) < 0)
-                return bad(h, TVPAL_E_OVERFLOW, "DIMENSIONS: more points "
-                           "than can be addressed", NULL, NULL);
-            h->have_dims = 1;
         } else if (!strcasecmp(w, "SPACING") || !strcasecmp(w, "ASPECT_RATIO")) {
             if ((rc = want_doubles(h, h->spacing, w)) < 0)
                 return rc;
