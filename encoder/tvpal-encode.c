@@ -780,7 +780,7 @@ static void take_lock(const struct run *r)
 {
     struct {
         int rc;
-        char text[400];
+        char text[TVPAL_DIAG_MAX + 4096];
     } res = {0, ""};
     if (!r->mpi || r->node == 0) {
         struct tvpal_diag d = {{0}};

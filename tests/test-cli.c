@@ -1,7 +1,9 @@
 /* test-cli: the natural order of file names (numbers by value, the rest by
  * bytes) that tvpal-encode's --sort natural and its order warning use; the
- * option parsers' number pairs (WxH, A:B) and ranged doubles. */
+ * option parsers' number pairs (WxH, A:B) and ranged doubles; error details
+ * (tvpal_diag) long enough for three paths, cut visibly beyond. */
 #include "tvpal_cli.h"
+#include "tvpal_error.h"
 #include "tvpal_test.h"
 
 #include <string.h>
@@ -69,5 +71,27 @@ int main(void)
         int rc = tvpal_parse_doubles(lists[i].s, ',', 3, v3);
         CHECK((rc == 0) == lists[i].ok, "list \"%s\": rc %d", lists[i].s, rc);
     }
+    /* Error details: three paths of 300 characters fit whole (a message
+     * naming a file, its collection and the file before it); a longer
+     * detail is cut and says so. */
+    static char path[301], big[3 * TVPAL_DIAG_MAX];
+    memset(path, 'p', 300);
+    struct tvpal_diag dg;
+    CHECK(tvpal_diag_set(&dg, TVPAL_E_FORMAT, "%s: step 2 (%s) after (%s)",
+                         path, path, path) == TVPAL_E_FORMAT &&
+              strlen(dg.msg) == 3 * 300 + 20,
+          "three paths: %zu characters kept", strlen(dg.msg));
+    memset(big, 'b', sizeof big - 1);
+    tvpal_diag_set(&dg, TVPAL_E_FORMAT, "%s", big);
+    CHECK(strlen(dg.msg) == TVPAL_DIAG_MAX - 1 &&
+              !strcmp(dg.msg + TVPAL_DIAG_MAX - 4, "..."),
+          "a cut detail does not end in ...");
+    char small[8];
+    tvpal_diag_copy(small, sizeof small, "1234567");
+    CHECK(!strcmp(small, "1234567"), "copy that fits: \"%s\"", small);
+    tvpal_diag_copy(small, sizeof small, "12345678");
+    CHECK(!strcmp(small, "1234..."), "cut copy: \"%s\"", small);
+    CHECK(tvpal_diag_set(NULL, TVPAL_E_READ, "x") == TVPAL_E_READ,
+          "no diag: the code");
     return tt_done("test-cli");
 }

@@ -44,14 +44,21 @@ enum tvpal_error {
 /* Static message for a code; never NULL (unknown codes get a generic text). */
 const char *tvpal_strerror(int code);
 
-/* Optional detail for an error: caller-owned, filled with snprintf. */
+/* Optional detail for an error: caller-owned, filled with snprintf.  Room
+ * for a message that names three long paths (a file, the collection that
+ * listed it, the file before it); a longer one is cut and ends in "...". */
+enum { TVPAL_DIAG_MAX = 1024 };
 struct tvpal_diag {
-    char msg[256];
+    char msg[TVPAL_DIAG_MAX];
 };
 
 /* Writes printf-style detail into diag when diag is non-NULL.  Returns code,
  * so that `return tvpal_diag_set(d, TVPAL_E_FORMAT, "...")` reads naturally. */
 int tvpal_diag_set(struct tvpal_diag *diag, int code, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
+
+/* Copies src into dst[cap] (cap >= 4), cut to end in "..." when it does not
+ * fit: for a detail kept in a smaller record (a per-frame status). */
+void tvpal_diag_copy(char *dst, size_t cap, const char *src);
 
 #endif

@@ -305,7 +305,7 @@ static int fail(struct vti_doc *d, int code, const char *fmt, const char *a,
                 const char *b)
 {
     if (d->rc == 0) {
-        char what[200];
+        char what[512];
         snprintf(what, sizeof what, fmt, a, b ? b : "");
         d->rc = tvpal_diag_set(d->diag, code, "%s: line %lu: %s", d->path,
                                (unsigned long)XML_GetCurrentLineNumber(d->xp),

@@ -69,7 +69,7 @@ void play_die_rank(int code, const char *fmt, ...)
 /* One rank's result of a step that may fail on some ranks only. */
 struct rank_status {
     int rc;
-    char msg[244];
+    char msg[TVPAL_DIAG_MAX];
 };
 
 void play_check_all(int rc, const char *msg, int code)

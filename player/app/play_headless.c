@@ -51,7 +51,7 @@ struct headless {
     uint32_t nframes;
     uint32_t cur;                   /* the step of the last frame */
     unsigned errors;
-    char last_err[256];
+    char last_err[TVPAL_DIAG_MAX];
     struct play_totals tot;
     uint64_t rng;
 };
@@ -104,7 +104,7 @@ static void open_movie_output(struct headless *h)
 {
     const struct play_opts *o = h->o;
     struct tvpal_diag d = {{0}};
-    char msg[300] = "";
+    char msg[TVPAL_DIAG_MAX + 512] = "";
     int rc = 0;
     /* A dead ffmpeg makes a write fail with EPIPE, reported, instead of
      * SIGPIPE ending the run without a word. */
@@ -339,7 +339,7 @@ static void draw_frame(struct headless *h, uint32_t t, struct play_rank_rec *me,
         .rc = rc, .fatal = rc < 0 && (h->o->strict || !st.rendered ||
                                       rc == TVPAL_E_SYS ||
                                       rc == TVPAL_E_NOMEM)};
-    snprintf(me->msg, sizeof me->msg, "%s", rc < 0 ? d.msg : "");
+    tvpal_diag_copy(me->msg, sizeof me->msg, rc < 0 ? d.msg : "");
     *row = (struct play_row){.step = t, .axis = "xyz"[st.axis],
                              .drawn = st.drawn, .skipped = st.skipped,
                              .uploads = st.uploads, .stride = st.stride,

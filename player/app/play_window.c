@@ -53,7 +53,7 @@ struct win_state {
     int dir, playing, redraw, reduced, status;
     uint32_t frames;
     double fps, last;
-    char last_err[256];
+    char last_err[TVPAL_DIAG_MAX];
     /* Levels of detail: rank 0's running mean of each level's frame time
      * (ms; 0 until drawn), the level of the last frame and whether it was
      * coarser than a still frame's. */

@@ -69,7 +69,7 @@ static void load_tfs(struct play_session *s)
     s->ntf = s->o->ntf;
     for (unsigned i = 0; i < s->ntf; i++) {
         struct tvpal_diag d = {{0}};
-        char em[400] = "";
+        char em[TVPAL_DIAG_MAX + 4096] = ""; /* a path and a detail */
         int rc = play_tf_load(s->o, m, i, &s->tfs[i], &d);
         if (rc < 0)
             snprintf(em, sizeof em, "%s: %s", s->o->tf_files[i], d.msg);

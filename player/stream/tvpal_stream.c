@@ -81,7 +81,7 @@ struct tvpal_stream {
     uint64_t incore_bytes;
     unsigned policy;             /* TVPAL_STREAM_* bits */
     unsigned direct_files;       /* parts opened with O_DIRECT */
-    char why[200];               /* the first fallback, or "" */
+    char why[TVPAL_DIAG_MAX + 128]; /* the first fallback, or "" */
     char fixed_why[200];         /* why record buffers are not
                                   * registered, or "" */
     unsigned fixed_refused;      /* buffers the kernel refused */
@@ -373,7 +373,7 @@ static void register_table(struct tvpal_stream *s)
             s->p[i].slots[k].fx = n++;
     struct tvpal_diag d = {{0}};
     if (n && tvpal_io_register(s->io, n, &d) < 0)
-        snprintf(s->fixed_why, sizeof s->fixed_why, "%s", d.msg);
+        tvpal_diag_copy(s->fixed_why, sizeof s->fixed_why, d.msg);
 }
 
 /* Before the first read into slot sl of p: its buffer goes into the
@@ -391,7 +391,7 @@ static void fill_slot(struct tvpal_stream *s, struct part *p, struct slot *sl)
                                  &d) < 0) {
         s->fixed_refused++;
         if (!s->fixed_why[0])
-            snprintf(s->fixed_why, sizeof s->fixed_why, "%s", d.msg);
+            tvpal_diag_copy(s->fixed_why, sizeof s->fixed_why, d.msg);
     }
 }
 
