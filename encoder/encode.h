@@ -17,6 +17,7 @@
 
 #include "encode_plan.h"
 #include "tvpal_checkpoint.h"
+#include "tvpal_engine.h"
 #include "tvpal_comm.h"
 #include "tvpal_error.h"
 #include "tvpal_format.h"
@@ -85,29 +86,6 @@ struct opts {
 enum ending { MSG_ONLY, DIE_USAGE, DIE_FAIL, DIE_INPUT };
 
 
-struct shardjob {
-    unsigned axis;
-    uint32_t rank;
-    struct tvpal_shard_header h;
-    struct tvpal_shardw *w;  /* placed writer (tvpal_shard.h) */
-};
-
-/* A group of `count` slices slice, slice + N, ... of one shard, all with
- * windows of length len starting at the current step; their chunks' CRCs
- * go to jcrc[crc_at ..].  Slices of the x axis are grouped so that one pass
- * over the box rows gathers them all (they share cache lines); other axes
- * use groups of one. */
-struct slicejob {
-    struct shardjob *sj;
-    uint32_t slice;
-    uint32_t count;
-    uint32_t len;
-    size_t crc_at;
-};
-
-/* Most slices per group: those of one 64-byte line of x (16 floats). */
-#define GROUP_SPAN 16u
-
 /* Bytes of the reading scratch of one thread (raw input is read in blocks
  * of at most this much, converted into the ring as it comes). */
 #define READ_BLOCK ((size_t)8 << 20)
@@ -127,7 +105,7 @@ struct progress {
 /* One encoding run: the job, its output and the workspaces, set up by
  * main's steps in order and released by run_free. */
 struct prefetch;
-struct found;
+struct tvpal_found;
 
 struct run {
     struct opts o;
@@ -139,12 +117,11 @@ struct run {
     char *fp;                /* job fingerprint */
     struct tvpal_checkpoint_stats st;
     uint64_t start;          /* first unit of work (pass * T + step) */
-    /* Shards: the axes encoded x K nodes, axis-major (every node's, or one
-     * rank's). */
-    struct shardjob *sj;
+    /* The engine (tvpal_engine.h), and its shards: the axes encoded x K
+     * nodes, axis-major (every node's, or one rank's). */
+    struct tvpal_engine *eng;
+    struct tvpal_engine_shard *sj;
     uint32_t nshard;
-    size_t max_slice_vox, max_jobs;
-    uint64_t max_chunk;      /* bytes of the largest chunk */
     /* The memory plan and the pass being encoded. */
     uint64_t limit;
     char limit_why[128];
@@ -154,24 +131,13 @@ struct run {
     int nthreads;
     struct tvpal_pool *pool; /* nthreads threads (the main one is 0) */
     uint64_t **fine_local;   /* per-thread source histograms */
-    struct found *found_local; /* per thread: what a box read found */
-    size_t group_cap;        /* floats of samples per thread */
-    struct tvpal_swenc **enc;
-    float **samples;
-    float **tables;          /* per thread: a table, then (--table auto)
-                              * the values its 16-bit form decodes to */
-    unsigned char **chunkbuf;   /* per thread: one chunk */
+    struct tvpal_found *found_local; /* per thread: what a box read found */
     unsigned char **scratch;    /* per thread: READ_BLOCK bytes (raw) */
-    struct slicejob *jobs;   /* max_jobs */
-    uint32_t *jcrc;          /* CRC of every chunk of a step */
-    float **ring;            /* N timesteps of the pass's box, step t at
-                              * t % N, box voxels x fastest */
     float *boxbuf;           /* a self-describing input's box, as read */
     struct tvpal_input *in;  /* self-describing input, or NULL (raw) */
     struct tvpal_pool *in_pool;  /* its reading thread's team (-j threads)
                                   * for compressed chunks, or NULL */
     struct prefetch *pf;     /* reads the input's next step meanwhile */
-    uint64_t *dropped;       /* per thread: present values coded missing */
     double *times;           /* [T] time values, or NULL (none known) */
     char time_units[128];
     char units[64];          /* the values' units, or "" (load_times) */
@@ -223,7 +189,7 @@ const char *lib_error(int rc, const struct tvpal_diag *d);
 /* ----------------------------------------------- tvpal-encode.c (output) */
 
 char *node_partial(const struct run *r, uint32_t k);
-char *shard_path(const struct run *r, const struct shardjob *j);
+char *shard_path(const struct run *r, const struct tvpal_engine_shard *j);
 void finish_shards(struct run *r);
 char *manifest_text(const struct run *r);
 void write_manifest(const char *dir, const char *text);
@@ -238,8 +204,6 @@ void report_progress(struct run *r, int last);
 
 /* ------------------------------------------- encode_source.c (the input) */
 
-/* The value at the middle of a class of the fine histogram. */
-float fine_bin_value(uint32_t b);
 void order_inputs(struct opts *o);
 int open_source(struct run *r, int have_dims);
 void load_times(struct run *r);
@@ -250,7 +214,7 @@ void prefetch_stop(struct prefetch *pf);
 void load_step(struct run *r, uint32_t t, float *dst);
 /* Per-thread findings of a box read for n threads (r->found_local);
  * NULL when out of memory.  Freed with free(). */
-struct found *encode_found_alloc(size_t n);
+struct tvpal_found *encode_found_alloc(size_t n);
 
 /* ---------------------------------------------------------------- levels */
 /* encode_levels.c.  The dims of level k of a volume of dims d0. */

@@ -5,12 +5,10 @@
 #include "encode.h"
 #include "tvpal_cli.h"
 #include "tvpal_fs.h"
+#include "tvpal_values.h"
 
 #include <errno.h>
 #include <fcntl.h>
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 #include <limits.h>
 #include <math.h>
 #include <pthread.h>
@@ -21,35 +19,7 @@
 #include <time.h>
 #include <unistd.h>
 
-static uint32_t fine_bin(float f)
-{
-    uint32_t u;
-    memcpy(&u, &f, 4);
-    /* (u & sign) ? ~u : u | sign, as u ^ (all ones or the sign bit) */
-    u ^= (0u - (u >> 31)) | 0x80000000u;
-    return u >> 16;
-}
-
-float fine_bin_value(uint32_t b)
-{
-    uint32_t k = (b << 16) | 0x8000u, u;
-    u = (k & 0x80000000u) ? (k & 0x7FFFFFFFu) : ~k;
-    float f;
-    memcpy(&f, &u, 4);
-    return f;
-}
-
 /* ------------------------------------------------------------- input I/O */
-
-/* What reading a box found: each thread's, then merged (found_merge). */
-struct found {
-    uint64_t bad;            /* lowest volume voxel index of a data error */
-    int rc;                  /* its code (TVPAL_E_NAN or _RANGE), or 0 */
-    int read_err;            /* errno of a failed read, -1 at end of file */
-    size_t nrep;             /* values replaced by --nan-as */
-    size_t nmiss;            /* missing values (NaN after conversion) */
-    double lo, hi;           /* range including the stats' so far */
-};
 
 size_t read_rows(uint64_t row_bytes, uint32_t rows_max)
 {
@@ -58,116 +28,9 @@ size_t read_rows(uint64_t row_bytes, uint32_t rows_max)
     return (size_t)rows;
 }
 
-/* No finding yet, over the range so far [lo, hi]. */
-static struct found found_empty(double lo, double hi)
+struct tvpal_found *encode_found_alloc(size_t n)
 {
-    return (struct found){UINT64_MAX, 0, 0, 0, 0, lo, hi};
-}
-
-struct found *encode_found_alloc(size_t n)
-{
-    return calloc(n, sizeof(struct found));
-}
-
-/* A thread's findings into all: the lowest voxel's data error wins, the
- * first read error, counts and range add (in any order: the same result). */
-static void found_merge(struct found *all, const struct found *f)
-{
-    if (f->bad < all->bad) {
-        all->bad = f->bad;
-        all->rc = f->rc;
-    }
-    if (f->read_err && !all->read_err)
-        all->read_err = f->read_err;
-    all->nrep += f->nrep;
-    all->nmiss += f->nmiss;
-    all->lo = f->lo < all->lo ? f->lo : all->lo;
-    all->hi = f->hi > all->hi ? f->hi : all->hi;
-}
-
-/* The largest float32 whose value is at most TVPAL_VALUE_MAX: for a float
- * f, fabs(f) <= TVPAL_VALUE_MAX exactly when fabsf(f) <= VALUE_MAX_F
- * (false for NaN and infinities too). */
-#define VALUE_MAX_F 9.99999993e36f
-/* In [2^122, 2^123), where floats are 2^99 apart. */
-_Static_assert((double)VALUE_MAX_F >= 0x1p122 &&
-                   (double)VALUE_MAX_F < 0x1p123 &&
-                   (double)VALUE_MAX_F <= TVPAL_VALUE_MAX &&
-                   (double)VALUE_MAX_F + 0x1p99 > TVPAL_VALUE_MAX,
-               "VALUE_MAX_F is the largest float <= TVPAL_VALUE_MAX");
-
-/* The common case of convert_run, host float32 with no --missing, in one
- * pass: copies src to dst if every value is finite and within
- * TVPAL_VALUE_MAX, and returns 0 otherwise (dst partly written, nothing
- * counted: the general path then does it all).  The minimum and maximum go
- * into *lo and *hi as the general path's loop would set them ("v < lo ? v :
- * lo" in order); values compare equal only as -0 and +0, where a vector's
- * lanes could pick another zero than the first, so a zero extreme is found
- * again in order when the run holds zeros of both signs.  With fine, each
- * value is counted into its class. */
-static int convert_f32_plain(const float *src, size_t n, float *dst,
-                             uint64_t *fine, double *lo, double *hi)
-{
-    size_t i = 0;
-    float mn = INFINITY, mx = -INFINITY;
-    int bad = 0, negzero = 0, poszero = 0;
-#if defined(__SSE2__)
-    const __m128 lim = _mm_set1_ps(VALUE_MAX_F);
-    const __m128 absmask = _mm_castsi128_ps(_mm_set1_epi32(0x7FFFFFFF));
-    const __m128 zero = _mm_setzero_ps();
-    __m128 vmin = _mm_set1_ps(INFINITY), vmax = _mm_set1_ps(-INFINITY);
-    __m128 vbad = zero, vneg0 = zero, vpos0 = zero;
-    for (; i + 4 <= n; i += 4) {
-        __m128 x = _mm_loadu_ps(src + i);
-        _mm_storeu_ps(dst + i, x);
-        /* not (|x| <= lim): true for NaN as well */
-        vbad = _mm_or_ps(vbad, _mm_cmpnle_ps(_mm_and_ps(x, absmask), lim));
-        vmin = _mm_min_ps(vmin, x);
-        vmax = _mm_max_ps(vmax, x);
-        /* zeros, by the sign bit: set for -0 in vneg0, for +0 in vpos0 */
-        __m128 z = _mm_cmpeq_ps(x, zero);
-        vneg0 = _mm_or_ps(vneg0, _mm_and_ps(z, x));
-        vpos0 = _mm_or_ps(vpos0, _mm_andnot_ps(x, z));
-    }
-    bad = _mm_movemask_ps(vbad) != 0;
-    negzero = _mm_movemask_ps(vneg0) != 0;
-    poszero = _mm_movemask_ps(vpos0) != 0;
-    float l[4], h[4];
-    _mm_storeu_ps(l, vmin);
-    _mm_storeu_ps(h, vmax);
-    for (int k = 0; k < 4; k++) {
-        mn = l[k] < mn ? l[k] : mn;
-        mx = h[k] > mx ? h[k] : mx;
-    }
-#endif
-    for (; i < n; i++) {
-        float v = src[i];
-        dst[i] = v;
-        bad |= !(fabsf(v) <= VALUE_MAX_F);
-        mn = v < mn ? v : mn;
-        mx = v > mx ? v : mx;
-        negzero |= v == 0.0f && signbit(v);
-        poszero |= v == 0.0f && !signbit(v);
-    }
-    if (bad)
-        return 0;
-    double l0 = *lo, h0 = *hi;
-    if (negzero && poszero && (mn == 0.0f || mx == 0.0f)) {
-        /* which zero came first */
-        for (size_t k = 0; k < n; k++) {
-            l0 = src[k] < l0 ? src[k] : l0;
-            h0 = src[k] > h0 ? src[k] : h0;
-        }
-    } else if (n) {
-        l0 = mn < l0 ? mn : l0;
-        h0 = mx > h0 ? mx : h0;
-    }
-    *lo = l0;
-    *hi = h0;
-    if (fine)
-        for (size_t k = 0; k < n; k++)
-            fine[fine_bin(src[k])]++;
-    return 1;
+    return calloc(n, sizeof(struct tvpal_found));
 }
 
 /* Converts n source values at src (type and byte order of the job, or
@@ -176,56 +39,19 @@ static int convert_f32_plain(const float *src, size_t n, float *dst,
  * index of the first, for the error message. */
 static void convert_run(const struct run *r, const void *src, int host_f32,
                         size_t n, float *dst, uint64_t vox0, int stats,
-                        int tid, struct found *f)
+                        int tid, struct tvpal_found *f)
 {
     const struct opts *o = &r->o;
-    size_t bad = 0, rep = 0;
+    const struct tvpal_values_rules rules = {
+        o->missing, o->nmissing, o->has_nan_as ? &o->nan_as : NULL};
 #ifdef WORDS_BIGENDIAN
-    const int host_order = o->big_endian;
+    const int host_big = 1;
 #else
-    const int host_order = !o->big_endian;
+    const int host_big = 0;
 #endif
-    if ((host_f32 || (o->type == TVPAL_F32 && host_order)) && !o->nmissing &&
-        convert_f32_plain(src, n, dst, stats ? r->fine_local[tid] : NULL,
-                          &f->lo, &f->hi))
-        return;
-    int rc = tvpal_raw_convert(src, host_f32 ? TVPAL_F32 : o->type,
-#ifdef WORDS_BIGENDIAN
-                               host_f32 ? 1 : o->big_endian,
-#else
-                               host_f32 ? 0 : o->big_endian,
-#endif
-                               n, dst, o->has_nan_as ? &o->nan_as : NULL,
-                               &bad, &rep);
-    if (rc < 0) {
-        if (vox0 + bad < f->bad) {
-            f->bad = vox0 + bad;
-            f->rc = rc;
-        }
-        return;
-    }
-    if (o->nmissing) {
-        size_t hits = tvpal_missing_apply(dst, n, o->missing, o->nmissing,
-                                          o->has_nan_as ? &o->nan_as : NULL);
-        rep += o->has_nan_as ? hits : 0;
-    }
-    if (!stats)
-        return;
-    uint64_t *fine = r->fine_local[tid];
-    double lo = f->lo, hi = f->hi;
-    f->nrep += rep;
-    for (size_t i = 0; i < n; i++) {
-        float v = dst[i];
-        if (v != v) { /* missing: in no figure */
-            f->nmiss++;
-            continue;
-        }
-        lo = v < lo ? v : lo;
-        hi = v > hi ? v : hi;
-        fine[fine_bin(v)]++;
-    }
-    f->lo = lo;
-    f->hi = hi;
+    tvpal_values_convert(&rules, src, host_f32 ? TVPAL_F32 : o->type,
+                         host_f32 ? host_big : o->big_endian, n, dst, vox0,
+                         stats ? r->fine_local[tid] : NULL, f);
 }
 
 /* Reads file range [off, off + n) into buf; 0, or errno (-1: the file
@@ -260,15 +86,15 @@ struct box_ctx {
 /* Runs fn over n pieces of c's box on the pool and merges the threads'
  * findings into *res. */
 static void for_box_threads(struct box_ctx *c, tvpal_pool_fn fn, size_t n,
-                            struct found *res)
+                            struct tvpal_found *res)
 {
     struct run *r = c->r;
-    struct found all = found_empty(r->st.vmin, r->st.vmax);
+    struct tvpal_found all = tvpal_found_empty(r->st.vmin, r->st.vmax);
     for (int tid = 0; tid < r->nthreads; tid++)
         r->found_local[tid] = all;
     tvpal_pool_for(r->pool, n, fn, c);
     for (int tid = 0; tid < r->nthreads; tid++)
-        found_merge(&all, &r->found_local[tid]);
+        tvpal_found_merge(&all, &r->found_local[tid]);
     *res = all;
 }
 
@@ -279,7 +105,7 @@ static void read_piece(void *arg, size_t p, unsigned tid)
     const struct box_ctx *c = arg;
     struct run *r = c->r;
     const struct encode_box *b = c->b;
-    struct found *f = &r->found_local[tid];
+    struct tvpal_found *f = &r->found_local[tid];
     if (f->read_err) /* this thread already failed: the step is lost */
         return;
     const size_t esz = tvpal_type_size(r->o.type);
@@ -316,7 +142,7 @@ static void read_piece(void *arg, size_t p, unsigned tid)
  * scratch. */
 static void read_box_raw(struct run *r, int fd, off_t base,
                          const struct encode_box *b, float *dst, int stats,
-                         struct found *res)
+                         struct tvpal_found *res)
 {
     const size_t row_bytes = (size_t)r->o.dims[0] *
                              tvpal_type_size(r->o.type);
@@ -346,7 +172,7 @@ static void convert_row(void *arg, size_t k, unsigned tid)
  * float32, box voxels), checked and converted into dst in parallel. */
 static void convert_box(struct run *r, const float *src,
                         const struct encode_box *b, float *dst, int stats,
-                        struct found *res)
+                        struct tvpal_found *res)
 {
     struct box_ctx c = {.r = r, .b = b, .dst = dst, .stats = stats,
                         .fd = -1, .src = src};
@@ -519,7 +345,7 @@ void load_step(struct run *r, uint32_t t, float *dst)
     const char *path = r->in || o->steps_single ? o->inputs[0] : o->inputs[t];
     const off_t off = o->steps_single ? (off_t)t * (off_t)r->step_bytes : 0;
     const int stats = r->pass->stats && t >= r->st.loaded;
-    struct found res;
+    struct tvpal_found res;
     if (r->in) {
         uint32_t k;
         struct tvpal_diag d = {{0}};

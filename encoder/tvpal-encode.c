@@ -35,6 +35,7 @@
 #include "tvpal_raw.h"
 #include "tvpal_shard.h"
 #include "tvpal_swcode.h"
+#include "tvpal_values.h"
 #include "tvpal_schedule.h"
 
 #include <errno.h>
@@ -580,44 +581,22 @@ static char *job_params(const struct opts *o, const struct tvpal_input *in)
     return n < 0 ? NULL : t;
 }
 
-/* The manifest's "options" line: the command-line form of job_params. */
+/* The manifest's "options" line: the command-line form of job_params
+ * (tvpal_engine_options_line). */
 static void options_line(const struct opts *o, uint32_t T, char *buf,
                          size_t cap)
 {
-    size_t n = (size_t)snprintf(
-        buf, cap, "--dims %ux%ux%u --type %s --endian %s --window %u "
-        "--nodes %u%s", o->dims[0], o->dims[1], o->dims[2],
-        tvpal_type_name(o->type), o->big_endian ? "big" : "little",
-        o->window, o->nodes, o->steps_single ? " --steps" : "");
-#define OPTS_ADD(...)                                                         \
-    do {                                                                      \
-        if (n < cap)                                                          \
-            n += (size_t)snprintf(buf + n, cap - n, __VA_ARGS__);             \
-    } while (0)
-    if (o->steps_single)
-        OPTS_ADD(" %u", T);
-    if (o->has_nan_as)
-        OPTS_ADD(" --nan-as %.17g", o->nan_as);
-    for (unsigned i = 0; i < o->nmissing; i++)
-        OPTS_ADD(" --missing %.9g", (double)(float)o->missing[i]);
-    /* --table auto is the default; the others say so, so that the line
-     * gives the same output. */
-    if ((uint32_t)o->table_format != TVPAL_TABLE_CHUNK)
-        OPTS_ADD(" --table %s",
-                 tvpal_manifest_table_name((uint32_t)o->table_format));
-    if (o->refine)
-        OPTS_ADD(" --refine %u", o->refine);
-    if (o->naive)
-        OPTS_ADD(" --naive");
-    if (o->klt)
-        OPTS_ADD(" --transform klt");
-    if (o->alloc_mse)
-        OPTS_ADD(" --alloc greedy-mse");
-    if (o->axes != ENCODE_AXES_DEFAULT) {
-        char axes[4];
-        OPTS_ADD(" --axes %s", tvpal_axes_format(o->axes, axes));
-    }
-#undef OPTS_ADD
+    const struct tvpal_engine_params p = {
+        .dims = {o->dims[0], o->dims[1], o->dims[2]}, .window = o->window,
+        .axes = o->axes, .nodes = o->nodes,
+        .table_format = (uint32_t)o->table_format, .refine = o->refine,
+        .naive = o->naive, .klt = o->klt, .alloc_mse = o->alloc_mse};
+    const struct tvpal_engine_source src = {
+        .type = o->type, .big_endian = o->big_endian,
+        .steps_single = o->steps_single ? T : 0,
+        .nan_as = o->has_nan_as ? &o->nan_as : NULL,
+        .missing = o->missing, .nmissing = o->nmissing};
+    tvpal_engine_options_line(&p, &src, buf, cap);
 }
 
 /* ---------------------------------------------------------------- output */
@@ -851,39 +830,24 @@ static void open_partial(struct run *r)
 /* Describes the shards, K per axis encoded (axis-major; a rank's own under
  * MPI), and the largest slice, chunk and number of slice-windows of a
  * step. */
+/* The engine (tvpal_engine.h) and its shards: every axis encoded of every
+ * node, or under MPI this rank's node's. */
 static void setup_shards(struct run *r)
 {
     const struct opts *o = &r->o;
-    const uint32_t k0 = r->mpi ? r->node : 0, nk = r->mpi ? 1 : o->nodes;
-    r->nshard = tvpal_axes_count(o->axes) * nk;
-    if (!(r->sj = calloc(r->nshard, sizeof *r->sj)))
+    const struct tvpal_engine_params p = {
+        .dims = {o->dims[0], o->dims[1], o->dims[2]}, .steps = r->T,
+        .window = r->N, .axes = o->axes, .nodes = o->nodes,
+        .node_first = r->mpi ? r->node : 0,
+        .node_count = r->mpi ? 1 : o->nodes,
+        .table_format = (uint32_t)o->table_format, .refine = o->refine,
+        .naive = o->naive, .klt = o->klt, .alloc_mse = o->alloc_mse};
+    int rc = tvpal_engine_create(&r->eng, &p);
+    if (rc == TVPAL_E_NOMEM)
         die_fail("out of memory");
-    for (unsigned a = 0, ia = 0; a < 3; a++) {
-        if (!(o->axes & TVPAL_AXIS_BIT(a)))
-            continue;
-        uint32_t n, w, h;
-        tvpal_axis_geometry(o->dims, a, &n, &w, &h);
-        if ((size_t)w * h > r->max_slice_vox)
-            r->max_slice_vox = (size_t)w * h;
-        r->max_jobs += n;
-        uint64_t cb = tvpal_chunk_bytes(r->N, w, h, (uint32_t)o->table_format);
-        if (cb > r->max_chunk)
-            r->max_chunk = cb;
-        for (uint32_t k = k0; k < k0 + nk; k++) {
-            struct shardjob *j = &r->sj[ia * nk + (k - k0)];
-            j->axis = a;
-            j->rank = k;
-            j->h = (struct tvpal_shard_header){
-                .version = TVPAL_FORMAT_VERSION, .steps = r->T,
-                .window = r->N, .nodes = o->nodes, .rank = k, .axis = a,
-                .slice_w = w, .slice_h = h,
-                .table_format = (uint32_t)o->table_format};
-            memcpy(j->h.dims, o->dims, sizeof o->dims);
-            tvpal_slab_range(n, o->nodes, k, &j->h.slice_begin,
-                             &j->h.slice_count);
-        }
-        ia++;
-    }
+    if (rc < 0)
+        die_usage("internal error: encoding parameters refused");
+    r->sj = tvpal_engine_shards(r->eng, &r->nshard);
 }
 
 /* ------------------------------------------------------------------ plan */
@@ -894,17 +858,6 @@ static void choose_threads(struct run *r)
 {
     r->nthreads = r->o.threads ? (int)r->o.threads
                                : (int)tvpal_pool_default_threads();
-}
-
-/* Samples per thread: one slice-window, or a group of x slices up to
- * 8 MiB (a group never exceeds GROUP_SPAN slices). */
-static size_t group_floats(const struct run *r)
-{
-    const size_t sw = r->max_slice_vox * r->N;
-    if (sw >= (size_t)2 << 20)
-        return sw;
-    return (size_t)2 << 20 < sw * GROUP_SPAN ? (size_t)2 << 20
-                                             : sw * GROUP_SPAN;
 }
 
 /* Bytes of a thread's reading scratch (raw input): whole rows of one
@@ -922,22 +875,17 @@ static uint64_t scratch_bytes(const struct run *r)
  * tests hold against the measured peak. */
 static uint64_t fixed_bytes(const struct run *r)
 {
-    const uint64_t sv = r->max_slice_vox, N = r->N;
-    const uint64_t codec = sv * (16 * N + 64) + N * 256 * 16 + (1u << 16);
     const uint64_t scratch = r->in ? 0 : scratch_bytes(r);
-    const uint64_t per_thread = codec + group_floats(r) * sizeof(float) +
-                                2 * N * 256 * sizeof(float) + r->max_chunk +
-                                scratch +
+    const uint64_t per_thread = tvpal_engine_thread_bytes(r->eng) + scratch +
                                 TVPAL_CHECKPOINT_BINS * sizeof(uint64_t);
-    const uint64_t shards = (uint64_t)r->nshard * r->T * 40 +
-                            (uint64_t)r->max_jobs * 40;
+    const uint64_t shards = tvpal_engine_table_bytes(r->eng);
     /* A reader's scratch (tvpal_input_box_scratch): the largest box's. */
     const uint64_t reader = r->in ? tvpal_input_box_scratch(r->in, r->o.dims)
                                   : 0;
     /* 16 MiB: the program and its libraries (13 MiB measured); a chunk's
      * buffer for packing a per-chunk shard at finish. */
     return ((uint64_t)16 << 20) + (uint64_t)r->nthreads * per_thread +
-           shards + reader + r->max_chunk;
+           shards + reader + tvpal_engine_max_chunk(r->eng);
 }
 
 static void print_size(char *buf, size_t cap, uint64_t b)
@@ -1075,7 +1023,7 @@ static void print_plan(const struct run *r)
 /* ---------------------------------------------------------------- output */
 
 /* The file of shard j in its node's directory (malloc'ed). */
-char *shard_path(const struct run *r, const struct shardjob *j)
+char *shard_path(const struct run *r, const struct tvpal_engine_shard *j)
 {
     char *nd = node_partial(r, j->rank), *p = NULL;
     int n = nd ? asprintf(&p, "%s/axis-%c.tvps", nd, "xyz"[j->axis]) : -1;
@@ -1089,7 +1037,7 @@ char *shard_path(const struct run *r, const struct shardjob *j)
 static int open_writers(struct run *r)
 {
     for (uint32_t q = 0; q < r->nshard; q++) {
-        struct shardjob *j = &r->sj[q];
+        struct tvpal_engine_shard *j = &r->sj[q];
         struct tvpal_diag d = {{0}};
         char *path = shard_path(r, j);
         int rc;
@@ -1163,304 +1111,48 @@ static void open_or_restart_writers(struct run *r)
  * largest box. */
 static void setup_workspace(struct run *r)
 {
-    const uint32_t N = r->N;
     const size_t nt = (size_t)r->nthreads;
     const uint64_t box = r->plan.box_voxels_max;
+    struct tvpal_diag d = {{0}};
     int rc = tvpal_pool_create(&r->pool, (unsigned)nt);
     if (rc < 0)
         die_fail("cannot start %zu threads: %s", nt, tvpal_strerror(rc));
+    if ((rc = tvpal_engine_start(r->eng, r->pool, box, &d)) < 0) {
+        if (rc == TVPAL_E_INVAL)
+            die_usage("--transform klt: built without LAPACK (install "
+                      "liblapack-dev and reconfigure)");
+        die_fail("out of memory for %s", d.msg);
+    }
     if (!(r->fine_local = calloc(nt, sizeof *r->fine_local)) ||
-        !(r->found_local = encode_found_alloc(nt)))
+        !(r->found_local = encode_found_alloc(nt)) ||
+        !(r->scratch = calloc(nt, sizeof *r->scratch)))
         die_fail("out of memory");
     for (size_t i = 0; i < nt; i++)
         if (!(r->fine_local[i] = calloc(TVPAL_CHECKPOINT_BINS,
-                                        sizeof(uint64_t))))
-            die_fail("out of memory");
-    r->group_cap = group_floats(r);
-    r->enc = calloc(nt, sizeof *r->enc);
-    r->dropped = calloc(nt, sizeof *r->dropped);
-    r->samples = calloc(nt, sizeof *r->samples);
-    r->tables = calloc(nt, sizeof *r->tables);
-    r->chunkbuf = calloc(nt, sizeof *r->chunkbuf);
-    r->scratch = calloc(nt, sizeof *r->scratch);
-    r->jobs = calloc(r->max_jobs, sizeof *r->jobs);
-    r->jcrc = calloc(r->max_jobs, sizeof *r->jcrc);
-    r->ring = calloc(ring_slots(r), sizeof *r->ring);
-    if (!r->enc || !r->dropped || !r->samples || !r->tables || !r->jobs ||
-        !r->ring || !r->chunkbuf || !r->scratch || !r->jcrc)
-        die_fail("out of memory");
-    for (size_t i = 0; i < nt; i++) {
-        if (tvpal_swenc_create(&r->enc[i], r->max_slice_vox, N) < 0 ||
-            tvpal_swenc_set_refine(r->enc[i], r->o.refine) < 0 ||
-            (tvpal_swenc_set_naive(r->enc[i], r->o.naive),
-             tvpal_swenc_set_alloc_mse(r->enc[i], r->o.alloc_mse) < 0))
-            die_fail("out of memory");
-        if (r->o.klt && tvpal_swenc_set_klt(r->enc[i], 1) < 0)
-            die_usage("--transform klt: built without LAPACK (install "
-                      "liblapack-dev and reconfigure)");
-        if (!(r->samples[i] = malloc(r->group_cap * sizeof(float))) ||
-            !(r->tables[i] = malloc(2 * N * 256 * sizeof(float))) ||
-            !(r->chunkbuf[i] = malloc(r->max_chunk)) ||
+                                        sizeof(uint64_t))) ||
             (!r->in && !(r->scratch[i] = malloc(scratch_bytes(r)))))
             die_fail("out of memory");
-    }
     if (r->in && !(r->boxbuf = malloc(box * sizeof(float))))
         die_fail("out of memory for a box of %llu voxels",
                  (unsigned long long)box);
-    for (uint32_t i = 0; i < ring_slots(r); i++)
-        if (!(r->ring[i] = malloc(box * sizeof(float))))
-            die_fail("out of memory for %u timesteps of %llu voxels", N,
-                     (unsigned long long)box);
 }
 
 /* ---------------------------------------------------------------- encoding */
 
-/* Copies the slices of job jb (timesteps t..t+len-1) from the ring of the
- * pass's box into samples: slice g of the group at samples + g * len *
- * w*h, time-major.  The box holds the slices whole. */
-static void gather(const struct run *r, const struct slicejob *jb, uint32_t t,
-                   float *samples)
+static void tick_progress(void *ctx)
 {
-    const struct encode_box *b = &r->pass->box;
-    const size_t bx = b->n[0], by = b->n[1], bz = b->n[2];
-    const unsigned axis = jb->sj->axis;
-    const size_t sv = (size_t)jb->sj->h.slice_w * jb->sj->h.slice_h;
-    const uint32_t s = jb->slice - b->lo[axis], len = jb->len, N = r->N;
-    for (uint32_t j = 0; j < len; j++) {
-        const float *vol = r->ring[(t + j) % N];
-        float *out = samples + (size_t)j * sv;
-        switch (axis) {
-        case 0:
-            for (size_t z = 0; z < bz; z++)
-                for (size_t y = 0; y < by; y++) {
-                    const float *row = vol + bx * (y + by * z) + s;
-                    float *dst = out + y + by * z;
-                    for (uint32_t g = 0; g < jb->count; g++)
-                        dst[(size_t)g * len * sv] = row[(size_t)g * N];
-                }
-            break;
-        case 1:
-            for (size_t z = 0; z < bz; z++)
-                memcpy(out + bx * z, vol + bx * (s + by * z),
-                       bx * sizeof *out);
-            break;
-        default:
-            memcpy(out, vol + bx * by * (size_t)s, bx * by * sizeof *out);
-            break;
-        }
-    }
+    report_progress(ctx, 0);
 }
 
-/* --table auto's criterion (FORMAT.md 6.7).  A 16-bit entry is off by up
- * to half a step, (max - min) / 65535 of its table, adding about step^2 /
- * 12 to the squared error of every voxel that holds it.  That is
- * negligible where it stays within TABLE_U16_BUDGET of the slice-window's
- * own coding error: SSE16 - SSE32 <= 1e-4 SSE32, both summed over the
- * voxels and timesteps with a value, so no window's error grows by more
- * than 1e-4 of itself and the PSNR of the whole dataset drops by less than
- * 10 log10(1 + 1e-4) = 0.0005 dB.  The error is measured, not bounded:
- * the encoder has the samples, the indices and both tables at hand, and
- * one pass over them costs little beside coding the window.  So float32
- * stays where 16 bits are coarse against the coding error: a wide range
- * (one outlier widens every step of its window), and an exact window
- * (SSE32 = 0: integer data with few distinct values, whose float32 table
- * holds them exactly) unless the 16-bit table decodes what its voxels
- * hold exactly too. */
-#define TABLE_U16_BUDGET 1e-4
-
-/* Whether t16, the values a 16-bit table decodes to, errs negligibly more
- * than t32 on the slice-window (samples[j * nvox + v], indices idx). */
-static int table_u16_negligible(const float *samples, const uint8_t *idx,
-                                size_t nvox, uint32_t len, const float *t32,
-                                const float *t16)
+/* Encodes step t of the pass (tvpal_engine_encode_step); a write error
+ * ends the program keeping the partial output. */
+static void encode_step(struct run *r, uint32_t t)
 {
-    if (!memcmp(t32, t16, (size_t)len * 256 * sizeof *t32))
-        return 1;
-    double sse32 = 0, sse16 = 0;
-    for (uint32_t j = 0; j < len; j++) {
-        const float *x = samples + (size_t)j * nvox;
-        const float *a = t32 + (size_t)j * 256, *b = t16 + (size_t)j * 256;
-        for (size_t v = 0; v < nvox; v++) {
-            /* A missing value (NaN sample or entry, the same in both
-             * tables) has no error. */
-            const double e32 = (double)x[v] - a[idx[v]];
-            const double e16 = (double)x[v] - b[idx[v]];
-            if (e32 == e32 && e16 == e16) {
-                sse32 += e32 * e32;
-                sse16 += e16 * e16;
-            }
-        }
-    }
-    return sse16 - sse32 <= TABLE_U16_BUDGET * sse32;
-}
-
-/* --table auto: stores the table of a coded slice-window at dst as 16-bit
- * when that is negligible (table_u16_negligible), setting TVPAL_CHUNK_U16
- * in h->flags, else as float32; returns the chunk's format (TVPAL_TABLE_U16
- * or TVPAL_TABLE_F32).  dec: len * 256 floats of scratch.  dst has a
- * float32 table's room, before the indices. */
-static uint32_t store_table_auto(const float *table, float *dec,
-                                 const float *samples, const uint8_t *idx,
-                                 size_t nvox, uint32_t len,
-                                 unsigned char *dst,
-                                 struct tvpal_chunk_header *h)
-{
-    tvpal_table_store(table, len, TVPAL_TABLE_U16, dst, h);
-    const struct tvpal_chunk c = {
-        .h = *h, .table = dst,
-        .table_format = TVPAL_TABLE_U16 | ((h->flags & TVPAL_CHUNK_MISSING)
-                                               ? TVPAL_TABLE_MISSING : 0u)};
-    tvpal_chunk_table(&c, dec);
-    if (table_u16_negligible(samples, idx, nvox, len, table, dec)) {
-        h->flags |= TVPAL_CHUNK_U16;
-        return TVPAL_TABLE_U16;
-    }
-    tvpal_table_store(table, len, TVPAL_TABLE_F32, dst, h);
-    return TVPAL_TABLE_F32;
-}
-
-/* Encodes one slice-window from samples into the chunk buffer: a chunk of
- * the shard's table format, or in a per-chunk shard (--table auto) one of
- * the format store_table_auto picks, in a float32 chunk's room (the rest
- * zeros: tvpal_shardw_put_chunk).  table: 2 * len * 256 floats of
- * scratch. */
-static void encode_chunk(struct tvpal_swenc *enc, float *table,
-                         const float *samples, const struct shardjob *j,
-                         uint32_t slice, uint32_t t, uint32_t len,
-                         unsigned char *chunk, uint64_t *dropped)
-{
-    const size_t nvox = (size_t)j->h.slice_w * j->h.slice_h;
-    const uint32_t tf = j->h.table_format;
-    unsigned char *const dst = chunk + TVPAL_CHUNK_HEADER_BYTES;
-    /* The indices follow a table of the shard's entry size (a float32
-     * one's in a per-chunk shard: moved down for a 16-bit table). */
-    uint8_t *idx = dst + (size_t)len * 256 * tvpal_table_entry_bytes(tf);
-    struct tvpal_swinfo info;
-    tvpal_swenc_encode(enc, samples, nvox, len, idx, table, &info);
-    *dropped += info.dropped;
-    struct tvpal_chunk_header ch = {
-        .slice = slice, .wstart = t, .wlen = len, .w = j->h.slice_w,
-        .h = j->h.slice_h, .used = info.used};
-    uint32_t ctf = tf;
-    if (tf == TVPAL_TABLE_CHUNK) {
-        ctf = store_table_auto(table, table + (size_t)len * 256, samples, idx,
-                               nvox, len, dst, &ch);
-        uint8_t *to = dst + (size_t)len * 256 * tvpal_table_entry_bytes(ctf);
-        memmove(to, idx, nvox);
-        idx = to;
-    } else {
-        tvpal_table_store(table, len, tf, dst, &ch);
-    }
-    memcpy(ch.bits, info.bits, sizeof ch.bits);
-    tvpal_chunk_header_encode(&ch, chunk);
-    /* Zero the index padding (and a 16-bit chunk's unused room) so output
-     * bytes are deterministic. */
-    unsigned char *end = idx + nvox;
-    size_t cb = tvpal_chunk_bytes(len, j->h.slice_w, j->h.slice_h, tf);
-    memset(end, 0, (size_t)(chunk + cb - end));
-}
-
-/* Lists the slice-windows of the pass that start at step t, shard by
- * shard in slice order (the order their CRCs join), into r->jobs (x slices
- * grouped).  Returns the number of jobs. */
-static size_t plan_step(struct run *r, uint32_t t)
-{
-    const uint32_t N = r->N;
-    const struct encode_pass *ps = r->pass;
-    struct slicejob *jobs = r->jobs;
-    size_t njobs = 0, chunks = 0;
-    for (uint32_t q = 0; q < r->nshard; q++) {
-        struct shardjob *j = &r->sj[q];
-        const unsigned a = j->axis;
-        if (!(ps->axes & (1u << a)))
-            continue;
-        const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
-        uint32_t lo = j->h.slice_begin, hi = lo + j->h.slice_count;
-        lo = lo > ps->s0[a] ? lo : ps->s0[a];
-        hi = hi < ps->s1[a] ? hi : ps->s1[a];
-        for (uint32_t s = lo; s < hi; s++) {
-            if (!tvpal_schedule_starts(s, t, N))
-                continue;
-            uint32_t len = tvpal_schedule_len(s, t, N, r->T);
-            struct slicejob *prev = njobs ? &jobs[njobs - 1] : NULL;
-            /* Extend the previous x group when this slice is the next of
-             * its phase, in the same line, with the same window, and the
-             * group's samples stay within the workspace. */
-            if (a == 0 && prev && prev->sj == j && prev->len == len &&
-                s == prev->slice + prev->count * N &&
-                s / GROUP_SPAN == prev->slice / GROUP_SPAN &&
-                (uint64_t)(prev->count + 1) * len * sv <= r->group_cap)
-                prev->count++;
-            else
-                jobs[njobs++] = (struct slicejob){j, s, 1, len, chunks};
-            chunks++;
-        }
-    }
-    return njobs;
-}
-
-
-/* One step's encoding, shared by the pool's threads (encode_job). */
-struct step_ctx {
-    struct run *r;
-    uint32_t t;
-    int failed;                     /* atomic: the first failure claims it */
-    struct tvpal_diag fail_d;       /* written by that thread only */
-    const struct shardjob *fail_j;
-};
-
-/* Job i of the step: gathers its slices, encodes each slice-window and
- * writes its chunk in place.  Thread 0 (the main thread) reports progress
- * between jobs, so a line comes within a long step too. */
-static void encode_job(void *arg, size_t i, unsigned tid)
-{
-    struct step_ctx *c = arg;
-    struct run *r = c->r;
-    const uint32_t t = c->t;
-    const struct slicejob *jb = &r->jobs[i];
-    const struct shardjob *j = jb->sj;
-    const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
-    const uint64_t cb = tvpal_chunk_bytes(jb->len, j->h.slice_w,
-                                          j->h.slice_h, j->h.table_format);
-    gather(r, jb, t, r->samples[tid]);
-    for (uint32_t g = 0; g < jb->count; g++) {
-        struct tvpal_diag d = {{0}};
-        encode_chunk(r->enc[tid], r->tables[tid],
-                     r->samples[tid] + (size_t)g * jb->len * sv, j,
-                     jb->slice + g * r->N, t, jb->len, r->chunkbuf[tid],
-                     &r->dropped[tid]);
-        if (tvpal_shardw_put_chunk(j->w, t, jb->slice + g * r->N,
-                                   r->chunkbuf[tid], cb,
-                                   &r->jcrc[jb->crc_at + g], &d) < 0 &&
-            !__atomic_exchange_n(&c->failed, 1, __ATOMIC_RELAXED)) {
-            c->fail_d = d;
-            c->fail_j = j;
-        }
-    }
-    __atomic_add_fetch(&r->prog.work, (uint64_t)sv * jb->len * jb->count,
-                       __ATOMIC_RELAXED);
-    if (tid == 0)
-        report_progress(r, 0);
-}
-
-/* Encodes the planned slice-windows of step t, one job per thread at a
- * time, each chunk written in its place as it is made; then joins the
- * chunks' CRCs into their records in slice order. */
-static void encode_step(struct run *r, uint32_t t, size_t njobs)
-{
-    struct step_ctx c = {.r = r, .t = t};
-    tvpal_pool_for(r->pool, njobs, encode_job, &c);
-    if (c.failed)
-        die_fail("%s/axis-%c.tvps: %s", r->ckdir, "xyz"[c.fail_j->axis],
-                 c.fail_d.msg);
-    for (size_t i = 0; i < njobs; i++) {
-        const struct slicejob *jb = &r->jobs[i];
-        for (uint32_t g = 0; g < jb->count; g++)
-            if (tvpal_shardw_extend(jb->sj->w, t, jb->slice + g * r->N,
-                                    r->jcrc[jb->crc_at + g]) < 0)
-                die_fail("internal error: chunk of slice %u, step %u out of "
-                         "order", jb->slice + g * r->N, t);
-    }
+    struct tvpal_diag d = {{0}};
+    uint32_t q = 0;
+    if (tvpal_engine_encode_step(r->eng, t, &d, &q) < 0)
+        die_fail("%s/axis-%c.tvps: %s", r->ckdir, "xyz"[r->sj[q].axis],
+                 d.msg);
 }
 
 /* Saves the checkpoint after unit u (pass p, step t: u = p T + t + 1): a
@@ -1587,17 +1279,19 @@ static void encode_steps(struct run *r)
             (unsigned long long)(r->start / r->T) + 1, r->plan.npasses,
             (unsigned long long)(r->start % r->T), r->T);
     uint64_t u = r->start;
+    tvpal_engine_set_progress(r->eng, &p->work, tick_progress, r);
     for (uint32_t pi = (uint32_t)(u / r->T); pi < r->plan.npasses; pi++) {
         r->pass = &r->plan.pass[pi];
+        tvpal_engine_set_pass(r->eng, r->pass);
         uint32_t loaded = (uint32_t)(u - (uint64_t)pi * r->T);
         for (uint32_t t = loaded; t < r->T; t++) {
             uint32_t need = t + r->N < r->T ? t + r->N : r->T;
             p->unit = (uint64_t)pi * r->T + t;
             for (; loaded < need; loaded++) {
-                load_step(r, loaded, r->ring[loaded % r->N]);
+                load_step(r, loaded, tvpal_engine_slot(r->eng, loaded));
                 report_progress(r, 0);
             }
-            encode_step(r, t, plan_step(r, t));
+            encode_step(r, t);
             u = (uint64_t)pi * r->T + t + 1;
             if (t + 1 == r->T) /* the next pass has none of its steps */
                 r->st.loaded = 0;
@@ -1714,17 +1408,7 @@ static void build_manifest(const struct run *r, struct tvpal_manifest *m)
         if (!(m->source_var = strdup(tvpal_input_info(r->in)->var)))
             die_fail("out of memory");
     }
-    /* The manifest's histogram: the fine classes into TVPAL_HIST_BINS
-     * equal bins over [min, max]. */
-    for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++) {
-        if (!st->fine[b])
-            continue;
-        double v = fine_bin_value(b);
-        double span = st->vmax - st->vmin;
-        int bin = span > 0 ? (int)((v - st->vmin) / span * TVPAL_HIST_BINS) : 0;
-        bin = bin < 0 ? 0 : bin >= TVPAL_HIST_BINS ? TVPAL_HIST_BINS - 1 : bin;
-        m->histogram[bin] += st->fine[b];
-    }
+    tvpal_values_histogram(st, m->histogram);
     options_line(o, r->T, optstr, sizeof optstr);
     m->table_format = (uint32_t)o->table_format;
     m->encoder = strdup(PROG " " PACKAGE_VERSION);
@@ -1857,10 +1541,7 @@ int all_missing(const struct run *r, char *why, size_t cap)
 
 uint64_t dropped_values(const struct run *r)
 {
-    uint64_t dropped = 0;
-    for (int i = 0; i < r->nthreads; i++)
-        dropped += r->dropped[i];
-    return dropped;
+    return tvpal_engine_dropped(r->eng);
 }
 
 void warn_dropped(uint64_t dropped)
@@ -1904,10 +1585,10 @@ void warn_dominating_values(const struct run *r)
         if (cum * 1000 >= total * 999)
             hi = b, have_hi = 1;
     }
-    const double plo = fine_bin_value(lo), phi = fine_bin_value(hi);
+    const double plo = tvpal_values_bin_value(lo), phi = tvpal_values_bin_value(hi);
     const double span = phi - plo, range = r->st.vmax - r->st.vmin;
     for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++) {
-        double v = fine_bin_value(b);
+        double v = tvpal_values_bin_value(b);
         if (fine[b] && fabs(v) > 1e30)
             huge += fine[b];
         if (fine[b] && (v < plo - 100 * span || v > phi + 100 * span))
@@ -2087,41 +1768,22 @@ static void print_summary(const struct run *r, const struct written *w)
 
 void release_ring(struct run *r)
 {
-    for (uint32_t i = 0; r->ring && i < ring_slots(r); i++) {
-        free(r->ring[i]);
-        r->ring[i] = NULL;
-    }
+    tvpal_engine_release_ring(r->eng);
 }
 
 static void run_free(struct run *r)
 {
     prefetch_stop(r->pf);   /* before the input it reads is closed */
     tvpal_pool_free(r->pool);
-    for (uint32_t q = 0; q < r->nshard; q++)
-        tvpal_shardw_free(r->sj[q].w);
-    free(r->sj);
-    for (int i = 0; i < r->nthreads && r->enc; i++) {
-        tvpal_swenc_free(r->enc[i]);
-        free(r->samples[i]);
-        free(r->tables[i]);
-        free(r->chunkbuf[i]);
-        free(r->scratch[i]);
+    tvpal_engine_free(r->eng);
+    for (int i = 0; i < r->nthreads && r->fine_local; i++)
         free(r->fine_local[i]);
-    }
-    for (uint32_t i = 0; r->ring && i < ring_slots(r); i++)
-        free(r->ring[i]);
-    free(r->ring);
+    for (int i = 0; i < r->nthreads && r->scratch; i++)
+        free(r->scratch[i]);
     free(r->boxbuf);
-    free(r->enc);
-    free(r->dropped);
-    free(r->samples);
-    free(r->tables);
-    free(r->chunkbuf);
     free(r->scratch);
     free(r->fine_local);
     free(r->found_local);
-    free(r->jobs);
-    free(r->jcrc);
     free(r->fp);
     free(r->ckp.filled);
     free(r->ckp.crc);

@@ -1,0 +1,571 @@
+/* tvpal_engine.c: the encoding engine (tvpal_engine.h).
+ *
+ * A step's work is a list of jobs, each a group of slice-windows of one
+ * shard that start at the step (x slices of one cache line grouped: one
+ * pass over the box rows gathers them all); the pool's threads take jobs
+ * in turn, gather their samples from the ring, code each slice-window
+ * into the thread's chunk buffer and write it in place.  Everything a step
+ * uses is allocated by tvpal_engine_start, none per step or per voxel. */
+#include "tvpal_engine.h"
+#include "tvpal_format.h"
+#include "tvpal_manifest.h"
+#include "tvpal_schedule.h"
+#include "tvpal_swcode.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Most slices per group: those of one 64-byte line of x (16 floats). */
+#define GROUP_SPAN 16u
+
+/* A group of `count` slices slice, slice + N, ... of one shard, all with
+ * windows of length len starting at the current step; their chunks' CRCs
+ * go to jcrc[crc_at ..]. */
+struct slicejob {
+    struct tvpal_engine_shard *sj;
+    uint32_t slice;
+    uint32_t count;
+    uint32_t len;
+    size_t crc_at;
+};
+
+struct tvpal_engine {
+    struct tvpal_engine_params p;
+    struct tvpal_engine_shard *sj;
+    uint32_t nshard;
+    size_t max_slice_vox, max_jobs;
+    uint64_t max_chunk;          /* bytes of the largest chunk */
+    size_t group_cap;            /* floats of samples per thread */
+    /* Started: */
+    struct tvpal_pool *pool;
+    unsigned nthreads;
+    struct tvpal_swenc **enc;
+    float **samples;
+    float **tables;              /* a table, then (--table auto) the
+                                  * values its 16-bit form decodes to */
+    unsigned char **chunkbuf;    /* one chunk */
+    uint64_t *dropped;
+    struct slicejob *jobs;       /* max_jobs */
+    uint32_t *jcrc;              /* CRC of every chunk of a step */
+    float **ring;                /* ring_slots boxes */
+    uint32_t nring;
+    const struct encode_pass *pass;
+    uint64_t *work;
+    void (*tick)(void *ctx);
+    void *tick_ctx;
+};
+
+/* Samples per thread: one slice-window, or a group of x slices up to
+ * 8 MiB (a group never exceeds GROUP_SPAN slices). */
+static size_t group_floats(const struct tvpal_engine *e)
+{
+    const size_t sw = e->max_slice_vox * e->p.window;
+    if (sw >= (size_t)2 << 20)
+        return sw;
+    return (size_t)2 << 20 < sw * GROUP_SPAN ? (size_t)2 << 20
+                                             : sw * GROUP_SPAN;
+}
+
+static int params_ok(const struct tvpal_engine_params *p)
+{
+    return p->dims[0] && p->dims[1] && p->dims[2] && p->steps &&
+           p->window >= 1 && p->window <= TVPAL_NMAX && p->axes >= 1 &&
+           p->axes <= 7 && p->nodes >= 1 && p->node_count >= 1 &&
+           p->node_first < p->nodes &&
+           p->node_count <= p->nodes - p->node_first &&
+           (p->table_format == TVPAL_TABLE_F32 ||
+            p->table_format == TVPAL_TABLE_U16 ||
+            p->table_format == TVPAL_TABLE_CHUNK);
+}
+
+int tvpal_engine_create(struct tvpal_engine **out,
+                        const struct tvpal_engine_params *p)
+{
+    *out = NULL;
+    if (!params_ok(p))
+        return TVPAL_E_INVAL;
+    struct tvpal_engine *e = calloc(1, sizeof *e);
+    if (!e)
+        return TVPAL_E_NOMEM;
+    e->p = *p;
+    const uint32_t k0 = p->node_first, nk = p->node_count;
+    e->nshard = tvpal_axes_count(p->axes) * nk;
+    if (!(e->sj = calloc(e->nshard, sizeof *e->sj))) {
+        free(e);
+        return TVPAL_E_NOMEM;
+    }
+    for (unsigned a = 0, ia = 0; a < 3; a++) {
+        if (!(p->axes & TVPAL_AXIS_BIT(a)))
+            continue;
+        uint32_t n, w, h;
+        tvpal_axis_geometry(p->dims, a, &n, &w, &h);
+        if ((size_t)w * h > e->max_slice_vox)
+            e->max_slice_vox = (size_t)w * h;
+        e->max_jobs += n;
+        uint64_t cb = tvpal_chunk_bytes(p->window, w, h, p->table_format);
+        if (cb > e->max_chunk)
+            e->max_chunk = cb;
+        for (uint32_t k = k0; k < k0 + nk; k++) {
+            struct tvpal_engine_shard *j = &e->sj[ia * nk + (k - k0)];
+            j->axis = a;
+            j->rank = k;
+            j->h = (struct tvpal_shard_header){
+                .version = TVPAL_FORMAT_VERSION, .steps = p->steps,
+                .window = p->window, .nodes = p->nodes, .rank = k,
+                .axis = a, .slice_w = w, .slice_h = h,
+                .table_format = p->table_format};
+            memcpy(j->h.dims, p->dims, sizeof p->dims);
+            tvpal_slab_range(n, p->nodes, k, &j->h.slice_begin,
+                             &j->h.slice_count);
+        }
+        ia++;
+    }
+    e->group_cap = group_floats(e);
+    *out = e;
+    return 0;
+}
+
+struct tvpal_engine_shard *tvpal_engine_shards(struct tvpal_engine *e,
+                                               uint32_t *n)
+{
+    *n = e->nshard;
+    return e->sj;
+}
+
+uint64_t tvpal_engine_thread_bytes(const struct tvpal_engine *e)
+{
+    const uint64_t sv = e->max_slice_vox, N = e->p.window;
+    const uint64_t codec = sv * (16 * N + 64) + N * 256 * 16 + (1u << 16);
+    return codec + e->group_cap * sizeof(float) +
+           2 * N * 256 * sizeof(float) + e->max_chunk;
+}
+
+uint64_t tvpal_engine_max_chunk(const struct tvpal_engine *e)
+{
+    return e->max_chunk;
+}
+
+uint64_t tvpal_engine_table_bytes(const struct tvpal_engine *e)
+{
+    return (uint64_t)e->nshard * e->p.steps * 40 + (uint64_t)e->max_jobs * 40;
+}
+
+static uint32_t ring_slots(const struct tvpal_engine *e)
+{
+    return e->p.steps < e->p.window ? e->p.steps : e->p.window;
+}
+
+static int start_thread(struct tvpal_engine *e, unsigned i,
+                        struct tvpal_diag *diag)
+{
+    const uint32_t N = e->p.window;
+    if (tvpal_swenc_create(&e->enc[i], e->max_slice_vox, N) < 0 ||
+        tvpal_swenc_set_refine(e->enc[i], e->p.refine) < 0 ||
+        (tvpal_swenc_set_naive(e->enc[i], e->p.naive),
+         tvpal_swenc_set_alloc_mse(e->enc[i], e->p.alloc_mse) < 0))
+        return tvpal_diag_set(diag, TVPAL_E_NOMEM, "the coder's workspace");
+    if (e->p.klt && tvpal_swenc_set_klt(e->enc[i], 1) < 0)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "no LAPACK");
+    if (!(e->samples[i] = malloc(e->group_cap * sizeof(float))) ||
+        !(e->tables[i] = malloc(2 * N * 256 * sizeof(float))) ||
+        !(e->chunkbuf[i] = malloc(e->max_chunk)))
+        return tvpal_diag_set(diag, TVPAL_E_NOMEM, "a thread's workspace");
+    return 0;
+}
+
+int tvpal_engine_start(struct tvpal_engine *e, struct tvpal_pool *pool,
+                       uint64_t box_voxels, struct tvpal_diag *diag)
+{
+    const size_t nt = tvpal_pool_threads(pool);
+    e->pool = pool;
+    e->nthreads = (unsigned)nt;
+    e->nring = ring_slots(e);
+    e->enc = calloc(nt, sizeof *e->enc);
+    e->dropped = calloc(nt, sizeof *e->dropped);
+    e->samples = calloc(nt, sizeof *e->samples);
+    e->tables = calloc(nt, sizeof *e->tables);
+    e->chunkbuf = calloc(nt, sizeof *e->chunkbuf);
+    e->jobs = calloc(e->max_jobs, sizeof *e->jobs);
+    e->jcrc = calloc(e->max_jobs, sizeof *e->jcrc);
+    e->ring = calloc(e->nring, sizeof *e->ring);
+    if (!e->enc || !e->dropped || !e->samples || !e->tables || !e->jobs ||
+        !e->ring || !e->chunkbuf || !e->jcrc)
+        return tvpal_diag_set(diag, TVPAL_E_NOMEM, "the job lists");
+    for (unsigned i = 0; i < nt; i++) {
+        int rc = start_thread(e, i, diag);
+        if (rc < 0)
+            return rc;
+    }
+    if (box_voxels > SIZE_MAX / sizeof(float))
+        return tvpal_diag_set(diag, TVPAL_E_NOMEM, "%u timesteps of %llu "
+                              "voxels", e->p.window,
+                              (unsigned long long)box_voxels);
+    for (uint32_t i = 0; i < e->nring; i++)
+        if (!(e->ring[i] = malloc(box_voxels * sizeof(float))))
+            return tvpal_diag_set(diag, TVPAL_E_NOMEM, "%u timesteps of %llu "
+                                  "voxels", e->p.window,
+                                  (unsigned long long)box_voxels);
+    return 0;
+}
+
+float *tvpal_engine_slot(struct tvpal_engine *e, uint32_t t)
+{
+    return e->ring ? e->ring[t % e->p.window] : NULL;
+}
+
+void tvpal_engine_release_ring(struct tvpal_engine *e)
+{
+    for (uint32_t i = 0; e->ring && i < e->nring; i++) {
+        free(e->ring[i]);
+        e->ring[i] = NULL;
+    }
+}
+
+void tvpal_engine_set_pass(struct tvpal_engine *e,
+                           const struct encode_pass *ps)
+{
+    e->pass = ps;
+}
+
+void tvpal_engine_set_progress(struct tvpal_engine *e, uint64_t *work,
+                               void (*tick)(void *ctx), void *ctx)
+{
+    e->work = work;
+    e->tick = tick;
+    e->tick_ctx = ctx;
+}
+
+uint64_t tvpal_engine_dropped(const struct tvpal_engine *e)
+{
+    uint64_t d = 0;
+    for (unsigned i = 0; e->dropped && i < e->nthreads; i++)
+        d += e->dropped[i];
+    return d;
+}
+
+void tvpal_engine_free(struct tvpal_engine *e)
+{
+    if (!e)
+        return;
+    for (uint32_t q = 0; q < e->nshard; q++)
+        tvpal_shardw_free(e->sj[q].w);
+    free(e->sj);
+    for (unsigned i = 0; i < e->nthreads && e->enc; i++) {
+        tvpal_swenc_free(e->enc[i]);
+        free(e->samples[i]);
+        free(e->tables[i]);
+        free(e->chunkbuf[i]);
+    }
+    tvpal_engine_release_ring(e);
+    free(e->ring);
+    free(e->enc);
+    free(e->dropped);
+    free(e->samples);
+    free(e->tables);
+    free(e->chunkbuf);
+    free(e->jobs);
+    free(e->jcrc);
+    free(e);
+}
+
+/* The axes without --axes (tvpal-encode's ENCODE_AXES_DEFAULT). */
+#define AXES_DEFAULT TVPAL_AXIS_BIT(2)
+
+void tvpal_engine_options_line(const struct tvpal_engine_params *p,
+                               const struct tvpal_engine_source *src,
+                               char *buf, size_t cap)
+{
+    size_t n = (size_t)snprintf(
+        buf, cap, "--dims %ux%ux%u --type %s --endian %s --window %u "
+        "--nodes %u%s", p->dims[0], p->dims[1], p->dims[2],
+        tvpal_type_name(src->type), src->big_endian ? "big" : "little",
+        p->window, p->nodes, src->steps_single ? " --steps" : "");
+#define OPTS_ADD(...)                                                         \
+    do {                                                                      \
+        if (n < cap)                                                          \
+            n += (size_t)snprintf(buf + n, cap - n, __VA_ARGS__);             \
+    } while (0)
+    if (src->steps_single)
+        OPTS_ADD(" %u", src->steps_single);
+    if (src->nan_as)
+        OPTS_ADD(" --nan-as %.17g", *src->nan_as);
+    for (unsigned i = 0; i < src->nmissing; i++)
+        OPTS_ADD(" --missing %.9g", (double)(float)src->missing[i]);
+    /* --table auto is the default; the others say so, so that the line
+     * gives the same output. */
+    if (p->table_format != TVPAL_TABLE_CHUNK)
+        OPTS_ADD(" --table %s", tvpal_manifest_table_name(p->table_format));
+    if (p->refine)
+        OPTS_ADD(" --refine %u", p->refine);
+    if (p->naive)
+        OPTS_ADD(" --naive");
+    if (p->klt)
+        OPTS_ADD(" --transform klt");
+    if (p->alloc_mse)
+        OPTS_ADD(" --alloc greedy-mse");
+    if (p->axes != AXES_DEFAULT) {
+        char axes[4];
+        OPTS_ADD(" --axes %s", tvpal_axes_format(p->axes, axes));
+    }
+#undef OPTS_ADD
+}
+
+/* ---------------------------------------------------------------- a step */
+
+/* Copies the slices of job jb (timesteps t..t+len-1) from the ring of the
+ * pass's box into samples: slice g of the group at samples + g * len *
+ * w*h, time-major.  The box holds the slices whole. */
+static void gather(const struct tvpal_engine *e, const struct slicejob *jb,
+                   uint32_t t, float *samples)
+{
+    const struct encode_box *b = &e->pass->box;
+    const size_t bx = b->n[0], by = b->n[1], bz = b->n[2];
+    const unsigned axis = jb->sj->axis;
+    const size_t sv = (size_t)jb->sj->h.slice_w * jb->sj->h.slice_h;
+    const uint32_t s = jb->slice - b->lo[axis], len = jb->len,
+                   N = e->p.window;
+    for (uint32_t j = 0; j < len; j++) {
+        const float *vol = e->ring[(t + j) % N];
+        float *out = samples + (size_t)j * sv;
+        switch (axis) {
+        case 0:
+            for (size_t z = 0; z < bz; z++)
+                for (size_t y = 0; y < by; y++) {
+                    const float *row = vol + bx * (y + by * z) + s;
+                    float *dst = out + y + by * z;
+                    for (uint32_t g = 0; g < jb->count; g++)
+                        dst[(size_t)g * len * sv] = row[(size_t)g * N];
+                }
+            break;
+        case 1:
+            for (size_t z = 0; z < bz; z++)
+                memcpy(out + bx * z, vol + bx * (s + by * z),
+                       bx * sizeof *out);
+            break;
+        default:
+            memcpy(out, vol + bx * by * (size_t)s, bx * by * sizeof *out);
+            break;
+        }
+    }
+}
+
+/* --table auto's criterion (FORMAT.md 6.7).  A 16-bit entry is off by up
+ * to half a step, (max - min) / 65535 of its table, adding about step^2 /
+ * 12 to the squared error of every voxel that holds it.  That is
+ * negligible where it stays within TABLE_U16_BUDGET of the slice-window's
+ * own coding error: SSE16 - SSE32 <= 1e-4 SSE32, both summed over the
+ * voxels and timesteps with a value, so no window's error grows by more
+ * than 1e-4 of itself and the PSNR of the whole dataset drops by less than
+ * 10 log10(1 + 1e-4) = 0.0005 dB.  The error is measured, not bounded:
+ * the encoder has the samples, the indices and both tables at hand, and
+ * one pass over them costs little beside coding the window.  So float32
+ * stays where 16 bits are coarse against the coding error: a wide range
+ * (one outlier widens every step of its window), and an exact window
+ * (SSE32 = 0: integer data with few distinct values, whose float32 table
+ * holds them exactly) unless the 16-bit table decodes what its voxels
+ * hold exactly too. */
+#define TABLE_U16_BUDGET 1e-4
+
+/* Whether t16, the values a 16-bit table decodes to, errs negligibly more
+ * than t32 on the slice-window (samples[j * nvox + v], indices idx). */
+static int table_u16_negligible(const float *samples, const uint8_t *idx,
+                                size_t nvox, uint32_t len, const float *t32,
+                                const float *t16)
+{
+    if (!memcmp(t32, t16, (size_t)len * 256 * sizeof *t32))
+        return 1;
+    double sse32 = 0, sse16 = 0;
+    for (uint32_t j = 0; j < len; j++) {
+        const float *x = samples + (size_t)j * nvox;
+        const float *a = t32 + (size_t)j * 256, *b = t16 + (size_t)j * 256;
+        for (size_t v = 0; v < nvox; v++) {
+            /* A missing value (NaN sample or entry, the same in both
+             * tables) has no error. */
+            const double e32 = (double)x[v] - a[idx[v]];
+            const double e16 = (double)x[v] - b[idx[v]];
+            if (e32 == e32 && e16 == e16) {
+                sse32 += e32 * e32;
+                sse16 += e16 * e16;
+            }
+        }
+    }
+    return sse16 - sse32 <= TABLE_U16_BUDGET * sse32;
+}
+
+/* --table auto: stores the table of a coded slice-window at dst as 16-bit
+ * when that is negligible (table_u16_negligible), setting TVPAL_CHUNK_U16
+ * in h->flags, else as float32; returns the chunk's format (TVPAL_TABLE_U16
+ * or TVPAL_TABLE_F32).  dec: len * 256 floats of scratch.  dst has a
+ * float32 table's room, before the indices. */
+static uint32_t store_table_auto(const float *table, float *dec,
+                                 const float *samples, const uint8_t *idx,
+                                 size_t nvox, uint32_t len,
+                                 unsigned char *dst,
+                                 struct tvpal_chunk_header *h)
+{
+    tvpal_table_store(table, len, TVPAL_TABLE_U16, dst, h);
+    const struct tvpal_chunk c = {
+        .h = *h, .table = dst,
+        .table_format = TVPAL_TABLE_U16 | ((h->flags & TVPAL_CHUNK_MISSING)
+                                               ? TVPAL_TABLE_MISSING : 0u)};
+    tvpal_chunk_table(&c, dec);
+    if (table_u16_negligible(samples, idx, nvox, len, table, dec)) {
+        h->flags |= TVPAL_CHUNK_U16;
+        return TVPAL_TABLE_U16;
+    }
+    tvpal_table_store(table, len, TVPAL_TABLE_F32, dst, h);
+    return TVPAL_TABLE_F32;
+}
+
+/* Encodes one slice-window from samples into the chunk buffer: a chunk of
+ * the shard's table format, or in a per-chunk shard (--table auto) one of
+ * the format store_table_auto picks, in a float32 chunk's room (the rest
+ * zeros: tvpal_shardw_put_chunk).  table: 2 * len * 256 floats of
+ * scratch. */
+static void encode_chunk(struct tvpal_swenc *enc, float *table,
+                         const float *samples,
+                         const struct tvpal_shard_header *sh,
+                         uint32_t slice, uint32_t t, uint32_t len,
+                         unsigned char *chunk, uint64_t *dropped)
+{
+    const size_t nvox = (size_t)sh->slice_w * sh->slice_h;
+    const uint32_t tf = sh->table_format;
+    unsigned char *const dst = chunk + TVPAL_CHUNK_HEADER_BYTES;
+    /* The indices follow a table of the shard's entry size (a float32
+     * one's in a per-chunk shard: moved down for a 16-bit table). */
+    uint8_t *idx = dst + (size_t)len * 256 * tvpal_table_entry_bytes(tf);
+    struct tvpal_swinfo info;
+    tvpal_swenc_encode(enc, samples, nvox, len, idx, table, &info);
+    *dropped += info.dropped;
+    struct tvpal_chunk_header ch = {
+        .slice = slice, .wstart = t, .wlen = len, .w = sh->slice_w,
+        .h = sh->slice_h, .used = info.used};
+    uint32_t ctf = tf;
+    if (tf == TVPAL_TABLE_CHUNK) {
+        ctf = store_table_auto(table, table + (size_t)len * 256, samples, idx,
+                               nvox, len, dst, &ch);
+        uint8_t *to = dst + (size_t)len * 256 * tvpal_table_entry_bytes(ctf);
+        memmove(to, idx, nvox);
+        idx = to;
+    } else {
+        tvpal_table_store(table, len, tf, dst, &ch);
+    }
+    memcpy(ch.bits, info.bits, sizeof ch.bits);
+    tvpal_chunk_header_encode(&ch, chunk);
+    /* Zero the index padding (and a 16-bit chunk's unused room) so output
+     * bytes are deterministic. */
+    unsigned char *end = idx + nvox;
+    size_t cb = tvpal_chunk_bytes(len, sh->slice_w, sh->slice_h, tf);
+    memset(end, 0, (size_t)(chunk + cb - end));
+}
+
+/* Lists the slice-windows of the pass that start at step t, shard by
+ * shard in slice order (the order their CRCs join), into e->jobs (x slices
+ * grouped).  Returns the number of jobs. */
+static size_t plan_step(struct tvpal_engine *e, uint32_t t)
+{
+    const uint32_t N = e->p.window;
+    const struct encode_pass *ps = e->pass;
+    struct slicejob *jobs = e->jobs;
+    size_t njobs = 0, chunks = 0;
+    for (uint32_t q = 0; q < e->nshard; q++) {
+        struct tvpal_engine_shard *j = &e->sj[q];
+        const unsigned a = j->axis;
+        if (!(ps->axes & (1u << a)))
+            continue;
+        const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
+        uint32_t lo = j->h.slice_begin, hi = lo + j->h.slice_count;
+        lo = lo > ps->s0[a] ? lo : ps->s0[a];
+        hi = hi < ps->s1[a] ? hi : ps->s1[a];
+        for (uint32_t s = lo; s < hi; s++) {
+            if (!tvpal_schedule_starts(s, t, N))
+                continue;
+            uint32_t len = tvpal_schedule_len(s, t, N, e->p.steps);
+            struct slicejob *prev = njobs ? &jobs[njobs - 1] : NULL;
+            /* Extend the previous x group when this slice is the next of
+             * its phase, in the same line, with the same window, and the
+             * group's samples stay within the workspace. */
+            if (a == 0 && prev && prev->sj == j && prev->len == len &&
+                s == prev->slice + prev->count * N &&
+                s / GROUP_SPAN == prev->slice / GROUP_SPAN &&
+                (uint64_t)(prev->count + 1) * len * sv <= e->group_cap)
+                prev->count++;
+            else
+                jobs[njobs++] = (struct slicejob){j, s, 1, len, chunks};
+            chunks++;
+        }
+    }
+    return njobs;
+}
+
+/* One step's encoding, shared by the pool's threads (encode_job). */
+struct step_ctx {
+    struct tvpal_engine *e;
+    uint32_t t;
+    int failed;                     /* atomic: the first failure claims it */
+    int fail_rc;
+    struct tvpal_diag fail_d;       /* written by that thread only */
+    uint32_t fail_q;
+};
+
+/* Job i of the step: gathers its slices, encodes each slice-window and
+ * writes its chunk in place.  Thread 0 (the caller's) ticks between jobs,
+ * so a progress line comes within a long step too. */
+static void encode_job(void *arg, size_t i, unsigned tid)
+{
+    struct step_ctx *c = arg;
+    struct tvpal_engine *e = c->e;
+    const uint32_t t = c->t, N = e->p.window;
+    const struct slicejob *jb = &e->jobs[i];
+    const struct tvpal_engine_shard *j = jb->sj;
+    const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
+    const uint64_t cb = tvpal_chunk_bytes(jb->len, j->h.slice_w,
+                                          j->h.slice_h, j->h.table_format);
+    gather(e, jb, t, e->samples[tid]);
+    for (uint32_t g = 0; g < jb->count; g++) {
+        struct tvpal_diag d = {{0}};
+        encode_chunk(e->enc[tid], e->tables[tid],
+                     e->samples[tid] + (size_t)g * jb->len * sv, &j->h,
+                     jb->slice + g * N, t, jb->len, e->chunkbuf[tid],
+                     &e->dropped[tid]);
+        int rc = tvpal_shardw_put_chunk(j->w, t, jb->slice + g * N,
+                                        e->chunkbuf[tid], cb,
+                                        &e->jcrc[jb->crc_at + g], &d);
+        if (rc < 0 && !__atomic_exchange_n(&c->failed, 1, __ATOMIC_RELAXED)) {
+            c->fail_rc = rc;
+            c->fail_d = d;
+            c->fail_q = (uint32_t)(j - e->sj);
+        }
+    }
+    if (e->work)
+        __atomic_add_fetch(e->work, (uint64_t)sv * jb->len * jb->count,
+                           __ATOMIC_RELAXED);
+    if (tid == 0 && e->tick)
+        e->tick(e->tick_ctx);
+}
+
+int tvpal_engine_encode_step(struct tvpal_engine *e, uint32_t t,
+                             struct tvpal_diag *diag, uint32_t *fail_shard)
+{
+    if (!e->ring || !e->pass || t >= e->p.steps)
+        return TVPAL_E_INVAL;
+    struct step_ctx c = {.e = e, .t = t};
+    const size_t njobs = plan_step(e, t);
+    tvpal_pool_for(e->pool, njobs, encode_job, &c);
+    if (c.failed) {
+        if (fail_shard)
+            *fail_shard = c.fail_q;
+        return tvpal_diag_set(diag, c.fail_rc, "%s", c.fail_d.msg);
+    }
+    for (size_t i = 0; i < njobs; i++) {
+        const struct slicejob *jb = &e->jobs[i];
+        for (uint32_t g = 0; g < jb->count; g++)
+            if (tvpal_shardw_extend(jb->sj->w, t, jb->slice + g * e->p.window,
+                                    e->jcrc[jb->crc_at + g]) < 0)
+                return tvpal_diag_set(diag, TVPAL_E_INVAL, "chunk of slice "
+                                      "%u, step %u out of order",
+                                      jb->slice + g * e->p.window, t);
+    }
+    return 0;
+}
