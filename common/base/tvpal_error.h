@@ -7,11 +7,21 @@
  * code alone cannot say what was wrong (which header field, which record),
  * functions take an optional struct tvpal_diag into which they write a short
  * detail; the caller owns it and may pass NULL.
+ *
+ * Installed beside tvpal.h: the codes, tvpal_strerror and struct
+ * tvpal_diag are part of the public API; tvpal_diag_set and
+ * tvpal_diag_copy are the library's own (not exported).
  */
 #ifndef TVPAL_ERROR_H
 #define TVPAL_ERROR_H
 
 #include <stddef.h>
+
+/* Marks the functions of the public API (tvpal.h), the only symbols
+ * libtvpal exports; installed with tvpal.h. */
+#ifndef TVPAL_API
+#define TVPAL_API __attribute__((visibility("default")))
+#endif
 
 /* X(name, value, message) */
 #define TVPAL_ERROR_MAP(X)                                                    \
@@ -42,7 +52,7 @@ enum tvpal_error {
 };
 
 /* Static message for a code; never NULL (unknown codes get a generic text). */
-const char *tvpal_strerror(int code);
+TVPAL_API const char *tvpal_strerror(int code);
 
 /* Optional detail for an error: caller-owned, filled with snprintf.  Room
  * for a message that names three long paths (a file, the collection that

@@ -1,0 +1,253 @@
+/* tvpal.h: libtvpal, the public API of tvpal.
+ *
+ * tvpal encodes time-varying volume data with the palette-DCT method of
+ * Lum, Ma & Clyne (IEEE TVCG 2002): per axis-aligned slice, windows of N
+ * timesteps get a temporal DCT, and each voxel becomes one 8-bit index
+ * into a per-slice-window decoder table.  The result is a dataset
+ * directory (manifest.txt and node shards, FORMAT.md) that tvpal-play
+ * plays and the tvpal tools read.
+ *
+ * This header offers two objects:
+ *  - an encoder, which takes a series of timesteps from the caller's
+ *    memory, one at a time, and writes a dataset (for a simulation that
+ *    encodes its output while it runs, in situ);
+ *  - a reader, which opens a dataset and decodes any stored step into the
+ *    caller's memory.
+ *
+ * Conventions:
+ *  - Every fallible function returns int: 0 on success, or a negative
+ *    TVPAL_E_* code (tvpal_error.h); tvpal_strerror() names it.  Where a
+ *    code alone cannot say what went wrong, a function takes an optional
+ *    caller-owned struct tvpal_diag (may be NULL) into which it writes a
+ *    sentence naming the file, the parameter or the value at fault.
+ *  - The library never prints, never exits and does not report through
+ *    errno.
+ *  - Objects are created by *_open and released by exactly one of the
+ *    calls documented as releasing them; the caller owns what it passes
+ *    in, and may reuse its buffers as soon as a call returns.
+ *  - Volumes are nx * ny * nz values, x fastest, unless strides say
+ *    otherwise.  An object is not thread-safe: one thread drives it (the
+ *    encoder uses its own worker threads inside).
+ *
+ * Build with `pkg-config --cflags --libs tvpal`.
+ */
+#ifndef TVPAL_H
+#define TVPAL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "tvpal_error.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---------------------------------------------------------------- version */
+
+#define TVPAL_VERSION_MAJOR 0
+#define TVPAL_VERSION_MINOR 1
+#define TVPAL_VERSION_RELEASE 0
+/* 100 * (100 * MAJOR + MINOR) + RELEASE: 100 for 0.1.0. */
+#define TVPAL_VERSION_NUMBER                                                  \
+    ((TVPAL_VERSION_MAJOR * 100 + TVPAL_VERSION_MINOR) * 100 +               \
+     TVPAL_VERSION_RELEASE)
+
+/* The library's TVPAL_VERSION_NUMBER and "MAJOR.MINOR.RELEASE": a program
+ * may compare them with the header's it was built against. */
+TVPAL_API unsigned tvpal_version_number(void);
+TVPAL_API const char *tvpal_version_string(void);
+
+/* ---------------------------------------------------------------- encoder */
+
+/* Axes, as a mask: the slices a dataset stores (tvpal_encoder_set
+ * TVPAL_PARAM_AXES).  Z alone is the default: the player draws every view
+ * from the z slices. */
+#define TVPAL_AXIS_X 1u
+#define TVPAL_AXIS_Y 2u
+#define TVPAL_AXIS_Z 4u
+
+/* The scalar type of the values pushed. */
+enum tvpal_scalar {
+    TVPAL_FLOAT32 = 1,
+    TVPAL_FLOAT64 = 2
+};
+
+/* Parameters of an encoder, set with tvpal_encoder_set before the first
+ * push; each is the tvpal-encode option of the same name (tvpal-encode(1)
+ * says what it does). */
+enum tvpal_param {
+    TVPAL_PARAM_WINDOW = 1,   /* N, timesteps per DCT window: 1..16;
+                               * default 4 */
+    TVPAL_PARAM_AXES,         /* mask of TVPAL_AXIS_*; default Z */
+    TVPAL_PARAM_NODES,        /* node shards per axis (for a cluster
+                               * player), 1..4096; default 1 */
+    TVPAL_PARAM_TABLE,        /* decoder tables: TVPAL_TABLE_AUTO (each
+                               * chunk 16-bit where that costs less than
+                               * 1e-4 of its error; default), _FLOAT32, _UINT16 */
+    TVPAL_PARAM_REFINE,       /* Lloyd-Max refinement passes, 0..8;
+                               * default 0 */
+    TVPAL_PARAM_TRANSFORM,    /* TVPAL_TRANSFORM_DCT (default) or _KLT
+                               * (needs a build with LAPACK) */
+    TVPAL_PARAM_ALLOC,        /* TVPAL_ALLOC_VARIANCE (default) or
+                               * _GREEDY_MSE */
+    TVPAL_PARAM_THREADS,      /* worker threads; 0 (default): every CPU
+                               * this process may run on */
+    TVPAL_PARAM_MEM_LIMIT,    /* bytes the encoder may hold, 0 (default):
+                               * no limit of its own.  It holds N steps of
+                               * float32 and its workspaces; a job over the
+                               * limit is refused at the first push */
+    TVPAL_PARAM_NAN_AS,       /* missing values become this value (and
+                               * count as replaced) instead of missing */
+    TVPAL_PARAM_FORCE         /* 1: replace an existing dataset at the
+                               * output directory (only a tvpal dataset;
+                               * it is replaced when the new one is
+                               * complete); default 0 */
+};
+#define TVPAL_TABLE_FLOAT32 0
+#define TVPAL_TABLE_UINT16 1
+#define TVPAL_TABLE_AUTO 4
+#define TVPAL_TRANSFORM_DCT 0
+#define TVPAL_TRANSFORM_KLT 1
+#define TVPAL_ALLOC_VARIANCE 0
+#define TVPAL_ALLOC_GREEDY_MSE 1
+
+struct tvpal_encoder;
+
+/* Opens an encoder of `steps` timesteps of dims[0] x dims[1] x dims[2]
+ * voxels into the dataset directory `dir`.  Nothing is written until the
+ * first push.  0, or TVPAL_E_INVAL (dims, steps or dir out of range; diag
+ * says which) or TVPAL_E_NOMEM.  *out is released by tvpal_encoder_finish
+ * or tvpal_encoder_abort. */
+TVPAL_API int tvpal_encoder_open(struct tvpal_encoder **out, const char *dir,
+                                 const uint32_t dims[3], uint32_t steps,
+                                 struct tvpal_diag *diag);
+
+/* Sets a parameter (enum tvpal_param) before the first push.  0, or
+ * TVPAL_E_INVAL for an unknown parameter, a value out of its range or a
+ * call after the first push. */
+TVPAL_API int tvpal_encoder_set(struct tvpal_encoder *e,
+                                enum tvpal_param param, double value,
+                                struct tvpal_diag *diag);
+
+/* The physical grid: the voxels' spacing (each finite and > 0) and the
+ * first voxel's centre; default 1, 1, 1 and 0, 0, 0.  Before the first
+ * push; 0 or TVPAL_E_INVAL. */
+TVPAL_API int tvpal_encoder_set_grid(struct tvpal_encoder *e,
+                                     const double spacing[3],
+                                     const double origin[3],
+                                     struct tvpal_diag *diag);
+
+/* The time of every step (steps values, increasing, finite) and their
+ * units (e.g. "hours since 2005-08-28 00:00:00", or NULL).  Copied.
+ * Before the first push; 0 or TVPAL_E_INVAL. */
+TVPAL_API int tvpal_encoder_set_times(struct tvpal_encoder *e,
+                                      const double *times,
+                                      const char *time_units,
+                                      struct tvpal_diag *diag);
+
+/* The values' units (e.g. "K"), or NULL; copied.  Before the first push. */
+TVPAL_API int tvpal_encoder_set_units(struct tvpal_encoder *e,
+                                      const char *units,
+                                      struct tvpal_diag *diag);
+
+/* Values that mean "no data" (up to 16, beside NaN, which always does);
+ * copied.  Before the first push; 0 or TVPAL_E_INVAL. */
+TVPAL_API int tvpal_encoder_set_missing(struct tvpal_encoder *e,
+                                        const double *values, unsigned n,
+                                        struct tvpal_diag *diag);
+
+/* Pushes the next timestep (steps 0, 1, ... in order): dims[0] * dims[1] *
+ * dims[2] values of `type` at data, where value (x, y, z) is at
+ * data[x * strides[0] + y * strides[1] + z * strides[2]] (in elements; may
+ * be negative), or with strides NULL at data[x + nx * (y + ny * z)].  The
+ * values are copied (converted to float32) before the call returns; NaN and
+ * the missing values are missing; an infinity or a value beyond 1e37 is
+ * refused (TVPAL_E_NAN, TVPAL_E_RANGE: diag names the voxel).
+ *
+ * The first push takes the output's lock (DIR.partial.lock) and creates
+ * DIR.partial, where the dataset is written until tvpal_encoder_finish
+ * moves it into place.  A push may encode and write the windows that its
+ * step completes, on the encoder's threads.
+ *
+ * 0; TVPAL_E_INVAL (a push after the last step, an unknown type, NULL
+ * data); TVPAL_E_EXIST (DIR exists and TVPAL_PARAM_FORCE is not set, or
+ * another encoder holds the lock); TVPAL_E_RANGE (the job needs more than
+ * TVPAL_PARAM_MEM_LIMIT); TVPAL_E_NAN, TVPAL_E_RANGE (a value refused);
+ * TVPAL_E_OPEN, TVPAL_E_WRITE, TVPAL_E_SYS (the output: diag names the
+ * file); TVPAL_E_NOMEM.  A push refused for its arguments (TVPAL_E_INVAL)
+ * changes nothing; after any other failure the encoder only accepts
+ * tvpal_encoder_abort (and tvpal_encoder_finish, which then fails). */
+TVPAL_API int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
+                                 enum tvpal_scalar type,
+                                 const ptrdiff_t strides[3],
+                                 struct tvpal_diag *diag);
+
+/* After the last step: encodes what is left, finishes the shards, writes
+ * the manifest, reads the dataset back to verify it and renames DIR.partial
+ * to DIR (replacing an older DIR with TVPAL_PARAM_FORCE).  Releases e,
+ * whatever the result; on failure nothing at DIR looks complete (an older
+ * dataset there stays as it was).  0; TVPAL_E_INVAL (fewer steps pushed
+ * than opened with: the partial output is removed); the codes of
+ * tvpal_encoder_push. */
+TVPAL_API int tvpal_encoder_finish(struct tvpal_encoder *e,
+                                   struct tvpal_diag *diag);
+
+/* Stops: removes DIR.partial and its lock, and releases e.  An older DIR
+ * stays as it was.  NULL is a no-op. */
+TVPAL_API void tvpal_encoder_abort(struct tvpal_encoder *e);
+
+/* ----------------------------------------------------------------- reader */
+
+/* What a dataset holds.  Strings and arrays belong to the reader. */
+struct tvpal_info {
+    uint32_t dims[3];
+    uint32_t steps, window, nodes;
+    uint32_t axes;            /* mask of TVPAL_AXIS_*: the axes stored */
+    uint32_t levels;          /* coarser levels of detail: 1 .. levels */
+    double spacing[3], origin[3];
+    double value_min, value_max;   /* of the source's present values */
+    const double *times;      /* steps values, or NULL (none known) */
+    const char *time_units;   /* "" when none */
+    const char *units;        /* "" when none */
+    uint64_t missing;         /* missing values in the source */
+    uint64_t source_bytes;    /* bytes of the source as encoded */
+};
+
+struct tvpal_reader;
+
+/* Opens the dataset directory dir and checks that its files agree.  0;
+ * TVPAL_E_OPEN (no dataset: diag names the file), TVPAL_E_MANIFEST,
+ * TVPAL_E_FORMAT, TVPAL_E_MISMATCH, TVPAL_E_CHECKSUM (diag names the file
+ * and what is wrong), TVPAL_E_NOMEM.  Release with tvpal_reader_close. */
+TVPAL_API int tvpal_reader_open(struct tvpal_reader **out, const char *dir,
+                                struct tvpal_diag *diag);
+
+/* NULL is a no-op. */
+TVPAL_API void tvpal_reader_close(struct tvpal_reader *r);
+
+/* The dataset's description; valid until tvpal_reader_close. */
+TVPAL_API const struct tvpal_info *tvpal_reader_info(
+    const struct tvpal_reader *r);
+
+/* The dims of level `level` (0: the dataset's; k: ceil(d / 2^k) per axis).
+ * 0 or TVPAL_E_INVAL (level > levels). */
+TVPAL_API int tvpal_reader_level_dims(const struct tvpal_reader *r,
+                                      uint32_t level, uint32_t dims[3]);
+
+/* Decodes step t from the slices of `axis` (TVPAL_AXIS_X, _Y or _Z, one
+ * the dataset stores; 0: the default, z when stored) of level `level`
+ * into dst: the level's nx * ny * nz floats, x fastest, NaN where the
+ * source was missing.  Sequential steps read one record per shard; a jump
+ * reads at most N.  0; TVPAL_E_INVAL (t, axis or level out of range);
+ * TVPAL_E_READ, TVPAL_E_CHECKSUM, TVPAL_E_FORMAT (the file: diag names
+ * it); TVPAL_E_NOMEM. */
+TVPAL_API int tvpal_reader_decode(struct tvpal_reader *r, uint32_t t,
+                                  unsigned axis, uint32_t level, float *dst,
+                                  struct tvpal_diag *diag);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

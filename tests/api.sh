@@ -1,0 +1,81 @@
+#!/bin/sh
+# api: libtvpal as a user gets it.  The library, its headers and tvpal.pc
+# are installed into a scratch root (make install-... DESTDIR); the in-situ
+# sample samples/tvpal-heat.c is built against them with nothing but
+# `pkg-config --cflags --libs tvpal` (shared library, then --static) and
+# run: it encodes its steps from memory while it simulates.  Its shards
+# must be byte-identical to tvpal-encode's of the same steps dumped as raw
+# files, its decoded steps within a PSNR floor of the simulation's arrays
+# (tvpal-report against the dumps), and the shared library must export
+# the API's symbols only.
+. "$(dirname "$0")/lib.sh"
+command -v pkg-config > /dev/null || { echo "no pkg-config: skipped"; exit 77; }
+CC=${TVPAL_CC:-cc}
+R=$W/root
+make -s -C "$TVPAL_BUILDDIR" DESTDIR="$R" install-libLTLIBRARIES \
+    install-includeHEADERS install-pkgconfigDATA > "$W/install.txt" 2>&1 ||
+    { cat "$W/install.txt"; fail "make install of the library"; finish; }
+pc=$(find "$R" -name tvpal.pc | head -n 1)
+[ -n "$pc" ] || { fail "no tvpal.pc installed"; finish; }
+export PKG_CONFIG_PATH="$(dirname "$pc")" PKG_CONFIG_SYSROOT_DIR="$R"
+export PKG_CONFIG_LIBDIR="$(dirname "$pc")"
+pcflags=$(pkg-config --cflags tvpal) && plibs=$(pkg-config --libs tvpal) ||
+    { fail "pkg-config --cflags --libs tvpal"; finish; }
+[ "$(pkg-config --modversion tvpal)" = 0.1.0 ] && ok "pkg-config: tvpal 0.1.0" ||
+    fail "pkg-config --modversion: $(pkg-config --modversion tvpal)"
+libdir=$(pkg-config --variable=libdir tvpal)
+so=$(ls "$libdir"/libtvpal.so.0* 2>/dev/null | head -n 1)
+[ -n "$so" ] || fail "no libtvpal.so.0 installed in $libdir"
+# Only the API: every exported function is declared in tvpal.h or
+# tvpal_error.h.
+hdrs=$(find "$R" -name tvpal.h)
+if [ -n "$so" ]; then
+    for s in $(nm -D --defined-only "$so" | awk '$2 == "T" { print $3 }'); do
+        grep -q "\\b$s(" "$hdrs" "$(dirname "$hdrs")/tvpal_error.h" ||
+            fail "libtvpal.so exports $s, which no public header declares"
+    done
+    ok "libtvpal.so exports the API only ($(nm -D --defined-only "$so" | awk '$2 == "T"' | wc -l) functions)"
+fi
+# The sample, as a user builds it (no tree paths).
+# shellcheck disable=SC2086
+$CC ${TVPAL_CFLAGS:-} $pcflags "$TVPAL_SRCDIR/samples/tvpal-heat.c" -o "$W/heat" \
+    ${TVPAL_LDFLAGS:-} $plibs -lm 2> "$W/cc.txt" ||
+    { cat "$W/cc.txt"; fail "tvpal-heat does not build with pkg-config"; finish; }
+# shellcheck disable=SC2086
+$CC ${TVPAL_CFLAGS:-} $pcflags "$TVPAL_SRCDIR/samples/tvpal-heat.c" -o "$W/heat-static" \
+    ${TVPAL_LDFLAGS:-} -static-libgcc $(pkg-config --libs --static tvpal | sed 's/-ltvpal/-l:libtvpal.a/') -lm \
+    2> "$W/cc-static.txt" || { cat "$W/cc-static.txt"; fail "tvpal-heat does not build against libtvpal.a"; }
+mkdir -p "$W/raw" "$W/raw2"
+LD_LIBRARY_PATH="$libdir" "$W/heat" --dims 40x36x28 --steps 18 --window 4 \
+    --raw "$W/raw" -o "$W/heat.ds" > "$W/out.txt" 2> "$W/err.txt" ||
+    { cat "$W/err.txt"; fail "tvpal-heat failed"; finish; }
+grep -q "18 steps of 40x36x28 encoded" "$W/out.txt" && ok "tvpal-heat ran in situ" ||
+    fail "tvpal-heat said: $(cat "$W/out.txt")"
+ldd "$W/heat" | grep -q "$libdir/libtvpal.so" 2>/dev/null ||
+    LD_LIBRARY_PATH="$libdir" ldd "$W/heat" | grep -q "libtvpal.so.0 => $libdir" ||
+    fail "tvpal-heat is not linked to the installed libtvpal.so"
+if [ -x "$W/heat-static" ]; then
+    "$W/heat-static" --dims 40x36x28 --steps 18 --window 4 -o "$W/heat-static.ds" > /dev/null &&
+        ! ldd "$W/heat-static" 2>/dev/null | grep -q libtvpal &&
+        ok "tvpal-heat linked statically runs" || fail "the static tvpal-heat"
+fi
+# The same steps from the dumps through tvpal-encode: the same shards.
+"$ENC" -q --dims 40x36x28 --window 4 -o "$W/enc.ds" "$W"/raw/heat_t*.f32 > /dev/null ||
+    fail "tvpal-encode of the dumps"
+same=1
+for f in "$W"/enc.ds/node-0/*.tvps; do
+    cmp -s "$f" "$W/heat.ds/node-0/$(basename "$f")" || { same=0; fail "$(basename "$f") differs from tvpal-encode's"; }
+    [ -x "$W/heat-static" ] && { cmp -s "$f" "$W/heat-static.ds/node-0/$(basename "$f")" || { same=0; fail "static: $(basename "$f") differs"; }; }
+done
+[ $same = 1 ] && ok "in-situ shards byte-identical to tvpal-encode's from raw dumps"
+grep -q "^encoder = libtvpal 0.1.0" "$W/heat.ds/manifest.txt" &&
+    grep -q "^units = K" "$W/heat.ds/manifest.txt" &&
+    grep -q "^time_units = seconds" "$W/heat.ds/manifest.txt" &&
+    ok "manifest: encoder, units, time units" || fail "manifest: $(head -c 600 "$W/heat.ds/manifest.txt")"
+# Decoded against the simulation's arrays.
+"$REP" "$W/heat.ds" --reference "$W"/raw/heat_t*.f32 > "$W/rep.txt" 2>&1 ||
+    { cat "$W/rep.txt"; fail "tvpal-report"; }
+psnr=$(sed -n 's/.*psnr=\([0-9.]*\).*/\1/p' "$W/rep.txt" | head -n 1)
+awk -v p="${psnr:-0}" 'BEGIN { exit !(p > 40) }' && ok "PSNR $psnr dB (floor 40)" ||
+    fail "PSNR ${psnr:-none} below 40: $(head -n 3 "$W/rep.txt")"
+finish

@@ -1,0 +1,351 @@
+/* test-api: the contracts of libtvpal's public API (lib/tvpal.h), through
+ * the shared library as a user's program links it, using tvpal.h only.
+ *  - parameters out of range, set after the first push, wrong type, NULL
+ *    data: TVPAL_E_INVAL with a diag, and nothing changed;
+ *  - the same values pushed as float32 contiguous and as float64 through
+ *    strides (a z-y-x transposed array) give byte-identical shards;
+ *  - the reader gives back the grid, times and units, and each step
+ *    within the codec's error (PSNR floor); a step, axis or level out of
+ *    range is refused;
+ *  - nothing that looks complete after: abort halfway, finish with steps
+ *    missing, a refused value (an infinity: the voxel named), an output
+ *    that exists (TVPAL_E_EXIST, unless forced over a dataset), a lock
+ *    another encoder holds, a memory limit too small. */
+#include "tvpal.h"
+#include "tvpal_test.h"
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#define NX 9
+#define NY 7
+#define NZ 6
+#define T 7
+#define NV (NX * NY * NZ)
+
+static const char *W = "tests/work/test-api";
+
+static int exists(const char *p)
+{
+    struct stat st;
+    return stat(p, &st) == 0;
+}
+
+static char *path(const char *fmt, const char *a)
+{
+    static char buf[8][512];
+    static int k;
+    char *b = buf[k++ % 8];
+    snprintf(b, 512, fmt, W, a);
+    return b;
+}
+
+static float value(unsigned t, unsigned x, unsigned y, unsigned z)
+{
+    return (float)(10 + sin(0.7 * x + 0.3 * t) * cos(0.5 * y) + 0.25 * z +
+                   (x == t % NX) * 4.0);
+}
+
+static void fill(float *v, unsigned t)
+{
+    for (unsigned z = 0; z < NZ; z++)
+        for (unsigned y = 0; y < NY; y++)
+            for (unsigned x = 0; x < NX; x++)
+                v[x + NX * (y + NY * z)] = value(t, x, y, z);
+}
+
+/* The bytes of a file into a malloc'ed buffer; *n its size. */
+static unsigned char *slurp(const char *p, size_t *n)
+{
+    FILE *f = fopen(p, "rb");
+    if (!f)
+        return NULL;
+    fseek(f, 0, SEEK_END);
+    long len = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    unsigned char *b = malloc((size_t)len + 1);
+    if (b && fread(b, 1, (size_t)len, f) != (size_t)len) {
+        free(b);
+        b = NULL;
+    }
+    fclose(f);
+    *n = (size_t)len;
+    return b;
+}
+
+static const uint32_t dims[3] = {NX, NY, NZ};
+
+/* Encodes the series into dir: float32 contiguous, or float64 from an
+ * array stored z fastest (strides). */
+static int encode(const char *dir, int f64, struct tvpal_diag *d)
+{
+    struct tvpal_encoder *e = NULL;
+    int rc = tvpal_encoder_open(&e, dir, dims, T, d);
+    if (rc < 0)
+        return rc;
+    double times[T];
+    for (unsigned t = 0; t < T; t++)
+        times[t] = 1.5 * t;
+    const double sp[3] = {0.5, 1, 2}, or[3] = {-1, 0, 3};
+    if ((rc = tvpal_encoder_set(e, TVPAL_PARAM_WINDOW, 3, d)) < 0 ||
+        (rc = tvpal_encoder_set(e, TVPAL_PARAM_AXES,
+                                TVPAL_AXIS_X | TVPAL_AXIS_Z, d)) < 0 ||
+        (rc = tvpal_encoder_set(e, TVPAL_PARAM_THREADS, 2, d)) < 0 ||
+        (rc = tvpal_encoder_set_grid(e, sp, or, d)) < 0 ||
+        (rc = tvpal_encoder_set_times(e, times, "hours", d)) < 0 ||
+        (rc = tvpal_encoder_set_units(e, "K", d)) < 0) {
+        tvpal_encoder_abort(e);
+        return rc;
+    }
+    float v[NV];
+    double w[NV];
+    const ptrdiff_t zfast[3] = {NY * NZ, NZ, 1};
+    for (unsigned t = 0; t < T && rc == 0; t++) {
+        fill(v, t);
+        for (unsigned z = 0; z < NZ; z++)
+            for (unsigned y = 0; y < NY; y++)
+                for (unsigned x = 0; x < NX; x++)
+                    w[z + NZ * (y + NY * x)] = v[x + NX * (y + NY * z)];
+        rc = f64 ? tvpal_encoder_push(e, w, TVPAL_FLOAT64, zfast, d)
+                 : tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, d);
+    }
+    if (rc < 0) {
+        tvpal_encoder_abort(e);
+        return rc;
+    }
+    return tvpal_encoder_finish(e, d);
+}
+
+static void test_params(void)
+{
+    struct tvpal_encoder *e = NULL;
+    struct tvpal_diag d = {{0}};
+    const uint32_t zero[3] = {NX, 0, NZ};
+    CHECK(tvpal_encoder_open(&e, path("%s/p%s", ""), zero, T, &d) ==
+              TVPAL_E_INVAL && e == NULL && strstr(d.msg, "dims[1]"),
+          "dims 0: %s", d.msg);
+    CHECK(tvpal_encoder_open(&e, path("%s/p%s", ""), dims, 0, &d) ==
+              TVPAL_E_INVAL, "steps 0 taken");
+    REQUIRE(tvpal_encoder_open(&e, path("%s/p%s", ""), dims, T, &d) == 0,
+            "open: %s", d.msg);
+    CHECK(tvpal_encoder_set(e, TVPAL_PARAM_WINDOW, 17, &d) == TVPAL_E_INVAL &&
+              strstr(d.msg, "window"), "window 17: %s", d.msg);
+    CHECK(tvpal_encoder_set(e, TVPAL_PARAM_WINDOW, 2.5, &d) == TVPAL_E_INVAL,
+          "window 2.5 taken");
+    CHECK(tvpal_encoder_set(e, TVPAL_PARAM_AXES, 8, &d) == TVPAL_E_INVAL,
+          "axes 8 taken");
+    CHECK(tvpal_encoder_set(e, (enum tvpal_param)99, 1, &d) ==
+              TVPAL_E_INVAL, "parameter 99 taken");
+    const double bad_sp[3] = {1, 0, 1}, o[3] = {0, 0, 0};
+    CHECK(tvpal_encoder_set_grid(e, bad_sp, o, &d) == TVPAL_E_INVAL &&
+              strstr(d.msg, "spacing[1]"), "spacing 0: %s", d.msg);
+    double falling[T] = {0, 1, 2, 2, 3, 4, 5};
+    CHECK(tvpal_encoder_set_times(e, falling, NULL, &d) == TVPAL_E_INVAL &&
+              strstr(d.msg, "step 3"), "times repeat: %s", d.msg);
+    float v[NV];
+    fill(v, 0);
+    CHECK(tvpal_encoder_push(e, v, (enum tvpal_scalar)7, NULL, &d) ==
+              TVPAL_E_INVAL, "type 7 taken");
+    CHECK(tvpal_encoder_push(e, NULL, TVPAL_FLOAT32, NULL, &d) ==
+              TVPAL_E_INVAL, "NULL data taken");
+    CHECK(!exists(path("%s/p%s", ".partial")), "a refused push wrote");
+    REQUIRE(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == 0,
+            "push: %s", d.msg);
+    CHECK(exists(path("%s/p%s", ".partial")) &&
+              exists(path("%s/p%s", ".partial.lock")),
+          "no partial output and lock after the first push");
+    CHECK(tvpal_encoder_set(e, TVPAL_PARAM_WINDOW, 2, &d) == TVPAL_E_INVAL &&
+              strstr(d.msg, "after the first push"), "set after push: %s",
+          d.msg);
+    double w[NV];
+    CHECK(tvpal_encoder_push(e, w, TVPAL_FLOAT64, NULL, &d) ==
+              TVPAL_E_INVAL && strstr(d.msg, "one type"),
+          "a second type: %s", d.msg);
+    /* A push refused for its arguments changes nothing. */
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == 0,
+          "a push after a refused type: %s", d.msg);
+    tvpal_encoder_abort(e);
+    CHECK(!exists(path("%s/p%s", "")) && !exists(path("%s/p%s", ".partial")) &&
+              !exists(path("%s/p%s", ".partial.lock")),
+          "abort left files");
+}
+
+static void test_identical_and_read(void)
+{
+    struct tvpal_diag d = {{0}};
+    int rc = encode(path("%s/f32%s", ""), 0, &d);
+    REQUIRE(rc == 0, "encode f32: %s %s", tvpal_strerror(rc), d.msg);
+    rc = encode(path("%s/f64%s", ""), 1, &d);
+    REQUIRE(rc == 0, "encode f64: %s %s", tvpal_strerror(rc), d.msg);
+    CHECK(!exists(path("%s/f32%s", ".partial")) &&
+              !exists(path("%s/f32%s", ".partial.lock")),
+          "finish left its partial output or lock");
+    for (int a = 0; a < 2; a++) {
+        char f[64];
+        snprintf(f, sizeof f, "/node-0/axis-%c.tvps", "xz"[a]);
+        size_t n1 = 0, n2 = 0;
+        unsigned char *b1 = slurp(path("%s/f32%s", f), &n1);
+        unsigned char *b2 = slurp(path("%s/f64%s", f), &n2);
+        CHECK(b1 && b2 && n1 == n2 && !memcmp(b1, b2, n1),
+              "axis %c: float64 through strides differs from float32 "
+              "(%zu, %zu bytes)", "xz"[a], n1, n2);
+        free(b1);
+        free(b2);
+    }
+    struct tvpal_reader *r = NULL;
+    rc = tvpal_reader_open(&r, path("%s/f64%s", ""), &d);
+    REQUIRE(rc == 0, "reader: %s %s", tvpal_strerror(rc), d.msg);
+    const struct tvpal_info *in = tvpal_reader_info(r);
+    CHECK(in->dims[0] == NX && in->dims[1] == NY && in->dims[2] == NZ &&
+              in->steps == T && in->window == 3 &&
+              in->axes == (TVPAL_AXIS_X | TVPAL_AXIS_Z) && in->levels == 0,
+          "info: %ux%ux%u steps %u window %u axes %u", in->dims[0],
+          in->dims[1], in->dims[2], in->steps, in->window, in->axes);
+    CHECK(in->spacing[0] == 0.5 && in->spacing[2] == 2 &&
+              in->origin[0] == -1 && in->origin[2] == 3,
+          "grid: %g %g, %g %g", in->spacing[0], in->spacing[2],
+          in->origin[0], in->origin[2]);
+    CHECK(in->times && in->times[6] == 9 && !strcmp(in->time_units, "hours") &&
+              !strcmp(in->units, "K"), "times or units lost");
+    float v[NV], o[NV];
+    double se = 0, lo = 1e9, hi = -1e9;
+    for (unsigned t = 0; t < T; t++) {
+        fill(o, t);
+        for (unsigned axis = TVPAL_AXIS_X; axis <= TVPAL_AXIS_Z; axis *= 4) {
+            rc = tvpal_reader_decode(r, t, axis, 0, v, &d);
+            CHECK(rc == 0, "decode %u: %s", t, d.msg);
+            for (unsigned i = 0; i < NV; i++) {
+                se += (double)(v[i] - o[i]) * (v[i] - o[i]);
+                lo = o[i] < lo ? o[i] : lo;
+                hi = o[i] > hi ? o[i] : hi;
+            }
+        }
+    }
+    const double psnr = 10 * log10((hi - lo) * (hi - lo) / (se / (2.0 * T * NV)));
+    CHECK(psnr > 30, "PSNR %.2f dB, 30 expected at least", psnr);
+    CHECK(tvpal_reader_decode(r, T, 0, 0, v, &d) == TVPAL_E_INVAL,
+          "step T decoded");
+    CHECK(tvpal_reader_decode(r, 0, TVPAL_AXIS_Y, 0, v, &d) == TVPAL_E_INVAL,
+          "axis y (not stored) decoded");
+    CHECK(tvpal_reader_decode(r, 0, 0, 1, v, &d) == TVPAL_E_INVAL,
+          "level 1 (none) decoded");
+    tvpal_reader_close(r);
+    CHECK(tvpal_reader_open(&r, path("%s/none%s", ""), &d) < 0 && r == NULL &&
+              d.msg[0], "a missing dataset opened");
+}
+
+/* A series stopped early, by abort or by finish: nothing left. */
+static void test_nothing_left(void)
+{
+    struct tvpal_encoder *e = NULL;
+    struct tvpal_diag d = {{0}};
+    float v[NV];
+    REQUIRE(tvpal_encoder_open(&e, path("%s/short%s", ""), dims, T, &d) == 0,
+            "open");
+    for (unsigned t = 0; t < 4; t++) {
+        fill(v, t);
+        CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == 0,
+              "push %u: %s", t, d.msg);
+    }
+    CHECK(tvpal_encoder_finish(e, &d) == TVPAL_E_INVAL &&
+              strstr(d.msg, "4 of 7"), "finish after 4 of 7: %s", d.msg);
+    CHECK(!exists(path("%s/short%s", "")) &&
+              !exists(path("%s/short%s", ".partial")) &&
+              !exists(path("%s/short%s", ".partial.lock")),
+          "finish of a short series left files");
+    /* An infinity: refused, naming its voxel; then only abort. */
+    REQUIRE(tvpal_encoder_open(&e, path("%s/inf%s", ""), dims, T, &d) == 0,
+            "open");
+    fill(v, 0);
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == 0, "push");
+    v[3 + NX * (2 + NY * 1)] = INFINITY;
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == TVPAL_E_NAN &&
+              strstr(d.msg, "(3,2,1)") && strstr(d.msg, "step 1"),
+          "an infinity: %s", d.msg);
+    fill(v, 1);
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == TVPAL_E_INVAL,
+          "a push after a refused value taken");
+    tvpal_encoder_abort(e);
+    CHECK(!exists(path("%s/inf%s", ".partial")), "abort left the partial");
+}
+
+static void test_output_rules(void)
+{
+    struct tvpal_encoder *e = NULL, *e2 = NULL;
+    struct tvpal_diag d = {{0}};
+    float v[NV];
+    fill(v, 0);
+    /* f32 exists (test_identical_and_read): refused, then forced. */
+    REQUIRE(tvpal_encoder_open(&e, path("%s/f32%s", ""), dims, 1, &d) == 0,
+            "open");
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == TVPAL_E_EXIST,
+          "an existing dataset replaced without force");
+    tvpal_encoder_abort(e);
+    CHECK(exists(path("%s/f32%s", "/manifest.txt")), "abort removed the "
+          "existing dataset");
+    REQUIRE(tvpal_encoder_open(&e, path("%s/f32%s", ""), dims, 1, &d) == 0,
+            "open");
+    tvpal_encoder_set(e, TVPAL_PARAM_FORCE, 1, &d);
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == 0 &&
+              tvpal_encoder_finish(e, &d) == 0, "forced: %s", d.msg);
+    struct tvpal_reader *r = NULL;
+    CHECK(tvpal_reader_open(&r, path("%s/f32%s", ""), &d) == 0 &&
+              tvpal_reader_info(r)->steps == 1, "the forced dataset");
+    tvpal_reader_close(r);
+    CHECK(!exists(path("%s/f32%s", ".old")), "the old dataset left behind");
+    /* A directory that is not a dataset: never replaced. */
+    mkdir(path("%s/notds%s", ""), 0755);
+    REQUIRE(tvpal_encoder_open(&e, path("%s/notds%s", ""), dims, 1, &d) == 0,
+            "open");
+    tvpal_encoder_set(e, TVPAL_PARAM_FORCE, 1, &d);
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) ==
+              TVPAL_E_EXIST && strstr(d.msg, "not a tvpal dataset"),
+          "a directory that is no dataset: %s", d.msg);
+    tvpal_encoder_abort(e);
+    CHECK(exists(path("%s/notds%s", "")), "the directory was removed");
+    /* Two encoders of one output: the second is refused by the lock. */
+    REQUIRE(tvpal_encoder_open(&e, path("%s/two%s", ""), dims, 2, &d) == 0 &&
+                tvpal_encoder_open(&e2, path("%s/two%s", ""), dims, 2, &d) ==
+                    0, "open");
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == 0, "push");
+    CHECK(tvpal_encoder_push(e2, v, TVPAL_FLOAT32, NULL, &d) ==
+              TVPAL_E_EXIST, "a second encoder of one output: %s", d.msg);
+    tvpal_encoder_abort(e2);
+    CHECK(exists(path("%s/two%s", ".partial")), "the second encoder's abort "
+          "removed the first's partial output");
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == 0,
+          "the first: %s", d.msg);
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) ==
+              TVPAL_E_INVAL && strstr(d.msg, "opened for 2"),
+          "a push past the last step: %s", d.msg);
+    CHECK(tvpal_encoder_finish(e, &d) == 0, "finish: %s", d.msg);
+    /* A memory limit below N steps. */
+    REQUIRE(tvpal_encoder_open(&e, path("%s/mem%s", ""), dims, T, &d) == 0,
+            "open");
+    tvpal_encoder_set(e, TVPAL_PARAM_MEM_LIMIT, 4096, &d);
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == TVPAL_E_RANGE &&
+              strstr(d.msg, "memory limit"), "limit 4096: %s", d.msg);
+    tvpal_encoder_abort(e);
+    CHECK(!exists(path("%s/mem%s", ".partial")), "left a partial");
+}
+
+int main(void)
+{
+    char cmd[600];
+    snprintf(cmd, sizeof cmd, "rm -rf %s && mkdir -p %s", W, W);
+    REQUIRE(system(cmd) == 0, "cannot make %s", W);
+    CHECK(tvpal_version_number() == TVPAL_VERSION_NUMBER &&
+              !strcmp(tvpal_version_string(), "0.1.0"),
+          "version %u %s", tvpal_version_number(), tvpal_version_string());
+    test_params();
+    test_identical_and_read();
+    test_nothing_left();
+    test_output_rules();
+    int rc = tt_done("test-api");
+    if (rc == 0) {
+        snprintf(cmd, sizeof cmd, "rm -rf %s", W);
+        if (system(cmd) != 0)
+            return 99;
+    }
+    return rc;
+}
