@@ -161,6 +161,10 @@ struct run {
     double cluster_seconds;  /* in this many seconds (the slowest) */
     int level0_done;         /* --levels: level 0 finished by an earlier
                               * run of the same job (levels.job) */
+    int levels_inline;       /* --levels: the plan holds the levels beside
+                              * level 0's one pass */
+    struct levels *lvs;      /* the levels made as level 0's steps are
+                              * read, or NULL */
 };
 
 
@@ -224,8 +228,20 @@ void level_dims(const uint32_t d0[3], unsigned k, uint32_t out[3]);
 void level_grid(const double s0[3], const double o0[3], const uint32_t d0[3],
                 const uint32_t dk[3], double sk[3], double ok[3]);
 /* After level 0 is finished in OUTDIR.partial: levels 1..L into
- * OUTDIR.partial/level-k/ (encode_levels.c says how). */
+ * OUTDIR.partial/level-k/ (encode_levels.c says how): those made beside
+ * level 0 (r->lvs) finished, or made now from the source read again. */
 void encode_levels(struct run *r);
+/* The levels' encoders (the levels not yet complete), their steps made
+ * from whole source steps given to levels_step (inline_steps: level 0's
+ * single pass) or from the source read again (vol0 NULL); levels_close
+ * finishes them and frees ls (ending the program on failure); levels_free
+ * aborts them (a level's partial output goes) and frees ls. */
+struct levels;
+struct levels *levels_open(struct run *r, int inline_steps);
+void levels_step(struct run *r, struct levels *ls, uint32_t t,
+                 const float *vol0);
+void levels_close(struct run *r, struct levels *ls);
+void levels_free(struct levels *ls);
 void grid_of(const struct run *r, double spacing[3], double origin[3]);
 void check_grid(const struct run *r);
 /* Frees the ring's boxes (run_free frees the rest). */

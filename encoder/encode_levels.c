@@ -2,33 +2,30 @@
  *
  * Level k (1..L) is the 2x2x2 average of level k - 1 (level 0: the source
  * as encoded), each mean over the present voxels of its block (a block all
- * missing is missing: NaN), dims ceil(d / 2) per axis.  Its source is
- * written as raw float32 (NaN for missing), one file per step, to
- * OUTDIR.partial/level-k.src/, and encoded by a child tvpal-encode with the
- * same encoding options into OUTDIR.partial/level-k/, a complete dataset of
- * its own (FORMAT.md 3.3).  The child's own .partial and checkpoint make an
- * interrupted level resume; a level already complete is kept.  Level k's
- * source is removed once level k + 1 has been made from it.
+ * missing is missing: NaN), dims ceil(d / 2) per axis.  A step's levels
+ * are made in memory one from the other, from the whole step as level 0's
+ * single pass reads it (levels_step from encode_steps: every step read
+ * once), or, where the plan cannot hold the levels beside that pass or
+ * level 0 was resumed, after level 0 from the source read again in slabs
+ * of planes.  Each level's step goes straight to that level's encoder, a
+ * libtvpal encoder (tvpal.h) in this process with the same encoding
+ * options, which writes
+ * OUTDIR.partial/level-k/, a complete dataset of its own (FORMAT.md 3.3),
+ * through OUTDIR.partial/level-k.partial.  Nothing else is written, and no
+ * second process runs.  A level already complete (an earlier run of the
+ * job) is kept; one interrupted is encoded again.
  *
  * Its grid covers the same box as level 0: spacing s0 * d0 / dk per axis
  * and the first voxel's centre at the centre of the first block. */
 #define _GNU_SOURCE
 #include "encode.h"
+#include "tvpal.h"
 #include "tvpal_fs.h"
 
-#include <errno.h>
-#include <fcntl.h>
-#include <stdarg.h>
 #include <math.h>
-#include <spawn.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
-extern char **environ;
 
 void level_dims(const uint32_t d0[3], unsigned k, uint32_t out[3])
 {
@@ -49,70 +46,40 @@ void level_grid(const double s0[3], const double o0[3], const uint32_t d0[3],
     }
 }
 
-/* Where a level's fine planes come from: level 0 through load_step (the
- * source, converted as encoded), a coarser one from its raw float32 files. */
+/* Level 0's planes, through load_step (the source, converted as encoded):
+ * a slab of planes of step t read at once. */
 struct plane_src {
     struct run *r;
-    unsigned level;             /* of the planes read */
     uint32_t dims[3];
-    char *dir;                  /* level >= 1: its .src directory */
-    /* level 0: a slab of planes of step t read at once */
     float *slab;
     uint32_t slab_planes, slab_z0, slab_n;
     int64_t slab_t;
     struct encode_pass pass;
 };
 
-static char *step_file(const char *dir, uint32_t t)
-{
-    char *p;
-    return asprintf(&p, "%s/step_%06u.f32", dir, t) < 0 ? NULL : p;
-}
-
 /* Plane z of step t into out (nx * ny floats). */
 static void read_plane(struct plane_src *ps, uint32_t t, uint32_t z,
                        float *out)
 {
     const size_t plane = (size_t)ps->dims[0] * ps->dims[1];
-    if (ps->level == 0) {
-        if (ps->slab_t != (int64_t)t || z < ps->slab_z0 ||
-            z >= ps->slab_z0 + ps->slab_n) {
-            struct run *r = ps->r;
-            uint32_t n = ps->dims[2] - z < ps->slab_planes
-                         ? ps->dims[2] - z : ps->slab_planes;
-            ps->pass.box = (struct encode_box){{0, 0, z},
-                                               {ps->dims[0], ps->dims[1], n}};
-            ps->pass.stats = 0;
-            const struct encode_pass *keep = r->pass;
-            r->pass = &ps->pass;
-            load_step(r, t, ps->slab);
-            r->pass = keep;
-            ps->slab_t = t;
-            ps->slab_z0 = z;
-            ps->slab_n = n;
-        }
-        memcpy(out, ps->slab + (size_t)(z - ps->slab_z0) * plane,
-               plane * sizeof *out);
-        return;
+    if (ps->slab_t != (int64_t)t || z < ps->slab_z0 ||
+        z >= ps->slab_z0 + ps->slab_n) {
+        struct run *r = ps->r;
+        uint32_t n = ps->dims[2] - z < ps->slab_planes ? ps->dims[2] - z
+                                                       : ps->slab_planes;
+        ps->pass.box = (struct encode_box){{0, 0, z},
+                                           {ps->dims[0], ps->dims[1], n}};
+        ps->pass.stats = 0;
+        const struct encode_pass *keep = r->pass;
+        r->pass = &ps->pass;
+        load_step(r, t, ps->slab);
+        r->pass = keep;
+        ps->slab_t = t;
+        ps->slab_z0 = z;
+        ps->slab_n = n;
     }
-    char *path = step_file(ps->dir, t);
-    if (!path)
-        die_fail("out of memory");
-    int fd = open(path, O_RDONLY | O_CLOEXEC);
-    if (fd < 0)
-        die_fail("%s: %s (rerun to resume)", path, strerror(errno));
-    const size_t bytes = plane * sizeof *out;
-    const off_t off = (off_t)z * (off_t)bytes;
-    size_t got = 0;
-    while (got < bytes) {
-        ssize_t k = pread(fd, (char *)out + got, bytes - got, off + (off_t)got);
-        if (k <= 0)
-            die_fail("%s: %s (rerun to resume)", path,
-                     k < 0 ? strerror(errno) : "shorter than expected");
-        got += (size_t)k;
-    }
-    close(fd);
-    free(path);
+    memcpy(out, ps->slab + (size_t)(z - ps->slab_z0) * plane,
+           plane * sizeof *out);
 }
 
 /* Adds fine plane p (nx x ny) into the block sums of a coarse plane. */
@@ -131,285 +98,234 @@ static void add_plane(const float *p, uint32_t nx, uint32_t ny, double *sum,
         }
 }
 
-static int write_all(int fd, const void *buf, size_t n)
+
+/* Coarse plane z of a level from two fine planes (the second NULL at an
+ * odd end): the means of the present values of each 2x2x2 block, NaN for
+ * a block all missing.  sum, cnt: a coarse plane's scratch. */
+static void average_planes(const float *f0, const float *f1, uint32_t nx,
+                           uint32_t ny, double *sum, uint32_t *cnt,
+                           float *out)
 {
-    const char *p = buf;
-    while (n) {
-        ssize_t k = write(fd, p, n);
-        if (k < 0 && errno == EINTR)
-            continue;
-        if (k <= 0)
-            return -1;
-        p += k;
-        n -= (size_t)k;
-    }
-    return 0;
+    const size_t cplane = (size_t)((nx + 1) / 2) * ((ny + 1) / 2);
+    memset(sum, 0, cplane * sizeof *sum);
+    memset(cnt, 0, cplane * sizeof *cnt);
+    add_plane(f0, nx, ny, sum, cnt);
+    if (f1)
+        add_plane(f1, nx, ny, sum, cnt);
+    for (size_t i = 0; i < cplane; i++)
+        out[i] = cnt[i] ? (float)(sum[i] / cnt[i]) : NAN;
 }
 
-/* Writes level k's source (every step) from ps into dir, each file
- * through a temporary renamed when complete, so a file that exists is
- * whole; steps already there are kept (a resumed run). */
-static void make_level_source(struct plane_src *ps, const char *dir,
-                              uint32_t T)
-{
-    const uint32_t nx = ps->dims[0], ny = ps->dims[1], nz = ps->dims[2];
-    const uint32_t cx = (nx + 1) / 2, cy = (ny + 1) / 2, cz = (nz + 1) / 2;
-    const size_t cplane = (size_t)cx * cy;
-    float *fine = malloc((size_t)nx * ny * sizeof *fine);
-    double *sum = malloc(cplane * sizeof *sum);
-    uint32_t *cnt = malloc(cplane * sizeof *cnt);
-    float *out = malloc(cplane * sizeof *out);
-    if (!fine || !sum || !cnt || !out)
-        die_fail("out of memory (a plane of level %u)", ps->level + 1);
-    for (uint32_t t = 0; t < T; t++) {
-        char *path = step_file(dir, t), *tmp = NULL;
-        if (!path || asprintf(&tmp, "%s.tmp", path) < 0)
-            die_fail("out of memory");
-        if (tvpal_exists(path)) {
-            free(path);
-            free(tmp);
-            continue;
-        }
-        int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-        if (fd < 0)
-            die_fail("%s: %s", tmp, strerror(errno));
-        for (uint32_t z = 0; z < cz; z++) {
-            memset(sum, 0, cplane * sizeof *sum);
-            memset(cnt, 0, cplane * sizeof *cnt);
-            for (uint32_t dz = 0; dz < 2 && 2 * z + dz < nz; dz++) {
-                read_plane(ps, t, 2 * z + dz, fine);
-                add_plane(fine, nx, ny, sum, cnt);
-            }
-            for (size_t i = 0; i < cplane; i++)
-                out[i] = cnt[i] ? (float)(sum[i] / cnt[i]) : NAN;
-            if (write_all(fd, out, cplane * sizeof *out) < 0)
-                die_fail("%s: %s (rerun to resume)", tmp, strerror(errno));
-        }
-        if (fsync(fd) < 0 || close(fd) < 0 || rename(tmp, path) < 0)
-            die_fail("%s: %s (rerun to resume)", path, strerror(errno));
-        free(path);
-        free(tmp);
-    }
-    free(fine);
-    free(sum);
-    free(cnt);
-    free(out);
-}
-
-/* This process's resident memory (bytes), from /proc/self/statm; 0 when
- * unknown. */
-static uint64_t resident_bytes(void)
-{
-    unsigned long long size = 0, res = 0;
-    FILE *f = fopen("/proc/self/statm", "r");
-    if (!f)
-        return 0;
-    if (fscanf(f, "%llu %llu", &size, &res) != 2)
-        res = 0;
-    fclose(f);
-    return (uint64_t)res * (uint64_t)sysconf(_SC_PAGESIZE);
-}
-
-/* argv of the child encode of level k (malloc'ed strings; NULL-ended). */
-struct argv_list {
-    char **v;
-    int n, cap;
+/* One coarser level being made: its step in memory, and its encoder
+ * (NULL: complete already, or not encoded in this run). */
+struct level {
+    uint32_t dims[3];
+    float *vol;
+    struct tvpal_encoder *enc;
+    char *out;
 };
 
-static void arg_add(struct argv_list *a, const char *fmt, ...)
-    __attribute__((format(printf, 2, 3)));
-static void arg_add(struct argv_list *a, const char *fmt, ...)
+/* Ends the program for a failed call of level k's encoder. */
+static void __attribute__((noreturn))
+level_failed(unsigned k, const char *what, int rc, const struct tvpal_diag *d)
 {
-    if (a->n + 2 > a->cap) {
-        a->cap = a->cap ? 2 * a->cap : 64;
-        if (!(a->v = realloc(a->v, (size_t)a->cap * sizeof *a->v)))
-            die_fail("out of memory");
-    }
-    va_list ap;
-    va_start(ap, fmt);
-    if (vasprintf(&a->v[a->n], fmt, ap) < 0)
-        die_fail("out of memory");
-    va_end(ap);
-    a->v[++a->n] = NULL;
+    die_fail("level %u: %s: %s (rerun to resume)", k, what,
+             lib_error(rc, d));
 }
 
-/* Runs the child encode of level k; ends the program when it fails. */
-static void encode_level(struct run *r, unsigned k, const uint32_t dk[3],
-                         const char *src, const char *out)
+/* Level k's encoder: the options of level 0, the level's grid, the
+ * times and units. */
+static struct tvpal_encoder *open_level(const struct run *r, unsigned k,
+                                        const struct level *lv)
 {
     const struct opts *o = &r->o;
-    double s0[3], o0[3];
+    struct tvpal_encoder *e = NULL;
+    struct tvpal_diag d = {{0}};
+    double s0[3], o0[3], sk[3], ok[3];
     grid_of(r, s0, o0);
-    struct argv_list a = {0};
-    arg_add(&a, "%s", PROG);
-    arg_add(&a, "--dims");
-    arg_add(&a, "%ux%ux%u", dk[0], dk[1], dk[2]);
-    arg_add(&a, "--type");
-    arg_add(&a, "f32");
-    arg_add(&a, "--endian");
-    arg_add(&a, "little");
-    arg_add(&a, "--window");
-    arg_add(&a, "%u", o->window);
-    arg_add(&a, "--nodes");
-    arg_add(&a, "%u", o->nodes);
+    level_grid(s0, o0, o->dims, lv->dims, sk, ok);
+    int rc = tvpal_encoder_open(&e, lv->out, lv->dims, r->T, &d);
     /* Every level stores level 0's axes (FORMAT.md 2.1). */
-    char axes[4];
-    arg_add(&a, "--axes");
-    arg_add(&a, "%s", tvpal_axes_format(o->axes, axes));
-    arg_add(&a, "-j");
-    arg_add(&a, "%d", r->nthreads);
-    /* The child's share of the limit: what this process does not hold. */
-    uint64_t held = resident_bytes();
-    if (held >= r->limit)
-        die_fail("level %u: this process already holds %llu bytes of the "
-                 "memory limit %llu", k, (unsigned long long)held,
-                 (unsigned long long)r->limit);
-    arg_add(&a, "--mem-limit");
-    arg_add(&a, "%llu", (unsigned long long)(r->limit - held));
-    arg_add(&a, "--checkpoint-every");
-    arg_add(&a, "%u", o->checkpoint_every);
-    arg_add(&a, "--table");
-    arg_add(&a, "%s", tvpal_manifest_table_name((uint32_t)o->table_format));
-    if (o->refine) {
-        arg_add(&a, "--refine");
-        arg_add(&a, "%u", o->refine);
+    const struct { enum tvpal_param p; double v; } set[] = {
+        {TVPAL_PARAM_WINDOW, o->window}, {TVPAL_PARAM_NODES, o->nodes},
+        {TVPAL_PARAM_AXES, o->axes}, {TVPAL_PARAM_THREADS, r->nthreads},
+        {TVPAL_PARAM_TABLE, o->table_format}, {TVPAL_PARAM_REFINE, o->refine},
+        {TVPAL_PARAM_NAIVE, o->naive},
+        {TVPAL_PARAM_TRANSFORM, o->klt ? TVPAL_TRANSFORM_KLT
+                                       : TVPAL_TRANSFORM_DCT},
+        {TVPAL_PARAM_ALLOC, o->alloc_mse ? TVPAL_ALLOC_GREEDY_MSE
+                                         : TVPAL_ALLOC_VARIANCE}};
+    for (size_t i = 0; rc == 0 && i < sizeof set / sizeof *set; i++)
+        rc = tvpal_encoder_set(e, set[i].p, set[i].v, &d);
+    if (rc == 0)
+        rc = tvpal_encoder_set_grid(e, sk, ok, &d);
+    if (rc == 0 && r->times)
+        rc = tvpal_encoder_set_times(e, r->times, r->time_units, &d);
+    if (rc == 0)
+        rc = tvpal_encoder_set_units(e, r->units, &d);
+    if (rc < 0) {
+        tvpal_encoder_abort(e);
+        level_failed(k, "its encoder", rc, &d);
     }
-    if (o->naive)
-        arg_add(&a, "--naive");
-    if (o->klt) {
-        arg_add(&a, "--transform");
-        arg_add(&a, "klt");
-    }
-    if (o->alloc_mse) {
-        arg_add(&a, "--alloc");
-        arg_add(&a, "greedy-mse");
-    }
-    double sk[3], ok[3];
-    level_grid(s0, o0, o->dims, dk, sk, ok);
-    arg_add(&a, "--spacing");
-    arg_add(&a, "%.17g,%.17g,%.17g", sk[0], sk[1], sk[2]);
-    arg_add(&a, "--origin");
-    arg_add(&a, "%.17g,%.17g,%.17g", ok[0], ok[1], ok[2]);
-    if (r->times) {
-        char *tf;
-        if (asprintf(&tf, "%s/times.txt", src) < 0)
-            die_fail("out of memory");
-        FILE *f = fopen(tf, "w");
-        if (!f)
-            die_fail("%s: %s", tf, strerror(errno));
-        for (uint32_t t = 0; t < r->T; t++)
-            fprintf(f, "%.17g\n", r->times[t]);
-        if (fclose(f) != 0)
-            die_fail("%s: write failed", tf);
-        arg_add(&a, "--times");
-        arg_add(&a, "%s", tf);
-        free(tf);
-        if (r->time_units[0]) {
-            arg_add(&a, "--time-units");
-            arg_add(&a, "%s", r->time_units);
+    return e;
+}
+
+/* The levels being made: up to `last`, the last one encoded in this run;
+ * the source planes of level 1 come from a whole step in memory (level 0
+ * encoding, one pass) or from ps (read again after level 0). */
+struct levels {
+    struct level lv[TVPAL_LEVELS_MAX + 1];
+    unsigned encoded, last, fault_k;
+    struct plane_src ps;
+    float *fine[2];
+    double *sum;
+    uint32_t *cnt;
+};
+
+/* Step t of levels 1..last into lv[k].vol: level 1 from vol0 (the whole
+ * step) or the source's planes, each next level from the one before. */
+static void make_levels(struct levels *ls, uint32_t t, const float *vol0)
+{
+    struct level *lv = ls->lv;
+    for (unsigned k = 1; k <= ls->last; k++) {
+        const uint32_t *fd = k == 1 ? ls->ps.dims : lv[k - 1].dims;
+        const size_t fplane = (size_t)fd[0] * fd[1];
+        const size_t cplane = (size_t)lv[k].dims[0] * lv[k].dims[1];
+        for (uint32_t z = 0; z < lv[k].dims[2]; z++) {
+            const float *f[2] = {NULL, NULL};
+            for (uint32_t dz = 0; dz < 2 && 2 * z + dz < fd[2]; dz++) {
+                const size_t fz = 2 * z + dz;
+                if (k > 1) {
+                    f[dz] = lv[k - 1].vol + fz * fplane;
+                } else if (vol0) {
+                    f[dz] = vol0 + fz * fplane;
+                } else {
+                    read_plane(&ls->ps, t, (uint32_t)fz, ls->fine[dz]);
+                    f[dz] = ls->fine[dz];
+                }
+            }
+            average_planes(f[0], f[1], fd[0], fd[1], ls->sum, ls->cnt,
+                           lv[k].vol + z * cplane);
         }
     }
-    if (r->units[0]) {
-        arg_add(&a, "--units");
-        arg_add(&a, "%s", r->units);
-    }
-    arg_add(&a, "-q");
-    arg_add(&a, "-o");
-    arg_add(&a, "%s", out);
-    for (uint32_t t = 0; t < r->T; t++) {
-        char *p = step_file(src, t);
-        if (!p)
+}
+
+struct levels *levels_open(struct run *r, int inline_steps)
+{
+    const unsigned L = r->o.levels;
+    struct levels *ls = calloc(1, sizeof *ls);
+    if (!ls)
+        die_fail("out of memory");
+    /* Test hook: TVPAL_ENCODE_FAULT_LEVEL=k fails the run as level k's
+     * encode would, once the levels before it are complete. */
+    const char *fault = getenv("TVPAL_ENCODE_FAULT_LEVEL");
+    ls->fault_k = fault ? (unsigned)atoi(fault) : 0;
+    ls->encoded = ls->fault_k >= 1 && ls->fault_k <= L ? ls->fault_k - 1 : L;
+    struct level *lv = ls->lv;
+    for (unsigned k = 1; k <= ls->encoded; k++) {
+        level_dims(r->o.dims, k, lv[k].dims);
+        if (asprintf(&lv[k].out, "%s/level-%u", r->partial, k) < 0)
             die_fail("out of memory");
-        arg_add(&a, "%s", p);
-        free(p);
+        if (!tvpal_exists(lv[k].out))
+            ls->last = k;
     }
-    /* The child's summary line names its partial directory: this process
-     * reports the levels instead (its errors still go to stderr). */
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
-    pid_t pid;
-    int rc = posix_spawn(&pid, "/proc/self/exe", &fa, NULL, a.v, environ);
-    posix_spawn_file_actions_destroy(&fa);
-    if (rc != 0)
-        die_fail("level %u: cannot start the encoder: %s", k, strerror(rc));
-    int status = 0;
-    while (waitpid(pid, &status, 0) < 0 && errno == EINTR)
-        ;
-    for (int i = 0; i < a.n; i++)
-        free(a.v[i]);
-    free(a.v);
-    if (WIFEXITED(status) && WEXITSTATUS(status) == 2)
-        die_fail("level %u (%ux%ux%u): its encode refused the job (its "
-                 "message is above); level 0 is kept in the partial output",
-                 k, dk[0], dk[1], dk[2]);
-    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
-        die_fail("level %u (%ux%ux%u): its encode failed (%s %d); rerun to "
-                 "resume", k, dk[0], dk[1], dk[2],
-                 WIFEXITED(status) ? "status" : "signal",
-                 WIFEXITED(status) ? WEXITSTATUS(status) : WTERMSIG(status));
+    ls->ps = (struct plane_src){.r = r, .slab_t = -1};
+    memcpy(ls->ps.dims, r->o.dims, sizeof ls->ps.dims);
+    if (!ls->last)
+        return ls;
+    const uint64_t plane = (uint64_t)r->o.dims[0] * r->o.dims[1];
+    const size_t cplane = (size_t)lv[1].dims[0] * lv[1].dims[1];
+    if (!(ls->sum = malloc(cplane * sizeof *ls->sum)) ||
+        !(ls->cnt = malloc(cplane * sizeof *ls->cnt)))
+        die_fail("out of memory");
+    if (!inline_steps) {
+        uint64_t planes = r->plan.box_voxels_max / plane;
+        ls->ps.slab_planes = (uint32_t)(planes < 1 ? 1
+                                        : planes > r->o.dims[2] ? r->o.dims[2]
+                                                                : planes);
+        if (!(ls->ps.slab = malloc(ls->ps.slab_planes * plane *
+                                   sizeof(float))) ||
+            !(ls->fine[0] = malloc(plane * sizeof(float))) ||
+            !(ls->fine[1] = malloc(plane * sizeof(float))))
+            die_fail("out of memory (%u planes of %llu voxels)",
+                     ls->ps.slab_planes, (unsigned long long)plane);
+    }
+    for (unsigned k = 1; k <= ls->last; k++) {
+        const uint32_t *d = lv[k].dims;
+        if (!(lv[k].vol = malloc((size_t)d[0] * d[1] * d[2] * sizeof(float))))
+            die_fail("out of memory (a step of level %u)", k);
+        if (tvpal_exists(lv[k].out))
+            continue;
+        if (!r->o.quiet)
+            msg("level %u of %u: %ux%ux%u%s", k, L, d[0], d[1], d[2],
+                inline_steps ? ", beside level 0" : "");
+        lv[k].enc = open_level(r, k, &lv[k]);
+    }
+    return ls;
+}
+
+void levels_step(struct run *r, struct levels *ls, uint32_t t,
+                 const float *vol0)
+{
+    if (!ls->last)
+        return;
+    make_levels(ls, t, vol0);
+    for (unsigned k = 1; k <= ls->last; k++) {
+        struct tvpal_diag d = {{0}};
+        int rc = ls->lv[k].enc ? tvpal_encoder_push(ls->lv[k].enc,
+                                                    ls->lv[k].vol,
+                                                    TVPAL_FLOAT32, NULL, &d)
+                               : 0;
+        if (rc < 0)
+            level_failed(k, "its encode", rc, &d);
+    }
+}
+
+void levels_close(struct run *r, struct levels *ls)
+{
+    for (unsigned k = 1; k <= ls->last; k++) {
+        struct tvpal_diag d = {{0}};
+        int rc = ls->lv[k].enc ? tvpal_encoder_finish(ls->lv[k].enc, &d) : 0;
+        ls->lv[k].enc = NULL;
+        if (rc < 0)
+            level_failed(k, "its dataset", rc, &d);
+    }
+    const unsigned encoded = ls->encoded, fault_k = ls->fault_k;
+    levels_free(ls);
+    if (encoded < r->o.levels)
+        die_fail("level %u: failed as TVPAL_ENCODE_FAULT_LEVEL asks (rerun "
+                 "to resume)", fault_k);
+}
+
+void levels_free(struct levels *ls)
+{
+    if (!ls)
+        return;
+    for (unsigned k = 1; k <= TVPAL_LEVELS_MAX; k++) {
+        tvpal_encoder_abort(ls->lv[k].enc);
+        free(ls->lv[k].vol);
+        free(ls->lv[k].out);
+    }
+    free(ls->ps.slab);
+    free(ls->fine[0]);
+    free(ls->fine[1]);
+    free(ls->sum);
+    free(ls->cnt);
+    free(ls);
 }
 
 void encode_levels(struct run *r)
 {
-    const unsigned L = r->o.levels;
-    /* Test hook: TVPAL_ENCODE_FAULT_LEVEL=k fails the run as level k's
-     * encode would, once the levels before it are complete. */
-    const char *fault = getenv("TVPAL_ENCODE_FAULT_LEVEL");
-    const unsigned fault_k = fault ? (unsigned)atoi(fault) : 0;
-    /* The ring is done with: its memory goes to the slabs read here. */
-    release_ring(r);
-    struct plane_src ps = {.r = r, .level = 0, .slab_t = -1};
-    memcpy(ps.dims, r->o.dims, sizeof ps.dims);
-    const uint64_t plane = (uint64_t)ps.dims[0] * ps.dims[1];
-    uint64_t planes = r->plan.box_voxels_max / plane;
-    ps.slab_planes = (uint32_t)(planes < 1 ? 1 : planes > ps.dims[2] ? ps.dims[2] : planes);
-    if (!(ps.slab = malloc(ps.slab_planes * plane * sizeof(float))))
-        die_fail("out of memory (%u planes of %llu voxels)", ps.slab_planes,
-                 (unsigned long long)plane);
-    char *prev_src = NULL;
-    for (unsigned k = 1; k <= L; k++) {
-        uint32_t dk[3];
-        level_dims(r->o.dims, k, dk);
-        char *src, *out;
-        if (asprintf(&src, "%s/level-%u.src", r->partial, k) < 0 ||
-            asprintf(&out, "%s/level-%u", r->partial, k) < 0)
-            die_fail("out of memory");
-        if (!tvpal_exists(out)) {
-            if (k == fault_k)
-                die_fail("level %u: failed as TVPAL_ENCODE_FAULT_LEVEL "
-                         "asks (rerun to resume)", k);
-            if (!r->o.quiet)
-                msg("level %u of %u: %ux%ux%u", k, L, dk[0], dk[1], dk[2]);
-            if (mkdir(src, 0755) < 0 && errno != EEXIST)
-                die_fail("%s: %s", src, strerror(errno));
-            make_level_source(&ps, src, r->T);
-            if (k == 1) {
-                /* The source is read no more: its buffers go before the
-                 * child starts, so the child gets their share. */
-                free(ps.slab);
-                ps.slab = NULL;
-                prefetch_stop(r->pf);
-                r->pf = NULL;
-                free(r->boxbuf);
-                r->boxbuf = NULL;
-            }
-            encode_level(r, k, dk, src, out);
-        }
-        /* Level k's source made, level k - 1's is no longer needed. */
-        if (prev_src)
-            tvpal_rmtree(prev_src);
-        free(prev_src);
-        prev_src = src;
-        free(out);
-        ps.level = k;
-        memcpy(ps.dims, dk, sizeof ps.dims);
-        ps.dir = prev_src;
-        free(ps.slab);
-        ps.slab = NULL;
+    if (r->lvs) {   /* made beside level 0: only finished here */
+        struct levels *ls = r->lvs;
+        r->lvs = NULL;
+        levels_close(r, ls);
+        return;
     }
-    if (prev_src)
-        tvpal_rmtree(prev_src);
-    free(prev_src);
-    free(ps.slab);
+    /* The ring is done with: its memory goes to the slabs and levels. */
+    release_ring(r);
+    struct levels *ls = levels_open(r, 0);
+    for (uint32_t t = 0; ls->last && t < r->T; t++)
+        levels_step(r, ls, t, NULL);
+    levels_close(r, ls);
 }

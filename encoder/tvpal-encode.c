@@ -918,6 +918,39 @@ static unsigned local_ranks(const struct run *r)
     return 1;
 }
 
+/* Bytes the levels of --levels hold beside level 0's fixed bytes
+ * (encode_levels.c): per level, N of its steps and the step being made, a
+ * libtvpal encoder's workspaces and histograms; with_slab, the source's
+ * slab and two planes (the levels made after level 0).  0 when out of
+ * memory. */
+static uint64_t levels_bytes(const struct run *r, int with_slab)
+{
+    const struct opts *o = &r->o;
+    const uint64_t plane = (uint64_t)o->dims[0] * o->dims[1];
+    uint64_t b = with_slab ? r->plan.box_voxels_max * sizeof(float) +
+                                 2 * plane * 4
+                           : 0;
+    for (unsigned k = 1; k <= o->levels; k++) {
+        uint32_t dk[3];
+        level_dims(o->dims, k, dk);
+        const uint64_t vox = (uint64_t)dk[0] * dk[1] * dk[2];
+        const struct tvpal_engine_params p = {
+            .dims = {dk[0], dk[1], dk[2]}, .steps = r->T, .window = r->N,
+            .axes = o->axes, .nodes = o->nodes, .node_count = o->nodes,
+            .table_format = (uint32_t)o->table_format};
+        struct tvpal_engine *e = NULL;
+        if (tvpal_engine_create(&e, &p) < 0)
+            return 0;
+        b += (ring_slots(r) + 1) * vox * sizeof(float) +
+             (uint64_t)r->nthreads *
+                 (tvpal_engine_thread_bytes(e) +
+                  TVPAL_CHECKPOINT_BINS * sizeof(uint64_t) + dk[0] * 8) +
+             tvpal_engine_table_bytes(e) + ((uint64_t)1 << 20);
+        tvpal_engine_free(e);
+    }
+    return b;
+}
+
 /* Makes the memory plan (encode_plan.h) before anything is read or
  * written, and says it; a limit too small for even one slice per pass
  * ends the program (exit 2) with the smallest that would do. */
@@ -941,7 +974,23 @@ static void make_plan(struct run *r)
         tvpal_slab_range(o->dims[a], o->nodes, r->node, &j.slab_lo[a],
                          &j.slab_n[a]);
     char lim[32], need[32], ring[32];
-    int rc = encode_plan_make(&j, &r->plan);
+    int rc;
+    /* --levels, one process: the levels are made from each step as level
+     * 0 reads it, when the plan holds them beside level 0 in one pass (so
+     * that each step is read once); else after level 0, reading the
+     * source again. */
+    if (o->levels && !r->mpi) {
+        struct encode_job jl = j;
+        const uint64_t lb = levels_bytes(r, 0);
+        jl.fixed += lb;
+        if (lb && encode_plan_make(&jl, &r->plan) == 0 &&
+            r->plan.npasses == 1)
+            r->levels_inline = 1;
+        encode_plan_free(&r->plan);
+        if (r->levels_inline)
+            j = jl;
+    }
+    rc = encode_plan_make(&j, &r->plan);
     if (rc == TVPAL_E_NOMEM)
         die_fail("out of memory");
     print_size(lim, sizeof lim, r->limit);
@@ -954,29 +1003,22 @@ static void make_plan(struct run *r)
                   r->N, r->nthreads, r->nthreads == 1 ? "" : "s", need,
                   (unsigned long long)((r->plan.min_limit + 1023) >> 10));
     }
-    /* --levels: each level is encoded by a second process while this one
-     * holds about its fixed bytes (the ring is freed by then); the level's
-     * own plan must fit what is left.  Checked now, before any work. */
-    for (unsigned k = 1; k <= o->levels; k++) {
-        struct encode_job jk = j;
-        level_dims(o->dims, k, jk.dims);
-        memcpy(jk.slab_n, jk.dims, sizeof jk.slab_n);
-        jk.box_bytes_per_voxel = 4 * ring_slots(r); /* raw float32 input */
-        jk.limit = r->limit > j.fixed ? r->limit - j.fixed : 0;
-        struct encode_plan pk = {0};
-        int rk = encode_plan_make(&jk, &pk);
-        uint64_t needk = pk.min_limit + j.fixed;
-        encode_plan_free(&pk);
-        if (rk == TVPAL_E_NOMEM)
+    /* --levels: after level 0, with its ring freed, every level is
+     * encoded in this process in one pass (encode_levels.c); together
+     * with level 0's fixed bytes they must fit.  Checked now, before any
+     * work. */
+    if (o->levels && !r->levels_inline) {
+        const uint64_t need_l = levels_bytes(r, 1) + j.fixed;
+        if (need_l == 0)
             die_fail("out of memory");
-        if (rk < 0) {
-            print_size(need, sizeof need, needk);
+        if (need_l > r->limit) {
+            print_size(need, sizeof need, need_l);
             die_usage("memory limit %s (%s) is too small for --levels %u: "
-                      "level %u (%ux%ux%u) is encoded by a second process "
-                      "beside this one, together about %s; give --mem-limit "
-                      "%lluK or more", lim, r->limit_why, o->levels, k,
-                      jk.dims[0], jk.dims[1], jk.dims[2], need,
-                      (unsigned long long)((needk + 1023) >> 10));
+                      "the levels are encoded after level 0 in this "
+                      "process, in one pass each, together about %s; give "
+                      "--mem-limit %lluK or more", lim, r->limit_why,
+                      o->levels, need,
+                      (unsigned long long)((need_l + 1023) >> 10));
         }
     }
     if (o->quiet || (r->mpi && r->node != 0))
@@ -1289,6 +1331,9 @@ static void encode_steps(struct run *r)
             p->unit = (uint64_t)pi * r->T + t;
             for (; loaded < need; loaded++) {
                 load_step(r, loaded, tvpal_engine_slot(r->eng, loaded));
+                if (r->lvs) /* the levels of the step, as it is read */
+                    levels_step(r, r->lvs, loaded,
+                                tvpal_engine_slot(r->eng, loaded));
                 report_progress(r, 0);
             }
             encode_step(r, t);
@@ -1773,6 +1818,7 @@ void release_ring(struct run *r)
 
 static void run_free(struct run *r)
 {
+    levels_free(r->lvs);
     prefetch_stop(r->pf);   /* before the input it reads is closed */
     tvpal_pool_free(r->pool);
     tvpal_engine_free(r->eng);
@@ -1844,6 +1890,8 @@ int main(int argc, char **argv)
     setup_workspace(&r);
     if (r.in)
         r.pf = prefetch_start(r.in, r.plan.box_voxels_max);
+    if (r.levels_inline && !r.start && !r.level0_done)
+        r.lvs = levels_open(&r, 1);
     if (!r.level0_done)
         encode_steps(&r);
     if (r.mpi) {

@@ -99,6 +99,9 @@ enum tvpal_param {
                                * limit is refused at the first push */
     TVPAL_PARAM_NAN_AS,       /* missing values become this value (and
                                * count as replaced) instead of missing */
+    TVPAL_PARAM_NAIVE,        /* 1: the paper's naive variant (uniform
+                               * quantizers, no bit allocation: a
+                               * baseline); default 0 */
     TVPAL_PARAM_FORCE         /* 1: replace an existing dataset at the
                                * output directory (only a tvpal dataset;
                                * it is replaced when the new one is

@@ -185,6 +185,12 @@ int tvpal_encoder_set(struct tvpal_encoder *e, enum tvpal_param param,
         else
             e->has_nan_as = 1, e->nan_as = value;
         break;
+    case TVPAL_PARAM_NAIVE:
+        if (value != 0 && value != 1)
+            name = "naive", range = "0 or 1";
+        else
+            p->naive = value == 1;
+        break;
     case TVPAL_PARAM_FORCE:
         if (value != 0 && value != 1)
             name = "force", range = "0 or 1";
