@@ -515,9 +515,12 @@ static int encode_ready(struct tvpal_encoder *e, struct tvpal_diag *diag)
         int rc = tvpal_engine_encode_step(e->eng, e->encoded, &d, &q);
         if (rc < 0) {
             struct tvpal_engine_shard *sj = tvpal_engine_shards(e->eng, &n);
-            return tvpal_diag_set(diag, rc, "%s/axis-%c.tvps of node %u: %s",
-                                  e->partial, "xyz"[sj[q].axis], sj[q].rank,
-                                  d.msg);
+            char *nd = tvpal_node_dir(e->partial, NULL, sj[q].rank);
+            rc = tvpal_diag_set(diag, rc, "%s/axis-%c.tvps: %s",
+                                nd ? nd : e->partial, "xyz"[sj[q].axis],
+                                d.msg);
+            free(nd);
+            return rc;
         }
         e->encoded++;
     }

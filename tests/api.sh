@@ -72,6 +72,39 @@ grep -q "^encoder = libtvpal 0.1.0" "$W/heat.ds/manifest.txt" &&
     grep -q "^units = K" "$W/heat.ds/manifest.txt" &&
     grep -q "^time_units = seconds" "$W/heat.ds/manifest.txt" &&
     ok "manifest: encoder, units, time units" || fail "manifest: $(head -c 600 "$W/heat.ds/manifest.txt")"
+# The disk fills while the sample writes (a 200 KiB tmpfs): the push that
+# cannot write says which file, the sample aborts, and nothing is left
+# that looks like a dataset.
+mkdir -p "$W/full"
+if mount -t tmpfs -o size=200k tmpfs "$W/full" 2> /dev/null; then
+    LD_LIBRARY_PATH="$libdir" "$W/heat" --dims 40x36x28 --steps 18 -o "$W/full/ds" > /dev/null 2> "$W/full.err"
+    rc=$?
+    [ $rc = 1 ] && grep -q "ds.partial/node-0/axis-z.tvps.*\(No space\|write\)" "$W/full.err" \
+        && ok "disk full: the push fails naming the shard" \
+        || fail "disk full: exit $rc: $(cat "$W/full.err")"
+    [ -z "$(ls "$W/full")" ] && ok "disk full: abort left nothing" || fail "disk full: left $(ls "$W/full")"
+    umount "$W/full"
+else
+    echo "mount -t tmpfs not permitted: the full-disk case is skipped"
+fi
+# Killed (SIGKILL) while it runs: no dataset; a rerun starts over and
+# gives the same shards.
+LD_LIBRARY_PATH="$libdir" "$W/heat" --dims 96x96x64 --steps 200 -o "$W/kill.ds" > /dev/null 2>&1 &
+pid=$!
+i=0
+while [ ! -e "$W/kill.ds.partial/node-0/axis-z.tvps" ] && [ $i -lt 200 ]; do sleep 0.05; i=$((i + 1)); done
+sleep 0.2
+kill -9 $pid 2> /dev/null
+wait $pid 2> /dev/null
+if [ -e "$W/kill.ds" ]; then
+    echo "note: the run ended before it was killed"
+else
+    [ -e "$W/kill.ds.partial" ] && ok "killed: only the partial output" || fail "killed: no partial output"
+    LD_LIBRARY_PATH="$libdir" "$W/heat" --dims 40x36x28 --steps 18 --window 4 -o "$W/kill.ds" > /dev/null 2> "$W/kill.err" \
+        && cmp -s "$W/kill.ds/node-0/axis-z.tvps" "$W/heat.ds/node-0/axis-z.tvps" \
+        && [ ! -e "$W/kill.ds.partial" ] \
+        && ok "rerun after kill -9: a complete dataset, the same shards" || fail "rerun after kill: $(cat "$W/kill.err")"
+fi
 # Decoded against the simulation's arrays.
 "$REP" "$W/heat.ds" --reference "$W"/raw/heat_t*.f32 > "$W/rep.txt" 2>&1 ||
     { cat "$W/rep.txt"; fail "tvpal-report"; }
