@@ -1,14 +1,16 @@
-/* tvpal-decode: reconstructs one timestep of a tvpal dataset as raw
- * little-endian float32 (x fastest), from any axis the dataset stores.
+/* tvpal-decode: reconstructs one timestep of a tvpal dataset (or of one of
+ * its coarser levels) as raw little-endian float32 (x fastest), from any
+ * axis the dataset stores.  A driver of libtvpal's reader (tvpal.h).
  *
  * The steps of main: parse and check the options, open the dataset, check
- * --step and --axis against it, decode the step, write it (atomically, or
- * to stdout). */
+ * --step, --axis and --level against it, decode the step, write it
+ * (atomically, or to stdout). */
 #define _GNU_SOURCE
+#include "tvpal.h"
 #include "tvpal_cli.h"
-#include "tvpal_dataset.h"
 #include "tvpal_format.h"
 #include "tvpal_fs.h"
+#include "tvpal_manifest.h"
 
 #include <getopt.h>
 #include <stdio.h>
@@ -21,13 +23,15 @@
 static void usage(FILE *f)
 {
     fprintf(f,
-"Usage: " PROG " OUTDIR --step T [--axis x|y|z] -o FILE\n"
+"Usage: " PROG " OUTDIR --step T [--axis x|y|z] [--level K] -o FILE\n"
 "Reconstruct timestep T (0-based) of the dataset OUTDIR as raw little-endian\n"
 "float32, x fastest, decoded from the slices of one axis.\n"
 "\n"
 "  -t, --step T        timestep to decode, 0..steps-1 (required)\n"
 "  -a, --axis A        axis whose slices are decoded: x, y or z, one the\n"
 "                      dataset stores (default: z, else y, else x)\n"
+"  -l, --level K       a coarser level of detail (tvpal-encode --levels):\n"
+"                      its dims are ceil(dims / 2^K); default 0\n"
 "  -o, --output FILE   output file, written atomically; '-' for stdout\n"
 "  -h, --help          this help\n"
 "  -V, --version       version\n"
@@ -40,16 +44,18 @@ struct options {
     const char *step_s;   /* --step as given: its range is the dataset's */
     const char *out;      /* -o FILE; "-" is stdout */
     int axis;             /* 0..2, or -1: the dataset's default */
+    const char *level_s;  /* --level as given, or NULL */
 };
 
 static const struct option long_options[] = {
     {"step", required_argument, 0, 't'},
     {"axis", required_argument, 0, 'a'},
+    {"level", required_argument, 0, 'l'},
     {"output", required_argument, 0, 'o'},
     {"help", no_argument, 0, 'h'},
     {"version", no_argument, 0, 'V'},
     {0, 0, 0, 0}};
-static const char short_options[] = "t:a:o:hV";
+static const char short_options[] = "t:a:l:o:hV";
 
 /* Fills o from argv and checks that OUTDIR, --step and -o are there.
  * Returns -1 to go on, or the exit status when the program is done: --help,
@@ -68,6 +74,7 @@ static int parse_options(int argc, char **argv, struct options *o)
                 return TVPAL_EXIT_USAGE;
             }
             break;
+        case 'l': o->level_s = optarg; break;
         case 'o': o->out = optarg; break;
         case 'h': usage(stdout); return TVPAL_EXIT_OK;
         case 'V': printf(PROG " " PACKAGE_VERSION "\n"); return TVPAL_EXIT_OK;
@@ -85,35 +92,34 @@ static int parse_options(int argc, char **argv, struct options *o)
     return -1;
 }
 
-/* --step as a timestep of ds.  Returns 0 or TVPAL_EXIT_USAGE (printed). */
-static int step_of(const struct options *o, const struct tvpal_dataset *ds,
-                   uint32_t *t)
-{
-    if (tvpal_parse_u32(o->step_s, 0, ds->m.steps - 1, t) < 0) {
-        fprintf(stderr, PROG ": --step \"%s\": expected 0..%u for %s\n",
-                o->step_s, ds->m.steps - 1, o->dir);
-        return TVPAL_EXIT_USAGE;
-    }
-    return 0;
-}
-
-/* --axis as an axis ds stores, or without it the default one (z when
- * stored).  Returns 0 or TVPAL_EXIT_USAGE (printed). */
-static int axis_of(const struct options *o, const struct tvpal_dataset *ds,
-                   unsigned *axis)
+/* --step, --axis and --level against the dataset: the step t, the axis
+ * as tvpal_reader_decode takes it (0: the default) and the level.
+ * Returns 0 or TVPAL_EXIT_USAGE (printed). */
+static int choose(const struct options *o, const struct tvpal_info *in,
+                  uint32_t *t, unsigned *axis, uint32_t *level)
 {
     char axes[4];
-    if (o->axis < 0) {
-        *axis = tvpal_dataset_default_axis(ds);
-        return 0;
-    }
-    if (!tvpal_dataset_has_axis(ds, (unsigned)o->axis)) {
-        fprintf(stderr, PROG ": --axis %c: %s stores axes %s only\n",
-                "xyz"[o->axis], o->dir,
-                tvpal_axes_format(ds->m.axes_mask, axes));
+    if (tvpal_parse_u32(o->step_s, 0, in->steps - 1, t) < 0) {
+        fprintf(stderr, PROG ": --step \"%s\": expected 0..%u for %s\n",
+                o->step_s, in->steps - 1, o->dir);
         return TVPAL_EXIT_USAGE;
     }
-    *axis = (unsigned)o->axis;
+    *level = 0;
+    if (o->level_s && tvpal_parse_u32(o->level_s, 0, in->levels, level) < 0) {
+        fprintf(stderr, PROG ": --level \"%s\": expected 0..%u for %s (%s)\n",
+                o->level_s, in->levels, o->dir,
+                in->levels ? "its coarser levels" : "it has no coarser levels");
+        return TVPAL_EXIT_USAGE;
+    }
+    *axis = 0;
+    if (o->axis < 0)
+        return 0;
+    if (!(in->axes & (1u << o->axis))) {
+        fprintf(stderr, PROG ": --axis %c: %s stores axes %s only\n",
+                "xyz"[o->axis], o->dir, tvpal_axes_format(in->axes, axes));
+        return TVPAL_EXIT_USAGE;
+    }
+    *axis = 1u << o->axis;    /* TVPAL_AXIS_X, _Y, _Z */
     return 0;
 }
 
@@ -122,28 +128,6 @@ static int axis_of(const struct options *o, const struct tvpal_dataset *ds,
 static void print_lib_error(int rc, const struct tvpal_diag *diag)
 {
     fprintf(stderr, PROG ": %s\n", diag->msg[0] ? diag->msg : tvpal_strerror(rc));
-}
-
-/* Decodes timestep t from the slices of one axis into vol (nx*ny*nz floats).
- * Returns 0 or the exit status (printed): a failing device is a failure (1),
- * corrupt data is bad input (2). */
-static int decode_step(struct tvpal_dataset *ds, unsigned axis, uint32_t t,
-                       float *vol)
-{
-    struct tvpal_volreader *vr = NULL;
-    struct tvpal_diag diag = {{0}};
-    int status = 0, rc = tvpal_volreader_create(&vr, ds, axis, &diag);
-    if (rc < 0) {
-        print_lib_error(rc, &diag);
-        return rc == TVPAL_E_NOMEM ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;
-    }
-    rc = tvpal_volreader_read(vr, t, vol, &diag);
-    if (rc < 0) {
-        print_lib_error(rc, &diag);
-        status = rc == TVPAL_E_READ ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;
-    }
-    tvpal_volreader_free(vr);
-    return status;
 }
 
 /* Writes the nvox little-endian floats at bytes to out ("-": stdout).
@@ -173,7 +157,7 @@ int main(int argc, char **argv)
     if (status >= 0)
         return status;
     struct tvpal_diag diag = {{0}};
-    struct tvpal_dataset *ds = NULL;
+    struct tvpal_reader *rd = NULL;
     /* Never over the dataset itself, a device node or a link. */
     if (strcmp(o.out, "-") && tvpal_path_inside(o.out, o.dir)) {
         fprintf(stderr, PROG ": %s: inside the dataset %s; write it "
@@ -184,30 +168,37 @@ int main(int argc, char **argv)
         fprintf(stderr, PROG ": %s\n", diag.msg);
         return TVPAL_EXIT_USAGE;
     }
-    int rc = tvpal_dataset_open(&ds, o.dir, &diag);
+    int rc = tvpal_reader_open(&rd, o.dir, &diag);
     if (rc < 0) {
         print_lib_error(rc, &diag);
-        return TVPAL_EXIT_USAGE;
+        return rc == TVPAL_E_NOMEM ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;
     }
-    const size_t nvox = (size_t)ds->m.dims[0] * ds->m.dims[1] * ds->m.dims[2];
-    uint32_t t;
+    uint32_t t = 0, level = 0, d[3];
     unsigned axis = 0;
     float *vol = NULL;
-    status = step_of(&o, ds, &t);
-    if (status == 0)
-        status = axis_of(&o, ds, &axis);
-    if (status == 0 && !(vol = malloc(nvox * sizeof *vol))) {
-        fprintf(stderr, PROG ": out of memory\n");
-        status = TVPAL_EXIT_FAIL;
+    size_t nvox = 0;
+    status = choose(&o, tvpal_reader_info(rd), &t, &axis, &level);
+    if (status == 0) {
+        tvpal_reader_level_dims(rd, level, d);
+        nvox = (size_t)d[0] * d[1] * d[2];
+        if (!(vol = malloc(nvox * sizeof *vol))) {
+            fprintf(stderr, PROG ": out of memory\n");
+            status = TVPAL_EXIT_FAIL;
+        }
     }
-    if (status == 0)
-        status = decode_step(ds, axis, t, vol);
+    /* A failing device is a failure (1), corrupt data bad input (2). */
+    if (status == 0 && (rc = tvpal_reader_decode(rd, t, axis, level, vol,
+                                                 &diag)) < 0) {
+        print_lib_error(rc, &diag);
+        status = rc == TVPAL_E_READ || rc == TVPAL_E_NOMEM ? TVPAL_EXIT_FAIL
+                                                          : TVPAL_EXIT_USAGE;
+    }
     if (status == 0) {
         unsigned char *bytes = (unsigned char *)vol; /* convert in place */
         tvpal_store_f32le(vol, bytes, nvox);
         status = write_output(o.out, bytes, nvox);
     }
-    tvpal_dataset_close(ds);
+    tvpal_reader_close(rd);
     free(vol);
     return status;
 }

@@ -64,6 +64,10 @@ for k in 0 1 2; do
     dir=$W/ds; [ $k -gt 0 ] && dir=$W/ds/level-$k
     "$DEC" "$dir" --step 2 --axis z -o "$W/dec$k.f32" || fail "decode level $k"
 done
+# tvpal-decode --level K of the dataset: the same as the level's own.
+"$DEC" "$W/ds" --step 2 --level 2 -o "$W/dl2.f32" && cmp -s "$W/dl2.f32" "$W/dec2.f32" \
+    && ok "tvpal-decode --level 2: level 2's step" || fail "tvpal-decode --level 2"
+expect_exit 2 'level "3": expected 0..2' "$DEC" "$W/ds" --step 0 --level 3 -o "$W/dl3.f32"
 $PY - "$W/in" "$W" <<'PY' > "$W/lv.txt" || fail "compare levels: $(cat "$W/lv.txt")"
 import array, glob, math, sys
 src = sorted(glob.glob(sys.argv[1] + "/*.f32"))[2]
