@@ -82,22 +82,39 @@ static void read_plane(struct plane_src *ps, uint32_t t, uint32_t z,
            plane * sizeof *out);
 }
 
-/* Adds fine plane p (nx x ny) into the block sums of a coarse plane. */
+/* Adds fine plane p (nx x ny) into the block sums of a coarse plane.  Each
+ * cell's values are added in the order of the plane (x within a row, then
+ * the next row): the sums, and so the levels' bytes, do not depend on how
+ * the loop is written.  A row at a time, x in pairs: no division or index
+ * arithmetic per voxel (it was a third of the levels' cost). */
 static void add_plane(const float *p, uint32_t nx, uint32_t ny, double *sum,
                       uint32_t *cnt)
 {
-    const uint32_t cx = (nx + 1) / 2;
-    for (uint32_t y = 0; y < ny; y++)
-        for (uint32_t x = 0; x < nx; x++) {
-            float v = p[(size_t)y * nx + x];
-            if (v != v)
-                continue; /* missing: left out of the mean */
-            size_t c = (size_t)(y / 2) * cx + x / 2;
-            sum[c] += v;
-            cnt[c]++;
+    const uint32_t cx = (nx + 1) / 2, pairs = nx / 2;
+    for (uint32_t y = 0; y < ny; y++) {
+        const float *row = p + (size_t)y * nx;
+        double *s = sum + (size_t)(y / 2) * cx;
+        uint32_t *c = cnt + (size_t)(y / 2) * cx;
+        for (uint32_t i = 0; i < pairs; i++) {
+            const float a = row[2 * i], b = row[2 * i + 1];
+            if (a == a) { /* missing values are left out of the mean */
+                s[i] += a;
+                c[i]++;
+            }
+            if (b == b) {
+                s[i] += b;
+                c[i]++;
+            }
         }
+        if (nx & 1) {
+            const float a = row[nx - 1];
+            if (a == a) {
+                s[pairs] += a;
+                c[pairs]++;
+            }
+        }
+    }
 }
-
 
 /* Coarse plane z of a level from two fine planes (the second NULL at an
  * odd end): the means of the present values of each 2x2x2 block, NaN for
