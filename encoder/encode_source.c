@@ -386,16 +386,8 @@ void load_step(struct run *r, uint32_t t, float *dst)
     }
     if (!stats)
         return;
-    for (int id = 0; id < r->nthreads; id++)
-        for (uint32_t k = 0; k < TVPAL_CHECKPOINT_BINS; k++) {
-            r->st.fine[k] += r->fine_local[id][k];
-            r->fine_local[id][k] = 0;
-        }
-    r->st.nonfinite += res.nrep;
-    r->st.missing += res.nmiss;
-    r->st.counted += encode_box_voxels(b);
-    r->st.vmin = res.lo;
-    r->st.vmax = res.hi;
+    tvpal_values_account(&r->st, r->fine_local, (unsigned)r->nthreads, &res,
+                         encode_box_voxels(b));
     r->st.loaded = t + 1;
 }
 

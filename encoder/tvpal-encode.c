@@ -581,22 +581,28 @@ static char *job_params(const struct opts *o, const struct tvpal_input *in)
     return n < 0 ? NULL : t;
 }
 
-/* The manifest's "options" line: the command-line form of job_params
- * (tvpal_engine_options_line). */
-static void options_line(const struct opts *o, uint32_t T, char *buf,
-                         size_t cap)
+/* The engine's view of the job (tvpal_engine.h): every node's shards, or
+ * under MPI this rank's node's, and how the source came. */
+static struct tvpal_engine_params engine_params(const struct run *r)
 {
-    const struct tvpal_engine_params p = {
-        .dims = {o->dims[0], o->dims[1], o->dims[2]}, .window = o->window,
-        .axes = o->axes, .nodes = o->nodes,
+    const struct opts *o = &r->o;
+    return (struct tvpal_engine_params){
+        .dims = {o->dims[0], o->dims[1], o->dims[2]}, .steps = r->T,
+        .window = o->window, .axes = o->axes, .nodes = o->nodes,
+        .node_first = r->mpi ? r->node : 0,
+        .node_count = r->mpi ? 1 : o->nodes,
         .table_format = (uint32_t)o->table_format, .refine = o->refine,
         .naive = o->naive, .klt = o->klt, .alloc_mse = o->alloc_mse};
-    const struct tvpal_engine_source src = {
+}
+
+static struct tvpal_engine_source engine_source(const struct run *r)
+{
+    const struct opts *o = &r->o;
+    return (struct tvpal_engine_source){
         .type = o->type, .big_endian = o->big_endian,
-        .steps_single = o->steps_single ? T : 0,
+        .steps_single = o->steps_single ? r->T : 0,
         .nan_as = o->has_nan_as ? &o->nan_as : NULL,
         .missing = o->missing, .nmissing = o->nmissing};
-    tvpal_engine_options_line(&p, &src, buf, cap);
 }
 
 /* ---------------------------------------------------------------- output */
@@ -834,14 +840,7 @@ static void open_partial(struct run *r)
  * node, or under MPI this rank's node's. */
 static void setup_shards(struct run *r)
 {
-    const struct opts *o = &r->o;
-    const struct tvpal_engine_params p = {
-        .dims = {o->dims[0], o->dims[1], o->dims[2]}, .steps = r->T,
-        .window = r->N, .axes = o->axes, .nodes = o->nodes,
-        .node_first = r->mpi ? r->node : 0,
-        .node_count = r->mpi ? 1 : o->nodes,
-        .table_format = (uint32_t)o->table_format, .refine = o->refine,
-        .naive = o->naive, .klt = o->klt, .alloc_mse = o->alloc_mse};
+    const struct tvpal_engine_params p = engine_params(r);
     int rc = tvpal_engine_create(&r->eng, &p);
     if (rc == TVPAL_E_NOMEM)
         die_fail("out of memory");
@@ -1412,37 +1411,14 @@ void check_grid(const struct run *r)
 static void build_manifest(const struct run *r, struct tvpal_manifest *m)
 {
     const struct opts *o = &r->o;
-    const struct tvpal_checkpoint_stats *st = &r->st;
-    char optstr[256];
-    *m = (struct tvpal_manifest){0};
-    memcpy(m->dims, o->dims, sizeof o->dims);
-    m->type = o->type;
-    m->big_endian = o->big_endian;
-    m->steps = r->T;
-    m->window = r->N;
-    m->nodes = o->nodes;
-    m->value_min = st->vmin;
-    m->value_max = st->vmax;
-    m->has_nan_as = o->has_nan_as;
-    m->nan_as = o->nan_as;
-    m->nonfinite = st->nonfinite;
-    m->missing = st->missing;
-    for (unsigned i = 0; i < o->nmissing; i++)
-        m->missing_values[i] = (float)o->missing[i];
-    m->nmissing_values = o->nmissing;
+    const struct tvpal_engine_params p = engine_params(r);
+    const struct tvpal_engine_source src = engine_source(r);
+    if (tvpal_engine_manifest(&p, &src, &r->st, r->times, r->time_units,
+                              r->units, PROG " " PACKAGE_VERSION, m) < 0)
+        die_fail("out of memory");
     m->single_file = o->steps_single != 0;
-    m->source_bytes = r->step_bytes * r->T;
     m->levels = o->levels;
-    m->axes_mask = o->axes;
     grid_of(r, m->spacing, m->origin);
-    if (r->times) {
-        if (!(m->times = malloc(sizeof *m->times * r->T)))
-            die_fail("out of memory");
-        memcpy(m->times, r->times, sizeof *m->times * r->T);
-        m->ntimes = r->T;
-        snprintf(m->time_units, sizeof m->time_units, "%s", r->time_units);
-    }
-    snprintf(m->units, sizeof m->units, "%s", r->units);
     if (r->in) {
         /* One file of all steps, one file per step, or files of several
          * steps each (series). */
@@ -1453,16 +1429,9 @@ static void build_manifest(const struct run *r, struct tvpal_manifest *m)
         if (!(m->source_var = strdup(tvpal_input_info(r->in)->var)))
             die_fail("out of memory");
     }
-    tvpal_values_histogram(st, m->histogram);
-    options_line(o, r->T, optstr, sizeof optstr);
-    m->table_format = (uint32_t)o->table_format;
-    m->encoder = strdup(PROG " " PACKAGE_VERSION);
-    m->options = strdup(optstr);
     for (int i = 0; i < o->ninputs; i++)
         if (tvpal_manifest_add_source(m, o->inputs[i]) < 0)
             die_fail("out of memory");
-    if (!m->encoder || !m->options)
-        die_fail("out of memory");
 }
 
 /* Finishes this process's shards with the source range (9.1). */

@@ -490,16 +490,8 @@ static int take_step(struct tvpal_encoder *e, const void *data,
                               (unsigned long long)x, (unsigned long long)y,
                               (unsigned long long)z);
     }
-    for (unsigned i = 0; i < nt; i++)
-        for (uint32_t k = 0; k < TVPAL_CHECKPOINT_BINS; k++) {
-            e->st.fine[k] += e->fine[i][k];
-            e->fine[i][k] = 0;
-        }
-    e->st.nonfinite += all.nrep;
-    e->st.missing += all.nmiss;
-    e->st.counted += (uint64_t)d[0] * d[1] * d[2];
-    e->st.vmin = all.lo;
-    e->st.vmax = all.hi;
+    tvpal_values_account(&e->st, e->fine, nt, &all,
+                         (uint64_t)d[0] * d[1] * d[2]);
     e->st.loaded = ++e->pushed;
     return 0;
 }
@@ -564,51 +556,20 @@ int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
 
 /* --------------------------------------------------------------- finish */
 
+/* The manifest: the job's fields (tvpal_engine_manifest) and the grid;
+ * source_format stays "" (raw): the values as host float32 or float64,
+ * which tvpal-report --reference compares with raw files of them. */
 static int build_manifest(const struct tvpal_encoder *e,
                           struct tvpal_manifest *m)
 {
-    const struct tvpal_checkpoint_stats *st = &e->st;
-    char optstr[256];
-    *m = (struct tvpal_manifest){0};
-    memcpy(m->dims, e->ep.dims, sizeof m->dims);
-    m->type = e->type;
-    m->steps = e->ep.steps;
-    m->window = e->ep.window;
-    m->nodes = e->ep.nodes;
-    m->value_min = st->vmin;
-    m->value_max = st->vmax;
-    m->has_nan_as = e->has_nan_as;
-    m->nan_as = e->nan_as;
-    m->nonfinite = st->nonfinite;
-    m->missing = st->missing;
-    for (unsigned i = 0; i < e->nmissing; i++)
-        m->missing_values[i] = (float)e->missing[i];
-    m->nmissing_values = e->nmissing;
-    m->source_bytes = (uint64_t)e->ep.dims[0] * e->ep.dims[1] *
-                      e->ep.dims[2] * tvpal_type_size(e->type) *
-                      e->ep.steps;
-    m->axes_mask = e->ep.axes;
-    memcpy(m->spacing, e->spacing, sizeof m->spacing);
-    memcpy(m->origin, e->origin, sizeof m->origin);
-    if (e->times) {
-        if (!(m->times = malloc(sizeof *m->times * e->ep.steps)))
-            return TVPAL_E_NOMEM;
-        memcpy(m->times, e->times, sizeof *m->times * e->ep.steps);
-        m->ntimes = e->ep.steps;
-        snprintf(m->time_units, sizeof m->time_units, "%s", e->time_units);
-    }
-    snprintf(m->units, sizeof m->units, "%s", e->units);
-    /* source_format "" (raw): the values as host float32 or float64, which
-     * tvpal-report --reference compares with raw files of them. */
-    tvpal_values_histogram(st, m->histogram);
     const struct tvpal_engine_source src = {
         .type = e->type, .nan_as = e->has_nan_as ? &e->nan_as : NULL,
         .missing = e->missing, .nmissing = e->nmissing};
-    tvpal_engine_options_line(&e->ep, &src, optstr, sizeof optstr);
-    m->table_format = e->ep.table_format;
-    m->encoder = strdup(LIB_NAME);
-    m->options = strdup(optstr);
-    return m->encoder && m->options ? 0 : TVPAL_E_NOMEM;
+    int rc = tvpal_engine_manifest(&e->ep, &src, &e->st, e->times,
+                                   e->time_units, e->units, LIB_NAME, m);
+    memcpy(m->spacing, e->spacing, sizeof m->spacing);
+    memcpy(m->origin, e->origin, sizeof m->origin);
+    return rc;
 }
 
 static int write_manifest(const char *dir, const char *text,

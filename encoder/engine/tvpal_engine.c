@@ -7,6 +7,8 @@
  * into the thread's chunk buffer and write it in place.  Everything a step
  * uses is allocated by tvpal_engine_start, none per step or per voxel. */
 #include "tvpal_engine.h"
+#include "tvpal_checkpoint.h"
+#include "tvpal_values.h"
 #include "tvpal_format.h"
 #include "tvpal_manifest.h"
 #include "tvpal_schedule.h"
@@ -309,6 +311,50 @@ void tvpal_engine_options_line(const struct tvpal_engine_params *p,
         OPTS_ADD(" --axes %s", tvpal_axes_format(p->axes, axes));
     }
 #undef OPTS_ADD
+}
+
+int tvpal_engine_manifest(const struct tvpal_engine_params *p,
+                          const struct tvpal_engine_source *src,
+                          const struct tvpal_checkpoint_stats *st,
+                          const double *times, const char *time_units,
+                          const char *units, const char *encoder,
+                          struct tvpal_manifest *m)
+{
+    char optstr[256];
+    *m = (struct tvpal_manifest){0};
+    memcpy(m->dims, p->dims, sizeof m->dims);
+    m->type = src->type;
+    m->big_endian = src->big_endian;
+    m->steps = p->steps;
+    m->window = p->window;
+    m->nodes = p->nodes;
+    m->axes_mask = p->axes;
+    m->table_format = p->table_format;
+    m->value_min = st->vmin;
+    m->value_max = st->vmax;
+    m->has_nan_as = src->nan_as != NULL;
+    m->nan_as = src->nan_as ? *src->nan_as : 0;
+    m->nonfinite = st->nonfinite;
+    m->missing = st->missing;
+    for (unsigned i = 0; i < src->nmissing; i++)
+        m->missing_values[i] = (float)src->missing[i];
+    m->nmissing_values = src->nmissing;
+    m->source_bytes = (uint64_t)p->dims[0] * p->dims[1] * p->dims[2] *
+                      tvpal_type_size(src->type) * p->steps;
+    tvpal_values_histogram(st, m->histogram);
+    if (times) {
+        if (!(m->times = malloc(sizeof *m->times * p->steps)))
+            return TVPAL_E_NOMEM;
+        memcpy(m->times, times, sizeof *m->times * p->steps);
+        m->ntimes = p->steps;
+        snprintf(m->time_units, sizeof m->time_units, "%s",
+                 time_units ? time_units : "");
+    }
+    snprintf(m->units, sizeof m->units, "%s", units ? units : "");
+    tvpal_engine_options_line(p, src, optstr, sizeof optstr);
+    m->encoder = strdup(encoder);
+    m->options = strdup(optstr);
+    return m->encoder && m->options ? 0 : TVPAL_E_NOMEM;
 }
 
 /* ---------------------------------------------------------------- a step */

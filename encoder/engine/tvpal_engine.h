@@ -130,6 +130,22 @@ void tvpal_engine_options_line(const struct tvpal_engine_params *p,
                                const struct tvpal_engine_source *src,
                                char *buf, size_t cap);
 
+/* The manifest's fields that follow from the job (FORMAT.md 7): dims,
+ * type, steps, window, nodes, axes, table, the source statistics st (range,
+ * replaced and missing values, the histogram), the missing values and
+ * --nan-as, the source bytes, times (T values or NULL) and their units, the
+ * values' units, the encoder's name and the options line.  *m is set whole
+ * (what the caller adds: grid, levels, the sources) and owns its strings;
+ * 0 or TVPAL_E_NOMEM (clear m with tvpal_manifest_clear either way). */
+struct tvpal_checkpoint_stats;
+struct tvpal_manifest;
+int tvpal_engine_manifest(const struct tvpal_engine_params *p,
+                          const struct tvpal_engine_source *src,
+                          const struct tvpal_checkpoint_stats *st,
+                          const double *times, const char *time_units,
+                          const char *units, const char *encoder,
+                          struct tvpal_manifest *m);
+
 /* Values coded missing that were present in the source (the coder dropped
  * them: a slice whose indices could not hold a missing class), so far. */
 uint64_t tvpal_engine_dropped(const struct tvpal_engine *e);

@@ -48,6 +48,22 @@ void tvpal_found_merge(struct tvpal_found *all, const struct tvpal_found *f)
     all->hi = f->hi > all->hi ? f->hi : all->hi;
 }
 
+void tvpal_values_account(struct tvpal_checkpoint_stats *st,
+                          uint64_t *const *fine, unsigned n,
+                          const struct tvpal_found *all, uint64_t voxels)
+{
+    for (unsigned i = 0; i < n; i++)
+        for (uint32_t k = 0; k < TVPAL_CHECKPOINT_BINS; k++) {
+            st->fine[k] += fine[i][k];
+            fine[i][k] = 0;
+        }
+    st->nonfinite += all->nrep;
+    st->missing += all->nmiss;
+    st->counted += voxels;
+    st->vmin = all->lo;
+    st->vmax = all->hi;
+}
+
 void tvpal_values_histogram(const struct tvpal_checkpoint_stats *st,
                             uint64_t hist[TVPAL_HIST_BINS])
 {

@@ -58,6 +58,14 @@ void tvpal_values_convert(const struct tvpal_values_rules *rules,
                           uint64_t vox0, uint64_t *fine,
                           struct tvpal_found *f);
 
+/* Accounts a converted step (or box) of `voxels` values into st: the
+ * threads' fine histograms fine[0 .. n-1] (added, then zeroed for the next
+ * one) and what they found, merged in all (range, replaced and missing
+ * values). */
+void tvpal_values_account(struct tvpal_checkpoint_stats *st,
+                          uint64_t *const *fine, unsigned n,
+                          const struct tvpal_found *all, uint64_t voxels);
+
 /* The value at the middle of a class of the fine histogram. */
 float tvpal_values_bin_value(uint32_t b);
 
