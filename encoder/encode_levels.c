@@ -289,10 +289,13 @@ void levels_step(struct run *r, struct levels *ls, uint32_t t,
     make_levels(ls, t, vol0);
     for (unsigned k = 1; k <= ls->last; k++) {
         struct tvpal_diag d = {{0}};
-        int rc = ls->lv[k].enc ? tvpal_encoder_push(ls->lv[k].enc,
-                                                    ls->lv[k].vol,
-                                                    TVPAL_FLOAT32, NULL, &d)
-                               : 0;
+        const uint32_t *dk = ls->lv[k].dims;
+        int rc = ls->lv[k].enc
+                     ? tvpal_encoder_push(ls->lv[k].enc, ls->lv[k].vol,
+                                          TVPAL_FLOAT32,
+                                          (size_t)dk[0] * dk[1] * dk[2],
+                                          NULL, &d)
+                     : 0;
         if (rc < 0)
             level_failed(k, "its encode", rc, &d);
     }

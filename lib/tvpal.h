@@ -160,8 +160,69 @@ TVPAL_API int tvpal_encoder_set_missing(struct tvpal_encoder *e,
                                         const double *values, unsigned n,
                                         struct tvpal_diag *diag);
 
-/* Pushes the next timestep (steps 0, 1, ... in order): dims[0] * dims[1] *
- * dims[2] values of `type` at data, where value (x, y, z) is at
+/* ------------------------------------------------ encoding on many ranks
+ *
+ * In an MPI program (or any other set of processes), each of `size` ranks
+ * holds a slab of the volume decomposed along z and pushes only its slab;
+ * each writes its own node shard (DIR.partial/node-RANK, FORMAT.md 3.2),
+ * and rank 0 writes the manifest once and moves the dataset into place.
+ * The dataset is byte-identical to tvpal-encode --nodes SIZE of the same
+ * steps.  DIR must be on a file system every rank sees.  The ranks agree
+ * at their first push and in tvpal_encoder_finish through the two
+ * operations below, which the caller provides (lib/tvpal_mpi.h gives them
+ * for MPI); a failure on any rank fails every rank, with that rank's
+ * message, and leaves nothing at DIR.
+ *
+ * With a collective set, the first push, tvpal_encoder_finish and
+ * tvpal_encoder_abort are collective: every rank calls one of the last
+ * two at the same point of its program (after its last push, or where
+ * every rank gives up).  A rank whose push failed keeps its encoder until
+ * then (its later pushes are refused; a simulation goes on feeding its
+ * neighbours' halos), and its finish fails every rank's with its message;
+ * a rank that aborts early waits for the others' finish. */
+struct tvpal_collective {
+    int rank, size;           /* this process's rank, 0 .. size - 1 */
+    void *ctx;                /* the caller's; passed to both */
+    /* Every rank sends `bytes` bytes at send; rank 0 receives rank k's at
+     * recv + k * bytes (recv is NULL on the other ranks).  0 or nonzero
+     * (the encoder then fails with TVPAL_E_SYS). */
+    int (*gather)(void *ctx, const void *send, size_t bytes, void *recv);
+    /* Rank 0's `bytes` bytes at buf replace every other rank's.  0 or
+     * nonzero. */
+    int (*bcast)(void *ctx, void *buf, size_t bytes);
+    /* Optional (may be NULL): called once with ctx when the encoder no
+     * longer needs it, so that the encoder may own ctx. */
+    void (*release)(void *ctx);
+};
+
+/* The z-slab of rank `rank` of `size` for nz planes: planes *z0 .. *z0 +
+ * *count - 1 (as equal as possible, the first nz % size one plane
+ * larger: the slabs of tvpal-encode --nodes SIZE).  A rank must push
+ * exactly this slab. */
+TVPAL_API void tvpal_slab(uint32_t nz, uint32_t size, uint32_t rank,
+                          uint32_t *z0, uint32_t *count);
+
+/* Makes e one rank of a collective encode (before the first push): this
+ * rank pushes planes z0 .. z0 + nz - 1 of each step, which must be
+ * tvpal_slab's for its rank, and writes node shard c->rank of c->size
+ * (TVPAL_PARAM_NODES becomes c->size).  *c is copied; c->ctx must stay
+ * valid until c->release is called (once: when e is released, or before
+ * this call returns if it refuses c), or, without release, until e is
+ * released.  Only TVPAL_AXIS_Z may be encoded (x and y slices cross the
+ * slabs).  0 or TVPAL_E_INVAL (diag says what: a size or rank out of
+ * range, a missing operation; or a slab that is not the rank's, which the
+ * encoder keeps all the same, so that its first push or its abort makes
+ * every rank fail rather than wait) or TVPAL_E_NOMEM. */
+TVPAL_API int tvpal_encoder_set_collective(struct tvpal_encoder *e,
+                                           const struct tvpal_collective *c,
+                                           uint32_t z0, uint32_t nz,
+                                           struct tvpal_diag *diag);
+
+/* Pushes the next timestep (steps 0, 1, ... in order): count values of
+ * `type` at data, which must be dims[0] * dims[1] * dims[2] (with a
+ * collective, tvpal_encoder_set_collective: dims[0] * dims[1] * the
+ * slab's nz, its z counted from the slab's first plane), where value
+ * (x, y, z) is at
  * data[x * strides[0] + y * strides[1] + z * strides[2]] (in elements; may
  * be negative), or with strides NULL at data[x + nx * (y + ny * z)].  The
  * values are copied (converted to float32) before the call returns; NaN and
@@ -174,7 +235,7 @@ TVPAL_API int tvpal_encoder_set_missing(struct tvpal_encoder *e,
  * step completes, on the encoder's threads.
  *
  * 0; TVPAL_E_INVAL (a push after the last step, an unknown type, NULL
- * data); TVPAL_E_EXIST (DIR exists and TVPAL_PARAM_FORCE is not set, or
+ * data, a count that is not the step's); TVPAL_E_EXIST (DIR exists and TVPAL_PARAM_FORCE is not set, or
  * another encoder holds the lock); TVPAL_E_RANGE (the job needs more than
  * TVPAL_PARAM_MEM_LIMIT); TVPAL_E_NAN, TVPAL_E_RANGE (a value refused);
  * TVPAL_E_OPEN, TVPAL_E_WRITE, TVPAL_E_SYS (the output: diag names the
@@ -182,7 +243,7 @@ TVPAL_API int tvpal_encoder_set_missing(struct tvpal_encoder *e,
  * changes nothing; after any other failure the encoder only accepts
  * tvpal_encoder_abort (and tvpal_encoder_finish, which then fails). */
 TVPAL_API int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
-                                 enum tvpal_scalar type,
+                                 enum tvpal_scalar type, size_t count,
                                  const ptrdiff_t strides[3],
                                  struct tvpal_diag *diag);
 

@@ -32,6 +32,36 @@
 
 enum state { OPENED, STARTED, FAILED };
 
+/* The rounds in which the ranks of a collective agree, in order (a round's
+ * number travels in its votes, a check that every rank is in the same):
+ * START: nobody has refused (a wrong slab), then rank 0 prepares the
+ * output; SETUP: every rank has its engine and shard writers; STATS: every
+ * rank has pushed every step, the statistics summed and the manifest sent
+ * from rank 0; PLACE: every rank has finished its shards, then rank 0
+ * writes the manifest, verifies and renames.  A round that decides a
+ * failure is the last: every rank knows it and none joins another. */
+enum round { R_START = 1, R_SETUP, R_STATS, R_PLACE, R_DONE };
+
+/* What a rank sends rank 0 in a round, and the verdict rank 0 sends back;
+ * the statistics ride along (summed by rank 0; used in R_STATS). */
+struct vote {
+    int32_t round, code;
+    double vmin, vmax;
+    uint64_t nonfinite, missing, counted;
+    char msg[TVPAL_DIAG_MAX];
+};
+struct verdict {
+    int32_t code;
+    uint32_t text_len;       /* R_STATS: the manifest's bytes that follow */
+    double vmin, vmax;
+    uint64_t nonfinite, missing, counted;
+    char msg[TVPAL_DIAG_MAX];
+};
+/* The fine histogram goes to rank 0 in pieces of this many bins, so that
+ * rank 0 holds size * HIST_PIECE counters at a time, not size whole
+ * histograms. */
+#define HIST_PIECE 2048u
+
 struct tvpal_encoder {
     char *dir, *partial, *lock_path;
     int lock_fd;
@@ -56,7 +86,43 @@ struct tvpal_encoder {
     struct tvpal_found *found;       /* per thread */
     void **rows;                     /* per thread: a row of 8-byte values
                                       * (strided pushes) */
+    /* The ranks: a caller's collective, or this process alone. */
+    struct tvpal_collective coll;
+    uint32_t slab_z0, slab_n;        /* the planes this rank pushes */
+    enum round round;                /* the next round to join */
+    int decided;                     /* a round decided a failure */
+    int own_rc;                      /* this rank's failure (a wrong slab,
+                                      * a failed push), which it tells the
+                                      * others in the next round */
+    char own_msg[TVPAL_DIAG_MAX];
+    int made_partial;                /* rank 0 created DIR.partial */
+    struct vote *votes;              /* rank 0: size of them */
+    uint64_t *pieces;                /* rank 0: size * HIST_PIECE */
 };
+
+/* One process: its gather is a copy, its broadcast nothing. */
+static int self_gather(void *ctx, const void *send, size_t bytes, void *recv)
+{
+    (void)ctx;
+    memcpy(recv, send, bytes);
+    return 0;
+}
+
+static int self_bcast(void *ctx, void *buf, size_t bytes)
+{
+    (void)ctx, (void)buf, (void)bytes;
+    return 0;
+}
+
+/* Rank 0's buffers for size ranks' votes and histogram pieces. */
+static int alloc_round_buffers(struct tvpal_encoder *e, int size)
+{
+    free(e->votes);
+    free(e->pieces);
+    e->votes = calloc((size_t)size, sizeof *e->votes);
+    e->pieces = calloc((size_t)size * HIST_PIECE, sizeof *e->pieces);
+    return e->votes && e->pieces ? 0 : TVPAL_E_NOMEM;
+}
 
 unsigned tvpal_version_number(void)
 {
@@ -105,8 +171,87 @@ int tvpal_encoder_open(struct tvpal_encoder **out, const char *dir,
         .table_format = TVPAL_TABLE_CHUNK};
     for (int a = 0; a < 3; a++)
         e->spacing[a] = 1;
+    e->coll = (struct tvpal_collective){0, 1, NULL, self_gather, self_bcast,
+                                        NULL};
+    e->slab_n = dims[2];
+    e->round = R_START;
+    if (alloc_round_buffers(e, 1) < 0) {
+        free(e->votes);
+        free(e->partial);
+        free(e->dir);
+        free(e);
+        return TVPAL_E_NOMEM;
+    }
     *out = e;
     return 0;
+}
+
+void tvpal_slab(uint32_t nz, uint32_t size, uint32_t rank, uint32_t *z0,
+                uint32_t *count)
+{
+    if (size < 1 || rank >= size) {
+        *z0 = *count = 0;
+        return;
+    }
+    tvpal_slab_range(nz, size, rank, z0, count);
+}
+
+int tvpal_encoder_set_collective(struct tvpal_encoder *e,
+                                 const struct tvpal_collective *c,
+                                 uint32_t z0, uint32_t nz,
+                                 struct tvpal_diag *diag)
+{
+    int rc = 0;
+    if (e->state != OPENED)
+        rc = tvpal_diag_set(diag, TVPAL_E_INVAL, "collective set after "
+                            "the first push");
+    else if (!c->gather || !c->bcast)
+        rc = tvpal_diag_set(diag, TVPAL_E_INVAL, "a collective needs its "
+                            "gather and bcast");
+    else if (c->size < 1 || c->size > 4096 || c->rank < 0 ||
+             c->rank >= c->size)
+        rc = tvpal_diag_set(diag, TVPAL_E_INVAL, "rank %d of %d: 0 .. size "
+                            "- 1 of 1 .. 4096 ranks expected", c->rank,
+                            c->size);
+    else if (c->rank == 0 && alloc_round_buffers(e, c->size) < 0)
+        rc = TVPAL_E_NOMEM;
+    if (rc < 0) {
+        if (c->release)
+            c->release(c->ctx);
+        return rc;
+    }
+    if (e->coll.release)
+        e->coll.release(e->coll.ctx);
+    e->coll = *c;
+    e->ep.nodes = (uint32_t)c->size;
+    e->ep.node_first = (uint32_t)c->rank;
+    e->ep.node_count = 1;
+    uint32_t want0, wantn;
+    tvpal_slab(e->ep.dims[2], (uint32_t)c->size, (uint32_t)c->rank, &want0,
+               &wantn);
+    e->slab_z0 = want0;
+    e->slab_n = wantn;
+    e->own_rc = 0;
+    struct tvpal_diag d = {{0}};
+    if (z0 != want0 || nz != wantn)
+        e->own_rc = tvpal_diag_set(&d, TVPAL_E_INVAL, "rank %d of %d "
+                                    "pushes planes %u .. %u, not its slab "
+                                    "of the %u planes, %u .. %u "
+                                    "(tvpal_slab)", c->rank, c->size, z0,
+                                    z0 + nz - 1, e->ep.dims[2], want0,
+                                    want0 + wantn - 1);
+    else if (wantn == 0)
+        e->own_rc = tvpal_diag_set(&d, TVPAL_E_INVAL, "%d ranks for %u "
+                                    "planes: every rank needs at least "
+                                    "one", c->size, e->ep.dims[2]);
+    if (!e->own_rc)
+        return 0;
+    /* Kept as the rank's collective all the same: its first push or its
+     * abort tells the other ranks, which would otherwise wait. */
+    memcpy(e->own_msg, d.msg, sizeof d.msg);
+    if (diag)
+        *diag = d;
+    return e->own_rc;
 }
 
 /* value is a whole number in [lo, hi]. */
@@ -139,7 +284,10 @@ int tvpal_encoder_set(struct tvpal_encoder *e, enum tvpal_param param,
     case TVPAL_PARAM_NODES:
         if (!whole_in(value, 1, 4096))
             name = "nodes", range = "1..4096";
-        else
+        else if (e->coll.size > 1 && value != e->coll.size)
+            name = "nodes", range = "the collective's size (one node "
+                                    "shard per rank)";
+        else if (e->coll.size == 1)
             p->nodes = p->node_count = (uint32_t)value;
         break;
     case TVPAL_PARAM_TABLE:
@@ -295,6 +443,104 @@ int tvpal_encoder_set_missing(struct tvpal_encoder *e, const double *values,
     return 0;
 }
 
+/* --------------------------------------------------------------- rounds */
+
+static int is_root(const struct tvpal_encoder *e)
+{
+    return e->coll.rank == 0;
+}
+
+/* Rank 0 sends v to every rank; a failed send is this rank's failure. */
+static int tell(struct tvpal_encoder *e, struct verdict *v)
+{
+    if (e->coll.bcast(e->coll.ctx, v, sizeof *v) != 0) {
+        v->code = TVPAL_E_SYS;
+        snprintf(v->msg, sizeof v->msg, "rank %d: the collective's bcast "
+                 "failed", e->coll.rank);
+    }
+    if (v->code < 0)
+        e->decided = 1;
+    return v->code;
+}
+
+/* Round `round`: every rank sends its code (and message, and statistics)
+ * to rank 0, which decides: the failure of the lowest failing rank, its
+ * message "rank R: ..." where there are several ranks.  The verdict (the
+ * statistics summed) is every rank's; its code is returned. */
+static int agree(struct tvpal_encoder *e, enum round round, int rc,
+                 const char *msg, struct verdict *v)
+{
+    const struct tvpal_checkpoint_stats *st = &e->st;
+    struct vote me = {.round = (int32_t)round, .code = rc,
+                      .vmin = st->vmin, .vmax = st->vmax,
+                      .nonfinite = st->nonfinite, .missing = st->missing,
+                      .counted = st->counted};
+    snprintf(me.msg, sizeof me.msg, "%s", msg ? msg : "");
+    memset(v, 0, sizeof *v);
+    e->round = round + 1;
+    if (e->coll.gather(e->coll.ctx, &me, sizeof me,
+                       is_root(e) ? e->votes : NULL) != 0) {
+        v->code = TVPAL_E_SYS;
+        snprintf(v->msg, sizeof v->msg, "rank %d: the collective's gather "
+                 "failed", e->coll.rank);
+        e->decided = 1;
+        return v->code;
+    }
+    if (is_root(e)) {
+        v->vmin = INFINITY, v->vmax = -INFINITY;
+        for (int k = 0; k < e->coll.size; k++) {
+            const struct vote *o = &e->votes[k];
+            if (v->code == 0 && (o->code < 0 || o->round != (int32_t)round)) {
+                v->code = o->code < 0 ? o->code : TVPAL_E_INVAL;
+                if (e->coll.size == 1)
+                    snprintf(v->msg, sizeof v->msg, "%s", o->msg);
+                else if (o->code < 0)
+                    snprintf(v->msg, sizeof v->msg, "rank %d: %.1000s", k, o->msg);
+                else
+                    snprintf(v->msg, sizeof v->msg, "rank %d is in round %d "
+                             "of the encode, rank 0 in round %d", k,
+                             (int)o->round, (int)round);
+            }
+            v->vmin = o->vmin < v->vmin ? o->vmin : v->vmin;
+            v->vmax = o->vmax > v->vmax ? o->vmax : v->vmax;
+            v->nonfinite += o->nonfinite;
+            v->missing += o->missing;
+            v->counted += o->counted;
+        }
+    }
+    return tell(e, v);
+}
+
+/* The verdict's failure (or rc, a local one) into diag. */
+static int report(int rc, const struct verdict *v, struct tvpal_diag *diag)
+{
+    if (rc < 0 && v->code == 0)
+        return rc;
+    return v->code < 0 ? tvpal_diag_set(diag, v->code, "%s", v->msg) : 0;
+}
+
+/* Rank 0 sums every rank's fine histogram into its own, HIST_PIECE bins
+ * at a time. */
+static int sum_histograms(struct tvpal_encoder *e)
+{
+    const size_t K = (size_t)e->coll.size;
+    for (uint32_t b0 = 0; b0 < TVPAL_CHECKPOINT_BINS; b0 += HIST_PIECE) {
+        uint64_t *mine = e->st.fine + b0;
+        if (e->coll.gather(e->coll.ctx, mine, HIST_PIECE * sizeof *mine,
+                           is_root(e) ? e->pieces : NULL) != 0)
+            return TVPAL_E_SYS;
+        for (uint32_t b = 0; is_root(e) && b < HIST_PIECE; b++) {
+            uint64_t sum = 0;
+            for (size_t k = 0; k < K; k++)
+                sum += e->pieces[k * HIST_PIECE + b];
+            mine[b] = sum;
+        }
+    }
+    return 0;
+}
+_Static_assert(TVPAL_CHECKPOINT_BINS % HIST_PIECE == 0,
+               "the histogram goes in whole pieces");
+
 /* ---------------------------------------------------------------- start */
 
 /* DIR may be replaced: absent, or with force a tvpal dataset. */
@@ -321,6 +567,48 @@ static int check_output(const struct tvpal_encoder *e,
     return 0;
 }
 
+/* What this rank can refuse before anything is made. */
+static int check_job(const struct tvpal_encoder *e, struct tvpal_diag *diag)
+{
+    if (e->own_rc)
+        return tvpal_diag_set(diag, e->own_rc, "%s", e->own_msg);
+    if (e->coll.size > 1 && e->ep.axes != TVPAL_AXIS_Z)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "axes mask %u with %d "
+                              "ranks: only TVPAL_AXIS_Z (the x and y "
+                              "slices cross the ranks' slabs)", e->ep.axes,
+                              e->coll.size);
+    if (e->coll.size > 1 && e->ep.nodes != (uint32_t)e->coll.size)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "nodes %u with %d ranks: "
+                              "one node shard per rank", e->ep.nodes,
+                              e->coll.size);
+    return 0;
+}
+
+/* Rank 0: the output checked and locked, an earlier partial output gone,
+ * DIR.partial made. */
+static int prepare_output(struct tvpal_encoder *e, struct tvpal_diag *diag)
+{
+    int rc = check_output(e, diag);
+    if (rc < 0)
+        return rc;
+    if (asprintf(&e->lock_path, "%s.lock", e->partial) < 0)
+        return TVPAL_E_NOMEM;
+    if ((rc = tvpal_lock_take(e->lock_path, &e->lock_fd, diag)) < 0) {
+        free(e->lock_path);
+        e->lock_path = NULL;
+        return rc;
+    }
+    /* A partial output of an earlier job is not resumed (yet): it goes. */
+    if (tvpal_exists(e->partial) && tvpal_rmtree(e->partial) < 0)
+        return tvpal_diag_set(diag, TVPAL_E_SYS, "%s: cannot remove the "
+                              "partial output of an earlier job",
+                              e->partial);
+    if ((rc = tvpal_mkdirs(e->partial, diag)) < 0)
+        return rc;
+    e->made_partial = 1;
+    return 0;
+}
+
 /* Bytes the job holds: the ring, the threads' workspaces, the tables. */
 static uint64_t job_bytes(const struct tvpal_encoder *e, unsigned nthreads,
                           uint64_t nvox)
@@ -333,12 +621,13 @@ static uint64_t job_bytes(const struct tvpal_encoder *e, unsigned nthreads,
     return ring + nthreads * per_thread + tvpal_engine_table_bytes(e->eng);
 }
 
+/* This rank's node directories and shard writers. */
 static int open_writers(struct tvpal_encoder *e, struct tvpal_diag *diag)
 {
     uint32_t n;
     struct tvpal_engine_shard *sj = tvpal_engine_shards(e->eng, &n);
-    for (uint32_t k = 0; k < e->ep.nodes; k++) {
-        char *nd = tvpal_node_dir(e->partial, NULL, k);
+    for (uint32_t k = 0; k < e->ep.node_count; k++) {
+        char *nd = tvpal_node_dir(e->partial, NULL, e->ep.node_first + k);
         int rc = nd ? tvpal_mkdirs(nd, diag) : TVPAL_E_NOMEM;
         free(nd);
         if (rc < 0)
@@ -359,24 +648,12 @@ static int open_writers(struct tvpal_encoder *e, struct tvpal_diag *diag)
     return 0;
 }
 
-/* The first push: the output checked and locked, the engine and its
- * workspaces, DIR.partial and the shard writers. */
-static int start(struct tvpal_encoder *e, enum tvpal_type type,
-                 struct tvpal_diag *diag)
+/* This rank's engine, threads and workspaces, and its shard writers. */
+static int setup(struct tvpal_encoder *e, struct tvpal_diag *diag)
 {
     const uint32_t *d = e->ep.dims;
-    const uint64_t nvox = (uint64_t)d[0] * d[1] * d[2];
-    e->type = type;
-    int rc = check_output(e, diag);
-    if (rc < 0)
-        return rc;
-    if (asprintf(&e->lock_path, "%s.lock", e->partial) < 0)
-        return TVPAL_E_NOMEM;
-    if ((rc = tvpal_lock_take(e->lock_path, &e->lock_fd, diag)) < 0) {
-        free(e->lock_path);
-        e->lock_path = NULL;
-        return rc;
-    }
+    const uint64_t nvox = (uint64_t)d[0] * d[1] * e->slab_n;
+    int rc;
     if ((rc = tvpal_engine_create(&e->eng, &e->ep)) < 0)
         return tvpal_diag_set(diag, rc, "the encoding parameters");
     const unsigned nt = e->threads ? e->threads
@@ -386,7 +663,7 @@ static int start(struct tvpal_encoder *e, enum tvpal_type type,
         return tvpal_diag_set(diag, TVPAL_E_RANGE, "%ux%ux%u at window %u "
                               "needs about %llu bytes (%u steps and the "
                               "workspaces of %u threads), over the memory "
-                              "limit of %llu", d[0], d[1], d[2],
+                              "limit of %llu", d[0], d[1], e->slab_n,
                               e->ep.window, (unsigned long long)need,
                               e->ep.window, nt,
                               (unsigned long long)e->mem_limit);
@@ -397,8 +674,6 @@ static int start(struct tvpal_encoder *e, enum tvpal_type type,
                    ? tvpal_diag_set(diag, rc, "TVPAL_TRANSFORM_KLT: built "
                                     "without LAPACK")
                    : rc;
-    if ((rc = tvpal_checkpoint_stats_init(&e->st)) < 0)
-        return rc;
     if (!(e->fine = calloc(nt, sizeof *e->fine)) ||
         !(e->found = calloc(nt, sizeof *e->found)) ||
         !(e->rows = calloc(nt, sizeof *e->rows)))
@@ -407,16 +682,42 @@ static int start(struct tvpal_encoder *e, enum tvpal_type type,
         if (!(e->fine[i] = calloc(TVPAL_CHECKPOINT_BINS, sizeof(uint64_t))) ||
             !(e->rows[i] = malloc((size_t)d[0] * 8)))
             return TVPAL_E_NOMEM;
+    /* One pass over this rank's slab: every axis for one process, z of
+     * the slab for a rank (x and y are refused then). */
+    const uint32_t z0 = e->slab_z0, z1 = e->slab_z0 + e->slab_n;
     e->pass = (struct encode_pass){
-        .box = {{0, 0, 0}, {d[0], d[1], d[2]}},
-        .s0 = {0, 0, 0}, .s1 = {d[0], d[1], d[2]}, .axes = 7, .stats = 1};
+        .box = {{0, 0, z0}, {d[0], d[1], e->slab_n}},
+        .s0 = {0, 0, z0}, .s1 = {d[0], d[1], z1}, .axes = 7, .stats = 1};
     tvpal_engine_set_pass(e->eng, &e->pass);
-    /* A partial output of an earlier job is not resumed (yet): it goes. */
-    if (tvpal_exists(e->partial) && tvpal_rmtree(e->partial) < 0)
-        return tvpal_diag_set(diag, TVPAL_E_SYS, "%s: cannot remove the "
-                              "partial output of an earlier job",
-                              e->partial);
     return open_writers(e, diag);
+}
+
+/* The first push, on every rank: START (nobody refused; rank 0 prepares
+ * the output) and SETUP (every rank ready).  The first failure is every
+ * rank's. */
+static int start(struct tvpal_encoder *e, enum tvpal_type type,
+                 struct tvpal_diag *diag)
+{
+    struct tvpal_diag d = {{0}};
+    struct verdict v;
+    e->type = type;
+    int rc = check_job(e, &d);
+    if (agree(e, R_START, rc, d.msg, &v) < 0)
+        return report(rc, &v, diag);
+    if ((rc = tvpal_checkpoint_stats_init(&e->st)) < 0)
+        snprintf(d.msg, sizeof d.msg, "out of memory");
+    if (is_root(e)) {
+        /* Rank 0 alone touches DIR and DIR.partial, and says how it went. */
+        memset(&v, 0, sizeof v);
+        v.code = rc == 0 ? prepare_output(e, &d) : rc;
+        snprintf(v.msg, sizeof v.msg, "%s%.1000s",
+                 e->coll.size > 1 ? "rank 0: " : "", d.msg);
+    }
+    if (tell(e, &v) < 0)
+        return report(0, &v, diag);
+    rc = rc == 0 ? setup(e, &d) : rc;
+    agree(e, R_SETUP, rc, d.msg, &v);
+    return report(rc, &v, diag);
 }
 
 /* ----------------------------------------------------------------- push */
@@ -460,8 +761,8 @@ static void convert_plane(void *arg, size_t z, unsigned tid)
     }
 }
 
-/* Converts the step at data into the ring and counts it; a refused value
- * is named by its voxel. */
+/* Converts the step (this rank's slab of it) at data into the ring and
+ * counts it; a refused value is named by its voxel in the volume. */
 static int take_step(struct tvpal_encoder *e, const void *data,
                      const ptrdiff_t *strides, struct tvpal_diag *diag)
 {
@@ -476,12 +777,12 @@ static int take_step(struct tvpal_encoder *e, const void *data,
     struct tvpal_found all = tvpal_found_empty(e->st.vmin, e->st.vmax);
     for (unsigned i = 0; i < nt; i++)
         e->found[i] = all;
-    tvpal_pool_for(e->pool, d[2], convert_plane, &c);
+    tvpal_pool_for(e->pool, e->slab_n, convert_plane, &c);
     for (unsigned i = 0; i < nt; i++)
         tvpal_found_merge(&all, &e->found[i]);
     if (all.rc < 0) {
         const uint64_t x = all.bad % d[0], y = all.bad / d[0] % d[1],
-                       z = all.bad / d[0] / d[1];
+                       z = all.bad / d[0] / d[1] + e->slab_z0;
         return tvpal_diag_set(diag, all.rc, "step %u: %s at voxel "
                               "(%llu,%llu,%llu); finite values within 1e37 "
                               "expected, NaN for missing ones", e->pushed,
@@ -491,7 +792,7 @@ static int take_step(struct tvpal_encoder *e, const void *data,
                               (unsigned long long)z);
     }
     tvpal_values_account(&e->st, e->fine, nt, &all,
-                         (uint64_t)d[0] * d[1] * d[2]);
+                         (uint64_t)d[0] * d[1] * e->slab_n);
     e->st.loaded = ++e->pushed;
     return 0;
 }
@@ -520,8 +821,8 @@ static int encode_ready(struct tvpal_encoder *e, struct tvpal_diag *diag)
 }
 
 int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
-                       enum tvpal_scalar type, const ptrdiff_t strides[3],
-                       struct tvpal_diag *diag)
+                       enum tvpal_scalar type, size_t count,
+                       const ptrdiff_t strides[3], struct tvpal_diag *diag)
 {
     if (e->state == FAILED)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "a push after a failed "
@@ -531,26 +832,40 @@ int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
                               "or TVPAL_FLOAT64 expected", (int)type);
     if (!data)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "no data");
+    const uint64_t want = (uint64_t)e->ep.dims[0] * e->ep.dims[1] * e->slab_n;
+    if (count != want)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u: %zu values "
+                              "pushed, %llu expected (%ux%ux%u)", e->pushed,
+                              count, (unsigned long long)want, e->ep.dims[0],
+                              e->ep.dims[1], e->slab_n);
     if (e->pushed == e->ep.steps)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u pushed: the "
                               "encoder was opened for %u", e->pushed + 1,
                               e->ep.steps);
     const enum tvpal_type t = type == TVPAL_FLOAT32 ? TVPAL_F32 : TVPAL_F64;
     int rc = 0;
+    struct tvpal_diag d = {{0}};
     if (e->state == OPENED) {
         e->state = STARTED;
-        rc = start(e, t, diag);
+        rc = start(e, t, &d);
     } else if (t != e->type) {
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u is %s, step 0 "
                               "was %s: one type for the series", e->pushed,
                               tvpal_type_name(t), tvpal_type_name(e->type));
     }
     if (rc == 0)
-        rc = take_step(e, data, strides, diag);
+        rc = take_step(e, data, strides, &d);
     if (rc == 0)
-        rc = encode_ready(e, diag);
-    if (rc < 0)
+        rc = encode_ready(e, &d);
+    if (rc < 0 && e->state != FAILED) {
         e->state = FAILED;
+        if (!e->decided && !e->own_rc) {
+            e->own_rc = rc;
+            memcpy(e->own_msg, d.msg, sizeof d.msg);
+        }
+        if (diag)
+            *diag = d;
+    }
     return rc;
 }
 
@@ -559,16 +874,19 @@ int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
 /* The manifest: the job's fields (tvpal_engine_manifest) and the grid;
  * source_format stays "" (raw): the values as host float32 or float64,
  * which tvpal-report --reference compares with raw files of them. */
-static int build_manifest(const struct tvpal_encoder *e,
-                          struct tvpal_manifest *m)
+static int build_manifest(const struct tvpal_encoder *e, char **text)
 {
     const struct tvpal_engine_source src = {
         .type = e->type, .nan_as = e->has_nan_as ? &e->nan_as : NULL,
         .missing = e->missing, .nmissing = e->nmissing};
+    struct tvpal_manifest m;
     int rc = tvpal_engine_manifest(&e->ep, &src, &e->st, e->times,
-                                   e->time_units, e->units, LIB_NAME, m);
-    memcpy(m->spacing, e->spacing, sizeof m->spacing);
-    memcpy(m->origin, e->origin, sizeof m->origin);
+                                   e->time_units, e->units, LIB_NAME, &m);
+    memcpy(m.spacing, e->spacing, sizeof m.spacing);
+    memcpy(m.origin, e->origin, sizeof m.origin);
+    if (rc == 0)
+        rc = tvpal_manifest_format(&m, text);
+    tvpal_manifest_clear(&m);
     return rc;
 }
 
@@ -583,9 +901,61 @@ static int write_manifest(const char *dir, const char *text,
     return rc;
 }
 
-/* The shards finished, the manifest in DIR.partial and every node
- * directory. */
-static int finish_partial(struct tvpal_encoder *e, struct tvpal_diag *diag)
+/* STATS: every rank has pushed every step; the statistics summed on rank
+ * 0 become every rank's, with the manifest's text (*text, malloc'ed). */
+static int agree_stats(struct tvpal_encoder *e, int rc, const char *msg,
+                       char **text, struct tvpal_diag *diag)
+{
+    struct verdict v;
+    if (agree(e, R_STATS, rc, msg, &v) < 0)
+        return report(rc, &v, diag);
+    if (sum_histograms(e) < 0) {
+        e->decided = 1;
+        return tvpal_diag_set(diag, TVPAL_E_SYS, "rank %d: the collective's "
+                              "gather failed", e->coll.rank);
+    }
+    e->st.vmin = v.vmin, e->st.vmax = v.vmax;
+    e->st.nonfinite = v.nonfinite, e->st.missing = v.missing;
+    e->st.counted = v.counted;
+    if (is_root(e)) {
+        const double keep[2] = {v.vmin, v.vmax};
+        memset(&v, 0, sizeof v);
+        v.vmin = keep[0], v.vmax = keep[1];
+        v.code = build_manifest(e, text);
+        if (v.code < 0)
+            snprintf(v.msg, sizeof v.msg, "rank 0: the manifest: out of "
+                     "memory");
+        else
+            v.text_len = (uint32_t)strlen(*text);
+    }
+    if (tell(e, &v) < 0)
+        return report(0, &v, diag);
+    if (!is_root(e) && !(*text = calloc(1, (size_t)v.text_len + 1)))
+        rc = tvpal_diag_set(diag, TVPAL_E_NOMEM, "rank %d: the manifest's "
+                            "%u bytes", e->coll.rank, v.text_len);
+    /* The text in pieces through a buffer of the stack, so that a rank
+     * that could not hold it still takes part (and fails in PLACE). */
+    char piece[4096];
+    for (uint32_t o = 0; o < v.text_len; o += sizeof piece) {
+        const size_t n = v.text_len - o < sizeof piece ? v.text_len - o
+                                                       : sizeof piece;
+        if (is_root(e))
+            memcpy(piece, *text + o, n);
+        if (e->coll.bcast(e->coll.ctx, piece, n) != 0) {
+            e->decided = 1;
+            return tvpal_diag_set(diag, TVPAL_E_SYS, "rank %d: the "
+                                  "collective's bcast failed", e->coll.rank);
+        }
+        if (!is_root(e) && *text)
+            memcpy(*text + o, piece, n);
+    }
+    return rc;
+}
+
+/* This rank's shards finished, with the source's range, and its node
+ * directories' manifests. */
+static int finish_shards(struct tvpal_encoder *e, const char *text,
+                         struct tvpal_diag *diag)
 {
     uint32_t n;
     struct tvpal_engine_shard *sj = tvpal_engine_shards(e->eng, &n);
@@ -596,31 +966,27 @@ static int finish_partial(struct tvpal_encoder *e, struct tvpal_diag *diag)
         if (rc < 0)
             return rc;
     }
-    struct tvpal_manifest m;
-    char *text = NULL;
-    int rc = build_manifest(e, &m);
-    if (rc == 0)
-        rc = tvpal_manifest_format(&m, &text);
-    tvpal_manifest_clear(&m);
-    if (rc == 0)
-        rc = write_manifest(e->partial, text, diag);
-    for (uint32_t k = 0; rc == 0 && k < e->ep.nodes; k++) {
-        char *nd = tvpal_node_dir(e->partial, NULL, k);
-        rc = nd ? write_manifest(nd, text, diag) : TVPAL_E_NOMEM;
+    for (uint32_t k = 0; k < e->ep.node_count; k++) {
+        char *nd = tvpal_node_dir(e->partial, NULL, e->ep.node_first + k);
+        int rc = nd ? write_manifest(nd, text, diag) : TVPAL_E_NOMEM;
         free(nd);
+        if (rc < 0)
+            return rc;
     }
-    free(text);
-    if (rc == 0)
-        tvpal_fsync_dir(e->partial);
-    return rc;
+    return 0;
 }
 
 /* DIR.partial read back as a dataset, then renamed to DIR; an older DIR
  * (force) goes to DIR.old first and is removed after. */
-static int place(struct tvpal_encoder *e, struct tvpal_diag *diag)
+static int place(struct tvpal_encoder *e, const char *text,
+                 struct tvpal_diag *diag)
 {
+    int rc = write_manifest(e->partial, text, diag);
+    if (rc < 0)
+        return rc;
+    tvpal_fsync_dir(e->partial);
     struct tvpal_dataset *ds = NULL;
-    int rc = tvpal_dataset_open(&ds, e->partial, diag);
+    rc = tvpal_dataset_open(&ds, e->partial, diag);
     tvpal_dataset_close(ds);
     if (rc < 0)
         return rc;
@@ -640,6 +1006,7 @@ static int place(struct tvpal_encoder *e, struct tvpal_diag *diag)
         return tvpal_diag_set(diag, TVPAL_E_SYS, "%s: cannot rename to %s",
                               e->partial, e->dir);
     }
+    e->made_partial = 0;
     char *parent = strdup(e->dir), *slash = parent ? strrchr(parent, '/')
                                                    : NULL;
     if (slash)
@@ -652,11 +1019,15 @@ static int place(struct tvpal_encoder *e, struct tvpal_diag *diag)
     return 0;
 }
 
+/* Frees e; on rank 0, a partial output left (a failure) goes first, and
+ * the lock with it. */
 static void release(struct tvpal_encoder *e)
 {
     const unsigned nt = e->pool ? tvpal_pool_threads(e->pool) : 0;
     tvpal_engine_free(e->eng);
     tvpal_pool_free(e->pool);
+    if (e->made_partial)
+        tvpal_rmtree(e->partial);
     for (unsigned i = 0; i < nt; i++) {
         if (e->fine)
             free(e->fine[i]);
@@ -666,6 +1037,10 @@ static void release(struct tvpal_encoder *e)
     free(e->fine);
     free(e->rows);
     free(e->found);
+    free(e->votes);
+    free(e->pieces);
+    if (e->coll.release)
+        e->coll.release(e->coll.ctx);
     tvpal_checkpoint_stats_free(&e->st);
     if (e->lock_path)
         tvpal_lock_release(e->lock_path, e->lock_fd);
@@ -676,22 +1051,56 @@ static void release(struct tvpal_encoder *e)
     free(e);
 }
 
+/* This rank fails: it joins the round the others will reach (START before
+ * the first push, STATS after), so that every rank ends. */
+static void join_failing(struct tvpal_encoder *e, int rc, const char *msg)
+{
+    struct verdict v;
+    if (e->decided || e->round >= R_DONE)
+        return;
+    if (e->own_rc)
+        rc = e->own_rc, msg = e->own_msg;
+    if (e->round == R_START || e->round == R_STATS)
+        agree(e, e->round, rc, msg, &v);
+}
+
 int tvpal_encoder_finish(struct tvpal_encoder *e, struct tvpal_diag *diag)
 {
+    struct tvpal_diag d = {{0}};
     int rc = 0;
     if (e->state == FAILED)
-        rc = tvpal_diag_set(diag, TVPAL_E_INVAL, "finish after a failed "
+        rc = tvpal_diag_set(&d, TVPAL_E_INVAL, "finish after a failed "
                             "push: nothing was written at %s", e->dir);
     else if (e->pushed < e->ep.steps)
-        rc = tvpal_diag_set(diag, TVPAL_E_INVAL, "finish after %u of %u "
+        rc = tvpal_diag_set(&d, TVPAL_E_INVAL, "finish after %u of %u "
                             "steps: nothing was written at %s", e->pushed,
                             e->ep.steps, e->dir);
+    if (rc < 0 || e->decided) {
+        join_failing(e, rc ? rc : TVPAL_E_INVAL, d.msg);
+        if (diag)
+            *diag = d;
+        release(e);
+        return rc ? rc : TVPAL_E_INVAL;
+    }
+    char *text = NULL;
+    rc = agree_stats(e, 0, NULL, &text, &d);
     if (rc == 0)
-        rc = finish_partial(e, diag);
-    if (rc == 0)
-        rc = place(e, diag);
-    if (rc < 0 && e->state != OPENED && e->lock_path)
-        tvpal_rmtree(e->partial);
+        rc = finish_shards(e, text, &d);
+    if (!e->decided) {
+        struct verdict v;
+        if (agree(e, R_PLACE, rc, d.msg, &v) == 0) {
+            if (is_root(e)) {
+                memset(&v, 0, sizeof v);
+                v.code = place(e, text, &d);
+                snprintf(v.msg, sizeof v.msg, "%s", d.msg);
+            }
+            tell(e, &v);
+        }
+        rc = report(rc, &v, &d);
+    }
+    free(text);
+    if (diag)
+        *diag = d;
     release(e);
     return rc;
 }
@@ -700,7 +1109,8 @@ void tvpal_encoder_abort(struct tvpal_encoder *e)
 {
     if (!e)
         return;
-    if (e->state != OPENED && e->lock_path)
-        tvpal_rmtree(e->partial);
+    char msg[64];
+    snprintf(msg, sizeof msg, "the encode was aborted");
+    join_failing(e, TVPAL_E_INVAL, msg);
     release(e);
 }

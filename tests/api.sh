@@ -12,18 +12,11 @@
 command -v pkg-config > /dev/null || { echo "no pkg-config: skipped"; exit 77; }
 CC=${TVPAL_CC:-cc}
 R=$W/root
-make -s -C "$TVPAL_BUILDDIR" DESTDIR="$R" install-libLTLIBRARIES \
-    install-includeHEADERS install-pkgconfigDATA > "$W/install.txt" 2>&1 ||
-    { cat "$W/install.txt"; fail "make install of the library"; finish; }
-pc=$(find "$R" -name tvpal.pc | head -n 1)
-[ -n "$pc" ] || { fail "no tvpal.pc installed"; finish; }
-export PKG_CONFIG_PATH="$(dirname "$pc")" PKG_CONFIG_SYSROOT_DIR="$R"
-export PKG_CONFIG_LIBDIR="$(dirname "$pc")"
+install_lib || { fail "make install of the library, with tvpal.pc"; finish; }
 pcflags=$(pkg-config --cflags tvpal) && plibs=$(pkg-config --libs tvpal) ||
     { fail "pkg-config --cflags --libs tvpal"; finish; }
 [ "$(pkg-config --modversion tvpal)" = 0.1.0 ] && ok "pkg-config: tvpal 0.1.0" ||
     fail "pkg-config --modversion: $(pkg-config --modversion tvpal)"
-libdir=$(pkg-config --variable=libdir tvpal)
 so=$(ls "$libdir"/libtvpal.so.0* 2>/dev/null | head -n 1)
 [ -n "$so" ] || fail "no libtvpal.so.0 installed in $libdir"
 # Only the API: every exported function is declared in tvpal.h or

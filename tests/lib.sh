@@ -76,3 +76,17 @@ PY
             || fail "$(basename "$1") step $2 axis $a: NaN at '$got', expected '$want'"
     done
 }
+
+# install_lib: libtvpal, its headers and tvpal.pc installed into $W/root
+# (make install-... DESTDIR), and pkg-config pointed at them only, as a
+# user's program finds an installed library; sets pcdir and libdir.
+install_lib() {
+    make -s -C "$TVPAL_BUILDDIR" DESTDIR="$W/root" install-libLTLIBRARIES \
+        install-includeHEADERS install-pkgconfigDATA > "$W/install.txt" 2>&1 ||
+        { cat "$W/install.txt"; return 1; }
+    pcdir=$(dirname "$(find "$W/root" -name tvpal.pc | head -n 1)")
+    [ -f "$pcdir/tvpal.pc" ] || return 1
+    export PKG_CONFIG_PATH="$pcdir" PKG_CONFIG_SYSROOT_DIR="$W/root"
+    export PKG_CONFIG_LIBDIR="$pcdir"
+    libdir=$(pkg-config --variable=libdir tvpal)
+}

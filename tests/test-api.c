@@ -10,10 +10,16 @@
  *  - nothing that looks complete after: abort halfway, finish with steps
  *    missing, a refused value (an infinity: the voxel named), an output
  *    that exists (TVPAL_E_EXIST, unless forced over a dataset), a lock
- *    another encoder holds, a memory limit too small. */
+ *    another encoder holds, a memory limit too small;
+ *  - ranks (threads here, with a collective of shared memory) that each
+ *    push their z-slab write the shards and manifest one process writes
+ *    with TVPAL_PARAM_NODES, byte for byte; a wrong slab, an abort
+ *    halfway, a refused value on one rank, an output that exists: every
+ *    rank fails with the failing rank's message, nothing left at DIR. */
 #include "tvpal.h"
 #include "tvpal_test.h"
 
+#include <pthread.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -106,8 +112,8 @@ static int encode(const char *dir, int f64, struct tvpal_diag *d)
             for (unsigned y = 0; y < NY; y++)
                 for (unsigned x = 0; x < NX; x++)
                     w[z + NZ * (y + NY * x)] = v[x + NX * (y + NY * z)];
-        rc = f64 ? tvpal_encoder_push(e, w, TVPAL_FLOAT64, zfast, d)
-                 : tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, d);
+        rc = f64 ? tvpal_encoder_push(e, w, TVPAL_FLOAT64, NV, zfast, d)
+                 : tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, d);
     }
     if (rc < 0) {
         tvpal_encoder_abort(e);
@@ -144,12 +150,16 @@ static void test_params(void)
               strstr(d.msg, "step 3"), "times repeat: %s", d.msg);
     float v[NV];
     fill(v, 0);
-    CHECK(tvpal_encoder_push(e, v, (enum tvpal_scalar)7, NULL, &d) ==
+    CHECK(tvpal_encoder_push(e, v, (enum tvpal_scalar)7, NV, NULL, &d) ==
               TVPAL_E_INVAL, "type 7 taken");
-    CHECK(tvpal_encoder_push(e, NULL, TVPAL_FLOAT32, NULL, &d) ==
+    CHECK(tvpal_encoder_push(e, NULL, TVPAL_FLOAT32, NV, NULL, &d) ==
               TVPAL_E_INVAL, "NULL data taken");
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV - 1, NULL, &d) ==
+              TVPAL_E_INVAL && strstr(d.msg, "377 values pushed, 378 "
+                                      "expected (9x7x6)"),
+          "a push of the wrong size: %s", d.msg);
     CHECK(!exists(path("%s/p%s", ".partial")), "a refused push wrote");
-    REQUIRE(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == 0,
+    REQUIRE(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, &d) == 0,
             "push: %s", d.msg);
     CHECK(exists(path("%s/p%s", ".partial")) &&
               exists(path("%s/p%s", ".partial.lock")),
@@ -158,11 +168,11 @@ static void test_params(void)
               strstr(d.msg, "after the first push"), "set after push: %s",
           d.msg);
     double w[NV];
-    CHECK(tvpal_encoder_push(e, w, TVPAL_FLOAT64, NULL, &d) ==
+    CHECK(tvpal_encoder_push(e, w, TVPAL_FLOAT64, NV, NULL, &d) ==
               TVPAL_E_INVAL && strstr(d.msg, "one type"),
           "a second type: %s", d.msg);
     /* A push refused for its arguments changes nothing. */
-    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == 0,
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, &d) == 0,
           "a push after a refused type: %s", d.msg);
     tvpal_encoder_abort(e);
     CHECK(!exists(path("%s/p%s", "")) && !exists(path("%s/p%s", ".partial")) &&
@@ -244,7 +254,7 @@ static void test_nothing_left(void)
             "open");
     for (unsigned t = 0; t < 4; t++) {
         fill(v, t);
-        CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == 0,
+        CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, &d) == 0,
               "push %u: %s", t, d.msg);
     }
     CHECK(tvpal_encoder_finish(e, &d) == TVPAL_E_INVAL &&
@@ -257,13 +267,13 @@ static void test_nothing_left(void)
     REQUIRE(tvpal_encoder_open(&e, path("%s/inf%s", ""), dims, T, &d) == 0,
             "open");
     fill(v, 0);
-    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == 0, "push");
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, &d) == 0, "push");
     v[3 + NX * (2 + NY * 1)] = INFINITY;
-    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == TVPAL_E_NAN &&
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, &d) == TVPAL_E_NAN &&
               strstr(d.msg, "(3,2,1)") && strstr(d.msg, "step 1"),
           "an infinity: %s", d.msg);
     fill(v, 1);
-    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == TVPAL_E_INVAL,
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, &d) == TVPAL_E_INVAL,
           "a push after a refused value taken");
     tvpal_encoder_abort(e);
     CHECK(!exists(path("%s/inf%s", ".partial")), "abort left the partial");
@@ -278,7 +288,7 @@ static void test_output_rules(void)
     /* f32 exists (test_identical_and_read): refused, then forced. */
     REQUIRE(tvpal_encoder_open(&e, path("%s/f32%s", ""), dims, 1, &d) == 0,
             "open");
-    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == TVPAL_E_EXIST,
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, &d) == TVPAL_E_EXIST,
           "an existing dataset replaced without force");
     tvpal_encoder_abort(e);
     CHECK(exists(path("%s/f32%s", "/manifest.txt")), "abort removed the "
@@ -286,7 +296,7 @@ static void test_output_rules(void)
     REQUIRE(tvpal_encoder_open(&e, path("%s/f32%s", ""), dims, 1, &d) == 0,
             "open");
     tvpal_encoder_set(e, TVPAL_PARAM_FORCE, 1, &d);
-    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == 0 &&
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, &d) == 0 &&
               tvpal_encoder_finish(e, &d) == 0, "forced: %s", d.msg);
     struct tvpal_reader *r = NULL;
     CHECK(tvpal_reader_open(&r, path("%s/f32%s", ""), &d) == 0 &&
@@ -298,7 +308,7 @@ static void test_output_rules(void)
     REQUIRE(tvpal_encoder_open(&e, path("%s/notds%s", ""), dims, 1, &d) == 0,
             "open");
     tvpal_encoder_set(e, TVPAL_PARAM_FORCE, 1, &d);
-    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) ==
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, &d) ==
               TVPAL_E_EXIST && strstr(d.msg, "not a tvpal dataset"),
           "a directory that is no dataset: %s", d.msg);
     tvpal_encoder_abort(e);
@@ -307,15 +317,15 @@ static void test_output_rules(void)
     REQUIRE(tvpal_encoder_open(&e, path("%s/two%s", ""), dims, 2, &d) == 0 &&
                 tvpal_encoder_open(&e2, path("%s/two%s", ""), dims, 2, &d) ==
                     0, "open");
-    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == 0, "push");
-    CHECK(tvpal_encoder_push(e2, v, TVPAL_FLOAT32, NULL, &d) ==
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, &d) == 0, "push");
+    CHECK(tvpal_encoder_push(e2, v, TVPAL_FLOAT32, NV, NULL, &d) ==
               TVPAL_E_EXIST, "a second encoder of one output: %s", d.msg);
     tvpal_encoder_abort(e2);
     CHECK(exists(path("%s/two%s", ".partial")), "the second encoder's abort "
           "removed the first's partial output");
-    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == 0,
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, &d) == 0,
           "the first: %s", d.msg);
-    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) ==
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, &d) ==
               TVPAL_E_INVAL && strstr(d.msg, "opened for 2"),
           "a push past the last step: %s", d.msg);
     CHECK(tvpal_encoder_finish(e, &d) == 0, "finish: %s", d.msg);
@@ -323,10 +333,221 @@ static void test_output_rules(void)
     REQUIRE(tvpal_encoder_open(&e, path("%s/mem%s", ""), dims, T, &d) == 0,
             "open");
     tvpal_encoder_set(e, TVPAL_PARAM_MEM_LIMIT, 4096, &d);
-    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NULL, &d) == TVPAL_E_RANGE &&
+    CHECK(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, &d) == TVPAL_E_RANGE &&
               strstr(d.msg, "memory limit"), "limit 4096: %s", d.msg);
     tvpal_encoder_abort(e);
     CHECK(!exists(path("%s/mem%s", ".partial")), "left a partial");
+}
+
+/* ------------------------------------------------------------ collective
+ *
+ * Ranks as threads of this process, and a collective of shared memory: a
+ * gather or bcast is a barrier, the copies, a barrier. */
+#define RANKS 4  /* NZ = 6: slabs of 2, 2, 1, 1 planes */
+
+struct group {
+    pthread_barrier_t bar;
+    const void *send[RANKS];
+};
+struct member {
+    struct group *g;
+    int rank;
+};
+
+static int fake_gather(void *ctx, const void *send, size_t bytes, void *recv)
+{
+    struct member *m = ctx;
+    m->g->send[m->rank] = send;
+    pthread_barrier_wait(&m->g->bar);
+    if (m->rank == 0)
+        for (int k = 0; k < RANKS; k++)
+            memcpy((char *)recv + k * bytes, m->g->send[k], bytes);
+    pthread_barrier_wait(&m->g->bar);
+    return 0;
+}
+
+static int fake_bcast(void *ctx, void *buf, size_t bytes)
+{
+    struct member *m = ctx;
+    if (m->rank == 0)
+        m->g->send[0] = buf;
+    pthread_barrier_wait(&m->g->bar);
+    if (m->rank != 0)
+        memcpy(buf, m->g->send[0], bytes);
+    pthread_barrier_wait(&m->g->bar);
+    return 0;
+}
+
+/* What a rank does, and what came of it. */
+struct rank_job {
+    struct member m;
+    const char *dir;
+    int wrong_slab;          /* declares the next rank's slab */
+    int abort_at;            /* aborts before pushing this step (-1: no) */
+    int inf_at;              /* pushes an infinity at this step (-1: no) */
+    int set_rc, push_rc, finish_rc;
+    struct tvpal_diag d;
+};
+
+static void *rank_main(void *arg)
+{
+    struct rank_job *j = arg;
+    struct tvpal_encoder *e = NULL;
+    struct tvpal_diag *d = &j->d;
+    const struct tvpal_collective c = {j->m.rank, RANKS, &j->m, fake_gather,
+                                       fake_bcast};
+    uint32_t z0, nz;
+    tvpal_slab(NZ, RANKS, (uint32_t)j->m.rank + (j->wrong_slab ? 1 : 0), &z0,
+               &nz);
+    if (tvpal_encoder_open(&e, j->dir, dims, T, d) < 0)
+        return NULL;
+    tvpal_encoder_set(e, TVPAL_PARAM_WINDOW, 3, d);
+    tvpal_encoder_set(e, TVPAL_PARAM_THREADS, 1, d);
+    j->set_rc = tvpal_encoder_set_collective(e, &c, z0, nz, d);
+    float v[NV];
+    for (unsigned t = 0; t < T; t++) {
+        if ((int)t == j->abort_at) {
+            tvpal_encoder_abort(e);
+            return NULL;
+        }
+        fill(v, t);
+        if ((int)t == j->inf_at)
+            v[NX * NY * z0 + 5] = INFINITY;
+        j->push_rc = tvpal_encoder_push(e, v + NX * NY * z0, TVPAL_FLOAT32,
+                                        (size_t)NX * NY * nz, NULL, d);
+        if (j->push_rc < 0) {
+            tvpal_encoder_abort(e);
+            return NULL;
+        }
+    }
+    j->finish_rc = tvpal_encoder_finish(e, d);
+    return NULL;
+}
+
+/* Runs RANKS ranks into dir; rank `who` does what `how` says. */
+static void run_ranks(struct rank_job *jobs, const char *dir, int who,
+                      const char *how)
+{
+    struct group g;
+    pthread_barrier_init(&g.bar, NULL, RANKS);
+    pthread_t th[RANKS];
+    for (int k = 0; k < RANKS; k++) {
+        jobs[k] = (struct rank_job){.m = {&g, k}, .dir = dir,
+                                    .abort_at = -1, .inf_at = -1};
+        if (k == who && !strcmp(how, "wrong slab"))
+            jobs[k].wrong_slab = 1;
+        if (k == who && !strcmp(how, "abort"))
+            jobs[k].abort_at = 3;
+        if (k == who && !strcmp(how, "infinity"))
+            jobs[k].inf_at = 4;
+        pthread_create(&th[k], NULL, rank_main, &jobs[k]);
+    }
+    for (int k = 0; k < RANKS; k++)
+        pthread_join(th[k], NULL);
+    pthread_barrier_destroy(&g.bar);
+}
+
+static int same_file(const char *a, const char *b)
+{
+    size_t n1 = 0, n2 = 0;
+    unsigned char *b1 = slurp(a, &n1), *b2 = slurp(b, &n2);
+    int same = b1 && b2 && n1 == n2 && !memcmp(b1, b2, n1);
+    free(b1);
+    free(b2);
+    return same;
+}
+
+static void test_collective(void)
+{
+    struct tvpal_diag d = {{0}};
+    uint32_t z0, nz;
+    tvpal_slab(NZ, RANKS, 3, &z0, &nz);
+    CHECK(z0 == 5 && nz == 1, "slab 3 of 4 of 6 planes: %u, %u", z0, nz);
+    /* The reference: one process, --nodes RANKS. */
+    struct tvpal_encoder *e = NULL;
+    REQUIRE(tvpal_encoder_open(&e, path("%s/one%s", ""), dims, T, &d) == 0,
+            "open");
+    tvpal_encoder_set(e, TVPAL_PARAM_WINDOW, 3, &d);
+    tvpal_encoder_set(e, TVPAL_PARAM_NODES, RANKS, &d);
+    float v[NV];
+    for (unsigned t = 0; t < T; t++) {
+        fill(v, t);
+        REQUIRE(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, &d) == 0,
+                "push: %s", d.msg);
+    }
+    REQUIRE(tvpal_encoder_finish(e, &d) == 0, "finish: %s", d.msg);
+
+    struct rank_job j[RANKS];
+    run_ranks(j, path("%s/ranks%s", ""), -1, "");
+    for (int k = 0; k < RANKS; k++)
+        CHECK(j[k].set_rc == 0 && j[k].push_rc == 0 && j[k].finish_rc == 0,
+              "rank %d: %d %d %d %s", k, j[k].set_rc, j[k].push_rc,
+              j[k].finish_rc, j[k].d.msg);
+    CHECK(same_file(path("%s/one%s", "/manifest.txt"),
+                    path("%s/ranks%s", "/manifest.txt")),
+          "the ranks' manifest differs from one process's");
+    for (int k = 0; k < RANKS; k++) {
+        char f[64];
+        snprintf(f, sizeof f, "/node-%d/axis-z.tvps", k);
+        CHECK(same_file(path("%s/one%s", f), path("%s/ranks%s", f)),
+              "node %d's shard differs from one process's", k);
+        snprintf(f, sizeof f, "/node-%d/manifest.txt", k);
+        CHECK(same_file(path("%s/one%s", f), path("%s/ranks%s", f)),
+              "node %d's manifest differs", k);
+    }
+    CHECK(!exists(path("%s/ranks%s", ".partial")) &&
+              !exists(path("%s/ranks%s", ".partial.lock")),
+          "the ranks left their partial output or lock");
+
+    /* Every failure fails every rank, with the failing rank's message, and
+     * leaves nothing at DIR. */
+    static const struct {
+        int who;
+        const char *how, *says;
+    } bad[] = {{1, "wrong slab", "rank 1: rank 1 of 4 pushes planes"},
+               {2, "abort", "rank 2: the encode was aborted"},
+               {3, "infinity", "rank 3: step 4: an infinite value at voxel "
+                               "(5,0,5)"},
+               {0, "exists", "rank 0: "}};
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        const char *dir = path("%s/bad%s", "");
+        char cmd[600];
+        snprintf(cmd, sizeof cmd, "rm -rf %s %s.partial", dir, dir);
+        REQUIRE(system(cmd) == 0, "rm");
+        if (!strcmp(bad[i].how, "exists"))
+            mkdir(dir, 0755);
+        run_ranks(j, dir, bad[i].who, bad[i].how);
+        for (int k = 0; k < RANKS; k++) {
+            if (k == bad[i].who && bad[i].who != 0)
+                continue;
+            const int rc = j[k].finish_rc ? j[k].finish_rc : j[k].push_rc;
+            CHECK(rc < 0 && strstr(j[k].d.msg, bad[i].says),
+                  "%s on rank %d: rank %d got %d \"%s\"", bad[i].how,
+                  bad[i].who, k, rc, j[k].d.msg);
+        }
+        CHECK(!exists(path("%s/bad%s", ".partial")) &&
+                  !exists(path("%s/bad%s", ".partial.lock")),
+              "%s: a partial output or lock left", bad[i].how);
+        CHECK(!strcmp(bad[i].how, "exists") ? !exists(path("%s/bad%s",
+                                                            "/manifest.txt"))
+                                                  && exists(dir)
+                                            : !exists(dir),
+              "%s: something at DIR", bad[i].how);
+    }
+    CHECK(j[0].push_rc == TVPAL_E_EXIST, "an existing DIR: %d",
+          j[0].push_rc);
+
+    /* Refused outright: an operation missing, a rank out of range, x
+     * slices across the slabs. */
+    REQUIRE(tvpal_encoder_open(&e, path("%s/c%s", ""), dims, T, &d) == 0,
+            "open");
+    struct tvpal_collective c = {0, 2, NULL, fake_gather, NULL};
+    CHECK(tvpal_encoder_set_collective(e, &c, 0, 3, &d) == TVPAL_E_INVAL,
+          "a collective without bcast");
+    c.bcast = fake_bcast, c.rank = 2;
+    CHECK(tvpal_encoder_set_collective(e, &c, 0, 3, &d) == TVPAL_E_INVAL &&
+              strstr(d.msg, "rank 2 of 2"), "rank 2 of 2: %s", d.msg);
+    tvpal_encoder_abort(e);
 }
 
 int main(void)
@@ -341,6 +562,7 @@ int main(void)
     test_identical_and_read();
     test_nothing_left();
     test_output_rules();
+    test_collective();
     int rc = tt_done("test-api");
     if (rc == 0) {
         snprintf(cmd, sizeof cmd, "rm -rf %s", W);
