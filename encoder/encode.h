@@ -1,24 +1,30 @@
-/* encode.h: the parts of tvpal-encode and what they share.
+/* encode.h: the state of one tvpal-encode run, which its modules share.
  *
- * tvpal-encode.c has the options, the output directories, the plan's glue,
- * the workspaces, the streaming driver (passes over steps, chunks written
- * in place, checkpoints) and the finishing; encode_source.c reads the
- * input (raw boxes in blocks, self-describing readers with a read-ahead
- * thread) and checks it; encode_cluster.c is the MPI job (one rank per
- * node shard) and how its ranks agree on the end.  struct run is the one
- * state of a run, set up by main's steps in order and released by
- * run_free.
+ * struct run is set up by main's steps in order (tvpal-encode.c) and
+ * released by run_free.  The modules, bottom to top, each including only
+ * the headers below it (tests/layers.sh checks the order LAYERS.md gives):
+ *   encode_say.h      messages and how a failure ends the program
+ *   encode.h          this header: the options and the run (data only)
+ *   encode_output.h   the node directories, shards, manifest, placing,
+ *                     warnings and progress
+ *   encode_source.h   the input: raw boxes in blocks, self-describing
+ *                     readers with a read-ahead thread, its checks
+ *   encode_levels.h   --levels: the coarser levels through libtvpal
+ *   encode_cluster.h  the MPI job (one rank per node shard) and how its
+ *                     ranks agree on the end
+ *   tvpal-encode.c    the options, the plan, the workspaces, the
+ *                     streaming driver and the finishing
  *
- * Program code, not library code: the functions here report and end the
- * program themselves (msg, die_*: see enum ending).
+ * Program code, not library code: the modules report and end the program
+ * themselves (encode_say.h).
  */
 #ifndef TVPAL_ENCODE_H
 #define TVPAL_ENCODE_H
 
 #include "encode_plan.h"
+#include "encode_say.h"
 #include "tvpal_checkpoint.h"
 #include "tvpal_engine.h"
-#include "tvpal_comm.h"
 #include "tvpal_error.h"
 #include "tvpal_format.h"
 #include "tvpal_input.h"
@@ -31,7 +37,6 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define PROG "tvpal-encode"
 
 /* The axes encoded without --axes (a mask of TVPAL_AXIS_BIT, tvpal_manifest.h):
  * z alone, since the player draws every view from the z slices within 10%
@@ -78,12 +83,6 @@ struct opts {
                                        * of TVPAL_AXIS_BIT (1..7) */
 };
 
-/* How a message ends the program: MSG_ONLY returns; the others exit with
- * code 2 (usage or bad input, before any output), 1 (output or system
- * failure: a partial output is kept for a rerun to resume) or 2 after
- * removing the partial output (bad input found mid-run: a rerun would fail
- * the same way, so nothing partial stays behind). */
-enum ending { MSG_ONLY, DIE_USAGE, DIE_FAIL, DIE_INPUT };
 
 
 /* Bytes of the reading scratch of one thread (raw input is read in blocks
@@ -165,98 +164,10 @@ struct run {
                               * level 0's one pass */
     struct levels *lvs;      /* the levels made as level 0's steps are
                               * read, or NULL */
+    struct cluster *cl;      /* the MPI job (encode_cluster.h) */
+    char *lock_path;         /* OUTDIR.partial.lock, held while it runs */
+    int lock_fd;             /* or -1 */
 };
 
-
-/* ------------------------------------------------------------ diagnostics */
-
-/* Under MPI (mpirun -np K, one rank per node shard): this process's
- * communicator, and the next round of the job's agreement
- * (encode_cluster.c) that a rank which fails joins with its message, so
- * that rank 0 reports it and every rank ends, none left waiting.  g_round
- * 0: one process; above ROUNDS: the rounds are over. */
-extern struct tvpal_comm g_comm;
-extern int g_round;
-#define ROUNDS 3
-extern char *g_partial;    /* removed on bad input found mid-run */
-
-void msg(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
-void die_usage(const char *fmt, ...)
-    __attribute__((format(printf, 1, 2), noreturn));
-void die_fail(const char *fmt, ...)
-    __attribute__((format(printf, 1, 2), noreturn));
-void die_input(const char *fmt, ...)
-    __attribute__((format(printf, 1, 2), noreturn));
-/* The text of a library error (a static buffer). */
-const char *lib_error(int rc, const struct tvpal_diag *d);
-
-/* ----------------------------------------------- tvpal-encode.c (output) */
-
-char *node_partial(const struct run *r, uint32_t k);
-char *shard_path(const struct run *r, const struct tvpal_engine_shard *j);
-void finish_shards(struct run *r);
-char *manifest_text(const struct run *r);
-void write_manifest(const char *dir, const char *text);
-int place_output(const struct run *r, char *err, size_t cap);
-int all_missing(const struct run *r, char *why, size_t cap);
-uint64_t dropped_values(const struct run *r);
-void warn_dropped(uint64_t dropped);
-void warn_dominating_values(const struct run *r);
-/* A progress line when one is due (every 30 s, 0.2 s on a terminal), or
- * the closing one when `last`; from thread 0 only. */
-void report_progress(struct run *r, int last);
-
-/* ------------------------------------------- encode_source.c (the input) */
-
-void order_inputs(struct opts *o);
-int open_source(struct run *r, int have_dims);
-void load_times(struct run *r);
-void warn_irregular_times(const struct run *r);
-void check_inputs(struct run *r);
-struct prefetch *prefetch_start(struct tvpal_input *in, uint64_t voxels);
-void prefetch_stop(struct prefetch *pf);
-void load_step(struct run *r, uint32_t t, float *dst);
-/* Per-thread findings of a box read for n threads (r->found_local);
- * NULL when out of memory.  Freed with free(). */
-struct tvpal_found *encode_found_alloc(size_t n);
-
-/* ---------------------------------------------------------------- levels */
-/* encode_levels.c.  The dims of level k of a volume of dims d0. */
-void level_dims(const uint32_t d0[3], unsigned k, uint32_t out[3]);
-/* The spacing sk and origin ok of a level of dims dk over level 0's grid
- * (s0, o0, dims d0): the same extent, its voxels' centres inside. */
-void level_grid(const double s0[3], const double o0[3], const uint32_t d0[3],
-                const uint32_t dk[3], double sk[3], double ok[3]);
-/* After level 0 is finished in OUTDIR.partial: levels 1..L into
- * OUTDIR.partial/level-k/ (encode_levels.c says how): those made beside
- * level 0 (r->lvs) finished, or made now from the source read again. */
-void encode_levels(struct run *r);
-/* The levels' encoders (the levels not yet complete), their steps made
- * from whole source steps given to levels_step (inline_steps: level 0's
- * single pass) or from the source read again (vol0 NULL); levels_close
- * finishes them and frees ls (ending the program on failure); levels_free
- * aborts them (a level's partial output goes) and frees ls. */
-struct levels;
-struct levels *levels_open(struct run *r, int inline_steps);
-void levels_step(struct run *r, struct levels *ls, uint32_t t,
-                 const float *vol0);
-void levels_close(struct run *r, struct levels *ls);
-void levels_free(struct levels *ls);
-void grid_of(const struct run *r, double spacing[3], double origin[3]);
-void check_grid(const struct run *r);
-/* Frees the ring's boxes (run_free frees the rest). */
-void release_ring(struct run *r);
-/* Rows of row_bytes a raw read takes at once: READ_BLOCK's worth, at
- * least one, at most rows_max (a plane's).  Sizes the reading scratch. */
-size_t read_rows(uint64_t row_bytes, uint32_t rows_max);
-
-/* -------------------------------------------- encode_cluster.c (the job) */
-
-void open_cluster(struct run *r, int *argc, char ***argv);
-void setup_cluster_dirs(struct run *r);
-void cluster_finish(struct run *r);
-void cluster_fail(enum ending how, const char *text)
-    __attribute__((noreturn));
-void cluster_free(void);
 
 #endif

@@ -1,7 +1,10 @@
-/* encode_cluster.c: tvpal-encode as an MPI job (see encode.h and the
+/* encode_cluster.c: tvpal-encode as an MPI job (encode_cluster.h and the
  * comment below). */
 #define _GNU_SOURCE
-#include "encode.h"
+#include "encode_cluster.h"
+#include "encode_output.h"
+#include "encode_say.h"
+#include "tvpal_comm.h"
 #include "tvpal_cli.h"
 #include "tvpal_dataset.h"
 #include "tvpal_fs.h"
@@ -55,23 +58,33 @@ struct round_decision {
     uint64_t bytes, text_len; /* round 1: the manifest's length */
 };
 
-static struct round_head *g_heads;   /* rank 0: one per rank */
+#define ROUNDS 3
+
+/* The job: this process's communicator, and the next round of the job's
+ * agreement that a rank which fails joins with its message (0: one
+ * process; above ROUNDS: the rounds are over). */
+struct cluster {
+    struct tvpal_comm comm;
+    int round;
+    struct round_head *heads;  /* rank 0: one per rank */
+};
 
 /* Gathers mine (and in round 1 the histogram fine, may be NULL on a
  * failing rank) to rank 0, which decides; returns the decision on every
  * rank.  The failure of the lowest rank wins; rank 0 prints it. */
-static struct round_decision cluster_gather(const struct round_head *mine,
+static struct round_decision cluster_gather(struct cluster *cl,
+                                            const struct round_head *mine,
                                             const uint64_t *fine,
                                             uint64_t *fine_sum)
 {
-    struct tvpal_comm *c = &g_comm;
+    struct tvpal_comm *c = &cl->comm;
     struct round_decision dec = {0};
     const size_t K = (size_t)c->size;
-    if (c->rank == 0 && !g_heads && !(g_heads = calloc(K, sizeof *g_heads)))
+    if (c->rank == 0 && !cl->heads && !(cl->heads = calloc(K, sizeof *cl->heads)))
         c->abort(c, TVPAL_EXIT_FAIL);
-    if (c->gather(c, mine, sizeof *mine, g_heads) < 0)
+    if (c->gather(c, mine, sizeof *mine, cl->heads) < 0)
         c->abort(c, TVPAL_EXIT_FAIL);
-    if (g_round == 1) {
+    if (cl->round == 1) {
         /* The fine histograms, one rank at a time into rank 0's sum. */
         static uint64_t zero[TVPAL_CHECKPOINT_BINS];
         const size_t hb = sizeof zero;
@@ -88,11 +101,11 @@ static struct round_decision cluster_gather(const struct round_head *mine,
     if (c->rank == 0) {
         dec.bad_rank = -1;
         for (size_t k = 0; k < K; k++)
-            if (g_heads[k].code) {
+            if (cl->heads[k].code) {
                 if (dec.bad_rank < 0) {
                     dec.bad_rank = (int32_t)k;
-                    dec.code = g_heads[k].code;
-                    dec.how = g_heads[k].how;
+                    dec.code = cl->heads[k].code;
+                    dec.how = cl->heads[k].how;
                 }
                 dec.nbad++;
             }
@@ -101,9 +114,10 @@ static struct round_decision cluster_gather(const struct round_head *mine,
 }
 
 /* Sends rank 0's decision (and round 1's manifest text) to every rank. */
-static void cluster_decide(struct round_decision *dec, char **text)
+static void cluster_decide(struct cluster *cl, struct round_decision *dec,
+                           char **text)
 {
-    struct tvpal_comm *c = &g_comm;
+    struct tvpal_comm *c = &cl->comm;
     if (c->bcast(c, dec, sizeof *dec, 0) < 0)
         c->abort(c, TVPAL_EXIT_FAIL);
     if (!dec->code && text && dec->text_len) {
@@ -117,13 +131,15 @@ static void cluster_decide(struct round_decision *dec, char **text)
 /* Rank 0 reports the failure decided; every rank removes its node's
  * partial output when the input was bad (a rerun would fail the same
  * way), and ends. */
-static void cluster_end_failed(const struct round_decision *dec)
+static void cluster_end_failed(struct cluster *cl,
+                               const struct round_decision *dec)
     __attribute__((noreturn));
-static void cluster_end_failed(const struct round_decision *dec)
+static void cluster_end_failed(struct cluster *cl,
+                               const struct round_decision *dec)
 {
-    g_round = ROUNDS + 1;
-    if (g_comm.rank == 0) {
-        const struct round_head *h = &g_heads[dec->bad_rank];
+    cl->round = ROUNDS + 1;
+    if (cl->comm.rank == 0) {
+        const struct round_head *h = &cl->heads[dec->bad_rank];
         if (dec->bad_rank > 0)
             fprintf(stderr, PROG ": rank %d: %s\n", dec->bad_rank, h->text);
         else
@@ -132,23 +148,29 @@ static void cluster_end_failed(const struct round_decision *dec)
             fprintf(stderr, PROG ": %d ranks failed; the lowest is shown\n",
                     dec->nbad);
     }
-    if (dec->how == DIE_INPUT && g_partial)
-        tvpal_rmtree(g_partial);
-    tvpal_comm_close(&g_comm);
+    if (dec->how == DIE_INPUT)
+        say_remove_bad_input_output();
+    tvpal_comm_close(&cl->comm);
     exit(dec->code);
 }
 
-void cluster_fail(enum ending how, const char *text)
+/* The relay of encode_say.h while the rounds run: a failing rank joins
+ * the round the others will reach, with its message. */
+static void cluster_fail(void *ctx, enum ending how, const char *text)
+    __attribute__((noreturn));
+static void cluster_fail(void *ctx, enum ending how, const char *text)
 {
+    struct cluster *cl = ctx;
     struct round_head h = {0};
     h.code = how == DIE_FAIL ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;
     h.how = how;
     snprintf(h.text, sizeof h.text, "%s", text);
-    uint64_t *sum = g_comm.rank == 0 ? calloc(TVPAL_CHECKPOINT_BINS, 8) : NULL;
-    struct round_decision dec = cluster_gather(&h, NULL, sum);
+    uint64_t *sum = cl->comm.rank == 0 ? calloc(TVPAL_CHECKPOINT_BINS, 8)
+                                       : NULL;
+    struct round_decision dec = cluster_gather(cl, &h, NULL, sum);
     free(sum);
-    cluster_decide(&dec, NULL);
-    cluster_end_failed(&dec);
+    cluster_decide(cl, &dec, NULL);
+    cluster_end_failed(cl, &dec);
 }
 
 /* Bytes of this process's shard files (the rest of its node directory is
@@ -183,13 +205,14 @@ static void place_node_dir(const struct run *r)
 static void cluster_stats(struct run *r, struct round_decision *dec,
                           const uint64_t *fine_sum, char **text)
 {
+    const struct cluster *cl = r->cl;
     struct tvpal_checkpoint_stats *st = &r->st;
     uint64_t dropped = 0;
     st->vmin = INFINITY;
     st->vmax = -INFINITY;
     st->nonfinite = st->missing = st->counted = 0;
-    for (int k = 0; k < g_comm.size; k++) {
-        const struct round_head *h = &g_heads[k];
+    for (int k = 0; k < cl->comm.size; k++) {
+        const struct round_head *h = &cl->heads[k];
         st->vmin = h->vmin < st->vmin ? h->vmin : st->vmin;
         st->vmax = h->vmax > st->vmax ? h->vmax : st->vmax;
         st->nonfinite += h->nonfinite;
@@ -198,7 +221,7 @@ static void cluster_stats(struct run *r, struct round_decision *dec,
         dropped += h->dropped;
     }
     memcpy(st->fine, fine_sum, TVPAL_CHECKPOINT_BINS * sizeof *st->fine);
-    if (all_missing(r, g_heads[0].text, sizeof g_heads[0].text)) {
+    if (all_missing(r, cl->heads[0].text, sizeof cl->heads[0].text)) {
         *dec = (struct round_decision){TVPAL_EXIT_USAGE, DIE_INPUT, 0, 1,
                                        0, 0, 0, 0};
         return;
@@ -216,7 +239,8 @@ static void cluster_stats(struct run *r, struct round_decision *dec,
  * node directories in place and rank 0's commit of OUTDIR. */
 void cluster_finish(struct run *r)
 {
-    const int root = g_comm.rank == 0;
+    struct cluster *cl = r->cl;
+    const int root = cl->comm.rank == 0;
     struct round_head h = {0};
     h.vmin = r->st.vmin;
     h.vmax = r->st.vmax;
@@ -226,16 +250,16 @@ void cluster_finish(struct run *r)
     h.dropped = dropped_values(r);
     uint64_t *sum = root ? calloc(TVPAL_CHECKPOINT_BINS, sizeof *sum) : NULL;
     if (root && !sum)
-        g_comm.abort(&g_comm, TVPAL_EXIT_FAIL);
-    struct round_decision dec = cluster_gather(&h, r->st.fine, sum);
+        cl->comm.abort(&cl->comm, TVPAL_EXIT_FAIL);
+    struct round_decision dec = cluster_gather(cl, &h, r->st.fine, sum);
     char *text = NULL;
     if (root && !dec.code)
         cluster_stats(r, &dec, sum, &text);
     free(sum);
-    cluster_decide(&dec, &text);
+    cluster_decide(cl, &dec, &text);
     if (dec.code)
-        cluster_end_failed(&dec);
-    g_round = 2;
+        cluster_end_failed(cl, &dec);
+    cl->round = 2;
     r->st.vmin = dec.vmin;
     r->st.vmax = dec.vmax;
     finish_shards(r);
@@ -248,11 +272,11 @@ void cluster_finish(struct run *r)
                  d.msg);
     tvpal_dataset_close(ds);
     memset(&h, 0, sizeof h);
-    dec = cluster_gather(&h, NULL, NULL);
-    cluster_decide(&dec, NULL);
+    dec = cluster_gather(cl, &h, NULL, NULL);
+    cluster_decide(cl, &dec, NULL);
     if (dec.code)
-        cluster_end_failed(&dec);
-    g_round = 3;
+        cluster_end_failed(cl, &dec);
+    cl->round = 3;
     memset(&h, 0, sizeof h);
     h.work = r->prog.work - r->prog.work_at_start;
     h.seconds = r->t_encode;
@@ -264,7 +288,7 @@ void cluster_finish(struct run *r)
         die_fail("%s: cannot size: %s", r->ckdir, d.msg);
     if (r->node_final)
         place_node_dir(r);
-    dec = cluster_gather(&h, NULL, NULL);
+    dec = cluster_gather(cl, &h, NULL, NULL);
     if (root && !dec.code) {
         /* The commit: OUTDIR with its manifest, last.  Its failure is
          * decided here (the other ranks wait for the decision). */
@@ -277,13 +301,13 @@ void cluster_finish(struct run *r)
         free(text);
         tvpal_fsync_dir(r->partial);
         if (rc < 0)
-            snprintf(g_heads[0].text, sizeof g_heads[0].text, "%s: cannot "
+            snprintf(cl->heads[0].text, sizeof cl->heads[0].text, "%s: cannot "
                      "write manifest: %s", r->partial, lib_error(rc, &wd));
         /* Read back before it replaces anything (the nodes verified
          * their own directories). */
         struct tvpal_manifest m = {0};
         if (rc == 0 && (rc = tvpal_manifest_load(path, &m, &wd)) < 0)
-            snprintf(g_heads[0].text, sizeof g_heads[0].text, "%s: written "
+            snprintf(cl->heads[0].text, sizeof cl->heads[0].text, "%s: written "
                      "manifest does not verify: %s (%s)", r->partial,
                      lib_error(rc, &wd), tvpal_exists(r->o.outdir)
                          ? "the existing dataset is left as it was"
@@ -291,7 +315,7 @@ void cluster_finish(struct run *r)
         tvpal_manifest_clear(&m);
         free(path);
         if (rc == 0 &&
-            place_output(r, g_heads[0].text, sizeof g_heads[0].text) < 0)
+            place_output(r, cl->heads[0].text, sizeof cl->heads[0].text) < 0)
             rc = -1;
         if (rc < 0)
             dec = (struct round_decision){TVPAL_EXIT_FAIL, DIE_FAIL, 0, 1,
@@ -303,18 +327,19 @@ void cluster_finish(struct run *r)
             tvpal_tree_bytes(mp, &mb, NULL) == 0)
             r->cluster_bytes = mb;
         free(mp);
-        for (int k = 0; k < g_comm.size; k++) {
-            r->cluster_bytes += g_heads[k].bytes;
-            r->cluster_shard_bytes += g_heads[k].shard_bytes;
-            r->cluster_work += g_heads[k].work;
-            if (g_heads[k].seconds > r->cluster_seconds)
-                r->cluster_seconds = g_heads[k].seconds;
+        for (int k = 0; k < cl->comm.size; k++) {
+            r->cluster_bytes += cl->heads[k].bytes;
+            r->cluster_shard_bytes += cl->heads[k].shard_bytes;
+            r->cluster_work += cl->heads[k].work;
+            if (cl->heads[k].seconds > r->cluster_seconds)
+                r->cluster_seconds = cl->heads[k].seconds;
         }
     }
-    cluster_decide(&dec, NULL);
+    cluster_decide(cl, &dec, NULL);
     if (dec.code)
-        cluster_end_failed(&dec);
-    g_round = ROUNDS + 1;
+        cluster_end_failed(cl, &dec);
+    cl->round = ROUNDS + 1;
+    say_relay(NULL, NULL);
 }
 
 /* Under an MPI launcher (tvpal_comm_launched): joins the job, one rank
@@ -322,16 +347,33 @@ void cluster_finish(struct run *r)
 void open_cluster(struct run *r, int *argc, char ***argv)
 {
     struct tvpal_diag d = {{0}};
-    tvpal_comm_self(&g_comm);
+    struct cluster *cl = calloc(1, sizeof *cl);
+    if (!cl)
+        die_fail("out of memory");
+    r->cl = cl;
+    tvpal_comm_self(&cl->comm);
     if (!tvpal_comm_launched(NULL))
         return;
-    if (tvpal_comm_open(&g_comm, TVPAL_COMM_MPI, argc, argv, &d) < 0)
+    if (tvpal_comm_open(&cl->comm, TVPAL_COMM_MPI, argc, argv, &d) < 0)
         die_usage("started by an MPI launcher, but %s", d.msg);
-    if (g_comm.size > 1) {
+    if (cl->comm.size > 1) {
         r->mpi = 1;
-        r->node = (uint32_t)g_comm.rank;
-        g_round = 1; /* failures from here on go through the rounds */
+        r->node = (uint32_t)cl->comm.rank;
+        cl->round = 1; /* failures from here on go through the rounds */
+        say_as_rank(cl->comm.rank);
+        say_relay(cluster_fail, cl);
     }
+}
+
+int cluster_size(const struct run *r)
+{
+    return r->cl->comm.size;
+}
+
+void cluster_bcast(struct run *r, void *buf, size_t bytes)
+{
+    if (r->mpi && r->cl->comm.bcast(&r->cl->comm, buf, bytes, 0) < 0)
+        die_fail("cannot share state between the ranks");
 }
 
 /* This process's checkpoint directory and, under MPI, its node's final
@@ -342,9 +384,10 @@ void setup_cluster_dirs(struct run *r)
     if (o->shard_pat && !r->mpi)
         die_usage("--shard-dir: for MPI runs (mpirun -np K " PROG
                   " --nodes K ...); one process writes OUTDIR/node-R");
-    if (r->mpi && o->nodes != (uint32_t)g_comm.size)
+    if (r->mpi && o->nodes != (uint32_t)r->cl->comm.size)
         die_usage("--nodes %u under %d MPI ranks: expected --nodes %d (one "
-                  "rank per node shard)", o->nodes, g_comm.size, g_comm.size);
+                  "rank per node shard)", o->nodes, r->cl->comm.size,
+                  r->cl->comm.size);
     if (o->shard_pat && !strstr(o->shard_pat, "%r"))
         die_usage("--shard-dir \"%s\": expected %%r (the rank) in it",
                   o->shard_pat);
@@ -370,8 +413,14 @@ void setup_cluster_dirs(struct run *r)
     }
 }
 
-void cluster_free(void)
+void cluster_close(struct run *r)
 {
-    free(g_heads);
-    g_heads = NULL;
+    struct cluster *cl = r->cl;
+    if (!cl)
+        return;
+    say_relay(NULL, NULL);
+    tvpal_comm_close(&cl->comm);
+    free(cl->heads);
+    free(cl);
+    r->cl = NULL;
 }

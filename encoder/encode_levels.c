@@ -18,7 +18,10 @@
  * Its grid covers the same box as level 0: spacing s0 * d0 / dk per axis
  * and the first voxel's centre at the centre of the first block. */
 #define _GNU_SOURCE
-#include "encode.h"
+#include "encode_levels.h"
+#include "encode_output.h"
+#include "encode_say.h"
+#include "encode_source.h"
 #include "tvpal.h"
 #include "tvpal_fs.h"
 

@@ -2,7 +2,9 @@
  * checked, its times, and each pass's box of every timestep read,
  * converted to float, checked and counted into the statistics. */
 #define _GNU_SOURCE
-#include "encode.h"
+#include "encode_output.h"
+#include "encode_say.h"
+#include "encode_source.h"
 #include "tvpal_cli.h"
 #include "tvpal_fs.h"
 #include "tvpal_values.h"

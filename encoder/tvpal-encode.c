@@ -15,11 +15,16 @@
  * shards and workspaces, the streaming driver (encode_steps) and the
  * finishing (finish_partial, move_into_place, print_summary; under MPI
  * cluster_finish).  The input is encode_source.c's, the MPI job
- * encode_cluster.c's (encode.h).  A step that fails ends the program with
- * the exit code of `enum ending`.
+ * encode_cluster.c's (encode.h lists the modules).  A step that fails
+ * ends the program with the exit code of `enum ending` (encode_say.h).
  */
 #define _GNU_SOURCE
 #include "encode.h"
+#include "encode_cluster.h"
+#include "encode_levels.h"
+#include "encode_output.h"
+#include "encode_say.h"
+#include "encode_source.h"
 #include "encode_plan.h"
 #include "tvpal_checkpoint.h"
 #include "tvpal_cli.h"
@@ -159,75 +164,6 @@ static void usage(FILE *f)
 "\n"
 "An interrupted run leaves OUTDIR.partial/; running the same command again\n"
 "continues it.  Exit status: 0 success, 1 failure, 2 bad input or usage.\n");
-}
-
-/* ------------------------------------------------------------ diagnostics */
-
-char *g_partial; /* removed on fatal input errors */
-
-
-/* Under MPI (mpirun -np K, one rank per node shard): this process's
- * communicator, and the next round of the job's agreement (cluster_round)
- * that a rank which fails joins with its message, so that rank 0 reports
- * it and every rank ends, none left waiting.  g_round 0: one process. */
-struct tvpal_comm g_comm;
-int g_round;
-
-/* This process's lock on its partial output (take_lock), removed when it
- * ends, whatever the ending. */
-static char *g_lock_path;
-static int g_lock_fd = -1;
-
-
-static void say(enum ending how, const char *fmt, va_list ap)
-{
-    if (g_round && g_round <= ROUNDS && how != MSG_ONLY) {
-        char text[900];
-        vsnprintf(text, sizeof text, fmt, ap);
-        cluster_fail(how, text);
-    }
-    if (how == MSG_ONLY && g_round && g_comm.rank > 0)
-        return; /* warnings are the same on every rank: rank 0 says them */
-    fputs(PROG ": ", stderr);
-    if (g_round && g_comm.rank > 0)
-        fprintf(stderr, "rank %d: ", g_comm.rank);
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
-    if (how == MSG_ONLY)
-        return;
-    if (how == DIE_INPUT && g_partial)
-        tvpal_rmtree(g_partial);
-    tvpal_lock_release(g_lock_path, g_lock_fd);
-    exit(how == DIE_FAIL ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE);
-}
-
-#define TVPAL_SAY_FN(name, how)                                               \
-    void name(const char *fmt, ...)                                           \
-    {                                                                         \
-        va_list ap;                                                           \
-        va_start(ap, fmt);                                                    \
-        say(how, fmt, ap);                                                    \
-        if (how != MSG_ONLY)                                                  \
-            exit(TVPAL_EXIT_FAIL); /* not reached: say() exited */         \
-        va_end(ap);                                                           \
-    }
-TVPAL_SAY_FN(msg, MSG_ONLY)
-TVPAL_SAY_FN(die_usage, DIE_USAGE)
-TVPAL_SAY_FN(die_fail, DIE_FAIL)
-TVPAL_SAY_FN(die_input, DIE_INPUT)
-
-/* The text of a library error for a message: the code's message, then the
- * diag's detail in parentheses when it has one.  Library calls promise
- * nothing about errno, so their cause comes from here, never strerror(errno).
- * Returns a static buffer (reports are made by one thread). */
-const char *lib_error(int rc, const struct tvpal_diag *d)
-{
-    static char buf[sizeof ((struct tvpal_diag *)0)->msg + 64];
-    if (d && d->msg[0])
-        snprintf(buf, sizeof buf, "%s (%s)", tvpal_strerror(rc), d->msg);
-    else
-        snprintf(buf, sizeof buf, "%s", tvpal_strerror(rc));
-    return buf;
 }
 
 /* ---------------------------------------------------------------- options */
@@ -581,29 +517,7 @@ static char *job_params(const struct opts *o, const struct tvpal_input *in)
     return n < 0 ? NULL : t;
 }
 
-/* The engine's view of the job (tvpal_engine.h): every node's shards, or
- * under MPI this rank's node's, and how the source came. */
-static struct tvpal_engine_params engine_params(const struct run *r)
-{
-    const struct opts *o = &r->o;
-    return (struct tvpal_engine_params){
-        .dims = {o->dims[0], o->dims[1], o->dims[2]}, .steps = r->T,
-        .window = o->window, .axes = o->axes, .nodes = o->nodes,
-        .node_first = r->mpi ? r->node : 0,
-        .node_count = r->mpi ? 1 : o->nodes,
-        .table_format = (uint32_t)o->table_format, .refine = o->refine,
-        .naive = o->naive, .klt = o->klt, .alloc_mse = o->alloc_mse};
-}
 
-static struct tvpal_engine_source engine_source(const struct run *r)
-{
-    const struct opts *o = &r->o;
-    return (struct tvpal_engine_source){
-        .type = o->type, .big_endian = o->big_endian,
-        .steps_single = o->steps_single ? r->T : 0,
-        .nan_as = o->has_nan_as ? &o->nan_as : NULL,
-        .missing = o->missing, .nmissing = o->nmissing};
-}
 
 /* ---------------------------------------------------------------- output */
 
@@ -665,20 +579,9 @@ static void make_node_dirs(struct run *r)
             die_usage("%s: cannot create output directory: %s", r->partial,
                       lib_error(rc, &d));
     }
-    g_partial = r->mpi ? r->ckdir : r->partial;
+    say_remove_on_bad_input(r->mpi ? r->ckdir : r->partial);
 }
 
-/* Node k's directory while the job runs: OUTDIR.partial/node-k, or with
- * --shard-dir the pattern's directory plus ".partial".  Malloc'ed. */
-char *node_partial(const struct run *r, uint32_t k)
-{
-    char *d = tvpal_node_dir(r->partial, r->o.shard_pat, k), *p = NULL;
-    if (!d || !r->o.shard_pat)
-        return d;
-    int n = asprintf(&p, "%s.partial", d);
-    free(d);
-    return n < 0 ? NULL : p;
-}
 
 /* Forgets a partial output: statistics and the start go back to nothing,
  * and this process's partial directory is removed (the next steps make
@@ -761,7 +664,7 @@ static int job_files(const struct run *r, char ***files)
  * a file system every rank sees) and tells every rank before any of them
  * touches its node directory, so that a second job stops on every rank
  * at once, having changed nothing. */
-static void take_lock(const struct run *r)
+static void take_lock(struct run *r)
 {
     struct {
         int rc;
@@ -769,9 +672,10 @@ static void take_lock(const struct run *r)
     } res = {0, ""};
     if (!r->mpi || r->node == 0) {
         struct tvpal_diag d = {{0}};
-        if (asprintf(&g_lock_path, "%s.lock", r->partial) < 0)
+        if (asprintf(&r->lock_path, "%s.lock", r->partial) < 0)
             die_fail("out of memory");
-        res.rc = tvpal_lock_take(g_lock_path, &g_lock_fd, &d);
+        res.rc = tvpal_lock_take(r->lock_path, &r->lock_fd, &d);
+        say_release_lock_at_exit(r->lock_path, r->lock_fd);
         if (res.rc == TVPAL_E_EXIST)
             snprintf(res.text, sizeof res.text, "%s: another encode is "
                      "writing it (its lock %s); wait for it or stop it",
@@ -779,8 +683,7 @@ static void take_lock(const struct run *r)
         else if (res.rc < 0)
             snprintf(res.text, sizeof res.text, "%s", d.msg);
     }
-    if (r->mpi && g_comm.bcast(&g_comm, &res, sizeof res, 0) < 0)
-        die_fail("cannot share the lock's state between the ranks");
+    cluster_bcast(r, &res, sizeof res);
     if (res.rc == TVPAL_E_EXIST)
         die_fail("%s", res.text);   /* the other job may end: exit 1 */
     if (res.rc < 0)
@@ -840,7 +743,7 @@ static void open_partial(struct run *r)
  * node, or under MPI this rank's node's. */
 static void setup_shards(struct run *r)
 {
-    const struct tvpal_engine_params p = engine_params(r);
+    const struct tvpal_engine_params p = run_engine_params(r);
     int rc = tvpal_engine_create(&r->eng, &p);
     if (rc == TVPAL_E_NOMEM)
         die_fail("out of memory");
@@ -1034,7 +937,7 @@ static void make_plan(struct run *r)
         msg("plan of rank 0 of %d: %s over its node's slabs, reading %.2f "
             "times the input's bytes (its z and y slabs, and whole rows for "
             "its x slab); about %s of the memory limit %s (%s)",
-            g_comm.size, desc,
+            cluster_size(r), desc,
             (double)r->plan.voxels_read / ((double)r->nvox * r->T), need, lim,
             r->limit_why);
     else
@@ -1063,14 +966,6 @@ static void print_plan(const struct run *r)
 
 /* ---------------------------------------------------------------- output */
 
-/* The file of shard j in its node's directory (malloc'ed). */
-char *shard_path(const struct run *r, const struct tvpal_engine_shard *j)
-{
-    char *nd = node_partial(r, j->rank), *p = NULL;
-    int n = nd ? asprintf(&p, "%s/axis-%c.tvps", nd, "xyz"[j->axis]) : -1;
-    free(nd);
-    return n < 0 ? NULL : p;
-}
 
 /* Creates (start = 0) or reopens the shard writers, restoring a resumed
  * job's progress (read back and verified); reports and returns < 0 on the
@@ -1254,34 +1149,6 @@ static uint64_t work_before(const struct run *r, uint64_t u)
     return w;
 }
 
-/* Progress: `last` forces the closing line.  Work done counts the
- * slice-windows encoded; reading counts as time, so the rate and ETA are
- * of the whole job. */
-void report_progress(struct run *r, int last)
-{
-    struct progress *p = &r->prog;
-    double now = tvpal_now();
-    if (p->quiet || (!last && now - p->last < p->interval))
-        return;
-    p->last = now;
-    char line[256];
-    const uint64_t done = __atomic_load_n(&p->work, __ATOMIC_RELAXED);
-    const double el = now - p->t0;
-    const double mine = (double)(done - p->work_at_start);
-    /* Source voxel-steps: the work counts each once per axis encoded. */
-    const double rate = mine / tvpal_axes_count(r->o.axes) /
-                        (el > 0 ? el : 1e-9) / 1e6;
-    const double eta = mine > 0 ? el / mine * (double)(p->total - done) : -1;
-    /* Steps over all passes ("pass-steps" when there are several). */
-    tvpal_progress_format(line, sizeof line, last ? p->units : p->unit,
-                          p->units, r->plan.npasses > 1 ? "pass-steps"
-                                                        : "steps",
-                          rate, "Mvox-steps/s", eta, p->tty ? 30 : 0);
-    if (p->tty)
-        fprintf(stderr, "\r%s\033[K%s", line, last ? "\n" : "");
-    else
-        fprintf(stderr, PROG ": %s\n", line);
-}
 
 /* The streaming driver: for each pass of the plan, for each step from
  * the start, reads the box of what its windows need (step t + N - 1 at
@@ -1359,27 +1226,12 @@ static void encode_steps(struct run *r)
 /* ------------------------------------------------------------- finishing */
 
 /* The manifest of the encoded dataset (FORMAT.md 7); m owns its strings. */
-/* The physical grid: --spacing/--origin, else what a self-describing input
- * says (the size of a falling coordinate's step; an axis not evenly spaced
- * counts 1, origin 0), else the unit grid. */
-void grid_of(const struct run *r, double spacing[3], double origin[3])
-{
-    const struct opts *o = &r->o;
-    const struct tvpal_input_info *in = r->in ? tvpal_input_info(r->in) : NULL;
-    for (int i = 0; i < 3; i++) {
-        int known = in && !in->nonuniform[i] && in->spacing[i] != 0;
-        spacing[i] = o->have_spacing ? o->spacing[i]
-                     : known ? fabs(in->spacing[i]) : 1.0;
-        origin[i] = o->have_origin ? o->origin[i]
-                    : in && !in->nonuniform[i] ? in->origin[i] : 0.0;
-    }
-}
 
 /* The grid and times of every manifest this job writes (level 0's and
  * each coarser level's), by the reader's rule (tvpal_manifest_check_grid),
  * before any work: a value a dataset could not read back is refused,
  * naming where it came from. */
-void check_grid(const struct run *r)
+static void check_grid(const struct run *r)
 {
     const struct opts *o = &r->o;
     double s0[3], o0[3];
@@ -1408,72 +1260,9 @@ void check_grid(const struct run *r)
     }
 }
 
-static void build_manifest(const struct run *r, struct tvpal_manifest *m)
-{
-    const struct opts *o = &r->o;
-    const struct tvpal_engine_params p = engine_params(r);
-    const struct tvpal_engine_source src = engine_source(r);
-    if (tvpal_engine_manifest(&p, &src, &r->st, r->times, r->time_units,
-                              r->units, PROG " " PACKAGE_VERSION, m) < 0)
-        die_fail("out of memory");
-    m->single_file = o->steps_single != 0;
-    m->levels = o->levels;
-    grid_of(r, m->spacing, m->origin);
-    if (r->in) {
-        /* One file of all steps, one file per step, or files of several
-         * steps each (series). */
-        m->single_file = o->ninputs == 1 && r->T > 1;
-        m->series = o->ninputs > 1 && (uint32_t)o->ninputs != r->T;
-        snprintf(m->source_format, sizeof m->source_format, "%s",
-                 tvpal_input_format_name(o->format));
-        if (!(m->source_var = strdup(tvpal_input_info(r->in)->var)))
-            die_fail("out of memory");
-    }
-    for (int i = 0; i < o->ninputs; i++)
-        if (tvpal_manifest_add_source(m, o->inputs[i]) < 0)
-            die_fail("out of memory");
-}
 
-/* Finishes this process's shards with the source range (9.1). */
-void finish_shards(struct run *r)
-{
-    struct tvpal_diag d = {{0}};
-    for (uint32_t q = 0; q < r->nshard; q++) {
-        tvpal_shardw_set_range(r->sj[q].w, r->st.vmin, r->st.vmax);
-        int rc = tvpal_shardw_finish(r->sj[q].w, &d);
-        r->sj[q].w = NULL;
-        if (rc < 0) {
-            char *path = shard_path(r, &r->sj[q]), where[512];
-            snprintf(where, sizeof where, "%s", path ? path : "shard");
-            free(path);
-            die_fail("%s: cannot finish: %s", where, lib_error(rc, &d));
-        }
-    }
-}
 
-/* The manifest's text (malloc'ed). */
-char *manifest_text(const struct run *r)
-{
-    struct tvpal_manifest m;
-    char *text = NULL;
-    build_manifest(r, &m);
-    if (tvpal_manifest_format(&m, &text) < 0)
-        die_fail("out of memory");
-    tvpal_manifest_clear(&m);
-    return text;
-}
 
-void write_manifest(const char *dir, const char *text)
-{
-    struct tvpal_diag d = {{0}};
-    char *path = NULL;
-    int rc = asprintf(&path, "%s/manifest.txt", dir) < 0
-                 ? TVPAL_E_NOMEM
-                 : tvpal_write_file_atomic(path, text, strlen(text), &d);
-    if (rc < 0)
-        die_fail("%s: cannot write manifest: %s", dir, lib_error(rc, &d));
-    free(path);
-}
 
 /* Finishes the shards, then writes the manifest to OUTDIR.partial and to
  * every node directory, and removes the checkpoint (FORMAT.md 9.2, 4). */
@@ -1500,40 +1289,6 @@ static void finish_partial(struct run *r)
     tvpal_fsync_dir(r->partial);
 }
 
-/* Renames OUTDIR.partial to OUTDIR; with --force an existing OUTDIR goes
- * to OUTDIR.old first and is removed after.  place_output says what went
- * wrong in err and returns -1; move_into_place ends the program. */
-int place_output(const struct run *r, char *err, size_t cap)
-{
-    const char *out = r->o.outdir;
-    if (tvpal_exists(out)) {
-        char *old;
-        if (asprintf(&old, "%s.old", out) < 0)
-            return snprintf(err, cap, "out of memory"), -1;
-        tvpal_rmtree(old);
-        if (rename(out, old) < 0) {
-            snprintf(err, cap, "%s: cannot replace: %s", out, strerror(errno));
-            free(old);
-            return -1;
-        }
-        if (rename(r->partial, out) < 0) {
-            /* the old dataset back where it was */
-            int e = errno;
-            rename(old, out);
-            snprintf(err, cap, "%s: cannot replace (left as it was): %s", out,
-                     strerror(e));
-            free(old);
-            return -1;
-        }
-        tvpal_rmtree(old);
-        free(old);
-    } else if (rename(r->partial, out) < 0) {
-        snprintf(err, cap, "%s: cannot rename %s into place: %s", out,
-                 r->partial, strerror(errno));
-        return -1;
-    }
-    return 0;
-}
 
 static void move_into_place(const struct run *r)
 {
@@ -1542,30 +1297,8 @@ static void move_into_place(const struct run *r)
         die_fail("%s", err);
 }
 
-/* Every value missing leaves nothing to encode or draw; present values
- * coded as missing (more missing-value patterns in a slice-window than the
- * code has indices for) are reported. */
-int all_missing(const struct run *r, char *why, size_t cap)
-{
-    snprintf(why, cap, "%s: every value is missing (NaN%s); expected some "
-             "present values", r->o.inputs[0],
-             r->o.nmissing ? " or a --missing value" : "");
-    return !(r->st.vmin <= r->st.vmax);
-}
 
-uint64_t dropped_values(const struct run *r)
-{
-    return tvpal_engine_dropped(r->eng);
-}
 
-void warn_dropped(uint64_t dropped)
-{
-    if (dropped)
-        msg("warning: %llu present value%s coded as missing: slice-windows "
-            "with more than 128 patterns of missing timesteps (a smaller "
-            "--window avoids it)", (unsigned long long)dropped,
-            dropped == 1 ? "" : "s");
-}
 
 static void check_missing(const struct run *r)
 {
@@ -1575,54 +1308,6 @@ static void check_missing(const struct run *r)
     warn_dropped(dropped_values(r));
 }
 
-/* A few voxels far from all the others (a fill value such as 1e35 left in
- * the data) set the value range, so the quantizers and the default transfer
- * function spend it on them and the report's PSNR, relative to that range,
- * looks excellent.  Warns, naming how many, when the range is more than
- * 1000 times the 0.1..99.9 percentile range or a value is beyond +-1e30
- * (from the source histogram's 65536 classes). */
-void warn_dominating_values(const struct run *r)
-{
-    const uint64_t *fine = r->st.fine;
-    uint64_t total = 0, cum = 0, far = 0, huge = 0;
-    for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++)
-        total += fine[b];
-    if (!total)
-        return;
-    /* lo, hi: the classes holding the 0.1th and 99.9th percentiles. */
-    uint32_t lo = 0, hi = 0;
-    int have_lo = 0, have_hi = 0;
-    for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS && !have_hi; b++) {
-        cum += fine[b];
-        if (!have_lo && cum * 1000 > total)
-            lo = b, have_lo = 1;
-        if (cum * 1000 >= total * 999)
-            hi = b, have_hi = 1;
-    }
-    const double plo = tvpal_values_bin_value(lo), phi = tvpal_values_bin_value(hi);
-    const double span = phi - plo, range = r->st.vmax - r->st.vmin;
-    for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++) {
-        double v = tvpal_values_bin_value(b);
-        if (fine[b] && fabs(v) > 1e30)
-            huge += fine[b];
-        if (fine[b] && (v < plo - 100 * span || v > phi + 100 * span))
-            far += fine[b];
-    }
-    if (huge)
-        msg("warning: %llu value%s beyond +-1e30 (the range is %g .. %g): a "
-            "fill value? It sets the quantizers' and the colours' range "
-            "(--missing V marks a value as missing)",
-            (unsigned long long)huge, huge == 1 ? "" : "s", r->st.vmin,
-            r->st.vmax);
-    else if (range > 1000 * span && far)
-        msg("warning: %llu value%s (%.3g%%) lie far outside the bulk of the "
-            "data (0.1..99.9 percentiles %.4g .. %.4g, range %g .. %g): they "
-            "set the quantizers' and the colours' range; missing values? "
-            "(--missing V marks a value as missing)",
-            (unsigned long long)far, far == 1 ? "" : "s",
-            100.0 * (double)far / (double)total, plo, phi, r->st.vmin,
-            r->st.vmax);
-}
 
 /* What the written dataset takes, found by reading it back. */
 struct written {
@@ -1776,14 +1461,10 @@ static void print_summary(const struct run *r, const struct written *w)
            tvpal_axes_format(r->o.axes, axes), (unsigned long long)disk,
            src / (double)disk, src / axis_bytes, (double)disk * 8.0 / vts,
            te, (double)work / naxes / (te > 0 ? te : 1e-9) / 1e6,
-           r->nthreads * (r->mpi ? g_comm.size : 1),
+           r->nthreads * cluster_size(r),
            (unsigned long long)r->st.missing, r->plan.npasses, tb, lv);
 }
 
-void release_ring(struct run *r)
-{
-    tvpal_engine_release_ring(r->eng);
-}
 
 static void run_free(struct run *r)
 {
@@ -1808,7 +1489,6 @@ static void run_free(struct run *r)
     free(r->partial);
     free(r->ckdir);
     free(r->node_final);
-    cluster_free();
     for (int i = 0; i < r->o.ninputs; i++)
         free(r->abs_inputs[i]);
     free(r->abs_inputs);
@@ -1820,7 +1500,7 @@ static void run_free(struct run *r)
 /* Each step ends the program itself on failure (see `enum ending`). */
 int main(int argc, char **argv)
 {
-    struct run r = {0};
+    struct run r = {.lock_fd = -1};
     struct written w = {0};
     open_cluster(&r, &argc, &argv);
     int have_dims = parse_options(argc, argv, &r.o);
@@ -1845,7 +1525,7 @@ int main(int argc, char **argv)
     if (r.o.dry_run) {
         print_plan(&r);
         run_free(&r);
-        tvpal_comm_close(&g_comm);
+        cluster_close(&r);
         return 0;
     }
     if (r.mpi && r.o.levels)
@@ -1882,13 +1562,12 @@ int main(int argc, char **argv)
         verify_written(&r, &w);
         move_into_place(&r);
     }
-    tvpal_lock_release(g_lock_path, g_lock_fd);
-    g_lock_fd = -1;
-    free(g_lock_path);
-    g_lock_path = NULL;
+    say_release_lock_now();
+    free(r.lock_path);
+    r.lock_path = NULL;
     if (!r.mpi || r.node == 0)
         print_summary(&r, &w);
     run_free(&r);
-    tvpal_comm_close(&g_comm);
+    cluster_close(&r);
     return 0;
 }

@@ -49,6 +49,22 @@ check_tree() {
             done
         done
     done < "$W/files"
+    # encoder/: tvpal-encode's modules include only those below them
+    modules=$(sed -n '/<!-- modules begin/,/<!-- modules end/p' "$root/LAYERS.md" | grep -v '^<!--\|^```')
+    grep '^encoder/[^/]*$' "$W/files" | while read -r f; do
+        base=$(basename "$f"); base=${base%.*}
+        mine=$(echo "$modules" | awk -v m="$base" '$1 == m {print NR}')
+        sed -n 's/^[ \t]*#[ \t]*include[ \t]*"\([^"]*\)\.h".*/\1/p' "$root/$f" | while read -r h; do
+            theirs=$(echo "$modules" | awk -v m="$h" '$1 == m {print NR}')
+            [ -z "$theirs" ] && continue
+            [ "$h" = "$base" ] && continue
+            if [ -z "$mine" ]; then
+                echo "$f: includes $h.h, a module of tvpal-encode (LAYERS.md)"
+            elif [ "$theirs" -ge "$mine" ]; then
+                echo "$f: includes $h.h, a module above $base (LAYERS.md: modules)"
+            fi
+        done
+    done
 }
 
 out=$(check_tree "$TVPAL_SRCDIR")
@@ -76,5 +92,7 @@ plant "mpi.h outside its adapter" player/app/tvpal-play.c '#include <mpi.h>' 'on
 plant "GL in the core" player/core/tvpal_player.c '#include <GL/gl.h>' 'only the adapter'
 plant "liburing in a test" tests/test-sw.c '#include <liburing.h>' 'only the adapter'
 plant "an unknown header" player/core/tvpal_tf.c '#include "tvpal_nope.h"' 'not a file of the tree'
+plant "a module calls back up" encoder/encode_source.c '#include "encode_cluster.h"' 'a module above encode_source'
+plant "another program uses tvpal-encode's modules" encoder/tvpal-info.c '#include "encode.h"' 'a module of tvpal-encode'
 plant "a duplicate file name" common/base/tvpal_fs.h '' 'not unique' player/core/tvpal_fs.h
 finish
