@@ -174,7 +174,10 @@ static struct tvpal_encoder *open_level(const struct run *r, unsigned k,
         {TVPAL_PARAM_TRANSFORM, o->klt ? TVPAL_TRANSFORM_KLT
                                        : TVPAL_TRANSFORM_DCT},
         {TVPAL_PARAM_ALLOC, o->alloc_mse ? TVPAL_ALLOC_GREEDY_MSE
-                                         : TVPAL_ALLOC_VARIANCE}};
+                                         : TVPAL_ALLOC_VARIANCE},
+        /* A level interrupted is encoded again (it is 1/7 of the work),
+         * so its steps need no checkpoints. */
+        {TVPAL_PARAM_CHECKPOINT, 0}};
     for (size_t i = 0; rc == 0 && i < sizeof set / sizeof *set; i++)
         rc = tvpal_encoder_set(e, set[i].p, set[i].v, &d);
     if (rc == 0)

@@ -102,10 +102,14 @@ enum tvpal_param {
     TVPAL_PARAM_NAIVE,        /* 1: the paper's naive variant (uniform
                                * quantizers, no bit allocation: a
                                * baseline); default 0 */
-    TVPAL_PARAM_FORCE         /* 1: replace an existing dataset at the
+    TVPAL_PARAM_FORCE,        /* 1: replace an existing dataset at the
                                * output directory (only a tvpal dataset;
                                * it is replaced when the new one is
                                * complete); default 0 */
+    TVPAL_PARAM_CHECKPOINT    /* a checkpoint (what tvpal_encoder_resume
+                               * continues from) after every this many
+                               * steps encoded, and after the last; 0:
+                               * none; default 1 */
 };
 #define TVPAL_TABLE_FLOAT32 0
 #define TVPAL_TABLE_UINT16 1
@@ -246,6 +250,27 @@ TVPAL_API int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
                                  enum tvpal_scalar type, size_t count,
                                  const ptrdiff_t strides[3],
                                  struct tvpal_diag *diag);
+
+/* Continues a job that was interrupted (the process killed, the machine
+ * down) instead of starting it over: call it on an encoder opened and set
+ * as the interrupted one was (the same dims, steps, parameters, slab and
+ * collective; the grid, times and units may be set anew), before any
+ * push, with the type its pushes have.  Where DIR.partial holds a
+ * checkpoint of this job (TVPAL_PARAM_CHECKPOINT), its shards are kept
+ * and *next_step is the first step to push (the steps before it are
+ * encoded and counted); the caller pushes steps *next_step, ... T - 1 and
+ * finishes, and the dataset is byte-identical to one encoded without the
+ * interruption.  Without one, *next_step is 0 and the job starts over, as
+ * a first push would.  With a collective it is collective, and the ranks
+ * resume only from the same step (else every rank starts over).  Takes the
+ * lock and does what a first push does before its step.  0, or the codes
+ * of a first push (TVPAL_E_EXIST, ...); a checkpoint whose shard files do
+ * not match it (changed since) gives TVPAL_E_CHECKSUM, TVPAL_E_TRUNC or
+ * TVPAL_E_MISMATCH naming the file: abort, and encode again from step 0. */
+TVPAL_API int tvpal_encoder_resume(struct tvpal_encoder *e,
+                                   enum tvpal_scalar type,
+                                   uint32_t *next_step,
+                                   struct tvpal_diag *diag);
 
 /* After the last step: encodes what is left, finishes the shards, writes
  * the manifest, reads the dataset back to verify it and renames DIR.partial

@@ -35,23 +35,28 @@ enum state { OPENED, STARTED, FAILED };
 /* The rounds in which the ranks of a collective agree, in order (a round's
  * number travels in its votes, a check that every rank is in the same):
  * START: nobody has refused (a wrong slab), then rank 0 prepares the
- * output; SETUP: every rank has its engine and shard writers; STATS: every
+ * output; SETUP: every rank has its engine, and the step its checkpoint
+ * resumes from (tvpal_encoder_resume: the ranks resume only from the same
+ * step, else all start over); WRITERS: every rank has its shard writers,
+ * resumed or new; STATS: every
  * rank has pushed every step, the statistics summed and the manifest sent
  * from rank 0; PLACE: every rank has finished its shards, then rank 0
  * writes the manifest, verifies and renames.  A round that decides a
  * failure is the last: every rank knows it and none joins another. */
-enum round { R_START = 1, R_SETUP, R_STATS, R_PLACE, R_DONE };
+enum round { R_START = 1, R_SETUP, R_WRITERS, R_STATS, R_PLACE, R_DONE };
 
 /* What a rank sends rank 0 in a round, and the verdict rank 0 sends back;
  * the statistics ride along (summed by rank 0; used in R_STATS). */
 struct vote {
     int32_t round, code;
+    uint64_t done;           /* SETUP: the steps its checkpoint has done */
     double vmin, vmax;
     uint64_t nonfinite, missing, counted;
     char msg[TVPAL_DIAG_MAX];
 };
 struct verdict {
     int32_t code;
+    uint64_t done;           /* SETUP: the steps every rank resumes from */
     uint32_t text_len;       /* R_STATS: the manifest's bytes that follow */
     double vmin, vmax;
     uint64_t nonfinite, missing, counted;
@@ -97,6 +102,16 @@ struct tvpal_encoder {
     char own_msg[TVPAL_DIAG_MAX];
     int made_partial;                /* rank 0 created DIR.partial */
     struct vote *votes;              /* rank 0: size of them */
+    /* Checkpoints (tvpal_checkpoint.h) in this rank's directory: after
+     * every ckpt_every steps encoded; a resumed job converts steps below
+     * recount_to again without counting them (they are in st). */
+    uint32_t ckpt_every;
+    int resuming;
+    uint64_t done_local;             /* SETUP: what this rank's checkpoint
+                                      * has done */
+    uint32_t recount_to;
+    char *ckdir, *fp;
+    struct tvpal_checkpoint_progress ckp;
     uint64_t *pieces;                /* rank 0: size * HIST_PIECE */
 };
 
@@ -175,6 +190,7 @@ int tvpal_encoder_open(struct tvpal_encoder **out, const char *dir,
                                         NULL};
     e->slab_n = dims[2];
     e->round = R_START;
+    e->ckpt_every = 1;
     if (alloc_round_buffers(e, 1) < 0) {
         free(e->votes);
         free(e->partial);
@@ -345,6 +361,13 @@ int tvpal_encoder_set(struct tvpal_encoder *e, enum tvpal_param param,
         else
             e->force = value == 1;
         break;
+    case TVPAL_PARAM_CHECKPOINT:
+        if (!whole_in(value, 0, UINT32_MAX))
+            name = "checkpoint", range = "steps between checkpoints, 0 for "
+                                         "none";
+        else
+            e->ckpt_every = (uint32_t)value;
+        break;
     default:
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "unknown parameter %d",
                               (int)param);
@@ -472,6 +495,7 @@ static int agree(struct tvpal_encoder *e, enum round round, int rc,
 {
     const struct tvpal_checkpoint_stats *st = &e->st;
     struct vote me = {.round = (int32_t)round, .code = rc,
+                      .done = e->done_local,
                       .vmin = st->vmin, .vmax = st->vmax,
                       .nonfinite = st->nonfinite, .missing = st->missing,
                       .counted = st->counted};
@@ -488,8 +512,11 @@ static int agree(struct tvpal_encoder *e, enum round round, int rc,
     }
     if (is_root(e)) {
         v->vmin = INFINITY, v->vmax = -INFINITY;
+        v->done = e->votes[0].done;
         for (int k = 0; k < e->coll.size; k++) {
             const struct vote *o = &e->votes[k];
+            if (o->done != v->done)
+                v->done = 0; /* checkpoints of different steps: over */
             if (v->code == 0 && (o->code < 0 || o->round != (int32_t)round)) {
                 v->code = o->code < 0 ? o->code : TVPAL_E_INVAL;
                 if (e->coll.size == 1)
@@ -598,8 +625,10 @@ static int prepare_output(struct tvpal_encoder *e, struct tvpal_diag *diag)
         e->lock_path = NULL;
         return rc;
     }
-    /* A partial output of an earlier job is not resumed (yet): it goes. */
-    if (tvpal_exists(e->partial) && tvpal_rmtree(e->partial) < 0)
+    /* A partial output of an earlier job goes, unless it is resumed (its
+     * checkpoints say whether it is this job's). */
+    if (!e->resuming && tvpal_exists(e->partial) &&
+        tvpal_rmtree(e->partial) < 0)
         return tvpal_diag_set(diag, TVPAL_E_SYS, "%s: cannot remove the "
                               "partial output of an earlier job",
                               e->partial);
@@ -621,11 +650,15 @@ static uint64_t job_bytes(const struct tvpal_encoder *e, unsigned nthreads,
     return ring + nthreads * per_thread + tvpal_engine_table_bytes(e->eng);
 }
 
-/* This rank's node directories and shard writers. */
-static int open_writers(struct tvpal_encoder *e, struct tvpal_diag *diag)
+/* This rank's node directories and shard writers: resumed at the
+ * checkpoint's progress when done > 0, else new (an older checkpoint
+ * removed first, so that it cannot outlive the files it described). */
+static int open_writers(struct tvpal_encoder *e, uint64_t done,
+                        struct tvpal_diag *diag)
 {
     uint32_t n;
     struct tvpal_engine_shard *sj = tvpal_engine_shards(e->eng, &n);
+    const uint32_t T = e->ep.steps;
     for (uint32_t k = 0; k < e->ep.node_count; k++) {
         char *nd = tvpal_node_dir(e->partial, NULL, e->ep.node_first + k);
         int rc = nd ? tvpal_mkdirs(nd, diag) : TVPAL_E_NOMEM;
@@ -633,19 +666,68 @@ static int open_writers(struct tvpal_encoder *e, struct tvpal_diag *diag)
         if (rc < 0)
             return rc;
     }
+    if (!done && tvpal_checkpoint_remove(e->ckdir, diag) < 0)
+        return TVPAL_E_SYS;
     for (uint32_t q = 0; q < n; q++) {
         char *nd = tvpal_node_dir(e->partial, NULL, sj[q].rank), *path = NULL;
-        int rc = nd && asprintf(&path, "%s/axis-%c.tvps", nd,
-                                "xyz"[sj[q].axis]) >= 0
-                     ? tvpal_shardw_create_placed(&sj[q].w, path, &sj[q].h,
-                                                  diag)
-                     : TVPAL_E_NOMEM;
+        int rc = TVPAL_E_NOMEM;
+        if (nd && asprintf(&path, "%s/axis-%c.tvps", nd,
+                           "xyz"[sj[q].axis]) >= 0)
+            rc = done ? tvpal_shardw_reopen_placed(&sj[q].w, path, &sj[q].h,
+                                                   diag)
+                      : tvpal_shardw_create_placed(&sj[q].w, path, &sj[q].h,
+                                                   diag);
+        for (uint32_t t = 0; rc == 0 && done && t < T; t++) {
+            const size_t i = (size_t)q * T + t;
+            if (e->ckp.filled[i])
+                rc = tvpal_shardw_set_progress(sj[q].w, t, e->ckp.filled[i],
+                                               e->ckp.crc[i], diag);
+        }
+        if (rc == 0 && done)
+            tvpal_shardw_set_missing(sj[q].w, e->ckp.missing[q]);
+        if (rc < 0 && done && path) {
+            /* diag has the shard's own words; say which file. */
+            char why[TVPAL_DIAG_MAX];
+            snprintf(why, sizeof why, "%s", diag ? diag->msg : "");
+            rc = tvpal_diag_set(diag, rc, "%s: cannot resume: %s (abort "
+                                "and encode again from step 0)", path, why);
+        }
         free(nd);
         free(path);
         if (rc < 0)
             return rc;
     }
     return 0;
+}
+
+/* The job's identity in its checkpoints: the options that make its shards,
+ * and the rank. */
+static int make_fingerprint(struct tvpal_encoder *e)
+{
+    const struct tvpal_engine_source src = {
+        .type = e->type, .nan_as = e->has_nan_as ? &e->nan_as : NULL,
+        .missing = e->missing, .nmissing = e->nmissing};
+    char opts[1024], params[1200];
+    tvpal_engine_options_line(&e->ep, &src, opts, sizeof opts);
+    snprintf(params, sizeof params, "libtvpal %s rank=%d/%d", opts,
+             e->coll.rank, e->coll.size);
+    return tvpal_checkpoint_fingerprint(params, NULL, 0, 0, &e->fp);
+}
+
+/* Resuming: the steps this rank's checkpoint has done (0: none that is
+ * this job's and consistent), its statistics and its shards' progress. */
+static uint64_t load_checkpoint(struct tvpal_encoder *e)
+{
+    const uint64_t slab = (uint64_t)e->ep.dims[0] * e->ep.dims[1] * e->slab_n;
+    uint64_t done = 0;
+    if (tvpal_checkpoint_load(e->ckdir, e->fp, e->ep.steps, e->ep.steps,
+                              slab, &done, &e->st, &e->ckp, NULL) < 0 ||
+        e->st.counted != (uint64_t)e->st.loaded * slab ||
+        e->st.loaded < done) {
+        tvpal_checkpoint_stats_reset(&e->st);
+        return 0;
+    }
+    return done;
 }
 
 /* This rank's engine, threads and workspaces, and its shard writers. */
@@ -689,7 +771,21 @@ static int setup(struct tvpal_encoder *e, struct tvpal_diag *diag)
         .box = {{0, 0, z0}, {d[0], d[1], e->slab_n}},
         .s0 = {0, 0, z0}, .s1 = {d[0], d[1], z1}, .axes = 7, .stats = 1};
     tvpal_engine_set_pass(e->eng, &e->pass);
-    return open_writers(e, diag);
+    uint32_t ns;
+    tvpal_engine_shards(e->eng, &ns);
+    e->ckp.nshard = ns, e->ckp.steps = e->ep.steps;
+    const size_t nrec = (size_t)ns * e->ep.steps;
+    e->ckdir = e->coll.size > 1
+                   ? tvpal_node_dir(e->partial, NULL, e->ep.node_first)
+                   : strdup(e->partial);
+    if (!e->ckdir || make_fingerprint(e) < 0 ||
+        !(e->ckp.filled = calloc(nrec, sizeof *e->ckp.filled)) ||
+        !(e->ckp.crc = calloc(nrec, sizeof *e->ckp.crc)) ||
+        !(e->ckp.missing = calloc(ns, sizeof *e->ckp.missing)))
+        return TVPAL_E_NOMEM;
+    if (e->resuming)
+        e->done_local = load_checkpoint(e);
+    return 0;
 }
 
 /* The first push, on every rank: START (nobody refused; rank 0 prepares
@@ -716,8 +812,17 @@ static int start(struct tvpal_encoder *e, enum tvpal_type type,
     if (tell(e, &v) < 0)
         return report(0, &v, diag);
     rc = rc == 0 ? setup(e, &d) : rc;
-    agree(e, R_SETUP, rc, d.msg, &v);
-    return report(rc, &v, diag);
+    if (agree(e, R_SETUP, rc, d.msg, &v) < 0)
+        return report(rc, &v, diag);
+    const uint64_t done = v.done;
+    if (!done && e->done_local)
+        tvpal_checkpoint_stats_reset(&e->st); /* another rank starts over */
+    rc = open_writers(e, done, &d);
+    if (agree(e, R_WRITERS, rc, d.msg, &v) < 0)
+        return report(rc, &v, diag);
+    e->encoded = e->pushed = (uint32_t)done;
+    e->recount_to = done ? e->st.loaded : 0;
+    return 0;
 }
 
 /* ----------------------------------------------------------------- push */
@@ -729,6 +834,8 @@ struct push_ctx {
     size_t esize;
     ptrdiff_t s[3];
     float *dst;
+    int count;               /* into the statistics (not a step a resumed
+                              * job counted before) */
 };
 
 static void convert_plane(void *arg, size_t z, unsigned tid)
@@ -738,6 +845,7 @@ static void convert_plane(void *arg, size_t z, unsigned tid)
     const uint32_t nx = e->ep.dims[0], ny = e->ep.dims[1];
     const struct tvpal_values_rules rules = {
         e->missing, e->nmissing, e->has_nan_as ? &e->nan_as : NULL};
+    uint64_t *fine = c->count ? e->fine[tid] : NULL;
 #ifdef WORDS_BIGENDIAN
     const int host_big = 1;
 #else
@@ -757,7 +865,7 @@ static void convert_plane(void *arg, size_t z, unsigned tid)
         }
         const uint64_t v0 = (uint64_t)nx * (y + (uint64_t)ny * z);
         tvpal_values_convert(&rules, row, e->type, host_big, nx,
-                             c->dst + v0, v0, e->fine[tid], &e->found[tid]);
+                             c->dst + v0, v0, fine, &e->found[tid]);
     }
 }
 
@@ -771,7 +879,8 @@ static int take_step(struct tvpal_encoder *e, const void *data,
     struct push_ctx c = {
         .e = e, .data = data, .esize = tvpal_type_size(e->type),
         .s = {1, (ptrdiff_t)d[0], (ptrdiff_t)d[0] * d[1]},
-        .dst = tvpal_engine_slot(e->eng, e->pushed)};
+        .dst = tvpal_engine_slot(e->eng, e->pushed),
+        .count = e->pushed >= e->recount_to};
     if (strides)
         memcpy(c.s, strides, sizeof c.s);
     struct tvpal_found all = tvpal_found_empty(e->st.vmin, e->st.vmax);
@@ -791,10 +900,31 @@ static int take_step(struct tvpal_encoder *e, const void *data,
                               (unsigned long long)x, (unsigned long long)y,
                               (unsigned long long)z);
     }
+    if (!c.count) {
+        e->pushed++;
+        return 0;
+    }
     tvpal_values_account(&e->st, e->fine, nt, &all,
                          (uint64_t)d[0] * d[1] * e->slab_n);
     e->st.loaded = ++e->pushed;
     return 0;
+}
+
+/* A checkpoint of what is encoded: the shards' progress, the statistics
+ * (of the steps pushed), in this rank's directory. */
+static int save_checkpoint(struct tvpal_encoder *e, struct tvpal_diag *diag)
+{
+    uint32_t n;
+    struct tvpal_engine_shard *sj = tvpal_engine_shards(e->eng, &n);
+    const uint32_t T = e->ep.steps;
+    for (uint32_t q = 0; q < n; q++) {
+        for (uint32_t t = 0; t < T; t++)
+            tvpal_shardw_progress(sj[q].w, t, &e->ckp.filled[(size_t)q * T + t],
+                                  &e->ckp.crc[(size_t)q * T + t]);
+        e->ckp.missing[q] = (uint8_t)tvpal_shardw_missing(sj[q].w);
+    }
+    return tvpal_checkpoint_save(e->ckdir, e->fp, e->encoded, &e->st,
+                                 &e->ckp, diag);
 }
 
 /* Encodes every step whose windows' steps are all in. */
@@ -816,6 +946,10 @@ static int encode_ready(struct tvpal_encoder *e, struct tvpal_diag *diag)
             return rc;
         }
         e->encoded++;
+        if (e->ckpt_every && (e->encoded % e->ckpt_every == 0 ||
+                              e->encoded == T) &&
+            (rc = save_checkpoint(e, diag)) < 0)
+            return rc;
     }
     return 0;
 }
@@ -867,6 +1001,30 @@ int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
             *diag = d;
     }
     return rc;
+}
+
+int tvpal_encoder_resume(struct tvpal_encoder *e, enum tvpal_scalar type,
+                         uint32_t *next_step, struct tvpal_diag *diag)
+{
+    if (e->state != OPENED)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "resume after the first "
+                              "push");
+    *next_step = 0;
+    if (type != TVPAL_FLOAT32 && type != TVPAL_FLOAT64)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "type %d: TVPAL_FLOAT32 "
+                              "or TVPAL_FLOAT64 expected", (int)type);
+    struct tvpal_diag d = {{0}};
+    e->resuming = 1;
+    e->state = STARTED;
+    int rc = start(e, type == TVPAL_FLOAT32 ? TVPAL_F32 : TVPAL_F64, &d);
+    if (rc < 0) {
+        e->state = FAILED;
+        if (diag)
+            *diag = d;
+        return rc;
+    }
+    *next_step = e->pushed;
+    return 0;
 }
 
 /* --------------------------------------------------------------- finish */
@@ -966,14 +1124,13 @@ static int finish_shards(struct tvpal_encoder *e, const char *text,
         if (rc < 0)
             return rc;
     }
-    for (uint32_t k = 0; k < e->ep.node_count; k++) {
+    int rc = tvpal_checkpoint_remove(e->ckdir, diag);
+    for (uint32_t k = 0; rc == 0 && k < e->ep.node_count; k++) {
         char *nd = tvpal_node_dir(e->partial, NULL, e->ep.node_first + k);
-        int rc = nd ? write_manifest(nd, text, diag) : TVPAL_E_NOMEM;
+        rc = nd ? write_manifest(nd, text, diag) : TVPAL_E_NOMEM;
         free(nd);
-        if (rc < 0)
-            return rc;
     }
-    return 0;
+    return rc;
 }
 
 /* DIR.partial read back as a dataset, then renamed to DIR; an older DIR
@@ -1039,6 +1196,11 @@ static void release(struct tvpal_encoder *e)
     free(e->found);
     free(e->votes);
     free(e->pieces);
+    free(e->ckdir);
+    free(e->fp);
+    free(e->ckp.filled);
+    free(e->ckp.crc);
+    free(e->ckp.missing);
     if (e->coll.release)
         e->coll.release(e->coll.ctx);
     tvpal_checkpoint_stats_free(&e->st);

@@ -47,7 +47,7 @@ static void usage(FILE *f)
 {
     fputs("Usage: [mpirun -np K] tvpal-heat -o DIR [--dims NXxNYxNZ] "
           "[--steps T]\n                  [--window N] [--raw DIR] "
-          "[--bad-value R]\n"
+          "[--bad-value R] [--resume]\n"
           "Runs a 3-D heat equation and encodes every step through "
           "libtvpal into the\ndataset DIR.\n\n"
           "  -o DIR             the dataset written (required)\n"
@@ -56,6 +56,11 @@ static void usage(FILE *f)
           "  --window N         tvpal window (default 4)\n"
           "  --raw DIR          also write each step as raw float32 "
           "files in DIR\n"
+          "  --resume           continue an interrupted encode of DIR from "
+          "its checkpoint\n"
+          "                     (the simulation runs from its start and "
+          "pushes only the\n"
+          "                     steps the encode still needs)\n"
           "  --bad-value R      rank R's step T/2 holds an infinity: its push "
           "fails,\n"
           "                     and every rank's encode with it\n"
@@ -163,7 +168,7 @@ static int fail(const char *what, int rc, const struct tvpal_diag *d)
 static int run(int argc, char **argv)
 {
     unsigned d[3] = {48, 40, 32}, T = 24, N = 4;
-    int bad_rank = -1;
+    int bad_rank = -1, resume = 0;
     const char *out = NULL, *raw = NULL;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -173,6 +178,8 @@ static int run(int argc, char **argv)
             return 0;
         } else if (!strcmp(a, "-o") && v) {
             out = v, i++;
+        } else if (!strcmp(a, "--resume")) {
+            resume = 1;
         } else if (!strcmp(a, "--raw") && v) {
             raw = v, i++;
         } else if (!strcmp(a, "--dims") && v &&
@@ -242,6 +249,15 @@ static int run(int argc, char **argv)
         return fail(out, rc, &dg);
     }
 #endif
+    uint32_t next = 0; /* the first step the encoder needs */
+    if (resume) {
+        if ((rc = tvpal_encoder_resume(enc, TVPAL_FLOAT32, &next, &dg)) < 0) {
+            tvpal_encoder_abort(enc);
+            return fail(out, rc, &dg);
+        }
+        if (g_rank == 0)
+            printf("tvpal-heat: resumed %s at step %u of %u\n", out, next, T);
+    }
     init(u, &p);
     int failed = 0;
     for (unsigned t = 0; t < T; t++) {
@@ -250,8 +266,9 @@ static int run(int argc, char **argv)
         if (g_rank == bad_rank && t == T / 2)
             slab[0] = INFINITY; /* a bad output value on one rank, not fed
                                  * back into the simulation (--bad-value) */
-        if (!failed && (rc = tvpal_encoder_push(enc, slab, TVPAL_FLOAT32, n,
-                                                NULL, &dg)) < 0)
+        if (!failed && t >= next &&
+            (rc = tvpal_encoder_push(enc, slab, TVPAL_FLOAT32, n, NULL,
+                                     &dg)) < 0)
             /* The output fails; the simulation goes on (its neighbours
              * wait for its halos) and keeps the encoder: the finish of
              * every rank, collective, fails with this rank's message. */

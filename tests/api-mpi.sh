@@ -7,9 +7,11 @@
 # dataset is the one-process sample's, byte for byte; on 3 ranks its raw
 # dumps are the same steps, its node shards are tvpal-encode --nodes 3's
 # of those dumps, byte for byte, and its decoded steps within a PSNR floor
-# of the simulation's arrays.  A bad value on one rank fails every rank
-# with that rank's message, and an output that exists every rank with
-# rank 0's; neither hangs or leaves anything that looks complete.
+# of the simulation's arrays.  Every rank killed mid-run and rerun with
+# --resume continues from the ranks' checkpoints to the uninterrupted
+# run's dataset.  A bad value on one rank fails every rank with that
+# rank's message, and an output that exists every rank with rank 0's;
+# neither hangs or leaves anything that looks complete.
 . "$(dirname "$0")/lib.sh"
 "$ENC" --version | grep -q "mpi: yes" ||
     { echo "built without MPI (libopenmpi-dev): skipped"; exit 77; }
@@ -78,6 +80,40 @@ grep -q "^nodes = 3" "$W/np3.ds/manifest.txt" && [ ! -e "$W/np3.ds.partial" ] &&
 psnr=$(sed -n 's/.*psnr=\([0-9.]*\).*/\1/p' "$W/rep.txt" | head -n 1)
 awk -v p="${psnr:-0}" 'BEGIN { exit !(p > 40) }' && ok "3 ranks: PSNR $psnr dB against the simulation (floor 40)" ||
     fail "PSNR ${psnr:-none} below 40: $(head -n 3 "$W/rep.txt")"
+# Every rank killed (SIGKILL) mid-run, then the same job with --resume:
+# every rank continues from the step their checkpoints share (not 0) and
+# the dataset is the uninterrupted run's.
+K="--dims 64x60x48 --steps 40 --window 4"
+# shellcheck disable=SC2086
+$MPI -np 3 "$W/heat-mpi" $K -o "$W/kref.ds" > "$W/kref.txt" 2>&1 || { cat "$W/kref.txt"; fail "np 3, 64x60x48"; }
+# shellcheck disable=SC2086
+$MPI -np 3 "$W/heat-mpi" $K -o "$W/kill.ds" > /dev/null 2>&1 &
+mpid=$!
+i=0
+while [ $i -lt 600 ]; do
+    n=0
+    for k in 0 1 2; do grep -qs "^done" "$W/kill.ds.partial/node-$k/checkpoint" && n=$((n + 1)); done
+    [ $n = 3 ] && break
+    sleep 0.05; i=$((i + 1))
+done
+sleep 0.2
+pkill -9 -f "$W/heat-mpi" 2> /dev/null
+wait $mpid 2> /dev/null
+if [ -e "$W/kill.ds" ]; then
+    echo "note: the run ended before it was killed"
+else
+    # shellcheck disable=SC2086
+    $MPI -np 3 "$W/heat-mpi" $K --resume -o "$W/kill.ds" > "$W/resume.txt" 2>&1 ||
+        { cat "$W/resume.txt"; fail "np 3 --resume"; }
+    at=$(sed -n 's/.*resumed .* at step \([0-9]*\) of 40/\1/p' "$W/resume.txt")
+    [ "${at:-0}" -gt 0 ] && ok "3 ranks killed, resumed from step $at of 40" ||
+        fail "--resume on 3 ranks started over: $(cat "$W/resume.txt")"
+    same=1
+    for f in manifest.txt node-0/axis-z.tvps node-1/axis-z.tvps node-2/axis-z.tvps node-2/manifest.txt; do
+        cmp -s "$W/kref.ds/$f" "$W/kill.ds/$f" || { same=0; fail "resumed on 3 ranks: $f differs"; }
+    done
+    [ $same = 1 ] && [ ! -e "$W/kill.ds.partial" ] && ok "resumed on 3 ranks: the uninterrupted run's dataset, byte for byte"
+fi
 # A bad value on rank 1 at step 9: every rank's finish fails with rank 1's
 # message; nothing is left.
 # shellcheck disable=SC2086

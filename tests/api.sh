@@ -80,23 +80,35 @@ if mount -t tmpfs -o size=200k tmpfs "$W/full" 2> /dev/null; then
 else
     echo "mount -t tmpfs not permitted: the full-disk case is skipped"
 fi
-# Killed (SIGKILL) while it runs: no dataset; a rerun starts over and
-# gives the same shards.
-LD_LIBRARY_PATH="$libdir" "$W/heat" --dims 96x96x64 --steps 200 -o "$W/kill.ds" > /dev/null 2>&1 &
+# Killed (SIGKILL) while it runs: no dataset; a rerun with --resume
+# continues from the checkpoint (it must not start over) and gives the
+# shards of an uninterrupted run; a plain rerun starts over, the same.
+H="--dims 96x96x64 --steps 40 --window 4"
+# shellcheck disable=SC2086
+LD_LIBRARY_PATH="$libdir" "$W/heat" $H -o "$W/ref.ds" > /dev/null || fail "tvpal-heat 96x96x64"
+# shellcheck disable=SC2086
+LD_LIBRARY_PATH="$libdir" "$W/heat" $H -o "$W/kill.ds" > /dev/null 2>&1 &
 pid=$!
 i=0
-while [ ! -e "$W/kill.ds.partial/node-0/axis-z.tvps" ] && [ $i -lt 200 ]; do sleep 0.05; i=$((i + 1)); done
-sleep 0.2
+while ! grep -qs "^done" "$W/kill.ds.partial/checkpoint" && [ $i -lt 400 ]; do sleep 0.05; i=$((i + 1)); done
+sleep 0.3
 kill -9 $pid 2> /dev/null
 wait $pid 2> /dev/null
 if [ -e "$W/kill.ds" ]; then
     echo "note: the run ended before it was killed"
 else
     [ -e "$W/kill.ds.partial" ] && ok "killed: only the partial output" || fail "killed: no partial output"
-    LD_LIBRARY_PATH="$libdir" "$W/heat" --dims 40x36x28 --steps 18 --window 4 -o "$W/kill.ds" > /dev/null 2> "$W/kill.err" \
-        && cmp -s "$W/kill.ds/node-0/axis-z.tvps" "$W/heat.ds/node-0/axis-z.tvps" \
-        && [ ! -e "$W/kill.ds.partial" ] \
-        && ok "rerun after kill -9: a complete dataset, the same shards" || fail "rerun after kill: $(cat "$W/kill.err")"
+    # shellcheck disable=SC2086
+    LD_LIBRARY_PATH="$libdir" "$W/heat" $H --resume -o "$W/kill.ds" > "$W/kill.out" 2> "$W/kill.err" ||
+        fail "rerun with --resume: $(cat "$W/kill.err")"
+    at=$(sed -n 's/.*resumed .* at step \([0-9]*\) of 40/\1/p' "$W/kill.out")
+    [ "${at:-0}" -gt 0 ] && ok "resumed from the checkpoint at step $at of 40" ||
+        fail "--resume started over: $(cat "$W/kill.out")"
+    cmp -s "$W/kill.ds/node-0/axis-z.tvps" "$W/ref.ds/node-0/axis-z.tvps" &&
+        cmp -s "$W/kill.ds/manifest.txt" "$W/ref.ds/manifest.txt" && [ ! -e "$W/kill.ds.partial" ] &&
+        ok "resumed after kill -9: the uninterrupted run's shard and manifest" ||
+        fail "the resumed dataset differs from the uninterrupted one"
+    ! grep -rqs . "$W/kill.ds/checkpoint" && ok "no checkpoint left in the dataset" || fail "a checkpoint left"
 fi
 # Decoded against the simulation's arrays.
 "$REP" "$W/heat.ds" --reference "$W"/raw/heat_t*.f32 > "$W/rep.txt" 2>&1 ||

@@ -21,6 +21,7 @@
 
 #include <pthread.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #define NX 9
@@ -81,19 +82,21 @@ static unsigned char *slurp(const char *p, size_t *n)
 
 static const uint32_t dims[3] = {NX, NY, NZ};
 
-/* Encodes the series into dir: float32 contiguous, or float64 from an
- * array stored z fastest (strides). */
-static int encode(const char *dir, int f64, struct tvpal_diag *d)
+/* Opens the encoder of the series (window 3, axes x and z, a grid, times
+ * and units) into dir: 0, or a code with e released. */
+static int open_series(struct tvpal_encoder **out, const char *dir,
+                       unsigned window, struct tvpal_diag *d)
 {
     struct tvpal_encoder *e = NULL;
     int rc = tvpal_encoder_open(&e, dir, dims, T, d);
+    *out = NULL;
     if (rc < 0)
         return rc;
     double times[T];
     for (unsigned t = 0; t < T; t++)
         times[t] = 1.5 * t;
     const double sp[3] = {0.5, 1, 2}, or[3] = {-1, 0, 3};
-    if ((rc = tvpal_encoder_set(e, TVPAL_PARAM_WINDOW, 3, d)) < 0 ||
+    if ((rc = tvpal_encoder_set(e, TVPAL_PARAM_WINDOW, window, d)) < 0 ||
         (rc = tvpal_encoder_set(e, TVPAL_PARAM_AXES,
                                 TVPAL_AXIS_X | TVPAL_AXIS_Z, d)) < 0 ||
         (rc = tvpal_encoder_set(e, TVPAL_PARAM_THREADS, 2, d)) < 0 ||
@@ -103,6 +106,18 @@ static int encode(const char *dir, int f64, struct tvpal_diag *d)
         tvpal_encoder_abort(e);
         return rc;
     }
+    *out = e;
+    return 0;
+}
+
+/* Encodes the series into dir: float32 contiguous, or float64 from an
+ * array stored z fastest (strides). */
+static int encode(const char *dir, int f64, struct tvpal_diag *d)
+{
+    struct tvpal_encoder *e = NULL;
+    int rc = open_series(&e, dir, 3, d);
+    if (rc < 0)
+        return rc;
     float v[NV];
     double w[NV];
     const ptrdiff_t zfast[3] = {NY * NZ, NZ, 1};
@@ -550,6 +565,110 @@ static void test_collective(void)
     tvpal_encoder_abort(e);
 }
 
+/* Pushes steps first .. last - 1 of the series (float32). */
+static int push_steps(struct tvpal_encoder *e, unsigned first, unsigned last,
+                      struct tvpal_diag *d)
+{
+    float v[NV];
+    int rc = 0;
+    for (unsigned t = first; t < last && rc == 0; t++) {
+        fill(v, t);
+        rc = tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, d);
+    }
+    return rc;
+}
+
+/* A process that pushes `steps` steps into dir and dies (no finish, no
+ * abort), as a crash would. */
+static void crash_after(const char *dir, unsigned steps)
+{
+    fflush(NULL);
+    pid_t pid = fork();
+    if (pid == 0) {
+        struct tvpal_encoder *e = NULL;
+        struct tvpal_diag d = {{0}};
+        if (open_series(&e, dir, 3, &d) < 0 || push_steps(e, 0, steps, &d) < 0)
+            _exit(3);
+        _exit(0);
+    }
+    int status = 0;
+    REQUIRE(pid > 0 && waitpid(pid, &status, 0) == pid &&
+                WIFEXITED(status) && WEXITSTATUS(status) == 0,
+            "the crashing child failed (status %d)", status);
+}
+
+/* tvpal_encoder_resume: after a crash, the steps from the checkpoint on
+ * give the dataset of an uninterrupted encode; with no partial output, or that of another
+ * job, it starts over. */
+static void test_resume(void)
+{
+    struct tvpal_diag d = {{0}};
+    REQUIRE(encode(path("%s/whole%s", ""), 0, &d) == 0, "encode: %s", d.msg);
+    const char *dir = path("%s/resumed%s", "");
+    crash_after(dir, 5);
+    CHECK(!exists(dir) && exists(path("%s/resumed%s", ".partial/checkpoint")),
+          "the crash left no partial output with a checkpoint");
+    struct tvpal_encoder *e = NULL;
+    uint32_t next = 99;
+    REQUIRE(open_series(&e, dir, 3, &d) == 0, "open: %s", d.msg);
+    REQUIRE(tvpal_encoder_resume(e, TVPAL_FLOAT32, &next, &d) == 0,
+            "resume: %s", d.msg);
+    /* Window 3: 5 steps in, steps 0..2 encoded, the checkpoint at 3. */
+    CHECK(next == 3, "resumed at step %u, 3 expected", next);
+    CHECK(tvpal_encoder_resume(e, TVPAL_FLOAT32, &next, &d) == TVPAL_E_INVAL,
+          "a second resume taken");
+    CHECK(push_steps(e, next, T, &d) == 0, "push: %s", d.msg);
+    CHECK(tvpal_encoder_finish(e, &d) == 0, "finish: %s", d.msg);
+    static const char *files[] = {"/manifest.txt", "/node-0/manifest.txt",
+                                  "/node-0/axis-x.tvps", "/node-0/axis-z.tvps"};
+    for (int i = 0; i < 4; i++)
+        CHECK(same_file(path("%s/whole%s", files[i]),
+                        path("%s/resumed%s", files[i])),
+              "%s of the resumed encode differs from the uninterrupted one's",
+              files[i]);
+    CHECK(!exists(path("%s/resumed%s", "/checkpoint")) &&
+              !exists(path("%s/resumed%s", ".partial")),
+          "a checkpoint or the partial output left");
+    /* No partial output: a fresh start. */
+    REQUIRE(open_series(&e, path("%s/fresh%s", ""), 3, &d) == 0, "open");
+    CHECK(tvpal_encoder_resume(e, TVPAL_FLOAT32, &next, &d) == 0 && next == 0,
+          "resume of nothing: %u %s", next, d.msg);
+    CHECK(push_steps(e, 0, T, &d) == 0 && tvpal_encoder_finish(e, &d) == 0,
+          "fresh: %s", d.msg);
+    CHECK(same_file(path("%s/whole%s", "/node-0/axis-z.tvps"),
+                    path("%s/fresh%s", "/node-0/axis-z.tvps")),
+          "a resume of nothing differs");
+    /* Another job's checkpoint (window 4): not resumed, started over. */
+    dir = path("%s/other%s", "");
+    crash_after(dir, 5);
+    REQUIRE(open_series(&e, dir, 4, &d) == 0, "open");
+    CHECK(tvpal_encoder_resume(e, TVPAL_FLOAT32, &next, &d) == 0 && next == 0,
+          "another job's checkpoint resumed at %u", next);
+    CHECK(push_steps(e, 0, T, &d) == 0 && tvpal_encoder_finish(e, &d) == 0,
+          "started over: %s", d.msg);
+    struct tvpal_reader *r = NULL;
+    CHECK(tvpal_reader_open(&r, dir, &d) == 0 &&
+              tvpal_reader_info(r)->window == 4, "the started-over dataset");
+    tvpal_reader_close(r);
+    /* A shard changed since its checkpoint: refused, naming the file. */
+    dir = path("%s/changed%s", "");
+    crash_after(dir, 6);
+    FILE *f = fopen(path("%s/changed%s", ".partial/node-0/axis-z.tvps"), "r+b");
+    REQUIRE(f != NULL, "the crashed shard");
+    fseek(f, 0, SEEK_END);
+    const long size = ftell(f); /* records 0..3 are in: spoil the middle */
+    fseek(f, size / 4, SEEK_SET);
+    for (long i = 0; i < size / 2; i++)
+        fputc(0x5a, f);
+    fclose(f);
+    REQUIRE(open_series(&e, dir, 3, &d) == 0, "open");
+    const int rc = tvpal_encoder_resume(e, TVPAL_FLOAT32, &next, &d);
+    CHECK(rc < 0 && strstr(d.msg, "axis-z.tvps: cannot resume"),
+          "a changed shard resumed: %d %s", rc, d.msg);
+    tvpal_encoder_abort(e);
+    CHECK(!exists(path("%s/changed%s", ".partial")), "abort left the partial");
+}
+
 int main(void)
 {
     char cmd[600];
@@ -563,6 +682,7 @@ int main(void)
     test_nothing_left();
     test_output_rules();
     test_collective();
+    test_resume();
     int rc = tt_done("test-api");
     if (rc == 0) {
         snprintf(cmd, sizeof cmd, "rm -rf %s", W);
