@@ -4,6 +4,7 @@
 #include "tvpal_clock.h"
 #include "tvpal_cli.h"
 #include "tvpal_fs.h"
+#include "tvpal_output.h"
 #include "tvpal_values.h"
 
 #include <errno.h>
@@ -140,36 +141,14 @@ void write_manifest(const char *dir, const char *text)
     free(path);
 }
 
-/* Renames OUTDIR.partial to OUTDIR; with --force an existing OUTDIR goes
- * to OUTDIR.old first and is removed after.  place_output says what went
- * wrong in err and returns -1; move_into_place ends the program. */
+/* Renames OUTDIR.partial to OUTDIR (tvpal_output_place: with --force an
+ * existing OUTDIR is replaced, and stays as it was if that fails); says
+ * what went wrong in err and returns -1. */
 int place_output(const struct run *r, char *err, size_t cap)
 {
-    const char *out = r->o.outdir;
-    if (tvpal_exists(out)) {
-        char *old;
-        if (asprintf(&old, "%s.old", out) < 0)
-            return snprintf(err, cap, "out of memory"), -1;
-        tvpal_rmtree(old);
-        if (rename(out, old) < 0) {
-            snprintf(err, cap, "%s: cannot replace: %s", out, strerror(errno));
-            free(old);
-            return -1;
-        }
-        if (rename(r->partial, out) < 0) {
-            /* the old dataset back where it was */
-            int e = errno;
-            rename(old, out);
-            snprintf(err, cap, "%s: cannot replace (left as it was): %s", out,
-                     strerror(e));
-            free(old);
-            return -1;
-        }
-        tvpal_rmtree(old);
-        free(old);
-    } else if (rename(r->partial, out) < 0) {
-        snprintf(err, cap, "%s: cannot rename %s into place: %s", out,
-                 r->partial, strerror(errno));
+    struct tvpal_diag d = {{0}};
+    if (tvpal_output_place(r->partial, r->o.outdir, &d) < 0) {
+        snprintf(err, cap, "%s", d.msg[0] ? d.msg : "out of memory");
         return -1;
     }
     return 0;

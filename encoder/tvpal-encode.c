@@ -37,6 +37,7 @@
 #include "tvpal_fs.h"
 #include "tvpal_input.h"
 #include "tvpal_manifest.h"
+#include "tvpal_output.h"
 #include "tvpal_raw.h"
 #include "tvpal_shard.h"
 #include "tvpal_swcode.h"
@@ -531,9 +532,10 @@ static void check_output(struct run *r)
     static const char *const sfx[] = {"", ".partial", ".old"};
     if (asprintf(&r->partial, "%s.partial", o->outdir) < 0)
         die_fail("out of memory");
-    if (tvpal_exists(o->outdir) && !o->force)
-        die_usage("%s: output already exists (use --force to replace it)",
-                  o->outdir);
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_output_check(o->outdir, 0, "use --force to", &d);
+    if (rc < 0 && (rc != TVPAL_E_EXIST || !o->force))
+        die_usage("%s", d.msg[0] ? d.msg : "out of memory");
     for (int k = 0; k < 3; k++) {
         char *p = NULL, *abs_p;
         if (asprintf(&p, "%s%s", o->outdir, sfx[k]) < 0)
@@ -550,17 +552,10 @@ static void check_output(struct run *r)
         }
         free(p);
     }
-    if (tvpal_exists(o->outdir)) {
-        char *mp = NULL;
-        struct tvpal_manifest old;
-        if (asprintf(&mp, "%s/manifest.txt", o->outdir) < 0)
-            die_fail("out of memory");
-        if (tvpal_manifest_load(mp, &old, NULL) < 0)
-            die_usage("%s: exists and is not a tvpal dataset (no valid "
-                      "manifest.txt); refusing to replace it", o->outdir);
-        tvpal_manifest_clear(&old);
-        free(mp);
-    }
+    /* With --force, only a tvpal dataset is replaced. */
+    if ((rc = tvpal_output_check(o->outdir, o->force, "use --force to",
+                                 &d)) < 0)
+        die_usage("%s", d.msg);
 }
 
 /* Creates OUTDIR.partial/node-R/ for every node (after which bad input

@@ -18,6 +18,7 @@
 #include "tvpal_engine.h"
 #include "tvpal_fs.h"
 #include "tvpal_manifest.h"
+#include "tvpal_output.h"
 #include "tvpal_raw.h"
 #include "tvpal_size.h"
 #include "tvpal_values.h"
@@ -570,30 +571,6 @@ _Static_assert(TVPAL_CHECKPOINT_BINS % HIST_PIECE == 0,
 
 /* ---------------------------------------------------------------- start */
 
-/* DIR may be replaced: absent, or with force a tvpal dataset. */
-static int check_output(const struct tvpal_encoder *e,
-                        struct tvpal_diag *diag)
-{
-    if (!tvpal_exists(e->dir))
-        return 0;
-    if (!e->force)
-        return tvpal_diag_set(diag, TVPAL_E_EXIST, "%s: output already "
-                              "exists (TVPAL_PARAM_FORCE replaces it)",
-                              e->dir);
-    char *mp = NULL;
-    struct tvpal_manifest old;
-    if (asprintf(&mp, "%s/manifest.txt", e->dir) < 0)
-        return TVPAL_E_NOMEM;
-    int rc = tvpal_manifest_load(mp, &old, NULL);
-    free(mp);
-    if (rc < 0)
-        return tvpal_diag_set(diag, TVPAL_E_EXIST, "%s: exists and is not a "
-                              "tvpal dataset (no valid manifest.txt); "
-                              "refusing to replace it", e->dir);
-    tvpal_manifest_clear(&old);
-    return 0;
-}
-
 /* What this rank can refuse before anything is made. */
 static int check_job(const struct tvpal_encoder *e, struct tvpal_diag *diag)
 {
@@ -615,7 +592,8 @@ static int check_job(const struct tvpal_encoder *e, struct tvpal_diag *diag)
  * DIR.partial made. */
 static int prepare_output(struct tvpal_encoder *e, struct tvpal_diag *diag)
 {
-    int rc = check_output(e, diag);
+    int rc = tvpal_output_check(e->dir, e->force, "TVPAL_PARAM_FORCE would",
+                                diag);
     if (rc < 0)
         return rc;
     if (asprintf(&e->lock_path, "%s.lock", e->partial) < 0)
@@ -1133,8 +1111,8 @@ static int finish_shards(struct tvpal_encoder *e, const char *text,
     return rc;
 }
 
-/* DIR.partial read back as a dataset, then renamed to DIR; an older DIR
- * (force) goes to DIR.old first and is removed after. */
+/* The manifest in DIR.partial, which is read back as a dataset, then
+ * renamed to DIR (tvpal_output_place). */
 static int place(struct tvpal_encoder *e, const char *text,
                  struct tvpal_diag *diag)
 {
@@ -1145,35 +1123,9 @@ static int place(struct tvpal_encoder *e, const char *text,
     struct tvpal_dataset *ds = NULL;
     rc = tvpal_dataset_open(&ds, e->partial, diag);
     tvpal_dataset_close(ds);
-    if (rc < 0)
-        return rc;
-    char *old = NULL;
-    if (asprintf(&old, "%s.old", e->dir) < 0)
-        return TVPAL_E_NOMEM;
-    const int had = tvpal_exists(e->dir);
-    if (had && (tvpal_rmtree(old), rename(e->dir, old) < 0)) {
-        free(old);
-        return tvpal_diag_set(diag, TVPAL_E_SYS, "%s: cannot move aside",
-                              e->dir);
-    }
-    if (rename(e->partial, e->dir) < 0) {
-        if (had)
-            rename(old, e->dir);
-        free(old);
-        return tvpal_diag_set(diag, TVPAL_E_SYS, "%s: cannot rename to %s",
-                              e->partial, e->dir);
-    }
-    e->made_partial = 0;
-    char *parent = strdup(e->dir), *slash = parent ? strrchr(parent, '/')
-                                                   : NULL;
-    if (slash)
-        *slash = 0;
-    tvpal_fsync_dir(slash ? (slash == parent ? "/" : parent) : ".");
-    free(parent);
-    if (had)
-        tvpal_rmtree(old);
-    free(old);
-    return 0;
+    if (rc == 0 && (rc = tvpal_output_place(e->partial, e->dir, diag)) == 0)
+        e->made_partial = 0;
+    return rc;
 }
 
 /* Frees e; on rank 0, a partial output left (a failure) goes first, and
