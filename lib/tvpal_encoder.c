@@ -882,7 +882,10 @@ static int take_step(struct tvpal_encoder *e, const void *data,
         e->pushed++;
         return 0;
     }
-    tvpal_values_account(&e->st, e->fine, nt, &all,
+    /* The threads' histograms are folded into st only when it is needed
+     * (a checkpoint, the end): a small step (a level's) has fewer values
+     * than their 65536 classes. */
+    tvpal_values_account(&e->st, e->fine, 0, &all,
                          (uint64_t)d[0] * d[1] * e->slab_n);
     e->st.loaded = ++e->pushed;
     return 0;
@@ -890,8 +893,16 @@ static int take_step(struct tvpal_encoder *e, const void *data,
 
 /* A checkpoint of what is encoded: the shards' progress, the statistics
  * (of the steps pushed), in this rank's directory. */
+/* The threads' histograms into e->st's (before it is saved or sent). */
+static void fold_histograms(struct tvpal_encoder *e)
+{
+    if (e->pool && e->fine)
+        tvpal_values_fold(&e->st, e->fine, tvpal_pool_threads(e->pool));
+}
+
 static int save_checkpoint(struct tvpal_encoder *e, struct tvpal_diag *diag)
 {
+    fold_histograms(e);
     uint32_t n;
     struct tvpal_engine_shard *sj = tvpal_engine_shards(e->eng, &n);
     const uint32_t T = e->ep.steps;
@@ -1197,6 +1208,7 @@ int tvpal_encoder_finish(struct tvpal_encoder *e, struct tvpal_diag *diag)
         return rc ? rc : TVPAL_E_INVAL;
     }
     char *text = NULL;
+    fold_histograms(e);
     rc = agree_stats(e, 0, NULL, &text, &d);
     if (rc == 0)
         rc = finish_shards(e, text, &d);

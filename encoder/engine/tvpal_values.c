@@ -48,15 +48,21 @@ void tvpal_found_merge(struct tvpal_found *all, const struct tvpal_found *f)
     all->hi = f->hi > all->hi ? f->hi : all->hi;
 }
 
-void tvpal_values_account(struct tvpal_checkpoint_stats *st,
-                          uint64_t *const *fine, unsigned n,
-                          const struct tvpal_found *all, uint64_t voxels)
+void tvpal_values_fold(struct tvpal_checkpoint_stats *st,
+                       uint64_t *const *fine, unsigned n)
 {
     for (unsigned i = 0; i < n; i++)
         for (uint32_t k = 0; k < TVPAL_CHECKPOINT_BINS; k++) {
             st->fine[k] += fine[i][k];
             fine[i][k] = 0;
         }
+}
+
+void tvpal_values_account(struct tvpal_checkpoint_stats *st,
+                          uint64_t *const *fine, unsigned n,
+                          const struct tvpal_found *all, uint64_t voxels)
+{
+    tvpal_values_fold(st, fine, n);
     st->nonfinite += all->nrep;
     st->missing += all->nmiss;
     st->counted += voxels;

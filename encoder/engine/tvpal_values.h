@@ -59,12 +59,18 @@ void tvpal_values_convert(const struct tvpal_values_rules *rules,
                           struct tvpal_found *f);
 
 /* Accounts a converted step (or box) of `voxels` values into st: the
- * threads' fine histograms fine[0 .. n-1] (added, then zeroed for the next
- * one) and what they found, merged in all (range, replaced and missing
- * values). */
+ * threads' fine histograms fine[0 .. n-1] (tvpal_values_fold; n = 0: the
+ * caller folds them later) and what they found, merged in all (range,
+ * replaced and missing values). */
 void tvpal_values_account(struct tvpal_checkpoint_stats *st,
                           uint64_t *const *fine, unsigned n,
                           const struct tvpal_found *all, uint64_t voxels);
+
+/* Adds the threads' fine histograms fine[0 .. n-1] into st's and zeroes
+ * them.  A caller whose steps are small folds them only when st's
+ * histogram is needed (65536 classes per thread against a step's values). */
+void tvpal_values_fold(struct tvpal_checkpoint_stats *st,
+                       uint64_t *const *fine, unsigned n);
 
 /* The value at the middle of a class of the fine histogram. */
 float tvpal_values_bin_value(uint32_t b);
