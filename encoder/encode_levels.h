@@ -7,13 +7,8 @@
 #define TVPAL_ENCODE_LEVELS_H
 
 #include "encode.h"
+#include "tvpal_levels.h"
 
-/* The dims of level k of a volume of dims d0. */
-void level_dims(const uint32_t d0[3], unsigned k, uint32_t out[3]);
-/* The spacing sk and origin ok of a level of dims dk over level 0's grid
- * (s0, o0, dims d0): the same extent, its voxels' centres inside. */
-void level_grid(const double s0[3], const double o0[3], const uint32_t d0[3],
-                const uint32_t dk[3], double sk[3], double ok[3]);
 /* After level 0 is finished in OUTDIR.partial: levels 1..L into
  * OUTDIR.partial/level-k/ (encode_levels.c says how): those made beside
  * level 0 (r->lvs) finished, or made now from the source read again. */

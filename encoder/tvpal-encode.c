@@ -458,8 +458,8 @@ static void validate_opts(const struct opts *o, int have_dims,
                   d[0], d[1], d[2], tvpal_type_name(o->type));
     for (unsigned k = 1; k <= o->levels; k++) {
         uint32_t a[3], b[3];
-        level_dims(d, k - 1, a);
-        level_dims(d, k, b);
+        tvpal_level_dims(d, k - 1, a);
+        tvpal_level_dims(d, k, b);
         if (a[0] == b[0] && a[1] == b[1] && a[2] == b[2])
             die_usage("--levels %u: level %u would be %ux%ux%u again; at "
                       "most %u level(s) for %ux%ux%u", o->levels, k, b[0],
@@ -829,7 +829,7 @@ static uint64_t levels_bytes(const struct run *r, int with_slab)
                            : 0;
     for (unsigned k = 1; k <= o->levels; k++) {
         uint32_t dk[3];
-        level_dims(o->dims, k, dk);
+        tvpal_level_dims(o->dims, k, dk);
         const uint64_t vox = (uint64_t)dk[0] * dk[1] * dk[2];
         const struct tvpal_engine_params p = {
             .dims = {dk[0], dk[1], dk[2]}, .steps = r->T, .window = r->N,
@@ -1234,8 +1234,8 @@ static void check_grid(const struct run *r)
     for (unsigned k = 0; k <= o->levels; k++) {
         double sk[3], ok[3];
         uint32_t dk[3];
-        level_dims(o->dims, k, dk);
-        level_grid(s0, o0, o->dims, dk, sk, ok);
+        tvpal_level_dims(o->dims, k, dk);
+        tvpal_level_grid(s0, o0, o->dims, dk, sk, ok);
         if (k == 0) {   /* level 0's own, not through a product */
             memcpy(sk, s0, sizeof sk);
             memcpy(ok, o0, sizeof ok);

@@ -106,10 +106,16 @@ enum tvpal_param {
                                * output directory (only a tvpal dataset;
                                * it is replaced when the new one is
                                * complete); default 0 */
-    TVPAL_PARAM_CHECKPOINT    /* a checkpoint (what tvpal_encoder_resume
+    TVPAL_PARAM_CHECKPOINT,   /* a checkpoint (what tvpal_encoder_resume
                                * continues from) after every this many
                                * steps encoded, and after the last; 0:
                                * none; default 1 */
+    TVPAL_PARAM_LEVELS        /* coarser levels of detail, 0..8: level k
+                               * the 2x2x2 means of level k - 1, made from
+                               * each step as it is pushed and stored in
+                               * DIR/level-k (the player answers jumps from
+                               * them; the reader decodes them); one
+                               * process only; default 0 */
 };
 #define TVPAL_TABLE_FLOAT32 0
 #define TVPAL_TABLE_UINT16 1

@@ -17,6 +17,7 @@
 #include "tvpal_dataset.h"
 #include "tvpal_engine.h"
 #include "tvpal_fs.h"
+#include "tvpal_levels.h"
 #include "tvpal_manifest.h"
 #include "tvpal_output.h"
 #include "tvpal_raw.h"
@@ -113,6 +114,15 @@ struct tvpal_encoder {
     uint32_t recount_to;
     char *ckdir, *fp;
     struct tvpal_checkpoint_progress ckp;
+    /* Levels of detail 1 .. levels: each a libtvpal encoder of its own
+     * into DIR.partial/level-k, fed the block means of the step before it
+     * (lvol[k], ldims[k]); lnext[k]: the first step it takes (a resumed
+     * level may be ahead of level 0: its checkpoint is saved first). */
+    uint32_t levels;
+    struct tvpal_encoder *lv[TVPAL_LEVELS_MAX + 1];
+    float *lvol[TVPAL_LEVELS_MAX + 1];
+    uint32_t ldims[TVPAL_LEVELS_MAX + 1][3];
+    uint32_t lnext[TVPAL_LEVELS_MAX + 1];
     uint64_t *pieces;                /* rank 0: size * HIST_PIECE */
 };
 
@@ -362,6 +372,12 @@ int tvpal_encoder_set(struct tvpal_encoder *e, enum tvpal_param param,
         else
             e->force = value == 1;
         break;
+    case TVPAL_PARAM_LEVELS:
+        if (!whole_in(value, 0, TVPAL_LEVELS_MAX))
+            name = "levels", range = "0..8";
+        else
+            e->levels = (uint32_t)value;
+        break;
     case TVPAL_PARAM_CHECKPOINT:
         if (!whole_in(value, 0, UINT32_MAX))
             name = "checkpoint", range = "steps between checkpoints, 0 for "
@@ -581,6 +597,11 @@ static int check_job(const struct tvpal_encoder *e, struct tvpal_diag *diag)
                               "ranks: only TVPAL_AXIS_Z (the x and y "
                               "slices cross the ranks' slabs)", e->ep.axes,
                               e->coll.size);
+    if (e->coll.size > 1 && e->levels)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "levels %u with %d ranks: "
+                              "not yet (a level's planes cross the ranks' "
+                              "slabs); encode the levels in one process",
+                              e->levels, e->coll.size);
     if (e->coll.size > 1 && e->ep.nodes != (uint32_t)e->coll.size)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "nodes %u with %d ranks: "
                               "one node shard per rank", e->ep.nodes,
@@ -625,7 +646,15 @@ static uint64_t job_bytes(const struct tvpal_encoder *e, unsigned nthreads,
     const uint64_t per_thread = tvpal_engine_thread_bytes(e->eng) +
                                 TVPAL_CHECKPOINT_BINS * sizeof(uint64_t) +
                                 (uint64_t)e->ep.dims[0] * 8;
-    return ring + nthreads * per_thread + tvpal_engine_table_bytes(e->eng);
+    uint64_t levels = 0; /* each level's volume and its encoder's ring */
+    for (uint32_t k = 1; k <= e->levels; k++) {
+        uint32_t dk[3];
+        tvpal_level_dims(e->ep.dims, k, dk);
+        levels += (uint64_t)((T < N ? T : N) + 1) * dk[0] * dk[1] * dk[2] *
+                  sizeof(float);
+    }
+    return ring + levels + nthreads * per_thread +
+           tvpal_engine_table_bytes(e->eng);
 }
 
 /* This rank's node directories and shard writers: resumed at the
@@ -766,6 +795,110 @@ static int setup(struct tvpal_encoder *e, struct tvpal_diag *diag)
     return 0;
 }
 
+/* Level k's encoder: level 0's parameters, the grid over the same box,
+ * the times and units; resumed when level 0 is (done > 0), where its
+ * checkpoint must be at least level 0's. */
+static int open_level(struct tvpal_encoder *e, uint32_t k, uint64_t done,
+                      struct tvpal_diag *diag)
+{
+    uint32_t *dk = e->ldims[k];
+    tvpal_level_dims(e->ep.dims, k, dk);
+    char *dir = NULL;
+    if (asprintf(&dir, "%s/level-%u", e->partial, k) < 0)
+        return TVPAL_E_NOMEM;
+    struct tvpal_encoder *c = NULL;
+    int rc = tvpal_encoder_open(&c, dir, dk, e->ep.steps, diag);
+    free(dir);
+    if (rc < 0)
+        return rc;
+    e->lv[k] = c;
+    const struct tvpal_engine_params *p = &e->ep;
+    const struct { enum tvpal_param p; double v; } set[] = {
+        {TVPAL_PARAM_WINDOW, p->window}, {TVPAL_PARAM_NODES, p->nodes},
+        {TVPAL_PARAM_AXES, p->axes}, {TVPAL_PARAM_THREADS, e->threads},
+        {TVPAL_PARAM_TABLE, p->table_format}, {TVPAL_PARAM_REFINE, p->refine},
+        {TVPAL_PARAM_NAIVE, p->naive},
+        {TVPAL_PARAM_TRANSFORM, p->klt ? TVPAL_TRANSFORM_KLT
+                                       : TVPAL_TRANSFORM_DCT},
+        {TVPAL_PARAM_ALLOC, p->alloc_mse ? TVPAL_ALLOC_GREEDY_MSE
+                                         : TVPAL_ALLOC_VARIANCE},
+        {TVPAL_PARAM_CHECKPOINT, e->ckpt_every},
+        /* an older level-k (of an earlier job in DIR.partial) goes */
+        {TVPAL_PARAM_FORCE, 1}};
+    for (size_t i = 0; rc == 0 && i < sizeof set / sizeof *set; i++)
+        rc = tvpal_encoder_set(c, set[i].p, set[i].v, diag);
+    double sk[3], ok[3];
+    tvpal_level_grid(e->spacing, e->origin, e->ep.dims, dk, sk, ok);
+    if (rc == 0)
+        rc = tvpal_encoder_set_grid(c, sk, ok, diag);
+    if (rc == 0 && e->times)
+        rc = tvpal_encoder_set_times(c, e->times, e->time_units, diag);
+    if (rc == 0)
+        rc = tvpal_encoder_set_units(c, e->units, diag);
+    if (rc == 0 && !(e->lvol[k] = malloc((size_t)dk[0] * dk[1] * dk[2] *
+                                         sizeof(float))))
+        rc = TVPAL_E_NOMEM;
+    e->lnext[k] = 0;
+    if (rc == 0 && done) {
+        rc = tvpal_encoder_resume(c, TVPAL_FLOAT32, &e->lnext[k], diag);
+        if (rc == 0 && e->lnext[k] < done)
+            rc = tvpal_diag_set(diag, TVPAL_E_MISMATCH, "%s/level-%u: its "
+                                "checkpoint is at step %u, level 0's at "
+                                "%llu: abort and encode again from step 0",
+                                e->partial, k, e->lnext[k],
+                                (unsigned long long)done);
+    }
+    if (rc < 0 && diag && !strstr(diag->msg, "level-")) {
+        char why[TVPAL_DIAG_MAX];
+        snprintf(why, sizeof why, "%s", diag->msg);
+        tvpal_diag_set(diag, rc, "level %u: %s", k, why);
+    }
+    return rc;
+}
+
+/* Step t (in the ring) to every level: level 1 its block means, each next
+ * level those of the one before. */
+static int push_levels(struct tvpal_encoder *e, uint32_t t,
+                       struct tvpal_diag *diag)
+{
+    const float *fine = tvpal_engine_slot(e->eng, t);
+    const uint32_t *fd = e->ep.dims;
+    for (uint32_t k = 1; k <= e->levels; k++) {
+        tvpal_level_make(fine, fd, e->lvol[k]);
+        const uint32_t *dk = e->ldims[k];
+        int rc = t < e->lnext[k]
+                     ? 0
+                     : tvpal_encoder_push(e->lv[k], e->lvol[k], TVPAL_FLOAT32,
+                                          (size_t)dk[0] * dk[1] * dk[2], NULL,
+                                          diag);
+        if (rc < 0) {
+            char why[TVPAL_DIAG_MAX];
+            snprintf(why, sizeof why, "%s", diag ? diag->msg : "");
+            return tvpal_diag_set(diag, rc, "level %u: %s", k, why);
+        }
+        fine = e->lvol[k];
+        fd = dk;
+    }
+    return 0;
+}
+
+/* The levels finished (each renames its DIR.partial/level-k.partial to
+ * DIR.partial/level-k), before level 0's manifest names them. */
+static int finish_levels(struct tvpal_encoder *e, struct tvpal_diag *diag)
+{
+    for (uint32_t k = 1; k <= e->levels; k++) {
+        struct tvpal_encoder *c = e->lv[k];
+        e->lv[k] = NULL;
+        int rc = c ? tvpal_encoder_finish(c, diag) : 0;
+        if (rc < 0) {
+            char why[TVPAL_DIAG_MAX];
+            snprintf(why, sizeof why, "%s", diag ? diag->msg : "");
+            return tvpal_diag_set(diag, rc, "level %u: %s", k, why);
+        }
+    }
+    return 0;
+}
+
 /* The first push, on every rank: START (nobody refused; rank 0 prepares
  * the output) and SETUP (every rank ready).  The first failure is every
  * rank's. */
@@ -800,7 +933,10 @@ static int start(struct tvpal_encoder *e, enum tvpal_type type,
         return report(rc, &v, diag);
     e->encoded = e->pushed = (uint32_t)done;
     e->recount_to = done ? e->st.loaded : 0;
-    return 0;
+    /* Levels: one process only (check_job), so no round. */
+    for (uint32_t k = 1; rc == 0 && k <= e->levels; k++)
+        rc = open_level(e, k, done, diag);
+    return rc;
 }
 
 /* ----------------------------------------------------------------- push */
@@ -978,6 +1114,10 @@ int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
     }
     if (rc == 0)
         rc = take_step(e, data, strides, &d);
+    /* The levels first: their checkpoints are then never behind level
+     * 0's, so that a resume finds every level at or past level 0's step. */
+    if (rc == 0 && e->levels)
+        rc = push_levels(e, e->pushed - 1, &d);
     if (rc == 0)
         rc = encode_ready(e, &d);
     if (rc < 0 && e->state != FAILED) {
@@ -1031,6 +1171,7 @@ static int build_manifest(const struct tvpal_encoder *e, char **text)
                                    e->time_units, e->units, LIB_NAME, &m);
     memcpy(m.spacing, e->spacing, sizeof m.spacing);
     memcpy(m.origin, e->origin, sizeof m.origin);
+    m.levels = e->levels;
     if (rc == 0)
         rc = tvpal_manifest_format(&m, text);
     tvpal_manifest_clear(&m);
@@ -1144,6 +1285,10 @@ static int place(struct tvpal_encoder *e, const char *text,
 static void release(struct tvpal_encoder *e)
 {
     const unsigned nt = e->pool ? tvpal_pool_threads(e->pool) : 0;
+    for (uint32_t k = 1; k <= e->levels; k++) {
+        tvpal_encoder_abort(e->lv[k]);
+        free(e->lvol[k]);
+    }
     tvpal_engine_free(e->eng);
     tvpal_pool_free(e->pool);
     if (e->made_partial)
@@ -1209,7 +1354,8 @@ int tvpal_encoder_finish(struct tvpal_encoder *e, struct tvpal_diag *diag)
     }
     char *text = NULL;
     fold_histograms(e);
-    rc = agree_stats(e, 0, NULL, &text, &d);
+    rc = finish_levels(e, &d); /* one process: no round between */
+    rc = agree_stats(e, rc, d.msg, &text, &d);
     if (rc == 0)
         rc = finish_shards(e, text, &d);
     if (!e->decided) {

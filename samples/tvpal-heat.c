@@ -46,14 +46,16 @@ static size_t plane_of(const struct part *p)
 static void usage(FILE *f)
 {
     fputs("Usage: [mpirun -np K] tvpal-heat -o DIR [--dims NXxNYxNZ] "
-          "[--steps T]\n                  [--window N] [--raw DIR] "
-          "[--bad-value R] [--resume]\n"
+          "[--steps T]\n                  [--window N] [--levels L] "
+          "[--raw DIR] [--bad-value R]\n                  [--resume]\n"
           "Runs a 3-D heat equation and encodes every step through "
           "libtvpal into the\ndataset DIR.\n\n"
           "  -o DIR             the dataset written (required)\n"
           "  --dims NXxNYxNZ    grid (default 48x40x32)\n"
           "  --steps T          output steps (default 24)\n"
           "  --window N         tvpal window (default 4)\n"
+          "  --levels L         also L coarser levels of detail (one "
+          "process)\n"
           "  --raw DIR          also write each step as raw float32 "
           "files in DIR\n"
           "  --resume           continue an interrupted encode of DIR from "
@@ -167,7 +169,7 @@ static int fail(const char *what, int rc, const struct tvpal_diag *d)
 /* The simulation and its encode; 0, 1 (failed) or 2 (usage). */
 static int run(int argc, char **argv)
 {
-    unsigned d[3] = {48, 40, 32}, T = 24, N = 4;
+    unsigned d[3] = {48, 40, 32}, T = 24, N = 4, L = 0;
     int bad_rank = -1, resume = 0;
     const char *out = NULL, *raw = NULL;
     for (int i = 1; i < argc; i++) {
@@ -191,6 +193,8 @@ static int run(int argc, char **argv)
                    T >= 1 && T <= 100000) {
             i++;
         } else if (!strcmp(a, "--window") && v && sscanf(v, "%u", &N) == 1) {
+            i++;
+        } else if (!strcmp(a, "--levels") && v && sscanf(v, "%u", &L) == 1) {
             i++;
         } else if (!strcmp(a, "--bad-value") && v &&
                    sscanf(v, "%d", &bad_rank) == 1) {
@@ -236,6 +240,7 @@ static int run(int argc, char **argv)
     if ((rc = tvpal_encoder_open(&enc, out, dims, T, &dg)) < 0)
         return fail(out, rc, &dg);
     if ((rc = tvpal_encoder_set(enc, TVPAL_PARAM_WINDOW, N, &dg)) < 0 ||
+        (rc = tvpal_encoder_set(enc, TVPAL_PARAM_LEVELS, L, &dg)) < 0 ||
         (rc = tvpal_encoder_set_grid(enc, spacing, origin, &dg)) < 0 ||
         (rc = tvpal_encoder_set_times(enc, times, "seconds", &dg)) < 0 ||
         (rc = tvpal_encoder_set_units(enc, "K", &dg)) < 0) {

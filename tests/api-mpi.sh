@@ -125,6 +125,14 @@ n=$(grep -c "rank 1: step 9: an infinite value at voxel (0,0,10)" "$W/bad.txt")
     { cat "$W/bad.txt"; fail "bad value on rank 1: exit $rc, $n ranks told"; }
 [ ! -e "$W/bad.ds" ] && [ ! -e "$W/bad.ds.partial" ] && [ ! -e "$W/bad.ds.partial.lock" ] &&
     ok "a bad value on rank 1: nothing left" || fail "bad value: left $(ls -d "$W"/bad.ds*)"
+# Levels under a collective: refused on every rank (not yet), nothing left.
+# shellcheck disable=SC2086
+$MPI -np 3 "$W/heat-mpi" $H --levels 1 -o "$W/lv.ds" > "$W/lv.txt" 2>&1
+rc=$?
+n=$(grep -c "levels 1 with 3 ranks: not yet" "$W/lv.txt")
+[ $rc -ne 0 ] && [ $rc -ne 124 ] && [ "$n" = 3 ] && [ ! -e "$W/lv.ds" ] && [ ! -e "$W/lv.ds.partial" ] &&
+    ok "levels on 3 ranks: refused by every rank, nothing left" ||
+    { cat "$W/lv.txt"; fail "levels on 3 ranks: exit $rc, $n ranks told"; }
 # An output that exists: every rank fails with rank 0's message.
 mkdir -p "$W/exists.ds" && echo keep > "$W/exists.ds/mine"
 # shellcheck disable=SC2086

@@ -61,6 +61,18 @@ for f in "$W"/enc.ds/node-0/*.tvps; do
     [ -x "$W/heat-static" ] && { cmp -s "$f" "$W/heat-static.ds/node-0/$(basename "$f")" || { same=0; fail "static: $(basename "$f") differs"; }; }
 done
 [ $same = 1 ] && ok "in-situ shards byte-identical to tvpal-encode's from raw dumps"
+# Levels made in situ (TVPAL_PARAM_LEVELS): tvpal-encode --levels 2's shards.
+mkdir -p "$W/lraw"
+LD_LIBRARY_PATH="$libdir" "$W/heat" --dims 41x36x27 --steps 18 --levels 2 --raw "$W/lraw" \
+    -o "$W/lheat.ds" > /dev/null || fail "tvpal-heat --levels 2"
+"$ENC" -q --dims 41x36x27 --window 4 --levels 2 -o "$W/lenc.ds" "$W"/lraw/heat_t*.f32 > /dev/null ||
+    fail "tvpal-encode --levels 2 of the dumps"
+same=1
+for f in node-0/axis-z.tvps level-1/node-0/axis-z.tvps level-2/node-0/axis-z.tvps; do
+    cmp -s "$W/lenc.ds/$f" "$W/lheat.ds/$f" || { same=0; fail "levels in situ: $f differs from tvpal-encode --levels 2's"; }
+done
+[ $same = 1 ] && grep -q "^levels = 2" "$W/lheat.ds/manifest.txt" &&
+    ok "levels in situ: shards of levels 0-2 byte-identical to tvpal-encode --levels 2's"
 grep -q "^encoder = libtvpal 0.1.0" "$W/heat.ds/manifest.txt" &&
     grep -q "^units = K" "$W/heat.ds/manifest.txt" &&
     grep -q "^time_units = seconds" "$W/heat.ds/manifest.txt" &&
@@ -83,7 +95,7 @@ fi
 # Killed (SIGKILL) while it runs: no dataset; a rerun with --resume
 # continues from the checkpoint (it must not start over) and gives the
 # shards of an uninterrupted run; a plain rerun starts over, the same.
-H="--dims 96x96x64 --steps 40 --window 4"
+H="--dims 96x96x64 --steps 40 --window 4 --levels 2"
 # shellcheck disable=SC2086
 LD_LIBRARY_PATH="$libdir" "$W/heat" $H -o "$W/ref.ds" > /dev/null || fail "tvpal-heat 96x96x64"
 # shellcheck disable=SC2086
@@ -104,10 +116,13 @@ else
     at=$(sed -n 's/.*resumed .* at step \([0-9]*\) of 40/\1/p' "$W/kill.out")
     [ "${at:-0}" -gt 0 ] && ok "resumed from the checkpoint at step $at of 40" ||
         fail "--resume started over: $(cat "$W/kill.out")"
-    cmp -s "$W/kill.ds/node-0/axis-z.tvps" "$W/ref.ds/node-0/axis-z.tvps" &&
-        cmp -s "$W/kill.ds/manifest.txt" "$W/ref.ds/manifest.txt" && [ ! -e "$W/kill.ds.partial" ] &&
-        ok "resumed after kill -9: the uninterrupted run's shard and manifest" ||
-        fail "the resumed dataset differs from the uninterrupted one"
+    same=1
+    for f in manifest.txt node-0/axis-z.tvps level-1/manifest.txt level-1/node-0/axis-z.tvps \
+        level-2/node-0/axis-z.tvps; do
+        cmp -s "$W/kill.ds/$f" "$W/ref.ds/$f" || { same=0; fail "resumed: $f differs from the uninterrupted run's"; }
+    done
+    [ $same = 1 ] && [ ! -e "$W/kill.ds.partial" ] &&
+        ok "resumed after kill -9: the uninterrupted run's shards and manifests, levels 0-2"
     ! grep -rqs . "$W/kill.ds/checkpoint" && ok "no checkpoint left in the dataset" || fail "a checkpoint left"
 fi
 # Decoded against the simulation's arrays.

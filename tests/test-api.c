@@ -669,6 +669,59 @@ static void test_resume(void)
     CHECK(!exists(path("%s/changed%s", ".partial")), "abort left the partial");
 }
 
+/* TVPAL_PARAM_LEVELS: level 1 of a series pushed from memory decodes to
+ * the 2x2x2 means of the values pushed (within the codec's error). */
+static void test_levels(void)
+{
+    struct tvpal_diag d = {{0}};
+    struct tvpal_encoder *e = NULL;
+    REQUIRE(open_series(&e, path("%s/levels%s", ""), 3, &d) == 0, "open");
+    CHECK(tvpal_encoder_set(e, TVPAL_PARAM_LEVELS, 9, &d) == TVPAL_E_INVAL,
+          "9 levels taken");
+    REQUIRE(tvpal_encoder_set(e, TVPAL_PARAM_LEVELS, 2, &d) == 0, "levels");
+    REQUIRE(push_steps(e, 0, T, &d) == 0, "push: %s", d.msg);
+    REQUIRE(tvpal_encoder_finish(e, &d) == 0, "finish: %s", d.msg);
+    struct tvpal_reader *r = NULL;
+    REQUIRE(tvpal_reader_open(&r, path("%s/levels%s", ""), &d) == 0,
+            "reader: %s", d.msg);
+    uint32_t l1[3], l2[3];
+    CHECK(tvpal_reader_info(r)->levels == 2 &&
+              tvpal_reader_level_dims(r, 1, l1) == 0 &&
+              tvpal_reader_level_dims(r, 2, l2) == 0 && l1[0] == 5 &&
+              l1[1] == 4 && l1[2] == 3 && l2[0] == 3 && l2[1] == 2 &&
+              l2[2] == 2, "levels: %u, level 1 %ux%ux%u",
+          tvpal_reader_info(r)->levels, l1[0], l1[1], l1[2]);
+    float v[NV], got[5 * 4 * 3];
+    double se = 0, lo = 1e9, hi = -1e9;
+    for (unsigned t = 0; t < T; t++) {
+        fill(v, t);
+        REQUIRE(tvpal_reader_decode(r, t, 0, 1, got, &d) == 0, "decode: %s",
+                d.msg);
+        for (unsigned z = 0; z < 3; z++)
+            for (unsigned y = 0; y < 4; y++)
+                for (unsigned x = 0; x < 5; x++) {
+                    double s = 0;
+                    int n = 0;
+                    for (unsigned k = 0; k < 8; k++) {
+                        const unsigned xx = 2 * x + (k & 1),
+                                       yy = 2 * y + (k >> 1 & 1),
+                                       zz = 2 * z + (k >> 2);
+                        if (xx < NX && yy < NY && zz < NZ)
+                            s += v[xx + NX * (yy + NY * zz)], n++;
+                    }
+                    const double m = s / n,
+                                 g = got[x + 5 * (y + 4 * z)];
+                    se += (g - m) * (g - m);
+                    lo = m < lo ? m : lo;
+                    hi = m > hi ? m : hi;
+                }
+    }
+    const double psnr = 10 * log10((hi - lo) * (hi - lo) / (se / (T * 60.0)));
+    CHECK(psnr > 30, "level 1: PSNR %.2f dB against the block means, 30 "
+          "expected at least", psnr);
+    tvpal_reader_close(r);
+}
+
 int main(void)
 {
     char cmd[600];
@@ -683,6 +736,7 @@ int main(void)
     test_output_rules();
     test_collective();
     test_resume();
+    test_levels();
     int rc = tt_done("test-api");
     if (rc == 0) {
         snprintf(cmd, sizeof cmd, "rm -rf %s", W);
