@@ -266,7 +266,8 @@ TVPAL_API int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
  * and *next_step is the first step to push (the steps before it are
  * encoded and counted); the caller pushes steps *next_step, ... T - 1 and
  * finishes, and the dataset is byte-identical to one encoded without the
- * interruption.  Without one, *next_step is 0 and the job starts over, as
+ * interruption.  They must be the interrupted job's steps: a checkpoint
+ * knows the job's parameters, not the values it was given.  Without one, *next_step is 0 and the job starts over, as
  * a first push would.  With a collective it is collective, and the ranks
  * resume only from the same step (else every rank starts over).  Takes the
  * lock and does what a first push does before its step.  0, or the codes
