@@ -708,11 +708,7 @@ static void open_partial(struct run *r)
     free(files);
     free(params);
     free(withplan);
-    const size_t n = (size_t)r->nshard * r->T;
-    r->ckp = (struct tvpal_checkpoint_progress){
-        r->nshard, r->T, calloc(n, sizeof(uint64_t)), calloc(n, sizeof(uint32_t)),
-        calloc(r->nshard, 1)};
-    if (!r->ckp.filled || !r->ckp.crc || !r->ckp.missing)
+    if (tvpal_engine_progress_alloc(r->eng, &r->ckp) < 0)
         die_fail("out of memory");
     r->start = 0;
     if (r->o.levels && level0_marker_matches(r)) {
@@ -978,14 +974,8 @@ static int open_writers(struct run *r)
             rc = tvpal_shardw_reopen_placed(&j->w, path, &j->h, &d);
         else
             rc = tvpal_shardw_create_placed(&j->w, path, &j->h, &d);
-        for (uint32_t t = 0; rc == 0 && r->start && t < r->T; t++) {
-            size_t i = (size_t)q * r->T + t;
-            if (r->ckp.filled[i])
-                rc = tvpal_shardw_set_progress(j->w, t, r->ckp.filled[i],
-                                               r->ckp.crc[i], &d);
-        }
         if (rc == 0 && r->start)
-            tvpal_shardw_set_missing(j->w, r->ckp.missing[q]);
+            rc = tvpal_engine_progress_restore(r->eng, q, &r->ckp, &d);
         if (rc < 0)
             msg("%s: cannot %s: %s%s%s%s", path,
                 r->start ? "resume" : "create", tvpal_strerror(rc),
@@ -1091,14 +1081,7 @@ static void encode_step(struct run *r, uint32_t t)
 static void save_checkpoint(struct run *r, uint64_t u)
 {
     struct tvpal_diag d = {{0}};
-    for (uint32_t q = 0; q < r->nshard; q++) {
-        for (uint32_t t = 0; t < r->T; t++) {
-            size_t i = (size_t)q * r->T + t;
-            tvpal_shardw_progress(r->sj[q].w, t, &r->ckp.filled[i],
-                                  &r->ckp.crc[i]);
-        }
-        r->ckp.missing[q] = (uint8_t)tvpal_shardw_missing(r->sj[q].w);
-    }
+    tvpal_engine_progress_get(r->eng, &r->ckp);
     int rc = tvpal_checkpoint_save(r->ckdir, r->fp, u, &r->st, &r->ckp, &d);
     if (rc < 0)
         die_fail("%s/checkpoint: cannot write: %s", r->ckdir,
@@ -1476,9 +1459,7 @@ static void run_free(struct run *r)
     free(r->fine_local);
     free(r->found_local);
     free(r->fp);
-    free(r->ckp.filled);
-    free(r->ckp.crc);
-    free(r->ckp.missing);
+    tvpal_checkpoint_progress_free(&r->ckp);
     encode_plan_free(&r->plan);
     tvpal_checkpoint_stats_free(&r->st);
     free(r->partial);

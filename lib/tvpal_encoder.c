@@ -665,7 +665,6 @@ static int open_writers(struct tvpal_encoder *e, uint64_t done,
 {
     uint32_t n;
     struct tvpal_engine_shard *sj = tvpal_engine_shards(e->eng, &n);
-    const uint32_t T = e->ep.steps;
     for (uint32_t k = 0; k < e->ep.node_count; k++) {
         char *nd = tvpal_node_dir(e->partial, NULL, e->ep.node_first + k);
         int rc = nd ? tvpal_mkdirs(nd, diag) : TVPAL_E_NOMEM;
@@ -684,14 +683,8 @@ static int open_writers(struct tvpal_encoder *e, uint64_t done,
                                                    diag)
                       : tvpal_shardw_create_placed(&sj[q].w, path, &sj[q].h,
                                                    diag);
-        for (uint32_t t = 0; rc == 0 && done && t < T; t++) {
-            const size_t i = (size_t)q * T + t;
-            if (e->ckp.filled[i])
-                rc = tvpal_shardw_set_progress(sj[q].w, t, e->ckp.filled[i],
-                                               e->ckp.crc[i], diag);
-        }
         if (rc == 0 && done)
-            tvpal_shardw_set_missing(sj[q].w, e->ckp.missing[q]);
+            rc = tvpal_engine_progress_restore(e->eng, q, &e->ckp, diag);
         if (rc < 0 && done && path) {
             /* diag has the shard's own words; say which file. */
             char why[TVPAL_DIAG_MAX];
@@ -778,17 +771,11 @@ static int setup(struct tvpal_encoder *e, struct tvpal_diag *diag)
         .box = {{0, 0, z0}, {d[0], d[1], e->slab_n}},
         .s0 = {0, 0, z0}, .s1 = {d[0], d[1], z1}, .axes = 7, .stats = 1};
     tvpal_engine_set_pass(e->eng, &e->pass);
-    uint32_t ns;
-    tvpal_engine_shards(e->eng, &ns);
-    e->ckp.nshard = ns, e->ckp.steps = e->ep.steps;
-    const size_t nrec = (size_t)ns * e->ep.steps;
     e->ckdir = e->coll.size > 1
                    ? tvpal_node_dir(e->partial, NULL, e->ep.node_first)
                    : strdup(e->partial);
     if (!e->ckdir || make_fingerprint(e) < 0 ||
-        !(e->ckp.filled = calloc(nrec, sizeof *e->ckp.filled)) ||
-        !(e->ckp.crc = calloc(nrec, sizeof *e->ckp.crc)) ||
-        !(e->ckp.missing = calloc(ns, sizeof *e->ckp.missing)))
+        tvpal_engine_progress_alloc(e->eng, &e->ckp) < 0)
         return TVPAL_E_NOMEM;
     if (e->resuming)
         e->done_local = load_checkpoint(e);
@@ -1039,15 +1026,7 @@ static void fold_histograms(struct tvpal_encoder *e)
 static int save_checkpoint(struct tvpal_encoder *e, struct tvpal_diag *diag)
 {
     fold_histograms(e);
-    uint32_t n;
-    struct tvpal_engine_shard *sj = tvpal_engine_shards(e->eng, &n);
-    const uint32_t T = e->ep.steps;
-    for (uint32_t q = 0; q < n; q++) {
-        for (uint32_t t = 0; t < T; t++)
-            tvpal_shardw_progress(sj[q].w, t, &e->ckp.filled[(size_t)q * T + t],
-                                  &e->ckp.crc[(size_t)q * T + t]);
-        e->ckp.missing[q] = (uint8_t)tvpal_shardw_missing(sj[q].w);
-    }
+    tvpal_engine_progress_get(e->eng, &e->ckp);
     return tvpal_checkpoint_save(e->ckdir, e->fp, e->encoded, &e->st,
                                  &e->ckp, diag);
 }
@@ -1306,9 +1285,7 @@ static void release(struct tvpal_encoder *e)
     free(e->pieces);
     free(e->ckdir);
     free(e->fp);
-    free(e->ckp.filled);
-    free(e->ckp.crc);
-    free(e->ckp.missing);
+    tvpal_checkpoint_progress_free(&e->ckp);
     if (e->coll.release)
         e->coll.release(e->coll.ctx);
     tvpal_checkpoint_stats_free(&e->st);

@@ -41,6 +41,16 @@ void tvpal_checkpoint_stats_free(struct tvpal_checkpoint_stats *st)
     st->fine = NULL;
 }
 
+void tvpal_checkpoint_progress_free(struct tvpal_checkpoint_progress *pr)
+{
+    free(pr->filled);
+    free(pr->crc);
+    free(pr->missing);
+    pr->filled = NULL;
+    pr->crc = NULL;
+    pr->missing = NULL;
+}
+
 /* The CRC-32C of the first n bytes of path (fewer where it is shorter;
  * 0 where it cannot be read). */
 static uint32_t head_crc(const char *path, unsigned n)

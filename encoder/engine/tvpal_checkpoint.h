@@ -46,6 +46,9 @@ struct tvpal_checkpoint_progress {
     uint8_t *missing;
 };
 
+/* Frees pr's arrays and sets them NULL; safe on a zeroed or freed pr. */
+void tvpal_checkpoint_progress_free(struct tvpal_checkpoint_progress *pr);
+
 /* Allocates st->fine and sets st empty.  0 or TVPAL_E_NOMEM (then st->fine
  * is NULL).  Release with tvpal_checkpoint_stats_free. */
 int tvpal_checkpoint_stats_init(struct tvpal_checkpoint_stats *st);

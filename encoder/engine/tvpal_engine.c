@@ -615,3 +615,47 @@ int tvpal_engine_encode_step(struct tvpal_engine *e, uint32_t t,
     }
     return 0;
 }
+
+int tvpal_engine_progress_alloc(const struct tvpal_engine *e,
+                                struct tvpal_checkpoint_progress *pr)
+{
+    const size_t n = (size_t)e->nshard * e->p.steps;
+    *pr = (struct tvpal_checkpoint_progress){
+        e->nshard, e->p.steps, calloc(n, sizeof *pr->filled),
+        calloc(n, sizeof *pr->crc), calloc(e->nshard, sizeof *pr->missing)};
+    if (pr->filled && pr->crc && pr->missing)
+        return 0;
+    tvpal_checkpoint_progress_free(pr);
+    return TVPAL_E_NOMEM;
+}
+
+void tvpal_engine_progress_get(const struct tvpal_engine *e,
+                               struct tvpal_checkpoint_progress *pr)
+{
+    const uint32_t T = e->p.steps;
+    for (uint32_t q = 0; q < e->nshard; q++) {
+        const struct tvpal_shardw *w = e->sj[q].w;
+        for (uint32_t t = 0; t < T; t++)
+            tvpal_shardw_progress(w, t, &pr->filled[(size_t)q * T + t],
+                                  &pr->crc[(size_t)q * T + t]);
+        pr->missing[q] = (uint8_t)tvpal_shardw_missing(w);
+    }
+}
+
+int tvpal_engine_progress_restore(struct tvpal_engine *e, uint32_t q,
+                                  const struct tvpal_checkpoint_progress *pr,
+                                  struct tvpal_diag *diag)
+{
+    const uint32_t T = e->p.steps;
+    struct tvpal_shardw *w = e->sj[q].w;
+    for (uint32_t t = 0; t < T; t++) {
+        const size_t i = (size_t)q * T + t;
+        int rc = pr->filled[i] ? tvpal_shardw_set_progress(w, t, pr->filled[i],
+                                                            pr->crc[i], diag)
+                               : 0;
+        if (rc < 0)
+            return rc;
+    }
+    tvpal_shardw_set_missing(w, pr->missing[q]);
+    return 0;
+}

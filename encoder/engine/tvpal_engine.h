@@ -146,6 +146,21 @@ int tvpal_engine_manifest(const struct tvpal_engine_params *p,
                           const char *units, const char *encoder,
                           struct tvpal_manifest *m);
 
+/* The shards' progress as a checkpoint keeps it (tvpal_checkpoint.h):
+ * progress_alloc sizes pr for the engine's shards and steps (0 or
+ * TVPAL_E_NOMEM; free with tvpal_checkpoint_progress_free), progress_get
+ * copies every writer's progress into pr, and progress_restore gives shard
+ * q's reopened writer (tvpal_shardw_reopen_placed) the progress of pr,
+ * reading its bytes back (the codes of tvpal_shardw_set_progress). */
+struct tvpal_checkpoint_progress;
+int tvpal_engine_progress_alloc(const struct tvpal_engine *e,
+                                struct tvpal_checkpoint_progress *pr);
+void tvpal_engine_progress_get(const struct tvpal_engine *e,
+                               struct tvpal_checkpoint_progress *pr);
+int tvpal_engine_progress_restore(struct tvpal_engine *e, uint32_t q,
+                                  const struct tvpal_checkpoint_progress *pr,
+                                  struct tvpal_diag *diag);
+
 /* Values coded missing that were present in the source (the coder dropped
  * them: a slice whose indices could not hold a missing class), so far. */
 uint64_t tvpal_engine_dropped(const struct tvpal_engine *e);
