@@ -166,12 +166,18 @@ static int fail(const char *what, int rc, const struct tvpal_diag *d)
     return 1;
 }
 
-/* The simulation and its encode; 0, 1 (failed) or 2 (usage). */
-static int run(int argc, char **argv)
+/* The command line. */
+struct heat_opts {
+    unsigned d[3], T, N, L;
+    int bad_rank, resume;
+    const char *out, *raw;
+};
+
+/* Parses argv into o: -1 to run, or the exit status (0: --help). */
+static int parse_args(int argc, char **argv, struct heat_opts *o)
 {
-    unsigned d[3] = {48, 40, 32}, T = 24, N = 4, L = 0;
-    int bad_rank = -1, resume = 0;
-    const char *out = NULL, *raw = NULL;
+    *o = (struct heat_opts){{48, 40, 32}, 24, 4, 0, -1, 0, NULL, NULL};
+    unsigned *d = o->d;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
@@ -179,25 +185,28 @@ static int run(int argc, char **argv)
                 usage(stdout);
             return 0;
         } else if (!strcmp(a, "-o") && v) {
-            out = v, i++;
+            o->out = v, i++;
         } else if (!strcmp(a, "--resume")) {
-            resume = 1;
+            o->resume = 1;
         } else if (!strcmp(a, "--raw") && v) {
-            raw = v, i++;
+            o->raw = v, i++;
         } else if (!strcmp(a, "--dims") && v &&
                    sscanf(v, "%ux%ux%u", &d[0], &d[1], &d[2]) == 3 && d[0] &&
                    d[1] && d[2] && d[0] <= 4096 && d[1] <= 4096 &&
                    d[2] <= 4096) {
             i++;
-        } else if (!strcmp(a, "--steps") && v && sscanf(v, "%u", &T) == 1 &&
-                   T >= 1 && T <= 100000) {
+        } else if (!strcmp(a, "--steps") && v &&
+                   sscanf(v, "%u", &o->T) == 1 && o->T >= 1 &&
+                   o->T <= 100000) {
             i++;
-        } else if (!strcmp(a, "--window") && v && sscanf(v, "%u", &N) == 1) {
+        } else if (!strcmp(a, "--window") && v &&
+                   sscanf(v, "%u", &o->N) == 1) {
             i++;
-        } else if (!strcmp(a, "--levels") && v && sscanf(v, "%u", &L) == 1) {
+        } else if (!strcmp(a, "--levels") && v &&
+                   sscanf(v, "%u", &o->L) == 1) {
             i++;
         } else if (!strcmp(a, "--bad-value") && v &&
-                   sscanf(v, "%d", &bad_rank) == 1) {
+                   sscanf(v, "%d", &o->bad_rank) == 1) {
             i++;
         } else {
             if (g_rank == 0) {
@@ -207,68 +216,70 @@ static int run(int argc, char **argv)
             return 2;
         }
     }
-    if (!out) {
+    if (!o->out) {
         if (g_rank == 0)
             usage(stderr);
         return 2;
     }
-    struct part p = {{d[0], d[1], d[2]}, 0, d[2], g_rank, g_size};
-    tvpal_slab(d[2], (uint32_t)g_size, (uint32_t)g_rank, &p.z0, &p.nz);
-    if (p.nz == 0) {
-        if (g_rank == 0)
-            fprintf(stderr, "tvpal-heat: %d ranks for %u planes: at most one "
-                    "rank per plane\n", g_size, d[2]);
-        return 2;
-    }
-    const uint32_t dims[3] = {d[0], d[1], d[2]};
-    const size_t pl = plane_of(&p), n = pl * p.nz;
-    float *u = calloc(pl * (p.nz + 2), sizeof *u),
-          *v = calloc(pl * (p.nz + 2), sizeof *v);
-    double *times = malloc(T * sizeof *times);
-    if (!u || !v || !times) {
-        fputs("tvpal-heat: out of memory\n", stderr);
-        return 1;
-    }
-    const unsigned sub = 4;           /* simulation steps per output step */
-    const double dt = 0.05;
-    for (unsigned t = 0; t < T; t++)
-        times[t] = t * sub * dt;
+    return -1;
+}
+
+/* The encoder of the run, set up (under MPI with this part's slab), and
+ * with --resume the first step it needs in *next: 0, or 1 (reported). */
+static int open_encoder(const struct heat_opts *o, const struct part *p,
+                        const double *times, struct tvpal_encoder **out,
+                        uint32_t *next)
+{
     struct tvpal_encoder *enc = NULL;
     struct tvpal_diag dg = {{0}};
-    int rc;
+    const uint32_t dims[3] = {o->d[0], o->d[1], o->d[2]};
     const double spacing[3] = {0.5, 0.5, 0.5}, origin[3] = {0, 0, 0};
-    if ((rc = tvpal_encoder_open(&enc, out, dims, T, &dg)) < 0)
-        return fail(out, rc, &dg);
-    if ((rc = tvpal_encoder_set(enc, TVPAL_PARAM_WINDOW, N, &dg)) < 0 ||
-        (rc = tvpal_encoder_set(enc, TVPAL_PARAM_LEVELS, L, &dg)) < 0 ||
+    int rc = tvpal_encoder_open(&enc, o->out, dims, o->T, &dg);
+    if (rc < 0)
+        return fail(o->out, rc, &dg);
+    if ((rc = tvpal_encoder_set(enc, TVPAL_PARAM_WINDOW, o->N, &dg)) < 0 ||
+        (rc = tvpal_encoder_set(enc, TVPAL_PARAM_LEVELS, o->L, &dg)) < 0 ||
         (rc = tvpal_encoder_set_grid(enc, spacing, origin, &dg)) < 0 ||
         (rc = tvpal_encoder_set_times(enc, times, "seconds", &dg)) < 0 ||
-        (rc = tvpal_encoder_set_units(enc, "K", &dg)) < 0) {
-        tvpal_encoder_abort(enc);
-        return fail(out, rc, &dg);
-    }
+        (rc = tvpal_encoder_set_units(enc, "K", &dg)) < 0)
+        goto refused;
 #ifdef TVPAL_HEAT_MPI
-    if ((rc = tvpal_encoder_set_mpi(enc, MPI_COMM_WORLD, p.z0, p.nz, &dg)) <
-        0) {
-        tvpal_encoder_abort(enc);
-        return fail(out, rc, &dg);
-    }
+    if ((rc = tvpal_encoder_set_mpi(enc, MPI_COMM_WORLD, p->z0, p->nz,
+                                    &dg)) < 0)
+        goto refused;
+#else
+    (void)p;
 #endif
-    uint32_t next = 0; /* the first step the encoder needs */
-    if (resume) {
-        if ((rc = tvpal_encoder_resume(enc, TVPAL_FLOAT32, &next, &dg)) < 0) {
-            tvpal_encoder_abort(enc);
-            return fail(out, rc, &dg);
-        }
+    *next = 0;
+    if (o->resume) {
+        if ((rc = tvpal_encoder_resume(enc, TVPAL_FLOAT32, next, &dg)) < 0)
+            goto refused;
         if (g_rank == 0)
-            printf("tvpal-heat: resumed %s at step %u of %u\n", out, next, T);
+            printf("tvpal-heat: resumed %s at step %u of %u\n", o->out,
+                   *next, o->T);
     }
-    init(u, &p);
-    int failed = 0;
-    for (unsigned t = 0; t < T; t++) {
+    *out = enc;
+    return 0;
+refused:
+    tvpal_encoder_abort(enc);
+    return fail(o->out, rc, &dg);
+}
+
+/* The simulation: T output steps of `sub` steps each, every output step
+ * from `next` on pushed to enc (and with --raw dumped).  Finishes enc
+ * (collective); 0 or 1. */
+static int simulate(const struct heat_opts *o, const struct part *p,
+                    struct tvpal_encoder *enc, uint32_t next, float *u,
+                    float *v, unsigned sub, double dt)
+{
+    const size_t pl = plane_of(p), n = pl * p->nz;
+    struct tvpal_diag dg = {{0}};
+    int rc, failed = 0;
+    init(u, p);
+    for (unsigned t = 0; t < o->T; t++) {
         float *slab = u + pl; /* past the lower halo */
         const float keep = slab[0];
-        if (g_rank == bad_rank && t == T / 2)
+        if (g_rank == o->bad_rank && t == o->T / 2)
             slab[0] = INFINITY; /* a bad output value on one rank, not fed
                                  * back into the simulation (--bad-value) */
         if (!failed && t >= next &&
@@ -277,28 +288,64 @@ static int run(int argc, char **argv)
             /* The output fails; the simulation goes on (its neighbours
              * wait for its halos) and keeps the encoder: the finish of
              * every rank, collective, fails with this rank's message. */
-            failed = fail(out, rc, &dg);
+            failed = fail(o->out, rc, &dg);
         slab[0] = keep;
-        if (raw && write_raw(raw, t, slab, &p) < 0)
+        if (o->raw && write_raw(o->raw, t, slab, p) < 0)
             failed = 1;
         for (unsigned s = 0; s < sub; s++) {
-            exchange_halos(u, &p);
-            step(u, v, &p, (t * sub + s) * dt);
+            exchange_halos(u, p);
+            step(u, v, p, (t * sub + s) * dt);
             float *w = u;
             u = v;
             v = w;
         }
     }
     if ((rc = tvpal_encoder_finish(enc, &dg)) < 0)
-        return failed ? 1 : fail(out, rc, &dg);
-    if (g_rank == 0)
+        return failed ? 1 : fail(o->out, rc, &dg);
+    return failed;
+}
+
+/* The simulation and its encode; 0, 1 (failed) or 2 (usage). */
+static int run(int argc, char **argv)
+{
+    struct heat_opts o;
+    int rc = parse_args(argc, argv, &o);
+    if (rc >= 0)
+        return rc;
+    struct part p = {{o.d[0], o.d[1], o.d[2]}, 0, o.d[2], g_rank, g_size};
+    tvpal_slab(o.d[2], (uint32_t)g_size, (uint32_t)g_rank, &p.z0, &p.nz);
+    if (p.nz == 0) {
+        if (g_rank == 0)
+            fprintf(stderr, "tvpal-heat: %d ranks for %u planes: at most one "
+                    "rank per plane\n", g_size, o.d[2]);
+        return 2;
+    }
+    const size_t pl = plane_of(&p);
+    float *u = calloc(pl * (p.nz + 2), sizeof *u),
+          *v = calloc(pl * (p.nz + 2), sizeof *v);
+    double *times = malloc(o.T * sizeof *times);
+    const unsigned sub = 4;           /* simulation steps per output step */
+    const double dt = 0.05;
+    struct tvpal_encoder *enc = NULL;
+    uint32_t next = 0;
+    if (!u || !v || !times) {
+        fputs("tvpal-heat: out of memory\n", stderr);
+        rc = 1;
+    } else {
+        for (unsigned t = 0; t < o.T; t++)
+            times[t] = t * sub * dt;
+        rc = open_encoder(&o, &p, times, &enc, &next);
+    }
+    if (rc == 0)
+        rc = simulate(&o, &p, enc, next, u, v, sub, dt);
+    if (rc == 0 && g_rank == 0)
         printf("tvpal-heat: %u steps of %ux%ux%u encoded into %s on %d "
-               "rank%s (libtvpal %s)\n", T, d[0], d[1], d[2], out, g_size,
-               g_size > 1 ? "s" : "", tvpal_version_string());
+               "rank%s (libtvpal %s)\n", o.T, o.d[0], o.d[1], o.d[2], o.out,
+               g_size, g_size > 1 ? "s" : "", tvpal_version_string());
     free(u);
     free(v);
     free(times);
-    return 0;
+    return rc;
 }
 
 int main(int argc, char **argv)
