@@ -268,8 +268,11 @@ TVPAL_API int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
  * finishes, and the dataset is byte-identical to one encoded without the
  * interruption.  They must be the interrupted job's steps: a checkpoint
  * knows the job's parameters, not the values it was given.  Without one, *next_step is 0 and the job starts over, as
- * a first push would.  With a collective it is collective, and the ranks
- * resume only from the same step (else every rank starts over).  Takes the
+ * a first push would.  With a collective it is collective: each rank
+ * continues from its own checkpoint (a kill stops ranks at different
+ * steps), *next_step is the earliest of them on every rank, and a rank
+ * passes over the pushes of steps its checkpoint already has (a rank
+ * without one starts its shard over; the others keep theirs).  Takes the
  * lock and does what a first push does before its step.  0, or the codes
  * of a first push (TVPAL_E_EXIST, ...); a checkpoint whose shard files do
  * not match it (changed since) gives TVPAL_E_CHECKSUM, TVPAL_E_TRUNC or

@@ -38,8 +38,8 @@ enum state { OPENED, STARTED, FAILED };
  * number travels in its votes, a check that every rank is in the same):
  * START: nobody has refused (a wrong slab), then rank 0 prepares the
  * output; SETUP: every rank has its engine, and the step its checkpoint
- * resumes from (tvpal_encoder_resume: the ranks resume only from the same
- * step, else all start over); WRITERS: every rank has its shard writers,
+ * resumes from (tvpal_encoder_resume: each rank from its own, the caller
+ * from the earliest of them); WRITERS: every rank has its shard writers,
  * resumed or new; STATS: every
  * rank has pushed every step, the statistics summed and the manifest sent
  * from rank 0; PLACE: every rank has finished its shards, then rank 0
@@ -58,7 +58,8 @@ struct vote {
 };
 struct verdict {
     int32_t code;
-    uint64_t done;           /* SETUP: the steps every rank resumes from */
+    uint64_t done;           /* SETUP: the earliest step a rank resumes
+                              * from: the caller's first push */
     uint32_t text_len;       /* R_STATS: the manifest's bytes that follow */
     double vmin, vmax;
     uint64_t nonfinite, missing, counted;
@@ -85,6 +86,10 @@ struct tvpal_encoder {
     enum state state;
     enum tvpal_type type;            /* of the first push */
     uint32_t pushed, encoded;        /* steps in, steps' windows coded */
+    uint32_t next_in;                /* the caller's next step: below
+                                      * pushed after a resume where another
+                                      * rank resumed from an earlier step
+                                      * (those pushes are passed over) */
     struct tvpal_engine *eng;
     struct tvpal_pool *pool;
     struct encode_pass pass;         /* the whole volume, every axis */
@@ -532,8 +537,9 @@ static int agree(struct tvpal_encoder *e, enum round round, int rc,
         v->done = e->votes[0].done;
         for (int k = 0; k < e->coll.size; k++) {
             const struct vote *o = &e->votes[k];
-            if (o->done != v->done)
-                v->done = 0; /* checkpoints of different steps: over */
+            if (o->done < v->done)
+                v->done = o->done; /* the caller's first step: the
+                                    * earliest any rank needs */
             if (v->code == 0 && (o->code < 0 || o->round != (int32_t)round)) {
                 v->code = o->code < 0 ? o->code : TVPAL_E_INVAL;
                 if (e->coll.size == 1)
@@ -912,9 +918,11 @@ static int start(struct tvpal_encoder *e, enum tvpal_type type,
     rc = rc == 0 ? setup(e, &d) : rc;
     if (agree(e, R_SETUP, rc, d.msg, &v) < 0)
         return report(rc, &v, diag);
-    const uint64_t done = v.done;
-    if (!done && e->done_local)
-        tvpal_checkpoint_stats_reset(&e->st); /* another rank starts over */
+    /* Each rank continues from its own checkpoint (a kill stops the ranks
+     * at different steps); the caller pushes from the earliest, and a rank
+     * passes over the steps before its own. */
+    const uint64_t done = e->done_local;
+    e->next_in = (uint32_t)v.done;
     rc = open_writers(e, done, &d);
     if (agree(e, R_WRITERS, rc, d.msg, &v) < 0)
         return report(rc, &v, diag);
@@ -1073,12 +1081,12 @@ int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
     const uint64_t want = (uint64_t)e->ep.dims[0] * e->ep.dims[1] * e->slab_n;
     if (count != want)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u: %zu values "
-                              "pushed, %llu expected (%ux%ux%u)", e->pushed,
+                              "pushed, %llu expected (%ux%ux%u)", e->next_in,
                               count, (unsigned long long)want, e->ep.dims[0],
                               e->ep.dims[1], e->slab_n);
-    if (e->pushed == e->ep.steps)
+    if (e->next_in == e->ep.steps)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u pushed: the "
-                              "encoder was opened for %u", e->pushed + 1,
+                              "encoder was opened for %u", e->next_in + 1,
                               e->ep.steps);
     const enum tvpal_type t = type == TVPAL_FLOAT32 ? TVPAL_F32 : TVPAL_F64;
     int rc = 0;
@@ -1088,11 +1096,17 @@ int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
         rc = start(e, t, &d);
     } else if (t != e->type) {
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u is %s, step 0 "
-                              "was %s: one type for the series", e->pushed,
+                              "was %s: one type for the series", e->next_in,
                               tvpal_type_name(t), tvpal_type_name(e->type));
+    }
+    if (rc == 0 && e->next_in < e->pushed) {
+        e->next_in++; /* a step this rank's checkpoint has: passed over */
+        return 0;
     }
     if (rc == 0)
         rc = take_step(e, data, strides, &d);
+    if (rc == 0)
+        e->next_in++;
     /* The levels first: their checkpoints are then never behind level
      * 0's, so that a resume finds every level at or past level 0's step. */
     if (rc == 0 && e->levels)
@@ -1131,7 +1145,7 @@ int tvpal_encoder_resume(struct tvpal_encoder *e, enum tvpal_scalar type,
             *diag = d;
         return rc;
     }
-    *next_step = e->pushed;
+    *next_step = e->next_in;
     return 0;
 }
 
@@ -1318,9 +1332,9 @@ int tvpal_encoder_finish(struct tvpal_encoder *e, struct tvpal_diag *diag)
     if (e->state == FAILED)
         rc = tvpal_diag_set(&d, TVPAL_E_INVAL, "finish after a failed "
                             "push: nothing was written at %s", e->dir);
-    else if (e->pushed < e->ep.steps)
+    else if (e->next_in < e->ep.steps)
         rc = tvpal_diag_set(&d, TVPAL_E_INVAL, "finish after %u of %u "
-                            "steps: nothing was written at %s", e->pushed,
+                            "steps: nothing was written at %s", e->next_in,
                             e->ep.steps, e->dir);
     if (rc < 0 || e->decided) {
         join_failing(e, rc ? rc : TVPAL_E_INVAL, d.msg);

@@ -400,7 +400,12 @@ struct rank_job {
     int wrong_slab;          /* declares the next rank's slab */
     int abort_at;            /* aborts before pushing this step (-1: no) */
     int inf_at;              /* pushes an infinity at this step (-1: no) */
-    int set_rc, push_rc, finish_rc;
+    int stop_at;             /* returns before pushing this step, without
+                              * finish or abort, as if killed (-1: no) */
+    int resume;              /* tvpal_encoder_resume first, and pushes
+                              * from the step it gives (in next) */
+    uint32_t next;
+    int set_rc, push_rc, finish_rc, resume_rc;
     struct tvpal_diag d;
 };
 
@@ -419,8 +424,17 @@ static void *rank_main(void *arg)
     tvpal_encoder_set(e, TVPAL_PARAM_WINDOW, 3, d);
     tvpal_encoder_set(e, TVPAL_PARAM_THREADS, 1, d);
     j->set_rc = tvpal_encoder_set_collective(e, &c, z0, nz, d);
+    j->next = 0;
+    if (j->resume &&
+        (j->resume_rc = tvpal_encoder_resume(e, TVPAL_FLOAT32, &j->next, d)) <
+            0) {
+        tvpal_encoder_abort(e);
+        return NULL;
+    }
     float v[NV];
-    for (unsigned t = 0; t < T; t++) {
+    for (unsigned t = j->next; t < T; t++) {
+        if ((int)t == j->stop_at)
+            return NULL; /* killed: the process exits next */
         if ((int)t == j->abort_at) {
             tvpal_encoder_abort(e);
             return NULL;
@@ -448,7 +462,11 @@ static void run_ranks(struct rank_job *jobs, const char *dir, int who,
     pthread_t th[RANKS];
     for (int k = 0; k < RANKS; k++) {
         jobs[k] = (struct rank_job){.m = {&g, k}, .dir = dir,
-                                    .abort_at = -1, .inf_at = -1};
+                                    .abort_at = -1, .inf_at = -1,
+                                    .stop_at = -1,
+                                    .resume = !strcmp(how, "resume")};
+        if (!strcmp(how, "killed apart"))
+            jobs[k].stop_at = 6 - k; /* the ranks at different steps */
         if (k == who && !strcmp(how, "wrong slab"))
             jobs[k].wrong_slab = 1;
         if (k == who && !strcmp(how, "abort"))
@@ -563,6 +581,48 @@ static void test_collective(void)
     CHECK(tvpal_encoder_set_collective(e, &c, 0, 3, &d) == TVPAL_E_INVAL &&
               strstr(d.msg, "rank 2 of 2"), "rank 2 of 2: %s", d.msg);
     tvpal_encoder_abort(e);
+}
+
+/* The ranks killed at different steps (as a kill -9 of an MPI job finds
+ * them) and resumed: each continues from its own checkpoint, the caller
+ * from the earliest, and the dataset is the uninterrupted one's (the
+ * reference of test_collective). */
+static void test_collective_resume(void)
+{
+    const char *dir = path("%s/apart%s", "");
+    struct rank_job j[RANKS];
+    fflush(NULL);
+    pid_t pid = fork();
+    if (pid == 0) {
+        run_ranks(j, dir, -1, "killed apart");
+        _exit(0);
+    }
+    int status = 0;
+    REQUIRE(pid > 0 && waitpid(pid, &status, 0) == pid &&
+                WIFEXITED(status) && WEXITSTATUS(status) == 0,
+            "the killed ranks' process failed (status %d)", status);
+    CHECK(!exists(dir) && exists(path("%s/apart%s", ".partial/node-0/"
+                                                    "checkpoint")) &&
+              exists(path("%s/apart%s", ".partial/node-3/checkpoint")),
+          "the kill left no partial output with the ranks' checkpoints");
+    run_ranks(j, dir, -1, "resume");
+    /* Window 3: rank 3 pushed 3 steps (step 0 encoded), rank 0 six (0..3):
+     * the caller resumes at 1; rank 0 passes over steps 1..3. */
+    for (int k = 0; k < RANKS; k++)
+        CHECK(j[k].resume_rc == 0 && j[k].next == 1 && j[k].push_rc == 0 &&
+                  j[k].finish_rc == 0,
+              "rank %d: resume %d at %u, push %d, finish %d: %s", k,
+              j[k].resume_rc, j[k].next, j[k].push_rc, j[k].finish_rc,
+              j[k].d.msg);
+    CHECK(same_file(path("%s/one%s", "/manifest.txt"),
+                    path("%s/apart%s", "/manifest.txt")),
+          "resumed apart: the manifest differs from one process's");
+    for (int k = 0; k < RANKS; k++) {
+        char f[64];
+        snprintf(f, sizeof f, "/node-%d/axis-z.tvps", k);
+        CHECK(same_file(path("%s/one%s", f), path("%s/apart%s", f)),
+              "resumed apart: node %d's shard differs from one process's", k);
+    }
 }
 
 /* Pushes steps first .. last - 1 of the series (float32). */
@@ -735,6 +795,7 @@ int main(void)
     test_nothing_left();
     test_output_rules();
     test_collective();
+    test_collective_resume();
     test_resume();
     test_levels();
     int rc = tt_done("test-api");
