@@ -43,6 +43,8 @@ struct play_opts {
     int rotate_given;                   /* --rotate */
     int view, up;                       /* --view (tvpal_view_name), --up
                                          * (0..2); -1 when not given */
+    unsigned slice_axis;                /* --slice-axis: 0 auto, 1..3 x..z
+                                         * (tvpal_view's force_axis) */
     double scale_z;                     /* vertical exaggeration (z) */
     const char *tf_files[PLAY_MAX_TF];  /* --tf, in order */
     unsigned ntf;

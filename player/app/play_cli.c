@@ -55,6 +55,10 @@ static void usage_view(FILE *f)
 "                           a named view (default as ParaView: y for +z, -z\n"
 "                           and iso, z for the x and y views); in the window\n"
 "                           also for the view keys\n"
+"      --slice-axis A       auto, x, y or z: the slices that draw the volume\n"
+"                           (default auto: the axis that faces the view in\n"
+"                           voxel units, or larger slices where a volume is\n"
+"                           flat and seen obliquely)\n"
 "  -z, --zoom Z             zoom factor, 0.001..1000 (default 1)\n"
 "  -t, --tf FILE            transfer function (samples/tf/README.md: tvpal\n"
 "                           text format or ParaView preset JSON); default:\n"
@@ -280,6 +284,17 @@ static int set_up(struct play_opts *o, const char *arg)
     return 0;
 }
 
+static int set_slice_axis(struct play_opts *o, const char *arg)
+{
+    if (!strcmp(arg, "auto"))
+        o->slice_axis = 0;
+    else if (strlen(arg) == 1 && strchr("xyz", arg[0]))
+        o->slice_axis = 1 + (unsigned)(arg[0] - 'x');
+    else
+        return -1;
+    return 0;
+}
+
 static int set_fps(struct play_opts *o, const char *arg)
 {
     o->fps_given = 1;
@@ -467,7 +482,7 @@ enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
        K_FROM_Z, K_ANNOTATE, K_BACKGROUND, K_SHOT_DIR, K_NO_HUD,
        K_READ_AHEAD };
 /* Views, movies and progress (apart: the list above grows elsewhere). */
-enum { K_VIEW = 384, K_UP, K_FPS, K_PROGRESS };
+enum { K_VIEW = 384, K_UP, K_FPS, K_PROGRESS, K_SLICE_AXIS };
 
 /* Grouped as --help groups them. */
 static const struct opt_def opt_table[] = {
@@ -481,6 +496,8 @@ static const struct opt_def opt_table[] = {
     {"view", K_VIEW, OPT_FN, 0, 0, 0, set_view,
      "+x, -x, +y, -y, +z, -z or iso"},
     {"up", K_UP, OPT_FN, 0, 0, 0, set_up, "x, y or z"},
+    {"slice-axis", K_SLICE_AXIS, OPT_FN, 0, 0, 0, set_slice_axis,
+     "auto, x, y or z"},
     {"zoom", 'z', OPT_DOUBLE, F(zoom), 0.001, 1000, NULL,
      "a number in 0.001..1000"},
     {"tf", 't', OPT_FN, 0, 0, 0, set_tf, NULL},

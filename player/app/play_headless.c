@@ -193,7 +193,8 @@ static void setup_view(struct headless *h)
     const struct play_opts *o = h->o;
     h->v = (struct tvpal_view){.width = o->width, .height = o->height,
                                .ax_deg = o->ax, .ay_deg = o->ay,
-                               .zoom = o->zoom};
+                               .zoom = o->zoom,
+                               .force_axis = o->slice_axis};
     memcpy(h->v.dims, h->s->m->dims, sizeof h->v.dims);
     play_view_spacing(h->s->m, o->scale_z, h->v.spacing);
     play_view_named(&h->v, o->view, o->up);

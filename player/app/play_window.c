@@ -231,7 +231,8 @@ static void handle_key(struct win_state *w, int key, struct win_cmd *cmd)
 static void cmd_view(const struct win_state *w, const struct win_cmd *cmd,
                      struct tvpal_view *v)
 {
-    *v = (struct tvpal_view){.width = w->W, .height = w->H, .zoom = cmd->zoom};
+    *v = (struct tvpal_view){.width = w->W, .height = w->H, .zoom = cmd->zoom,
+                             .force_axis = w->o->slice_axis};
     play_view_named(v, cmd->view, w->o->up);
     v->ax_deg = cmd->ax;
     v->ay_deg = cmd->ay;

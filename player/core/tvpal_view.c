@@ -91,6 +91,32 @@ int tvpal_view_orient(int name, int up, double orient[3][3])
     return 0;
 }
 
+/* The slice axis of view direction d (object space) on a grid of dims
+ * voxels of size sp (physical units; object units are proportional)
+ * (tvpal_view.h): slices crossed per unit length along d, |d[i]| / sp[i];
+ * the most, or within TVPAL_VIEW_AXIS_BAND of it an axis with at least
+ * twice the voxels a slice.  On an isotropic grid (sp all 1) the first
+ * rule is the largest |d[i]|, the first of equals, as it always was. */
+static unsigned slice_axis(const uint32_t dims[3], const double sp[3],
+                           const double d[3])
+{
+    double cross[3], area[3];
+    unsigned ax = 0;
+    for (unsigned i = 0; i < 3; i++) {
+        cross[i] = fabs(d[i]) / sp[i];
+        area[i] = (double)(dims[(i + 1) % 3] ? dims[(i + 1) % 3] : 1) *
+                  (dims[(i + 2) % 3] ? dims[(i + 2) % 3] : 1);
+        if (cross[i] > cross[ax])
+            ax = i;
+    }
+    unsigned best = ax;
+    for (unsigned i = 0; i < 3; i++)
+        if (cross[i] >= TVPAL_VIEW_AXIS_BAND * cross[ax] &&
+            area[i] >= 2 * area[ax] && area[i] > area[best])
+            best = i;
+    return best;
+}
+
 void tvpal_view_setup(struct tvpal_view *v)
 {
     const double a = safe_deg(v->ax_deg) * M_PI / 180.0,
@@ -125,21 +151,20 @@ void tvpal_view_setup(struct tvpal_view *v)
         v->spacing[0] = v->spacing[1] = v->spacing[2] = 0;
     const int iso = v->spacing[0] == 0 && v->spacing[1] == 0 &&
                     v->spacing[2] == 0;
-    double ext[3], emax = 0, smin = 0;
+    double ext[3], sp[3], emax = 0, smin = 0;
     for (int i = 0; i < 3; i++) {
-        const double sp = iso ? 1.0 : v->spacing[i];
-        ext[i] = (double)v->dims[i] * sp;
+        sp[i] = iso ? 1.0 : v->spacing[i];
+        ext[i] = (double)v->dims[i] * sp[i];
         emax = ext[i] > emax ? ext[i] : emax;
-        smin = i == 0 || sp < smin ? sp : smin;
+        smin = i == 0 || sp[i] < smin ? sp[i] : smin;
     }
     for (int i = 0; i < 3; i++)
         v->half[i] = emax > 0 ? ext[i] / emax : 1.0;   /* no voxels: 1 */
     /* View direction in object space: R^T (0, 0, -1). */
     double d[3] = {-v->rot[2][0], -v->rot[2][1], -v->rot[2][2]};
-    unsigned ax = 0;
-    for (unsigned i = 1; i < 3; i++)
-        if (fabs(d[i]) > fabs(d[ax]))
-            ax = i;
+    const unsigned ax = v->force_axis >= 1 && v->force_axis <= 3
+                            ? v->force_axis - 1
+                            : slice_axis(v->dims, sp, d);
     v->axis = ax;
     v->dcos = fabs(d[ax]);
     v->gap = iso ? 1.0 : v->spacing[ax] / smin;

@@ -12,7 +12,15 @@
  * first: then the rotation is Ry(ay) Rx(ax) O, and with ax = ay = 0
  * exactly O, whose entries are 0 and +-1 for the views along an axis.
  *
- * Slices of the axis most orthogonal to the view are drawn back to front;
+ * Slices of the axis most orthogonal to the view are drawn back to front.
+ * That axis is chosen as shear-warp chooses it, in voxel units: the one
+ * along which a ray crosses the most slices per unit length (the view
+ * direction's component over the voxel size), so that consecutive slices
+ * shift by at most about a voxel; where another axis comes within
+ * TVPAL_VIEW_AXIS_BAND of it and has at least twice as many voxels a slice
+ * (a volume flat along it, seen obliquely), that one: few large slices
+ * draw a thin volume as a continuous sheet, where many thin ones break
+ * into stripes at their edges.  force_axis overrides the choice.
  * the TF opacity is per unit of the smallest voxel spacing, corrected for
  * the distance a ray travels between two slices:
  * alpha' = 1 - (1 - alpha)^(gap / |cos theta|), gap = the slice spacing
@@ -38,6 +46,8 @@ struct tvpal_view {
     double ax_deg, ay_deg, zoom;
     int oriented;                /* 1: orient applies (a named view) */
     double orient[3][3];         /* object -> the named view's eye frame */
+    unsigned force_axis;         /* 0: the slice axis chosen by the view
+                                  * (above); 1, 2, 3: x, y or z always */
     /* derived by tvpal_view_setup */
     double rot[3][3];            /* object -> eye */
     double half[3];              /* half extents of the box per axis */
@@ -73,6 +83,10 @@ int tvpal_view_default_up(int name);
  * viewer.  0, or TVPAL_E_INVAL when up is the view's own axis (or name or
  * up is out of range); orient is then unchanged. */
 int tvpal_view_orient(int name, int up, double orient[3][3]);
+
+/* How close (a ratio of slices crossed per unit length, 0..1) another axis
+ * must come to the shear-warp axis for its larger slices to be chosen. */
+#define TVPAL_VIEW_AXIS_BAND 0.85
 
 /* Zoom range the view honours (tvpal_view_setup clamps to it). */
 #define TVPAL_VIEW_ZOOM_MIN 1e-6
