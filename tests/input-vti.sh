@@ -4,6 +4,7 @@
 # (tests/make-vti.py) and the real viscous-fingers series as delivered
 # (20 zlib-compressed appended .vti files from ../shared/data, skipped where
 # absent) against run01's raw steps 1..20; tvpal-report reads them again;
+# the FieldData TimeValue of files from VTK's own writer are the times;
 # a broken file exits 2 naming it and leaves nothing behind.
 . "$(dirname "$0")/lib.sh"
 "$PY" "$TVPAL_SRCDIR/tests/make-vti.py" "$W/gen" > /dev/null 2> "$W/e.txt" || { fail "make-vti: $(cat "$W/e.txt")"; finish; }
@@ -40,6 +41,63 @@ for v in "$W"/gen/bad-*.vti; do
     expect_exit 2 "$(basename "$v")" "$ENC" --axes xyz -q -o "$W/bad" "$v"
     [ ! -e "$W/bad" ] && [ ! -e "$W/bad.partial" ] || fail "$(basename "$v"): output left"
 done
+# ParaView's time: the FieldData TimeValue that VTK's own writer
+# (vtkXMLImageDataWriter, python3-vtk9) puts in each file of a series, in
+# each of its data modes, becomes the dataset's times; a .pvd's timesteps
+# win over them, as in ParaView.
+if "$PY" -c "import vtkmodules.vtkIOXML" 2> /dev/null; then
+    mkdir -p "$W/tv"
+    "$PY" - "$W/tv" <<'PY' > "$W/tv.txt" 2>&1 || fail "vtk writer: $(cat "$W/tv.txt")"
+import sys
+from vtkmodules.vtkCommonDataModel import vtkImageData
+from vtkmodules.vtkCommonCore import vtkDoubleArray, vtkFloatArray
+from vtkmodules.vtkIOXML import vtkXMLImageDataWriter
+out = sys.argv[1]
+for mode in ("appended", "raw", "binary", "ascii"):
+    for k, t in enumerate((0.5, 1.25, 2.0 + 1e-12)):
+        im = vtkImageData()
+        im.SetDimensions(6, 5, 4)
+        im.SetSpacing(0.5, 0.5, 2.0)
+        v = vtkFloatArray()
+        v.SetName("theta")
+        for i in range(6 * 5 * 4):
+            v.InsertNextValue(280.0 + (i * (k + 3)) % 17)
+        im.GetPointData().SetScalars(v)
+        tv = vtkDoubleArray()
+        tv.SetName("TimeValue")
+        tv.InsertNextValue(t)
+        im.GetFieldData().AddArray(tv)
+        w = vtkXMLImageDataWriter()
+        w.SetFileName("%s/%s_%d.vti" % (out, mode, k))
+        w.SetInputData(im)
+        if mode == "raw":
+            w.SetDataModeToAppended()
+            w.EncodeAppendedDataOff()
+        elif mode == "binary":
+            w.SetDataModeToBinary()
+        elif mode == "ascii":
+            w.SetDataModeToAscii()
+        if not w.Write():
+            sys.exit("write failed")
+PY
+    for mode in appended raw binary ascii; do
+        rm -rf "$W/tv.ds"
+        "$ENC" -q -o "$W/tv.ds" "$W"/tv/${mode}_*.vti > /dev/null 2> "$W/e.txt" || { fail "TimeValue $mode: $(cat "$W/e.txt")"; continue; }
+        t=$(sed -n 's/^times = //p' "$W/tv.ds/manifest.txt")
+        [ "$t" = "0.5 1.25 2.0000000000010001" ] && ok "TimeValue ($mode .vti from VTK's writer): times = $t" ||
+            fail "TimeValue ($mode): times = '$t', 0.5 1.25 2.0000000000010001 expected (float64, whole)"
+    done
+    # A .pvd naming the files: its timesteps, not their TimeValues.
+    { echo '<VTKFile type="Collection" version="0.1"><Collection>'
+      for k in 0 1 2; do echo "<DataSet timestep=\"$((k * 10))\" file=\"raw_$k.vti\"/>"; done
+      echo '</Collection></VTKFile>'; } > "$W/tv/s.pvd"
+    rm -rf "$W/tv.ds"
+    "$ENC" -q -o "$W/tv.ds" "$W/tv/s.pvd" > /dev/null 2> "$W/e.txt" || fail "pvd over TimeValue: $(cat "$W/e.txt")"
+    t=$(sed -n 's/^times = //p' "$W/tv.ds/manifest.txt" 2> /dev/null)
+    [ "$t" = "0 10 20" ] && ok "a .pvd's timesteps win over the files' TimeValue" || fail "pvd times '$t'"
+else
+    echo "no VTK for Python (python3-vtk9): the TimeValue files are not checked"
+fi
 S=${TVPAL_SHARED:-$TVPAL_SRCDIR/../shared}/data
 if [ -d "$S/viscous-fingers-run01-vti" ] && [ -r "$S/viscous-fingers-run01/density_t001.f32" ]; then
     raws=""

@@ -89,6 +89,8 @@ struct vti_array {
     size_t text_begin, text_end;   /* the element's text in the file */
     int has_text;
     int cell;                   /* in CellData, not PointData */
+    int field;                  /* in the ImageData's FieldData (ParaView's
+                                 * TimeValue): never a variable */
 };
 
 /* What one parse of a file found. */
@@ -120,7 +122,7 @@ struct vti_doc {
     /* parser state */
     XML_Parser xp;
     int depth, piece_depth, data_depth, cur;   /* cur: array open, or -1 */
-    int in_cell, skip_piece;
+    int in_cell, in_field, skip_piece;
     int rc;                     /* an error a handler met */
     struct tvpal_diag *diag;
     struct tvpal_pool *pool;    /* reads: the file's (tvpal_input_opts) */
@@ -427,6 +429,7 @@ static int start_array(struct vti_doc *d, const XML_Char **atts)
         return nomem(d);
     d->narrays++;
     a->cell = d->in_cell;
+    a->field = d->in_field;
     v = attr(atts, "type");
     copy_attr(a->type, sizeof a->type, v ? v : "missing");
     a->t = -1;
@@ -543,8 +546,17 @@ static int start(struct vti_doc *d, int depth, const XML_Char *name,
         }
         return 0;
     }
+    if (depth == 2 && d->have_image && !strcmp(name, "FieldData")) {
+        /* The dataset's own arrays (ParaView writes the time there as
+         * TimeValue), read as DataArrays but never a variable. */
+        d->in_cell = 0;
+        d->in_field = 1;
+        d->data_depth = depth;
+        return 0;
+    }
     if (d->piece_depth && depth == d->piece_depth + 1 && !d->skip_piece &&
         (!strcmp(name, "PointData") || !strcmp(name, "CellData"))) {
+        d->in_field = 0;
         d->in_cell = !strcmp(name, "CellData");
         d->data_depth = depth;
         const char *v = attr(atts, "Scalars");
@@ -790,12 +802,18 @@ static int grid(const struct vti_doc *d, struct tvpal_input_info *info)
 }
 
 /* "a, b, c" of the point arrays into buf. */
+/* A PointData array: what a variable is. */
+static int is_point(const struct vti_array *a)
+{
+    return !a->cell && !a->field;
+}
+
 static void list_arrays(const struct vti_doc *d, char *buf, size_t cap)
 {
     size_t n = 0;
     buf[0] = 0;
     for (int i = 0; i < d->narrays && n < cap; i++)
-        if (!d->arrays[i].cell) {
+        if (is_point(&d->arrays[i])) {
             int k = snprintf(buf + n, cap - n, "%s%s", n ? ", " : "",
                              d->arrays[i].name);
             n += k > 0 ? (size_t)k : 0;
@@ -810,12 +828,12 @@ static int choose(const struct vti_doc *d, const char *var, int *out)
     char names[160];
     int pick = -1, npoint = 0;
     for (int i = 0; i < d->narrays; i++)
-        npoint += !d->arrays[i].cell;
+        npoint += is_point(&d->arrays[i]);
     list_arrays(d, names, sizeof names);
     const char *want = var ? var : d->scalars;
     if (want) {
         for (int i = 0; i < d->narrays && pick < 0; i++)
-            if (!d->arrays[i].cell && !strcmp(d->arrays[i].name, want))
+            if (is_point(&d->arrays[i]) && !strcmp(d->arrays[i].name, want))
                 pick = i;
         for (int i = 0; i < d->narrays && pick < 0; i++)
             if (d->arrays[i].cell && !strcmp(d->arrays[i].name, want))
@@ -830,7 +848,7 @@ static int choose(const struct vti_doc *d, const char *var, int *out)
                                   "Scalars)", names);
     } else if (npoint == 1) {
         for (int i = 0; i < d->narrays; i++)
-            if (!d->arrays[i].cell)
+            if (is_point(&d->arrays[i]))
                 pick = i;
     } else if (npoint == 0) {
         return tvpal_diag_set(d->diag, TVPAL_E_INVAL, "%s: no point arrays "
@@ -1861,6 +1879,61 @@ static void vti_close(struct tvpal_input_file *f)
     free(f);
 }
 
+/* The time ParaView writes into a .vti: its FieldData's TimeValue, one
+ * value of any type the reader knows, in any format; *t, and 1 where the
+ * file has one, 0 where not; < 0 where it cannot be read (diag says). */
+static int field_time(const struct vti_doc *d, double *t)
+{
+    const struct vti_array *a = NULL;
+    for (int i = 0; i < d->narrays && !a; i++)
+        if (d->arrays[i].field && !strcmp(d->arrays[i].name, "TimeValue"))
+            a = &d->arrays[i];
+    if (!a)
+        return 0;
+    if (a->t < 0 || a->ncomp != 1 || a->fmt == F_UNKNOWN ||
+        (a->fmt == F_APPENDED && (!d->appended_at || !a->has_offset)))
+        return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: FieldData "
+                              "TimeValue: one value of a numeric type in "
+                              "ascii, binary or appended format expected "
+                              "(type %s, %ld components, format %s)",
+                              d->path, a->type, a->ncomp, a->fmt_name);
+    if (a->fmt == F_ASCII) {
+        char text[128];
+        const size_t n = a->text_end > a->text_begin
+                             ? a->text_end - a->text_begin : 0;
+        const size_t k = n < sizeof text - 1 ? n : sizeof text - 1;
+        char *end;
+        int rc = doc_pread(d, text, k, a->text_begin, "FieldData TimeValue");
+        if (rc < 0)
+            return rc;
+        text[k] = 0;
+        errno = 0;
+        *t = strtod(text, &end);
+        while (end != text && (*end == ' ' || *end == '\n' || *end == '\t' ||
+                               *end == '\r'))
+            end++;
+        if (end == text || *end || errno)
+            return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: FieldData "
+                                  "TimeValue is \"%.40s\": one number "
+                                  "expected", d->path, text);
+        return 1;
+    }
+    unsigned char raw[8];
+    float f;
+    const unsigned sz = vti_types[a->t].size;
+    int rc = read_binary(d, a, sz, raw);
+    if (rc < 0)
+        return rc;
+    if (a->t == T_F64) { /* whole: float32 would round the time */
+        uint64_t u = load_uint(raw, 8, d->big_endian);
+        memcpy(t, &u, sizeof *t);
+    } else {
+        convert(raw, a->t, d->big_endian, 1, &f);
+        *t = f;
+    }
+    return 1;
+}
+
 static int vti_open(struct tvpal_input_file **out, const char *path,
                     const struct tvpal_input_opts *opts,
                     struct tvpal_input_info *info, double **times,
@@ -1877,6 +1950,16 @@ static int vti_open(struct tvpal_input_file **out, const char *path,
     if (rc == 0 && !d.parallel && d.arrays[pick].fmt != F_ASCII)
         rc = read_binary(&d, &d.arrays[pick],
                          (uint64_t)n * vti_types[d.arrays[pick].t].size, NULL);
+    double tv = 0;
+    int has_tv = rc == 0 && !d.parallel ? field_time(&d, &tv) : 0;
+    if (has_tv < 0)
+        rc = has_tv;
+    if (has_tv > 0 && times) {
+        if (!(*times = malloc(sizeof **times)))
+            rc = TVPAL_E_NOMEM;
+        else
+            **times = tv, info->has_times = 1;
+    }
     struct tvpal_input_file *f = NULL;
     if (rc == 0 && (!(f = calloc(1, sizeof *f)) || !(f->path = strdup(path))))
         rc = TVPAL_E_NOMEM;

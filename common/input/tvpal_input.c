@@ -403,7 +403,8 @@ int tvpal_input_open(struct tvpal_input **out, enum tvpal_input_format fmt,
     in->opts = opts ? *opts : (struct tvpal_input_opts){0};
     in->cur_i = -1;
     rc = expand_files(in, files, nfiles, diag);
-    /* Collection times are the series' times; the backend gives none. */
+    /* Collection times are the series' times, over any a file gives (a
+     * .vti's FieldData TimeValue), as ParaView takes a .pvd's. */
     double *coll_times = in->times;
     in->times = NULL;
     if (rc == 0 && !(in->first = calloc((size_t)in->nfiles + 1,
@@ -412,7 +413,7 @@ int tvpal_input_open(struct tvpal_input **out, enum tvpal_input_format fmt,
     if (rc == 0)
         rc = scan_files(in, diag);
     if (rc == 0 && coll_times) {
-        if (in->info.has_times || in->info.steps != (uint32_t)in->nfiles)
+        if (in->info.steps != (uint32_t)in->nfiles)
             rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: its DataSets "
                                 "hold %u steps in %d files (one each "
                                 "expected)", files[0], in->info.steps,
