@@ -1404,6 +1404,26 @@ static void verify_written(const struct run *r, struct written *w)
     }
 }
 
+/* The bytes of the files the job read (each once: a NetCDF file of many
+ * steps, a .pvd and its DataSets), as they are on disk: what the user's
+ * input takes; 0 where unknown. */
+static uint64_t input_bytes(const struct run *r)
+{
+    char **f = NULL;
+    const int n = job_files(r, &f);
+    uint64_t sum = 0;
+    for (int i = 0; i < n; i++) {
+        int seen = 0;
+        for (int j = 0; j < i && !seen; j++)
+            seen = !strcmp(f[i], f[j]);
+        struct stat st;
+        if (!seen && stat(f[i], &st) == 0 && S_ISREG(st.st_mode))
+            sum += (uint64_t)st.st_size;
+    }
+    free(f);
+    return sum;
+}
+
 /* Prints the closing key=value line on stdout: ratio is the source bytes
  * over the dataset's bytes on disk and bpv their bits per voxel-timestep
  * (under MPI every rank's node directory, wherever --shard-dir put it,
@@ -1432,12 +1452,20 @@ static void print_summary(const struct run *r, const struct written *w)
     if (r->o.levels)
         snprintf(lv, sizeof lv, " levels=%u levels_bytes=%llu", r->o.levels,
                  (unsigned long long)w->level_bytes);
+    /* The two other bases a user compares with: the values as float32
+     * (the same for any input format), and the input files on disk. */
+    const uint64_t in = input_bytes(r);
+    char rin[48] = "";
+    if (in)
+        snprintf(rin, sizeof rin, " ratio_input=%.3f", (double)in / disk);
     printf("encoded %s: steps=%u window=%u nodes=%u axes=%s bytes=%llu "
-           "ratio=%.3f axis_ratio=%.3f bpv=%.4f seconds=%.3f rate=%.2fM "
+           "ratio=%.3f ratio_f32=%.3f%s axis_ratio=%.3f bpv=%.4f "
+           "seconds=%.3f rate=%.2fM "
            "vox-steps/s threads=%d missing=%llu passes=%u%s%s\n",
            r->o.outdir, r->T, r->N, r->o.nodes,
            tvpal_axes_format(r->o.axes, axes), (unsigned long long)disk,
-           src / (double)disk, src / axis_bytes, (double)disk * 8.0 / vts,
+           src / (double)disk, vts * 4.0 / (double)disk, rin,
+           src / axis_bytes, (double)disk * 8.0 / vts,
            te, (double)work / naxes / (te > 0 ? te : 1e-9) / 1e6,
            r->nthreads * cluster_size(r),
            (unsigned long long)r->st.missing, r->plan.npasses, tb, lv);

@@ -70,6 +70,7 @@ static void usage(FILE *f)
 "psnr_z (the stored axes'), psnr_min (worst timestep and axis), rmse,\n"
 "max_abs_error and flicker (worst axis), ratio (source bytes / bytes on\n"
 "disk: every file of OUTDIR, all stored axes, manifests and levels),\n"
+"ratio_f32 (the same with the values as float32, whatever the source),\n"
 "axis_ratio (source bytes / mean bytes of one stored axis), ratio_8bit,\n"
 "bpv (bits on disk per voxel-timestep), index_bpv and table_bpv (theirs\n"
 "for the indices and the decoder tables), bytes, steps, window, missing,\n"
@@ -983,7 +984,8 @@ static int write_file(const char *path, const struct report *r,
 /* The closing line's values, in a record for the summary_keys table. */
 struct summary {
     double psnr, psnr_x, psnr_y, psnr_z, psnr_min, rmse, max_abs_error;
-    double flicker, ratio, axis_ratio, ratio_8bit, bpv, index_bpv, table_bpv;
+    double flicker, ratio, ratio_f32, axis_ratio, ratio_8bit, bpv, index_bpv;
+    double table_bpv;
     double bytes;
     double steps, window, missing, missing_mismatch, tables_u16, tables_f32;
 };
@@ -999,6 +1001,7 @@ static const struct column summary_keys[] = {
     KEY(max_abs_error, "%.6g", COL_REAL),
     KEY(flicker, "%.6g", COL_REAL),
     KEY(ratio, "%.4f", COL_REAL),
+    KEY(ratio_f32, "%.4f", COL_REAL),
     KEY(axis_ratio, "%.4f", COL_REAL),
     KEY(ratio_8bit, "%.4f", COL_REAL),
     KEY(bpv, "%.4f", COL_REAL),
@@ -1022,6 +1025,7 @@ static struct summary summary_of(const struct report *r)
         .psnr_z = r->axis[2].psnr, .psnr_min = r->psnr_min,
         .rmse = r->worst_rmse, .max_abs_error = r->worst_max,
         .flicker = r->worst_flick, .ratio = r->ratio,
+        .ratio_f32 = 4 * r->vts / (double)r->disk_bytes,
         .axis_ratio = (double)r->src_bytes / r->bytes_axis,
         .ratio_8bit = r->vts / (double)r->disk_bytes,
         .bpv = 8 * (double)r->disk_bytes / r->vts,

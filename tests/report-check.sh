@@ -86,6 +86,7 @@ disk = sum(os.path.getsize(os.path.join(d, f))
            for d, _, fs in os.walk("%s/ds-%s" % (w, name)) for f in fs)
 close("bytes", disk, float(kv["bytes"]), 0)
 close("ratio", R.size * 4 / disk, float(kv["ratio"]), 1e-3)
+close("ratio_f32", R.size * 4 / disk, float(kv["ratio_f32"]), 1e-3)
 close("bpv", disk * 8 / R.size, float(kv["bpv"]), 1e-3)
 close("axis_ratio", R.size * 4 / mean, float(kv["axis_ratio"]), 1e-3)
 # Three axes stored: the one-axis ratio is about three times the disk's.

@@ -1,7 +1,9 @@
 #!/bin/sh
 # types: u8, u16 (big-endian), i16 and f64 inputs and the single-file
 # layout (--steps) encode and report correctly; integer data with at most 256
-# values per slice is exact at N = 1.
+# values per slice is exact at N = 1; the same values from float64 and
+# float32 files have the same ratio_f32, and ratio and ratio_input count
+# the source's and the input files' bytes.
 . "$(dirname "$0")/lib.sh"
 D=12x10x9
 T=5
@@ -17,6 +19,7 @@ for t in range(T):
     open("%s/u16be_%d.raw" % (w, t), "wb").write(b"".join(struct.pack(">H", int(30000 + 15000 * v)) for v in vs))
     open("%s/i16_%d.raw" % (w, t), "wb").write(b"".join(struct.pack("<h", int(-500 + 9000 * v)) for v in vs))
     open("%s/f64_%d.raw" % (w, t), "wb").write(b"".join(struct.pack("<d", 1e-3 * v) for v in vs))
+    open("%s/f32_%d.raw" % (w, t), "wb").write(b"".join(struct.pack("<f", 1e-3 * v) for v in vs))
     with open("%s/all_f64.raw" % w, "ab") as f:
         f.write(b"".join(struct.pack("<d", 1e-3 * v) for v in vs))
 PY
@@ -43,4 +46,26 @@ for t in 0 4; do
 done
 p=$(kv psnr "$("$REP" -q "$W/single")")
 ge "$p" 30 && ok "single-file report $p" || fail "single-file report $p"
+# The same values from float64 and from float32 files: ratio counts the
+# source's bytes (twice for float64), ratio_f32 the values as float32 (the
+# same), ratio_input the input files' bytes on disk.
+l64=$("$ENC" -q --dims $D --type f64 --window 4 -o "$W/r64" "$W"/f64_*.raw) || fail "encode r64"
+l32=$("$ENC" -q --dims $D --type f32 --window 4 -o "$W/r32" "$W"/f32_*.raw) || fail "encode r32"
+cmp -s "$W/r64/node-0/axis-z.tvps" "$W/r32/node-0/axis-z.tvps" || fail "f64 and f32 of the same values: shards differ"
+"$PY" - "$l64" "$l32" $((12 * 10 * 9 * T)) <<'PY' > "$W/ratio.txt" 2>&1 && ok "$(cat "$W/ratio.txt")" || fail "$(cat "$W/ratio.txt")"
+import sys
+kv = lambda line: dict(f.split("=", 1) for f in line.split() if "=" in f)
+a, b, vts = kv(sys.argv[1]), kv(sys.argv[2]), int(sys.argv[3])
+bad = []
+for k, w, size in (("f64", a, 8), ("f32", b, 4)):
+    disk = float(w["bytes"])
+    for key, want in (("ratio", vts * size / disk), ("ratio_f32", vts * 4 / disk),
+                      ("ratio_input", vts * size / disk)):
+        if abs(float(w[key]) - want) > 1e-3 * want + 5e-4:
+            bad.append("%s %s=%s, %.4f expected" % (k, key, w[key], want))
+if bad:
+    sys.exit("; ".join(bad))
+print("f64: ratio %s ratio_f32 %s ratio_input %s; f32: ratio %s ratio_f32 %s"
+      % (a["ratio"], a["ratio_f32"], a["ratio_input"], b["ratio"], b["ratio_f32"]))
+PY
 finish
