@@ -79,6 +79,7 @@ p=$(pixel "$W/none-1,0.5,0.25/t0000.png" 0 0)
 expect_exit 2 "--background \"1,2,0\": expected black, white" "$PLAY" "$W/ds" --headless --background 1,2,0
 expect_exit 2 "--annotate \"some\": expected none, minimal or full" "$PLAY" "$W/ds" --headless --annotate some
 expect_exit 2 "--shot-dir and --no-hud need the window" "$PLAY" "$W/ds" --headless --shot-dir "$W/s"
+expect_exit 2 "--legend \"middle\": expected auto, right, right-top, right-bottom or left" "$PLAY" "$W/ds" --headless --legend middle
 if ! "$PLAY" --version | grep -q "annotations: yes"; then
     expect_exit 2 "--annotate full: built without cairo \(install libcairo2-dev" \
         "$PLAY" "$W/ds" --headless -q --annotate full -o "$W/x"

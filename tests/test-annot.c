@@ -270,6 +270,63 @@ static void check_errors(struct tvpal_annot *a)
     tvpal_annot_free(NULL);
 }
 
+/* The legend's places: each explicit one where it says, and AUTO off a
+ * box that covers the right edge (the first place that covers least),
+ * at the right (as before places existed) where nothing is in the way. */
+static void check_places(struct tvpal_annot *a)
+{
+    struct tvpal_tf tf;
+    struct tvpal_diag d = {{0}};
+    REQUIRE(tvpal_tf_parse_text("domain normalized\n0 1 0 0 0\n1 0 0 1 1\n",
+                                0, 1, &tf, &d) == 0, "%s", d.msg);
+    struct tvpal_annot_frame f = {.what = TVPAL_ANNOT_LEGEND, .vmin = 0,
+                                  .vmax = 1, .colour = tf_colour,
+                                  .colour_ctx = &tf, .title = "rho",
+                                  .fg = {1, 1, 1}};
+    struct tvpal_annot_legend L[TVPAL_ANNOT_PLACES];
+    for (unsigned k = 0; k < TVPAL_ANNOT_PLACES; k++) {
+        f.legend_place = k;
+        REQUIRE(tvpal_annot_draw(a, &f, frame, &d) == 0, "%s", d.msg);
+        tvpal_annot_legend(a, &L[k]);
+    }
+    const struct tvpal_annot_legend *r = &L[TVPAL_ANNOT_PLACE_RIGHT],
+                                    *rt = &L[TVPAL_ANNOT_PLACE_RIGHT_TOP],
+                                    *rb = &L[TVPAL_ANNOT_PLACE_RIGHT_BOTTOM],
+                                    *l = &L[TVPAL_ANNOT_PLACE_LEFT];
+    CHECK(r->x0 > WD / 2 && rt->x0 == r->x0 && rb->x0 == r->x0 &&
+              l->x0 < WD / 4, "x: right %u, left %u", r->x0, l->x0);
+    CHECK(rt->y0 < r->y0 && r->y0 < rb->y0 && l->y0 == r->y0 &&
+              rb->y0 + rb->h <= HT && rt->y0 >= 16,
+          "y: top %u, middle %u, bottom %u", rt->y0, r->y0, rb->y0);
+    CHECK(L[TVPAL_ANNOT_PLACE_AUTO].x0 == r->x0 &&
+              L[TVPAL_ANNOT_PLACE_AUTO].y0 == r->y0,
+          "auto with nothing in the way: at the right");
+    /* A box over the right half's lower part (pixel y up from the
+     * bottom), which the middle place overlaps: auto goes to the right
+     * top, which it leaves clear. */
+    static const double box[4][2] = {{WD * 0.55, 0}, {WD, 0},
+                                     {WD, HT * 0.45}, {WD * 0.55, HT * 0.45}};
+    for (unsigned c = 0; c < 8; c++)
+        f.corner[c][0] = box[c % 4][0], f.corner[c][1] = box[c % 4][1];
+    f.legend_place = TVPAL_ANNOT_PLACE_AUTO;
+    REQUIRE(tvpal_annot_draw(a, &f, frame, &d) == 0, "%s", d.msg);
+    struct tvpal_annot_legend got;
+    tvpal_annot_legend(a, &got);
+    CHECK(got.x0 == rt->x0 && got.y0 == rt->y0, "auto beside a box over the "
+          "right middle: at %u,%u, the right top %u,%u expected", got.x0,
+          got.y0, rt->x0, rt->y0);
+    /* A box over the whole right edge: the left. */
+    static const double tall[4][2] = {{WD * 0.6, 0}, {WD, 0}, {WD, HT},
+                                      {WD * 0.6, HT}};
+    for (unsigned c = 0; c < 8; c++)
+        f.corner[c][0] = tall[c % 4][0], f.corner[c][1] = tall[c % 4][1];
+    REQUIRE(tvpal_annot_draw(a, &f, frame, &d) == 0, "%s", d.msg);
+    tvpal_annot_legend(a, &got);
+    CHECK(got.x0 == l->x0 && got.y0 == l->y0, "auto beside a box over the "
+          "right edge: at %u,%u, the left %u,%u expected", got.x0, got.y0,
+          l->x0, l->y0);
+}
+
 int main(void)
 {
     check_ticks();
@@ -281,6 +338,7 @@ int main(void)
     struct tvpal_diag d = {{0}};
     REQUIRE(tvpal_annot_create(&a, WD, HT, &d) == 0, "%s", d.msg);
     check_legends(a);
+    check_places(a);
     check_outline(a);
     check_untouched_and_hud(a);
     check_bad_utf8(a);

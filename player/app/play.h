@@ -45,6 +45,7 @@ struct play_opts {
                                          * (0..2); -1 when not given */
     unsigned slice_axis;                /* --slice-axis: 0 auto, 1..3 x..z
                                          * (tvpal_view's force_axis) */
+    unsigned legend_place;              /* --legend: enum tvpal_annot_place */
     double scale_z;                     /* vertical exaggeration (z) */
     const char *tf_files[PLAY_MAX_TF];  /* --tf, in order */
     unsigned ntf;

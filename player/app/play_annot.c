@@ -37,6 +37,7 @@ int play_annot_open(struct play_annot *pa, const struct play_opts *o,
 {
     memset(pa, 0, sizeof *pa);
     pa->what = play_annot_bits(o->annotate);
+    pa->place = o->legend_place;
     text_colours(pa, o->background);
     if (!pa->what && !want_hud)
         return 0;
@@ -119,6 +120,7 @@ int play_annot_frame(struct play_annot *pa, const struct play_session *s,
     const struct tvpal_manifest *m = s->m;
     struct tvpal_annot_frame f = {.what = pa->what, .colour = tf_colour,
                                   .colour_ctx = pa, .title = pa->title,
+                                  .legend_place = pa->place,
                                   .time_text = pa->time};
     memcpy(f.fg, pa->fg, sizeof f.fg);
     memcpy(f.halo, pa->halo, sizeof f.halo);

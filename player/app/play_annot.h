@@ -14,6 +14,7 @@
 struct play_annot {
     struct tvpal_annot *a;          /* NULL: no annotations, no HUD */
     unsigned what;                  /* TVPAL_ANNOT_* of --annotate */
+    unsigned place;                 /* --legend (enum tvpal_annot_place) */
     float fg[3], halo[3];           /* from --background */
     const struct tvpal_tf *tf;      /* the legend's: the frame's TF, */
     double opacity;                 /* at its opacity scale */

@@ -116,6 +116,10 @@ static void usage_view(FILE *f)
 "                           has no times) or full (default: minimal, the\n"
 "                           volume's outline and an x, y, z triad); none\n"
 "                           without cairo\n"
+"      --legend P           where the legend goes: auto (default: of right,\n"
+"                           right-top, right-bottom and left, the first that\n"
+"                           covers the least of the volume), right,\n"
+"                           right-top, right-bottom or left\n"
 "      --background C       the colour behind the volume: black (default),\n"
 "                           white, gray, darkgray or R,G,B, each 0..1\n");
 }
@@ -282,6 +286,18 @@ static int set_up(struct play_opts *o, const char *arg)
         return -1;
     o->up = arg[0] - 'x';
     return 0;
+}
+
+static int set_legend(struct play_opts *o, const char *arg)
+{
+    static const char *const names[TVPAL_ANNOT_PLACES] = {
+        "auto", "right", "right-top", "right-bottom", "left"};
+    for (unsigned k = 0; k < TVPAL_ANNOT_PLACES; k++)
+        if (!strcmp(arg, names[k])) {
+            o->legend_place = k;
+            return 0;
+        }
+    return -1;
 }
 
 static int set_slice_axis(struct play_opts *o, const char *arg)
@@ -482,7 +498,7 @@ enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
        K_FROM_Z, K_ANNOTATE, K_BACKGROUND, K_SHOT_DIR, K_NO_HUD,
        K_READ_AHEAD };
 /* Views, movies and progress (apart: the list above grows elsewhere). */
-enum { K_VIEW = 384, K_UP, K_FPS, K_PROGRESS, K_SLICE_AXIS };
+enum { K_VIEW = 384, K_UP, K_FPS, K_PROGRESS, K_SLICE_AXIS, K_LEGEND };
 
 /* Grouped as --help groups them. */
 static const struct opt_def opt_table[] = {
@@ -522,6 +538,8 @@ static const struct opt_def opt_table[] = {
      "a factor in 0.001..1000"},
     {"annotate", K_ANNOTATE, OPT_FN, 0, 0, 0, set_annotate,
      "none, minimal or full"},
+    {"legend", K_LEGEND, OPT_FN, 0, 0, 0, set_legend,
+     "auto, right, right-top, right-bottom or left"},
     {"background", K_BACKGROUND, OPT_FN, 0, 0, 0, set_background,
      "black, white, gray, darkgray or R,G,B, each 0..1"},
     /* data */

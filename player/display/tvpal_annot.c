@@ -410,6 +410,98 @@ static void legend_bar(struct tvpal_annot *a, const struct tvpal_annot_legend *L
     dirty_add(a, L->x0, L->y0, L->x0 + L->w, L->y0 + L->h);
 }
 
+/* Convex hull of the n <= 8 points p (x, y), counter-clockwise, into h
+ * (monotone chain); its number of points (fewer than 3: no area). */
+static unsigned hull8(double p[8][2], unsigned n, double h[16][2])
+{
+    for (unsigned i = 1; i < n; i++) /* sort by x, then y (8 points) */
+        for (unsigned j = i; j > 0 && (p[j][0] < p[j - 1][0] ||
+                                       (p[j][0] == p[j - 1][0] &&
+                                        p[j][1] < p[j - 1][1])); j--) {
+            double t0 = p[j][0], t1 = p[j][1];
+            p[j][0] = p[j - 1][0], p[j][1] = p[j - 1][1];
+            p[j - 1][0] = t0, p[j - 1][1] = t1;
+        }
+    unsigned k = 0;
+#define CROSS(o, a, b) (((a)[0] - (o)[0]) * ((b)[1] - (o)[1]) -              \
+                        ((a)[1] - (o)[1]) * ((b)[0] - (o)[0]))
+    for (unsigned i = 0; i < n; i++) {
+        while (k >= 2 && CROSS(h[k - 2], h[k - 1], p[i]) <= 0)
+            k--;
+        h[k][0] = p[i][0], h[k][1] = p[i][1], k++;
+    }
+    for (unsigned i = n - 1, t = k + 1; i-- > 0;) {
+        while (k >= t && CROSS(h[k - 2], h[k - 1], p[i]) <= 0)
+            k--;
+        h[k][0] = p[i][0], h[k][1] = p[i][1], k++;
+    }
+    return k > 1 ? k - 1 : k;
+}
+
+/* Whether (x, y) is inside the counter-clockwise convex polygon h of n
+ * points (n >= 3). */
+static int in_hull(const double h[16][2], unsigned n, double x, double y)
+{
+    const double q[2] = {x, y};
+    for (unsigned i = 0; i < n; i++)
+        if (CROSS(h[i], h[(i + 1) % n], q) < 0)
+            return 0;
+    return 1;
+#undef CROSS
+}
+
+/* How much of the rectangle [x0, x1) x [y0, y1) (row 0 at the top) the
+ * volume's projection covers: of 12 x 12 points spread over it, those
+ * inside the hull of f's corners. */
+static unsigned covered(const struct tvpal_annot *a,
+                        const struct tvpal_annot_frame *f, double x0,
+                        double y0, double x1, double y1)
+{
+    double p[8][2], h[16][2];
+    for (unsigned c = 0; c < 8; c++)
+        p[c][0] = f->corner[c][0], p[c][1] = a->H - f->corner[c][1];
+    const unsigned n = hull8(p, 8, h);
+    unsigned count = 0;
+    for (unsigned i = 0; n >= 3 && i < 12; i++)
+        for (unsigned j = 0; j < 12; j++)
+            count += in_hull(h, n, x0 + (x1 - x0) * (j + 0.5) / 12,
+                             y0 + (y1 - y0) * (i + 0.5) / 12);
+    return count;
+}
+
+/* The legend's place for f: L's x0 and y0, its bar being L->w x L->h with
+ * labels label_w wide to its right (tvpal_annot.h, enum
+ * tvpal_annot_place). */
+static void legend_place(const struct tvpal_annot *a,
+                         const struct tvpal_annot_frame *f, double label_w,
+                         struct tvpal_annot_legend *L)
+{
+    const double m = a->fs * 0.8, gap = a->fs * 0.4;
+    const double width = L->w + 2 * gap + label_w;
+    const double above = f->title && *f->title ? a->fs * 1.6 : 0;
+    const double right = a->W - m - width, middle = (a->H - (double)L->h) / 2;
+    const double xy[TVPAL_ANNOT_PLACES][2] = {
+        [TVPAL_ANNOT_PLACE_RIGHT] = {right, middle},
+        [TVPAL_ANNOT_PLACE_RIGHT_TOP] = {right, m + above},
+        [TVPAL_ANNOT_PLACE_RIGHT_BOTTOM] = {right, a->H - m - (double)L->h},
+        [TVPAL_ANNOT_PLACE_LEFT] = {m, middle}};
+    unsigned pick = f->legend_place;
+    if (pick == TVPAL_ANNOT_PLACE_AUTO || pick >= TVPAL_ANNOT_PLACES) {
+        unsigned least = ~0u;
+        for (unsigned k = TVPAL_ANNOT_PLACE_RIGHT; k < TVPAL_ANNOT_PLACES;
+             k++) {
+            const unsigned c = covered(a, f, xy[k][0], xy[k][1] - above,
+                                       xy[k][0] + width, xy[k][1] + L->h);
+            if (c < least)
+                least = c, pick = k;
+        }
+    }
+    const double x0 = xy[pick][0], y0 = xy[pick][1];
+    const double ymax = (double)a->H - L->h;
+    L->x0 = x0 > 0 ? (unsigned)x0 : 0;
+    L->y0 = y0 <= 0 ? 0 : y0 > ymax ? (unsigned)ymax : (unsigned)y0;
+}
+
 /* The legend's layout for f into L, and each bar row's colour into
  * a->rows (nothing drawn). */
 static int legend_layout(struct tvpal_annot *a,
@@ -422,7 +514,6 @@ static int legend_layout(struct tvpal_annot *a,
                    &s) < 0)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "annotations: legend "
                               "range [%g, %g] has no ticks", f->vmin, f->vmax);
-    const double m = a->fs * 0.8, gap = a->fs * 0.4;
     double label_w = 0;
     for (unsigned i = 0; i < L->nticks; i++) {
         const double c = scale_value(&s, (long)i * s.q);
@@ -439,10 +530,8 @@ static int legend_layout(struct tvpal_annot *a,
     L->swatch_w = L->w / 2;
     L->h = (unsigned)(s.kmax - s.kmin + 1);
     L->h = L->h > a->H ? a->H : L->h;
-    const double x0 = a->W - m - label_w - 2 * gap - L->w;
-    L->x0 = x0 > 0 ? (unsigned)x0 : 0;
+    legend_place(a, f, label_w, L);
     L->swatch_x0 = L->x0;
-    L->y0 = (a->H - L->h) / 2;
     for (unsigned i = 0; i < L->nticks; i++)
         L->tick_row[i] = L->y0 + (unsigned)(s.kmax - (long)i * s.q);
     for (unsigned r = 0; r < L->h; r++)
@@ -458,6 +547,7 @@ static int legend_cached(const struct tvpal_annot *a,
 {
     const char *title = f->title ? f->title : "";
     return a->lg_valid && a->lg_log == f->log_scale &&
+           L->x0 == a->legend.x0 && L->y0 == a->legend.y0 &&
            a->lg_range[0] == f->vmin &&
            a->lg_range[1] == f->vmax && L->h == a->legend.h &&
            !memcmp(a->lg_fg, f->fg, sizeof a->lg_fg) &&

@@ -44,6 +44,22 @@
 #define TVPAL_ANNOT_MAX_TICKS 16
 #define TVPAL_ANNOT_MAX_SIDE 16384   /* width and height, each */
 
+/* Where the legend goes (tvpal_annot_frame.legend_place).  AUTO, the
+ * default: of right (middle), right top, right bottom and left (middle),
+ * in that order, the first that covers the least of the volume's
+ * projection (the hull of the outline's corners), so that an oblique or
+ * map view keeps its data clear of the bar where the image has room; the
+ * left places leave the time (top left) and the triad (bottom left)
+ * alone. */
+enum tvpal_annot_place {
+    TVPAL_ANNOT_PLACE_AUTO = 0,
+    TVPAL_ANNOT_PLACE_RIGHT,
+    TVPAL_ANNOT_PLACE_RIGHT_TOP,
+    TVPAL_ANNOT_PLACE_RIGHT_BOTTOM,
+    TVPAL_ANNOT_PLACE_LEFT,
+    TVPAL_ANNOT_PLACES
+};
+
 /* Straight (not premultiplied) colour and opacity at a value, each in
  * [0, 1] (an opacity above 1 counts as 1). */
 typedef void (*tvpal_annot_colour_fn)(void *ctx, double value,
@@ -62,12 +78,14 @@ struct tvpal_annot_frame {
     tvpal_annot_colour_fn colour;
     void *colour_ctx;
     const char *title;              /* above the bar, or NULL */
+    enum tvpal_annot_place legend_place;
     const char *time_text;          /* top left (TVPAL_ANNOT_TIME) */
     /* outline: the volume box's corners in pixel coordinates as
      * tvpal_view_eye_to_pixel gives them (x to the right, y up from the
      * bottom edge, pixel centres at integer + 0.5); corner c is at +x when
      * bit 0 of c is set, +y bit 1, +z bit 2.  Edges join corners one bit
-     * apart. */
+     * apart.  Also what the legend's AUTO place keeps clear of (all zero:
+     * nothing to keep clear of), whether or not the outline is drawn. */
     double corner[8][2];
     /* triad: the object axes x, y, z as eye-space (x, y) directions (the
      * projection of unit vectors; up is +y), drawn from the bottom left */
