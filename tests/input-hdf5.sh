@@ -35,20 +35,49 @@ grep -q "^source_format = hdf5" "$W/ds-all/manifest.txt" && grep -q "^source_var
 same_shards "$W/ds-series" && ok "series of rank-3 files, the only dataset: shards identical to raw" \
     || fail "series shards differ"
 grep -q "^source_var = /temp" "$W/ds-series/manifest.txt" && ok "series: the only dataset /temp" || fail "series var"
-# A NetCDF-4 file is NetCDF to the encoder, unless --var is a dataset path.
+# A NetCDF-4 file is NetCDF to the encoder, with --var T and with --var
+# /T (its root group's variable, as an HDF5 path names it: CF times,
+# coordinates, units and packing kept), unless --var is a dataset inside a
+# group (then HDF5: the same values, the same shards).
 if command -v ncgen > /dev/null; then
-    printf 'netcdf n {\ndimensions:\n z = 2 ;\n y = 3 ;\n x = 4 ;\nvariables:\n float T(z, y, x) ;\ndata:\n T = %s ;\n}\n' \
-        "$(seq -s ', ' 1 24)" > "$W/n.cdl" && ncgen -k nc4 -o "$W/n.nc" "$W/n.cdl" || fail "ncgen"
+    printf 'netcdf n {\ndimensions:\n z = 2 ;\n y = 3 ;\n x = 4 ;\nvariables:\n float T(z, y, x) ;\ndata:\n T = %s ;\ngroup: g {\nvariables:\n float T(z, y, x) ;\ndata:\n T = %s ;\n}\n}\n' \
+        "$(seq -s ', ' 1 24)" "$(seq -s ', ' 1 24)" > "$W/n.cdl" && ncgen -k nc4 -o "$W/n.nc" "$W/n.cdl" || fail "ncgen"
     "$ENC" --axes xyz -q --var T -o "$W/nc-as-nc" "$W/n.nc" "$W/n.nc" > /dev/null 2> "$W/e.txt" \
         && grep -q "^source_format = netcdf" "$W/nc-as-nc/manifest.txt" \
         && ok "NetCDF-4 with --var T: read as NetCDF" || fail "NetCDF-4 as NetCDF: $(cat "$W/e.txt")"
-    "$ENC" --axes xyz -q --var /T -o "$W/nc-as-h5" "$W/n.nc" "$W/n.nc" > /dev/null 2> "$W/e.txt" \
+    "$ENC" --axes xyz -q --var /g/T -o "$W/nc-as-h5" "$W/n.nc" "$W/n.nc" > /dev/null 2> "$W/e.txt" \
         && grep -q "^source_format = hdf5" "$W/nc-as-h5/manifest.txt" \
         && "$REP" -q "$W/nc-as-h5" > /dev/null 2>> "$W/e.txt" \
-        && ok "NetCDF-4 with --var /T: read as HDF5, and reported" || fail "NetCDF-4 as HDF5: $(cat "$W/e.txt")"
+        && ok "NetCDF-4 with --var /g/T: read as HDF5, and reported" || fail "NetCDF-4 as HDF5: $(cat "$W/e.txt")"
     same=1
     for a in x y z; do cmp -s "$W/nc-as-nc/node-0/axis-$a.tvps" "$W/nc-as-h5/node-0/axis-$a.tvps" || same=0; done
     [ $same = 1 ] && ok "both readers give the same shards" || fail "NetCDF and HDF5 readings differ"
+    # CF: a time coordinate, float32 coordinates, packed int16 in K.
+    cat > "$W/cf.cdl" <<'CDL'
+netcdf cf {
+dimensions:
+  time = UNLIMITED ; z = 3 ; y = 4 ; x = 5 ;
+variables:
+  double time(time) ; time:units = "hours since 2005-08-28 00:00:00" ;
+  float z(z) ; float y(y) ; float x(x) ;
+  short T(time, z, y, x) ; T:scale_factor = 0.01 ; T:add_offset = 273.0 ; T:units = "K" ;
+data:
+  time = 0, 6, 12 ;
+  z = 0, 0.5, 1 ; y = 0, 2, 4, 6 ; x = 10, 12, 14, 16, 18 ;
+CDL
+    printf '  T = %s ;\n}\n' "$(seq -s ', ' 0 179)" >> "$W/cf.cdl"
+    ncgen -k nc4 -o "$W/cf.nc" "$W/cf.cdl" || fail "ncgen cf"
+    "$ENC" -q --var T -o "$W/cf-name" "$W/cf.nc" > /dev/null 2> "$W/e.txt" || fail "cf --var T: $(cat "$W/e.txt")"
+    "$ENC" -q --var /T -o "$W/cf-path" "$W/cf.nc" > /dev/null 2> "$W/e.txt" || fail "cf --var /T: $(cat "$W/e.txt")"
+    keys='^(source_format|source_var|units|spacing|origin|times|time_units|value_min|value_max) '
+    grep -E "$keys" "$W/cf-path/manifest.txt" > "$W/cf-path.keys" 2> /dev/null
+    if grep -E "$keys" "$W/cf-name/manifest.txt" 2> /dev/null | cmp -s - "$W/cf-path.keys" &&
+        grep -q "^times = 0 6 12$" "$W/cf-path.keys" && grep -q "^spacing = 2 2 0.5$" "$W/cf-path.keys" &&
+        grep -q "^units = K$" "$W/cf-path.keys" && grep -q "^value_min = 273$" "$W/cf-path.keys"; then
+        ok "CF NetCDF-4 with --var /T: times, spacing, units and unpacked values as --var T"
+    else
+        fail "CF NetCDF-4 --var /T: $(tr '\n' ';' < "$W/cf-path.keys")"
+    fi
 fi
 lr=$("$REP" -q "$W/raw") && lh=$("$REP" -q "$W/ds-all") || fail "report"
 [ "$(kv psnr "$lr")" = "$(kv psnr "$lh")" ] && [ "$(kv rmse "$lr")" = "$(kv rmse "$lh")" ] \

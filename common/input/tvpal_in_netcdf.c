@@ -473,7 +473,10 @@ static int choose_var(int ncid, const char *path,
     if (room > sizeof list)
         room = sizeof list;
     if (opts->var) {
-        if (nc_inq_varid(ncid, opts->var, varid) == NC_NOERR)
+        /* "/T": the root group's T, as an HDF5 path names it */
+        const char *name = opts->var[0] == '/' && !strchr(opts->var + 1, '/')
+                               ? opts->var + 1 : opts->var;
+        if (nc_inq_varid(ncid, name, varid) == NC_NOERR)
             return 0;
         list_vars(list, room, ncid, 0, tdims, ntd);
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: no variable %s; %s",

@@ -80,8 +80,11 @@ static int hdf5_signature(const char *head, size_t n)
     return n >= 8 && !memcmp(head, sig, 8);
 }
 
-/* An HDF5 file is NetCDF-4 unless the variable is a dataset path or the
- * NetCDF reader refuses it as not NetCDF (no netCDF metadata, or damaged). */
+/* An HDF5 file is NetCDF-4 unless the variable is a dataset path inside a
+ * group ("/grp/T") or the NetCDF reader refuses it as not NetCDF (no
+ * netCDF metadata, or damaged).  A root-level path ("/T") of a NetCDF-4
+ * file is its variable T, read by the NetCDF reader: the HDF5 path would
+ * lose the CF coordinates (spacing, times) the NetCDF reader gives. */
 int tvpal_input_detect(const char *path, const struct tvpal_input_opts *opts,
                        enum tvpal_input_format *f, struct tvpal_diag *diag)
 {
@@ -90,7 +93,8 @@ int tvpal_input_detect(const char *path, const struct tvpal_input_opts *opts,
     int rc = read_head(path, head, sizeof head, &n, diag);
     if (rc < 0)
         return rc;
-    const int dataset_path = opts && opts->var && opts->var[0] == '/';
+    const int dataset_path = opts && opts->var && opts->var[0] == '/' &&
+                             strchr(opts->var + 1, '/');
     *f = TVPAL_IN_RAW;
     if (n >= 4 && !memcmp(head, "CDF", 3) &&
         (head[3] == 1 || head[3] == 2 || head[3] == 5))
