@@ -415,7 +415,7 @@ static void *rank_main(void *arg)
     struct tvpal_encoder *e = NULL;
     struct tvpal_diag *d = &j->d;
     const struct tvpal_collective c = {j->m.rank, RANKS, &j->m, fake_gather,
-                                       fake_bcast};
+                                       fake_bcast, NULL};
     uint32_t z0, nz;
     tvpal_slab(NZ, RANKS, (uint32_t)j->m.rank + (j->wrong_slab ? 1 : 0), &z0,
                &nz);
@@ -490,6 +490,24 @@ static int same_file(const char *a, const char *b)
     return same;
 }
 
+/* W/NAME, encoded by the ranks, against W/one (one process, --nodes
+ * RANKS): the manifest, and every node's shard and manifest, byte for
+ * byte. */
+static void check_like_one(const char *name)
+{
+    char f[64], mine[700];
+    for (int i = 0; i <= 2 * RANKS; i++) {
+        if (i == 0)
+            snprintf(f, sizeof f, "/manifest.txt");
+        else
+            snprintf(f, sizeof f, i % 2 ? "/node-%d/axis-z.tvps"
+                                        : "/node-%d/manifest.txt", (i - 1) / 2);
+        snprintf(mine, sizeof mine, "%s/%s%s", W, name, f);
+        CHECK(same_file(path("%s/one%s", f), mine),
+              "%s: %s differs from one process's", name, f);
+    }
+}
+
 static void test_collective(void)
 {
     struct tvpal_diag d = {{0}};
@@ -516,18 +534,7 @@ static void test_collective(void)
         CHECK(j[k].set_rc == 0 && j[k].push_rc == 0 && j[k].finish_rc == 0,
               "rank %d: %d %d %d %s", k, j[k].set_rc, j[k].push_rc,
               j[k].finish_rc, j[k].d.msg);
-    CHECK(same_file(path("%s/one%s", "/manifest.txt"),
-                    path("%s/ranks%s", "/manifest.txt")),
-          "the ranks' manifest differs from one process's");
-    for (int k = 0; k < RANKS; k++) {
-        char f[64];
-        snprintf(f, sizeof f, "/node-%d/axis-z.tvps", k);
-        CHECK(same_file(path("%s/one%s", f), path("%s/ranks%s", f)),
-              "node %d's shard differs from one process's", k);
-        snprintf(f, sizeof f, "/node-%d/manifest.txt", k);
-        CHECK(same_file(path("%s/one%s", f), path("%s/ranks%s", f)),
-              "node %d's manifest differs", k);
-    }
+    check_like_one("ranks");
     CHECK(!exists(path("%s/ranks%s", ".partial")) &&
               !exists(path("%s/ranks%s", ".partial.lock")),
           "the ranks left their partial output or lock");
@@ -574,7 +581,7 @@ static void test_collective(void)
      * slices across the slabs. */
     REQUIRE(tvpal_encoder_open(&e, path("%s/c%s", ""), dims, T, &d) == 0,
             "open");
-    struct tvpal_collective c = {0, 2, NULL, fake_gather, NULL};
+    struct tvpal_collective c = {0, 2, NULL, fake_gather, NULL, NULL};
     CHECK(tvpal_encoder_set_collective(e, &c, 0, 3, &d) == TVPAL_E_INVAL,
           "a collective without bcast");
     c.bcast = fake_bcast, c.rank = 2;
@@ -614,15 +621,7 @@ static void test_collective_resume(void)
               "rank %d: resume %d at %u, push %d, finish %d: %s", k,
               j[k].resume_rc, j[k].next, j[k].push_rc, j[k].finish_rc,
               j[k].d.msg);
-    CHECK(same_file(path("%s/one%s", "/manifest.txt"),
-                    path("%s/apart%s", "/manifest.txt")),
-          "resumed apart: the manifest differs from one process's");
-    for (int k = 0; k < RANKS; k++) {
-        char f[64];
-        snprintf(f, sizeof f, "/node-%d/axis-z.tvps", k);
-        CHECK(same_file(path("%s/one%s", f), path("%s/apart%s", f)),
-              "resumed apart: node %d's shard differs from one process's", k);
-    }
+    check_like_one("apart");
 }
 
 /* Pushes steps first .. last - 1 of the series (float32). */
