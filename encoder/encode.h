@@ -61,6 +61,9 @@ struct opts {
     const char *outdir;
     int force, quiet;
     int allow_external;               /* HDF5 data in other files read */
+    int magnitude;                    /* --magnitude: a VTK array of
+                                       * several components read as its
+                                       * length at each point */
     int dry_run;                      /* --dry-run: the plan, then exit */
     char **inputs;
     int ninputs;

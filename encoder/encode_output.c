@@ -92,8 +92,14 @@ static void build_manifest(const struct run *r, struct tvpal_manifest *m)
         m->series = o->ninputs > 1 && (uint32_t)o->ninputs != r->T;
         snprintf(m->source_format, sizeof m->source_format, "%s",
                  tvpal_input_format_name(o->format));
-        if (!(m->source_var = strdup(tvpal_input_info(r->in)->var)))
+        /* What was encoded: a vector's length says so (tvpal-report reads
+         * "NAME (magnitude)" back as NAME with --magnitude). */
+        const struct tvpal_input_info *in = tvpal_input_info(r->in);
+        if (asprintf(&m->source_var, "%s%s", in->var,
+                     in->components > 1 ? " (magnitude)" : "") < 0) {
+            m->source_var = NULL;
             die_fail("out of memory");
+        }
     }
     for (int i = 0; i < o->ninputs; i++)
         if (tvpal_manifest_add_source(m, o->inputs[i]) < 0)

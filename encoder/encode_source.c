@@ -430,7 +430,8 @@ int open_source(struct run *r, int have_dims)
     struct tvpal_diag d = {{0}};
     enum tvpal_input_format f = o->format;
     struct tvpal_input_opts io = {.var = o->var, .time_dim = o->time_dim,
-                                  .allow_external = o->allow_external};
+                                  .allow_external = o->allow_external,
+                                  .magnitude = o->magnitude};
     if (o->ninputs < 1)
         return have_dims;
     if (f == TVPAL_IN_AUTO && tvpal_input_detect(o->inputs[0], &io, &f, &d) < 0)
@@ -446,6 +447,9 @@ int open_source(struct run *r, int have_dims)
         if (o->var || o->time_dim)
             die_usage("--var and --time-dim: for self-describing input "
                       "(NetCDF, VTK); %s is raw", o->inputs[0]);
+        if (o->magnitude)
+            die_usage("--magnitude: for VTK input (vti, vtk), whose arrays "
+                      "say their components; %s is raw", o->inputs[0]);
         return have_dims;
     }
     /* Compressed blocks and chunks inflate on a team of their own: the

@@ -76,10 +76,10 @@ static void usage(FILE *f)
 "                         netcdf, hdf5, vti (also .pvti, .pvd) or vtk\n"
 "                         (legacy)\n"
 "      --var NAME         the variable (NetCDF), dataset (HDF5:\n"
-"                         /group/dataset), point array (vti) or SCALARS\n"
-"                         (vtk) to encode (default: the only one, or the\n"
-"                         active scalars; tvpal-info --inspect FILE lists\n"
-"                         them)\n"
+"                         /group/dataset) or point array (vti; vtk:\n"
+"                         SCALARS, VECTORS, FIELD arrays) to encode\n"
+"                         (default: the only one, or the active scalars;\n"
+"                         tvpal-info --inspect FILE lists them)\n"
 "      --time-dim NAME    NetCDF: the time dimension (default: the\n"
 "                         unlimited one, or the one a CF time coordinate\n"
 "                         names)\n"
@@ -87,6 +87,12 @@ static void usage(FILE *f)
 "                         files (an external link on its path, external\n"
 "                         storage, a virtual dataset's sources); refused\n"
 "                         by default, naming the file\n"
+"      --magnitude        VTK (vti, vtk): encode a point array of several\n"
+"                         components (a vector: NumberOfComponents, VECTORS)\n"
+"                         as its length at each point, sqrt(x^2 + y^2 +\n"
+"                         ...) in double rounded to float32 (refused by\n"
+"                         default, naming the array); a scalar array is\n"
+"                         read as it is\n"
 "      --sort ORDER       none (default: as given; a warning names the first\n"
 "                         pair of numbered names out of natural order) or\n"
 "                         natural (density_2 before density_10)\n"
@@ -268,6 +274,8 @@ static const struct optspec {
     {"force", 'f', OPT_FLAG, offsetof(struct opts, force), 0, 0, {0}, NULL},
     {"allow-external", OPT_LONG_ONLY + 22, OPT_FLAG,
      offsetof(struct opts, allow_external), 0, 0, {0}, NULL},
+    {"magnitude", OPT_LONG_ONLY + 23, OPT_FLAG,
+     offsetof(struct opts, magnitude), 0, 0, {0}, NULL},
     {"dry-run", OPT_LONG_ONLY + 17, OPT_FLAG, offsetof(struct opts, dry_run), 0,
      0, {0}, NULL},
     {"levels", OPT_LONG_ONLY + 18, OPT_U32, offsetof(struct opts, levels), 0,
@@ -511,9 +519,13 @@ static char *job_params(const struct opts *o, const struct tvpal_input *in)
     if (!in)
         return s;
     /* Raw jobs keep the fingerprint of earlier versions (their partial
-     * outputs still resume). */
-    n = asprintf(&t, "%s format=%s var=%s", s, tvpal_input_format_name(o->format),
-                 tvpal_input_info(in)->var);
+     * outputs still resume); so do scalar arrays, --magnitude or not (the
+     * same values).  A vector read as its length (--magnitude) is another
+     * job than any read of a scalar array of its name. */
+    const struct tvpal_input_info *ii = tvpal_input_info(in);
+    n = asprintf(&t, "%s format=%s var=%s%s", s,
+                 tvpal_input_format_name(o->format), ii->var,
+                 ii->components > 1 ? " magnitude=1" : "");
     free(s);
     return n < 0 ? NULL : t;
 }

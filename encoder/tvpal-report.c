@@ -55,6 +55,9 @@ static void usage(FILE *f)
 "\n"
 "  -r, --reference     the remaining arguments are the original files (same\n"
 "                      layout as at encoding); default: the manifest's sources\n"
+"                      (a source_var \"NAME (magnitude)\" is read as the\n"
+"                      length of NAME's vectors, as tvpal-encode --magnitude\n"
+"                      read it)\n"
 "  -c, --csv FILE      per-timestep figures as CSV\n"
 "  -j, --json FILE     everything as JSON\n"
 "  -l, --level K       report level of detail K (tvpal-encode --levels)\n"
@@ -93,6 +96,9 @@ struct options {
     size_t nrefs;   /* the manifest's sources (validate_options decides) */
     struct tvpal_input *src;  /* self-describing references (NetCDF, VTK),
                                * or NULL for raw ones */
+    char src_var[TVPAL_INPUT_VAR_MAX];  /* their array, when the manifest's
+                               * source_var says more (src reads it by this
+                               * name while it is open) */
     struct tvpal_pool *src_pool;  /* inflates their compressed chunks (all
                                    * cores), or NULL */
 };
@@ -149,16 +155,36 @@ static int parse_options(int argc, char **argv, struct options *o)
     return -1;
 }
 
+/* What tvpal-encode writes after the array's name in source_var when it
+ * encoded a vector's length (--magnitude). */
+#define MAGNITUDE_SUFFIX " (magnitude)"
+
+/* The variable of source_var into var (cap bytes): "NAME (magnitude)" is
+ * NAME read with --magnitude (returns 1), anything else the name itself
+ * (0). */
+static int source_variable(const char *source_var, char *var, size_t cap)
+{
+    const size_t n = strlen(source_var), k = strlen(MAGNITUDE_SUFFIX);
+    const int mag = n > k && !strcmp(source_var + n - k, MAGNITUDE_SUFFIX);
+    snprintf(var, cap, "%.*s", (int)(mag ? n - k : n), source_var);
+    return mag;
+}
+
 /* References in the format the encoder read (source_format, source_var):
- * the same reader, which must find the dataset's dims and steps.  Returns 0
- * or TVPAL_EXIT_USAGE (printed). */
+ * the same reader, which must find the dataset's dims and steps (and, for
+ * a vector's length, a vector).  Returns 0 or TVPAL_EXIT_USAGE
+ * (printed). */
 static int open_self_describing(struct options *o,
                                 const struct tvpal_manifest *m)
 {
     enum tvpal_input_format f;
     struct tvpal_diag d = {{0}};
-    struct tvpal_input_opts io = {.var = m->source_var,
-                                  .allow_external = o->allow_external};
+    const int mag = m->source_var &&
+                    source_variable(m->source_var, o->src_var,
+                                    sizeof o->src_var);
+    struct tvpal_input_opts io = {.var = mag ? o->src_var : m->source_var,
+                                  .allow_external = o->allow_external,
+                                  .magnitude = mag};
     int rc = tvpal_input_format_parse(m->source_format, &f);
     if (rc < 0) {
         fprintf(stderr, PROG ": source_format \"%s\": expected raw, netcdf, "
@@ -183,6 +209,12 @@ static int open_self_describing(struct options *o,
         return TVPAL_EXIT_USAGE;
     }
     const struct tvpal_input_info *in = tvpal_input_info(o->src);
+    if (mag && in->components < 2) {
+        fprintf(stderr, PROG ": %s: variable %s has one component; the "
+                "dataset holds a vector's length (source_var %s)\n",
+                o->refs[0], in->var, m->source_var);
+        return TVPAL_EXIT_USAGE;
+    }
     if (memcmp(in->dims, m->dims, sizeof m->dims) || in->steps != m->steps) {
         fprintf(stderr, PROG ": %s: variable %s is %ux%ux%u with %u steps; "
                 "the dataset is %ux%ux%u with %u\n", o->refs[0], in->var,

@@ -5,7 +5,10 @@
 # (20 zlib-compressed appended .vti files from ../shared/data, skipped where
 # absent) against run01's raw steps 1..20; tvpal-report reads them again;
 # the FieldData TimeValue of files from VTK's own writer are the times;
-# a broken file exits 2 naming it and leaves nothing behind.
+# a broken file exits 2 naming it and leaves nothing behind; vector arrays
+# from VTK's writer encode with --magnitude to the shards of raw files of
+# their lengths computed in numpy, whole and in the boxes of a multi-pass
+# memory plan, and are refused without it.
 . "$(dirname "$0")/lib.sh"
 "$PY" "$TVPAL_SRCDIR/tests/make-vti.py" "$W/gen" > /dev/null 2> "$W/e.txt" || { fail "make-vti: $(cat "$W/e.txt")"; finish; }
 first=$(ls "$W"/gen/*.vti | head -n 1)
@@ -18,7 +21,8 @@ fi
 # with itself encodes as the raw expected values twice.
 n=0
 for v in "$W"/gen/*.vti; do
-    case $(basename "$v") in bad-*) continue ;; esac
+    # (vec-*: vectors, whose lengths test-vti reads with magnitude)
+    case $(basename "$v") in bad-*|vec-*) continue ;; esac
     raw=${v%.vti}.f32
     [ -r "$raw" ] || continue
     D=$("$INFO" --inspect "$v" | sed -n 's/^extent .*(\([0-9]*x[0-9]*x[0-9]*\)).*/\1/p')
@@ -97,6 +101,131 @@ PY
     [ "$t" = "0 10 20" ] && ok "a .pvd's timesteps win over the files' TimeValue" || fail "pvd times '$t'"
 else
     echo "no VTK for Python (python3-vtk9): the TimeValue files are not checked"
+fi
+# Vectors (--magnitude): VTK's writer (vtkXMLImageDataWriter) puts a
+# float32 velocity (the active Vectors), a float64 grad of 2 components and
+# a float32 p into each file of 3 steps, in each data mode; vec.py writes
+# their lengths as numpy computes them (float64 squares summed in component
+# order, the root rounded to float32) and p into raw files.
+cat > "$W/vec.py" <<'PY'
+import sys
+import numpy as np
+from vtkmodules.vtkCommonDataModel import vtkImageData
+from vtkmodules.util.numpy_support import numpy_to_vtk
+from vtkmodules.vtkIOXML import vtkXMLImageDataWriter
+out, modes = sys.argv[1], sys.argv[5].split(",")
+nx, ny, nz = map(int, sys.argv[2:5])
+n = nx * ny * nz
+for k in range(3):
+    rng = np.random.default_rng(11 + k)
+    scale = 10.0 ** rng.integers(-3, 4, n)[:, None]
+    vel = (rng.standard_normal((n, 3)) * scale).astype(np.float32)
+    grad = rng.standard_normal((n, 2))
+    p = rng.standard_normal(n).astype(np.float32)
+    im = vtkImageData()
+    im.SetDimensions(nx, ny, nz)
+    for name, arr in (("velocity", vel), ("grad", grad), ("p", p)):
+        a = numpy_to_vtk(arr, deep=1)
+        a.SetName(name)
+        if name == "velocity":
+            im.GetPointData().SetVectors(a)
+        else:
+            im.GetPointData().AddArray(a)
+    for mode in modes:
+        w = vtkXMLImageDataWriter()
+        w.SetFileName("%s/%s_%d.vti" % (out, mode, k))
+        w.SetInputData(im)
+        if mode == "raw":
+            w.SetDataModeToAppended()
+            w.EncodeAppendedDataOff()
+            w.SetCompressorTypeToNone()
+        elif mode == "binary":
+            w.SetDataModeToBinary()
+        elif mode == "ascii":
+            w.SetDataModeToAscii()
+        if not w.Write():
+            sys.exit("write failed")
+    for name, arr in (("velocity", vel), ("grad", grad)):
+        d = arr.astype(np.float64)
+        s = d[:, 0] * d[:, 0]
+        for c in range(1, d.shape[1]):
+            s = s + d[:, c] * d[:, c]
+        np.sqrt(s).astype(np.float32).tofile("%s/%s_%d.f32" % (out, name, k))
+    p.tofile("%s/p_%d.f32" % (out, k))
+PY
+# same_shards NAME RAWDIR ENCDIR: every axis's shard byte-identical.
+same_shards() {
+    s=1
+    for a in x y z; do cmp -s "$2/node-0/axis-$a.tvps" "$3/node-0/axis-$a.tvps" || s=0; done
+    [ $s = 1 ] && ok "$1: shards identical to raw" || fail "$1: shards differ from raw"
+}
+# vec_enc NAME DIMS RAW... -- ENCODE-ARGS...: raw and --magnitude encodes
+# (window 2, all axes), compared; the latter stays in $W/vm.
+vec_enc() {
+    name=$1 dims=$2; shift 2
+    raws=""
+    while [ "$1" != "--" ]; do raws="$raws $1"; shift; done
+    shift
+    rm -rf "$W/vr" "$W/vm"
+    "$ENC" --axes xyz -q --dims "$dims" --window 2 -o "$W/vr" $raws > /dev/null 2> "$W/e.txt" || { fail "$name raw: $(cat "$W/e.txt")"; return; }
+    "$ENC" --axes xyz -q --window 2 -o "$W/vm" "$@" > "$W/vm.out" 2> "$W/e.txt" || { fail "$name: $(cat "$W/e.txt")"; return; }
+    same_shards "$name" "$W/vr" "$W/vm"
+}
+if "$PY" -c "import numpy, vtkmodules.vtkIOXML, vtkmodules.util.numpy_support" 2> /dev/null; then
+    V=$W/vec
+    mkdir -p "$V"
+    "$PY" "$W/vec.py" "$V" 24 20 16 appended,raw,binary,ascii > "$W/vec.txt" 2>&1 || fail "vtk writer: $(cat "$W/vec.txt")"
+    for mode in appended raw binary ascii; do
+        vec_enc "velocity ($mode .vti from VTK's writer) --magnitude" 24x20x16 "$V"/velocity_[012].f32 -- \
+            --magnitude "$V"/${mode}_[012].vti
+    done
+    grep -qx "source_var = velocity (magnitude)" "$W/vm/manifest.txt" && ok "source_var = velocity (magnitude)" \
+        || fail "source_var: $(grep source_var "$W/vm/manifest.txt")"
+    l1=$("$REP" -q "$W/vr") && l2=$("$REP" -q "$W/vm") && [ "$(kv psnr "$l1")" = "$(kv psnr "$l2")" ] &&
+        [ "$(kv max_abs_error "$l1")" = "$(kv max_abs_error "$l2")" ] \
+        && ok "tvpal-report reads velocity (magnitude) back: psnr $(kv psnr "$l2")" || fail "report: $l1 / $l2"
+    vec_enc "grad (Float64, 2 components) --magnitude" 24x20x16 "$V"/grad_[012].f32 -- \
+        --magnitude --var grad "$V"/binary_[012].vti
+    grep -qx "source_var = grad (magnitude)" "$W/vm/manifest.txt" || fail "grad: $(grep source_var "$W/vm/manifest.txt")"
+    vec_enc "scalar p with --magnitude: as it is" 24x20x16 "$V"/p_[012].f32 -- \
+        --magnitude --var p "$V"/appended_[012].vti
+    grep -qx "source_var = p" "$W/vm/manifest.txt" && ok "source_var = p (a scalar array, as read)" \
+        || fail "p: $(grep source_var "$W/vm/manifest.txt")"
+    expect_exit 2 "array velocity has 3 components.*--magnitude encodes the vector's length" \
+        "$ENC" -q -o "$W/bad" "$V"/appended_0.vti
+    expect_exit 2 "array grad has 2 components.*--magnitude" "$ENC" -q --var grad -o "$W/bad" "$V"/ascii_0.vti
+    [ ! -e "$W/bad" ] && [ ! -e "$W/bad.partial" ] || fail "vector without --magnitude: output left"
+    # Boxes: a memory limit a little over the least the encoder takes makes
+    # a plan of many passes, each reading boxes of the steps
+    # (tvpal_input_read_box: raw rows, zlib blocks that cut points).
+    rm -rf "$V" && mkdir -p "$V"
+    "$PY" "$W/vec.py" "$V" 64 48 40 appended,raw > "$W/vec.txt" 2>&1 || fail "vtk writer: $(cat "$W/vec.txt")"
+    for mode in appended raw; do
+        m=$("$ENC" --axes xyz -j 1 --mem-limit 1M --magnitude --window 2 -o "$W/none" "$V"/${mode}_[012].vti 2>&1 |
+            sed -n 's/.*give --mem-limit \([0-9]*\)K.*/\1/p')
+        [ -n "$m" ] || { fail "$mode: no least --mem-limit"; continue; }
+        vec_enc "velocity ($mode .vti) in boxes under --mem-limit $((m + 512))K" 64x48x40 "$V"/velocity_[012].f32 -- \
+            -j 1 --mem-limit "$((m + 512))K" --magnitude "$V"/${mode}_[012].vti
+        p=$(sed -n 's/.*passes=\([0-9]*\).*/\1/p' "$W/vm.out")
+        [ "${p:-0}" -gt 3 ] && ok "$mode: $p passes of boxes" || fail "$mode: only ${p:-?} passes under $((m + 512))K"
+    done
+    # Interrupted in a later pass: a rerun without --magnitude is refused
+    # and keeps the partial output; with it, the job resumes to the same
+    # shards.
+    lim=$((m + 512))K
+    rm -rf "$W/res" "$W/res.partial"
+    TVPAL_ENCODE_FAULT_AFTER=20 "$ENC" --axes xyz -q -j 1 --mem-limit $lim --window 2 --magnitude \
+        -o "$W/res" "$V"/raw_[012].vti > /dev/null 2>&1
+    [ -d "$W/res.partial" ] && [ ! -e "$W/res" ] || fail "interrupted --magnitude encode left $(ls -d "$W"/res*)"
+    expect_exit 2 "array velocity has 3 components" "$ENC" --axes xyz -q -j 1 --mem-limit $lim --window 2 \
+        -o "$W/res" "$V"/raw_[012].vti
+    [ -d "$W/res.partial" ] || fail "the refused rerun removed the partial output"
+    "$ENC" --axes xyz -j 1 --mem-limit $lim --window 2 --magnitude -o "$W/res" "$V"/raw_[012].vti \
+        > /dev/null 2> "$W/res.err" || fail "resume: $(cat "$W/res.err")"
+    grep -q "resuming .* at pass [2-9]" "$W/res.err" && same_shards "interrupted --magnitude encode, resumed" "$W/vr" "$W/res" \
+        || fail "--magnitude resume: $(cat "$W/res.err")"
+else
+    echo "no numpy or VTK for Python (python3-numpy, python3-vtk9): the --magnitude part is skipped"
 fi
 S=${TVPAL_SHARED:-$TVPAL_SRCDIR/../shared}/data
 if [ -d "$S/viscous-fingers-run01-vti" ] && [ -r "$S/viscous-fingers-run01/density_t001.f32" ]; then

@@ -3,7 +3,9 @@
 # exactly the shards of raw files of the same numbers (tests/make-vtk.py):
 # a .pvd gives its steps in timestep order and its times in the manifest;
 # a bad file exits 2 naming it (and the file it lists) and leaves nothing
-# behind.
+# behind; legacy vectors from VTK's writer (VECTORS, SCALARS of 3, FIELD
+# arrays) encode with --magnitude to the shards of raw files of their
+# lengths computed in numpy, whole and in boxes, and are refused without.
 . "$(dirname "$0")/lib.sh"
 "$PY" "$TVPAL_SRCDIR/tests/make-vtk.py" "$W/gen" > /dev/null 2> "$W/e.txt" || { fail "make-vtk: $(cat "$W/e.txt")"; finish; }
 G=$W/gen
@@ -64,6 +66,144 @@ for v in "$G"/bad-*.vtk; do
     [ ! -e "$W/bad" ] && [ ! -e "$W/bad.partial" ] || fail "$(basename "$v"): output left"
 done
 expect_exit 2 "DATASET POLYDATA: only STRUCTURED_POINTS" "$ENC" --axes xyz -q -o "$W/bad" "$G/bad-polydata.vtk"
-expect_exit 2 "no point SCALARS zzz \(point SCALARS: a, b\)" "$ENC" --axes xyz -q --var zzz -o "$W/bad" "$G/two-scalars.vtk"
+expect_exit 2 "no point array zzz \(point arrays: a, vel \(VECTORS\), b\)" "$ENC" --axes xyz -q --var zzz -o "$W/bad" "$G/two-scalars.vtk"
 [ ! -e "$W/bad" ] && [ ! -e "$W/bad.partial" ] || fail "bad .vtk: output left"
+
+# Vectors (--magnitude) in legacy files from VTK's own writers
+# (vtkStructuredPointsWriter, vtkDataSetWriter), ASCII and BINARY: a float32
+# velocity as the active Vectors (VECTORS) or the active Scalars (SCALARS
+# velocity float 3), a float64 grad of 2 components and a float32 p (both
+# FIELD arrays of the POINT_DATA; the vectors' component names make VTK
+# write METADATA after them, inside the FIELD too).  VTK's ASCII has 6
+# digits, not the arrays' values: vec.py reads every file back with VTK's
+# reader and writes FILE.NAME.f32 of what it read, the vectors' lengths as
+# numpy computes them (float64 squares summed in component order, the root
+# rounded to float32).
+cat > "$W/vec.py" <<'PY'
+import sys
+import numpy as np
+from vtkmodules.vtkCommonDataModel import vtkImageData
+from vtkmodules.util.numpy_support import numpy_to_vtk
+from vtkmodules.util.numpy_support import vtk_to_numpy
+from vtkmodules.vtkIOLegacy import (vtkDataSetReader, vtkDataSetWriter,
+                                    vtkStructuredPointsWriter)
+out = sys.argv[1]
+
+
+def lengths(arr):
+    d = arr.astype(np.float64).reshape(arr.shape[0], -1)
+    s = d[:, 0] * d[:, 0]
+    for c in range(1, d.shape[1]):
+        s = s + d[:, c] * d[:, c]
+    return np.sqrt(s).astype(np.float32)
+
+
+def references(path):
+    """path.NAME.f32 of what VTK's reader reads from path."""
+    r = vtkDataSetReader()
+    r.SetFileName(path)
+    r.ReadAllScalarsOn()
+    r.ReadAllVectorsOn()
+    r.ReadAllFieldsOn()
+    r.Update()
+    pd = r.GetOutput().GetPointData()
+    for name in ("velocity", "grad", "p"):
+        arr = vtk_to_numpy(pd.GetArray(name))
+        ref = lengths(arr) if arr.ndim > 1 else arr.astype(np.float32)
+        ref.tofile("%s.%s.f32" % (path, name))
+
+
+nx, ny, nz = map(int, sys.argv[2:5])
+n = nx * ny * nz
+for k in range(3):
+    rng = np.random.default_rng(21 + k)
+    scale = 10.0 ** rng.integers(-3, 4, n)[:, None]
+    vel = (rng.standard_normal((n, 3)) * scale).astype(np.float32)
+    grad = rng.standard_normal((n, 2))
+    p = rng.standard_normal(n).astype(np.float32)
+    for active in ("vectors", "scalars"):
+        im = vtkImageData()
+        im.SetDimensions(nx, ny, nz)
+        for name, arr in (("velocity", vel), ("grad", grad), ("p", p)):
+            a = numpy_to_vtk(arr, deep=1)
+            a.SetName(name)
+            for c in range(a.GetNumberOfComponents() if arr.ndim > 1 else 0):
+                a.SetComponentName(c, "%s_%d" % (name, c))  # METADATA
+            if name != "velocity":
+                im.GetPointData().AddArray(a)
+            elif active == "vectors":
+                im.GetPointData().SetVectors(a)
+            else:
+                im.GetPointData().SetScalars(a)
+        for mode in ("ascii", "binary"):
+            w = (vtkStructuredPointsWriter() if active == "vectors"
+                 else vtkDataSetWriter())
+            path = "%s/%s-%s_%d.vtk" % (out, active, mode, k)
+            w.SetFileName(path)
+            w.SetInputData(im)
+            if mode == "binary":
+                w.SetFileTypeToBinary()
+            if not w.Write():
+                sys.exit("write failed")
+            references(path)
+    lengths(vel).tofile("%s/velocity_%d.f32" % (out, k))
+PY
+# vec_enc NAME DIMS RAW... -- ENCODE-ARGS...: raw and --magnitude encodes
+# (window 2, all axes), compared; the latter stays in $W/vm.
+vec_enc() {
+    name=$1 dims=$2; shift 2
+    raws=""
+    while [ "$1" != "--" ]; do raws="$raws $1"; shift; done
+    shift
+    rm -rf "$W/vr" "$W/vm"
+    "$ENC" --axes xyz -q --dims "$dims" --window 2 -o "$W/vr" $raws > /dev/null 2> "$W/e.txt" || { fail "$name raw: $(cat "$W/e.txt")"; return; }
+    "$ENC" --axes xyz -q --window 2 -o "$W/vm" "$@" > "$W/vm.out" 2> "$W/e.txt" || { fail "$name: $(cat "$W/e.txt")"; return; }
+    same_shards "$name" "$W/vr" "$W/vm"
+}
+if "$PY" -c "import numpy, vtkmodules.vtkIOLegacy, vtkmodules.util.numpy_support" 2> /dev/null; then
+    V=$W/vec
+    mkdir -p "$V"
+    "$PY" "$W/vec.py" "$V" 24 20 16 > "$W/vec.txt" 2>&1 || fail "vtk writer: $(cat "$W/vec.txt")"
+    grep -q "^VECTORS velocity float" "$V/vectors-ascii_0.vtk" && grep -q "^SCALARS velocity float 3" "$V/scalars-ascii_0.vtk" &&
+        grep -q "^grad 2 " "$V/vectors-ascii_0.vtk" && grep -q "^grad_1$" "$V/vectors-ascii_0.vtk" || fail "VTK's writer: not the layout this test expects: $(head -n 12 "$V/vectors-ascii_0.vtk")"
+    for f in vectors-binary scalars-binary; do   # BINARY: the arrays' values
+        cmp -s "$V/${f}_1.vtk.velocity.f32" "$V/velocity_1.f32" || fail "$f: VTK's reader reads other values"
+    done
+    for f in vectors-ascii vectors-binary scalars-ascii scalars-binary; do
+        vec_enc "velocity ($f .vtk from VTK's writer) --magnitude" 24x20x16 "$V"/${f}_[012].vtk.velocity.f32 -- \
+            --magnitude "$V"/${f}_[012].vtk
+    done
+    grep -qx "source_var = velocity (magnitude)" "$W/vm/manifest.txt" && ok "source_var = velocity (magnitude)" \
+        || fail "source_var: $(grep source_var "$W/vm/manifest.txt")"
+    l1=$("$REP" -q "$W/vr") && l2=$("$REP" -q "$W/vm") && [ "$(kv psnr "$l1")" = "$(kv psnr "$l2")" ] &&
+        [ "$(kv max_abs_error "$l1")" = "$(kv max_abs_error "$l2")" ] \
+        && ok "tvpal-report reads velocity (magnitude) back: psnr $(kv psnr "$l2")" || fail "report: $l1 / $l2"
+    for f in vectors-ascii vectors-binary; do
+        vec_enc "FIELD grad (double, 2 components, $f) --magnitude" 24x20x16 "$V"/${f}_[012].vtk.grad.f32 -- \
+            --magnitude --var grad "$V"/${f}_[012].vtk
+        vec_enc "FIELD p ($f): a scalar FIELD array" 24x20x16 "$V"/${f}_[012].vtk.p.f32 -- \
+            --var p "$V"/${f}_[012].vtk
+    done
+    expect_exit 2 "VECTORS velocity has 3 components.*--magnitude encodes the vector's length" \
+        "$ENC" -q -o "$W/bad" "$V"/vectors-binary_0.vtk
+    expect_exit 2 "SCALARS velocity has 3 components.*--magnitude" "$ENC" -q -o "$W/bad" "$V"/scalars-ascii_0.vtk
+    expect_exit 2 "FIELD grad has 2 components.*--magnitude" "$ENC" -q --var grad -o "$W/bad" "$V"/vectors-ascii_0.vtk
+    [ ! -e "$W/bad" ] && [ ! -e "$W/bad.partial" ] || fail "vector without --magnitude: output left"
+    # Boxes: a memory limit a little over the least the encoder takes makes
+    # a plan of many passes, each reading boxes of the steps (BINARY rows
+    # of whole points, ASCII values in order).
+    rm -rf "$V" && mkdir -p "$V"
+    "$PY" "$W/vec.py" "$V" 64 48 40 > "$W/vec.txt" 2>&1 || fail "vtk writer: $(cat "$W/vec.txt")"
+    for f in vectors-binary scalars-ascii; do
+        m=$("$ENC" --axes xyz -j 1 --mem-limit 1M --magnitude --window 2 -o "$W/none" "$V"/${f}_[012].vtk 2>&1 |
+            sed -n 's/.*give --mem-limit \([0-9]*\)K.*/\1/p')
+        [ -n "$m" ] || { fail "$f: no least --mem-limit"; continue; }
+        vec_enc "velocity ($f .vtk) in boxes under --mem-limit $((m + 512))K" 64x48x40 "$V"/${f}_[012].vtk.velocity.f32 -- \
+            -j 1 --mem-limit "$((m + 512))K" --magnitude "$V"/${f}_[012].vtk
+        p=$(sed -n 's/.*passes=\([0-9]*\).*/\1/p' "$W/vm.out")
+        [ "${p:-0}" -gt 3 ] && ok "$f: $p passes of boxes" || fail "$f: only ${p:-?} passes under $((m + 512))K"
+    done
+else
+    echo "no numpy or VTK for Python (python3-numpy, python3-vtk9): the --magnitude part is skipped"
+fi
 finish

@@ -6,13 +6,17 @@ struct).  make-vti.py --big OUTDIR: the larger grids of its box reads
 
 Every good file NAME.vti has NAME.f32 beside it: the values a reader must
 give, as little-endian float32, x fastest.  bad-*.vti are files a reader
-must refuse.  The layouts follow the VTK XML format: binary data start with
+must refuse.  vec-*.vti hold an array of several components per point,
+read with --magnitude (tvpal_input_opts.magnitude): NAME.f32 is each
+point's length, the squares of its components (as stored) summed left to
+right in double, the root rounded to float32.  The layouts follow the VTK XML format: binary data start with
 a header of header_type integers, [nbytes] uncompressed or [nblocks,
 blocksize, lastblocksize, csize_1..n] compressed; base64 encodes an
 uncompressed header together with its data, a compressed header apart
 from its blocks.
 """
 import base64
+import math
 import os
 import struct
 import sys
@@ -150,12 +154,14 @@ def vti(path, arrays, cells=(), byte_order='LittleEndian', header=32,
                     else:
                         appended += b64(hdr, data, compress)
             lines.append('        %s>' % head)
+            key = ('          <InformationKey name="x" location="y" '
+                   'length="1"><Value index="0">7</Value></InformationKey>')
             if a.get('infokey'):
-                lines.append('          <InformationKey name="x" '
-                             'location="y" length="1"><Value index="0">7'
-                             '</Value></InformationKey>')
+                lines.append(key)
             if body:
                 lines.append('          ' + body)
+            if a.get('infokey_after'):   # as VTK 9 writes a vector's range
+                lines.append(key)
             lines.append('        </DataArray>')
         return lines
 
@@ -194,6 +200,30 @@ def good(outdir, name, values, vtype='Float32', **kw):
     vti(os.path.join(outdir, name + '.vti'),
         [arr('v', values, vtype, fmt, **extra)], **kw)
     write_f32(outdir, name, expected(values, vtype))
+
+
+def magnitudes(values, vtype, ncomp):
+    """The length of each point of ncomp values, as --magnitude reads it:
+    the components as stored, their squares summed in order in double, the
+    root rounded to float32."""
+    stored = [f32(v) for v in values] if vtype == 'Float32' else values
+    out = []
+    for i in range(0, len(stored), ncomp):
+        s = 0.0
+        for c in stored[i:i + ncomp]:
+            s = s + float(c) * float(c)
+        out.append(f32(math.sqrt(s)))
+    return out
+
+
+def vec(outdir, name, values, vtype='Float32', ncomp=3, **kw):
+    """NAME.vti with one array vel of ncomp components, and NAME.f32 of
+    its lengths."""
+    fmt = kw.pop('fmt', 'appended')
+    extra = {k: kw.pop(k) for k in ('infokey_after',) if k in kw}
+    vti(os.path.join(outdir, name + '.vti'),
+        [arr('vel', values, vtype, fmt, ncomp=ncomp, **extra)], **kw)
+    write_f32(outdir, name, magnitudes(values, vtype, ncomp))
 
 
 def write_f32(outdir, name, vals):
@@ -264,6 +294,31 @@ def main():
     write_f32(o, 'two-arrays-a', expected(a, 'Float32'))
     vti(os.path.join(o, 'no-scalars.vti'), two)
 
+    # Vectors (--magnitude): every encoding, types, 2 to 9 components; a
+    # point is 12 bytes of float32 and blocks 64 bytes, so points straddle
+    # the blocks' ends.
+    w3 = floats(20, n=3 * N)
+    w3[:6] = [0.0, -0.0, 3e38, float('nan'), 1.0, 2.0]  # NaN: a NaN point
+    vec(o, 'vec-ascii', w3, fmt='ascii', infokey_after=True)
+    vec(o, 'vec-binary', w3, fmt='binary', infokey_after=True)
+    vec(o, 'vec-binary-zlib64', w3, fmt='binary', header=64,
+        compressor='vtkZLibDataCompressor')
+    vec(o, 'vec-raw', w3, scalars='vel')
+    vec(o, 'vec-zlib', w3, compressor='vtkZLibDataCompressor')
+    vec(o, 'vec-b64', w3, encoding='base64')
+    vec(o, 'vec-b64-zlib', w3, encoding='base64',
+        compressor='vtkZLibDataCompressor')
+    vec(o, 'vec-be-float64', floats(21, n=2 * N, scale=1e30), 'Float64',
+        ncomp=2, byte_order='BigEndian', compressor='vtkZLibDataCompressor')
+    vec(o, 'vec-float64-ascii', floats(22, n=3 * N), 'Float64', fmt='ascii')
+    vec(o, 'vec-int16', ints(23, -32768, 32767, n=3 * N), 'Int16')
+    vec(o, 'vec-uint8-4', ints(24, 0, 255, n=4 * N), 'UInt8', ncomp=4,
+        fmt='binary')
+    vec(o, 'vec-int32-9', ints(25, -2 ** 31, 2 ** 31 - 1, n=9 * N), 'Int32',
+        ncomp=9, compressor='vtkZLibDataCompressor')
+    vti(os.path.join(o, 'bad-ncomp.vti'),
+        [arr('vel', floats(26, n=257 * N), ncomp=257)])
+
     # Bad files.
     t = vti(os.path.join(o, 'bad-xml.vti'), [arr('v', v, fmt='ascii')])
     with open(os.path.join(o, 'bad-xml.vti'), 'wb') as f:
@@ -319,6 +374,17 @@ def big(o):
     vti(os.path.join(o, 'big-int16.vti'),
         [arr('v', [int(x * 100) for x in v[:100 * 50 * 30]], 'Int16')],
         extent=ext(100, 50, 30))
+    # Vectors: rows of 12-byte points past a batch's 4 MiB, blocks that cut
+    # points, base64 longer than a piece.
+    vti(os.path.join(o, 'big-vec-raw.vti'), [arr('v', v[:3 * 160 * 96 * 28],
+                                                 ncomp=3)],
+        extent=ext(160, 96, 28))
+    vti(os.path.join(o, 'big-vec-zlib.vti'),
+        [arr('v', v[:3 * 64 * 48 * 40], ncomp=3)], extent=ext(64, 48, 40),
+        compressor=zl)
+    vti(os.path.join(o, 'big-vec-b64-f64.vti'),
+        [arr('v', v[:2 * 60 * 40 * 20], 'Float64', ncomp=2)],
+        extent=ext(60, 40, 20), encoding='base64')
 
 
 if __name__ == '__main__':

@@ -18,7 +18,20 @@ little-endian float32, x fastest.  bad-* are files a reader must refuse.
   binary-short.vtk  legacy BINARY short
   two-scalars.vtk   BINARY: FIELD data, SCALARS a float, VECTORS, SCALARS
                     b double, CELL_DATA SCALARS c (a: two-scalars.f32, b:
-                    two-scalars-b.f32)
+                    two-scalars-b.f32, the length of VECTORS vel:
+                    two-scalars-vel.f32)
+
+Vectors, read with --magnitude (NAME.f32: each point's length, the
+squares of its components as stored summed left to right in double, the
+root rounded to float32):
+  vectors-ascii.vtk    ASCII VECTORS vel float only (the default array)
+  scalars3.vtk         BINARY SCALARS v3 short 3
+  field.vtk            BINARY POINT_DATA SCALARS a, then FIELD FieldData 2
+                       (p 1 double: field-p.f32; grad 2 float:
+                       field.f32), CELL_DATA FIELD with cf
+  field-ascii.vtk      the same in ASCII
+  vectors.pvti         5x4x3 of 2x2x1 pieces of vel Float32 3 in each
+                       encoding; bad-vectors.pvti: a piece of 2
 """
 import importlib.util
 import os
@@ -49,7 +62,12 @@ def pvd(path, sets):
         fp.write('\n'.join(lines))
 
 
-def pvti(path, pieces, origin=(1, 2, 3), spacing=(0.5, 2, 4)):
+PARRAYS = ['      <PDataArray type="Float32" Name="v"/>',
+           '      <PDataArray type="Float32" Name="w"/>']
+
+
+def pvti(path, pieces, origin=(1, 2, 3), spacing=(0.5, 2, 4),
+         parrays=PARRAYS, active='Scalars="v"'):
     ext = (0, NX - 1, 0, NY - 1, 0, NZ - 1)
     lines = ['<?xml version="1.0"?>',
              '<VTKFile type="PImageData" version="1.0" '
@@ -59,9 +77,7 @@ def pvti(path, pieces, origin=(1, 2, 3), spacing=(0.5, 2, 4)):
              'Spacing="%s" Direction="1 0 0 0 1 0 0 0 1">' % (
                  ' '.join(map(str, ext)), ' '.join(map(str, origin)),
                  ' '.join(map(str, spacing))),
-             '    <PPointData Scalars="v">',
-             '      <PDataArray type="Float32" Name="v"/>',
-             '      <PDataArray type="Float32" Name="w"/>',
+             '    <PPointData %s>' % active] + parrays + [
              '    </PPointData>',
              '    <PCellData>', '    </PCellData>']
     for e, src in pieces:
@@ -82,7 +98,9 @@ def sub(values, e):
 def legacy(path, arrays, binary, dims=(NX, NY, NZ), npoints=None,
            dataset='STRUCTURED_POINTS', spacing=(1, 1, 1), origin=(0, 0, 0),
            cells=(), field=False, cut=None):
-    """arrays: (kind, name, vtype, values); binary values big-endian."""
+    """arrays: (kind, name, vtype, values[, ncomp]), or ('FIELD', name,
+    None, [(name, ncomp, vtype, values), ...]); binary values
+    big-endian."""
     codes = {'float': 'f', 'double': 'd', 'short': 'h', 'unsigned_char': 'B',
              'int': 'i', 'unsigned_short': 'H', 'char': 'b'}
     out = [b'# vtk DataFile Version 3.0\n',
@@ -105,10 +123,18 @@ def legacy(path, arrays, binary, dims=(NX, NY, NZ), npoints=None,
         out.append(values('double', [0.25]))
 
     def section(arrs):
-        for kind, name, vtype, vals in arrs:
+        for a in arrs:
+            kind, name, vtype, vals = a[:4]
+            if kind == 'FIELD':
+                out.append(('FIELD %s %d\n' % (name, len(vals))).encode())
+                for an, nc, at, av in vals:
+                    out.append(('%s %d %d %s\n' % (an, nc, len(av) // nc,
+                                                   at)).encode())
+                    out.append(values(at, av))
+                continue
             if kind == 'SCALARS':
-                out.append(('SCALARS %s %s 1\nLOOKUP_TABLE default\n' % (
-                    name, vtype)).encode())
+                out.append(('SCALARS %s %s %d\nLOOKUP_TABLE default\n' % (
+                    name, vtype, a[4] if len(a) > 4 else 1)).encode())
             else:
                 out.append(('%s %s %s\n' % (kind, name, vtype)).encode())
             out.append(values(vtype, vals))
@@ -196,6 +222,8 @@ def main():
            cells=[('SCALARS', 'c', 'float', cell)], field=True)
     mv.write_f32(o, 'two-scalars', mv.expected(b, 'Float32'))
     mv.write_f32(o, 'two-scalars-b', mv.expected(c, 'Float64'))
+    mv.write_f32(o, 'two-scalars-vel', mv.magnitudes(vec, 'Float32', 3))
+    vectors(o)
     legacy(os.path.join(o, 'bad-dims.vtk'), [('SCALARS', 'v', 'float', b)],
            True, dims=(NX, NY, NZ + 1), npoints=N)
     legacy(os.path.join(o, 'bad-count.vtk'), [('SCALARS', 'v', 'float',
@@ -204,6 +232,60 @@ def main():
            [('SCALARS', 'v', 'float', b)], True, cut=41)
     legacy(os.path.join(o, 'bad-polydata.vtk'),
            [('SCALARS', 'v', 'float', b)], True, dataset='POLYDATA')
+
+
+def vectors(o):
+    """The legacy and .pvti fixtures of several components."""
+    vec = mv.floats(400, n=3 * N)
+    vec[3:6] = [3e38, 1e38, -1e38]   # squares past float32, the length not
+    legacy(os.path.join(o, 'vectors-ascii.vtk'),
+           [('VECTORS', 'vel', 'float', vec)], False)
+    mv.write_f32(o, 'vectors-ascii', mv.magnitudes(vec, 'Float32', 3))
+    s3 = mv.ints(401, -32768, 32767, n=3 * N)
+    legacy(os.path.join(o, 'scalars3.vtk'),
+           [('SCALARS', 'v3', 'short', s3, 3)], True)
+    mv.write_f32(o, 'scalars3', mv.magnitudes(s3, 'Int16', 3))
+    a, p, grad = mv.floats(402), mv.floats(403, scale=1e5), \
+        mv.floats(404, n=2 * N)
+    cf = mv.floats(405, n=(NX - 1) * (NY - 1) * (NZ - 1))
+    for name, binary in (('field', True), ('field-ascii', False)):
+        legacy(os.path.join(o, name + '.vtk'),
+               [('SCALARS', 'a', 'float', a),
+                ('FIELD', 'FieldData', None, [('p', 1, 'double', p),
+                                              ('grad', 2, 'float', grad)])],
+               binary, cells=[('FIELD', 'CellF', None,
+                               [('cf', 1, 'float', cf)])])
+    mv.write_f32(o, 'field', mv.magnitudes(grad, 'Float32', 2))
+    mv.write_f32(o, 'field-p', mv.expected(p, 'Float64'))
+
+    # .pvti of vectors: 2x2x1 pieces, each in another encoding.
+    v3 = mv.floats(406, n=3 * N)
+    exts = [(0, 2, 0, 1, 0, NZ - 1), (2, NX - 1, 0, 1, 0, NZ - 1),
+            (0, 2, 1, NY - 1, 0, NZ - 1), (2, NX - 1, 1, NY - 1, 0, NZ - 1)]
+    encs = [dict(compressor=ZLIB), dict(fmt='binary'), dict(fmt='ascii'),
+            dict(encoding='base64')]
+    pieces = []
+    for i, (e, kw) in enumerate(zip(exts, encs)):
+        fmt = kw.pop('fmt', 'appended')
+        name = 'pieces/vec%d.vti' % i
+        pts = sub(list(range(N)), e)
+        mv.vti(os.path.join(o, name),
+               [mv.arr('vel', [v3[3 * k + c] for k in pts for c in range(3)],
+                       fmt=fmt, ncomp=3)],
+               extent=e, spacing=(0.5, 2, 4), origin=(1, 2, 3), **kw)
+        pieces.append((e, name))
+    parr = ['      <PDataArray type="Float32" Name="vel" '
+            'NumberOfComponents="3"/>']
+    pvti(os.path.join(o, 'vectors.pvti'), pieces, parrays=parr,
+         active='Vectors="vel"')
+    mv.write_f32(o, 'vectors', mv.magnitudes(v3, 'Float32', 3))
+    e = exts[3]
+    mv.vti(os.path.join(o, 'pieces/vec-bad.vti'),
+           [mv.arr('vel', mv.floats(407, n=2 * len(sub(list(range(N)), e))),
+                   ncomp=2)], extent=e)
+    pvti(os.path.join(o, 'bad-vectors.pvti'),
+         pieces[:3] + [(e, 'pieces/vec-bad.vti')], parrays=parr,
+         active='Vectors="vel"')
 
 
 if __name__ == '__main__':

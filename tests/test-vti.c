@@ -1,7 +1,8 @@
 /* test-vti: the VTK ImageData reader on the fixtures of tests/make-vti.py
  * (every encoding, both header types, both byte orders, the types, grids,
  * array choice, describe, each bad file with its code and a diag naming it;
- * compressed blocks inflated on the reading thread and on a pool) and on
+ * compressed blocks inflated on the reading thread and on a pool; arrays
+ * of several components read as their length with magnitude) and on
  * the real viscous-fingers .vti series of ../shared/data, which
  * must equal the raw steps bit for bit. */
 #include "tvpal_input.h"
@@ -40,10 +41,12 @@ static const char *fixture(const char *name, const char *ext)
     return path[k];
 }
 
-/* Reads fixture name (var: opts.var) and compares with name.f32 (or
- * expect's .f32); returns the info through *out when non-NULL.  Once
- * inflating on the reading thread, once on a pool of 3 threads. */
+/* Reads fixture name (var: opts.var, g_magnitude: opts.magnitude) and
+ * compares with name.f32 (or expect's .f32); returns the info through *out
+ * when non-NULL.  Once inflating on the reading thread, once on a pool of
+ * 3 threads. */
 static struct tvpal_pool *g_pool;
+static int g_magnitude;
 
 static void check_good_on(const char *name, const char *var,
                           const char *expect, enum tvpal_type type,
@@ -51,7 +54,8 @@ static void check_good_on(const char *name, const char *var,
                           struct tvpal_pool *pool)
 {
     char *files[1] = {(char *)fixture(name, ".vti")};
-    struct tvpal_input_opts opts = {.var = var, .pool = pool};
+    struct tvpal_input_opts opts = {.var = var, .pool = pool,
+                                    .magnitude = g_magnitude};
     struct tvpal_input *in = NULL;
     struct tvpal_diag g = {{0}};
     int rc = tvpal_input_open(&in, TVPAL_IN_AUTO, files, 1, &opts, &g);
@@ -98,7 +102,8 @@ static void check_bad_on(const char *name, enum tvpal_input_format fmt,
                          struct tvpal_pool *pool)
 {
     char *files[1] = {(char *)fixture(name, ".vti")};
-    struct tvpal_input_opts opts = {.var = var, .pool = pool};
+    struct tvpal_input_opts opts = {.var = var, .pool = pool,
+                                    .magnitude = g_magnitude};
     struct tvpal_input *in = NULL;
     struct tvpal_diag g = {{0}};
     int rc = tvpal_input_open(&in, fmt, files, 1, &opts, &g);
@@ -230,7 +235,10 @@ static void fixtures(void)
     check_bad("bad-direction", TVPAL_IN_AUTO, NULL, TVPAL_E_FORMAT,
               "non-identity Direction is not supported");
     check_bad("bad-components", TVPAL_IN_AUTO, NULL, TVPAL_E_INVAL,
-              "2 components");
+              "array v has 2 components (NumberOfComponents); tvpal reads "
+              "one value per point: --magnitude encodes the vector's length");
+    check_bad("vec-raw", TVPAL_IN_AUTO, NULL, TVPAL_E_INVAL,
+              "array vel has 3 components");
     check_bad("bad-size", TVPAL_IN_AUTO, NULL, TVPAL_E_FORMAT,
               "holds 236 bytes; its extent needs 240");
     check_bad("bad-pieces", TVPAL_IN_AUTO, NULL, TVPAL_E_FORMAT,
@@ -255,6 +263,54 @@ static void fixtures(void)
     tvpal_input_close(in);
 }
 
+/* Arrays of several components with magnitude: each point's length, as
+ * make-vti.py computes it, whole and in boxes, in every encoding; a scalar
+ * array as it is; more components than are read refused. */
+static void vectors(void)
+{
+    static const struct {
+        const char *name;
+        enum tvpal_type type;
+        uint32_t ncomp;
+    } vec[] = {{"vec-ascii", TVPAL_F32, 3}, {"vec-binary", TVPAL_F32, 3},
+               {"vec-binary-zlib64", TVPAL_F32, 3}, {"vec-raw", TVPAL_F32, 3},
+               {"vec-zlib", TVPAL_F32, 3}, {"vec-b64", TVPAL_F32, 3},
+               {"vec-b64-zlib", TVPAL_F32, 3},
+               {"vec-be-float64", TVPAL_F64, 2},
+               {"vec-float64-ascii", TVPAL_F64, 3},
+               {"vec-int16", TVPAL_I16, 3}, {"vec-uint8-4", TVPAL_U8, 4},
+               {"vec-int32-9", TVPAL_F64, 9}};
+    g_magnitude = 1;
+    for (size_t i = 0; i < sizeof vec / sizeof *vec; i++) {
+        struct tvpal_input_info info;
+        memset(&info, 0, sizeof info);
+        check_good(vec[i].name, NULL, NULL, vec[i].type, &info);
+        CHECK(info.components == vec[i].ncomp && !strcmp(info.var, "vel"),
+              "%s: %u components of %s, expected %u of vel", vec[i].name,
+              info.components, info.var, vec[i].ncomp);
+    }
+    struct tvpal_input_info info;
+    memset(&info, 0, sizeof info);
+    check_good("appended-zlib", NULL, NULL, TVPAL_F32, &info);
+    CHECK(info.components == 1, "a scalar array with magnitude: %u "
+          "components", info.components);
+    check_good("two-arrays", "a", "two-arrays-a", TVPAL_F32, NULL);
+    check_bad("bad-ncomp", TVPAL_IN_AUTO, NULL, TVPAL_E_INVAL,
+              "array vel has 257 components (NumberOfComponents); "
+              "--magnitude reads at most 256");
+    /* A series of a vector and a scalar array of one name is refused. */
+    char *two[2] = {(char *)fixture("vec-zlib", ".vti"),
+                    (char *)fixture("appended-zlib", ".vti")};
+    struct tvpal_input_opts opts = {.var = "vel", .magnitude = 1};
+    struct tvpal_input *in = NULL;
+    struct tvpal_diag g = {{0}};
+    int rc = tvpal_input_open(&in, TVPAL_IN_AUTO, two, 2, &opts, &g);
+    CHECK(rc == TVPAL_E_INVAL && strstr(g.msg, "no point array vel"),
+          "vector then scalar files: %d (%s)", rc, g.msg);
+    tvpal_input_close(in);
+    g_magnitude = 0;
+}
+
 /* Box reads of the larger grids of make-vti.py --big (written into
  * work/big by main): every box equals the whole read's; the scratch of a
  * slice stays far below a step. */
@@ -262,14 +318,18 @@ static void big(void)
 {
     static const char *const names[] = {"big-raw", "big-zlib",
                                         "big-zlib64-be", "big-binary-zlib",
-                                        "big-b64", "big-int16"};
+                                        "big-b64", "big-int16",
+                                        "big-vec-raw", "big-vec-zlib",
+                                        "big-vec-b64-f64"};
     for (size_t i = 0; i < sizeof names / sizeof *names; i++) {
         char path[4400];
         snprintf(path, sizeof path, "%s/big/%s.vti", work, names[i]);
         char *files[1] = {path};
         struct tvpal_input *in = NULL;
         struct tvpal_diag g = {{0}};
-        int rc = tvpal_input_open(&in, TVPAL_IN_AUTO, files, 1, NULL, &g);
+        const struct tvpal_input_opts opts = {
+            .magnitude = !strncmp(names[i], "big-vec", 7)};
+        int rc = tvpal_input_open(&in, TVPAL_IN_AUTO, files, 1, &opts, &g);
         CHECK(rc == 0, "%s: open: %s", names[i], g.msg);
         if (rc < 0)
             continue;
@@ -379,6 +439,7 @@ int main(void)
     REQUIRE(system(cmd) == 0, "%s", cmd);
     REQUIRE(tvpal_pool_create(&g_pool, 3) == 0, "pool");
     fixtures();
+    vectors();
     big();
     realdata();
     int rc = tt_done("test-vti");

@@ -1,8 +1,9 @@
 /* test-vtk: the .pvd collections, .pvti pieces and legacy .vtk
  * STRUCTURED_POINTS readers on the fixtures of tests/make-vtk.py: exact
  * values, dims, spacing and origin, the times of a .pvd (sorted by
- * timestep), array choice, describe, detection, and each bad file with its
- * code and a diag naming it. */
+ * timestep), array choice, describe, detection, vectors read as their
+ * length (magnitude: VECTORS, SCALARS of 3, FIELD arrays, .pvti pieces),
+ * and each bad file with its code and a diag naming it. */
 #include "tvpal_input.h"
 #include "tvpal_test.h"
 #include "tt_box.h"
@@ -18,6 +19,7 @@
 #define N (NX * NY * NZ)
 
 static char work[4096];
+static int g_magnitude;   /* opts.magnitude of check_good and check_bad */
 
 static const char *fixture(const char *name)
 {
@@ -35,7 +37,7 @@ static void check_good(const char *name, const char *var,
                        enum tvpal_type type, struct tvpal_input_info *out)
 {
     char *files[1] = {(char *)fixture(name)};
-    struct tvpal_input_opts opts = {.var = var};
+    struct tvpal_input_opts opts = {.var = var, .magnitude = g_magnitude};
     struct tvpal_input *in = NULL;
     struct tvpal_diag g = {{0}};
     int rc = tvpal_input_open(&in, TVPAL_IN_AUTO, files, 1, &opts, &g);
@@ -84,7 +86,7 @@ static void check_bad(const char *name, const char *var, int code,
                       const char *what, const char *also)
 {
     char *files[1] = {(char *)fixture(name)};
-    struct tvpal_input_opts opts = {.var = var};
+    struct tvpal_input_opts opts = {.var = var, .magnitude = g_magnitude};
     struct tvpal_input *in = NULL;
     struct tvpal_diag g = {{0}};
     int rc = tvpal_input_open(&in, TVPAL_IN_AUTO, files, 1, &opts, &g);
@@ -274,27 +276,98 @@ static void legacy(void)
     check_bad("bad-polydata.vtk", NULL, TVPAL_E_FORMAT,
               "DATASET POLYDATA: only STRUCTURED_POINTS", NULL);
     check_bad("two-scalars.vtk", "zzz", TVPAL_E_INVAL,
-              "no point SCALARS zzz (point SCALARS: a, b)", NULL);
+              "no point array zzz (point arrays: a, vel (VECTORS), b)", NULL);
     check_bad("two-scalars.vtk", "c", TVPAL_E_INVAL, "c is cell SCALARS",
               NULL);
-    check_bad("two-scalars.vtk", "vel", TVPAL_E_INVAL, "vel is point VECTORS",
-              NULL);
+    check_bad("two-scalars.vtk", "vel", TVPAL_E_INVAL, "VECTORS vel has 3 "
+              "components; tvpal reads one value per point: --magnitude "
+              "encodes the vector's length", NULL);
+    check_bad("vectors-ascii.vtk", NULL, TVPAL_E_INVAL, "VECTORS vel has 3 "
+              "components", NULL);
+    check_bad("scalars3.vtk", NULL, TVPAL_E_INVAL, "SCALARS v3 has 3 "
+              "components", NULL);
+    check_bad("field.vtk", "grad", TVPAL_E_INVAL, "FIELD grad has 2 "
+              "components", NULL);
+    /* A FIELD array of POINT_DATA is a point array; one of CELL_DATA not;
+     * the dataset's own FIELD (two-scalars' TIME) is no array at all. */
+    static const char *const fp[] = {"field-p.f32"};
+    check_good("field.vtk", "p", fp, 1, TVPAL_F64, NULL);
+    check_good("field-ascii.vtk", "p", fp, 1, TVPAL_F64, NULL);
+    check_bad("field.vtk", "cf", TVPAL_E_INVAL, "cf is cell FIELD", NULL);
+    check_bad("two-scalars.vtk", "TIME", TVPAL_E_INVAL, "no point array "
+              "TIME", NULL);
+    describe_has("field.vtk", "\np double components=1 FIELD\n"
+                 "grad float components=2 FIELD\n");
 }
 
-/* A legacy BINARY file of nx x ny x nz big-endian values of type (float
- * or short) at path: rows past the 4 MiB a batch of box reads holds. */
+/* Vectors with magnitude: each point's length as make-vtk.py computes it,
+ * whole and in boxes; the default array of a file without SCALARS is its
+ * first VECTORS; a scalar array is read as it is. */
+static void legacy_vectors(void)
+{
+    static const char *const vel[] = {"two-scalars-vel.f32"},
+                             *const va[] = {"vectors-ascii.f32"},
+                             *const s3[] = {"scalars3.f32"},
+                             *const fg[] = {"field.f32"},
+                             *const ta[] = {"two-scalars.f32"};
+    struct tvpal_input_info info;
+    g_magnitude = 1;
+    memset(&info, 0, sizeof info);
+    check_good("two-scalars.vtk", "vel", vel, 1, TVPAL_F32, &info);
+    CHECK(info.components == 3 && !strcmp(info.var, "vel"), "two-scalars "
+          "vel: %u components of %s", info.components, info.var);
+    memset(&info, 0, sizeof info);
+    check_good("vectors-ascii.vtk", NULL, va, 1, TVPAL_F32, &info);
+    CHECK(!strcmp(info.var, "vel"), "vectors-ascii: default %s, expected "
+          "vel (the first VECTORS)", info.var);
+    check_good("scalars3.vtk", NULL, s3, 1, TVPAL_I16, NULL);
+    check_good("field.vtk", "grad", fg, 1, TVPAL_F32, NULL);
+    check_good("field-ascii.vtk", "grad", fg, 1, TVPAL_F32, NULL);
+    memset(&info, 0, sizeof info);
+    check_good("two-scalars.vtk", NULL, ta, 1, TVPAL_F32, &info);
+    CHECK(info.components == 1 && !strcmp(info.var, "a"), "two-scalars "
+          "with magnitude: %u components of %s", info.components, info.var);
+    g_magnitude = 0;
+}
+
+/* A .pvti of vectors: the pieces' lengths in place; a piece of other
+ * components than the .pvti says is refused naming both. */
+static void pvti_vectors(void)
+{
+    static const char *const v[] = {"vectors.f32"};
+    struct tvpal_input_info info;
+    g_magnitude = 1;
+    memset(&info, 0, sizeof info);
+    check_good("vectors.pvti", NULL, v, 1, TVPAL_F32, &info);
+    CHECK(info.components == 3 && !strcmp(info.var, "vel"), "vectors.pvti: "
+          "%u components of %s (the active Vectors)", info.components,
+          info.var);
+    check_bad("bad-vectors.pvti", NULL, TVPAL_E_FORMAT,
+              "vec-bad.vti: array vel has 2 components; the .pvti says 3",
+              "bad-vectors.pvti");
+    g_magnitude = 0;
+    check_bad("vectors.pvti", NULL, TVPAL_E_INVAL, "array vel has 3 "
+              "components (NumberOfComponents); tvpal reads one value per "
+              "point: --magnitude", NULL);
+    describe_has("vectors.pvti", "\nvel Float32 components=3 [active "
+                 "vectors]\n");
+}
+
+/* A legacy BINARY file of nx x ny x nz points of ncomp big-endian values
+ * of type (float or short) at path: rows past the 4 MiB a batch of box
+ * reads holds. */
 static void write_big_vtk(const char *path, const char *type, uint32_t nx,
-                          uint32_t ny, uint32_t nz)
+                          uint32_t ny, uint32_t nz, unsigned ncomp)
 {
     FILE *fp = fopen(path, "wb");
     REQUIRE(fp, "write %s", path);
     const size_t n = (size_t)nx * ny * nz;
     fprintf(fp, "# vtk DataFile Version 3.0\ntvpal test-vtk big\nBINARY\n"
             "DATASET STRUCTURED_POINTS\nDIMENSIONS %u %u %u\nSPACING 1 1 1"
-            "\nORIGIN 0 0 0\nPOINT_DATA %zu\nSCALARS v %s 1\n"
-            "LOOKUP_TABLE default\n", nx, ny, nz, n, type);
+            "\nORIGIN 0 0 0\nPOINT_DATA %zu\nSCALARS v %s %u\n"
+            "LOOKUP_TABLE default\n", nx, ny, nz, n, type, ncomp);
     const int is_short = !strcmp(type, "short");
-    for (size_t i = 0; i < n; i++) {
+    for (size_t i = 0; i < n * ncomp; i++) {
         unsigned char b[4];
         if (is_short) {
             uint16_t u = (uint16_t)(int16_t)((int)(i * 7919 % 60001) - 30000);
@@ -318,15 +391,18 @@ static void legacy_big(void)
 {
     static const struct {
         const char *name, *type;
-        uint32_t nx, ny, nz;
-    } big[] = {{"big-float.vtk", "float", 200, 100, 60},
-               {"big-short.vtk", "short", 150, 90, 50}};
+        uint32_t nx, ny, nz, ncomp;
+    } big[] = {{"big-float.vtk", "float", 200, 100, 60, 1},
+               {"big-short.vtk", "short", 150, 90, 50, 1},
+               {"big-vec.vtk", "float", 120, 100, 60, 3}};
     for (size_t i = 0; i < sizeof big / sizeof *big; i++) {
         char *files[1] = {(char *)fixture(big[i].name)};
-        write_big_vtk(files[0], big[i].type, big[i].nx, big[i].ny, big[i].nz);
+        write_big_vtk(files[0], big[i].type, big[i].nx, big[i].ny, big[i].nz,
+                      big[i].ncomp);
         struct tvpal_input *in = NULL;
         struct tvpal_diag g = {{0}};
-        int rc = tvpal_input_open(&in, TVPAL_IN_AUTO, files, 1, NULL, &g);
+        const struct tvpal_input_opts opts = {.magnitude = big[i].ncomp > 1};
+        int rc = tvpal_input_open(&in, TVPAL_IN_AUTO, files, 1, &opts, &g);
         CHECK(rc == 0, "%s: open: %s", big[i].name, g.msg);
         if (rc < 0)
             continue;
@@ -356,10 +432,12 @@ int main(void)
              work);
     REQUIRE(system(cmd) == 0, "%s", cmd);
     legacy();   /* no library needed */
+    legacy_vectors();
     legacy_big();
 #if defined(HAVE_EXPAT) && defined(HAVE_ZLIB)
     pvd();
     pvti();
+    pvti_vectors();
 #else
     printf("built without expat or zlib: .pvd and .pvti not tested\n");
 #endif

@@ -168,12 +168,14 @@ static inline void tt_check_boxes(struct tvpal_input *in, const char *name)
 }
 
 /* Scratch of a box of one z-slice, and of one x-slice, against a step of
- * float: at most a step / min_ratio. */
+ * float (a float per component: the rows of a vector hold them all): at
+ * most a step / min_ratio. */
 static inline void tt_check_box_scratch(struct tvpal_input *in,
                                         uint64_t min_ratio, const char *name)
 {
     const uint32_t *d = tvpal_input_info(in)->dims;
-    const uint64_t step = (uint64_t)d[0] * d[1] * d[2] * 4;
+    const uint64_t step = (uint64_t)d[0] * d[1] * d[2] * 4 *
+                          tvpal_input_info(in)->components;
     const uint32_t zs[3] = {d[0], d[1], 1}, xs[3] = {1, d[1], d[2]};
     uint64_t sz = tvpal_input_box_scratch(in, zs),
              sx = tvpal_input_box_scratch(in, xs);

@@ -35,10 +35,18 @@
  * pread (tvpal_input_box_pread), the zlib blocks that meet the box one at
  * a time (raw: by pread), base64 decoded in order up to the box's end,
  * ascii parsed whole; its scratch (a batch of rows, one block) is kept
- * between calls.  Errors are TVPAL_E_FORMAT for
- * a file that is not a readable .vti, with the path and the problem in the
- * diag; TVPAL_E_INVAL for an array that cannot be chosen or is not a scalar
- * field. */
+ * between calls.
+ *
+ * An array of several components per point (NumberOfComponents: a vector,
+ * a tensor) is read, with tvpal_input_opts' magnitude, as each point's
+ * length: its components' bytes are one value of that many bytes to the
+ * code above, converted together (convert_points).  A whole read of such
+ * an array is a box read of the whole grid (decode_box, its scratch), not
+ * a step of stored values in memory.
+ *
+ * Errors are TVPAL_E_FORMAT for a file that is not a readable .vti, with
+ * the path and the problem in the diag; TVPAL_E_INVAL for an array that
+ * cannot be chosen or has several components without magnitude. */
 #include "tvpal_fs.h"
 #include "tvpal_inflate.h"
 #include "tvpal_input_impl.h"
@@ -86,14 +94,25 @@ struct vti_array {
     char fmt_name[32];
     int has_offset;
     uint64_t offset;
-    size_t text_begin, text_end;   /* the element's text in the file */
+    size_t text_begin, text_end;   /* the element's data text in the
+                                 * file: the first run of text directly
+                                 * inside it that is not all white space
+                                 * (VTK writes InformationKey elements
+                                 * after the data, older writers before) */
     int has_text;
+    size_t run_begin;           /* the run of text being parsed, */
+    int in_run, run_data;       /* and whether it holds more than space */
     int cell;                   /* in CellData, not PointData */
     int field;                  /* in the ImageData's FieldData (ParaView's
                                  * TimeValue): never a variable */
 };
 
-/* What one parse of a file found. */
+/* Bytes per point of array a: its ncomp values (choose bounds ncomp). */
+static unsigned point_size(const struct vti_array *a)
+{
+    return vti_types[a->t].size * (unsigned)a->ncomp;
+}
+
 /* A piece of a .pvti: its extent and its .vti (resolved). */
 struct vti_piece {
     long long ext[6];
@@ -115,6 +134,7 @@ struct vti_doc {
     struct vti_piece *pcs;
     int npcs, pcap;
     char *scalars;              /* the PointData's Scalars, or NULL */
+    char *vectors;              /* its Vectors, or NULL */
     struct vti_array *arrays;
     int narrays, cap;
     int have_appended, appended_base64;
@@ -133,6 +153,7 @@ struct tvpal_input_file {
     char var[TVPAL_INPUT_VAR_MAX];  /* the array open chose */
     uint32_t dims[3];
     int t;
+    long ncomp;                 /* its components (several: magnitude) */
     struct tvpal_pool *pool;    /* borrowed (tvpal_input_opts), or NULL */
     /* .pvti: the whole extent, the pieces and one piece of scratch */
     long long whole[6];
@@ -288,6 +309,7 @@ static void doc_free(struct vti_doc *d)
         free(d->pcs[i].source);
     free(d->pcs);
     free(d->scalars);
+    free(d->vectors);
     if (d->fd >= 0)
         close(d->fd);
     memset(d, 0, sizeof *d);
@@ -464,6 +486,19 @@ static int start_array(struct vti_doc *d, const XML_Char **atts)
     return 0;
 }
 
+/* The Scalars and Vectors a PointData or PPointData names (the first). */
+static int active_arrays(struct vti_doc *d, const XML_Char **atts)
+{
+    const char *s = attr(atts, "Scalars"), *v = attr(atts, "Vectors");
+    if (d->in_cell)
+        return 0;
+    if (s && !d->scalars && !(d->scalars = strdup(s)))
+        return nomem(d);
+    if (v && !d->vectors && !(d->vectors = strdup(v)))
+        return nomem(d);
+    return 0;
+}
+
 /* A PImageData's children: PPointData/PCellData with their PDataArrays
  * (the arrays every piece has), and Piece Extent= Source=. */
 static int start_parallel(struct vti_doc *d, int depth, const XML_Char *name,
@@ -497,10 +532,7 @@ static int start_parallel(struct vti_doc *d, int depth, const XML_Char *name,
                        !strcmp(name, "PCellData"))) {
         d->in_cell = !strcmp(name, "PCellData");
         d->data_depth = depth;
-        const char *v = attr(atts, "Scalars");
-        if (!d->in_cell && v && !d->scalars && !(d->scalars = strdup(v)))
-            return nomem(d);
-        return 0;
+        return active_arrays(d, atts);
     }
     if (d->data_depth && depth == d->data_depth + 1 &&
         !strcmp(name, "PDataArray"))
@@ -559,10 +591,7 @@ static int start(struct vti_doc *d, int depth, const XML_Char *name,
         d->in_field = 0;
         d->in_cell = !strcmp(name, "CellData");
         d->data_depth = depth;
-        const char *v = attr(atts, "Scalars");
-        if (!d->in_cell && v && !d->scalars && !(d->scalars = strdup(v)))
-            return nomem(d);
-        return 0;
+        return active_arrays(d, atts);
     }
     if (d->data_depth && depth == d->data_depth + 1 &&
         !strcmp(name, "DataArray"))
@@ -570,11 +599,28 @@ static int start(struct vti_doc *d, int depth, const XML_Char *name,
     return 0;
 }
 
+/* The run of text of the open DataArray ends at the tag expat is at (a
+ * child's, or the DataArray's end): the first run with more than white
+ * space in it is the array's data text. */
+static void end_run(struct vti_doc *d)
+{
+    struct vti_array *a = &d->arrays[d->cur];
+    if (a->in_run && a->run_data && !a->has_text) {
+        a->text_begin = a->run_begin;
+        a->text_end = (size_t)XML_GetCurrentByteIndex(d->xp);
+        a->has_text = 1;
+    }
+    a->in_run = 0;
+}
+
 static void XMLCALL on_start(void *ud, const XML_Char *name,
                              const XML_Char **atts)
 {
     struct vti_doc *d = ud;
     int depth = d->depth++;
+    /* An element inside the DataArray (InformationKey) ends a run. */
+    if (d->cur >= 0 && depth == d->data_depth + 2)
+        end_run(d);
     (void)start(d, depth, name, atts);
 }
 
@@ -582,17 +628,14 @@ static void XMLCALL on_end(void *ud, const XML_Char *name)
 {
     struct vti_doc *d = ud;
     int depth = --d->depth;
-    /* An element inside the DataArray (VTK writes InformationKey ones
-     * before the data): the data is the text after the last of them. */
-    if (d->cur >= 0 && depth > d->data_depth + 1)
-        d->arrays[d->cur].has_text = 0;
     if (d->cur >= 0 && d->data_depth && depth == d->data_depth + 1) {
         struct vti_array *a = &d->arrays[d->cur];
-        size_t here = (size_t)XML_GetCurrentByteIndex(d->xp);
-        if (!a->has_text)
-            a->text_begin = here;
-        a->text_end = here;
-        a->has_text = 1;
+        end_run(d);
+        if (!a->has_text) {   /* none but white space: no values */
+            a->text_begin = a->text_end =
+                (size_t)XML_GetCurrentByteIndex(d->xp);
+            a->has_text = 1;
+        }
         d->cur = -1;
     }
     if (depth == d->data_depth)
@@ -604,11 +647,17 @@ static void XMLCALL on_end(void *ud, const XML_Char *name)
 static void XMLCALL on_text(void *ud, const XML_Char *s, int len)
 {
     struct vti_doc *d = ud;
-    if (d->cur >= 0 && d->depth == d->data_depth + 2 &&
-        !d->arrays[d->cur].has_text) {
-        d->arrays[d->cur].text_begin = (size_t)XML_GetCurrentByteIndex(d->xp);
-        d->arrays[d->cur].has_text = 1;
+    if (d->cur < 0 || d->depth != d->data_depth + 2)
+        return;
+    struct vti_array *a = &d->arrays[d->cur];
+    if (!a->in_run) {
+        a->run_begin = (size_t)XML_GetCurrentByteIndex(d->xp);
+        a->in_run = 1;
+        a->run_data = 0;
     }
+    for (int i = 0; i < len && !a->run_data; i++)
+        a->run_data = !(s[i] == ' ' || s[i] == '\t' || s[i] == '\n' ||
+                        s[i] == '\r');
 }
 
 static const unsigned char *find(const unsigned char *p, size_t n,
@@ -822,15 +871,18 @@ static void list_arrays(const struct vti_doc *d, char *buf, size_t cap)
         snprintf(buf, cap, "none");
 }
 
-/* The point array that opts (or the file) names, checked for reading. */
-static int choose(const struct vti_doc *d, const char *var, int *out)
+/* The point array that opts (or the file: its active Scalars, else its
+ * active Vectors, else its only point array) names, checked for reading:
+ * one component, or with magnitude up to TVPAL_INPUT_COMPONENTS_MAX. */
+static int choose(const struct vti_doc *d, const char *var, int magnitude,
+                  int *out)
 {
     char names[160];
     int pick = -1, npoint = 0;
     for (int i = 0; i < d->narrays; i++)
         npoint += is_point(&d->arrays[i]);
     list_arrays(d, names, sizeof names);
-    const char *want = var ? var : d->scalars;
+    const char *want = var ? var : d->scalars ? d->scalars : d->vectors;
     if (want) {
         for (int i = 0; i < d->narrays && pick < 0; i++)
             if (is_point(&d->arrays[i]) && !strcmp(d->arrays[i].name, want))
@@ -844,8 +896,9 @@ static int choose(const struct vti_doc *d, const char *var, int *out)
         if (pick < 0)
             return tvpal_diag_set(d->diag, var ? TVPAL_E_INVAL : TVPAL_E_FORMAT,
                                   "%s: no point array %s%s (point arrays: %s)",
-                                  d->path, want, var ? "" : " (the active "
-                                  "Scalars)", names);
+                                  d->path, want, var ? ""
+                                  : d->scalars ? " (the active Scalars)"
+                                  : " (the active Vectors)", names);
     } else if (npoint == 1) {
         for (int i = 0; i < d->narrays; i++)
             if (is_point(&d->arrays[i]))
@@ -862,10 +915,16 @@ static int choose(const struct vti_doc *d, const char *var, int *out)
     if (strlen(a->name) >= sizeof ((struct tvpal_input_info *)0)->var)
         return tvpal_diag_set(d->diag, TVPAL_E_INVAL, "%s: array name %.40s... "
                               "is too long", d->path, a->name);
-    if (a->ncomp != 1)
+    if (a->ncomp != 1 && !magnitude)
         return tvpal_diag_set(d->diag, TVPAL_E_INVAL, "%s: array %s has %ld "
                               "components (NumberOfComponents); tvpal reads "
-                              "scalar arrays only", d->path, a->name, a->ncomp);
+                              "one value per point: --magnitude encodes the "
+                              "vector's length", d->path, a->name, a->ncomp);
+    if (a->ncomp > TVPAL_INPUT_COMPONENTS_MAX)
+        return tvpal_diag_set(d->diag, TVPAL_E_INVAL, "%s: array %s has %ld "
+                              "components (NumberOfComponents); --magnitude "
+                              "reads at most %d", d->path, a->name, a->ncomp,
+                              TVPAL_INPUT_COMPONENTS_MAX);
     if (a->t < 0)
         return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: array %s has type "
                               "%s (Float32/64, [U]Int8/16/32/64 are read)",
@@ -1006,9 +1065,57 @@ static void convert(const unsigned char *src, int t, int be, size_t n,
     }
 }
 
+/* The value of type t (byte order be) at src as a double: exact, but for
+ * 64-bit integers beyond 2^53. */
+static double value_f64(const unsigned char *src, int t, int be)
+{
+    const uint64_t u = load_uint(src, vti_types[t].size, be);
+    switch (t) {
+    case T_F32: {
+        const uint32_t u32 = (uint32_t)u;
+        float f;
+        memcpy(&f, &u32, 4);
+        return f;
+    }
+    case T_F64: {
+        double g;
+        memcpy(&g, &u, 8);
+        return g;
+    }
+    case T_I8: return (int8_t)(uint8_t)u;
+    case T_U8: return (uint8_t)u;
+    case T_I16: return (int16_t)(uint16_t)u;
+    case T_U16: return (uint16_t)u;
+    case T_I32: return (int32_t)(uint32_t)u;
+    case T_U32: return (uint32_t)u;
+    case T_I64: return (double)(int64_t)u;
+    default: return (double)u;
+    }
+}
+
+/* n points of ncomp values of type t each at src into dst: convert's
+ * values where ncomp is 1, else each point's length (tvpal_input_mag_add);
+ * src is not dst then. */
+static void convert_points(const unsigned char *src, int t, int be,
+                           long ncomp, size_t n, float *dst)
+{
+    if (ncomp == 1) {
+        convert(src, t, be, n, dst);
+        return;
+    }
+    const unsigned sz = vti_types[t].size;
+    for (size_t i = 0; i < n; i++) {
+        double sum = 0;
+        for (long c = 0; c < ncomp; c++, src += sz)
+            sum = tvpal_input_mag_add(sum, value_f64(src, t, be));
+        dst[i] = tvpal_input_mag_end(sum);
+    }
+}
+
 /* The values of an ascii array in order: all are parsed (so that a box
  * read finds the errors a whole read does), those of the box [lo, lo + n)
- * of the pdims grid go into dst at x + y * dy + z * dz. */
+ * of the pdims grid go into dst at x + y * dy + z * dz; of several
+ * components per point (a->ncomp), each point's length. */
 static int read_ascii(const struct vti_doc *d, const struct vti_array *a,
                       const uint32_t pdims[3], const uint32_t lo[3],
                       const uint32_t n[3], float *dst, size_t dy, size_t dz)
@@ -1016,10 +1123,12 @@ static int read_ascii(const struct vti_doc *d, const struct vti_array *a,
     struct src s;
     src_range(&s, d, a->text_begin, a->text_end, 0);
     int c = src_getc(&s);
-    const size_t nx = pdims[0], ny = pdims[1];
+    const size_t nx = pdims[0], ny = pdims[1], nc = (size_t)a->ncomp;
     const size_t npts = nx * ny * pdims[2], nrows = (size_t)n[1] * n[2];
+    const size_t nvals = npts * nc;   /* choose and open bound it */
     size_t i = 0, r = 0, x = 0;
-    size_t want = ((size_t)lo[2] * ny + lo[1]) * nx + lo[0];
+    size_t want = ((size_t)lo[2] * ny + lo[1]) * nx + lo[0];   /* a point */
+    double sum = 0;
     for (;; i++) {
         while (c == ' ' || c == '\t' || c == '\n' || c == '\r')
             c = src_getc(&s);
@@ -1033,13 +1142,16 @@ static int read_ascii(const struct vti_doc *d, const struct vti_array *a,
             c = src_getc(&s);
         }
         tok[k] = 0;
-        if (i >= npts)
+        if (i >= nvals)
             return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: ascii array %s "
                                   "has more than the %zu values of its extent",
-                                  d->path, a->name, npts);
+                                  d->path, a->name, nvals);
         char *e;
-        float f;
-        if (a->t == T_F32)
+        float f = 0;
+        double v = 0;
+        if (nc > 1)   /* a component, whole: float32 as stored */
+            v = a->t == T_F32 ? (double)strtof(tok, &e) : strtod(tok, &e);
+        else if (a->t == T_F32)
             f = strtof(tok, &e);
         else
             f = (float)strtod(tok, &e);
@@ -1047,8 +1159,16 @@ static int read_ascii(const struct vti_doc *d, const struct vti_array *a,
             return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: ascii array %s: "
                                   "value %zu is \"%.32s\", not a number",
                                   d->path, a->name, i + 1, tok);
-        if (r == nrows || i != want)
+        /* value i is component i % nc of point i / nc */
+        if (r == nrows || (nc > 1 ? i / nc : i) != want)
             continue;
+        if (nc > 1) {
+            const size_t comp = i % nc;
+            sum = tvpal_input_mag_add(comp ? sum : 0, v);
+            if (comp + 1 < nc)
+                continue;
+            f = tvpal_input_mag_end(sum);
+        }
         dst[(r % n[1]) * dy + (r / n[1]) * dz + x] = f;
         want++;
         if (++x < n[0])
@@ -1060,10 +1180,10 @@ static int read_ascii(const struct vti_doc *d, const struct vti_array *a,
     }
     if (s.err)
         return s.err;
-    if (i < npts)
+    if (i < nvals)
         return tvpal_diag_set(d->diag, TVPAL_E_FORMAT, "%s: ascii array %s has "
                               "%zu values; its extent needs %zu", d->path,
-                              a->name, i, npts);
+                              a->name, i, nvals);
     return 0;
 }
 
@@ -1333,43 +1453,21 @@ static int read_binary(const struct vti_doc *d, const struct vti_array *a,
     return rc;
 }
 
-/* Array a of the doc (a grid of dims) into dst. */
-static int decode(const struct vti_doc *d, const struct vti_array *a,
-                  const uint32_t dims[3], float *dst)
-{
-    const size_t n = (size_t)dims[0] * dims[1] * dims[2];
-    if (a->fmt == F_ASCII) {
-        const uint32_t lo[3] = {0, 0, 0};
-        return read_ascii(d, a, dims, lo, dims, dst, dims[0],
-                          (size_t)dims[0] * dims[1]);
-    }
-    unsigned sz = vti_types[a->t].size;
-    unsigned char *raw = sz == sizeof *dst ? (unsigned char *)dst
-                                           : malloc(n * sz);
-    if (!raw)
-        return TVPAL_E_NOMEM;
-    int rc = read_binary(d, a, (uint64_t)n * sz, raw);
-    if (rc == 0)
-        convert(raw, a->t, d->big_endian, n, dst);
-    if (raw != (unsigned char *)dst)
-        free(raw);
-    return rc;
-}
-
 /* ------------------------------------------------------------ box reads */
 
-/* The box [lo, lo + n) of a grid of dims values of sz bytes, row by row in
- * the order of the array's bytes: row r (y = r % n1, z = r / n1) of the
- * box, pos bytes of it done; a value cut by the end of a block waits in
- * carry. */
+/* The box [lo, lo + n) of a grid of dims points of sz bytes (ncomp values
+ * of type t each), row by row in the order of the array's bytes: row r (y
+ * = r % n1, z = r / n1) of the box, pos bytes of it done; a point cut by
+ * the end of a block waits in carry. */
 struct box_cur {
     const uint32_t *dims, *lo, *n;
     unsigned sz;
     int t, be;
+    long ncomp;
     float *dst;
     size_t dy, dz;
     uint64_t r, nrows, pos;
-    unsigned char carry[8];
+    unsigned char carry[8 * TVPAL_INPUT_COMPONENTS_MAX];
     unsigned ncarry;
 };
 
@@ -1406,12 +1504,12 @@ static void cur_feed(struct box_cur *c, const unsigned char *p, uint64_t at,
             q += take;
             left -= take;
             if (c->ncarry == c->sz) {
-                convert(c->carry, c->t, c->be, 1, row + v++);
+                convert_points(c->carry, c->t, c->be, c->ncomp, 1, row + v++);
                 c->ncarry = 0;
             }
         }
         size_t whole = (size_t)(left / c->sz);
-        convert(q, c->t, c->be, whole, row + v);
+        convert_points(q, c->t, c->be, c->ncomp, whole, row + v);
         q += whole * c->sz;
         left -= whole * c->sz;
         if (left) {
@@ -1428,13 +1526,14 @@ static void cur_feed(struct box_cur *c, const unsigned char *p, uint64_t at,
 
 struct conv_ctx {
     int t, be;
+    long ncomp;
 };
 
 static void conv_box(const unsigned char *src, size_t count, float *dst,
                      const void *ctx)
 {
     const struct conv_ctx *c = ctx;
-    convert(src, c->t, c->be, count, dst);
+    convert_points(src, c->t, c->be, c->ncomp, count, dst);
 }
 
 static int host_big_endian(void)
@@ -1460,7 +1559,9 @@ static int grow(unsigned char **buf, size_t *cap, size_t len)
 /* The box [lo, lo + n) of array a (a grid of pdims) into dst at x + y * dy
  * + z * dz: raw appended values by pread (their rows only), zlib blocks
  * that meet the box only (one block of scratch at a time), base64 decoded
- * in order up to the box's end, 64 KiB at a time, ascii parsed. */
+ * in order up to the box's end, 64 KiB at a time, ascii parsed.  A point
+ * of several components (its bytes together) is read whole and taken as
+ * its length. */
 static int decode_box(struct tvpal_input_file *f, const struct vti_doc *d,
                       const struct vti_array *a, const uint32_t pdims[3],
                       const uint32_t lo[3], const uint32_t n[3], float *dst,
@@ -1468,7 +1569,7 @@ static int decode_box(struct tvpal_input_file *f, const struct vti_doc *d,
 {
     if (a->fmt == F_ASCII)
         return read_ascii(d, a, pdims, lo, n, dst, dy, dz);
-    const unsigned sz = vti_types[a->t].size;
+    const unsigned sz = point_size(a);
     const uint64_t nbytes = (uint64_t)pdims[0] * pdims[1] * pdims[2] * sz;
     char what[160];
     snprintf(what, sizeof what, "array %s", a->name);
@@ -1476,14 +1577,14 @@ static int decode_box(struct tvpal_input_file *f, const struct vti_doc *d,
     int rc = src_open(d, a, &s);
     if (rc < 0)
         return rc;
-    struct box_cur c = {pdims, lo, n, sz, a->t, d->big_endian, dst, dy, dz,
-                        0, (uint64_t)n[1] * n[2], 0, {0}, 0};
+    struct box_cur c = {pdims, lo, n, sz, a->t, d->big_endian, a->ncomp, dst,
+                        dy, dz, 0, (uint64_t)n[1] * n[2], 0, {0}, 0};
     const int fd = d->fd;
     if (!d->compressor[0]) {
         rc = plain_header(d, a, &s, nbytes);
         if (rc == 0 && !s.b64) {
-            const struct conv_ctx cc = {a->t, d->big_endian};
-            const int direct = a->t == T_F32 &&
+            const struct conv_ctx cc = {a->t, d->big_endian, a->ncomp};
+            const int direct = a->t == T_F32 && a->ncomp == 1 &&
                                d->big_endian == host_big_endian();
             rc = tvpal_input_box_pread(fd, src_pos(&s), pdims, sz,
                                        lo, n, dst, dy, dz,
@@ -1550,6 +1651,31 @@ static int decode_box(struct tvpal_input_file *f, const struct vti_doc *d,
     return rc;
 }
 
+/* Array a of the doc (a grid of dims) into dst.  One of several
+ * components per point is read as a box of the whole grid (decode_box:
+ * its scratch, not a step of stored values). */
+static int decode(struct tvpal_input_file *f, const struct vti_doc *d,
+                  const struct vti_array *a, const uint32_t dims[3],
+                  float *dst)
+{
+    const size_t n = (size_t)dims[0] * dims[1] * dims[2];
+    const uint32_t lo[3] = {0, 0, 0};
+    if (a->fmt == F_ASCII || a->ncomp > 1)
+        return decode_box(f, d, a, dims, lo, dims, dst, dims[0],
+                          (size_t)dims[0] * dims[1]);
+    unsigned sz = vti_types[a->t].size;
+    unsigned char *raw = sz == sizeof *dst ? (unsigned char *)dst
+                                           : malloc(n * sz);
+    if (!raw)
+        return TVPAL_E_NOMEM;
+    int rc = read_binary(d, a, (uint64_t)n * sz, raw);
+    if (rc == 0)
+        convert(raw, a->t, d->big_endian, n, dst);
+    if (raw != (unsigned char *)dst)
+        free(raw);
+    return rc;
+}
+
 /* What array a of d holds, for box_scratch (the most over the pieces). */
 static void note_layout(struct tvpal_input_file *f, const struct vti_doc *d,
                         const struct vti_array *a, uint64_t nbytes)
@@ -1612,11 +1738,14 @@ static const uint32_t *piece_dims(const long long *e, uint32_t *dims)
 }
 
 /* Loads piece p of the .pvti ppath into *d and chooses array var in it:
- * one Piece of extent p->ext holding var as type t. */
-static int piece_load(struct vti_doc *d, const char *ppath,
-                      const struct vti_piece *p, const char *var, int t,
-                      int *pick, struct tvpal_diag *diag)
+ * one Piece of extent p->ext holding var as type t with ncomp components
+ * (f's). */
+static int piece_load(struct vti_doc *d, const struct tvpal_input_file *f,
+                      const struct vti_piece *p, int *pick,
+                      struct tvpal_diag *diag)
 {
+    const char *ppath = f->path, *var = f->var;
+    const int t = f->t;
     int rc = load(d, p->source, diag);
     if (rc == 0 && d->parallel)
         rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: a piece that is a "
@@ -1632,16 +1761,21 @@ static int piece_load(struct vti_doc *d, const char *ppath,
                             "%lld %lld %lld %lld", p->source, e[0], e[1], e[2],
                             e[3], e[4], e[5], p->ext[0], p->ext[1], p->ext[2],
                             p->ext[3], p->ext[4], p->ext[5]);
+    /* any count of components here: it must be the .pvti's */
     if (rc == 0)
-        rc = choose(d, var, pick);
+        rc = choose(d, var, 1, pick);
     if (rc == 0 && d->arrays[*pick].t != t)
         rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: array %s is %s; the "
                             ".pvti says %s", p->source, var,
                             d->arrays[*pick].type, vti_types[t].name);
+    if (rc == 0 && d->arrays[*pick].ncomp != f->ncomp)
+        rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: array %s has %ld "
+                            "components; the .pvti says %ld", p->source, var,
+                            d->arrays[*pick].ncomp, f->ncomp);
     if (rc == 0 && d->arrays[*pick].fmt != F_ASCII)
         rc = read_binary(d, &d->arrays[*pick],
-                         (uint64_t)ext_points(p->ext) * vti_types[t].size,
-                         NULL);
+                         (uint64_t)ext_points(p->ext) *
+                             point_size(&d->arrays[*pick]), NULL);
     if (rc < 0)
         diag_note(diag, "a piece of", ppath);
     return rc;
@@ -1770,11 +1904,11 @@ static int pieces_open(struct tvpal_input_file *f, struct vti_doc *d,
     for (int i = 0; i < f->npcs; i++) {
         struct vti_doc pd;
         int pick = -1;
-        rc = piece_load(&pd, d->path, &f->pcs[i], f->var, f->t, &pick, diag);
+        rc = piece_load(&pd, f, &f->pcs[i], &pick, diag);
         if (rc == 0)
             note_layout(f, &pd, &pd.arrays[pick],
                         (uint64_t)ext_points(f->pcs[i].ext) *
-                            vti_types[f->t].size);
+                            point_size(&pd.arrays[pick]));
         doc_free(&pd);
         if (rc < 0)
             return rc;
@@ -1797,11 +1931,11 @@ static int pieces_read(struct tvpal_input_file *f, float *dst,
         int pick = -1;
         const long long *e = f->pcs[i].ext;
         uint32_t pdims[3];
-        int rc = piece_load(&d, f->path, &f->pcs[i], f->var, f->t, &pick,
-                            diag);
+        int rc = piece_load(&d, f, &f->pcs[i], &pick, diag);
         d.pool = f->pool;
         if (rc == 0)
-            rc = decode(&d, &d.arrays[pick], piece_dims(e, pdims), f->scratch);
+            rc = decode(f, &d, &d.arrays[pick], piece_dims(e, pdims),
+                        f->scratch);
         doc_free(&d);
         if (rc < 0)
             return rc;
@@ -1845,8 +1979,7 @@ static int pieces_read_box(struct tvpal_input_file *f, const uint32_t lo[3],
             continue;
         struct vti_doc d;
         int pick = -1;
-        int rc = piece_load(&d, f->path, &f->pcs[i], f->var, f->t, &pick,
-                            diag);
+        int rc = piece_load(&d, f, &f->pcs[i], &pick, diag);
         d.pool = f->pool;
         float *at = dst + (b[0] - lo[0]) +
                     ((size_t)(b[2] - lo[2]) * n[1] + (b[1] - lo[1])) * n[0];
@@ -1945,11 +2078,18 @@ static int vti_open(struct tvpal_input_file **out, const char *path,
     if (rc == 0)
         rc = grid(&d, info);
     if (rc == 0)
-        rc = choose(&d, opts->var, &pick);
-    size_t n = (size_t)info->dims[0] * info->dims[1] * info->dims[2];
+        rc = choose(&d, opts->var, opts->magnitude, &pick);
+    size_t n = 0;
+    if (rc == 0 && tvpal_points(info->dims, point_size(&d.arrays[pick]),
+                                &n) < 0)
+        rc = tvpal_diag_set(diag, TVPAL_E_OVERFLOW, "%s: array %s: %ux%ux%u "
+                            "points of %ld components: more than can be "
+                            "addressed", path, d.arrays[pick].name,
+                            info->dims[0], info->dims[1], info->dims[2],
+                            d.arrays[pick].ncomp);
     if (rc == 0 && !d.parallel && d.arrays[pick].fmt != F_ASCII)
         rc = read_binary(&d, &d.arrays[pick],
-                         (uint64_t)n * vti_types[d.arrays[pick].t].size, NULL);
+                         (uint64_t)n * point_size(&d.arrays[pick]), NULL);
     double tv = 0;
     int has_tv = rc == 0 && !d.parallel ? field_time(&d, &tv) : 0;
     if (has_tv < 0)
@@ -1967,15 +2107,17 @@ static int vti_open(struct tvpal_input_file **out, const char *path,
         const struct vti_array *a = &d.arrays[pick];
         snprintf(info->var, sizeof info->var, "%s", a->name);
         info->type = vti_types[a->t].as;
+        info->components = (uint32_t)a->ncomp;
         info->steps = 1;
         memcpy(f->var, info->var, sizeof f->var);
         memcpy(f->dims, info->dims, sizeof f->dims);
         f->t = a->t;
+        f->ncomp = a->ncomp;
         f->pool = opts->pool;
         if (d.parallel)
             rc = pieces_open(f, &d, diag);
         else
-            note_layout(f, &d, a, (uint64_t)n * vti_types[a->t].size);
+            note_layout(f, &d, a, (uint64_t)n * point_size(a));
     }
     if (rc == 0) {
         *out = f;
@@ -1986,7 +2128,8 @@ static int vti_open(struct tvpal_input_file **out, const char *path,
     return rc;
 }
 
-/* This file again, checked against what open found. */
+/* This file again, checked against what open found (the array's type
+ * and components too). */
 static int reload(struct tvpal_input_file *f, struct vti_doc *d, int *pick,
                   struct tvpal_diag *diag)
 {
@@ -1996,9 +2139,10 @@ static int reload(struct tvpal_input_file *f, struct vti_doc *d, int *pick,
     if (rc == 0)
         rc = grid(d, &info);
     if (rc == 0)
-        rc = choose(d, f->var, pick);
+        rc = choose(d, f->var, 1, pick);   /* components compared below */
     if (rc == 0 && (memcmp(info.dims, f->dims, sizeof f->dims) ||
-                    d->arrays[*pick].t != f->t))
+                    d->arrays[*pick].t != f->t ||
+                    d->arrays[*pick].ncomp != f->ncomp))
         rc = tvpal_diag_set(diag, TVPAL_E_MISMATCH, "%s: changed since it was "
                             "opened (array %s)", f->path, f->var);
     return rc;
@@ -2016,7 +2160,7 @@ static int vti_read(struct tvpal_input_file *f, uint32_t k, float *dst,
     int pick = -1;
     int rc = reload(f, &d, &pick, diag);
     if (rc == 0)
-        rc = decode(&d, &d.arrays[pick], f->dims, dst);
+        rc = decode(f, &d, &d.arrays[pick], f->dims, dst);
     doc_free(&d);
     return rc;
 }
@@ -2043,13 +2187,14 @@ static int vti_read_box(struct tvpal_input_file *f, uint32_t k,
 static uint64_t vti_box_scratch(const struct tvpal_input_file *f,
                                 const uint32_t n[3])
 {
-    const unsigned sz = vti_types[f->t].size;
+    const unsigned sz = vti_types[f->t].size * (unsigned)f->ncomp;
     uint64_t bytes = f->blk_max + f->cmax_max + f->nb_max * sizeof(uint64_t);
     if (f->has_b64)
         bytes += B64_PIECE;
     if (f->has_raw)
         bytes += tvpal_input_box_pread_scratch(
-            f->dims, sz, n, f->t == T_F32 && !host_big_endian());
+            f->dims, sz, n,
+            f->t == T_F32 && f->ncomp == 1 && !host_big_endian());
     return bytes;
 }
 
@@ -2338,7 +2483,7 @@ static int describe_file(const char *path, char **text,
     }
     size_t cap = 1024;
     for (int i = 0; i < d.narrays; i++)
-        cap += strlen(d.arrays[i].name) + sizeof d.arrays[i].type + 64;
+        cap += strlen(d.arrays[i].name) + sizeof d.arrays[i].type + 96;
     for (int i = 0; i < d.npcs; i++)
         cap += strlen(d.pcs[i].source) + 160;
     char *t = malloc(cap);
@@ -2374,9 +2519,11 @@ static int describe_file(const char *path, char **text,
     for (int i = 0; i < d.narrays; i++) {
         const struct vti_array *a = &d.arrays[i];
         int active = !a->cell && d.scalars && !strcmp(d.scalars, a->name);
-        n += (size_t)snprintf(t + n, cap - n, "%s %s components=%ld%s%s\n",
+        int vectors = !a->cell && d.vectors && !strcmp(d.vectors, a->name);
+        n += (size_t)snprintf(t + n, cap - n, "%s %s components=%ld%s%s%s\n",
                               a->name, a->type, a->ncomp,
                               active ? " [active scalars]" : "",
+                              vectors ? " [active vectors]" : "",
                               a->cell ? " [cell data]" : "");
     }
     doc_free(&d);

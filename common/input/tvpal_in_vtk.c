@@ -7,21 +7,29 @@
  * white-space separated keywords (case-insensitive): DIMENSIONS nx ny nz,
  * SPACING (or ASPECT_RATIO) and ORIGIN, POINT_DATA n / CELL_DATA n, and
  * their attributes: SCALARS name type [ncomp] followed by LOOKUP_TABLE
- * name, then the values.  BINARY values are big-endian and start after
- * the newline that ends the line before them.  Attributes not read
- * (VECTORS, NORMALS, TENSORS, TEXTURE_COORDINATES, COLOR_SCALARS,
- * LOOKUP_TABLE, FIELD, METADATA) are skipped by their sizes, so that every
- * SCALARS array of the file can be chosen (--var; default the first point
- * SCALARS, VTK's active scalars).
+ * name, then the values; VECTORS, NORMALS (3 components), TENSORS (9),
+ * TEXTURE_COORDINATES name dim type; FIELD name n, then n arrays "name
+ * ncomp ntuples type" with their values, each maybe followed by its
+ * METADATA (where VTK's writer puts every point array but the active
+ * attributes).  BINARY values are big-endian and start after the newline
+ * that ends the line before them.  Every attribute is skipped by its size
+ * while the header is scanned, so that every point array of the file can
+ * be chosen (--var; default the first point SCALARS, VTK's active
+ * scalars, else the first point VECTORS); one of several components per
+ * point is read as its length (magnitude, tvpal_input_opts), else refused
+ * naming it.  COLOR_SCALARS, LOOKUP_TABLE, METADATA and the dataset's own
+ * FIELD are never variables.
  *
  * open scans the whole header (ASCII: the numbers too, to find the arrays
  * after the first); read seeks to the chosen array and converts one step
  * through a fixed buffer.  read_box: BINARY preads the box's rows
  * (tvpal_input_box_pread: whole runs, or batches of short rows, at most 4
- * MiB of scratch kept between calls); ASCII parses the values in order up
- * to the box's last one, converting those in the box (no scratch).  Errors are TVPAL_E_FORMAT for a file that is
- * not a readable STRUCTURED_POINTS file, with the path, the line and the
- * problem in the diag; TVPAL_E_INVAL for an array that cannot be chosen. */
+ * MiB of scratch kept between calls; a point's components are one value
+ * of their bytes there); ASCII parses the values in order up to the box's
+ * last one, converting those in the box (no scratch).  Errors are
+ * TVPAL_E_FORMAT for a file that is not a readable STRUCTURED_POINTS file,
+ * with the path, the line and the problem in the diag; TVPAL_E_INVAL for
+ * an array that cannot be chosen. */
 #include "tvpal_input_impl.h"
 #include "tvpal_fs.h"
 #include "tvpal_size.h"
@@ -53,7 +61,8 @@ static const struct vtk_type {
 #define NTYPES (int)(sizeof vtk_types / sizeof *vtk_types)
 
 struct vtk_array {
-    char kind[24];              /* SCALARS, VECTORS, ... */
+    char kind[24];              /* SCALARS, VECTORS, ..., FIELD (an array
+                                 * of a POINT_DATA or CELL_DATA FIELD) */
     char name[128];
     char type[64];
     int t;                      /* vtk_types index, or -1 */
@@ -80,8 +89,11 @@ struct vtk_hdr {
 struct tvpal_input_file {
     char *path;
     char var[TVPAL_INPUT_VAR_MAX];
+    char kind[24];              /* the array's kind, for messages */
     uint32_t dims[3];
     int t, binary;
+    long ncomp;                 /* components per point (several:
+                                 * magnitude) */
     long long offset;
     struct tvpal_box_io io;     /* box reads of BINARY values */
 };
@@ -218,8 +230,11 @@ static struct vtk_array *add_array(struct vtk_hdr *h)
     return a;
 }
 
-/* One attribute of a POINT_DATA (cell 0) or CELL_DATA section of count
- * tuples, its keyword kw read. */
+/* One attribute of a POINT_DATA (cell 0) or CELL_DATA (cell 1) section of
+ * count tuples, its keyword kw read; cell -1: the dataset's own FIELD or
+ * METADATA before them (never a variable).  The arrays of a section's
+ * FIELD with count tuples are arrays of the section, as VTK's writer puts
+ * every point array but the active attributes there. */
 static int attribute(struct vtk_hdr *h, const char *kw, uint64_t count,
                      int cell)
 {
@@ -246,6 +261,14 @@ static int attribute(struct vtk_hdr *h, const char *kw, uint64_t count,
                 return rc;
             if (!strcasecmp(name, "NULL_ARRAY"))
                 continue;
+            if (!strcasecmp(name, "METADATA")) {
+                /* the array before's (its COMPONENT_NAMES, as VTK 9
+                 * writes them): not an array */
+                if ((rc = attribute(h, name, 1, -1)) < 0)
+                    return rc;
+                i--;
+                continue;
+            }
             if ((rc = want_long(h, &nc, "the FIELD array's components")) < 0 ||
                 (rc = want_long(h, &nt, "the FIELD array's tuples")) < 0 ||
                 (rc = want_word(h, type, sizeof type, "its type")) < 0)
@@ -253,6 +276,18 @@ static int attribute(struct vtk_hdr *h, const char *kw, uint64_t count,
             int t = type_of(type);
             if (h->binary)
                 end_line(h);
+            if (cell >= 0 && (uint64_t)nt == count && nc > 0) {
+                struct vtk_array *a = add_array(h);
+                if (!a)
+                    return TVPAL_E_NOMEM;
+                snprintf(a->kind, sizeof a->kind, "FIELD");
+                snprintf(a->name, sizeof a->name, "%s", name);
+                snprintf(a->type, sizeof a->type, "%s", type);
+                a->t = t;
+                a->ncomp = (long)nc;
+                a->cell = cell;
+                a->offset = ftello(h->fp);
+            }
             if ((rc = skip_values(h, name, (uint64_t)nc * (uint64_t)nt, t)) < 0)
                 return rc;
         }
@@ -474,10 +509,10 @@ static int scan(struct vtk_hdr *h, const char *path, struct tvpal_diag *diag)
             count = (uint64_t)v[0];
             section = cell;
         } else if (section < 0 && !strcasecmp(w, "FIELD")) {
-            if ((rc = attribute(h, w, 1, 0)) < 0)   /* the dataset's field */
+            if ((rc = attribute(h, w, 1, -1)) < 0)   /* the dataset's field */
                 return rc;
         } else if (section < 0 && !strcasecmp(w, "METADATA")) {
-            if ((rc = attribute(h, w, 1, 0)) < 0)
+            if ((rc = attribute(h, w, 1, -1)) < 0)
                 return rc;
         } else if (section < 0) {
             return bad(h, TVPAL_E_FORMAT, "unknown keyword \"%s\" in the "
@@ -499,49 +534,91 @@ static int scan(struct vtk_hdr *h, const char *path, struct tvpal_diag *diag)
     return 0;
 }
 
-/* The SCALARS array var (NULL: the first point SCALARS, VTK's active
- * scalars), checked for reading. */
-static int choose(const struct vtk_hdr *h, const char *var, int *out)
+/* "a, vel (VECTORS), b" of the point arrays into names (cap bytes). */
+static void list_points(const struct vtk_hdr *h, char *names, size_t cap)
 {
-    char names[160];
     size_t k = 0;
-    int pick = -1;
     names[0] = 0;
-    for (int i = 0; i < h->n; i++) {
+    for (int i = 0; i < h->n && k < cap; i++) {
         const struct vtk_array *a = &h->arrays[i];
-        if (a->cell || strcmp(a->kind, "SCALARS"))
+        if (a->cell)
             continue;
-        if (k < sizeof names)
-            k += (size_t)snprintf(names + k, sizeof names - k, "%s%s",
-                                  k ? ", " : "", a->name);
-        if (pick < 0 && (!var || !strcmp(a->name, var)))
-            pick = i;
+        const int scalars = !strcmp(a->kind, "SCALARS");
+        int m = snprintf(names + k, cap - k, "%s%s%s%s%s", k ? ", " : "",
+                         a->name, scalars ? "" : " (", scalars ? "" : a->kind,
+                         scalars ? "" : ")");
+        k += m > 0 ? (size_t)m : 0;
     }
     if (!names[0])
-        snprintf(names, sizeof names, "none");
+        snprintf(names, cap, "none");
+}
+
+/* The first point array named var of kind (NULL: any kind), or -1. */
+static int find_point(const struct vtk_hdr *h, const char *var,
+                      const char *kind)
+{
+    for (int i = 0; i < h->n; i++) {
+        const struct vtk_array *a = &h->arrays[i];
+        if (!a->cell && (!var || !strcmp(a->name, var)) &&
+            (!kind || !strcmp(a->kind, kind)))
+            return i;
+    }
+    return -1;
+}
+
+/* The point array var (NULL: the first point SCALARS, VTK's active
+ * scalars, or where there are none the first point VECTORS), checked for
+ * reading: a SCALARS of that name before any other array (VECTORS,
+ * NORMALS, TENSORS, TEXTURE_COORDINATES, a FIELD array); one component, or
+ * with magnitude up to TVPAL_INPUT_COMPONENTS_MAX. */
+static int choose(const struct vtk_hdr *h, const char *var, int magnitude,
+                  int *out)
+{
+    char names[160];
+    list_points(h, names, sizeof names);
+    int pick = find_point(h, var, "SCALARS");
+    if (pick < 0)
+        pick = find_point(h, var, var ? NULL : "VECTORS");
     if (pick < 0 && var)
         for (int i = 0; i < h->n; i++)
             if (!strcmp(h->arrays[i].name, var))
-                return tvpal_diag_set(h->diag, TVPAL_E_INVAL, "%s: %s is %s "
-                                      "%s; tvpal reads point SCALARS (point "
-                                      "SCALARS: %s)", h->path, var,
-                                      h->arrays[i].cell ? "cell" : "point",
+                return tvpal_diag_set(h->diag, TVPAL_E_INVAL, "%s: %s is "
+                                      "cell %s; tvpal reads point arrays "
+                                      "(point arrays: %s)", h->path, var,
                                       h->arrays[i].kind, names);
     if (pick < 0)
         return tvpal_diag_set(h->diag, TVPAL_E_INVAL, var ? "%s: no point "
-                              "SCALARS %s (point SCALARS: %s)" : "%s: no point "
-                              "SCALARS to read%s (point SCALARS: %s)", h->path,
+                              "array %s (point arrays: %s)" : "%s: no point "
+                              "SCALARS or VECTORS to read%s (point arrays: "
+                              "%s; --var chooses one)", h->path,
                               var ? var : "", names);
     const struct vtk_array *a = &h->arrays[pick];
-    if (a->ncomp != 1)
-        return tvpal_diag_set(h->diag, TVPAL_E_INVAL, "%s: SCALARS %s has %ld "
-                              "components; tvpal reads scalar arrays only",
-                              h->path, a->name, a->ncomp);
+    if (a->ncomp < 1)
+        return tvpal_diag_set(h->diag, TVPAL_E_FORMAT, "%s: %s %s has %ld "
+                              "components", h->path, a->kind, a->name,
+                              a->ncomp);
+    if (a->ncomp > 1 && !magnitude)
+        return tvpal_diag_set(h->diag, TVPAL_E_INVAL, "%s: %s %s has %ld "
+                              "components; tvpal reads one value per point: "
+                              "--magnitude encodes the vector's length",
+                              h->path, a->kind, a->name, a->ncomp);
+    if (a->ncomp > TVPAL_INPUT_COMPONENTS_MAX)
+        return tvpal_diag_set(h->diag, TVPAL_E_INVAL, "%s: %s %s has %ld "
+                              "components; --magnitude reads at most %d",
+                              h->path, a->kind, a->name, a->ncomp,
+                              TVPAL_INPUT_COMPONENTS_MAX);
     if (a->t < 0)
-        return tvpal_diag_set(h->diag, TVPAL_E_FORMAT, "%s: SCALARS %s has "
+        return tvpal_diag_set(h->diag, TVPAL_E_FORMAT, "%s: %s %s has "
                               "type %s (float, double, [unsigned_]char, "
-                              "short, int, long are read)", h->path, a->name,
-                              a->type);
+                              "short, int, long are read)", h->path, a->kind,
+                              a->name, a->type);
+    size_t n;
+    if (tvpal_points(h->dims, (uint64_t)vtk_types[a->t].size *
+                                  (uint64_t)a->ncomp, &n) < 0)
+        return tvpal_diag_set(h->diag, TVPAL_E_OVERFLOW, "%s: %s %s: %ux%ux%u "
+                              "points of %ld components: more than can be "
+                              "addressed", h->path, a->kind, a->name,
+                              h->dims[0], h->dims[1], h->dims[2], a->ncomp);
     *out = pick;
     return 0;
 }
@@ -557,7 +634,7 @@ static int vtk_open(struct tvpal_input_file **out, const char *path,
     int pick = -1;
     int rc = scan(&h, path, diag);
     if (rc == 0)
-        rc = choose(&h, opts->var, &pick);
+        rc = choose(&h, opts->var, opts->magnitude, &pick);
     if (rc == 0 && strlen(h.arrays[pick].name) >= sizeof info->var)
         rc = tvpal_diag_set(diag, TVPAL_E_RANGE, "%s: array name of %zu "
                             "characters (at most %zu are read)", path,
@@ -572,10 +649,13 @@ static int vtk_open(struct tvpal_input_file **out, const char *path,
         memcpy(info->origin, h.origin, sizeof info->origin);
         snprintf(info->var, sizeof info->var, "%s", a->name);
         info->type = vtk_types[a->t].as;
+        info->components = (uint32_t)a->ncomp;
         info->steps = 1;
         memcpy(f->var, info->var, sizeof f->var);
+        memcpy(f->kind, a->kind, sizeof f->kind);
         memcpy(f->dims, h.dims, sizeof f->dims);
         f->t = a->t;
+        f->ncomp = a->ncomp;
         f->binary = h.binary;
         f->offset = a->offset;
         *out = f;
@@ -586,6 +666,32 @@ static int vtk_open(struct tvpal_input_file **out, const char *path,
     free(f);
     hdr_free(&h);
     return rc;
+}
+
+/* The value of type t, big-endian, at src as a double: exact, but for
+ * 64-bit integers beyond 2^53. */
+static double value_be(const unsigned char *src, int t)
+{
+    const struct vtk_type *ty = &vtk_types[t];
+    uint64_t u = 0;
+    for (unsigned b = 0; b < ty->size; b++)
+        u = u << 8 | src[b];
+    if (ty->is_float && ty->size == 4) {
+        const uint32_t u32 = (uint32_t)u;
+        float f;
+        memcpy(&f, &u32, 4);
+        return f;
+    }
+    if (ty->is_float) {
+        double g;
+        memcpy(&g, &u, 8);
+        return g;
+    }
+    if (ty->is_signed) {   /* sign-extend from size bytes */
+        const unsigned sh = 64 - 8 * ty->size;
+        return (double)((int64_t)(u << sh) >> sh);
+    }
+    return (double)u;
 }
 
 /* n values of type t, big-endian, at src into dst. */
@@ -614,6 +720,64 @@ static void convert_be(const unsigned char *src, int t, size_t n, float *dst)
     }
 }
 
+/* n points of ncomp values of type t each, big-endian, at src into dst:
+ * convert_be's values where ncomp is 1, else each point's length
+ * (tvpal_input_mag_add). */
+static void convert_points(const unsigned char *src, int t, long ncomp,
+                           size_t n, float *dst)
+{
+    if (ncomp == 1) {
+        convert_be(src, t, n, dst);
+        return;
+    }
+    const unsigned sz = vtk_types[t].size;
+    for (size_t i = 0; i < n; i++) {
+        double sum = 0;
+        for (long c = 0; c < ncomp; c++, src += sz)
+            sum = tvpal_input_mag_add(sum, value_be(src, t));
+        dst[i] = tvpal_input_mag_end(sum);
+    }
+}
+
+/* The next ASCII value of f's array (a word of h) into *v: float32 values
+ * as strtof reads them, the others as strtod; i is its index, for the
+ * message.  0, or TVPAL_E_FORMAT (the file ends: total values expected;
+ * not a number). */
+static int ascii_value(const struct tvpal_input_file *f, struct vtk_hdr *h,
+                       size_t i, size_t total, double *v)
+{
+    char w[64], *e;
+    if (word(h, w, sizeof w) < 0)
+        return tvpal_diag_set(h->diag, TVPAL_E_FORMAT, "%s: %s %s: the "
+                              "file ends after %zu of %zu values", f->path,
+                              f->kind, f->var, i, total);
+    *v = vtk_types[f->t].size == 4 && vtk_types[f->t].is_float
+             ? (double)strtof(w, &e) : strtod(w, &e);
+    if (e == w || *e)
+        return tvpal_diag_set(h->diag, TVPAL_E_FORMAT, "%s: %s %s: value "
+                              "%zu is \"%.32s\", not a number", f->path,
+                              f->kind, f->var, i + 1, w);
+    return 0;
+}
+
+/* The next ASCII point of f's array into *out: its value (float32 as
+ * read: a double of float32's value or strtod's rounded once), or the
+ * length of its f->ncomp components; *i counts the values read. */
+static int ascii_point(const struct tvpal_input_file *f, struct vtk_hdr *h,
+                       size_t *i, size_t total, float *out)
+{
+    double sum = 0, v = 0;
+    for (long c = 0; c < f->ncomp; c++) {
+        int rc = ascii_value(f, h, (*i)++, total, &v);
+        if (rc < 0)
+            return rc;
+        if (f->ncomp > 1)
+            sum = tvpal_input_mag_add(sum, v);
+    }
+    *out = f->ncomp > 1 ? tvpal_input_mag_end(sum) : (float)v;
+    return 0;
+}
+
 static int vtk_read(struct tvpal_input_file *f, uint32_t k, float *dst,
                     struct tvpal_diag *diag)
 {
@@ -630,36 +794,25 @@ static int vtk_read(struct tvpal_input_file *f, uint32_t k, float *dst,
         rc = tvpal_diag_set(diag, TVPAL_E_READ, "%s: seek: %s", f->path,
                             strerror(errno));
     if (rc == 0 && f->binary) {
+        /* whole points: at most 2 KiB each (choose), 32 a buffer */
         unsigned char buf[1 << 16];
-        const unsigned sz = vtk_types[f->t].size;
-        const size_t per = sizeof buf / sz;
+        const size_t psz = vtk_types[f->t].size * (size_t)f->ncomp;
+        const size_t per = sizeof buf / psz;
         for (size_t i = 0; rc == 0 && i < n; i += per) {
             size_t want = n - i < per ? n - i : per;
-            if (fread(buf, sz, want, fp) != want)
-                rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: SCALARS %s: "
+            if (fread(buf, psz, want, fp) != want)
+                rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: %s %s: "
                                     "the file ends within its values "
                                     "(changed since it was opened?)",
-                                    f->path, f->var);
+                                    f->path, f->kind, f->var);
             else
-                convert_be(buf, f->t, want, dst + i);
+                convert_points(buf, f->t, f->ncomp, want, dst + i);
         }
     }
     struct vtk_hdr h = {.path = f->path, .diag = diag, .fp = fp, .line = 0};
-    for (size_t i = 0; rc == 0 && !f->binary && i < n; i++) {
-        char w[64], *e;
-        if (word(&h, w, sizeof w) < 0) {
-            rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: SCALARS %s: the "
-                                "file ends after %zu of %zu values", f->path,
-                                f->var, i, n);
-            break;
-        }
-        dst[i] = vtk_types[f->t].size == 4 && vtk_types[f->t].is_float
-                     ? strtof(w, &e) : (float)strtod(w, &e);
-        if (e == w || *e)
-            rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: SCALARS %s: value "
-                                "%zu is \"%.32s\", not a number", f->path,
-                                f->var, i + 1, w);
-    }
+    const size_t total = n * (size_t)f->ncomp;
+    for (size_t p = 0, i = 0; rc == 0 && !f->binary && p < n; p++)
+        rc = ascii_point(f, &h, &i, total, dst + p);
     fclose(fp);
     return rc;
 }
@@ -667,7 +820,8 @@ static int vtk_read(struct tvpal_input_file *f, uint32_t k, float *dst,
 static void conv_box(const unsigned char *src, size_t count, float *dst,
                      const void *ctx)
 {
-    convert_be(src, *(const int *)ctx, count, dst);
+    const struct tvpal_input_file *f = ctx;
+    convert_points(src, f->t, f->ncomp, count, dst);
 }
 
 static int vtk_read_box(struct tvpal_input_file *f, uint32_t k,
@@ -678,16 +832,19 @@ static int vtk_read_box(struct tvpal_input_file *f, uint32_t k,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "%s: step %u of a file "
                               "that holds one", f->path, k);
     char what[160];
-    snprintf(what, sizeof what, "SCALARS %.140s", f->var);
+    snprintf(what, sizeof what, "%s %.130s", f->kind, f->var);
     if (f->binary) {
         int fd = open(f->path, O_RDONLY);
         if (fd < 0)
             return tvpal_diag_set(diag, TVPAL_E_OPEN, "%s: %s", f->path,
                                   strerror(errno));
+        /* a point's components together, as one value of their bytes */
         int rc = tvpal_input_box_pread(fd, (uint64_t)f->offset, f->dims,
-                                       vtk_types[f->t].size, lo, n, dst, n[0],
-                                       (size_t)n[0] * n[1], conv_box, &f->t,
-                                       &f->io, f->path, what, diag);
+                                       vtk_types[f->t].size *
+                                           (unsigned)f->ncomp,
+                                       lo, n, dst, n[0], (size_t)n[0] * n[1],
+                                       conv_box, f, &f->io, f->path, what,
+                                       diag);
         close(fd);
         return rc;
     }
@@ -699,33 +856,30 @@ static int vtk_read_box(struct tvpal_input_file *f, uint32_t k,
     if (fseeko(fp, f->offset, SEEK_SET) < 0)
         rc = tvpal_diag_set(diag, TVPAL_E_READ, "%s: seek: %s", f->path,
                             strerror(errno));
-    /* The values in file order up to the box's last: row r of the box
-     * (y = r % n1, z = r / n1) starts at value `want`. */
+    /* The points in file order up to the box's last: row r of the box
+     * (y = r % n1, z = r / n1) starts at point `want`; the values of the
+     * points before it are read as words only. */
     const size_t nx = f->dims[0], ny = f->dims[1];
     const size_t nrows = (size_t)n[1] * n[2];
-    const size_t total = nx * ny * f->dims[2];
-    const int single = vtk_types[f->t].size == 4 && vtk_types[f->t].is_float;
+    const size_t total = nx * ny * f->dims[2] * (size_t)f->ncomp;
     struct vtk_hdr h = {.path = f->path, .diag = diag, .fp = fp, .line = 0};
-    size_t r = 0, x = 0, i = 0;
+    size_t r = 0, x = 0, i = 0, p = 0;   /* i: values read, p: points */
     size_t want = ((size_t)lo[2] * ny + lo[1]) * nx + lo[0];
-    for (; rc == 0 && r < nrows; i++) {
-        char w[64], *e;
-        if (word(&h, w, sizeof w) < 0) {
-            rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: SCALARS %s: the "
-                                "file ends after %zu of %zu values", f->path,
-                                f->var, i, total);
-            break;
-        }
-        if (i < want)
+    for (; rc == 0 && r < nrows; p++) {
+        if (p < want) {
+            char w[64];
+            for (long c = 0; c < f->ncomp; c++, i++)
+                if (word(&h, w, sizeof w) < 0) {
+                    rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: %s %s: "
+                                        "the file ends after %zu of %zu "
+                                        "values", f->path, f->kind, f->var,
+                                        i, total);
+                    break;
+                }
             continue;
-        float v = single ? strtof(w, &e) : (float)strtod(w, &e);
-        if (e == w || *e) {
-            rc = tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s: SCALARS %s: value "
-                                "%zu is \"%.32s\", not a number", f->path,
-                                f->var, i + 1, w);
-            break;
         }
-        dst[r * n[0] + x] = v;
+        if ((rc = ascii_point(f, &h, &i, total, &dst[r * n[0] + x])) < 0)
+            break;
         if (++x < n[0]) {
             want++;
             continue;
@@ -742,9 +896,8 @@ static int vtk_read_box(struct tvpal_input_file *f, uint32_t k,
 static uint64_t vtk_box_scratch(const struct tvpal_input_file *f,
                                 const uint32_t n[3])
 {
-    return f->binary ? tvpal_input_box_pread_scratch(f->dims,
-                                                     vtk_types[f->t].size, n, 0)
-                     : 0;
+    const unsigned psz = vtk_types[f->t].size * (unsigned)f->ncomp;
+    return f->binary ? tvpal_input_box_pread_scratch(f->dims, psz, n, 0) : 0;
 }
 
 static void vtk_close(struct tvpal_input_file *f)

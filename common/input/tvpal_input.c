@@ -154,7 +154,8 @@ void tvpal_input_close(struct tvpal_input *in)
 }
 
 /* Every file after the first must hold the same variable on the same grid
- * (its name, type and dims); only the number of steps may differ. */
+ * (its name, type, components and dims); only the number of steps may
+ * differ. */
 static int check_same_grid(const struct tvpal_input_info *a,
                            const struct tvpal_input_info *b,
                            const char *first, const char *path,
@@ -169,6 +170,11 @@ static int check_same_grid(const struct tvpal_input_info *a,
         return tvpal_diag_set(diag, TVPAL_E_MISMATCH, "%s: variable %s is %s; "
                               "%s has %s", path, b->var, tvpal_type_name(b->type),
                               first, tvpal_type_name(a->type));
+    if (a->components != b->components)
+        return tvpal_diag_set(diag, TVPAL_E_MISMATCH, "%s: variable %s has "
+                              "%u component%s; %s has %u", path, b->var,
+                              b->components, b->components == 1 ? "" : "s",
+                              first, a->components);
     if (a->has_times != b->has_times)
         return tvpal_diag_set(diag, TVPAL_E_MISMATCH, "%s: %s time values; %s "
                               "%s", path, b->has_times ? "has" : "has no",
@@ -237,8 +243,10 @@ static int open_file(struct tvpal_input *in, int i, struct tvpal_input_info *inf
         info = &scratch;
     if (!times)
         times = &t;
-    /* What a file says nothing about: the unit grid, no times. */
-    *info = (struct tvpal_input_info){.spacing = {1, 1, 1}};
+    /* What a file says nothing about: the unit grid, one component, no
+     * times. */
+    *info = (struct tvpal_input_info){.spacing = {1, 1, 1},
+                                      .components = 1};
     *times = NULL;
     /* Every file of a series, and every file a collection names, as a file
      * given by itself: a regular file (a FIFO would block the format's

@@ -67,6 +67,8 @@ struct tvpal_pool;
 int tvpal_input_detect(const char *path, const struct tvpal_input_opts *opts,
                        enum tvpal_input_format *f, struct tvpal_diag *diag);
 
+/* Kept by tvpal_input_open as given: its strings must outlive the input
+ * (a series reopens its files with them). */
 struct tvpal_input_opts {
     const char *var;        /* variable (NetCDF), dataset path such as
                              * /group/dataset (HDF5) or point array (vti);
@@ -83,6 +85,15 @@ struct tvpal_input_opts {
                              * dataset's sources); 0: refused, naming
                              * the file, since such a small file can
                              * read any file the user can */
+    int magnitude;          /* VTK (vti, legacy vtk): a point array of
+                             * several components (a vector, a tensor)
+                             * is read as its Euclidean length at each
+                             * point: the square root of the sum of the
+                             * components' squares, in double, rounded to
+                             * float32 once; 0: such an array is refused,
+                             * naming it.  A scalar array (and a NetCDF or
+                             * HDF5 variable) is read as it is.  At most
+                             * TVPAL_INPUT_COMPONENTS_MAX components */
     struct tvpal_pool *pool;  /* the threads that inflate compressed
                              * blocks and chunks (VTK XML, HDF5 and
                              * NetCDF-4): borrowed, it must outlive the
@@ -97,14 +108,23 @@ struct tvpal_input_opts {
  * resume of another job, a report reading the wrong one). */
 #define TVPAL_INPUT_VAR_MAX 512
 
+/* The most components of a point array read with magnitude (a point's
+ * stored bytes are held whole while its length is taken: 2 KiB at most). */
+#define TVPAL_INPUT_COMPONENTS_MAX 256
+
 /* What a series holds, from its files. */
 struct tvpal_input_info {
     uint32_t dims[3];           /* x, y, z */
     uint32_t steps;             /* over all files */
     enum tvpal_type type;       /* the stored type (f32 after CF unpacking
-                                 * of packed integers, f64 for doubles) */
+                                 * of packed integers, f64 for doubles;
+                                 * of each component where there are
+                                 * several) */
     char var[TVPAL_INPUT_VAR_MAX];  /* the variable read, whole (a
                                  * longer name is refused, never cut) */
+    uint32_t components;        /* of var at each point: 1, or (opts
+                                 * magnitude) several, read as their
+                                 * length; every file of a series alike */
     char units[64];             /* its units attribute, or "" */
     char dim_names[3][64];      /* x, y, z dimension names, or "" */
     double spacing[3], origin[3];  /* 1 and 0 where the file says nothing;
@@ -177,15 +197,18 @@ int tvpal_input_read_box(struct tvpal_input *in, uint32_t t,
  *           pieces of at most 1 Mi doubles as above, the cache, a chunk
  *           and the library's 1 MiB conversion buffer;
  *   vti     raw appended: at most 4 MiB of rows (none for float32 in the
- *           host's byte order and boxes of whole x-rows); zlib blocks: one
+ *           host's byte order and boxes of whole x-rows; the rows with all
+ *           their points' components for magnitude); zlib blocks: one
  *           compressed and one inflated block and the block table; base64:
  *           a 64 KiB piece; ascii: none (the text is parsed as it is
  *           read, through a 32 KiB window on the stack); .pvti: the most
  *           over its pieces; besides, while a call runs, the XML is read
  *           in pieces of 1 MiB (freed before it returns);
- *   vtk     binary: at most 4 MiB of rows; ascii: none (the values are
+ *   vtk     binary: at most 4 MiB of rows (with all their points'
+ *           components for magnitude); ascii: none (the values are
  *           parsed in order up to the box's last).
- * No format needs a whole timestep. */
+ * No format needs a whole timestep; a whole read of a vti array of several
+ * components (magnitude) is such a box read of the whole grid. */
 uint64_t tvpal_input_box_scratch(const struct tvpal_input *in,
                                  const uint32_t n[3]);
 

@@ -9,14 +9,17 @@
 
 #include "tvpal_input.h"
 
+#include <math.h>
+
 struct tvpal_input_file;   /* a backend's open file */
 
 struct tvpal_input_backend {
     const char *name;      /* "netcdf", "vti", "vtk", "hdf5" */
     /* Opens path; fills info (steps: the steps in this file; times of
      * those steps into *times, malloc'ed, when info->has_times).  opts is
-     * never NULL; info arrives zeroed but for spacing 1 1 1, and *times
-     * NULL (tvpal_input.c sets these defaults once for every backend). */
+     * never NULL; info arrives zeroed but for spacing 1 1 1 and
+     * components 1, and *times NULL (tvpal_input.c sets these defaults
+     * once for every backend). */
     int (*open)(struct tvpal_input_file **out, const char *path,
                 const struct tvpal_input_opts *opts,
                 struct tvpal_input_info *info, double **times,
@@ -150,6 +153,28 @@ int tvpal_box_split_next(struct tvpal_box_split *s, uint32_t plo[3],
                          uint32_t pn[3]);
 uint64_t tvpal_box_split_most(const struct tvpal_box_split *s);
 #define TVPAL_BOX_PIECE ((uint64_t)1 << 20)   /* values per piece */
+
+/* The length of a point of several components (tvpal_input_opts
+ * magnitude), taken a component at a time in the stored order:
+ *     double sum = 0;
+ *     for each component v (its exact value as a double):
+ *         sum = tvpal_input_mag_add(sum, v);
+ *     value = tvpal_input_mag_end(sum);
+ * Each square is rounded to double before it is added (no fused
+ * multiply-add, which GCC makes on aarch64 and with -mfma: the volatile
+ * keeps the two roundings), so that x*x + y*y + z*z summed left to right
+ * in float64 by anyone (numpy) gives the same bits; the root is rounded to
+ * float32 once.  A NaN component gives NaN, an infinite one infinity. */
+static inline double tvpal_input_mag_add(double sum, double v)
+{
+    volatile double sq = v * v;
+    return sum + sq;
+}
+
+static inline float tvpal_input_mag_end(double sum)
+{
+    return (float)sqrt(sum);
+}
 
 /* src into dst (cap bytes), cut to fit, always terminated. */
 void tvpal_input_copy_str(char *dst, size_t cap, const char *src);

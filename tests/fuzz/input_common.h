@@ -1,8 +1,9 @@
 /* input_common.h: the body of the input-reader harnesses (vti, vtk,
  * netcdf, hdf5): the input is written to a temporary file named name and
- * read as format fmt: tvpal_input_detect, tvpal_input_open, the grid and
- * times it reports (check_grid), the first steps (when a step is at most
- * 2^20 voxels), tvpal_input_describe. */
+ * read as format fmt: tvpal_input_detect, tvpal_input_open (VTK: also with
+ * magnitude, arrays of several components read as their length), the grid
+ * and times it reports (check_grid), the first steps and a box of each
+ * (when a step is at most 2^20 voxels), tvpal_input_describe. */
 #ifndef TVPAL_FUZZ_INPUT_COMMON_H
 #define TVPAL_FUZZ_INPUT_COMMON_H
 #include "fuzz_util.h"
@@ -23,8 +24,13 @@ static void read_steps(struct tvpal_input *in)
     if (!v)
         abort();
     struct tvpal_diag d;
+    const uint32_t lo[3] = {info->dims[0] / 4, info->dims[1] / 4,
+                            info->dims[2] / 4};
+    const uint32_t bn[3] = {(info->dims[0] + 1) / 2, (info->dims[1] + 1) / 2,
+                            (info->dims[2] + 1) / 2};
     for (uint32_t t = 0; t < info->steps && t < 3; t++) {
         (void)tvpal_input_read(in, t, v, &d);
+        (void)tvpal_input_read_box(in, t, lo, bn, v, &d);
         (void)tvpal_input_time(in, t);
     }
     free(v);
@@ -56,11 +62,15 @@ static void open_and_read(char **files, int nfiles,
 {
     struct tvpal_diag d;
     struct tvpal_input *in;
-    if (tvpal_input_open(&in, fmt, files, nfiles, NULL, &d) == 0) {
-        check_grid(in);
-        read_steps(in);
-        tvpal_input_close(in);
-    }
+    const struct tvpal_input_opts mag = {.magnitude = 1};
+    const int vtk = fmt == TVPAL_IN_VTI || fmt == TVPAL_IN_VTK;
+    for (int k = 0; k < 1 + vtk; k++)
+        if (tvpal_input_open(&in, fmt, files, nfiles, k ? &mag : NULL,
+                             &d) == 0) {
+            check_grid(in);
+            read_steps(in);
+            tvpal_input_close(in);
+        }
 }
 
 static int fuzz_input(const uint8_t *data, size_t size,
