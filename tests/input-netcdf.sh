@@ -68,22 +68,17 @@ fi
 "$INFO" --inspect "$W/all-nc4.nc" > "$W/inspect.txt" 2>&1 && grep -q "temp" "$W/inspect.txt" \
     && grep -q "other" "$W/inspect.txt" && ok "--inspect lists temp and other" \
     || fail "--inspect: $(cat "$W/inspect.txt")"
-same_shards() { # DIR: its shards equal the raw dataset's
-    for a in x y z; do
-        cmp -s "$W/raw/node-0/axis-$a.tvps" "$1/node-0/axis-$a.tvps" || return 1
-    done
-}
 for k in nc3 nc6 nc4; do
     "$ENC" --axes xyz -q --var temp --window 2 -o "$W/ds-$k" "$W/all-$k.nc" > /dev/null 2> "$W/e.txt" \
         || { fail "$k encode: $(cat "$W/e.txt")"; continue; }
-    same_shards "$W/ds-$k" && ok "$k: shards identical to raw" || fail "$k: shards differ from raw"
+    shards_same "$W/raw" "$W/ds-$k" && ok "$k: shards identical to raw" || fail "$k: shards differ from raw"
     grep -q "^source_format = netcdf" "$W/ds-$k/manifest.txt" && grep -q "^source_var = temp" "$W/ds-$k/manifest.txt" \
         && grep -qx "units = K" "$W/ds-$k/manifest.txt" \
         && ok "$k: manifest names format, variable and its units" || fail "$k: manifest"
 done
 "$ENC" --axes xyz -q --var temp --window 2 -o "$W/ds-series" "$W/a.nc" "$W/b.nc" > /dev/null 2> "$W/e.txt" \
     || fail "series encode: $(cat "$W/e.txt")"
-same_shards "$W/ds-series" && ok "series of 2 + 1 steps: shards identical to raw" || fail "series shards differ"
+shards_same "$W/raw" "$W/ds-series" && ok "series of 2 + 1 steps: shards identical to raw" || fail "series shards differ"
 grep -q "^source_layout = series" "$W/ds-series/manifest.txt" && ok "series layout" || fail "series layout"
 "$ENC" --axes z -q --var temp --window 2 --units "degC" -o "$W/ds-units" "$W/all-nc4.nc" > /dev/null 2> "$W/e.txt" \
     && grep -qx "units = degC" "$W/ds-units/manifest.txt" && ok "--units overrides the attribute" \

@@ -153,24 +153,6 @@ for k in range(3):
         np.sqrt(s).astype(np.float32).tofile("%s/%s_%d.f32" % (out, name, k))
     p.tofile("%s/p_%d.f32" % (out, k))
 PY
-# same_shards NAME RAWDIR ENCDIR: every axis's shard byte-identical.
-same_shards() {
-    s=1
-    for a in x y z; do cmp -s "$2/node-0/axis-$a.tvps" "$3/node-0/axis-$a.tvps" || s=0; done
-    [ $s = 1 ] && ok "$1: shards identical to raw" || fail "$1: shards differ from raw"
-}
-# vec_enc NAME DIMS RAW... -- ENCODE-ARGS...: raw and --magnitude encodes
-# (window 2, all axes), compared; the latter stays in $W/vm.
-vec_enc() {
-    name=$1 dims=$2; shift 2
-    raws=""
-    while [ "$1" != "--" ]; do raws="$raws $1"; shift; done
-    shift
-    rm -rf "$W/vr" "$W/vm"
-    "$ENC" --axes xyz -q --dims "$dims" --window 2 -o "$W/vr" $raws > /dev/null 2> "$W/e.txt" || { fail "$name raw: $(cat "$W/e.txt")"; return; }
-    "$ENC" --axes xyz -q --window 2 -o "$W/vm" "$@" > "$W/vm.out" 2> "$W/e.txt" || { fail "$name: $(cat "$W/e.txt")"; return; }
-    same_shards "$name" "$W/vr" "$W/vm"
-}
 if "$PY" -c "import numpy, vtkmodules.vtkIOXML, vtkmodules.util.numpy_support" 2> /dev/null; then
     V=$W/vec
     mkdir -p "$V"

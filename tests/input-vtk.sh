@@ -14,12 +14,6 @@ if "$INFO" --inspect "$G/series.pvd" 2>&1 | grep -q "built without VTK"; then
     echo "built without VTK ImageData support: .pvd and .pvti skipped"; vti=0
 fi
 
-# same_shards NAME RAWDIR ENCDIR
-same_shards() {
-    s=1
-    for a in x y z; do cmp -s "$2/node-0/axis-$a.tvps" "$3/node-0/axis-$a.tvps" || s=0; done
-    [ $s = 1 ] && ok "$1: shards identical to raw" || fail "$1: shards differ from raw"
-}
 
 # enc NAME EXPECTED.f32... -- INPUT...: raw and input encodings, compared.
 enc() {
@@ -148,18 +142,6 @@ for k in range(3):
             references(path)
     lengths(vel).tofile("%s/velocity_%d.f32" % (out, k))
 PY
-# vec_enc NAME DIMS RAW... -- ENCODE-ARGS...: raw and --magnitude encodes
-# (window 2, all axes), compared; the latter stays in $W/vm.
-vec_enc() {
-    name=$1 dims=$2; shift 2
-    raws=""
-    while [ "$1" != "--" ]; do raws="$raws $1"; shift; done
-    shift
-    rm -rf "$W/vr" "$W/vm"
-    "$ENC" --axes xyz -q --dims "$dims" --window 2 -o "$W/vr" $raws > /dev/null 2> "$W/e.txt" || { fail "$name raw: $(cat "$W/e.txt")"; return; }
-    "$ENC" --axes xyz -q --window 2 -o "$W/vm" "$@" > "$W/vm.out" 2> "$W/e.txt" || { fail "$name: $(cat "$W/e.txt")"; return; }
-    same_shards "$name" "$W/vr" "$W/vm"
-}
 if "$PY" -c "import numpy, vtkmodules.vtkIOLegacy, vtkmodules.util.numpy_support" 2> /dev/null; then
     V=$W/vec
     mkdir -p "$V"

@@ -77,6 +77,33 @@ PY
     done
 }
 
+# shards_same A B: datasets A and B have byte-identical shards of node 0,
+# every axis (x, y, z); status 0 or 1.
+shards_same() {
+    for a in x y z; do
+        cmp -s "$1/node-0/axis-$a.tvps" "$2/node-0/axis-$a.tvps" || return 1
+    done
+}
+
+# same_shards NAME RAWDIR ENCDIR: ok or fail as shards_same says.
+same_shards() {
+    shards_same "$2" "$3" && ok "$1: shards identical to raw" || fail "$1: shards differ from raw"
+}
+
+# vec_enc NAME DIMS RAW... -- ENCODE-ARGS...: raw and --magnitude encodes
+# (window 2, all axes), compared; the latter stays in $W/vm.
+vec_enc() {
+    name=$1 dims=$2; shift 2
+    raws=""
+    while [ "$1" != "--" ]; do raws="$raws $1"; shift; done
+    shift
+    rm -rf "$W/vr" "$W/vm"
+    # shellcheck disable=SC2086
+    "$ENC" --axes xyz -q --dims "$dims" --window 2 -o "$W/vr" $raws > /dev/null 2> "$W/e.txt" || { fail "$name raw: $(cat "$W/e.txt")"; return; }
+    "$ENC" --axes xyz -q --window 2 -o "$W/vm" "$@" > "$W/vm.out" 2> "$W/e.txt" || { fail "$name: $(cat "$W/e.txt")"; return; }
+    same_shards "$name" "$W/vr" "$W/vm"
+}
+
 # install_lib: libtvpal, its headers and tvpal.pc installed into $W/root
 # (make install-... DESTDIR), and pkg-config pointed at them only, as a
 # user's program finds an installed library; sets pcdir and libdir.
