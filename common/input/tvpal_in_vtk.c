@@ -230,6 +230,153 @@ static struct vtk_array *add_array(struct vtk_hdr *h)
     return a;
 }
 
+/* A new array of h, filled: its kind (upper case), name, type and
+ * components, in section `cell`, its values starting here; NULL out of
+ * memory. */
+static struct vtk_array *record_array(struct vtk_hdr *h, const char *kind,
+                                      const char *name, const char *type,
+                                      long ncomp, int cell)
+{
+    struct vtk_array *a = add_array(h);
+    if (!a)
+        return NULL;
+    snprintf(a->kind, sizeof a->kind, "%s", kind);
+    for (char *c = a->kind; *c; c++)
+        *c = (char)(*c >= 'a' && *c <= 'z' ? *c - 32 : *c);
+    snprintf(a->name, sizeof a->name, "%s", name);
+    snprintf(a->type, sizeof a->type, "%s", type);
+    a->t = type_of(type);
+    a->ncomp = ncomp;
+    a->cell = cell;
+    a->offset = ftello(h->fp);
+    return a;
+}
+
+/* METADATA: its lines up to an empty one (VTK 9's component names and
+ * information keys), skipped. */
+static int skip_metadata(struct vtk_hdr *h)
+{
+    char line[512];
+    end_line(h);
+    while (fgets(line, sizeof line, h->fp)) {
+        h->line++;
+        if (line[strspn(line, " \t\r")] == '\n')
+            break;
+    }
+    return 0;
+}
+
+/* FIELD name n, then its n arrays: those of count tuples in a section
+ * (cell >= 0) are the section's arrays, the rest skipped. */
+static int field_arrays(struct vtk_hdr *h, uint64_t count, int cell)
+{
+    char name[128], type[64];
+    long long na;
+    int rc;
+    if ((rc = want_word(h, name, sizeof name, "FIELD's name")) < 0 ||
+        (rc = want_long(h, &na, "FIELD's array count")) < 0)
+        return rc;
+    for (long long i = 0; i < na; i++) {
+        long long nc, nt;
+        if ((rc = want_word(h, name, sizeof name, "a FIELD array")) < 0)
+            return rc;
+        if (!strcasecmp(name, "NULL_ARRAY"))
+            continue;
+        if (!strcasecmp(name, "METADATA")) {
+            /* the array before's (its COMPONENT_NAMES, as VTK 9 writes
+             * them): not an array */
+            if ((rc = skip_metadata(h)) < 0)
+                return rc;
+            i--;
+            continue;
+        }
+        if ((rc = want_long(h, &nc, "the FIELD array's components")) < 0 ||
+            (rc = want_long(h, &nt, "the FIELD array's tuples")) < 0 ||
+            (rc = want_word(h, type, sizeof type, "its type")) < 0)
+            return rc;
+        if (h->binary)
+            end_line(h);
+        if (cell >= 0 && (uint64_t)nt == count && nc > 0 &&
+            !record_array(h, "FIELD", name, type, (long)nc, cell))
+            return TVPAL_E_NOMEM;
+        if ((rc = skip_values(h, name, (uint64_t)nc * (uint64_t)nt,
+                              type_of(type))) < 0)
+            return rc;
+    }
+    return 0;
+}
+
+/* LOOKUP_TABLE name size or COLOR_SCALARS name n (n values per tuple of
+ * count): skipped. */
+static int skip_colours(struct vtk_hdr *h, const char *kw, uint64_t count)
+{
+    char name[128];
+    long long n;
+    const int table = !strcasecmp(kw, "LOOKUP_TABLE");
+    int rc;
+    if ((rc = want_word(h, name, sizeof name, table ? "the table's name"
+                                                 : "COLOR_SCALARS' name")) < 0 ||
+        (rc = want_long(h, &n, table ? "LOOKUP_TABLE's size"
+                                     : "COLOR_SCALARS' value count")) < 0)
+        return rc;
+    if (h->binary)
+        end_line(h);
+    return skip_values(h, name, (uint64_t)n * (table ? 4 : count),
+                       h->binary ? type_of("unsigned_char") : 0);
+}
+
+/* What follows SCALARS name type: [ncomp] LOOKUP_TABLE name (VTK requires
+ * the table); *ncomp gets the count (1 where none is given). */
+static int scalars_tail(struct vtk_hdr *h, const char *name, long *ncomp)
+{
+    char w[64];
+    int rc;
+    *ncomp = 1;
+    if ((rc = want_word(h, w, sizeof w, "LOOKUP_TABLE")) < 0)
+        return rc;
+    if (strcasecmp(w, "LOOKUP_TABLE")) {
+        char *e;
+        *ncomp = strtol(w, &e, 10);
+        if (e == w || *e || *ncomp < 1)
+            return bad(h, TVPAL_E_FORMAT, "SCALARS %s: \"%s\" is neither a "
+                       "component count nor LOOKUP_TABLE", name, w);
+        if ((rc = want_word(h, w, sizeof w, "LOOKUP_TABLE")) < 0)
+            return rc;
+    }
+    if (strcasecmp(w, "LOOKUP_TABLE"))
+        return bad(h, TVPAL_E_FORMAT, "SCALARS %s: LOOKUP_TABLE expected, "
+                   "not \"%s\"", name, w);
+    return want_word(h, w, sizeof w, "the lookup table's name");
+}
+
+/* SCALARS, VECTORS, NORMALS, TENSORS or TEXTURE_COORDINATES (keyword kw)
+ * of count tuples: an array of the section. */
+static int data_attribute(struct vtk_hdr *h, const char *kw, uint64_t count,
+                          int cell)
+{
+    char name[128], type[64];
+    long long dim = 0;
+    long ncomp = !strcasecmp(kw, "TENSORS") ? 9 : 3;
+    int rc;
+    if ((rc = want_word(h, name, sizeof name, "the attribute's name")) < 0)
+        return rc;
+    if (!strcasecmp(kw, "TEXTURE_COORDINATES") &&
+        (rc = want_long(h, &dim, "the coordinates' dimension")) < 0)
+        return rc;
+    if ((rc = want_word(h, type, sizeof type, "the attribute's type")) < 0)
+        return rc;
+    if (dim)
+        ncomp = (long)dim;
+    if (!strcasecmp(kw, "SCALARS") && (rc = scalars_tail(h, name, &ncomp)) < 0)
+        return rc;
+    if (h->binary)
+        end_line(h);
+    const struct vtk_array *a = record_array(h, kw, name, type, ncomp, cell);
+    if (!a)
+        return TVPAL_E_NOMEM;
+    return skip_values(h, name, count * (uint64_t)ncomp, a->t);
+}
+
 /* One attribute of a POINT_DATA (cell 0) or CELL_DATA (cell 1) section of
  * count tuples, its keyword kw read; cell -1: the dataset's own FIELD or
  * METADATA before them (never a variable).  The arrays of a section's
@@ -238,132 +385,16 @@ static struct vtk_array *add_array(struct vtk_hdr *h)
 static int attribute(struct vtk_hdr *h, const char *kw, uint64_t count,
                      int cell)
 {
-    char name[128], type[64], w[64];
-    int rc;
-    if (!strcasecmp(kw, "METADATA")) {   /* lines up to an empty one */
-        char line[512];
-        end_line(h);
-        while (fgets(line, sizeof line, h->fp)) {
-            h->line++;
-            if (line[strspn(line, " \t\r")] == '\n')
-                break;
-        }
-        return 0;
-    }
-    if (!strcasecmp(kw, "FIELD")) {
-        long long na;
-        if ((rc = want_word(h, name, sizeof name, "FIELD's name")) < 0 ||
-            (rc = want_long(h, &na, "FIELD's array count")) < 0)
-            return rc;
-        for (long long i = 0; i < na; i++) {
-            long long nc, nt;
-            if ((rc = want_word(h, name, sizeof name, "a FIELD array")) < 0)
-                return rc;
-            if (!strcasecmp(name, "NULL_ARRAY"))
-                continue;
-            if (!strcasecmp(name, "METADATA")) {
-                /* the array before's (its COMPONENT_NAMES, as VTK 9
-                 * writes them): not an array */
-                if ((rc = attribute(h, name, 1, -1)) < 0)
-                    return rc;
-                i--;
-                continue;
-            }
-            if ((rc = want_long(h, &nc, "the FIELD array's components")) < 0 ||
-                (rc = want_long(h, &nt, "the FIELD array's tuples")) < 0 ||
-                (rc = want_word(h, type, sizeof type, "its type")) < 0)
-                return rc;
-            int t = type_of(type);
-            if (h->binary)
-                end_line(h);
-            if (cell >= 0 && (uint64_t)nt == count && nc > 0) {
-                struct vtk_array *a = add_array(h);
-                if (!a)
-                    return TVPAL_E_NOMEM;
-                snprintf(a->kind, sizeof a->kind, "FIELD");
-                snprintf(a->name, sizeof a->name, "%s", name);
-                snprintf(a->type, sizeof a->type, "%s", type);
-                a->t = t;
-                a->ncomp = (long)nc;
-                a->cell = cell;
-                a->offset = ftello(h->fp);
-            }
-            if ((rc = skip_values(h, name, (uint64_t)nc * (uint64_t)nt, t)) < 0)
-                return rc;
-        }
-        return 0;
-    }
-    if (!strcasecmp(kw, "LOOKUP_TABLE")) {
-        long long size;
-        if ((rc = want_word(h, name, sizeof name, "the table's name")) < 0 ||
-            (rc = want_long(h, &size, "LOOKUP_TABLE's size")) < 0)
-            return rc;
-        if (h->binary)
-            end_line(h);
-        return skip_values(h, name, 4 * (uint64_t)size,
-                           h->binary ? type_of("unsigned_char") : 0);
-    }
-    if (!strcasecmp(kw, "COLOR_SCALARS")) {
-        long long nv;
-        if ((rc = want_word(h, name, sizeof name, "COLOR_SCALARS' name")) < 0 ||
-            (rc = want_long(h, &nv, "COLOR_SCALARS' value count")) < 0)
-            return rc;
-        if (h->binary)
-            end_line(h);
-        return skip_values(h, name, (uint64_t)nv * count,
-                           h->binary ? type_of("unsigned_char") : 0);
-    }
-    long ncomp;
-    int tensor = !strcasecmp(kw, "TENSORS");
+    if (!strcasecmp(kw, "METADATA"))
+        return skip_metadata(h);
+    if (!strcasecmp(kw, "FIELD"))
+        return field_arrays(h, count, cell);
+    if (!strcasecmp(kw, "LOOKUP_TABLE") || !strcasecmp(kw, "COLOR_SCALARS"))
+        return skip_colours(h, kw, count);
     if (!strcasecmp(kw, "SCALARS") || !strcasecmp(kw, "VECTORS") ||
-        !strcasecmp(kw, "NORMALS") || tensor ||
-        !strcasecmp(kw, "TEXTURE_COORDINATES")) {
-        long long dim = 0;
-        if ((rc = want_word(h, name, sizeof name, "the attribute's name")) < 0)
-            return rc;
-        if (!strcasecmp(kw, "TEXTURE_COORDINATES") &&
-            (rc = want_long(h, &dim, "the coordinates' dimension")) < 0)
-            return rc;
-        if ((rc = want_word(h, type, sizeof type, "the attribute's type")) < 0)
-            return rc;
-        ncomp = tensor ? 9 : dim ? (long)dim
-                : !strcasecmp(kw, "SCALARS") ? 1 : 3;
-        struct vtk_array *a = add_array(h);
-        if (!a)
-            return TVPAL_E_NOMEM;
-        snprintf(a->kind, sizeof a->kind, "%s", kw);
-        for (char *c = a->kind; *c; c++)
-            *c = (char)(*c >= 'a' && *c <= 'z' ? *c - 32 : *c);
-        snprintf(a->name, sizeof a->name, "%s", name);
-        snprintf(a->type, sizeof a->type, "%s", type);
-        a->t = type_of(type);
-        a->cell = cell;
-        if (!strcasecmp(kw, "SCALARS")) {
-            /* [ncomp], then LOOKUP_TABLE name (VTK requires it) */
-            if ((rc = want_word(h, w, sizeof w, "LOOKUP_TABLE")) < 0)
-                return rc;
-            if (strcasecmp(w, "LOOKUP_TABLE")) {
-                char *e;
-                ncomp = strtol(w, &e, 10);
-                if (e == w || *e || ncomp < 1)
-                    return bad(h, TVPAL_E_FORMAT, "SCALARS %s: \"%s\" is "
-                               "neither a component count nor LOOKUP_TABLE",
-                               name, w);
-                if ((rc = want_word(h, w, sizeof w, "LOOKUP_TABLE")) < 0)
-                    return rc;
-            }
-            if (strcasecmp(w, "LOOKUP_TABLE"))
-                return bad(h, TVPAL_E_FORMAT, "SCALARS %s: LOOKUP_TABLE "
-                           "expected, not \"%s\"", name, w);
-            if ((rc = want_word(h, w, sizeof w, "the lookup table's name")) < 0)
-                return rc;
-        }
-        a->ncomp = ncomp;
-        if (h->binary)
-            end_line(h);
-        a->offset = ftello(h->fp);
-        return skip_values(h, name, count * (uint64_t)ncomp, a->t);
-    }
+        !strcasecmp(kw, "NORMALS") || !strcasecmp(kw, "TENSORS") ||
+        !strcasecmp(kw, "TEXTURE_COORDINATES"))
+        return data_attribute(h, kw, count, cell);
     return bad(h, TVPAL_E_FORMAT, "unknown keyword \"%s\" in the %s", kw,
                cell ? "CELL_DATA" : "POINT_DATA");
 }
