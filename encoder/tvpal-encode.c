@@ -1416,23 +1416,43 @@ static void verify_written(const struct run *r, struct written *w)
     }
 }
 
-/* The bytes of the files the job read (each once: a NetCDF file of many
- * steps, a .pvd and its DataSets), as they are on disk: what the user's
- * input takes; 0 where unknown. */
+/* The bytes of the files the job read (each once, however it was named:
+ * a NetCDF file of many steps, a .pvd and its DataSets, an input given
+ * relative and found again absolute), as they are on disk: what the
+ * user's input takes; 0 where unknown. */
+struct file_id {
+    dev_t dev;
+    ino_t ino;
+    off_t size;
+};
+
+static int cmp_file_id(const void *a, const void *b)
+{
+    const struct file_id *x = a, *y = b;
+    if (x->dev != y->dev)
+        return x->dev < y->dev ? -1 : 1;
+    return x->ino < y->ino ? -1 : x->ino > y->ino;
+}
+
 static uint64_t input_bytes(const struct run *r)
 {
     char **f = NULL;
     const int n = job_files(r, &f);
-    uint64_t sum = 0;
-    for (int i = 0; i < n; i++) {
-        int seen = 0;
-        for (int j = 0; j < i && !seen; j++)
-            seen = !strcmp(f[i], f[j]);
+    struct file_id *id = n > 0 ? malloc(sizeof *id * (size_t)n) : NULL;
+    size_t k = 0;
+    for (int i = 0; id && i < n; i++) {
         struct stat st;
-        if (!seen && stat(f[i], &st) == 0 && S_ISREG(st.st_mode))
-            sum += (uint64_t)st.st_size;
+        if (stat(f[i], &st) == 0 && S_ISREG(st.st_mode))
+            id[k++] = (struct file_id){st.st_dev, st.st_ino, st.st_size};
     }
     free(f);
+    if (k)
+        qsort(id, k, sizeof *id, cmp_file_id); /* a file's names meet */
+    uint64_t sum = 0;
+    for (size_t i = 0; i < k; i++)
+        if (i == 0 || cmp_file_id(&id[i], &id[i - 1]))
+            sum += (uint64_t)id[i].size;
+    free(id);
     return sum;
 }
 

@@ -86,7 +86,14 @@ for mode in ("appended", "raw", "binary", "ascii"):
 PY
     for mode in appended raw binary ascii; do
         rm -rf "$W/tv.ds"
-        "$ENC" -q -o "$W/tv.ds" "$W"/tv/${mode}_*.vti > /dev/null 2> "$W/e.txt" || { fail "TimeValue $mode: $(cat "$W/e.txt")"; continue; }
+        # Named relative to the current directory (the series finds them
+        # again by absolute path): ratio_input counts each file once.
+        line=$(cd "$W/tv" && "$ENC" -q -o "$W/tv.ds" ${mode}_*.vti 2> "$W/e.txt") || { fail "TimeValue $mode: $(cat "$W/e.txt")"; continue; }
+        # ratio_input: the three files' bytes (each once) over the dataset's.
+        in=$(cat "$W"/tv/${mode}_*.vti | wc -c)
+        awk -v r="$(kv ratio_input "$line")" -v i="$in" -v d="$(kv bytes "$line")" \
+            'BEGIN { e = i / d; exit !(r > 0 && (r - e) ^ 2 < (1e-3 * e + 5e-4) ^ 2) }' ||
+            fail "TimeValue ($mode): ratio_input $(kv ratio_input "$line"), $in / $(kv bytes "$line") expected"
         t=$(sed -n 's/^times = //p' "$W/tv.ds/manifest.txt")
         [ "$t" = "0.5 1.25 2.0000000000010001" ] && ok "TimeValue ($mode .vti from VTK's writer): times = $t" ||
             fail "TimeValue ($mode): times = '$t', 0.5 1.25 2.0000000000010001 expected (float64, whole)"

@@ -474,8 +474,8 @@ static int choose_var(int ncid, const char *path,
         room = sizeof list;
     if (opts->var) {
         /* "/T": the root group's T, as an HDF5 path names it */
-        const char *name = opts->var[0] == '/' && !strchr(opts->var + 1, '/')
-                               ? opts->var + 1 : opts->var;
+        const char *root = tvpal_input_root_var(opts->var);
+        const char *name = root ? root : opts->var;
         if (nc_inq_varid(ncid, name, varid) == NC_NOERR)
             return 0;
         list_vars(list, room, ncid, 0, tdims, ntd);

@@ -94,7 +94,7 @@ int tvpal_input_detect(const char *path, const struct tvpal_input_opts *opts,
     if (rc < 0)
         return rc;
     const int dataset_path = opts && opts->var && opts->var[0] == '/' &&
-                             strchr(opts->var + 1, '/');
+                             !tvpal_input_root_var(opts->var);
     *f = TVPAL_IN_RAW;
     if (n >= 4 && !memcmp(head, "CDF", 3) &&
         (head[3] == 1 || head[3] == 2 || head[3] == 5))

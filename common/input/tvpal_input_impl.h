@@ -10,6 +10,7 @@
 #include "tvpal_input.h"
 
 #include <math.h>
+#include <string.h>
 
 struct tvpal_input_file;   /* a backend's open file */
 
@@ -174,6 +175,14 @@ static inline double tvpal_input_mag_add(double sum, double v)
 static inline float tvpal_input_mag_end(double sum)
 {
     return (float)sqrt(sum);
+}
+
+/* The variable a --var of the form "/NAME" (a dataset path at the root,
+ * no group) names: NAME, a NetCDF-4 file's root variable; NULL for any
+ * other var (a plain name, or a path inside a group: "/grp/NAME"). */
+static inline const char *tvpal_input_root_var(const char *var)
+{
+    return var && var[0] == '/' && !strchr(var + 1, '/') ? var + 1 : NULL;
 }
 
 /* src into dst (cap bytes), cut to fit, always terminated. */

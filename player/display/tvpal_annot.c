@@ -451,16 +451,11 @@ static int in_hull(const double h[16][2], unsigned n, double x, double y)
 }
 
 /* How much of the rectangle [x0, x1) x [y0, y1) (row 0 at the top) the
- * volume's projection covers: of 12 x 12 points spread over it, those
- * inside the hull of f's corners. */
-static unsigned covered(const struct tvpal_annot *a,
-                        const struct tvpal_annot_frame *f, double x0,
+ * volume's projection, the hull h of n points, covers: of 12 x 12 points
+ * spread over it, those inside. */
+static unsigned covered(const double h[16][2], unsigned n, double x0,
                         double y0, double x1, double y1)
 {
-    double p[8][2], h[16][2];
-    for (unsigned c = 0; c < 8; c++)
-        p[c][0] = f->corner[c][0], p[c][1] = a->H - f->corner[c][1];
-    const unsigned n = hull8(p, 8, h);
     unsigned count = 0;
     for (unsigned i = 0; n >= 3 && i < 12; i++)
         for (unsigned j = 0; j < 12; j++)
@@ -487,10 +482,14 @@ static void legend_place(const struct tvpal_annot *a,
         [TVPAL_ANNOT_PLACE_LEFT] = {m, middle}};
     unsigned pick = f->legend_place;
     if (pick == TVPAL_ANNOT_PLACE_AUTO || pick >= TVPAL_ANNOT_PLACES) {
+        double p[8][2], h[16][2]; /* the box's corners, row 0 at the top */
+        for (unsigned c = 0; c < 8; c++)
+            p[c][0] = f->corner[c][0], p[c][1] = a->H - f->corner[c][1];
+        const unsigned n = hull8(p, 8, h);
         unsigned least = ~0u;
         for (unsigned k = TVPAL_ANNOT_PLACE_RIGHT; k < TVPAL_ANNOT_PLACES;
              k++) {
-            const unsigned c = covered(a, f, xy[k][0], xy[k][1] - above,
+            const unsigned c = covered(h, n, xy[k][0], xy[k][1] - above,
                                        xy[k][0] + width, xy[k][1] + L->h);
             if (c < least)
                 least = c, pick = k;
