@@ -104,6 +104,31 @@ vec_enc() {
     same_shards "$name" "$W/vr" "$W/vm"
 }
 
+# magnitude_read_back NAME: after vec_enc, $W/vm's source_var says
+# "NAME (magnitude)" and tvpal-report, reading the sources back by it,
+# finds the errors it finds against the raw lengths ($W/vr).
+magnitude_read_back() {
+    grep -qx "source_var = $1 (magnitude)" "$W/vm/manifest.txt" && ok "source_var = $1 (magnitude)" \
+        || fail "source_var: $(grep source_var "$W/vm/manifest.txt")"
+    l1=$("$REP" -q "$W/vr") && l2=$("$REP" -q "$W/vm") && [ "$(kv psnr "$l1")" = "$(kv psnr "$l2")" ] &&
+        [ "$(kv max_abs_error "$l1")" = "$(kv max_abs_error "$l2")" ] \
+        && ok "tvpal-report reads $1 (magnitude) back: psnr $(kv psnr "$l2")" || fail "report: $l1 / $l2"
+}
+
+# frame_rgb DS NAME SIZE TF OPTIONS...: tvpal-play's step 0 of $W/DS,
+# SIZExSIZE, no annotations, transfer function TF, as $W/NAME.rgb (raw
+# RGB, top row first) and its timing CSV $W/NAME.csv; status 1 (said) when
+# it cannot.
+frame_rgb() {
+    local ds=$1 name=$2 size=$3 tf=$4
+    shift 4
+    "$PLAY" "$W/$ds" --headless -q --size ${size}x$size --steps 0:0 --annotate none --tf "$tf" \
+        --csv "$W/$name.csv" "$@" -o "$W/$name" > /dev/null 2> "$W/$name.err" ||
+        { fail "$name: $(cat "$W/$name.err")"; return 1; }
+    ffmpeg -v error -y -i "$W/$name/t0000.png" -f rawvideo -pix_fmt rgb24 "$W/$name.rgb" ||
+        { fail "$name: decode"; return 1; }
+}
+
 # install_lib: libtvpal, its headers and tvpal.pc installed into $W/root
 # (make install-... DESTDIR), and pkg-config pointed at them only, as a
 # user's program finds an installed library; sets pcdir and libdir.

@@ -42,15 +42,11 @@ domain normalized
 1.00  1.0 0.8 0.2 0.9
 TF
 S=160
-# render DS NAME OPTIONS...: step 0 as $W/NAME.rgb and its CSV row's axis.
+# render DS NAME OPTIONS...: step 0 as $W/NAME.rgb; prints its CSV row's axis.
 render() {
     local ds=$1 name=$2
     shift 2
-    "$PLAY" "$W/$ds" --headless -q --size ${S}x$S --steps 0:0 --annotate none --tf "$W/sheet.tf" \
-        --csv "$W/$name.csv" "$@" -o "$W/$name" > /dev/null 2> "$W/$name.err" ||
-        { fail "$name: $(cat "$W/$name.err")"; return 1; }
-    ffmpeg -v error -y -i "$W/$name/t0000.png" -f rawvideo -pix_fmt rgb24 "$W/$name.rgb" ||
-        { fail "$name: decode"; return 1; }
+    frame_rgb "$ds" "$name" $S "$W/sheet.tf" "$@" || return 1
     sed -n 2p "$W/$name.csv" | cut -d, -f2
 }
 for ds in flat aniso; do

@@ -36,9 +36,7 @@ S=96
 render() {
     local name=$1 r=$2
     shift 2
-    "$PLAY" "$W/ds" --headless -q --renderer $r --size ${S}x$S --steps 0:0 --annotate none --tf "$W/blob.tf" \
-        "$@" -o "$W/$name" > /dev/null 2> "$W/$name.err" || { fail "$name: $(cat "$W/$name.err")"; return; }
-    ffmpeg -v error -i "$W/$name/t0000.png" -f rawvideo -pix_fmt rgb24 "$W/$name.rgb" || fail "$name: decode"
+    frame_rgb ds "$name" $S "$W/blob.tf" --renderer $r "$@"
 }
 for r in cpu gl ref; do
     if [ $r = gl ] && ! "$PLAY" --version | grep -q "gl: yes"; then
