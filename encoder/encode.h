@@ -159,6 +159,8 @@ struct run {
     uint64_t cluster_bytes;  /* rank 0: bytes of every rank's files and
                               * OUTDIR's manifest, */
     uint64_t cluster_shard_bytes; /* of every rank's shards, */
+    uint64_t cluster_level_bytes; /* of the levels (rank 0's, inside
+                                   * OUTDIR), */
     uint64_t cluster_work;   /* the voxel-samples they encoded, */
     double cluster_seconds;  /* in this many seconds (the slowest) */
     int level0_done;         /* --levels: level 0 finished by an earlier

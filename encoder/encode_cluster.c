@@ -2,6 +2,7 @@
  * comment below). */
 #define _GNU_SOURCE
 #include "encode_cluster.h"
+#include "encode_levels.h"
 #include "encode_output.h"
 #include "encode_say.h"
 #include "tvpal_comm.h"
@@ -241,6 +242,14 @@ void cluster_finish(struct run *r)
 {
     struct cluster *cl = r->cl;
     const int root = cl->comm.rank == 0;
+    /* --levels: rank 0 makes every level of every node from the source
+     * read again and encodes them in this process (1/7 of the work), as
+     * one process does after level 0, while the other ranks wait in round
+     * 1 with their shards as their checkpoints left them: a failure here
+     * ends every rank through that round, and a rerun resumes every rank
+     * at its last step and keeps the levels that were complete. */
+    if (root && r->o.levels)
+        encode_levels(r);
     struct round_head h = {0};
     h.vmin = r->st.vmin;
     h.vmax = r->st.vmax;
@@ -327,6 +336,15 @@ void cluster_finish(struct run *r)
             tvpal_tree_bytes(mp, &mb, NULL) == 0)
             r->cluster_bytes = mb;
         free(mp);
+        /* The levels, which rank 0 wrote inside OUTDIR. */
+        for (unsigned k = 1; rc == 0 && k <= r->o.levels; k++) {
+            uint64_t lb = 0;
+            if (asprintf(&mp, "%s/level-%u", r->o.outdir, k) >= 0 &&
+                tvpal_tree_bytes(mp, &lb, NULL) == 0)
+                r->cluster_level_bytes += lb;
+            free(mp);
+        }
+        r->cluster_bytes += r->cluster_level_bytes;
         for (int k = 0; k < cl->comm.size; k++) {
             r->cluster_bytes += cl->heads[k].bytes;
             r->cluster_shard_bytes += cl->heads[k].shard_bytes;

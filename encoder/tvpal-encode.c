@@ -1483,7 +1483,8 @@ static void print_summary(const struct run *r, const struct written *w)
     char lv[96] = "", axes[4];
     if (r->o.levels)
         snprintf(lv, sizeof lv, " levels=%u levels_bytes=%llu", r->o.levels,
-                 (unsigned long long)w->level_bytes);
+                 (unsigned long long)(r->mpi ? r->cluster_level_bytes
+                                             : w->level_bytes));
     /* The two other bases a user compares with: the values as float32
      * (the same for any input format), and the input files on disk. */
     const uint64_t in = input_bytes(r);
@@ -1564,9 +1565,6 @@ int main(int argc, char **argv)
         cluster_close(&r);
         return 0;
     }
-    if (r.mpi && r.o.levels)
-        die_usage("--levels: not under MPI yet; encode the levels without "
-                  "mpirun (they are 1/7 of the work)");
     open_partial(&r);
     if (r.level0_done)
         adopt_level0(&r);

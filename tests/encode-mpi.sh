@@ -2,6 +2,7 @@
 # encode-mpi: mpirun -np K tvpal-encode --nodes K (rank r encodes node r's
 # shards, reading only its slabs' boxes) gives output byte-identical to the
 # one-process --nodes K encode for K = 1, 2, 3, also with --shard-dir
+# and --levels (rank 0 encodes the levels; a failure there resumes)
 # (node-local directories) and under a memory limit (several passes per
 # rank); kill -9 of one rank leaves nothing that looks valid and the rerun
 # completes every rank; a rank that fails ends the job with rank 0's
@@ -76,6 +77,34 @@ rc=$?
 $MPI -np 3 "$ENC" --axes xyz -q --dims $D --window 4 --nodes 3 -o "$W/fail" $IN > /dev/null 2>&1 \
     && diff -r "$W/ref3" "$W/fail" > /dev/null && ok "rerun after a failure: byte-identical" \
     || fail "rerun after a failure"
+
+# --levels: rank 0 makes and encodes every node's levels after level 0;
+# the dataset (levels and summary included) is the one process's.  A
+# failure in level 2 ends every rank; the rerun resumes level 0 at its
+# last step, keeps level 1 and redoes level 2 only.
+"$ENC" --axes xyz -q --dims $D --window 4 --nodes 3 --levels 2 -o "$W/lref" $IN > "$W/lref.out"     || fail "--levels reference"
+$MPI -np 3 "$ENC" --axes xyz -q --dims $D --window 4 --nodes 3 --levels 2 -o "$W/lmpi" $IN \
+    > "$W/lmpi.out" 2> "$W/lmpi.err" || fail "--levels 2 on 3 ranks: $(cat "$W/lmpi.err")"
+diff -r "$W/lref" "$W/lmpi" > /dev/null && [ -e "$W/lmpi/level-2/node-2/axis-z.tvps" ] \
+    && ok "--levels 2 on 3 ranks: byte-identical to one process, every node's levels" \
+    || fail "--levels 2 on 3 ranks differs"
+[ "$(kv levels_bytes "$(cat "$W/lmpi.out")")" = "$(kv levels_bytes "$(cat "$W/lref.out")")" ] \
+    && [ "$(kv bytes "$(cat "$W/lmpi.out")")" = "$(kv bytes "$(cat "$W/lref.out")")" ] \
+    && ok "--levels on 3 ranks: bytes and levels_bytes as one process says" \
+    || fail "summary: $(cat "$W/lmpi.out") / $(cat "$W/lref.out")"
+TVPAL_ENCODE_FAULT_LEVEL=2 $MPI -np 3 "$ENC" --axes xyz -q --dims $D --window 4 --nodes 3 --levels 2 \
+    -o "$W/lf" $IN > /dev/null 2> "$W/lf.err"
+rc=$?
+[ $rc -ne 0 ] && [ ! -e "$W/lf" ] && [ -e "$W/lf.partial/level-1/manifest.txt" ] \
+    && [ ! -e "$W/lf.partial/level-2" ] && grep -q "level 2: failed" "$W/lf.err" \
+    && ok "a level failing on rank 0 ends every rank (exit $rc), nothing in place" \
+    || fail "level failure under MPI: rc $rc: $(cat "$W/lf.err")"
+$MPI -np 3 "$ENC" --axes xyz --dims $D --window 4 --nodes 3 --levels 2 -o "$W/lf" $IN \
+    > /dev/null 2> "$W/lf2.err"
+grep -q "every step is encoded" "$W/lf2.err" && grep -q "level 2 of 2" "$W/lf2.err" \
+    && ! grep -q "level 1 of 2" "$W/lf2.err" && diff -r "$W/lref" "$W/lf" > /dev/null \
+    && ok "the rerun resumes level 0, keeps level 1, byte-identical" \
+    || fail "rerun after a level failure: $(cat "$W/lf2.err")"
 
 # Rank count and --nodes must agree.
 $MPI -np 2 "$ENC" --axes xyz --dims $D --nodes 3 -o "$W/bad" $IN > /dev/null 2> "$W/bad.err"
