@@ -114,8 +114,10 @@ enum tvpal_param {
                                * the 2x2x2 means of level k - 1, made from
                                * each step as it is pushed and stored in
                                * DIR/level-k (the player answers jumps from
-                               * them; the reader decodes them); one
-                               * process only; default 0 */
+                               * them; the reader decodes them); under a
+                               * collective rank 0 encodes every node's
+                               * levels and every push is collective (see
+                               * there); default 0 */
 };
 #define TVPAL_TABLE_FLOAT32 0
 #define TVPAL_TABLE_UINT16 1
@@ -189,7 +191,13 @@ TVPAL_API int tvpal_encoder_set_missing(struct tvpal_encoder *e,
  * every rank gives up).  A rank whose push failed keeps its encoder until
  * then (its later pushes are refused; a simulation goes on feeding its
  * neighbours' halos), and its finish fails every rank's with its message;
- * a rank that aborts early waits for the others' finish. */
+ * a rank that aborts early waits for the others' finish.  With
+ * TVPAL_PARAM_LEVELS every push is collective too: each step every rank
+ * sends rank 0 its slab's part of level 1 (the planes of a 2x2x2 block
+ * split between two slabs as they are), and rank 0 makes and encodes
+ * every node's levels, so every rank pushes every step (a failed rank's
+ * later pushes and an early abort still take part), and every rank must
+ * set the same levels (else every rank fails at the first push). */
 struct tvpal_collective {
     int rank, size;           /* this process's rank, 0 .. size - 1 */
     void *ctx;                /* the caller's; passed to both */

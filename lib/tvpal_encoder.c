@@ -52,6 +52,8 @@ enum round { R_START = 1, R_SETUP, R_WRITERS, R_STATS, R_PLACE, R_DONE };
 struct vote {
     int32_t round, code;
     uint64_t done;           /* SETUP: the steps its checkpoint has done */
+    uint32_t levels;         /* START: its TVPAL_PARAM_LEVELS, which every
+                              * rank must share */
     double vmin, vmax;
     uint64_t nonfinite, missing, counted;
     char msg[TVPAL_DIAG_MAX];
@@ -129,6 +131,16 @@ struct tvpal_encoder {
     uint32_t ldims[TVPAL_LEVELS_MAX + 1][3];
     uint32_t lnext[TVPAL_LEVELS_MAX + 1];
     uint64_t *pieces;                /* rank 0: size * HIST_PIECE */
+    /* Levels of a collective ("levels of a collective" below): this
+     * rank's part of each step's level 1 (xbuf, xbytes), rank 0's of
+     * every rank (xall); xsent: the steps sent so far.  xbytes is 0 in
+     * one process. */
+    unsigned char *xbuf, *xall;
+    size_t xbytes;
+    uint32_t xsent;
+    int xfailed;                     /* rank 0: a rank's step was not
+                                      * taken (its failure is the job's,
+                                      * not the levels' it starved) */
 };
 
 /* One process: its gather is a copy, its broadcast nothing. */
@@ -517,7 +529,7 @@ static int agree(struct tvpal_encoder *e, enum round round, int rc,
 {
     const struct tvpal_checkpoint_stats *st = &e->st;
     struct vote me = {.round = (int32_t)round, .code = rc,
-                      .done = e->done_local,
+                      .done = e->done_local, .levels = e->levels,
                       .vmin = st->vmin, .vmax = st->vmax,
                       .nonfinite = st->nonfinite, .missing = st->missing,
                       .counted = st->counted};
@@ -540,16 +552,24 @@ static int agree(struct tvpal_encoder *e, enum round round, int rc,
             if (o->done < v->done)
                 v->done = o->done; /* the caller's first step: the
                                     * earliest any rank needs */
-            if (v->code == 0 && (o->code < 0 || o->round != (int32_t)round)) {
+            const int other_levels = round == R_START &&
+                                     o->levels != e->levels;
+            if (v->code == 0 && (o->code < 0 ||
+                                 o->round != (int32_t)round ||
+                                 other_levels)) {
                 v->code = o->code < 0 ? o->code : TVPAL_E_INVAL;
                 if (e->coll.size == 1)
                     snprintf(v->msg, sizeof v->msg, "%s", o->msg);
                 else if (o->code < 0)
                     snprintf(v->msg, sizeof v->msg, "rank %d: %.1000s", k, o->msg);
-                else
+                else if (o->round != (int32_t)round)
                     snprintf(v->msg, sizeof v->msg, "rank %d is in round %d "
                              "of the encode, rank 0 in round %d", k,
                              (int)o->round, (int)round);
+                else
+                    snprintf(v->msg, sizeof v->msg, "rank %d has levels %u, "
+                             "rank 0 %u: the same on every rank expected",
+                             k, o->levels, e->levels);
             }
             v->vmin = o->vmin < v->vmin ? o->vmin : v->vmin;
             v->vmax = o->vmax > v->vmax ? o->vmax : v->vmax;
@@ -593,6 +613,10 @@ _Static_assert(TVPAL_CHECKPOINT_BINS % HIST_PIECE == 0,
 
 /* ---------------------------------------------------------------- start */
 
+/* Bytes of a rank's part of level 1 at each step, with levels and a
+ * collective ("levels of a collective" below). */
+static size_t x_bytes(const struct tvpal_encoder *e);
+
 /* What this rank can refuse before anything is made. */
 static int check_job(const struct tvpal_encoder *e, struct tvpal_diag *diag)
 {
@@ -603,11 +627,6 @@ static int check_job(const struct tvpal_encoder *e, struct tvpal_diag *diag)
                               "ranks: only TVPAL_AXIS_Z (the x and y "
                               "slices cross the ranks' slabs)", e->ep.axes,
                               e->coll.size);
-    if (e->coll.size > 1 && e->levels)
-        return tvpal_diag_set(diag, TVPAL_E_INVAL, "levels %u with %d ranks: "
-                              "not yet (a level's planes cross the ranks' "
-                              "slabs); encode the levels in one process",
-                              e->levels, e->coll.size);
     if (e->coll.size > 1 && e->ep.nodes != (uint32_t)e->coll.size)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "nodes %u with %d ranks: "
                               "one node shard per rank", e->ep.nodes,
@@ -652,8 +671,11 @@ static uint64_t job_bytes(const struct tvpal_encoder *e, unsigned nthreads,
     const uint64_t per_thread = tvpal_engine_thread_bytes(e->eng) +
                                 TVPAL_CHECKPOINT_BINS * sizeof(uint64_t) +
                                 (uint64_t)e->ep.dims[0] * 8;
-    uint64_t levels = 0; /* each level's volume and its encoder's ring */
-    for (uint32_t k = 1; k <= e->levels; k++) {
+    /* Each level's volume and its encoder's ring, rank 0's; with a
+     * collective every rank's part of level 1, and rank 0 every rank's. */
+    uint64_t levels = e->xbytes * (is_root(e) ? (uint64_t)e->coll.size + 1
+                                              : 1);
+    for (uint32_t k = 1; is_root(e) && k <= e->levels; k++) {
         uint32_t dk[3];
         tvpal_level_dims(e->ep.dims, k, dk);
         levels += (uint64_t)((T < N ? T : N) + 1) * dk[0] * dk[1] * dk[2] *
@@ -744,6 +766,8 @@ static int setup(struct tvpal_encoder *e, struct tvpal_diag *diag)
     int rc;
     if ((rc = tvpal_engine_create(&e->eng, &e->ep)) < 0)
         return tvpal_diag_set(diag, rc, "the encoding parameters");
+    if (e->levels && e->coll.size > 1)
+        e->xbytes = x_bytes(e);
     const unsigned nt = e->threads ? e->threads
                                    : tvpal_pool_default_threads();
     const uint64_t need = job_bytes(e, nt, nvox);
@@ -770,6 +794,12 @@ static int setup(struct tvpal_encoder *e, struct tvpal_diag *diag)
         if (!(e->fine[i] = calloc(TVPAL_CHECKPOINT_BINS, sizeof(uint64_t))) ||
             !(e->rows[i] = malloc((size_t)d[0] * 8)))
             return TVPAL_E_NOMEM;
+    if (e->xbytes &&
+        (!(e->xbuf = calloc(1, e->xbytes)) ||
+         (is_root(e) && !(e->xall = calloc((size_t)e->coll.size,
+                                           e->xbytes)))))
+        return tvpal_diag_set(diag, TVPAL_E_NOMEM, "the levels' exchange: "
+                              "%zu bytes per rank", e->xbytes);
     /* One pass over this rank's slab: every axis for one process, z of
      * the slab for a rank (x and y are refused then). */
     const uint32_t z0 = e->slab_z0, z1 = e->slab_z0 + e->slab_n;
@@ -849,15 +879,14 @@ static int open_level(struct tvpal_encoder *e, uint32_t k, uint64_t done,
     return rc;
 }
 
-/* Step t (in the ring) to every level: level 1 its block means, each next
- * level those of the one before. */
+/* Step t to every level: level 1 from lvol[1] (made already), each next
+ * level the block means of the one before. */
 static int push_levels(struct tvpal_encoder *e, uint32_t t,
                        struct tvpal_diag *diag)
 {
-    const float *fine = tvpal_engine_slot(e->eng, t);
-    const uint32_t *fd = e->ep.dims;
     for (uint32_t k = 1; k <= e->levels; k++) {
-        tvpal_level_make(fine, fd, e->lvol[k]);
+        if (k > 1)
+            tvpal_level_make(e->lvol[k - 1], e->ldims[k - 1], e->lvol[k]);
         const uint32_t *dk = e->ldims[k];
         int rc = t < e->lnext[k]
                      ? 0
@@ -869,10 +898,167 @@ static int push_levels(struct tvpal_encoder *e, uint32_t t,
             snprintf(why, sizeof why, "%s", diag ? diag->msg : "");
             return tvpal_diag_set(diag, rc, "level %u: %s", k, why);
         }
-        fine = e->lvol[k];
-        fd = dk;
     }
     return 0;
+}
+
+/* ------------------------------------------------ levels of a collective
+ *
+ * Level 1's 2x2x2 blocks cross the ranks' slabs where a slab starts or
+ * ends between the two planes of a block.  So at each step every rank
+ * sends rank 0, through the collective's gather, the level-1 planes its
+ * slab holds whole and, where a block is split, its plane of it as it
+ * is; rank 0 averages each split block's two planes with the function
+ * one process uses (tvpal_level_average_planes), so level 1 is one
+ * process's bit for bit, and encodes every level, every node shard of
+ * it, in its own process (the levels are 1/7 of the work).  Every step is
+ * then a collective call: every rank sends each step once, in order,
+ * whatever became of its push (a failed rank's step goes marked failed,
+ * and an abort or a failed finish first sends the steps left), so that
+ * no rank waits for one that will not come. */
+
+/* What a rank's part holds, ahead of its planes. */
+struct xhead {
+    int32_t ok;              /* the step's values were taken */
+    uint32_t c0, nc;         /* whole level-1 planes c0 .. c0 + nc - 1 */
+    uint32_t first, last;    /* its first plane (its slab starts at an odd
+                              * plane) and its last (a block goes on in
+                              * the next slab) follow */
+    uint32_t pad[3];
+};
+
+/* Rank k's part of level 1, for the collective's slabs of nz planes. */
+static void x_part(const struct tvpal_encoder *e, uint32_t k,
+                   struct xhead *h, uint32_t *z0)
+{
+    const uint32_t nz = e->ep.dims[2];
+    uint32_t n;
+    tvpal_slab(nz, (uint32_t)e->coll.size, k, z0, &n);
+    const uint32_t end = *z0 + n;
+    const uint32_t c_end = end == nz ? (nz + 1) / 2 : end / 2;
+    memset(h, 0, sizeof *h);
+    h->c0 = (*z0 + 1) / 2;
+    h->nc = c_end > h->c0 ? c_end - h->c0 : 0;
+    h->first = *z0 & 1;
+    h->last = (end & 1) && end < nz;
+}
+
+/* Bytes of a level-1 plane, of a level-0 plane, and of a rank's part:
+ * the head, room for the most whole planes any rank has, two planes. */
+static size_t x_cplane(const struct tvpal_encoder *e)
+{
+    return (size_t)((e->ep.dims[0] + 1) / 2) * ((e->ep.dims[1] + 1) / 2) *
+           sizeof(float);
+}
+static size_t x_fplane(const struct tvpal_encoder *e)
+{
+    return (size_t)e->ep.dims[0] * e->ep.dims[1] * sizeof(float);
+}
+static size_t x_bytes(const struct tvpal_encoder *e)
+{
+    uint32_t ncmax = 0, z0;
+    struct xhead h;
+    for (int k = 0; k < e->coll.size; k++) {
+        x_part(e, (uint32_t)k, &h, &z0);
+        ncmax = h.nc > ncmax ? h.nc : ncmax;
+    }
+    return sizeof h + ncmax * x_cplane(e) + 2 * x_fplane(e);
+}
+
+/* Where a part's planes are: whole planes, then the first, the last. */
+static size_t x_first_at(const struct tvpal_encoder *e)
+{
+    return e->xbytes - 2 * x_fplane(e);
+}
+
+/* Rank 0: level 1 of the step from every rank's part into lvol[1]; 0, or
+ * 1 where a rank's step was not taken (nothing to encode then). */
+static int x_assemble(struct tvpal_encoder *e)
+{
+    const size_t cp = x_cplane(e), fp = x_fplane(e);
+    unsigned char *lv1 = (unsigned char *)e->lvol[1];
+    for (int k = 0; k < e->coll.size; k++) {
+        const unsigned char *part = e->xall + (size_t)k * e->xbytes;
+        struct xhead h;
+        memcpy(&h, part, sizeof h);
+        if (!h.ok)
+            return 1;
+        memcpy(lv1 + h.c0 * cp, part + sizeof h, h.nc * cp);
+        if (!h.last)
+            continue;
+        /* The block of this slab's last plane and the next's first. */
+        uint32_t z0n;
+        struct xhead hn;
+        x_part(e, (uint32_t)k + 1, &hn, &z0n);
+        const unsigned char *next = part + e->xbytes;
+        tvpal_level_average_planes(
+            (const float *)(part + x_first_at(e) + fp),
+            (const float *)(next + x_first_at(e)), e->ep.dims[0],
+            e->ep.dims[1], (float *)(lv1 + (size_t)(z0n - 1) / 2 * cp));
+    }
+    return 0;
+}
+
+/* Sends this rank's part of the next step (slab: its values, as
+ * converted; NULL: not taken) and, on rank 0, makes the step's level 1
+ * and pushes every level.  0, TVPAL_E_SYS (the gather failed) or a
+ * level's code. */
+static int x_step(struct tvpal_encoder *e, const float *slab,
+                  struct tvpal_diag *diag)
+{
+    const size_t fp = x_fplane(e);
+    const size_t fvox = fp / sizeof(float);
+    struct xhead h;
+    uint32_t z0;
+    x_part(e, (uint32_t)e->coll.rank, &h, &z0);
+    h.ok = slab != NULL;
+    if (slab) {
+        float *out = (float *)(e->xbuf + sizeof h);
+        const uint32_t nz = e->ep.dims[2];
+        for (uint32_t i = 0; i < h.nc; i++) {
+            const uint32_t fz = 2 * (h.c0 + i); /* in the volume */
+            const float *f0 = slab + (size_t)(fz - z0) * fvox;
+            tvpal_level_average_planes(f0, fz + 1 < nz ? f0 + fvox : NULL,
+                                       e->ep.dims[0], e->ep.dims[1],
+                                       out + i * (x_cplane(e) /
+                                                  sizeof(float)));
+        }
+        if (h.first)
+            memcpy(e->xbuf + x_first_at(e), slab, fp);
+        if (h.last)
+            memcpy(e->xbuf + x_first_at(e) + fp,
+                   slab + (size_t)(e->slab_n - 1) * fvox, fp);
+    }
+    memcpy(e->xbuf, &h, sizeof h);
+    const uint32_t t = e->xsent++;
+    if (e->coll.gather(e->coll.ctx, e->xbuf, e->xbytes,
+                       is_root(e) ? e->xall : NULL) != 0)
+        return tvpal_diag_set(diag, TVPAL_E_SYS, "rank %d: the "
+                              "collective's gather failed", e->coll.rank);
+    if (!is_root(e) || e->state == FAILED || e->xfailed)
+        return 0;
+    if (x_assemble(e)) {
+        e->xfailed = 1;
+        return 0;
+    }
+    return push_levels(e, t, diag);
+}
+
+/* Whether the steps go through x_step: levels, several ranks, and no
+ * round has decided a failure (every rank knows it then, and none
+ * sends). */
+static int x_on(const struct tvpal_encoder *e)
+{
+    return e->xbytes && !e->decided;
+}
+
+/* The steps this rank has not sent, sent as not taken (before it leaves
+ * for a round or aborts). */
+static void x_send_rest(struct tvpal_encoder *e)
+{
+    while (x_on(e) && e->state != OPENED && e->xsent < e->ep.steps)
+        if (x_step(e, NULL, NULL) < 0)
+            break;
 }
 
 /* The levels finished (each renames its DIR.partial/level-k.partial to
@@ -924,14 +1110,17 @@ static int start(struct tvpal_encoder *e, enum tvpal_type type,
     const uint64_t done = e->done_local;
     e->next_in = (uint32_t)v.done;
     rc = open_writers(e, done, &d);
+    /* The levels are rank 0's (with a collective it encodes every node's
+     * of them, x_step), opened before the round, which tells every rank
+     * of a failure. */
+    for (uint32_t k = 1; rc == 0 && is_root(e) && k <= e->levels; k++)
+        rc = open_level(e, k, done, &d);
     if (agree(e, R_WRITERS, rc, d.msg, &v) < 0)
         return report(rc, &v, diag);
     e->encoded = e->pushed = (uint32_t)done;
     e->recount_to = done ? e->st.loaded : 0;
-    /* Levels: one process only (check_job), so no round. */
-    for (uint32_t k = 1; rc == 0 && k <= e->levels; k++)
-        rc = open_level(e, k, done, diag);
-    return rc;
+    e->xsent = e->next_in;
+    return 0;
 }
 
 /* ----------------------------------------------------------------- push */
@@ -978,26 +1167,38 @@ static void convert_plane(void *arg, size_t z, unsigned tid)
     }
 }
 
-/* Converts the step (this rank's slab of it) at data into the ring and
- * counts it; a refused value is named by its voxel in the volume. */
-static int take_step(struct tvpal_encoder *e, const void *data,
-                     const ptrdiff_t *strides, struct tvpal_diag *diag)
+/* Converts this rank's slab of the step at data into the ring's slot of
+ * step t, into the statistics of *all (and the threads' histograms where
+ * count). */
+static void convert_step(struct tvpal_encoder *e, const void *data,
+                         const ptrdiff_t *strides, uint32_t t, int count,
+                         struct tvpal_found *all)
 {
     const uint32_t *d = e->ep.dims;
     const unsigned nt = tvpal_pool_threads(e->pool);
     struct push_ctx c = {
         .e = e, .data = data, .esize = tvpal_type_size(e->type),
         .s = {1, (ptrdiff_t)d[0], (ptrdiff_t)d[0] * d[1]},
-        .dst = tvpal_engine_slot(e->eng, e->pushed),
-        .count = e->pushed >= e->recount_to};
+        .dst = tvpal_engine_slot(e->eng, t), .count = count};
     if (strides)
         memcpy(c.s, strides, sizeof c.s);
-    struct tvpal_found all = tvpal_found_empty(e->st.vmin, e->st.vmax);
+    *all = tvpal_found_empty(e->st.vmin, e->st.vmax);
     for (unsigned i = 0; i < nt; i++)
-        e->found[i] = all;
+        e->found[i] = *all;
     tvpal_pool_for(e->pool, e->slab_n, convert_plane, &c);
     for (unsigned i = 0; i < nt; i++)
-        tvpal_found_merge(&all, &e->found[i]);
+        tvpal_found_merge(all, &e->found[i]);
+}
+
+/* Converts the step (this rank's slab of it) at data into the ring and
+ * counts it; a refused value is named by its voxel in the volume. */
+static int take_step(struct tvpal_encoder *e, const void *data,
+                     const ptrdiff_t *strides, struct tvpal_diag *diag)
+{
+    const uint32_t *d = e->ep.dims;
+    const int count = e->pushed >= e->recount_to;
+    struct tvpal_found all;
+    convert_step(e, data, strides, e->pushed, count, &all);
     if (all.rc < 0) {
         const uint64_t x = all.bad % d[0], y = all.bad / d[0] % d[1],
                        z = all.bad / d[0] / d[1] + e->slab_z0;
@@ -1009,7 +1210,7 @@ static int take_step(struct tvpal_encoder *e, const void *data,
                               (unsigned long long)x, (unsigned long long)y,
                               (unsigned long long)z);
     }
-    if (!c.count) {
+    if (!count) {
         e->pushed++;
         return 0;
     }
@@ -1070,9 +1271,12 @@ int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
                        enum tvpal_scalar type, size_t count,
                        const ptrdiff_t strides[3], struct tvpal_diag *diag)
 {
-    if (e->state == FAILED)
+    if (e->state == FAILED) {
+        if (x_on(e) && e->xsent < e->ep.steps)
+            x_step(e, NULL, NULL); /* its step, not taken, to rank 0 */
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "a push after a failed "
                               "one: only tvpal_encoder_abort is left");
+    }
     if (type != TVPAL_FLOAT32 && type != TVPAL_FLOAT64)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "type %d: TVPAL_FLOAT32 "
                               "or TVPAL_FLOAT64 expected", (int)type);
@@ -1100,17 +1304,37 @@ int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
                               tvpal_type_name(t), tvpal_type_name(e->type));
     }
     if (rc == 0 && e->next_in < e->pushed) {
-        e->next_in++; /* a step this rank's checkpoint has: passed over */
-        return 0;
-    }
-    if (rc == 0)
+        /* A step this rank's checkpoint has: passed over, but for its
+         * part of the levels, which rank 0 may not have. */
+        if (x_on(e)) {
+            struct tvpal_found all;
+            convert_step(e, data, strides, e->next_in, 0, &all);
+            rc = x_step(e, tvpal_engine_slot(e->eng, e->next_in), &d);
+        }
+        if (rc == 0) {
+            e->next_in++;
+            return 0;
+        }
+    } else if (rc == 0) {
         rc = take_step(e, data, strides, &d);
-    if (rc == 0)
-        e->next_in++;
-    /* The levels first: their checkpoints are then never behind level
-     * 0's, so that a resume finds every level at or past level 0's step. */
-    if (rc == 0 && e->levels)
-        rc = push_levels(e, e->pushed - 1, &d);
+        if (rc == 0)
+            e->next_in++;
+        /* The levels first: their checkpoints are then never behind level
+         * 0's, so that a resume finds every level at or past level 0's
+         * step. */
+        if (x_on(e)) {
+            /* The step goes to rank 0 whatever became of it (rank 0
+             * makes the levels). */
+            const int xrc = x_step(e, rc == 0 ? tvpal_engine_slot(
+                                                    e->eng, e->pushed - 1)
+                                              : NULL, rc == 0 ? &d : NULL);
+            rc = rc == 0 ? xrc : rc;
+        } else if (rc == 0 && e->levels) {
+            tvpal_level_make(tvpal_engine_slot(e->eng, e->pushed - 1),
+                             e->ep.dims, e->lvol[1]);
+            rc = push_levels(e, e->pushed - 1, &d);
+        }
+    }
     if (rc == 0)
         rc = encode_ready(e, &d);
     if (rc < 0 && e->state != FAILED) {
@@ -1297,6 +1521,8 @@ static void release(struct tvpal_encoder *e)
     free(e->found);
     free(e->votes);
     free(e->pieces);
+    free(e->xbuf);
+    free(e->xall);
     free(e->ckdir);
     free(e->fp);
     tvpal_checkpoint_progress_free(&e->ckp);
@@ -1321,6 +1547,7 @@ static void join_failing(struct tvpal_encoder *e, int rc, const char *msg)
         return;
     if (e->own_rc)
         rc = e->own_rc, msg = e->own_msg;
+    x_send_rest(e); /* the other ranks are still pushing */
     if (e->round == R_START || e->round == R_STATS)
         agree(e, e->round, rc, msg, &v);
 }
@@ -1345,7 +1572,10 @@ int tvpal_encoder_finish(struct tvpal_encoder *e, struct tvpal_diag *diag)
     }
     char *text = NULL;
     fold_histograms(e);
-    rc = finish_levels(e, &d); /* one process: no round between */
+    /* The levels are rank 0's; with a collective, levels a failed rank
+     * left short are not finished (that rank's failure is said in the
+     * round). */
+    rc = e->xfailed ? 0 : finish_levels(e, &d);
     rc = agree_stats(e, rc, d.msg, &text, &d);
     if (rc == 0)
         rc = finish_shards(e, text, &d);

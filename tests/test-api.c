@@ -53,12 +53,18 @@ static float value(unsigned t, unsigned x, unsigned y, unsigned z)
                    (x == t % NX) * 4.0);
 }
 
-static void fill(float *v, unsigned t)
+/* Step t of the series on a grid of NX x NY x nz. */
+static void fill_nz(float *v, unsigned t, unsigned nz)
 {
-    for (unsigned z = 0; z < NZ; z++)
+    for (unsigned z = 0; z < nz; z++)
         for (unsigned y = 0; y < NY; y++)
             for (unsigned x = 0; x < NX; x++)
                 v[x + NX * (y + NY * z)] = value(t, x, y, z);
+}
+
+static void fill(float *v, unsigned t)
+{
+    fill_nz(v, t, NZ);
 }
 
 /* The bytes of a file into a malloc'ed buffer; *n its size. */
@@ -397,11 +403,17 @@ static int fake_bcast(void *ctx, void *buf, size_t bytes)
 struct rank_job {
     struct member m;
     const char *dir;
+    uint32_t nz;             /* the series' planes (NX x NY x nz) */
+    unsigned levels;         /* TVPAL_PARAM_LEVELS */
     int wrong_slab;          /* declares the next rank's slab */
     int abort_at;            /* aborts before pushing this step (-1: no) */
     int inf_at;              /* pushes an infinity at this step (-1: no) */
     int stop_at;             /* returns before pushing this step, without
                               * finish or abort, as if killed (-1: no) */
+    int exit_at;             /* ends the process (every rank) before
+                              * pushing this step (-1: no): a kill of a job
+                              * whose ranks wait for each other at every
+                              * step (levels) */
     int resume;              /* tvpal_encoder_resume first, and pushes
                               * from the step it gives (in next) */
     uint32_t next;
@@ -417,12 +429,14 @@ static void *rank_main(void *arg)
     const struct tvpal_collective c = {j->m.rank, RANKS, &j->m, fake_gather,
                                        fake_bcast, NULL};
     uint32_t z0, nz;
-    tvpal_slab(NZ, RANKS, (uint32_t)j->m.rank + (j->wrong_slab ? 1 : 0), &z0,
-               &nz);
-    if (tvpal_encoder_open(&e, j->dir, dims, T, d) < 0)
+    const uint32_t dj[3] = {NX, NY, j->nz};
+    tvpal_slab(j->nz, RANKS, (uint32_t)j->m.rank + (j->wrong_slab ? 1 : 0),
+               &z0, &nz);
+    if (tvpal_encoder_open(&e, j->dir, dj, T, d) < 0)
         return NULL;
     tvpal_encoder_set(e, TVPAL_PARAM_WINDOW, 3, d);
     tvpal_encoder_set(e, TVPAL_PARAM_THREADS, 1, d);
+    tvpal_encoder_set(e, TVPAL_PARAM_LEVELS, j->levels, d);
     j->set_rc = tvpal_encoder_set_collective(e, &c, z0, nz, d);
     j->next = 0;
     if (j->resume &&
@@ -431,53 +445,73 @@ static void *rank_main(void *arg)
         tvpal_encoder_abort(e);
         return NULL;
     }
-    float v[NV];
-    for (unsigned t = j->next; t < T; t++) {
-        if ((int)t == j->stop_at)
+    float *v = malloc(sizeof *v * NX * NY * j->nz);
+    for (unsigned t = j->next; v && t < T; t++) {
+        if ((int)t == j->exit_at)
+            _exit(0);
+        if ((int)t == j->stop_at) {
+            free(v);
             return NULL; /* killed: the process exits next */
+        }
         if ((int)t == j->abort_at) {
             tvpal_encoder_abort(e);
+            free(v);
             return NULL;
         }
-        fill(v, t);
+        fill_nz(v, t, j->nz);
         if ((int)t == j->inf_at)
             v[NX * NY * z0 + 5] = INFINITY;
         j->push_rc = tvpal_encoder_push(e, v + NX * NY * z0, TVPAL_FLOAT32,
                                         (size_t)NX * NY * nz, NULL, d);
         if (j->push_rc < 0) {
             tvpal_encoder_abort(e);
+            free(v);
             return NULL;
         }
     }
-    j->finish_rc = tvpal_encoder_finish(e, d);
+    j->finish_rc = v ? tvpal_encoder_finish(e, d) : TVPAL_E_NOMEM;
+    free(v);
     return NULL;
 }
 
-/* Runs RANKS ranks into dir; rank `who` does what `how` says. */
-static void run_ranks(struct rank_job *jobs, const char *dir, int who,
-                      const char *how)
+/* Runs RANKS ranks of the series of nz planes with `levels` levels into
+ * dir; rank `who` does what `how` says. */
+static void run_ranks_of(struct rank_job *jobs, const char *dir, int who,
+                         const char *how, uint32_t nz, unsigned levels)
 {
     struct group g;
     pthread_barrier_init(&g.bar, NULL, RANKS);
     pthread_t th[RANKS];
     for (int k = 0; k < RANKS; k++) {
-        jobs[k] = (struct rank_job){.m = {&g, k}, .dir = dir,
+        jobs[k] = (struct rank_job){.m = {&g, k}, .dir = dir, .nz = nz,
+                                    .levels = levels,
                                     .abort_at = -1, .inf_at = -1,
-                                    .stop_at = -1,
+                                    .stop_at = -1, .exit_at = -1,
                                     .resume = !strcmp(how, "resume")};
         if (!strcmp(how, "killed apart"))
             jobs[k].stop_at = 6 - k; /* the ranks at different steps */
+        if (k == RANKS - 1 && !strcmp(how, "killed"))
+            jobs[k].exit_at = 5;
         if (k == who && !strcmp(how, "wrong slab"))
             jobs[k].wrong_slab = 1;
         if (k == who && !strcmp(how, "abort"))
             jobs[k].abort_at = 3;
         if (k == who && !strcmp(how, "infinity"))
             jobs[k].inf_at = 4;
+        if (k == who && !strcmp(how, "other levels"))
+            jobs[k].levels = levels + 1;
         pthread_create(&th[k], NULL, rank_main, &jobs[k]);
     }
     for (int k = 0; k < RANKS; k++)
         pthread_join(th[k], NULL);
     pthread_barrier_destroy(&g.bar);
+}
+
+/* The same for the series of test_collective: NZ planes, no levels. */
+static void run_ranks(struct rank_job *jobs, const char *dir, int who,
+                      const char *how)
+{
+    run_ranks_of(jobs, dir, who, how, NZ, 0);
 }
 
 static int same_file(const char *a, const char *b)
@@ -622,6 +656,90 @@ static void test_collective_resume(void)
               j[k].resume_rc, j[k].next, j[k].push_rc, j[k].finish_rc,
               j[k].d.msg);
     check_like_one("apart");
+}
+
+/* Levels with a collective: rank 0 makes level 1 from every rank's part
+ * (LNZ planes in slabs of 4, 3, 3, 3: a block split between ranks 1 and
+ * 2, a last block of one plane) and encodes every node's levels; the
+ * dataset is one process's NODES RANKS, LEVELS 1 (level 2 would have
+ * fewer than RANKS slices), file for file.  A rank
+ * failing or aborting mid-way ends every rank with its message (none
+ * waits for it), a kill and a resume give the same bytes, and a rank with
+ * other levels is refused. */
+#define LNZ 13
+static void test_collective_levels(void)
+{
+    struct tvpal_diag d = {{0}};
+    const uint32_t dl[3] = {NX, NY, LNZ};
+    struct tvpal_encoder *e = NULL;
+    REQUIRE(tvpal_encoder_open(&e, path("%s/lone%s", ""), dl, T, &d) == 0,
+            "open");
+    tvpal_encoder_set(e, TVPAL_PARAM_WINDOW, 3, &d);
+    tvpal_encoder_set(e, TVPAL_PARAM_NODES, RANKS, &d);
+    tvpal_encoder_set(e, TVPAL_PARAM_LEVELS, 1, &d);
+    static float v[NX * NY * LNZ];
+    for (unsigned t = 0; t < T; t++) {
+        fill_nz(v, t, LNZ);
+        REQUIRE(tvpal_encoder_push(e, v, TVPAL_FLOAT32, NX * NY * LNZ, NULL,
+                                   &d) == 0, "push: %s", d.msg);
+    }
+    REQUIRE(tvpal_encoder_finish(e, &d) == 0, "finish: %s", d.msg);
+    char cmd[1200];
+    struct rank_job j[RANKS];
+    static const char *const runs[] = {"", "killed"};
+    for (int i = 0; i < 2; i++) {
+        const char *dir = path("%s/lranks%s", "");
+        snprintf(cmd, sizeof cmd, "rm -rf %s %s.partial", dir, dir);
+        REQUIRE(system(cmd) == 0, "rm");
+        if (i == 1) {
+            fflush(NULL);
+            pid_t pid = fork();
+            if (pid == 0) {
+                run_ranks_of(j, dir, -1, runs[i], LNZ, 1);
+                _exit(0);
+            }
+            int status = 0;
+            REQUIRE(pid > 0 && waitpid(pid, &status, 0) == pid &&
+                        WIFEXITED(status) && WEXITSTATUS(status) == 0,
+                    "the killed ranks' process failed (status %d)", status);
+            CHECK(!exists(dir) &&
+                      exists(path("%s/lranks%s", ".partial/level-1.partial")),
+                  "the kill left no partial levels");
+        }
+        run_ranks_of(j, dir, -1, i ? "resume" : "", LNZ, 1);
+        for (int k = 0; k < RANKS; k++)
+            CHECK(j[k].set_rc == 0 && j[k].push_rc == 0 &&
+                      j[k].finish_rc == 0 && j[k].resume_rc == 0,
+                  "levels%s, rank %d: %d %d %d %d %s", i ? " resumed" : "",
+                  k, j[k].set_rc, j[k].push_rc, j[k].finish_rc,
+                  j[k].resume_rc, j[k].d.msg);
+        snprintf(cmd, sizeof cmd, "diff -r %s %s > /dev/null",
+                 path("%s/lone%s", ""), dir);
+        CHECK(system(cmd) == 0, "levels on %d ranks%s: the dataset differs "
+              "from one process's", RANKS, i ? ", killed and resumed" : "");
+    }
+    static const struct {
+        int who;
+        const char *how, *says;
+    } bad[] = {{3, "infinity", "rank 3: step 4: an infinite value"},
+               {2, "abort", "rank 2: the encode was aborted"},
+               {1, "other levels", "rank 1 has levels 2, rank 0 1"}};
+    for (size_t i = 0; i < sizeof bad / sizeof *bad; i++) {
+        const char *dir = path("%s/lbad%s", "");
+        snprintf(cmd, sizeof cmd, "rm -rf %s %s.partial", dir, dir);
+        REQUIRE(system(cmd) == 0, "rm");
+        run_ranks_of(j, dir, bad[i].who, bad[i].how, LNZ, 1);
+        for (int k = 0; k < RANKS; k++) {
+            if (k == bad[i].who && strcmp(bad[i].how, "other levels"))
+                continue;
+            const int rc = j[k].finish_rc ? j[k].finish_rc : j[k].push_rc;
+            CHECK(rc < 0 && strstr(j[k].d.msg, bad[i].says),
+                  "levels, %s on rank %d: rank %d got %d \"%s\"",
+                  bad[i].how, bad[i].who, k, rc, j[k].d.msg);
+        }
+        CHECK(!exists(dir) && !exists(path("%s/lbad%s", ".partial")),
+              "levels, %s: something left", bad[i].how);
+    }
 }
 
 /* Pushes steps first .. last - 1 of the series (float32). */
@@ -795,6 +913,7 @@ int main(void)
     test_output_rules();
     test_collective();
     test_collective_resume();
+    test_collective_levels();
     test_resume();
     test_levels();
     int rc = tt_done("test-api");
