@@ -527,37 +527,68 @@ static void centroid_relax(const struct tvpal_quantws *ws,
     }
 }
 
+/* Whether cell a goes before cell b as the next to split: the larger
+ * distortion, of equal ones the lower index (the first maximum a scan
+ * finds). */
+static inline int split_before(const double *sse, unsigned a, unsigned b)
+{
+    return sse[a] > sse[b] || (sse[a] == sse[b] && a < b);
+}
+
+/* Restores the max-heap h[0..n) (by split_before) below position i. */
+static void sift_down(unsigned *h, unsigned n, unsigned i, const double *sse)
+{
+    for (;;) {
+        unsigned c = 2 * i + 1;
+        if (c >= n)
+            return;
+        if (c + 1 < n && split_before(sse, h[c + 1], h[c]))
+            c++;
+        if (!split_before(sse, h[c], h[i]))
+            return;
+        const unsigned t = h[i];
+        h[i] = h[c];
+        h[c] = t;
+        i = c;
+    }
+}
+
 /* Centroid condition with empty cells: non-empty cells go to their means;
- * each empty cell splits the cell of largest distortion at its centroid
- * into two halves, each at its own centroid.  nxt receives the levels
- * (sorted); cur holds the current ones. */
+ * each empty cell, in order, splits the cell of largest distortion at its
+ * centroid into two halves, each at its own centroid.  A split cell is not
+ * split again and an exact one (distortion 0) never is, so the cells
+ * split are those of positive distortion, largest first (of equal ones
+ * the lowest index): they come off a heap, O(L + nempty log L) where a
+ * scan per empty cell was O(L nempty), with the same result.  nxt
+ * receives the levels (sorted); cur holds the current ones. */
 static void centroid_split(const struct tvpal_quantws *ws, const size_t *bnd,
                            unsigned L, const double *cur, unsigned nempty,
                            double *nxt)
 {
     double sse[TVPAL_LEVELS_MAX];
+    unsigned heap[TVPAL_LEVELS_MAX], nh = 0;
     for (unsigned i = 0; i < L; i++) {
         size_t a = bnd[i], b = bnd[i + 1];
         if (b > a) {
             nxt[i] = (ws->p1[b] - ws->p1[a]) / count_d(b - a);
             sse[i] = cell_sse(ws, a, b, nxt[i]);
+            if (sse[i] > 0.0)
+                heap[nh++] = i;
         } else {
             nxt[i] = cur[i];
             sse[i] = -1.0;
         }
     }
+    for (unsigned i = nh / 2; i-- > 0;)
+        sift_down(heap, nh, i, sse);
     for (unsigned i = 0; i < L && nempty; i++) {
         if (sse[i] >= 0.0)
             continue;
-        unsigned w = L;
-        double wmax = 0.0;
-        for (unsigned j = 0; j < L; j++)
-            if (sse[j] > wmax) {
-                wmax = sse[j];
-                w = j;
-            }
-        if (w == L)
+        if (nh == 0)
             break; /* every cell is exact: nothing left to split */
+        const unsigned w = heap[0];
+        heap[0] = heap[--nh];
+        sift_down(heap, nh, 0, sse);
         size_t a = bnd[w], b = bnd[w + 1];
         size_t p = lower_bound(ws->s, a, b, nxt[w] + ws->mean);
         if (p <= a || p >= b)
@@ -566,10 +597,6 @@ static void centroid_split(const struct tvpal_quantws *ws, const size_t *bnd,
         double hi = (ws->p1[b] - ws->p1[p]) / count_d(b - p);
         nxt[w] = lo;
         nxt[i] = hi;
-        /* The split cells' bounds are only used for later splits of the
-         * same cell this iteration; mark both as done to keep bnd valid. */
-        sse[w] = 0.0;
-        sse[i] = 0.0;
         nempty--;
     }
     sort_levels(nxt, L);
