@@ -248,6 +248,8 @@ void cluster_finish(struct run *r)
      * 1 with their shards as their checkpoints left them: a failure here
      * ends every rank through that round, and a rerun resumes every rank
      * at its last step and keeps the levels that were complete. */
+    if (root) /* an earlier run's levels beyond this run's go */
+        remove_levels_beyond(r);
     if (root && r->o.levels)
         encode_levels(r);
     struct round_head h = {0};

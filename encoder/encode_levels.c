@@ -30,6 +30,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 
 
@@ -264,6 +265,24 @@ void levels_free(struct levels *ls)
     free(ls->fine[0]);
     free(ls->fine[1]);
     free(ls);
+}
+
+void remove_levels_beyond(const struct run *r)
+{
+    for (unsigned k = r->o.levels + 1; k <= TVPAL_LEVELS_MAX; k++) {
+        static const char *const sfx[] = {"", ".src", ".partial",
+                                          ".partial.lock"};
+        for (int i = 0; i < 4; i++) {
+            char *p = NULL;
+            if (asprintf(&p, "%s/level-%u%s", r->partial, k, sfx[i]) < 0)
+                die_fail("out of memory");
+            if (i == 3)
+                unlink(p);
+            else
+                tvpal_rmtree(p);
+            free(p);
+        }
+    }
 }
 
 void encode_levels(struct run *r)

@@ -13,6 +13,10 @@
  * OUTDIR.partial/level-k/ (encode_levels.c says how): those made beside
  * level 0 (r->lvs) finished, or made now from the source read again. */
 void encode_levels(struct run *r);
+/* Removes OUTDIR.partial/level-k (and its partial output) for every k
+ * beyond --levels: an earlier run of the job (the same level 0) that
+ * asked for more left them. */
+void remove_levels_beyond(const struct run *r);
 /* The levels' encoders (the levels not yet complete), their steps made
  * from whole source steps given to levels_step (inline_steps: level 0's
  * single pass) or from the source read again (vol0 NULL); levels_close

@@ -1345,20 +1345,7 @@ static void adopt_level0(const struct run *r)
     tvpal_manifest_clear(&m);
     write_manifests(r, text);
     free(text);
-    for (unsigned k = r->o.levels + 1; k <= TVPAL_LEVELS_MAX; k++) {
-        static const char *const sfx[] = {"", ".src", ".partial",
-                                          ".partial.lock"};
-        for (int i = 0; i < 4; i++) {
-            char *p = NULL;
-            if (asprintf(&p, "%s/level-%u%s", r->partial, k, sfx[i]) < 0)
-                die_fail("out of memory");
-            if (i == 3)
-                unlink(p);
-            else
-                tvpal_rmtree(p);
-            free(p);
-        }
-    }
+    remove_levels_beyond(r);
 }
 
 /* Reopens the dataset in OUTDIR.partial with the reader, every level of

@@ -106,6 +106,15 @@ grep -q "every step is encoded" "$W/lf2.err" && grep -q "level 2 of 2" "$W/lf2.e
     && ok "the rerun resumes level 0, keeps level 1, byte-identical" \
     || fail "rerun after a level failure: $(cat "$W/lf2.err")"
 
+# A rerun asking for fewer levels keeps level 0 and level 1 and drops the
+# earlier run's level 2 (it would have gone into OUTDIR unnamed).
+TVPAL_ENCODE_FAULT_LEVEL=3 $MPI -np 3 "$ENC" --axes xyz -q --dims $D --window 4 --nodes 3 --levels 3 \
+    -o "$W/lfew" $IN > /dev/null 2>&1
+$MPI -np 3 "$ENC" --axes xyz -q --dims $D --window 4 --nodes 3 --levels 1 -o "$W/lfew" $IN > /dev/null 2>&1 \
+    && [ ! -e "$W/lfew/level-2" ] && diff -r "$W/lref/level-1" "$W/lfew/level-1" > /dev/null \
+    && ok "a rerun with fewer levels: no level beyond them left in OUTDIR" \
+    || fail "fewer levels on rerun: $(ls "$W/lfew" "$W/lfew.partial" 2>&1)"
+
 # Rank count and --nodes must agree.
 $MPI -np 2 "$ENC" --axes xyz --dims $D --nodes 3 -o "$W/bad" $IN > /dev/null 2> "$W/bad.err"
 rc=$?
