@@ -235,6 +235,67 @@ static void cluster_stats(struct run *r, struct round_decision *dec,
     dec->text_len = strlen(*text);
 }
 
+/* Rank 0, round 3, the commit: OUTDIR's manifest written, read back
+ * (the nodes verified their own directories) and OUTDIR put in place,
+ * last.  0, or < 0 with the reason in the round's text (the other ranks
+ * wait for the decision). */
+static int commit_output(struct run *r)
+{
+    struct cluster *cl = r->cl;
+    char *why = cl->heads[0].text;
+    const size_t cap = sizeof cl->heads[0].text;
+    struct tvpal_diag wd = {{0}};
+    char *path = NULL, *text = manifest_text(r);
+    int rc = asprintf(&path, "%s/manifest.txt", r->partial) < 0
+                 ? TVPAL_E_NOMEM
+                 : tvpal_write_file_atomic(path, text, strlen(text), &wd);
+    free(text);
+    tvpal_fsync_dir(r->partial);
+    if (rc < 0)
+        snprintf(why, cap, "%s: cannot write manifest: %s", r->partial,
+                 lib_error(rc, &wd));
+    struct tvpal_manifest m = {0};
+    if (rc == 0 && (rc = tvpal_manifest_load(path, &m, &wd)) < 0)
+        snprintf(why, cap, "%s: written manifest does not verify: %s (%s)",
+                 r->partial, lib_error(rc, &wd), tvpal_exists(r->o.outdir)
+                     ? "the existing dataset is left as it was"
+                     : "nothing was put in place");
+    tvpal_manifest_clear(&m);
+    free(path);
+    if (rc == 0 && place_output(r, why, cap) < 0)
+        rc = -1;
+    return rc;
+}
+
+/* Rank 0, after the commit: what the summary says of the whole job, from
+ * every rank's round head, OUTDIR's own manifest and the levels rank 0
+ * wrote inside OUTDIR (the node directories are the ranks'). */
+static void sum_cluster_sizes(struct run *r)
+{
+    const struct cluster *cl = r->cl;
+    char *p = NULL;
+    uint64_t b = 0;
+    if (asprintf(&p, "%s/manifest.txt", r->o.outdir) >= 0 &&
+        tvpal_tree_bytes(p, &b, NULL) == 0)
+        r->cluster_bytes = b;
+    free(p);
+    for (unsigned k = 1; k <= r->o.levels; k++) {
+        b = 0;
+        if (asprintf(&p, "%s/level-%u", r->o.outdir, k) >= 0 &&
+            tvpal_tree_bytes(p, &b, NULL) == 0)
+            r->cluster_level_bytes += b;
+        free(p);
+    }
+    r->cluster_bytes += r->cluster_level_bytes;
+    for (int k = 0; k < cl->comm.size; k++) {
+        r->cluster_bytes += cl->heads[k].bytes;
+        r->cluster_shard_bytes += cl->heads[k].shard_bytes;
+        r->cluster_work += cl->heads[k].work;
+        if (cl->heads[k].seconds > r->cluster_seconds)
+            r->cluster_seconds = cl->heads[k].seconds;
+    }
+}
+
 /* MPI: the rounds after encoding (see "cluster" above): statistics, then
  * every rank's shards and node manifest finished and verified, then the
  * node directories in place and rank 0's commit of OUTDIR. */
@@ -301,59 +362,11 @@ void cluster_finish(struct run *r)
         place_node_dir(r);
     dec = cluster_gather(cl, &h, NULL, NULL);
     if (root && !dec.code) {
-        /* The commit: OUTDIR with its manifest, last.  Its failure is
-         * decided here (the other ranks wait for the decision). */
-        struct tvpal_diag wd = {{0}};
-        char *path = NULL;
-        text = manifest_text(r);
-        int rc = asprintf(&path, "%s/manifest.txt", r->partial) < 0
-                     ? TVPAL_E_NOMEM
-                     : tvpal_write_file_atomic(path, text, strlen(text), &wd);
-        free(text);
-        tvpal_fsync_dir(r->partial);
-        if (rc < 0)
-            snprintf(cl->heads[0].text, sizeof cl->heads[0].text, "%s: cannot "
-                     "write manifest: %s", r->partial, lib_error(rc, &wd));
-        /* Read back before it replaces anything (the nodes verified
-         * their own directories). */
-        struct tvpal_manifest m = {0};
-        if (rc == 0 && (rc = tvpal_manifest_load(path, &m, &wd)) < 0)
-            snprintf(cl->heads[0].text, sizeof cl->heads[0].text, "%s: written "
-                     "manifest does not verify: %s (%s)", r->partial,
-                     lib_error(rc, &wd), tvpal_exists(r->o.outdir)
-                         ? "the existing dataset is left as it was"
-                         : "nothing was put in place");
-        tvpal_manifest_clear(&m);
-        free(path);
-        if (rc == 0 &&
-            place_output(r, cl->heads[0].text, sizeof cl->heads[0].text) < 0)
-            rc = -1;
-        if (rc < 0)
+        if (commit_output(r) < 0)
             dec = (struct round_decision){TVPAL_EXIT_FAIL, DIE_FAIL, 0, 1,
                                           0, 0, 0, 0};
-        /* OUTDIR's own manifest (its node directories are the ranks'). */
-        char *mp = NULL;
-        uint64_t mb = 0;
-        if (rc == 0 && asprintf(&mp, "%s/manifest.txt", r->o.outdir) >= 0 &&
-            tvpal_tree_bytes(mp, &mb, NULL) == 0)
-            r->cluster_bytes = mb;
-        free(mp);
-        /* The levels, which rank 0 wrote inside OUTDIR. */
-        for (unsigned k = 1; rc == 0 && k <= r->o.levels; k++) {
-            uint64_t lb = 0;
-            if (asprintf(&mp, "%s/level-%u", r->o.outdir, k) >= 0 &&
-                tvpal_tree_bytes(mp, &lb, NULL) == 0)
-                r->cluster_level_bytes += lb;
-            free(mp);
-        }
-        r->cluster_bytes += r->cluster_level_bytes;
-        for (int k = 0; k < cl->comm.size; k++) {
-            r->cluster_bytes += cl->heads[k].bytes;
-            r->cluster_shard_bytes += cl->heads[k].shard_bytes;
-            r->cluster_work += cl->heads[k].work;
-            if (cl->heads[k].seconds > r->cluster_seconds)
-                r->cluster_seconds = cl->heads[k].seconds;
-        }
+        else
+            sum_cluster_sizes(r);
     }
     cluster_decide(cl, &dec, NULL);
     if (dec.code)

@@ -986,15 +986,13 @@ static int x_assemble(struct tvpal_encoder *e)
         memcpy(lv1 + h.c0 * cp, part + sizeof h, h.nc * cp);
         if (!h.last)
             continue;
-        /* The block of this slab's last plane and the next's first. */
-        uint32_t z0n;
-        struct xhead hn;
-        x_part(e, (uint32_t)k + 1, &hn, &z0n);
+        /* The block of this slab's last plane and the next's first: the
+         * one after its whole planes. */
         const unsigned char *next = part + e->xbytes;
         tvpal_level_average_planes(
             (const float *)(part + x_first_at(e) + fp),
             (const float *)(next + x_first_at(e)), e->ep.dims[0],
-            e->ep.dims[1], (float *)(lv1 + (size_t)(z0n - 1) / 2 * cp));
+            e->ep.dims[1], (float *)(lv1 + (size_t)(h.c0 + h.nc) * cp));
     }
     return 0;
 }
@@ -1008,6 +1006,7 @@ static int x_step(struct tvpal_encoder *e, const float *slab,
 {
     const size_t fp = x_fplane(e);
     const size_t fvox = fp / sizeof(float);
+    const size_t cvox = x_cplane(e) / sizeof(float);
     struct xhead h;
     uint32_t z0;
     x_part(e, (uint32_t)e->coll.rank, &h, &z0);
@@ -1020,8 +1019,7 @@ static int x_step(struct tvpal_encoder *e, const float *slab,
             const float *f0 = slab + (size_t)(fz - z0) * fvox;
             tvpal_level_average_planes(f0, fz + 1 < nz ? f0 + fvox : NULL,
                                        e->ep.dims[0], e->ep.dims[1],
-                                       out + i * (x_cplane(e) /
-                                                  sizeof(float)));
+                                       out + i * cvox);
         }
         if (h.first)
             memcpy(e->xbuf + x_first_at(e), slab, fp);
