@@ -8,9 +8,8 @@
 #define _GNU_SOURCE
 #include "tvpal.h"
 #include "tvpal_cli.h"
-#include "tvpal_format.h"
+#include "tvpal_format.h"   /* tvpal_store_f32le: the output's byte order */
 #include "tvpal_fs.h"
-#include "tvpal_manifest.h"
 
 #include <getopt.h>
 #include <stdio.h>

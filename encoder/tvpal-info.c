@@ -1,15 +1,14 @@
 /* tvpal-info: prints what a tvpal dataset holds and, with --verify, checks
  * every record of every shard, naming each corrupt one.
  *
- * The steps of main: parse the options, load the manifest and print it
- * with the axes it stores, then either verify every shard (--verify) or
- * open the dataset and print its bytes per stored axis; with --histogram,
- * load the manifest and print only its value histogram. */
+ * A thin program over libtvpal's reader (tvpal.h).  The steps of main:
+ * parse the options, open the dataset's manifest and print it with the
+ * axes it stores, then either verify every shard (--verify) or print its
+ * bytes per stored axis; with --histogram, print only the manifest's value
+ * histogram.  --inspect describes an input file (common/input). */
 #define _GNU_SOURCE
+#include "tvpal.h"
 #include "tvpal_cli.h"
-#include "tvpal_dataset.h"
-#include "tvpal_format.h"
-#include "tvpal_fs.h"
 #include "tvpal_input.h"
 
 #include <getopt.h>
@@ -95,261 +94,119 @@ static int parse_options(int argc, char **argv, struct options *o)
     return -1;
 }
 
-/* Reads every record of the open shard s (path, header h); prints one line
- * per bad record and returns their number (1 when out of memory). */
-static unsigned verify_records(struct tvpal_shard *s, const char *path,
-                               const struct tvpal_shard_header *h)
+/* --verify's lines: "ok PATH: N records" per sound shard, "CORRUPT MSG"
+ * per problem. */
+static void print_check(void *ctx, const struct tvpal_check *c)
 {
-    const size_t cap = tvpal_shard_max_record(s);
-    unsigned char *buf = malloc(cap);
-    if (!buf)
-        return 1;
-    unsigned bad = 0;
-    for (uint32_t t = 0; t < h->steps; t++) {
-        struct tvpal_diag d = {{0}};
-        int rc = tvpal_shard_read_record(s, t, buf, cap, &d);
-        if (rc < 0) {
-            printf("CORRUPT %s: record %u (offset %llu): %s\n", path, t,
-                   (unsigned long long)tvpal_shard_entry(s, t)->offset,
-                   d.msg[0] ? d.msg : tvpal_strerror(rc));
-            bad++;
-        }
-    }
-    free(buf);
-    return bad;
+    (void)ctx;
+    if (c->code == 0)
+        printf("ok %s: %u records\n", c->path, c->records);
+    else
+        printf("CORRUPT %s\n", c->msg);
 }
 
-/* Verifies the shard of node r, axis a at path: it opens, its header
- * agrees with the manifest m, every record reads.  Prints "ok ..." or one
- * "CORRUPT ..." line per problem and returns the number of problems. */
-static unsigned verify_shard(const char *path, const struct tvpal_manifest *m,
-                             uint32_t r, unsigned a)
+/* --verify: every shard and level (tvpal_reader_verify), then the
+ * verdict.  Returns the exit status. */
+static int print_verify(struct tvpal_reader *r, const char *dir)
 {
-    struct tvpal_shard *s = NULL;
+    uint64_t bad = 0;
     struct tvpal_diag d = {{0}};
-    int rc = tvpal_shard_open(&s, path, &d);
+    int rc = tvpal_reader_verify(r, print_check, NULL, &bad, &d);
     if (rc < 0) {
-        printf("CORRUPT %s: %s%s%s\n", path, tvpal_strerror(rc),
-               d.msg[0] ? ": " : "", d.msg);
-        return 1;
+        fprintf(stderr, PROG ": %s\n", d.msg[0] ? d.msg : tvpal_strerror(rc));
+        return TVPAL_EXIT_FAIL;
     }
-    const struct tvpal_shard_header *h = tvpal_shard_hdr(s);
-    unsigned bad;
-    if (memcmp(h->dims, m->dims, sizeof h->dims) || h->steps != m->steps ||
-        h->window != m->window || h->nodes != m->nodes || h->rank != r ||
-        h->axis != a) {
-        printf("CORRUPT %s: header (dims %ux%ux%u, steps %u, window "
-               "%u, node %u of %u, axis %u) does not match the "
-               "manifest\n", path, h->dims[0], h->dims[1], h->dims[2],
-               h->steps, h->window, h->rank, h->nodes, h->axis);
-        bad = 1;
-    } else if (tvpal_shard_check_table(path, h, m, &d) < 0) {
-        printf("CORRUPT %s\n", d.msg);
-        bad = 1;
-    } else {
-        bad = verify_records(s, path, h);
-        if (!bad)
-            printf("ok %s: %u records\n", path, h->steps);
-    }
-    tvpal_shard_close(s);
-    return bad;
-}
-
-/* Verifies every shard file of the stored axes; returns the number of
- * problems found. */
-static unsigned verify(const char *dir, const struct tvpal_manifest *m)
-{
-    unsigned bad = 0;
-    for (unsigned a = 0; a < 3; a++)
-        for (uint32_t r = 0; (m->axes_mask & TVPAL_AXIS_BIT(a)) &&
-                             r < m->nodes; r++) {
-            char *path = tvpal_shard_filename(dir, r, a);
-            if (!path)
-                return bad + 1;
-            bad += verify_shard(path, m, r, a);
-            free(path);
-        }
-    return bad;
-}
-
-/* Verifies the coarser levels the manifest m of dir names (level-1 ..
- * level-L, FORMAT.md 2.1): each is a dataset of the same steps whose
- * shards verify; a level named but missing is a problem. */
-static unsigned verify_levels(const char *dir, const struct tvpal_manifest *m)
-{
-    unsigned bad = 0;
-    for (uint32_t k = 1; k <= m->levels; k++) {
-        char *ld = NULL, *mp = NULL;
-        if (asprintf(&ld, "%s/level-%u", dir, k) < 0 ||
-            asprintf(&mp, "%s/manifest.txt", ld) < 0) {
-            free(ld);
-            return bad + 1;
-        }
-        struct tvpal_manifest lm = {0};
-        struct tvpal_diag d = {{0}};
-        if (tvpal_manifest_load(mp, &lm, &d) < 0) {
-            printf("CORRUPT %s: level %u of the %u the manifest names: %s\n",
-                   ld, k, m->levels, d.msg);
-            bad++;
-        } else if (lm.steps != m->steps || lm.levels) {
-            printf("CORRUPT %s: level %u has %u steps and %u levels of its "
-                   "own (%u and none expected)\n", ld, k, lm.steps,
-                   lm.levels, m->steps);
-            bad++;
-        } else {
-            bad += verify(ld, &lm);
-        }
-        tvpal_manifest_clear(&lm);
-        free(mp);
-        free(ld);
-    }
-    return bad;
-}
-
-/* --verify: every shard, then the verdict.  Returns the exit status. */
-static int print_verify(const char *dir, const struct tvpal_manifest *m)
-{
-    unsigned bad = verify(dir, m) + verify_levels(dir, m);
-    printf("verify: %s (%u problem%s)\n", bad ? "FAILED" : "ok", bad,
-           bad == 1 ? "" : "s");
+    printf("verify: %s (%llu problem%s)\n", bad ? "FAILED" : "ok",
+           (unsigned long long)bad, bad == 1 ? "" : "s");
     if (bad)
-        fprintf(stderr, PROG ": %s: %u corrupt record%s or file%s\n",
-                dir, bad, bad == 1 ? "" : "s", bad == 1 ? "" : "s");
+        fprintf(stderr, PROG ": %s: %llu corrupt record%s or file%s\n", dir,
+                (unsigned long long)bad, bad == 1 ? "" : "s",
+                bad == 1 ? "" : "s");
     return bad ? TVPAL_EXIT_FAIL : TVPAL_EXIT_OK;
 }
 
-/* Without --verify: opens the dataset (every shard's header and index) and
- * prints the bytes of each stored axis, then those of every file of the
- * dataset (what it takes on disk), then its chunks by decoder table
- * format (with --table auto, from every chunk header).  Returns the exit
- * status. */
-static int print_axis_bytes(const char *dir, const struct tvpal_manifest *m)
+/* Without --verify: the sizes of level 0 (tvpal_reader_sizes opens every
+ * shard's header and index): the bytes of each stored axis, then those of
+ * every file of the dataset (what it takes on disk), then its chunks by
+ * decoder table format.  Returns the exit status: a dataset that does not
+ * open is bad input (2). */
+static int print_axis_bytes(struct tvpal_reader *r)
 {
-    struct tvpal_dataset *ds = NULL;
+    const struct tvpal_info *in = tvpal_reader_info(r);
+    struct tvpal_sizes z;
     struct tvpal_diag d = {{0}};
-    int rc = tvpal_dataset_open(&ds, dir, &d);
+    int rc = tvpal_reader_sizes(r, 0, &z, &d);
     if (rc < 0) {
         fprintf(stderr, PROG ": %s\n", d.msg[0] ? d.msg : tvpal_strerror(rc));
-        return TVPAL_EXIT_USAGE;
+        return rc == TVPAL_E_NOMEM ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;
     }
-    double vts = (double)m->dims[0] * m->dims[1] * m->dims[2] * m->steps;
-    double src = vts * (double)tvpal_type_size(m->type);
-    for (unsigned a = 0; a < 3; a++)
-        if (tvpal_dataset_has_axis(ds, a))
+    const double vts = (double)in->dims[0] * in->dims[1] * in->dims[2] *
+                       in->steps;
+    const double src = vts * in->source_value_bytes;
+    uint64_t f32 = 0, u16 = 0;
+    for (unsigned a = 0; a < 3; a++) {
+        f32 += z.chunks_f32[a];
+        u16 += z.chunks_u16[a];
+        if (z.axis_bytes[a])
             printf("axis_%c_bytes = %llu  (%.4f bits per voxel-timestep, "
                    "axis_ratio %.3f)\n", "xyz"[a],
-                   (unsigned long long)ds->axis_bytes[a],
-                   8.0 * (double)ds->axis_bytes[a] / vts,
-                   src / (double)ds->axis_bytes[a]);
-    uint64_t n[2] = {0, 0};
-    for (unsigned a = 0; a < 3; a++)
-        for (uint32_t k = 0; tvpal_dataset_has_axis(ds, a) && k < ds->nshards;
-             k++) {
-            struct tvpal_table_count c;
-            rc = tvpal_shard_count_tables(ds->shards[a][k], &c, &d);
-            if (rc < 0) {
-                fprintf(stderr, PROG ": %s: %s\n",
-                        tvpal_shard_path(ds->shards[a][k]),
-                        d.msg[0] ? d.msg : tvpal_strerror(rc));
-                tvpal_dataset_close(ds);
-                return TVPAL_EXIT_FAIL;
-            }
-            n[0] += c.chunks[0];
-            n[1] += c.chunks[1];
-        }
-    tvpal_dataset_close(ds);
-    uint64_t disk = 0;
-    rc = tvpal_tree_bytes(dir, &disk, &d);
-    if (rc < 0) {
-        fprintf(stderr, PROG ": %s\n", d.msg[0] ? d.msg : tvpal_strerror(rc));
-        return TVPAL_EXIT_USAGE;
+                   (unsigned long long)z.axis_bytes[a],
+                   8.0 * (double)z.axis_bytes[a] / vts,
+                   src / (double)z.axis_bytes[a]);
     }
     printf("disk_bytes = %llu  (%.4f bits per voxel-timestep, ratio %.3f: "
-           "every file%s)\n", (unsigned long long)disk, 8.0 * (double)disk / vts,
-           src / (double)disk, m->levels ? ", levels included" : "");
-    const uint64_t all = n[0] + n[1];
+           "every file%s)\n", (unsigned long long)z.disk_bytes,
+           8.0 * (double)z.disk_bytes / vts, src / (double)z.disk_bytes,
+           in->levels ? ", levels included" : "");
+    const uint64_t all = f32 + u16;
     printf("tables_u16 = %llu  (chunks with 16-bit decoder tables, all "
-           "axes: %.1f%%)\n", (unsigned long long)n[1],
-           all ? 100.0 * (double)n[1] / (double)all : 0.0);
+           "axes: %.1f%%)\n", (unsigned long long)u16,
+           all ? 100.0 * (double)u16 / (double)all : 0.0);
     printf("tables_f32 = %llu  (chunks with float32 decoder tables)\n",
-           (unsigned long long)n[0]);
+           (unsigned long long)f32);
     return TVPAL_EXIT_OK;
 }
 
-/* --histogram: the manifest's TVPAL_HIST_BINS bins over [value_min,
- * value_max], one line each (bin, its value range, count, share of the
- * counted values, a bar scaled to the fullest bin), then a summary.  The
- * counts are the encoder's (approximate at bin edges: FORMAT.md 2.2). */
-static void print_histogram(const char *dir, const struct tvpal_manifest *m)
+/* --histogram: the manifest's bins over [value_min, value_max], one line
+ * each (bin, its value range, count, share of the counted values, a bar
+ * scaled to the fullest bin), then a summary.  The counts are the
+ * encoder's (approximate at bin edges: FORMAT.md 2.2). */
+static void print_histogram(const char *dir, const struct tvpal_info *in)
 {
-    const double lo = m->value_min, hi = m->value_max;
-    const double w = (hi - lo) / TVPAL_HIST_BINS;
+    const unsigned bins = in->histogram_bins;
+    const double lo = in->value_min, hi = in->value_max;
+    const double w = (hi - lo) / bins;
     uint64_t total = 0, peak = 0;
-    for (unsigned i = 0; i < TVPAL_HIST_BINS; i++) {
-        total += m->histogram[i];
-        peak = m->histogram[i] > peak ? m->histogram[i] : peak;
+    for (unsigned i = 0; i < bins; i++) {
+        total += in->histogram[i];
+        peak = in->histogram[i] > peak ? in->histogram[i] : peak;
     }
-    printf("# histogram of %s: %d bins over [%.9g, %.9g] (the last includes "
-           "its top)\n# bin lo hi count fraction bar\n", dir,
-           TVPAL_HIST_BINS, lo, hi);
-    for (unsigned i = 0; i < TVPAL_HIST_BINS; i++) {
-        const uint64_t c = m->histogram[i];
+    printf("# histogram of %s: %u bins over [%.9g, %.9g] (the last includes "
+           "its top)\n# bin lo hi count fraction bar\n", dir, bins, lo, hi);
+    for (unsigned i = 0; i < bins; i++) {
+        const uint64_t c = in->histogram[i];
         int bar = peak ? (int)(40.0 * (double)c / (double)peak + 0.5) : 0;
         bar = c && !bar ? 1 : bar;
         printf("%u %.9g %.9g %llu %.6f%s%.*s\n", i, lo + i * w,
-               i + 1 == TVPAL_HIST_BINS ? hi : lo + (i + 1) * w,
+               i + 1 == bins ? hi : lo + (i + 1) * w,
                (unsigned long long)c, total ? (double)c / (double)total : 0.0,
                bar ? " " : "", bar, "****************************************");
     }
-    const double values = (double)m->dims[0] * m->dims[1] * m->dims[2] *
-                          m->steps;
-    printf("histogram: bins=%d count=%llu missing=%llu values=%.0f\n",
-           TVPAL_HIST_BINS, (unsigned long long)total,
-           (unsigned long long)m->missing, values);
+    const double values = (double)in->dims[0] * in->dims[1] * in->dims[2] *
+                          in->steps;
+    printf("histogram: bins=%u count=%llu missing=%llu values=%.0f\n", bins,
+           (unsigned long long)total, (unsigned long long)in->missing,
+           values);
 }
 
-/* Loads dir/manifest.txt into m and prints the file as it is (unless
- * quiet).  Returns 0 or the exit status (printed). */
-static int load_and_print_manifest(const char *dir, struct tvpal_manifest *m,
-                                   int quiet)
+/* The manifest as it is on disk, and the axes it stores: the axes key is
+ * absent for all three (FORMAT.md 2.2), so say them. */
+static void print_manifest(const struct tvpal_info *in)
 {
-    char *mpath, *text = NULL;
-    struct tvpal_diag d = {{0}};
-    if (asprintf(&mpath, "%s/manifest.txt", dir) < 0)
-        return TVPAL_EXIT_FAIL;
-    int rc = tvpal_dataset_check_dir(dir, &d);
-    if (rc < 0) {
-        fprintf(stderr, PROG ": %s\n", d.msg);
-        free(mpath);
-        return TVPAL_EXIT_USAGE;
-    }
-    rc = tvpal_manifest_load(mpath, m, &d);
-    if (rc < 0 && !strncmp(d.msg, mpath, strlen(mpath))) {
-        fprintf(stderr, PROG ": %s\n", d.msg);   /* it names the file */
-        free(mpath);
-        return TVPAL_EXIT_USAGE;
-    }
-    if (rc < 0) {
-        fprintf(stderr, PROG ": %s: %s%s%s\n", mpath, tvpal_strerror(rc),
-                d.msg[0] ? ": " : "", d.msg);
-        free(mpath);
-        return TVPAL_EXIT_USAGE;
-    }
-    /* Loaded and checked a moment ago: a failure to read it again only
-     * leaves out the text. */
-    if (quiet) {
-        free(mpath);
-        return 0;
-    }
-    if (tvpal_read_file(mpath, &text, NULL, NULL) == 0) {
-        fputs(text, stdout);
-        free(text);
-    }
-    /* The axes key is absent for all three (FORMAT.md 2.2): say it. */
-    char axes[4];
-    printf("stored_axes = %s\n", tvpal_axes_format(m->axes_mask, axes));
-    free(mpath);
-    return 0;
+    fputs(in->manifest, stdout);
+    printf("stored_axes = %s%s%s\n", in->axes & TVPAL_AXIS_X ? "x" : "",
+           in->axes & TVPAL_AXIS_Y ? "y" : "",
+           in->axes & TVPAL_AXIS_Z ? "z" : "");
 }
 
 /* --inspect: what an input file holds (tvpal_input_describe). */
@@ -383,15 +240,23 @@ int main(int argc, char **argv)
         return status;
     if (o.inspect)
         return inspect(o.dir);
-    struct tvpal_manifest m;
-    status = load_and_print_manifest(o.dir, &m, o.histogram);
-    if (status != 0)
-        return status;
-    if (o.histogram)
-        print_histogram(o.dir, &m);
-    else
-        status = o.verify ? print_verify(o.dir, &m)
-                          : print_axis_bytes(o.dir, &m);
-    tvpal_manifest_clear(&m);
+    /* The manifest alone: --verify must name every damaged shard, and the
+     * manifest is printed whatever the shards hold. */
+    struct tvpal_reader *r = NULL;
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_reader_open_manifest(&r, o.dir, &d);
+    if (rc < 0) {
+        fprintf(stderr, PROG ": %s\n", d.msg[0] ? d.msg : tvpal_strerror(rc));
+        return rc == TVPAL_E_NOMEM ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;
+    }
+    const struct tvpal_info *in = tvpal_reader_info(r);
+    status = TVPAL_EXIT_OK;
+    if (o.histogram) {
+        print_histogram(o.dir, in);
+    } else {
+        print_manifest(in);
+        status = o.verify ? print_verify(r, o.dir) : print_axis_bytes(r);
+    }
+    tvpal_reader_close(r);
     return status;
 }

@@ -13,6 +13,8 @@
  * Only the axes the dataset stores are decoded and reported (FORMAT.md 2.2):
  * per-axis figures, rows and keys of the others are left out.
  *
+ * A thin program: the dataset is read through libtvpal's reader (tvpal.h),
+ * the source through the input readers (common/input, tvpal_raw.h).
  * The steps of main: parse and check the options, open the dataset, one pass
  * over the timesteps (read the reference, decode the stored axes, accumulate
  * the per-step errors), the per-axis and overall figures, then the outputs:
@@ -21,14 +23,12 @@
  * summary_keys): header and rows come from the same entries.
  */
 #define _GNU_SOURCE
+#include "tvpal.h"
 #include "tvpal_cli.h"
-#include "tvpal_dataset.h"
 #include "tvpal_fs.h"
-#include "tvpal_format.h"
 #include "tvpal_input.h"
 #include "tvpal_pool.h"
 #include "tvpal_raw.h"
-#include "tvpal_schedule.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -42,6 +42,8 @@
 #include <unistd.h>
 
 #define PROG "tvpal-report"
+/* --level's bound: TVPAL_PARAM_LEVELS's (tvpal.h). */
+#define LEVELS_MAX 8
 
 static void usage(FILE *f)
 {
@@ -92,8 +94,10 @@ struct options {
     int use_ref, quiet;
     int allow_external;                /* --allow-external (HDF5) */
     unsigned level;                    /* --level K */
-    char **refs;    /* the reference files: the arguments after OUTDIR, or */
-    size_t nrefs;   /* the manifest's sources (validate_options decides) */
+    char *const *refs;  /* the reference files: the arguments after OUTDIR,
+                         * or the manifest's sources (validate_options) */
+    size_t nrefs;
+    enum tvpal_type src_type;  /* of raw references (the source's type) */
     struct tvpal_input *src;  /* self-describing references (NetCDF, VTK),
                                * or NULL for raw ones */
     char src_var[TVPAL_INPUT_VAR_MAX];  /* their array, when the manifest's
@@ -128,9 +132,9 @@ static int parse_options(int argc, char **argv, struct options *o)
         case 'j': o->json_path = optarg; break;
         case 'l': {
             uint32_t k;
-            if (tvpal_parse_u32(optarg, 0, TVPAL_LEVELS_MAX, &k) < 0) {
+            if (tvpal_parse_u32(optarg, 0, LEVELS_MAX, &k) < 0) {
                 fprintf(stderr, PROG ": --level \"%s\": expected 0..%d\n",
-                        optarg, TVPAL_LEVELS_MAX);
+                        optarg, LEVELS_MAX);
                 return TVPAL_EXIT_USAGE;
             }
             o->level = k;
@@ -175,14 +179,15 @@ static int source_variable(const char *source_var, char *var, size_t cap)
  * a vector's length, a vector).  Returns 0 or TVPAL_EXIT_USAGE
  * (printed). */
 static int open_self_describing(struct options *o,
-                                const struct tvpal_manifest *m)
+                                const struct tvpal_info *m)
 {
     enum tvpal_input_format f;
     struct tvpal_diag d = {{0}};
-    const int mag = m->source_var &&
-                    source_variable(m->source_var, o->src_var,
+    const int mag = source_variable(m->source_var, o->src_var,
                                     sizeof o->src_var);
-    struct tvpal_input_opts io = {.var = mag ? o->src_var : m->source_var,
+    struct tvpal_input_opts io = {.var = mag ? o->src_var
+                                       : m->source_var[0] ? m->source_var
+                                                          : NULL,
                                   .allow_external = o->allow_external,
                                   .magnitude = mag};
     int rc = tvpal_input_format_parse(m->source_format, &f);
@@ -227,7 +232,7 @@ static int open_self_describing(struct options *o,
 
 /* The manifest's missing_values become NaN (missing), or its nan_as, as
  * the encoder made them. */
-static void apply_missing_values(const struct tvpal_manifest *m, float *v,
+static void apply_missing_values(const struct tvpal_info *m, float *v,
                                  size_t n)
 {
     tvpal_missing_apply(v, n, m->missing_values, m->nmissing_values,
@@ -236,7 +241,7 @@ static void apply_missing_values(const struct tvpal_manifest *m, float *v,
 
 /* Timestep t of a self-describing reference, with the dataset's NaN
  * policy (--nan-as) applied as the encoder applied it. */
-static int read_input_step(const struct tvpal_manifest *m,
+static int read_input_step(const struct tvpal_info *m,
                            struct tvpal_input *src, uint32_t t, float *dst,
                            size_t nvox)
 {
@@ -248,7 +253,7 @@ static int read_input_step(const struct tvpal_manifest *m,
                 d.msg[0] ? d.msg : tvpal_strerror(rc));
         return -1;
     }
-    rc = tvpal_raw_convert(dst, TVPAL_F32, m->big_endian, nvox, dst,
+    rc = tvpal_raw_convert(dst, TVPAL_F32, m->source_big_endian, nvox, dst,
                            m->has_nan_as ? &m->nan_as : NULL, &bad, NULL);
     if (rc < 0) {
         fprintf(stderr, PROG ": %s: timestep %u: %s at element %zu\n",
@@ -263,7 +268,7 @@ static int read_input_step(const struct tvpal_manifest *m,
  * reference files there must be (one holding every timestep, or one per
  * timestep).  Without --reference no argument may follow OUTDIR and the
  * manifest's sources are read.  Returns 0 or TVPAL_EXIT_USAGE (printed). */
-static int validate_options(struct options *o, const struct tvpal_manifest *m)
+static int validate_options(struct options *o, const struct tvpal_info *m)
 {
     if (!o->use_ref) {
         if (o->nrefs) {
@@ -271,16 +276,23 @@ static int validate_options(struct options *o, const struct tvpal_manifest *m)
                     "files follow --reference)\n", o->refs[0]);
             return TVPAL_EXIT_USAGE;
         }
-        o->refs = m->sources;
+        /* The reader's strings, read only (tvpal_input_open keeps its
+         * files as char *const *). */
+        o->refs = (char *const *)m->sources;
         o->nrefs = m->nsources;
     }
     if (m->source_format[0] && strcmp(m->source_format, "raw"))
         return open_self_describing(o, m);
-    size_t want = m->single_file ? 1 : m->steps;
+    if (tvpal_type_parse(m->source_type, &o->src_type) < 0) {
+        fprintf(stderr, PROG ": %s: source type \"%s\": expected f32, "
+                "f64, u8, u16 or i16\n", o->dir, m->source_type);
+        return TVPAL_EXIT_USAGE;
+    }
+    size_t want = m->source_single_file ? 1 : m->steps;
     if (o->nrefs != want) {
         fprintf(stderr, PROG ": %zu reference file%s; expected %zu (%s)\n",
                 o->nrefs, o->nrefs == 1 ? "" : "s", want,
-                m->single_file ? "one file holding every timestep"
+                m->source_single_file ? "one file holding every timestep"
                                : "one file per timestep");
         return TVPAL_EXIT_USAGE;
     }
@@ -319,11 +331,14 @@ struct axis_sum {
 };
 
 struct report {
-    const struct tvpal_dataset *ds;
-    const struct tvpal_manifest *m;
+    struct tvpal_reader *rd;      /* the dataset reported: OUTDIR, or its
+                                   * level-K (itself a dataset) */
+    const struct tvpal_info *m;   /* its description */
     /* The source read: m's, or with --level K level 0's (src_nvox voxels
-     * of src_dims, averaged K times into the reference). */
-    const struct tvpal_manifest *src_m;
+     * of src_dims, averaged K times into the reference), of type
+     * src_type when raw. */
+    const struct tvpal_info *src_m;
+    enum tvpal_type src_type;
     unsigned level;
     size_t src_nvox;
     const char *dir;
@@ -341,6 +356,7 @@ struct report {
     uint32_t psnr_min_t;
     unsigned psnr_min_a;
     double worst_rmse, worst_max, worst_flick;   /* worst axis */
+    struct tvpal_sizes sz;        /* where the bytes of m go */
     double bytes_axis;            /* mean shard bytes of a stored axis */
     double idx_bytes, tab_bytes;  /* indices and tables, all stored axes */
     uint64_t disk_bytes;          /* every file of the directory reported */
@@ -354,7 +370,7 @@ struct report {
 /* Whether the dataset stores axis a (only those are decoded). */
 static int stored(const struct report *r, unsigned a)
 {
-    return tvpal_dataset_has_axis(r->ds, a);
+    return (r->m->axes >> a) & 1u;   /* TVPAL_AXIS_X << a */
 }
 
 static double psnr_of(double mse, double peak)
@@ -398,15 +414,15 @@ static double step_flicker(const struct report *r, uint32_t t, unsigned a)
 }
 
 /* Sets the sizes and allocates r->per.  Returns 0 or -1 (out of memory). */
-static int report_init(struct report *r, const struct tvpal_dataset *ds,
-                       const char *dir)
+static int report_init(struct report *r, struct tvpal_reader *rd,
+                       enum tvpal_type src_type, const char *dir)
 {
-    const struct tvpal_manifest *m = &ds->m;
-    *r = (struct report){.ds = ds, .m = m, .src_m = m, .dir = dir,
-                         .steps = m->steps};
+    const struct tvpal_info *m = tvpal_reader_info(rd);
+    *r = (struct report){.rd = rd, .m = m, .src_m = m, .src_type = src_type,
+                         .dir = dir, .steps = m->steps};
     r->nvox = (size_t)m->dims[0] * m->dims[1] * m->dims[2];
     r->src_nvox = r->nvox;
-    r->src_bytes = (uint64_t)r->nvox * r->steps * tvpal_type_size(m->type);
+    r->src_bytes = (uint64_t)r->nvox * r->steps * m->source_value_bytes;
     r->vts = (double)r->nvox * r->steps;
     r->vmin = INFINITY;
     r->vmax = -INFINITY;
@@ -420,19 +436,16 @@ static int report_init(struct report *r, const struct tvpal_dataset *ds,
 
 /* Working memory of the pass over the timesteps: the raw bytes of one
  * reference step; the reference and each stored axis's decoded volume at t
- * and t - 1 (for flicker), alternating by the parity of t; a reader per
- * stored axis (NULL for the others). */
+ * and t - 1 (for flicker), alternating by the parity of t. */
 struct scan_buffers {
     void *raw;
     float *full[2];          /* --level: the source step, then averages */
     float *ref[2], *dec[3][2];
-    struct tvpal_volreader *vr[3];
 };
 
 static void buffers_free(struct scan_buffers *b)
 {
     for (unsigned a = 0; a < 3; a++) {
-        tvpal_volreader_free(b->vr[a]);
         free(b->dec[a][0]);
         free(b->dec[a][1]);
     }
@@ -445,12 +458,11 @@ static void buffers_free(struct scan_buffers *b)
 
 /* Returns 0 or -1 (out of memory; what was allocated is in b for
  * buffers_free). */
-static int buffers_alloc(struct scan_buffers *b, struct tvpal_dataset *ds,
-                         const struct report *r)
+static int buffers_alloc(struct scan_buffers *b, const struct report *r)
 {
     const size_t nvox = r->nvox;
     *b = (struct scan_buffers){0};
-    b->raw = malloc(r->src_nvox * tvpal_type_size(r->src_m->type));
+    b->raw = malloc(r->src_nvox * r->src_m->source_value_bytes);
     if (r->level && (!(b->full[0] = malloc(r->src_nvox * sizeof(float))) ||
                      !(b->full[1] = malloc(r->src_nvox * sizeof(float)))))
         return -1;
@@ -463,8 +475,7 @@ static int buffers_alloc(struct scan_buffers *b, struct tvpal_dataset *ds,
             continue;
         b->dec[a][0] = malloc(nvox * sizeof(float));
         b->dec[a][1] = malloc(nvox * sizeof(float));
-        if (!b->dec[a][0] || !b->dec[a][1] ||
-            tvpal_volreader_create(&b->vr[a], ds, a, NULL) != 0)
+        if (!b->dec[a][0] || !b->dec[a][1])
             return -1;
     }
     return 0;
@@ -473,12 +484,13 @@ static int buffers_alloc(struct scan_buffers *b, struct tvpal_dataset *ds,
 /* Reads timestep t of the reference into dst (nvox floats), raw being
  * scratch for the file's bytes.  The file's size must be what dims, type and
  * steps say (checked once for a single file).  Returns 0 or -1 (printed). */
-static int read_reference_step(const struct tvpal_manifest *m, char **files,
+static int read_reference_step(const struct tvpal_info *m,
+                               enum tvpal_type type, char *const *files,
                                uint32_t t, void *raw, float *dst, size_t nvox)
 {
-    size_t esz = tvpal_type_size(m->type), bytes = nvox * esz;
-    const char *path = m->single_file ? files[0] : files[t];
-    off_t off = m->single_file ? (off_t)t * (off_t)bytes : 0;
+    size_t esz = tvpal_type_size(type), bytes = nvox * esz;
+    const char *path = m->source_single_file ? files[0] : files[t];
+    off_t off = m->source_single_file ? (off_t)t * (off_t)bytes : 0;
     struct tvpal_diag d = {{0}};
     int fd = tvpal_open_regular(path, &d);
     if (fd < 0) {
@@ -499,8 +511,9 @@ static int read_reference_step(const struct tvpal_manifest *m, char **files,
         got += (size_t)k;
     }
     struct stat st;
-    uint64_t want = m->single_file ? (uint64_t)bytes * m->steps : bytes;
-    if (t == 0 || !m->single_file) {
+    uint64_t want = m->source_single_file ? (uint64_t)bytes * m->steps
+                                          : bytes;
+    if (t == 0 || !m->source_single_file) {
         if (fstat(fd, &st) == 0 && (uint64_t)st.st_size != want) {
             fprintf(stderr, PROG ": %s: size is %lld bytes; expected %llu "
                     "(dims and type of the manifest)\n", path,
@@ -511,7 +524,7 @@ static int read_reference_step(const struct tvpal_manifest *m, char **files,
     }
     close(fd);
     size_t bad;
-    int rc = tvpal_raw_convert(raw, m->type, m->big_endian, nvox, dst,
+    int rc = tvpal_raw_convert(raw, type, m->source_big_endian, nvox, dst,
                                m->has_nan_as ? &m->nan_as : NULL, &bad, NULL);
     if (rc < 0) {
         fprintf(stderr, PROG ": %s: timestep %u: %s at element %zu\n", path,
@@ -598,14 +611,14 @@ static void average_2x2x2(const float *in, const uint32_t d[3], float *out,
 
 /* Step t of the reference into dst: the source, or with --level K the
  * source averaged K times.  0 or -1 (printed). */
-static int reference_step(struct report *r, char **refs,
+static int reference_step(struct report *r, char *const *refs,
                           struct tvpal_input *src, struct scan_buffers *b,
                           uint32_t t, float *dst)
 {
     float *into = r->level ? b->full[0] : dst;
     if ((src ? read_input_step(r->src_m, src, t, into, r->src_nvox)
-             : read_reference_step(r->src_m, refs, t, b->raw, into,
-                                   r->src_nvox)) < 0)
+             : read_reference_step(r->src_m, r->src_type, refs, t, b->raw,
+                                   into, r->src_nvox)) < 0)
         return -1;
     uint32_t d[3];
     memcpy(d, r->src_m->dims, sizeof d);
@@ -621,7 +634,8 @@ static int reference_step(struct report *r, char **refs,
 /* The one pass over the timesteps: per step, the reference and the
  * decoded stored axes.  Returns 0 or TVPAL_EXIT_USAGE (a reference or a record that
  * cannot be read; printed). */
-static int scan_steps(struct report *r, char **refs, struct tvpal_input *src,
+static int scan_steps(struct report *r, char *const *refs,
+                      struct tvpal_input *src,
                       struct scan_buffers *b)
 {
     struct tvpal_diag diag = {{0}};
@@ -633,7 +647,8 @@ static int scan_steps(struct report *r, char **refs, struct tvpal_input *src,
         for (unsigned a = 0; a < 3; a++) {
             if (!stored(r, a))
                 continue;
-            int rc = tvpal_volreader_read(b->vr[a], t, b->dec[a][cur], &diag);
+            int rc = tvpal_reader_decode(r->rd, t, TVPAL_AXIS_X << a, 0,
+                                         b->dec[a][cur], &diag);
             if (rc < 0) {
                 print_lib_error(rc, &diag);
                 return TVPAL_EXIT_USAGE;
@@ -649,37 +664,6 @@ static int scan_steps(struct report *r, char **refs, struct tvpal_input *src,
 /* ------------------------------------------------------------------------
  * Per-axis and overall figures
  */
-
-/* Bytes of indices (from the window schedule) and of tables (as the
- * shards' chunks store them: with --table auto each chunk has its own
- * format) of one axis, and its chunks by table format.  0, or a library
- * error with the shard's path in diag. */
-static int payload_bytes(const struct tvpal_dataset *ds, unsigned axis,
-                         struct axis_sum *x, struct tvpal_diag *diag)
-{
-    const struct tvpal_manifest *m = &ds->m;
-    uint32_t n, w, h;
-    tvpal_axis_geometry(m->dims, axis, &n, &w, &h);
-    x->idx_bytes = x->tab_bytes = x->tables[0] = x->tables[1] = 0;
-    for (uint32_t s = 0; s < n; s++)
-        for (uint32_t t = 0; t < m->steps; t++)
-            if (tvpal_schedule_starts(s, t, m->window))
-                x->idx_bytes += (double)w * h;
-    for (uint32_t k = 0; k < ds->nshards; k++) {
-        struct tvpal_shard *sh = ds->shards[axis][k];
-        struct tvpal_table_count c;
-        struct tvpal_diag d = {{0}};
-        int rc = tvpal_shard_count_tables(sh, &c, &d);
-        if (rc < 0)
-            return tvpal_diag_set(diag, rc, "%s: %s", tvpal_shard_path(sh),
-                                  d.msg);
-        for (unsigned u = 0; u < 2; u++) {
-            x->tab_bytes += (double)c.bytes[u];
-            x->tables[u] += (double)c.chunks[u];
-        }
-    }
-    return 0;
-}
 
 /* Errors per stored axis over all timesteps, the worst axis, the worst
  * step. */
@@ -725,22 +709,27 @@ static void summarize_errors(struct report *r)
 }
 
 /* The bytes on disk (every file under the directory reported), per
- * stored axis its files, indices and tables (as the chunks store them),
- * and the chunks by table format.  0, or a library error (diag). */
+ * stored axis its files, indices (width * height per slice-window) and
+ * tables (as the chunks store them), and the chunks by table format:
+ * tvpal_reader_sizes.  0, or a library error (diag). */
 static int summarize_sizes(struct report *r, struct tvpal_diag *diag)
 {
-    const uint64_t *ab = r->ds->axis_bytes;
-    const unsigned na = tvpal_axes_count(r->m->axes_mask);
-    int rc = tvpal_tree_bytes(r->dir, &r->disk_bytes, diag);
+    const uint64_t *ab = r->sz.axis_bytes;
+    const unsigned na = (r->m->axes & 1u) + (r->m->axes >> 1 & 1u) +
+                        (r->m->axes >> 2 & 1u);
+    int rc = tvpal_reader_sizes(r->rd, 0, &r->sz, diag);
     if (rc < 0)
         return rc;
+    r->disk_bytes = r->sz.disk_bytes;
     r->bytes_axis = r->idx_bytes = r->tab_bytes = 0;
     r->tables[0] = r->tables[1] = 0;
     for (unsigned a = 0; a < 3; a++) {
         if (!stored(r, a))
             continue;
-        if ((rc = payload_bytes(r->ds, a, &r->axis[a], diag)) < 0)
-            return rc;
+        r->axis[a].idx_bytes = (double)r->sz.index_bytes[a];
+        r->axis[a].tab_bytes = (double)r->sz.table_bytes[a];
+        r->axis[a].tables[0] = (double)r->sz.chunks_f32[a];
+        r->axis[a].tables[1] = (double)r->sz.chunks_u16[a];
         r->bytes_axis += (double)ab[a] / na;
         r->idx_bytes += r->axis[a].idx_bytes;
         r->tab_bytes += r->axis[a].tab_bytes;
@@ -755,14 +744,21 @@ static int summarize_sizes(struct report *r, struct tvpal_diag *diag)
  * Outputs
  */
 
+/* The manifest's name of a table format (TVPAL_TABLE_*). */
+static const char *table_name(uint32_t table)
+{
+    return table == TVPAL_TABLE_UINT16 ? "u16"
+           : table == TVPAL_TABLE_AUTO ? "auto" : "f32";
+}
+
 /* Text report on stdout (without --quiet). */
 static void print_text(const struct report *r)
 {
-    const struct tvpal_manifest *m = r->m;
-    const uint64_t *ab = r->ds->axis_bytes;
+    const struct tvpal_info *m = r->m;
+    const uint64_t *ab = r->sz.axis_bytes;
     printf("dataset %s: %ux%ux%u %s, %u steps, window %u, %u node%s\n",
-           r->dir, m->dims[0], m->dims[1], m->dims[2],
-           tvpal_type_name(m->type), r->steps, m->window, m->nodes,
+           r->dir, m->dims[0], m->dims[1], m->dims[2], m->source_type,
+           r->steps, m->window, m->nodes,
            m->nodes == 1 ? "" : "s");
     printf("peak (max - min of the original) = %.9g  [%.9g, %.9g]\n",
            r->peak, r->vmin, r->vmax);
@@ -794,10 +790,10 @@ static void print_text(const struct report *r)
                r->axis[a].flicker, (unsigned long long)ab[a],
                (double)r->src_bytes / (double)ab[a],
                8.0 * (double)ab[a] / r->vts);
-    char axes[4];
-    printf("on disk: %llu bytes (axes %s: shards, manifests%s), ratio "
+    printf("on disk: %llu bytes (axes %s%s%s: shards, manifests%s), ratio "
            "%.3f\n", (unsigned long long)r->disk_bytes,
-           tvpal_axes_format(m->axes_mask, axes), m->levels ? ", levels" : "",
+           m->axes & TVPAL_AXIS_X ? "x" : "", m->axes & TVPAL_AXIS_Y ? "y" : "",
+           m->axes & TVPAL_AXIS_Z ? "z" : "", m->levels ? ", levels" : "",
            r->ratio);
     printf("bits per voxel-timestep on disk: %.4f = indices %.4f + tables "
            "%.4f + headers, padding and manifests%s %.4f\n",
@@ -808,7 +804,7 @@ static void print_text(const struct report *r)
     printf("decoder tables: %.0f of %.0f chunks 16-bit (%.1f%%), %.0f "
            "float32 (table = %s)\n", r->tables[1], chunks,
            chunks > 0 ? 100 * r->tables[1] / chunks : 0.0, r->tables[0],
-           tvpal_manifest_table_name(m->table_format));
+           table_name(m->table));
     printf("worst timestep: %u on axis %c (%.3f dB)\n", r->psnr_min_t,
            "xyz"[r->psnr_min_a], r->psnr_min);
     if (r->missing)
@@ -866,7 +862,7 @@ static struct csv_row csv_row_of(const struct report *r, uint32_t t, unsigned a)
         .step = t, .axis = "xyz"[a], .rmse = step_rmse(r, t, a),
         .psnr = step_psnr(r, t, a), .max_abs_error = step_at(r, t, a)->maxabs,
         .flicker = step_flicker(r, t, a),
-        .time = r->m->ntimes ? r->m->times[t] : (double)t,
+        .time = r->m->times ? r->m->times[t] : (double)t,
         .missing = step_at(r, t, a)->missing};
 }
 
@@ -917,7 +913,7 @@ static void jnum(FILE *f, double v)
 
 static void write_json_axes(FILE *f, const struct report *r)
 {
-    const uint64_t *ab = r->ds->axis_bytes;
+    const uint64_t *ab = r->sz.axis_bytes;
     fprintf(f, ",\n  \"source_bytes\": %llu,\n  \"axes\": {",
             (unsigned long long)r->src_bytes);
     const char *sep = "";
@@ -963,7 +959,7 @@ static void write_json_steps(FILE *f, const struct report *r)
 /* Everything as one JSON object. */
 static void write_json_doc(FILE *f, const struct report *r)
 {
-    const struct tvpal_manifest *m = r->m;
+    const struct tvpal_info *m = r->m;
     fprintf(f, "{\n  \"dataset\": ");
     jstr(f, r->dir);
     fprintf(f, ",\n  \"dims\": [%u, %u, %u],\n"
@@ -1098,81 +1094,108 @@ static int write_outputs(const struct report *r, const struct options *o)
     return 0;
 }
 
+/* Opens OUTDIR (*top) and the dataset reported (*rd: OUTDIR, or with
+ * --level K its level-K directory, a dataset of its own; *level_dir owns
+ * that path).  Returns 0 or TVPAL_EXIT_USAGE (printed). */
+static int open_readers(const struct options *o, struct tvpal_reader **top,
+                        struct tvpal_reader **rd, char **level_dir)
+{
+    struct tvpal_diag diag = {{0}};
+    int rc = tvpal_reader_open(top, o->dir, &diag);
+    if (rc < 0) {
+        print_lib_error(rc, &diag);
+        return TVPAL_EXIT_USAGE;
+    }
+    *rd = *top;
+    if (!o->level)
+        return 0;
+    /* Level K decodes from OUTDIR/level-K; its reference is level 0's
+     * source, averaged. */
+    const uint32_t levels = tvpal_reader_info(*top)->levels;
+    if (o->level > levels) {
+        fprintf(stderr, PROG ": --level %u: %s has %u coarser level%s\n",
+                o->level, o->dir, levels, levels == 1 ? "" : "s");
+        return TVPAL_EXIT_USAGE;
+    }
+    if (asprintf(level_dir, "%s/level-%u", o->dir, o->level) < 0) {
+        *level_dir = NULL;
+        fprintf(stderr, PROG ": out of memory\n");
+        return TVPAL_EXIT_USAGE;
+    }
+    if ((rc = tvpal_reader_open(rd, *level_dir, &diag)) < 0) {
+        *rd = NULL;
+        print_lib_error(rc, &diag);
+        return TVPAL_EXIT_USAGE;
+    }
+    return 0;
+}
+
+/* The pass over the steps, the figures, the outputs; the report's
+ * verdict on missing values.  Returns the exit status. */
+static int run_report(struct report *r, struct options *o)
+{
+    struct scan_buffers b = {0};
+    struct tvpal_diag diag = {{0}};
+    int status = 0;
+    if (buffers_alloc(&b, r) < 0) {
+        fprintf(stderr, PROG ": out of memory\n");
+        status = TVPAL_EXIT_FAIL;
+    }
+    if (status == 0)
+        status = scan_steps(r, o->refs, o->src, &b);
+    buffers_free(&b);
+    if (status == 0) {
+        summarize_errors(r);
+        int rc = summarize_sizes(r, &diag);
+        if (rc < 0) {
+            print_lib_error(rc, &diag);
+            status = TVPAL_EXIT_USAGE;
+        }
+    }
+    if (status == 0)
+        status = write_outputs(r, o);
+    if (status == 0 && r->mismatch > 0) {
+        /* The dataset does not hold the reference's missing values where
+         * they are (another reference, or a defect). */
+        fprintf(stderr, PROG ": %s: %.0f voxel-timesteps are missing (NaN) "
+                "in only one of the reference and the decoded dataset\n",
+                o->dir, r->mismatch);
+        status = TVPAL_EXIT_FAIL;
+    }
+    return status;
+}
+
 int main(int argc, char **argv)
 {
     struct options o;
     int status = parse_options(argc, argv, &o);
     if (status >= 0)
         return status;
-    struct tvpal_diag diag = {{0}};
-    struct tvpal_dataset *ds = NULL, *ds0 = NULL;
+    struct tvpal_reader *top = NULL, *rd = NULL;
     char *level_dir = NULL;
-    int rc = tvpal_dataset_open(&ds0, o.dir, &diag);
-    if (rc < 0) {
-        print_lib_error(rc, &diag);
-        return TVPAL_EXIT_USAGE;
-    }
-    ds = ds0;
-    if (o.level) {
-        /* Level K decodes from OUTDIR/level-K; its reference is level 0's
-         * source, averaged. */
-        if (o.level > ds0->m.levels) {
-            fprintf(stderr, PROG ": --level %u: %s has %u coarser level%s\n",
-                    o.level, o.dir, ds0->m.levels,
-                    ds0->m.levels == 1 ? "" : "s");
-            tvpal_dataset_close(ds0);
-            return TVPAL_EXIT_USAGE;
-        }
-        if (asprintf(&level_dir, "%s/level-%u", o.dir, o.level) < 0 ||
-            (rc = tvpal_dataset_open(&ds, level_dir, &diag)) < 0) {
-            if (level_dir)
-                print_lib_error(rc, &diag);
-            free(level_dir);
-            tvpal_dataset_close(ds0);
-            return TVPAL_EXIT_USAGE;
-        }
-    }
     struct report r = {0};
-    struct scan_buffers b = {0};
-    status = validate_options(&o, &ds0->m);
-    if (status == 0 && report_init(&r, ds, level_dir ? level_dir : o.dir) < 0)
-        status = TVPAL_EXIT_FAIL;
-    if (status == 0 && o.level) {
-        r.src_m = &ds0->m;
-        r.level = o.level;
-        r.src_nvox = (size_t)ds0->m.dims[0] * ds0->m.dims[1] * ds0->m.dims[2];
-    }
-    if (status == 0 && buffers_alloc(&b, ds, &r) < 0) {
+    status = open_readers(&o, &top, &rd, &level_dir);
+    if (status == 0)
+        status = validate_options(&o, tvpal_reader_info(top));
+    if (status == 0 &&
+        report_init(&r, rd, o.src_type, level_dir ? level_dir : o.dir) < 0) {
         fprintf(stderr, PROG ": out of memory\n");
         status = TVPAL_EXIT_FAIL;
     }
+    if (status == 0 && o.level) {
+        const struct tvpal_info *in0 = tvpal_reader_info(top);
+        r.src_m = in0;
+        r.level = o.level;
+        r.src_nvox = (size_t)in0->dims[0] * in0->dims[1] * in0->dims[2];
+    }
     if (status == 0)
-        status = scan_steps(&r, o.refs, o.src, &b);
-    if (status == 0) {
-        summarize_errors(&r);
-        if ((rc = summarize_sizes(&r, &diag)) < 0) {
-            print_lib_error(rc, &diag);
-            status = TVPAL_EXIT_USAGE;
-        }
-    }
-    if (status == 0) {
-        status = write_outputs(&r, &o);
-        if (status == 0 && r.mismatch > 0) {
-            /* The dataset does not hold the reference's missing values
-             * where they are (another reference, or a defect). */
-            fprintf(stderr, PROG ": %s: %.0f voxel-timesteps are missing "
-                    "(NaN) in only one of the reference and the decoded "
-                    "dataset\n", o.dir, r.mismatch);
-            status = TVPAL_EXIT_FAIL;
-        }
-    }
-    buffers_free(&b);
+        status = run_report(&r, &o);
     free(r.per);
     tvpal_input_close(o.src);
     tvpal_pool_free(o.src_pool);
-    if (ds != ds0)
-        tvpal_dataset_close(ds);
-    tvpal_dataset_close(ds0);
+    if (rd != top)
+        tvpal_reader_close(rd);
+    tvpal_reader_close(top);
     free(level_dir);
     return status;
 }

@@ -46,9 +46,13 @@ extern "C" {
 /* ---------------------------------------------------------------- version */
 
 #define TVPAL_VERSION_MAJOR 0
-#define TVPAL_VERSION_MINOR 1
+#define TVPAL_VERSION_MINOR 2
 #define TVPAL_VERSION_RELEASE 0
-/* 100 * (100 * MAJOR + MINOR) + RELEASE: 100 for 0.1.0. */
+/* 100 * (100 * MAJOR + MINOR) + RELEASE: 200 for 0.2.0.  History:
+ *  0.1.0  the encoder from memory, the reader (open, info, decode);
+ *  0.2.0  struct tvpal_info's provenance, source and histogram fields,
+ *         tvpal_reader_open_manifest, tvpal_reader_sizes,
+ *         tvpal_reader_verify (what tvpal-info and tvpal-report need). */
 #define TVPAL_VERSION_NUMBER                                                  \
     ((TVPAL_VERSION_MAJOR * 100 + TVPAL_VERSION_MINOR) * 100 +               \
      TVPAL_VERSION_RELEASE)
@@ -319,6 +323,33 @@ struct tvpal_info {
     const char *units;        /* "" when none */
     uint64_t missing;         /* missing values in the source */
     uint64_t source_bytes;    /* bytes of the source as encoded */
+    /* Since 0.2.0 (the reader owns the struct: later versions append). */
+    uint32_t table;           /* TVPAL_TABLE_FLOAT32, _UINT16 or _AUTO */
+    int has_nan_as;           /* 1: the source's non-finite values were */
+    double nan_as;            /* replaced by nan_as (TVPAL_PARAM_NAN_AS) */
+    uint64_t nonfinite;       /* how many were */
+    const double *missing_values;  /* nmissing_values source values that */
+    uint32_t nmissing_values;      /* meant missing (compared as float32) */
+    const uint64_t *histogram;     /* histogram_bins counts of the present */
+    uint32_t histogram_bins;       /* values, bins linear over [value_min,
+                                    * value_max], the last holding its top */
+    /* Provenance, "" when not recorded. */
+    const char *encoder;      /* the program and version that encoded it */
+    const char *options;      /* the options it was given */
+    const char *manifest;     /* manifest.txt as it is on disk */
+    /* The source as the encoder read it, so that a tool can read it again
+     * (tvpal-report): "" and no sources for one encoded from memory. */
+    const char *source_format;     /* "raw", "netcdf", "hdf5", "vti", "vtk" */
+    const char *source_var;   /* the variable read; "NAME (magnitude)": the
+                               * length of NAME's vectors; "" for raw */
+    const char *source_type;  /* raw: "f32", "f64", "u8", "u16", "i16"
+                               * (tvpal-encode --type) */
+    uint32_t source_value_bytes;   /* bytes of one source value (its type) */
+    int source_big_endian;    /* raw: the values are big-endian */
+    int source_single_file;   /* raw: one file holds every step (else one
+                               * file per step) */
+    const char *const *sources;    /* nsources paths, as given */
+    uint32_t nsources;
 };
 
 struct tvpal_reader;
@@ -329,6 +360,16 @@ struct tvpal_reader;
  * and what is wrong), TVPAL_E_NOMEM.  Release with tvpal_reader_close. */
 TVPAL_API int tvpal_reader_open(struct tvpal_reader **out, const char *dir,
                                 struct tvpal_diag *diag);
+
+/* Opens the dataset directory dir reading only its manifest: for a
+ * dataset whose shards may be damaged, to describe it (tvpal_reader_info)
+ * or verify it (tvpal_reader_verify).  Decode and sizes open the shards
+ * when first called and fail as tvpal_reader_open would.  0;
+ * TVPAL_E_OPEN (no dataset directory), TVPAL_E_MANIFEST (diag names the
+ * file and the key at fault), TVPAL_E_NOMEM. */
+TVPAL_API int tvpal_reader_open_manifest(struct tvpal_reader **out,
+                                         const char *dir,
+                                         struct tvpal_diag *diag);
 
 /* NULL is a no-op. */
 TVPAL_API void tvpal_reader_close(struct tvpal_reader *r);
@@ -351,6 +392,53 @@ TVPAL_API int tvpal_reader_level_dims(const struct tvpal_reader *r,
  * it); TVPAL_E_NOMEM. */
 TVPAL_API int tvpal_reader_decode(struct tvpal_reader *r, uint32_t t,
                                   unsigned axis, uint32_t level, float *dst,
+                                  struct tvpal_diag *diag);
+
+/* Where the bytes of one level go.  Per axis x, y, z (index 0, 1, 2; all
+ * 0 for an axis not stored): its shards' bytes, and of them the 8-bit
+ * indices (width * height per slice-window) and the decoder tables as the
+ * chunks store them; the chunks by table format. */
+struct tvpal_sizes {
+    uint64_t axis_bytes[3];
+    uint64_t index_bytes[3];
+    uint64_t table_bytes[3];
+    uint64_t chunks_f32[3];   /* chunks with float32 decoder tables */
+    uint64_t chunks_u16[3];   /* chunks with 16-bit decoder tables */
+    uint64_t disk_bytes;      /* every file under the level's directory
+                               * (level 0: the dataset's, its levels and
+                               * manifests included) */
+};
+
+/* The sizes of level `level` (0 .. levels) into *out.  With tables
+ * chosen per chunk (TVPAL_TABLE_AUTO) it reads every chunk's header.  0;
+ * TVPAL_E_INVAL (level out of range); the codes of tvpal_reader_open and
+ * TVPAL_E_READ (diag names the file). */
+TVPAL_API int tvpal_reader_sizes(struct tvpal_reader *r, uint32_t level,
+                                 struct tvpal_sizes *out,
+                                 struct tvpal_diag *diag);
+
+/* One finding of tvpal_reader_verify, valid during the call it is passed
+ * to. */
+struct tvpal_check {
+    const char *path;         /* the file: a shard, or a level's directory */
+    int code;                 /* 0: the file is sound; else TVPAL_E_* */
+    int64_t record;           /* the record at fault, or -1: the file */
+    uint64_t offset;          /* the record's offset in the file */
+    uint32_t records;         /* code 0: the records read */
+    const char *msg;          /* code != 0: a sentence naming the file (and
+                               * the record) and what is wrong */
+};
+typedef void (*tvpal_check_fn)(void *ctx, const struct tvpal_check *c);
+
+/* Checks every file of the dataset, whatever else is damaged: every shard
+ * of the stored axes (it opens, its header agrees with the manifest, every
+ * record reads with its CRC-32C and layout), then every level the
+ * manifest names (its manifest, then its shards).  Calls fn(ctx, c) once
+ * per sound shard and once per problem, in that order, and sets *problems
+ * to the number of problems.  Works on a reader of either open.  0 (the
+ * verdict is *problems); TVPAL_E_NOMEM. */
+TVPAL_API int tvpal_reader_verify(struct tvpal_reader *r, tvpal_check_fn fn,
+                                  void *ctx, uint64_t *problems,
                                   struct tvpal_diag *diag);
 
 #ifdef __cplusplus

@@ -1,14 +1,22 @@
 /* tvpal_reader.c: the reader of tvpal.h over tvpal_dataset.h.
  *
- * Level 0 is opened and checked at tvpal_reader_open; a coarser level
- * (DIR/level-k, FORMAT.md 3.3) and an axis's decoder when first asked
- * for, then kept, so that sequential steps read one record per shard. */
+ * The manifest is loaded at open, and level 0's shards opened and checked
+ * (tvpal_reader_open) or left until a call needs them
+ * (tvpal_reader_open_manifest); a coarser level (DIR/level-k, FORMAT.md
+ * 3.3) and an axis's decoder when first asked for, then kept, so that
+ * sequential steps read one record per shard.  tvpal_reader_verify opens
+ * nothing it keeps: it walks the files the manifests name, one at a time,
+ * so that one damaged file does not hide the others. */
 #define _GNU_SOURCE
 #include "tvpal.h"
 
 #include "tvpal_dataset.h"
+#include "tvpal_format.h"
+#include "tvpal_fs.h"
 #include "tvpal_manifest.h"
+#include "tvpal_schedule.h"
 
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -23,13 +31,35 @@ struct level {
 
 struct tvpal_reader {
     char *dir;
+    struct tvpal_manifest m;    /* DIR/manifest.txt, as info says */
+    char *text;                 /* its text */
     struct level lv[LEVELS_CAP + 1];
     struct tvpal_info info;
 };
 
+/* The manifest's provenance and source into info (strings borrowed from
+ * r->m; NULL ones become ""). */
+static void fill_source_info(struct tvpal_reader *r)
+{
+    const struct tvpal_manifest *m = &r->m;
+    struct tvpal_info *in = &r->info;
+    in->encoder = m->encoder ? m->encoder : "";
+    in->options = m->options ? m->options : "";
+    in->manifest = r->text;
+    in->source_format = m->source_format[0] ? m->source_format
+                        : m->nsources ? "raw" : "";
+    in->source_var = m->source_var ? m->source_var : "";
+    in->source_type = tvpal_type_name(m->type);
+    in->source_value_bytes = (uint32_t)tvpal_type_size(m->type);
+    in->source_big_endian = m->big_endian;
+    in->source_single_file = m->single_file;
+    in->sources = (const char *const *)m->sources;
+    in->nsources = (uint32_t)m->nsources;
+}
+
 static void fill_info(struct tvpal_reader *r)
 {
-    const struct tvpal_manifest *m = &r->lv[0].ds->m;
+    const struct tvpal_manifest *m = &r->m;
     struct tvpal_info *in = &r->info;
     memcpy(in->dims, m->dims, sizeof in->dims);
     in->steps = m->steps;
@@ -46,10 +76,55 @@ static void fill_info(struct tvpal_reader *r)
     in->units = m->units;
     in->missing = m->missing;
     in->source_bytes = m->source_bytes;
+    in->table = m->table_format;
+    in->has_nan_as = m->has_nan_as;
+    in->nan_as = m->nan_as;
+    in->nonfinite = m->nonfinite;
+    in->missing_values = m->nmissing_values ? m->missing_values : NULL;
+    in->nmissing_values = m->nmissing_values;
+    in->histogram = m->histogram;
+    in->histogram_bins = TVPAL_HIST_BINS;
+    fill_source_info(r);
 }
 
-int tvpal_reader_open(struct tvpal_reader **out, const char *dir,
-                      struct tvpal_diag *diag)
+/* Loads dir's manifest and its text into r.  diag names the file. */
+static int load_manifest(struct tvpal_reader *r, struct tvpal_diag *diag)
+{
+    char *path = NULL;
+    int rc = tvpal_dataset_check_dir(r->dir, diag);
+    if (rc < 0)
+        return rc;
+    if (asprintf(&path, "%s/manifest.txt", r->dir) < 0)
+        return TVPAL_E_NOMEM;
+    rc = tvpal_manifest_load(path, &r->m, diag);
+    if (rc < 0 && diag && strncmp(diag->msg, path, strlen(path))) {
+        char cause[sizeof diag->msg];
+        snprintf(cause, sizeof cause, "%s", diag->msg);
+        tvpal_diag_set(diag, rc, "%s: %s%s%s", path, tvpal_strerror(rc),
+                       cause[0] ? ": " : "", cause);
+    }
+    if (rc == 0 && r->m.levels > LEVELS_CAP)
+        rc = tvpal_diag_set(diag, TVPAL_E_MANIFEST, "%s: %u levels, at most "
+                            "%u expected", path, r->m.levels, LEVELS_CAP);
+    /* Loaded and checked a moment ago: the text is what it says. */
+    if (rc == 0)
+        rc = tvpal_read_file(path, &r->text, NULL, diag);
+    free(path);
+    return rc;
+}
+
+/* Level 0's shards, opened when first needed (at open unless the reader
+ * was opened on the manifest alone). */
+static int open_level0(struct tvpal_reader *r, struct tvpal_diag *diag)
+{
+    if (r->lv[0].ds)
+        return 0;
+    return tvpal_dataset_open(&r->lv[0].ds, r->dir, diag);
+}
+
+/* Both opens: the manifest, then level 0's shards when `shards`. */
+static int reader_open(struct tvpal_reader **out, const char *dir,
+                       int shards, struct tvpal_diag *diag)
 {
     *out = NULL;
     if (!dir)
@@ -59,13 +134,9 @@ int tvpal_reader_open(struct tvpal_reader **out, const char *dir,
         free(r);
         return TVPAL_E_NOMEM;
     }
-    int rc = tvpal_dataset_check_dir(dir, diag);
-    if (rc == 0)
-        rc = tvpal_dataset_open(&r->lv[0].ds, dir, diag);
-    if (rc == 0 && r->lv[0].ds->m.levels > LEVELS_CAP)
-        rc = tvpal_diag_set(diag, TVPAL_E_MANIFEST, "%s: %u levels, at most "
-                            "%u expected", dir, r->lv[0].ds->m.levels,
-                            LEVELS_CAP);
+    int rc = load_manifest(r, diag);
+    if (rc == 0 && shards)
+        rc = open_level0(r, diag);
     if (rc < 0) {
         tvpal_reader_close(r);
         return rc;
@@ -73,6 +144,18 @@ int tvpal_reader_open(struct tvpal_reader **out, const char *dir,
     fill_info(r);
     *out = r;
     return 0;
+}
+
+int tvpal_reader_open(struct tvpal_reader **out, const char *dir,
+                      struct tvpal_diag *diag)
+{
+    return reader_open(out, dir, 1, diag);
+}
+
+int tvpal_reader_open_manifest(struct tvpal_reader **out, const char *dir,
+                               struct tvpal_diag *diag)
+{
+    return reader_open(out, dir, 0, diag);
 }
 
 void tvpal_reader_close(struct tvpal_reader *r)
@@ -84,6 +167,8 @@ void tvpal_reader_close(struct tvpal_reader *r)
             tvpal_volreader_free(r->lv[k].vr[a]);
         tvpal_dataset_close(r->lv[k].ds);
     }
+    tvpal_manifest_clear(&r->m);
+    free(r->text);
     free(r->dir);
     free(r);
 }
@@ -112,6 +197,8 @@ int tvpal_reader_level_dims(const struct tvpal_reader *r, uint32_t level,
 static int open_level(struct tvpal_reader *r, uint32_t k,
                       struct tvpal_diag *diag)
 {
+    if (k == 0)
+        return open_level0(r, diag);
     if (r->lv[k].ds)
         return 0;
     char *ld = NULL;
@@ -156,4 +243,225 @@ int tvpal_reader_decode(struct tvpal_reader *r, uint32_t t, unsigned axis,
         (rc = tvpal_volreader_create(&lv->vr[a], lv->ds, a, diag)) < 0)
         return rc;
     return tvpal_volreader_read(lv->vr[a], t, dst, diag);
+}
+
+/* ------------------------------------------------------------------ sizes */
+
+/* DIR, or DIR/level-k: level k's directory (malloc'ed; NULL: no memory). */
+static char *level_dir(const struct tvpal_reader *r, uint32_t k)
+{
+    char *d = NULL;
+    if (k == 0)
+        return strdup(r->dir);
+    return asprintf(&d, "%s/level-%u", r->dir, k) < 0 ? NULL : d;
+}
+
+/* The indices of axis a in a dataset ds: width * height bytes per
+ * slice-window, one starting at step t of slice s as the schedule says
+ * (FORMAT.md 5). */
+static uint64_t index_bytes(const struct tvpal_manifest *m, unsigned a)
+{
+    uint32_t n, w, h;
+    uint64_t windows = 0;
+    tvpal_axis_geometry(m->dims, a, &n, &w, &h);
+    for (uint32_t s = 0; s < n; s++)
+        for (uint32_t t = 0; t < m->steps; t++)
+            windows += (uint64_t)tvpal_schedule_starts(s, t, m->window);
+    return windows * w * h;
+}
+
+/* Axis a's tables and chunks by table format, over ds's shards.  diag
+ * starts with the shard's path. */
+static int table_sizes(const struct tvpal_dataset *ds, unsigned a,
+                       struct tvpal_sizes *out, struct tvpal_diag *diag)
+{
+    for (uint32_t k = 0; k < ds->nshards; k++) {
+        struct tvpal_shard *sh = ds->shards[a][k];
+        struct tvpal_table_count c;
+        struct tvpal_diag d = {{0}};
+        int rc = tvpal_shard_count_tables(sh, &c, &d);
+        if (rc < 0)
+            return tvpal_diag_set(diag, rc, "%s: %s", tvpal_shard_path(sh),
+                                  d.msg[0] ? d.msg : tvpal_strerror(rc));
+        out->table_bytes[a] += c.bytes[0] + c.bytes[1];
+        out->chunks_f32[a] += c.chunks[0];
+        out->chunks_u16[a] += c.chunks[1];
+    }
+    return 0;
+}
+
+int tvpal_reader_sizes(struct tvpal_reader *r, uint32_t level,
+                       struct tvpal_sizes *out, struct tvpal_diag *diag)
+{
+    if (level > r->info.levels)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "level %u: the dataset "
+                              "has levels 0..%u", level, r->info.levels);
+    int rc = open_level(r, level, diag);
+    if (rc < 0)
+        return rc;
+    const struct tvpal_dataset *ds = r->lv[level].ds;
+    struct tvpal_sizes s;
+    memset(&s, 0, sizeof s);
+    for (unsigned a = 0; a < 3; a++) {
+        if (!tvpal_dataset_has_axis(ds, a))
+            continue;
+        s.axis_bytes[a] = ds->axis_bytes[a];
+        s.index_bytes[a] = index_bytes(&ds->m, a);
+        if ((rc = table_sizes(ds, a, &s, diag)) < 0)
+            return rc;
+    }
+    char *dir = level_dir(r, level);
+    if (!dir)
+        return TVPAL_E_NOMEM;
+    rc = tvpal_tree_bytes(dir, &s.disk_bytes, diag);
+    free(dir);
+    if (rc == 0)
+        *out = s;
+    return rc;
+}
+
+/* ----------------------------------------------------------------- verify */
+
+/* Where findings go: the caller's function, and their count. */
+struct verdict {
+    tvpal_check_fn fn;
+    void *ctx;
+    uint64_t problems;
+};
+
+/* One problem: msg (printf-style) with path, record and offset. */
+__attribute__((format(printf, 6, 7)))
+static void found(struct verdict *v, const char *path, int code,
+                  int64_t record, uint64_t offset, const char *fmt, ...)
+{
+    char msg[sizeof ((struct tvpal_diag *)0)->msg + 512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    const struct tvpal_check c = {.path = path, .code = code,
+                                  .record = record, .offset = offset,
+                                  .msg = msg};
+    v->problems++;
+    if (v->fn)
+        v->fn(v->ctx, &c);
+}
+
+/* Reads every record of the open shard s (path, header h), one problem
+ * per bad record.  0 or TVPAL_E_NOMEM. */
+static int verify_records(struct verdict *v, struct tvpal_shard *s,
+                          const char *path, const struct tvpal_shard_header *h)
+{
+    const size_t cap = tvpal_shard_max_record(s);
+    unsigned char *buf = malloc(cap ? cap : 1);
+    if (!buf)
+        return TVPAL_E_NOMEM;
+    const uint64_t before = v->problems;
+    for (uint32_t t = 0; t < h->steps; t++) {
+        struct tvpal_diag d = {{0}};
+        int rc = tvpal_shard_read_record(s, t, buf, cap, &d);
+        if (rc < 0) {
+            const uint64_t off = tvpal_shard_entry(s, t)->offset;
+            found(v, path, rc, t, off, "%s: record %u (offset %llu): %s",
+                  path, t, (unsigned long long)off,
+                  d.msg[0] ? d.msg : tvpal_strerror(rc));
+        }
+    }
+    free(buf);
+    if (v->problems == before && v->fn) {
+        const struct tvpal_check c = {.path = path, .record = -1,
+                                      .records = h->steps};
+        v->fn(v->ctx, &c);
+    }
+    return 0;
+}
+
+/* The shard of node k, axis a at path: it opens, its header agrees with
+ * the manifest m, every record reads. */
+static int verify_shard(struct verdict *v, const char *path,
+                        const struct tvpal_manifest *m, uint32_t k,
+                        unsigned a)
+{
+    struct tvpal_shard *s = NULL;
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_shard_open(&s, path, &d);
+    if (rc < 0) {
+        found(v, path, rc, -1, 0, "%s: %s%s%s", path, tvpal_strerror(rc),
+              d.msg[0] ? ": " : "", d.msg);
+        return 0;
+    }
+    const struct tvpal_shard_header *h = tvpal_shard_hdr(s);
+    if (memcmp(h->dims, m->dims, sizeof h->dims) || h->steps != m->steps ||
+        h->window != m->window || h->nodes != m->nodes || h->rank != k ||
+        h->axis != a)
+        found(v, path, TVPAL_E_MISMATCH, -1, 0, "%s: header (dims %ux%ux%u, "
+              "steps %u, window %u, node %u of %u, axis %u) does not match "
+              "the manifest", path, h->dims[0], h->dims[1], h->dims[2],
+              h->steps, h->window, h->rank, h->nodes, h->axis);
+    else if ((rc = tvpal_shard_check_table(path, h, m, &d)) < 0)
+        found(v, path, rc, -1, 0, "%s", d.msg);
+    else
+        rc = verify_records(v, s, path, h);
+    tvpal_shard_close(s);
+    return rc == TVPAL_E_NOMEM ? rc : 0;
+}
+
+/* Every shard of the axes m stores, in dir. */
+static int verify_shards(struct verdict *v, const char *dir,
+                         const struct tvpal_manifest *m)
+{
+    for (unsigned a = 0; a < 3; a++)
+        for (uint32_t k = 0; (m->axes_mask & TVPAL_AXIS_BIT(a)) &&
+                             k < m->nodes; k++) {
+            char *path = tvpal_shard_filename(dir, k, a);
+            int rc = path ? verify_shard(v, path, m, k, a) : TVPAL_E_NOMEM;
+            free(path);
+            if (rc < 0)
+                return rc;
+        }
+    return 0;
+}
+
+/* Level k of r (FORMAT.md 2.1): a dataset of the same steps, with no
+ * levels of its own, whose shards verify; a level named but missing is a
+ * problem. */
+static int verify_level(struct verdict *v, const struct tvpal_reader *r,
+                        uint32_t k)
+{
+    char *ld = level_dir(r, k), *mp = NULL;
+    if (!ld || asprintf(&mp, "%s/manifest.txt", ld) < 0) {
+        free(ld);
+        return TVPAL_E_NOMEM;
+    }
+    struct tvpal_manifest lm = {0};
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_manifest_load(mp, &lm, &d);
+    if (rc < 0)
+        found(v, ld, rc, -1, 0, "%s: level %u of the %u the manifest names: "
+              "%s", ld, k, r->m.levels, d.msg);
+    else if (lm.steps != r->m.steps || lm.levels)
+        found(v, ld, TVPAL_E_MISMATCH, -1, 0, "%s: level %u has %u steps and "
+              "%u levels of its own (%u and none expected)", ld, k, lm.steps,
+              lm.levels, r->m.steps);
+    else
+        rc = verify_shards(v, ld, &lm);
+    rc = rc == TVPAL_E_NOMEM ? rc : 0;
+    tvpal_manifest_clear(&lm);
+    free(mp);
+    free(ld);
+    return rc;
+}
+
+int tvpal_reader_verify(struct tvpal_reader *r, tvpal_check_fn fn, void *ctx,
+                        uint64_t *problems, struct tvpal_diag *diag)
+{
+    struct verdict v = {.fn = fn, .ctx = ctx};
+    int rc = verify_shards(&v, r->dir, &r->m);
+    for (uint32_t k = 1; rc == 0 && k <= r->m.levels; k++)
+        rc = verify_level(&v, r, k);
+    if (rc < 0)
+        return tvpal_diag_set(diag, rc, "%s: out of memory while verifying",
+                              r->dir);
+    *problems = v.problems;
+    return 0;
 }

@@ -15,7 +15,7 @@ R=$W/root
 install_lib || { fail "make install of the library, with tvpal.pc"; finish; }
 pcflags=$(pkg-config --cflags tvpal) && plibs=$(pkg-config --libs tvpal) ||
     { fail "pkg-config --cflags --libs tvpal"; finish; }
-[ "$(pkg-config --modversion tvpal)" = 0.1.0 ] && ok "pkg-config: tvpal 0.1.0" ||
+[ "$(pkg-config --modversion tvpal)" = 0.2.0 ] && ok "pkg-config: tvpal 0.2.0" ||
     fail "pkg-config --modversion: $(pkg-config --modversion tvpal)"
 so=$(ls "$libdir"/libtvpal.so.0* 2>/dev/null | head -n 1)
 [ -n "$so" ] || fail "no libtvpal.so.0 installed in $libdir"
@@ -73,7 +73,7 @@ for f in node-0/axis-z.tvps level-1/node-0/axis-z.tvps level-2/node-0/axis-z.tvp
 done
 [ $same = 1 ] && grep -q "^levels = 2" "$W/lheat.ds/manifest.txt" &&
     ok "levels in situ: shards of levels 0-2 byte-identical to tvpal-encode --levels 2's"
-grep -q "^encoder = libtvpal 0.1.0" "$W/heat.ds/manifest.txt" &&
+grep -q "^encoder = libtvpal 0.2.0" "$W/heat.ds/manifest.txt" &&
     grep -q "^units = K" "$W/heat.ds/manifest.txt" &&
     grep -q "^time_units = seconds" "$W/heat.ds/manifest.txt" &&
     ok "manifest: encoder, units, time units" || fail "manifest: $(head -c 600 "$W/heat.ds/manifest.txt")"

@@ -15,10 +15,17 @@
  *    push their z-slab write the shards and manifest one process writes
  *    with TVPAL_PARAM_NODES, byte for byte; a wrong slab, an abort
  *    halfway, a refused value on one rank, an output that exists: every
- *    rank fails with the failing rank's message, nothing left at DIR. */
+ *    rank fails with the failing rank's message, nothing left at DIR;
+ *  - a dataset's description, sizes and verification: the manifest's
+ *    provenance and histogram, index bytes by the window schedule and disk
+ *    bytes by a walk of the tree, each checked independently; a damaged
+ *    record, a truncated shard and a missing level each found and named,
+ *    a reader of the manifest alone opening what the full open refuses. */
+#define _GNU_SOURCE   /* nftw */
 #include "tvpal.h"
 #include "tvpal_test.h"
 
+#include <ftw.h>
 #include <pthread.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -899,13 +906,202 @@ static void test_levels(void)
     tvpal_reader_close(r);
 }
 
+/* ------------------------------------------------ describe, sizes, verify */
+
+static uint64_t walked;
+
+static int add_file(const char *p, const struct stat *st, int type,
+                    struct FTW *f)
+{
+    (void)p;
+    (void)f;
+    walked += type == FTW_F ? (uint64_t)st->st_size : 0;
+    return 0;
+}
+
+/* Bytes of every file under p, by a walk of our own. */
+static uint64_t tree_bytes(const char *p)
+{
+    walked = 0;
+    return nftw(p, add_file, 16, FTW_PHYS) == 0 ? walked : 0;
+}
+
+/* Slice-windows of an axis of n slices over T steps, window N: one per
+ * slice at step 0, then one at each t with t mod N == s mod N. */
+static uint64_t windows_of(unsigned n, unsigned N)
+{
+    uint64_t w = 0;
+    for (unsigned s = 0; s < n; s++)
+        for (unsigned t = 0; t < T; t++)
+            w += t == 0 || t % N == s % N;
+    return w;
+}
+
+struct findings {
+    unsigned ok, bad;
+    char paths[8][512];   /* the problems' paths (first 8) */
+    int64_t records[8];
+    int codes[8];
+};
+
+static void note(void *ctx, const struct tvpal_check *c)
+{
+    struct findings *f = ctx;
+    if (c->code == 0) {
+        f->ok++;
+        return;
+    }
+    if (f->bad < 8) {
+        snprintf(f->paths[f->bad], sizeof f->paths[0], "%s", c->path);
+        f->records[f->bad] = c->record;
+        f->codes[f->bad] = c->code;
+    }
+    f->bad += !!c->msg[0];   /* a problem always says what is wrong */
+}
+
+/* The levels dataset (test_levels: window 3, axes x and z, levels 2) as
+ * its reader describes and sizes it. */
+static void check_describe_and_sizes(struct tvpal_reader *r, const char *dir)
+{
+    const struct tvpal_info *in = tvpal_reader_info(r);
+    uint64_t count = 0;
+    for (unsigned i = 0; i < in->histogram_bins; i++)
+        count += in->histogram[i];
+    CHECK(in->histogram_bins == 64 && count == (uint64_t)NV * T &&
+              in->missing == 0, "histogram: %u bins, %llu values (%u "
+          "expected)", in->histogram_bins, (unsigned long long)count,
+          NV * T);
+    CHECK(in->table == TVPAL_TABLE_AUTO && !in->has_nan_as &&
+              in->nmissing_values == 0 && !in->missing_values,
+          "table %u, nan_as %d, missing values %u", in->table,
+          in->has_nan_as, in->nmissing_values);
+    CHECK(!strncmp(in->encoder, "libtvpal ", 9) &&
+              strstr(in->manifest, "\nwindow = 3\n") &&
+              strstr(in->manifest, in->encoder),
+          "provenance: encoder \"%s\"", in->encoder);
+    CHECK(!strcmp(in->source_format, "") && in->nsources == 0 &&
+              !strcmp(in->source_type, "f32") &&
+              in->source_value_bytes == 4, "source: \"%s\" %u files, %s",
+          in->source_format, in->nsources, in->source_type);
+    struct tvpal_sizes z0, z1;
+    struct tvpal_diag d = {{0}};
+    REQUIRE(tvpal_reader_sizes(r, 0, &z0, &d) == 0, "sizes: %s", d.msg);
+    REQUIRE(tvpal_reader_sizes(r, 1, &z1, &d) == 0, "sizes 1: %s", d.msg);
+    const uint64_t wx = windows_of(NX, 3), wz = windows_of(NZ, 3);
+    CHECK(z0.index_bytes[0] == wx * NY * NZ &&
+              z0.index_bytes[2] == wz * NX * NY && z0.axis_bytes[1] == 0 &&
+              z0.index_bytes[1] == 0 && z0.table_bytes[1] == 0,
+          "index bytes %llu %llu, %llu and %llu expected",
+          (unsigned long long)z0.index_bytes[0],
+          (unsigned long long)z0.index_bytes[2],
+          (unsigned long long)(wx * NY * NZ),
+          (unsigned long long)(wz * NX * NY));
+    CHECK(z0.chunks_f32[0] + z0.chunks_u16[0] == wx &&
+              z0.chunks_f32[2] + z0.chunks_u16[2] == wz,
+          "chunks: %llu + %llu on x, %llu expected",
+          (unsigned long long)z0.chunks_f32[0],
+          (unsigned long long)z0.chunks_u16[0], (unsigned long long)wx);
+    for (unsigned a = 0; a < 3; a += 2)
+        CHECK(z0.table_bytes[a] > 0 &&
+                  z0.index_bytes[a] + z0.table_bytes[a] < z0.axis_bytes[a],
+              "axis %u: %llu index and %llu table bytes in %llu", a,
+              (unsigned long long)z0.index_bytes[a],
+              (unsigned long long)z0.table_bytes[a],
+              (unsigned long long)z0.axis_bytes[a]);
+    char l1[600];
+    snprintf(l1, sizeof l1, "%s/level-1", dir);
+    CHECK(z0.disk_bytes == tree_bytes(dir) && z1.disk_bytes == tree_bytes(l1)
+              && z1.disk_bytes < z0.disk_bytes,
+          "disk bytes %llu, level 1 %llu; walked %llu, %llu",
+          (unsigned long long)z0.disk_bytes, (unsigned long long)z1.disk_bytes,
+          (unsigned long long)tree_bytes(dir),
+          (unsigned long long)tree_bytes(l1));
+    CHECK(z1.index_bytes[2] == windows_of(3, 3) * 5 * 4,
+          "level 1 index bytes %llu", (unsigned long long)z1.index_bytes[2]);
+    CHECK(tvpal_reader_sizes(r, 3, &z1, &d) == TVPAL_E_INVAL && d.msg[0],
+          "sizes of level 3 (of 2) given");
+}
+
+/* Damage a copy: a record's byte, a shard cut short, a level's manifest
+ * gone.  Each is found and named, the rest still verified. */
+static void check_verify_damage(const char *dir)
+{
+    char cmd[1600], bad[600], p[700];
+    snprintf(bad, sizeof bad, "%s.damaged", dir);
+    snprintf(cmd, sizeof cmd, "rm -rf %s && cp -r %s %s", bad, dir, bad);
+    REQUIRE(system(cmd) == 0, "copy");
+    snprintf(p, sizeof p, "%s/node-0/axis-z.tvps", bad);
+    FILE *f = fopen(p, "r+b");
+    REQUIRE(f && fseek(f, 4096 + 300, SEEK_SET) == 0, "open %s", p);
+    int c = fgetc(f);
+    fseek(f, 4096 + 300, SEEK_SET);
+    fputc(c ^ 0x5a, f);
+    fclose(f);
+    snprintf(p, sizeof p, "%s/node-0/axis-x.tvps", bad);
+    REQUIRE((f = fopen(p, "r+b")) && fseek(f, 40, SEEK_SET) == 0, "open");
+    fputc(7, f);   /* the rank: the header's CRC no longer holds */
+    fclose(f);
+    snprintf(p, sizeof p, "%s/level-1/node-0/axis-x.tvps", bad);
+    REQUIRE(truncate(p, 4096 + 100) == 0, "truncate");
+    snprintf(p, sizeof p, "%s/level-2/manifest.txt", bad);
+    REQUIRE(unlink(p) == 0, "unlink");
+    struct tvpal_reader *r = NULL;
+    struct tvpal_diag d = {{0}};
+    CHECK(tvpal_reader_open(&r, bad, &d) < 0 && !r, "a damaged dataset "
+          "opened in full");
+    REQUIRE(tvpal_reader_open_manifest(&r, bad, &d) == 0,
+            "open the manifest: %s", d.msg);
+    struct findings fd = {0};
+    uint64_t problems = 0;
+    REQUIRE(tvpal_reader_verify(r, note, &fd, &problems, &d) == 0,
+            "verify: %s", d.msg);
+    CHECK(problems == 4 && fd.bad == 4 && fd.ok == 1,
+          "%llu problems (%u named), %u shards sound; 4 and 1 expected",
+          (unsigned long long)problems, fd.bad, fd.ok);
+    CHECK(fd.bad == 4 && strstr(fd.paths[0], "damaged/node-0/axis-x.tvps") &&
+              fd.records[0] == -1 && fd.codes[0] == TVPAL_E_CHECKSUM &&
+              strstr(fd.paths[1], "damaged/node-0/axis-z.tvps") &&
+              fd.records[1] == 0 && fd.codes[1] == TVPAL_E_CHECKSUM &&
+              strstr(fd.paths[2], "level-1/node-0/axis-x.tvps") &&
+              fd.records[2] == -1 && strstr(fd.paths[3], "level-2") &&
+              fd.records[3] == -1,
+          "findings: %s %lld %d; %s record %lld code %d; %s; %s",
+          fd.paths[0], (long long)fd.records[0], fd.codes[0], fd.paths[1],
+          (long long)fd.records[1], fd.codes[1], fd.paths[2], fd.paths[3]);
+    float v[NV];
+    CHECK(tvpal_reader_decode(r, 0, 0, 0, v, &d) < 0 &&
+              strstr(d.msg, "axis-x.tvps"), "a damaged level 0 decoded: %s",
+          d.msg);
+    CHECK(tvpal_reader_decode(r, 0, 0, 1, v, &d) < 0 &&
+              strstr(d.msg, "axis-x.tvps"), "a cut level decoded: %s",
+          d.msg);
+    tvpal_reader_close(r);
+}
+
+static void test_describe_sizes_verify(void)
+{
+    const char *dir = path("%s/levels%s", "");
+    struct tvpal_reader *r = NULL;
+    struct tvpal_diag d = {{0}};
+    REQUIRE(tvpal_reader_open(&r, dir, &d) == 0, "reader: %s", d.msg);
+    check_describe_and_sizes(r, dir);
+    struct findings fd = {0};
+    uint64_t problems = 9;
+    CHECK(tvpal_reader_verify(r, note, &fd, &problems, &d) == 0 &&
+              problems == 0 && fd.bad == 0 && fd.ok == 6,
+          "clean: %llu problems, %u shards sound (6 expected)",
+          (unsigned long long)problems, fd.ok);
+    tvpal_reader_close(r);
+    check_verify_damage(dir);
+}
+
 int main(void)
 {
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf %s && mkdir -p %s", W, W);
     REQUIRE(system(cmd) == 0, "cannot make %s", W);
     CHECK(tvpal_version_number() == TVPAL_VERSION_NUMBER &&
-              !strcmp(tvpal_version_string(), "0.1.0"),
+              !strcmp(tvpal_version_string(), "0.2.0"),
           "version %u %s", tvpal_version_number(), tvpal_version_string());
     test_params();
     test_identical_and_read();
@@ -916,6 +1112,7 @@ int main(void)
     test_collective_levels();
     test_resume();
     test_levels();
+    test_describe_sizes_verify();
     int rc = tt_done("test-api");
     if (rc == 0) {
         snprintf(cmd, sizeof cmd, "rm -rf %s", W);

@@ -5,6 +5,7 @@
  * rules, the placed writer's packing, the table count; staging with the
  * CRC summed on the way (tvpal_slab_stage_verify) against plain staging,
  * and its refusal of a corrupt record. */
+#include "tvpal_cli.h"
 #include "tvpal_crc32c.h"
 #include "tvpal_format.h"
 #include "tvpal_manifest.h"

@@ -1,5 +1,6 @@
 /* tvpal_cli.c: program helpers (see tvpal_cli.h). */
 #include "tvpal_cli.h"
+#include "tvpal_error.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -148,4 +149,36 @@ int tvpal_natural_cmp(const char *a, const char *b)
         b++;
     }
     return (unsigned char)*a - (unsigned char)*b;
+}
+
+int tvpal_axes_parse(const char *s, uint32_t *mask)
+{
+    uint32_t got = 0;
+    for (; *s; s++) {
+        if (*s == ' ' || *s == '\t')
+            continue;
+        const char *c = strchr("xyz", *s);
+        if (!c || !*c || (got & (1u << (c - "xyz"))))
+            return TVPAL_E_INVAL;
+        got |= (1u << (c - "xyz"));
+    }
+    if (!got)
+        return TVPAL_E_INVAL;
+    *mask = got;
+    return 0;
+}
+
+char *tvpal_axes_format(uint32_t mask, char buf[4])
+{
+    char *p = buf;
+    for (unsigned a = 0; a < 3 && mask >= 1 && mask <= 7u; a++)
+        if (mask & (1u << a))
+            *p++ = "xyz"[a];
+    *p = 0;
+    return buf;
+}
+
+unsigned tvpal_axes_count(uint32_t mask)
+{
+    return (mask & 1) + (mask >> 1 & 1) + (mask >> 2 & 1);
 }

@@ -40,4 +40,21 @@ void tvpal_progress_format(char *buf, size_t cap, uint64_t done,
  * as strcmp. */
 int tvpal_natural_cmp(const char *a, const char *b);
 
+/* Sets of axes, as a mask: bit 0 x, bit 1 y, bit 2 z (the manifest's
+ * TVPAL_AXIS_BIT, tvpal.h's TVPAL_AXIS_X, _Y, _Z).
+ *
+ * A set as the manifest's axes key and tvpal-encode --axes write it: the
+ * letters x, y, z, each at most once, in any order, with spaces or tabs
+ * between them or not ("z", "xz", "x y z"); at least one.  0 with *mask
+ * set (a bit per letter), or TVPAL_E_INVAL (*mask left as it was). */
+int tvpal_axes_parse(const char *s, uint32_t *mask);
+
+/* The canonical text of mask (1..7): its letters in x, y, z order, no
+ * spaces ("z", "xz", "xyz"), into buf (4 bytes at least); "" for a mask
+ * outside 1..7.  Returns buf. */
+char *tvpal_axes_format(uint32_t mask, char buf[4]);
+
+/* Number of axes in mask (0..3). */
+unsigned tvpal_axes_count(uint32_t mask);
+
 #endif

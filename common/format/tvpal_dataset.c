@@ -1,5 +1,6 @@
 /* tvpal_dataset.c: dataset directory access (see tvpal_dataset.h). */
 #define _GNU_SOURCE
+#include "tvpal_cli.h"
 #include "tvpal_dataset.h"
 
 #include <stdio.h>

@@ -1,5 +1,6 @@
 /* tvpal_manifest.c: manifest text format (see tvpal_manifest.h). */
 #include "tvpal_manifest.h"
+#include "tvpal_cli.h"
 #include "tvpal_format.h"
 #include "tvpal_fs.h"
 
@@ -39,38 +40,6 @@ int tvpal_manifest_add_source(struct tvpal_manifest *m, const char *src)
         return TVPAL_E_NOMEM;
     m->nsources++;
     return 0;
-}
-
-int tvpal_axes_parse(const char *s, uint32_t *mask)
-{
-    uint32_t got = 0;
-    for (; *s; s++) {
-        if (*s == ' ' || *s == '\t')
-            continue;
-        const char *c = strchr("xyz", *s);
-        if (!c || !*c || (got & TVPAL_AXIS_BIT(c - "xyz")))
-            return TVPAL_E_INVAL;
-        got |= TVPAL_AXIS_BIT(c - "xyz");
-    }
-    if (!got)
-        return TVPAL_E_INVAL;
-    *mask = got;
-    return 0;
-}
-
-char *tvpal_axes_format(uint32_t mask, char buf[4])
-{
-    char *p = buf;
-    for (unsigned a = 0; a < 3 && mask >= 1 && mask <= TVPAL_AXES_ALL; a++)
-        if (mask & TVPAL_AXIS_BIT(a))
-            *p++ = "xyz"[a];
-    *p = 0;
-    return buf;
-}
-
-unsigned tvpal_axes_count(uint32_t mask)
-{
-    return (mask & 1) + (mask >> 1 & 1) + (mask >> 2 & 1);
 }
 
 /* The lowest format_version that describes m (FORMAT.md 3.2, 10.3). */

@@ -93,21 +93,6 @@ int tvpal_manifest_format(const struct tvpal_manifest *m, char **out);
 int tvpal_manifest_load(const char *path, struct tvpal_manifest *m,
                         struct tvpal_diag *diag);
 
-/* A set of axes as the manifest's axes key and tvpal-encode --axes write
- * it: the letters x, y, z, each at most once, in any order, with spaces or
- * tabs between them or not ("z", "xz", "x y z"); at least one.  0 with
- * *mask set (TVPAL_AXIS_BIT per letter), or TVPAL_E_INVAL (*mask left as
- * it was). */
-int tvpal_axes_parse(const char *s, uint32_t *mask);
-
-/* The canonical text of mask (1..7): its letters in x, y, z order, no
- * spaces ("z", "xz", "xyz"), into buf (4 bytes at least); "" for a mask
- * outside 1..7.  Returns buf. */
-char *tvpal_axes_format(uint32_t mask, char buf[4]);
-
-/* Number of axes in mask (0..3). */
-unsigned tvpal_axes_count(uint32_t mask);
-
 /* The rule the manifest reader applies to every number it reads back
  * (spacing, origin, times, value range, missing values): a finite value
  * that is 0 or normal.  A subnormal (1e-310) is written as "%.17g" and read

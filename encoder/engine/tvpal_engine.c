@@ -6,6 +6,7 @@
  * in turn, gather their samples from the ring, code each slice-window
  * into the thread's chunk buffer and write it in place.  Everything a step
  * uses is allocated by tvpal_engine_start, none per step or per voxel. */
+#include "tvpal_cli.h"
 #include "tvpal_engine.h"
 #include "tvpal_checkpoint.h"
 #include "tvpal_values.h"

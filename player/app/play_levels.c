@@ -3,6 +3,7 @@
 #define _GNU_SOURCE
 #include "play.h"
 #include "play_cluster.h"
+#include "tvpal_cli.h"
 
 #include <math.h>
 #include <stdio.h>

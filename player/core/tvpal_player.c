@@ -1,4 +1,5 @@
 /* tvpal_player.c: the player core (see tvpal_player.h). */
+#include "tvpal_cli.h"
 #include "tvpal_player.h"
 #include "tvpal_clock.h"
 #include "tvpal_format.h"
