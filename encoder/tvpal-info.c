@@ -25,8 +25,9 @@ static void usage(FILE *f)
 "       " PROG " OUTDIR --histogram\n"
 "       " PROG " --inspect FILE\n"
 "Print the manifest of the tvpal dataset OUTDIR, the axes it stores, its\n"
-"bytes per stored axis and on disk, and its chunks by decoder table format\n"
-"(16-bit or float32); or, with --inspect, what an input file holds.\n"
+"bytes per stored axis and on disk, its chunks by decoder table format\n"
+"(16-bit or float32) and the bytes of each coarser level; or, with\n"
+"--inspect, what an input file holds.\n"
 "\n"
 "  -v, --verify     open every shard of the stored axes (header, index,\n"
 "                   size, agreement with the manifest) and read every record\n"
@@ -125,6 +126,32 @@ static int print_verify(struct tvpal_reader *r, const char *dir)
     return bad ? TVPAL_EXIT_FAIL : TVPAL_EXIT_OK;
 }
 
+/* What each coarser level takes on disk (every file of DIR/level-k), in
+ * bits per voxel-timestep of level 0 and as a share of the dataset's
+ * disk_bytes.  Returns the exit status: a level that does not open is bad
+ * input (2), as level 0 is. */
+static int print_level_bytes(struct tvpal_reader *r, uint64_t disk,
+                             double vts)
+{
+    const struct tvpal_info *in = tvpal_reader_info(r);
+    for (uint32_t k = 1; k <= in->levels; k++) {
+        struct tvpal_sizes z;
+        struct tvpal_diag d = {{0}};
+        int rc = tvpal_reader_sizes(r, k, &z, &d);
+        if (rc < 0) {
+            fprintf(stderr, PROG ": level %u: %s\n", k,
+                    d.msg[0] ? d.msg : tvpal_strerror(rc));
+            return rc == TVPAL_E_NOMEM ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;
+        }
+        printf("level_%u_bytes = %llu  (%.4f bits per voxel-timestep of "
+               "level 0, %.1f%% of disk_bytes)\n", k,
+               (unsigned long long)z.disk_bytes,
+               8.0 * (double)z.disk_bytes / vts,
+               disk ? 100.0 * (double)z.disk_bytes / (double)disk : 0.0);
+    }
+    return TVPAL_EXIT_OK;
+}
+
 /* Without --verify: the sizes of level 0 (tvpal_reader_sizes opens every
  * shard's header and index): the bytes of each stored axis, then those of
  * every file of the dataset (what it takes on disk), then its chunks by
@@ -164,7 +191,7 @@ static int print_axis_bytes(struct tvpal_reader *r)
            all ? 100.0 * (double)u16 / (double)all : 0.0);
     printf("tables_f32 = %llu  (chunks with float32 decoder tables)\n",
            (unsigned long long)f32);
-    return TVPAL_EXIT_OK;
+    return print_level_bytes(r, z.disk_bytes, vts);
 }
 
 /* --histogram: the manifest's bins over [value_min, value_max], one line

@@ -61,6 +61,13 @@ else
 fi
 "$INFO" "$W/ds/level-1" --verify > /dev/null && "$INFO" "$W/ds/level-2" --verify > /dev/null \
     && ok "levels verify" || fail "level verify"
+# tvpal-info's level_K_bytes: every file under level-K, as du counts them.
+"$INFO" "$W/ds" > "$W/info.txt" || fail "tvpal-info"
+for k in 1 2; do
+    want=$(find "$W/ds/level-$k" -type f -printf '%s\n' | awk '{s += $1} END {print s}')
+    grep -q "^level_${k}_bytes = $want " "$W/info.txt" && ok "tvpal-info: level $k takes $want bytes" \
+        || fail "tvpal-info: level $k: $(grep "^level_${k}_" "$W/info.txt"), $want expected"
+done
 # Decode every level at step 2 and compare with the averages made here.
 for k in 0 1 2; do
     dir=$W/ds; [ $k -gt 0 ] && dir=$W/ds/level-$k
