@@ -434,9 +434,10 @@ typedef void (*tvpal_check_fn)(void *ctx, const struct tvpal_check *c);
  * of the stored axes (it opens, its header agrees with the manifest, every
  * record reads with its CRC-32C and layout), then every level the
  * manifest names (its manifest, then its shards).  Calls fn(ctx, c) once
- * per sound shard and once per problem, in that order, and sets *problems
- * to the number of problems.  Works on a reader of either open.  0 (the
- * verdict is *problems); TVPAL_E_NOMEM. */
+ * per sound shard and once per problem, in the order of the files (fn
+ * may be NULL), and sets *problems (when not NULL) to the number of
+ * problems.  Works on a reader of either open.  0 (the verdict is
+ * *problems); TVPAL_E_NOMEM. */
 TVPAL_API int tvpal_reader_verify(struct tvpal_reader *r, tvpal_check_fn fn,
                                   void *ctx, uint64_t *problems,
                                   struct tvpal_diag *diag);

@@ -462,6 +462,7 @@ int tvpal_reader_verify(struct tvpal_reader *r, tvpal_check_fn fn, void *ctx,
     if (rc < 0)
         return tvpal_diag_set(diag, rc, "%s: out of memory while verifying",
                               r->dir);
-    *problems = v.problems;
+    if (problems)
+        *problems = v.problems;
     return 0;
 }
