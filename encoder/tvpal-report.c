@@ -276,6 +276,12 @@ static int validate_options(struct options *o, const struct tvpal_info *m)
                     "files follow --reference)\n", o->refs[0]);
             return TVPAL_EXIT_USAGE;
         }
+        if (m->nsources == 0) {
+            fprintf(stderr, PROG ": %s names no source (encoded from "
+                    "memory?): give the original values with --reference\n",
+                    o->dir);
+            return TVPAL_EXIT_USAGE;
+        }
         /* The reader's strings, read only (tvpal_input_open keeps its
          * files as char *const *). */
         o->refs = (char *const *)m->sources;

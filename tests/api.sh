@@ -73,6 +73,14 @@ for f in node-0/axis-z.tvps level-1/node-0/axis-z.tvps level-2/node-0/axis-z.tvp
 done
 [ $same = 1 ] && grep -q "^levels = 2" "$W/lheat.ds/manifest.txt" &&
     ok "levels in situ: shards of levels 0-2 byte-identical to tvpal-encode --levels 2's"
+# tvpal-report of a dataset from memory: no sources to read, so it asks
+# for the original values; given the dumps, it measures against them.
+expect_exit 2 "heat.ds names no source \(encoded from memory\?\): give the original values with --reference" \
+    "$REP" "$W/heat.ds"
+"$REP" -q "$W/heat.ds" --reference "$W"/raw/heat_t*.f32 > "$W/rep.txt" &&
+    awk -F'psnr=' '{split($2, a, " "); exit !(a[1] + 0 > 30)}' "$W/rep.txt" &&
+    ok "tvpal-report against the dumps: $(grep -o 'psnr=[^ ]*' "$W/rep.txt")" ||
+    fail "tvpal-report --reference the dumps: $(cat "$W/rep.txt")"
 grep -q "^encoder = libtvpal 0.2.0" "$W/heat.ds/manifest.txt" &&
     grep -q "^units = K" "$W/heat.ds/manifest.txt" &&
     grep -q "^time_units = seconds" "$W/heat.ds/manifest.txt" &&
