@@ -231,9 +231,8 @@ static void print_histogram(const char *dir, const struct tvpal_info *in)
 static void print_manifest(const struct tvpal_info *in)
 {
     fputs(in->manifest, stdout);
-    printf("stored_axes = %s%s%s\n", in->axes & TVPAL_AXIS_X ? "x" : "",
-           in->axes & TVPAL_AXIS_Y ? "y" : "",
-           in->axes & TVPAL_AXIS_Z ? "z" : "");
+    char axes[4];   /* tvpal.h's axis bits are the manifest's */
+    printf("stored_axes = %s\n", tvpal_axes_format(in->axes, axes));
 }
 
 /* --inspect: what an input file holds (tvpal_input_describe). */

@@ -721,8 +721,7 @@ static void summarize_errors(struct report *r)
 static int summarize_sizes(struct report *r, struct tvpal_diag *diag)
 {
     const uint64_t *ab = r->sz.axis_bytes;
-    const unsigned na = (r->m->axes & 1u) + (r->m->axes >> 1 & 1u) +
-                        (r->m->axes >> 2 & 1u);
+    const unsigned na = tvpal_axes_count(r->m->axes);
     int rc = tvpal_reader_sizes(r->rd, 0, &r->sz, diag);
     if (rc < 0)
         return rc;
@@ -796,10 +795,10 @@ static void print_text(const struct report *r)
                r->axis[a].flicker, (unsigned long long)ab[a],
                (double)r->src_bytes / (double)ab[a],
                8.0 * (double)ab[a] / r->vts);
-    printf("on disk: %llu bytes (axes %s%s%s: shards, manifests%s), ratio "
+    char axes[4];
+    printf("on disk: %llu bytes (axes %s: shards, manifests%s), ratio "
            "%.3f\n", (unsigned long long)r->disk_bytes,
-           m->axes & TVPAL_AXIS_X ? "x" : "", m->axes & TVPAL_AXIS_Y ? "y" : "",
-           m->axes & TVPAL_AXIS_Z ? "z" : "", m->levels ? ", levels" : "",
+           tvpal_axes_format(m->axes, axes), m->levels ? ", levels" : "",
            r->ratio);
     printf("bits per voxel-timestep on disk: %.4f = indices %.4f + tables "
            "%.4f + headers, padding and manifests%s %.4f\n",
