@@ -46,13 +46,16 @@ extern "C" {
 /* ---------------------------------------------------------------- version */
 
 #define TVPAL_VERSION_MAJOR 0
-#define TVPAL_VERSION_MINOR 2
+#define TVPAL_VERSION_MINOR 3
 #define TVPAL_VERSION_RELEASE 0
-/* 100 * (100 * MAJOR + MINOR) + RELEASE: 200 for 0.2.0.  History:
+/* 100 * (100 * MAJOR + MINOR) + RELEASE: 300 for 0.3.0.  History:
  *  0.1.0  the encoder from memory, the reader (open, info, decode);
  *  0.2.0  struct tvpal_info's provenance, source and histogram fields,
  *         tvpal_reader_open_manifest, tvpal_reader_sizes,
- *         tvpal_reader_verify (what tvpal-info and tvpal-report need). */
+ *         tvpal_reader_verify (what tvpal-info and tvpal-report need);
+ *  0.3.0  encoding from a source in passes under a memory limit
+ *         (tvpal_encoder_plan, tvpal_encoder_encode), integer scalars,
+ *         TVPAL_E_CANCELED. */
 #define TVPAL_VERSION_NUMBER                                                  \
     ((TVPAL_VERSION_MAJOR * 100 + TVPAL_VERSION_MINOR) * 100 +               \
      TVPAL_VERSION_RELEASE)
@@ -71,10 +74,14 @@ TVPAL_API const char *tvpal_version_string(void);
 #define TVPAL_AXIS_Y 2u
 #define TVPAL_AXIS_Z 4u
 
-/* The scalar type of the values pushed. */
+/* The scalar type of the values pushed or read from a source.  Integers
+ * (since 0.3.0) are taken as their values (a uint16 of 1000 is 1000.0). */
 enum tvpal_scalar {
     TVPAL_FLOAT32 = 1,
-    TVPAL_FLOAT64 = 2
+    TVPAL_FLOAT64 = 2,
+    TVPAL_UINT8 = 3,
+    TVPAL_UINT16 = 4,
+    TVPAL_INT16 = 5
 };
 
 /* Parameters of an encoder, set with tvpal_encoder_set before the first
@@ -307,6 +314,128 @@ TVPAL_API int tvpal_encoder_finish(struct tvpal_encoder *e,
 /* Stops: removes DIR.partial and its lock, and releases e.  An older DIR
  * stays as it was.  NULL is a no-op. */
 TVPAL_API void tvpal_encoder_abort(struct tvpal_encoder *e);
+
+/* ------------------------------------------------- encoding from a source
+ *
+ * Instead of pushing steps, a caller may hand the encoder a source to read
+ * from (files, another library's reader).  The encoder then fits the job
+ * into TVPAL_PARAM_MEM_LIMIT: when N whole steps and the workspaces do not
+ * fit, it encodes the volume in passes over boxes of it (z slabs, y slabs,
+ * x slabs of the slices of each axis; tvpal-encode(1), "memory"), each
+ * pass reading its box of every step, so a limit below a window's steps
+ * costs reading the source more than once, never more memory.  It asks
+ * for the boxes it needs as it needs them, and continues an interrupted
+ * job from its checkpoint where the source names itself (identity).  With
+ * TVPAL_PARAM_LEVELS the levels are made from each step as it is read when
+ * the plan is one pass; otherwise after level 0, from the source read
+ * again in slabs of planes.  The dataset is byte-identical to one pushed
+ * from the same values, and to tvpal-encode's from the same files (which
+ * reads through this call).  One process: not with a collective. */
+
+/* Where an encode from a source stands, for its progress callback. */
+struct tvpal_progress {
+    uint64_t work, total;     /* voxel-samples encoded (every axis; a voxel
+                               * of a window of L steps counts L), of the
+                               * job's; a resumed job starts at its share */
+    uint64_t unit, units;     /* steps of passes done (pass * steps + step
+                               * + 1 once a step is encoded), of passes *
+                               * steps */
+    uint32_t pass, passes;    /* the pass, from 0, of the plan's */
+    uint32_t level;           /* 0 while level 0 is encoded; k while the
+                               * levels are made after it (the step is
+                               * then `step`) */
+    uint32_t step;            /* the step being read or encoded */
+    int unit_end;             /* 1: a unit has just ended (its checkpoint
+                               * is saved when due); 0: a tick within a
+                               * long step or read, about once a second */
+};
+
+/* What a progress callback returns at the end of a unit (its return at a
+ * tick is ignored). */
+#define TVPAL_GO_ON 0              /* go on */
+#define TVPAL_SAVE_AND_GO_ON 1     /* save a checkpoint now, then go on */
+#define TVPAL_SAVE_AND_STOP 2      /* save a checkpoint and return
+                                    * TVPAL_E_CANCELED; DIR.partial stays,
+                                    * and an encode of the same job and
+                                    * identity continues from it */
+#define TVPAL_STOP 3               /* return TVPAL_E_CANCELED without
+                                    * saving (as if killed now) */
+
+/* A source of timesteps.  The caller owns it and what it points to, until
+ * tvpal_encoder_encode returns. */
+struct tvpal_source {
+    enum tvpal_scalar type;   /* of the values read */
+    int big_endian;           /* 1: the values are big-endian (files of
+                               * another machine), 0: this host's order */
+    int concurrent;           /* 1: read may run on several of the
+                               * encoder's threads at once, for different
+                               * boxes (a file read with pread); it is then
+                               * asked for whole rows of one plane at a
+                               * time, at most 8 MiB.  0: one call at a
+                               * time, each for a whole box, on a reader
+                               * thread of the encoder's that reads the
+                               * next step while this one is encoded (a
+                               * library that is not thread-safe: calls
+                               * never overlap) */
+    const char *identity;     /* text that names the values (the files and
+                               * what identifies their contents): the
+                               * encode continues from a checkpoint in
+                               * DIR.partial only of the same job and
+                               * identity.  NULL: it never continues (an
+                               * older DIR.partial is removed) */
+    uint64_t held_bytes;      /* memory the source holds of its own while
+                               * it reads, for the plan; 0 if none */
+    void *ctx;                /* the caller's; passed to both */
+    /* Reads step `step`'s box of voxels lo[a] .. lo[a] + n[a] - 1 into
+     * dst: n[0] * n[1] * n[2] values of `type`, x fastest.  0, or a
+     * negative TVPAL_E_* code with diag set (naming the file); the encode
+     * then fails with that code and diag, keeping DIR.partial as its last
+     * checkpoint left it (TVPAL_E_READ, TVPAL_E_OPEN: a rerun may
+     * continue), or removing it (any other code: the source is bad). */
+    int (*read)(void *ctx, uint32_t step, const uint32_t lo[3],
+                const uint32_t n[3], void *dst, struct tvpal_diag *diag);
+    /* Optional (may be NULL): where the encode stands, on the calling
+     * thread, at the end of every unit and about once a second within one;
+     * returns TVPAL_GO_ON or another of the answers above. */
+    int (*progress)(void *ctx, const struct tvpal_progress *p);
+};
+
+/* The plan of an encode from a source under TVPAL_PARAM_MEM_LIMIT. */
+struct tvpal_plan {
+    uint32_t passes;          /* passes over the volume */
+    uint32_t passes_axis[3];  /* of them per axis (all 0: one pass encodes
+                               * every axis from one read of each step) */
+    uint64_t peak_bytes;      /* estimated bytes of the largest pass */
+    uint64_t min_limit;       /* the smallest limit this job can have */
+    uint64_t read_voxels;     /* voxels read over all passes and steps
+                               * (the source's voxels * steps when one
+                               * pass) */
+    int levels_inline;        /* 1: the levels are made from each step of
+                               * level 0's one pass; 0: after level 0 */
+};
+
+/* The plan tvpal_encoder_encode would make for src with e's parameters,
+ * into *out; nothing is read or written.  0; TVPAL_E_RANGE: the limit is
+ * too small for even one slice per pass (out->min_limit says what would
+ * do; diag says so); TVPAL_E_INVAL, TVPAL_E_NOMEM. */
+TVPAL_API int tvpal_encoder_plan(struct tvpal_encoder *e,
+                                 const struct tvpal_source *src,
+                                 struct tvpal_plan *out,
+                                 struct tvpal_diag *diag);
+
+/* Encodes every step of src, reading it as the plan (tvpal_encoder_plan)
+ * needs, in place of pushes: call it once, on an encoder with no push,
+ * then tvpal_encoder_finish (or, on failure, tvpal_encoder_abort).  With
+ * src->identity, a checkpoint of the same job and identity in DIR.partial
+ * is continued (the steps before it are not read again), and
+ * TVPAL_PARAM_CHECKPOINT counts units (steps of passes).  0; the codes of
+ * a first push and of src->read; TVPAL_E_RANGE (the limit is too small:
+ * diag gives the smallest that would do); TVPAL_E_CANCELED (the progress
+ * callback stopped it); TVPAL_E_INVAL (a collective, a push before, a
+ * second call). */
+TVPAL_API int tvpal_encoder_encode(struct tvpal_encoder *e,
+                                   const struct tvpal_source *src,
+                                   struct tvpal_diag *diag);
 
 /* ----------------------------------------------------------------- reader */
 

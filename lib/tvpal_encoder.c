@@ -11,7 +11,7 @@
  * are those tvpal-encode writes from the same values in files.
  */
 #define _GNU_SOURCE
-#include "tvpal.h"
+#include "tvpal_encoder_impl.h"
 
 #include "tvpal_checkpoint.h"
 #include "tvpal_dataset.h"
@@ -28,120 +28,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-#define MISSING_MAX 16u
-#define LIB_NAME "libtvpal " PACKAGE_VERSION
-
-enum state { OPENED, STARTED, FAILED };
-
-/* The rounds in which the ranks of a collective agree, in order (a round's
- * number travels in its votes, a check that every rank is in the same):
- * START: nobody has refused (a wrong slab), then rank 0 prepares the
- * output; SETUP: every rank has its engine, and the step its checkpoint
- * resumes from (tvpal_encoder_resume: each rank from its own, the caller
- * from the earliest of them); WRITERS: every rank has its shard writers,
- * resumed or new; STATS: every
- * rank has pushed every step, the statistics summed and the manifest sent
- * from rank 0; PLACE: every rank has finished its shards, then rank 0
- * writes the manifest, verifies and renames.  A round that decides a
- * failure is the last: every rank knows it and none joins another. */
-enum round { R_START = 1, R_SETUP, R_WRITERS, R_STATS, R_PLACE, R_DONE };
-
-/* What a rank sends rank 0 in a round, and the verdict rank 0 sends back;
- * the statistics ride along (summed by rank 0; used in R_STATS). */
-struct vote {
-    int32_t round, code;
-    uint64_t done;           /* SETUP: the steps its checkpoint has done */
-    uint32_t levels;         /* START: its TVPAL_PARAM_LEVELS, which every
-                              * rank must share */
-    double vmin, vmax;
-    uint64_t nonfinite, missing, counted;
-    char msg[TVPAL_DIAG_MAX];
-};
-struct verdict {
-    int32_t code;
-    uint64_t done;           /* SETUP: the earliest step a rank resumes
-                              * from: the caller's first push */
-    uint32_t text_len;       /* R_STATS: the manifest's bytes that follow */
-    double vmin, vmax;
-    uint64_t nonfinite, missing, counted;
-    char msg[TVPAL_DIAG_MAX];
-};
-/* The fine histogram goes to rank 0 in pieces of this many bins, so that
- * rank 0 holds size * HIST_PIECE counters at a time, not size whole
- * histograms. */
-#define HIST_PIECE 2048u
-
-struct tvpal_encoder {
-    char *dir, *partial, *lock_path;
-    int lock_fd;
-    struct tvpal_engine_params ep;
-    unsigned threads;
-    uint64_t mem_limit;
-    int force, has_nan_as;
-    double nan_as;
-    double spacing[3], origin[3];
-    double *times;
-    char time_units[128], units[64];
-    double missing[MISSING_MAX];
-    unsigned nmissing;
-    enum state state;
-    enum tvpal_type type;            /* of the first push */
-    uint32_t pushed, encoded;        /* steps in, steps' windows coded */
-    uint32_t next_in;                /* the caller's next step: below
-                                      * pushed after a resume where another
-                                      * rank resumed from an earlier step
-                                      * (those pushes are passed over) */
-    struct tvpal_engine *eng;
-    struct tvpal_pool *pool;
-    struct encode_pass pass;         /* the whole volume, every axis */
-    struct tvpal_checkpoint_stats st;
-    uint64_t **fine;                 /* per thread */
-    struct tvpal_found *found;       /* per thread */
-    void **rows;                     /* per thread: a row of 8-byte values
-                                      * (strided pushes) */
-    /* The ranks: a caller's collective, or this process alone. */
-    struct tvpal_collective coll;
-    uint32_t slab_z0, slab_n;        /* the planes this rank pushes */
-    enum round round;                /* the next round to join */
-    int decided;                     /* a round decided a failure */
-    int own_rc;                      /* this rank's failure (a wrong slab,
-                                      * a failed push), which it tells the
-                                      * others in the next round */
-    char own_msg[TVPAL_DIAG_MAX];
-    int made_partial;                /* rank 0 created DIR.partial */
-    struct vote *votes;              /* rank 0: size of them */
-    /* Checkpoints (tvpal_checkpoint.h) in this rank's directory: after
-     * every ckpt_every steps encoded; a resumed job converts steps below
-     * recount_to again without counting them (they are in st). */
-    uint32_t ckpt_every;
-    int resuming;
-    uint64_t done_local;             /* SETUP: what this rank's checkpoint
-                                      * has done */
-    uint32_t recount_to;
-    char *ckdir, *fp;
-    struct tvpal_checkpoint_progress ckp;
-    /* Levels of detail 1 .. levels: each a libtvpal encoder of its own
-     * into DIR.partial/level-k, fed the block means of the step before it
-     * (lvol[k], ldims[k]); lnext[k]: the first step it takes (a resumed
-     * level may be ahead of level 0: its checkpoint is saved first). */
-    uint32_t levels;
-    struct tvpal_encoder *lv[TVPAL_LEVELS_MAX + 1];
-    float *lvol[TVPAL_LEVELS_MAX + 1];
-    uint32_t ldims[TVPAL_LEVELS_MAX + 1][3];
-    uint32_t lnext[TVPAL_LEVELS_MAX + 1];
-    uint64_t *pieces;                /* rank 0: size * HIST_PIECE */
-    /* Levels of a collective ("levels of a collective" below): this
-     * rank's part of each step's level 1 (xbuf, xbytes), rank 0's of
-     * every rank (xall); xsent: the steps sent so far.  xbytes is 0 in
-     * one process. */
-    unsigned char *xbuf, *xall;
-    size_t xbytes;
-    uint32_t xsent;
-    int xfailed;                     /* rank 0: a rank's step was not
-                                      * taken (its failure is the job's,
-                                      * not the levels' it starved) */
-};
 
 /* One process: its gather is a copy, its broadcast nothing. */
 static int self_gather(void *ctx, const void *send, size_t bytes, void *recv)
@@ -770,7 +656,11 @@ static int setup(struct tvpal_encoder *e, struct tvpal_diag *diag)
         e->xbytes = x_bytes(e);
     const unsigned nt = e->threads ? e->threads
                                    : tvpal_pool_default_threads();
-    const uint64_t need = job_bytes(e, nt, nvox);
+    uint64_t ring_voxels = nvox;
+    const uint64_t need = e->src ? 0 : job_bytes(e, nt, nvox);
+    if (e->src && (rc = tvpal_enc_source_plan(e, nt, &ring_voxels,
+                                              diag)) < 0)
+        return rc;
     if (e->mem_limit && need > e->mem_limit)
         return tvpal_diag_set(diag, TVPAL_E_RANGE, "%ux%ux%u at window %u "
                               "needs about %llu bytes (%u steps and the "
@@ -781,7 +671,7 @@ static int setup(struct tvpal_encoder *e, struct tvpal_diag *diag)
                               (unsigned long long)e->mem_limit);
     if ((rc = tvpal_pool_create(&e->pool, nt)) < 0)
         return tvpal_diag_set(diag, rc, "cannot start %u threads", nt);
-    if ((rc = tvpal_engine_start(e->eng, e->pool, nvox, diag)) < 0)
+    if ((rc = tvpal_engine_start(e->eng, e->pool, ring_voxels, diag)) < 0)
         return rc == TVPAL_E_INVAL
                    ? tvpal_diag_set(diag, rc, "TVPAL_TRANSFORM_KLT: built "
                                     "without LAPACK")
@@ -792,7 +682,7 @@ static int setup(struct tvpal_encoder *e, struct tvpal_diag *diag)
         return TVPAL_E_NOMEM;
     for (unsigned i = 0; i < nt; i++)
         if (!(e->fine[i] = calloc(TVPAL_CHECKPOINT_BINS, sizeof(uint64_t))) ||
-            !(e->rows[i] = malloc((size_t)d[0] * 8)))
+            (!e->src && !(e->rows[i] = malloc((size_t)d[0] * 8))))
             return TVPAL_E_NOMEM;
     if (e->xbytes &&
         (!(e->xbuf = calloc(1, e->xbytes)) ||
@@ -800,6 +690,13 @@ static int setup(struct tvpal_encoder *e, struct tvpal_diag *diag)
                                            e->xbytes)))))
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "the levels' exchange: "
                               "%zu bytes per rank", e->xbytes);
+    e->ckdir = e->coll.size > 1
+                   ? tvpal_node_dir(e->partial, NULL, e->ep.node_first)
+                   : strdup(e->partial);
+    if (!e->ckdir)
+        return TVPAL_E_NOMEM;
+    if (e->src) /* its passes, fingerprint and checkpoint */
+        return tvpal_enc_source_ready(e, diag);
     /* One pass over this rank's slab: every axis for one process, z of
      * the slab for a rank (x and y are refused then). */
     const uint32_t z0 = e->slab_z0, z1 = e->slab_z0 + e->slab_n;
@@ -807,10 +704,7 @@ static int setup(struct tvpal_encoder *e, struct tvpal_diag *diag)
         .box = {{0, 0, z0}, {d[0], d[1], e->slab_n}},
         .s0 = {0, 0, z0}, .s1 = {d[0], d[1], z1}, .axes = 7, .stats = 1};
     tvpal_engine_set_pass(e->eng, &e->pass);
-    e->ckdir = e->coll.size > 1
-                   ? tvpal_node_dir(e->partial, NULL, e->ep.node_first)
-                   : strdup(e->partial);
-    if (!e->ckdir || make_fingerprint(e) < 0 ||
+    if (make_fingerprint(e) < 0 ||
         tvpal_engine_progress_alloc(e->eng, &e->ckp) < 0)
         return TVPAL_E_NOMEM;
     if (e->resuming)
@@ -819,10 +713,11 @@ static int setup(struct tvpal_encoder *e, struct tvpal_diag *diag)
 }
 
 /* Level k's encoder: level 0's parameters, the grid over the same box,
- * the times and units; resumed when level 0 is (done > 0), where its
- * checkpoint must be at least level 0's. */
-static int open_level(struct tvpal_encoder *e, uint32_t k, uint64_t done,
-                      struct tvpal_diag *diag)
+ * the times and units; resumed when level 0 is (resume), where its
+ * checkpoint must be at least level 0's (done).  A pulled encode's levels
+ * save their checkpoints with level 0's (tvpal_encoder_source.c). */
+int tvpal_enc_open_level(struct tvpal_encoder *e, uint32_t k, int resume,
+                         uint64_t done, struct tvpal_diag *diag)
 {
     uint32_t *dk = e->ldims[k];
     tvpal_level_dims(e->ep.dims, k, dk);
@@ -845,7 +740,7 @@ static int open_level(struct tvpal_encoder *e, uint32_t k, uint64_t done,
                                        : TVPAL_TRANSFORM_DCT},
         {TVPAL_PARAM_ALLOC, p->alloc_mse ? TVPAL_ALLOC_GREEDY_MSE
                                          : TVPAL_ALLOC_VARIANCE},
-        {TVPAL_PARAM_CHECKPOINT, e->ckpt_every},
+        {TVPAL_PARAM_CHECKPOINT, e->src ? 0 : e->ckpt_every},
         /* an older level-k (of an earlier job in DIR.partial) goes */
         {TVPAL_PARAM_FORCE, 1}};
     for (size_t i = 0; rc == 0 && i < sizeof set / sizeof *set; i++)
@@ -862,7 +757,7 @@ static int open_level(struct tvpal_encoder *e, uint32_t k, uint64_t done,
                                          sizeof(float))))
         rc = TVPAL_E_NOMEM;
     e->lnext[k] = 0;
-    if (rc == 0 && done) {
+    if (rc == 0 && resume) {
         rc = tvpal_encoder_resume(c, TVPAL_FLOAT32, &e->lnext[k], diag);
         if (rc == 0 && e->lnext[k] < done)
             rc = tvpal_diag_set(diag, TVPAL_E_MISMATCH, "%s/level-%u: its "
@@ -881,8 +776,8 @@ static int open_level(struct tvpal_encoder *e, uint32_t k, uint64_t done,
 
 /* Step t to every level: level 1 from lvol[1] (made already), each next
  * level the block means of the one before. */
-static int push_levels(struct tvpal_encoder *e, uint32_t t,
-                       struct tvpal_diag *diag)
+int tvpal_enc_push_levels(struct tvpal_encoder *e, uint32_t t,
+                          struct tvpal_diag *diag)
 {
     for (uint32_t k = 1; k <= e->levels; k++) {
         if (k > 1)
@@ -1039,7 +934,7 @@ static int x_step(struct tvpal_encoder *e, const float *slab,
         e->xfailed = 1;
         return 0;
     }
-    return push_levels(e, t, diag);
+    return tvpal_enc_push_levels(e, t, diag);
 }
 
 /* Whether the steps go through x_step: levels, several ranks, and no
@@ -1079,8 +974,8 @@ static int finish_levels(struct tvpal_encoder *e, struct tvpal_diag *diag)
 /* The first push, on every rank: START (nobody refused; rank 0 prepares
  * the output) and SETUP (every rank ready).  The first failure is every
  * rank's. */
-static int start(struct tvpal_encoder *e, enum tvpal_type type,
-                 struct tvpal_diag *diag)
+int tvpal_enc_start(struct tvpal_encoder *e, enum tvpal_type type,
+                    struct tvpal_diag *diag)
 {
     struct tvpal_diag d = {{0}};
     struct verdict v;
@@ -1111,8 +1006,10 @@ static int start(struct tvpal_encoder *e, enum tvpal_type type,
     /* The levels are rank 0's (with a collective it encodes every node's
      * of them, x_step), opened before the round, which tells every rank
      * of a failure. */
-    for (uint32_t k = 1; rc == 0 && is_root(e) && k <= e->levels; k++)
-        rc = open_level(e, k, done, &d);
+    const int levels_now = !e->src || tvpal_enc_source_levels_inline(e);
+    for (uint32_t k = 1; rc == 0 && is_root(e) && levels_now &&
+                         k <= e->levels; k++)
+        rc = tvpal_enc_open_level(e, k, done > 0, done, &d);
     if (agree(e, R_WRITERS, rc, d.msg, &v) < 0)
         return report(rc, &v, diag);
     e->encoded = e->pushed = (uint32_t)done;
@@ -1122,6 +1019,13 @@ static int start(struct tvpal_encoder *e, enum tvpal_type type,
 }
 
 /* ----------------------------------------------------------------- push */
+
+enum tvpal_type tvpal_enc_scalar_type(enum tvpal_scalar s)
+{
+    return s == TVPAL_FLOAT64 ? TVPAL_F64 : s == TVPAL_UINT8 ? TVPAL_U8
+           : s == TVPAL_UINT16 ? TVPAL_U16 : s == TVPAL_INT16 ? TVPAL_I16
+                                                               : TVPAL_F32;
+}
 
 /* One push's conversion, a plane per job on the pool. */
 struct push_ctx {
@@ -1230,12 +1134,13 @@ static void fold_histograms(struct tvpal_encoder *e)
         tvpal_values_fold(&e->st, e->fine, tvpal_pool_threads(e->pool));
 }
 
-static int save_checkpoint(struct tvpal_encoder *e, struct tvpal_diag *diag)
+int tvpal_enc_save_checkpoint(struct tvpal_encoder *e, uint64_t unit,
+                              struct tvpal_diag *diag)
 {
     fold_histograms(e);
     tvpal_engine_progress_get(e->eng, &e->ckp);
-    return tvpal_checkpoint_save(e->ckdir, e->fp, e->encoded, &e->st,
-                                 &e->ckp, diag);
+    return tvpal_checkpoint_save(e->ckdir, e->fp, unit, &e->st, &e->ckp,
+                                 diag);
 }
 
 /* Encodes every step whose windows' steps are all in. */
@@ -1259,7 +1164,7 @@ static int encode_ready(struct tvpal_encoder *e, struct tvpal_diag *diag)
         e->encoded++;
         if (e->ckpt_every && (e->encoded % e->ckpt_every == 0 ||
                               e->encoded == T) &&
-            (rc = save_checkpoint(e, diag)) < 0)
+            (rc = tvpal_enc_save_checkpoint(e, e->encoded, diag)) < 0)
             return rc;
     }
     return 0;
@@ -1275,9 +1180,9 @@ int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "a push after a failed "
                               "one: only tvpal_encoder_abort is left");
     }
-    if (type != TVPAL_FLOAT32 && type != TVPAL_FLOAT64)
+    if (type < TVPAL_FLOAT32 || type > TVPAL_INT16)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "type %d: TVPAL_FLOAT32 "
-                              "or TVPAL_FLOAT64 expected", (int)type);
+                              ".. TVPAL_INT16 expected", (int)type);
     if (!data)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "no data");
     const uint64_t want = (uint64_t)e->ep.dims[0] * e->ep.dims[1] * e->slab_n;
@@ -1290,12 +1195,12 @@ int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u pushed: the "
                               "encoder was opened for %u", e->next_in + 1,
                               e->ep.steps);
-    const enum tvpal_type t = type == TVPAL_FLOAT32 ? TVPAL_F32 : TVPAL_F64;
+    const enum tvpal_type t = tvpal_enc_scalar_type(type);
     int rc = 0;
     struct tvpal_diag d = {{0}};
     if (e->state == OPENED) {
         e->state = STARTED;
-        rc = start(e, t, &d);
+        rc = tvpal_enc_start(e, t, &d);
     } else if (t != e->type) {
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u is %s, step 0 "
                               "was %s: one type for the series", e->next_in,
@@ -1330,7 +1235,7 @@ int tvpal_encoder_push(struct tvpal_encoder *e, const void *data,
         } else if (rc == 0 && e->levels) {
             tvpal_level_make(tvpal_engine_slot(e->eng, e->pushed - 1),
                              e->ep.dims, e->lvol[1]);
-            rc = push_levels(e, e->pushed - 1, &d);
+            rc = tvpal_enc_push_levels(e, e->pushed - 1, &d);
         }
     }
     if (rc == 0)
@@ -1354,13 +1259,13 @@ int tvpal_encoder_resume(struct tvpal_encoder *e, enum tvpal_scalar type,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "resume after the first "
                               "push");
     *next_step = 0;
-    if (type != TVPAL_FLOAT32 && type != TVPAL_FLOAT64)
+    if (type < TVPAL_FLOAT32 || type > TVPAL_INT16)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "type %d: TVPAL_FLOAT32 "
-                              "or TVPAL_FLOAT64 expected", (int)type);
+                              ".. TVPAL_INT16 expected", (int)type);
     struct tvpal_diag d = {{0}};
     e->resuming = 1;
     e->state = STARTED;
-    int rc = start(e, type == TVPAL_FLOAT32 ? TVPAL_F32 : TVPAL_F64, &d);
+    int rc = tvpal_enc_start(e, tvpal_enc_scalar_type(type), &d);
     if (rc < 0) {
         e->state = FAILED;
         if (diag)
@@ -1501,12 +1406,15 @@ static void release(struct tvpal_encoder *e)
 {
     const unsigned nt = e->pool ? tvpal_pool_threads(e->pool) : 0;
     for (uint32_t k = 1; k <= e->levels; k++) {
+        if (e->lv[k] && e->keep_partial) /* its checkpoint with level 0's */
+            e->lv[k]->keep_partial = 1;
         tvpal_encoder_abort(e->lv[k]);
         free(e->lvol[k]);
     }
+    tvpal_enc_source_free(e);  /* its reader thread first */
     tvpal_engine_free(e->eng);
     tvpal_pool_free(e->pool);
-    if (e->made_partial)
+    if (e->made_partial && !e->keep_partial)
         tvpal_rmtree(e->partial);
     for (unsigned i = 0; i < nt; i++) {
         if (e->fine)

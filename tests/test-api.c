@@ -1101,7 +1101,7 @@ int main(void)
     snprintf(cmd, sizeof cmd, "rm -rf %s && mkdir -p %s", W, W);
     REQUIRE(system(cmd) == 0, "cannot make %s", W);
     CHECK(tvpal_version_number() == TVPAL_VERSION_NUMBER &&
-              !strcmp(tvpal_version_string(), "0.2.0"),
+              !strcmp(tvpal_version_string(), "0.3.0"),
           "version %u %s", tvpal_version_number(), tvpal_version_string());
     test_params();
     test_identical_and_read();

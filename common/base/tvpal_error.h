@@ -43,7 +43,8 @@
     X(EXIST,    -15,  "output already exists")                                \
     X(MANIFEST, -16,  "malformed manifest")                                   \
     X(MISMATCH, -17,  "files of one dataset disagree")                        \
-    X(SYS,      -18,  "system call failed")
+    X(SYS,      -18,  "system call failed")                                   \
+    X(CANCELED, -19,  "stopped by the caller")
 
 enum tvpal_error {
 #define TVPAL_X_ENUM(name, value, msg) TVPAL_E_##name = value,
@@ -63,8 +64,9 @@ struct tvpal_diag {
 };
 
 /* Writes printf-style detail into diag when diag is non-NULL.  Returns code,
- * so that `return tvpal_diag_set(d, TVPAL_E_FORMAT, "...")` reads naturally. */
-int tvpal_diag_set(struct tvpal_diag *diag, int code, const char *fmt, ...)
+ * so that `return tvpal_diag_set(d, TVPAL_E_FORMAT, "...")` reads naturally.
+ * Exported since libtvpal 0.3.0: a source's read (tvpal.h) reports with it. */
+TVPAL_API int tvpal_diag_set(struct tvpal_diag *diag, int code, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 
 /* Copies src into dst[cap] (cap >= 4), cut to end in "..." when it does not

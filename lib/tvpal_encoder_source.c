@@ -1,0 +1,902 @@
+/* tvpal_encoder_source.c: tvpal_encoder_encode, an encode that reads its
+ * steps from the caller's source, in passes under the memory limit.
+ *
+ * The plan (encode_plan.h) is made from the sizes alone before anything is
+ * read: one pass over the whole volume when N steps of it and the
+ * workspaces fit the limit, else passes over slabs of each axis's slices.
+ * Each pass streams every step of its box through the engine's ring of N
+ * boxes: step t + N - 1 is read when the windows starting at t are coded.
+ * A unit of work is one step of one pass (u = p T + t + 1 once done); the
+ * checkpoint names the units done, the statistics of the steps counted so
+ * far (only the "stats" passes count, whose boxes partition the volume
+ * once) and the shards' progress, so that an encode of the same job and
+ * source identity continues after the last one saved.
+ *
+ * A concurrent source is read by the encoder's threads in pieces of whole
+ * rows of one plane (at most READ_BLOCK bytes each, into the thread's
+ * scratch), converted into the ring as they come; any other source is read
+ * a box at a time on a reader thread, which reads the next step while this
+ * one is converted and encoded.
+ *
+ * Levels (TVPAL_PARAM_LEVELS): with a plan of one pass, every step read
+ * also makes the step of each level (tvpal_levels.h) and goes to the
+ * level's encoder at once, and the levels' checkpoints are saved with
+ * level 0's (so a resume finds them at its unit); otherwise the levels
+ * are made after level 0, from the source read again in slabs of planes,
+ * and a resume makes them again (they are 1/7 of the work).
+ */
+#define _GNU_SOURCE
+#include "tvpal_encoder_impl.h"
+
+#include "tvpal_clock.h"
+#include "tvpal_fs.h"
+#include "tvpal_levels.h"
+#include "tvpal_pool.h"
+#include "tvpal_raw.h"
+
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+/* Bytes of one thread's reading scratch for a concurrent source: whole
+ * rows of one plane up to this much (one row at least). */
+#define READ_BLOCK ((size_t)8 << 20)
+/* Bytes of the program and its libraries, in the plan (13 MiB measured
+ * of tvpal-encode). */
+#define PROGRAM_BYTES ((uint64_t)16 << 20)
+/* Seconds between the progress callback's ticks within a unit. */
+#define TICK_SECONDS 0.2
+
+/* The reader thread of a source that is not concurrent: it reads the box
+ * of the step asked for into buf, then waits; the encoder swaps buf with
+ * its own and asks for the next step. */
+struct reader {
+    pthread_t thread;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    const struct tvpal_source *src;
+    void *buf;               /* the box being read or read */
+    struct encode_box box;   /* what to read */
+    int64_t want, ready;     /* step asked for / in buf (-1: none) */
+    int busy, quit, rc;
+    struct tvpal_diag d;
+};
+
+struct pull {
+    struct encode_plan plan;
+    uint64_t limit;
+    int levels_inline;
+    uint64_t units, start;   /* passes * T; the unit resumed after */
+    const struct encode_pass *pass;
+    unsigned nthreads;
+    size_t esize;            /* bytes of a source value */
+    size_t rows;             /* a concurrent read's rows per piece */
+    unsigned char **scratch; /* per thread (concurrent), READ_BLOCK */
+    int *rc;                 /* per thread: a failed read's code, */
+    struct tvpal_diag *diag; /* and its words */
+    struct reader *rd;       /* not concurrent: the reader thread */
+    void *box;               /* not concurrent: the box as read */
+    struct tvpal_progress pr;
+    uint64_t work;           /* added to atomically by the engine */
+    double last_tick;
+};
+
+/* ------------------------------------------------------------------ plan */
+
+static enum tvpal_type source_type(enum tvpal_scalar s)
+{
+    return tvpal_enc_scalar_type(s);
+}
+
+static uint32_t ring_slots(const struct tvpal_encoder *e)
+{
+    return e->ep.steps < e->ep.window ? e->ep.steps : e->ep.window;
+}
+
+/* Rows of row_bytes one piece of a concurrent read takes: READ_BLOCK's
+ * worth, at least one, at most rows_max (a plane's). */
+static size_t read_rows(uint64_t row_bytes, uint32_t rows_max)
+{
+    uint64_t rows = READ_BLOCK / row_bytes;
+    rows = rows < 1 ? 1 : rows > rows_max ? rows_max : rows;
+    return (size_t)rows;
+}
+
+static uint64_t scratch_bytes(const struct tvpal_encoder *e)
+{
+    if (!e->src->concurrent)
+        return 0;
+    const uint64_t row = (uint64_t)e->ep.dims[0] *
+                         tvpal_type_size(source_type(e->src->type));
+    return read_rows(row, e->ep.dims[1]) * row;
+}
+
+/* Bytes of everything but the ring and the box buffers: the program and
+ * its libraries, per thread the codec's workspace (its largest), the
+ * reading scratch and the histogram; the tables, the source's own and a
+ * chunk's buffer for packing a per-chunk shard at the end.  An estimate on
+ * the safe side, which tests hold against the measured peak. */
+static uint64_t fixed_bytes(const struct tvpal_encoder *e, unsigned nt)
+{
+    const uint64_t per_thread = tvpal_engine_thread_bytes(e->eng) +
+                                scratch_bytes(e) +
+                                TVPAL_CHECKPOINT_BINS * sizeof(uint64_t);
+    return PROGRAM_BYTES + nt * per_thread +
+           tvpal_engine_table_bytes(e->eng) + e->src->held_bytes +
+           tvpal_engine_max_chunk(e->eng);
+}
+
+/* Bytes the levels hold beside level 0's fixed bytes: per level N of its
+ * steps and the one being made, an encoder's workspaces and histograms;
+ * with_slab, the source's slab and two planes (levels made after level
+ * 0).  0 when out of memory. */
+static uint64_t levels_bytes(const struct tvpal_encoder *e, unsigned nt,
+                             uint64_t box_max)
+{
+    const uint32_t *d = e->ep.dims;
+    const uint64_t plane = (uint64_t)d[0] * d[1];
+    uint64_t b = box_max ? box_max * sizeof(float) + 2 * plane * 4 : 0;
+    for (unsigned k = 1; k <= e->levels; k++) {
+        uint32_t dk[3];
+        tvpal_level_dims(d, k, dk);
+        const uint64_t vox = (uint64_t)dk[0] * dk[1] * dk[2];
+        struct tvpal_engine_params p = e->ep;
+        memcpy(p.dims, dk, sizeof p.dims);
+        struct tvpal_engine *le = NULL;
+        if (tvpal_engine_create(&le, &p) < 0)
+            return 0;
+        b += (ring_slots(e) + 1) * vox * sizeof(float) +
+             (uint64_t)nt * (tvpal_engine_thread_bytes(le) +
+                             TVPAL_CHECKPOINT_BINS * sizeof(uint64_t) +
+                             dk[0] * 8) +
+             tvpal_engine_table_bytes(le) + ((uint64_t)1 << 20);
+        tvpal_engine_free(le);
+    }
+    return b;
+}
+
+/* The plan of e (its engine made) with nt threads into *plan and
+ * *levels_inline; the limit *limit.  0, TVPAL_E_RANGE (diag: the smallest
+ * limit that would do, also in plan->min_limit), TVPAL_E_NOMEM. */
+static int make_plan(const struct tvpal_encoder *e, unsigned nt,
+                     struct encode_plan *plan, int *levels_inline,
+                     uint64_t *limit, struct tvpal_diag *diag)
+{
+    const uint32_t *d = e->ep.dims;
+    *limit = e->mem_limit ? e->mem_limit : UINT64_MAX >> 2;
+    const size_t esize = tvpal_type_size(source_type(e->src->type));
+    struct encode_job j = {
+        .dims = {d[0], d[1], d[2]}, .N = e->ep.window, .T = e->ep.steps,
+        .slab_n = {d[0], d[1], d[2]}, .axes = e->ep.axes, .limit = *limit,
+        .fixed = fixed_bytes(e, nt),
+        .box_bytes_per_voxel = (uint32_t)(4 * ring_slots(e) +
+                                          (e->src->concurrent ? 0
+                                                              : 2 * esize))};
+    *levels_inline = 0;
+    memset(plan, 0, sizeof *plan);
+    if (e->levels) {
+        /* The levels beside level 0's one pass, when that fits: each step
+         * is then read once. */
+        struct encode_job jl = j;
+        const uint64_t lb = levels_bytes(e, nt, 0);
+        jl.fixed += lb;
+        if (lb && encode_plan_make(&jl, plan) == 0 && plan->npasses == 1)
+            *levels_inline = 1;
+        encode_plan_free(plan);
+        if (*levels_inline)
+            j = jl;
+    }
+    int rc = encode_plan_make(&j, plan);
+    if (rc == TVPAL_E_RANGE)
+        return tvpal_diag_set(diag, rc, "memory limit of %llu bytes is too "
+                              "small for %ux%ux%u at window %u with %u "
+                              "thread%s: one slice per pass needs %llu",
+                              (unsigned long long)*limit, d[0], d[1], d[2],
+                              e->ep.window, nt, nt == 1 ? "" : "s",
+                              (unsigned long long)plan->min_limit);
+    if (rc < 0 || !e->levels || *levels_inline)
+        return rc;
+    /* After level 0, with its ring freed, the levels are encoded in one
+     * pass each; with level 0's fixed bytes they must fit. */
+    const uint64_t lb = levels_bytes(e, nt, plan->box_voxels_max);
+    if (!lb)
+        return TVPAL_E_NOMEM;
+    if (lb + j.fixed > *limit) {
+        plan->min_limit = lb + j.fixed;
+        return tvpal_diag_set(diag, TVPAL_E_RANGE, "memory limit of %llu "
+                              "bytes is too small for %u levels: they are "
+                              "encoded after level 0, in one pass each, "
+                              "together about %llu bytes",
+                              (unsigned long long)*limit, e->levels,
+                              (unsigned long long)plan->min_limit);
+    }
+    return 0;
+}
+
+static unsigned thread_count(const struct tvpal_encoder *e)
+{
+    return e->threads ? e->threads : tvpal_pool_default_threads();
+}
+
+static int check_source(const struct tvpal_encoder *e,
+                        const struct tvpal_source *src,
+                        struct tvpal_diag *diag)
+{
+    if (!src || !src->read)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "a source needs its "
+                              "read function");
+    if (src->type < TVPAL_FLOAT32 || src->type > TVPAL_INT16)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "source type %d: a "
+                              "TVPAL_FLOAT32 .. TVPAL_INT16 expected",
+                              (int)src->type);
+    if (e->coll.size > 1)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "an encode from a source "
+                              "in a collective: each rank pushes its slab");
+    if (e->state != OPENED)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "an encode from a source "
+                              "after a push or another encode");
+    return 0;
+}
+
+int tvpal_encoder_plan(struct tvpal_encoder *e,
+                       const struct tvpal_source *src, struct tvpal_plan *out,
+                       struct tvpal_diag *diag)
+{
+    memset(out, 0, sizeof *out);
+    int rc = check_source(e, src, diag);
+    if (rc < 0)
+        return rc;
+    struct tvpal_engine *eng = NULL;
+    if ((rc = tvpal_engine_create(&eng, &e->ep)) < 0)
+        return tvpal_diag_set(diag, rc, "the encoding parameters");
+    /* The encoder's own engine and source only for the plan's sums. */
+    e->eng = eng;
+    e->src = src;
+    struct encode_plan p;
+    uint64_t limit;
+    rc = make_plan(e, thread_count(e), &p, &out->levels_inline, &limit,
+                   diag);
+    e->eng = NULL;
+    e->src = NULL;
+    tvpal_engine_free(eng);
+    out->min_limit = p.min_limit;
+    if (rc == 0) {
+        out->passes = p.npasses;
+        memcpy(out->passes_axis, p.per_axis, sizeof out->passes_axis);
+        out->peak_bytes = p.peak;
+        out->read_voxels = p.voxels_read;
+    }
+    encode_plan_free(&p);
+    return rc;
+}
+
+/* ---------------------------------------------------------------- reader */
+
+static void *reader_main(void *arg)
+{
+    struct reader *rd = arg;
+    pthread_mutex_lock(&rd->mu);
+    for (;;) {
+        while (!rd->quit && rd->want < 0)
+            pthread_cond_wait(&rd->cv, &rd->mu);
+        if (rd->quit)
+            break;
+        const int64_t t = rd->want;
+        const struct encode_box box = rd->box;
+        rd->want = -1;
+        rd->busy = 1;
+        pthread_mutex_unlock(&rd->mu);
+        struct tvpal_diag d = {{0}};
+        int rc = rd->src->read(rd->src->ctx, (uint32_t)t, box.lo, box.n,
+                               rd->buf, &d);
+        pthread_mutex_lock(&rd->mu);
+        rd->busy = 0;
+        rd->ready = t;
+        rd->rc = rc;
+        rd->d = d;
+        pthread_cond_broadcast(&rd->cv);
+    }
+    pthread_mutex_unlock(&rd->mu);
+    return NULL;
+}
+
+static void reader_stop(struct reader *rd)
+{
+    if (!rd)
+        return;
+    pthread_mutex_lock(&rd->mu);
+    rd->quit = 1;
+    pthread_cond_broadcast(&rd->cv);
+    pthread_mutex_unlock(&rd->mu);
+    pthread_join(rd->thread, NULL);
+    pthread_mutex_destroy(&rd->mu);
+    pthread_cond_destroy(&rd->cv);
+    free(rd->buf);
+    free(rd);
+}
+
+/* A reader with a buffer of `bytes`; NULL when out of memory or threads. */
+static struct reader *reader_start(const struct tvpal_source *src,
+                                   size_t bytes)
+{
+    struct reader *rd = calloc(1, sizeof *rd);
+    if (!rd || !(rd->buf = malloc(bytes))) {
+        free(rd);
+        return NULL;
+    }
+    rd->src = src;
+    rd->want = rd->ready = -1;
+    pthread_mutex_init(&rd->mu, NULL);
+    pthread_cond_init(&rd->cv, NULL);
+    if (pthread_create(&rd->thread, NULL, reader_main, rd) != 0) {
+        pthread_mutex_destroy(&rd->mu);
+        pthread_cond_destroy(&rd->cv);
+        free(rd->buf);
+        free(rd);
+        return NULL;
+    }
+    return rd;
+}
+
+/* ------------------------------------------------------------- progress */
+
+/* The progress callback, within a unit: at most every TICK_SECONDS. */
+static void tick(struct tvpal_encoder *e)
+{
+    struct pull *pl = e->pull;
+    if (!e->src->progress)
+        return;
+    const double now = tvpal_now();
+    if (now - pl->last_tick < TICK_SECONDS)
+        return;
+    pl->last_tick = now;
+    pl->pr.work = __atomic_load_n(&pl->work, __ATOMIC_RELAXED);
+    pl->pr.unit_end = 0;
+    e->src->progress(e->src->ctx, &pl->pr);
+}
+
+static void engine_tick(void *ctx)
+{
+    tick(ctx);
+}
+
+/* The work (voxel-samples, every axis encoded) of the units before u. */
+static uint64_t work_before(const struct tvpal_encoder *e, uint64_t u)
+{
+    const struct encode_plan *plan = &e->pull->plan;
+    const uint32_t T = e->ep.steps;
+    uint64_t w = 0;
+    for (uint32_t p = 0; p < plan->npasses; p++) {
+        const struct encode_pass *ps = &plan->pass[p];
+        uint64_t per_step = 0;
+        for (unsigned a = 0; a < 3; a++)
+            if (ps->axes & (1u << a)) {
+                uint32_t n, sw, sh;
+                tvpal_axis_geometry(e->ep.dims, a, &n, &sw, &sh);
+                per_step += (uint64_t)(ps->s1[a] - ps->s0[a]) * sw * sh;
+            }
+        /* Every slice has one sample per step, over its windows. */
+        const uint64_t steps = u >= (uint64_t)(p + 1) * T ? T
+                               : u > (uint64_t)p * T ? u - (uint64_t)p * T
+                                                     : 0;
+        w += per_step * steps;
+    }
+    return w;
+}
+
+/* ---------------------------------------------------------------- setup */
+
+/* The statistics a checkpoint at unit u must hold: every stats pass before
+ * it, and the loaded steps of its own. */
+static uint64_t expected_counted(const struct tvpal_encoder *e, uint64_t u)
+{
+    const struct encode_plan *plan = &e->pull->plan;
+    const uint32_t p = (uint32_t)(u / e->ep.steps);
+    uint64_t c = 0;
+    for (uint32_t i = 0; i < p && i < plan->npasses; i++)
+        if (plan->pass[i].stats)
+            c += encode_box_voxels(&plan->pass[i].box) * e->ep.steps;
+    if (p < plan->npasses && plan->pass[p].stats)
+        c += encode_box_voxels(&plan->pass[p].box) * e->st.loaded;
+    return c;
+}
+
+int tvpal_enc_source_plan(struct tvpal_encoder *e, unsigned nt,
+                          uint64_t *ring_voxels, struct tvpal_diag *diag)
+{
+    struct pull *pl = calloc(1, sizeof *pl);
+    if (!pl)
+        return TVPAL_E_NOMEM;
+    e->pull = pl;
+    pl->nthreads = nt;
+    pl->esize = tvpal_type_size(source_type(e->src->type));
+    int rc = make_plan(e, nt, &pl->plan, &pl->levels_inline, &pl->limit,
+                       diag);
+    if (rc < 0)
+        return rc;
+    pl->units = (uint64_t)pl->plan.npasses * e->ep.steps;
+    *ring_voxels = pl->plan.box_voxels_max;
+    return 0;
+}
+
+/* The job's identity in its checkpoints: the options that make its
+ * shards, the plan (a resumed job must find the same passes) and the
+ * source's identity. */
+static int make_fingerprint(struct tvpal_encoder *e)
+{
+    const struct tvpal_engine_source src = {
+        .type = e->type, .big_endian = e->src->big_endian,
+        .nan_as = e->has_nan_as ? &e->nan_as : NULL,
+        .missing = e->missing, .nmissing = e->nmissing};
+    char opts[1024], key[96], *params = NULL;
+    tvpal_engine_options_line(&e->ep, &src, opts, sizeof opts);
+    encode_plan_key(&e->pull->plan, key, sizeof key);
+    if (asprintf(&params, "libtvpal source %s %s levels=%u identity=%s",
+                 opts, key, e->levels, e->src->identity) < 0)
+        return TVPAL_E_NOMEM;
+    int rc = tvpal_checkpoint_fingerprint(params, NULL, 0, 0, &e->fp);
+    free(params);
+    return rc;
+}
+
+/* Resuming: the unit this job's checkpoint has done (0: none that is this
+ * job's and consistent), its statistics and its shards' progress. */
+static uint64_t load_checkpoint(struct tvpal_encoder *e)
+{
+    struct pull *pl = e->pull;
+    const uint64_t nvox = (uint64_t)e->ep.dims[0] * e->ep.dims[1] *
+                          e->ep.dims[2];
+    uint64_t done = 0;
+    if (tvpal_checkpoint_load(e->ckdir, e->fp, pl->units, e->ep.steps, nvox,
+                              &done, &e->st, &e->ckp, NULL) < 0 ||
+        done == 0 || e->st.counted != expected_counted(e, done)) {
+        tvpal_checkpoint_stats_reset(&e->st);
+        return 0;
+    }
+    return done;
+}
+
+int tvpal_enc_source_ready(struct tvpal_encoder *e, struct tvpal_diag *diag)
+{
+    struct pull *pl = e->pull;
+    const unsigned nt = pl->nthreads;
+    if (!(pl->rc = calloc(nt, sizeof *pl->rc)) ||
+        !(pl->diag = calloc(nt, sizeof *pl->diag)) ||
+        !(pl->scratch = calloc(nt, sizeof *pl->scratch)))
+        return TVPAL_E_NOMEM;
+    const size_t sb = scratch_bytes(e);
+    for (unsigned i = 0; sb && i < nt; i++)
+        if (!(pl->scratch[i] = malloc(sb)))
+            return tvpal_diag_set(diag, TVPAL_E_NOMEM, "the reading "
+                                  "scratch of %u threads", nt);
+    if (!e->src->concurrent) {
+        /* The plan's largest box, or a plane of the levels made after
+         * level 0 (levels_after). */
+        const uint64_t plane = (uint64_t)e->ep.dims[0] * e->ep.dims[1];
+        uint64_t vox = pl->plan.box_voxels_max;
+        if (e->levels && !pl->levels_inline && plane > vox)
+            vox = plane;
+        const size_t box = (size_t)vox * pl->esize;
+        if (!(pl->box = malloc(box)) ||
+            !(pl->rd = reader_start(e->src, box)))
+            return tvpal_diag_set(diag, TVPAL_E_NOMEM, "two boxes of %llu "
+                                  "bytes for the reader thread",
+                                  (unsigned long long)box);
+    }
+    if (make_fingerprint(e) < 0 ||
+        tvpal_engine_progress_alloc(e->eng, &e->ckp) < 0)
+        return TVPAL_E_NOMEM;
+    if (e->src->identity)
+        pl->start = load_checkpoint(e);
+    e->done_local = pl->start;
+    /* A partial output that is not continued goes whole (an earlier job's
+     * node directories and levels with it). */
+    int rc = 0;
+    if (!pl->start && e->resuming &&
+        (tvpal_rmtree(e->partial) < 0 ||
+         (rc = tvpal_mkdirs(e->partial, diag)) < 0))
+        return rc < 0 ? rc
+                      : tvpal_diag_set(diag, TVPAL_E_SYS, "%s: cannot remove "
+                                       "the partial output of an earlier "
+                                       "job", e->partial);
+    return 0;
+}
+
+int tvpal_enc_source_levels_inline(const struct tvpal_encoder *e)
+{
+    return e->pull && e->pull->levels_inline;
+}
+
+void tvpal_enc_source_free(struct tvpal_encoder *e)
+{
+    struct pull *pl = e->pull;
+    if (!pl)
+        return;
+    reader_stop(pl->rd);
+    for (unsigned i = 0; pl->scratch && i < pl->nthreads; i++)
+        free(pl->scratch[i]);
+    free(pl->scratch);
+    free(pl->rc);
+    free(pl->diag);
+    free(pl->box);
+    encode_plan_free(&pl->plan);
+    free(pl);
+    e->pull = NULL;
+}
+
+/* -------------------------------------------------------------- reading */
+
+/* One box read, shared by the pool's threads; each thread counts into
+ * e->found[tid] and keeps its read failure in pl->rc[tid]. */
+struct box_job {
+    struct tvpal_encoder *e;
+    uint32_t t;
+    const struct encode_box *b;
+    float *dst;
+    int stats;
+    size_t pieces_per_plane;
+};
+
+/* Converts n source values at src into dst, counting them when stats;
+ * vox0 is the volume index of the first. */
+static void convert(const struct box_job *j, const void *src, size_t n,
+                    float *dst, uint64_t vox0, unsigned tid)
+{
+    struct tvpal_encoder *e = j->e;
+    const struct tvpal_values_rules rules = {
+        e->missing, e->nmissing, e->has_nan_as ? &e->nan_as : NULL};
+    tvpal_values_convert(&rules, src, e->type, e->src->big_endian, n, dst,
+                         vox0, j->stats ? e->fine[tid] : NULL,
+                         &e->found[tid]);
+}
+
+/* Piece p of a concurrent read: rows of one plane, whole, read into the
+ * thread's scratch and the box's part of them converted into place. */
+static void read_piece(void *arg, size_t p, unsigned tid)
+{
+    const struct box_job *j = arg;
+    struct tvpal_encoder *e = j->e;
+    struct pull *pl = e->pull;
+    if (pl->rc[tid]) /* this thread already failed: the step is lost */
+        return;
+    const struct encode_box *b = j->b;
+    const size_t nx = e->ep.dims[0], ny = e->ep.dims[1];
+    const uint32_t z = b->lo[2] + (uint32_t)(p / j->pieces_per_plane);
+    const uint32_t y0 = b->lo[1] + (uint32_t)(p % j->pieces_per_plane *
+                                              pl->rows);
+    uint32_t yn = b->lo[1] + b->n[1] - y0;
+    yn = yn < pl->rows ? yn : (uint32_t)pl->rows;
+    const uint32_t lo[3] = {0, y0, z}, n[3] = {(uint32_t)nx, yn, 1};
+    unsigned char *buf = pl->scratch[tid];
+    int rc = e->src->read(e->src->ctx, j->t, lo, n, buf, &pl->diag[tid]);
+    if (rc < 0) {
+        pl->rc[tid] = rc;
+        return;
+    }
+    for (uint32_t k = 0; k < yn; k++) {
+        const size_t yb = y0 + k - b->lo[1], zb = z - b->lo[2];
+        float *out = j->dst + (size_t)b->n[0] * (yb + (size_t)b->n[1] * zb);
+        convert(j, buf + (k * nx + b->lo[0]) * pl->esize, b->n[0], out,
+                b->lo[0] + nx * (y0 + k + ny * z), tid);
+    }
+    if (tid == 0) /* the caller's thread: a step of many GiB takes long */
+        tick(e);
+}
+
+/* Row k of a box read whole (pl->box) converted into place. */
+static void convert_row(void *arg, size_t k, unsigned tid)
+{
+    const struct box_job *j = arg;
+    struct tvpal_encoder *e = j->e;
+    const struct encode_box *b = j->b;
+    const size_t nx = e->ep.dims[0], ny = e->ep.dims[1];
+    const size_t y = b->lo[1] + k % b->n[1], z = b->lo[2] + k / b->n[1];
+    const size_t at = k * b->n[0];
+    convert(j, (const unsigned char *)e->pull->box + at * e->pull->esize,
+            b->n[0], j->dst + at, b->lo[0] + nx * (y + ny * z), tid);
+}
+
+/* Waits, holding rd->mu, until the reader is idle, ticking meanwhile. */
+static void reader_wait_idle(struct tvpal_encoder *e, struct reader *rd)
+{
+    while (rd->busy || rd->want >= 0) {
+        struct timespec until;
+        clock_gettime(CLOCK_REALTIME, &until);
+        until.tv_sec += 1;
+        if (pthread_cond_timedwait(&rd->cv, &rd->mu, &until) != 0) {
+            pthread_mutex_unlock(&rd->mu);
+            tick(e);
+            pthread_mutex_lock(&rd->mu);
+        }
+    }
+}
+
+/* Box b of step t into pl->box through the reader (asked for now when it
+ * was not read ahead), then the same box of step `next` asked for (-1:
+ * none). */
+static int read_whole_box(struct tvpal_encoder *e, uint32_t t, int64_t next,
+                          const struct encode_box *b, struct tvpal_diag *diag)
+{
+    struct pull *pl = e->pull;
+    struct reader *rd = pl->rd;
+    pthread_mutex_lock(&rd->mu);
+    reader_wait_idle(e, rd);
+    if (rd->ready != (int64_t)t || memcmp(&rd->box, b, sizeof *b)) {
+        rd->box = *b;
+        rd->want = t;
+        pthread_cond_broadcast(&rd->cv);
+        reader_wait_idle(e, rd);
+    }
+    void *tmp = pl->box;
+    pl->box = rd->buf;
+    rd->buf = tmp;
+    const int rc = rd->rc;
+    if (rc < 0 && diag)
+        *diag = rd->d;
+    rd->ready = -1;
+    if (rc == 0 && next >= 0) {
+        rd->box = *b;
+        rd->want = next;
+        pthread_cond_broadcast(&rd->cv);
+    }
+    pthread_mutex_unlock(&rd->mu);
+    return rc;
+}
+
+/* Box b of step t of the source into dst, converted, counted into the
+ * statistics when `stats`; `next`: the step to read ahead (-1: none).  A
+ * refused value is named by its voxel. */
+static int read_box(struct tvpal_encoder *e, uint32_t t, int64_t next,
+                    const struct encode_box *b, float *dst, int stats,
+                    struct tvpal_diag *diag)
+{
+    struct pull *pl = e->pull;
+    const unsigned nt = pl->nthreads;
+    struct box_job j = {.e = e, .t = t, .b = b, .dst = dst, .stats = stats};
+    struct tvpal_found all = tvpal_found_empty(e->st.vmin, e->st.vmax);
+    for (unsigned i = 0; i < nt; i++) {
+        e->found[i] = all;
+        pl->rc[i] = 0;
+    }
+    int rc = 0;
+    if (e->src->concurrent) {
+        const uint64_t row = (uint64_t)e->ep.dims[0] * pl->esize;
+        pl->rows = read_rows(row, b->n[1]);
+        j.pieces_per_plane = (b->n[1] + pl->rows - 1) / pl->rows;
+        tvpal_pool_for(e->pool, j.pieces_per_plane * b->n[2], read_piece, &j);
+        for (unsigned i = 0; i < nt && rc == 0; i++)
+            if ((rc = pl->rc[i]) < 0 && diag)
+                *diag = pl->diag[i];
+    } else if ((rc = read_whole_box(e, t, next, b, diag)) == 0) {
+        tvpal_pool_for(e->pool, (size_t)b->n[1] * b->n[2], convert_row, &j);
+    }
+    if (rc < 0)
+        return rc;
+    for (unsigned i = 0; i < nt; i++)
+        tvpal_found_merge(&all, &e->found[i]);
+    if (all.rc < 0) {
+        const uint32_t *d = e->ep.dims;
+        const uint64_t x = all.bad % d[0], y = all.bad / d[0] % d[1],
+                       z = all.bad / d[0] / d[1];
+        return tvpal_diag_set(diag, all.rc, "step %u: %s at voxel "
+                              "(%llu,%llu,%llu)", t,
+                              all.rc == TVPAL_E_NAN ? "an infinite value"
+                                                    : "a value beyond 1e37",
+                              (unsigned long long)x, (unsigned long long)y,
+                              (unsigned long long)z);
+    }
+    if (stats) {
+        tvpal_values_account(&e->st, e->fine, nt, &all,
+                             encode_box_voxels(b));
+        e->st.loaded = t + 1;
+    }
+    return 0;
+}
+
+/* ------------------------------------------------------------- encoding */
+
+/* Step t of the current pass into its ring slot, and with inline levels
+ * into every level. */
+static int load_step(struct tvpal_encoder *e, uint32_t t,
+                     struct tvpal_diag *diag)
+{
+    struct pull *pl = e->pull;
+    const struct encode_pass *ps = pl->pass;
+    float *slot = tvpal_engine_slot(e->eng, t);
+    pl->pr.step = t;
+    const int64_t next = t + 1 < e->ep.steps ? (int64_t)t + 1 : -1;
+    int rc = read_box(e, t, next, &ps->box, slot,
+                      ps->stats && t >= e->st.loaded, diag);
+    if (rc == 0 && pl->levels_inline) {
+        tvpal_level_make(slot, e->ep.dims, e->lvol[1]);
+        rc = tvpal_enc_push_levels(e, t, diag);
+    }
+    return rc;
+}
+
+/* Saves the checkpoint after unit u; with inline levels theirs first, at
+ * the same step, so that a resume finds them there. */
+static int save_unit(struct tvpal_encoder *e, uint64_t u,
+                     struct tvpal_diag *diag)
+{
+    for (uint32_t k = 1; e->pull->levels_inline && k <= e->levels; k++) {
+        struct tvpal_encoder *c = e->lv[k];
+        int rc = tvpal_enc_save_checkpoint(c, c->encoded, diag);
+        if (rc < 0)
+            return rc;
+    }
+    return tvpal_enc_save_checkpoint(e, u, diag);
+}
+
+/* The end of unit u: the caller's answer, then the checkpoint when due or
+ * asked for.  0, or TVPAL_E_CANCELED (asked to stop), or a save's code. */
+static int end_unit(struct tvpal_encoder *e, uint64_t u,
+                    struct tvpal_diag *diag)
+{
+    struct pull *pl = e->pull;
+    int answer = TVPAL_GO_ON;
+    pl->pr.unit = u;
+    pl->pr.work = __atomic_load_n(&pl->work, __ATOMIC_RELAXED);
+    pl->pr.unit_end = 1;
+    if (e->src->progress)
+        answer = e->src->progress(e->src->ctx, &pl->pr);
+    const int due = e->ckpt_every && (u % e->ckpt_every == 0 ||
+                                      u == pl->units);
+    int rc = 0;
+    if (answer != TVPAL_STOP &&
+        (due || answer == TVPAL_SAVE_AND_GO_ON ||
+         answer == TVPAL_SAVE_AND_STOP))
+        rc = save_unit(e, u, diag);
+    if (rc == 0 && (answer == TVPAL_STOP || answer == TVPAL_SAVE_AND_STOP))
+        rc = tvpal_diag_set(diag, TVPAL_E_CANCELED, "stopped after %llu of "
+                            "%llu steps of passes%s",
+                            (unsigned long long)u,
+                            (unsigned long long)pl->units,
+                            answer == TVPAL_STOP ? "" : " (checkpoint saved)");
+    return rc;
+}
+
+/* Encodes step t of the pass; a write error names the shard. */
+static int encode_step(struct tvpal_encoder *e, uint32_t t,
+                       struct tvpal_diag *diag)
+{
+    struct tvpal_diag d = {{0}};
+    uint32_t q = 0, n;
+    int rc = tvpal_engine_encode_step(e->eng, t, &d, &q);
+    if (rc < 0) {
+        struct tvpal_engine_shard *sj = tvpal_engine_shards(e->eng, &n);
+        char *nd = tvpal_node_dir(e->partial, NULL, sj[q].rank);
+        rc = tvpal_diag_set(diag, rc, "%s/axis-%c.tvps: %s",
+                            nd ? nd : e->partial, "xyz"[sj[q].axis], d.msg);
+        free(nd);
+    }
+    return rc;
+}
+
+/* Every pass of the plan, from the unit after pl->start: each step read
+ * when the windows that need it are next (step t + N - 1 at most), each
+ * step's windows encoded, each unit ended (progress, checkpoint). */
+static int encode_passes(struct tvpal_encoder *e, struct tvpal_diag *diag)
+{
+    struct pull *pl = e->pull;
+    const uint32_t T = e->ep.steps, N = e->ep.window;
+    uint64_t u = pl->start;
+    for (uint32_t pi = (uint32_t)(u / T); pi < pl->plan.npasses; pi++) {
+        pl->pass = &pl->plan.pass[pi];
+        pl->pr.pass = pi;
+        tvpal_engine_set_pass(e->eng, pl->pass);
+        uint32_t loaded = (uint32_t)(u - (uint64_t)pi * T);
+        for (uint32_t t = loaded; t < T; t++) {
+            const uint32_t need = t + N < T ? t + N : T;
+            for (; loaded < need; loaded++) {
+                int rc = load_step(e, loaded, diag);
+                if (rc < 0)
+                    return rc;
+                tick(e);
+            }
+            pl->pr.step = t;
+            int rc = encode_step(e, t, diag);
+            if (rc < 0)
+                return rc;
+            u = (uint64_t)pi * T + t + 1;
+            if (t + 1 == T) /* the next pass has none of its steps */
+                e->st.loaded = 0;
+            if ((rc = end_unit(e, u, diag)) < 0)
+                return rc;
+        }
+    }
+    return 0;
+}
+
+/* After level 0: every level made from the source read again in slabs of
+ * planes (as many as the ring held), level 1 plane by plane from pairs of
+ * source planes, and pushed to the levels' encoders. */
+static int levels_after(struct tvpal_encoder *e, struct tvpal_diag *diag)
+{
+    struct pull *pl = e->pull;
+    const uint32_t *d = e->ep.dims;
+    const uint64_t plane = (uint64_t)d[0] * d[1];
+    uint64_t planes = pl->plan.box_voxels_max / plane;
+    planes = planes < 1 ? 1 : planes > d[2] ? d[2] : planes;
+    /* Slabs of an even number of planes, so that a block's two planes are
+     * in one slab: within the plan's box and the two planes it keeps for
+     * this (levels_bytes). */
+    const uint32_t sn = planes >= 2 ? (uint32_t)(planes & ~1ull) : 2;
+    tvpal_engine_release_ring(e->eng);
+    float *slab = malloc((size_t)(sn * plane) * sizeof *slab);
+    int rc = slab ? 0 : tvpal_diag_set(diag, TVPAL_E_NOMEM, "%u planes of "
+                                       "%llu voxels for the levels", sn,
+                                       (unsigned long long)plane);
+    for (uint32_t k = 1; rc == 0 && k <= e->levels; k++)
+        rc = tvpal_enc_open_level(e, k, 0, 0, diag);
+    pl->pr.level = 1;
+    const size_t cplane = (size_t)e->ldims[1][0] * e->ldims[1][1];
+    for (uint32_t t = 0; rc == 0 && t < e->ep.steps; t++) {
+        pl->pr.step = t;
+        for (uint32_t z0 = 0; rc == 0 && z0 < d[2]; z0 += sn) {
+            const uint32_t n = d[2] - z0 < sn ? d[2] - z0 : sn;
+            /* A reader thread's box holds the plan's box or a plane. */
+            const uint32_t rn = planes >= 2 ? n : 1;
+            for (uint32_t zr = 0; rc == 0 && zr < n; zr += rn) {
+                const struct encode_box b = {{0, 0, z0 + zr},
+                                             {d[0], d[1], rn}};
+                rc = read_box(e, t, -1, &b, slab + zr * plane, 0, diag);
+            }
+            for (uint32_t z = 0; rc == 0 && z < n; z += 2)
+                tvpal_level_average_planes(
+                    slab + z * plane, z + 1 < n ? slab + (z + 1) * plane : NULL,
+                    d[0], d[1], e->lvol[1] + (size_t)(z0 + z) / 2 * cplane);
+        }
+        if (rc == 0)
+            rc = tvpal_enc_push_levels(e, t, diag);
+        tick(e);
+    }
+    free(slab);
+    return rc;
+}
+
+int tvpal_encoder_encode(struct tvpal_encoder *e,
+                         const struct tvpal_source *src,
+                         struct tvpal_diag *diag)
+{
+    int rc = check_source(e, src, diag);
+    if (rc < 0)
+        return rc;
+    struct tvpal_diag d = {{0}};
+    e->src = src;
+    e->resuming = src->identity != NULL;
+    e->state = STARTED;
+    rc = tvpal_enc_start(e, source_type(src->type), &d);
+    if (rc == 0) {
+        struct pull *pl = e->pull;
+        pl->pr = (struct tvpal_progress){
+            .total = work_before(e, pl->units), .units = pl->units,
+            .passes = pl->plan.npasses, .unit = pl->start};
+        pl->work = pl->pr.work = work_before(e, pl->start);
+        tvpal_engine_set_progress(e->eng, &pl->work, engine_tick, e);
+        rc = encode_passes(e, &d);
+    }
+    if (rc == 0 && e->levels && !e->pull->levels_inline)
+        rc = levels_after(e, &d);
+    if (rc == 0) {
+        e->next_in = e->pushed = e->ep.steps;
+        reader_stop(e->pull->rd);
+        e->pull->rd = NULL;
+        return 0;
+    }
+    e->state = FAILED;
+    e->own_rc = rc;
+    memcpy(e->own_msg, d.msg, sizeof d.msg);
+    /* A failure that may pass keeps DIR.partial for an encode of the same
+     * identity to continue (tvpal_encoder_abort leaves it). */
+    if (src->identity &&
+        (rc == TVPAL_E_CANCELED || rc == TVPAL_E_OPEN ||
+         rc == TVPAL_E_READ || rc == TVPAL_E_WRITE || rc == TVPAL_E_SYS ||
+         rc == TVPAL_E_NOMEM))
+        e->keep_partial = 1;
+    if (diag)
+        *diag = d;
+    return rc;
+}

@@ -1,0 +1,590 @@
+/* test-api-source: libtvpal's encode from a source (tvpal_encoder_encode,
+ * tvpal_encoder_plan), through the shared library and tvpal.h only.
+ *  - a source read a box at a time (on the encoder's reader thread) and
+ *    one read concurrently in pieces give the shards, manifest and levels
+ *    that pushes of the same values give, byte for byte: in one pass, and
+ *    under a memory limit in several passes over slabs of every axis
+ *    (levels then made after level 0 from the source read again);
+ *  - integer sources (uint16 in this host's order and big-endian, int16,
+ *    uint8) give the shards of their values pushed as float32;
+ *  - the plan: one pass without a limit, passes on every axis under a
+ *    small one, the boxes read each step's voxels once per pass, a limit
+ *    below the smallest refused (TVPAL_E_RANGE) with the smallest that
+ *    would do, which then works;
+ *  - stopped by its progress callback (TVPAL_SAVE_AND_STOP) in the middle
+ *    of a pass, then encoded again with the same identity: it continues
+ *    after the checkpoint (the steps before are not read again) and the
+ *    dataset is the uninterrupted one's, byte for byte; with another
+ *    identity it starts over; without one nothing is kept;
+ *  - a read that fails (its code and words come back, DIR.partial kept for
+ *    a resume), an infinite value (named by its voxel, nothing kept), a
+ *    second encode, a push after one, a collective, a source without read
+ *    or of an unknown type: refused with a diag. */
+#define _GNU_SOURCE
+#include "tvpal.h"
+#include "tvpal_test.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#define NX 20
+#define NY 14
+#define NZ 11
+#define T 9
+#define NV (NX * NY * NZ)
+
+static const char *W = "tests/work/test-api-source";
+static const uint32_t dims[3] = {NX, NY, NZ};
+
+static char *path(const char *fmt, const char *a)
+{
+    static char buf[8][512];
+    static int k;
+    char *b = buf[k++ % 8];
+    snprintf(b, 512, fmt, W, a);
+    return b;
+}
+
+static int exists(const char *p)
+{
+    struct stat st;
+    return stat(p, &st) == 0;
+}
+
+/* Value (x, y, z) of step t: a moving front, noise, a missing corner. */
+static double value(unsigned t, unsigned x, unsigned y, unsigned z)
+{
+    if (x < 2 && y < 2 && z == 0)
+        return NAN;
+    const unsigned h = (x * 73856093u) ^ (y * 19349663u) ^ (z * 83492791u) ^
+                       (t * 2654435761u);
+    return 300 + 40 * tanh(0.6 * (x - 1.7 * t - 0.3 * y)) +
+           5 * sin(0.9 * z + 0.2 * t) + (double)(h % 1000) / 250.0;
+}
+
+/* The series, as float32, the values pushed and read. */
+static float series[T][NV];
+
+static void make_series(void)
+{
+    for (unsigned t = 0; t < T; t++)
+        for (unsigned z = 0; z < NZ; z++)
+            for (unsigned y = 0; y < NY; y++)
+                for (unsigned x = 0; x < NX; x++)
+                    series[t][x + NX * (y + NY * z)] =
+                        (float)value(t, x, y, z);
+}
+
+/* ----------------------------------------------------------- a source */
+
+struct src {
+    enum tvpal_scalar type;
+    int big;
+    unsigned reads_lo;      /* reads of steps below this */
+    unsigned reads;         /* every read (atomically) */
+    int fail_step;          /* read of this step fails (-1: none) */
+    int inf_step;           /* this step has an infinity (-1: none) */
+    uint64_t stop_unit;     /* the progress callback stops here (0: no) */
+    uint64_t first_unit;    /* the unit the first progress call saw */
+    int seen;
+    unsigned ticks, ends;
+};
+
+static void put(const struct src *s, double v, unsigned char *dst)
+{
+    unsigned char b[8];
+    size_t n;
+    switch (s->type) {
+    case TVPAL_FLOAT64: { double w = v; memcpy(b, &w, n = 8); break; }
+    case TVPAL_UINT8: { uint8_t w = (uint8_t)v; memcpy(b, &w, n = 1); break; }
+    case TVPAL_UINT16: { uint16_t w = (uint16_t)v; memcpy(b, &w, n = 2); break; }
+    case TVPAL_INT16: { int16_t w = (int16_t)v; memcpy(b, &w, n = 2); break; }
+    default: { float w = (float)v; memcpy(b, &w, n = 4); break; }
+    }
+    for (size_t i = 0; i < n; i++)
+        dst[i] = s->big ? b[n - 1 - i] : b[i];
+}
+
+static size_t esize(enum tvpal_scalar t)
+{
+    return t == TVPAL_FLOAT64 ? 8 : t == TVPAL_UINT8 ? 1
+           : t == TVPAL_UINT16 || t == TVPAL_INT16 ? 2 : 4;
+}
+
+/* What an integer source holds for a value (the float series, in range). */
+static double as_type(enum tvpal_scalar t, float v)
+{
+    if (isnan(v))
+        return t == TVPAL_FLOAT32 || t == TVPAL_FLOAT64 ? NAN : 0;
+    return t == TVPAL_UINT8 ? floor(v - 250) : t == TVPAL_INT16
+           ? floor(v * 10 - 3400) : t == TVPAL_UINT16 ? floor(v * 100) : v;
+}
+
+static int src_read(void *ctx, uint32_t t, const uint32_t lo[3],
+                    const uint32_t n[3], void *dst, struct tvpal_diag *d)
+{
+    struct src *s = ctx;
+    __atomic_add_fetch(&s->reads, 1, __ATOMIC_RELAXED);
+    if (t < s->reads_lo)
+        __atomic_add_fetch(&s->seen, 1, __ATOMIC_RELAXED);
+    if ((int)t == s->fail_step)
+        return tvpal_diag_set(d, TVPAL_E_READ, "series.raw: step %u: "
+                              "input/output error", t);
+    unsigned char *o = dst;
+    const size_t es = esize(s->type);
+    for (uint32_t z = 0; z < n[2]; z++)
+        for (uint32_t y = 0; y < n[1]; y++)
+            for (uint32_t x = 0; x < n[0]; x++, o += es) {
+                const uint32_t gx = lo[0] + x, gy = lo[1] + y, gz = lo[2] + z;
+                double v = as_type(s->type,
+                                   series[t][gx + NX * (gy + NY * gz)]);
+                if ((int)t == s->inf_step && gx == 5 && gy == 6 && gz == 7)
+                    v = INFINITY;
+                put(s, v, o);
+            }
+    return 0;
+}
+
+static int src_progress(void *ctx, const struct tvpal_progress *p)
+{
+    struct src *s = ctx;
+    if (!s->ends && !s->ticks)
+        s->first_unit = p->unit;
+    if (!p->unit_end) {
+        s->ticks++;
+        return TVPAL_STOP; /* ignored at a tick */
+    }
+    s->ends++;
+    return s->stop_unit && p->unit == s->stop_unit ? TVPAL_SAVE_AND_STOP
+                                                    : TVPAL_GO_ON;
+}
+
+static struct tvpal_source source_of(struct src *s, int concurrent,
+                                     const char *identity)
+{
+    return (struct tvpal_source){
+        .type = s->type, .big_endian = s->big, .concurrent = concurrent,
+        .identity = identity, .ctx = s, .read = src_read,
+        .progress = src_progress};
+}
+
+static struct src plain(enum tvpal_scalar type)
+{
+    return (struct src){.type = type, .fail_step = -1, .inf_step = -1};
+}
+
+/* ----------------------------------------------------------- encoders */
+
+struct job {
+    unsigned window, levels, axes;
+    uint64_t limit;
+};
+
+static int open_job(struct tvpal_encoder **out, const char *dir,
+                    const struct job *j, struct tvpal_diag *d)
+{
+    struct tvpal_encoder *e = NULL;
+    int rc = tvpal_encoder_open(&e, dir, dims, T, d);
+    *out = NULL;
+    if (rc < 0)
+        return rc;
+    const double sp[3] = {0.5, 1, 2}, or[3] = {-1, 0, 3};
+    if ((rc = tvpal_encoder_set(e, TVPAL_PARAM_WINDOW, j->window, d)) < 0 ||
+        (rc = tvpal_encoder_set(e, TVPAL_PARAM_AXES, j->axes, d)) < 0 ||
+        (rc = tvpal_encoder_set(e, TVPAL_PARAM_LEVELS, j->levels, d)) < 0 ||
+        (rc = tvpal_encoder_set(e, TVPAL_PARAM_MEM_LIMIT, (double)j->limit,
+                                d)) < 0 ||
+        (rc = tvpal_encoder_set(e, TVPAL_PARAM_THREADS, 2, d)) < 0 ||
+        (rc = tvpal_encoder_set_grid(e, sp, or, d)) < 0 ||
+        (rc = tvpal_encoder_set_units(e, "K", d)) < 0) {
+        tvpal_encoder_abort(e);
+        return rc;
+    }
+    *out = e;
+    return 0;
+}
+
+/* The series pushed, as float32 values of type t (as_type). */
+static int push_all(const char *dir, const struct job *j,
+                    enum tvpal_scalar t, struct tvpal_diag *d)
+{
+    struct tvpal_encoder *e = NULL;
+    int rc = open_job(&e, dir, j, d);
+    static float v[NV];
+    for (unsigned s = 0; s < T && rc == 0; s++) {
+        for (unsigned i = 0; i < NV; i++)
+            v[i] = t == TVPAL_FLOAT32 ? series[s][i]
+                                      : (float)as_type(t, series[s][i]);
+        rc = tvpal_encoder_push(e, v, TVPAL_FLOAT32, NV, NULL, d);
+    }
+    if (rc < 0) {
+        tvpal_encoder_abort(e);
+        return rc;
+    }
+    return tvpal_encoder_finish(e, d);
+}
+
+/* Encodes from s; finish, or abort on failure. */
+static int pull_all(const char *dir, const struct job *j,
+                    const struct tvpal_source *s, struct tvpal_diag *d)
+{
+    struct tvpal_encoder *e = NULL;
+    int rc = open_job(&e, dir, j, d);
+    if (rc == 0)
+        rc = tvpal_encoder_encode(e, s, d);
+    if (rc < 0) {
+        tvpal_encoder_abort(e);
+        return rc;
+    }
+    return tvpal_encoder_finish(e, d);
+}
+
+/* Every file of datasets a and b agrees byte for byte (the shards of each
+ * axis, the manifests, each level's), and a has the shards it should. */
+static int same_dataset(const char *a, const char *b, unsigned levels,
+                        unsigned axes)
+{
+    char cmd[1200];
+    snprintf(cmd, sizeof cmd, "diff -r %s %s > %s/diff.txt 2>&1", a, b, W);
+    int rc = system(cmd);
+    if (rc != 0) {
+        snprintf(cmd, sizeof cmd, "head -n 5 %s/diff.txt >&2", W);
+        if (system(cmd) != 0)
+            return 0;
+    }
+    int shards = 0;
+    for (unsigned k = 0; k <= levels; k++)
+        for (unsigned ax = 0; ax < 3; ax++) {
+            char p[600];
+            if (!(axes & (1u << ax)))
+                continue;
+            if (k)
+                snprintf(p, sizeof p, "%s/level-%u/node-0/axis-%c.tvps", a, k,
+                         "xyz"[ax]);
+            else
+                snprintf(p, sizeof p, "%s/node-0/axis-%c.tvps", a, "xyz"[ax]);
+            shards += exists(p);
+        }
+    unsigned want = 0;
+    for (unsigned ax = 0; ax < 3; ax++)
+        want += (axes >> ax) & 1;
+    return rc == 0 && shards == (int)(want * (levels + 1));
+}
+
+/* --------------------------------------------------------------- tests */
+
+static const struct job base = {.window = 4, .axes = 7};
+
+/* A limit below the one-pass peak of job j by `below` of level 0's ring:
+ * 3/4 takes several passes; with levels, 1/4 leaves level 0 one pass but
+ * not the levels beside it.  The plans without and with it. */
+static uint64_t limit_below(const struct job *j, int concurrent,
+                            double below, struct tvpal_plan *one,
+                            struct tvpal_plan *some)
+{
+    struct tvpal_encoder *e = NULL;
+    struct tvpal_diag d = {{0}};
+    struct src s = plain(TVPAL_FLOAT32);
+    const struct tvpal_source so = source_of(&s, concurrent, NULL);
+    REQUIRE(open_job(&e, path("%s/plan%s", ""), j, &d) == 0, "%s", d.msg);
+    int rc = tvpal_encoder_plan(e, &so, one, &d);
+    REQUIRE(rc == 0, "plan without a limit: %s", d.msg);
+    uint64_t ring = (uint64_t)j->window * NV * 4;
+    uint64_t limit = one->peak_bytes - (uint64_t)(below * (double)ring);
+    tvpal_encoder_set(e, TVPAL_PARAM_MEM_LIMIT, (double)limit, &d);
+    rc = tvpal_encoder_plan(e, &so, some, &d);
+    REQUIRE(rc == 0, "plan under %llu: %s", (unsigned long long)limit, d.msg);
+    tvpal_encoder_abort(e);
+    return limit;
+}
+
+static void test_same_as_pushed(void)
+{
+    struct tvpal_diag d = {{0}};
+    int rc = push_all(path("%s/pushed%s", ""), &base, TVPAL_FLOAT32, &d);
+    REQUIRE(rc == 0, "push: %s %s", tvpal_strerror(rc), d.msg);
+    for (int conc = 0; conc < 2; conc++) {
+        struct src s = plain(TVPAL_FLOAT32);
+        const struct tvpal_source so = source_of(&s, conc, NULL);
+        char *dir = path(conc ? "%s/conc%s" : "%s/whole%s", "");
+        rc = pull_all(dir, &base, &so, &d);
+        CHECK(rc == 0, "encode (concurrent %d): %s %s", conc,
+              tvpal_strerror(rc), d.msg);
+        CHECK(same_dataset(path("%s/pushed%s", ""), dir, 0, 7),
+              "one pass, concurrent %d: not the pushed dataset", conc);
+        CHECK(s.reads == (conc ? NZ * T : T) && s.ends == T,
+              "one pass, concurrent %d: %u reads, %u unit ends; %u, %u "
+              "expected", conc, s.reads, s.ends, conc ? NZ * T : T, T);
+    }
+    /* Several passes. */
+    for (int conc = 0; conc < 2; conc++) {
+        struct tvpal_plan one, some;
+        struct job j = base;
+        j.limit = limit_below(&j, conc, 0.75, &one, &some);
+        CHECK(one.passes == 1 && one.passes_axis[2] == 0 &&
+                  one.read_voxels == (uint64_t)NV * T,
+              "plan without a limit: %u passes, %llu voxels read",
+              one.passes, (unsigned long long)one.read_voxels);
+        CHECK(some.passes > 3 && some.passes_axis[0] > 1 &&
+                  some.passes_axis[1] > 1 && some.passes_axis[2] > 1 &&
+                  some.peak_bytes <= j.limit &&
+                  some.read_voxels > (uint64_t)NV * T,
+              "plan under %llu: %u passes (x %u, y %u, z %u), peak %llu",
+              (unsigned long long)j.limit, some.passes,
+              some.passes_axis[0], some.passes_axis[1],
+              some.passes_axis[2], (unsigned long long)some.peak_bytes);
+        struct src s = plain(TVPAL_FLOAT32);
+        const struct tvpal_source so = source_of(&s, conc, NULL);
+        char *dir = path(conc ? "%s/conc-passes%s" : "%s/whole-passes%s",
+                         "");
+        rc = pull_all(dir, &j, &so, &d);
+        CHECK(rc == 0, "encode in passes: %s %s", tvpal_strerror(rc), d.msg);
+        CHECK(same_dataset(path("%s/pushed%s", ""), dir, 0, 7),
+              "%u passes, concurrent %d: not the pushed dataset",
+              some.passes, conc);
+        CHECK(s.ends == some.passes * T, "%u unit ends, %u expected",
+              s.ends, some.passes * T);
+    }
+}
+
+static void test_integers(void)
+{
+    static const enum tvpal_scalar types[] = {TVPAL_UINT16, TVPAL_UINT16,
+                                              TVPAL_INT16, TVPAL_UINT8,
+                                              TVPAL_FLOAT64};
+    struct job j = base;
+    j.axes = TVPAL_AXIS_Z;
+    for (unsigned i = 0; i < sizeof types / sizeof *types; i++) {
+        struct tvpal_diag d = {{0}};
+        char name[32];
+        snprintf(name, sizeof name, "/int-%u", i);
+        int rc = push_all(path("%s%s-pushed", name), &j, types[i], &d);
+        REQUIRE(rc == 0, "push %u: %s", i, d.msg);
+        struct src s = plain(types[i]);
+        s.big = i == 1;
+        const struct tvpal_source so = source_of(&s, i % 2, NULL);
+        rc = pull_all(path("%s%s", name), &j, &so, &d);
+        CHECK(rc == 0, "type %d (big-endian %d): %s", (int)types[i], s.big,
+              d.msg);
+        /* The manifests name their source types; the shards agree. */
+        char a[600], b[600];
+        snprintf(a, sizeof a, "cmp -s %s%s-pushed/node-0/axis-z.tvps "
+                 "%s%s/node-0/axis-z.tvps", W, name, W, name);
+        CHECK(system(a) == 0, "type %d (big-endian %d): shards differ from "
+              "its values pushed as float32", (int)types[i], s.big);
+        snprintf(b, sizeof b, "grep -q '^options = .*--type %s' "
+                 "%s%s/manifest.txt", types[i] == TVPAL_UINT16 ? "u16"
+                 : types[i] == TVPAL_INT16 ? "i16" : types[i] == TVPAL_UINT8
+                 ? "u8" : "f64", W, name);
+        CHECK(system(b) == 0, "type %d: the manifest's options do not name "
+              "it", (int)types[i]);
+    }
+}
+
+static void test_levels(void)
+{
+    struct tvpal_diag d = {{0}};
+    struct job j = base;
+    j.levels = 2;
+    int rc = push_all(path("%s/lv-pushed%s", ""), &j, TVPAL_FLOAT32, &d);
+    REQUIRE(rc == 0, "push with levels: %s", d.msg);
+    struct src s = plain(TVPAL_FLOAT32);
+    struct tvpal_source so = source_of(&s, 0, NULL);
+    rc = pull_all(path("%s/lv-inline%s", ""), &j, &so, &d);
+    CHECK(rc == 0 && same_dataset(path("%s/lv-pushed%s", ""),
+                                  path("%s/lv-inline%s", ""), 2, 7),
+          "levels beside one pass: %s", d.msg);
+    CHECK(s.reads == T, "levels beside one pass: %u reads, %u expected",
+          s.reads, T);
+    struct tvpal_plan one, some;
+    for (int conc = 0; conc < 2; conc++) {
+        j.limit = limit_below(&j, conc, 0.25, &one, &some);
+        CHECK(one.levels_inline && !some.levels_inline,
+              "levels inline: %d without a limit, %d under one",
+              one.levels_inline, some.levels_inline);
+        s = plain(TVPAL_FLOAT32);
+        so = source_of(&s, conc, NULL);
+        char *dir = path(conc ? "%s/lv-after-c%s" : "%s/lv-after%s", "");
+        rc = pull_all(dir, &j, &so, &d);
+        CHECK(rc == 0 && same_dataset(path("%s/lv-pushed%s", ""), dir, 2, 7),
+              "levels after %u passes (concurrent %d): %s", some.passes,
+              conc, d.msg);
+    }
+}
+
+/* Stops at unit `stop` (0: never), then encodes again with identity id2:
+ * the reads of steps below `lo` in the second run, into *seen. */
+static int stop_and_continue(const char *dir, const struct job *j,
+                             uint64_t stop, const char *id1, const char *id2,
+                             unsigned lo, unsigned *seen, uint64_t *first)
+{
+    struct tvpal_diag d = {{0}};
+    struct tvpal_encoder *e = NULL;
+    struct src s = plain(TVPAL_FLOAT32);
+    s.stop_unit = stop;
+    struct tvpal_source so = source_of(&s, 1, id1);
+    REQUIRE(open_job(&e, dir, j, &d) == 0, "%s", d.msg);
+    int rc = tvpal_encoder_encode(e, &so, &d);
+    CHECK(rc == TVPAL_E_CANCELED && strstr(d.msg, "checkpoint saved"),
+          "stopped at unit %llu: %s %s", (unsigned long long)stop,
+          tvpal_strerror(rc), d.msg);
+    CHECK(tvpal_encoder_finish(e, &d) == TVPAL_E_INVAL,
+          "finish after a stopped encode");
+    char partial[600];
+    snprintf(partial, sizeof partial, "%s.partial", dir);
+    CHECK(!exists(dir) && (exists(partial) == (id1 != NULL)),
+          "after the stop (identity %s): %s %s", id1 ? id1 : "none",
+          exists(dir) ? "DIR exists" : "",
+          exists(partial) ? "DIR.partial kept" : "no DIR.partial");
+    s = plain(TVPAL_FLOAT32);
+    s.reads_lo = lo;
+    so = source_of(&s, 1, id2);
+    rc = pull_all(dir, j, &so, &d);
+    CHECK(rc == 0, "encode again: %s %s", tvpal_strerror(rc), d.msg);
+    *seen = s.seen;
+    *first = s.first_unit;
+    return rc;
+}
+
+static void test_stop_and_continue(void)
+{
+    struct tvpal_plan one, some;
+    struct job j = base;
+    j.limit = limit_below(&j, 1, 0.75, &one, &some);
+    const char *ref = path("%s/conc-passes%s", "");
+    /* Stopped in the second pass at step 5: the second run starts there. */
+    const uint64_t stop = T + 5;
+    unsigned seen = 0;
+    uint64_t first = 0;
+    char *dir = path("%s/resumed%s", "");
+    stop_and_continue(dir, &j, stop, "series v1", "series v1", 0, &seen,
+                      &first);
+    CHECK(first == stop, "continued at unit %llu, %llu expected",
+          (unsigned long long)first, (unsigned long long)stop);
+    CHECK(same_dataset(ref, dir, 0, 7), "continued: not the dataset of an "
+          "encode without a stop");
+    /* Another identity: from the start (steps below 5 read again). */
+    dir = path("%s/other-id%s", "");
+    stop_and_continue(dir, &j, stop, "series v1", "series v2", 5, &seen,
+                      &first);
+    CHECK(first == 0 && seen > 0, "another identity continued (unit %llu)",
+          (unsigned long long)first);
+    CHECK(same_dataset(ref, dir, 0, 7), "started over: not the dataset");
+    /* Levels beside one pass, stopped at step 5, continued. */
+    struct job jl = base;
+    jl.levels = 2;
+    dir = path("%s/resumed-lv%s", "");
+    stop_and_continue(dir, &jl, 5, "series", "series", 0, &seen, &first);
+    CHECK(first == 5, "levels: continued at unit %llu, 5 expected",
+          (unsigned long long)first);
+    CHECK(same_dataset(path("%s/lv-pushed%s", ""), dir, 2, 7),
+          "levels, continued: not the dataset of an encode without a stop");
+}
+
+static void test_failures(void)
+{
+    struct tvpal_diag d = {{0}};
+    struct tvpal_encoder *e = NULL;
+    /* A read that fails: its code and words; kept with an identity. */
+    for (int id = 0; id < 2; id++) {
+        struct src s = plain(TVPAL_FLOAT32);
+        s.fail_step = 6;
+        struct tvpal_source so = source_of(&s, id, id ? "series" : NULL);
+        REQUIRE(open_job(&e, path("%s/readfail%s", ""), &base, &d) == 0,
+                "%s", d.msg);
+        int rc = tvpal_encoder_encode(e, &so, &d);
+        CHECK(rc == TVPAL_E_READ && strstr(d.msg, "series.raw: step 6"),
+              "a failed read: %s %s", tvpal_strerror(rc), d.msg);
+        tvpal_encoder_abort(e);
+        CHECK(!exists(path("%s/readfail%s", "")) &&
+                  exists(path("%s/readfail%s", ".partial")) == id &&
+                  !exists(path("%s/readfail%s", ".partial.lock")),
+              "a failed read (identity %d): DIR.partial %s", id,
+              id ? "removed" : "kept");
+    }
+    /* A value refused: named; nothing kept even with an identity. */
+    struct src s = plain(TVPAL_FLOAT32);
+    s.inf_step = 3;
+    struct tvpal_source so = source_of(&s, 1, "series");
+    REQUIRE(open_job(&e, path("%s/inf%s", ""), &base, &d) == 0, "%s", d.msg);
+    int rc = tvpal_encoder_encode(e, &so, &d);
+    CHECK(rc == TVPAL_E_NAN && strstr(d.msg, "step 3") &&
+              strstr(d.msg, "(5,6,7)"), "an infinity: %s %s",
+          tvpal_strerror(rc), d.msg);
+    CHECK(tvpal_encoder_push(e, series[0], TVPAL_FLOAT32, NV, NULL, &d) ==
+              TVPAL_E_INVAL, "a push after a failed encode");
+    tvpal_encoder_abort(e);
+    CHECK(!exists(path("%s/inf%s", ".partial")) &&
+              !exists(path("%s/inf%s", "")), "an infinity left output");
+    /* A limit below the smallest: refused, with the smallest, which
+     * works. */
+    struct job j = base;
+    j.limit = 1 << 20;
+    so = source_of(&s, 1, NULL);
+    s = plain(TVPAL_FLOAT32);
+    struct tvpal_plan p;
+    REQUIRE(open_job(&e, path("%s/small%s", ""), &j, &d) == 0, "%s", d.msg);
+    rc = tvpal_encoder_plan(e, &so, &p, &d);
+    CHECK(rc == TVPAL_E_RANGE && p.min_limit > j.limit &&
+              strstr(d.msg, "one slice per pass needs"),
+          "1 MiB: %s %s", tvpal_strerror(rc), d.msg);
+    rc = tvpal_encoder_encode(e, &so, &d);
+    CHECK(rc == TVPAL_E_RANGE, "encode under 1 MiB: %s", tvpal_strerror(rc));
+    tvpal_encoder_abort(e);
+    CHECK(!exists(path("%s/small%s", ".partial")), "1 MiB left output");
+    j.limit = p.min_limit;
+    rc = pull_all(path("%s/small%s", ""), &j, &so, &d);
+    CHECK(rc == 0 && same_dataset(path("%s/pushed%s", ""),
+                                  path("%s/small%s", ""), 0, 7),
+          "the smallest limit: %s %s", tvpal_strerror(rc), d.msg);
+    /* Refused calls. */
+    REQUIRE(open_job(&e, path("%s/twice%s", ""), &base, &d) == 0, "%s",
+            d.msg);
+    so = source_of(&s, 0, NULL);
+    so.read = NULL;
+    CHECK(tvpal_encoder_encode(e, &so, &d) == TVPAL_E_INVAL &&
+              strstr(d.msg, "read"), "a source without read: %s", d.msg);
+    so = source_of(&s, 0, NULL);
+    so.type = (enum tvpal_scalar)9;
+    CHECK(tvpal_encoder_encode(e, &so, &d) == TVPAL_E_INVAL,
+          "a source of type 9");
+    so = source_of(&s, 0, NULL);
+    CHECK(tvpal_encoder_encode(e, &so, &d) == 0, "encode: %s", d.msg);
+    CHECK(tvpal_encoder_encode(e, &so, &d) == TVPAL_E_INVAL,
+          "a second encode");
+    CHECK(tvpal_encoder_push(e, series[0], TVPAL_FLOAT32, NV, NULL, &d) ==
+              TVPAL_E_INVAL, "a push after an encode");
+    CHECK(tvpal_encoder_finish(e, &d) == 0, "finish after the refusals: %s",
+          d.msg);
+    REQUIRE(open_job(&e, path("%s/pushfirst%s", ""), &base, &d) == 0, "%s",
+            d.msg);
+    CHECK(tvpal_encoder_push(e, series[0], TVPAL_FLOAT32, NV, NULL, &d) == 0,
+          "push: %s", d.msg);
+    CHECK(tvpal_encoder_encode(e, &so, &d) == TVPAL_E_INVAL,
+          "an encode after a push");
+    tvpal_encoder_abort(e);
+}
+
+int main(void)
+{
+    char cmd[600];
+    snprintf(cmd, sizeof cmd, "rm -rf %s && mkdir -p %s", W, W);
+    REQUIRE(system(cmd) == 0, "cannot make %s", W);
+    make_series();
+    test_same_as_pushed();
+    test_integers();
+    test_levels();
+    test_stop_and_continue();
+    test_failures();
+    int rc = tt_done("test-api-source");
+    if (rc == 0) {
+        snprintf(cmd, sizeof cmd, "rm -rf %s", W);
+        if (system(cmd) != 0)
+            return 99;
+    }
+    return rc;
+}
