@@ -4,7 +4,8 @@
  * encoded under a memory limit.
  *   api-files [--whole] [--type f32|f64|u8|u16|i16] [--big-endian]
  *             [--window N] [--axes MASK] [--mem-limit BYTES] [--levels L]
- *             [--threads J] [--plan] [--stop-after U] --dims NXxNYxNZ
+ *             [--threads J] [--checkpoint UNITS] [--plan] [--stop-after U]
+ *             --dims NXxNYxNZ
  *             -o OUT FILE...
  * --plan prints tvpal_encoder_plan's figures as key=value and exits;
  * --stop-after U stops after unit U (TVPAL_SAVE_AND_STOP) and exits 3,
@@ -40,9 +41,15 @@ static int read_box(void *ctx, uint32_t t, const uint32_t lo[3],
         return tvpal_diag_set(d, TVPAL_E_OPEN, "%s: %s", f->paths[t],
                               strerror(errno));
     unsigned char *o = dst;
-    const size_t row = (size_t)n[0] * f->esize;
-    for (uint32_t z = 0; z < n[2]; z++)
-        for (uint32_t y = 0; y < n[1]; y++, o += row) {
+    /* Whole rows of a plane are one range; whole planes too. */
+    const int rows_whole = n[0] == f->dims[0];
+    const int planes_whole = rows_whole && n[1] == f->dims[1];
+    const uint32_t ny = planes_whole ? 1 : n[1], nz = planes_whole ? 1 : n[2];
+    const size_t row = (size_t)n[0] * f->esize *
+                       (planes_whole ? (size_t)n[1] * n[2]
+                        : rows_whole ? n[1] : 1);
+    for (uint32_t z = 0; z < nz; z++)
+        for (uint32_t y = 0; y < (rows_whole ? 1 : ny); y++, o += row) {
             const off_t at = (off_t)((lo[0] + (uint64_t)f->dims[0] *
                                                   (lo[1] + y + (uint64_t)
                                                    f->dims[1] * (lo[2] + z))) *
@@ -81,7 +88,8 @@ int main(int argc, char **argv)
                                .ctx = &f, .read = read_box,
                                .progress = progress};
     const char *out = NULL;
-    double window = 4, axes = TVPAL_AXIS_Z, limit = 0, levels = 0, threads = 0;
+    double window = 4, axes = TVPAL_AXIS_Z, limit = 0, levels = 0, threads = 0,
+           checkpoint = 1;
     int plan_only = 0, i = 1;
     for (; i < argc && argv[i][0] == '-'; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : "";
@@ -106,6 +114,8 @@ int main(int argc, char **argv)
             levels = atof(v);
         else if (!strcmp(a, "--threads") && ++i)
             threads = atof(v);
+        else if (!strcmp(a, "--checkpoint") && ++i)
+            checkpoint = atof(v);
         else if (!strcmp(a, "--stop-after") && ++i)
             f.stop_after = strtoull(v, NULL, 10);
         else if (!strcmp(a, "--dims") && ++i)
@@ -146,7 +156,7 @@ int main(int argc, char **argv)
     const struct { enum tvpal_param p; double v; } set[] = {
         {TVPAL_PARAM_WINDOW, window}, {TVPAL_PARAM_AXES, axes},
         {TVPAL_PARAM_MEM_LIMIT, limit}, {TVPAL_PARAM_LEVELS, levels},
-        {TVPAL_PARAM_THREADS, threads}};
+        {TVPAL_PARAM_THREADS, threads}, {TVPAL_PARAM_CHECKPOINT, checkpoint}};
     for (size_t k = 0; rc == 0 && k < sizeof set / sizeof *set; k++)
         rc = tvpal_encoder_set(e, set[k].p, set[k].v, &d);
     if (rc < 0)
