@@ -880,10 +880,14 @@ int tvpal_encoder_encode(struct tvpal_encoder *e,
     }
     if (rc == 0 && e->levels && !e->pull->levels_inline)
         rc = levels_after(e, &d);
-    if (rc == 0) {
-        e->next_in = e->pushed = e->ep.steps;
+    /* The reader may be reading ahead: it stops before the call returns,
+     * after which src is the caller's again. */
+    if (e->pull) {
         reader_stop(e->pull->rd);
         e->pull->rd = NULL;
+    }
+    if (rc == 0) {
+        e->next_in = e->pushed = e->ep.steps;
         return 0;
     }
     e->state = FAILED;
