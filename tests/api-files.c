@@ -81,6 +81,44 @@ static int fail(const char *what, int rc, const struct tvpal_diag *d)
     return rc == TVPAL_E_CANCELED ? 3 : 1;
 }
 
+/* Encodes the files into out with the API; the program's exit status. */
+static int encode_files(const char *out, struct files *f,
+                        const struct tvpal_source *src, int plan_only,
+                        double window, double axes, double limit,
+                        double levels, double threads, double checkpoint)
+{
+    struct tvpal_encoder *e = NULL;
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_encoder_open(&e, out, f->dims, (uint32_t)f->n, &d);
+    if (rc < 0)
+        return fail("open", rc, &d);
+    const struct { enum tvpal_param p; double v; } set[] = {
+        {TVPAL_PARAM_WINDOW, window}, {TVPAL_PARAM_AXES, axes},
+        {TVPAL_PARAM_MEM_LIMIT, limit}, {TVPAL_PARAM_LEVELS, levels},
+        {TVPAL_PARAM_THREADS, threads}, {TVPAL_PARAM_CHECKPOINT, checkpoint}};
+    for (size_t k = 0; rc == 0 && k < sizeof set / sizeof *set; k++)
+        rc = tvpal_encoder_set(e, set[k].p, set[k].v, &d);
+    struct tvpal_plan p;
+    if (rc == 0 && (rc = tvpal_encoder_plan(e, src, &p, &d)) == 0)
+        printf("passes=%u passes_x=%u passes_y=%u passes_z=%u "
+               "peak_bytes=%llu read_voxels=%llu levels_inline=%d\n",
+               p.passes, p.passes_axis[0], p.passes_axis[1],
+               p.passes_axis[2], (unsigned long long)p.peak_bytes,
+               (unsigned long long)p.read_voxels, p.levels_inline);
+    if (rc < 0 || plan_only) {
+        tvpal_encoder_abort(e);
+        return rc < 0 ? fail("plan", rc, &d) : 0;
+    }
+    rc = tvpal_encoder_encode(e, src, &d);
+    printf("first_unit=%llu\n", (unsigned long long)f->first_unit);
+    if (rc < 0) {
+        tvpal_encoder_abort(e);
+        return fail("encode", rc, &d);
+    }
+    rc = tvpal_encoder_finish(e, &d);
+    return rc < 0 ? fail("finish", rc, &d) : 0;
+}
+
 int main(int argc, char **argv)
 {
     struct files f = {0};
@@ -148,39 +186,9 @@ int main(int argc, char **argv)
                  size);
     }
     src.identity = id;
-    struct tvpal_encoder *e = NULL;
-    struct tvpal_diag d = {{0}};
-    int rc = tvpal_encoder_open(&e, out, f.dims, (uint32_t)f.n, &d);
-    if (rc < 0)
-        return fail("open", rc, &d);
-    const struct { enum tvpal_param p; double v; } set[] = {
-        {TVPAL_PARAM_WINDOW, window}, {TVPAL_PARAM_AXES, axes},
-        {TVPAL_PARAM_MEM_LIMIT, limit}, {TVPAL_PARAM_LEVELS, levels},
-        {TVPAL_PARAM_THREADS, threads}, {TVPAL_PARAM_CHECKPOINT, checkpoint}};
-    for (size_t k = 0; rc == 0 && k < sizeof set / sizeof *set; k++)
-        rc = tvpal_encoder_set(e, set[k].p, set[k].v, &d);
-    if (rc < 0)
-        return fail("set", rc, &d);
-    struct tvpal_plan p;
-    if ((rc = tvpal_encoder_plan(e, &src, &p, &d)) < 0)
-        return fail("plan", rc, &d);
-    printf("passes=%u passes_x=%u passes_y=%u passes_z=%u peak_bytes=%llu "
-           "read_voxels=%llu levels_inline=%d\n", p.passes, p.passes_axis[0],
-           p.passes_axis[1], p.passes_axis[2],
-           (unsigned long long)p.peak_bytes,
-           (unsigned long long)p.read_voxels, p.levels_inline);
-    if (plan_only) {
-        tvpal_encoder_abort(e);
-        return 0;
-    }
-    rc = tvpal_encoder_encode(e, &src, &d);
-    printf("first_unit=%llu\n", (unsigned long long)f.first_unit);
-    if (rc < 0) {
-        tvpal_encoder_abort(e);
-        free(id);
-        return fail("encode", rc, &d);
-    }
-    rc = tvpal_encoder_finish(e, &d);
+    int status = encode_files(out, &f, &src, plan_only, window, axes, limit,
+                              levels, threads, checkpoint);
     free(id);
-    return rc < 0 ? fail("finish", rc, &d) : 0;
+    return status;
 }
+
