@@ -88,9 +88,6 @@ struct opts {
 
 
 
-/* Bytes of the reading scratch of one thread (raw input is read in blocks
- * of at most this much, converted into the ring as it comes). */
-#define READ_BLOCK ((size_t)8 << 20)
 
 /* Progress on stderr: a bar redrawn at most 5 times a second on a terminal,
  * otherwise a line every 30 s, whether a timestep takes a second or an
@@ -106,7 +103,7 @@ struct progress {
 
 /* One encoding run: the job, its output and the workspaces, set up by
  * main's steps in order and released by run_free. */
-struct prefetch;
+struct tvpal_readahead;
 struct tvpal_found;
 
 struct run {
@@ -134,12 +131,13 @@ struct run {
     struct tvpal_pool *pool; /* nthreads threads (the main one is 0) */
     uint64_t **fine_local;   /* per-thread source histograms */
     struct tvpal_found *found_local; /* per thread: what a box read found */
-    unsigned char **scratch;    /* per thread: READ_BLOCK bytes (raw) */
+    unsigned char **scratch;    /* per thread: TVPAL_READ_BLOCK bytes at
+                                 * most (raw) */
     float *boxbuf;           /* a self-describing input's box, as read */
     struct tvpal_input *in;  /* self-describing input, or NULL (raw) */
     struct tvpal_pool *in_pool;  /* its reading thread's team (-j threads)
                                   * for compressed chunks, or NULL */
-    struct prefetch *pf;     /* reads the input's next step meanwhile */
+    struct tvpal_readahead *pf; /* reads the input's next step meanwhile */
     double *times;           /* [T] time values, or NULL (none known) */
     char time_units[128];
     char units[64];          /* the values' units, or "" (load_times) */

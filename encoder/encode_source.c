@@ -7,6 +7,8 @@
 #include "encode_source.h"
 #include "tvpal_cli.h"
 #include "tvpal_fs.h"
+#include "tvpal_passes.h"
+#include "tvpal_readahead.h"
 #include "tvpal_values.h"
 
 #include <errno.h>
@@ -22,13 +24,6 @@
 #include <unistd.h>
 
 /* ------------------------------------------------------------- input I/O */
-
-size_t read_rows(uint64_t row_bytes, uint32_t rows_max)
-{
-    uint64_t rows = READ_BLOCK / row_bytes;
-    rows = rows < 1 ? 1 : rows > rows_max ? rows_max : rows;
-    return (size_t)rows;
-}
 
 struct tvpal_found *encode_found_alloc(size_t n)
 {
@@ -140,7 +135,7 @@ static void read_piece(void *arg, size_t p, unsigned tid)
  * voxels, x fastest), converted, in parallel over blocks of rows: each
  * z-plane of the box is read as the one file range that holds its rows
  * (a y or z slab: only its bytes; an x slab: whole rows, its part used),
- * in pieces of at most READ_BLOCK bytes, into the reading thread's
+ * in pieces of at most TVPAL_READ_BLOCK bytes, into the reading thread's
  * scratch. */
 static void read_box_raw(struct run *r, int fd, off_t base,
                          const struct encode_box *b, float *dst, int stats,
@@ -149,7 +144,7 @@ static void read_box_raw(struct run *r, int fd, off_t base,
     const size_t row_bytes = (size_t)r->o.dims[0] *
                              tvpal_type_size(r->o.type);
     /* Rows per piece: a piece spans whole rows of one plane. */
-    const size_t rows = read_rows(row_bytes, b->n[1]);
+    const size_t rows = tvpal_passes_read_rows(row_bytes, b->n[1]);
     const size_t pieces_per_plane = (b->n[1] + rows - 1) / rows;
     struct box_ctx c = {.r = r, .b = b, .dst = dst, .stats = stats, .fd = fd,
                         .base = base, .rows = rows,
@@ -190,23 +185,10 @@ static int box_is_whole(const struct run *r, const struct encode_box *b)
 
 /* A self-describing input is read (and inflated) by its library on one
  * thread; the encoding of a step runs on all of them.  One reader thread
- * reads the box of step t + 1 while step t is converted and encoded, so
- * the two overlap.  The reader is the only thread that calls the input
- * library once it runs (HDF5 and libnetcdf builds need not be
- * thread-safe). */
-struct prefetch {
-    pthread_t thread;
-    pthread_mutex_t mu;
-    pthread_cond_t cv;
-    struct tvpal_input *in;
-    float *buf;              /* box floats: the step being read or read */
-    struct encode_box box;   /* what to read */
-    int whole;               /* the box is the volume */
-    int64_t want, ready;     /* step asked for / in buf (-1: none) */
-    int busy, quit, rc;
-    struct tvpal_diag d;
-};
-
+ * (tvpal_readahead.h) reads the box of step t + 1 while step t is
+ * converted and encoded, so the two overlap; it is the only thread that
+ * calls the input library once it runs (HDF5 and libnetcdf builds need
+ * not be thread-safe). */
 static int read_input_box(struct tvpal_input *in, uint32_t t,
                           const struct encode_box *b, int whole, float *dst,
                           struct tvpal_diag *d)
@@ -215,123 +197,43 @@ static int read_input_box(struct tvpal_input *in, uint32_t t,
                  : tvpal_input_read_box(in, t, b->lo, b->n, dst, d);
 }
 
-static void *prefetch_main(void *arg)
+/* The reader thread's read: box b of step t, the whole volume read as
+ * one. */
+static int read_ahead_box(void *ctx, uint32_t t, const struct encode_box *b,
+                          void *dst, struct tvpal_diag *d)
 {
-    struct prefetch *pf = arg;
-    pthread_mutex_lock(&pf->mu);
-    for (;;) {
-        while (!pf->quit && pf->want < 0)
-            pthread_cond_wait(&pf->cv, &pf->mu);
-        if (pf->quit)
-            break;
-        int64_t t = pf->want;
-        pf->want = -1;
-        pf->busy = 1;
-        struct encode_box box = pf->box;
-        int whole = pf->whole;
-        pthread_mutex_unlock(&pf->mu);
-        struct tvpal_diag d = {{0}};
-        int rc = read_input_box(pf->in, (uint32_t)t, &box, whole, pf->buf, &d);
-        pthread_mutex_lock(&pf->mu);
-        pf->busy = 0;
-        pf->ready = t;
-        pf->rc = rc;
-        pf->d = d;
-        pthread_cond_broadcast(&pf->cv);
-    }
-    pthread_mutex_unlock(&pf->mu);
-    return NULL;
+    struct tvpal_input *in = ctx;
+    const struct tvpal_input_info *ii = tvpal_input_info(in);
+    const int whole = b->n[0] == ii->dims[0] && b->n[1] == ii->dims[1] &&
+                      b->n[2] == ii->dims[2];
+    return read_input_box(in, t, b, whole, dst, d);
 }
 
-/* Starts the reader with a buffer of `voxels` floats (NULL when threads
- * are not available: then every step is read in place). */
-struct prefetch *prefetch_start(struct tvpal_input *in, uint64_t voxels)
+struct tvpal_readahead *prefetch_start(struct tvpal_input *in,
+                                       uint64_t voxels)
 {
-    struct prefetch *pf = calloc(1, sizeof *pf);
-    if (!pf || !(pf->buf = malloc(voxels * sizeof(float)))) {
-        free(pf);
-        return NULL;
-    }
-    pf->in = in;
-    pf->want = pf->ready = -1;
-    pthread_mutex_init(&pf->mu, NULL);
-    pthread_cond_init(&pf->cv, NULL);
-    if (pthread_create(&pf->thread, NULL, prefetch_main, pf) != 0) {
-        free(pf->buf);
-        free(pf);
-        return NULL;
-    }
-    return pf;
+    return tvpal_readahead_start(read_ahead_box, in,
+                                 (size_t)voxels * sizeof(float));
 }
 
-void prefetch_stop(struct prefetch *pf)
+static void tick_progress(void *ctx)
 {
-    if (!pf)
-        return;
-    pthread_mutex_lock(&pf->mu);
-    pf->quit = 1;
-    pthread_cond_broadcast(&pf->cv);
-    pthread_mutex_unlock(&pf->mu);
-    pthread_join(pf->thread, NULL);
-    pthread_mutex_destroy(&pf->mu);
-    pthread_cond_destroy(&pf->cv);
-    free(pf->buf);
-    free(pf);
-}
-
-/* Waits, holding pf->mu, until the reader is idle, with a progress line
- * when one is due (a long read: the mutex is let go meanwhile). */
-static void prefetch_wait_idle(struct run *r, struct prefetch *pf)
-{
-    while (pf->busy || pf->want >= 0) {
-        struct timespec until;
-        clock_gettime(CLOCK_REALTIME, &until);
-        until.tv_sec += 1;
-        if (pthread_cond_timedwait(&pf->cv, &pf->mu, &until) != 0) {
-            pthread_mutex_unlock(&pf->mu);
-            report_progress(r, 0);
-            pthread_mutex_lock(&pf->mu);
-        }
-    }
-}
-
-/* Asks the reader (mutex held) for the box b of step t. */
-static void prefetch_ask(struct prefetch *pf, uint32_t t,
-                         const struct encode_box *b, int whole)
-{
-    pf->box = *b;
-    pf->whole = whole;
-    pf->want = t;
-    pthread_cond_broadcast(&pf->cv);
+    report_progress(ctx, 0);
 }
 
 /* The pass's box of step t of the input into r->boxbuf: from the reader
- * (the buffers are swapped; asked for now when it was not read ahead),
+ * (the buffers are swapped; asked for now when it was not read ahead; every
+ * read goes to it, so that a long one still gets progress lines here),
  * then step t + 1 of the same pass is asked for. */
 static int input_step(struct run *r, uint32_t t, struct tvpal_diag *d)
 {
-    struct prefetch *pf = r->pf;
     const struct encode_box *b = &r->pass->box;
-    const int whole = box_is_whole(r, b);
-    if (!pf) /* no reader thread: read here */
-        return read_input_box(r->in, t, b, whole, r->boxbuf, d);
-    /* Every read goes to the reader, so that a long one (a step of
-     * hundreds of GiB, a slow inflate) still gets progress lines here. */
-    pthread_mutex_lock(&pf->mu);
-    prefetch_wait_idle(r, pf);
-    if (pf->ready != (int64_t)t || memcmp(&pf->box, b, sizeof *b)) {
-        prefetch_ask(pf, t, b, whole);
-        prefetch_wait_idle(r, pf);
-    }
-    float *tmp = r->boxbuf;
-    r->boxbuf = pf->buf;
-    pf->buf = tmp;
-    int rc = pf->rc;
-    *d = pf->d;
-    pf->ready = -1;
-    if (t + 1 < r->T)
-        prefetch_ask(pf, t + 1, b, whole);
-    pthread_mutex_unlock(&pf->mu);
+    if (!r->pf) /* no reader thread: read here */
+        return read_input_box(r->in, t, b, box_is_whole(r, b), r->boxbuf, d);
+    void *buf = r->boxbuf;
+    int rc = tvpal_readahead_take(r->pf, t, t + 1 < r->T ? (int64_t)t + 1 : -1,
+                                  b, &buf, tick_progress, r, d);
+    r->boxbuf = buf;
     return rc;
 }
 

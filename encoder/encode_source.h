@@ -14,15 +14,15 @@ int open_source(struct run *r, int have_dims);
 void load_times(struct run *r);
 void warn_irregular_times(const struct run *r);
 void check_inputs(struct run *r);
-struct prefetch *prefetch_start(struct tvpal_input *in, uint64_t voxels);
-void prefetch_stop(struct prefetch *pf);
+/* The read-ahead thread of a self-describing input (tvpal_readahead.h)
+ * with boxes of `voxels` floats; NULL without threads (steps are then read
+ * in place).  Stopped with tvpal_readahead_stop. */
+struct tvpal_readahead *prefetch_start(struct tvpal_input *in,
+                                       uint64_t voxels);
 /* The current pass's box of step t (r->pass), converted, into dst. */
 void load_step(struct run *r, uint32_t t, float *dst);
 /* Per-thread findings of a box read for n threads (r->found_local);
  * NULL when out of memory.  Freed with free(). */
 struct tvpal_found *encode_found_alloc(size_t n);
-/* Rows of row_bytes a raw read takes at once: READ_BLOCK's worth, at
- * least one, at most rows_max (a plane's).  Sizes the reading scratch. */
-size_t read_rows(uint64_t row_bytes, uint32_t rows_max);
 
 #endif

@@ -38,6 +38,8 @@
 #include "tvpal_input.h"
 #include "tvpal_manifest.h"
 #include "tvpal_output.h"
+#include "tvpal_passes.h"
+#include "tvpal_readahead.h"
 #include "tvpal_raw.h"
 #include "tvpal_shard.h"
 #include "tvpal_swcode.h"
@@ -766,31 +768,22 @@ static void choose_threads(struct run *r)
 }
 
 /* Bytes of a thread's reading scratch (raw input): whole rows of one
- * plane, up to READ_BLOCK (one row at least). */
+ * plane, up to TVPAL_READ_BLOCK (one row at least). */
 static uint64_t scratch_bytes(const struct run *r)
 {
     const uint64_t row = (uint64_t)r->o.dims[0] * tvpal_type_size(r->o.type);
-    return read_rows(row, r->o.dims[1]) * row;
+    return tvpal_passes_read_rows(row, r->o.dims[1]) * row;
 }
 
-/* Bytes of everything but the ring and the box buffers: the program and
- * its libraries, and per thread the codec's workspace (its largest: with
- * missing values, --refine or KLT), the samples, a table, a chunk, the
- * reading scratch and the histogram.  An estimate on the safe side, which
- * tests hold against the measured peak. */
+/* Bytes of everything but the ring and the box buffers
+ * (tvpal_passes_fixed_bytes): the reading scratch of a raw input's
+ * threads, or a reader's scratch (tvpal_input_box_scratch: the largest
+ * box's). */
 static uint64_t fixed_bytes(const struct run *r)
 {
-    const uint64_t scratch = r->in ? 0 : scratch_bytes(r);
-    const uint64_t per_thread = tvpal_engine_thread_bytes(r->eng) + scratch +
-                                TVPAL_CHECKPOINT_BINS * sizeof(uint64_t);
-    const uint64_t shards = tvpal_engine_table_bytes(r->eng);
-    /* A reader's scratch (tvpal_input_box_scratch): the largest box's. */
-    const uint64_t reader = r->in ? tvpal_input_box_scratch(r->in, r->o.dims)
-                                  : 0;
-    /* 16 MiB: the program and its libraries (13 MiB measured); a chunk's
-     * buffer for packing a per-chunk shard at finish. */
-    return ((uint64_t)16 << 20) + (uint64_t)r->nthreads * per_thread +
-           shards + reader + tvpal_engine_max_chunk(r->eng);
+    return tvpal_passes_fixed_bytes(
+        r->eng, (unsigned)r->nthreads, r->in ? 0 : scratch_bytes(r),
+        r->in ? tvpal_input_box_scratch(r->in, r->o.dims) : 0);
 }
 
 static void print_size(char *buf, size_t cap, uint64_t b)
@@ -824,36 +817,13 @@ static unsigned local_ranks(const struct run *r)
 }
 
 /* Bytes the levels of --levels hold beside level 0's fixed bytes
- * (encode_levels.c): per level, N of its steps and the step being made, a
- * libtvpal encoder's workspaces and histograms; with_slab, the source's
- * slab and two planes (the levels made after level 0).  0 when out of
- * memory. */
+ * (tvpal_passes_levels_bytes); with_slab, made after level 0 from the
+ * source read again in slabs of the plan's box.  0 when out of memory. */
 static uint64_t levels_bytes(const struct run *r, int with_slab)
 {
-    const struct opts *o = &r->o;
-    const uint64_t plane = (uint64_t)o->dims[0] * o->dims[1];
-    uint64_t b = with_slab ? r->plan.box_voxels_max * sizeof(float) +
-                                 2 * plane * 4
-                           : 0;
-    for (unsigned k = 1; k <= o->levels; k++) {
-        uint32_t dk[3];
-        tvpal_level_dims(o->dims, k, dk);
-        const uint64_t vox = (uint64_t)dk[0] * dk[1] * dk[2];
-        const struct tvpal_engine_params p = {
-            .dims = {dk[0], dk[1], dk[2]}, .steps = r->T, .window = r->N,
-            .axes = o->axes, .nodes = o->nodes, .node_count = o->nodes,
-            .table_format = (uint32_t)o->table_format};
-        struct tvpal_engine *e = NULL;
-        if (tvpal_engine_create(&e, &p) < 0)
-            return 0;
-        b += (ring_slots(r) + 1) * vox * sizeof(float) +
-             (uint64_t)r->nthreads *
-                 (tvpal_engine_thread_bytes(e) +
-                  TVPAL_CHECKPOINT_BINS * sizeof(uint64_t) + dk[0] * 8) +
-             tvpal_engine_table_bytes(e) + ((uint64_t)1 << 20);
-        tvpal_engine_free(e);
-    }
-    return b;
+    const struct tvpal_engine_params p = run_engine_params(r);
+    return tvpal_passes_levels_bytes(&p, r->o.levels, (unsigned)r->nthreads,
+                                     with_slab ? r->plan.box_voxels_max : 0);
 }
 
 /* Makes the memory plan (encode_plan.h) before anything is read or
@@ -1001,18 +971,10 @@ static int open_writers(struct run *r)
     return 0;
 }
 
-/* The statistics a checkpoint at unit `u` must hold: every stats pass
- * before it, and the loaded steps of its own. */
+/* The statistics a checkpoint at unit `u` must hold (tvpal_passes.h). */
 static uint64_t expected_counted(const struct run *r, uint64_t u)
 {
-    uint64_t c = 0;
-    const uint32_t p = (uint32_t)(u / r->T);
-    for (uint32_t i = 0; i < p && i < r->plan.npasses; i++)
-        if (r->plan.pass[i].stats)
-            c += encode_box_voxels(&r->plan.pass[i].box) * r->T;
-    if (p < r->plan.npasses && r->plan.pass[p].stats)
-        c += encode_box_voxels(&r->plan.pass[p].box) * r->st.loaded;
-    return c;
+    return tvpal_passes_counted_at(&r->plan, r->T, u, r->st.loaded);
 }
 
 /* Opens the writers; a partial output that does not verify is removed and
@@ -1117,28 +1079,11 @@ static int checkpoint_due(struct run *r, uint64_t u, int faulting)
     return 1;
 }
 
-/* The work (voxel-samples, every axis encoded) of the whole job, and of the
- * units before u. */
+/* The work of the units before u (tvpal_passes.h). */
 static uint64_t work_before(const struct run *r, uint64_t u)
 {
-    uint64_t w = 0;
-    for (uint32_t p = 0; p < r->plan.npasses; p++) {
-        const struct encode_pass *ps = &r->plan.pass[p];
-        uint64_t per_step = 0;
-        for (unsigned a = 0; a < 3; a++)
-            if (ps->axes & (1u << a)) {
-                uint32_t n, sw, sh;
-                tvpal_axis_geometry(r->o.dims, a, &n, &sw, &sh);
-                per_step += (uint64_t)(ps->s1[a] - ps->s0[a]) * sw * sh;
-            }
-        /* Every slice has one sample per step, over its windows. */
-        uint64_t steps = u >= (uint64_t)(p + 1) * r->T ? r->T
-                         : u > (uint64_t)p * r->T ? u - (uint64_t)p * r->T : 0;
-        w += per_step * steps;
-    }
-    return w;
+    return tvpal_passes_work_before(&r->plan, r->o.dims, r->T, u);
 }
-
 
 /* The streaming driver: for each pass of the plan, for each step from
  * the start, reads the box of what its windows need (step t + N - 1 at
@@ -1495,7 +1440,7 @@ static void print_summary(const struct run *r, const struct written *w)
 static void run_free(struct run *r)
 {
     levels_free(r->lvs);
-    prefetch_stop(r->pf);   /* before the input it reads is closed */
+    tvpal_readahead_stop(r->pf);   /* before the input it reads is closed */
     tvpal_pool_free(r->pool);
     tvpal_engine_free(r->eng);
     for (int i = 0; i < r->nthreads && r->fine_local; i++)

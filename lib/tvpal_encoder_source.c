@@ -31,38 +31,17 @@
 #include "tvpal_clock.h"
 #include "tvpal_fs.h"
 #include "tvpal_levels.h"
+#include "tvpal_passes.h"
 #include "tvpal_pool.h"
+#include "tvpal_readahead.h"
 #include "tvpal_raw.h"
 
-#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
-/* Bytes of one thread's reading scratch for a concurrent source: whole
- * rows of one plane up to this much (one row at least). */
-#define READ_BLOCK ((size_t)8 << 20)
-/* Bytes of the program and its libraries, in the plan (13 MiB measured
- * of tvpal-encode). */
-#define PROGRAM_BYTES ((uint64_t)16 << 20)
 /* Seconds between the progress callback's ticks within a unit. */
 #define TICK_SECONDS 0.2
-
-/* The reader thread of a source that is not concurrent: it reads the box
- * of the step asked for into buf, then waits; the encoder swaps buf with
- * its own and asks for the next step. */
-struct reader {
-    pthread_t thread;
-    pthread_mutex_t mu;
-    pthread_cond_t cv;
-    const struct tvpal_source *src;
-    void *buf;               /* the box being read or read */
-    struct encode_box box;   /* what to read */
-    int64_t want, ready;     /* step asked for / in buf (-1: none) */
-    int busy, quit, rc;
-    struct tvpal_diag d;
-};
 
 struct pull {
     struct encode_plan plan;
@@ -76,7 +55,7 @@ struct pull {
     unsigned char **scratch; /* per thread (concurrent), READ_BLOCK */
     int *rc;                 /* per thread: a failed read's code, */
     struct tvpal_diag *diag; /* and its words */
-    struct reader *rd;       /* not concurrent: the reader thread */
+    struct tvpal_readahead *rd; /* not concurrent: the reader thread */
     void *box;               /* not concurrent: the box as read */
     struct tvpal_progress pr;
     uint64_t work;           /* added to atomically by the engine */
@@ -95,66 +74,13 @@ static uint32_t ring_slots(const struct tvpal_encoder *e)
     return e->ep.steps < e->ep.window ? e->ep.steps : e->ep.window;
 }
 
-/* Rows of row_bytes one piece of a concurrent read takes: READ_BLOCK's
- * worth, at least one, at most rows_max (a plane's). */
-static size_t read_rows(uint64_t row_bytes, uint32_t rows_max)
-{
-    uint64_t rows = READ_BLOCK / row_bytes;
-    rows = rows < 1 ? 1 : rows > rows_max ? rows_max : rows;
-    return (size_t)rows;
-}
-
 static uint64_t scratch_bytes(const struct tvpal_encoder *e)
 {
     if (!e->src->concurrent)
         return 0;
     const uint64_t row = (uint64_t)e->ep.dims[0] *
                          tvpal_type_size(source_type(e->src->type));
-    return read_rows(row, e->ep.dims[1]) * row;
-}
-
-/* Bytes of everything but the ring and the box buffers: the program and
- * its libraries, per thread the codec's workspace (its largest), the
- * reading scratch and the histogram; the tables, the source's own and a
- * chunk's buffer for packing a per-chunk shard at the end.  An estimate on
- * the safe side, which tests hold against the measured peak. */
-static uint64_t fixed_bytes(const struct tvpal_encoder *e, unsigned nt)
-{
-    const uint64_t per_thread = tvpal_engine_thread_bytes(e->eng) +
-                                scratch_bytes(e) +
-                                TVPAL_CHECKPOINT_BINS * sizeof(uint64_t);
-    return PROGRAM_BYTES + nt * per_thread +
-           tvpal_engine_table_bytes(e->eng) + e->src->held_bytes +
-           tvpal_engine_max_chunk(e->eng);
-}
-
-/* Bytes the levels hold beside level 0's fixed bytes: per level N of its
- * steps and the one being made, an encoder's workspaces and histograms;
- * with_slab, the source's slab and two planes (levels made after level
- * 0).  0 when out of memory. */
-static uint64_t levels_bytes(const struct tvpal_encoder *e, unsigned nt,
-                             uint64_t box_max)
-{
-    const uint32_t *d = e->ep.dims;
-    const uint64_t plane = (uint64_t)d[0] * d[1];
-    uint64_t b = box_max ? box_max * sizeof(float) + 2 * plane * 4 : 0;
-    for (unsigned k = 1; k <= e->levels; k++) {
-        uint32_t dk[3];
-        tvpal_level_dims(d, k, dk);
-        const uint64_t vox = (uint64_t)dk[0] * dk[1] * dk[2];
-        struct tvpal_engine_params p = e->ep;
-        memcpy(p.dims, dk, sizeof p.dims);
-        struct tvpal_engine *le = NULL;
-        if (tvpal_engine_create(&le, &p) < 0)
-            return 0;
-        b += (ring_slots(e) + 1) * vox * sizeof(float) +
-             (uint64_t)nt * (tvpal_engine_thread_bytes(le) +
-                             TVPAL_CHECKPOINT_BINS * sizeof(uint64_t) +
-                             dk[0] * 8) +
-             tvpal_engine_table_bytes(le) + ((uint64_t)1 << 20);
-        tvpal_engine_free(le);
-    }
-    return b;
+    return tvpal_passes_read_rows(row, e->ep.dims[1]) * row;
 }
 
 /* The plan of e (its engine made) with nt threads into *plan and
@@ -170,7 +96,8 @@ static int make_plan(const struct tvpal_encoder *e, unsigned nt,
     struct encode_job j = {
         .dims = {d[0], d[1], d[2]}, .N = e->ep.window, .T = e->ep.steps,
         .slab_n = {d[0], d[1], d[2]}, .axes = e->ep.axes, .limit = *limit,
-        .fixed = fixed_bytes(e, nt),
+        .fixed = tvpal_passes_fixed_bytes(e->eng, nt, scratch_bytes(e),
+                                          e->src->held_bytes),
         .box_bytes_per_voxel = (uint32_t)(4 * ring_slots(e) +
                                           (e->src->concurrent ? 0
                                                               : 2 * esize))};
@@ -180,7 +107,8 @@ static int make_plan(const struct tvpal_encoder *e, unsigned nt,
         /* The levels beside level 0's one pass, when that fits: each step
          * is then read once. */
         struct encode_job jl = j;
-        const uint64_t lb = levels_bytes(e, nt, 0);
+        const uint64_t lb = tvpal_passes_levels_bytes(&e->ep, e->levels, nt,
+                                                      0);
         jl.fixed += lb;
         if (lb && encode_plan_make(&jl, plan) == 0 && plan->npasses == 1)
             *levels_inline = 1;
@@ -200,7 +128,8 @@ static int make_plan(const struct tvpal_encoder *e, unsigned nt,
         return rc;
     /* After level 0, with its ring freed, the levels are encoded in one
      * pass each; with level 0's fixed bytes they must fit. */
-    const uint64_t lb = levels_bytes(e, nt, plan->box_voxels_max);
+    const uint64_t lb = tvpal_passes_levels_bytes(&e->ep, e->levels, nt,
+                                                  plan->box_voxels_max);
     if (!lb)
         return TVPAL_E_NOMEM;
     if (lb + j.fixed > *limit) {
@@ -272,72 +201,12 @@ int tvpal_encoder_plan(struct tvpal_encoder *e,
     return rc;
 }
 
-/* ---------------------------------------------------------------- reader */
-
-static void *reader_main(void *arg)
+/* A box of the source for the reader thread (tvpal_readahead.h). */
+static int read_for_reader(void *ctx, uint32_t t, const struct encode_box *b,
+                           void *dst, struct tvpal_diag *d)
 {
-    struct reader *rd = arg;
-    pthread_mutex_lock(&rd->mu);
-    for (;;) {
-        while (!rd->quit && rd->want < 0)
-            pthread_cond_wait(&rd->cv, &rd->mu);
-        if (rd->quit)
-            break;
-        const int64_t t = rd->want;
-        const struct encode_box box = rd->box;
-        rd->want = -1;
-        rd->busy = 1;
-        pthread_mutex_unlock(&rd->mu);
-        struct tvpal_diag d = {{0}};
-        int rc = rd->src->read(rd->src->ctx, (uint32_t)t, box.lo, box.n,
-                               rd->buf, &d);
-        pthread_mutex_lock(&rd->mu);
-        rd->busy = 0;
-        rd->ready = t;
-        rd->rc = rc;
-        rd->d = d;
-        pthread_cond_broadcast(&rd->cv);
-    }
-    pthread_mutex_unlock(&rd->mu);
-    return NULL;
-}
-
-static void reader_stop(struct reader *rd)
-{
-    if (!rd)
-        return;
-    pthread_mutex_lock(&rd->mu);
-    rd->quit = 1;
-    pthread_cond_broadcast(&rd->cv);
-    pthread_mutex_unlock(&rd->mu);
-    pthread_join(rd->thread, NULL);
-    pthread_mutex_destroy(&rd->mu);
-    pthread_cond_destroy(&rd->cv);
-    free(rd->buf);
-    free(rd);
-}
-
-/* A reader with a buffer of `bytes`; NULL when out of memory or threads. */
-static struct reader *reader_start(const struct tvpal_source *src,
-                                   size_t bytes)
-{
-    struct reader *rd = calloc(1, sizeof *rd);
-    if (!rd || !(rd->buf = malloc(bytes))) {
-        free(rd);
-        return NULL;
-    }
-    rd->src = src;
-    rd->want = rd->ready = -1;
-    pthread_mutex_init(&rd->mu, NULL);
-    pthread_cond_init(&rd->cv, NULL);
-    if (pthread_create(&rd->thread, NULL, reader_main, rd) != 0) {
-        pthread_mutex_destroy(&rd->mu);
-        pthread_cond_destroy(&rd->cv);
-        free(rd->buf);
-        free(rd);
-        return NULL;
-    }
-    return rd;
+    const struct tvpal_source *src = ctx;
+    return src->read(src->ctx, t, b->lo, b->n, dst, d);
 }
 
 /* ------------------------------------------------------------- progress */
@@ -362,46 +231,14 @@ static void engine_tick(void *ctx)
     tick(ctx);
 }
 
-/* The work (voxel-samples, every axis encoded) of the units before u. */
+/* The work of the units before u (tvpal_passes.h). */
 static uint64_t work_before(const struct tvpal_encoder *e, uint64_t u)
 {
-    const struct encode_plan *plan = &e->pull->plan;
-    const uint32_t T = e->ep.steps;
-    uint64_t w = 0;
-    for (uint32_t p = 0; p < plan->npasses; p++) {
-        const struct encode_pass *ps = &plan->pass[p];
-        uint64_t per_step = 0;
-        for (unsigned a = 0; a < 3; a++)
-            if (ps->axes & (1u << a)) {
-                uint32_t n, sw, sh;
-                tvpal_axis_geometry(e->ep.dims, a, &n, &sw, &sh);
-                per_step += (uint64_t)(ps->s1[a] - ps->s0[a]) * sw * sh;
-            }
-        /* Every slice has one sample per step, over its windows. */
-        const uint64_t steps = u >= (uint64_t)(p + 1) * T ? T
-                               : u > (uint64_t)p * T ? u - (uint64_t)p * T
-                                                     : 0;
-        w += per_step * steps;
-    }
-    return w;
+    return tvpal_passes_work_before(&e->pull->plan, e->ep.dims, e->ep.steps,
+                                    u);
 }
 
 /* ---------------------------------------------------------------- setup */
-
-/* The statistics a checkpoint at unit u must hold: every stats pass before
- * it, and the loaded steps of its own. */
-static uint64_t expected_counted(const struct tvpal_encoder *e, uint64_t u)
-{
-    const struct encode_plan *plan = &e->pull->plan;
-    const uint32_t p = (uint32_t)(u / e->ep.steps);
-    uint64_t c = 0;
-    for (uint32_t i = 0; i < p && i < plan->npasses; i++)
-        if (plan->pass[i].stats)
-            c += encode_box_voxels(&plan->pass[i].box) * e->ep.steps;
-    if (p < plan->npasses && plan->pass[p].stats)
-        c += encode_box_voxels(&plan->pass[p].box) * e->st.loaded;
-    return c;
-}
 
 int tvpal_enc_source_plan(struct tvpal_encoder *e, unsigned nt,
                           uint64_t *ring_voxels, struct tvpal_diag *diag)
@@ -451,7 +288,9 @@ static uint64_t load_checkpoint(struct tvpal_encoder *e)
     uint64_t done = 0;
     if (tvpal_checkpoint_load(e->ckdir, e->fp, pl->units, e->ep.steps, nvox,
                               &done, &e->st, &e->ckp, NULL) < 0 ||
-        done == 0 || e->st.counted != expected_counted(e, done)) {
+        done == 0 ||
+        e->st.counted != tvpal_passes_counted_at(&pl->plan, e->ep.steps, done,
+                                                 e->st.loaded)) {
         tvpal_checkpoint_stats_reset(&e->st);
         return 0;
     }
@@ -480,7 +319,8 @@ int tvpal_enc_source_ready(struct tvpal_encoder *e, struct tvpal_diag *diag)
             vox = plane;
         const size_t box = (size_t)vox * pl->esize;
         if (!(pl->box = malloc(box)) ||
-            !(pl->rd = reader_start(e->src, box)))
+            !(pl->rd = tvpal_readahead_start(read_for_reader,
+                                             (void *)e->src, box)))
             return tvpal_diag_set(diag, TVPAL_E_NOMEM, "two boxes of %llu "
                                   "bytes for the reader thread",
                                   (unsigned long long)box);
@@ -514,7 +354,7 @@ void tvpal_enc_source_free(struct tvpal_encoder *e)
     struct pull *pl = e->pull;
     if (!pl)
         return;
-    reader_stop(pl->rd);
+    tvpal_readahead_stop(pl->rd);
     for (unsigned i = 0; pl->scratch && i < pl->nthreads; i++)
         free(pl->scratch[i]);
     free(pl->scratch);
@@ -598,53 +438,6 @@ static void convert_row(void *arg, size_t k, unsigned tid)
             b->n[0], j->dst + at, b->lo[0] + nx * (y + ny * z), tid);
 }
 
-/* Waits, holding rd->mu, until the reader is idle, ticking meanwhile. */
-static void reader_wait_idle(struct tvpal_encoder *e, struct reader *rd)
-{
-    while (rd->busy || rd->want >= 0) {
-        struct timespec until;
-        clock_gettime(CLOCK_REALTIME, &until);
-        until.tv_sec += 1;
-        if (pthread_cond_timedwait(&rd->cv, &rd->mu, &until) != 0) {
-            pthread_mutex_unlock(&rd->mu);
-            tick(e);
-            pthread_mutex_lock(&rd->mu);
-        }
-    }
-}
-
-/* Box b of step t into pl->box through the reader (asked for now when it
- * was not read ahead), then the same box of step `next` asked for (-1:
- * none). */
-static int read_whole_box(struct tvpal_encoder *e, uint32_t t, int64_t next,
-                          const struct encode_box *b, struct tvpal_diag *diag)
-{
-    struct pull *pl = e->pull;
-    struct reader *rd = pl->rd;
-    pthread_mutex_lock(&rd->mu);
-    reader_wait_idle(e, rd);
-    if (rd->ready != (int64_t)t || memcmp(&rd->box, b, sizeof *b)) {
-        rd->box = *b;
-        rd->want = t;
-        pthread_cond_broadcast(&rd->cv);
-        reader_wait_idle(e, rd);
-    }
-    void *tmp = pl->box;
-    pl->box = rd->buf;
-    rd->buf = tmp;
-    const int rc = rd->rc;
-    if (rc < 0 && diag)
-        *diag = rd->d;
-    rd->ready = -1;
-    if (rc == 0 && next >= 0) {
-        rd->box = *b;
-        rd->want = next;
-        pthread_cond_broadcast(&rd->cv);
-    }
-    pthread_mutex_unlock(&rd->mu);
-    return rc;
-}
-
 /* Box b of step t of the source into dst, converted, counted into the
  * statistics when `stats`; `next`: the step to read ahead (-1: none).  A
  * refused value is named by its voxel. */
@@ -663,13 +456,14 @@ static int read_box(struct tvpal_encoder *e, uint32_t t, int64_t next,
     int rc = 0;
     if (e->src->concurrent) {
         const uint64_t row = (uint64_t)e->ep.dims[0] * pl->esize;
-        pl->rows = read_rows(row, b->n[1]);
+        pl->rows = tvpal_passes_read_rows(row, b->n[1]);
         j.pieces_per_plane = (b->n[1] + pl->rows - 1) / pl->rows;
         tvpal_pool_for(e->pool, j.pieces_per_plane * b->n[2], read_piece, &j);
         for (unsigned i = 0; i < nt && rc == 0; i++)
             if ((rc = pl->rc[i]) < 0 && diag)
                 *diag = pl->diag[i];
-    } else if ((rc = read_whole_box(e, t, next, b, diag)) == 0) {
+    } else if ((rc = tvpal_readahead_take(pl->rd, t, next, b, &pl->box,
+                                          engine_tick, e, diag)) == 0) {
         tvpal_pool_for(e->pool, (size_t)b->n[1] * b->n[2], convert_row, &j);
     }
     if (rc < 0)
@@ -883,7 +677,7 @@ int tvpal_encoder_encode(struct tvpal_encoder *e,
     /* The reader may be reading ahead: it stops before the call returns,
      * after which src is the caller's again. */
     if (e->pull) {
-        reader_stop(e->pull->rd);
+        tvpal_readahead_stop(e->pull->rd);
         e->pull->rd = NULL;
     }
     if (rc == 0) {
