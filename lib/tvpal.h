@@ -55,7 +55,7 @@ extern "C" {
  *         tvpal_reader_verify (what tvpal-info and tvpal-report need);
  *  0.3.0  encoding from a source in passes under a memory limit
  *         (tvpal_encoder_plan, tvpal_encoder_encode), integer scalars,
- *         TVPAL_E_CANCELED. */
+ *         TVPAL_E_CANCELED, tvpal_encoder_set_provenance. */
 #define TVPAL_VERSION_NUMBER                                                  \
     ((TVPAL_VERSION_MAJOR * 100 + TVPAL_VERSION_MINOR) * 100 +               \
      TVPAL_VERSION_RELEASE)
@@ -182,6 +182,32 @@ TVPAL_API int tvpal_encoder_set_units(struct tvpal_encoder *e,
 TVPAL_API int tvpal_encoder_set_missing(struct tvpal_encoder *e,
                                         const double *values, unsigned n,
                                         struct tvpal_diag *diag);
+
+/* Where the values came from, for the dataset's manifest (FORMAT.md 7),
+ * so that a tool can read them again (tvpal-report compares a dataset with
+ * its sources, tvpal-info shows them).  Strings are copied, one line
+ * each. */
+struct tvpal_provenance {
+    const char *encoder;      /* the program and its version, e.g.
+                               * "mysim 2.1"; NULL: "libtvpal VERSION" */
+    const char *format;       /* the sources' format: "raw", "netcdf",
+                               * "hdf5", "vti" or "vtk"; NULL: none */
+    const char *var;          /* the variable read, or NULL (raw) */
+    const char *const *sources;  /* nsources files, in the order of the */
+    uint32_t nsources;           /* steps (as given: relative or not) */
+    int single_file;          /* 1: one file holds every step */
+    int series;               /* 1: files of several steps each (else one
+                               * file per step) */
+};
+
+/* Records p in the manifest (since 0.3.0).  Before the first push or
+ * encode; 0, TVPAL_E_INVAL (an unknown format, a string of several lines,
+ * sources that do not fit the steps: one file, one per step, or a series)
+ * or TVPAL_E_NOMEM.  A raw source's type and byte order are those pushed
+ * or read (struct tvpal_source). */
+TVPAL_API int tvpal_encoder_set_provenance(struct tvpal_encoder *e,
+                                           const struct tvpal_provenance *p,
+                                           struct tvpal_diag *diag);
 
 /* ------------------------------------------------ encoding on many ranks
  *

@@ -386,6 +386,82 @@ int tvpal_encoder_set_missing(struct tvpal_encoder *e, const double *values,
     return 0;
 }
 
+/* A string the manifest can hold on one line. */
+static int one_line(const char *s, size_t cap)
+{
+    return !s || (strlen(s) < cap && !strpbrk(s, "\n\r"));
+}
+
+static void free_provenance(struct tvpal_encoder *e)
+{
+    for (uint32_t i = 0; i < e->prov_nsources; i++)
+        free(e->prov_sources[i]);
+    free(e->prov_sources);
+    free(e->prov_var);
+    e->prov_sources = NULL;
+    e->prov_var = NULL;
+    e->prov_nsources = 0;
+}
+
+/* Whether p's sources fit T steps: one file (of every step, or of one),
+ * one per step, or a series of files of several steps each. */
+static int sources_fit(const struct tvpal_provenance *p, uint32_t T)
+{
+    if (p->nsources == 0)
+        return !p->single_file && !p->series;
+    if (p->single_file)
+        return p->nsources == 1 && !p->series;
+    if (p->series)
+        return p->nsources > 1 && p->nsources < T;
+    return p->nsources == T;
+}
+
+int tvpal_encoder_set_provenance(struct tvpal_encoder *e,
+                                 const struct tvpal_provenance *p,
+                                 struct tvpal_diag *diag)
+{
+    static const char *const formats[] = {"raw", "netcdf", "hdf5", "vti",
+                                          "vtk"};
+    if (e->state != OPENED)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "provenance set after "
+                              "the first push");
+    int known = !p->format;
+    for (size_t i = 0; p->format && i < sizeof formats / sizeof *formats; i++)
+        known |= !strcmp(p->format, formats[i]);
+    if (!known)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "format \"%s\": raw, "
+                              "netcdf, hdf5, vti or vtk expected", p->format);
+    if (!one_line(p->encoder, sizeof e->prov_encoder) ||
+        !one_line(p->var, 4096))
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "encoder or var: one "
+                              "line expected");
+    if ((p->nsources && !p->sources) || !sources_fit(p, e->ep.steps))
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "%u sources%s for %u "
+                              "steps: one file of every step, one per step "
+                              "or a series of fewer expected", p->nsources,
+                              p->single_file ? " (single file)"
+                              : p->series ? " (series)" : "", e->ep.steps);
+    for (uint32_t i = 0; i < p->nsources; i++)
+        if (!p->sources[i] || !*p->sources[i] || !one_line(p->sources[i], 4096))
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "source %u: a path "
+                                  "of one line expected", i);
+    free_provenance(e);
+    if ((p->var && !(e->prov_var = strdup(p->var))) ||
+        (p->nsources &&
+         !(e->prov_sources = calloc(p->nsources, sizeof *e->prov_sources))))
+        return TVPAL_E_NOMEM;
+    for (uint32_t i = 0; i < p->nsources; i++, e->prov_nsources++)
+        if (!(e->prov_sources[i] = strdup(p->sources[i])))
+            return TVPAL_E_NOMEM;
+    snprintf(e->prov_encoder, sizeof e->prov_encoder, "%s",
+             p->encoder ? p->encoder : "");
+    snprintf(e->prov_format, sizeof e->prov_format, "%s",
+             p->format ? p->format : "");
+    e->prov_single_file = p->single_file;
+    e->prov_series = p->series;
+    return 0;
+}
+
 /* --------------------------------------------------------------- rounds */
 
 static int is_root(const struct tvpal_encoder *e)
@@ -1278,20 +1354,46 @@ int tvpal_encoder_resume(struct tvpal_encoder *e, enum tvpal_scalar type,
 
 /* --------------------------------------------------------------- finish */
 
+/* tvpal_encoder_set_provenance's into m (raw sources keep format "",
+ * which the manifest writes as raw). */
+static int add_provenance(const struct tvpal_encoder *e,
+                          struct tvpal_manifest *m)
+{
+    m->single_file = e->prov_single_file;
+    m->series = e->prov_series;
+    if (strcmp(e->prov_format, "raw"))
+        snprintf(m->source_format, sizeof m->source_format, "%s",
+                 e->prov_format);
+    if (e->prov_var && !(m->source_var = strdup(e->prov_var)))
+        return TVPAL_E_NOMEM;
+    for (uint32_t i = 0; i < e->prov_nsources; i++)
+        if (tvpal_manifest_add_source(m, e->prov_sources[i]) < 0)
+            return TVPAL_E_NOMEM;
+    return 0;
+}
+
 /* The manifest: the job's fields (tvpal_engine_manifest) and the grid;
  * source_format stays "" (raw): the values as host float32 or float64,
  * which tvpal-report --reference compares with raw files of them. */
 static int build_manifest(const struct tvpal_encoder *e, char **text)
 {
+    /* A raw source of one file of every step says so in the options line
+     * (tvpal-encode --steps T). */
+    const int raw = !strcmp(e->prov_format, "raw");
     const struct tvpal_engine_source src = {
-        .type = e->type, .nan_as = e->has_nan_as ? &e->nan_as : NULL,
+        .type = e->type, .big_endian = e->src && e->src->big_endian,
+        .steps_single = raw && e->prov_single_file ? e->ep.steps : 0,
+        .nan_as = e->has_nan_as ? &e->nan_as : NULL,
         .missing = e->missing, .nmissing = e->nmissing};
     struct tvpal_manifest m;
     int rc = tvpal_engine_manifest(&e->ep, &src, &e->st, e->times,
-                                   e->time_units, e->units, LIB_NAME, &m);
+                                   e->time_units, e->units,
+                                   e->prov_encoder[0] ? e->prov_encoder
+                                                      : LIB_NAME, &m);
     memcpy(m.spacing, e->spacing, sizeof m.spacing);
     memcpy(m.origin, e->origin, sizeof m.origin);
     m.levels = e->levels;
+    rc = rc == 0 ? add_provenance(e, &m) : rc;
     if (rc == 0)
         rc = tvpal_manifest_format(&m, text);
     tvpal_manifest_clear(&m);
@@ -1439,6 +1541,7 @@ static void release(struct tvpal_encoder *e)
         tvpal_lock_release(e->lock_path, e->lock_fd);
     free(e->lock_path);
     free(e->times);
+    free_provenance(e);
     free(e->partial);
     free(e->dir);
     free(e);

@@ -137,6 +137,13 @@ struct tvpal_encoder {
     struct pull *pull;
     int keep_partial;                /* release leaves DIR.partial (a
                                       * pulled encode that may continue) */
+    /* tvpal_encoder_set_provenance's, owned; encoder "" and no format
+     * when not set. */
+    char prov_encoder[128], prov_format[16];
+    char *prov_var;
+    char **prov_sources;
+    uint32_t prov_nsources;
+    int prov_single_file, prov_series;
 };
 
 /* The first push's setup, or a pulled encode's (e->src set): every rank's

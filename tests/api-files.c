@@ -98,6 +98,12 @@ static int encode_files(const char *out, struct files *f,
         {TVPAL_PARAM_THREADS, threads}, {TVPAL_PARAM_CHECKPOINT, checkpoint}};
     for (size_t k = 0; rc == 0 && k < sizeof set / sizeof *set; k++)
         rc = tvpal_encoder_set(e, set[k].p, set[k].v, &d);
+    /* Its files in the manifest: tvpal-report reads them again. */
+    const struct tvpal_provenance prov = {
+        .encoder = "api-files", .format = "raw",
+        .sources = (const char *const *)f->paths, .nsources = (uint32_t)f->n};
+    if (rc == 0)
+        rc = tvpal_encoder_set_provenance(e, &prov, &d);
     struct tvpal_plan p;
     if (rc == 0 && (rc = tvpal_encoder_plan(e, src, &p, &d)) == 0)
         printf("passes=%u passes_x=%u passes_y=%u passes_z=%u "

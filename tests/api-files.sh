@@ -55,6 +55,15 @@ for how in "" --whole; do
         fail "api-files $how: peak ${kb:-?} KiB over the limit $((LIM / 1024)) KiB"
     fi
 done
+# The files it recorded (tvpal_encoder_set_provenance) are read again by
+# tvpal-report, which finds tvpal-encode's PSNR.
+"$REP" "$W/api" > "$W/rep-api.txt" 2>&1 || fail "tvpal-report of the API's dataset: $(cat "$W/rep-api.txt")"
+"$REP" "$W/enc" > "$W/rep-enc.txt" 2>&1 || fail "tvpal-report of tvpal-encode's dataset"
+pa=$(sed -n 's/^psnr=\([0-9.]*\) .*/\1/p' "$W/rep-api.txt")
+pe=$(sed -n 's/^psnr=\([0-9.]*\) .*/\1/p' "$W/rep-enc.txt")
+grep -q "^encoder = api-files$" "$W/api/manifest.txt" && [ -n "$pa" ] && [ "$pa" = "$pe" ] &&
+    ok "tvpal-report reads the API's recorded sources: PSNR $pa dB, tvpal-encode's" ||
+    fail "tvpal-report: PSNR ${pa:-none} against tvpal-encode's ${pe:-none}"
 # A concurrent source's plan is tvpal-encode's raw plan: the same sums.
 for k in passes passes_x passes_y passes_z peak_bytes; do
     a=$(tr ' ' '\n' < "$W/plan.out" | sed -n "s/^$k=//p")

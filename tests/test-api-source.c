@@ -16,6 +16,10 @@
  *    after the checkpoint (the steps before are not read again) and the
  *    dataset is the uninterrupted one's, byte for byte; with another
  *    identity it starts over; without one nothing is kept;
+ *  - provenance (tvpal_encoder_set_provenance) read back through the
+ *    reader: the encoder, the format, variable and files, a raw source's
+ *    type and byte order; a format, a line or files that do not fit
+ *    refused;
  *  - a read that fails (its code and words come back, DIR.partial kept for
  *    a resume), an infinite value (named by its voxel, nothing kept), a
  *    second encode, a push after one, a collective, a source without read
@@ -485,6 +489,71 @@ static void test_stop_and_continue(void)
           "levels, continued: not the dataset of an encode without a stop");
 }
 
+/* Provenance: recorded in the manifest and read back; refused when it
+ * cannot be. */
+static void test_provenance(void)
+{
+    struct tvpal_diag d = {{0}};
+    struct tvpal_encoder *e = NULL;
+    const char *files[T] = {"/data/s0.f32", "/data/s1.f32", "/data/s2.f32",
+                            "/data/s3.f32", "/data/s4.f32", "/data/s5.f32",
+                            "/data/s6.f32", "/data/s7.f32", "/data/s8.f32"};
+    struct tvpal_provenance p = {.encoder = "mysim 2.1", .format = "netcdf",
+                                 .var = "theta", .sources = files,
+                                 .nsources = 1, .single_file = 1};
+    REQUIRE(open_job(&e, path("%s/prov%s", ""), &base, &d) == 0, "%s", d.msg);
+    const struct tvpal_provenance bad[] = {
+        {.format = "grib"}, {.var = "a\nb"},
+        {.sources = files, .nsources = 2},
+        {.sources = files, .nsources = T, .series = 1},
+        {.sources = files, .nsources = 2, .single_file = 1}};
+    for (unsigned i = 0; i < sizeof bad / sizeof *bad; i++)
+        CHECK(tvpal_encoder_set_provenance(e, &bad[i], &d) == TVPAL_E_INVAL &&
+                  d.msg[0], "provenance %u accepted", i);
+    CHECK(tvpal_encoder_set_provenance(e, &p, &d) == 0, "%s", d.msg);
+    struct src s = plain(TVPAL_FLOAT32);
+    struct tvpal_source so = source_of(&s, 1, NULL);
+    CHECK(tvpal_encoder_encode(e, &so, &d) == 0, "%s", d.msg);
+    CHECK(tvpal_encoder_set_provenance(e, &p, &d) == TVPAL_E_INVAL,
+          "provenance set after the encode");
+    CHECK(tvpal_encoder_finish(e, &d) == 0, "%s", d.msg);
+    struct tvpal_reader *r = NULL;
+    REQUIRE(tvpal_reader_open(&r, path("%s/prov%s", ""), &d) == 0, "%s",
+            d.msg);
+    const struct tvpal_info *in = tvpal_reader_info(r);
+    CHECK(!strcmp(in->encoder, "mysim 2.1") &&
+              !strcmp(in->source_format, "netcdf") &&
+              !strcmp(in->source_var, "theta") && in->nsources == 1 &&
+              !strcmp(in->sources[0], files[0]) && in->source_single_file,
+          "read back: encoder '%s' format '%s' var '%s' %u sources",
+          in->encoder, in->source_format, in->source_var, in->nsources);
+    tvpal_reader_close(r);
+    /* Raw, a file per step, uint16 big-endian: the manifest says so. */
+    p = (struct tvpal_provenance){.format = "raw", .sources = files,
+                                  .nsources = T};
+    s = plain(TVPAL_UINT16);
+    s.big = 1;
+    so = source_of(&s, 0, NULL);
+    struct job j = base;
+    j.axes = TVPAL_AXIS_Z;
+    REQUIRE(open_job(&e, path("%s/prov-raw%s", ""), &j, &d) == 0, "%s",
+            d.msg);
+    CHECK(tvpal_encoder_set_provenance(e, &p, &d) == 0 &&
+              tvpal_encoder_encode(e, &so, &d) == 0 &&
+              tvpal_encoder_finish(e, &d) == 0, "raw: %s", d.msg);
+    REQUIRE(tvpal_reader_open(&r, path("%s/prov-raw%s", ""), &d) == 0, "%s",
+            d.msg);
+    in = tvpal_reader_info(r);
+    CHECK(!strcmp(in->source_format, "raw") &&
+              !strcmp(in->source_type, "u16") && in->source_big_endian &&
+              in->nsources == T && !in->source_single_file &&
+              !strncmp(in->encoder, "libtvpal ", 9),
+          "raw read back: format '%s' type '%s' big %d, %u sources",
+          in->source_format, in->source_type, in->source_big_endian,
+          in->nsources);
+    tvpal_reader_close(r);
+}
+
 static void test_failures(void)
 {
     struct tvpal_diag d = {{0}};
@@ -579,6 +648,7 @@ int main(void)
     test_integers();
     test_levels();
     test_stop_and_continue();
+    test_provenance();
     test_failures();
     int rc = tt_done("test-api-source");
     if (rc == 0) {
