@@ -372,8 +372,11 @@ struct tvpal_progress {
                                * then `step`) */
     uint32_t step;            /* the step being read or encoded */
     int unit_end;             /* 1: a unit has just ended (its checkpoint
-                               * is saved when due); 0: a tick within a
-                               * long step or read, about once a second */
+                               * is saved when due); 0: a tick, once
+                               * before the first read (unit: where the
+                               * encode starts, 0 or the checkpoint's)
+                               * and at most 5 times a second within a
+                               * unit */
 };
 
 /* What a progress callback returns at the end of a unit (its return at a
@@ -421,8 +424,9 @@ struct tvpal_source {
     int (*read)(void *ctx, uint32_t step, const uint32_t lo[3],
                 const uint32_t n[3], void *dst, struct tvpal_diag *diag);
     /* Optional (may be NULL): where the encode stands, on the calling
-     * thread, at the end of every unit and about once a second within one;
-     * returns TVPAL_GO_ON or another of the answers above. */
+     * thread, before it starts, at the end of every unit and a few times
+     * a second within one; returns TVPAL_GO_ON or another of the answers
+     * above. */
     int (*progress)(void *ctx, const struct tvpal_progress *p);
 };
 
@@ -433,6 +437,9 @@ struct tvpal_plan {
                                * every axis from one read of each step) */
     uint64_t peak_bytes;      /* estimated bytes of the largest pass */
     uint64_t min_limit;       /* the smallest limit this job can have */
+    uint64_t ring_bytes;      /* what one pass over the whole volume
+                               * needs: N steps and the workspaces (the
+                               * reader thread's boxes aside) */
     uint64_t read_voxels;     /* voxels read over all passes and steps
                                * (the source's voxels * steps when one
                                * pass) */

@@ -185,8 +185,13 @@ int tvpal_encoder_plan(struct tvpal_encoder *e,
     e->src = src;
     struct encode_plan p;
     uint64_t limit;
-    rc = make_plan(e, thread_count(e), &p, &out->levels_inline, &limit,
-                   diag);
+    const unsigned nt = thread_count(e);
+    rc = make_plan(e, nt, &p, &out->levels_inline, &limit, diag);
+    const uint64_t nvox = (uint64_t)e->ep.dims[0] * e->ep.dims[1] *
+                          e->ep.dims[2];
+    out->ring_bytes = ring_slots(e) * nvox * sizeof(float) +
+                      tvpal_passes_fixed_bytes(eng, nt, scratch_bytes(e),
+                                               src->held_bytes);
     e->eng = NULL;
     e->src = NULL;
     tvpal_engine_free(eng);
@@ -670,6 +675,7 @@ int tvpal_encoder_encode(struct tvpal_encoder *e,
             .passes = pl->plan.npasses, .unit = pl->start};
         pl->work = pl->pr.work = work_before(e, pl->start);
         tvpal_engine_set_progress(e->eng, &pl->work, engine_tick, e);
+        tick(e); /* where it starts, before any read */
         rc = encode_passes(e, &d);
     }
     if (rc == 0 && e->levels && !e->pull->levels_inline)

@@ -107,10 +107,12 @@ static int encode_files(const char *out, struct files *f,
     struct tvpal_plan p;
     if (rc == 0 && (rc = tvpal_encoder_plan(e, src, &p, &d)) == 0)
         printf("passes=%u passes_x=%u passes_y=%u passes_z=%u "
-               "peak_bytes=%llu read_voxels=%llu levels_inline=%d\n",
+               "peak_bytes=%llu read_voxels=%llu levels_inline=%d "
+               "ring_bytes=%llu\n",
                p.passes, p.passes_axis[0], p.passes_axis[1],
                p.passes_axis[2], (unsigned long long)p.peak_bytes,
-               (unsigned long long)p.read_voxels, p.levels_inline);
+               (unsigned long long)p.read_voxels, p.levels_inline,
+               (unsigned long long)p.ring_bytes);
     if (rc < 0 || plan_only) {
         tvpal_encoder_abort(e);
         return rc < 0 ? fail("plan", rc, &d) : 0;

@@ -34,8 +34,8 @@ shards_same() {
 
 "$ENC" --axes xyz --dry-run -j 1 --mem-limit $LIM --dims $D --window 4 -o "$W/enc" "$@" \
     > "$W/dry.out" || fail "tvpal-encode --dry-run"
-"$ENC" --axes xyz -q -j 1 --mem-limit $LIM --dims $D --window 4 -o "$W/enc" "$@" \
-    > "$W/enc.out" || fail "tvpal-encode under $LIM"
+"$ENC" --axes xyz -j 1 --mem-limit $LIM --dims $D --window 4 -o "$W/enc" "$@" \
+    > "$W/enc.out" 2> "$W/enc.err" || fail "tvpal-encode under $LIM"
 for how in "" --whole; do
     "$API" $how --plan --axes 7 --threads 1 --mem-limit $LIM --dims $D --window 4 \
         -o "$W/api$how" "$@" > "$W/plan$how.out" 2>&1 || fail "plan $how: $(cat "$W/plan$how.out")"
@@ -74,6 +74,11 @@ rv=$(tr ' ' '\n' < "$W/plan.out" | sed -n 's/^read_voxels=//p')
 rb=$(tr ' ' '\n' < "$W/dry.out" | sed -n 's/^read_bytes=//p')
 [ "$((rv * 4))" = "$rb" ] && ok "plan: tvpal-encode's ($(cat "$W/plan.out"))" ||
     fail "plan: read_voxels $rv, tvpal-encode reads $rb bytes"
+# The ring of one pass, as tvpal-encode's plan line words it.
+ring=$(tr ' ' '\n' < "$W/plan.out" | sed -n 's/^ring_bytes=//p')
+mib=$(awk -v b="$ring" 'BEGIN { printf "%.1f MiB", b / 1048576 }')
+grep -q "would need $mib," "$W/enc.err" && ok "one pass would need $mib, as tvpal-encode says" ||
+    fail "ring_bytes $ring ($mib): tvpal-encode says $(cat "$W/enc.err")"
 
 # Levels after level 0 (the plan cannot hold them beside its passes),
 # under the smallest limit tvpal-encode takes for them, plus 1 MiB.

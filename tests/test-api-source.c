@@ -320,6 +320,8 @@ static void test_same_as_pushed(void)
               tvpal_strerror(rc), d.msg);
         CHECK(same_dataset(path("%s/pushed%s", ""), dir, 0, 7),
               "one pass, concurrent %d: not the pushed dataset", conc);
+        CHECK(s.first_unit == 0 && s.ticks >= 1,
+              "no progress call before the first read");
         CHECK(s.reads == (conc ? NZ * T : T) && s.ends == T,
               "one pass, concurrent %d: %u reads, %u unit ends; %u, %u "
               "expected", conc, s.reads, s.ends, conc ? NZ * T : T, T);
