@@ -263,8 +263,9 @@ TVPAL_API void tvpal_slab(uint32_t nz, uint32_t size, uint32_t rank,
  * (TVPAL_PARAM_NODES becomes c->size).  *c is copied; c->ctx must stay
  * valid until c->release is called (once: when e is released, or before
  * this call returns if it refuses c), or, without release, until e is
- * released.  Only TVPAL_AXIS_Z may be encoded (x and y slices cross the
- * slabs).  0 or TVPAL_E_INVAL (diag says what: a size or rank out of
+ * released.  Ranks that push may encode only TVPAL_AXIS_Z (x and y slices
+ * cross the slabs); ranks that encode from a source (tvpal_encoder_encode)
+ * any axes.  0 or TVPAL_E_INVAL (diag says what: a size or rank out of
  * range, a missing operation; or a slab that is not the rank's, which the
  * encoder keeps all the same, so that its first push or its abort makes
  * every rank fail rather than wait) or TVPAL_E_NOMEM. */
@@ -356,7 +357,11 @@ TVPAL_API void tvpal_encoder_abort(struct tvpal_encoder *e);
  * the plan is one pass; otherwise after level 0, from the source read
  * again in slabs of planes.  The dataset is byte-identical to one pushed
  * from the same values, and to tvpal-encode's from the same files (which
- * reads through this call).  One process: not with a collective. */
+ * reads through this call).  With a collective (every rank calls it,
+ * with the whole source), each rank reads what its node shard of every
+ * axis needs, in passes per axis over its slabs, and rank 0 makes the
+ * levels after level 0: the dataset is one process's with
+ * TVPAL_PARAM_NODES set to the ranks. */
 
 /* Where an encode from a source stands, for its progress callback. */
 struct tvpal_progress {

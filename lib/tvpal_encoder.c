@@ -477,8 +477,10 @@ static int tell(struct tvpal_encoder *e, struct verdict *v)
         snprintf(v->msg, sizeof v->msg, "rank %d: the collective's bcast "
                  "failed", e->coll.rank);
     }
-    if (v->code < 0)
+    if (v->code < 0) {
         e->decided = 1;
+        e->decided_code = v->code;
+    }
     return v->code;
 }
 
@@ -584,10 +586,11 @@ static int check_job(const struct tvpal_encoder *e, struct tvpal_diag *diag)
 {
     if (e->own_rc)
         return tvpal_diag_set(diag, e->own_rc, "%s", e->own_msg);
-    if (e->coll.size > 1 && e->ep.axes != TVPAL_AXIS_Z)
+    if (e->coll.size > 1 && e->ep.axes != TVPAL_AXIS_Z && !e->src)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "axes mask %u with %d "
-                              "ranks: only TVPAL_AXIS_Z (the x and y "
-                              "slices cross the ranks' slabs)", e->ep.axes,
+                              "ranks pushing: only TVPAL_AXIS_Z (the x and "
+                              "y slices cross the ranks' slabs; an encode "
+                              "from a source reads them)", e->ep.axes,
                               e->coll.size);
     if (e->coll.size > 1 && e->ep.nodes != (uint32_t)e->coll.size)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "nodes %u with %d ranks: "
@@ -728,7 +731,7 @@ static int setup(struct tvpal_encoder *e, struct tvpal_diag *diag)
     int rc;
     if ((rc = tvpal_engine_create(&e->eng, &e->ep)) < 0)
         return tvpal_diag_set(diag, rc, "the encoding parameters");
-    if (e->levels && e->coll.size > 1)
+    if (e->levels && e->coll.size > 1 && !e->src)
         e->xbytes = x_bytes(e);
     const unsigned nt = e->threads ? e->threads
                                    : tvpal_pool_default_threads();
@@ -1516,6 +1519,10 @@ static void release(struct tvpal_encoder *e)
     tvpal_enc_source_free(e);  /* its reader thread first */
     tvpal_engine_free(e->eng);
     tvpal_pool_free(e->pool);
+    /* A source's job whose failure may pass (on any rank) is continued
+     * from DIR.partial by the next encode of the same identity. */
+    if (e->keep_identity && tvpal_enc_failure_may_pass(e->decided_code))
+        e->keep_partial = 1;
     if (e->made_partial && !e->keep_partial)
         tvpal_rmtree(e->partial);
     for (unsigned i = 0; i < nt; i++) {

@@ -137,6 +137,10 @@ struct tvpal_encoder {
     struct pull *pull;
     int keep_partial;                /* release leaves DIR.partial (a
                                       * pulled encode that may continue) */
+    int keep_identity;               /* a pulled encode with an identity:
+                                      * a failure that may pass keeps
+                                      * DIR.partial */
+    int decided_code;                /* the failure a round decided */
     /* tvpal_encoder_set_provenance's, owned; encoder "" and no format
      * when not set. */
     char prov_encoder[128], prov_format[16];
@@ -169,6 +173,11 @@ int tvpal_enc_open_level(struct tvpal_encoder *e, uint32_t k, int resume,
  * encode's units) in this rank's directory. */
 int tvpal_enc_save_checkpoint(struct tvpal_encoder *e, uint64_t unit,
                               struct tvpal_diag *diag);
+
+/* Whether a pulled encode that failed with code may be continued by the
+ * next (stopped, a read, a write, the system, memory): DIR.partial is
+ * kept for it. */
+int tvpal_enc_failure_may_pass(int code);
 
 /* The library's type of a public scalar type. */
 enum tvpal_type tvpal_enc_scalar_type(enum tvpal_scalar s);

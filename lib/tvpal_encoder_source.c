@@ -101,9 +101,17 @@ static int make_plan(const struct tvpal_encoder *e, unsigned nt,
         .box_bytes_per_voxel = (uint32_t)(4 * ring_slots(e) +
                                           (e->src->concurrent ? 0
                                                               : 2 * esize))};
+    /* A rank of a collective encodes its node's slabs of every axis, in
+     * passes per axis; rank 0 makes the levels after level 0. */
+    const int ranks = e->coll.size > 1;
+    j.split = ranks;
+    for (unsigned a = 0; ranks && a < 3; a++)
+        tvpal_slab_range(d[a], e->ep.nodes, e->ep.node_first, &j.slab_lo[a],
+                         &j.slab_n[a]);
+    const unsigned levels = e->coll.rank == 0 ? e->levels : 0;
     *levels_inline = 0;
     memset(plan, 0, sizeof *plan);
-    if (e->levels) {
+    if (levels && !ranks) {
         /* The levels beside level 0's one pass, when that fits: each step
          * is then read once. */
         struct encode_job jl = j;
@@ -124,7 +132,7 @@ static int make_plan(const struct tvpal_encoder *e, unsigned nt,
                               (unsigned long long)*limit, d[0], d[1], d[2],
                               e->ep.window, nt, nt == 1 ? "" : "s",
                               (unsigned long long)plan->min_limit);
-    if (rc < 0 || !e->levels || *levels_inline)
+    if (rc < 0 || !levels || *levels_inline)
         return rc;
     /* After level 0, with its ring freed, the levels are encoded in one
      * pass each; with level 0's fixed bytes they must fit. */
@@ -160,9 +168,6 @@ static int check_source(const struct tvpal_encoder *e,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "source type %d: a "
                               "TVPAL_FLOAT32 .. TVPAL_INT16 expected",
                               (int)src->type);
-    if (e->coll.size > 1)
-        return tvpal_diag_set(diag, TVPAL_E_INVAL, "an encode from a source "
-                              "in a collective: each rank pushes its slab");
     if (e->state != OPENED)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "an encode from a source "
                               "after a push or another encode");
@@ -275,8 +280,9 @@ static int make_fingerprint(struct tvpal_encoder *e)
     char opts[1024], key[96], *params = NULL;
     tvpal_engine_options_line(&e->ep, &src, opts, sizeof opts);
     encode_plan_key(&e->pull->plan, key, sizeof key);
-    if (asprintf(&params, "libtvpal source %s %s levels=%u identity=%s",
-                 opts, key, e->levels, e->src->identity) < 0)
+    if (asprintf(&params, "libtvpal source %s %s levels=%u rank=%d/%d "
+                 "identity=%s", opts, key, e->levels, e->coll.rank,
+                 e->coll.size, e->src->identity) < 0)
         return TVPAL_E_NOMEM;
     int rc = tvpal_checkpoint_fingerprint(params, NULL, 0, 0, &e->fp);
     free(params);
@@ -336,16 +342,18 @@ int tvpal_enc_source_ready(struct tvpal_encoder *e, struct tvpal_diag *diag)
     if (e->src->identity)
         pl->start = load_checkpoint(e);
     e->done_local = pl->start;
-    /* A partial output that is not continued goes whole (an earlier job's
-     * node directories and levels with it). */
+    /* A partial output that is not continued goes: whole in one process
+     * (an earlier job's node directories and levels with it), a rank's own
+     * node directory under a collective (the others are theirs). */
+    const char *stale = e->coll.size > 1 ? e->ckdir : e->partial;
     int rc = 0;
     if (!pl->start && e->resuming &&
-        (tvpal_rmtree(e->partial) < 0 ||
-         (rc = tvpal_mkdirs(e->partial, diag)) < 0))
+        (tvpal_rmtree(stale) < 0 ||
+         (e->coll.size == 1 && (rc = tvpal_mkdirs(stale, diag)) < 0)))
         return rc < 0 ? rc
                       : tvpal_diag_set(diag, TVPAL_E_SYS, "%s: cannot remove "
                                        "the partial output of an earlier "
-                                       "job", e->partial);
+                                       "job", stale);
     return 0;
 }
 
@@ -656,6 +664,13 @@ static int levels_after(struct tvpal_encoder *e, struct tvpal_diag *diag)
     return rc;
 }
 
+int tvpal_enc_failure_may_pass(int code)
+{
+    return code == TVPAL_E_CANCELED || code == TVPAL_E_OPEN ||
+           code == TVPAL_E_READ || code == TVPAL_E_WRITE ||
+           code == TVPAL_E_SYS || code == TVPAL_E_NOMEM;
+}
+
 int tvpal_encoder_encode(struct tvpal_encoder *e,
                          const struct tvpal_source *src,
                          struct tvpal_diag *diag)
@@ -665,7 +680,7 @@ int tvpal_encoder_encode(struct tvpal_encoder *e,
         return rc;
     struct tvpal_diag d = {{0}};
     e->src = src;
-    e->resuming = src->identity != NULL;
+    e->resuming = e->keep_identity = src->identity != NULL;
     e->state = STARTED;
     rc = tvpal_enc_start(e, source_type(src->type), &d);
     if (rc == 0) {
@@ -678,7 +693,7 @@ int tvpal_encoder_encode(struct tvpal_encoder *e,
         tick(e); /* where it starts, before any read */
         rc = encode_passes(e, &d);
     }
-    if (rc == 0 && e->levels && !e->pull->levels_inline)
+    if (rc == 0 && e->levels && !e->pull->levels_inline && e->coll.rank == 0)
         rc = levels_after(e, &d);
     /* The reader may be reading ahead: it stops before the call returns,
      * after which src is the caller's again. */
@@ -695,10 +710,7 @@ int tvpal_encoder_encode(struct tvpal_encoder *e,
     memcpy(e->own_msg, d.msg, sizeof d.msg);
     /* A failure that may pass keeps DIR.partial for an encode of the same
      * identity to continue (tvpal_encoder_abort leaves it). */
-    if (src->identity &&
-        (rc == TVPAL_E_CANCELED || rc == TVPAL_E_OPEN ||
-         rc == TVPAL_E_READ || rc == TVPAL_E_WRITE || rc == TVPAL_E_SYS ||
-         rc == TVPAL_E_NOMEM))
+    if (src->identity && tvpal_enc_failure_may_pass(rc))
         e->keep_partial = 1;
     if (diag)
         *diag = d;

@@ -10,9 +10,17 @@
  * --plan prints tvpal_encoder_plan's figures as key=value and exits;
  * --stop-after U stops after unit U (TVPAL_SAVE_AND_STOP) and exits 3,
  * leaving OUT.partial for a rerun, which continues (the identity is the
- * files' names and sizes). */
+ * files' names and sizes).  Built with -DAPI_FILES_MPI (tests/api-mpi.sh)
+ * and run under mpirun, every rank reads the files and writes its node
+ * shard of every axis (tvpal_encoder_set_mpi), as tvpal-encode --nodes
+ * does. */
 #define _GNU_SOURCE
 #include "tvpal.h"
+#ifdef API_FILES_MPI
+#include <mpi.h>
+
+#include "tvpal_mpi.h"
+#endif
 
 #include <errno.h>
 #include <fcntl.h>
@@ -104,6 +112,15 @@ static int encode_files(const char *out, struct files *f,
         .sources = (const char *const *)f->paths, .nsources = (uint32_t)f->n};
     if (rc == 0)
         rc = tvpal_encoder_set_provenance(e, &prov, &d);
+#ifdef API_FILES_MPI
+    int rank = 0, size = 1;
+    uint32_t z0, nz;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    tvpal_slab(f->dims[2], (uint32_t)size, (uint32_t)rank, &z0, &nz);
+    if (rc == 0)
+        rc = tvpal_encoder_set_mpi(e, MPI_COMM_WORLD, z0, nz, &d);
+#endif
     struct tvpal_plan p;
     if (rc == 0 && (rc = tvpal_encoder_plan(e, src, &p, &d)) == 0)
         printf("passes=%u passes_x=%u passes_y=%u passes_z=%u "
@@ -194,9 +211,15 @@ int main(int argc, char **argv)
                  size);
     }
     src.identity = id;
+#ifdef API_FILES_MPI
+    MPI_Init(&argc, &argv);
+#endif
     int status = encode_files(out, &f, &src, plan_only, window, axes, limit,
                               levels, threads, checkpoint);
     free(id);
+#ifdef API_FILES_MPI
+    MPI_Finalize();
+#endif
     return status;
 }
 

@@ -13,7 +13,9 @@
 # rank's part: level 1 is tvpal-encode's of the dumps.  A bad value on one
 # rank fails every rank with that
 # rank's message, and an output that exists every rank with rank 0's;
-# neither hangs or leaves anything that looks complete.
+# neither hangs or leaves anything that looks complete.  The encode from
+# files (tests/api-files.c) on 3 ranks writes tvpal-encode --nodes 3 --axes
+# xyz --levels 1's shards.
 . "$(dirname "$0")/lib.sh"
 "$ENC" --version | grep -q "mpi: yes" ||
     { echo "built without MPI (libopenmpi-dev): skipped"; exit 77; }
@@ -127,6 +129,31 @@ n=$(grep -c "rank 1: step 9: an infinite value at voxel (0,0,10)" "$W/bad.txt")
     { cat "$W/bad.txt"; fail "bad value on rank 1: exit $rc, $n ranks told"; }
 [ ! -e "$W/bad.ds" ] && [ ! -e "$W/bad.ds.partial" ] && [ ! -e "$W/bad.ds.partial.lock" ] &&
     ok "a bad value on rank 1: nothing left" || fail "bad value: left $(ls -d "$W"/bad.ds*)"
+# An encode from files under mpirun (tests/api-files.c, -DAPI_FILES_MPI):
+# every rank reads the files and writes its node shard of x, y and z, and
+# rank 0 the levels, after level 0: tvpal-encode --nodes 3 --axes xyz
+# --levels 1's shards, byte for byte, with and without a memory limit.
+# shellcheck disable=SC2046,SC2086
+$CC ${TVPAL_CFLAGS:-} -DAPI_FILES_MPI $(pkg-config --cflags ompi-c tvpal) \
+    "$TVPAL_SRCDIR/tests/api-files.c" -o "$W/files-mpi" ${TVPAL_LDFLAGS:-} \
+    $(pkg-config --libs ompi-c tvpal) 2> "$W/ccf.txt" ||
+    { cat "$W/ccf.txt"; fail "api-files -DAPI_FILES_MPI does not build"; }
+"$ENC" -q --dims $D --window 4 --nodes 3 --axes xyz --levels 1 -o "$W/fenc.ds" "$W"/r0/heat_t*.f32 \
+    > /dev/null || fail "tvpal-encode --nodes 3 --axes xyz --levels 1"
+for lim in 0 20500000; do
+    # shellcheck disable=SC2086
+    $MPI -np 3 "$W/files-mpi" --dims $D --window 4 --axes 7 --levels 1 --threads 1 \
+        --mem-limit $lim -o "$W/files-$lim.ds" "$W"/r0/heat_t*.f32 > "$W/files-$lim.txt" 2>&1 ||
+        { cat "$W/files-$lim.txt"; fail "mpirun -np 3 api-files (limit $lim)"; continue; }
+    same=1
+    for f in $(cd "$W/fenc.ds" && find . -name '*.tvps'); do
+        cmp -s "$W/fenc.ds/$f" "$W/files-$lim.ds/$f" || { same=0; fail "limit $lim: $f differs"; }
+    done
+    n=$(cd "$W/files-$lim.ds" && find . -name '*.tvps' | wc -l)
+    [ $same = 1 ] && [ "$n" = 18 ] &&
+        ok "3 ranks encode from files (limit $lim, $(sed -n 's/^passes=\([0-9]*\).*/\1/p' "$W/files-$lim.txt" | sort -u | tr '\n' ' ')passes): tvpal-encode --nodes 3 --axes xyz --levels 1's $n shards" ||
+        fail "limit $lim: $n shards"
+done
 # Levels under a collective: rank 0 makes level 1 from every rank's part
 # (28 planes in slabs 10, 9, 9: a block split between ranks 1 and 2) and
 # encodes every node's levels; level 1 is tvpal-encode --nodes 3

@@ -20,6 +20,11 @@
  *    reader: the encoder, the format, variable and files, a raw source's
  *    type and byte order; a format, a line or files that do not fit
  *    refused;
+ *  - ranks of a collective (threads here) that each read the whole
+ *    source write the dataset of one process with --nodes, every axis and
+ *    the levels (rank 0's, after level 0), with and without a memory
+ *    limit; a rank whose read fails fails every rank's finish with its
+ *    words, and nothing is left;
  *  - a read that fails (its code and words come back, DIR.partial kept for
  *    a resume), an infinite value (named by its voxel, nothing kept), a
  *    second encode, a push after one, a collective, a source without read
@@ -27,6 +32,7 @@
 #define _GNU_SOURCE
 #include "tvpal.h"
 #include "tvpal_test.h"
+#include "tt_ranks.h"
 
 #include <math.h>
 #include <pthread.h>
@@ -186,6 +192,7 @@ static struct src plain(enum tvpal_scalar type)
 struct job {
     unsigned window, levels, axes;
     uint64_t limit;
+    unsigned nodes;          /* 0: 1 (a collective sets its own) */
 };
 
 static int open_job(struct tvpal_encoder **out, const char *dir,
@@ -203,6 +210,8 @@ static int open_job(struct tvpal_encoder **out, const char *dir,
         (rc = tvpal_encoder_set(e, TVPAL_PARAM_MEM_LIMIT, (double)j->limit,
                                 d)) < 0 ||
         (rc = tvpal_encoder_set(e, TVPAL_PARAM_THREADS, 2, d)) < 0 ||
+        (j->nodes && (rc = tvpal_encoder_set(e, TVPAL_PARAM_NODES, j->nodes,
+                                             d)) < 0) ||
         (rc = tvpal_encoder_set_grid(e, sp, or, d)) < 0 ||
         (rc = tvpal_encoder_set_units(e, "K", d)) < 0) {
         tvpal_encoder_abort(e);
@@ -640,6 +649,117 @@ static void test_failures(void)
     tvpal_encoder_abort(e);
 }
 
+/* ----------------------------------------------------------- ranks */
+
+#define RANKS 3  /* NZ = 11: slabs of 4, 4, 3 planes */
+
+struct rank_run {
+    struct tt_member m;
+    const char *dir;
+    struct job j;
+    int concurrent;
+    int fail_step;           /* this rank's read of it fails (-1: none) */
+    int encode_rc, finish_rc;
+    struct tvpal_diag d;
+};
+
+/* One rank: its encoder on the collective, the whole source, finish (or
+ * abort when its encode failed). */
+static void *rank_encode(void *arg)
+{
+    struct rank_run *r = arg;
+    struct tvpal_encoder *e = NULL;
+    const struct tvpal_collective c = {r->m.rank, RANKS, &r->m, tt_gather,
+                                       tt_bcast, NULL};
+    uint32_t z0, nz;
+    tvpal_slab(NZ, RANKS, (uint32_t)r->m.rank, &z0, &nz);
+    r->encode_rc = r->finish_rc = TVPAL_E_INVAL;
+    if (open_job(&e, r->dir, &r->j, &r->d) < 0)
+        return NULL;
+    if (tvpal_encoder_set_collective(e, &c, z0, nz, &r->d) < 0) {
+        tvpal_encoder_abort(e);
+        return NULL;
+    }
+    struct src s = plain(TVPAL_FLOAT32);
+    s.fail_step = r->fail_step;
+    const struct tvpal_source so = source_of(&s, r->concurrent, NULL);
+    r->encode_rc = tvpal_encoder_encode(e, &so, &r->d);
+    if (r->encode_rc < 0) {
+        tvpal_encoder_abort(e);
+        return NULL;
+    }
+    r->finish_rc = tvpal_encoder_finish(e, &r->d);
+    return NULL;
+}
+
+/* RANKS ranks of job j into dir; rank `who` fails its reads of step 4. */
+static void run_ranks(struct rank_run *runs, const char *dir,
+                      const struct job *j, int concurrent, int who)
+{
+    struct tt_group g;
+    tt_group_init(&g, RANKS);
+    pthread_t th[RANKS];
+    for (int k = 0; k < RANKS; k++) {
+        runs[k] = (struct rank_run){.m = {&g, k}, .dir = dir, .j = *j,
+                                    .concurrent = concurrent,
+                                    .fail_step = k == who ? 4 : -1};
+        pthread_create(&th[k], NULL, rank_encode, &runs[k]);
+    }
+    for (int k = 0; k < RANKS; k++)
+        pthread_join(th[k], NULL);
+    pthread_barrier_destroy(&g.bar);
+}
+
+static void test_ranks(void)
+{
+    struct tvpal_diag d = {{0}};
+    struct job j = base;
+    j.levels = 2;
+    j.nodes = RANKS;
+    const char *one = path("%s/ranks-one%s", "");
+    int rc = push_all(one, &j, TVPAL_FLOAT32, &d);
+    REQUIRE(rc == 0, "push with %d nodes: %s", RANKS, d.msg);
+    struct rank_run runs[RANKS];
+    struct tvpal_plan p1, p2;
+    struct job jr = j;
+    jr.nodes = 0;
+    for (int conc = 0; conc < 2; conc++) {
+        /* Under a limit that holds level 0 and then the levels, not the
+         * levels beside level 0 (a rank's passes are per axis anyway). */
+        struct job jl = base;
+        jl.levels = 2;
+        jr.limit = conc ? 0 : limit_below(&jl, 0, 0.25, &p1, &p2);
+        char *dir = path(conc ? "%s/ranks-c%s" : "%s/ranks-limit%s", "");
+        run_ranks(runs, dir, &jr, conc, -1);
+        for (int k = 0; k < RANKS; k++)
+            CHECK(runs[k].encode_rc == 0 && runs[k].finish_rc == 0,
+                  "rank %d (concurrent %d, limit %llu): %s %s", k, conc,
+                  (unsigned long long)jr.limit,
+                  tvpal_strerror(runs[k].encode_rc ? runs[k].encode_rc
+                                                   : runs[k].finish_rc),
+                  runs[k].d.msg);
+        char cmd[1300];
+        snprintf(cmd, sizeof cmd, "diff -r %s %s > /dev/null", one, dir);
+        CHECK(system(cmd) == 0, "%d ranks, axes xyz, 2 levels (concurrent "
+              "%d, limit %llu): not one process's --nodes %d dataset",
+              RANKS, conc, (unsigned long long)jr.limit, RANKS);
+    }
+    /* A rank's read fails: its encode says so, every rank's finish fails
+     * with its words, nothing is left. */
+    char *dir = path("%s/ranks-fail%s", "");
+    jr.limit = 0;
+    run_ranks(runs, dir, &jr, 1, 1);
+    CHECK(runs[1].encode_rc == TVPAL_E_READ, "rank 1: %s %s",
+          tvpal_strerror(runs[1].encode_rc), runs[1].d.msg);
+    for (int k = 0; k < RANKS; k += 2)
+        CHECK(runs[k].encode_rc == 0 && runs[k].finish_rc == TVPAL_E_READ &&
+                  strstr(runs[k].d.msg, "rank 1: series.raw: step 4"),
+              "rank %d after rank 1's failed read: %s %s", k,
+              tvpal_strerror(runs[k].finish_rc), runs[k].d.msg);
+    CHECK(!exists(dir) && !exists(path("%s/ranks-fail%s", ".partial")),
+          "a failed rank left output");
+}
+
 int main(void)
 {
     char cmd[600];
@@ -651,6 +771,7 @@ int main(void)
     test_levels();
     test_stop_and_continue();
     test_provenance();
+    test_ranks();
     test_failures();
     int rc = tt_done("test-api-source");
     if (rc == 0) {

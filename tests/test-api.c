@@ -24,6 +24,7 @@
 #define _GNU_SOURCE   /* nftw */
 #include "tvpal.h"
 #include "tvpal_test.h"
+#include "tt_ranks.h"
 
 #include <ftw.h>
 #include <pthread.h>
@@ -373,42 +374,9 @@ static void test_output_rules(void)
  * gather or bcast is a barrier, the copies, a barrier. */
 #define RANKS 4  /* NZ = 6: slabs of 2, 2, 1, 1 planes */
 
-struct group {
-    pthread_barrier_t bar;
-    const void *send[RANKS];
-};
-struct member {
-    struct group *g;
-    int rank;
-};
-
-static int fake_gather(void *ctx, const void *send, size_t bytes, void *recv)
-{
-    struct member *m = ctx;
-    m->g->send[m->rank] = send;
-    pthread_barrier_wait(&m->g->bar);
-    if (m->rank == 0)
-        for (int k = 0; k < RANKS; k++)
-            memcpy((char *)recv + k * bytes, m->g->send[k], bytes);
-    pthread_barrier_wait(&m->g->bar);
-    return 0;
-}
-
-static int fake_bcast(void *ctx, void *buf, size_t bytes)
-{
-    struct member *m = ctx;
-    if (m->rank == 0)
-        m->g->send[0] = buf;
-    pthread_barrier_wait(&m->g->bar);
-    if (m->rank != 0)
-        memcpy(buf, m->g->send[0], bytes);
-    pthread_barrier_wait(&m->g->bar);
-    return 0;
-}
-
 /* What a rank does, and what came of it. */
 struct rank_job {
-    struct member m;
+    struct tt_member m;
     const char *dir;
     uint32_t nz;             /* the series' planes (NX x NY x nz) */
     unsigned levels;         /* TVPAL_PARAM_LEVELS */
@@ -433,8 +401,8 @@ static void *rank_main(void *arg)
     struct rank_job *j = arg;
     struct tvpal_encoder *e = NULL;
     struct tvpal_diag *d = &j->d;
-    const struct tvpal_collective c = {j->m.rank, RANKS, &j->m, fake_gather,
-                                       fake_bcast, NULL};
+    const struct tvpal_collective c = {j->m.rank, RANKS, &j->m, tt_gather,
+                                       tt_bcast, NULL};
     uint32_t z0, nz;
     const uint32_t dj[3] = {NX, NY, j->nz};
     tvpal_slab(j->nz, RANKS, (uint32_t)j->m.rank + (j->wrong_slab ? 1 : 0),
@@ -486,8 +454,8 @@ static void *rank_main(void *arg)
 static void run_ranks_of(struct rank_job *jobs, const char *dir, int who,
                          const char *how, uint32_t nz, unsigned levels)
 {
-    struct group g;
-    pthread_barrier_init(&g.bar, NULL, RANKS);
+    struct tt_group g;
+    tt_group_init(&g, RANKS);
     pthread_t th[RANKS];
     for (int k = 0; k < RANKS; k++) {
         jobs[k] = (struct rank_job){.m = {&g, k}, .dir = dir, .nz = nz,
@@ -622,10 +590,10 @@ static void test_collective(void)
      * slices across the slabs. */
     REQUIRE(tvpal_encoder_open(&e, path("%s/c%s", ""), dims, T, &d) == 0,
             "open");
-    struct tvpal_collective c = {0, 2, NULL, fake_gather, NULL, NULL};
+    struct tvpal_collective c = {0, 2, NULL, tt_gather, NULL, NULL};
     CHECK(tvpal_encoder_set_collective(e, &c, 0, 3, &d) == TVPAL_E_INVAL,
           "a collective without bcast");
-    c.bcast = fake_bcast, c.rank = 2;
+    c.bcast = tt_bcast, c.rank = 2;
     CHECK(tvpal_encoder_set_collective(e, &c, 0, 3, &d) == TVPAL_E_INVAL &&
               strstr(d.msg, "rank 2 of 2"), "rank 2 of 2: %s", d.msg);
     tvpal_encoder_abort(e);
