@@ -17,9 +17,7 @@
 #define _GNU_SOURCE
 #include "tvpal.h"
 #ifdef API_FILES_MPI
-#include <mpi.h>
-
-#include "tvpal_mpi.h"
+#include "tvpal_mpi.h" /* and MPI's header */
 #endif
 
 #include <errno.h>
