@@ -333,8 +333,8 @@ TVPAL_API int tvpal_encoder_resume(struct tvpal_encoder *e,
  * to DIR (replacing an older DIR with TVPAL_PARAM_FORCE).  Releases e,
  * whatever the result; on failure nothing at DIR looks complete (an older
  * dataset there stays as it was).  0; TVPAL_E_INVAL (fewer steps pushed
- * than opened with: the partial output is removed); the codes of
- * tvpal_encoder_push. */
+ * than opened with, or every value missing: the partial output is
+ * removed); the codes of tvpal_encoder_push. */
 TVPAL_API int tvpal_encoder_finish(struct tvpal_encoder *e,
                                    struct tvpal_diag *diag);
 

@@ -1593,6 +1593,15 @@ int tvpal_encoder_finish(struct tvpal_encoder *e, struct tvpal_diag *diag)
      * round). */
     rc = e->xfailed ? 0 : finish_levels(e, &d);
     rc = agree_stats(e, rc, d.msg, &text, &d);
+    /* Nothing present leaves nothing to draw (and no range to write); the
+     * statistics are every rank's sum, so every rank says it. */
+    if (rc == 0 && !(e->st.vmin <= e->st.vmax))
+        rc = tvpal_diag_set(&d, TVPAL_E_INVAL, "every value of the %u steps "
+                            "is missing (NaN%s): some present values "
+                            "expected; nothing was written at %s",
+                            e->ep.steps,
+                            e->nmissing ? " or a missing value" : "",
+                            e->dir);
     if (rc == 0)
         rc = finish_shards(e, text, &d);
     if (!e->decided) {

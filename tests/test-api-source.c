@@ -25,6 +25,8 @@
  *    the levels (rank 0's, after level 0), with and without a memory
  *    limit; a rank whose read fails fails every rank's finish with its
  *    words, and nothing is left;
+ *  - every value missing, pulled or pushed: refused at finish, saying so,
+ *    nothing left;
  *  - a read that fails (its code and words come back, DIR.partial kept for
  *    a resume), an infinite value (named by its voxel, nothing kept), a
  *    second encode, a push after one, a collective, a source without read
@@ -98,6 +100,7 @@ struct src {
     unsigned reads;         /* every read (atomically) */
     int fail_step;          /* read of this step fails (-1: none) */
     int inf_step;           /* this step has an infinity (-1: none) */
+    int all_nan;            /* every value is missing */
     uint64_t stop_unit;     /* the progress callback stops here (0: no) */
     uint64_t first_unit;    /* the unit the first progress call saw */
     int seen;
@@ -154,6 +157,8 @@ static int src_read(void *ctx, uint32_t t, const uint32_t lo[3],
                                    series[t][gx + NX * (gy + NY * gz)]);
                 if ((int)t == s->inf_step && gx == 5 && gy == 6 && gz == 7)
                     v = INFINITY;
+                if (s->all_nan)
+                    v = NAN;
                 put(s, v, o);
             }
     return 0;
@@ -600,6 +605,35 @@ static void test_failures(void)
     tvpal_encoder_abort(e);
     CHECK(!exists(path("%s/inf%s", ".partial")) &&
               !exists(path("%s/inf%s", "")), "an infinity left output");
+    /* Every value missing, pulled or pushed: refused at finish, saying
+     * so (it was a "malformed manifest" of the library's own), nothing
+     * left. */
+    s = plain(TVPAL_FLOAT32);
+    s.all_nan = 1;
+    so = source_of(&s, 1, "series");
+    REQUIRE(open_job(&e, path("%s/nan%s", ""), &base, &d) == 0, "%s", d.msg);
+    rc = tvpal_encoder_encode(e, &so, &d);
+    CHECK(rc == 0, "all missing, encode: %s", d.msg);
+    rc = tvpal_encoder_finish(e, &d);
+    CHECK(rc == TVPAL_E_INVAL && strstr(d.msg, "every value of the 9 steps "
+                                        "is missing"),
+          "all missing, finish: %s %s", tvpal_strerror(rc), d.msg);
+    static float nan_step[NV];
+    for (unsigned i = 0; i < NV; i++)
+        nan_step[i] = NAN;
+    REQUIRE(open_job(&e, path("%s/nan-push%s", ""), &base, &d) == 0, "%s",
+            d.msg);
+    rc = 0;
+    for (unsigned t = 0; t < T && rc == 0; t++)
+        rc = tvpal_encoder_push(e, nan_step, TVPAL_FLOAT32, NV, NULL, &d);
+    rc = rc == 0 ? tvpal_encoder_finish(e, &d) : rc;
+    CHECK(rc == TVPAL_E_INVAL && strstr(d.msg, "is missing"),
+          "all missing, pushed: %s %s", tvpal_strerror(rc), d.msg);
+    CHECK(!exists(path("%s/nan%s", "")) &&
+              !exists(path("%s/nan%s", ".partial")) &&
+              !exists(path("%s/nan-push%s", "")) &&
+              !exists(path("%s/nan-push%s", ".partial")),
+          "all missing left output");
     /* A limit below the smallest: refused, with the smallest, which
      * works. */
     struct job j = base;
