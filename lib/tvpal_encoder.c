@@ -1384,7 +1384,7 @@ static int build_manifest(const struct tvpal_encoder *e, char **text)
      * (tvpal-encode --steps T). */
     const int raw = !strcmp(e->prov_format, "raw");
     const struct tvpal_engine_source src = {
-        .type = e->type, .big_endian = e->src && e->src->big_endian,
+        .type = e->type, .big_endian = e->src_big_endian,
         .steps_single = raw && e->prov_single_file ? e->ep.steps : 0,
         .nan_as = e->has_nan_as ? &e->nan_as : NULL,
         .missing = e->missing, .nmissing = e->nmissing};

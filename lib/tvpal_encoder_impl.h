@@ -133,8 +133,11 @@ struct tvpal_encoder {
     /* A pulled encode (tvpal_encoder_encode; NULL for pushes): the
      * caller's source and the state of its passes
      * (tvpal_encoder_source.c). */
-    const struct tvpal_source *src;
+    const struct tvpal_source *src;  /* the caller's: only during
+                                      * tvpal_encoder_encode (NULL after) */
     struct pull *pull;
+    int src_big_endian;              /* the source's byte order, for the
+                                      * manifest written at finish */
     int keep_partial;                /* release leaves DIR.partial (a
                                       * pulled encode that may continue) */
     int keep_identity;               /* a pulled encode with an identity:

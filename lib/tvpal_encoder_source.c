@@ -45,7 +45,6 @@
 
 struct pull {
     struct encode_plan plan;
-    uint64_t limit;
     int levels_inline;
     uint64_t units, start;   /* passes * T; the unit resumed after */
     const struct encode_pass *pass;
@@ -64,11 +63,6 @@ struct pull {
 
 /* ------------------------------------------------------------------ plan */
 
-static enum tvpal_type source_type(enum tvpal_scalar s)
-{
-    return tvpal_enc_scalar_type(s);
-}
-
 static uint32_t ring_slots(const struct tvpal_encoder *e)
 {
     return e->ep.steps < e->ep.window ? e->ep.steps : e->ep.window;
@@ -79,25 +73,32 @@ static uint64_t scratch_bytes(const struct tvpal_encoder *e)
     if (!e->src->concurrent)
         return 0;
     const uint64_t row = (uint64_t)e->ep.dims[0] *
-                         tvpal_type_size(source_type(e->src->type));
+                         tvpal_type_size(tvpal_enc_scalar_type(e->src->type));
     return tvpal_passes_read_rows(row, e->ep.dims[1]) * row;
 }
 
+/* Bytes beside the ring and the box buffers (tvpal_passes.h) of e's
+ * engine and source with nt threads. */
+static uint64_t fixed_bytes(const struct tvpal_encoder *e, unsigned nt)
+{
+    return tvpal_passes_fixed_bytes(e->eng, nt, scratch_bytes(e),
+                                    e->src->held_bytes);
+}
+
 /* The plan of e (its engine made) with nt threads into *plan and
- * *levels_inline; the limit *limit.  0, TVPAL_E_RANGE (diag: the smallest
+ * *levels_inline.  0, TVPAL_E_RANGE (diag: the smallest
  * limit that would do, also in plan->min_limit), TVPAL_E_NOMEM. */
 static int make_plan(const struct tvpal_encoder *e, unsigned nt,
                      struct encode_plan *plan, int *levels_inline,
-                     uint64_t *limit, struct tvpal_diag *diag)
+                     struct tvpal_diag *diag)
 {
     const uint32_t *d = e->ep.dims;
-    *limit = e->mem_limit ? e->mem_limit : UINT64_MAX >> 2;
-    const size_t esize = tvpal_type_size(source_type(e->src->type));
+    const uint64_t limit = e->mem_limit ? e->mem_limit : UINT64_MAX >> 2;
+    const size_t esize = tvpal_type_size(tvpal_enc_scalar_type(e->src->type));
     struct encode_job j = {
         .dims = {d[0], d[1], d[2]}, .N = e->ep.window, .T = e->ep.steps,
-        .slab_n = {d[0], d[1], d[2]}, .axes = e->ep.axes, .limit = *limit,
-        .fixed = tvpal_passes_fixed_bytes(e->eng, nt, scratch_bytes(e),
-                                          e->src->held_bytes),
+        .slab_n = {d[0], d[1], d[2]}, .axes = e->ep.axes, .limit = limit,
+        .fixed = fixed_bytes(e, nt),
         .box_bytes_per_voxel = (uint32_t)(4 * ring_slots(e) +
                                           (e->src->concurrent ? 0
                                                               : 2 * esize))};
@@ -129,7 +130,7 @@ static int make_plan(const struct tvpal_encoder *e, unsigned nt,
         return tvpal_diag_set(diag, rc, "memory limit of %llu bytes is too "
                               "small for %ux%ux%u at window %u with %u "
                               "thread%s: one slice per pass needs %llu",
-                              (unsigned long long)*limit, d[0], d[1], d[2],
+                              (unsigned long long)limit, d[0], d[1], d[2],
                               e->ep.window, nt, nt == 1 ? "" : "s",
                               (unsigned long long)plan->min_limit);
     if (rc < 0 || !levels || *levels_inline)
@@ -140,13 +141,13 @@ static int make_plan(const struct tvpal_encoder *e, unsigned nt,
                                                   plan->box_voxels_max);
     if (!lb)
         return TVPAL_E_NOMEM;
-    if (lb + j.fixed > *limit) {
+    if (lb + j.fixed > limit) {
         plan->min_limit = lb + j.fixed;
         return tvpal_diag_set(diag, TVPAL_E_RANGE, "memory limit of %llu "
                               "bytes is too small for %u levels: they are "
                               "encoded after level 0, in one pass each, "
                               "together about %llu bytes",
-                              (unsigned long long)*limit, e->levels,
+                              (unsigned long long)limit, e->levels,
                               (unsigned long long)plan->min_limit);
     }
     return 0;
@@ -189,14 +190,12 @@ int tvpal_encoder_plan(struct tvpal_encoder *e,
     e->eng = eng;
     e->src = src;
     struct encode_plan p;
-    uint64_t limit;
     const unsigned nt = thread_count(e);
-    rc = make_plan(e, nt, &p, &out->levels_inline, &limit, diag);
+    rc = make_plan(e, nt, &p, &out->levels_inline, diag);
     const uint64_t nvox = (uint64_t)e->ep.dims[0] * e->ep.dims[1] *
                           e->ep.dims[2];
     out->ring_bytes = ring_slots(e) * nvox * sizeof(float) +
-                      tvpal_passes_fixed_bytes(eng, nt, scratch_bytes(e),
-                                               src->held_bytes);
+                      fixed_bytes(e, nt);
     e->eng = NULL;
     e->src = NULL;
     tvpal_engine_free(eng);
@@ -258,9 +257,8 @@ int tvpal_enc_source_plan(struct tvpal_encoder *e, unsigned nt,
         return TVPAL_E_NOMEM;
     e->pull = pl;
     pl->nthreads = nt;
-    pl->esize = tvpal_type_size(source_type(e->src->type));
-    int rc = make_plan(e, nt, &pl->plan, &pl->levels_inline, &pl->limit,
-                       diag);
+    pl->esize = tvpal_type_size(tvpal_enc_scalar_type(e->src->type));
+    int rc = make_plan(e, nt, &pl->plan, &pl->levels_inline, diag);
     if (rc < 0)
         return rc;
     pl->units = (uint64_t)pl->plan.npasses * e->ep.steps;
@@ -680,9 +678,10 @@ int tvpal_encoder_encode(struct tvpal_encoder *e,
         return rc;
     struct tvpal_diag d = {{0}};
     e->src = src;
+    e->src_big_endian = src->big_endian;
     e->resuming = e->keep_identity = src->identity != NULL;
     e->state = STARTED;
-    rc = tvpal_enc_start(e, source_type(src->type), &d);
+    rc = tvpal_enc_start(e, tvpal_enc_scalar_type(src->type), &d);
     if (rc == 0) {
         struct pull *pl = e->pull;
         pl->pr = (struct tvpal_progress){
@@ -701,6 +700,7 @@ int tvpal_encoder_encode(struct tvpal_encoder *e,
         tvpal_readahead_stop(e->pull->rd);
         e->pull->rd = NULL;
     }
+    e->src = NULL;
     if (rc == 0) {
         e->next_in = e->pushed = e->ep.steps;
         return 0;
