@@ -263,6 +263,11 @@ void report_progress(struct run *r, int last)
         fprintf(stderr, PROG ": %s\n", line);
 }
 
+void tick_progress(void *run)
+{
+    report_progress(run, 0);
+}
+
 void release_ring(struct run *r)
 {
     tvpal_engine_release_ring(r->eng);

@@ -45,6 +45,9 @@ void warn_dominating_values(const struct run *r);
 /* A progress line when one is due (every 30 s, 0.2 s on a terminal), or
  * the closing one when `last`; from thread 0 only. */
 void report_progress(struct run *r, int last);
+/* report_progress(run, 0) as a callback (the engine's and the reader's
+ * ticks). */
+void tick_progress(void *run);
 
 /* Frees the ring's boxes (the program frees the rest). */
 void release_ring(struct run *r);

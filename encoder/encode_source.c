@@ -197,28 +197,19 @@ static int read_input_box(struct tvpal_input *in, uint32_t t,
                  : tvpal_input_read_box(in, t, b->lo, b->n, dst, d);
 }
 
-/* The reader thread's read: box b of step t, the whole volume read as
- * one. */
+/* The reader thread's read: box b of step t of the run's input (it only
+ * reads r->in and the dims, which do not change while it runs). */
 static int read_ahead_box(void *ctx, uint32_t t, const struct encode_box *b,
                           void *dst, struct tvpal_diag *d)
 {
-    struct tvpal_input *in = ctx;
-    const struct tvpal_input_info *ii = tvpal_input_info(in);
-    const int whole = b->n[0] == ii->dims[0] && b->n[1] == ii->dims[1] &&
-                      b->n[2] == ii->dims[2];
-    return read_input_box(in, t, b, whole, dst, d);
+    const struct run *r = ctx;
+    return read_input_box(r->in, t, b, box_is_whole(r, b), dst, d);
 }
 
-struct tvpal_readahead *prefetch_start(struct tvpal_input *in,
-                                       uint64_t voxels)
+struct tvpal_readahead *prefetch_start(const struct run *r, uint64_t voxels)
 {
-    return tvpal_readahead_start(read_ahead_box, in,
+    return tvpal_readahead_start(read_ahead_box, (void *)r,
                                  (size_t)voxels * sizeof(float));
-}
-
-static void tick_progress(void *ctx)
-{
-    report_progress(ctx, 0);
 }
 
 /* The pass's box of step t of the input into r->boxbuf: from the reader

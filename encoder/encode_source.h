@@ -14,11 +14,10 @@ int open_source(struct run *r, int have_dims);
 void load_times(struct run *r);
 void warn_irregular_times(const struct run *r);
 void check_inputs(struct run *r);
-/* The read-ahead thread of a self-describing input (tvpal_readahead.h)
+/* The read-ahead thread of r's self-describing input (tvpal_readahead.h)
  * with boxes of `voxels` floats; NULL without threads (steps are then read
  * in place).  Stopped with tvpal_readahead_stop. */
-struct tvpal_readahead *prefetch_start(struct tvpal_input *in,
-                                       uint64_t voxels);
+struct tvpal_readahead *prefetch_start(const struct run *r, uint64_t voxels);
 /* The current pass's box of step t (r->pass), converted, into dst. */
 void load_step(struct run *r, uint32_t t, float *dst);
 /* Per-thread findings of a box read for n threads (r->found_local);

@@ -1034,11 +1034,6 @@ static void setup_workspace(struct run *r)
 
 /* ---------------------------------------------------------------- encoding */
 
-static void tick_progress(void *ctx)
-{
-    report_progress(ctx, 0);
-}
-
 /* Encodes step t of the pass (tvpal_engine_encode_step); a write error
  * ends the program keeping the partial output. */
 static void encode_step(struct run *r, uint32_t t)
@@ -1504,7 +1499,7 @@ int main(int argc, char **argv)
         open_or_restart_writers(&r);
     setup_workspace(&r);
     if (r.in)
-        r.pf = prefetch_start(r.in, r.plan.box_voxels_max);
+        r.pf = prefetch_start(&r, r.plan.box_voxels_max);
     if (r.levels_inline && !r.start && !r.level0_done)
         r.lvs = levels_open(&r, 1);
     if (!r.level0_done)
