@@ -355,9 +355,15 @@ TVPAL_API void tvpal_encoder_abort(struct tvpal_encoder *e);
  * job from its checkpoint where the source names itself (identity).  With
  * TVPAL_PARAM_LEVELS the levels are made from each step as it is read when
  * the plan is one pass; otherwise after level 0, from the source read
- * again in slabs of planes.  The dataset is byte-identical to one pushed
- * from the same values, and to tvpal-encode's from the same files (which
- * reads through this call).  With a collective (every rank calls it,
+ * again in slabs of planes.  Level 0 is finished before the levels are
+ * (DIR.partial/levels.job then names the job), and each level is finished
+ * in turn, the end of a unit for the progress callback (level: which): in
+ * one process, an encode of the same job and identity after a stop or a
+ * failure there keeps level 0 and every complete level, and makes only
+ * the others, also for another TVPAL_PARAM_LEVELS (the manifests then
+ * name those; levels beyond them go).  The dataset is byte-identical to
+ * one pushed from the same values, and to tvpal-encode's from the same
+ * files.  With a collective (every rank calls it,
  * with the whole source), each rank reads what its node shard of every
  * axis needs, in passes per axis over its slabs, and rank 0 makes the
  * levels after level 0: the dataset is one process's with
@@ -377,11 +383,21 @@ struct tvpal_progress {
                                * then `step`) */
     uint32_t step;            /* the step being read or encoded */
     int unit_end;             /* 1: a unit has just ended (its checkpoint
-                               * is saved when due); 0: a tick, once
-                               * before the first read (unit: where the
-                               * encode starts, 0 or the checkpoint's)
-                               * and at most 5 times a second within a
-                               * unit */
+                               * is saved when due), or with levels a
+                               * level is complete (level: which; see
+                               * below); 0: a tick, once before the
+                               * first read (unit: where the encode
+                               * starts, 0 or the checkpoint's) and at
+                               * most 5 times a second within a unit */
+    /* Set from the first tick on. */
+    int resumed;              /* 1: the encode continues an earlier one
+                               * of the job in DIR.partial (from `unit`) */
+    int level0_kept;          /* 1: level 0 was finished by an earlier
+                               * encode of the job and is kept: only the
+                               * levels not complete are made (unit is
+                               * then units) */
+    uint32_t levels_before;   /* with level0_kept: the levels that encode
+                               * asked for (its manifest's) */
 };
 
 /* What a progress callback returns at the end of a unit (its return at a

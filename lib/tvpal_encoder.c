@@ -1035,17 +1035,26 @@ static void x_send_rest(struct tvpal_encoder *e)
 
 /* The levels finished (each renames its DIR.partial/level-k.partial to
  * DIR.partial/level-k), before level 0's manifest names them. */
+int tvpal_enc_finish_level(struct tvpal_encoder *e, uint32_t k,
+                           struct tvpal_diag *diag)
+{
+    struct tvpal_encoder *c = e->lv[k];
+    e->lv[k] = NULL;
+    int rc = c ? tvpal_encoder_finish(c, diag) : 0;
+    if (rc < 0) {
+        char why[TVPAL_DIAG_MAX];
+        snprintf(why, sizeof why, "%s", diag ? diag->msg : "");
+        return tvpal_diag_set(diag, rc, "level %u: %s", k, why);
+    }
+    return 0;
+}
+
 static int finish_levels(struct tvpal_encoder *e, struct tvpal_diag *diag)
 {
     for (uint32_t k = 1; k <= e->levels; k++) {
-        struct tvpal_encoder *c = e->lv[k];
-        e->lv[k] = NULL;
-        int rc = c ? tvpal_encoder_finish(c, diag) : 0;
-        if (rc < 0) {
-            char why[TVPAL_DIAG_MAX];
-            snprintf(why, sizeof why, "%s", diag ? diag->msg : "");
-            return tvpal_diag_set(diag, rc, "level %u: %s", k, why);
-        }
+        int rc = tvpal_enc_finish_level(e, k, diag);
+        if (rc < 0)
+            return rc;
     }
     return 0;
 }
@@ -1081,7 +1090,8 @@ int tvpal_enc_start(struct tvpal_encoder *e, enum tvpal_type type,
      * passes over the steps before its own. */
     const uint64_t done = e->done_local;
     e->next_in = (uint32_t)v.done;
-    rc = open_writers(e, done, &d);
+    if (!e->level0_finished) /* else an earlier encode's, kept */
+        rc = open_writers(e, done, &d);
     /* The levels are rank 0's (with a collective it encodes every node's
      * of them, x_step), opened before the round, which tells every rank
      * of a failure. */
@@ -1465,6 +1475,16 @@ static int agree_stats(struct tvpal_encoder *e, int rc, const char *msg,
     return rc;
 }
 
+/* Nothing present leaves nothing to draw (and no range to write); the
+ * statistics are every rank's sum, so every rank says it. */
+static int all_missing(const struct tvpal_encoder *e, struct tvpal_diag *diag)
+{
+    return tvpal_diag_set(diag, TVPAL_E_INVAL, "every value of the %u steps "
+                          "is missing (NaN%s): some present values "
+                          "expected; nothing was written at %s", e->ep.steps,
+                          e->nmissing ? " or a missing value" : "", e->dir);
+}
+
 /* This rank's shards finished, with the source's range, and its node
  * directories' manifests. */
 static int finish_shards(struct tvpal_encoder *e, const char *text,
@@ -1548,6 +1568,7 @@ static void release(struct tvpal_encoder *e)
         tvpal_lock_release(e->lock_path, e->lock_fd);
     free(e->lock_path);
     free(e->times);
+    free(e->text);
     free_provenance(e);
     free(e->partial);
     free(e->dir);
@@ -1564,8 +1585,27 @@ static void join_failing(struct tvpal_encoder *e, int rc, const char *msg)
     if (e->own_rc)
         rc = e->own_rc, msg = e->own_msg;
     x_send_rest(e); /* the other ranks are still pushing */
-    if (e->round == R_START || e->round == R_STATS)
+    if (e->round == R_START || e->round == R_STATS ||
+        (e->round == R_PLACE && e->level0_finished))
         agree(e, e->round, rc, msg, &v);
+}
+
+int tvpal_enc_finish_level0(struct tvpal_encoder *e, struct tvpal_diag *diag)
+{
+    struct tvpal_diag d = {{0}};
+    fold_histograms(e);
+    int rc = agree_stats(e, 0, NULL, &e->text, &d);
+    if (rc == 0 && !(e->st.vmin <= e->st.vmax))
+        rc = all_missing(e, &d);
+    if (rc == 0)
+        rc = finish_shards(e, e->text, &d);
+    if (rc == 0 && is_root(e))
+        rc = write_manifest(e->partial, e->text, &d);
+    if (rc == 0)
+        e->level0_finished = 1;
+    else if (diag)
+        *diag = d;
+    return rc;
 }
 
 int tvpal_encoder_finish(struct tvpal_encoder *e, struct tvpal_diag *diag)
@@ -1586,24 +1626,20 @@ int tvpal_encoder_finish(struct tvpal_encoder *e, struct tvpal_diag *diag)
         release(e);
         return rc ? rc : TVPAL_E_INVAL;
     }
-    char *text = NULL;
-    fold_histograms(e);
-    /* The levels are rank 0's; with a collective, levels a failed rank
-     * left short are not finished (that rank's failure is said in the
-     * round). */
-    rc = e->xfailed ? 0 : finish_levels(e, &d);
-    rc = agree_stats(e, rc, d.msg, &text, &d);
-    /* Nothing present leaves nothing to draw (and no range to write); the
-     * statistics are every rank's sum, so every rank says it. */
-    if (rc == 0 && !(e->st.vmin <= e->st.vmax))
-        rc = tvpal_diag_set(&d, TVPAL_E_INVAL, "every value of the %u steps "
-                            "is missing (NaN%s): some present values "
-                            "expected; nothing was written at %s",
-                            e->ep.steps,
-                            e->nmissing ? " or a missing value" : "",
-                            e->dir);
-    if (rc == 0)
-        rc = finish_shards(e, text, &d);
+    char *text = e->text;
+    e->text = NULL;
+    if (!e->level0_finished) { /* else tvpal_enc_finish_level0 did it */
+        fold_histograms(e);
+        /* The levels are rank 0's; with a collective, levels a failed
+         * rank left short are not finished (that rank's failure is said
+         * in the round). */
+        rc = e->xfailed ? 0 : finish_levels(e, &d);
+        rc = agree_stats(e, rc, d.msg, &text, &d);
+        if (rc == 0 && !(e->st.vmin <= e->st.vmax))
+            rc = all_missing(e, &d);
+        if (rc == 0)
+            rc = finish_shards(e, text, &d);
+    }
     if (!e->decided) {
         struct verdict v;
         if (agree(e, R_PLACE, rc, d.msg, &v) == 0) {

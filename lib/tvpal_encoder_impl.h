@@ -144,6 +144,11 @@ struct tvpal_encoder {
                                       * a failure that may pass keeps
                                       * DIR.partial */
     int decided_code;                /* the failure a round decided */
+    /* A pulled encode with levels finishes level 0 before it makes or
+     * finishes the levels (tvpal_enc_finish_level0): the manifest's text,
+     * kept for the PLACE round of finish. */
+    int level0_finished;
+    char *text;
     /* tvpal_encoder_set_provenance's, owned; encoder "" and no format
      * when not set. */
     char prov_encoder[128], prov_format[16];
@@ -176,6 +181,19 @@ int tvpal_enc_open_level(struct tvpal_encoder *e, uint32_t k, int resume,
  * encode's units) in this rank's directory. */
 int tvpal_enc_save_checkpoint(struct tvpal_encoder *e, uint64_t unit,
                               struct tvpal_diag *diag);
+
+/* Level 0 finished, on every rank, before the levels: the statistics
+ * summed (STATS round), every value missing refused, this rank's shards
+ * and node manifests finished and its checkpoint removed, and rank 0's
+ * DIR.partial/manifest.txt written; the text is kept in e->text for
+ * tvpal_encoder_finish, which then only places the dataset.  0, or the
+ * first failure (every rank's when the round decided it). */
+int tvpal_enc_finish_level0(struct tvpal_encoder *e, struct tvpal_diag *diag);
+
+/* Level k's encoder finished (DIR.partial/level-k complete) and released;
+ * 0 where there is none.  diag says "level k: ...". */
+int tvpal_enc_finish_level(struct tvpal_encoder *e, uint32_t k,
+                           struct tvpal_diag *diag);
 
 /* Whether a pulled encode that failed with code may be continued by the
  * next (stopped, a read, a write, the system, memory): DIR.partial is

@@ -36,9 +36,11 @@
 #include "tvpal_readahead.h"
 #include "tvpal_raw.h"
 
+#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 /* Seconds between the progress callback's ticks within a unit. */
 #define TICK_SECONDS 0.2
@@ -59,7 +61,19 @@ struct pull {
     struct tvpal_progress pr;
     uint64_t work;           /* added to atomically by the engine */
     double last_tick;
+    int kept;                /* level 0 is an earlier encode's, kept */
+    char *fp0;               /* with levels: level 0's fingerprint, which
+                              * DIR.partial/levels.job holds while the
+                              * levels are made */
 };
+
+/* With levels, DIR.partial/levels.job names the job (level 0's
+ * fingerprint: its options, ranks and source identity, not the plan or
+ * the levels, which do not change level 0's shards) from the moment level
+ * 0 is finished until every level is: an encode of the same job then
+ * keeps level 0 and every level complete in DIR.partial, and makes only
+ * the others. */
+#define LEVELS_MARKER "levels.job"
 
 /* ------------------------------------------------------------------ plan */
 
@@ -284,7 +298,40 @@ static int make_fingerprint(struct tvpal_encoder *e)
         return TVPAL_E_NOMEM;
     int rc = tvpal_checkpoint_fingerprint(params, NULL, 0, 0, &e->fp);
     free(params);
+    if (rc == 0 && e->levels) {
+        if (asprintf(&params, "libtvpal level 0 %s rank=%d/%d identity=%s",
+                     opts, e->coll.rank, e->coll.size,
+                     e->src->identity) < 0)
+            return TVPAL_E_NOMEM;
+        rc = tvpal_checkpoint_fingerprint(params, NULL, 0, 0,
+                                          &e->pull->fp0);
+        free(params);
+    }
     return rc;
+}
+
+static char *marker_path(const struct tvpal_encoder *e)
+{
+    char *p = NULL;
+    return asprintf(&p, "%s/" LEVELS_MARKER, e->partial) < 0 ? NULL : p;
+}
+
+/* Whether DIR.partial holds level 0 of this job, finished (the marker
+ * names it), with a manifest that reads: then *m is that manifest. */
+static int level0_kept(const struct tvpal_encoder *e, struct tvpal_manifest *m)
+{
+    char *p = marker_path(e), *mp = NULL, *text = NULL;
+    size_t n = 0;
+    int kept = 0;
+    if (p && tvpal_read_file(p, &text, &n, NULL) == 0 &&
+        n == strlen(e->pull->fp0) && !memcmp(text, e->pull->fp0, n) &&
+        asprintf(&mp, "%s/manifest.txt", e->partial) >= 0 &&
+        tvpal_manifest_load(mp, m, NULL) == 0)
+        kept = 1;
+    free(text);
+    free(mp);
+    free(p);
+    return kept;
 }
 
 /* Resuming: the unit this job's checkpoint has done (0: none that is this
@@ -304,6 +351,64 @@ static uint64_t load_checkpoint(struct tvpal_encoder *e)
         return 0;
     }
     return done;
+}
+
+/* The levels beyond e->levels that an earlier encode of the job made in
+ * DIR.partial go (whole, partial, and the lock beside). */
+static void remove_levels_beyond(const struct tvpal_encoder *e)
+{
+    for (uint32_t k = e->levels + 1; k <= TVPAL_LEVELS_MAX; k++) {
+        static const char *const sfx[] = {"", ".partial", ".partial.lock"};
+        for (int i = 0; i < 3; i++) {
+            char *p = NULL;
+            if (asprintf(&p, "%s/level-%u%s", e->partial, k, sfx[i]) < 0)
+                continue;
+            if (i == 2)
+                unlink(p);
+            else
+                tvpal_rmtree(p);
+            free(p);
+        }
+    }
+}
+
+/* One process, with levels and an identity: level 0 finished by an earlier
+ * encode of this job (the marker) is kept.  Its manifests are made to
+ * name this encode's levels where that one asked for others, whose levels
+ * beyond these go; the statistics are the manifest's.  Then nothing of
+ * level 0 is read or written again (pl->start: every unit). */
+static int keep_level0(struct tvpal_encoder *e, struct tvpal_diag *diag)
+{
+    struct pull *pl = e->pull;
+    struct tvpal_manifest m = {0};
+    if (!level0_kept(e, &m)) {
+        tvpal_manifest_clear(&m);
+        return 0;
+    }
+    pl->pr.levels_before = m.levels;
+    m.levels = e->levels;
+    e->st.vmin = m.value_min, e->st.vmax = m.value_max;
+    e->st.missing = m.missing, e->st.nonfinite = m.nonfinite;
+    int rc = tvpal_manifest_format(&m, &e->text);
+    tvpal_manifest_clear(&m);
+    if (rc < 0)
+        return TVPAL_E_NOMEM;
+    if (pl->pr.levels_before != e->levels) {
+        for (uint32_t k = 0; rc == 0 && k <= e->ep.nodes; k++) {
+            char *d = k ? tvpal_node_dir(e->partial, NULL, k - 1)
+                        : strdup(e->partial), *mp = NULL;
+            rc = d && asprintf(&mp, "%s/manifest.txt", d) >= 0
+                     ? tvpal_write_file_atomic(mp, e->text, strlen(e->text),
+                                               diag)
+                     : TVPAL_E_NOMEM;
+            free(mp);
+            free(d);
+        }
+        remove_levels_beyond(e);
+    }
+    pl->kept = e->level0_finished = 1;
+    pl->start = pl->units;
+    return rc;
 }
 
 int tvpal_enc_source_ready(struct tvpal_encoder *e, struct tvpal_diag *diag)
@@ -334,17 +439,20 @@ int tvpal_enc_source_ready(struct tvpal_encoder *e, struct tvpal_diag *diag)
                                   "bytes for the reader thread",
                                   (unsigned long long)box);
     }
+    int rc = 0;
     if (make_fingerprint(e) < 0 ||
         tvpal_engine_progress_alloc(e->eng, &e->ckp) < 0)
         return TVPAL_E_NOMEM;
     if (e->src->identity)
         pl->start = load_checkpoint(e);
+    if (!pl->start && e->src->identity && e->levels && e->coll.size == 1 &&
+        (rc = keep_level0(e, diag)) < 0)
+        return rc;
     e->done_local = pl->start;
     /* A partial output that is not continued goes: whole in one process
      * (an earlier job's node directories and levels with it), a rank's own
      * node directory under a collective (the others are theirs). */
     const char *stale = e->coll.size > 1 ? e->ckdir : e->partial;
-    int rc = 0;
     if (!pl->start && e->resuming &&
         (tvpal_rmtree(stale) < 0 ||
          (e->coll.size == 1 && (rc = tvpal_mkdirs(stale, diag)) < 0)))
@@ -357,7 +465,7 @@ int tvpal_enc_source_ready(struct tvpal_encoder *e, struct tvpal_diag *diag)
 
 int tvpal_enc_source_levels_inline(const struct tvpal_encoder *e)
 {
-    return e->pull && e->pull->levels_inline;
+    return e->pull && e->pull->levels_inline && !e->pull->kept;
 }
 
 void tvpal_enc_source_free(struct tvpal_encoder *e)
@@ -372,6 +480,7 @@ void tvpal_enc_source_free(struct tvpal_encoder *e)
     free(pl->rc);
     free(pl->diag);
     free(pl->box);
+    free(pl->fp0);
     encode_plan_free(&pl->plan);
     free(pl);
     e->pull = NULL;
@@ -615,6 +724,9 @@ static int encode_passes(struct tvpal_encoder *e, struct tvpal_diag *diag)
     return 0;
 }
 
+static int level_complete(const struct tvpal_encoder *e, uint32_t k);
+static int keep_level(struct tvpal_encoder *e, uint32_t k);
+
 /* After level 0: every level made from the source read again in slabs of
  * planes (as many as the ring held), level 1 plane by plane from pairs of
  * source planes, and pushed to the levels' encoders. */
@@ -635,7 +747,8 @@ static int levels_after(struct tvpal_encoder *e, struct tvpal_diag *diag)
                                        "%llu voxels for the levels", sn,
                                        (unsigned long long)plane);
     for (uint32_t k = 1; rc == 0 && k <= e->levels; k++)
-        rc = tvpal_enc_open_level(e, k, 0, 0, diag);
+        rc = level_complete(e, k) ? keep_level(e, k)
+                                  : tvpal_enc_open_level(e, k, 0, 0, diag);
     pl->pr.level = 1;
     const size_t cplane = (size_t)e->ldims[1][0] * e->ldims[1][1];
     for (uint32_t t = 0; rc == 0 && t < e->ep.steps; t++) {
@@ -662,6 +775,89 @@ static int levels_after(struct tvpal_encoder *e, struct tvpal_diag *diag)
     return rc;
 }
 
+/* Whether level k is in DIR.partial complete, from an earlier encode of
+ * the job whose level 0 is kept. */
+static int level_complete(const struct tvpal_encoder *e, uint32_t k)
+{
+    char *p = NULL;
+    int done = e->pull->kept &&
+               asprintf(&p, "%s/level-%u/manifest.txt", e->partial, k) >= 0 &&
+               tvpal_exists(p);
+    free(p);
+    return done;
+}
+
+/* A complete level kept: only its step volume, for the levels after it. */
+static int keep_level(struct tvpal_encoder *e, uint32_t k)
+{
+    uint32_t *dk = e->ldims[k];
+    tvpal_level_dims(e->ep.dims, k, dk);
+    e->lnext[k] = e->ep.steps; /* nothing pushed to it */
+    e->lvol[k] = malloc((size_t)dk[0] * dk[1] * dk[2] * sizeof(float));
+    return e->lvol[k] ? 0 : TVPAL_E_NOMEM;
+}
+
+/* The end of level k (complete in DIR.partial): the caller's answer, as at
+ * a unit's end; a stop leaves level 0 and levels 1 .. k for the next
+ * encode of the job. */
+static int end_level(struct tvpal_encoder *e, uint32_t k,
+                     struct tvpal_diag *diag)
+{
+    struct pull *pl = e->pull;
+    pl->pr.level = k;
+    pl->pr.unit_end = 1;
+    pl->pr.work = __atomic_load_n(&pl->work, __ATOMIC_RELAXED);
+    const int answer = e->src->progress ? e->src->progress(e->src->ctx,
+                                                           &pl->pr)
+                                        : TVPAL_GO_ON;
+    if (answer == TVPAL_STOP || answer == TVPAL_SAVE_AND_STOP)
+        return tvpal_diag_set(diag, TVPAL_E_CANCELED, "stopped after level "
+                              "%u of %u (level 0 and the levels up to %u "
+                              "are kept)", k, e->levels, k);
+    return 0;
+}
+
+/* Rank 0, after level 0 is finished: the levels made (after it, reading
+ * the source again, unless they were made beside its one pass) and
+ * finished one at a time, each the end of a unit for the progress
+ * callback; then the marker goes. */
+static int make_levels(struct tvpal_encoder *e, struct tvpal_diag *diag)
+{
+    int rc = 0, missing = 0;
+    for (uint32_t k = 1; k <= e->levels; k++)
+        missing += !level_complete(e, k);
+    if (!tvpal_enc_source_levels_inline(e) && missing)
+        rc = levels_after(e, diag);
+    for (uint32_t k = 1; rc == 0 && k <= e->levels; k++)
+        if ((rc = tvpal_enc_finish_level(e, k, diag)) == 0)
+            rc = end_level(e, k, diag);
+    char *mk = marker_path(e);
+    if (rc == 0 && (!mk || (unlink(mk) < 0 && errno != ENOENT)))
+        rc = tvpal_diag_set(diag, TVPAL_E_SYS, "%s: cannot remove",
+                            mk ? mk : LEVELS_MARKER);
+    free(mk);
+    return rc;
+}
+
+/* With levels: level 0 finished on every rank (unless kept), the marker
+ * written, and rank 0's levels. */
+static int levels_after_level0(struct tvpal_encoder *e,
+                               struct tvpal_diag *diag)
+{
+    int rc = 0;
+    if (!e->level0_finished) {
+        if ((rc = tvpal_enc_finish_level0(e, diag)) < 0)
+            return rc;
+        char *mk = e->coll.rank == 0 ? marker_path(e) : NULL;
+        if (e->coll.rank == 0)
+            rc = mk ? tvpal_write_file_atomic(mk, e->pull->fp0,
+                                              strlen(e->pull->fp0), diag)
+                    : TVPAL_E_NOMEM;
+        free(mk);
+    }
+    return rc == 0 && e->coll.rank == 0 ? make_levels(e, diag) : rc;
+}
+
 int tvpal_enc_failure_may_pass(int code)
 {
     return code == TVPAL_E_CANCELED || code == TVPAL_E_OPEN ||
@@ -686,14 +882,16 @@ int tvpal_encoder_encode(struct tvpal_encoder *e,
         struct pull *pl = e->pull;
         pl->pr = (struct tvpal_progress){
             .total = work_before(e, pl->units), .units = pl->units,
-            .passes = pl->plan.npasses, .unit = pl->start};
+            .passes = pl->plan.npasses, .unit = pl->start,
+            .resumed = pl->start > 0, .level0_kept = pl->kept,
+            .levels_before = pl->pr.levels_before};
         pl->work = pl->pr.work = work_before(e, pl->start);
         tvpal_engine_set_progress(e->eng, &pl->work, engine_tick, e);
         tick(e); /* where it starts, before any read */
         rc = encode_passes(e, &d);
     }
-    if (rc == 0 && e->levels && !e->pull->levels_inline && e->coll.rank == 0)
-        rc = levels_after(e, &d);
+    if (rc == 0 && e->levels)
+        rc = levels_after_level0(e, &d);
     /* The reader may be reading ahead: it stops before the call returns,
      * after which src is the caller's again. */
     if (e->pull) {
