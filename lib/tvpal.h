@@ -96,7 +96,7 @@ enum tvpal_param {
     TVPAL_PARAM_TABLE,        /* decoder tables: TVPAL_TABLE_AUTO (each
                                * chunk 16-bit where that costs less than
                                * 1e-4 of its error; default), _FLOAT32, _UINT16 */
-    TVPAL_PARAM_REFINE,       /* Lloyd-Max refinement passes, 0..8;
+    TVPAL_PARAM_REFINE,       /* Lloyd-Max refinement passes, 0..64;
                                * default 0 */
     TVPAL_PARAM_TRANSFORM,    /* TVPAL_TRANSFORM_DCT (default) or _KLT
                                * (needs a build with LAPACK) */
@@ -121,7 +121,7 @@ enum tvpal_param {
                                * continues from) after every this many
                                * steps encoded, and after the last; 0:
                                * none; default 1 */
-    TVPAL_PARAM_LEVELS        /* coarser levels of detail, 0..8: level k
+    TVPAL_PARAM_LEVELS,       /* coarser levels of detail, 0..8: level k
                                * the 2x2x2 means of level k - 1, made from
                                * each step as it is pushed and stored in
                                * DIR/level-k (the player answers jumps from
@@ -129,6 +129,11 @@ enum tvpal_param {
                                * collective rank 0 encodes every node's
                                * levels and every push is collective (see
                                * there); default 0 */
+    TVPAL_PARAM_PROGRESS      /* seconds, 0.001..3600: the least time
+                               * between two calls of an encode's
+                               * progress callback within a unit (struct
+                               * tvpal_source); default 0.2.  Since
+                               * 0.3.0 */
 };
 #define TVPAL_TABLE_FLOAT32 0
 #define TVPAL_TABLE_UINT16 1
@@ -338,6 +343,38 @@ TVPAL_API int tvpal_encoder_resume(struct tvpal_encoder *e,
 TVPAL_API int tvpal_encoder_finish(struct tvpal_encoder *e,
                                    struct tvpal_diag *diag);
 
+/* What the values of an encode held, for a program's report. */
+struct tvpal_stats {
+    double value_min, value_max; /* the present values' range (min > max
+                                  * when none) */
+    uint64_t values;          /* values counted (steps x voxels) */
+    uint64_t missing;         /* of them missing (NaN or a missing value) */
+    uint64_t replaced;        /* non-finite values TVPAL_PARAM_NAN_AS
+                               * replaced */
+    uint64_t dropped;         /* present values coded as missing: a
+                               * slice-window with more than 128 patterns
+                               * of missing steps (a smaller window avoids
+                               * it) */
+    double p_low, p_high;     /* the 0.1 and 99.9 percentiles of the
+                               * present values (to a class of 65536 over
+                               * the float range) */
+    uint64_t beyond_1e30;     /* present values beyond +-1e30: a fill value
+                               * left in the data? */
+    uint64_t far;             /* present values more than 100 times
+                               * p_high - p_low outside [p_low, p_high]:
+                               * they set the range the quantizers and the
+                               * colours spend */
+};
+
+/* The statistics of every step e has taken, into *out: after the last
+ * push or tvpal_encoder_encode, before tvpal_encoder_finish (or earlier,
+ * of the steps so far).  Under a collective, this rank's share (the
+ * manifest has the sums), except after an encode from a source with
+ * levels, where level 0 is finished already: every rank's.  0, or
+ * TVPAL_E_INVAL before the first push or encode.  Since 0.3.0. */
+TVPAL_API int tvpal_encoder_stats(struct tvpal_encoder *e,
+                                  struct tvpal_stats *out);
+
 /* Stops: removes DIR.partial and its lock, and releases e.  An older DIR
  * stays as it was.  NULL is a no-op. */
 TVPAL_API void tvpal_encoder_abort(struct tvpal_encoder *e);
@@ -398,6 +435,11 @@ struct tvpal_progress {
                                * then units) */
     uint32_t levels_before;   /* with level0_kept: the levels that encode
                                * asked for (its manifest's) */
+    int started_over;         /* 1: a partial output in DIR.partial was
+                               * not continued (another job's or
+                               * identity's, a checkpoint that does not
+                               * match, a shard damaged since) and is
+                               * gone: the encode starts at unit 0 */
 };
 
 /* What a progress callback returns at the end of a unit (its return at a
@@ -466,6 +508,9 @@ struct tvpal_plan {
                                * pass) */
     int levels_inline;        /* 1: the levels are made from each step of
                                * level 0's one pass; 0: after level 0 */
+    int levels_over;          /* with TVPAL_E_RANGE: 1 when level 0 fits
+                               * and the levels made after it do not
+                               * (min_limit is what they need) */
 };
 
 /* The plan tvpal_encoder_encode would make for src with e's parameters,

@@ -105,6 +105,7 @@ int tvpal_encoder_open(struct tvpal_encoder **out, const char *dir,
     e->slab_n = dims[2];
     e->round = R_START;
     e->ckpt_every = 1;
+    e->tick_seconds = 0.2;
     if (alloc_round_buffers(e, 1) < 0) {
         free(e->votes);
         free(e->partial);
@@ -228,8 +229,8 @@ int tvpal_encoder_set(struct tvpal_encoder *e, enum tvpal_param param,
             p->table_format = (uint32_t)value;
         break;
     case TVPAL_PARAM_REFINE:
-        if (!whole_in(value, 0, 8))
-            name = "refine", range = "0..8";
+        if (!whole_in(value, 0, TVPAL_ENGINE_REFINE_MAX))
+            name = "refine", range = "0..64";
         else
             p->refine = (uint32_t)value;
         break;
@@ -280,6 +281,12 @@ int tvpal_encoder_set(struct tvpal_encoder *e, enum tvpal_param param,
             name = "levels", range = "0..8";
         else
             e->levels = (uint32_t)value;
+        break;
+    case TVPAL_PARAM_PROGRESS:
+        if (!(value >= 0.001 && value <= 3600))
+            name = "progress", range = "0.001..3600 seconds";
+        else
+            e->tick_seconds = value;
         break;
     case TVPAL_PARAM_CHECKPOINT:
         if (!whole_in(value, 0, UINT32_MAX))
@@ -614,6 +621,7 @@ static int prepare_output(struct tvpal_encoder *e, struct tvpal_diag *diag)
         e->lock_path = NULL;
         return rc;
     }
+    e->had_partial = tvpal_exists(e->partial);
     /* A partial output of an earlier job goes, unless it is resumed (its
      * checkpoints say whether it is this job's). */
     if (!e->resuming && tvpal_exists(e->partial) &&
@@ -1088,10 +1096,18 @@ int tvpal_enc_start(struct tvpal_encoder *e, enum tvpal_type type,
     /* Each rank continues from its own checkpoint (a kill stops the ranks
      * at different steps); the caller pushes from the earliest, and a rank
      * passes over the steps before its own. */
-    const uint64_t done = e->done_local;
+    uint64_t done = e->done_local;
     e->next_in = (uint32_t)v.done;
     if (!e->level0_finished) /* else an earlier encode's, kept */
         rc = open_writers(e, done, &d);
+    if (rc < 0 && e->src && done) {
+        /* A pulled encode's partial output that does not resume (a shard
+         * damaged since its checkpoint) is started over, as when its
+         * checkpoint is not this job's. */
+        done = e->done_local = 0;
+        if ((rc = tvpal_enc_source_start_over(e, &d)) == 0)
+            rc = open_writers(e, 0, &d);
+    }
     /* The levels are rank 0's (with a collective it encodes every node's
      * of them, x_step), opened before the round, which tells every rank
      * of a failure. */
@@ -1517,9 +1533,25 @@ static int place(struct tvpal_encoder *e, const char *text,
     if (rc < 0)
         return rc;
     tvpal_fsync_dir(e->partial);
-    struct tvpal_dataset *ds = NULL;
-    rc = tvpal_dataset_open(&ds, e->partial, diag);
-    tvpal_dataset_close(ds);
+    /* Read back, every level of it: what fails here (a value the
+     * manifest reader refuses, a file that does not open) must not
+     * replace a good dataset. */
+    for (uint32_t k = 0; rc == 0 && k <= e->levels; k++) {
+        char *dir = NULL;
+        struct tvpal_dataset *ds = NULL;
+        struct tvpal_diag d = {{0}};
+        if (k ? asprintf(&dir, "%s/level-%u", e->partial, k) < 0
+              : !(dir = strdup(e->partial)))
+            return TVPAL_E_NOMEM;
+        rc = tvpal_dataset_open(&ds, dir, &d);
+        tvpal_dataset_close(ds);
+        if (rc < 0)
+            tvpal_diag_set(diag, rc, "%s: written %s does not verify: %s "
+                           "(%s)", dir, k ? "level" : "dataset", d.msg,
+                           tvpal_exists(e->dir) ? "the existing dataset is "
+                           "left as it was" : "nothing was put in place");
+        free(dir);
+    }
     if (rc == 0 && (rc = tvpal_output_place(e->partial, e->dir, diag)) == 0)
         e->made_partial = 0;
     return rc;
@@ -1657,6 +1689,28 @@ int tvpal_encoder_finish(struct tvpal_encoder *e, struct tvpal_diag *diag)
         *diag = d;
     release(e);
     return rc;
+}
+
+int tvpal_encoder_stats(struct tvpal_encoder *e,
+                        struct tvpal_stats *out)
+{
+    memset(out, 0, sizeof *out);
+    if (e->state == OPENED || !e->st.fine)
+        return TVPAL_E_INVAL;
+    /* The threads' histograms are folded in at each checkpoint and at
+     * level 0's finish; those since are folded in here (the encoder is
+     * between calls, its threads idle). */
+    fold_histograms(e);
+    const struct tvpal_checkpoint_stats *st = &e->st;
+    out->value_min = st->vmin;
+    out->value_max = st->vmax;
+    out->values = st->counted;
+    out->missing = st->missing;
+    out->replaced = st->nonfinite;
+    out->dropped = e->eng ? tvpal_engine_dropped(e->eng) : 0;
+    tvpal_values_spread(st, &out->p_low, &out->p_high, &out->beyond_1e30,
+                        &out->far);
+    return 0;
 }
 
 void tvpal_encoder_abort(struct tvpal_encoder *e)

@@ -104,6 +104,7 @@ struct tvpal_encoder {
      * every ckpt_every steps encoded; a resumed job converts steps below
      * recount_to again without counting them (they are in st). */
     uint32_t ckpt_every;
+    double tick_seconds;             /* TVPAL_PARAM_PROGRESS */
     int resuming;
     uint64_t done_local;             /* SETUP: what this rank's checkpoint
                                       * has done */
@@ -149,6 +150,8 @@ struct tvpal_encoder {
      * kept for the PLACE round of finish. */
     int level0_finished;
     char *text;
+    int had_partial;                 /* rank 0: DIR.partial was there when
+                                      * the encode began */
     /* tvpal_encoder_set_provenance's, owned; encoder "" and no format
      * when not set. */
     char prov_encoder[128], prov_format[16];
@@ -214,6 +217,11 @@ int tvpal_enc_source_plan(struct tvpal_encoder *e, unsigned nthreads,
                           uint64_t *ring_voxels, struct tvpal_diag *diag);
 int tvpal_enc_source_ready(struct tvpal_encoder *e, struct tvpal_diag *diag);
 int tvpal_enc_source_levels_inline(const struct tvpal_encoder *e);
+/* The partial output of this rank (its writers, DIR.partial or its node
+ * directory, the statistics) forgotten: the encode starts at unit 0, and
+ * its first progress call says it started over. */
+int tvpal_enc_source_start_over(struct tvpal_encoder *e,
+                                struct tvpal_diag *diag);
 void tvpal_enc_source_free(struct tvpal_encoder *e);
 
 #endif

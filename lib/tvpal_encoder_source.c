@@ -42,9 +42,6 @@
 #include <string.h>
 #include <unistd.h>
 
-/* Seconds between the progress callback's ticks within a unit. */
-#define TICK_SECONDS 0.2
-
 struct pull {
     struct encode_plan plan;
     int levels_inline;
@@ -214,6 +211,7 @@ int tvpal_encoder_plan(struct tvpal_encoder *e,
     e->src = NULL;
     tvpal_engine_free(eng);
     out->min_limit = p.min_limit;
+    out->levels_over = rc == TVPAL_E_RANGE && p.npasses > 0;
     if (rc == 0) {
         out->passes = p.npasses;
         memcpy(out->passes_axis, p.per_axis, sizeof out->passes_axis);
@@ -234,14 +232,15 @@ static int read_for_reader(void *ctx, uint32_t t, const struct encode_box *b,
 
 /* ------------------------------------------------------------- progress */
 
-/* The progress callback, within a unit: at most every TICK_SECONDS. */
+/* The progress callback, within a unit: at most every
+ * TVPAL_PARAM_PROGRESS seconds. */
 static void tick(struct tvpal_encoder *e)
 {
     struct pull *pl = e->pull;
     if (!e->src->progress)
         return;
     const double now = tvpal_now();
-    if (now - pl->last_tick < TICK_SECONDS)
+    if (now - pl->last_tick < e->tick_seconds)
         return;
     pl->last_tick = now;
     pl->pr.work = __atomic_load_n(&pl->work, __ATOMIC_RELAXED);
@@ -453,13 +452,39 @@ int tvpal_enc_source_ready(struct tvpal_encoder *e, struct tvpal_diag *diag)
      * (an earlier job's node directories and levels with it), a rank's own
      * node directory under a collective (the others are theirs). */
     const char *stale = e->coll.size > 1 ? e->ckdir : e->partial;
-    if (!pl->start && e->resuming &&
-        (tvpal_rmtree(stale) < 0 ||
-         (e->coll.size == 1 && (rc = tvpal_mkdirs(stale, diag)) < 0)))
+    if (!pl->start && e->resuming) {
+        pl->pr.started_over = e->coll.size > 1 ? tvpal_exists(stale)
+                                                : e->had_partial;
+        if (tvpal_rmtree(stale) < 0 ||
+            (e->coll.size == 1 && (rc = tvpal_mkdirs(stale, diag)) < 0))
+            return rc < 0 ? rc
+                          : tvpal_diag_set(diag, TVPAL_E_SYS, "%s: cannot "
+                                           "remove the partial output of an "
+                                           "earlier job", stale);
+    }
+    return 0;
+}
+
+int tvpal_enc_source_start_over(struct tvpal_encoder *e,
+                                struct tvpal_diag *diag)
+{
+    uint32_t n;
+    struct tvpal_engine_shard *sj = tvpal_engine_shards(e->eng, &n);
+    for (uint32_t q = 0; q < n; q++) {
+        tvpal_shardw_free(sj[q].w);
+        sj[q].w = NULL;
+    }
+    tvpal_checkpoint_stats_reset(&e->st);
+    e->pull->start = 0;
+    e->pull->pr.started_over = 1;
+    const char *stale = e->coll.size > 1 ? e->ckdir : e->partial;
+    int rc = 0;
+    if (tvpal_rmtree(stale) < 0 ||
+        (e->coll.size == 1 && (rc = tvpal_mkdirs(stale, diag)) < 0))
         return rc < 0 ? rc
                       : tvpal_diag_set(diag, TVPAL_E_SYS, "%s: cannot remove "
-                                       "the partial output of an earlier "
-                                       "job", stale);
+                                       "a partial output that does not "
+                                       "resume", stale);
     return 0;
 }
 
@@ -884,7 +909,8 @@ int tvpal_encoder_encode(struct tvpal_encoder *e,
             .total = work_before(e, pl->units), .units = pl->units,
             .passes = pl->plan.npasses, .unit = pl->start,
             .resumed = pl->start > 0, .level0_kept = pl->kept,
-            .levels_before = pl->pr.levels_before};
+            .levels_before = pl->pr.levels_before,
+            .started_over = pl->pr.started_over};
         pl->work = pl->pr.work = work_before(e, pl->start);
         tvpal_engine_set_progress(e->eng, &pl->work, engine_tick, e);
         tick(e); /* where it starts, before any read */

@@ -607,6 +607,89 @@ static void test_level0_kept(void)
     tvpal_reader_close(r);
 }
 
+/* A partial output that is not continued says so at the first progress
+ * call: of another identity, or with a shard damaged since its checkpoint
+ * (which started over gives the dataset all the same). */
+static void test_started_over(void)
+{
+    struct tvpal_plan one, some;
+    struct job j = base;
+    j.limit = limit_below(&j, 1, 0.75, &one, &some);
+    const char *ref = path("%s/conc-passes%s", "");
+    for (int damaged = 0; damaged < 2; damaged++) {
+        char *dir = path(damaged ? "%s/damaged%s" : "%s/other-job%s", "");
+        struct tvpal_diag d = {{0}};
+        struct tvpal_encoder *e = NULL;
+        struct src s = plain(TVPAL_FLOAT32);
+        s.stop_unit = T + 5;
+        struct tvpal_source so = source_of(&s, 1, "series v1");
+        REQUIRE(open_job(&e, dir, &j, &d) == 0, "%s", d.msg);
+        CHECK(tvpal_encoder_encode(e, &so, &d) == TVPAL_E_CANCELED, "%s",
+              d.msg);
+        tvpal_encoder_abort(e);
+        char cmd[700];
+        snprintf(cmd, sizeof cmd, "truncate -s 100 %s.partial/node-0/"
+                 "axis-z.tvps", dir);
+        CHECK(!damaged || system(cmd) == 0, "%s", cmd);
+        s = plain(TVPAL_FLOAT32);
+        so = source_of(&s, 1, damaged ? "series v1" : "series v2");
+        int rc = pull_all(dir, &j, &so, &d);
+        CHECK(rc == 0 && s.first.started_over && !s.first.resumed &&
+                  s.first.unit == 0 && same_dataset(ref, dir, 0, 7),
+              "%s: %s %s, started over %d, resumed %d, unit %llu",
+              damaged ? "a damaged shard" : "another identity",
+              tvpal_strerror(rc), d.msg, s.first.started_over,
+              s.first.resumed, (unsigned long long)s.first.unit);
+    }
+}
+
+/* The statistics of an encode before its finish, and the progress
+ * parameter's range. */
+static void test_stats(void)
+{
+    struct tvpal_diag d = {{0}};
+    struct tvpal_encoder *e = NULL;
+    struct tvpal_stats st;
+    REQUIRE(open_job(&e, path("%s/stats%s", ""), &base, &d) == 0, "%s",
+            d.msg);
+    CHECK(tvpal_encoder_stats(e, &st) == TVPAL_E_INVAL, "stats before the "
+          "encode");
+    CHECK(tvpal_encoder_set(e, TVPAL_PARAM_PROGRESS, 0, &d) ==
+              TVPAL_E_INVAL &&
+              tvpal_encoder_set(e, TVPAL_PARAM_PROGRESS, 3601, &d) ==
+                  TVPAL_E_INVAL &&
+              tvpal_encoder_set(e, TVPAL_PARAM_PROGRESS, 0.001, &d) == 0,
+          "TVPAL_PARAM_PROGRESS's range: %s", d.msg);
+    struct src s = plain(TVPAL_FLOAT32);
+    struct tvpal_source so = source_of(&s, 1, NULL);
+    int rc = tvpal_encoder_encode(e, &so, &d);
+    REQUIRE(rc == 0, "%s", d.msg);
+    float lo = INFINITY, hi = -INFINITY;
+    uint64_t nan = 0;
+    for (unsigned t = 0; t < T; t++)
+        for (unsigned i = 0; i < NV; i++) {
+            const float v = series[t][i];
+            if (isnan(v)) {
+                nan++;
+                continue;
+            }
+            lo = v < lo ? v : lo;
+            hi = v > hi ? v : hi;
+        }
+    CHECK(tvpal_encoder_stats(e, &st) == 0 &&
+              st.values == (uint64_t)T * NV && st.missing == nan &&
+              st.value_min == lo && st.value_max == hi && st.replaced == 0 &&
+              st.dropped == 0 && st.beyond_1e30 == 0 &&
+              st.p_low >= lo - 1e-3 * (hi - lo) &&
+              st.p_high <= hi + 1e-3 * (hi - lo) && st.p_low < st.p_high,
+          "stats: %llu values, %llu missing (%llu), range %g .. %g (%g .. "
+          "%g), percentiles %g .. %g, %llu dropped",
+          (unsigned long long)st.values, (unsigned long long)st.missing,
+          (unsigned long long)nan, st.value_min, st.value_max, lo, hi,
+          st.p_low, st.p_high, (unsigned long long)st.dropped);
+    CHECK(tvpal_encoder_finish(e, &d) == 0, "%s", d.msg);
+}
+
 /* Provenance: recorded in the manifest and read back; refused when it
  * cannot be. */
 static void test_provenance(void)
@@ -909,6 +992,8 @@ int main(void)
     test_levels();
     test_stop_and_continue();
     test_level0_kept();
+    test_started_over();
+    test_stats();
     test_provenance();
     test_ranks();
     test_failures();

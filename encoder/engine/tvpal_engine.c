@@ -19,6 +19,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+_Static_assert(TVPAL_ENGINE_REFINE_MAX == TVPAL_REFINE_MAX,
+               "the engine's refinement bound is the codec's");
+
 /* Most slices per group: those of one 64-byte line of x (16 floats). */
 #define GROUP_SPAN 16u
 

@@ -32,6 +32,10 @@
 #include <stddef.h>
 #include <stdint.h>
 
+/* The most Lloyd-Max refinement passes (the codec's TVPAL_REFINE_MAX;
+ * tvpal_engine.c checks that they agree). */
+#define TVPAL_ENGINE_REFINE_MAX 64
+
 /* What a job encodes. */
 struct tvpal_engine_params {
     uint32_t dims[3];
@@ -40,7 +44,8 @@ struct tvpal_engine_params {
     uint32_t nodes;                /* K node shards per axis */
     uint32_t node_first, node_count; /* those this engine writes */
     uint32_t table_format;         /* TVPAL_TABLE_F32, _U16 or _CHUNK */
-    uint32_t refine;               /* Lloyd-Max refinement passes */
+    uint32_t refine;               /* Lloyd-Max refinement passes, at
+                                    * most TVPAL_ENGINE_REFINE_MAX */
     int naive, klt, alloc_mse;     /* coder choices (tvpal_swcode.h) */
 };
 

@@ -216,3 +216,35 @@ void tvpal_values_convert(const struct tvpal_values_rules *rules,
     f->lo = lo;
     f->hi = hi;
 }
+
+void tvpal_values_spread(const struct tvpal_checkpoint_stats *st, double *lo,
+                         double *hi, uint64_t *huge, uint64_t *far)
+{
+    const uint64_t *fine = st->fine;
+    uint64_t total = 0, cum = 0;
+    *lo = *hi = 0;
+    *huge = *far = 0;
+    for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++)
+        total += fine[b];
+    if (!total)
+        return;
+    uint32_t blo = 0, bhi = 0;
+    int have_lo = 0, have_hi = 0;
+    for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS && !have_hi; b++) {
+        cum += fine[b];
+        if (!have_lo && cum * 1000 > total)
+            blo = b, have_lo = 1;
+        if (cum * 1000 >= total * 999)
+            bhi = b, have_hi = 1;
+    }
+    *lo = tvpal_values_bin_value(blo);
+    *hi = tvpal_values_bin_value(bhi);
+    const double span = *hi - *lo;
+    for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++) {
+        const double v = tvpal_values_bin_value(b);
+        if (fine[b] && fabs(v) > 1e30)
+            *huge += fine[b];
+        if (fine[b] && (v < *lo - 100 * span || v > *hi + 100 * span))
+            *far += fine[b];
+    }
+}

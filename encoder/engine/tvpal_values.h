@@ -75,6 +75,13 @@ void tvpal_values_fold(struct tvpal_checkpoint_stats *st,
 /* The value at the middle of a class of the fine histogram. */
 float tvpal_values_bin_value(uint32_t b);
 
+/* How the present values of st's fine histogram spread: the classes'
+ * values at the 0.1 and 99.9 percentiles (*lo, *hi), the values beyond
+ * +-1e30 (*huge: a fill value left in the data?) and those more than 100
+ * times the percentile span outside it (*far); all 0 without values. */
+void tvpal_values_spread(const struct tvpal_checkpoint_stats *st, double *lo,
+                         double *hi, uint64_t *huge, uint64_t *far);
+
 /* The manifest's histogram of st: its fine classes into TVPAL_HIST_BINS
  * equal bins over [st->vmin, st->vmax], added to hist. */
 void tvpal_values_histogram(const struct tvpal_checkpoint_stats *st,
