@@ -105,6 +105,8 @@ struct progress {
  * main's steps in order and released by run_free. */
 struct tvpal_readahead;
 struct tvpal_found;
+struct drive;
+struct raw_files;
 
 struct run {
     struct opts o;
@@ -168,6 +170,10 @@ struct run {
     struct levels *lvs;      /* the levels made as level 0's steps are
                               * read, or NULL */
     struct cluster *cl;      /* the MPI job (encode_cluster.h) */
+    struct raw_files *rawf;  /* the raw files the library's source keeps
+                              * open (encode_source.c) */
+    struct drive *drive;     /* the library's progress callback's state
+                              * (tvpal-encode.c) */
     char *lock_path;         /* OUTDIR.partial.lock, held while it runs */
     int lock_fd;             /* or -1 */
 };

@@ -193,45 +193,30 @@ void warn_dropped(uint64_t dropped)
  * (from the source histogram's 65536 classes). */
 void warn_dominating_values(const struct run *r)
 {
-    const uint64_t *fine = r->st.fine;
-    uint64_t total = 0, cum = 0, far = 0, huge = 0;
+    double plo, phi;
+    uint64_t huge, far, total = 0;
+    tvpal_values_spread(&r->st, &plo, &phi, &huge, &far);
     for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++)
-        total += fine[b];
-    if (!total)
-        return;
-    /* lo, hi: the classes holding the 0.1th and 99.9th percentiles. */
-    uint32_t lo = 0, hi = 0;
-    int have_lo = 0, have_hi = 0;
-    for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS && !have_hi; b++) {
-        cum += fine[b];
-        if (!have_lo && cum * 1000 > total)
-            lo = b, have_lo = 1;
-        if (cum * 1000 >= total * 999)
-            hi = b, have_hi = 1;
-    }
-    const double plo = tvpal_values_bin_value(lo), phi = tvpal_values_bin_value(hi);
-    const double span = phi - plo, range = r->st.vmax - r->st.vmin;
-    for (uint32_t b = 0; b < TVPAL_CHECKPOINT_BINS; b++) {
-        double v = tvpal_values_bin_value(b);
-        if (fine[b] && fabs(v) > 1e30)
-            huge += fine[b];
-        if (fine[b] && (v < plo - 100 * span || v > phi + 100 * span))
-            far += fine[b];
-    }
+        total += r->st.fine[b];
+    warn_spread(r->st.vmin, r->st.vmax, plo, phi, huge, far, total);
+}
+
+void warn_spread(double vmin, double vmax, double plo, double phi,
+                 uint64_t huge, uint64_t far, uint64_t total)
+{
+    const double span = phi - plo, range = vmax - vmin;
     if (huge)
         msg("warning: %llu value%s beyond +-1e30 (the range is %g .. %g): a "
             "fill value? It sets the quantizers' and the colours' range "
             "(--missing V marks a value as missing)",
-            (unsigned long long)huge, huge == 1 ? "" : "s", r->st.vmin,
-            r->st.vmax);
+            (unsigned long long)huge, huge == 1 ? "" : "s", vmin, vmax);
     else if (range > 1000 * span && far)
         msg("warning: %llu value%s (%.3g%%) lie far outside the bulk of the "
             "data (0.1..99.9 percentiles %.4g .. %.4g, range %g .. %g): they "
             "set the quantizers' and the colours' range; missing values? "
             "(--missing V marks a value as missing)",
             (unsigned long long)far, far == 1 ? "" : "s",
-            100.0 * (double)far / (double)total, plo, phi, r->st.vmin,
-            r->st.vmax);
+            100.0 * (double)far / (double)total, plo, phi, vmin, vmax);
 }
 
 /* Progress: `last` forces the closing line.  Work done counts the

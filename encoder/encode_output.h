@@ -41,6 +41,15 @@ int all_missing(const struct run *r, char *why, size_t cap);
 uint64_t dropped_values(const struct run *r);
 void warn_dropped(uint64_t dropped);
 void warn_dominating_values(const struct run *r);
+/* The warning of a few values far from all the others (a fill value such
+ * as 1e35 left in the data) that set the value range, so that the
+ * quantizers and the default transfer function spend it on them and the
+ * report's PSNR, relative to that range, looks excellent: when a value is
+ * beyond +-1e30 (huge of them) or the range is more than 1000 times the
+ * 0.1..99.9 percentile range [plo, phi] (far of the total values lie
+ * outside it; tvpal_values_spread). */
+void warn_spread(double vmin, double vmax, double plo, double phi,
+                 uint64_t huge, uint64_t far, uint64_t total);
 
 /* A progress line when one is due (every 30 s, 0.2 s on a terminal), or
  * the closing one when `last`; from thread 0 only. */

@@ -5,6 +5,7 @@
 #include "encode_output.h"
 #include "encode_say.h"
 #include "encode_source.h"
+#include "tvpal.h"
 #include "tvpal_cli.h"
 #include "tvpal_fs.h"
 #include "tvpal_passes.h"
@@ -509,4 +510,154 @@ void check_inputs(struct run *r)
             die_usage("%s: %s", p, strerror(errno));
     }
     o->inputs = r->abs_inputs;
+}
+
+/* ------------------------------------------------- the library's source */
+
+/* The raw files being read, each opened once per step read: the library
+ * reads the pieces of a step's box on several threads at once, a step
+ * after another, so two open files serve every call (a third, if ever,
+ * opens its own). */
+struct raw_files {
+    pthread_mutex_t lock;
+    struct {
+        int64_t step;        /* -1: none */
+        int fd;
+        unsigned users;
+    } slot[2];
+};
+
+/* The file of step t open (*slot: which, -1 its own); -1 with diag. */
+static int raw_open(struct raw_files *rf, const char *path, uint32_t t,
+                    int *slot, struct tvpal_diag *d)
+{
+    int fd = -1;
+    *slot = -1;
+    pthread_mutex_lock(&rf->lock);
+    for (int i = 0; i < 2 && fd < 0; i++)
+        if (rf->slot[i].step == (int64_t)t) {
+            rf->slot[i].users++;
+            fd = rf->slot[i].fd, *slot = i;
+        }
+    for (int i = 0; i < 2 && fd < 0; i++)
+        if (!rf->slot[i].users) {
+            if (rf->slot[i].fd >= 0)
+                close(rf->slot[i].fd);
+            rf->slot[i].step = -1;
+            if ((rf->slot[i].fd = tvpal_open_regular(path, d)) < 0)
+                break;
+            rf->slot[i].step = t;
+            rf->slot[i].users = 1;
+            fd = rf->slot[i].fd, *slot = i;
+        }
+    pthread_mutex_unlock(&rf->lock);
+    return fd >= 0 || *slot >= 0 ? fd : tvpal_open_regular(path, d);
+}
+
+static void raw_close(struct raw_files *rf, int fd, int slot)
+{
+    if (slot < 0) {
+        close(fd);
+        return;
+    }
+    pthread_mutex_lock(&rf->lock);
+    rf->slot[slot].users--;
+    pthread_mutex_unlock(&rf->lock);
+}
+
+void encode_source_close(struct run *r)
+{
+    struct raw_files *rf = r->rawf;
+    for (int i = 0; rf && i < 2; i++)
+        if (rf->slot[i].fd >= 0)
+            close(rf->slot[i].fd);
+    if (rf)
+        pthread_mutex_destroy(&rf->lock);
+    free(rf);
+    r->rawf = NULL;
+}
+
+/* Raw files (tvpal.h's source, concurrent): box lo, n of step t, as the
+ * file holds it, read with pread: each plane's rows as one range when they
+ * are whole (a z or y slab), else row by row (an x slab). */
+static int raw_read(void *ctx, uint32_t t, const uint32_t lo[3],
+                    const uint32_t n[3], void *dst, struct tvpal_diag *d)
+{
+    const struct run *r = ctx;
+    const struct opts *o = &r->o;
+    const char *path = o->steps_single ? o->inputs[0] : o->inputs[t];
+    const off_t base = o->steps_single ? (off_t)t * (off_t)r->step_bytes : 0;
+    struct tvpal_diag od = {{0}};
+    int slot;
+    const int fd = raw_open(r->rawf, path, o->steps_single ? 0 : t, &slot,
+                            &od);
+    if (fd < 0) /* maybe transient (NFS, permissions): the partial stays */
+        return tvpal_diag_set(d, TVPAL_E_OPEN, "cannot open %s (rerun to "
+                              "resume)", od.msg);
+    const size_t es = tvpal_type_size(o->type), nx = o->dims[0],
+                 ny = o->dims[1], row = (size_t)n[0] * es;
+    unsigned char *out = dst;
+    int err = 0;
+    for (uint32_t z = 0; z < n[2] && !err; z++) {
+        const uint64_t v0 = lo[0] + nx * (lo[1] + ny * (uint64_t)(lo[2] + z));
+        if (n[0] == nx) {
+            err = pread_full(fd, out, row * n[1], base + (off_t)(v0 * es));
+            out += row * n[1];
+        } else {
+            for (uint32_t y = 0; y < n[1] && !err; y++, out += row)
+                err = pread_full(fd, out, row,
+                                 base + (off_t)((v0 + y * nx) * es));
+        }
+    }
+    raw_close(r->rawf, fd, slot);
+    if (err > 0)
+        return tvpal_diag_set(d, TVPAL_E_READ, "%s: timestep %u: %s (rerun "
+                              "to resume)", path, t, strerror(err));
+    if (err)
+        return tvpal_diag_set(d, TVPAL_E_FORMAT, "%s: timestep %u: file "
+                              "shrank while encoding (truncated)", path, t);
+    return 0;
+}
+
+/* A self-describing input (tvpal_input.h), on the library's reader thread,
+ * the only one that calls the input's library once the encode runs. */
+static int input_read(void *ctx, uint32_t t, const uint32_t lo[3],
+                      const uint32_t n[3], void *dst, struct tvpal_diag *d)
+{
+    const struct run *r = ctx;
+    const uint32_t *dm = r->o.dims;
+    struct tvpal_diag id = {{0}};
+    const int whole = n[0] == dm[0] && n[1] == dm[1] && n[2] == dm[2];
+    int rc = whole ? tvpal_input_read(r->in, t, dst, &id)
+                   : tvpal_input_read_box(r->in, t, lo, n, dst, &id);
+    if (rc < 0) { /* the file changed or is corrupt: a rerun fails too */
+        uint32_t k;
+        const char *path = tvpal_input_file(r->in, t, &k);
+        return tvpal_diag_set(d, TVPAL_E_FORMAT, "timestep %u (step %u of "
+                              "%s): %s", t, k, path, lib_error(rc, &id));
+    }
+    return 0;
+}
+
+struct tvpal_source encode_source_of(struct run *r)
+{
+    const struct opts *o = &r->o;
+    if (!r->in && !r->rawf) {
+        if (!(r->rawf = calloc(1, sizeof *r->rawf)))
+            die_fail("out of memory");
+        pthread_mutex_init(&r->rawf->lock, NULL);
+        for (int i = 0; i < 2; i++)
+            r->rawf->slot[i].step = -1, r->rawf->slot[i].fd = -1;
+    }
+    static const enum tvpal_scalar types[] = {
+        [TVPAL_F32] = TVPAL_FLOAT32, [TVPAL_F64] = TVPAL_FLOAT64,
+        [TVPAL_U8] = TVPAL_UINT8, [TVPAL_U16] = TVPAL_UINT16,
+        [TVPAL_I16] = TVPAL_INT16};
+    return (struct tvpal_source){
+        .type = r->in ? TVPAL_FLOAT32 : types[o->type],
+        .big_endian = r->in ? 0 : o->big_endian,
+        .concurrent = !r->in,
+        .held_bytes = r->in ? tvpal_input_box_scratch(r->in, o->dims) : 0,
+        .ctx = r,
+        .read = r->in ? input_read : raw_read};
 }

@@ -11,10 +11,13 @@
  * lets a rerun of the same command continue an interrupted job.
  *
  * main runs the steps in order: options (g_optspec, validate_opts), input
- * and output checks, the plan, the partial output (resumed or new),
- * shards and workspaces, the streaming driver (encode_steps) and the
- * finishing (finish_partial, move_into_place, print_summary; under MPI
- * cluster_finish).  The input is encode_source.c's, the MPI job
+ * and output checks, then in one process the job through libtvpal's
+ * encoder (encode_with_library: tvpal.h's tvpal_encoder_encode reads the
+ * input as encode_source_of presents it, and this program draws the
+ * progress, saves checkpoints by time, runs the test hooks and reports);
+ * under MPI still its own driver over the engine: the plan, the partial
+ * output (resumed or new), shards and workspaces, the streaming driver
+ * (encode_steps) and cluster_finish.  The input is encode_source.c's, the MPI job
  * encode_cluster.c's (encode.h lists the modules).  A step that fails
  * ends the program with the exit code of `enum ending` (encode_say.h).
  */
@@ -829,7 +832,10 @@ static uint64_t levels_bytes(const struct run *r, int with_slab)
 /* Makes the memory plan (encode_plan.h) before anything is read or
  * written, and says it; a limit too small for even one slice per pass
  * ends the program (exit 2) with the smallest that would do. */
-static void make_plan(struct run *r)
+/* The memory limit: --mem-limit, else what this process's share of the
+ * machine or its cgroup allows (encode_default_limit); r->limit_why says
+ * which. */
+static void choose_limit(struct run *r)
 {
     const struct opts *o = &r->o;
     if (o->mem_limit)
@@ -838,6 +844,12 @@ static void make_plan(struct run *r)
                             : encode_default_limit(local_ranks(r),
                                                    r->limit_why,
                                                    sizeof r->limit_why);
+}
+
+static void make_plan(struct run *r)
+{
+    const struct opts *o = &r->o;
+    choose_limit(r);
     struct encode_job j = {
         .N = r->N, .T = r->T, .limit = r->limit, .fixed = fixed_bytes(r),
         .box_bytes_per_voxel = 4 * ring_slots(r) + (r->in ? 8 : 0),
@@ -1295,11 +1307,11 @@ static void adopt_level0(const struct run *r)
  * takes on disk: disk counts every file (the stored axes' shards of every
  * node, the manifests, the levels).  Not under MPI: every rank verifies
  * its own node directory, and rank 0 the manifest (cluster_finish). */
-static void verify_written(const struct run *r, struct written *w)
+static void measure_written(const struct run *r, const char *dir,
+                            struct written *w)
 {
     struct tvpal_diag d = {{0}};
     struct tvpal_dataset *ds = NULL;
-    const char *dir = r->partial;
     *w = (struct written){0};
     if (tvpal_dataset_open(&ds, dir, &d) < 0)
         die_unverified(r, "dataset", dir, d.msg);
@@ -1434,6 +1446,7 @@ static void print_summary(const struct run *r, const struct written *w)
 
 static void run_free(struct run *r)
 {
+    encode_source_close(r);
     levels_free(r->lvs);
     tvpal_readahead_stop(r->pf);   /* before the input it reads is closed */
     tvpal_pool_free(r->pool);
@@ -1461,6 +1474,409 @@ static void run_free(struct run *r)
     free(r->times);
 }
 
+/* ------------------------------------------------------ through libtvpal
+ *
+ * One process encodes through the library's encoder (tvpal.h): the
+ * options become its parameters, the input its source (encode_source_of),
+ * and its progress callback draws the progress lines, saves checkpoints
+ * by time and runs the test hooks; its failures become this program's
+ * messages and exit codes. */
+
+/* The progress callback's state. */
+struct drive {
+    long fault_after;        /* TVPAL_ENCODE_FAULT_AFTER: stop after this
+                              * unit (-1: never), */
+    int fault_nosave;        /* without saving its checkpoint, */
+    int fault_fail;          /* failing with a message (else killed); */
+    unsigned fault_level;    /* TVPAL_ENCODE_FAULT_LEVEL: stop before
+                              * this level is complete (0: never) */
+    int faulted;             /* 1: stopped by the unit hook, 2: by the
+                              * level hook */
+    uint64_t fault_unit;
+    int seen;                /* the first call came */
+    int levels_inline;       /* the plan's */
+};
+
+/* The job's identity for the library's checkpoints: the options that
+ * decide the shards and the files read (every file of a series, those a
+ * .pvd lists, with a CRC of their first 4 KiB), so that a rerun of the
+ * same command continues and another input starts over. */
+static char *job_identity(const struct run *r)
+{
+    char *params = job_params(&r->o, r->in), *id = NULL;
+    char **files = NULL;
+    const int n = job_files(r, &files);
+    if (!params || n < 0 ||
+        tvpal_checkpoint_fingerprint(params, files, n, r->in ? 4096 : 0,
+                                     &id) < 0)
+        die_fail("out of memory");
+    free(files);
+    free(params);
+    return id;
+}
+
+/* The first call: where the encode starts, and the levels it makes. */
+static void say_start(struct run *r, const struct drive *dv,
+                      const struct tvpal_progress *p)
+{
+    const struct opts *o = &r->o;
+    r->prog.work_at_start = p->work;
+    r->prog.total = p->total;
+    r->prog.units = p->units;
+    if (p->started_over)  /* said with -q too: work is done again */
+        msg("%s: its partial output is another job's or does not resume; "
+            "starting the job over", r->partial);
+    if (o->quiet)
+        return;
+    if (p->level0_kept && p->levels_before != o->levels)
+        msg("resuming with --levels %u (the earlier run asked for %u): level "
+            "0 kept", o->levels, p->levels_before);
+    if (p->resumed && p->unit == p->units)
+        msg("resuming %s: every step is encoded; finishing", r->partial);
+    else if (p->resumed)
+        msg("resuming %s at pass %llu of %u, timestep %llu of %u", r->partial,
+            (unsigned long long)(p->unit / r->T) + 1, p->passes,
+            (unsigned long long)(p->unit % r->T), r->T);
+    for (unsigned k = 1; k <= o->levels; k++) {
+        char *lv = NULL;
+        if (asprintf(&lv, "%s/level-%u", r->partial, k) < 0)
+            die_fail("out of memory");
+        const int done = p->level0_kept && tvpal_exists(lv);
+        free(lv);
+        uint32_t dk[3];
+        tvpal_level_dims(o->dims, k, dk);
+        if (!done)
+            msg("level %u of %u: %ux%ux%u%s", k, o->levels, dk[0], dk[1],
+                dk[2], dv->levels_inline && !p->level0_kept
+                           ? ", beside level 0" : "");
+    }
+}
+
+/* The library's progress callback: progress lines; at a unit's end a
+ * checkpoint once --checkpoint-every seconds have passed since the last
+ * (a rerun after a crash redoes at most that much work; a checkpoint is
+ * text of O(histogram classes + shards x steps) and an fsync: saved after
+ * every step it took 0.13 of 0.90 CPU-seconds of a small encode), after
+ * the last unit (a rerun then only finishes), and at a test fault, so that
+ * the hooks' resume points stay where they say.  The test hooks:
+ * TVPAL_ENCODE_FAULT_AFTER=S stops after S units (steps of passes) as an
+ * interruption would (killed, or with TVPAL_ENCODE_FAULT=fail failing with
+ * a message, both after saving the checkpoint of unit S; with
+ * TVPAL_ENCODE_FAULT=nosave killed without saving it);
+ * TVPAL_ENCODE_FAULT_LEVEL=k stops once the levels before k are complete
+ * (k = 1: after level 0's last unit). */
+static int on_progress(void *ctx, const struct tvpal_progress *p)
+{
+    struct run *r = ctx;
+    struct drive *dv = r->drive;
+    if (!dv->seen) {
+        dv->seen = 1;
+        say_start(r, dv, p);
+        r->prog.t0 = r->prog.last = r->ckpt_last = tvpal_now();
+    }
+    r->prog.work = p->work;
+    r->prog.unit = p->unit;
+    report_progress(r, 0);
+    if (!p->unit_end)
+        return TVPAL_GO_ON;
+    if (p->level) {
+        if (dv->fault_level == p->level + 1) {
+            dv->faulted = 2;
+            return TVPAL_STOP;
+        }
+        return TVPAL_GO_ON;
+    }
+    if (dv->fault_level == 1 && p->unit == p->units) {
+        dv->faulted = 2;
+        return TVPAL_SAVE_AND_STOP;
+    }
+    if (dv->fault_after >= 0 && (long)p->unit >= dv->fault_after) {
+        dv->faulted = 1;
+        dv->fault_unit = p->unit;
+        return dv->fault_nosave ? TVPAL_STOP : TVPAL_SAVE_AND_STOP;
+    }
+    const double now = tvpal_now();
+    if (p->unit == p->units ||
+        now - r->ckpt_last >= (double)r->o.checkpoint_every) {
+        r->ckpt_last = now;
+        return TVPAL_SAVE_AND_GO_ON;
+    }
+    return TVPAL_GO_ON;
+}
+
+/* The encoder with the run's options, grid, times, units, missing values
+ * and provenance.  The options were checked: a refusal here is a bug or
+ * out of memory. */
+static struct tvpal_encoder *open_encoder(struct run *r)
+{
+    const struct opts *o = &r->o;
+    struct tvpal_encoder *e = NULL;
+    struct tvpal_diag d = {{0}};
+    int rc = tvpal_encoder_open(&e, o->outdir, o->dims, r->T, &d);
+    const struct { enum tvpal_param p; double v; } set[] = {
+        {TVPAL_PARAM_WINDOW, o->window}, {TVPAL_PARAM_AXES, o->axes},
+        {TVPAL_PARAM_NODES, o->nodes}, {TVPAL_PARAM_TABLE, o->table_format},
+        {TVPAL_PARAM_REFINE, o->refine}, {TVPAL_PARAM_NAIVE, o->naive},
+        {TVPAL_PARAM_TRANSFORM, o->klt ? TVPAL_TRANSFORM_KLT
+                                       : TVPAL_TRANSFORM_DCT},
+        {TVPAL_PARAM_ALLOC, o->alloc_mse ? TVPAL_ALLOC_GREEDY_MSE
+                                         : TVPAL_ALLOC_VARIANCE},
+        {TVPAL_PARAM_THREADS, r->nthreads},
+        {TVPAL_PARAM_MEM_LIMIT, (double)r->limit},
+        {TVPAL_PARAM_FORCE, o->force},
+        {TVPAL_PARAM_CHECKPOINT, 0}, /* saved by time (on_progress) */
+        {TVPAL_PARAM_LEVELS, o->levels}};
+    for (size_t i = 0; rc == 0 && i < sizeof set / sizeof *set; i++)
+        rc = tvpal_encoder_set(e, set[i].p, set[i].v, &d);
+    if (rc == 0 && o->has_nan_as)
+        rc = tvpal_encoder_set(e, TVPAL_PARAM_NAN_AS, o->nan_as, &d);
+    double sp[3], or[3];
+    grid_of(r, sp, or);
+    if (rc == 0)
+        rc = tvpal_encoder_set_grid(e, sp, or, &d);
+    if (rc == 0 && r->times)
+        rc = tvpal_encoder_set_times(e, r->times, r->time_units, &d);
+    if (rc == 0)
+        rc = tvpal_encoder_set_units(e, r->units, &d);
+    if (rc == 0 && o->nmissing)
+        rc = tvpal_encoder_set_missing(e, o->missing, o->nmissing, &d);
+    /* Where the values came from: the files as given (absolute once
+     * checked), one of every step, one per step, or a series. */
+    char *var = NULL;
+    struct tvpal_provenance pv = {
+        .encoder = PROG " " PACKAGE_VERSION, .format = "raw",
+        .sources = (const char *const *)o->inputs,
+        .nsources = (uint32_t)o->ninputs,
+        .single_file = o->steps_single != 0};
+    if (r->in) {
+        const struct tvpal_input_info *in = tvpal_input_info(r->in);
+        pv.format = tvpal_input_format_name(o->format);
+        pv.single_file = o->ninputs == 1 && r->T > 1;
+        pv.series = o->ninputs > 1 && (uint32_t)o->ninputs != r->T;
+        /* a vector's length says so (tvpal-report reads "NAME
+         * (magnitude)" back as NAME with --magnitude) */
+        if (asprintf(&var, "%s%s", in->var,
+                     in->components > 1 ? " (magnitude)" : "") < 0)
+            die_fail("out of memory");
+        pv.var = var;
+    }
+    if (rc == 0)
+        rc = tvpal_encoder_set_provenance(e, &pv, &d);
+    free(var);
+    if (rc == TVPAL_E_NOMEM)
+        die_fail("out of memory");
+    if (rc < 0)
+        die_usage("%s: %s", o->outdir, lib_error(rc, &d));
+    return e;
+}
+
+static void say_plan(const struct run *r, const struct tvpal_plan *pl,
+                     double read_factor);
+
+/* The plan, said (or printed: --dry-run); a limit too small ends the
+ * program (exit 2) with the smallest that would do. */
+static void library_plan(struct run *r, struct tvpal_encoder *e,
+                         const struct tvpal_source *src, struct tvpal_plan *pl)
+{
+    const struct opts *o = &r->o;
+    struct tvpal_diag d = {{0}};
+    char lim[32], need[32];
+    int rc = tvpal_encoder_plan(e, src, pl, &d);
+    print_size(lim, sizeof lim, r->limit);
+    print_size(need, sizeof need, pl->min_limit);
+    if (rc == TVPAL_E_RANGE && pl->levels_over)
+        die_usage("memory limit %s (%s) is too small for --levels %u: the "
+                  "levels are encoded after level 0 in this process, in one "
+                  "pass each, together about %s; give --mem-limit %lluK or "
+                  "more", lim, r->limit_why, o->levels, need,
+                  (unsigned long long)((pl->min_limit + 1023) >> 10));
+    if (rc == TVPAL_E_RANGE)
+        die_usage("memory limit %s (%s) is too small for %ux%ux%u at "
+                  "--window %u with %d thread%s: one slice per pass needs "
+                  "%s; give --mem-limit %lluK or more (or fewer --threads)",
+                  lim, r->limit_why, o->dims[0], o->dims[1], o->dims[2],
+                  r->N, r->nthreads, r->nthreads == 1 ? "" : "s", need,
+                  (unsigned long long)((pl->min_limit + 1023) >> 10));
+    if (rc == TVPAL_E_NOMEM)
+        die_fail("out of memory");
+    if (rc < 0)
+        die_usage("%s", lib_error(rc, &d));
+    const double read_factor = (double)pl->read_voxels /
+                               ((double)r->nvox * r->T);
+    if (o->dry_run && !o->quiet)
+        say_plan(r, pl, read_factor);
+    if (o->dry_run) {
+        printf("plan %s: passes=%u passes_x=%u passes_y=%u passes_z=%u "
+               "peak_bytes=%llu limit_bytes=%llu input_bytes=%.0f "
+               "read_bytes=%.0f read_factor=%.2f\n", o->outdir, pl->passes,
+               pl->passes_axis[0], pl->passes_axis[1], pl->passes_axis[2],
+               (unsigned long long)pl->peak_bytes,
+               (unsigned long long)r->limit, (double)r->step_bytes * r->T,
+               (double)pl->read_voxels * tvpal_type_size(o->type),
+               read_factor);
+        return;
+    }
+    if (!o->quiet)
+        say_plan(r, pl, read_factor);
+}
+
+/* The plan in words, on stderr. */
+static void say_plan(const struct run *r, const struct tvpal_plan *pl,
+                     double read_factor)
+{
+    const struct opts *o = &r->o;
+    char lim[32], need[32], ring[32], desc[96];
+    print_size(lim, sizeof lim, r->limit);
+    if (pl->passes == 1) {
+        char names[4];
+        snprintf(desc, sizeof desc, "1 pass (%s%s from one ring)",
+                 o->axes == TVPAL_AXES_ALL ? "all axes" : "axes ",
+                 o->axes == TVPAL_AXES_ALL ? ""
+                 : tvpal_axes_format(o->axes, names));
+    } else {
+        size_t n = (size_t)snprintf(desc, sizeof desc, "%u passes (",
+                                    pl->passes);
+        const char *sep = "";
+        for (unsigned a = 0; a < 3 && n < sizeof desc; a++)
+            if (pl->passes_axis[a]) {
+                n += (size_t)snprintf(desc + n, sizeof desc - n, "%s%c %u",
+                                      sep, "xyz"[a], pl->passes_axis[a]);
+                sep = ", ";
+            }
+        if (n < sizeof desc)
+            snprintf(desc + n, sizeof desc - n, ")");
+    }
+    print_size(need, sizeof need, pl->peak_bytes);
+    print_size(ring, sizeof ring, pl->ring_bytes);
+    if (pl->passes == 1)
+        msg("plan: %s; about %s of the memory limit %s (%s)", desc, need,
+            lim, r->limit_why);
+    else
+        msg("plan: %s, reading the input %.2f times: one ring of all %u "
+            "timesteps of a window would need %s, over the memory limit %s "
+            "(%s); each pass needs about %s", desc, read_factor,
+            ring_slots(r), ring, lim, r->limit_why, need);
+}
+
+/* A failed encode or finish: e released (the library keeps the partial
+ * output where a rerun may continue it, and removes it after bad input),
+ * then the program ends with the message and exit code of the failure. */
+static void die_library(struct run *r, const struct drive *dv, int rc,
+                        const struct tvpal_diag *d)
+{
+    const struct opts *o = &r->o;
+    unsigned t;
+    unsigned long long x, y, z;
+    if (dv && dv->faulted == 2)
+        die_fail("level %u: failed as TVPAL_ENCODE_FAULT_LEVEL asks (rerun "
+                 "to resume)", dv->fault_level);
+    if (dv && dv->faulted == 1 && dv->fault_nosave)
+        raise(SIGKILL);
+    if (dv && dv->faulted == 1 && dv->fault_fail)
+        die_fail("test fault after %llu steps (rerun to resume)",
+                 (unsigned long long)dv->fault_unit);
+    if (dv && dv->faulted == 1)
+        raise(SIGKILL);
+    /* A refused value: the library names its step and voxel. */
+    const int inf = sscanf(d->msg, "step %u: an infinite value at voxel "
+                           "(%llu,%llu,%llu)", &t, &x, &y, &z) == 4;
+    const int big = !inf && sscanf(d->msg, "step %u: a value beyond 1e37 at "
+                                   "voxel (%llu,%llu,%llu)", &t, &x, &y,
+                                   &z) == 4;
+    const char *path = inf || big ? r->in ? tvpal_input_file(r->in, t, NULL)
+                                  : o->inputs[o->steps_single ? 0 : t]
+                                  : NULL;
+    if (inf)
+        die_input("%s: timestep %u: infinite value at voxel (%llu,%llu,%llu); "
+                  "expected finite values or NaN for missing ones (use "
+                  "--nan-as VALUE to replace them)", path, t, x, y, z);
+    if (big)
+        die_input("%s: timestep %u: value at voxel (%llu,%llu,%llu) exceeds "
+                  "the supported magnitude %g", path, t, x, y, z,
+                  TVPAL_VALUE_MAX);
+    if (strstr(d->msg, "is missing (NaN"))
+        die_input("%s: every value is missing (NaN%s); expected some present "
+                  "values", o->inputs[0],
+                  o->nmissing ? " or a --missing value" : "");
+    if (rc == TVPAL_E_EXIST && strstr(d->msg, ".lock"))
+        die_fail("%s: another encode is writing it (its lock %s); wait for "
+                 "it or stop it", r->partial, d->msg);
+    /* Before the first read: the output cannot be made (no such
+     * directory, not writable), as the checks before would say. */
+    if (rc == TVPAL_E_EXIST || (dv && !dv->seen && rc != TVPAL_E_NOMEM))
+        die_usage("%s", d->msg[0] ? d->msg : tvpal_strerror(rc));
+    if (rc == TVPAL_E_OPEN || rc == TVPAL_E_READ || rc == TVPAL_E_WRITE ||
+        rc == TVPAL_E_SYS || rc == TVPAL_E_NOMEM || rc == TVPAL_E_CANCELED)
+        /* may pass: the partial output stays for a rerun */
+        die_fail("%s", d->msg[0] ? d->msg : tvpal_strerror(rc));
+    die_input("%s", d->msg[0] ? d->msg : tvpal_strerror(rc));
+}
+
+/* The warnings of the values' statistics (before the finish places the
+ * dataset). */
+static void warn_values(struct run *r, struct tvpal_encoder *e)
+{
+    struct tvpal_stats st;
+    if (tvpal_encoder_stats(e, &st) < 0)
+        return;
+    r->st.missing = st.missing;
+    warn_dropped(st.dropped);
+    warn_spread(st.value_min, st.value_max, st.p_low, st.p_high,
+                st.beyond_1e30, st.far, st.values - st.missing);
+}
+
+/* One process: the whole job through the library's encoder. */
+static void encode_with_library(struct run *r, struct written *w)
+{
+    struct tvpal_encoder *e = open_encoder(r);
+    struct tvpal_source src = encode_source_of(r);
+    struct tvpal_plan pl;
+    library_plan(r, e, &src, &pl);
+    if (r->o.dry_run) {
+        tvpal_encoder_abort(e);
+        return;
+    }
+    r->plan.npasses = pl.passes;
+    const char *fault = getenv("TVPAL_ENCODE_FAULT_AFTER");
+    const char *how = getenv("TVPAL_ENCODE_FAULT");
+    const char *flevel = getenv("TVPAL_ENCODE_FAULT_LEVEL");
+    struct drive dv = {
+        .fault_after = fault ? atol(fault) : -1,
+        .fault_nosave = how && !strcmp(how, "nosave"),
+        .fault_fail = how && !strcmp(how, "fail"),
+        .fault_level = flevel ? (unsigned)atoi(flevel) : 0,
+        .levels_inline = pl.levels_inline};
+    struct progress *p = &r->prog;
+    p->tty = isatty(STDERR_FILENO);
+    p->quiet = r->o.quiet;
+    p->interval = p->tty ? 0.2 : 30.0;
+    /* TVPAL_PROGRESS_INTERVAL=S (a test hook): a line every S seconds. */
+    const char *iv = getenv("TVPAL_PROGRESS_INTERVAL");
+    if (iv && atof(iv) > 0) {
+        p->interval = atof(iv);
+        tvpal_encoder_set(e, TVPAL_PARAM_PROGRESS,
+                          p->interval < 0.001 ? 0.001 : p->interval, NULL);
+    }
+    char *id = job_identity(r);
+    src.identity = id;
+    src.progress = on_progress;
+    r->drive = &dv; /* on_progress's, beside the reads' run */
+    struct tvpal_diag d = {{0}};
+    const double t0 = tvpal_now();
+    int rc = tvpal_encoder_encode(e, &src, &d);
+    free(id);
+    r->t_encode = tvpal_now() - t0;
+    if (rc < 0) {
+        tvpal_encoder_abort(e);
+        die_library(r, &dv, rc, &d);
+    }
+    report_progress(r, 1);
+    warn_values(r, e);
+    if ((rc = tvpal_encoder_finish(e, &d)) < 0)
+        die_library(r, NULL, rc, &d);
+    measure_written(r, r->o.outdir, w);
+}
+
 /* Each step ends the program itself on failure (see `enum ending`). */
 int main(int argc, char **argv)
 {
@@ -1482,6 +1898,16 @@ int main(int argc, char **argv)
     check_grid(&r);
     warn_irregular_times(&r);
     check_output(&r);
+    if (!r.mpi) {
+        choose_threads(&r);
+        choose_limit(&r);
+        encode_with_library(&r, &w);
+        if (!r.o.dry_run)
+            print_summary(&r, &w);
+        run_free(&r);
+        cluster_close(&r);
+        return 0;
+    }
     setup_cluster_dirs(&r);
     setup_shards(&r);
     choose_threads(&r);
@@ -1520,7 +1946,7 @@ int main(int argc, char **argv)
                 die_fail("%s: cannot remove", mk ? mk : "levels.job");
             free(mk);
         }
-        verify_written(&r, &w);
+        measure_written(&r, r.partial, &w);
         move_into_place(&r);
     }
     say_release_lock_now();
