@@ -255,6 +255,18 @@ struct tvpal_collective {
     void (*release)(void *ctx);
 };
 
+/* Each rank's node directory on a disk of its own (a node-local disk of
+ * its machine) instead of DIR/node-RANK: `pattern` with %r replaced by
+ * the rank, written as PATTERN.partial and renamed into place when the
+ * dataset is complete (an older one replaced under TVPAL_PARAM_FORCE);
+ * DIR then holds the manifest and the levels.  tvpal-encode --shard-dir
+ * and tvpal-play --shard-dir use the same pattern.  With a collective of
+ * several ranks only, before the first push or encode; 0, TVPAL_E_INVAL
+ * (no %r, several lines) or TVPAL_E_NOMEM.  Since 0.3.0. */
+TVPAL_API int tvpal_encoder_set_shard_dir(struct tvpal_encoder *e,
+                                          const char *pattern,
+                                          struct tvpal_diag *diag);
+
 /* The z-slab of rank `rank` of `size` for nz planes: planes *z0 .. *z0 +
  * *count - 1 (as equal as possible, the first nz % size one plane
  * larger: the slabs of tvpal-encode --nodes SIZE).  A rank must push
@@ -368,9 +380,9 @@ struct tvpal_stats {
 
 /* The statistics of every step e has taken, into *out: after the last
  * push or tvpal_encoder_encode, before tvpal_encoder_finish (or earlier,
- * of the steps so far).  Under a collective, this rank's share (the
- * manifest has the sums), except after an encode from a source with
- * levels, where level 0 is finished already: every rank's.  0, or
+ * of the steps so far).  Under a collective, after pushes this rank's
+ * share (the manifest has the sums), after an encode from a source every
+ * rank's (level 0 is finished then).  0, or
  * TVPAL_E_INVAL before the first push or encode.  Since 0.3.0. */
 TVPAL_API int tvpal_encoder_stats(struct tvpal_encoder *e,
                                   struct tvpal_stats *out);
@@ -527,11 +539,14 @@ TVPAL_API int tvpal_encoder_plan(struct tvpal_encoder *e,
  * then tvpal_encoder_finish (or, on failure, tvpal_encoder_abort).  With
  * src->identity, a checkpoint of the same job and identity in DIR.partial
  * is continued (the steps before it are not read again), and
- * TVPAL_PARAM_CHECKPOINT counts units (steps of passes).  0; the codes of
- * a first push and of src->read; TVPAL_E_RANGE (the limit is too small:
- * diag gives the smallest that would do); TVPAL_E_CANCELED (the progress
- * callback stopped it); TVPAL_E_INVAL (a collective, a push before, a
- * second call). */
+ * TVPAL_PARAM_CHECKPOINT counts units (steps of passes).  Level 0 is
+ * finished when it returns (under a collective the statistics are every
+ * rank's: every value missing is refused here, TVPAL_E_INVAL), and so are
+ * the levels; tvpal_encoder_finish then reads the dataset back and puts
+ * it in place.  0; the codes of a first push and of src->read;
+ * TVPAL_E_RANGE (the limit is too small: diag gives the smallest that
+ * would do); TVPAL_E_CANCELED (the progress callback stopped it);
+ * TVPAL_E_INVAL (a push before, a second call, every value missing). */
 TVPAL_API int tvpal_encoder_encode(struct tvpal_encoder *e,
                                    const struct tvpal_source *src,
                                    struct tvpal_diag *diag);

@@ -27,6 +27,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <errno.h>
 #include <string.h>
 
 /* One process: its gather is a copy, its broadcast nothing. */
@@ -469,6 +470,37 @@ int tvpal_encoder_set_provenance(struct tvpal_encoder *e,
     return 0;
 }
 
+/* Node k's directory while the job runs: DIR.partial/node-k, or with
+ * tvpal_encoder_set_shard_dir the pattern's directory plus ".partial"
+ * (malloc'ed; NULL out of memory). */
+char *tvpal_enc_node_dir(const struct tvpal_encoder *e, uint32_t k)
+{
+    char *d = tvpal_node_dir(e->partial, e->shard_pat, k), *p = NULL;
+    if (!d || !e->shard_pat)
+        return d;
+    int n = asprintf(&p, "%s.partial", d);
+    free(d);
+    return n < 0 ? NULL : p;
+}
+
+int tvpal_encoder_set_shard_dir(struct tvpal_encoder *e, const char *pattern,
+                                struct tvpal_diag *diag)
+{
+    if (e->state != OPENED)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "shard directory set "
+                              "after the first push");
+    if (!pattern || !strstr(pattern, "%r") || strchr(pattern, '\n'))
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "shard directory \"%s\": "
+                              "a path of one line with %%r (the rank) "
+                              "expected", pattern ? pattern : "(null)");
+    char *p = strdup(pattern);
+    if (!p)
+        return TVPAL_E_NOMEM;
+    free(e->shard_pat);
+    e->shard_pat = p;
+    return 0;
+}
+
 /* --------------------------------------------------------------- rounds */
 
 static int is_root(const struct tvpal_encoder *e)
@@ -501,6 +533,7 @@ static int agree(struct tvpal_encoder *e, enum round round, int rc,
     const struct tvpal_checkpoint_stats *st = &e->st;
     struct vote me = {.round = (int32_t)round, .code = rc,
                       .done = e->done_local, .levels = e->levels,
+                      .kept = e->level0_finished,
                       .vmin = st->vmin, .vmax = st->vmax,
                       .nonfinite = st->nonfinite, .missing = st->missing,
                       .counted = st->counted};
@@ -525,9 +558,11 @@ static int agree(struct tvpal_encoder *e, enum round round, int rc,
                                     * earliest any rank needs */
             const int other_levels = round == R_START &&
                                      o->levels != e->levels;
+            const int other_kept = round == R_SETUP &&
+                                   o->kept != e->votes[0].kept;
             if (v->code == 0 && (o->code < 0 ||
                                  o->round != (int32_t)round ||
-                                 other_levels)) {
+                                 other_levels || other_kept)) {
                 v->code = o->code < 0 ? o->code : TVPAL_E_INVAL;
                 if (e->coll.size == 1)
                     snprintf(v->msg, sizeof v->msg, "%s", o->msg);
@@ -537,10 +572,16 @@ static int agree(struct tvpal_encoder *e, enum round round, int rc,
                     snprintf(v->msg, sizeof v->msg, "rank %d is in round %d "
                              "of the encode, rank 0 in round %d", k,
                              (int)o->round, (int)round);
-                else
+                else if (other_levels)
                     snprintf(v->msg, sizeof v->msg, "rank %d has levels %u, "
                              "rank 0 %u: the same on every rank expected",
                              k, o->levels, e->levels);
+                else
+                    snprintf(v->msg, sizeof v->msg, "rank %d %s level 0 of "
+                             "an earlier encode in %s, rank 0 %s: a file "
+                             "system every rank sees expected", k,
+                             o->kept ? "finds" : "does not find", e->partial,
+                             o->kept ? "does not" : "does");
             }
             v->vmin = o->vmin < v->vmin ? o->vmin : v->vmin;
             v->vmax = o->vmax > v->vmax ? o->vmax : v->vmax;
@@ -599,6 +640,11 @@ static int check_job(const struct tvpal_encoder *e, struct tvpal_diag *diag)
                               "y slices cross the ranks' slabs; an encode "
                               "from a source reads them)", e->ep.axes,
                               e->coll.size);
+    if (e->shard_pat && e->coll.size < 2)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "a shard directory "
+                              "without a collective: for ranks on machines "
+                              "of their own (one process writes "
+                              "DIR/node-R)");
     if (e->coll.size > 1 && e->ep.nodes != (uint32_t)e->coll.size)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "nodes %u with %d ranks: "
                               "one node shard per rank", e->ep.nodes,
@@ -667,7 +713,7 @@ static int open_writers(struct tvpal_encoder *e, uint64_t done,
     uint32_t n;
     struct tvpal_engine_shard *sj = tvpal_engine_shards(e->eng, &n);
     for (uint32_t k = 0; k < e->ep.node_count; k++) {
-        char *nd = tvpal_node_dir(e->partial, NULL, e->ep.node_first + k);
+        char *nd = tvpal_enc_node_dir(e, e->ep.node_first + k);
         int rc = nd ? tvpal_mkdirs(nd, diag) : TVPAL_E_NOMEM;
         free(nd);
         if (rc < 0)
@@ -676,7 +722,7 @@ static int open_writers(struct tvpal_encoder *e, uint64_t done,
     if (!done && tvpal_checkpoint_remove(e->ckdir, diag) < 0)
         return TVPAL_E_SYS;
     for (uint32_t q = 0; q < n; q++) {
-        char *nd = tvpal_node_dir(e->partial, NULL, sj[q].rank), *path = NULL;
+        char *nd = tvpal_enc_node_dir(e, sj[q].rank), *path = NULL;
         int rc = TVPAL_E_NOMEM;
         if (nd && asprintf(&path, "%s/axis-%c.tvps", nd,
                            "xyz"[sj[q].axis]) >= 0)
@@ -778,7 +824,7 @@ static int setup(struct tvpal_encoder *e, struct tvpal_diag *diag)
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "the levels' exchange: "
                               "%zu bytes per rank", e->xbytes);
     e->ckdir = e->coll.size > 1
-                   ? tvpal_node_dir(e->partial, NULL, e->ep.node_first)
+                   ? tvpal_enc_node_dir(e, e->ep.node_first)
                    : strdup(e->partial);
     if (!e->ckdir)
         return TVPAL_E_NOMEM;
@@ -1259,7 +1305,7 @@ static int encode_ready(struct tvpal_encoder *e, struct tvpal_diag *diag)
         int rc = tvpal_engine_encode_step(e->eng, e->encoded, &d, &q);
         if (rc < 0) {
             struct tvpal_engine_shard *sj = tvpal_engine_shards(e->eng, &n);
-            char *nd = tvpal_node_dir(e->partial, NULL, sj[q].rank);
+            char *nd = tvpal_enc_node_dir(e, sj[q].rank);
             rc = tvpal_diag_set(diag, rc, "%s/axis-%c.tvps: %s",
                                 nd ? nd : e->partial, "xyz"[sj[q].axis],
                                 d.msg);
@@ -1517,7 +1563,7 @@ static int finish_shards(struct tvpal_encoder *e, const char *text,
     }
     int rc = tvpal_checkpoint_remove(e->ckdir, diag);
     for (uint32_t k = 0; rc == 0 && k < e->ep.node_count; k++) {
-        char *nd = tvpal_node_dir(e->partial, NULL, e->ep.node_first + k);
+        char *nd = tvpal_enc_node_dir(e, e->ep.node_first + k);
         rc = nd ? write_manifest(nd, text, diag) : TVPAL_E_NOMEM;
         free(nd);
     }
@@ -1543,8 +1589,18 @@ static int place(struct tvpal_encoder *e, const char *text,
         if (k ? asprintf(&dir, "%s/level-%u", e->partial, k) < 0
               : !(dir = strdup(e->partial)))
             return TVPAL_E_NOMEM;
-        rc = tvpal_dataset_open(&ds, dir, &d);
-        tvpal_dataset_close(ds);
+        if (k == 0 && e->shard_pat) { /* the node directories are the
+                                       * ranks' (place_node_dir) */
+            struct tvpal_manifest m = {0};
+            char *mp = NULL;
+            rc = asprintf(&mp, "%s/manifest.txt", dir) < 0
+                     ? TVPAL_E_NOMEM : tvpal_manifest_load(mp, &m, &d);
+            tvpal_manifest_clear(&m);
+            free(mp);
+        } else {
+            rc = tvpal_dataset_open(&ds, dir, &d);
+            tvpal_dataset_close(ds);
+        }
         if (rc < 0)
             tvpal_diag_set(diag, rc, "%s: written %s does not verify: %s "
                            "(%s)", dir, k ? "level" : "dataset", d.msg,
@@ -1554,6 +1610,33 @@ static int place(struct tvpal_encoder *e, const char *text,
     }
     if (rc == 0 && (rc = tvpal_output_place(e->partial, e->dir, diag)) == 0)
         e->made_partial = 0;
+    return rc;
+}
+
+/* With a shard directory: this rank's node directory read back, then
+ * renamed from PATTERN.partial into place (an older one replaced under
+ * TVPAL_PARAM_FORCE). */
+static int place_node_dir(struct tvpal_encoder *e, struct tvpal_diag *diag)
+{
+    const uint32_t k = e->ep.node_first;
+    char *fin = tvpal_node_dir(NULL, e->shard_pat, k);
+    struct tvpal_dataset *ds = NULL;
+    struct tvpal_diag d = {{0}};
+    if (!fin)
+        return TVPAL_E_NOMEM;
+    int rc = tvpal_dataset_open_node(&ds, e->ckdir, k, e->ep.nodes, &d);
+    tvpal_dataset_close(ds);
+    if (rc < 0)
+        rc = tvpal_diag_set(diag, rc, "%s: written node directory does not "
+                            "verify: %s", e->ckdir, d.msg);
+    else if (tvpal_exists(fin) && (!e->force || tvpal_rmtree(fin) < 0))
+        rc = tvpal_diag_set(diag, e->force ? TVPAL_E_SYS : TVPAL_E_EXIST,
+                            "%s: node directory already exists%s", fin,
+                            e->force ? " and cannot be removed" : "");
+    else if (rename(e->ckdir, fin) < 0)
+        rc = tvpal_diag_set(diag, TVPAL_E_SYS, "%s: cannot rename %s into "
+                            "place: %s", fin, e->ckdir, strerror(errno));
+    free(fin);
     return rc;
 }
 
@@ -1601,6 +1684,7 @@ static void release(struct tvpal_encoder *e)
     free(e->lock_path);
     free(e->times);
     free(e->text);
+    free(e->shard_pat);
     free_provenance(e);
     free(e->partial);
     free(e->dir);
@@ -1631,8 +1715,15 @@ int tvpal_enc_finish_level0(struct tvpal_encoder *e, struct tvpal_diag *diag)
         rc = all_missing(e, &d);
     if (rc == 0)
         rc = finish_shards(e, e->text, &d);
-    if (rc == 0 && is_root(e))
-        rc = write_manifest(e->partial, e->text, &d);
+    if (!e->decided) {
+        /* Every rank's shards finished before DIR.partial says level 0 is
+         * (its manifest, then the caller's marker). */
+        struct verdict v;
+        if (agree(e, R_LEVEL0, rc, d.msg, &v) == 0 && is_root(e))
+            rc = write_manifest(e->partial, e->text, &d);
+        else
+            rc = report(rc, &v, &d);
+    }
     if (rc == 0)
         e->level0_finished = 1;
     else if (diag)
@@ -1672,6 +1763,8 @@ int tvpal_encoder_finish(struct tvpal_encoder *e, struct tvpal_diag *diag)
         if (rc == 0)
             rc = finish_shards(e, text, &d);
     }
+    if (rc == 0 && e->shard_pat)
+        rc = place_node_dir(e, &d);
     if (!e->decided) {
         struct verdict v;
         if (agree(e, R_PLACE, rc, d.msg, &v) == 0) {

@@ -31,10 +31,14 @@ enum state { OPENED, STARTED, FAILED };
  * from the earliest of them); WRITERS: every rank has its shard writers,
  * resumed or new; STATS: every
  * rank has pushed every step, the statistics summed and the manifest sent
- * from rank 0; PLACE: every rank has finished its shards, then rank 0
+ * from rank 0; LEVEL0 (a pulled encode): every rank has finished its
+ * shards of level 0, then rank 0 writes its manifest (and with levels the
+ * marker that keeps it); PLACE: every rank has finished its shards, then
+ * rank 0
  * writes the manifest, verifies and renames.  A round that decides a
  * failure is the last: every rank knows it and none joins another. */
-enum round { R_START = 1, R_SETUP, R_WRITERS, R_STATS, R_PLACE, R_DONE };
+enum round { R_START = 1, R_SETUP, R_WRITERS, R_STATS, R_LEVEL0, R_PLACE,
+             R_DONE };
 
 /* What a rank sends rank 0 in a round, and the verdict rank 0 sends back;
  * the statistics ride along (summed by rank 0; used in R_STATS). */
@@ -43,6 +47,8 @@ struct vote {
     uint64_t done;           /* SETUP: the steps its checkpoint has done */
     uint32_t levels;         /* START: its TVPAL_PARAM_LEVELS, which every
                               * rank must share */
+    int32_t kept;            /* SETUP: level 0 is an earlier encode's,
+                              * kept (every rank must agree) */
     double vmin, vmax;
     uint64_t nonfinite, missing, counted;
     char msg[TVPAL_DIAG_MAX];
@@ -150,6 +156,8 @@ struct tvpal_encoder {
      * kept for the PLACE round of finish. */
     int level0_finished;
     char *text;
+    char *shard_pat;                 /* tvpal_encoder_set_shard_dir's, or
+                                      * NULL: DIR.partial/node-R */
     int had_partial;                 /* rank 0: DIR.partial was there when
                                       * the encode began */
     /* tvpal_encoder_set_provenance's, owned; encoder "" and no format
@@ -197,6 +205,10 @@ int tvpal_enc_finish_level0(struct tvpal_encoder *e, struct tvpal_diag *diag);
  * 0 where there is none.  diag says "level k: ...". */
 int tvpal_enc_finish_level(struct tvpal_encoder *e, uint32_t k,
                            struct tvpal_diag *diag);
+
+/* This rank's node k's directory while the job runs (malloc'ed; NULL out
+ * of memory): DIR.partial/node-k, or the shard directory's. */
+char *tvpal_enc_node_dir(const struct tvpal_encoder *e, uint32_t k);
 
 /* Whether a pulled encode that failed with code may be continued by the
  * next (stopped, a read, a write, the system, memory): DIR.partial is

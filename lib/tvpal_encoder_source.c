@@ -298,9 +298,8 @@ static int make_fingerprint(struct tvpal_encoder *e)
     int rc = tvpal_checkpoint_fingerprint(params, NULL, 0, 0, &e->fp);
     free(params);
     if (rc == 0 && e->levels) {
-        if (asprintf(&params, "libtvpal level 0 %s rank=%d/%d identity=%s",
-                     opts, e->coll.rank, e->coll.size,
-                     e->src->identity) < 0)
+        if (asprintf(&params, "libtvpal level 0 %s ranks=%d identity=%s",
+                     opts, e->coll.size, e->src->identity) < 0)
             return TVPAL_E_NOMEM;
         rc = tvpal_checkpoint_fingerprint(params, NULL, 0, 0,
                                           &e->pull->fp0);
@@ -393,8 +392,10 @@ static int keep_level0(struct tvpal_encoder *e, struct tvpal_diag *diag)
     if (rc < 0)
         return TVPAL_E_NOMEM;
     if (pl->pr.levels_before != e->levels) {
-        for (uint32_t k = 0; rc == 0 && k <= e->ep.nodes; k++) {
-            char *d = k ? tvpal_node_dir(e->partial, NULL, k - 1)
+        /* DIR.partial's (rank 0's) and this rank's node directories'. */
+        for (uint32_t k = e->coll.rank ? 1 : 0;
+             rc == 0 && k <= e->ep.node_count; k++) {
+            char *d = k ? tvpal_enc_node_dir(e, e->ep.node_first + k - 1)
                         : strdup(e->partial), *mp = NULL;
             rc = d && asprintf(&mp, "%s/manifest.txt", d) >= 0
                      ? tvpal_write_file_atomic(mp, e->text, strlen(e->text),
@@ -403,7 +404,8 @@ static int keep_level0(struct tvpal_encoder *e, struct tvpal_diag *diag)
             free(mp);
             free(d);
         }
-        remove_levels_beyond(e);
+        if (e->coll.rank == 0)
+            remove_levels_beyond(e);
     }
     pl->kept = e->level0_finished = 1;
     pl->start = pl->units;
@@ -444,7 +446,7 @@ int tvpal_enc_source_ready(struct tvpal_encoder *e, struct tvpal_diag *diag)
         return TVPAL_E_NOMEM;
     if (e->src->identity)
         pl->start = load_checkpoint(e);
-    if (!pl->start && e->src->identity && e->levels && e->coll.size == 1 &&
+    if (!pl->start && e->src->identity && e->levels &&
         (rc = keep_level0(e, diag)) < 0)
         return rc;
     e->done_local = pl->start;
@@ -706,7 +708,7 @@ static int encode_step(struct tvpal_encoder *e, uint32_t t,
     int rc = tvpal_engine_encode_step(e->eng, t, &d, &q);
     if (rc < 0) {
         struct tvpal_engine_shard *sj = tvpal_engine_shards(e->eng, &n);
-        char *nd = tvpal_node_dir(e->partial, NULL, sj[q].rank);
+        char *nd = tvpal_enc_node_dir(e, sj[q].rank);
         rc = tvpal_diag_set(diag, rc, "%s/axis-%c.tvps: %s",
                             nd ? nd : e->partial, "xyz"[sj[q].axis], d.msg);
         free(nd);
@@ -864,23 +866,24 @@ static int make_levels(struct tvpal_encoder *e, struct tvpal_diag *diag)
     return rc;
 }
 
-/* With levels: level 0 finished on every rank (unless kept), the marker
- * written, and rank 0's levels. */
+/* After the passes: level 0 finished on every rank (unless kept), and
+ * with levels the marker written and rank 0's levels. */
 static int levels_after_level0(struct tvpal_encoder *e,
                                struct tvpal_diag *diag)
 {
     int rc = 0;
+    const int root = e->coll.rank == 0;
     if (!e->level0_finished) {
         if ((rc = tvpal_enc_finish_level0(e, diag)) < 0)
             return rc;
-        char *mk = e->coll.rank == 0 ? marker_path(e) : NULL;
-        if (e->coll.rank == 0)
+        char *mk = root && e->levels ? marker_path(e) : NULL;
+        if (root && e->levels)
             rc = mk ? tvpal_write_file_atomic(mk, e->pull->fp0,
                                               strlen(e->pull->fp0), diag)
                     : TVPAL_E_NOMEM;
         free(mk);
     }
-    return rc == 0 && e->coll.rank == 0 ? make_levels(e, diag) : rc;
+    return rc == 0 && root && e->levels ? make_levels(e, diag) : rc;
 }
 
 int tvpal_enc_failure_may_pass(int code)
@@ -916,7 +919,7 @@ int tvpal_encoder_encode(struct tvpal_encoder *e,
         tick(e); /* where it starts, before any read */
         rc = encode_passes(e, &d);
     }
-    if (rc == 0 && e->levels)
+    if (rc == 0)
         rc = levels_after_level0(e, &d);
     /* The reader may be reading ahead: it stops before the call returns,
      * after which src is the caller's again. */

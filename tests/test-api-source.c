@@ -790,19 +790,20 @@ static void test_failures(void)
     tvpal_encoder_abort(e);
     CHECK(!exists(path("%s/inf%s", ".partial")) &&
               !exists(path("%s/inf%s", "")), "an infinity left output");
-    /* Every value missing, pulled or pushed: refused at finish, saying
-     * so (it was a "malformed manifest" of the library's own), nothing
-     * left. */
+    /* Every value missing, pulled or pushed: refused (where level 0 is
+     * finished: at the end of the encode, or at finish), saying so (it
+     * was a "malformed manifest" of the library's own), nothing left. */
     s = plain(TVPAL_FLOAT32);
     s.all_nan = 1;
     so = source_of(&s, 1, "series");
     REQUIRE(open_job(&e, path("%s/nan%s", ""), &base, &d) == 0, "%s", d.msg);
     rc = tvpal_encoder_encode(e, &so, &d);
-    CHECK(rc == 0, "all missing, encode: %s", d.msg);
-    rc = tvpal_encoder_finish(e, &d);
+    tvpal_encoder_abort(e);
     CHECK(rc == TVPAL_E_INVAL && strstr(d.msg, "every value of the 9 steps "
                                         "is missing"),
-          "all missing, finish: %s %s", tvpal_strerror(rc), d.msg);
+          "all missing, encode: %s %s", tvpal_strerror(rc), d.msg);
+    CHECK(!exists(path("%s/nan%s", ".partial")) &&
+              !exists(path("%s/nan%s", "")), "all missing left output");
     static float nan_step[NV];
     for (unsigned i = 0; i < NV; i++)
         nan_step[i] = NAN;
