@@ -5,15 +5,14 @@
  * the headers below it (tests/layers.sh checks the order LAYERS.md gives):
  *   encode_say.h      messages and how a failure ends the program
  *   encode.h          this header: the options and the run (data only)
- *   encode_output.h   the node directories, shards, manifest, placing,
- *                     warnings and progress
- *   encode_source.h   the input: raw boxes in blocks, self-describing
- *                     readers with a read-ahead thread, its checks
- *   encode_levels.h   --levels: the coarser levels through libtvpal
- *   encode_cluster.h  the MPI job (one rank per node shard) and how its
- *                     ranks agree on the end
- *   tvpal-encode.c    the options, the plan, the workspaces, the
- *                     streaming driver and the finishing
+ *   encode_output.h   the grid recorded, the warnings and progress
+ *   encode_source.h   the input: its files and checks, and the input as
+ *                     libtvpal's source (raw files, self-describing
+ *                     readers)
+ *   encode_cluster.h  the MPI job (one rank per node shard): libtvpal's
+ *                     collective, the round before the encode, the sizes
+ *   tvpal-encode.c    the options, the encoder and its progress
+ *                     callback, the reports
  *
  * Program code, not library code: the modules report and end the program
  * themselves (encode_say.h).
@@ -24,14 +23,12 @@
 #include "encode_plan.h"
 #include "encode_say.h"
 #include "tvpal_checkpoint.h"
-#include "tvpal_engine.h"
 #include "tvpal_error.h"
 #include "tvpal_format.h"
 #include "tvpal_input.h"
 #include "tvpal_manifest.h"
 #include "tvpal_pool.h"
 #include "tvpal_raw.h"
-#include "tvpal_shard.h"
 #include "tvpal_swcode.h"
 
 #include <stddef.h>
@@ -101,12 +98,11 @@ struct progress {
     uint64_t unit, units;    /* the step being done (pass * T + step), of */
 };
 
-/* One encoding run: the job, its output and the workspaces, set up by
- * main's steps in order and released by run_free. */
-struct tvpal_readahead;
-struct tvpal_found;
-struct drive;
+/* One encoding run: the job, its input and output, set up by main's steps
+ * in order and released by run_free. */
 struct raw_files;
+struct drive;
+struct cluster;
 
 struct run {
     struct opts o;
@@ -115,47 +111,29 @@ struct run {
     uint64_t step_bytes;     /* source bytes per timestep */
     char **abs_inputs;       /* o.inputs points here once checked */
     char *partial;           /* OUTDIR.partial */
-    char *fp;                /* job fingerprint */
-    struct tvpal_checkpoint_stats st;
-    uint64_t start;          /* first unit of work (pass * T + step) */
-    /* The engine (tvpal_engine.h), and its shards: the axes encoded x K
-     * nodes, axis-major (every node's, or one rank's). */
-    struct tvpal_engine *eng;
-    struct tvpal_engine_shard *sj;
-    uint32_t nshard;
-    /* The memory plan and the pass being encoded. */
-    uint64_t limit;
-    char limit_why[128];
-    struct encode_plan plan;
-    const struct encode_pass *pass;
-    /* Workspaces: per thread, then shared. */
-    int nthreads;
-    struct tvpal_pool *pool; /* nthreads threads (the main one is 0) */
-    uint64_t **fine_local;   /* per-thread source histograms */
-    struct tvpal_found *found_local; /* per thread: what a box read found */
-    unsigned char **scratch;    /* per thread: TVPAL_READ_BLOCK bytes at
-                                 * most (raw) */
-    float *boxbuf;           /* a self-describing input's box, as read */
+    int nthreads;            /* worker threads (-j) */
+    uint64_t limit;          /* the memory limit, */
+    char limit_why[128];     /* and where it comes from */
+    uint32_t passes;         /* the plan's passes (this rank's) */
+    uint64_t missing;        /* missing values the encode found */
     struct tvpal_input *in;  /* self-describing input, or NULL (raw) */
     struct tvpal_pool *in_pool;  /* its reading thread's team (-j threads)
                                   * for compressed chunks, or NULL */
-    struct tvpal_readahead *pf; /* reads the input's next step meanwhile */
+    struct raw_files *rawf;  /* the raw files the library's source keeps
+                              * open (encode_source.c) */
     double *times;           /* [T] time values, or NULL (none known) */
     char time_units[128];
     char units[64];          /* the values' units, or "" (load_times) */
-    double t_encode;         /* seconds of the streaming loop */
+    double t_encode;         /* seconds of the encode */
     struct progress prog;
     double ckpt_last;        /* when the last checkpoint was saved (or the
-                              * steps began) */
-    /* Checkpoint copies of the writers' progress (tvpal_checkpoint.h). */
-    struct tvpal_checkpoint_progress ckp;
-    /* MPI: this rank encodes node `node` only; its node directory while
-     * the job runs (also its checkpoint's), and where it goes at the end
-     * (--shard-dir; NULL: it stays inside OUTDIR). */
+                              * encode began) */
+    struct drive *drive;     /* the library's progress callback's state
+                              * (tvpal-encode.c) */
+    /* MPI: this rank encodes node `node`; rank 0 learns the others'
+     * sizes for the summary (cluster_sizes). */
     int mpi;
     uint32_t node;
-    char *ckdir;
-    char *node_final;
     uint64_t cluster_bytes;  /* rank 0: bytes of every rank's files and
                               * OUTDIR's manifest, */
     uint64_t cluster_shard_bytes; /* of every rank's shards, */
@@ -163,19 +141,7 @@ struct run {
                                    * OUTDIR), */
     uint64_t cluster_work;   /* the voxel-samples they encoded, */
     double cluster_seconds;  /* in this many seconds (the slowest) */
-    int level0_done;         /* --levels: level 0 finished by an earlier
-                              * run of the same job (levels.job) */
-    int levels_inline;       /* --levels: the plan holds the levels beside
-                              * level 0's one pass */
-    struct levels *lvs;      /* the levels made as level 0's steps are
-                              * read, or NULL */
     struct cluster *cl;      /* the MPI job (encode_cluster.h) */
-    struct raw_files *rawf;  /* the raw files the library's source keeps
-                              * open (encode_source.c) */
-    struct drive *drive;     /* the library's progress callback's state
-                              * (tvpal-encode.c) */
-    char *lock_path;         /* OUTDIR.partial.lock, held while it runs */
-    int lock_fd;             /* or -1 */
 };
 
 

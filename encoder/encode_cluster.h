@@ -1,7 +1,8 @@
 /* encode_cluster.h: tvpal-encode as an MPI job (encode_cluster.c): one
- * rank per node shard, and the rounds in which the ranks agree on the end
- * (a failing rank's message reaches rank 0 and every rank ends).  One
- * process is a job of one rank.  The job's state is r->cl, made by
+ * rank per node shard, libtvpal's collective over the job's
+ * communicator, the round before the encode in which a rank that fails
+ * the checks ends every rank, and the sizes rank 0 sums for the summary.
+ * One process is a job of one rank.  The job's state is r->cl, made by
  * open_cluster and freed by cluster_close.  Above encode_output.h;
  * program code.
  */
@@ -9,22 +10,24 @@
 #define TVPAL_ENCODE_CLUSTER_H
 
 #include "encode.h"
+#include "tvpal.h"
 
 /* Joins the job under an MPI launcher (r->mpi, r->node), else one
- * process; from here on a failure on any rank ends every rank. */
+ * process; from here on a failure on any rank ends every rank (through
+ * cluster_ready's round until the encode). */
 void open_cluster(struct run *r, int *argc, char ***argv);
 /* The ranks of the job (1 for one process). */
 int cluster_size(const struct run *r);
-/* Rank 0's bytes at buf replace every rank's (one process: nothing);
- * ends the program if it cannot. */
-void cluster_bcast(struct run *r, void *buf, size_t bytes);
-/* This process's checkpoint directory and its node's final directory
- * (--shard-dir); the rules --nodes and --shard-dir obey. */
-void setup_cluster_dirs(struct run *r);
-/* MPI: the rounds after encoding: statistics, every rank's shards and
- * node manifest verified, then the node directories in place and rank
- * 0's commit of OUTDIR. */
-void cluster_finish(struct run *r);
+/* The job's communicator as libtvpal's collective (tvpal.h). */
+struct tvpal_collective cluster_collective(struct run *r);
+/* MPI: every rank has got through the checks before the encode (a rank
+ * that failed them joined this round with its message through the relay:
+ * rank 0 says it, every rank ends); from here on failures are the
+ * library's, which every rank learns from its rounds. */
+void cluster_ready(struct run *r);
+/* MPI, after the dataset is in place: rank 0 learns every rank's bytes,
+ * shard bytes, work and seconds for the summary (r->cluster_*). */
+void cluster_sizes(struct run *r);
 /* Leaves the job (MPI_Finalize) and frees r->cl; NULL r->cl is a no-op. */
 void cluster_close(struct run *r);
 

@@ -1,7 +1,6 @@
 /* encode_say.c: tvpal-encode's messages and endings (encode_say.h). */
 #include "encode_say.h"
 #include "tvpal_cli.h"
-#include "tvpal_fs.h"
 
 #include <stdarg.h>
 #include <stdio.h>
@@ -10,37 +9,10 @@
 /* What a die_* undoes and where it goes: this process's, set by the
  * program's steps (encode_say.h). */
 static struct {
-    const char *bad_input_dir;
-    const char *lock_path;
-    int lock_fd;
     int rank;               /* -1: one process */
     say_relay_fn relay;
     void *relay_ctx;
-} g_say = {NULL, NULL, -1, -1, NULL, NULL};
-
-void say_remove_on_bad_input(const char *dir)
-{
-    g_say.bad_input_dir = dir;
-}
-
-void say_remove_bad_input_output(void)
-{
-    if (g_say.bad_input_dir)
-        tvpal_rmtree(g_say.bad_input_dir);
-}
-
-void say_release_lock_at_exit(const char *path, int fd)
-{
-    g_say.lock_path = path;
-    g_say.lock_fd = fd;
-}
-
-void say_release_lock_now(void)
-{
-    tvpal_lock_release(g_say.lock_path, g_say.lock_fd);
-    g_say.lock_path = NULL;
-    g_say.lock_fd = -1;
-}
+} g_say = {-1, NULL, NULL};
 
 void say_as_rank(int rank)
 {
@@ -70,9 +42,6 @@ static void say(enum ending how, const char *fmt, va_list ap)
     fputc('\n', stderr);
     if (how == MSG_ONLY)
         return;
-    if (how == DIE_INPUT)
-        say_remove_bad_input_output();
-    say_release_lock_now();
     exit(how == DIE_FAIL ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE);
 }
 

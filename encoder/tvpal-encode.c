@@ -1,62 +1,43 @@
-/* tvpal-encode: encodes a time series of raw volumes into a tvpal dataset
- * (paper section III; format: common/format/FORMAT.md).
+/* tvpal-encode: encodes a time series of volumes (raw files, NetCDF,
+ * HDF5, VTK) into a tvpal dataset (paper section III; format:
+ * common/format/FORMAT.md), through libtvpal's encoder (tvpal.h).
  *
- * Streaming in passes (encode_plan.h): each pass streams the timesteps
- * of its box of the volume through a ring of N boxes (step t + N - 1 is
- * read when the windows starting at t are coded), so memory holds N boxes,
- * never T steps, and stays under the memory limit.  Each chunk is written
- * in place as it is coded (tvpal_shard.h, placed writing).  Output goes to
- * OUTDIR.partial/ and is renamed to OUTDIR only when complete; a
- * checkpoint written after every step of every pass (tvpal_checkpoint.h)
- * lets a rerun of the same command continue an interrupted job.
- *
- * main runs the steps in order: options (g_optspec, validate_opts), input
- * and output checks, then in one process the job through libtvpal's
- * encoder (encode_with_library: tvpal.h's tvpal_encoder_encode reads the
- * input as encode_source_of presents it, and this program draws the
- * progress, saves checkpoints by time, runs the test hooks and reports);
- * under MPI still its own driver over the engine: the plan, the partial
- * output (resumed or new), shards and workspaces, the streaming driver
- * (encode_steps) and cluster_finish.  The input is encode_source.c's, the MPI job
- * encode_cluster.c's (encode.h lists the modules).  A step that fails
- * ends the program with the exit code of `enum ending` (encode_say.h).
+ * The program is the options, the input and the reports; the encode is
+ * the library's tvpal_encoder_encode, which reads the input as
+ * encode_source_of presents it, in passes under the memory limit, writes
+ * OUTDIR.partial/ and renames it to OUTDIR only when complete, and keeps
+ * checkpoints that let a rerun of the same command continue an
+ * interrupted job.  main runs the steps in order: options (g_optspec,
+ * validate_opts), the input and its checks (encode_source.c), the output
+ * and cluster checks, then encode_with_library: the encoder set up from
+ * the options (open_encoder), the plan said (library_plan), the encode
+ * with this program's progress callback (progress lines, checkpoints by
+ * time, the test hooks: on_progress), the warnings, the finish and the
+ * summary.  Under MPI every rank does the same with the job's
+ * communicator as the library's collective (encode_cluster.c).  A step
+ * that fails ends the program with the exit code of `enum ending`
+ * (encode_say.h); the library's failures are mapped to them
+ * (die_library).
  */
 #define _GNU_SOURCE
 #include "encode.h"
 #include "encode_cluster.h"
-#include "encode_levels.h"
 #include "encode_output.h"
 #include "encode_say.h"
 #include "encode_source.h"
-#include "encode_plan.h"
-#include "tvpal_checkpoint.h"
 #include "tvpal_cli.h"
 #include "tvpal_clock.h"
 #include "tvpal_comm.h"
-#include "tvpal_dataset.h"
 #include "tvpal_eig.h"
 #include "tvpal_error.h"
-#include "tvpal_format.h"
 #include "tvpal_fs.h"
 #include "tvpal_input.h"
-#include "tvpal_manifest.h"
+#include "tvpal_levels.h"
 #include "tvpal_output.h"
-#include "tvpal_passes.h"
-#include "tvpal_readahead.h"
-#include "tvpal_raw.h"
-#include "tvpal_shard.h"
-#include "tvpal_swcode.h"
-#include "tvpal_values.h"
-#include "tvpal_schedule.h"
 
-#include <errno.h>
-#include <fcntl.h>
 #include <getopt.h>
-#include <limits.h>
 #include <math.h>
-#include <pthread.h>
 #include <signal.h>
-#include <stdarg.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -575,75 +556,6 @@ static void check_output(struct run *r)
         die_usage("%s", d.msg);
 }
 
-/* Creates OUTDIR.partial/node-R/ for every node (after which bad input
- * removes the partial output, see die_input). */
-char *node_partial(const struct run *r, uint32_t k);
-
-static void make_node_dirs(struct run *r)
-{
-    for (uint32_t k = r->mpi ? r->node : 0;
-         k < (r->mpi ? r->node + 1 : r->o.nodes); k++) {
-        struct tvpal_diag d = {{0}};
-        char *nd = node_partial(r, k);
-        int rc = !nd ? TVPAL_E_NOMEM : tvpal_mkdirs(nd, &d);
-        free(nd);
-        if (rc < 0)
-            die_usage("%s: cannot create output directory: %s", r->partial,
-                      lib_error(rc, &d));
-    }
-    say_remove_on_bad_input(r->mpi ? r->ckdir : r->partial);
-}
-
-
-/* Forgets a partial output: statistics and the start go back to nothing,
- * and this process's partial directory is removed (the next steps make
- * the node directories again). */
-static void start_over(struct run *r)
-{
-    r->start = 0;
-    tvpal_checkpoint_stats_reset(&r->st);
-    if (tvpal_exists(r->ckdir) && tvpal_rmtree(r->ckdir) < 0)
-        die_usage("%s: cannot remove stale partial output", r->ckdir);
-}
-
-/* --levels: OUTDIR.partial/levels.job holds the job's fingerprint once
- * level 0 is finished (its checkpoint is gone then), so that a rerun
- * interrupted during the coarser levels keeps level 0. */
-static char *level0_marker(const struct run *r)
-{
-    char *p;
-    return asprintf(&p, "%s/levels.job", r->partial) < 0 ? NULL : p;
-}
-
-static int level0_marker_matches(const struct run *r)
-{
-    char *p = level0_marker(r);
-    FILE *f = p ? fopen(p, "r") : NULL;
-    free(p);
-    if (!f)
-        return 0;
-    /* The fingerprint's length and bytes, then the end of the file. */
-    const size_t n = strlen(r->fp);
-    char *buf = malloc(n + 1);
-    int ok = buf && fread(buf, 1, n + 1, f) == n && !memcmp(buf, r->fp, n);
-    free(buf);
-    fclose(f);
-    return ok && tvpal_exists(r->partial);
-}
-
-static void write_level0_marker(const struct run *r)
-{
-    char *p = level0_marker(r);
-    FILE *f = p ? fopen(p, "w") : NULL;
-    if (!f || fputs(r->fp, f) < 0 || fclose(f) != 0)
-        die_fail("%s: cannot write", p ? p : "levels.job");
-    free(p);
-}
-
-/* Resumes the partial output of the same job from its checkpoint, or
- * removes a partial output that has none usable; then makes the node
- * directories.  Sets r->fp, r->st, r->ckp and r->start.  The plan is part
- * of the job: a rerun under another limit or thread count starts over. */
 /* The files a job reads, for its fingerprint: the inputs given, then (a
  * self-describing series) every file of the series in order, those a .pvd
  * lists included: a rewritten DataSet resumed the job with old and new
@@ -669,97 +581,6 @@ static int job_files(const struct run *r, char ***files)
     return n;
 }
 
-/* One job at a time writes a partial output: two encodes of one OUTDIR
- * started together mixed their shards into a dataset that did not
- * verify.  The lock is OUTDIR.partial.lock, beside the partial output,
- * held until the process ends.  Under MPI rank 0 takes it (OUTDIR is on
- * a file system every rank sees) and tells every rank before any of them
- * touches its node directory, so that a second job stops on every rank
- * at once, having changed nothing. */
-static void take_lock(struct run *r)
-{
-    struct {
-        int rc;
-        char text[TVPAL_DIAG_MAX + 4096];
-    } res = {0, ""};
-    if (!r->mpi || r->node == 0) {
-        struct tvpal_diag d = {{0}};
-        if (asprintf(&r->lock_path, "%s.lock", r->partial) < 0)
-            die_fail("out of memory");
-        res.rc = tvpal_lock_take(r->lock_path, &r->lock_fd, &d);
-        say_release_lock_at_exit(r->lock_path, r->lock_fd);
-        if (res.rc == TVPAL_E_EXIST)
-            snprintf(res.text, sizeof res.text, "%s: another encode is "
-                     "writing it (its lock %s); wait for it or stop it",
-                     r->partial, d.msg);
-        else if (res.rc < 0)
-            snprintf(res.text, sizeof res.text, "%s", d.msg);
-    }
-    cluster_bcast(r, &res, sizeof res);
-    if (res.rc == TVPAL_E_EXIST)
-        die_fail("%s", res.text);   /* the other job may end: exit 1 */
-    if (res.rc < 0)
-        die_usage("%s", res.text);  /* no such directory, not writable */
-}
-
-static void open_partial(struct run *r)
-{
-    take_lock(r);
-    char *params = job_params(&r->o, r->in), *withplan = NULL;
-    char key[96];
-    encode_plan_key(&r->plan, key, sizeof key);
-    if (r->mpi)
-        snprintf(key + strlen(key), sizeof key - strlen(key),
-                 " rank=%u", r->node);
-    char **files = NULL;
-    int nfiles = job_files(r, &files);
-    /* Raw jobs keep the fingerprint of earlier versions (their partial
-     * outputs still resume); a self-describing series' files (those a
-     * .pvd lists too) are named with a CRC of their first 4 KiB. */
-    if (!params || nfiles < 0 ||
-        asprintf(&withplan, "%s %s", params, key) < 0 ||
-        tvpal_checkpoint_fingerprint(withplan, files, nfiles,
-                                     r->in ? 4096 : 0, &r->fp) < 0 ||
-        tvpal_checkpoint_stats_init(&r->st) < 0)
-        die_fail("out of memory");
-    free(files);
-    free(params);
-    free(withplan);
-    if (tvpal_engine_progress_alloc(r->eng, &r->ckp) < 0)
-        die_fail("out of memory");
-    r->start = 0;
-    if (r->o.levels && level0_marker_matches(r)) {
-        r->level0_done = 1;
-        return;
-    }
-    if (tvpal_exists(r->ckdir)) {
-        /* A checkpoint that is missing, of another job or damaged is not
-         * an error: the job starts over (FORMAT.md 9.2). */
-        const uint64_t units = (uint64_t)r->plan.npasses * r->T;
-        if (tvpal_checkpoint_load(r->ckdir, r->fp, units, r->T, r->nvox,
-                                  &r->start, &r->st, &r->ckp, NULL) < 0 ||
-            r->start == 0 || r->start > units)
-            start_over(r);
-    }
-    make_node_dirs(r);
-}
-
-/* Describes the shards, K per axis encoded (axis-major; a rank's own under
- * MPI), and the largest slice, chunk and number of slice-windows of a
- * step. */
-/* The engine (tvpal_engine.h) and its shards: every axis encoded of every
- * node, or under MPI this rank's node's. */
-static void setup_shards(struct run *r)
-{
-    const struct tvpal_engine_params p = run_engine_params(r);
-    int rc = tvpal_engine_create(&r->eng, &p);
-    if (rc == TVPAL_E_NOMEM)
-        die_fail("out of memory");
-    if (rc < 0)
-        die_usage("internal error: encoding parameters refused");
-    r->sj = tvpal_engine_shards(r->eng, &r->nshard);
-}
-
 /* ------------------------------------------------------------------ plan */
 
 /* The worker threads: -j, else all cores (tvpal_pool_default_threads:
@@ -768,25 +589,6 @@ static void choose_threads(struct run *r)
 {
     r->nthreads = r->o.threads ? (int)r->o.threads
                                : (int)tvpal_pool_default_threads();
-}
-
-/* Bytes of a thread's reading scratch (raw input): whole rows of one
- * plane, up to TVPAL_READ_BLOCK (one row at least). */
-static uint64_t scratch_bytes(const struct run *r)
-{
-    const uint64_t row = (uint64_t)r->o.dims[0] * tvpal_type_size(r->o.type);
-    return tvpal_passes_read_rows(row, r->o.dims[1]) * row;
-}
-
-/* Bytes of everything but the ring and the box buffers
- * (tvpal_passes_fixed_bytes): the reading scratch of a raw input's
- * threads, or a reader's scratch (tvpal_input_box_scratch: the largest
- * box's). */
-static uint64_t fixed_bytes(const struct run *r)
-{
-    return tvpal_passes_fixed_bytes(
-        r->eng, (unsigned)r->nthreads, r->in ? 0 : scratch_bytes(r),
-        r->in ? tvpal_input_box_scratch(r->in, r->o.dims) : 0);
 }
 
 static void print_size(char *buf, size_t cap, uint64_t b)
@@ -819,16 +621,6 @@ static unsigned local_ranks(const struct run *r)
     return 1;
 }
 
-/* Bytes the levels of --levels hold beside level 0's fixed bytes
- * (tvpal_passes_levels_bytes); with_slab, made after level 0 from the
- * source read again in slabs of the plan's box.  0 when out of memory. */
-static uint64_t levels_bytes(const struct run *r, int with_slab)
-{
-    const struct tvpal_engine_params p = run_engine_params(r);
-    return tvpal_passes_levels_bytes(&p, r->o.levels, (unsigned)r->nthreads,
-                                     with_slab ? r->plan.box_voxels_max : 0);
-}
-
 /* Makes the memory plan (encode_plan.h) before anything is read or
  * written, and says it; a limit too small for even one slice per pass
  * ends the program (exit 2) with the smallest that would do. */
@@ -846,328 +638,7 @@ static void choose_limit(struct run *r)
                                                    sizeof r->limit_why);
 }
 
-static void make_plan(struct run *r)
-{
-    const struct opts *o = &r->o;
-    choose_limit(r);
-    struct encode_job j = {
-        .N = r->N, .T = r->T, .limit = r->limit, .fixed = fixed_bytes(r),
-        .box_bytes_per_voxel = 4 * ring_slots(r) + (r->in ? 8 : 0),
-        .split = r->mpi, .axes = o->axes};
-    memcpy(j.dims, o->dims, sizeof j.dims);
-    memcpy(j.slab_n, o->dims, sizeof j.slab_n);
-    /* An MPI rank encodes its node's slab of each axis only. */
-    for (unsigned a = 0; r->mpi && a < 3; a++)
-        tvpal_slab_range(o->dims[a], o->nodes, r->node, &j.slab_lo[a],
-                         &j.slab_n[a]);
-    char lim[32], need[32], ring[32];
-    int rc;
-    /* --levels, one process: the levels are made from each step as level
-     * 0 reads it, when the plan holds them beside level 0 in one pass (so
-     * that each step is read once); else after level 0, reading the
-     * source again. */
-    if (o->levels && !r->mpi) {
-        struct encode_job jl = j;
-        const uint64_t lb = levels_bytes(r, 0);
-        jl.fixed += lb;
-        if (lb && encode_plan_make(&jl, &r->plan) == 0 &&
-            r->plan.npasses == 1)
-            r->levels_inline = 1;
-        encode_plan_free(&r->plan);
-        if (r->levels_inline)
-            j = jl;
-    }
-    rc = encode_plan_make(&j, &r->plan);
-    if (rc == TVPAL_E_NOMEM)
-        die_fail("out of memory");
-    print_size(lim, sizeof lim, r->limit);
-    if (rc < 0) {
-        print_size(need, sizeof need, r->plan.min_limit);
-        die_usage("memory limit %s (%s) is too small for %ux%ux%u at "
-                  "--window %u with %d thread%s: one slice per pass needs "
-                  "%s; give --mem-limit %lluK or more (or fewer --threads)",
-                  lim, r->limit_why, o->dims[0], o->dims[1], o->dims[2],
-                  r->N, r->nthreads, r->nthreads == 1 ? "" : "s", need,
-                  (unsigned long long)((r->plan.min_limit + 1023) >> 10));
-    }
-    /* --levels: after level 0, with its ring freed, every level is
-     * encoded in this process in one pass (encode_levels.c); together
-     * with level 0's fixed bytes they must fit.  Checked now, before any
-     * work. */
-    if (o->levels && !r->levels_inline) {
-        const uint64_t need_l = levels_bytes(r, 1) + j.fixed;
-        if (need_l == 0)
-            die_fail("out of memory");
-        if (need_l > r->limit) {
-            print_size(need, sizeof need, need_l);
-            die_usage("memory limit %s (%s) is too small for --levels %u: "
-                      "the levels are encoded after level 0 in this "
-                      "process, in one pass each, together about %s; give "
-                      "--mem-limit %lluK or more", lim, r->limit_why,
-                      o->levels, need,
-                      (unsigned long long)((need_l + 1023) >> 10));
-        }
-    }
-    if (o->quiet || (r->mpi && r->node != 0))
-        return;
-    char desc[96];
-    encode_plan_describe(&r->plan, desc, sizeof desc);
-    print_size(need, sizeof need, r->plan.peak);
-    print_size(ring, sizeof ring,
-               (uint64_t)ring_slots(r) * r->nvox * sizeof(float) + j.fixed);
-    if (r->plan.npasses == 1)
-        msg("plan: %s; about %s of the memory limit %s (%s)", desc, need,
-            lim, r->limit_why);
-    else if (r->mpi)
-        msg("plan of rank 0 of %d: %s over its node's slabs, reading %.2f "
-            "times the input's bytes (its z and y slabs, and whole rows for "
-            "its x slab); about %s of the memory limit %s (%s)",
-            cluster_size(r), desc,
-            (double)r->plan.voxels_read / ((double)r->nvox * r->T), need, lim,
-            r->limit_why);
-    else
-        msg("plan: %s, reading the input %.2f times: one ring of all %u "
-            "timesteps of a window would need %s, over the memory limit %s "
-            "(%s); each pass needs about %s", desc,
-            (double)r->plan.voxels_read / ((double)r->nvox * r->T),
-            ring_slots(r), ring, lim, r->limit_why, need);
-}
-
-/* --dry-run: the plan as key=value on standard output (rank 0). */
-static void print_plan(const struct run *r)
-{
-    if (r->mpi && r->node != 0)
-        return;
-    const double in_bytes = (double)r->step_bytes * r->T;
-    printf("plan %s: passes=%u passes_x=%u passes_y=%u passes_z=%u "
-           "peak_bytes=%llu limit_bytes=%llu input_bytes=%.0f "
-           "read_bytes=%.0f read_factor=%.2f\n", r->o.outdir,
-           r->plan.npasses, r->plan.per_axis[0], r->plan.per_axis[1],
-           r->plan.per_axis[2], (unsigned long long)r->plan.peak,
-           (unsigned long long)r->limit, in_bytes,
-           (double)r->plan.voxels_read * tvpal_type_size(r->o.type),
-           (double)r->plan.voxels_read / ((double)r->nvox * r->T));
-}
-
-/* ---------------------------------------------------------------- output */
-
-
-/* Creates (start = 0) or reopens the shard writers, restoring a resumed
- * job's progress (read back and verified); reports and returns < 0 on the
- * first failure. */
-static int open_writers(struct run *r)
-{
-    for (uint32_t q = 0; q < r->nshard; q++) {
-        struct tvpal_engine_shard *j = &r->sj[q];
-        struct tvpal_diag d = {{0}};
-        char *path = shard_path(r, j);
-        int rc;
-        if (!path)
-            return TVPAL_E_NOMEM;
-        if (r->start)
-            rc = tvpal_shardw_reopen_placed(&j->w, path, &j->h, &d);
-        else
-            rc = tvpal_shardw_create_placed(&j->w, path, &j->h, &d);
-        if (rc == 0 && r->start)
-            rc = tvpal_engine_progress_restore(r->eng, q, &r->ckp, &d);
-        if (rc < 0)
-            msg("%s: cannot %s: %s%s%s%s", path,
-                r->start ? "resume" : "create", tvpal_strerror(rc),
-                d.msg[0] ? " (" : "", d.msg, d.msg[0] ? ")" : "");
-        if (rc < 0 && r->start)
-            msg("starting the job over");
-        free(path);
-        if (rc < 0)
-            return rc;
-    }
-    return 0;
-}
-
-/* The statistics a checkpoint at unit `u` must hold (tvpal_passes.h). */
-static uint64_t expected_counted(const struct run *r, uint64_t u)
-{
-    return tvpal_passes_counted_at(&r->plan, r->T, u, r->st.loaded);
-}
-
-/* Opens the writers; a partial output that does not verify is removed and
- * the job started over, from empty statistics. */
-static void open_or_restart_writers(struct run *r)
-{
-    if (r->start && r->st.counted != expected_counted(r, r->start)) {
-        msg("%s: the checkpoint's statistics do not match its position; "
-            "starting the job over", r->ckdir);
-        start_over(r);
-        make_node_dirs(r);
-    }
-    while (open_writers(r) < 0) {
-        for (uint32_t q = 0; q < r->nshard; q++) {
-            tvpal_shardw_free(r->sj[q].w);
-            r->sj[q].w = NULL;
-        }
-        if (!r->start)
-            die_input("%s: cannot create the output files", r->ckdir);
-        start_over(r);
-        make_node_dirs(r);
-    }
-}
-
-/* ------------------------------------------------------------- workspace */
-
-/* Workspaces of the threads, the ring of N boxes and the box buffers:
- * everything the streaming loop uses, allocated once, for the plan's
- * largest box. */
-static void setup_workspace(struct run *r)
-{
-    const size_t nt = (size_t)r->nthreads;
-    const uint64_t box = r->plan.box_voxels_max;
-    struct tvpal_diag d = {{0}};
-    int rc = tvpal_pool_create(&r->pool, (unsigned)nt);
-    if (rc < 0)
-        die_fail("cannot start %zu threads: %s", nt, tvpal_strerror(rc));
-    if ((rc = tvpal_engine_start(r->eng, r->pool, box, &d)) < 0) {
-        if (rc == TVPAL_E_INVAL)
-            die_usage("--transform klt: built without LAPACK (install "
-                      "liblapack-dev and reconfigure)");
-        die_fail("out of memory for %s", d.msg);
-    }
-    if (!(r->fine_local = calloc(nt, sizeof *r->fine_local)) ||
-        !(r->found_local = encode_found_alloc(nt)) ||
-        !(r->scratch = calloc(nt, sizeof *r->scratch)))
-        die_fail("out of memory");
-    for (size_t i = 0; i < nt; i++)
-        if (!(r->fine_local[i] = calloc(TVPAL_CHECKPOINT_BINS,
-                                        sizeof(uint64_t))) ||
-            (!r->in && !(r->scratch[i] = malloc(scratch_bytes(r)))))
-            die_fail("out of memory");
-    if (r->in && !(r->boxbuf = malloc(box * sizeof(float))))
-        die_fail("out of memory for a box of %llu voxels",
-                 (unsigned long long)box);
-}
-
-/* ---------------------------------------------------------------- encoding */
-
-/* Encodes step t of the pass (tvpal_engine_encode_step); a write error
- * ends the program keeping the partial output. */
-static void encode_step(struct run *r, uint32_t t)
-{
-    struct tvpal_diag d = {{0}};
-    uint32_t q = 0;
-    if (tvpal_engine_encode_step(r->eng, t, &d, &q) < 0)
-        die_fail("%s/axis-%c.tvps: %s", r->ckdir, "xyz"[r->sj[q].axis],
-                 d.msg);
-}
-
-/* Saves the checkpoint after unit u (pass p, step t: u = p T + t + 1): a
- * rerun resumes after it. */
-static void save_checkpoint(struct run *r, uint64_t u)
-{
-    struct tvpal_diag d = {{0}};
-    tvpal_engine_progress_get(r->eng, &r->ckp);
-    int rc = tvpal_checkpoint_save(r->ckdir, r->fp, u, &r->st, &r->ckp, &d);
-    if (rc < 0)
-        die_fail("%s/checkpoint: cannot write: %s", r->ckdir,
-                 lib_error(rc, &d));
-}
-
-/* Whether the checkpoint is saved after unit u.  A checkpoint is text of
- * O(histogram classes + shards x steps) and an fsync: saved after every
- * step it took 0.13 of 0.90 CPU-seconds of a small encode (64^3 x 99,
- * N = 4; medians of 7).  So it is saved once --checkpoint-every seconds
- * have passed since the last (a rerun after a crash redoes at most that
- * much work), after the last unit (a rerun then only finishes), and at a
- * test fault, so that the test hooks' resume points stay where they say. */
-static int checkpoint_due(struct run *r, uint64_t u, int faulting)
-{
-    double now = tvpal_now();
-    if (!faulting && u != (uint64_t)r->plan.npasses * r->T &&
-        now - r->ckpt_last < (double)r->o.checkpoint_every)
-        return 0;
-    r->ckpt_last = now;
-    return 1;
-}
-
-/* The work of the units before u (tvpal_passes.h). */
-static uint64_t work_before(const struct run *r, uint64_t u)
-{
-    return tvpal_passes_work_before(&r->plan, r->o.dims, r->T, u);
-}
-
-/* The streaming driver: for each pass of the plan, for each step from
- * the start, reads the box of what its windows need (step t + N - 1 at
- * most), encodes and writes its chunks and checkpoints.
- * TVPAL_ENCODE_FAULT_AFTER=S (a test hook) kills the process after S
- * units (steps of passes), as an interruption would; with
- * TVPAL_ENCODE_FAULT_RANK=R only MPI rank R, and with
- * TVPAL_ENCODE_FAULT=fail it fails with a message instead (both after
- * saving the checkpoint of unit S); with TVPAL_ENCODE_FAULT=nosave it is
- * killed without saving it, so a rerun resumes from the checkpoint before,
- * if any (checkpoint_due). */
-static void encode_steps(struct run *r)
-{
-    struct progress *p = &r->prog;
-    const char *fault = getenv("TVPAL_ENCODE_FAULT_AFTER");
-    const char *fault_rank = getenv("TVPAL_ENCODE_FAULT_RANK");
-    const char *fault_how = getenv("TVPAL_ENCODE_FAULT");
-    long fault_after = fault ? atol(fault) : -1;
-    if (fault_rank && atol(fault_rank) != (long)r->node)
-        fault_after = -1;
-    p->tty = isatty(STDERR_FILENO);
-    p->quiet = r->o.quiet || (r->mpi && r->node != 0);
-    p->interval = p->tty ? 0.2 : 30.0;
-    /* TVPAL_PROGRESS_INTERVAL=S (a test hook): a line every S seconds. */
-    const char *iv = getenv("TVPAL_PROGRESS_INTERVAL");
-    if (iv && atof(iv) > 0)
-        p->interval = atof(iv);
-    p->t0 = p->last = r->ckpt_last = tvpal_now();
-    p->total = work_before(r, (uint64_t)r->plan.npasses * r->T);
-    p->work = p->work_at_start = work_before(r, r->start);
-    p->units = (uint64_t)r->plan.npasses * r->T;
-    if (r->start && r->start == p->units && !r->o.quiet)
-        msg("resuming %s: every step is encoded; finishing", r->ckdir);
-    else if (r->start && !r->o.quiet)
-        msg("resuming %s at pass %llu of %u, timestep %llu of %u", r->ckdir,
-            (unsigned long long)(r->start / r->T) + 1, r->plan.npasses,
-            (unsigned long long)(r->start % r->T), r->T);
-    uint64_t u = r->start;
-    tvpal_engine_set_progress(r->eng, &p->work, tick_progress, r);
-    for (uint32_t pi = (uint32_t)(u / r->T); pi < r->plan.npasses; pi++) {
-        r->pass = &r->plan.pass[pi];
-        tvpal_engine_set_pass(r->eng, r->pass);
-        uint32_t loaded = (uint32_t)(u - (uint64_t)pi * r->T);
-        for (uint32_t t = loaded; t < r->T; t++) {
-            uint32_t need = t + r->N < r->T ? t + r->N : r->T;
-            p->unit = (uint64_t)pi * r->T + t;
-            for (; loaded < need; loaded++) {
-                load_step(r, loaded, tvpal_engine_slot(r->eng, loaded));
-                if (r->lvs) /* the levels of the step, as it is read */
-                    levels_step(r, r->lvs, loaded,
-                                tvpal_engine_slot(r->eng, loaded));
-                report_progress(r, 0);
-            }
-            encode_step(r, t);
-            u = (uint64_t)pi * r->T + t + 1;
-            if (t + 1 == r->T) /* the next pass has none of its steps */
-                r->st.loaded = 0;
-            int faulting = fault_after >= 0 && (long)u >= fault_after;
-            int nosave = faulting && fault_how && !strcmp(fault_how, "nosave");
-            if (!nosave && checkpoint_due(r, u, faulting))
-                save_checkpoint(r, u);
-            if (faulting) {
-                if (fault_how && !strcmp(fault_how, "fail"))
-                    die_fail("test fault after %llu steps (rerun to resume)",
-                             (unsigned long long)u);
-                raise(SIGKILL);
-            }
-            report_progress(r, 0);
-        }
-    }
-    report_progress(r, 1);
-    r->t_encode = tvpal_now() - p->t0;
-}
-
 /* ------------------------------------------------------------- finishing */
-
-/* The manifest of the encoded dataset (FORMAT.md 7); m owns its strings. */
 
 /* The grid and times of every manifest this job writes (level 0's and
  * each coarser level's), by the reader's rule (tvpal_manifest_check_grid),
@@ -1206,51 +677,6 @@ static void check_grid(const struct run *r)
 
 
 
-/* Finishes the shards, then writes the manifest to OUTDIR.partial and to
- * every node directory, and removes the checkpoint (FORMAT.md 9.2, 4). */
-/* text as the manifest of OUTDIR.partial and of every node directory. */
-static void write_manifests(const struct run *r, const char *text)
-{
-    write_manifest(r->partial, text);
-    for (uint32_t k = 0; k < r->o.nodes; k++) {
-        char *nd = node_partial(r, k);
-        if (!nd)
-            die_fail("out of memory");
-        write_manifest(nd, text);
-        free(nd);
-    }
-}
-
-static void finish_partial(struct run *r)
-{
-    finish_shards(r);
-    char *text = manifest_text(r);
-    write_manifests(r, text);
-    free(text);
-    tvpal_checkpoint_remove(r->partial, NULL);
-    tvpal_fsync_dir(r->partial);
-}
-
-
-static void move_into_place(const struct run *r)
-{
-    char err[600];
-    if (place_output(r, err, sizeof err) < 0)
-        die_fail("%s", err);
-}
-
-
-
-
-static void check_missing(const struct run *r)
-{
-    char why[600];
-    if (all_missing(r, why, sizeof why))
-        die_input("%s", why);
-    warn_dropped(dropped_values(r));
-}
-
-
 /* What the written dataset takes, found by reading it back. */
 struct written {
     uint64_t disk, shards;      /* every file; the stored axes' shards */
@@ -1258,101 +684,36 @@ struct written {
     uint64_t level_bytes;       /* the coarser levels' files */
 };
 
-/* Ends the program: the dataset at dir, about to be moved into place,
- * does not verify.  What OUTDIR held stays as it was. */
-static void die_unverified(const struct run *r, const char *what,
-                           const char *dir, const char *why)
-{
-    die_fail("%s: written %s does not verify: %s (%s)", dir, what, why,
-             tvpal_exists(r->o.outdir) ? "the existing dataset is left as it "
-                                         "was" : "nothing was put in place");
-}
-
-/* Level 0 finished by an earlier run of this job, which may have asked for
- * other --levels (the levels do not change level 0's shards, so the job
- * is the same): its manifests are made to name this run's levels, and the
- * earlier run's levels beyond them go.  A resume with another --levels
- * wrote a manifest naming levels that were not on disk. */
-static void adopt_level0(const struct run *r)
-{
-    char *mp = NULL, *text = NULL;
-    struct tvpal_manifest m = {0};
-    struct tvpal_diag d = {{0}};
-    if (asprintf(&mp, "%s/manifest.txt", r->partial) < 0)
-        die_fail("out of memory");
-    if (tvpal_manifest_load(mp, &m, &d) < 0)
-        die_fail("%s: level 0's manifest: %s (remove %s to start over)", mp,
-                 d.msg, r->partial);
-    free(mp);
-    if (m.levels == r->o.levels) {
-        tvpal_manifest_clear(&m);
-        return;
-    }
-    if (!r->o.quiet)
-        msg("resuming with --levels %u (the earlier run asked for %u): level "
-            "0 kept", r->o.levels, m.levels);
-    m.levels = r->o.levels;
-    if (tvpal_manifest_format(&m, &text) < 0)
-        die_fail("out of memory");
-    tvpal_manifest_clear(&m);
-    write_manifests(r, text);
-    free(text);
-    remove_levels_beyond(r);
-}
-
-/* Reopens the dataset in OUTDIR.partial with the reader, every level of
- * it, before it is moved into place: what a failure here finds (a value
- * the manifest reader refuses, a shard that does not read back) must not
- * replace a good dataset.  The headline figures are what the dataset
- * takes on disk: disk counts every file (the stored axes' shards of every
- * node, the manifests, the levels).  Not under MPI: every rank verifies
- * its own node directory, and rank 0 the manifest (cluster_finish). */
-static void measure_written(const struct run *r, const char *dir,
-                            struct written *w)
+/* What the dataset at OUTDIR takes on disk, from the reader's sizes
+ * (tvpal.h; the library read it back before it put it in place): disk
+ * counts every file (the stored axes' shards of every node, the
+ * manifests, the levels).  One process: under MPI the node directories
+ * may be on other machines (cluster_sizes). */
+static void measure_written(const struct run *r, struct written *w)
 {
     struct tvpal_diag d = {{0}};
-    struct tvpal_dataset *ds = NULL;
+    struct tvpal_reader *rd = NULL;
+    struct tvpal_sizes sz;
     *w = (struct written){0};
-    if (tvpal_dataset_open(&ds, dir, &d) < 0)
-        die_unverified(r, "dataset", dir, d.msg);
-    /* What --table chose, from the chunk headers. */
-    for (unsigned a = 0; a < 3; a++) {
-        w->shards += ds->axis_bytes[a];
-        for (uint32_t k = 0; tvpal_dataset_has_axis(ds, a) &&
-                             k < ds->nshards; k++) {
-            struct tvpal_table_count c;
-            if (tvpal_shard_count_tables(ds->shards[a][k], &c, &d) < 0)
-                die_unverified(r, "dataset",
-                               tvpal_shard_path(ds->shards[a][k]), d.msg);
-            w->tables[0] += c.chunks[0];
-            w->tables[1] += c.chunks[1];
+    int rc = tvpal_reader_open(&rd, r->o.outdir, &d);
+    for (uint32_t k = 0; rc == 0 && k <= r->o.levels; k++) {
+        if ((rc = tvpal_reader_sizes(rd, k, &sz, &d)) < 0)
+            break;
+        if (k == 0) {
+            w->disk = sz.disk_bytes;
+            for (unsigned a = 0; a < 3; a++) {
+                w->shards += sz.axis_bytes[a];
+                w->tables[0] += sz.chunks_f32[a];
+                w->tables[1] += sz.chunks_u16[a];
+            }
+        } else {
+            w->level_bytes += sz.disk_bytes;
         }
     }
-    const uint32_t levels = ds->m.levels;
-    tvpal_dataset_close(ds);
-    if (levels != r->o.levels) {
-        char why[96];
-        snprintf(why, sizeof why, "its manifest names %u levels; %u were "
-                 "encoded", levels, r->o.levels);
-        die_unverified(r, "dataset", dir, why);
-    }
-    int rc = tvpal_tree_bytes(dir, &w->disk, &d);
+    tvpal_reader_close(rd);
     if (rc < 0)
-        die_fail("%s: cannot size the dataset: %s", dir, lib_error(rc, &d));
-    for (unsigned k = 1; k <= r->o.levels; k++) {
-        char *ld;
-        uint64_t b = 0;
-        if (asprintf(&ld, "%s/level-%u", dir, k) < 0)
-            die_fail("out of memory");
-        if (tvpal_dataset_open(&ds, ld, &d) < 0)
-            die_unverified(r, "level", ld, d.msg);
-        tvpal_dataset_close(ds);
-        rc = tvpal_tree_bytes(ld, &b, &d);
-        if (rc < 0)
-            die_fail("%s: cannot size the level: %s", ld, lib_error(rc, &d));
-        w->level_bytes += b;
-        free(ld);
-    }
+        die_fail("%s: cannot size the dataset: %s", r->o.outdir,
+                 lib_error(rc, &d));
 }
 
 /* The bytes of the files the job read (each once, however it was named:
@@ -1440,35 +801,17 @@ static void print_summary(const struct run *r, const struct written *w)
            src / axis_bytes, (double)disk * 8.0 / vts,
            te, (double)work / naxes / (te > 0 ? te : 1e-9) / 1e6,
            r->nthreads * cluster_size(r),
-           (unsigned long long)r->st.missing, r->plan.npasses, tb, lv);
+           (unsigned long long)r->missing, r->passes, tb, lv);
 }
 
 
 static void run_free(struct run *r)
 {
     encode_source_close(r);
-    levels_free(r->lvs);
-    tvpal_readahead_stop(r->pf);   /* before the input it reads is closed */
-    tvpal_pool_free(r->pool);
-    tvpal_engine_free(r->eng);
-    for (int i = 0; i < r->nthreads && r->fine_local; i++)
-        free(r->fine_local[i]);
-    for (int i = 0; i < r->nthreads && r->scratch; i++)
-        free(r->scratch[i]);
-    free(r->boxbuf);
-    free(r->scratch);
-    free(r->fine_local);
-    free(r->found_local);
-    free(r->fp);
-    tvpal_checkpoint_progress_free(&r->ckp);
-    encode_plan_free(&r->plan);
-    tvpal_checkpoint_stats_free(&r->st);
-    free(r->partial);
-    free(r->ckdir);
-    free(r->node_final);
     for (int i = 0; i < r->o.ninputs; i++)
         free(r->abs_inputs[i]);
     free(r->abs_inputs);
+    free(r->partial);
     tvpal_input_close(r->in);
     tvpal_pool_free(r->in_pool);
     free(r->times);
@@ -1705,6 +1048,8 @@ static void library_plan(struct run *r, struct tvpal_encoder *e,
                                ((double)r->nvox * r->T);
     if (o->dry_run && !o->quiet)
         say_plan(r, pl, read_factor);
+    if (o->dry_run && r->mpi && r->node != 0)
+        return;
     if (o->dry_run) {
         printf("plan %s: passes=%u passes_x=%u passes_y=%u passes_z=%u "
                "peak_bytes=%llu limit_bytes=%llu input_bytes=%.0f "
@@ -1751,6 +1096,11 @@ static void say_plan(const struct run *r, const struct tvpal_plan *pl,
     if (pl->passes == 1)
         msg("plan: %s; about %s of the memory limit %s (%s)", desc, need,
             lim, r->limit_why);
+    else if (r->mpi)
+        msg("plan of rank 0 of %d: %s over its node's slabs, reading %.2f "
+            "times the input's bytes (its z and y slabs, and whole rows for "
+            "its x slab); about %s of the memory limit %s (%s)",
+            cluster_size(r), desc, read_factor, need, lim, r->limit_why);
     else
         msg("plan: %s, reading the input %.2f times: one ring of all %u "
             "timesteps of a window would need %s, over the memory limit %s "
@@ -1777,6 +1127,16 @@ static void die_library(struct run *r, const struct drive *dv, int rc,
                  (unsigned long long)dv->fault_unit);
     if (dv && dv->faulted == 1)
         raise(SIGKILL);
+    /* Under MPI every rank learns a failure from the library's rounds,
+     * with the failing rank's words: rank 0 says it, once. */
+    if (r->mpi && r->node != 0)
+        exit(rc == TVPAL_E_OPEN || rc == TVPAL_E_READ ||
+                     rc == TVPAL_E_WRITE || rc == TVPAL_E_SYS ||
+                     rc == TVPAL_E_NOMEM || rc == TVPAL_E_CANCELED ||
+                     (rc == TVPAL_E_EXIST && strstr(d->msg, ".lock"))
+                 ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE);
+    if (r->mpi && !strncmp(d->msg, "rank 0: ", 8))
+        memmove((char *)d->msg, d->msg + 8, strlen(d->msg + 8) + 1);
     /* A refused value: the library names its step and voxel. */
     const int inf = sscanf(d->msg, "step %u: an infinite value at voxel "
                            "(%llu,%llu,%llu)", &t, &x, &y, &z) == 4;
@@ -1819,7 +1179,7 @@ static void warn_values(struct run *r, struct tvpal_encoder *e)
     struct tvpal_stats st;
     if (tvpal_encoder_stats(e, &st) < 0)
         return;
-    r->st.missing = st.missing;
+    r->missing = st.missing;
     warn_dropped(st.dropped);
     warn_spread(st.value_min, st.value_max, st.p_low, st.p_high,
                 st.beyond_1e30, st.far, st.values - st.missing);
@@ -1831,13 +1191,29 @@ static void encode_with_library(struct run *r, struct written *w)
     struct tvpal_encoder *e = open_encoder(r);
     struct tvpal_source src = encode_source_of(r);
     struct tvpal_plan pl;
+    if (r->mpi) { /* every rank its node shard, node = rank */
+        struct tvpal_diag d = {{0}};
+        const struct tvpal_collective c = cluster_collective(r);
+        uint32_t z0, nz;
+        tvpal_slab(r->o.dims[2], r->o.nodes, r->node, &z0, &nz);
+        int rc = tvpal_encoder_set_collective(e, &c, z0, nz, &d);
+        if (rc == 0 && r->o.shard_pat)
+            rc = tvpal_encoder_set_shard_dir(e, r->o.shard_pat, &d);
+        if (rc < 0)
+            die_usage("%s", lib_error(rc, &d));
+    }
     library_plan(r, e, &src, &pl);
     if (r->o.dry_run) {
         tvpal_encoder_abort(e);
         return;
     }
-    r->plan.npasses = pl.passes;
+    /* Every rank got here: the encode's rounds are the library's now. */
+    cluster_ready(r);
+    r->passes = pl.passes;
     const char *fault = getenv("TVPAL_ENCODE_FAULT_AFTER");
+    const char *fault_rank = getenv("TVPAL_ENCODE_FAULT_RANK");
+    if (fault_rank && atol(fault_rank) != (long)r->node)
+        fault = NULL; /* TVPAL_ENCODE_FAULT_RANK=R: that MPI rank alone */
     const char *how = getenv("TVPAL_ENCODE_FAULT");
     const char *flevel = getenv("TVPAL_ENCODE_FAULT_LEVEL");
     struct drive dv = {
@@ -1848,7 +1224,7 @@ static void encode_with_library(struct run *r, struct written *w)
         .levels_inline = pl.levels_inline};
     struct progress *p = &r->prog;
     p->tty = isatty(STDERR_FILENO);
-    p->quiet = r->o.quiet;
+    p->quiet = r->o.quiet || (r->mpi && r->node != 0);
     p->interval = p->tty ? 0.2 : 30.0;
     /* TVPAL_PROGRESS_INTERVAL=S (a test hook): a line every S seconds. */
     const char *iv = getenv("TVPAL_PROGRESS_INTERVAL");
@@ -1866,21 +1242,50 @@ static void encode_with_library(struct run *r, struct written *w)
     int rc = tvpal_encoder_encode(e, &src, &d);
     free(id);
     r->t_encode = tvpal_now() - t0;
+    if (rc < 0 && dv.faulted == 1 && !dv.fault_fail)
+        raise(SIGKILL); /* as an interruption would: nothing cleaned up */
     if (rc < 0) {
-        tvpal_encoder_abort(e);
+        tvpal_encoder_abort(e); /* under MPI: joins the others' round */
         die_library(r, &dv, rc, &d);
     }
     report_progress(r, 1);
     warn_values(r, e);
     if ((rc = tvpal_encoder_finish(e, &d)) < 0)
         die_library(r, NULL, rc, &d);
-    measure_written(r, r->o.outdir, w);
+    if (r->mpi) /* the node directories may be on other machines */
+        cluster_sizes(r);
+    else
+        measure_written(r, w);
+}
+
+/* The rules --nodes and --shard-dir obey (MPI: one rank per node). */
+static void check_cluster(const struct run *r)
+{
+    const struct opts *o = &r->o;
+    if (o->shard_pat && !r->mpi)
+        die_usage("--shard-dir: for MPI runs (mpirun -np K " PROG
+                  " --nodes K ...); one process writes OUTDIR/node-R");
+    if (r->mpi && o->nodes != (uint32_t)cluster_size(r))
+        die_usage("--nodes %u under %d MPI ranks: expected --nodes %d (one "
+                  "rank per node shard)", o->nodes, cluster_size(r),
+                  cluster_size(r));
+    if (o->shard_pat && !strstr(o->shard_pat, "%r"))
+        die_usage("--shard-dir \"%s\": expected %%r (the rank) in it",
+                  o->shard_pat);
+    char *fin = o->shard_pat ? tvpal_node_dir(NULL, o->shard_pat, r->node)
+                             : NULL;
+    if (o->shard_pat && !fin)
+        die_fail("out of memory");
+    if (fin && tvpal_exists(fin) && !o->force)
+        die_usage("%s: node directory already exists (use --force to "
+                  "replace it)", fin);
+    free(fin);
 }
 
 /* Each step ends the program itself on failure (see `enum ending`). */
 int main(int argc, char **argv)
 {
-    struct run r = {.lock_fd = -1};
+    struct run r = {0};
     struct written w = {0};
     open_cluster(&r, &argc, &argv);
     int have_dims = parse_options(argc, argv, &r.o);
@@ -1898,61 +1303,11 @@ int main(int argc, char **argv)
     check_grid(&r);
     warn_irregular_times(&r);
     check_output(&r);
-    if (!r.mpi) {
-        choose_threads(&r);
-        choose_limit(&r);
-        encode_with_library(&r, &w);
-        if (!r.o.dry_run)
-            print_summary(&r, &w);
-        run_free(&r);
-        cluster_close(&r);
-        return 0;
-    }
-    setup_cluster_dirs(&r);
-    setup_shards(&r);
+    check_cluster(&r);
     choose_threads(&r);
-    make_plan(&r);
-    if (r.o.dry_run) {
-        print_plan(&r);
-        run_free(&r);
-        cluster_close(&r);
-        return 0;
-    }
-    open_partial(&r);
-    if (r.level0_done)
-        adopt_level0(&r);
-    else
-        open_or_restart_writers(&r);
-    setup_workspace(&r);
-    if (r.in)
-        r.pf = prefetch_start(&r, r.plan.box_voxels_max);
-    if (r.levels_inline && !r.start && !r.level0_done)
-        r.lvs = levels_open(&r, 1);
-    if (!r.level0_done)
-        encode_steps(&r);
-    if (r.mpi) {
-        cluster_finish(&r);
-    } else {
-        if (!r.level0_done) {
-            check_missing(&r);
-            warn_dominating_values(&r);
-            finish_partial(&r);
-        }
-        if (r.o.levels) {
-            write_level0_marker(&r);
-            encode_levels(&r);
-            char *mk = level0_marker(&r);
-            if (!mk || unlink(mk) < 0)
-                die_fail("%s: cannot remove", mk ? mk : "levels.job");
-            free(mk);
-        }
-        measure_written(&r, r.partial, &w);
-        move_into_place(&r);
-    }
-    say_release_lock_now();
-    free(r.lock_path);
-    r.lock_path = NULL;
-    if (!r.mpi || r.node == 0)
+    choose_limit(&r);
+    encode_with_library(&r, &w);
+    if (!r.o.dry_run && (!r.mpi || r.node == 0))
         print_summary(&r, &w);
     run_free(&r);
     cluster_close(&r);

@@ -590,7 +590,7 @@ static void measure_step(struct step_err *p, size_t nvox, uint32_t t,
 
 /* One level coarser: each voxel the mean of the present values of its
  * 2x2x2 block (a shorter block at an odd edge), NaN when none is, as
- * tvpal-encode --levels makes it (encode_levels.c). */
+ * tvpal-encode --levels makes it (encoder/engine/tvpal_levels.c). */
 static void average_2x2x2(const float *in, const uint32_t d[3], float *out,
                           uint32_t o[3])
 {

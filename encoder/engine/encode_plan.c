@@ -244,7 +244,7 @@ uint64_t encode_default_limit(unsigned local_ranks, char *why, size_t cap)
     if (as && as / 4 * 3 < lim) {
         lim = as / 4 * 3;
         snprintf(why, cap, "3/4 of the address space left under ulimit -v "
-                 "(%.2f GiB)", (double)as / (1u << 30));
+                 "(%.3f GiB)", (double)as / (1u << 30));
     }
     return lim;
 }
