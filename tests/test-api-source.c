@@ -879,6 +879,7 @@ struct rank_run {
     struct job j;
     int concurrent;
     int fail_step;           /* this rank's read of it fails (-1: none) */
+    const char *shard_pat;   /* tvpal_encoder_set_shard_dir's, or NULL */
     int encode_rc, finish_rc;
     struct tvpal_diag d;
 };
@@ -896,7 +897,9 @@ static void *rank_encode(void *arg)
     r->encode_rc = r->finish_rc = TVPAL_E_INVAL;
     if (open_job(&e, r->dir, &r->j, &r->d) < 0)
         return NULL;
-    if (tvpal_encoder_set_collective(e, &c, z0, nz, &r->d) < 0) {
+    if (tvpal_encoder_set_collective(e, &c, z0, nz, &r->d) < 0 ||
+        (r->shard_pat &&
+         tvpal_encoder_set_shard_dir(e, r->shard_pat, &r->d) < 0)) {
         tvpal_encoder_abort(e);
         return NULL;
     }
@@ -980,6 +983,55 @@ static void test_ranks(void)
               tvpal_strerror(runs[k].finish_rc), runs[k].d.msg);
     CHECK(!exists(dir) && !exists(path("%s/ranks-fail%s", ".partial")),
           "a failed rank left output");
+    /* Node directories of their own (node-local disks): each rank's node
+     * directory at the pattern, the one process's node-R byte for byte;
+     * DIR holds the manifest and the levels. */
+    dir = path("%s/ranks-sd%s", "");
+    char pat[600];
+    snprintf(pat, sizeof pat, "%s/local%%r/ds", W);
+    struct tt_group g;
+    tt_group_init(&g, RANKS);
+    pthread_t th[RANKS];
+    for (int k = 0; k < RANKS; k++) {
+        runs[k] = (struct rank_run){.m = {&g, k}, .dir = dir, .j = jr,
+                                    .concurrent = 1, .fail_step = -1,
+                                    .shard_pat = pat};
+        pthread_create(&th[k], NULL, rank_encode, &runs[k]);
+    }
+    for (int k = 0; k < RANKS; k++)
+        pthread_join(th[k], NULL);
+    pthread_barrier_destroy(&g.bar);
+    int same = 1;
+    for (int k = 0; k < RANKS; k++) {
+        char cmd[1400];
+        snprintf(cmd, sizeof cmd, "diff -r %s/node-%d %s/local%d/ds > "
+                 "/dev/null && test ! -e %s/local%d/ds.partial", one, k, W, k,
+                 W, k);
+        same &= runs[k].encode_rc == 0 && runs[k].finish_rc == 0 &&
+                system(cmd) == 0;
+    }
+    char cmd[1400];
+    snprintf(cmd, sizeof cmd, "cmp -s %s/manifest.txt %s/manifest.txt && "
+             "diff -r %s/level-1 %s/level-1 > /dev/null && test ! -e "
+             "%s/node-0", one, dir, one, dir, dir);
+    CHECK(same && system(cmd) == 0, "shard directories: not the one "
+          "process's nodes, or DIR not its manifest and levels: %s %s",
+          tvpal_strerror(runs[0].finish_rc), runs[0].d.msg);
+    /* Refused: no %r; and without a collective, at the encode. */
+    struct tvpal_encoder *e = NULL;
+    REQUIRE(open_job(&e, path("%s/sd-one%s", ""), &base, &d) == 0, "%s",
+            d.msg);
+    CHECK(tvpal_encoder_set_shard_dir(e, "/tmp/node", &d) == TVPAL_E_INVAL,
+          "a shard directory without %%r");
+    CHECK(tvpal_encoder_set_shard_dir(e, pat, &d) == 0, "%s", d.msg);
+    struct src s = plain(TVPAL_FLOAT32);
+    const struct tvpal_source so = source_of(&s, 1, NULL);
+    rc = tvpal_encoder_encode(e, &so, &d);
+    tvpal_encoder_abort(e);
+    CHECK(rc == TVPAL_E_INVAL && strstr(d.msg, "without a collective") &&
+              !exists(path("%s/sd-one%s", ".partial")),
+          "a shard directory in one process: %s %s", tvpal_strerror(rc),
+          d.msg);
 }
 
 int main(void)
