@@ -412,6 +412,23 @@ static int keep_level0(struct tvpal_encoder *e, struct tvpal_diag *diag)
     return rc;
 }
 
+/* This rank's partial output removed (whole in one process, an earlier
+ * job's node directories and levels with it, then made again empty; a
+ * rank's own node directory under a collective, the others being
+ * theirs); `what` says why, in the message. */
+static int remove_stale(struct tvpal_encoder *e, const char *what,
+                        struct tvpal_diag *diag)
+{
+    const char *stale = e->coll.size > 1 ? e->ckdir : e->partial;
+    int rc = 0;
+    if (tvpal_rmtree(stale) < 0 ||
+        (e->coll.size == 1 && (rc = tvpal_mkdirs(stale, diag)) < 0))
+        return rc < 0 ? rc
+                      : tvpal_diag_set(diag, TVPAL_E_SYS, "%s: cannot remove "
+                                       "the partial output %s", stale, what);
+    return 0;
+}
+
 int tvpal_enc_source_ready(struct tvpal_encoder *e, struct tvpal_diag *diag)
 {
     struct pull *pl = e->pull;
@@ -450,19 +467,11 @@ int tvpal_enc_source_ready(struct tvpal_encoder *e, struct tvpal_diag *diag)
         (rc = keep_level0(e, diag)) < 0)
         return rc;
     e->done_local = pl->start;
-    /* A partial output that is not continued goes: whole in one process
-     * (an earlier job's node directories and levels with it), a rank's own
-     * node directory under a collective (the others are theirs). */
-    const char *stale = e->coll.size > 1 ? e->ckdir : e->partial;
+    /* A partial output that is not continued goes (remove_stale). */
     if (!pl->start && e->resuming) {
-        pl->pr.started_over = e->coll.size > 1 ? tvpal_exists(stale)
+        pl->pr.started_over = e->coll.size > 1 ? tvpal_exists(e->ckdir)
                                                 : e->had_partial;
-        if (tvpal_rmtree(stale) < 0 ||
-            (e->coll.size == 1 && (rc = tvpal_mkdirs(stale, diag)) < 0))
-            return rc < 0 ? rc
-                          : tvpal_diag_set(diag, TVPAL_E_SYS, "%s: cannot "
-                                           "remove the partial output of an "
-                                           "earlier job", stale);
+        return remove_stale(e, "of an earlier job", diag);
     }
     return 0;
 }
@@ -479,15 +488,7 @@ int tvpal_enc_source_start_over(struct tvpal_encoder *e,
     tvpal_checkpoint_stats_reset(&e->st);
     e->pull->start = 0;
     e->pull->pr.started_over = 1;
-    const char *stale = e->coll.size > 1 ? e->ckdir : e->partial;
-    int rc = 0;
-    if (tvpal_rmtree(stale) < 0 ||
-        (e->coll.size == 1 && (rc = tvpal_mkdirs(stale, diag)) < 0))
-        return rc < 0 ? rc
-                      : tvpal_diag_set(diag, TVPAL_E_SYS, "%s: cannot remove "
-                                       "a partial output that does not "
-                                       "resume", stale);
-    return 0;
+    return remove_stale(e, "that does not resume", diag);
 }
 
 int tvpal_enc_source_levels_inline(const struct tvpal_encoder *e)
