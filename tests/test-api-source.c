@@ -880,6 +880,9 @@ struct rank_run {
     int concurrent;
     int fail_step;           /* this rank's read of it fails (-1: none) */
     const char *shard_pat;   /* tvpal_encoder_set_shard_dir's, or NULL */
+    const char *identity;    /* the source's, or NULL */
+    unsigned stop_level;     /* rank 0 stops at this level's end (0: no) */
+    struct tvpal_progress first; /* what its first progress call saw */
     int encode_rc, finish_rc;
     struct tvpal_diag d;
 };
@@ -905,8 +908,10 @@ static void *rank_encode(void *arg)
     }
     struct src s = plain(TVPAL_FLOAT32);
     s.fail_step = r->fail_step;
-    const struct tvpal_source so = source_of(&s, r->concurrent, NULL);
+    s.stop_level = r->m.rank == 0 ? r->stop_level : 0;
+    const struct tvpal_source so = source_of(&s, r->concurrent, r->identity);
     r->encode_rc = tvpal_encoder_encode(e, &so, &r->d);
+    r->first = s.first;
     if (r->encode_rc < 0) {
         tvpal_encoder_abort(e);
         return NULL;
@@ -915,22 +920,30 @@ static void *rank_encode(void *arg)
     return NULL;
 }
 
-/* RANKS ranks of job j into dir; rank `who` fails its reads of step 4. */
-static void run_ranks(struct rank_run *runs, const char *dir,
-                      const struct job *j, int concurrent, int who)
+/* RANKS ranks as runs[] say (their member set here). */
+static void start_ranks(struct rank_run *runs)
 {
     struct tt_group g;
     tt_group_init(&g, RANKS);
     pthread_t th[RANKS];
     for (int k = 0; k < RANKS; k++) {
-        runs[k] = (struct rank_run){.m = {&g, k}, .dir = dir, .j = *j,
-                                    .concurrent = concurrent,
-                                    .fail_step = k == who ? 4 : -1};
+        runs[k].m = (struct tt_member){&g, k};
         pthread_create(&th[k], NULL, rank_encode, &runs[k]);
     }
     for (int k = 0; k < RANKS; k++)
         pthread_join(th[k], NULL);
     pthread_barrier_destroy(&g.bar);
+}
+
+/* RANKS ranks of job j into dir; rank `who` fails its reads of step 4. */
+static void run_ranks(struct rank_run *runs, const char *dir,
+                      const struct job *j, int concurrent, int who)
+{
+    for (int k = 0; k < RANKS; k++)
+        runs[k] = (struct rank_run){.dir = dir, .j = *j,
+                                    .concurrent = concurrent,
+                                    .fail_step = k == who ? 4 : -1};
+    start_ranks(runs);
 }
 
 static void test_ranks(void)
@@ -939,7 +952,8 @@ static void test_ranks(void)
     struct job j = base;
     j.levels = 2;
     j.nodes = RANKS;
-    const char *one = path("%s/ranks-one%s", "");
+    char one[600];  /* path()'s buffers turn over */
+    snprintf(one, sizeof one, "%s", path("%s/ranks-one%s", ""));
     int rc = push_all(one, &j, TVPAL_FLOAT32, &d);
     REQUIRE(rc == 0, "push with %d nodes: %s", RANKS, d.msg);
     struct rank_run runs[RANKS];
@@ -989,18 +1003,10 @@ static void test_ranks(void)
     dir = path("%s/ranks-sd%s", "");
     char pat[600];
     snprintf(pat, sizeof pat, "%s/local%%r/ds", W);
-    struct tt_group g;
-    tt_group_init(&g, RANKS);
-    pthread_t th[RANKS];
-    for (int k = 0; k < RANKS; k++) {
-        runs[k] = (struct rank_run){.m = {&g, k}, .dir = dir, .j = jr,
-                                    .concurrent = 1, .fail_step = -1,
-                                    .shard_pat = pat};
-        pthread_create(&th[k], NULL, rank_encode, &runs[k]);
-    }
     for (int k = 0; k < RANKS; k++)
-        pthread_join(th[k], NULL);
-    pthread_barrier_destroy(&g.bar);
+        runs[k] = (struct rank_run){.dir = dir, .j = jr, .concurrent = 1,
+                                    .fail_step = -1, .shard_pat = pat};
+    start_ranks(runs);
     int same = 1;
     for (int k = 0; k < RANKS; k++) {
         char cmd[1400];
@@ -1017,6 +1023,37 @@ static void test_ranks(void)
     CHECK(same && system(cmd) == 0, "shard directories: not the one "
           "process's nodes, or DIR not its manifest and levels: %s %s",
           tvpal_strerror(runs[0].finish_rc), runs[0].d.msg);
+    /* Rank 0 stops at the end of level 1: every rank fails, level 0 and
+     * level 1 stay; the ranks' next encode keeps them on every rank,
+     * makes level 2 alone and gives the one process's dataset. */
+    char kdir[600];  /* path()'s buffers turn over */
+    snprintf(kdir, sizeof kdir, "%s", path("%s/ranks-kept%s", ""));
+    dir = kdir;
+    for (int k = 0; k < RANKS; k++)
+        runs[k] = (struct rank_run){.dir = dir, .j = jr, .concurrent = 1,
+                                    .fail_step = -1, .identity = "series",
+                                    .stop_level = 1};
+    start_ranks(runs);
+    int failed = 1;
+    for (int k = 0; k < RANKS; k++)
+        failed &= runs[k].encode_rc < 0 || runs[k].finish_rc < 0;
+    CHECK(failed && exists(path("%s/ranks-kept%s", ".partial/levels.job")) &&
+              exists(path("%s/ranks-kept%s",
+                          ".partial/level-1/manifest.txt")),
+          "stopped at level 1 on rank 0: every rank fails, level 0 and 1 "
+          "stay (%s %s)", tvpal_strerror(runs[0].encode_rc), runs[0].d.msg);
+    for (int k = 0; k < RANKS; k++)
+        runs[k] = (struct rank_run){.dir = dir, .j = jr, .concurrent = 1,
+                                    .fail_step = -1, .identity = "series"};
+    start_ranks(runs);
+    int kept = 1;
+    for (int k = 0; k < RANKS; k++)
+        kept &= runs[k].encode_rc == 0 && runs[k].finish_rc == 0 &&
+                runs[k].first.level0_kept && runs[k].first.resumed;
+    snprintf(cmd, sizeof cmd, "diff -r %s %s > /dev/null", one, dir);
+    CHECK(kept && system(cmd) == 0, "continued on %d ranks after level 1: "
+          "level 0 kept on every rank %d, the one process's dataset: %s %s",
+          RANKS, kept, tvpal_strerror(runs[0].finish_rc), runs[0].d.msg);
     /* Refused: no %r; and without a collective, at the encode. */
     struct tvpal_encoder *e = NULL;
     REQUIRE(open_job(&e, path("%s/sd-one%s", ""), &base, &d) == 0, "%s",
