@@ -300,7 +300,10 @@ TVPAL_API int tvpal_encoder_set_collective(struct tvpal_encoder *e,
  * be negative), or with strides NULL at data[x + nx * (y + ny * z)].  The
  * values are copied (converted to float32) before the call returns; NaN and
  * the missing values are missing; an infinity or a value beyond 1e37 is
- * refused (TVPAL_E_NAN, TVPAL_E_RANGE: diag names the voxel).
+ * refused (TVPAL_E_NAN, TVPAL_E_RANGE: diag names the voxel; an encode
+ * from a source says "step S: an infinite value at voxel (X,Y,Z)" or
+ * "step S: a value beyond 1e37 at voxel (X,Y,Z)", which a program may
+ * read back to name its file).
  *
  * The first push takes the output's lock (DIR.partial.lock) and creates
  * DIR.partial, where the dataset is written until tvpal_encoder_finish
