@@ -19,4 +19,24 @@ awk -F, '$1 == "tvpal-f32" { p[$2] = $4 } $1 == "tvpal-naive" { q[$2] = $4 }
 awk -F, '$1 == "tvpal-u16" { p[$2] = $4 } $1 == "tvpal-refine" { q[$2] = $4 }
          END { for (n in q) if (q[n] < p[n] - 1e-6) { print "refine loses at N=" n; exit 1 } }' \
     "$W/rd/rd.csv" && ok "refine >= no refine at every N" || fail "refine lost accuracy"
+# The gap at equal bits: where tvpal's bpv lies within ZFP's rates, ZFP's
+# PSNR there is between those of the two rates around it, and the gap is
+# ZFP's minus tvpal's.
+awk -F, 'FNR == NR { if ($1 == "zfp-4d") { n++; r[n] = $3; p[n] = $4 } next }
+         FNR > 1 && $6 != "" {
+             ok = 0
+             for (i = 1; i < n; i++)
+                 if (r[i] <= $3 && $3 <= r[i + 1]) {
+                     lo = p[i] < p[i + 1] ? p[i] : p[i + 1]; hi = p[i] + p[i + 1] - lo
+                     ok = $6 >= lo - 1e-3 && $6 <= hi + 1e-3
+                 }
+             d = $8 - ($6 - $4); if (d < 0) d = -d
+             if (!ok || d > 2e-3) { print "row " FNR ": " $0; bad = 1 }
+             rows++
+         }
+         END { exit bad || rows < 3 }' "$W/rd/rd.csv" "$W/rd/gap.csv" \
+    && ok "gap.csv: ZFP 4D at tvpal's bits between its rates, gap = its PSNR - tvpal's" \
+    || fail "gap at equal bits: $(head -n 4 "$W/rd/gap.csv")"
+grep -q "the gap at equal bits" "$W/o.txt" && grep -q "SZ3" "$W/o.txt" \
+    && ok "the gap printed, SZ3 said" || fail "rd-chart output: $(tail -n 5 "$W/o.txt")"
 finish
