@@ -252,6 +252,23 @@ void cluster_sizes(struct run *r)
         sum_cluster_sizes(r);
 }
 
+void cluster_say(const struct run *r, const char *text)
+{
+    if (r->node)
+        fprintf(stderr, PROG ": rank %u: %s\n", r->node, text);
+    else
+        fprintf(stderr, PROG ": %s\n", text);
+}
+
+void cluster_end(struct run *r, int code)
+{
+    struct tvpal_comm *c = &r->cl->comm;
+    fflush(stderr);
+    c->barrier(c);
+    tvpal_comm_close(c);
+    exit(code);
+}
+
 void cluster_close(struct run *r)
 {
     struct cluster *cl = r->cl;

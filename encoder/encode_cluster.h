@@ -28,6 +28,13 @@ void cluster_ready(struct run *r);
 /* MPI, after the dataset is in place: rank 0 learns every rank's bytes,
  * shard bytes, work and seconds for the summary (r->cluster_*). */
 void cluster_sizes(struct run *r);
+/* MPI, a failure every rank has from the library's rounds: cluster_say
+ * prints text on stderr as this rank's ("rank R: " above 0); cluster_end
+ * waits until every rank is there (so that rank 0 has said it before any
+ * rank exits: the launcher ends the job at the first failed exit), leaves
+ * the job and exits with code. */
+void cluster_say(const struct run *r, const char *text);
+void cluster_end(struct run *r, int code) __attribute__((noreturn));
 /* Leaves the job (MPI_Finalize) and frees r->cl; NULL r->cl is a no-op. */
 void cluster_close(struct run *r);
 

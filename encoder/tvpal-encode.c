@@ -1115,61 +1115,77 @@ static void die_library(struct run *r, const struct drive *dv, int rc,
                         const struct tvpal_diag *d)
 {
     const struct opts *o = &r->o;
+    char text[TVPAL_DIAG_MAX + 1024];
+    const char *msg_ = d->msg[0] ? d->msg : tvpal_strerror(rc);
+    enum ending how = DIE_INPUT;
+    int own = 0;             /* this rank's own words (a test hook) */
     unsigned t;
     unsigned long long x, y, z;
-    if (dv && dv->faulted == 2)
-        die_fail("level %u: failed as TVPAL_ENCODE_FAULT_LEVEL asks (rerun "
-                 "to resume)", dv->fault_level);
-    if (dv && dv->faulted == 1 && dv->fault_nosave)
+    if (dv && dv->faulted == 1 && !dv->fault_fail)
         raise(SIGKILL);
-    if (dv && dv->faulted == 1 && dv->fault_fail)
-        die_fail("test fault after %llu steps (rerun to resume)",
-                 (unsigned long long)dv->fault_unit);
-    if (dv && dv->faulted == 1)
-        raise(SIGKILL);
-    /* Under MPI every rank learns a failure from the library's rounds,
-     * with the failing rank's words: rank 0 says it, once. */
-    if (r->mpi && r->node != 0)
-        exit(rc == TVPAL_E_OPEN || rc == TVPAL_E_READ ||
-                     rc == TVPAL_E_WRITE || rc == TVPAL_E_SYS ||
-                     rc == TVPAL_E_NOMEM || rc == TVPAL_E_CANCELED ||
-                     (rc == TVPAL_E_EXIST && strstr(d->msg, ".lock"))
-                 ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE);
-    if (r->mpi && !strncmp(d->msg, "rank 0: ", 8))
-        memmove((char *)d->msg, d->msg + 8, strlen(d->msg + 8) + 1);
+    if (r->mpi && !strncmp(msg_, "rank 0: ", 8))
+        msg_ += 8;
     /* A refused value: the library names its step and voxel. */
-    const int inf = sscanf(d->msg, "step %u: an infinite value at voxel "
+    const int inf = sscanf(msg_, "step %u: an infinite value at voxel "
                            "(%llu,%llu,%llu)", &t, &x, &y, &z) == 4;
-    const int big = !inf && sscanf(d->msg, "step %u: a value beyond 1e37 at "
+    const int big = !inf && sscanf(msg_, "step %u: a value beyond 1e37 at "
                                    "voxel (%llu,%llu,%llu)", &t, &x, &y,
                                    &z) == 4;
     const char *path = inf || big ? r->in ? tvpal_input_file(r->in, t, NULL)
                                   : o->inputs[o->steps_single ? 0 : t]
                                   : NULL;
-    if (inf)
-        die_input("%s: timestep %u: infinite value at voxel (%llu,%llu,%llu); "
-                  "expected finite values or NaN for missing ones (use "
-                  "--nan-as VALUE to replace them)", path, t, x, y, z);
-    if (big)
-        die_input("%s: timestep %u: value at voxel (%llu,%llu,%llu) exceeds "
-                  "the supported magnitude %g", path, t, x, y, z,
-                  TVPAL_VALUE_MAX);
-    if (strstr(d->msg, "is missing (NaN"))
-        die_input("%s: every value is missing (NaN%s); expected some present "
-                  "values", o->inputs[0],
-                  o->nmissing ? " or a --missing value" : "");
-    if (rc == TVPAL_E_EXIST && strstr(d->msg, ".lock"))
-        die_fail("%s: another encode is writing it (its lock %s); wait for "
-                 "it or stop it", r->partial, d->msg);
-    /* Before the first read: the output cannot be made (no such
-     * directory, not writable), as the checks before would say. */
-    if (rc == TVPAL_E_EXIST || (dv && !dv->seen && rc != TVPAL_E_NOMEM))
-        die_usage("%s", d->msg[0] ? d->msg : tvpal_strerror(rc));
-    if (rc == TVPAL_E_OPEN || rc == TVPAL_E_READ || rc == TVPAL_E_WRITE ||
-        rc == TVPAL_E_SYS || rc == TVPAL_E_NOMEM || rc == TVPAL_E_CANCELED)
-        /* may pass: the partial output stays for a rerun */
-        die_fail("%s", d->msg[0] ? d->msg : tvpal_strerror(rc));
-    die_input("%s", d->msg[0] ? d->msg : tvpal_strerror(rc));
+    if (dv && dv->faulted == 2) {
+        how = DIE_FAIL, own = 1;
+        snprintf(text, sizeof text, "level %u: failed as "
+                 "TVPAL_ENCODE_FAULT_LEVEL asks (rerun to resume)",
+                 dv->fault_level);
+    } else if (dv && dv->faulted == 1) {
+        how = DIE_FAIL, own = 1;
+        snprintf(text, sizeof text, "test fault after %llu steps (rerun to "
+                 "resume)", (unsigned long long)dv->fault_unit);
+    } else if (inf) {
+        snprintf(text, sizeof text, "%s: timestep %u: infinite value at "
+                 "voxel (%llu,%llu,%llu); expected finite values or NaN for "
+                 "missing ones (use --nan-as VALUE to replace them)", path, t,
+                 x, y, z);
+    } else if (big) {
+        snprintf(text, sizeof text, "%s: timestep %u: value at voxel "
+                 "(%llu,%llu,%llu) exceeds the supported magnitude %g", path,
+                 t, x, y, z, TVPAL_VALUE_MAX);
+    } else if (strstr(msg_, "is missing (NaN")) {
+        snprintf(text, sizeof text, "%s: every value is missing (NaN%s); "
+                 "expected some present values", o->inputs[0],
+                 o->nmissing ? " or a --missing value" : "");
+    } else if (rc == TVPAL_E_EXIST && strstr(msg_, ".lock")) {
+        how = DIE_FAIL; /* the other job may end */
+        snprintf(text, sizeof text, "%s: another encode is writing it (its "
+                 "lock %s); wait for it or stop it", r->partial, msg_);
+    } else {
+        /* Before the first read the output cannot be made (no such
+         * directory, not writable), as the checks before would say; a
+         * failure that may pass keeps the partial output for a rerun. */
+        snprintf(text, sizeof text, "%s", msg_);
+        if (rc == TVPAL_E_EXIST || (dv && !dv->seen && rc != TVPAL_E_NOMEM))
+            how = DIE_USAGE;
+        else if (rc == TVPAL_E_OPEN || rc == TVPAL_E_READ ||
+                 rc == TVPAL_E_WRITE || rc == TVPAL_E_SYS ||
+                 rc == TVPAL_E_NOMEM || rc == TVPAL_E_CANCELED)
+            how = DIE_FAIL;
+    }
+    if (!r->mpi) {
+        if (how == DIE_FAIL)
+            die_fail("%s", text);
+        if (how == DIE_USAGE)
+            die_usage("%s", text);
+        die_input("%s", text);
+    }
+    /* Under MPI every rank has the failure from the library's rounds, in
+     * the failing rank's words: rank 0 says it (and a rank its own test
+     * hook's), and no rank leaves before it has (the launcher ends the
+     * job at the first rank that exits with a failure). */
+    if (r->node == 0 || own)
+        cluster_say(r, text);
+    cluster_end(r, how == DIE_FAIL ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE);
 }
 
 /* The warnings of the values' statistics (before the finish places the
