@@ -27,6 +27,7 @@
 #include "tvpal_cli.h"
 #include "tvpal_fs.h"
 #include "tvpal_input.h"
+#include "tvpal_levels.h"
 #include "tvpal_pool.h"
 #include "tvpal_raw.h"
 
@@ -588,33 +589,6 @@ static void measure_step(struct step_err *p, size_t nvox, uint32_t t,
                            .missing = (double)miss, .mismatch = (double)bad};
 }
 
-/* One level coarser: each voxel the mean of the present values of its
- * 2x2x2 block (a shorter block at an odd edge), NaN when none is, as
- * tvpal-encode --levels makes it (encoder/engine/tvpal_levels.c). */
-static void average_2x2x2(const float *in, const uint32_t d[3], float *out,
-                          uint32_t o[3])
-{
-    for (int a = 0; a < 3; a++)
-        o[a] = (d[a] + 1) / 2;
-    for (uint32_t z = 0; z < o[2]; z++)
-        for (uint32_t y = 0; y < o[1]; y++)
-            for (uint32_t x = 0; x < o[0]; x++) {
-                double s = 0;
-                unsigned n = 0;
-                for (uint32_t Z = 2 * z; Z < 2 * z + 2 && Z < d[2]; Z++)
-                    for (uint32_t Y = 2 * y; Y < 2 * y + 2 && Y < d[1]; Y++)
-                        for (uint32_t X = 2 * x; X < 2 * x + 2 && X < d[0]; X++) {
-                            float v = in[X + (size_t)d[0] * (Y + (size_t)d[1] * Z)];
-                            if (v == v) {
-                                s += v;
-                                n++;
-                            }
-                        }
-                out[x + (size_t)o[0] * (y + (size_t)o[1] * z)] =
-                    n ? (float)(s / n) : NAN;
-            }
-}
-
 /* Step t of the reference into dst: the source, or with --level K the
  * source averaged K times.  0 or -1 (printed). */
 static int reference_step(struct report *r, char *const *refs,
@@ -626,13 +600,13 @@ static int reference_step(struct report *r, char *const *refs,
              : read_reference_step(r->src_m, r->src_type, refs, t, b->raw,
                                    into, r->src_nvox)) < 0)
         return -1;
-    uint32_t d[3];
-    memcpy(d, r->src_m->dims, sizeof d);
+    /* Each level the 2x2x2 means of the one before, as tvpal-encode
+     * --levels makes it (tvpal_levels.h). */
     for (unsigned k = 0; k < r->level; k++) {
-        uint32_t o[3];
+        uint32_t d[3];
+        tvpal_level_dims(r->src_m->dims, k, d);
         float *out = k + 1 == r->level ? dst : b->full[(k + 1) & 1];
-        average_2x2x2(b->full[k & 1], d, out, o);
-        memcpy(d, o, sizeof d);
+        tvpal_level_make(b->full[k & 1], d, out);
     }
     return 0;
 }
