@@ -55,7 +55,9 @@ extern "C" {
  *         tvpal_reader_verify (what tvpal-info and tvpal-report need);
  *  0.3.0  encoding from a source in passes under a memory limit
  *         (tvpal_encoder_plan, tvpal_encoder_encode), integer scalars,
- *         TVPAL_E_CANCELED, tvpal_encoder_set_provenance. */
+ *         TVPAL_E_CANCELED, tvpal_encoder_set_provenance,
+ *         tvpal_encoder_stats, tvpal_encoder_set_shard_dir,
+ *         TVPAL_PARAM_PROGRESS (what tvpal-encode needs to drive it). */
 #define TVPAL_VERSION_NUMBER                                                  \
     ((TVPAL_VERSION_MAJOR * 100 + TVPAL_VERSION_MINOR) * 100 +               \
      TVPAL_VERSION_RELEASE)
