@@ -1201,7 +1201,39 @@ static void warn_values(struct run *r, struct tvpal_encoder *e)
                 st.beyond_1e30, st.far, st.values - st.missing);
 }
 
-/* One process: the whole job through the library's encoder. */
+/* The progress lines' state and the test hooks' (see on_progress) in *dv
+ * and r->prog: a bar on a terminal, else a line every 30 s;
+ * TVPAL_PROGRESS_INTERVAL=S (a test hook) a line every S seconds, and the
+ * library's calls as often. */
+static void start_progress(struct run *r, struct tvpal_encoder *e,
+                           const struct tvpal_plan *pl, struct drive *dv)
+{
+    const char *fault = getenv("TVPAL_ENCODE_FAULT_AFTER");
+    const char *fault_rank = getenv("TVPAL_ENCODE_FAULT_RANK");
+    if (fault_rank && atol(fault_rank) != (long)r->node)
+        fault = NULL; /* TVPAL_ENCODE_FAULT_RANK=R: that MPI rank alone */
+    const char *how = getenv("TVPAL_ENCODE_FAULT");
+    const char *flevel = getenv("TVPAL_ENCODE_FAULT_LEVEL");
+    *dv = (struct drive){
+        .fault_after = fault ? atol(fault) : -1,
+        .fault_nosave = how && !strcmp(how, "nosave"),
+        .fault_fail = how && !strcmp(how, "fail"),
+        .fault_level = flevel ? (unsigned)atoi(flevel) : 0,
+        .levels_inline = pl->levels_inline};
+    struct progress *p = &r->prog;
+    p->tty = isatty(STDERR_FILENO);
+    p->quiet = r->o.quiet || (r->mpi && r->node != 0);
+    p->interval = p->tty ? 0.2 : 30.0;
+    const char *iv = getenv("TVPAL_PROGRESS_INTERVAL");
+    if (iv && atof(iv) > 0) {
+        p->interval = atof(iv);
+        tvpal_encoder_set(e, TVPAL_PARAM_PROGRESS,
+                          p->interval < 0.001 ? 0.001 : p->interval, NULL);
+    }
+}
+
+/* The whole job through the library's encoder: one process, or this
+ * rank's part of the MPI job. */
 static void encode_with_library(struct run *r, struct written *w)
 {
     struct tvpal_encoder *e = open_encoder(r);
@@ -1226,29 +1258,8 @@ static void encode_with_library(struct run *r, struct written *w)
     /* Every rank got here: the encode's rounds are the library's now. */
     cluster_ready(r);
     r->passes = pl.passes;
-    const char *fault = getenv("TVPAL_ENCODE_FAULT_AFTER");
-    const char *fault_rank = getenv("TVPAL_ENCODE_FAULT_RANK");
-    if (fault_rank && atol(fault_rank) != (long)r->node)
-        fault = NULL; /* TVPAL_ENCODE_FAULT_RANK=R: that MPI rank alone */
-    const char *how = getenv("TVPAL_ENCODE_FAULT");
-    const char *flevel = getenv("TVPAL_ENCODE_FAULT_LEVEL");
-    struct drive dv = {
-        .fault_after = fault ? atol(fault) : -1,
-        .fault_nosave = how && !strcmp(how, "nosave"),
-        .fault_fail = how && !strcmp(how, "fail"),
-        .fault_level = flevel ? (unsigned)atoi(flevel) : 0,
-        .levels_inline = pl.levels_inline};
-    struct progress *p = &r->prog;
-    p->tty = isatty(STDERR_FILENO);
-    p->quiet = r->o.quiet || (r->mpi && r->node != 0);
-    p->interval = p->tty ? 0.2 : 30.0;
-    /* TVPAL_PROGRESS_INTERVAL=S (a test hook): a line every S seconds. */
-    const char *iv = getenv("TVPAL_PROGRESS_INTERVAL");
-    if (iv && atof(iv) > 0) {
-        p->interval = atof(iv);
-        tvpal_encoder_set(e, TVPAL_PARAM_PROGRESS,
-                          p->interval < 0.001 ? 0.001 : p->interval, NULL);
-    }
+    struct drive dv;
+    start_progress(r, e, &pl, &dv);
     char *id = job_identity(r);
     src.identity = id;
     src.progress = on_progress;
@@ -1258,6 +1269,7 @@ static void encode_with_library(struct run *r, struct written *w)
     int rc = tvpal_encoder_encode(e, &src, &d);
     free(id);
     r->t_encode = tvpal_now() - t0;
+    r->drive = NULL;
     if (rc < 0 && dv.faulted == 1 && !dv.fault_fail)
         raise(SIGKILL); /* as an interruption would: nothing cleaned up */
     if (rc < 0) {
