@@ -15,6 +15,7 @@
 #include "tvpal_schedule.h"
 
 #include <string.h>
+#include <time.h>
 
 #define W 128
 #define H 112
@@ -110,6 +111,38 @@ int main(int argc, char **argv)
         REQUIRE(tvpal_player_frame(j, &v, t, 1, &rgl, a, &st, &d) == 0, "%s", d.msg);
         CHECK(!memcmp(a, seq[t], sizeof a), "jump to %u differs from playing "
               "to it", t);
+        tvpal_player_close(j);
+    }
+    /* A jump prepared off the frame's thread (tvpal_player_prepare): the
+     * slabs keep the step they show until the frame at the target, which
+     * installs the staged records (ready said it would read nothing; its
+     * bytes_read are the stager's), and draws what playing to it draws; a
+     * second prepare while one runs replaces it. */
+    for (int i = 0; i < 8 && Tm > 2; i++) {
+        const uint32_t from = (uint32_t)(tt_rand64() % Tm);
+        const uint32_t t = (from + 2 + (uint32_t)(tt_rand64() % (Tm - 2))) % Tm;
+        const uint32_t other = (t + 1) % Tm;
+        struct tvpal_player *j = open_player(dir, 0, i % 2 ? TVPAL_IO_PREAD
+                                                           : TVPAL_IO_URING, 1);
+        REQUIRE(tvpal_player_frame(j, &v, from, 1, &rgl, a, &st, &d) == 0, "%s", d.msg);
+        CHECK(tvpal_player_prepare(j, &v, i % 3 ? t : other, 1, &d) == 0 &&
+                  tvpal_player_prepare(j, &v, t, 1, &d) == 0, "prepare %u: %s",
+              t, d.msg);
+        int ready = 0;
+        for (int k = 0; k < 5000 && !(ready = tvpal_player_ready(j, &v, t)); k++)
+            nanosleep(&(struct timespec){0, 1000000}, NULL);
+        CHECK(ready && !tvpal_player_ready(j, &v, other),
+              "prepared step %u not ready within 5 s (or %u ready too)", t,
+              other);
+        REQUIRE(tvpal_player_frame(j, &v, t, 1, &rgl, a, &st, &d) == 0, "%s", d.msg);
+        CHECK(st.staged > 0 && !memcmp(a, seq[t], sizeof a),
+              "prepared jump %u -> %u: %u records installed as staged, "
+              "image %s", from, t, st.staged,
+              memcmp(a, seq[t], sizeof a) ? "differs" : "the same");
+        REQUIRE(tvpal_player_frame(j, &v, (t + 1) % Tm, 1, &rgl, a, &st, &d) == 0,
+                "%s", d.msg);
+        CHECK(!memcmp(a, seq[(t + 1) % Tm], sizeof a), "the step after a "
+              "prepared jump to %u differs", t);
         tvpal_player_close(j);
     }
     for (uint32_t t = Tm; t-- > 0;) {

@@ -207,6 +207,30 @@ int tvpal_player_open_axis(struct tvpal_player *p, unsigned axis,
     return p->ax[da].stream ? 0 : open_axis(p, (unsigned)da, diag);
 }
 
+int tvpal_player_prepare(struct tvpal_player *p, const struct tvpal_view *v,
+                         uint32_t t, int dir, struct tvpal_diag *diag)
+{
+    int rc = tvpal_player_open_axis(p, v->axis, diag);
+    if (rc < 0)
+        return rc;
+    if (t >= p->ds->m.steps)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u out of range "
+                              "(0..%u)", t, p->ds->m.steps - 1);
+    return tvpal_stream_prepare(p->ax[data_axis(p, v->axis)].stream, t, dir)
+               < 0
+               ? tvpal_diag_set(diag, TVPAL_E_INVAL, "no stager to prepare "
+                                "step %u (in-core, or prefetch 0)", t)
+               : 0;
+}
+
+int tvpal_player_ready(struct tvpal_player *p, const struct tvpal_view *v,
+                       uint32_t t)
+{
+    const int da = v->axis <= 2 ? data_axis(p, v->axis) : -1;
+    return da >= 0 && p->ax[da].stream &&
+           tvpal_stream_ready(p->ax[da].stream, t);
+}
+
 uint64_t tvpal_player_io_submits(const struct tvpal_player *p)
 {
     uint64_t n = 0;

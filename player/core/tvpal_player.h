@@ -169,6 +169,20 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
                        float *rgba, struct tvpal_frame_stats *st,
                        struct tvpal_diag *diag);
 
+/* A jump's target prepared off the caller's thread (tvpal_stream_prepare):
+ * the records the data axis of view v needs at step t are read, checked
+ * and staged while the caller draws something else (another level's
+ * player), and tvpal_player_frame(t) then only installs them.  Returns at
+ * once: 0, or TVPAL_E_INVAL (t out of range, an axis not stored, no
+ * stager: in-core or prefetch 0), diag saying which.  tvpal_player_ready
+ * says, without waiting, whether a frame at t would read nothing (1) or
+ * still wait for records (0).  Not with ghost rows (a cluster's cross
+ * frames exchange them at the frame). */
+int tvpal_player_prepare(struct tvpal_player *p, const struct tvpal_view *v,
+                         uint32_t t, int dir, struct tvpal_diag *diag);
+int tvpal_player_ready(struct tvpal_player *p, const struct tvpal_view *v,
+                       uint32_t t);
+
 /* Bytes of records one axis holds in RAM in-core (mean over the stored
  * axes) and per timestep: how many timesteps fit in a memory budget. */
 uint64_t tvpal_player_axis_bytes(const struct tvpal_player *p);

@@ -63,6 +63,10 @@ struct stager {
     int dir;                     /* prefetching in direction dir */
     int have;                    /* a staged step waits for install: */
     uint32_t staged_t;
+    int next;                    /* a job posted while one ran (a jump's
+                                  * target, tvpal_stream_prepare): */
+    uint32_t next_t;             /* run after it, which is dropped */
+    int next_dir;
     int rc;                      /* its result, */
     struct tvpal_diag diag;
     struct tvpal_stream_stats st;
@@ -893,6 +897,18 @@ static void *stager_main(void *arg)
         struct tvpal_diag d = {{0}};
         int rc = seek_into(s, t, dir, &st, &d, SEEK_STAGE | SEEK_PREFETCH);
         pthread_mutex_lock(&w->mu);
+        if (w->next) {
+            /* Another step was asked for meanwhile: this one goes, and
+             * that one is staged from the step the slabs show. */
+            pthread_mutex_unlock(&w->mu);
+            unstage_all(s);
+            pthread_mutex_lock(&w->mu);
+            w->t = w->next_t;
+            w->dir = w->next_dir;
+            w->next = 0;
+            w->state = STAGER_PENDING;
+            continue;
+        }
         w->rc = rc;
         w->diag = d;
         w->st = st;
@@ -926,6 +942,50 @@ static void stager_post(struct tvpal_stream *s, uint32_t t, int dir)
     w->state = STAGER_PENDING;
     pthread_cond_broadcast(&w->cv);
     pthread_mutex_unlock(&w->mu);
+}
+
+int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir)
+{
+    struct stager *w = &s->w;
+    if (!w->started || t >= tvpal_shard_hdr(s->p[0].sh)->steps)
+        return TVPAL_E_INVAL;
+    pthread_mutex_lock(&w->mu);
+    if (w->state == STAGER_IDLE) {
+        if (w->have && w->staged_t == t) {  /* already there */
+            pthread_mutex_unlock(&w->mu);
+            return 0;
+        }
+        /* Idle: the staging buffers are the caller's until it posts. */
+        pthread_mutex_unlock(&w->mu);
+        if (w->have)
+            unstage_all(s);
+        stager_post(s, t, dir);
+        return 0;
+    }
+    if (w->state == STAGER_PENDING) {   /* not begun: take its place */
+        w->t = t;
+        w->dir = dir;
+        w->next = 0;
+    } else {                            /* running: after it */
+        w->next = 1;
+        w->next_t = t;
+        w->next_dir = dir;
+    }
+    pthread_mutex_unlock(&w->mu);
+    return 0;
+}
+
+int tvpal_stream_ready(struct tvpal_stream *s, uint32_t t)
+{
+    struct stager *w = &s->w;
+    if (s->have_cur && s->cur_t == t)
+        return 1;
+    if (!w->started)
+        return 0;
+    pthread_mutex_lock(&w->mu);
+    const int ready = w->state == STAGER_IDLE && w->have && w->staged_t == t;
+    pthread_mutex_unlock(&w->mu);
+    return ready;
 }
 
 static void unstage_all(struct tvpal_stream *s)

@@ -89,6 +89,22 @@ void tvpal_stream_free(struct tvpal_stream *s);   /* NULL is a no-op */
 int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
                       struct tvpal_stream_stats *st, struct tvpal_diag *diag);
 
+/* A jump's target prepared off the caller's thread: the stager reads,
+ * checks and stages the records of step t (up to one per window start,
+ * from what the slabs show now), as it prepares the next step in steady
+ * playback, and returns at once; a job it was running is finished and
+ * dropped.  The slabs keep showing their step meanwhile, so the caller
+ * may draw another level while this one loads.  A later
+ * tvpal_stream_seek(t) only installs the records once
+ * tvpal_stream_ready(s, t) says so (it waits for them otherwise); a seek
+ * to another step drops them.  0, or TVPAL_E_INVAL (no stager: prefetch
+ * 0 or in-core, where a seek reads nothing or must; t out of range). */
+int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir);
+
+/* 1 when a seek to t only installs what is staged (or the slabs show t
+ * already), 0 when it would read; never waits. */
+int tvpal_stream_ready(struct tvpal_stream *s, uint32_t t);
+
 /* Submission system calls of the stream's reads so far (io_uring: a seek
  * submits its reads, the records it needs and its prefetch, in one). */
 uint64_t tvpal_stream_submits(const struct tvpal_stream *s);
