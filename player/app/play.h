@@ -62,6 +62,7 @@ struct play_opts {
     uint32_t level;                     /* --level N (with level_given) */
     int level_given;
     uint32_t budget_ms;                 /* --budget-ms: window frame budget */
+    int progressive;                    /* --progressive on (headless) */
     int window;                         /* -1 until checked: from $DISPLAY */
     struct tvpal_player_opts po;        /* data mode, I/O, prefetch */
     uint32_t mem_mib;

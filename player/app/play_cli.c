@@ -97,6 +97,10 @@ static void usage_view(FILE *f)
 "                           playing faster than --budget-ms allows\n"
 "      --budget-ms MS       window: the frame time to keep to while the view\n"
 "                           moves, 1..100000 (default 66, about 15 fps)\n"
+"      --progressive on|off headless: a jump draws a coarser level at once\n"
+"                           while the full level's records load off the\n"
+"                           frame's thread, then the full level (default off:\n"
+"                           every frame at its full level, for exact output)\n"
 "      --exact              cpu renderer: blend every sample until a pixel is\n"
 "                           fully opaque (default: a pixel stops once its\n"
 "                           remaining transmittance is at most 1/272, which\n"
@@ -443,6 +447,15 @@ static int set_fb(struct play_opts *o, const char *arg)
                ? 0 : -1;
 }
 
+static int set_progressive(struct play_opts *o, const char *arg)
+{
+    if (!strcmp(arg, "on") || !strcmp(arg, "off")) {
+        o->progressive = !strcmp(arg, "on");
+        return 0;
+    }
+    return -1;
+}
+
 static int set_level(struct play_opts *o, const char *arg)
 {
     o->level_given = 1;
@@ -496,7 +509,7 @@ enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
        K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_DIRECT, K_MEM, K_CSV, K_STRICT,
        K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR, K_EXACT, K_LEVEL, K_BUDGET,
        K_FROM_Z, K_ANNOTATE, K_BACKGROUND, K_SHOT_DIR, K_NO_HUD,
-       K_READ_AHEAD };
+       K_READ_AHEAD, K_PROGRESSIVE };
 /* Views, movies and progress (apart: the list above grows elsewhere). */
 enum { K_VIEW = 384, K_UP, K_FPS, K_PROGRESS, K_SLICE_AXIS, K_LEGEND };
 
@@ -530,6 +543,8 @@ static const struct opt_def opt_table[] = {
      "auto or 1..8"},
     {"exact", K_EXACT, OPT_SET, F(exact), 1, 0, NULL, NULL},
     {"level", K_LEVEL, OPT_FN, 0, 0, 0, set_level, "0..8"},
+    {"progressive", K_PROGRESSIVE, OPT_FN, 0, 0, 0, set_progressive,
+     "on or off"},
     {"budget-ms", K_BUDGET, OPT_U32, F(budget_ms), 1, 100000, NULL,
      "1..100000"},
     {"spin", K_SPIN, OPT_DOUBLE, F(spin), -PLAY_DEG_MAX, PLAY_DEG_MAX, NULL,

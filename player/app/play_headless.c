@@ -50,6 +50,21 @@ struct headless {
     int dir_step;
     uint32_t nframes;
     uint32_t cur;                   /* the step of the last frame */
+    /* --progressive: a jump's refinement (progressive_level), and what it
+     * is planned from: the read rate (bytes per ms waited) and a steady
+     * frame's time, as measured (0: not yet). */
+    int progressive;
+    struct refine {
+        int active;
+        unsigned full, coarse, axis;    /* the view's level and axis, the
+                                         * level drawn meanwhile */
+        uint32_t target;                /* the step the full level's
+                                         * records are prepared at, */
+        uint32_t due, frames;           /* frames after the jump it comes,
+                                         * and so far */
+        double t0;                      /* the jump frame's start */
+    } pj;
+    double rate, steady_ms;
     unsigned errors;
     char last_err[TVPAL_DIAG_MAX];
     struct play_totals tot;
@@ -203,6 +218,8 @@ static void setup_view(struct headless *h)
     h->nframes = (h->s->b >= h->s->a ? h->s->b - h->s->a
                                      : h->s->a - h->s->b) + 1;
     h->rng = 0x9E3779B97F4A7C15ull;
+    /* One process: a cluster's frames exchange ghost rows at the frame. */
+    h->progressive = o->progressive && !play_cluster_multi();
 }
 
 /* The level of detail of a frame of view h->v (--level, else the finest
@@ -213,6 +230,102 @@ static void choose_level(struct headless *h)
                                  : play_level_auto(h->s, &h->v);
     h->lpl = play_level_player(h->s, h->level);
     play_level_view(h->s, h->level, &h->v, &h->vl);
+}
+
+/* --progressive: the milliseconds a jump's reads take at level k (about a
+ * byte per voxel: each slice's window) at the measured rate (0: unknown,
+ * as in-core). */
+static double jump_ms(const struct headless *h, unsigned k)
+{
+    double bytes = 1;
+    for (unsigned a = 0; a < 3; a++) {
+        uint32_t d = h->s->m->dims[a];
+        for (unsigned i = 0; i < k; i++)
+            d = (d + 1) / 2; /* a level's dims (FORMAT.md 3.3) */
+        bytes *= d;
+    }
+    return h->rate > 0 ? bytes / h->rate : 0;
+}
+
+/* The step of steady playback d frames after step t (frame_step's rule,
+ * no jump between). */
+static uint32_t steady_ahead(const struct headless *h, uint32_t t, uint32_t d)
+{
+    const uint32_t a = h->s->a, b = h->s->b;
+    const uint32_t lo = a < b ? a : b, n = h->nframes;
+    for (uint32_t i = 0; i < d; i++) {
+        int64_t next = (int64_t)t + h->dir_step;
+        t = next < lo || next >= (int64_t)lo + n ? a : (uint32_t)next;
+    }
+    return t;
+}
+
+/* --progressive: the level of the frame at step t.  A jump (where the
+ * view's own level has a coarser one) draws the finest coarser level
+ * whose reads fit a frame's budget (a steady frame's measured time, else
+ * --budget-ms) at once, and has the full level's player prepare, off the
+ * frame's thread, the step playback will be at when its reads are
+ * expected to be done; the frames until then draw the coarser level, and
+ * the first frame from then on whose step is prepared draws the full one
+ * (a late one first installs the prepared step and reads the steps
+ * since).  Returns 1 on that frame. */
+static int progressive_level(struct headless *h, uint32_t t, int jump)
+{
+    choose_level(h);
+    const unsigned full = h->level, nl = h->s->nlevels;
+    if (jump) {
+        h->pj.active = 0;
+        const double budget = h->steady_ms > 0 ? h->steady_ms
+                                               : (double)h->o->budget_ms;
+        unsigned k = full + 1;
+        while (k + 1 < nl && jump_ms(h, k) > budget)
+            k++;
+        const double lf = jump_ms(h, full);
+        const uint32_t d = lf > budget ? (uint32_t)ceil(lf / budget) : 1;
+        const uint32_t tp = steady_ahead(h, t, d);
+        struct tvpal_diag dd = {{0}};
+        if (k < nl &&
+            tvpal_player_prepare(h->lpl, &h->vl, tp, h->dir_step, &dd) == 0)
+            h->pj = (struct refine){.active = 1, .full = full, .coarse = k,
+                                    .axis = h->vl.axis, .target = tp,
+                                    .due = d, .t0 = tvpal_now()};
+    } else if (h->pj.active) {
+        h->pj.frames++;
+    }
+    if (!h->pj.active)
+        return 0;
+    if (h->pj.full != full || h->pj.axis != h->vl.axis) {
+        h->pj.active = 0; /* the view moved on: its own level, as ever */
+        return 0;
+    }
+    if (h->pj.frames >= h->pj.due &&
+        tvpal_player_ready(h->lpl, &h->vl, h->pj.target)) {
+        struct tvpal_diag dd = {{0}};
+        if (t != h->pj.target &&
+            tvpal_player_seek(h->lpl, &h->vl, h->pj.target, h->dir_step,
+                              &dd) < 0)
+            play_die(2, "step %u: %s", h->pj.target, dd.msg);
+        h->pj.active = 0;
+        return 1;
+    }
+    h->level = h->pj.coarse;
+    h->lpl = play_level_player(h->s, h->level);
+    play_level_view(h->s, h->level, &h->v, &h->vl);
+    return 0;
+}
+
+/* What the next jump is planned from: the read rate of frames that
+ * waited for reads, and the time of steady frames at their full level. */
+static void measure_for_progressive(struct headless *h, const struct play_rank_rec *me,
+                                    int jump, int coarse)
+{
+    if (me->io > 0.1 && me->bytes_read > 0) {
+        const double r = (double)me->bytes_read / me->io;
+        h->rate = h->rate > 0 ? 0.8 * h->rate + 0.2 * r : r;
+    }
+    if (!jump && !coarse)
+        h->steady_ms = h->steady_ms > 0 ? 0.8 * h->steady_ms + 0.2 * me->total
+                                        : me->total;
 }
 
 /* The first frame's axis, opened now: a refused I/O path ends the run
@@ -309,7 +422,6 @@ static void draw_frame(struct headless *h, uint32_t t, struct play_rank_rec *me,
     struct tvpal_frame_stats st;
     struct tvpal_diag d = {{0}};
     double f0 = tvpal_now();
-    choose_level(h);
     int rc = tvpal_player_frame(h->lpl, &h->vl, t, h->dir_step, &h->pr.r,
                                 h->rgba, &st, &d);
     for (uint32_t k = 1; k < h->o->repeat && rc >= 0; k++)
@@ -432,8 +544,18 @@ static void play_frames(struct headless *h)
             play_set_tf(h->s, &h->s->tfs[i % o->ntf], o->opacity);
         struct play_rank_rec me;
         struct play_row row;
+        int full_again = 0;
+        if (h->progressive)
+            full_again = progressive_level(h, t, jump);
+        else
+            choose_level(h);
+        const int coarse = h->progressive && h->pj.active;
         draw_frame(h, t, &me, &row);
         row.jump = jump;
+        if (full_again)
+            row.full_ms = (tvpal_now() - h->pj.t0) * 1e3;
+        if (h->progressive)
+            measure_for_progressive(h, &me, jump, coarse);
         if (o->ref_psnr)
             row.psnr = reference_psnr(h, t);
         settle_errors(h, t, &me, &row);

@@ -87,6 +87,7 @@ static const struct column columns[] = {
     {"time", C_REAL, R(time), S_NONE},
     {"records_staged", C_U32, R(staged), S_NONE},
     {"level", C_U32, R(level), S_NONE},
+    {"full_ms", C_MS, R(full_ms), S_NONE},
 };
 #define NCOLS (sizeof columns / sizeof *columns)
 

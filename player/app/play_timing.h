@@ -26,6 +26,9 @@ struct play_row {
     struct play_rank_rec agg;       /* over ranks (play_timing_aggregate) */
     uint32_t drawn, skipped, uploads, stride, staged;
     uint32_t level;                 /* level of detail drawn */
+    double full_ms;                 /* --progressive: on the first frame
+                                     * at the full level after a jump,
+                                     * the time from the jump's frame */
     double axis_switch_ms;
     int jump, ranks;
     double psnr;                    /* against the reference, or NAN */
@@ -40,7 +43,7 @@ void play_timing_aggregate(const struct play_rank_rec *r, int n,
 
 /* Sums over the frames of a run, for the summary line. */
 struct play_totals {
-    double sum[32];
+    double sum[40];
     uint32_t frames;
 };
 

@@ -223,6 +223,21 @@ int tvpal_player_prepare(struct tvpal_player *p, const struct tvpal_view *v,
                : 0;
 }
 
+int tvpal_player_seek(struct tvpal_player *p, const struct tvpal_view *v,
+                      uint32_t t, int dir, struct tvpal_diag *diag)
+{
+    int rc = tvpal_player_open_axis(p, v->axis, diag);
+    if (rc < 0)
+        return rc;
+    if (t >= p->ds->m.steps)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u out of range "
+                              "(0..%u)", t, p->ds->m.steps - 1);
+    struct tvpal_diag d = {{0}};
+    rc = tvpal_stream_seek(p->ax[data_axis(p, v->axis)].stream, t, dir, NULL,
+                           &d);
+    return rc < 0 ? tvpal_diag_set(diag, rc, "%s", d.msg) : 0;
+}
+
 int tvpal_player_ready(struct tvpal_player *p, const struct tvpal_view *v,
                        uint32_t t)
 {

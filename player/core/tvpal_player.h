@@ -182,6 +182,11 @@ int tvpal_player_prepare(struct tvpal_player *p, const struct tvpal_view *v,
                          uint32_t t, int dir, struct tvpal_diag *diag);
 int tvpal_player_ready(struct tvpal_player *p, const struct tvpal_view *v,
                        uint32_t t);
+/* The data axis of view v brought to step t without drawing (a prepared
+ * step installed before the frame moves on from it); 0, or the load's
+ * error as tvpal_player_frame's. */
+int tvpal_player_seek(struct tvpal_player *p, const struct tvpal_view *v,
+                      uint32_t t, int dir, struct tvpal_diag *diag);
 
 /* Bytes of records one axis holds in RAM in-core (mean over the stored
  * axes) and per timestep: how many timesteps fit in a memory budget. */

@@ -1,0 +1,59 @@
+#!/bin/sh
+# play-progressive: tvpal-play --headless --progressive on.  Every jump
+# frame draws a coarser level at once (CSV level above 0, the image that
+# level draws at that step, bit for bit), the full level comes back within
+# 3 frames (full_ms on that frame), and the frames at the full level are
+# those of a run without --progressive, bit for bit.  A dataset without
+# levels plays exactly as without the option.
+. "$(dirname "$0")/lib.sh"
+PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
+[ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
+D=48x40x36
+"$GEN" --field turbulence --dims $D --steps 24 -o "$W/in" || fail gen
+"$ENC" -q --dims $D --window 4 --levels 2 -o "$W/ds" "$W"/in/*.f32 > /dev/null || fail encode
+"$ENC" -q --dims $D --window 4 -o "$W/flat" "$W"/in/*.f32 > /dev/null || fail "encode without levels"
+run() { # NAME DATASET OPTIONS...: frames in $W/NAME, CSV $W/NAME.csv
+    name=$1 ds=$2; shift 2
+    "$PLAY" "$ds" --headless -q --renderer cpu --size 96x80 --jumps 5 --csv "$W/$name.csv" \
+        -o "$W/$name" "$@" > "$W/$name.out" 2>&1 || fail "$name: $(cat "$W/$name.out")"
+}
+run prog "$W/ds" --progressive on
+run plain "$W/ds"
+run lv1 "$W/ds" --level 1
+run lv2 "$W/ds" --level 2
+# col FILE NAME: the values of CSV column NAME, one per frame.
+col() { awk -F, -v n="$2" 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == n) c = i; next } { print $c }' "$1"; }
+col "$W/prog.csv" step > "$W/steps"
+col "$W/prog.csv" jump > "$W/jumps"
+col "$W/prog.csv" level > "$W/levels"
+col "$W/prog.csv" full_ms > "$W/full"
+paste -d' ' "$W/steps" "$W/jumps" "$W/levels" "$W/full" > "$W/rows"
+# Every jump draws level 1 or 2, and a later frame within 3 comes back to
+# level 0 with its time from the jump.
+awk '{ n++ }
+     $2 == 1 { if ($3 == 0) { print "jump at frame " n " drew level 0"; bad = 1 } open_ = n; jumps++ }
+     $2 == 0 && $3 == 0 && open_ { if (n - open_ > 3) { print "full level " n - open_ " frames after the jump"; bad = 1 }
+                                   if ($4 <= 0) { print "no full_ms at frame " n; bad = 1 } open_ = 0; back++ }
+     END { if (jumps < 3 || back < 3) { print jumps " jumps, " back " refined"; bad = 1 } exit bad }' "$W/rows" \
+    && ok "every jump draws a coarser level at once and level 0 within 3 frames ($(awk '$2 == 1' "$W/rows" | wc -l) jumps)" \
+    || fail "progressive levels: $(cat "$W/rows" | tr '\n' ';')"
+# The images: the last frame of each step (the PNGs are named by step) is
+# the full-level frame of the plain run at level 0, else the --level run's.
+same=1 n0=0 nc=0
+for t in $(sort -u "$W/steps"); do
+    lv=$(awk -v t="$t" '$1 == t { l = $3 } END { print l }' "$W/rows")
+    f=$(printf 't%04u.png' "$t")
+    [ -f "$W/prog/$f" ] || f=$(printf 't%02u.png' "$t")
+    if [ "$lv" = 0 ]; then ref=plain; n0=$((n0 + 1)); else ref=lv$lv; nc=$((nc + 1)); fi
+    cmp -s "$W/prog/$f" "$W/$ref/$f" || { same=0; echo "step $t (level $lv): differs from $ref"; }
+done
+[ $same = 1 ] && [ $n0 -gt 0 ] && [ $nc -gt 0 ] \
+    && ok "images bit for bit: $n0 steps at level 0 as without --progressive, $nc coarse as --level" \
+    || fail "progressive images differ ($n0 full, $nc coarse)"
+# Without levels the option changes nothing.
+run fprog "$W/flat" --progressive on
+run fplain "$W/flat"
+[ "$(col "$W/fprog.csv" level | sort -u)" = 0 ] && diff -r "$W/fprog" "$W/fplain" > /dev/null \
+    && ok "a dataset without levels: the same frames, all at level 0" || fail "without levels: frames differ"
+expect_exit 2 "progressive" "$PLAY" "$W/ds" --headless --progressive maybe
+finish
