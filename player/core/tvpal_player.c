@@ -207,8 +207,12 @@ int tvpal_player_open_axis(struct tvpal_player *p, unsigned axis,
     return p->ax[da].stream ? 0 : open_axis(p, (unsigned)da, diag);
 }
 
-int tvpal_player_prepare(struct tvpal_player *p, const struct tvpal_view *v,
-                         uint32_t t, int dir, struct tvpal_diag *diag)
+/* The stream of view v's data axis, opened, for step t, into *s; 0, or
+ * the code with diag set (an axis not stored, t out of range, a failed
+ * open). */
+static int stream_at(struct tvpal_player *p, const struct tvpal_view *v,
+                     uint32_t t, struct tvpal_stream **s,
+                     struct tvpal_diag *diag)
 {
     int rc = tvpal_player_open_axis(p, v->axis, diag);
     if (rc < 0)
@@ -216,8 +220,18 @@ int tvpal_player_prepare(struct tvpal_player *p, const struct tvpal_view *v,
     if (t >= p->ds->m.steps)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u out of range "
                               "(0..%u)", t, p->ds->m.steps - 1);
-    return tvpal_stream_prepare(p->ax[data_axis(p, v->axis)].stream, t, dir)
-               < 0
+    *s = p->ax[data_axis(p, v->axis)].stream;
+    return 0;
+}
+
+int tvpal_player_prepare(struct tvpal_player *p, const struct tvpal_view *v,
+                         uint32_t t, int dir, struct tvpal_diag *diag)
+{
+    struct tvpal_stream *s = NULL;
+    int rc = stream_at(p, v, t, &s, diag);
+    if (rc < 0)
+        return rc;
+    return tvpal_stream_prepare(s, t, dir) < 0
                ? tvpal_diag_set(diag, TVPAL_E_INVAL, "no stager to prepare "
                                 "step %u (in-core, or prefetch 0)", t)
                : 0;
@@ -226,16 +240,12 @@ int tvpal_player_prepare(struct tvpal_player *p, const struct tvpal_view *v,
 int tvpal_player_seek(struct tvpal_player *p, const struct tvpal_view *v,
                       uint32_t t, int dir, struct tvpal_diag *diag)
 {
-    int rc = tvpal_player_open_axis(p, v->axis, diag);
-    if (rc < 0)
-        return rc;
-    if (t >= p->ds->m.steps)
-        return tvpal_diag_set(diag, TVPAL_E_INVAL, "step %u out of range "
-                              "(0..%u)", t, p->ds->m.steps - 1);
+    struct tvpal_stream *s = NULL;
     struct tvpal_diag d = {{0}};
-    rc = tvpal_stream_seek(p->ax[data_axis(p, v->axis)].stream, t, dir, NULL,
-                           &d);
-    return rc < 0 ? tvpal_diag_set(diag, rc, "%s", d.msg) : 0;
+    int rc = stream_at(p, v, t, &s, diag);
+    if (rc == 0 && (rc = tvpal_stream_seek(s, t, dir, NULL, &d)) < 0)
+        tvpal_diag_set(diag, rc, "%s", d.msg);
+    return rc;
 }
 
 int tvpal_player_ready(struct tvpal_player *p, const struct tvpal_view *v,

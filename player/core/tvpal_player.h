@@ -174,7 +174,8 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
  * and staged while the caller draws something else (another level's
  * player), and tvpal_player_frame(t) then only installs them.  Returns at
  * once: 0, or TVPAL_E_INVAL (t out of range, an axis not stored, no
- * stager: in-core or prefetch 0), diag saying which.  tvpal_player_ready
+ * stager: in-core or prefetch 0) or the axis's open error, diag saying
+ * which.  tvpal_player_ready
  * says, without waiting, whether a frame at t would read nothing (1) or
  * still wait for records (0).  Not with ghost rows (a cluster's cross
  * frames exchange them at the frame). */
