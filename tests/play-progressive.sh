@@ -1,7 +1,8 @@
 #!/bin/sh
 # play-progressive: tvpal-play --headless --progressive on.  Every jump
 # frame draws a coarser level at once (CSV level above 0, the image that
-# level draws at that step, bit for bit), the full level comes back within
+# level draws at that step, bit for bit), reading nothing (the coarser
+# levels are in RAM from the start), the full level comes back within
 # 3 frames (full_ms on that frame), and the frames at the full level are
 # those of a run without --progressive, bit for bit.  A dataset without
 # levels plays exactly as without the option.
@@ -27,7 +28,13 @@ col "$W/prog.csv" step > "$W/steps"
 col "$W/prog.csv" jump > "$W/jumps"
 col "$W/prog.csv" level > "$W/levels"
 col "$W/prog.csv" full_ms > "$W/full"
-paste -d' ' "$W/steps" "$W/jumps" "$W/levels" "$W/full" > "$W/rows"
+col "$W/prog.csv" bytes_read > "$W/bytes"
+paste -d' ' "$W/steps" "$W/jumps" "$W/levels" "$W/full" "$W/bytes" > "$W/rows"
+# The coarser levels were loaded before the first frame (in RAM within
+# --mem): a jump drawn from one reads nothing.
+awk '$2 == 1 && $5 != 0 { print "jump to " $1 " read " $5 " bytes"; bad = 1 } END { exit bad }' "$W/rows" \
+    && ok "jump frames read nothing (the coarse levels are in RAM)" \
+    || fail "coarse jump frames read: $(awk '$2 == 1' "$W/rows" | tr '\n' ';')"
 # Every jump draws level 1 or 2, and a later frame within 3 comes back to
 # level 0 with its time from the jump.
 awk '{ n++ }

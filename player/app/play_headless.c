@@ -265,10 +265,9 @@ static uint32_t steady_ahead(const struct headless *h, uint32_t t, uint32_t d)
  * whose reads fit a frame's budget (a steady frame's measured time, else
  * --budget-ms) at once, and has the full level's player prepare, off the
  * frame's thread, the step playback will be at when its reads are
- * expected to be done; the frames until then draw the coarser level, and
- * the first frame from then on whose step is prepared draws the full one
- * (a late one first installs the prepared step and reads the steps
- * since).  Returns 1 on that frame. */
+ * expected to be done (d frames on); the frames until then draw the
+ * coarser level, and that frame the full one, its prepared records
+ * installed.  Returns 1 on that frame. */
 static int progressive_level(struct headless *h, uint32_t t, int jump)
 {
     choose_level(h);
@@ -298,8 +297,10 @@ static int progressive_level(struct headless *h, uint32_t t, int jump)
         h->pj.active = 0; /* the view moved on: its own level, as ever */
         return 0;
     }
-    if (h->pj.frames >= h->pj.due &&
-        tvpal_player_ready(h->lpl, &h->vl, h->pj.target)) {
+    if (h->pj.frames >= h->pj.due) {
+        /* The frame planned for: the full level, its records installed
+         * (waited for here if the disk was slower than measured: a
+         * headless run keeps no clock, and says when it came back). */
         struct tvpal_diag dd = {{0}};
         if (t != h->pj.target &&
             tvpal_player_seek(h->lpl, &h->vl, h->pj.target, h->dir_step,
@@ -315,11 +316,13 @@ static int progressive_level(struct headless *h, uint32_t t, int jump)
 }
 
 /* What the next jump is planned from: the read rate of frames that
- * waited for reads, and the time of steady frames at their full level. */
-static void measure_for_progressive(struct headless *h, const struct play_rank_rec *me,
-                                    int jump, int coarse)
+ * waited for a MiB or more (smaller reads measure the latency, not the
+ * rate), and the time of steady frames at their full level. */
+static void measure_for_progressive(struct headless *h,
+                                    const struct play_rank_rec *me, int jump,
+                                    int coarse)
 {
-    if (me->io > 0.1 && me->bytes_read > 0) {
+    if (me->io > 0.1 && me->bytes_read >= (1u << 20)) {
         const double r = (double)me->bytes_read / me->io;
         h->rate = h->rate > 0 ? 0.8 * h->rate + 0.2 * r : r;
     }
@@ -333,6 +336,16 @@ static void measure_for_progressive(struct headless *h, const struct play_rank_r
 static void open_first_axis(struct headless *h)
 {
     struct tvpal_diag d = {{0}};
+    /* --progressive: the coarser levels' records are loaded now (in RAM
+     * within --mem, play_level_player), so that no jump waits for them. */
+    for (unsigned k = h->s->nlevels; h->progressive && k-- > 1;) {
+        struct tvpal_view vk;
+        struct tvpal_player *pk = play_level_player(h->s, k);
+        play_level_view(h->s, k, &h->v, &vk);
+        if (tvpal_player_open_axis(pk, vk.axis, &d) < 0)
+            play_die(1, "%s: level %u: %s", h->o->dir, k,
+                     d.msg[0] ? d.msg : "cannot open");
+    }
     choose_level(h);
     if (tvpal_player_open_axis(h->lpl, h->vl.axis, &d) < 0)
         play_die(1, "%s: %s", h->o->dir, d.msg[0] ? d.msg : "cannot open");

@@ -8,6 +8,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <unistd.h>
 #include <string.h>
 
 #define PROG PLAY_PROG
@@ -63,7 +64,21 @@ struct tvpal_player *play_level_player(struct play_session *s, unsigned k)
         play_die_rank(1, "out of memory");
     struct tvpal_diag d = {{0}};
     struct tvpal_player *p = NULL;
-    int rc = tvpal_player_open(&p, node_dir ? node_dir : dir, &s->o->po, &d);
+    struct tvpal_player_opts po = s->o->po;
+    if (k > 0 && s->o->progressive) {
+        /* --progressive: a coarser level's records in RAM, so that a jump
+         * drawn from it reads nothing: level k within 1/2^k of --mem (else
+         * of a quarter of the machine's memory), the levels together
+         * within it; an axis that does not fit is streamed. */
+        const long pages = sysconf(_SC_PHYS_PAGES), psz = sysconf(_SC_PAGE_SIZE);
+        const uint64_t all = s->o->mem_mib ? (uint64_t)s->o->mem_mib << 20
+                             : pages > 0 && psz > 0
+                                 ? (uint64_t)pages * (uint64_t)psz / 4
+                                 : (uint64_t)256 << 20;
+        po.incore = 1;
+        po.mem_budget = all >> k ? all >> k : 1;
+    }
+    int rc = tvpal_player_open(&p, node_dir ? node_dir : dir, &po, &d);
     if (rc == 0) {
         const struct tvpal_manifest *m = tvpal_player_manifest(p);
         if (m->steps != s->m->steps || m->nodes != s->m->nodes ||
