@@ -8,20 +8,14 @@
 #include "tvpal.h"
 #include "tvpal_cli.h"
 #include "tvpal_fs.h"
-#include "tvpal_passes.h"
-#include "tvpal_readahead.h"
-#include "tvpal_values.h"
 
 #include <errno.h>
-#include <fcntl.h>
-#include <limits.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <time.h>
 #include <unistd.h>
 
 /* Reads file range [off, off + n) into buf; 0, or errno (-1: the file
@@ -283,27 +277,31 @@ struct raw_files {
 static int raw_open(struct raw_files *rf, const char *path, uint32_t t,
                     int *slot, struct tvpal_diag *d)
 {
-    int fd = -1;
+    int free_i = -1, fd = -1;
     *slot = -1;
     pthread_mutex_lock(&rf->lock);
-    for (int i = 0; i < 2 && fd < 0; i++)
-        if (rf->slot[i].step == (int64_t)t) {
-            rf->slot[i].users++;
-            fd = rf->slot[i].fd, *slot = i;
+    for (int i = 0; i < 2 && *slot < 0; i++) {
+        if (rf->slot[i].step == (int64_t)t)
+            *slot = i;
+        else if (!rf->slot[i].users && free_i < 0)
+            free_i = i;
+    }
+    if (*slot < 0 && free_i >= 0) { /* the step's file into a free slot */
+        if (rf->slot[free_i].fd >= 0)
+            close(rf->slot[free_i].fd);
+        rf->slot[free_i].step = -1;
+        if ((rf->slot[free_i].fd = tvpal_open_regular(path, d)) >= 0) {
+            rf->slot[free_i].step = t;
+            *slot = free_i;
         }
-    for (int i = 0; i < 2 && fd < 0; i++)
-        if (!rf->slot[i].users) {
-            if (rf->slot[i].fd >= 0)
-                close(rf->slot[i].fd);
-            rf->slot[i].step = -1;
-            if ((rf->slot[i].fd = tvpal_open_regular(path, d)) < 0)
-                break;
-            rf->slot[i].step = t;
-            rf->slot[i].users = 1;
-            fd = rf->slot[i].fd, *slot = i;
-        }
+    }
+    if (*slot >= 0) {
+        rf->slot[*slot].users++;
+        fd = rf->slot[*slot].fd;
+    }
     pthread_mutex_unlock(&rf->lock);
-    return fd >= 0 || *slot >= 0 ? fd : tvpal_open_regular(path, d);
+    /* Both slots busy with other steps: a file of its own. */
+    return *slot >= 0 || free_i >= 0 ? fd : tvpal_open_regular(path, d);
 }
 
 static void raw_close(struct raw_files *rf, int fd, int slot)
