@@ -93,7 +93,7 @@ struct opts {
 struct progress {
     int tty, quiet;
     double t0, last, interval;  /* seconds between lines */
-    uint64_t work, total;    /* work is added to atomically */
+    uint64_t work, total;    /* as the library's progress calls say */
     uint64_t work_at_start;  /* a resumed job's share already done */
     uint64_t unit, units;    /* the step being done (pass * T + step), of */
 };

@@ -63,7 +63,7 @@ void report_progress(struct run *r, int last)
         return;
     p->last = now;
     char line[256];
-    const uint64_t done = __atomic_load_n(&p->work, __ATOMIC_RELAXED);
+    const uint64_t done = p->work;
     const double el = now - p->t0;
     const double mine = (double)(done - p->work_at_start);
     /* Source voxel-steps: the work counts each once per axis encoded. */

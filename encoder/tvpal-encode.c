@@ -837,6 +837,8 @@ struct drive {
                               * level hook */
     uint64_t fault_unit;
     int seen;                /* the first call came */
+    int all_missing;         /* the encode failed finding every value
+                              * missing (its statistics say so) */
     int levels_inline;       /* the plan's */
 };
 
@@ -1152,7 +1154,7 @@ static void die_library(struct run *r, const struct drive *dv, int rc,
         snprintf(text, sizeof text, "%s: timestep %u: value at voxel "
                  "(%llu,%llu,%llu) exceeds the supported magnitude %g", path,
                  t, x, y, z, TVPAL_VALUE_MAX);
-    } else if (strstr(msg_, "is missing (NaN")) {
+    } else if (dv && dv->all_missing) {
         snprintf(text, sizeof text, "%s: every value is missing (NaN%s); "
                  "expected some present values", o->inputs[0],
                  o->nmissing ? " or a --missing value" : "");
@@ -1273,6 +1275,10 @@ static void encode_with_library(struct run *r, struct written *w)
     if (rc < 0 && dv.faulted == 1 && !dv.fault_fail)
         raise(SIGKILL); /* as an interruption would: nothing cleaned up */
     if (rc < 0) {
+        struct tvpal_stats vs;
+        dv.all_missing = rc == TVPAL_E_INVAL &&
+                         tvpal_encoder_stats(e, &vs) == 0 && vs.values &&
+                         !(vs.value_min <= vs.value_max);
         tvpal_encoder_abort(e); /* under MPI: joins the others' round */
         die_library(r, &dv, rc, &d);
     }
