@@ -247,16 +247,22 @@ static double jump_ms(const struct headless *h, unsigned k)
     return h->rate > 0 ? bytes / h->rate : 0;
 }
 
+/* The step steady playback draws after step t: the next of A..B in the
+ * play direction, A again past B. */
+static uint32_t steady_next(const struct headless *h, uint32_t t)
+{
+    const uint32_t a = h->s->a, b = h->s->b;
+    const uint32_t lo = a < b ? a : b;
+    const int64_t next = (int64_t)t + h->dir_step;
+    return next < lo || next >= (int64_t)lo + h->nframes ? a : (uint32_t)next;
+}
+
 /* The step of steady playback d frames after step t (frame_step's rule,
  * no jump between). */
 static uint32_t steady_ahead(const struct headless *h, uint32_t t, uint32_t d)
 {
-    const uint32_t a = h->s->a, b = h->s->b;
-    const uint32_t lo = a < b ? a : b, n = h->nframes;
-    for (uint32_t i = 0; i < d; i++) {
-        int64_t next = (int64_t)t + h->dir_step;
-        t = next < lo || next >= (int64_t)lo + n ? a : (uint32_t)next;
-    }
+    for (uint32_t i = 0; i < d; i++)
+        t = steady_next(h, t);
     return t;
 }
 
@@ -401,8 +407,7 @@ static uint32_t frame_step(struct headless *h, uint32_t i, int *jump)
     } else if (i == 0) {
         h->cur = a;
     } else {
-        int64_t next = (int64_t)h->cur + h->dir_step;
-        h->cur = next < lo || next >= (int64_t)lo + n ? a : (uint32_t)next;
+        h->cur = steady_next(h, h->cur);
     }
     return h->cur;
 }
