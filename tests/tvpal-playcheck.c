@@ -7,6 +7,7 @@
  *  - a transfer-function change uploads no slice texture; a forward step
  *    uploads only the slices whose window starts there (about 1/N).
  * Exit 0 pass, 1 fail, 99 setup error. */
+#include "tvpal_clock.h"
 #include "tvpal_glr.h"
 #include "tvpal_osmesa.h"
 #include "tvpal_player.h"
@@ -128,12 +129,16 @@ int main(int argc, char **argv)
         CHECK(tvpal_player_prepare(j, &v, i % 3 ? t : other, 1, &d) == 0 &&
                   tvpal_player_prepare(j, &v, t, 1, &d) == 0, "prepare %u: %s",
               t, d.msg);
-        int ready = 0;
-        for (int k = 0; k < 5000 && !(ready = tvpal_player_ready(j, &v, t)); k++)
-            nanosleep(&(struct timespec){0, 1000000}, NULL);
-        CHECK(ready && !tvpal_player_ready(j, &v, other),
-              "prepared step %u not ready within 5 s (or %u ready too)", t,
-              other);
+        /* The timed wait: a job for t is waited for (up to 5 s here);
+         * a step no job makes is refused at once, however long the
+         * caller would wait. */
+        const int ready = tvpal_player_ready(j, &v, t, 5000);
+        const double w0 = tvpal_now();
+        const int other_ready = tvpal_player_ready(j, &v, other, 2000);
+        const double waited = tvpal_now() - w0;
+        CHECK(ready && !other_ready && waited < 1.0,
+              "prepared step %u not ready within 5 s (or %u ready too, or "
+              "refused after %.3f s)", t, other, waited);
         REQUIRE(tvpal_player_frame(j, &v, t, 1, &rgl, a, &st, &d) == 0, "%s", d.msg);
         CHECK(st.staged > 0 && !memcmp(a, seq[t], sizeof a),
               "prepared jump %u -> %u: %u records installed as staged, "

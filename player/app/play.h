@@ -62,7 +62,8 @@ struct play_opts {
     uint32_t level;                     /* --level N (with level_given) */
     int level_given;
     uint32_t budget_ms;                 /* --budget-ms: window frame budget */
-    int progressive;                    /* --progressive on (headless) */
+    int progressive;                    /* --progressive: 1 on, 0 off (-1
+                                         * until checked: on in the window) */
     int window;                         /* -1 until checked: from $DISPLAY */
     struct tvpal_player_opts po;        /* data mode, I/O, prefetch */
     uint32_t mem_mib;

@@ -97,10 +97,12 @@ static void usage_view(FILE *f)
 "                           playing faster than --budget-ms allows\n"
 "      --budget-ms MS       window: the frame time to keep to while the view\n"
 "                           moves, 1..100000 (default 66, about 15 fps)\n"
-"      --progressive on|off headless: a jump draws a coarser level at once\n"
+"      --progressive on|off never wait for the disk: a jump, or reads\n"
+"                           behind the clock, draw a coarser level at once\n"
 "                           while the full level's records load off the\n"
-"                           frame's thread, then the full level (default off:\n"
-"                           every frame at its full level, for exact output)\n"
+"                           frame's thread, then the full level (default: on\n"
+"                           in the window, off headless: every frame at its\n"
+"                           full level, for exact frames and movies)\n"
 "      --exact              cpu renderer: blend every sample until a pixel is\n"
 "                           fully opaque (default: a pixel stops once its\n"
 "                           remaining transmittance is at most 1/272, which\n"
@@ -168,8 +170,11 @@ static void usage_data_output(FILE *f)
 "                           and renamed when complete; an odd width or\n"
 "                           height gets one more column or row (a copy of\n"
 "                           the last: yuv420p needs even sizes)\n"
-"      --fps F              the movie's frames per second, 0.1..1000\n"
-"                           (default 24)\n"
+"      --fps F              frames per second, 0.1..1000: the movie's\n"
+"                           (default 24); headless without a movie, and\n"
+"                           with --progressive on, the clock frames keep\n"
+"                           to (a playback); in the window the playing\n"
+"                           rate (default: as fast as drawn)\n"
 "      --csv FILE           per-frame timings (default DIR/timing.csv with\n"
 "                           -o DIR, none with a movie; in the window: frame,\n"
 "                           step, level, interacting, frame_ms)\n"
@@ -607,7 +612,8 @@ static void defaults(struct play_opts *o)
         .opacity = 1, .renderer = PLAY_REND_AUTO, .renderer_why = "",
         .fb_bits = 32, .window = -1, .repeat = 1, .budget_ms = 66,
         .annotate = PLAY_ANNOT_AUTO,
-        .view = -1, .up = -1, .fps = 24, .progress_s = PLAY_PROGRESS_EVERY_S,
+        .view = -1, .up = -1, .fps = 24, .progressive = -1,
+        .progress_s = PLAY_PROGRESS_EVERY_S,
         .po = {.incore = 0, .io = TVPAL_IO_URING, .prefetch = 4, .direct = 1},
         .ckind = TVPAL_COMPOSE_BSWAP};
 }
@@ -760,16 +766,13 @@ static void check_view_options(const struct play_opts *o)
                  "in the window, press a view key)");
 }
 
-/* -o FILE.mp4|.webm: a movie, headless; --fps belongs to it. */
+/* -o FILE.mp4|.webm: a movie, headless. */
 static void check_movie_options(struct play_opts *o)
 {
     o->movie = o->outdir ? tvpal_movie_kind(o->outdir) : TVPAL_MOVIE_NONE;
     if (o->movie && o->window > 0)
         play_die(2, "-o %s: movies are written headless (--headless)",
                  o->outdir);
-    if (o->fps_given && !o->movie)
-        play_die(2, "--fps: the frame rate of a movie; only with -o FILE.mp4 "
-                 "or -o FILE.webm");
 }
 
 void play_options_check(struct play_opts *o, int nranks)
@@ -779,6 +782,10 @@ void play_options_check(struct play_opts *o, int nranks)
     check_movie_options(o);
     if (o->window < 0)
         o->window = getenv("DISPLAY") && *getenv("DISPLAY") && !o->outdir;
+    /* The window shows what is there now; written frames wait for the
+     * full level unless asked. */
+    if (o->progressive < 0)
+        o->progressive = o->window ? 1 : 0;
     check_view_options(o);
     if (o->window) {
         if (o->ref_psnr)

@@ -7,6 +7,7 @@
 #include "play_annot.h"
 #include "play_cluster.h"
 #include "play_progress.h"
+#include "play_progressive.h"
 #include "play_renderer.h"
 #include "play_timing.h"
 #include "tvpal_clock.h"
@@ -45,26 +46,16 @@ struct headless {
     int quiet, digits;
     struct tvpal_view v;            /* level 0's view */
     unsigned level;                 /* this frame's level of detail, */
+    unsigned full;                  /* its view's own (--progressive) */
     struct tvpal_player *lpl;       /* its player (s->lvl[level]) */
     struct tvpal_view vl;           /* and v for it */
     int dir_step;
     uint32_t nframes;
     uint32_t cur;                   /* the step of the last frame */
-    /* --progressive: a jump's refinement (progressive_level), and what it
-     * is planned from: the read rate (bytes per ms waited) and a steady
-     * frame's time, as measured (0: not yet). */
+    /* --progressive: which level each frame draws (play_progressive.h);
+     * a clock with --fps. */
     int progressive;
-    struct refine {
-        int active;
-        unsigned full, coarse, axis;    /* the view's level and axis, the
-                                         * level drawn meanwhile */
-        uint32_t target;                /* the step the full level's
-                                         * records are prepared at, */
-        uint32_t due, frames;           /* frames after the jump it comes,
-                                         * and so far */
-        double t0;                      /* the jump frame's start */
-    } pj;
-    double rate, steady_ms;
+    struct play_prog prog;
     unsigned errors;
     char last_err[TVPAL_DIAG_MAX];
     struct play_totals tot;
@@ -219,7 +210,9 @@ static void setup_view(struct headless *h)
                                      : h->s->a - h->s->b) + 1;
     h->rng = 0x9E3779B97F4A7C15ull;
     /* One process: a cluster's frames exchange ghost rows at the frame. */
-    h->progressive = o->progressive && !play_cluster_multi();
+    h->progressive = o->progressive > 0 && !play_cluster_multi();
+    play_prog_init(&h->prog, o->fps_given ? 1000.0 / o->fps : 0,
+                   o->budget_ms, h->s->a, h->s->b);
 }
 
 /* The level of detail of a frame of view h->v (--level, else the finest
@@ -232,109 +225,26 @@ static void choose_level(struct headless *h)
     play_level_view(h->s, h->level, &h->v, &h->vl);
 }
 
-/* --progressive: the milliseconds a jump's reads take at level k (about a
- * byte per voxel: each slice's window) at the measured rate (0: unknown,
- * as in-core). */
-static double jump_ms(const struct headless *h, unsigned k)
-{
-    double bytes = 1;
-    for (unsigned a = 0; a < 3; a++) {
-        uint32_t d = h->s->m->dims[a];
-        for (unsigned i = 0; i < k; i++)
-            d = (d + 1) / 2; /* a level's dims (FORMAT.md 3.3) */
-        bytes *= d;
-    }
-    return h->rate > 0 ? bytes / h->rate : 0;
-}
-
-/* The step steady playback draws after step t: the next of A..B in the
- * play direction, A again past B. */
-static uint32_t steady_next(const struct headless *h, uint32_t t)
-{
-    const uint32_t a = h->s->a, b = h->s->b;
-    const uint32_t lo = a < b ? a : b;
-    const int64_t next = (int64_t)t + h->dir_step;
-    return next < lo || next >= (int64_t)lo + h->nframes ? a : (uint32_t)next;
-}
-
-/* The step of steady playback d frames after step t (frame_step's rule,
- * no jump between). */
-static uint32_t steady_ahead(const struct headless *h, uint32_t t, uint32_t d)
-{
-    for (uint32_t i = 0; i < d; i++)
-        t = steady_next(h, t);
-    return t;
-}
-
-/* --progressive: the level of the frame at step t.  A jump (where the
- * view's own level has a coarser one) draws the finest coarser level
- * whose reads fit a frame's budget (a steady frame's measured time, else
- * --budget-ms) at once, and has the full level's player prepare, off the
- * frame's thread, the step playback will be at when its reads are
- * expected to be done (d frames on); the frames until then draw the
- * coarser level, and that frame the full one, its prepared records
- * installed.  Returns 1 on that frame. */
-static int progressive_level(struct headless *h, uint32_t t, int jump)
+/* --progressive: the level of the frame at step t (play_prog_frame),
+ * its player and view.  Returns the milliseconds since the jump or stall
+ * when this frame is the full level's return, else 0. */
+static double progressive_level(struct headless *h, uint32_t t, int jump)
 {
     choose_level(h);
-    const unsigned full = h->level, nl = h->s->nlevels;
-    if (jump) {
-        h->pj.active = 0;
-        const double budget = h->steady_ms > 0 ? h->steady_ms
-                                               : (double)h->o->budget_ms;
-        unsigned k = full + 1;
-        while (k + 1 < nl && jump_ms(h, k) > budget)
-            k++;
-        const double lf = jump_ms(h, full);
-        const uint32_t d = lf > budget ? (uint32_t)ceil(lf / budget) : 1;
-        const uint32_t tp = steady_ahead(h, t, d);
-        struct tvpal_diag dd = {{0}};
-        if (k < nl &&
-            tvpal_player_prepare(h->lpl, &h->vl, tp, h->dir_step, &dd) == 0)
-            h->pj = (struct refine){.active = 1, .full = full, .coarse = k,
-                                    .axis = h->vl.axis, .target = tp,
-                                    .due = d, .t0 = tvpal_now()};
-    } else if (h->pj.active) {
-        h->pj.frames++;
+    const unsigned full = h->level;
+    double refined;
+    struct tvpal_diag d = {{0}};
+    int k = play_prog_frame(&h->prog, h->s, &h->v, full, t, h->dir_step,
+                            jump, &refined, &d);
+    if (k < 0)
+        play_die(2, "step %u: %s", h->prog.target, d.msg);
+    if ((unsigned)k != full) {
+        h->level = (unsigned)k;
+        h->lpl = play_level_player(h->s, h->level);
+        play_level_view(h->s, h->level, &h->v, &h->vl);
     }
-    if (!h->pj.active)
-        return 0;
-    if (h->pj.full != full || h->pj.axis != h->vl.axis) {
-        h->pj.active = 0; /* the view moved on: its own level, as ever */
-        return 0;
-    }
-    if (h->pj.frames >= h->pj.due) {
-        /* The frame planned for: the full level, its records installed
-         * (waited for here if the disk was slower than measured: a
-         * headless run keeps no clock, and says when it came back). */
-        struct tvpal_diag dd = {{0}};
-        if (t != h->pj.target &&
-            tvpal_player_seek(h->lpl, &h->vl, h->pj.target, h->dir_step,
-                              &dd) < 0)
-            play_die(2, "step %u: %s", h->pj.target, dd.msg);
-        h->pj.active = 0;
-        return 1;
-    }
-    h->level = h->pj.coarse;
-    h->lpl = play_level_player(h->s, h->level);
-    play_level_view(h->s, h->level, &h->v, &h->vl);
-    return 0;
-}
-
-/* What the next jump is planned from: the read rate of frames that
- * waited for a MiB or more (smaller reads measure the latency, not the
- * rate), and the time of steady frames at their full level. */
-static void measure_for_progressive(struct headless *h,
-                                    const struct play_rank_rec *me, int jump,
-                                    int coarse)
-{
-    if (me->io > 0.1 && me->bytes_read >= (1u << 20)) {
-        const double r = (double)me->bytes_read / me->io;
-        h->rate = h->rate > 0 ? 0.8 * h->rate + 0.2 * r : r;
-    }
-    if (!jump && !coarse)
-        h->steady_ms = h->steady_ms > 0 ? 0.8 * h->steady_ms + 0.2 * me->total
-                                        : me->total;
+    h->full = full;
+    return refined;
 }
 
 /* The first frame's axis, opened now: a refused I/O path ends the run
@@ -407,7 +317,7 @@ static uint32_t frame_step(struct headless *h, uint32_t i, int *jump)
     } else if (i == 0) {
         h->cur = a;
     } else {
-        h->cur = steady_next(h, h->cur);
+        h->cur = play_prog_next(&h->prog, h->cur, h->dir_step, h->s->m->steps);
     }
     return h->cur;
 }
@@ -562,18 +472,17 @@ static void play_frames(struct headless *h)
             play_set_tf(h->s, &h->s->tfs[i % o->ntf], o->opacity);
         struct play_rank_rec me;
         struct play_row row;
-        int full_again = 0;
+        double refined = 0;
         if (h->progressive)
-            full_again = progressive_level(h, t, jump);
+            refined = progressive_level(h, t, jump);
         else
             choose_level(h);
-        const int coarse = h->progressive && h->pj.active;
         draw_frame(h, t, &me, &row);
         row.jump = jump;
-        if (full_again)
-            row.full_ms = (tvpal_now() - h->pj.t0) * 1e3;
+        row.full_ms = refined;
         if (h->progressive)
-            measure_for_progressive(h, &me, jump, coarse);
+            play_prog_measured(&h->prog, me.io, me.total, me.bytes_read,
+                               h->level, h->full);
         if (o->ref_psnr)
             row.psnr = reference_psnr(h, t);
         settle_errors(h, t, &me, &row);
@@ -583,6 +492,10 @@ static void play_frames(struct headless *h)
         annotate_frame(h, t);
         write_frame(h, &row);
         play_progress_update(&h->progress, i + 1);
+        /* --fps keeps the clock of a playback; a movie's frames are
+         * written as fast as drawn unless they are the ones shown. */
+        if (o->fps_given && (h->progressive || !o->movie))
+            play_prog_pace(&h->prog);
     }
     play_progress_end(&h->progress);
 }

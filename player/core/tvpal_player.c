@@ -249,11 +249,11 @@ int tvpal_player_seek(struct tvpal_player *p, const struct tvpal_view *v,
 }
 
 int tvpal_player_ready(struct tvpal_player *p, const struct tvpal_view *v,
-                       uint32_t t)
+                       uint32_t t, double wait_ms)
 {
     const int da = v->axis <= 2 ? data_axis(p, v->axis) : -1;
     return da >= 0 && p->ax[da].stream &&
-           tvpal_stream_ready(p->ax[da].stream, t);
+           tvpal_stream_ready(p->ax[da].stream, t, wait_ms);
 }
 
 uint64_t tvpal_player_io_submits(const struct tvpal_player *p)

@@ -176,13 +176,14 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
  * once: 0, or TVPAL_E_INVAL (t out of range, an axis not stored, no
  * stager: in-core or prefetch 0) or the axis's open error, diag saying
  * which.  tvpal_player_ready
- * says, without waiting, whether a frame at t would read nothing (1) or
- * still wait for records (0).  Not with ghost rows (a cluster's cross
+ * says whether a frame at t would read nothing (1) or still wait for
+ * records (0), after waiting at most wait_ms for a prepared step still
+ * being read (0: not at all; tvpal_stream_ready).  Not with ghost rows (a cluster's cross
  * frames exchange them at the frame). */
 int tvpal_player_prepare(struct tvpal_player *p, const struct tvpal_view *v,
                          uint32_t t, int dir, struct tvpal_diag *diag);
 int tvpal_player_ready(struct tvpal_player *p, const struct tvpal_view *v,
-                       uint32_t t);
+                       uint32_t t, double wait_ms);
 /* The data axis of view v brought to step t without drawing (a prepared
  * step installed before the frame moves on from it); 0, or the load's
  * error as tvpal_player_frame's. */

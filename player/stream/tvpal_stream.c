@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
+#include <time.h>
 #include <unistd.h>
 
 enum { SLOT_FREE, SLOT_INFLIGHT, SLOT_READY };
@@ -462,7 +463,18 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
         register_table(s);
     if (rc == 0 && prefetch > 0 && nslabs > 0) {
         struct stager *w = &s->w;
-        if (pthread_mutex_init(&w->mu, NULL) || pthread_cond_init(&w->cv, NULL)) {
+        /* The condition on the monotonic clock: tvpal_stream_ready's
+         * timed wait must not move with the wall clock. */
+        pthread_condattr_t ca;
+        int cv_ok = 0;
+        if (pthread_condattr_init(&ca) == 0) {
+            cv_ok = pthread_condattr_setclock(&ca, CLOCK_MONOTONIC) == 0 &&
+                    pthread_cond_init(&w->cv, &ca) == 0;
+            pthread_condattr_destroy(&ca);
+        }
+        if (!cv_ok || pthread_mutex_init(&w->mu, NULL)) {
+            if (cv_ok)
+                pthread_cond_destroy(&w->cv);
             rc = tvpal_diag_set(diag, TVPAL_E_SYS, "cannot create the stager's lock");
         } else if (pthread_create(&w->th, NULL, stager_main, s)) {
             pthread_cond_destroy(&w->cv);
@@ -975,15 +987,29 @@ int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir)
     return 0;
 }
 
-int tvpal_stream_ready(struct tvpal_stream *s, uint32_t t)
+int tvpal_stream_ready(struct tvpal_stream *s, uint32_t t, double wait_ms)
 {
     struct stager *w = &s->w;
-    if (s->have_cur && s->cur_t == t)
+    if (s->incore || (s->have_cur && s->cur_t == t))
         return 1;
     if (!w->started)
         return 0;
+    struct timespec until;
+    clock_gettime(CLOCK_MONOTONIC, &until);
+    if (wait_ms > 0) {
+        const long long ns = until.tv_nsec + (long long)(wait_ms * 1e6);
+        until.tv_sec += (time_t)(ns / 1000000000);
+        until.tv_nsec = (long)(ns % 1000000000);
+    }
     pthread_mutex_lock(&w->mu);
-    const int ready = w->state == STAGER_IDLE && w->have && w->staged_t == t;
+    /* A job for t still to finish (or t after the job running) is
+     * waited for; anything else staged will not become t. */
+    int ready;
+    while (!(ready = w->state == STAGER_IDLE && w->have && w->staged_t == t) &&
+           wait_ms > 0 && w->state != STAGER_IDLE &&
+           (w->next ? w->next_t : w->t) == t &&
+           pthread_cond_timedwait(&w->cv, &w->mu, &until) == 0)
+        ;
     pthread_mutex_unlock(&w->mu);
     return ready;
 }

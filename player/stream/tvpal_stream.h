@@ -96,14 +96,16 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
  * dropped.  The slabs keep showing their step meanwhile, so the caller
  * may draw another level while this one loads.  A later
  * tvpal_stream_seek(t) only installs the records once
- * tvpal_stream_ready(s, t) says so (it waits for them otherwise); a seek
+ * tvpal_stream_ready(s, t, 0) says so (it waits for them otherwise); a seek
  * to another step drops them.  0, or TVPAL_E_INVAL (no stager: prefetch
  * 0 or in-core, where a seek reads nothing or must; t out of range). */
 int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir);
 
-/* 1 when a seek to t only installs what is staged (or the slabs show t
- * already), 0 when it would read; never waits. */
-int tvpal_stream_ready(struct tvpal_stream *s, uint32_t t);
+/* 1 when a seek to t reads nothing: in-core, the slabs show t already,
+ * or the records of t are staged; 0 when it would read.  With wait_ms > 0
+ * a stager job for t still running is waited for, at most wait_ms (a
+ * frame's slack before its deadline); 0 never waits. */
+int tvpal_stream_ready(struct tvpal_stream *s, uint32_t t, double wait_ms);
 
 /* Submission system calls of the stream's reads so far (io_uring: a seek
  * submits its reads, the records it needs and its prefetch, in one). */

@@ -1,0 +1,191 @@
+/* play_progressive.c: which level each frame draws under --progressive
+ * (see play_progressive.h). */
+#define _GNU_SOURCE
+#include "play_progressive.h"
+#include "tvpal_clock.h"
+
+#include <errno.h>
+#include <math.h>
+#include <string.h>
+#include <time.h>
+
+void play_prog_init(struct play_prog *p, double period_ms, double budget_ms,
+                    uint32_t first, uint32_t last)
+{
+    memset(p, 0, sizeof *p);
+    p->period_ms = period_ms > 0 ? period_ms : 0;
+    p->budget_ms = budget_ms > 0 ? budget_ms : 1;
+    p->first = first;
+    p->last = last;
+}
+
+uint32_t play_prog_next(const struct play_prog *p, uint32_t t, int dir,
+                        uint32_t steps)
+{
+    const uint32_t lo = p->first < p->last ? p->first : p->last;
+    const uint32_t hi = p->first < p->last ? p->last : p->first;
+    const int64_t next = (int64_t)t + (dir < 0 ? -1 : 1);
+    if (t >= lo && t <= hi) /* the range played: from its start again */
+        return next < lo || next > hi ? p->first : (uint32_t)next;
+    return next < 0 || next >= steps ? t : (uint32_t)next;
+}
+
+/* The milliseconds the reads of a step at level k take from scratch (a
+ * byte per voxel: each slice's window) at the measured rate; 0 while it
+ * is unknown. */
+static double reads_ms(const struct play_prog *p, const struct play_session *s,
+                       unsigned k)
+{
+    double bytes = 1;
+    for (unsigned a = 0; a < 3; a++) {
+        uint32_t d = s->m->dims[a];
+        for (unsigned i = 0; i < k; i++)
+            d = (d + 1) / 2; /* a level's dims (FORMAT.md 3.3) */
+        bytes *= d;
+    }
+    return p->rate > 0 ? bytes / p->rate : 0;
+}
+
+/* The budget one frame's reads are planned against: the clock's period,
+ * else a steady frame's measured time, else --budget-ms. */
+static double frame_budget(const struct play_prog *p)
+{
+    return p->period_ms > 0 ? p->period_ms
+           : p->steady_ms > 0 ? p->steady_ms : p->budget_ms;
+}
+
+/* How long this frame may wait for the full level's records: what is
+ * left of its period after drawing (with a clock), else a quarter of a
+ * drawing's time. */
+static double frame_slack(const struct play_prog *p)
+{
+    if (p->period_ms <= 0)
+        return 0.25 * p->draw_ms;
+    const double left = p->next_due > 0 ? (p->next_due - tvpal_now()) * 1e3
+                                        : p->period_ms;
+    return left > p->draw_ms ? left - p->draw_ms : 0;
+}
+
+/* Starts a refinement at step t (a jump, or reads behind): the coarser
+ * level drawn meanwhile, and the full level's step prepared d frames on.
+ * Returns 0, or -1 when the full level cannot prepare (in-core: it has
+ * nothing to read; no coarser level). */
+static int start_refine(struct play_prog *p, struct play_session *s,
+                        unsigned full, const struct tvpal_view *vf,
+                        uint32_t t, int dir, int jump)
+{
+    const unsigned nl = s->nlevels;
+    if (full + 1 >= nl)
+        return -1;
+    const double budget = frame_budget(p);
+    unsigned k = full + 1;
+    while (k + 1 < nl && reads_ms(p, s, k) > budget)
+        k++;
+    const double lf = reads_ms(p, s, full);
+    const uint32_t d = lf > budget ? (uint32_t)ceil(lf / budget) : 1;
+    uint32_t tp = t;
+    for (uint32_t i = 0; i < d; i++)
+        tp = play_prog_next(p, tp, dir, s->m->steps);
+    struct tvpal_diag dd = {{0}};
+    struct tvpal_player *pf = play_level_player(s, full);
+    if (tvpal_player_prepare(pf, vf, tp, dir, &dd) < 0)
+        return -1;
+    p->active = 1;
+    p->full = full;
+    p->coarse = k;
+    p->axis = vf->axis;
+    p->target = tp;
+    p->due = tp == t ? 0 : d;
+    p->frames = 0;
+    p->t0 = tvpal_now();
+    if (jump)
+        p->jumps++;
+    else
+        p->stalls++;
+    return 0;
+}
+
+int play_prog_frame(struct play_prog *p, struct play_session *s,
+                    const struct tvpal_view *v0, unsigned full, uint32_t t,
+                    int dir, int jump, double *refined,
+                    struct tvpal_diag *diag)
+{
+    *refined = 0;
+    struct tvpal_view vf;
+    struct tvpal_player *pf = play_level_player(s, full);
+    play_level_view(s, full, v0, &vf);
+    if (p->active && (jump || p->full != full || p->axis != vf.axis))
+        p->active = 0;  /* another step or view: planned again */
+    if (p->active) {
+        p->frames++;
+        if (p->frames < p->due)
+            return (int)p->coarse;
+        /* The step planned for: the full level when its records are in
+         * (waited for without a clock); late with a clock, or not the
+         * step planned (the range wrapped), planned again. */
+        const int here = t == p->target;
+        if (here && (p->period_ms <= 0 ||
+                     tvpal_player_ready(pf, &vf, t, frame_slack(p)))) {
+            p->active = 0;
+            *refined = (tvpal_now() - p->t0) * 1e3;
+            return (int)full;
+        }
+        if (!here && p->period_ms <= 0) {
+            /* Without a clock the prepared step is installed and the
+             * frame reads what t needs beyond it. */
+            int rc = tvpal_player_seek(pf, &vf, p->target, dir, diag);
+            p->active = 0;
+            if (rc < 0)
+                return rc;
+            *refined = (tvpal_now() - p->t0) * 1e3;
+            return (int)full;
+        }
+        p->active = 0;
+    }
+    if (tvpal_player_ready(pf, &vf, t, jump ? 0 : frame_slack(p)))
+        return (int)full;
+    if (start_refine(p, s, full, &vf, t, dir, jump) < 0)
+        return (int)full;   /* nothing coarser, or nothing to prepare */
+    if (p->due == 0) {      /* d frames is this one: drawn full */
+        p->active = 0;
+        return (int)full;
+    }
+    return (int)p->coarse;
+}
+
+void play_prog_measured(struct play_prog *p, double io_ms, double total_ms,
+                        uint64_t bytes, unsigned level, unsigned full)
+{
+    /* The read rate from frames that waited for a MiB or more (smaller
+     * reads measure the latency, not the rate). */
+    if (io_ms > 0.1 && bytes >= (1u << 20)) {
+        const double r = (double)bytes / io_ms;
+        p->rate = p->rate > 0 ? 0.8 * p->rate + 0.2 * r : r;
+    }
+    if (level > full) {
+        p->below++;
+        return;
+    }
+    const double draw = total_ms > io_ms ? total_ms - io_ms : 0;
+    p->steady_ms = p->steady_ms > 0 ? 0.8 * p->steady_ms + 0.2 * total_ms
+                                    : total_ms;
+    p->draw_ms = p->draw_ms > 0 ? 0.8 * p->draw_ms + 0.2 * draw : draw;
+}
+
+void play_prog_pace(struct play_prog *p)
+{
+    if (p->period_ms <= 0)
+        return;
+    const double now = tvpal_now(), period = p->period_ms * 1e-3;
+    if (p->next_due <= 0 || now > p->next_due + period) {
+        p->next_due = now + period;     /* start, or too late to catch up */
+        return;
+    }
+    if (now < p->next_due) {
+        const double w = p->next_due - now;
+        struct timespec ts = {(time_t)w, (long)((w - floor(w)) * 1e9)};
+        while (nanosleep(&ts, &ts) != 0 && errno == EINTR)
+            ;
+    }
+    p->next_due += period;
+}

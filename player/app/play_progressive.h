@@ -1,0 +1,91 @@
+/* play_progressive.h: --progressive, the frames that never wait for the
+ * disk (issue 32).  Shared by the headless loop and the window.
+ *
+ * Each frame has a view whose own level of detail ("full": --level, or
+ * play_level_auto's choice) is drawn when its records for the frame's
+ * step are in memory, or arrive within the frame's slack.  Otherwise (a
+ * jump, or reads fallen behind the clock) the frame draws at once the
+ * finest coarser level whose reads fit the frame's budget at the read
+ * rate measured so far (the coarser levels are in RAM, play_levels.c, so
+ * in practice the next coarser one), and the full level's player prepares,
+ * off the frame's thread, the step steady playback reaches when those
+ * reads are expected done, d frames on.  The frames until then draw the
+ * coarser level; the frame at that step the full one, its prepared
+ * records installed: waited for when there is no clock (headless without
+ * --fps: the image sequence is exact), planned again when there is one
+ * and they are late.
+ *
+ * The clock: frames are due every period_ms (--fps), or, with none, as
+ * fast as they are drawn; a frame's slack is what is left of its period
+ * after the full level's measured drawing time (a quarter of that time
+ * without a clock).  play_prog_pace keeps the clock.
+ *
+ * One process only: a cluster's frames exchange ghost rows at the frame,
+ * which a prepared step cannot (tvpal_player_prepare). */
+#ifndef PLAY_PROGRESSIVE_H
+#define PLAY_PROGRESSIVE_H
+
+#include <stdint.h>
+
+#include "play.h"
+
+struct play_prog {
+    /* Set by play_prog_init. */
+    double period_ms;           /* the clock's frame period; 0: none */
+    double budget_ms;           /* a frame's budget before one is measured
+                                 * (--budget-ms) */
+    uint32_t first, last;       /* the steps played, in play order: steady
+                                 * playback goes from last to first */
+    /* Measured (0: not yet). */
+    double rate;                /* bytes per ms that waited reads gave */
+    double steady_ms;           /* a steady full-level frame's time */
+    double draw_ms;             /* of it, drawing (not waiting for reads) */
+    /* The refinement under way. */
+    int active;
+    unsigned full, coarse, axis;    /* the view's level and axis, the
+                                     * level drawn meanwhile */
+    uint32_t target;                /* the step prepared at the full
+                                     * level, */
+    uint32_t due, frames;           /* frames after the start it comes,
+                                     * and frames so far */
+    double t0;                      /* the start's frame began (s) */
+    /* The clock: when the next frame is due (s; 0: unset). */
+    double next_due;
+    /* Counts: frames drawn below their full level, refinements started
+     * by a jump and by reads behind the clock. */
+    uint32_t below, jumps, stalls;
+};
+
+/* period_ms: 1000 / fps, 0 for none; steps played from first to last (as
+ * --steps A:B: last may be below first, playing backwards). */
+void play_prog_init(struct play_prog *p, double period_ms, double budget_ms,
+                    uint32_t first, uint32_t last);
+
+/* The step steady playback draws after t in direction dir: the next of
+ * first..last, the first again past the last.  Steps outside the range
+ * (a window's slider) move by dir within the dataset's T steps. */
+uint32_t play_prog_next(const struct play_prog *p, uint32_t t, int dir,
+                        uint32_t steps);
+
+/* The level the frame at step t draws, before it is drawn; full is the
+ * level of its view v0 (level 0's view, set up), jump 1 when t is not
+ * the step steady playback came to.  *refined is set to the
+ * milliseconds since the jump or stall when this frame is the full
+ * level's return (else 0).  Returns the level, or a negative error with
+ * diag (the full level's prepared step could not be installed). */
+int play_prog_frame(struct play_prog *p, struct play_session *s,
+                    const struct tvpal_view *v0, unsigned full, uint32_t t,
+                    int dir, int jump, double *refined,
+                    struct tvpal_diag *diag);
+
+/* What the frame just drawn measured: its milliseconds waiting for reads
+ * and in all, the bytes it read, and the level it drew against its full
+ * one. */
+void play_prog_measured(struct play_prog *p, double io_ms, double total_ms,
+                        uint64_t bytes, unsigned level, unsigned full);
+
+/* With a clock: sleeps until the next frame is due; a frame later than a
+ * whole period moves the clock to now (the time is not made up). */
+void play_prog_pace(struct play_prog *p);
+
+#endif
