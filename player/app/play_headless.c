@@ -56,6 +56,7 @@ struct headless {
      * a clock with --fps. */
     int progressive;
     struct play_prog prog;
+    double stage_ms;                /* the last frame's stager time */
     unsigned errors;
     char last_err[TVPAL_DIAG_MAX];
     struct play_totals tot;
@@ -357,6 +358,7 @@ static void draw_frame(struct headless *h, uint32_t t, struct play_rank_rec *me,
                                 h->rgba, &st, &d);
     if (!st.rendered && rc < 0 && !play_cluster_multi())
         play_die(2, "step %u: %s", t, d.msg);
+    h->stage_ms = st.stage_ms;
     struct tvpal_render_times rt = {.draw_ms = st.draw_ms};
     if (h->pr.r.times)
         h->pr.r.times(h->pr.r.ctx, &rt);
@@ -481,8 +483,8 @@ static void play_frames(struct headless *h)
         row.jump = jump;
         row.full_ms = refined;
         if (h->progressive)
-            play_prog_measured(&h->prog, me.io, me.total, me.bytes_read,
-                               h->level, h->full);
+            play_prog_measured(&h->prog, me.io, h->stage_ms, me.total,
+                               me.bytes_read, h->level, h->full);
         if (o->ref_psnr)
             row.psnr = reference_psnr(h, t);
         settle_errors(h, t, &me, &row);

@@ -3,6 +3,7 @@
 #define _GNU_SOURCE
 #include "play_progressive.h"
 #include "tvpal_clock.h"
+#include "tvpal_stream.h"
 
 #include <errno.h>
 #include <math.h>
@@ -30,11 +31,8 @@ uint32_t play_prog_next(const struct play_prog *p, uint32_t t, int dir,
     return next < 0 || next >= steps ? t : (uint32_t)next;
 }
 
-/* The milliseconds the reads of a step at level k take from scratch (a
- * byte per voxel: each slice's window) at the measured rate; 0 while it
- * is unknown. */
-static double reads_ms(const struct play_prog *p, const struct play_session *s,
-                       unsigned k)
+/* Voxels of a step at level k (a byte each: its slices' windows). */
+static double level_bytes(const struct play_session *s, unsigned k)
 {
     double bytes = 1;
     for (unsigned a = 0; a < 3; a++) {
@@ -43,7 +41,17 @@ static double reads_ms(const struct play_prog *p, const struct play_session *s,
             d = (d + 1) / 2; /* a level's dims (FORMAT.md 3.3) */
         bytes *= d;
     }
-    return p->rate > 0 ? bytes / p->rate : 0;
+    return bytes;
+}
+
+/* The milliseconds level k's reads of a step from scratch take at the
+ * measured rate: 0 while it is unknown, and for a level in RAM. */
+static double level_reads_ms(const struct play_prog *p,
+                             const struct play_session *s, unsigned k)
+{
+    if (k < s->nlevels && s->lvl[k] && tvpal_player_incore_bytes(s->lvl[k]))
+        return 0;
+    return p->rate > 0 ? level_bytes(s, k) / p->rate : 0;
 }
 
 /* The budget one frame's reads are planned against: the clock's period,
@@ -66,29 +74,61 @@ static double frame_slack(const struct play_prog *p)
     return left > p->draw_ms ? left - p->draw_ms : 0;
 }
 
-/* Starts a refinement at step t (a jump, or reads behind): the coarser
- * level drawn meanwhile, and the full level's step prepared d frames on.
- * Returns 0, or -1 when the full level cannot prepare (in-core: it has
- * nothing to read; no coarser level). */
+static void measure_rate(struct play_prog *p, double io_ms, uint64_t bytes)
+{
+    /* Only reads of a MiB or more: smaller ones measure the latency, not
+     * the rate. */
+    if (io_ms > 0.1 && bytes >= (1u << 20)) {
+        const double r = (double)bytes / io_ms;
+        p->rate = p->rate > 0 ? 0.8 * p->rate + 0.2 * r : r;
+    }
+}
+
+/* Frames until the full level's step can be ready, starting lag steps
+ * behind t: the reads of the windows begun over lag + d steps (all of
+ * them from N on, N the window) must fit d frames' budgets. */
+static uint32_t frames_ahead(const struct play_prog *p,
+                             const struct play_session *s, unsigned full,
+                             uint32_t lag)
+{
+    const double budget = frame_budget(p);
+    const double all = level_reads_ms(p, s, full);
+    const uint32_t n = s->m->window ? s->m->window : 1;
+    const uint32_t most = n + 1 + (uint32_t)fmin(ceil(all / budget), 1e6);
+    for (uint32_t d = 1; d < most; d++) {
+        const double share = lag + (double)d >= n ? 1 : (lag + (double)d) / n;
+        if (share * all <= d * budget)
+            return d;
+    }
+    return most;
+}
+
+/* Starts or goes on with a refinement at step t, whose full level shows
+ * a step lag steps behind (a jump: any): the coarser level drawn
+ * meanwhile, and the full level's step prepared d frames on.  A new one
+ * (fresh: a jump, or reads behind) starts the clock of *refined.
+ * Returns 0, or -1 when the full level has nothing coarser or cannot
+ * prepare (in-core, it has nothing to read). */
 static int start_refine(struct play_prog *p, struct play_session *s,
                         unsigned full, const struct tvpal_view *vf,
-                        uint32_t t, int dir, int jump)
+                        uint32_t t, int dir, uint32_t lag, int fresh,
+                        int jump)
 {
     const unsigned nl = s->nlevels;
     if (full + 1 >= nl)
         return -1;
     const double budget = frame_budget(p);
     unsigned k = full + 1;
-    while (k + 1 < nl && reads_ms(p, s, k) > budget)
+    while (k + 1 < nl && level_reads_ms(p, s, k) > budget)
         k++;
-    const double lf = reads_ms(p, s, full);
-    const uint32_t d = lf > budget ? (uint32_t)ceil(lf / budget) : 1;
+    /* Plus what the last plan missed by: the stager may still be busy
+     * with a steady step's reads (and their prefetch) when asked. */
+    const uint32_t d = frames_ahead(p, s, full, lag) + p->late;
     uint32_t tp = t;
     for (uint32_t i = 0; i < d; i++)
         tp = play_prog_next(p, tp, dir, s->m->steps);
     struct tvpal_diag dd = {{0}};
-    struct tvpal_player *pf = play_level_player(s, full);
-    if (tvpal_player_prepare(pf, vf, tp, dir, &dd) < 0)
+    if (tvpal_player_prepare(play_level_player(s, full), vf, tp, dir, &dd) < 0)
         return -1;
     p->active = 1;
     p->full = full;
@@ -97,12 +137,22 @@ static int start_refine(struct play_prog *p, struct play_session *s,
     p->target = tp;
     p->due = tp == t ? 0 : d;
     p->frames = 0;
-    p->t0 = tvpal_now();
-    if (jump)
-        p->jumps++;
-    else
-        p->stalls++;
+    if (fresh) {
+        p->t0 = tvpal_now();
+        if (jump)
+            p->jumps++;
+        else
+            p->stalls++;
+    }
     return 0;
+}
+
+/* The frame is the full level's: nothing pending, no lag. */
+static int draw_full(struct play_prog *p, unsigned full)
+{
+    p->active = 0;
+    p->since = 0;
+    return (int)full;
 }
 
 int play_prog_frame(struct play_prog *p, struct play_session *s,
@@ -111,57 +161,71 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
                     struct tvpal_diag *diag)
 {
     *refined = 0;
+    const int clock = p->period_ms > 0;
     struct tvpal_view vf;
     struct tvpal_player *pf = play_level_player(s, full);
     play_level_view(s, full, v0, &vf);
     if (p->active && (jump || p->full != full || p->axis != vf.axis))
         p->active = 0;  /* another step or view: planned again */
+    p->since = jump || p->since >= UINT32_MAX / 2 ? UINT32_MAX / 2
+                                                  : p->since + 1;
+    int fresh = 1;
     if (p->active) {
         p->frames++;
+        if (t == p->target) {
+            /* The step planned for: its records waited for without a
+             * clock (the frame installs them); late with one, the frame
+             * after installs them and goes on from there. */
+            if (!clock || tvpal_player_ready(pf, &vf, t, frame_slack(p))) {
+                p->late /= 2; /* on time: the margin shrinks again */
+                *refined = (tvpal_now() - p->t0) * 1e3;
+                return draw_full(p, full);
+            }
+            return (int)p->coarse;
+        }
         if (p->frames < p->due)
             return (int)p->coarse;
-        /* The step planned for: the full level when its records are in
-         * (waited for without a clock); late with a clock, or not the
-         * step planned (the range wrapped), planned again. */
-        const int here = t == p->target;
-        if (here && (p->period_ms <= 0 ||
-                     tvpal_player_ready(pf, &vf, t, frame_slack(p)))) {
-            p->active = 0;
-            *refined = (tvpal_now() - p->t0) * 1e3;
-            return (int)full;
-        }
-        if (!here && p->period_ms <= 0) {
-            /* Without a clock the prepared step is installed and the
-             * frame reads what t needs beyond it. */
-            int rc = tvpal_player_seek(pf, &vf, p->target, dir, diag);
-            p->active = 0;
-            if (rc < 0)
-                return rc;
-            *refined = (tvpal_now() - p->t0) * 1e3;
-            return (int)full;
-        }
+        /* Past the step planned (late, or the range wrapped): with a
+         * clock, once its reads are in, it is installed (nothing read)
+         * and what is left is planned from here; without one it is
+         * installed at once, and the frame reads the rest. */
+        if (clock && !tvpal_player_ready(pf, &vf, p->target, 0))
+            return (int)p->coarse;
+        struct tvpal_stream_stats st = {0};
+        int rc = tvpal_player_seek(pf, &vf, p->target, dir, &st, diag);
+        const uint32_t past = p->frames - p->due;
+        p->late = past > p->late ? past : p->late;
         p->active = 0;
+        if (rc < 0)
+            return rc;
+        measure_rate(p, fmax(st.io_wait_ms, st.stage_ms), st.bytes_read);
+        p->since = past;
+        if (!clock) {
+            *refined = (tvpal_now() - p->t0) * 1e3;
+            return draw_full(p, full);
+        }
+        fresh = 0;
     }
-    if (tvpal_player_ready(pf, &vf, t, jump ? 0 : frame_slack(p)))
-        return (int)full;
-    if (start_refine(p, s, full, &vf, t, dir, jump) < 0)
-        return (int)full;   /* nothing coarser, or nothing to prepare */
-    if (p->due == 0) {      /* d frames is this one: drawn full */
-        p->active = 0;
-        return (int)full;
+    if (tvpal_player_ready(pf, &vf, t, jump ? 0 : frame_slack(p))) {
+        if (!fresh)
+            *refined = (tvpal_now() - p->t0) * 1e3;
+        return draw_full(p, full);
+    }
+    if (start_refine(p, s, full, &vf, t, dir, p->since, fresh, jump) < 0)
+        return draw_full(p, full); /* nothing coarser, or nothing to read */
+    if (p->due == 0) { /* the step is this one: drawn full */
+        if (!fresh)
+            *refined = (tvpal_now() - p->t0) * 1e3;
+        return draw_full(p, full);
     }
     return (int)p->coarse;
 }
 
-void play_prog_measured(struct play_prog *p, double io_ms, double total_ms,
-                        uint64_t bytes, unsigned level, unsigned full)
+void play_prog_measured(struct play_prog *p, double io_ms, double stage_ms,
+                        double total_ms, uint64_t bytes, unsigned level,
+                        unsigned full)
 {
-    /* The read rate from frames that waited for a MiB or more (smaller
-     * reads measure the latency, not the rate). */
-    if (io_ms > 0.1 && bytes >= (1u << 20)) {
-        const double r = (double)bytes / io_ms;
-        p->rate = p->rate > 0 ? 0.8 * p->rate + 0.2 * r : r;
-    }
+    measure_rate(p, fmax(io_ms, stage_ms), bytes);
     if (level > full) {
         p->below++;
         return;

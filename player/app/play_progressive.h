@@ -49,6 +49,11 @@ struct play_prog {
     uint32_t due, frames;           /* frames after the start it comes,
                                      * and frames so far */
     double t0;                      /* the start's frame began (s) */
+    uint32_t late;                  /* frames the last plans missed by,
+                                     * added to the next */
+    uint32_t since;                 /* steps the full level's slabs are
+                                     * behind the frame's (large after a
+                                     * jump) */
     /* The clock: when the next frame is due (s; 0: unset). */
     double next_due;
     /* Counts: frames drawn below their full level, refinements started
@@ -78,11 +83,13 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
                     int dir, int jump, double *refined,
                     struct tvpal_diag *diag);
 
-/* What the frame just drawn measured: its milliseconds waiting for reads
- * and in all, the bytes it read, and the level it drew against its full
- * one. */
-void play_prog_measured(struct play_prog *p, double io_ms, double total_ms,
-                        uint64_t bytes, unsigned level, unsigned full);
+/* What the frame just drawn measured: its milliseconds waiting for reads,
+ * the stager's preparing them (tvpal_frame_stats) and in all, the bytes
+ * it read, and the level it drew against its full one.  The read rate is
+ * the bytes over the longer of the two waits. */
+void play_prog_measured(struct play_prog *p, double io_ms, double stage_ms,
+                        double total_ms, uint64_t bytes, unsigned level,
+                        unsigned full);
 
 /* With a clock: sleeps until the next frame is due; a frame later than a
  * whole period moves the clock to now (the time is not made up). */

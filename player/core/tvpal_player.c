@@ -238,12 +238,13 @@ int tvpal_player_prepare(struct tvpal_player *p, const struct tvpal_view *v,
 }
 
 int tvpal_player_seek(struct tvpal_player *p, const struct tvpal_view *v,
-                      uint32_t t, int dir, struct tvpal_diag *diag)
+                      uint32_t t, int dir, struct tvpal_stream_stats *st,
+                      struct tvpal_diag *diag)
 {
     struct tvpal_stream *s = NULL;
     struct tvpal_diag d = {{0}};
     int rc = stream_at(p, v, t, &s, diag);
-    if (rc == 0 && (rc = tvpal_stream_seek(s, t, dir, NULL, &d)) < 0)
+    if (rc == 0 && (rc = tvpal_stream_seek(s, t, dir, st, &d)) < 0)
         tvpal_diag_set(diag, rc, "%s", d.msg);
     return rc;
 }
@@ -656,6 +657,7 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
     st->io_ms = ss.io_wait_ms;
     st->bytes_read = ss.bytes_read;
     st->staged = ss.records_staged;
+    st->stage_ms = ss.stage_ms;
 
     double t1 = tvpal_now();
     st->stream_ms = (t1 - t0) * 1e3 - st->axis_switch_ms;

@@ -21,6 +21,8 @@
 #include "tvpal_frame.h"
 #include "tvpal_tf.h"
 
+struct tvpal_stream_stats; /* tvpal_stream.h */
+
 /* Ghost rows of cross frames on a cluster node.  A node holds a slab of z
  * slices; a view along x or y cuts every slice across the slab's
  * boundaries, and the samples within half a row of a boundary need the
@@ -86,6 +88,7 @@ struct tvpal_frame_stats {
     uint32_t drawn, skipped, uploads;
     uint32_t staged;       /* records of the step prepared ahead, off the
                               frame's thread (tvpal_stream.h) */
+    double stage_ms;       /* the time the stager took to prepare them */
     unsigned stride;       /* slices drawn: every stride-th */
     int rendered;          /* 1 when the frame was drawn (maybe with stale
                               slices after a load error) */
@@ -185,10 +188,12 @@ int tvpal_player_prepare(struct tvpal_player *p, const struct tvpal_view *v,
 int tvpal_player_ready(struct tvpal_player *p, const struct tvpal_view *v,
                        uint32_t t, double wait_ms);
 /* The data axis of view v brought to step t without drawing (a prepared
- * step installed before the frame moves on from it); 0, or the load's
- * error as tvpal_player_frame's. */
+ * step installed before the frame moves on from it); st (NULL: not
+ * wanted) gets what it read, the stager's reads for a prepared step
+ * included.  0, or the load's error as tvpal_player_frame's. */
 int tvpal_player_seek(struct tvpal_player *p, const struct tvpal_view *v,
-                      uint32_t t, int dir, struct tvpal_diag *diag);
+                      uint32_t t, int dir, struct tvpal_stream_stats *st,
+                      struct tvpal_diag *diag);
 
 /* Bytes of records one axis holds in RAM in-core (mean over the stored
  * axes) and per timestep: how many timesteps fit in a memory budget. */

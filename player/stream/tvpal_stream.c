@@ -62,6 +62,8 @@ struct stager {
     int state;                   /* STAGER_*, under mu */
     uint32_t t;                  /* the job: stage step t, */
     int dir;                     /* prefetching in direction dir */
+    int alone;                   /* a prepared step: its reads alone, no
+                                  * prefetch to compete with them */
     int have;                    /* a staged step waits for install: */
     uint32_t staged_t;
     int next;                    /* a job posted while one ran (a jump's
@@ -904,10 +906,13 @@ static void *stager_main(void *arg)
         w->state = STAGER_RUNNING;
         uint32_t t = w->t;
         int dir = w->dir;
+        const unsigned how = SEEK_STAGE | (w->alone ? 0 : SEEK_PREFETCH);
         pthread_mutex_unlock(&w->mu);
         struct tvpal_stream_stats st;
         struct tvpal_diag d = {{0}};
-        int rc = seek_into(s, t, dir, &st, &d, SEEK_STAGE | SEEK_PREFETCH);
+        const double s0 = tvpal_now();
+        int rc = seek_into(s, t, dir, &st, &d, how);
+        st.stage_ms = (tvpal_now() - s0) * 1e3;
         pthread_mutex_lock(&w->mu);
         if (w->next) {
             /* Another step was asked for meanwhile: this one goes, and
@@ -917,6 +922,7 @@ static void *stager_main(void *arg)
             pthread_mutex_lock(&w->mu);
             w->t = w->next_t;
             w->dir = w->next_dir;
+            w->alone = 1;
             w->next = 0;
             w->state = STAGER_PENDING;
             continue;
@@ -945,12 +951,15 @@ static void stager_wait(struct tvpal_stream *s)
     pthread_mutex_unlock(&w->mu);
 }
 
-static void stager_post(struct tvpal_stream *s, uint32_t t, int dir)
+/* Posts the job of staging step t: the next step in steady playback,
+ * with the prefetch beyond it, or a prepared one (alone). */
+static void stager_post(struct tvpal_stream *s, uint32_t t, int dir, int alone)
 {
     struct stager *w = &s->w;
     pthread_mutex_lock(&w->mu);
     w->t = t;
     w->dir = dir;
+    w->alone = alone;
     w->state = STAGER_PENDING;
     pthread_cond_broadcast(&w->cv);
     pthread_mutex_unlock(&w->mu);
@@ -971,12 +980,13 @@ int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir)
         pthread_mutex_unlock(&w->mu);
         if (w->have)
             unstage_all(s);
-        stager_post(s, t, dir);
+        stager_post(s, t, dir, 1);
         return 0;
     }
     if (w->state == STAGER_PENDING) {   /* not begun: take its place */
         w->t = t;
         w->dir = dir;
+        w->alone = 1;
         w->next = 0;
     } else {                            /* running: after it */
         w->next = 1;
@@ -1103,7 +1113,7 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
         unstage_all(s);
     const uint32_t steps = tvpal_shard_hdr(s->p[0].sh)->steps;
     if (!w->have && next >= 0 && next < steps && s->n)
-        stager_post(s, (uint32_t)next, dir);
+        stager_post(s, (uint32_t)next, dir, 0);
     return rc;
 }
 

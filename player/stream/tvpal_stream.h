@@ -33,6 +33,10 @@ struct tvpal_stream_stats {
                                 stager, when it prepared the step) */
     unsigned records_applied;
     unsigned records_staged; /* of those, prepared ahead by the stager */
+    double stage_ms;         /* the stager's time preparing the step (its
+                                reads, checks and decoding; 0 when the
+                                caller's thread read it): with bytes_read,
+                                the rate the disk gave it */
 };
 
 struct tvpal_stream;
@@ -92,7 +96,8 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
 /* A jump's target prepared off the caller's thread: the stager reads,
  * checks and stages the records of step t (up to one per window start,
  * from what the slabs show now), as it prepares the next step in steady
- * playback, and returns at once; a job it was running is finished and
+ * playback but without the prefetch beyond it (whose reads would delay
+ * the target's on a slow disk), and returns at once; a job it was running is finished and
  * dropped.  The slabs keep showing their step meanwhile, so the caller
  * may draw another level while this one loads.  A later
  * tvpal_stream_seek(t) only installs the records once
