@@ -58,6 +58,9 @@ xdotool getwindowname \$wid > "$W/title-still.txt"
 cp "$W/win.csv" "$W/win-still.csv"
 xdotool key --window \$wid space; sleep 1.5
 xdotool key --window \$wid space; sleep 0.5
+cp "$W/win.csv" "$W/win-stopped.csv"
+xdotool key --window \$wid End; sleep 0.8
+xdotool key --window \$wid Home; sleep 0.8
 xdotool key --window \$wid q 2>/dev/null
 wait \$pid
 DRAG
@@ -74,6 +77,16 @@ DRAG
     [ "$steps" -ge 5 ] && ok "playing: $steps steps drawn at level 2" || fail "playing: $steps steps at level 2: $(tail -n 5 "$W/win.csv")"
     tail -n 1 "$W/win.csv" | awk -F, '{ exit !($3 == 0) }' \
         && ok "stopped: refined to level 0" || fail "stopped: $(tail -n 3 "$W/win.csv")"
+    # Jumps (End, Home) with --progressive on, the window's default: the
+    # jump's frame is drawn at once from a coarser level, then the same
+    # step at level 0 with its time from the jump (full_ms).
+    n1=$(wc -l < "$W/win-stopped.csv")
+    tail -n +$((n1 + 1)) "$W/win.csv" > "$W/win-jumps.csv"
+    awk -F, 'NR == 1 { prev = -1 } $2 != prev && $3 > 0 { j[$2] = 1; jumps++ }
+             j[$2] && $3 == 0 && $6 > 0 { back++; delete j[$2] } { prev = $2 }
+             END { exit !(jumps >= 1 && back == jumps) }' "$W/win-jumps.csv" \
+        && ok "jumps: coarse at once, level 0 after ($(tr '\n' ';' < "$W/win-jumps.csv" | cut -c1-200))" \
+        || fail "jumps in the window: $(tr '\n' ';' < "$W/win-jumps.csv" | cut -c1-400)"
     grep -q "level 2/2 (11x9x8) .* - preview" "$W/title-drag.txt" && grep -q "level 0/2 (41x36x30)" "$W/title-still.txt" \
         && ok "title shows the level: $(cat "$W/title-drag.txt")" || fail "title: $(cat "$W/title-drag.txt") / $(cat "$W/title-still.txt")"
 else

@@ -104,7 +104,14 @@ grep -q "renderer" "$W/err.txt" && fail "without ffmpeg the run started: $(cat "
     || fail "without ffmpeg: a file was left"
 
 # 5. Option rules.
-expect_exit 2 "--fps: the frame rate of a movie" "$PLAY" "$W/ds" --headless -q --fps 30 -o "$W/dir"
+# --fps without a movie is a playback's clock: the frames come no faster
+# (7 frames at 20 fps: the summary's fps at most 20, 0.3 s at least).
+s0=$(date +%s.%N)
+"$PLAY" "$W/ds" --headless -q --fps 20 -o "$W/paced" > "$W/paced.out" 2>&1 || fail "--fps 20 -o DIR: $(cat "$W/paced.out")"
+s1=$(date +%s.%N)
+f=$(sed -n 's/^fps=\([0-9.]*\).*/\1/p' "$W/paced.out")
+awk -v f="$f" -v s="$(echo "$s1 - $s0" | bc)" 'BEGIN { exit !(f > 0 && f <= 20.2 && s >= 0.3) }' \
+    && ok "--fps 20 -o DIR: frames paced ($f fps)" || fail "--fps 20 -o DIR: $f fps"
 expect_exit 2 "--fps \"0\": expected frames per second in 0\.1\.\.1000" \
     "$PLAY" "$W/ds" --headless -q --fps 0 -o "$W/mv/g.mp4"
 expect_exit 2 "movies are written headless" "$PLAY" "$W/ds" --window -o "$W/mv/g.mp4"

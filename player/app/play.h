@@ -148,6 +148,10 @@ struct tvpal_player *play_level_player(struct play_session *s, unsigned k);
  * image and opacity, level k's dims and voxel size. */
 void play_level_view(const struct play_session *s, unsigned k,
                      const struct tvpal_view *v0, struct tvpal_view *vk);
+/* --progressive: levels 1.. opened now, each with the axis of view v0
+ * (level 0's) loaded (in RAM within --mem, play_level_player), so that
+ * no jump waits for them; ends the job on an error. */
+void play_levels_preload(struct play_session *s, const struct tvpal_view *v0);
 void play_set_tf(struct play_session *s, const struct tvpal_tf *tf,
                  double opacity);
 void play_set_reduce(struct play_session *s, unsigned reduce);

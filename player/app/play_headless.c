@@ -213,7 +213,7 @@ static void setup_view(struct headless *h)
     /* One process: a cluster's frames exchange ghost rows at the frame. */
     h->progressive = o->progressive > 0 && !play_cluster_multi();
     play_prog_init(&h->prog, o->fps_given ? 1000.0 / o->fps : 0,
-                   o->budget_ms, h->s->a, h->s->b);
+                   o->budget_ms, h->s->a, h->s->b, !o->fps_given);
 }
 
 /* The level of detail of a frame of view h->v (--level, else the finest
@@ -253,16 +253,8 @@ static double progressive_level(struct headless *h, uint32_t t, int jump)
 static void open_first_axis(struct headless *h)
 {
     struct tvpal_diag d = {{0}};
-    /* --progressive: the coarser levels' records are loaded now (in RAM
-     * within --mem, play_level_player), so that no jump waits for them. */
-    for (unsigned k = h->s->nlevels; h->progressive && k-- > 1;) {
-        struct tvpal_view vk;
-        struct tvpal_player *pk = play_level_player(h->s, k);
-        play_level_view(h->s, k, &h->v, &vk);
-        if (tvpal_player_open_axis(pk, vk.axis, &d) < 0)
-            play_die(1, "%s: level %u: %s", h->o->dir, k,
-                     d.msg[0] ? d.msg : "cannot open");
-    }
+    if (h->progressive)
+        play_levels_preload(h->s, &h->v);
     choose_level(h);
     if (tvpal_player_open_axis(h->lpl, h->vl.axis, &d) < 0)
         play_die(1, "%s: %s", h->o->dir, d.msg[0] ? d.msg : "cannot open");
@@ -579,6 +571,7 @@ int play_run_headless(struct play_session *s)
         play_progress_start(&h.progress, stderr, h.quiet, s->o->progress_s,
                             h.nframes);
     const double t_start = tvpal_now();
+    play_prog_clock_start(&h.prog);
     play_frames(&h);
     if (play_comm.rank == 0)
         print_summary(&h, tvpal_now() - t_start);

@@ -124,6 +124,19 @@ void play_level_view(const struct play_session *s, unsigned k,
     tvpal_view_setup(vk);
 }
 
+void play_levels_preload(struct play_session *s, const struct tvpal_view *v0)
+{
+    struct tvpal_diag d = {{0}};
+    for (unsigned k = s->nlevels; k-- > 1;) {
+        struct tvpal_view vk;
+        struct tvpal_player *pk = play_level_player(s, k);
+        play_level_view(s, k, v0, &vk);
+        if (tvpal_player_open_axis(pk, vk.axis, &d) < 0)
+            play_die_rank(1, "%s: level %u: %s", s->o->dir, k,
+                          d.msg[0] ? d.msg : "cannot open");
+    }
+}
+
 void play_set_tf(struct play_session *s, const struct tvpal_tf *tf,
                  double opacity)
 {

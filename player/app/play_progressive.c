@@ -11,9 +11,10 @@
 #include <time.h>
 
 void play_prog_init(struct play_prog *p, double period_ms, double budget_ms,
-                    uint32_t first, uint32_t last)
+                    uint32_t first, uint32_t last, int exact)
 {
     memset(p, 0, sizeof *p);
+    p->exact = exact;
     p->period_ms = period_ms > 0 ? period_ms : 0;
     p->budget_ms = budget_ms > 0 ? budget_ms : 1;
     p->first = first;
@@ -25,9 +26,11 @@ uint32_t play_prog_next(const struct play_prog *p, uint32_t t, int dir,
 {
     const uint32_t lo = p->first < p->last ? p->first : p->last;
     const uint32_t hi = p->first < p->last ? p->last : p->first;
+    if (dir == 0)
+        return t;
     const int64_t next = (int64_t)t + (dir < 0 ? -1 : 1);
-    if (t >= lo && t <= hi) /* the range played: from its start again */
-        return next < lo || next > hi ? p->first : (uint32_t)next;
+    if (t >= lo && t <= hi) /* the range played: round again */
+        return next < lo ? hi : next > hi ? lo : (uint32_t)next;
     return next < 0 || next >= steps ? t : (uint32_t)next;
 }
 
@@ -135,7 +138,7 @@ static int start_refine(struct play_prog *p, struct play_session *s,
     p->coarse = k;
     p->axis = vf->axis;
     p->target = tp;
-    p->due = tp == t ? 0 : d;
+    p->due = dir == 0 ? 1 : tp == t ? 0 : d; /* still: a later frame */
     p->frames = 0;
     if (fresh) {
         p->t0 = tvpal_now();
@@ -161,7 +164,7 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
                     struct tvpal_diag *diag)
 {
     *refined = 0;
-    const int clock = p->period_ms > 0;
+    const int waits = p->exact;
     struct tvpal_view vf;
     struct tvpal_player *pf = play_level_player(s, full);
     play_level_view(s, full, v0, &vf);
@@ -173,10 +176,12 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
     if (p->active) {
         p->frames++;
         if (t == p->target) {
-            /* The step planned for: its records waited for without a
-             * clock (the frame installs them); late with one, the frame
-             * after installs them and goes on from there. */
-            if (!clock || tvpal_player_ready(pf, &vf, t, frame_slack(p))) {
+            /* The step planned for: its records waited for in an exact
+             * sequence (the frame installs them); late otherwise, the
+             * frame after installs them and goes on from there (still,
+             * the same step is drawn again then). */
+            const double slack = dir ? frame_slack(p) : p->budget_ms;
+            if (waits || tvpal_player_ready(pf, &vf, t, slack)) {
                 p->late /= 2; /* on time: the margin shrinks again */
                 *refined = (tvpal_now() - p->t0) * 1e3;
                 return draw_full(p, full);
@@ -185,11 +190,11 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
         }
         if (p->frames < p->due)
             return (int)p->coarse;
-        /* Past the step planned (late, or the range wrapped): with a
-         * clock, once its reads are in, it is installed (nothing read)
-         * and what is left is planned from here; without one it is
-         * installed at once, and the frame reads the rest. */
-        if (clock && !tvpal_player_ready(pf, &vf, p->target, 0))
+        /* Past the step planned (late, or the range wrapped): once its
+         * reads are in, it is installed (nothing read) and what is left
+         * is planned from here; in an exact sequence it is installed at
+         * once, and the frame reads the rest. */
+        if (!waits && !tvpal_player_ready(pf, &vf, p->target, 0))
             return (int)p->coarse;
         struct tvpal_stream_stats st = {0};
         int rc = tvpal_player_seek(pf, &vf, p->target, dir, &st, diag);
@@ -200,7 +205,7 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
             return rc;
         measure_rate(p, fmax(st.io_wait_ms, st.stage_ms), st.bytes_read);
         p->since = past;
-        if (!clock) {
+        if (waits) {
             *refined = (tvpal_now() - p->t0) * 1e3;
             return draw_full(p, full);
         }
@@ -234,6 +239,12 @@ void play_prog_measured(struct play_prog *p, double io_ms, double stage_ms,
     p->steady_ms = p->steady_ms > 0 ? 0.8 * p->steady_ms + 0.2 * total_ms
                                     : total_ms;
     p->draw_ms = p->draw_ms > 0 ? 0.8 * p->draw_ms + 0.2 * draw : draw;
+}
+
+void play_prog_clock_start(struct play_prog *p)
+{
+    if (p->period_ms > 0)
+        p->next_due = tvpal_now() + p->period_ms * 1e-3;
 }
 
 void play_prog_pace(struct play_prog *p)

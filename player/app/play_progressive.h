@@ -12,8 +12,10 @@
  * reads are expected done, d frames on.  The frames until then draw the
  * coarser level; the frame at that step the full one, its prepared
  * records installed: waited for when there is no clock (headless without
- * --fps: the image sequence is exact), planned again when there is one
- * and they are late.
+ * --fps: the image sequence is exact), else, when they are late, drawn
+ * coarse until they are in, installed then, and the rest planned from
+ * there.  A still view (dir 0: the window paused) prepares its own step
+ * and draws it at full level as soon as it is in.
  *
  * The clock: frames are due every period_ms (--fps), or, with none, as
  * fast as they are drawn; a frame's slack is what is left of its period
@@ -36,6 +38,9 @@ struct play_prog {
                                  * (--budget-ms) */
     uint32_t first, last;       /* the steps played, in play order: steady
                                  * playback goes from last to first */
+    int exact;                  /* the full level's return is waited for
+                                 * (headless without a clock: the frame
+                                 * sequence is reproducible) */
     /* Measured (0: not yet). */
     double rate;                /* bytes per ms that waited reads gave */
     double steady_ms;           /* a steady full-level frame's time */
@@ -62,19 +67,21 @@ struct play_prog {
 };
 
 /* period_ms: 1000 / fps, 0 for none; steps played from first to last (as
- * --steps A:B: last may be below first, playing backwards). */
+ * --steps A:B: last may be below first, playing backwards); exact: the
+ * frame a refinement plans its return at waits for the records (else it
+ * is drawn coarse again when they are late, as in the window). */
 void play_prog_init(struct play_prog *p, double period_ms, double budget_ms,
-                    uint32_t first, uint32_t last);
+                    uint32_t first, uint32_t last, int exact);
 
-/* The step steady playback draws after t in direction dir: the next of
- * first..last, the first again past the last.  Steps outside the range
+/* The step steady playback draws after t in direction dir (0: t, still):
+ * the next of first..last, round to the other end past one.  Steps outside the range
  * (a window's slider) move by dir within the dataset's T steps. */
 uint32_t play_prog_next(const struct play_prog *p, uint32_t t, int dir,
                         uint32_t steps);
 
 /* The level the frame at step t draws, before it is drawn; full is the
- * level of its view v0 (level 0's view, set up), jump 1 when t is not
- * the step steady playback came to.  *refined is set to the
+ * level of its view v0 (level 0's view, set up), dir the play direction
+ * (0: still), jump 1 when t is not the step steady playback came to.  *refined is set to the
  * milliseconds since the jump or stall when this frame is the full
  * level's return (else 0).  Returns the level, or a negative error with
  * diag (the full level's prepared step could not be installed). */
@@ -91,8 +98,12 @@ void play_prog_measured(struct play_prog *p, double io_ms, double stage_ms,
                         double total_ms, uint64_t bytes, unsigned level,
                         unsigned full);
 
-/* With a clock: sleeps until the next frame is due; a frame later than a
- * whole period moves the clock to now (the time is not made up). */
+/* With a clock: the first frame is due a period from now (each frame is
+ * shown for its period, so n frames take n periods). */
+void play_prog_clock_start(struct play_prog *p);
+/* With a clock, after a frame: sleeps until it is due; a frame later
+ * than a whole period moves the clock to now (the time is not made up),
+ * as does the first without play_prog_clock_start. */
 void play_prog_pace(struct play_prog *p);
 
 #endif

@@ -6,6 +6,7 @@
 #include "play.h"
 #include "play_annot.h"
 #include "play_cluster.h"
+#include "play_progressive.h"
 #include "play_renderer.h"
 #include "tvpal_clock.h"
 #include "tvpal_fs.h"
@@ -21,7 +22,7 @@
 
 /* What rank 0's window tells every rank before each frame. */
 struct win_cmd {
-    int quit, render, reduce, toggle_mode, reload_tf, interacting;
+    int quit, render, reduce, toggle_mode, reload_tf, interacting, playing;
     uint32_t t, tfi, width, height, level;
     int dir;
     int view;                       /* named view (-1: none; up: --up) */
@@ -60,6 +61,14 @@ struct win_state {
     double level_ms[TVPAL_LEVELS_MAX + 1];
     unsigned level;
     int coarse;
+    /* --progressive (one process, on by default): the level each frame
+     * draws so that none waits for the disk (play_progressive.h); the
+     * step of the last frame drawn (prog_t, with prog_drawn). */
+    int progressive;
+    struct play_prog prog;
+    uint32_t prog_t;
+    int prog_drawn;
+    unsigned full;                  /* the last frame's full level */
     FILE *csv;                      /* --csv: a line per frame (rank 0) */
 };
 
@@ -310,6 +319,7 @@ static void read_input(struct win_state *w, struct win_cmd *cmd)
         w->t = (uint32_t)nt;
     }
     cmd->render = w->redraw || w->playing;
+    cmd->playing = w->playing;
     cmd->interacting = interacting;
     choose_level(w, cmd, interacting || w->playing);
     /* Without coarser levels, every other slice while interacting. */
@@ -339,6 +349,21 @@ static void reload_tf(struct win_state *w, uint32_t tfi)
     }
 }
 
+/* --progressive: the coarser levels loaded before they are needed (at
+ * the start, and after the data mode changed). */
+static void preload_levels(struct win_state *w)
+{
+    if (!w->progressive)
+        return;
+    struct win_cmd c0 = {.ax = w->ax, .ay = w->ay, .view = w->view,
+                         .zoom = w->zoom, .scale_z = w->scale_z};
+    struct tvpal_view v0;
+    cmd_view(w, &c0, &v0);
+    play_levels_preload(w->s, &v0);
+    w->prog.active = 0;  /* what it prepared went with the players */
+    w->prog_drawn = 0;
+}
+
 /* Reopens the dataset in the other data mode; the pause is the cost of
  * loading (in-core) or of nothing (stream). */
 static void toggle_mode(struct win_state *w)
@@ -357,6 +382,7 @@ static void toggle_mode(struct win_state *w)
     s->lvl[0] = np;
     s->o->po.incore = w->po.incore;
     s->m = tvpal_player_manifest(np);
+    preload_levels(w);
     if (w->leader && !w->o->quiet)
         fprintf(stderr, PROG ": data now %s (%.0f ms)\n",
                 w->po.incore ? "in-core" : "streamed",
@@ -375,6 +401,40 @@ static void resize(struct win_state *w, unsigned width, unsigned height)
     open_annot(w);
 }
 
+/* --progressive: the level the frame draws (its view's own, cmd->level,
+ * unless its records are late: play_prog_frame), and *refined the
+ * milliseconds since the jump when it is the full level's return.  A
+ * step other than the one playback came to is a jump; a paused view is
+ * still (the refinement prepares the step shown). */
+static unsigned progressive_level(struct win_state *w,
+                                  const struct win_cmd *cmd,
+                                  const struct tvpal_view *v0,
+                                  double *refined)
+{
+    w->full = cmd->level;
+    if (!w->progressive)
+        return cmd->level;
+    const int dir = cmd->playing ? cmd->dir : 0;
+    const uint32_t T = w->s->m->steps;
+    const int jump = !w->prog_drawn || (cmd->t != w->prog_t &&
+        cmd->t != play_prog_next(&w->prog, w->prog_t, cmd->dir, T));
+    struct tvpal_diag d = {{0}};
+    int k = play_prog_frame(&w->prog, w->s, v0, cmd->level, cmd->t, dir,
+                            jump, refined, &d);
+    w->prog_t = cmd->t;
+    w->prog_drawn = 1;
+    if (k < 0) { /* a prepared step failed to load: said, as a frame's */
+        if (strcmp(d.msg, w->last_err)) {
+            snprintf(w->last_err, sizeof w->last_err, "%s", d.msg);
+            fprintf(stderr, PROG ": step %u: %s (keeping the last good "
+                    "data)\n", w->prog.target, d.msg);
+        }
+        w->status = 1;
+        return cmd->level;
+    }
+    return (unsigned)k;
+}
+
 /* Every rank: draws the command's frame (and composites it). */
 static void render(struct win_state *w, const struct win_cmd *cmd,
                    struct tvpal_view *v)
@@ -385,9 +445,12 @@ static void render(struct win_state *w, const struct win_cmd *cmd,
     w->reduced = cmd->reduce > 1;
     struct tvpal_view v0;
     cmd_view(w, cmd, &v0);
-    struct tvpal_player *pl = play_level_player(s, cmd->level);
-    play_level_view(s, cmd->level, &v0, v);
-    w->coarse = !w->o->level_given && cmd->level > play_level_auto(s, &v0);
+    double refined = 0;
+    const unsigned lv = progressive_level(w, cmd, &v0, &refined);
+    struct tvpal_player *pl = play_level_player(s, lv);
+    play_level_view(s, lv, &v0, v);
+    w->coarse = lv > w->full ||
+                (!w->o->level_given && lv > play_level_auto(s, &v0));
     struct tvpal_frame_stats st;
     struct tvpal_diag d = {{0}};
     double f0 = tvpal_now();
@@ -414,12 +477,15 @@ static void render(struct win_state *w, const struct win_cmd *cmd,
             play_die_rank(1, "compositing failed at step %u", cmd->t);
     }
     double ms = (tvpal_now() - f0) * 1e3;
-    double *m = &w->level_ms[cmd->level];
+    double *m = &w->level_ms[lv];
     *m = *m > 0 ? 0.7 * *m + 0.3 * ms : ms;
-    w->level = cmd->level;
+    w->level = lv;
+    if (w->progressive)
+        play_prog_measured(&w->prog, st.io_ms, st.stage_ms, ms,
+                           st.bytes_read, lv, w->full);
     if (w->csv) {
-        fprintf(w->csv, "%u,%u,%u,%d,%.3f\n", w->frames, cmd->t, cmd->level,
-                cmd->interacting, ms);
+        fprintf(w->csv, "%u,%u,%u,%d,%.3f,%.3f\n", w->frames, cmd->t, lv,
+                cmd->interacting, ms, refined);
         fflush(w->csv);
     }
     w->redraw = 0;
@@ -438,9 +504,10 @@ static void draw_hud(struct win_state *w, const struct win_cmd *cmd,
     snprintf(l[2], sizeof l[2], "renderer %s%s", w->pr.r.name,
              w->multi ? ", cluster" : "");
     snprintf(l[3], sizeof l[3], "%.1f fps", w->fps);
-    snprintf(l[4], sizeof l[4], "level %u/%u (%ux%ux%u)%s", cmd->level,
+    snprintf(l[4], sizeof l[4], "level %u/%u (%ux%ux%u)%s", w->level,
              s->nlevels - 1, v->dims[0], v->dims[1], v->dims[2],
-             w->reduced || w->coarse ? " preview" : "");
+             w->level > w->full ? " refining"
+             : w->reduced || w->coarse ? " preview" : "");
     const char *const lines[5] = {l[0], l[1], l[2], l[3], l[4]};
     static const float fg[3] = {1, 1, 1};
     struct tvpal_diag d = {{0}};
@@ -500,7 +567,7 @@ static void present(struct win_state *w, const struct win_cmd *cmd,
     tvpal_win_present(w->win, T > 1 ? (double)cmd->t / (T - 1) : 0.0);
     char lv[64] = "";
     if (w->s->nlevels > 1)
-        snprintf(lv, sizeof lv, " - level %u/%u (%ux%ux%u)", cmd->level,
+        snprintf(lv, sizeof lv, " - level %u/%u (%ux%ux%u)", w->level,
                  w->s->nlevels - 1, v->dims[0], v->dims[1], v->dims[2]);
     char title[384];
     snprintf(title, sizeof title, PROG " - t=%u/%u%s - %.1f fps - %s%s - "
@@ -563,6 +630,8 @@ static void event_loop(struct win_state *w)
         present(w, &cmd, &v);
         if (autoplay_over(w))
             break;
+        if (w->playing)
+            play_prog_pace(&w->prog);   /* --fps */
     }
 }
 
@@ -577,6 +646,11 @@ int play_run_window(struct play_session *s)
         .opacity = s->o->opacity, .scale_z = s->o->scale_z, .t = s->a, .dir = s->b >= s->a ? 1 : -1,
         .playing = s->o->autoplay > 0, .redraw = 1, .last = tvpal_now()};
     open_window(&w);
+    /* The clock (--fps) paces playing with or without --progressive. */
+    play_prog_init(&w.prog, s->o->fps_given ? 1000.0 / s->o->fps : 0,
+                   s->o->budget_ms, 0, s->m->steps - 1, 0);
+    w.progressive = s->o->progressive > 0 && !w.multi && s->nlevels > 1;
+    preload_levels(&w);
     if (w.leader && s->o->shot_dir) {
         struct tvpal_diag d = {{0}};
         if (tvpal_mkdirs(s->o->shot_dir, &d) < 0)
@@ -588,7 +662,7 @@ int play_run_window(struct play_session *s)
         int rc;
         if (!(w.csv = tvpal_open_log(s->o->csv_path, &rc, &d)))
             play_die(2, "cannot write %s", d.msg);
-        fprintf(w.csv, "frame,step,level,interacting,frame_ms\n");
+        fprintf(w.csv, "frame,step,level,interacting,frame_ms,full_ms\n");
     }
     event_loop(&w);
     if (w.csv && fclose(w.csv) != 0)
