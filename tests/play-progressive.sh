@@ -62,5 +62,34 @@ run fprog "$W/flat" --progressive on
 run fplain "$W/flat"
 [ "$(col "$W/fprog.csv" level | sort -u)" = 0 ] && diff -r "$W/fprog" "$W/fplain" > /dev/null \
     && ok "a dataset without levels: the same frames, all at level 0" || fail "without levels: frames differ"
+# Read errors while refining: a record of level 0 corrupted (a window
+# that jumps prepare off the frame's thread) is reported as without
+# --progressive (the file and record, keeping the last good data), the
+# run goes on to its last frame and exits 1, and every frame is written.
+cp -r "$W/ds" "$W/bad"
+ls "$W"/bad/node-0/axis-*.tvps | while read -r f; do
+    $PY - "$f" <<'PY'
+import struct, sys
+p = sys.argv[1]; b = bytearray(open(p, "rb").read())
+idx = struct.unpack_from("<Q", b, 72)[0]
+for r in (3, 9):
+    off = struct.unpack_from("<Q", b, idx + 32 * r)[0]
+    b[off + 64 + 10] ^= 0x40
+open(p, "wb").write(b)
+PY
+done
+for pr in on off; do
+    "$PLAY" "$W/bad" --headless -q --renderer cpu --size 96x80 --jumps 5 --progressive $pr \
+        --csv "$W/bad-$pr.csv" -o "$W/bad-$pr" > "$W/bad-$pr.out" 2>&1
+    echo $? > "$W/bad-$pr.rc"
+done
+grep -o "axis-.\.tvps: record [0-9]*: payload CRC-32C mismatch (keeping the last good data)" "$W/bad-on.out" | sort -u > "$W/bad-on.msgs"
+grep -o "axis-.\.tvps: record [0-9]*: payload CRC-32C mismatch (keeping the last good data)" "$W/bad-off.out" | sort -u > "$W/bad-off.msgs"
+[ "$(cat "$W/bad-on.rc")" = 1 ] && [ "$(cat "$W/bad-off.rc")" = 1 ] && [ -s "$W/bad-on.msgs" ] \
+    && cmp -s "$W/bad-on.msgs" "$W/bad-off.msgs" \
+    && [ "$(ls "$W/bad-on" | grep -c png)" = "$(ls "$W/prog" | grep -c png)" ] \
+    && [ "$(wc -l < "$W/bad-on.csv")" = "$(wc -l < "$W/prog.csv")" ] \
+    && ok "read errors while refining: reported as without --progressive ($(tr '\n' ';' < "$W/bad-on.msgs")), every frame written, exit 1" \
+    || fail "read errors: exit $(cat "$W/bad-on.rc")/$(cat "$W/bad-off.rc"); on: $(cat "$W/bad-on.out" | tr '\n' ';'); off: $(cat "$W/bad-off.out" | tr '\n' ';')"
 expect_exit 2 "progressive" "$PLAY" "$W/ds" --headless --progressive maybe
 finish

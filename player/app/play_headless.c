@@ -57,6 +57,7 @@ struct headless {
     int progressive;
     struct play_prog prog;
     double stage_ms;                /* the last frame's stager time */
+    struct tvpal_diag prog_diag;    /* prog.load_rc's */
     unsigned errors;
     char last_err[TVPAL_DIAG_MAX];
     struct play_totals tot;
@@ -234,11 +235,8 @@ static double progressive_level(struct headless *h, uint32_t t, int jump)
     choose_level(h);
     const unsigned full = h->level;
     double refined;
-    struct tvpal_diag d = {{0}};
     int k = play_prog_frame(&h->prog, h->s, &h->v, full, t, h->dir_step,
-                            jump, &refined, &d);
-    if (k < 0)
-        play_die(2, "step %u: %s", h->prog.target, d.msg);
+                            jump, &refined, &h->prog_diag);
     if ((unsigned)k != full) {
         h->level = (unsigned)k;
         h->lpl = play_level_player(h->s, h->level);
@@ -472,6 +470,14 @@ static void play_frames(struct headless *h)
         else
             choose_level(h);
         draw_frame(h, t, &me, &row);
+        if (h->progressive && h->prog.load_rc < 0 && me.rc >= 0) {
+            /* The prepared step's install failed on a record: this
+             * frame's load error, as if the frame had read it. */
+            me.rc = h->prog.load_rc;
+            me.fatal = h->o->strict || me.rc == TVPAL_E_SYS ||
+                       me.rc == TVPAL_E_NOMEM;
+            tvpal_diag_copy(me.msg, sizeof me.msg, h->prog_diag.msg);
+        }
         row.jump = jump;
         row.full_ms = refined;
         if (h->progressive)

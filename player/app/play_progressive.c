@@ -164,6 +164,7 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
                     struct tvpal_diag *diag)
 {
     *refined = 0;
+    p->load_rc = 0;
     const int waits = p->exact;
     struct tvpal_view vf;
     struct tvpal_player *pf = play_level_player(s, full);
@@ -197,12 +198,12 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
         if (!waits && !tvpal_player_ready(pf, &vf, p->target, 0))
             return (int)p->coarse;
         struct tvpal_stream_stats st = {0};
-        int rc = tvpal_player_seek(pf, &vf, p->target, dir, &st, diag);
+        /* A record that fails leaves its slices at their last good
+         * window, as a frame's load does; the error is the frame's. */
+        p->load_rc = tvpal_player_seek(pf, &vf, p->target, dir, &st, diag);
         const uint32_t past = p->frames - p->due;
         p->late = past > p->late ? past : p->late;
         p->active = 0;
-        if (rc < 0)
-            return rc;
         measure_rate(p, fmax(st.io_wait_ms, st.stage_ms), st.bytes_read);
         p->since = past;
         if (waits) {

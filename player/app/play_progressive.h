@@ -64,6 +64,7 @@ struct play_prog {
     /* Counts: frames drawn below their full level, refinements started
      * by a jump and by reads behind the clock. */
     uint32_t below, jumps, stalls;
+    int load_rc;                /* this frame's install (play_prog_frame) */
 };
 
 /* period_ms: 1000 / fps, 0 for none; steps played from first to last (as
@@ -83,8 +84,10 @@ uint32_t play_prog_next(const struct play_prog *p, uint32_t t, int dir,
  * level of its view v0 (level 0's view, set up), dir the play direction
  * (0: still), jump 1 when t is not the step steady playback came to.  *refined is set to the
  * milliseconds since the jump or stall when this frame is the full
- * level's return (else 0).  Returns the level, or a negative error with
- * diag (the full level's prepared step could not be installed). */
+ * level's return (else 0).  Returns the level.  When a prepared step was
+ * installed with a record that failed to load (its slices keep their
+ * last good window), p->load_rc has the error and diag says which: the
+ * caller reports it as the frame's own load error. */
 int play_prog_frame(struct play_prog *p, struct play_session *s,
                     const struct tvpal_view *v0, unsigned full, uint32_t t,
                     int dir, int jump, double *refined,

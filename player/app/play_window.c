@@ -423,14 +423,12 @@ static unsigned progressive_level(struct win_state *w,
                             jump, refined, &d);
     w->prog_t = cmd->t;
     w->prog_drawn = 1;
-    if (k < 0) { /* a prepared step failed to load: said, as a frame's */
-        if (strcmp(d.msg, w->last_err)) {
-            snprintf(w->last_err, sizeof w->last_err, "%s", d.msg);
-            fprintf(stderr, PROG ": step %u: %s (keeping the last good "
-                    "data)\n", w->prog.target, d.msg);
-        }
+    if (w->prog.load_rc < 0 && strcmp(d.msg, w->last_err)) {
+        /* A prepared step's record failed: said as a frame's is. */
+        snprintf(w->last_err, sizeof w->last_err, "%s", d.msg);
+        fprintf(stderr, PROG ": step %u: %s (keeping the last good data)\n",
+                cmd->t, d.msg);
         w->status = 1;
-        return cmd->level;
     }
     return (unsigned)k;
 }
