@@ -69,6 +69,7 @@ struct play_opts {
     uint32_t mem_mib;
     uint32_t read_ahead_mib;            /* --read-ahead (0: the default) */
     uint32_t repeat, jumps, autoplay;
+    uint32_t loops;                     /* --loop: A..B played K times */
     int tf_cycle, ref_psnr, strict, quiet, no_direct, want_direct;
     const char *outdir, *csv_path, *shot, *shard_pat;
     int annotate;                       /* enum play_annot_level */

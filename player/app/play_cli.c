@@ -162,6 +162,8 @@ static void usage_data_output(FILE *f)
 "      --jumps K            every K-th frame jumps to a random timestep of\n"
 "                           A..B, K in 1..1000000 (CSV column jump = 1);\n"
 "                           playback goes on from there (after B: A)\n"
+"      --loop K             play A..B K times over, 1..100000 (frames of a\n"
+"                           step again overwrite its PNG)\n"
 "Output:\n"
 "  -o, --output DIR         write PNG frames here (created)\n"
 "  -o, --output FILE.mp4    write a movie instead: .mp4 (H.264) or .webm\n"
@@ -510,7 +512,7 @@ static int set_composite(struct play_opts *o, const char *arg)
 }
 
 enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
-       K_REPEAT, K_TF_CYCLE, K_JUMPS, K_AUTOPLAY, K_SCREENSHOT, K_OPACITY,
+       K_REPEAT, K_TF_CYCLE, K_JUMPS, K_LOOP, K_AUTOPLAY, K_SCREENSHOT, K_OPACITY,
        K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_DIRECT, K_MEM, K_CSV, K_STRICT,
        K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR, K_EXACT, K_LEVEL, K_BUDGET,
        K_FROM_Z, K_ANNOTATE, K_BACKGROUND, K_SHOT_DIR, K_NO_HUD,
@@ -577,6 +579,7 @@ static const struct opt_def opt_table[] = {
     {"repeat", K_REPEAT, OPT_U32, F(repeat), 1, 100000, NULL, "1..100000"},
     {"tf-cycle", K_TF_CYCLE, OPT_SET, F(tf_cycle), 1, 0, NULL, NULL},
     {"jumps", K_JUMPS, OPT_U32, F(jumps), 1, 1000000, NULL, "1..1000000"},
+    {"loop", K_LOOP, OPT_U32, F(loops), 1, 100000, NULL, "1..100000"},
     /* output */
     {"output", 'o', OPT_TEXT, F(outdir), 0, 0, NULL, NULL},
     {"fps", K_FPS, OPT_FN, 0, 0, 0, set_fps, "frames per second in 0.1..1000"},
@@ -610,7 +613,7 @@ static void defaults(struct play_opts *o)
         .width = 512, .height = 512, .ax = 20, .ay = 30, .zoom = 1,
         .scale_z = 1,
         .opacity = 1, .renderer = PLAY_REND_AUTO, .renderer_why = "",
-        .fb_bits = 32, .window = -1, .repeat = 1, .budget_ms = 66,
+        .fb_bits = 32, .window = -1, .repeat = 1, .loops = 1, .budget_ms = 66,
         .annotate = PLAY_ANNOT_AUTO,
         .view = -1, .up = -1, .fps = 24, .progressive = -1,
         .progress_s = PLAY_PROGRESS_EVERY_S,

@@ -50,7 +50,8 @@ struct headless {
     struct tvpal_player *lpl;       /* its player (s->lvl[level]) */
     struct tvpal_view vl;           /* and v for it */
     int dir_step;
-    uint32_t nframes;
+    uint32_t nsteps;                /* A..B */
+    uint32_t nframes;               /* those --loop times */
     uint32_t cur;                   /* the step of the last frame */
     /* --progressive: which level each frame draws (play_progressive.h);
      * a clock with --fps. */
@@ -208,8 +209,13 @@ static void setup_view(struct headless *h)
     play_view_named(&h->v, o->view, o->up);
     tvpal_view_setup(&h->v);
     h->dir_step = h->s->b >= h->s->a ? 1 : -1;
-    h->nframes = (h->s->b >= h->s->a ? h->s->b - h->s->a
-                                     : h->s->a - h->s->b) + 1;
+    h->nsteps = (h->s->b >= h->s->a ? h->s->b - h->s->a
+                                    : h->s->a - h->s->b) + 1;
+    const uint64_t nf = (uint64_t)h->nsteps * o->loops;
+    if (nf > UINT32_MAX)
+        play_die(2, "--loop %u: %llu frames; at most %u", o->loops,
+                 (unsigned long long)nf, UINT32_MAX);
+    h->nframes = (uint32_t)nf;
     h->rng = 0x9E3779B97F4A7C15ull;
     /* One process: a cluster's frames exchange ghost rows at the frame. */
     h->progressive = o->progressive > 0 && !play_cluster_multi();
@@ -297,7 +303,7 @@ static void print_start_line(const struct headless *h)
 static uint32_t frame_step(struct headless *h, uint32_t i, int *jump)
 {
     const uint32_t a = h->s->a, b = h->s->b;
-    const uint32_t lo = a < b ? a : b, n = h->nframes;
+    const uint32_t lo = a < b ? a : b, n = h->nsteps;
     *jump = 0;
     if (h->o->jumps && i > 0 && i % h->o->jumps == 0) {
         h->rng ^= h->rng << 13;
@@ -479,7 +485,7 @@ static void play_frames(struct headless *h)
             tvpal_diag_copy(me.msg, sizeof me.msg, h->prog_diag.msg);
         }
         row.jump = jump;
-        row.full_ms = refined;
+        row.full_ms = refined > 0 ? refined + me.total : 0;
         if (h->progressive)
             play_prog_measured(&h->prog, me.io, h->stage_ms, me.total,
                                me.bytes_read, h->level, h->full);
@@ -541,6 +547,9 @@ static void print_summary(struct headless *h, double elapsed)
            (unsigned long long)ip.fixed_reads, ip.buffers,
            (unsigned long long)submits,
            h->pr.r.name, h->errors);
+    if (h->progressive)
+        printf("progressive: below_full=%u jumps=%u late=%u\n",
+               h->prog.below, h->prog.jumps, h->prog.stalls);
     if (h->o->ref_psnr)
         printf("psnr_ref=%.3f\n", play_timing_mean_psnr(&h->tot));
 }

@@ -138,7 +138,9 @@ static int start_refine(struct play_prog *p, struct play_session *s,
     p->coarse = k;
     p->axis = vf->axis;
     p->target = tp;
-    p->due = dir == 0 ? 1 : tp == t ? 0 : d; /* still: a later frame */
+    /* A later frame: d on (round the range back to t, if so), or still
+     * the next. */
+    p->due = dir == 0 ? 1 : d;
     p->frames = 0;
     if (fresh) {
         p->t0 = tvpal_now();
@@ -219,11 +221,6 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
     }
     if (start_refine(p, s, full, &vf, t, dir, p->since, fresh, jump) < 0)
         return draw_full(p, full); /* nothing coarser, or nothing to read */
-    if (p->due == 0) { /* the step is this one: drawn full */
-        if (!fresh)
-            *refined = (tvpal_now() - p->t0) * 1e3;
-        return draw_full(p, full);
-    }
     return (int)p->coarse;
 }
 

@@ -82,9 +82,10 @@ uint32_t play_prog_next(const struct play_prog *p, uint32_t t, int dir,
 
 /* The level the frame at step t draws, before it is drawn; full is the
  * level of its view v0 (level 0's view, set up), dir the play direction
- * (0: still), jump 1 when t is not the step steady playback came to.  *refined is set to the
- * milliseconds since the jump or stall when this frame is the full
- * level's return (else 0).  Returns the level.  When a prepared step was
+ * (0: still), jump 1 when t is not the step steady playback came to.
+ * *refined is set to the milliseconds from the jump or stall to this
+ * frame's start when it is the full level's return (else 0; the caller
+ * adds the frame's own).  Returns the level.  When a prepared step was
  * installed with a record that failed to load (its slices keep their
  * last good window), p->load_rc has the error and diag says which: the
  * caller reports it as the frame's own load error. */

@@ -483,7 +483,7 @@ static void render(struct win_state *w, const struct win_cmd *cmd,
                            st.bytes_read, lv, w->full);
     if (w->csv) {
         fprintf(w->csv, "%u,%u,%u,%d,%.3f,%.3f\n", w->frames, cmd->t, lv,
-                cmd->interacting, ms, refined);
+                cmd->interacting, ms, refined > 0 ? refined + ms : 0);
         fflush(w->csv);
     }
     w->redraw = 0;
