@@ -91,5 +91,11 @@ grep -o "axis-.\.tvps: record [0-9]*: payload CRC-32C mismatch (keeping the last
     && [ "$(wc -l < "$W/bad-on.csv")" = "$(wc -l < "$W/prog.csv")" ] \
     && ok "read errors while refining: reported as without --progressive ($(tr '\n' ';' < "$W/bad-on.msgs")), every frame written, exit 1" \
     || fail "read errors: exit $(cat "$W/bad-on.rc")/$(cat "$W/bad-off.rc"); on: $(cat "$W/bad-on.out" | tr '\n' ';'); off: $(cat "$W/bad-off.out" | tr '\n' ';')"
+# --loop 2: the range twice over, the same frames (a step drawn again
+# overwrites its PNG with the same image).
+run loop "$W/ds" --steps 3:8 --loop 2 --jumps 1000
+run once "$W/ds" --steps 3:8 --jumps 1000
+[ "$(col "$W/loop.csv" step | tr '\n' ' ')" = "3 4 5 6 7 8 3 4 5 6 7 8 " ] && diff -r "$W/loop" "$W/once" > /dev/null \
+    && ok "--loop 2: steps 3..8 twice, the same frames" || fail "--loop 2: steps $(col "$W/loop.csv" step | tr '\n' ' ')"
 expect_exit 2 "progressive" "$PLAY" "$W/ds" --headless --progressive maybe
 finish

@@ -126,8 +126,8 @@ int main(int argc, char **argv)
         struct tvpal_player *j = open_player(dir, 0, i % 2 ? TVPAL_IO_PREAD
                                                            : TVPAL_IO_URING, 1);
         REQUIRE(tvpal_player_frame(j, &v, from, 1, &rgl, a, &st, &d) == 0, "%s", d.msg);
-        CHECK(tvpal_player_prepare(j, &v, i % 3 ? t : other, 1, &d) == 0 &&
-                  tvpal_player_prepare(j, &v, t, 1, &d) == 0, "prepare %u: %s",
+        CHECK(tvpal_player_prepare(j, &v, i % 3 ? t : other, 1, i % 2, &d) == 0 &&
+                  tvpal_player_prepare(j, &v, t, 1, i % 2, &d) == 0, "prepare %u: %s",
               t, d.msg);
         /* The timed wait: a job for t is waited for (up to 5 s here);
          * a step no job makes is refused at once, however long the

@@ -57,7 +57,8 @@ struct headless {
      * a clock with --fps. */
     int progressive;
     struct play_prog prog;
-    double stage_ms;                /* the last frame's stager time */
+    double stage_ms;                /* the last frame's stager time, */
+    uint64_t bytes_needed;          /* and its own records' bytes */
     struct tvpal_diag prog_diag;    /* prog.load_rc's */
     unsigned errors;
     char last_err[TVPAL_DIAG_MAX];
@@ -355,6 +356,7 @@ static void draw_frame(struct headless *h, uint32_t t, struct play_rank_rec *me,
     if (!st.rendered && rc < 0 && !play_cluster_multi())
         play_die(2, "step %u: %s", t, d.msg);
     h->stage_ms = st.stage_ms;
+    h->bytes_needed = st.bytes_needed;
     struct tvpal_render_times rt = {.draw_ms = st.draw_ms};
     if (h->pr.r.times)
         h->pr.r.times(h->pr.r.ctx, &rt);
@@ -488,7 +490,7 @@ static void play_frames(struct headless *h)
         row.full_ms = refined > 0 ? refined + me.total : 0;
         if (h->progressive)
             play_prog_measured(&h->prog, me.io, h->stage_ms, me.total,
-                               me.bytes_read, h->level, h->full);
+                               h->bytes_needed, h->level, h->full);
         if (o->ref_psnr)
             row.psnr = reference_psnr(h, t);
         settle_errors(h, t, &me, &row);

@@ -89,17 +89,20 @@ static void measure_rate(struct play_prog *p, double io_ms, uint64_t bytes)
 
 /* Frames until the full level's step can be ready, starting lag steps
  * behind t: the reads of the windows begun over lag + d steps (all of
- * them from N on, N the window) must fit d frames' budgets. */
+ * them from N on, N the window), and those of `run` steps after it, must
+ * fit d frames' budgets. */
 static uint32_t frames_ahead(const struct play_prog *p,
                              const struct play_session *s, unsigned full,
-                             uint32_t lag)
+                             uint32_t lag, uint32_t run)
 {
     const double budget = frame_budget(p);
     const double all = level_reads_ms(p, s, full);
     const uint32_t n = s->m->window ? s->m->window : 1;
-    const uint32_t most = n + 1 + (uint32_t)fmin(ceil(all / budget), 1e6);
+    const uint32_t most = n + 1 + (uint32_t)fmin(ceil(all / budget) *
+                                                 (1 + (double)run / n), 1e6);
     for (uint32_t d = 1; d < most; d++) {
-        const double share = lag + (double)d >= n ? 1 : (lag + (double)d) / n;
+        const double share = (lag + (double)d >= n ? 1 : (lag + (double)d) / n) +
+                             (double)run / n;
         if (share * all <= d * budget)
             return d;
     }
@@ -124,16 +127,23 @@ static int start_refine(struct play_prog *p, struct play_session *s,
     unsigned k = full + 1;
     while (k + 1 < nl && level_reads_ms(p, s, k) > budget)
         k++;
-    /* Plus what the last plan missed by: the stager may still be busy
-     * with a steady step's reads (and their prefetch) when asked. */
-    const uint32_t d = frames_ahead(p, s, full, lag) + p->late;
+    /* A jump plans for its step alone (its reads go alone: the soonest
+     * it can be back); reads behind the clock plan for a run of frames
+     * from it: the stream's prefetch beyond it is read before it is due,
+     * so that the full level holds for that many frames.  Plus what the
+     * last plan missed by: the stager may still be busy with a steady
+     * step's reads (and their prefetch) when asked. */
+    const uint32_t run = jump || dir == 0 ? 0 : s->o->po.prefetch;
+    const uint32_t d = frames_ahead(p, s, full, lag, run) + p->late;
     uint32_t tp = t;
     for (uint32_t i = 0; i < d; i++)
         tp = play_prog_next(p, tp, dir, s->m->steps);
     struct tvpal_diag dd = {{0}};
-    if (tvpal_player_prepare(play_level_player(s, full), vf, tp, dir, &dd) < 0)
+    if (tvpal_player_prepare(play_level_player(s, full), vf, tp, dir, run > 0,
+                             &dd) < 0)
         return -1;
     p->active = 1;
+    p->planned_rate = p->rate > 0;
     p->full = full;
     p->coarse = k;
     p->axis = vf->axis;
@@ -204,9 +214,10 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
          * window, as a frame's load does; the error is the frame's. */
         p->load_rc = tvpal_player_seek(pf, &vf, p->target, dir, &st, diag);
         const uint32_t past = p->frames - p->due;
-        p->late = past > p->late ? past : p->late;
+        if (p->planned_rate) /* a plan made without a rate is no margin */
+            p->late = past > p->late ? past : p->late;
         p->active = 0;
-        measure_rate(p, fmax(st.io_wait_ms, st.stage_ms), st.bytes_read);
+        measure_rate(p, fmax(st.io_wait_ms, st.stage_ms), st.bytes_needed);
         p->since = past;
         if (waits) {
             *refined = (tvpal_now() - p->t0) * 1e3;

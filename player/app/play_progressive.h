@@ -56,6 +56,7 @@ struct play_prog {
     double t0;                      /* the start's frame began (s) */
     uint32_t late;                  /* frames the last plans missed by,
                                      * added to the next */
+    int planned_rate;               /* the plan had a measured rate */
     uint32_t since;                 /* steps the full level's slabs are
                                      * behind the frame's (large after a
                                      * jump) */
@@ -96,7 +97,8 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
 
 /* What the frame just drawn measured: its milliseconds waiting for reads,
  * the stager's preparing them (tvpal_frame_stats) and in all, the bytes
- * it read, and the level it drew against its full one.  The read rate is
+ * of its own records (bytes_needed: not the prefetch), and the level it
+ * drew against its full one.  The read rate is
  * the bytes over the longer of the two waits. */
 void play_prog_measured(struct play_prog *p, double io_ms, double stage_ms,
                         double total_ms, uint64_t bytes, unsigned level,

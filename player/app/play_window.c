@@ -480,7 +480,7 @@ static void render(struct win_state *w, const struct win_cmd *cmd,
     w->level = lv;
     if (w->progressive)
         play_prog_measured(&w->prog, st.io_ms, st.stage_ms, ms,
-                           st.bytes_read, lv, w->full);
+                           st.bytes_needed, lv, w->full);
     if (w->csv) {
         fprintf(w->csv, "%u,%u,%u,%d,%.3f,%.3f\n", w->frames, cmd->t, lv,
                 cmd->interacting, ms, refined > 0 ? refined + ms : 0);

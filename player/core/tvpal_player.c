@@ -225,13 +225,14 @@ static int stream_at(struct tvpal_player *p, const struct tvpal_view *v,
 }
 
 int tvpal_player_prepare(struct tvpal_player *p, const struct tvpal_view *v,
-                         uint32_t t, int dir, struct tvpal_diag *diag)
+                         uint32_t t, int dir, int prefetch,
+                         struct tvpal_diag *diag)
 {
     struct tvpal_stream *s = NULL;
     int rc = stream_at(p, v, t, &s, diag);
     if (rc < 0)
         return rc;
-    return tvpal_stream_prepare(s, t, dir) < 0
+    return tvpal_stream_prepare(s, t, dir, prefetch) < 0
                ? tvpal_diag_set(diag, TVPAL_E_INVAL, "no stager to prepare "
                                 "step %u (in-core, or prefetch 0)", t)
                : 0;
@@ -658,6 +659,7 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
     st->bytes_read = ss.bytes_read;
     st->staged = ss.records_staged;
     st->stage_ms = ss.stage_ms;
+    st->bytes_needed = ss.bytes_needed;
 
     double t1 = tvpal_now();
     st->stream_ms = (t1 - t0) * 1e3 - st->axis_switch_ms;

@@ -89,6 +89,8 @@ struct tvpal_frame_stats {
     uint32_t staged;       /* records of the step prepared ahead, off the
                               frame's thread (tvpal_stream.h) */
     double stage_ms;       /* the time the stager took to prepare them */
+    uint64_t bytes_needed; /* of bytes_read, the step's own records (the
+                              rest is prefetch) */
     unsigned stride;       /* slices drawn: every stride-th */
     int rendered;          /* 1 when the frame was drawn (maybe with stale
                               slices after a load error) */
@@ -175,16 +177,19 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
 /* A jump's target prepared off the caller's thread (tvpal_stream_prepare):
  * the records the data axis of view v needs at step t are read, checked
  * and staged while the caller draws something else (another level's
- * player), and tvpal_player_frame(t) then only installs them.  Returns at
+ * player), and tvpal_player_frame(t) then only installs them; with
+ * prefetch the steps after t in direction dir are queued to be read
+ * after them, as in steady playback, else t's reads go alone.  Returns at
  * once: 0, or TVPAL_E_INVAL (t out of range, an axis not stored, no
  * stager: in-core or prefetch 0) or the axis's open error, diag saying
  * which.  tvpal_player_ready
  * says whether a frame at t would read nothing (1) or still wait for
  * records (0), after waiting at most wait_ms for a prepared step still
- * being read (0: not at all; tvpal_stream_ready).  Not with ghost rows (a cluster's cross
- * frames exchange them at the frame). */
+ * being read (0: not at all; tvpal_stream_ready).  Not with ghost rows (a
+ * cluster's cross frames exchange them at the frame). */
 int tvpal_player_prepare(struct tvpal_player *p, const struct tvpal_view *v,
-                         uint32_t t, int dir, struct tvpal_diag *diag);
+                         uint32_t t, int dir, int prefetch,
+                         struct tvpal_diag *diag);
 int tvpal_player_ready(struct tvpal_player *p, const struct tvpal_view *v,
                        uint32_t t, double wait_ms);
 /* The data axis of view v brought to step t without drawing (a prepared

@@ -69,7 +69,7 @@ struct stager {
     int next;                    /* a job posted while one ran (a jump's
                                   * target, tvpal_stream_prepare): */
     uint32_t next_t;             /* run after it, which is dropped */
-    int next_dir;
+    int next_dir, next_alone;
     int rc;                      /* its result, */
     struct tvpal_diag diag;
     struct tvpal_stream_stats st;
@@ -703,6 +703,8 @@ static int queue_step(struct tvpal_stream *s, unsigned pi,
                               tvpal_shard_path(p->sh), qd.msg[0] ? ": " : "",
                               qd.msg);
     st->bytes_read += tvpal_shard_entry(p->sh, wanted[i])->bytes;
+    if (i < nn)
+        st->bytes_needed += tvpal_shard_entry(p->sh, wanted[i])->bytes;
     return 0;
 }
 
@@ -922,7 +924,7 @@ static void *stager_main(void *arg)
             pthread_mutex_lock(&w->mu);
             w->t = w->next_t;
             w->dir = w->next_dir;
-            w->alone = 1;
+            w->alone = w->next_alone;
             w->next = 0;
             w->state = STAGER_PENDING;
             continue;
@@ -965,8 +967,10 @@ static void stager_post(struct tvpal_stream *s, uint32_t t, int dir, int alone)
     pthread_mutex_unlock(&w->mu);
 }
 
-int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir)
+int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir,
+                         int prefetch)
 {
+    const int alone = !prefetch;
     struct stager *w = &s->w;
     if (!w->started || t >= tvpal_shard_hdr(s->p[0].sh)->steps)
         return TVPAL_E_INVAL;
@@ -980,18 +984,19 @@ int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir)
         pthread_mutex_unlock(&w->mu);
         if (w->have)
             unstage_all(s);
-        stager_post(s, t, dir, 1);
+        stager_post(s, t, dir, alone);
         return 0;
     }
     if (w->state == STAGER_PENDING) {   /* not begun: take its place */
         w->t = t;
         w->dir = dir;
-        w->alone = 1;
+        w->alone = alone;
         w->next = 0;
     } else {                            /* running: after it */
         w->next = 1;
         w->next_t = t;
         w->next_dir = dir;
+        w->next_alone = alone;
     }
     pthread_mutex_unlock(&w->mu);
     return 0;

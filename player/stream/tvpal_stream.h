@@ -33,6 +33,8 @@ struct tvpal_stream_stats {
                                 stager, when it prepared the step) */
     unsigned records_applied;
     unsigned records_staged; /* of those, prepared ahead by the stager */
+    uint64_t bytes_needed;   /* of bytes_read, the records of the step
+                                itself (not its prefetch) */
     double stage_ms;         /* the stager's time preparing the step (its
                                 reads, checks and decoding; 0 when the
                                 caller's thread read it): with bytes_read,
@@ -96,15 +98,18 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
 /* A jump's target prepared off the caller's thread: the stager reads,
  * checks and stages the records of step t (up to one per window start,
  * from what the slabs show now), as it prepares the next step in steady
- * playback but without the prefetch beyond it (whose reads would delay
- * the target's on a slow disk), and returns at once; a job it was running is finished and
- * dropped.  The slabs keep showing their step meanwhile, so the caller
- * may draw another level while this one loads.  A later
- * tvpal_stream_seek(t) only installs the records once
- * tvpal_stream_ready(s, t, 0) says so (it waits for them otherwise); a seek
- * to another step drops them.  0, or TVPAL_E_INVAL (no stager: prefetch
- * 0 or in-core, where a seek reads nothing or must; t out of range). */
-int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir);
+ * playback, and returns at once; a job it was running is finished and
+ * dropped.  With prefetch, the prefetch beyond t in direction dir is
+ * queued after t's reads, as a steady step's is (for a run of frames from
+ * t); without, t's reads go alone (the soonest t can be ready on a slow
+ * disk).  The slabs keep showing their step meanwhile, so the caller may
+ * draw another level while this one loads.  A later tvpal_stream_seek(t)
+ * only installs the records once tvpal_stream_ready(s, t, 0) says so (it
+ * waits for them otherwise); a seek to another step drops them.  0, or
+ * TVPAL_E_INVAL (no stager: prefetch 0 or in-core, where a seek reads
+ * nothing or must; t out of range). */
+int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir,
+                         int prefetch);
 
 /* 1 when a seek to t reads nothing: in-core, the slabs show t already,
  * or the records of t are staged; 0 when it would read.  With wait_ms > 0
