@@ -79,9 +79,10 @@ static double frame_slack(const struct play_prog *p)
 
 static void measure_rate(struct play_prog *p, double io_ms, uint64_t bytes)
 {
-    /* Only reads of a MiB or more: smaller ones measure the latency, not
-     * the rate. */
-    if (io_ms > 0.1 && bytes >= (1u << 20)) {
+    /* Reads of a MiB or more, or that took 10 ms or more: smaller and
+     * quicker ones measure the latency, not the rate. */
+    if ((io_ms > 0.1 && bytes >= (1u << 20)) ||
+        (io_ms >= 10 && bytes >= (64u << 10))) {
         const double r = (double)bytes / io_ms;
         p->rate = p->rate > 0 ? 0.8 * p->rate + 0.2 * r : r;
     }
@@ -204,15 +205,17 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
         if (p->frames < p->due)
             return (int)p->coarse;
         /* Past the step planned (late, or the range wrapped): once its
-         * reads are in, it is installed (nothing read) and what is left
-         * is planned from here; in an exact sequence it is installed at
+         * reads are in, it is installed (nothing read; the stager left
+         * idle, not set on the step after it) and what is left is
+         * planned from here; in an exact sequence it is installed at
          * once, and the frame reads the rest. */
         if (!waits && !tvpal_player_ready(pf, &vf, p->target, 0))
             return (int)p->coarse;
         struct tvpal_stream_stats st = {0};
         /* A record that fails leaves its slices at their last good
          * window, as a frame's load does; the error is the frame's. */
-        p->load_rc = tvpal_player_seek(pf, &vf, p->target, dir, &st, diag);
+        p->load_rc = tvpal_player_seek(pf, &vf, p->target, waits ? dir : 0,
+                                       &st, diag);
         const uint32_t past = p->frames - p->due;
         if (p->planned_rate) /* a plan made without a rate is no margin */
             p->late = past > p->late ? past : p->late;

@@ -193,8 +193,9 @@ int tvpal_player_prepare(struct tvpal_player *p, const struct tvpal_view *v,
 int tvpal_player_ready(struct tvpal_player *p, const struct tvpal_view *v,
                        uint32_t t, double wait_ms);
 /* The data axis of view v brought to step t without drawing (a prepared
- * step installed before the frame moves on from it); st (NULL: not
- * wanted) gets what it read, the stager's reads for a prepared step
+ * step installed before the frame moves on from it; dir 0 leaves the
+ * stager idle for the caller's next tvpal_player_prepare); st (NULL:
+ * not wanted) gets what it read, the stager's reads for a prepared step
  * included.  0, or the load's error as tvpal_player_frame's. */
 int tvpal_player_seek(struct tvpal_player *p, const struct tvpal_view *v,
                       uint32_t t, int dir, struct tvpal_stream_stats *st,

@@ -1108,7 +1108,7 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
          * or more.  Anything else (a jump) drops it. */
         if (w->have && !(s->have_cur && t == s->cur_t))
             unstage_all(s);
-        rc = seek_here(s, t, dir, st, diag);
+        rc = seek_here(s, t, dir ? dir : 1, st, diag);
     }
     s->have_cur = 1;
     s->cur_t = t;
@@ -1117,7 +1117,7 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
     if (w->have && (int64_t)w->staged_t != next)
         unstage_all(s);
     const uint32_t steps = tvpal_shard_hdr(s->p[0].sh)->steps;
-    if (!w->have && next >= 0 && next < steps && s->n)
+    if (dir != 0 && !w->have && next >= 0 && next < steps && s->n)
         stager_post(s, (uint32_t)next, dir, 0);
     return rc;
 }

@@ -88,7 +88,9 @@ void tvpal_stream_path(const struct tvpal_stream *s,
 const char *tvpal_stream_io_name(const struct tvpal_stream *s);
 void tvpal_stream_free(struct tvpal_stream *s);   /* NULL is a no-op */
 
-/* Brings every slab to timestep t; dir (+1 or -1) steers the prefetch.
+/* Brings every slab to timestep t; dir (+1 or -1) steers the prefetch
+ * and the step the stager prepares next; 0 prepares none (the caller
+ * prepares another step: tvpal_stream_prepare), prefetching forward.
  * On a read or checksum error the other records are still applied, the
  * failing slices keep their previous window, and the error (file, record)
  * is returned. */
