@@ -228,7 +228,11 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
         }
         fresh = 0;
     }
-    if (tvpal_player_ready(pf, &vf, t, jump ? 0 : frame_slack(p))) {
+    /* In an exact sequence only a jump is refined: a steady frame waits
+     * for its records, so that which frames are coarse does not depend on
+     * the disk's timing. */
+    if ((waits && !jump) ||
+        tvpal_player_ready(pf, &vf, t, jump ? 0 : frame_slack(p))) {
         if (!fresh)
             *refined = (tvpal_now() - p->t0) * 1e3;
         return draw_full(p, full);

@@ -12,15 +12,15 @@
  * reads are expected done, d frames on.  The frames until then draw the
  * coarser level; the frame at that step the full one, its prepared
  * records installed: waited for when there is no clock (headless without
- * --fps: the image sequence is exact), else, when they are late, drawn
- * coarse until they are in, installed then, and the rest planned from
- * there.  A still view (dir 0: the window paused) prepares its own step
+ * --fps: the image sequence is exact, and only jumps are refined), else,
+ * when they are late, drawn coarse until they are in, installed then,
+ * and the rest planned from there.  A still view (dir 0: the window paused) prepares its own step
  * and draws it at full level as soon as it is in.
  *
- * The clock: frames are due every period_ms (--fps), or, with none, as
- * fast as they are drawn; a frame's slack is what is left of its period
- * after the full level's measured drawing time (a quarter of that time
- * without a clock).  play_prog_pace keeps the clock.
+ * The clock: frames are due every period_ms (--fps), or, with none (the
+ * window without --fps), as fast as they are drawn; a frame's slack is
+ * what is left of its period after the full level's measured drawing
+ * time (a quarter of that time as fast as drawn).  play_prog_pace keeps the clock.
  *
  * One process only: a cluster's frames exchange ghost rows at the frame,
  * which a prepared step cannot (tvpal_player_prepare). */
