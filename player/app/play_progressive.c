@@ -77,13 +77,18 @@ static double frame_slack(const struct play_prog *p)
     return left > p->draw_ms ? left - p->draw_ms : 0;
 }
 
-static void measure_rate(struct play_prog *p, double io_ms, uint64_t bytes)
+/* The read rate from a step's reads: its bytes over the longer of the
+ * time waited for them and the stager's time preparing them, for a MiB or
+ * more; a smaller read counts only when waiting for it took 10 ms or more
+ * (a slow disk): otherwise it measures latency and the stager's own work,
+ * not the disk. */
+static void measure_rate(struct play_prog *p, double io_ms, double stage_ms,
+                         uint64_t bytes)
 {
-    /* Reads of a MiB or more, or that took 10 ms or more: smaller and
-     * quicker ones measure the latency, not the rate. */
-    if ((io_ms > 0.1 && bytes >= (1u << 20)) ||
-        (io_ms >= 10 && bytes >= (64u << 10))) {
-        const double r = (double)bytes / io_ms;
+    const double ms = bytes >= (1u << 20) ? fmax(io_ms, stage_ms)
+                      : bytes >= (64u << 10) && io_ms >= 10 ? io_ms : 0;
+    if (ms > 0.1) {
+        const double r = (double)bytes / ms;
         p->rate = p->rate > 0 ? 0.8 * p->rate + 0.2 * r : r;
     }
 }
@@ -220,7 +225,7 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
         if (p->planned_rate) /* a plan made without a rate is no margin */
             p->late = past > p->late ? past : p->late;
         p->active = 0;
-        measure_rate(p, fmax(st.io_wait_ms, st.stage_ms), st.bytes_needed);
+        measure_rate(p, st.io_wait_ms, st.stage_ms, st.bytes_needed);
         p->since = past;
         if (waits) {
             *refined = (tvpal_now() - p->t0) * 1e3;
@@ -246,7 +251,7 @@ void play_prog_measured(struct play_prog *p, double io_ms, double stage_ms,
                         double total_ms, uint64_t bytes, unsigned level,
                         unsigned full)
 {
-    measure_rate(p, fmax(io_ms, stage_ms), bytes);
+    measure_rate(p, io_ms, stage_ms, bytes);
     if (level > full) {
         p->below++;
         return;
