@@ -133,10 +133,12 @@ static int start_refine(struct play_prog *p, struct play_session *s,
     unsigned k = full + 1;
     while (k + 1 < nl && level_reads_ms(p, s, k) > budget)
         k++;
-    /* A jump plans for its step alone (its reads go alone: the soonest
-     * it can be back); reads behind the clock plan for a run of frames
-     * from it: the stream's prefetch beyond it is read before it is due,
-     * so that the full level holds for that many frames.  Plus what the
+    /* A jump plans for its step's reads (the soonest it can be back);
+     * reads behind the clock plan for a run of frames from it: the
+     * stream's prefetch beyond it is read before it is due, so that the
+     * full level holds for that many frames.  Either way the prefetch is
+     * queued after the step's own reads (which it does not delay), so
+     * the frames after the return find their records.  Plus what the
      * last plan missed by: the stager may still be busy with a steady
      * step's reads (and their prefetch) when asked. */
     const uint32_t run = jump || dir == 0 ? 0 : s->o->po.prefetch;
@@ -145,7 +147,7 @@ static int start_refine(struct play_prog *p, struct play_session *s,
     for (uint32_t i = 0; i < d; i++)
         tp = play_prog_next(p, tp, dir, s->m->steps);
     struct tvpal_diag dd = {{0}};
-    if (tvpal_player_prepare(play_level_player(s, full), vf, tp, dir, run > 0,
+    if (tvpal_player_prepare(play_level_player(s, full), vf, tp, dir, dir != 0,
                              &dd) < 0)
         return -1;
     p->active = 1;
