@@ -9,8 +9,7 @@
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
 D=41x36x30
-"$GEN" --field turbulence --dims $D --steps 5 -o "$W/in" || fail gen
-"$ENC" -q --dims $D --window 4 --levels 2 -o "$W/ds" "$W"/in/*.f32 > /dev/null || fail encode
+levels_dataset $D 5 2
 ran=0
 # A cluster of 2 ranks draws level 1 as one rank does: with the gl
 # renderer, whose sort-last compositing is exact, within 1 level (as

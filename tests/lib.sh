@@ -142,3 +142,11 @@ install_lib() {
     export PKG_CONFIG_LIBDIR="$pcdir"
     libdir=$(pkg-config --variable=libdir tvpal)
 }
+
+# levels_dataset DIMS STEPS LEVELS: turbulence from tvpal-gen, DIMS x
+# STEPS, in $W/in (raw floats, kept), encoded with N = 4 and LEVELS
+# levels of detail into $W/ds.
+levels_dataset() {
+    "$GEN" --field turbulence --dims "$1" --steps "$2" -o "$W/in" > /dev/null || fail gen
+    "$ENC" -q --dims "$1" --window 4 --levels "$3" -o "$W/ds" "$W"/in/*.f32 > /dev/null || fail encode
+}

@@ -11,8 +11,7 @@
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
 D=48x40x36
-"$GEN" --field turbulence --dims $D --steps 32 -o "$W/in" || fail gen
-"$ENC" -q --dims $D --window 4 --levels 2 -o "$W/ds" "$W"/in/*.f32 > /dev/null || fail encode
+levels_dataset $D 32 2
 "$ENC" -q --dims $D --window 4 -o "$W/flat" "$W"/in/*.f32 > /dev/null || fail "encode without levels"
 run() { # NAME DATASET OPTIONS...: frames in $W/NAME, CSV $W/NAME.csv
     name=$1 ds=$2; shift 2

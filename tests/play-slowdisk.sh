@@ -17,8 +17,7 @@ rc=$?
 [ $rc = 77 ] && { echo "skipped: $(cat "$W/limit.err")"; exit 77; }
 [ $rc = 0 ] || { fail "with-read-limit: exit $rc: $(cat "$W/limit.err")"; finish; }
 D=64x64x64
-"$GEN" --field turbulence --dims $D --steps 60 -o "$W/in" > /dev/null || fail gen
-"$ENC" -q --dims $D --window 4 --levels 1 -o "$W/ds" "$W"/in/*.f32 > /dev/null || fail encode
+levels_dataset $D 60 1
 rm -rf "$W/in"
 run() { # NAME OPTIONS...: frames in $W/NAME, CSV $W/NAME.csv
     name=$1; shift

@@ -340,6 +340,13 @@ static double reference_psnr(struct headless *h, uint32_t t)
     return e > 0 ? 10 * log10(1.0 / e) : INFINITY;
 }
 
+/* Whether a load error rc (of a frame that was drawn) stops the run:
+ * with --strict, and out of memory or a system error. */
+static int fatal_load(const struct headless *h, int rc)
+{
+    return h->o->strict || rc == TVPAL_E_SYS || rc == TVPAL_E_NOMEM;
+}
+
 /* Draws frame t (--repeat times), composites it and measures this rank's
  * part; row gets the player's statistics. */
 static void draw_frame(struct headless *h, uint32_t t, struct play_rank_rec *me,
@@ -377,9 +384,7 @@ static void draw_frame(struct headless *h, uint32_t t, struct play_rank_rec *me,
         .accum = rt.composite_ms, .warp = rt.warp_ms,
         .bytes_read = st.bytes_read, .bytes_sent = cs.bytes_sent,
         .gather_bytes = cs.gather_bytes, .pixels = cs.pixels_blended,
-        .rc = rc, .fatal = rc < 0 && (h->o->strict || !st.rendered ||
-                                      rc == TVPAL_E_SYS ||
-                                      rc == TVPAL_E_NOMEM)};
+        .rc = rc, .fatal = rc < 0 && (!st.rendered || fatal_load(h, rc))};
     tvpal_diag_copy(me->msg, sizeof me->msg, rc < 0 ? d.msg : "");
     *row = (struct play_row){.step = t, .axis = "xyz"[st.axis],
                              .drawn = st.drawn, .skipped = st.skipped,
@@ -482,8 +487,7 @@ static void play_frames(struct headless *h)
             /* The prepared step's install failed on a record: this
              * frame's load error, as if the frame had read it. */
             me.rc = h->prog.load_rc;
-            me.fatal = h->o->strict || me.rc == TVPAL_E_SYS ||
-                       me.rc == TVPAL_E_NOMEM;
+            me.fatal = fatal_load(h, me.rc);
             tvpal_diag_copy(me.msg, sizeof me.msg, h->prog_diag.msg);
         }
         row.jump = jump;

@@ -34,27 +34,17 @@ uint32_t play_prog_next(const struct play_prog *p, uint32_t t, int dir,
     return next < 0 || next >= steps ? t : (uint32_t)next;
 }
 
-/* Voxels of a step at level k (a byte each: its slices' windows). */
-static double level_bytes(const struct play_session *s, unsigned k)
-{
-    double bytes = 1;
-    for (unsigned a = 0; a < 3; a++) {
-        uint32_t d = s->m->dims[a];
-        for (unsigned i = 0; i < k; i++)
-            d = (d + 1) / 2; /* a level's dims (FORMAT.md 3.3) */
-        bytes *= d;
-    }
-    return bytes;
-}
-
-/* The milliseconds level k's reads of a step from scratch take at the
- * measured rate: 0 while it is unknown, and for a level in RAM. */
+/* The milliseconds level k's reads of a step from scratch (a byte per
+ * voxel: every slice's window) take at the measured rate: 0 while it is
+ * unknown, and for a level in RAM. */
 static double level_reads_ms(const struct play_prog *p,
-                             const struct play_session *s, unsigned k)
+                             struct play_session *s, unsigned k)
 {
-    if (k < s->nlevels && s->lvl[k] && tvpal_player_incore_bytes(s->lvl[k]))
+    struct tvpal_player *pk = play_level_player(s, k);
+    if (p->rate <= 0 || tvpal_player_incore_bytes(pk))
         return 0;
-    return p->rate > 0 ? level_bytes(s, k) / p->rate : 0;
+    const uint32_t *d = tvpal_player_manifest(pk)->dims;
+    return (double)d[0] * d[1] * d[2] / p->rate;
 }
 
 /* The budget one frame's reads are planned against: the clock's period,
@@ -98,7 +88,7 @@ static void measure_rate(struct play_prog *p, double io_ms, double stage_ms,
  * them from N on, N the window), and those of `run` steps after it, must
  * fit d frames' budgets. */
 static uint32_t frames_ahead(const struct play_prog *p,
-                             const struct play_session *s, unsigned full,
+                             struct play_session *s, unsigned full,
                              uint32_t lag, uint32_t run)
 {
     const double budget = frame_budget(p);

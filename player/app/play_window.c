@@ -401,6 +401,23 @@ static void resize(struct win_state *w, unsigned width, unsigned height)
     open_annot(w);
 }
 
+/* A load error at step t, said once (a bad record is retried every frame
+ * that needs it); the slices keep their last good data, the exit status
+ * becomes 1. */
+static void say_load_error(struct win_state *w, uint32_t t, const char *msg)
+{
+    w->status = 1;
+    if (!strcmp(msg, w->last_err))
+        return;
+    snprintf(w->last_err, sizeof w->last_err, "%s", msg);
+    if (w->multi)
+        fprintf(stderr, PROG ": rank %d: step %u: %s (keeping the last good "
+                "data)\n", play_comm.rank, t, msg);
+    else
+        fprintf(stderr, PROG ": step %u: %s (keeping the last good data)\n",
+                t, msg);
+}
+
 /* --progressive: the level the frame draws (its view's own, cmd->level,
  * unless its records are late: play_prog_frame), and *refined the
  * milliseconds since the jump when it is the full level's return.  A
@@ -423,13 +440,8 @@ static unsigned progressive_level(struct win_state *w,
                             jump, refined, &d);
     w->prog_t = cmd->t;
     w->prog_drawn = 1;
-    if (w->prog.load_rc < 0 && strcmp(d.msg, w->last_err)) {
-        /* A prepared step's record failed: said as a frame's is. */
-        snprintf(w->last_err, sizeof w->last_err, "%s", d.msg);
-        fprintf(stderr, PROG ": step %u: %s (keeping the last good data)\n",
-                cmd->t, d.msg);
-        w->status = 1;
-    }
+    if (w->prog.load_rc < 0) /* a prepared step's record: as a frame's */
+        say_load_error(w, cmd->t, d.msg);
     return (unsigned)k;
 }
 
@@ -455,15 +467,8 @@ static void render(struct win_state *w, const struct win_cmd *cmd,
     const int flat = via_final(w);
     int rc = tvpal_player_frame(pl, v, cmd->t, cmd->dir, &w->pr.r,
                                 flat ? w->img : NULL, &st, &d);
-    if (rc < 0 && strcmp(d.msg, w->last_err)) {
-        snprintf(w->last_err, sizeof w->last_err, "%s", d.msg);
-        if (w->multi)
-            fprintf(stderr, PROG ": rank %d: step %u: %s (keeping the last "
-                    "good data)\n", play_comm.rank, cmd->t, d.msg);
-        else
-            fprintf(stderr, PROG ": step %u: %s (keeping the last good "
-                    "data)\n", cmd->t, d.msg);
-        w->status = 1;
+    if (rc < 0) {
+        say_load_error(w, cmd->t, d.msg);
         if (!st.rendered)
             play_die_rank(2, "cannot render step %u", cmd->t);
     }

@@ -179,7 +179,7 @@ int tvpal_player_frame(struct tvpal_player *p, const struct tvpal_view *v,
  * and staged while the caller draws something else (another level's
  * player), and tvpal_player_frame(t) then only installs them; with
  * prefetch the steps after t in direction dir are queued to be read
- * after them, as in steady playback, else t's reads go alone.  Returns at
+ * after them, as in steady playback, else nothing beyond t is read.  Returns at
  * once: 0, or TVPAL_E_INVAL (t out of range, an axis not stored, no
  * stager: in-core or prefetch 0) or the axis's open error, diag saying
  * which.  tvpal_player_ready

@@ -62,8 +62,8 @@ struct stager {
     int state;                   /* STAGER_*, under mu */
     uint32_t t;                  /* the job: stage step t, */
     int dir;                     /* prefetching in direction dir */
-    int alone;                   /* a prepared step: its reads alone, no
-                                  * prefetch to compete with them */
+    int alone;                   /* the step's reads only, no prefetch
+                                  * beyond it (tvpal_stream_prepare) */
     int have;                    /* a staged step waits for install: */
     uint32_t staged_t;
     int next;                    /* a job posted while one ran (a jump's

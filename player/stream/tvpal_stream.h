@@ -37,8 +37,8 @@ struct tvpal_stream_stats {
                                 itself (not its prefetch) */
     double stage_ms;         /* the stager's time preparing the step (its
                                 reads, checks and decoding; 0 when the
-                                caller's thread read it): with bytes_read,
-                                the rate the disk gave it */
+                                caller's thread read it): with
+                                bytes_needed, the rate the disk gave it */
 };
 
 struct tvpal_stream;
@@ -102,9 +102,8 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
  * from what the slabs show now), as it prepares the next step in steady
  * playback, and returns at once; a job it was running is finished and
  * dropped.  With prefetch, the prefetch beyond t in direction dir is
- * queued after t's reads, as a steady step's is (for a run of frames from
- * t); without, t's reads go alone (the soonest t can be ready on a slow
- * disk).  The slabs keep showing their step meanwhile, so the caller may
+ * queued after t's reads, as a steady step's is (for frames after t);
+ * without, the disk reads nothing beyond t (a still view).  The slabs keep showing their step meanwhile, so the caller may
  * draw another level while this one loads.  A later tvpal_stream_seek(t)
  * only installs the records once tvpal_stream_ready(s, t, 0) says so (it
  * waits for them otherwise); a seek to another step drops them.  0, or
