@@ -70,6 +70,8 @@ struct play_opts {
     uint32_t read_ahead_mib;            /* --read-ahead (0: the default) */
     uint32_t repeat, jumps, autoplay;
     uint32_t loops;                     /* --loop: A..B played K times */
+    uint32_t jump_span;                 /* --jump-span: jumps within it of
+                                         * the step (0: anywhere) */
     int tf_cycle, ref_psnr, strict, quiet, no_direct, want_direct;
     const char *outdir, *csv_path, *shot, *shard_pat;
     int annotate;                       /* enum play_annot_level */
@@ -153,6 +155,10 @@ void play_level_view(const struct play_session *s, unsigned k,
  * (level 0's) loaded (in RAM within --mem, play_level_player), so that
  * no jump waits for them; ends the job on an error. */
 void play_levels_preload(struct play_session *s, const struct tvpal_view *v0);
+/* Where the coarser levels' records are, for the start line: "level 1 in
+ * RAM (3.2 MiB), level 2 streamed (6 steps each way kept)" into buf. */
+void play_levels_describe(const struct play_session *s,
+                          const struct tvpal_view *v0, char *buf, size_t n);
 void play_set_tf(struct play_session *s, const struct tvpal_tf *tf,
                  double opacity);
 void play_set_reduce(struct play_session *s, unsigned reduce);

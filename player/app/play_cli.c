@@ -162,6 +162,8 @@ static void usage_data_output(FILE *f)
 "      --jumps K            every K-th frame jumps to a random timestep of\n"
 "                           A..B, K in 1..1000000 (CSV column jump = 1);\n"
 "                           playback goes on from there (after B: A)\n"
+"      --jump-span S        such a jump lands within S steps of the frame's\n"
+"                           step, 1..1000000 (the slider's neighbourhood)\n"
 "      --loop K             play A..B K times over, 1..100000 (frames of a\n"
 "                           step again overwrite its PNG)\n"
 "Output:\n"
@@ -516,7 +518,7 @@ enum { K_HEADLESS = 256, K_SPIN, K_SHARD_DIR, K_COMPOSITE, K_FB, K_CPU_SCALE,
        K_RENDERER, K_IO, K_PREFETCH, K_NO_DIRECT, K_DIRECT, K_MEM, K_CSV, K_STRICT,
        K_REF_PSNR, K_SCALE_Z, K_NAN_COLOR, K_EXACT, K_LEVEL, K_BUDGET,
        K_FROM_Z, K_ANNOTATE, K_BACKGROUND, K_SHOT_DIR, K_NO_HUD,
-       K_READ_AHEAD, K_PROGRESSIVE };
+       K_READ_AHEAD, K_PROGRESSIVE, K_JUMP_SPAN };
 /* Views, movies and progress (apart: the list above grows elsewhere). */
 enum { K_VIEW = 384, K_UP, K_FPS, K_PROGRESS, K_SLICE_AXIS, K_LEGEND };
 
@@ -579,6 +581,8 @@ static const struct opt_def opt_table[] = {
     {"repeat", K_REPEAT, OPT_U32, F(repeat), 1, 100000, NULL, "1..100000"},
     {"tf-cycle", K_TF_CYCLE, OPT_SET, F(tf_cycle), 1, 0, NULL, NULL},
     {"jumps", K_JUMPS, OPT_U32, F(jumps), 1, 1000000, NULL, "1..1000000"},
+    {"jump-span", K_JUMP_SPAN, OPT_U32, F(jump_span), 1, 1000000, NULL,
+     "1..1000000"},
     {"loop", K_LOOP, OPT_U32, F(loops), 1, 100000, NULL, "1..100000"},
     /* output */
     {"output", 'o', OPT_TEXT, F(outdir), 0, 0, NULL, NULL},

@@ -295,6 +295,11 @@ static void print_start_line(const struct headless *h)
             ip.io, ip.direct, fx, h->pr.r.name,
             play_renderer_describe(&h->pr, desc, sizeof desc),
             h->o->renderer_why);
+    if (h->progressive && h->s->nlevels > 1) {
+        char lv2[320];
+        play_levels_describe(h->s, &h->v, lv2, sizeof lv2);
+        fprintf(stderr, PROG ": --progressive: %s\n", lv2);
+    }
 }
 
 /* Timestep of frame i: the next of A..B after the previous frame's (from
@@ -311,7 +316,23 @@ static uint32_t frame_step(struct headless *h, uint32_t i, int *jump)
         h->rng ^= h->rng >> 7;
         h->rng ^= h->rng << 17;
         *jump = 1;
-        h->cur = lo + (uint32_t)(h->rng % n);
+        const uint32_t span = h->o->jump_span;
+        if (span && n > 1) {
+            /* Within span of the step, either way (the other way where
+             * one runs out of the range), never the step itself. */
+            uint32_t d = 1 + (uint32_t)((h->rng >> 1) %
+                                        (span < n - 1 ? span : n - 1));
+            const uint32_t off = h->cur - lo;
+            int up_ok = off + d < n, down_ok = off >= d;
+            if (!up_ok && !down_ok) {   /* to the farther end */
+                up_ok = n - 1 - off >= off;
+                d = up_ok ? n - 1 - off : off;
+            }
+            const int up = up_ok && (!down_ok || (h->rng & 1));
+            h->cur = up ? h->cur + d : h->cur - d;
+        } else {
+            h->cur = lo + (uint32_t)(h->rng % n);
+        }
     } else if (i == 0) {
         h->cur = a;
     } else {
@@ -382,7 +403,8 @@ static void draw_frame(struct headless *h, uint32_t t, struct play_rank_rec *me,
         .blend = cs.blend_ms, .comp = comp_ms, .gath = cs.gather_ms,
         .total = (tvpal_now() - f0) * 1e3, .classify = rt.classify_ms,
         .accum = rt.composite_ms, .warp = rt.warp_ms,
-        .bytes_read = st.bytes_read, .bytes_sent = cs.bytes_sent,
+        .bytes_read = st.bytes_read, .bytes_needed = st.bytes_needed,
+        .bytes_sent = cs.bytes_sent,
         .gather_bytes = cs.gather_bytes, .pixels = cs.pixels_blended,
         .rc = rc, .fatal = rc < 0 && (!st.rendered || fatal_load(h, rc))};
     tvpal_diag_copy(me->msg, sizeof me->msg, rc < 0 ? d.msg : "");

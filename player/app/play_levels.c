@@ -69,13 +69,17 @@ struct tvpal_player *play_level_player(struct play_session *s, unsigned k)
         /* --progressive: a coarser level's records in RAM, so that a jump
          * drawn from it reads nothing: level k within 1/2^k of --mem (else
          * of a quarter of the machine's memory), the levels together
-         * within it; an axis that does not fit is streamed. */
+         * within it; an axis that does not fit is streamed, keeping the
+         * steps around the playhead within that memory (kept by
+         * play_prog_frame as playback moves): a jump near the slider
+         * still reads nothing. */
         const long pages = sysconf(_SC_PHYS_PAGES), psz = sysconf(_SC_PAGE_SIZE);
         const uint64_t all = s->o->mem_mib ? (uint64_t)s->o->mem_mib << 20
                              : pages > 0 && psz > 0
                                  ? (uint64_t)pages * (uint64_t)psz / 4
                                  : (uint64_t)256 << 20;
         po.incore = 1;
+        po.keep_around = 1;
         po.mem_budget = all >> k ? all >> k : 1;
     }
     int rc = tvpal_player_open(&p, node_dir ? node_dir : dir, &po, &d);
@@ -134,6 +138,27 @@ void play_levels_preload(struct play_session *s, const struct tvpal_view *v0)
         if (tvpal_player_open_axis(pk, vk.axis, &d) < 0)
             play_die_rank(1, "%s: level %u: %s", s->o->dir, k,
                           d.msg[0] ? d.msg : "cannot open");
+    }
+}
+
+void play_levels_describe(const struct play_session *s,
+                          const struct tvpal_view *v0, char *buf, size_t n)
+{
+    size_t at = 0;
+    buf[0] = 0;
+    for (unsigned k = 1; k < s->nlevels && at < n; k++) {
+        if (!s->lvl[k])
+            continue;
+        struct tvpal_view vk;
+        play_level_view(s, k, v0, &vk);
+        const uint64_t held = tvpal_player_incore_bytes(s->lvl[k]);
+        const unsigned kept = tvpal_player_kept(s->lvl[k], &vk, 0, NULL);
+        int w = held ? snprintf(buf + at, n - at, "%slevel %u in RAM (%.1f MiB)",
+                                at ? ", " : "", k, held / 1048576.0)
+                     : snprintf(buf + at, n - at, "%slevel %u streamed (%u "
+                                "steps each way kept)", at ? ", " : "", k,
+                                kept);
+        at += w > 0 ? (size_t)w : 0;
     }
 }
 

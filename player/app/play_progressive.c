@@ -34,15 +34,24 @@ uint32_t play_prog_next(const struct play_prog *p, uint32_t t, int dir,
     return next < 0 || next >= steps ? t : (uint32_t)next;
 }
 
-/* The milliseconds level k's reads of a step from scratch (a byte per
- * voxel: every slice's window) take at the measured rate: 0 while it is
- * unknown, and for a level in RAM. */
+/* The milliseconds level k's reads of step t from scratch (a byte per
+ * voxel: every slice's window) take at the measured rate, under view v0
+ * (level 0's): 0 while it is unknown, for a level in RAM, and for a step
+ * among the steps a coarser level keeps around the playhead. */
 static double level_reads_ms(const struct play_prog *p,
-                             struct play_session *s, unsigned k)
+                             struct play_session *s, unsigned k,
+                             const struct tvpal_view *v0, uint32_t t)
 {
     struct tvpal_player *pk = play_level_player(s, k);
     if (p->rate <= 0 || tvpal_player_incore_bytes(pk))
         return 0;
+    if (k > 0 && v0) {
+        struct tvpal_view vk;
+        int near = 0;
+        play_level_view(s, k, v0, &vk);
+        if (tvpal_player_kept(pk, &vk, t, &near) && near)
+            return 0;
+    }
     const uint32_t *d = tvpal_player_manifest(pk)->dims;
     return (double)d[0] * d[1] * d[2] / p->rate;
 }
@@ -92,7 +101,7 @@ static uint32_t frames_ahead(const struct play_prog *p,
                              uint32_t lag, uint32_t run)
 {
     const double budget = frame_budget(p);
-    const double all = level_reads_ms(p, s, full);
+    const double all = level_reads_ms(p, s, full, NULL, 0);
     const uint32_t n = s->m->window ? s->m->window : 1;
     const uint32_t most = n + 1 + (uint32_t)fmin(ceil(all / budget) *
                                                  (1 + (double)run / n), 1e6);
@@ -112,16 +121,16 @@ static uint32_t frames_ahead(const struct play_prog *p,
  * Returns 0, or -1 when the full level has nothing coarser or cannot
  * prepare (in-core, it has nothing to read). */
 static int start_refine(struct play_prog *p, struct play_session *s,
-                        unsigned full, const struct tvpal_view *vf,
-                        uint32_t t, int dir, uint32_t lag, int fresh,
-                        int jump)
+                        unsigned full, const struct tvpal_view *v0,
+                        const struct tvpal_view *vf, uint32_t t, int dir,
+                        uint32_t lag, int fresh, int jump)
 {
     const unsigned nl = s->nlevels;
     if (full + 1 >= nl)
         return -1;
     const double budget = frame_budget(p);
     unsigned k = full + 1;
-    while (k + 1 < nl && level_reads_ms(p, s, k) > budget)
+    while (k + 1 < nl && level_reads_ms(p, s, k, v0, t) > budget)
         k++;
     /* A jump plans for its step's reads (the soonest it can be back);
      * reads behind the clock plan for a run of frames from it: the
@@ -168,10 +177,12 @@ static int draw_full(struct play_prog *p, unsigned full)
     return (int)full;
 }
 
-int play_prog_frame(struct play_prog *p, struct play_session *s,
-                    const struct tvpal_view *v0, unsigned full, uint32_t t,
-                    int dir, int jump, double *refined,
-                    struct tvpal_diag *diag)
+/* The level the frame at t draws (play_prog_frame, before the coarser
+ * levels are kept around t). */
+static int choose_level(struct play_prog *p, struct play_session *s,
+                        const struct tvpal_view *v0, unsigned full,
+                        uint32_t t, int dir, int jump, double *refined,
+                        struct tvpal_diag *diag)
 {
     *refined = 0;
     p->load_rc = 0;
@@ -234,9 +245,39 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
             *refined = (tvpal_now() - p->t0) * 1e3;
         return draw_full(p, full);
     }
-    if (start_refine(p, s, full, &vf, t, dir, p->since, fresh, jump) < 0)
+    if (start_refine(p, s, full, v0, &vf, t, dir, p->since, fresh, jump) < 0)
         return draw_full(p, full); /* nothing coarser, or nothing to read */
     return (int)p->coarse;
+}
+
+/* The levels coarser than full streamed with a neighbourhood
+ * (play_level_player) keep the steps around t, off the frame's thread;
+ * not the level drawn, whose frame asks for its own (the seek's
+ * prefetch). */
+static void keep_levels(struct play_session *s, const struct tvpal_view *v0,
+                        uint32_t t, unsigned full, unsigned drawn)
+{
+    for (unsigned k = full + 1; k < s->nlevels; k++) {
+        struct tvpal_player *pk = s->lvl[k];
+        struct tvpal_view vk;
+        struct tvpal_diag d = {{0}};
+        if (!pk || k == drawn)
+            continue;
+        play_level_view(s, k, v0, &vk);
+        if (tvpal_player_kept(pk, &vk, t, NULL))
+            (void)tvpal_player_keep(pk, &vk, t, &d); /* errors: the frame's
+                                                      * own seek says them */
+    }
+}
+
+int play_prog_frame(struct play_prog *p, struct play_session *s,
+                    const struct tvpal_view *v0, unsigned full, uint32_t t,
+                    int dir, int jump, double *refined,
+                    struct tvpal_diag *diag)
+{
+    const int k = choose_level(p, s, v0, full, t, dir, jump, refined, diag);
+    keep_levels(s, v0, t, full, (unsigned)k);
+    return k;
 }
 
 void play_prog_measured(struct play_prog *p, double io_ms, double stage_ms,

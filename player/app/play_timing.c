@@ -26,6 +26,7 @@ void play_timing_aggregate(const struct play_rank_rec *r, int n,
         o->accum = fmax(o->accum, q->accum);
         o->warp = fmax(o->warp, q->warp);
         o->bytes_read += q->bytes_read;
+        o->bytes_needed += q->bytes_needed;
         o->bytes_sent = q->bytes_sent > o->bytes_sent ? q->bytes_sent : o->bytes_sent;
         o->bytes_sent_total += q->bytes_sent;
         o->gather_bytes += q->gather_bytes;
@@ -88,6 +89,7 @@ static const struct column columns[] = {
     {"records_staged", C_U32, R(staged), S_NONE},
     {"level", C_U32, R(level), S_NONE},
     {"full_ms", C_MS, R(full_ms), S_NONE},
+    {"bytes_needed", C_U64, A(bytes_needed), S_NONE},
 };
 #define NCOLS (sizeof columns / sizeof *columns)
 

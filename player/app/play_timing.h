@@ -15,6 +15,8 @@ struct play_rank_rec {
     double io, stream, up, draw, read, enc, exch, blend, comp, gath, total;
     double classify, accum, warp;   /* cpu renderer phases (0 otherwise) */
     uint64_t bytes_read, bytes_sent, bytes_sent_total, gather_bytes, pixels;
+    uint64_t bytes_needed;          /* of bytes_read, the step's own records
+                                     * (tvpal_frame_stats) */
     int rc, fatal;
     char msg[200];
 };

@@ -75,6 +75,9 @@ struct tvpal_player_opts {
     uint64_t mem_budget;          /* in-core: bytes of records kept in RAM
                                      over all axes (0: no limit); an axis
                                      that does not fit is streamed */
+    int keep_around;              /* such an axis keeps the records of the
+                                     steps around the playhead within
+                                     mem_budget (tvpal_player_keep) */
 };
 
 struct tvpal_frame_stats {
@@ -200,6 +203,20 @@ int tvpal_player_ready(struct tvpal_player *p, const struct tvpal_view *v,
 int tvpal_player_seek(struct tvpal_player *p, const struct tvpal_view *v,
                       uint32_t t, int dir, struct tvpal_stream_stats *st,
                       struct tvpal_diag *diag);
+
+/* Out-of-core with keep_around: the records of the steps around t that
+ * the data axis of view v keeps are read off the caller's thread, so that
+ * a later frame at any of them reads nothing (tvpal_stream_keep).  Call
+ * after each frame drawn at another player (it returns at once): 1 when
+ * the stager was set on it, 0 when not (busy, or nothing to keep), or
+ * stream_at's errors (axis, step, open).  tvpal_player_kept: the steps
+ * kept on each side of the playhead (0: none, or in-core), and whether
+ * step t lies among those last asked for (*near; a frame there reads
+ * nothing once they are in). */
+int tvpal_player_keep(struct tvpal_player *p, const struct tvpal_view *v,
+                      uint32_t t, struct tvpal_diag *diag);
+unsigned tvpal_player_kept(const struct tvpal_player *p,
+                           const struct tvpal_view *v, uint32_t t, int *near);
 
 /* Bytes of records one axis holds in RAM in-core (mean over the stored
  * axes) and per timestep: how many timesteps fit in a memory budget. */

@@ -60,6 +60,9 @@ struct stager {
     pthread_mutex_t mu;
     pthread_cond_t cv;
     int state;                   /* STAGER_*, under mu */
+    int keep;                    /* the job is keep_around's, not a
+                                  * step's staging */
+    int cancel;                  /* a keep job is to stop (stager_wait) */
     uint32_t t;                  /* the job: stage step t, */
     int dir;                     /* prefetching in direction dir */
     int alone;                   /* the step's reads only, no prefetch
@@ -84,6 +87,14 @@ struct tvpal_stream {
     struct tvpal_io *io;
     int incore;
     unsigned prefetch;
+    unsigned around;             /* steps kept on each side of the
+                                  * playhead (tvpal_stream_create's
+                                  * keep_bytes; 0: none) */
+    uint32_t *want;              /* scratch: wanted_steps' list */
+    int kept;                    /* the neighbourhood of keep_t was asked
+                                  * for (tvpal_stream_keep, a seek) */
+    uint32_t keep_t;
+    unsigned want_cap;
     uint64_t ahead_bytes;        /* a step's reads in flight (read_ahead) */
     uint64_t incore_bytes;
     unsigned policy;             /* TVPAL_STREAM_* bits */
@@ -402,10 +413,32 @@ static void fill_slot(struct tvpal_stream *s, struct part *p, struct slot *sl)
     }
 }
 
+/* Streamed with keep_bytes: the steps kept on each side of the playhead,
+ * so that the record buffers (each holding a step's record of a shard,
+ * at most the largest after record 0 in use) fit keep_bytes beside the
+ * 2N + 2P + 1 of plain streaming and the N shown after a jump away; 0
+ * when not even one more step fits. */
+static unsigned around_of(const struct tvpal_stream *s, uint64_t keep_bytes)
+{
+    uint64_t step_bytes = 0;
+    const struct tvpal_shard_header *h = tvpal_shard_hdr(s->p[0].sh);
+    for (unsigned i = 0; i < s->n; i++)
+        step_bytes += steady_record_bytes(s->p[i].sh);
+    if (!keep_bytes || !step_bytes)
+        return 0;
+    const uint64_t fit = keep_bytes / step_bytes,
+                   fixed = 3 * (uint64_t)h->window + 2 * s->prefetch + 1;
+    if (fit <= fixed + 1)
+        return 0;
+    uint64_t k = (fit - fixed) / 2;
+    return k < h->steps ? (unsigned)k : h->steps;
+}
+
 int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
                         unsigned nslabs, enum tvpal_io_kind kind, int incore,
                         unsigned prefetch, uint64_t read_ahead,
-                        unsigned policy, struct tvpal_diag *diag)
+                        uint64_t keep_bytes, unsigned policy,
+                        struct tvpal_diag *diag)
 {
     int rc = 0;
     struct tvpal_io *io = NULL;
@@ -446,14 +479,24 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
         p->sh = tvpal_slab_shard(slabs[i]);
         p->fd = -1;
     }
+    if (!incore && nslabs > 0) {
+        const unsigned win = tvpal_shard_hdr(s->p[0].sh)->window;
+        s->around = prefetch > 0 ? around_of(s, keep_bytes) : 0;
+        s->want_cap = 16 + prefetch + (s->around ? 2 * s->around + win : 0);
+        if (!(s->want = calloc(s->want_cap, sizeof *s->want)))
+            rc = TVPAL_E_NOMEM;
+    }
     for (unsigned i = 0; i < nslabs && rc == 0; i++) {
         struct part *p = &s->p[i];
         const struct tvpal_shard_header *h = tvpal_shard_hdr(p->sh);
         rc = open_part(s, p, diag);
         if (rc < 0)
             break;
+        /* The neighbourhood's records beside the others, and the N a
+         * slab shows after a jump away from it. */
+        const unsigned kept = s->around ? 2 * s->around + 2 * h->window : 0;
         rc = incore ? load_incore(s, p, diag)
-                    : alloc_slots(p, 2 * h->window + 2 * prefetch + 1);
+                    : alloc_slots(p, 2 * h->window + 2 * prefetch + 1 + kept);
         /* The slices show their indices where the records are, not a
          * copy: in-core in RAM for as long as the stream; streamed in the
          * record buffers, which are not reused while a slice shows or
@@ -530,6 +573,7 @@ void tvpal_stream_free(struct tvpal_stream *s)
     }
     tvpal_io_free(s->io);
     free(s->p);
+    free(s->want);
     free(s);
 }
 
@@ -563,8 +607,30 @@ static int find_slot(const struct part *p, uint32_t step)
     return -1;
 }
 
-/* A slot to reuse: free, or landed, not wanted (wanted[] = steps needed
- * now or in the prefetch window) and not shown or staged by the slab
+/* The steps a part wants at a step t (wanted_steps): step[0..nn) the
+ * records t needs, ascending, then the others in the order they are read
+ * (the prefetch window in the play direction, or the kept neighbourhood
+ * nearest first), all of which lie in [lo, hi] (none: lo > hi).  step is
+ * the stream's scratch (one list at a time: the stager and the caller
+ * never run the stream together). */
+struct want {
+    uint32_t *step;
+    unsigned n, nn;
+    uint32_t lo, hi;
+};
+
+static int wanted(const struct want *w, uint32_t step)
+{
+    if (w->lo <= step && step <= w->hi)
+        return 1;
+    for (unsigned i = 0; i < w->nn; i++)
+        if (w->step[i] == step)
+            return 1;
+    return 0;
+}
+
+/* A slot to reuse: free, or landed, not wanted (w: steps needed
+ * now, in the prefetch window or the kept neighbourhood) and not shown or staged by the slab
  * (which borrows the records' indices).  With detach (the caller's
  * thread, while nothing draws), failing that, a landed unwanted slot the
  * slab borrows from, its windows copied into the slab first: cannot
@@ -577,8 +643,8 @@ static int find_slot(const struct part *p, uint32_t step)
  * of CPU for a 34 MB buffer (512^3, N = 4), and steady playback, which
  * only prefetches, went through all 2N + 2P + 1 buffers in its first 12
  * frames (100-400 ms each) instead of the N + P + 1 it uses. */
-static int victim(const struct part *p, const uint32_t *wanted, unsigned nw,
-                  int need, int detach)
+static int victim(const struct part *p, const struct want *w, int need,
+                  int detach)
 {
     int fresh = -1; /* a free buffer never read into */
     for (unsigned k = 0; k < p->nslots; k++)
@@ -591,10 +657,7 @@ static int victim(const struct part *p, const uint32_t *wanted, unsigned nw,
     int borrowed = -1; /* landed, unwanted, but shown or staged */
     for (unsigned k = 0; k < p->nslots; k++) {
         const struct slot *sl = &p->slots[k];
-        int keep = sl->state != SLOT_READY;
-        for (unsigned i = 0; i < nw && !keep; i++)
-            keep = sl->step == wanted[i];
-        if (keep)
+        if (sl->state != SLOT_READY || wanted(w, sl->step))
             continue;
         if (!tvpal_slab_borrows(p->slab, sl->step))
             return (int)k;
@@ -649,45 +712,73 @@ static int seek_incore(struct tvpal_stream *s, uint32_t t,
     return err;
 }
 
-/* The steps part p wants at t: the nn it needs (*nn, ascending), then
- * those of the prefetch window in direction dir.  The count. */
-static unsigned wanted_steps(const struct tvpal_stream *s,
-                             const struct part *p, uint32_t t, int dir,
-                             uint32_t wanted[16 + 64], unsigned *nn)
+/* The steps part p wants at t (struct want): those it needs, then,
+ * streamed with a neighbourhood (s->around), every record a step within
+ * around of t needs, nearest first (the play direction first at equal
+ * distance), else the prefetch window in direction dir. */
+static void wanted_steps(const struct tvpal_stream *s, const struct part *p,
+                         uint32_t t, int dir, struct want *w)
 {
-    const uint32_t steps = tvpal_shard_hdr(p->sh)->steps;
-    unsigned nw = *nn = tvpal_slab_needed(p->slab, t, wanted);
-    for (unsigned k = 1; k <= s->prefetch && nw < 16 + 64; k++) {
+    const struct tvpal_shard_header *h = tvpal_shard_hdr(p->sh);
+    const uint32_t steps = h->steps;
+    w->step = s->want;
+    w->n = w->nn = tvpal_slab_needed(p->slab, t, w->step);
+    w->lo = 1;
+    w->hi = 0;
+    if (s->around) {
+        /* Step q shows windows that start in [q - N + 1, q] (or at 0,
+         * record 0's first windows, when q < N): the records of
+         * [t - around - N + 1, t + around]. */
+        const uint32_t back = s->around + h->window - 1, fwd = s->around;
+        w->lo = t > back ? t - back : 0;
+        w->hi = steps - 1 - t > fwd ? t + fwd : steps - 1;
+        const int64_t sgn = dir < 0 ? -1 : 1;
+        for (uint32_t d = 0; d <= (back > fwd ? back : fwd); d++)
+            for (int side = 0; side < (d ? 2 : 1); side++) {
+                const int64_t q = (int64_t)t + (side ? -sgn : sgn) * d;
+                if (q < w->lo || q > w->hi || w->n >= s->want_cap)
+                    continue;
+                int dup = 0;
+                for (unsigned i = 0; i < w->nn && !dup; i++)
+                    dup = w->step[i] == (uint32_t)q;
+                if (!dup)
+                    w->step[w->n++] = (uint32_t)q;
+            }
+        return;
+    }
+    for (unsigned k = 1; k <= s->prefetch && w->n < s->want_cap; k++) {
         int64_t q = (int64_t)t + (dir < 0 ? -(int64_t)k : (int64_t)k);
         if (q < 0 || q >= steps)
             break;
-        wanted[nw++] = (uint32_t)q;
+        w->step[w->n++] = (uint32_t)q;
+        w->lo = k == 1 || (uint32_t)q < w->lo ? (uint32_t)q : w->lo;
+        w->hi = k == 1 || (uint32_t)q > w->hi ? (uint32_t)q : w->hi;
     }
-    return nw;
 }
 
-/* Queues the read of wanted[i] (of nw, the first nn needed) into a record
+/* Queues the read of w->step[i] (the first w->nn needed) into a record
  * buffer of part pi, unless one holds it or has it in flight.  A needed
  * record waits for a buffer to come free (here: on the caller's thread,
  * see victim); a prefetched one is not queued (1) when none is free or
  * the queue is nearly full.  0, 1, or an error. */
 static int queue_step(struct tvpal_stream *s, unsigned pi,
-                      const uint32_t *wanted, unsigned nw, unsigned nn,
-                      unsigned i, int here, struct tvpal_stream_stats *st,
-                      struct tvpal_diag *diag)
+                      const struct want *w, unsigned i, int here,
+                      struct tvpal_stream_stats *st, struct tvpal_diag *diag)
 {
     struct part *p = &s->p[pi];
-    if (find_slot(p, wanted[i]) >= 0)
+    const unsigned nn = w->nn;
+    const uint32_t step = w->step[i];
+    if (find_slot(p, step) >= 0)
         return 0;
     const int detach = here && i < nn; /* only for a needed record */
-    int v = victim(p, wanted, nw, i < nn, detach);
+    int v = victim(p, w, i < nn, detach);
     /* After a jump the old prefetches may hold every free slot: wait for
      * them to land, then they can be reused. */
     while (v < 0 && i < nn && tvpal_io_inflight(s->io)) {
         int rc = reap(s, &st->io_wait_ms, diag);
         if (rc < 0)
             return rc;
-        v = victim(p, wanted, nw, i < nn, detach);
+        v = victim(p, w, i < nn, detach);
     }
     if (v < 0) {
         if (i < nn) /* cannot happen: 2N + 2P + 1 slots */
@@ -697,14 +788,14 @@ static int queue_step(struct tvpal_stream *s, unsigned pi,
     if (i >= nn && tvpal_io_inflight(s->io) + 8 > tvpal_io_depth(s->io))
         return 1; /* prefetch only while the queue has room */
     struct tvpal_diag qd = {{0}};
-    int rc = submit(s, pi, (unsigned)v, wanted[i], &st->io_wait_ms, &qd);
+    int rc = submit(s, pi, (unsigned)v, step, &st->io_wait_ms, &qd);
     if (rc < 0)
         return tvpal_diag_set(diag, rc, "%s: cannot queue a read%s%s",
                               tvpal_shard_path(p->sh), qd.msg[0] ? ": " : "",
                               qd.msg);
-    st->bytes_read += tvpal_shard_entry(p->sh, wanted[i])->bytes;
+    st->bytes_read += tvpal_shard_entry(p->sh, step)->bytes;
     if (i < nn)
-        st->bytes_needed += tvpal_shard_entry(p->sh, wanted[i])->bytes;
+        st->bytes_needed += tvpal_shard_entry(p->sh, step)->bytes;
     return 0;
 }
 
@@ -716,12 +807,12 @@ static int queue_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
                       int dir, int prefetch, unsigned ahead, int here,
                       struct tvpal_stream_stats *st, struct tvpal_diag *diag)
 {
-    uint32_t wanted[16 + 64];
-    unsigned nn, nw = wanted_steps(s, &s->p[pi], t, dir, wanted, &nn);
-    unsigned from = prefetch ? nn : 0;
-    unsigned to = prefetch ? nw : ahead < nn ? ahead : nn;
+    struct want w;
+    wanted_steps(s, &s->p[pi], t, dir, &w);
+    unsigned from = prefetch ? w.nn : 0;
+    unsigned to = prefetch ? w.n : ahead < w.nn ? ahead : w.nn;
     for (unsigned i = from; i < to; i++) {
-        int rc = queue_step(s, pi, wanted, nw, nn, i, here, st, diag);
+        int rc = queue_step(s, pi, &w, i, here, st, diag);
         if (rc != 0)
             return rc < 0 ? rc : 0;
     }
@@ -808,8 +899,10 @@ static int feed_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
 {
     struct part *p = &s->p[pi];
     /* what t needs before anything is fed (applying changes the answer) */
-    uint32_t wanted[16 + 64];
-    unsigned nn, nw = wanted_steps(s, p, t, dir, wanted, &nn);
+    struct want w;
+    wanted_steps(s, p, t, dir, &w);
+    const uint32_t *wanted = w.step;
+    const unsigned nn = w.nn;
     for (unsigned i = 0; i < nn; i++) {
         int k = find_slot(p, wanted[i]);
         if (k < 0)
@@ -822,8 +915,7 @@ static int feed_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
         }
         if (i + ahead < nn) {
             struct tvpal_diag fd = {{0}};
-            int rc = queue_step(s, pi, wanted, nw, nn, i + ahead, here, st,
-                                diag);
+            int rc = queue_step(s, pi, &w, i + ahead, here, st, diag);
             if (rc == 0 && (rc = tvpal_io_flush(s->io, &fd)) < 0)
                 tvpal_diag_set(diag, rc, "%s", fd.msg);
             if (rc < 0)
@@ -895,6 +987,72 @@ static int seek_into(struct tvpal_stream *s, uint32_t t, int dir,
     return err;
 }
 
+/* A keep job is to stop: the caller wants the stream (stager_wait), or
+ * another job was posted. */
+static int keep_cancelled(struct stager *w)
+{
+    pthread_mutex_lock(&w->mu);
+    int c = w->cancel || w->next || w->quit;
+    pthread_mutex_unlock(&w->mu);
+    return c;
+}
+
+/* The stager's keep job (tvpal_stream_keep): the records of the steps
+ * within s->around of t read into buffers not shown or staged, then
+ * checked, so that a seek to any of them only applies.  Stops early when
+ * cancelled; its reads still in flight then land at a later wait.  A
+ * failed read or check frees the slot: the seek that needs the record
+ * reads it again and reports it, as in plain streaming. */
+static void keep_around(struct tvpal_stream *s, uint32_t t)
+{
+    struct tvpal_stream_stats st = {0};
+    struct tvpal_diag d = {{0}};
+    for (unsigned pi = 0; pi < s->n && !keep_cancelled(&s->w); pi++) {
+        struct want w;
+        wanted_steps(s, &s->p[pi], t, 1, &w);
+        w.nn = 0;   /* nothing is needed now: the needed lie in [lo, hi] */
+        for (unsigned i = 0; i < w.n; i++) {
+            int rc;
+            while ((rc = queue_step(s, pi, &w, i, 0, &st, &d)) == 1 &&
+                   tvpal_io_inflight(s->io)) {
+                if (keep_cancelled(&s->w) || tvpal_io_flush(s->io, &d) < 0 ||
+                    reap(s, NULL, &d) < 0)
+                    return;
+            }
+            if (rc != 0 || keep_cancelled(&s->w))
+                break;  /* no buffer left (1), or the I/O layer failed */
+        }
+    }
+    if (tvpal_io_flush(s->io, &d) < 0)
+        return;
+    while (tvpal_io_inflight(s->io) && !keep_cancelled(&s->w))
+        if (reap(s, NULL, &d) < 0)
+            return;
+    for (unsigned pi = 0; pi < s->n; pi++) {
+        struct part *p = &s->p[pi];
+        for (unsigned k = 0; k < p->nslots && !keep_cancelled(&s->w); k++) {
+            struct slot *sl = &p->slots[k];
+            if (sl->state == SLOT_READY && !sl->verified)
+                (void)verify_slot(p, sl, sl->step, &d);
+        }
+    }
+}
+
+/* After a job, with w->mu held: a step posted meanwhile
+ * (tvpal_stream_prepare) is run next, from the step the slabs show. */
+static void run_next(struct tvpal_stream *s)
+{
+    struct stager *w = &s->w;
+    pthread_mutex_unlock(&w->mu);
+    unstage_all(s);
+    pthread_mutex_lock(&w->mu);
+    w->t = w->next_t;
+    w->dir = w->next_dir;
+    w->alone = w->next_alone;
+    w->next = 0;
+    w->state = STAGER_PENDING;
+}
+
 static void *stager_main(void *arg)
 {
     struct tvpal_stream *s = arg;
@@ -909,6 +1067,20 @@ static void *stager_main(void *arg)
         uint32_t t = w->t;
         int dir = w->dir;
         const unsigned how = SEEK_STAGE | (w->alone ? 0 : SEEK_PREFETCH);
+        if (w->keep) {
+            pthread_mutex_unlock(&w->mu);
+            keep_around(s, t);
+            pthread_mutex_lock(&w->mu);
+            w->keep = 0;
+            w->cancel = 0;
+            if (w->next) {
+                run_next(s);
+                continue;
+            }
+            w->state = STAGER_IDLE;  /* what is staged, if anything, stays */
+            pthread_cond_broadcast(&w->cv);
+            continue;
+        }
         pthread_mutex_unlock(&w->mu);
         struct tvpal_stream_stats st;
         struct tvpal_diag d = {{0}};
@@ -917,16 +1089,8 @@ static void *stager_main(void *arg)
         st.stage_ms = (tvpal_now() - s0) * 1e3;
         pthread_mutex_lock(&w->mu);
         if (w->next) {
-            /* Another step was asked for meanwhile: this one goes, and
-             * that one is staged from the step the slabs show. */
-            pthread_mutex_unlock(&w->mu);
-            unstage_all(s);
-            pthread_mutex_lock(&w->mu);
-            w->t = w->next_t;
-            w->dir = w->next_dir;
-            w->alone = w->next_alone;
-            w->next = 0;
-            w->state = STAGER_PENDING;
+            /* Another step was asked for meanwhile: this one goes. */
+            run_next(s);
             continue;
         }
         w->rc = rc;
@@ -941,16 +1105,57 @@ static void *stager_main(void *arg)
     return NULL;
 }
 
-/* Waits until the stager is idle (it then touches nothing). */
+/* Waits until the stager is idle (it then touches nothing); a keep job
+ * is cut short. */
 static void stager_wait(struct tvpal_stream *s)
 {
     struct stager *w = &s->w;
     if (!w->started)
         return;
     pthread_mutex_lock(&w->mu);
+    if (w->keep && w->state != STAGER_IDLE)
+        w->cancel = 1;
     while (w->state != STAGER_IDLE)
         pthread_cond_wait(&w->cv, &w->mu);
     pthread_mutex_unlock(&w->mu);
+}
+
+int tvpal_stream_keep(struct tvpal_stream *s, uint32_t t)
+{
+    struct stager *w = &s->w;
+    if (s->incore || !s->around)
+        return 0;
+    if (!w->started || t >= tvpal_shard_hdr(s->p[0].sh)->steps)
+        return TVPAL_E_INVAL;
+    int posted = 0;
+    pthread_mutex_lock(&w->mu);
+    if (w->state == STAGER_IDLE && !(s->kept && s->keep_t == t)) {
+        w->keep = 1;
+        w->cancel = 0;
+        w->t = t;
+        w->state = STAGER_PENDING;
+        pthread_cond_broadcast(&w->cv);
+        posted = 1;
+    }
+    pthread_mutex_unlock(&w->mu);
+    if (posted) {
+        s->kept = 1;
+        s->keep_t = t;
+    }
+    return posted;
+}
+
+unsigned tvpal_stream_around(const struct tvpal_stream *s)
+{
+    return s->around;
+}
+
+int tvpal_stream_kept(const struct tvpal_stream *s, uint32_t t)
+{
+    if (!s->around || !s->kept)
+        return 0;
+    return t <= s->keep_t ? s->keep_t - t <= s->around
+                          : t - s->keep_t <= s->around;
 }
 
 /* Posts the job of staging step t: the next step in steady playback,
@@ -959,6 +1164,7 @@ static void stager_post(struct tvpal_stream *s, uint32_t t, int dir, int alone)
 {
     struct stager *w = &s->w;
     pthread_mutex_lock(&w->mu);
+    w->keep = 0;
     w->t = t;
     w->dir = dir;
     w->alone = alone;
@@ -988,6 +1194,8 @@ int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir,
         return 0;
     }
     if (w->state == STAGER_PENDING) {   /* not begun: take its place */
+        w->keep = 0;
+        w->cancel = 0;
         w->t = t;
         w->dir = dir;
         w->alone = alone;
@@ -1021,7 +1229,7 @@ int tvpal_stream_ready(struct tvpal_stream *s, uint32_t t, double wait_ms)
      * waited for; anything else staged will not become t. */
     int ready;
     while (!(ready = w->state == STAGER_IDLE && w->have && w->staged_t == t) &&
-           wait_ms > 0 && w->state != STAGER_IDLE &&
+           wait_ms > 0 && w->state != STAGER_IDLE && !(w->keep && !w->next) &&
            (w->next ? w->next_t : w->t) == t &&
            pthread_cond_timedwait(&w->cv, &w->mu, &until) == 0)
         ;
@@ -1117,8 +1325,11 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
     if (w->have && (int64_t)w->staged_t != next)
         unstage_all(s);
     const uint32_t steps = tvpal_shard_hdr(s->p[0].sh)->steps;
-    if (dir != 0 && !w->have && next >= 0 && next < steps && s->n)
+    if (dir != 0 && !w->have && next >= 0 && next < steps && s->n) {
         stager_post(s, (uint32_t)next, dir, 0);
+        s->kept = s->around > 0;    /* its prefetch: the neighbourhood */
+        s->keep_t = (uint32_t)next;
+    }
     return rc;
 }
 

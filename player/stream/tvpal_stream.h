@@ -57,12 +57,36 @@ struct tvpal_stream;
  * (out-of-core).  read_ahead: bytes of the records one step needs that
  * are read at once (out-of-core): they go in turn, each checked while the
  * next is read, as many together as fit in read_ahead, at least one;
- * TVPAL_STREAM_READ_AHEAD is the player's default. */
+ * TVPAL_STREAM_READ_AHEAD is the player's default.  keep_bytes
+ * (out-of-core with prefetch; 0: none): the records of the steps around
+ * the playhead, both ways, are kept in record buffers within keep_bytes
+ * (tvpal_stream_around says how many steps each way; 0 when not one more
+ * fits), filled by tvpal_stream_keep, so that a jump among them reads
+ * nothing: a coarse level of detail that does not fit in RAM whole, for
+ * jumps near the slider. */
 #define TVPAL_STREAM_READ_AHEAD ((uint64_t)32 << 20)
 int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
                         unsigned nslabs, enum tvpal_io_kind io, int incore,
                         unsigned prefetch, uint64_t read_ahead,
-                        unsigned policy, struct tvpal_diag *diag);
+                        uint64_t keep_bytes, unsigned policy,
+                        struct tvpal_diag *diag);
+
+/* The steps kept on each side of the playhead (keep_bytes), 0: none. */
+unsigned tvpal_stream_around(const struct tvpal_stream *s);
+
+/* With a neighbourhood: the stager reads and checks, off the caller's
+ * thread, the records of the steps within tvpal_stream_around of t that
+ * are not held yet (nearest first), into buffers not shown or staged;
+ * a later seek to any of those steps reads nothing.  Returns at once;
+ * posted only when the stager is idle (a frame later is soon enough),
+ * and cut short by the next seek, prepare or free.  1 when posted, 0
+ * when not (busy, t's asked for already, or no neighbourhood), or
+ * TVPAL_E_INVAL (t out of range). */
+int tvpal_stream_keep(struct tvpal_stream *s, uint32_t t);
+
+/* 1 when step t lies within the neighbourhood last asked for (a keep or
+ * a seek's prefetch): a seek to it reads nothing once that job is done. */
+int tvpal_stream_kept(const struct tvpal_stream *s, uint32_t t);
 
 /* What a stream really does: its backend ("uring" or "pread"), on how
  * many of its files O_DIRECT is on, and its first fallback ("" when none;
