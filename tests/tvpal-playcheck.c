@@ -150,6 +150,40 @@ int main(int argc, char **argv)
               "prepared jump to %u differs", t);
         tvpal_player_close(j);
     }
+    /* A read-ahead (keep_ahead, TVPAL_STREAM_KEEP_AHEAD): once the
+     * stager has kept the steps after t (tvpal_player_keep, waited for
+     * with tvpal_player_busy), playing on from t reads nothing, and draws
+     * what playing from 0 draws (but for t + 1, staged by t's frame
+     * before the keep); a keep of the step asked for already is not set
+     * to run again. */
+    for (int pass = 0; pass < 2 && Tm > 3; pass++) {
+        struct tvpal_player_opts o = {.io = pass ? TVPAL_IO_PREAD : TVPAL_IO_URING,
+                                      .prefetch = 1, .direct = 1,
+                                      .keep_ahead = (uint64_t)1 << 30};
+        struct tvpal_player *k;
+        REQUIRE(tvpal_player_open(&k, dir, &o, &d) == 0, "%s", d.msg);
+        const uint32_t t0 = (uint32_t)(tt_rand64() % (Tm - 3));
+        REQUIRE(tvpal_player_frame(k, &v, t0, 1, &rgl, a, &st, &d) == 0, "%s", d.msg);
+        const unsigned ahead = tvpal_player_kept(k, &v, t0, NULL);
+        const int kr = tvpal_player_keep(k, &v, t0, 1, &d);
+        const double k0 = tvpal_now();
+        while (tvpal_player_busy(k, &v) && tvpal_now() - k0 < 10)
+            nanosleep(&(struct timespec){0, 2000000}, NULL);
+        CHECK(ahead >= Tm - 1 - t0 && kr == 1 && !tvpal_player_busy(k, &v) &&
+                  tvpal_player_keep(k, &v, t0, 1, &d) == 0,
+              "keep ahead of %u: %u steps, set %d, busy %d", t0, ahead, kr,
+              tvpal_player_busy(k, &v));
+        uint64_t read = 0;
+        for (uint32_t t = t0 + 1; t < Tm; t++) {
+            REQUIRE(tvpal_player_frame(k, &v, t, 1, &rgl, a, &st, &d) == 0, "%s", d.msg);
+            /* (t0 + 1 was staged, its prefetch read, before the keep) */
+            read += t > t0 + 1 ? st.bytes_read : 0;
+            CHECK(!memcmp(a, seq[t], sizeof a), "read ahead: step %u differs", t);
+        }
+        CHECK(read == 0, "%s: steps %u..%u after the read-ahead read %llu bytes",
+              pass ? "pread" : "uring", t0 + 2, Tm - 1, (unsigned long long)read);
+        tvpal_player_close(k);
+    }
     for (uint32_t t = Tm; t-- > 0;) {
         REQUIRE(tvpal_player_frame(p, &v, t, -1, &rgl, a, &st, &d) == 0, "%s", d.msg);
         CHECK(!memcmp(a, seq[t], sizeof a), "backward step %u differs", t);

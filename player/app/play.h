@@ -151,6 +151,11 @@ struct tvpal_player *play_level_player(struct play_session *s, unsigned k);
  * image and opacity, level k's dims and voxel size. */
 void play_level_view(const struct play_session *s, unsigned k,
                      const struct tvpal_view *v0, struct tvpal_view *vk);
+/* --progressive: the memory the levels' records may take: --mem, else a
+ * quarter of the machine's.  Level k > 0 keeps its records within 1/2^k
+ * of it (play_level_player), and level 0 reads ahead within a quarter of
+ * it once reads fall behind the clock (play_prog_keep). */
+uint64_t play_levels_memory(const struct play_opts *o);
 /* --progressive: levels 1.. opened now, each with the axis of view v0
  * (level 0's) loaded (in RAM within --mem, play_level_player), so that
  * no jump waits for them; ends the job on an error. */

@@ -514,9 +514,11 @@ static void play_frames(struct headless *h)
         }
         row.jump = jump;
         row.full_ms = refined > 0 ? refined + me.total : 0;
-        if (h->progressive)
+        if (h->progressive) {
             play_prog_measured(&h->prog, me.io, h->stage_ms, me.total,
                                h->bytes_needed, h->level, h->full);
+            play_prog_keep(&h->prog, h->s, &h->v, h->full, t, h->dir_step);
+        }
         if (o->ref_psnr)
             row.psnr = reference_psnr(h, t);
         settle_errors(h, t, &me, &row);

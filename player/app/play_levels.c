@@ -13,6 +13,14 @@
 
 #define PROG PLAY_PROG
 
+uint64_t play_levels_memory(const struct play_opts *o)
+{
+    const long pages = sysconf(_SC_PHYS_PAGES), psz = sysconf(_SC_PAGE_SIZE);
+    return o->mem_mib ? (uint64_t)o->mem_mib << 20
+           : pages > 0 && psz > 0 ? (uint64_t)pages * (uint64_t)psz / 4
+                                  : (uint64_t)256 << 20;
+}
+
 void play_levels_init(struct play_session *s)
 {
     s->nlevels = 1 + s->m->levels;
@@ -73,11 +81,8 @@ struct tvpal_player *play_level_player(struct play_session *s, unsigned k)
          * steps around the playhead within that memory (kept by
          * play_prog_frame as playback moves): a jump near the slider
          * still reads nothing. */
-        const long pages = sysconf(_SC_PHYS_PAGES), psz = sysconf(_SC_PAGE_SIZE);
-        const uint64_t all = s->o->mem_mib ? (uint64_t)s->o->mem_mib << 20
-                             : pages > 0 && psz > 0
-                                 ? (uint64_t)pages * (uint64_t)psz / 4
-                                 : (uint64_t)256 << 20;
+        const uint64_t all = play_levels_memory(s->o);
+        po.keep_ahead = 0;
         po.incore = 1;
         po.keep_around = 1;
         po.mem_budget = all >> k ? all >> k : 1;

@@ -134,14 +134,36 @@ static int start_refine(struct play_prog *p, struct play_session *s,
         k++;
     /* A jump plans for its step's reads (the soonest it can be back);
      * reads behind the clock plan for a run of frames from it: the
-     * stream's prefetch beyond it is read before it is due, so that the
-     * full level holds for that many frames.  Either way the prefetch is
+     * stream's prefetch beyond it, or the full level's read-ahead
+     * (play_prog_keep) where it has one, is read before it is due, so
+     * that the full level then holds for that many frames and longer
+     * (the disk goes on reading ahead, at its rate, while they are drawn:
+     * at a rate r of the need a run of B steps read ahead lasts about
+     * B / (1 - r) frames, and the share of frames at full level tends to
+     * r as B grows).  Either way the prefetch is
      * queued after the step's own reads (which it does not delay), so
      * the frames after the return find their records.  Plus what the
      * last plan missed by: the stager may still be busy with a steady
      * step's reads (and their prefetch) when asked. */
-    const uint32_t run = jump || dir == 0 ? 0 : s->o->po.prefetch;
-    const uint32_t d = frames_ahead(p, s, full, lag, run) + p->late;
+    uint32_t run = jump || dir == 0 ? 0 : s->o->po.prefetch;
+    if (run) {
+        /* The full level reads ahead (play_prog_keep): the run is
+         * planned for what it keeps. */
+        const unsigned ahead = tvpal_player_kept(play_level_player(s, full),
+                                                 vf, t, NULL);
+        run = ahead > run ? ahead : run;
+    }
+    /* Within the range played: a plan past its length would meet its
+     * step a round early, before the read-ahead it planned for; the run
+     * is shortened until it fits. */
+    const uint32_t lo = p->first < p->last ? p->first : p->last;
+    const uint32_t hi = p->first < p->last ? p->last : p->first;
+    const uint32_t len = t >= lo && t <= hi ? hi - lo + 1 : s->m->steps;
+    uint32_t d = frames_ahead(p, s, full, lag, run) + p->late;
+    while (run > 0 && d >= len) {
+        run /= 2;
+        d = frames_ahead(p, s, full, lag, run) + p->late;
+    }
     uint32_t tp = t;
     for (uint32_t i = 0; i < d; i++)
         tp = play_prog_next(p, tp, dir, s->m->steps);
@@ -177,12 +199,10 @@ static int draw_full(struct play_prog *p, unsigned full)
     return (int)full;
 }
 
-/* The level the frame at t draws (play_prog_frame, before the coarser
- * levels are kept around t). */
-static int choose_level(struct play_prog *p, struct play_session *s,
-                        const struct tvpal_view *v0, unsigned full,
-                        uint32_t t, int dir, int jump, double *refined,
-                        struct tvpal_diag *diag)
+int play_prog_frame(struct play_prog *p, struct play_session *s,
+                    const struct tvpal_view *v0, unsigned full, uint32_t t,
+                    int dir, int jump, double *refined,
+                    struct tvpal_diag *diag)
 {
     *refined = 0;
     p->load_rc = 0;
@@ -250,34 +270,31 @@ static int choose_level(struct play_prog *p, struct play_session *s,
     return (int)p->coarse;
 }
 
-/* The levels coarser than full streamed with a neighbourhood
- * (play_level_player) keep the steps around t, off the frame's thread;
- * not the level drawn, whose frame asks for its own (the seek's
- * prefetch). */
-static void keep_levels(struct play_session *s, const struct tvpal_view *v0,
-                        uint32_t t, unsigned full, unsigned drawn)
+void play_prog_keep(struct play_prog *p, struct play_session *s,
+                    const struct tvpal_view *v0, unsigned full, uint32_t t,
+                    int dir)
 {
+    struct tvpal_diag d = {{0}};
+    struct tvpal_view vk;
+    /* Errors are not this frame's: a frame that needs the step says
+     * them. */
     for (unsigned k = full + 1; k < s->nlevels; k++) {
         struct tvpal_player *pk = s->lvl[k];
-        struct tvpal_view vk;
-        struct tvpal_diag d = {{0}};
-        if (!pk || k == drawn)
+        if (!pk)
             continue;
         play_level_view(s, k, v0, &vk);
         if (tvpal_player_kept(pk, &vk, t, NULL))
-            (void)tvpal_player_keep(pk, &vk, t, &d); /* errors: the frame's
-                                                      * own seek says them */
+            (void)tvpal_player_keep(pk, &vk, t, dir, &d);
     }
-}
-
-int play_prog_frame(struct play_prog *p, struct play_session *s,
-                    const struct tvpal_view *v0, unsigned full, uint32_t t,
-                    int dir, int jump, double *refined,
-                    struct tvpal_diag *diag)
-{
-    const int k = choose_level(p, s, v0, full, t, dir, jump, refined, diag);
-    keep_levels(s, v0, t, full, (unsigned)k);
-    return k;
+    /* The full level reads ahead once reads have fallen behind the
+     * clock: from the step a refinement plans for, else from this one. */
+    struct tvpal_player *pf = s->lvl[full];
+    if (!pf || !p->stalls || dir == 0 || p->period_ms <= 0)
+        return;
+    play_level_view(s, full, v0, &vk);
+    const uint32_t from = p->active ? p->target : t;
+    if (tvpal_player_kept(pf, &vk, from, NULL))
+        (void)tvpal_player_keep(pf, &vk, from, dir, &d);
 }
 
 void play_prog_measured(struct play_prog *p, double io_ms, double stage_ms,

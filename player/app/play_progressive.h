@@ -95,6 +95,17 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
                     int dir, int jump, double *refined,
                     struct tvpal_diag *diag);
 
+/* After the frame at step t (its view v0, full level, play direction
+ * dir: 0 still): the coarser levels streamed with a neighbourhood keep
+ * the steps around t, and, once reads have fallen behind the clock, the
+ * full level reads ahead from the step a refinement plans for (or t),
+ * within its read-ahead memory (tvpal_player_keep: off the frame's
+ * thread, a few records in flight at a time, cut short by the next
+ * frame's seek). */
+void play_prog_keep(struct play_prog *p, struct play_session *s,
+                    const struct tvpal_view *v0, unsigned full, uint32_t t,
+                    int dir);
+
 /* What the frame just drawn measured: its milliseconds waiting for reads,
  * the stager's preparing them (tvpal_frame_stats) and in all, the bytes
  * of its own records (bytes_needed: not the prefetch), and the level it

@@ -483,9 +483,12 @@ static void render(struct win_state *w, const struct win_cmd *cmd,
     double *m = &w->level_ms[lv];
     *m = *m > 0 ? 0.7 * *m + 0.3 * ms : ms;
     w->level = lv;
-    if (w->progressive)
+    if (w->progressive) {
         play_prog_measured(&w->prog, st.io_ms, st.stage_ms, ms,
                            st.bytes_needed, lv, w->full);
+        play_prog_keep(&w->prog, s, &v0, w->full, cmd->t,
+                       cmd->playing ? cmd->dir : 0);
+    }
     if (w->csv) {
         fprintf(w->csv, "%u,%u,%u,%d,%.3f,%.3f\n", w->frames, cmd->t, lv,
                 cmd->interacting, ms, refined > 0 ? refined + ms : 0);

@@ -31,6 +31,10 @@ static void open_dataset(struct play_session *s)
         o->po.nranks = (uint32_t)play_comm.size;
         o->po.ghosts = play_ghost_exchange;
     }
+    /* --progressive: level 0 streamed reads ahead within a quarter of the
+     * levels' memory when reads fall behind the clock (play_prog_keep). */
+    if (o->progressive && !play_cluster_multi() && !o->po.incore)
+        o->po.keep_ahead = play_levels_memory(o) / 4;
     int rc = tvpal_player_open(&s->pl, node_dir ? node_dir : o->dir, &o->po,
                                &d);
     free(node_dir);

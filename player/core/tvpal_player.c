@@ -251,11 +251,11 @@ int tvpal_player_seek(struct tvpal_player *p, const struct tvpal_view *v,
 }
 
 int tvpal_player_keep(struct tvpal_player *p, const struct tvpal_view *v,
-                      uint32_t t, struct tvpal_diag *diag)
+                      uint32_t t, int dir, struct tvpal_diag *diag)
 {
     struct tvpal_stream *s = NULL;
     int rc = stream_at(p, v, t, &s, diag);
-    if (rc == 0 && (rc = tvpal_stream_keep(s, t)) < 0)
+    if (rc == 0 && (rc = tvpal_stream_keep(s, t, dir)) < 0)
         tvpal_diag_set(diag, rc, "step %u: no stager", t);
     return rc;
 }
@@ -268,6 +268,12 @@ unsigned tvpal_player_kept(const struct tvpal_player *p,
     if (near)
         *near = s && tvpal_stream_kept(s, t);
     return s ? tvpal_stream_around(s) : 0;
+}
+
+int tvpal_player_busy(struct tvpal_player *p, const struct tvpal_view *v)
+{
+    const int da = v->axis <= 2 ? data_axis(p, v->axis) : -1;
+    return da >= 0 && p->ax[da].stream && tvpal_stream_busy(p->ax[da].stream);
 }
 
 int tvpal_player_ready(struct tvpal_player *p, const struct tvpal_view *v,
@@ -424,10 +430,13 @@ static int open_axis(struct tvpal_player *p, unsigned a,
     const unsigned policy =
         (p->opts.direct ? TVPAL_STREAM_DIRECT : 0) |
         (p->opts.io_strict ? TVPAL_STREAM_STRICT_IO : 0) |
-        (p->opts.direct_strict ? TVPAL_STREAM_STRICT_DIRECT : 0);
+        (p->opts.direct_strict ? TVPAL_STREAM_STRICT_DIRECT : 0) |
+        (!p->opts.incore && p->opts.keep_ahead ? TVPAL_STREAM_KEEP_AHEAD : 0);
     /* Streamed for want of memory: the steps around the playhead in it. */
-    const uint64_t keep = !incore && p->opts.incore && p->opts.keep_around
-                              ? p->opts.mem_budget : 0;
+    const uint64_t keep = incore ? 0
+                          : p->opts.incore && p->opts.keep_around
+                              ? p->opts.mem_budget
+                              : p->opts.keep_ahead;
     return tvpal_stream_create(&x->stream, x->slabs, p->ds->nshards,
                                p->opts.io, incore, p->opts.prefetch,
                                p->opts.read_ahead ? p->opts.read_ahead

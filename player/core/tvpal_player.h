@@ -78,6 +78,9 @@ struct tvpal_player_opts {
     int keep_around;              /* such an axis keeps the records of the
                                      steps around the playhead within
                                      mem_budget (tvpal_player_keep) */
+    uint64_t keep_ahead;          /* streamed: bytes of records kept ahead
+                                     of the playhead when asked
+                                     (tvpal_player_keep; 0: none) */
 };
 
 struct tvpal_frame_stats {
@@ -204,8 +207,9 @@ int tvpal_player_seek(struct tvpal_player *p, const struct tvpal_view *v,
                       uint32_t t, int dir, struct tvpal_stream_stats *st,
                       struct tvpal_diag *diag);
 
-/* Out-of-core with keep_around: the records of the steps around t that
- * the data axis of view v keeps are read off the caller's thread, so that
+/* Out-of-core with keep_around (keep_ahead: t and the steps after it in
+ * direction dir): the records of the steps around t that the data axis
+ * of view v keeps are read off the caller's thread, so that
  * a later frame at any of them reads nothing (tvpal_stream_keep).  Call
  * after each frame drawn at another player (it returns at once): 1 when
  * the stager was set on it, 0 when not (busy, or nothing to keep), or
@@ -214,9 +218,11 @@ int tvpal_player_seek(struct tvpal_player *p, const struct tvpal_view *v,
  * step t lies among those last asked for (*near; a frame there reads
  * nothing once they are in). */
 int tvpal_player_keep(struct tvpal_player *p, const struct tvpal_view *v,
-                      uint32_t t, struct tvpal_diag *diag);
+                      uint32_t t, int dir, struct tvpal_diag *diag);
 unsigned tvpal_player_kept(const struct tvpal_player *p,
                            const struct tvpal_view *v, uint32_t t, int *near);
+/* 1 while the stager of view v's data axis works (tvpal_stream_busy). */
+int tvpal_player_busy(struct tvpal_player *p, const struct tvpal_view *v);
 
 /* Bytes of records one axis holds in RAM in-core (mean over the stored
  * axes) and per timestep: how many timesteps fit in a memory budget. */

@@ -62,6 +62,11 @@ struct stager {
     int state;                   /* STAGER_*, under mu */
     int keep;                    /* the job is keep_around's, not a
                                   * step's staging */
+    int keep_after;              /* a keep asked for while a step was
+                                  * staged: run when that is done, */
+    uint32_t keep_after_t;       /* around this step, */
+    int keep_after_dir;          /* in this direction; */
+    int keep_dir;                /* the keep job's direction */
     int cancel;                  /* a keep job is to stop (stager_wait) */
     uint32_t t;                  /* the job: stage step t, */
     int dir;                     /* prefetching in direction dir */
@@ -89,7 +94,11 @@ struct tvpal_stream {
     unsigned prefetch;
     unsigned around;             /* steps kept on each side of the
                                   * playhead (tvpal_stream_create's
-                                  * keep_bytes; 0: none) */
+                                  * keep_bytes; 0: none), or with ahead
+                                  * beyond it in the keep's direction */
+    int ahead;                   /* TVPAL_STREAM_KEEP_AHEAD */
+    unsigned keep_dir_neg;       /* the last keep was backwards (ahead) */
+    unsigned keep_cap;           /* a keep job's pieces in flight, most */
     uint32_t *want;              /* scratch: wanted_steps' list */
     int kept;                    /* the neighbourhood of keep_t was asked
                                   * for (tvpal_stream_keep, a seek) */
@@ -418,7 +427,8 @@ static void fill_slot(struct tvpal_stream *s, struct part *p, struct slot *sl)
  * at most the largest after record 0 in use) fit keep_bytes beside the
  * 2N + 2P + 1 of plain streaming and the N shown after a jump away; 0
  * when not even one more step fits. */
-static unsigned around_of(const struct tvpal_stream *s, uint64_t keep_bytes)
+static unsigned around_of(const struct tvpal_stream *s, uint64_t keep_bytes,
+                          int ahead)
 {
     uint64_t step_bytes = 0;
     const struct tvpal_shard_header *h = tvpal_shard_hdr(s->p[0].sh);
@@ -430,7 +440,7 @@ static unsigned around_of(const struct tvpal_stream *s, uint64_t keep_bytes)
                    fixed = 3 * (uint64_t)h->window + 2 * s->prefetch + 1;
     if (fit <= fixed + 1)
         return 0;
-    uint64_t k = (fit - fixed) / 2;
+    uint64_t k = ahead ? fit - fixed : (fit - fixed) / 2;
     return k < h->steps ? (unsigned)k : h->steps;
 }
 
@@ -481,7 +491,17 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
     }
     if (!incore && nslabs > 0) {
         const unsigned win = tvpal_shard_hdr(s->p[0].sh)->window;
-        s->around = prefetch > 0 ? around_of(s, keep_bytes) : 0;
+        s->ahead = (policy & TVPAL_STREAM_KEEP_AHEAD) != 0;
+        s->around = prefetch > 0 ? around_of(s, keep_bytes, s->ahead) : 0;
+        /* A keep job's reads in flight at once: two records of a step
+         * (at least 8 MiB).  Queued further, they would be read even when
+         * the steps they are for are skipped (a slow disk's catch-up),
+         * before what the next plan needs. */
+        uint64_t step_bytes = 0;
+        for (unsigned i = 0; i < nslabs; i++)
+            step_bytes += steady_record_bytes(s->p[i].sh);
+        const uint64_t cap = (2 * step_bytes + PIECE - 1) / PIECE;
+        s->keep_cap = cap < 8 ? 8 : cap > 192 ? 192 : (unsigned)cap;
         s->want_cap = 16 + prefetch + (s->around ? 2 * s->around + win : 0);
         if (!(s->want = calloc(s->want_cap, sizeof *s->want)))
             rc = TVPAL_E_NOMEM;
@@ -494,7 +514,9 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
             break;
         /* The neighbourhood's records beside the others, and the N a
          * slab shows after a jump away from it. */
-        const unsigned kept = s->around ? 2 * s->around + 2 * h->window : 0;
+        const unsigned kept = !s->around ? 0
+                              : s->ahead ? s->around + 2 * h->window
+                                         : 2 * s->around + 2 * h->window;
         rc = incore ? load_incore(s, p, diag)
                     : alloc_slots(p, 2 * h->window + 2 * prefetch + 1 + kept);
         /* The slices show their indices where the records are, not a
@@ -715,7 +737,8 @@ static int seek_incore(struct tvpal_stream *s, uint32_t t,
 /* The steps part p wants at t (struct want): those it needs, then,
  * streamed with a neighbourhood (s->around), every record a step within
  * around of t needs, nearest first (the play direction first at equal
- * distance), else the prefetch window in direction dir. */
+ * distance), or ahead (s->ahead) the steps after t in direction dir,
+ * nearest first; else the prefetch window in direction dir. */
 static void wanted_steps(const struct tvpal_stream *s, const struct part *p,
                          uint32_t t, int dir, struct want *w)
 {
@@ -725,7 +748,7 @@ static void wanted_steps(const struct tvpal_stream *s, const struct part *p,
     w->n = w->nn = tvpal_slab_needed(p->slab, t, w->step);
     w->lo = 1;
     w->hi = 0;
-    if (s->around) {
+    if (s->around && !s->ahead) {
         /* Step q shows windows that start in [q - N + 1, q] (or at 0,
          * record 0's first windows, when q < N): the records of
          * [t - around - N + 1, t + around]. */
@@ -746,7 +769,10 @@ static void wanted_steps(const struct tvpal_stream *s, const struct part *p,
             }
         return;
     }
-    for (unsigned k = 1; k <= s->prefetch && w->n < s->want_cap; k++) {
+    /* The prefetch window, or ahead the kept steps (the records of the
+     * steps after t: each starts the windows t + k shows new). */
+    const unsigned far = s->around ? s->around : s->prefetch;
+    for (unsigned k = 1; k <= far && w->n < s->want_cap; k++) {
         int64_t q = (int64_t)t + (dir < 0 ? -(int64_t)k : (int64_t)k);
         if (q < 0 || q >= steps)
             break;
@@ -810,7 +836,10 @@ static int queue_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
     struct want w;
     wanted_steps(s, &s->p[pi], t, dir, &w);
     unsigned from = prefetch ? w.nn : 0;
-    unsigned to = prefetch ? w.n : ahead < w.nn ? ahead : w.nn;
+    /* With a neighbourhood, a seek queues the P nearest of it; keep
+     * jobs read the rest, a few records in flight at a time. */
+    const unsigned most = w.nn + s->prefetch < w.n ? w.nn + s->prefetch : w.n;
+    unsigned to = prefetch ? most : ahead < w.nn ? ahead : w.nn;
     for (unsigned i = from; i < to; i++) {
         int rc = queue_step(s, pi, &w, i, here, st, diag);
         if (rc != 0)
@@ -1003,17 +1032,25 @@ static int keep_cancelled(struct stager *w)
  * cancelled; its reads still in flight then land at a later wait.  A
  * failed read or check frees the slot: the seek that needs the record
  * reads it again and reports it, as in plain streaming. */
-static void keep_around(struct tvpal_stream *s, uint32_t t)
+static void keep_around(struct tvpal_stream *s, uint32_t t, int dir)
 {
     struct tvpal_stream_stats st = {0};
     struct tvpal_diag d = {{0}};
     for (unsigned pi = 0; pi < s->n && !keep_cancelled(&s->w); pi++) {
         struct want w;
-        wanted_steps(s, &s->p[pi], t, 1, &w);
-        w.nn = 0;   /* nothing is needed now: the needed lie in [lo, hi] */
+        wanted_steps(s, &s->p[pi], t, dir, &w);
+        /* Around: the needed lie in [lo, hi], and nothing is needed
+         * now.  Ahead: they are kept too, t being the step playback will
+         * be at (a plan's target) or is at. */
+        for (unsigned i = 0; i < w.nn; i++) {
+            w.lo = w.step[i] < w.lo || w.lo > w.hi ? w.step[i] : w.lo;
+            w.hi = w.step[i] > w.hi ? w.step[i] : w.hi;
+        }
+        w.nn = 0;
         for (unsigned i = 0; i < w.n; i++) {
             int rc;
-            while ((rc = queue_step(s, pi, &w, i, 0, &st, &d)) == 1 &&
+            while (((rc = tvpal_io_inflight(s->io) >= s->keep_cap) ||
+                    (rc = queue_step(s, pi, &w, i, 0, &st, &d)) == 1) &&
                    tvpal_io_inflight(s->io)) {
                 if (keep_cancelled(&s->w) || tvpal_io_flush(s->io, &d) < 0 ||
                     reap(s, NULL, &d) < 0)
@@ -1068,8 +1105,9 @@ static void *stager_main(void *arg)
         int dir = w->dir;
         const unsigned how = SEEK_STAGE | (w->alone ? 0 : SEEK_PREFETCH);
         if (w->keep) {
+            const int kdir = w->keep_dir;
             pthread_mutex_unlock(&w->mu);
-            keep_around(s, t);
+            keep_around(s, t, kdir);
             pthread_mutex_lock(&w->mu);
             w->keep = 0;
             w->cancel = 0;
@@ -1098,6 +1136,18 @@ static void *stager_main(void *arg)
         w->st = st;
         w->have = 1;
         w->staged_t = t;
+        if (w->keep_after) {
+            /* The step is staged (tvpal_stream_ready says so); the keep
+             * asked for meanwhile runs now, cut short by the next seek. */
+            w->keep_after = 0;
+            w->keep = 1;
+            w->cancel = 0;
+            w->t = w->keep_after_t;
+            w->keep_dir = w->keep_after_dir;
+            w->state = STAGER_PENDING;
+            pthread_cond_broadcast(&w->cv);
+            continue;
+        }
         w->state = STAGER_IDLE;
         pthread_cond_broadcast(&w->cv);
     }
@@ -1113,6 +1163,7 @@ static void stager_wait(struct tvpal_stream *s)
     if (!w->started)
         return;
     pthread_mutex_lock(&w->mu);
+    w->keep_after = 0;
     if (w->keep && w->state != STAGER_IDLE)
         w->cancel = 1;
     while (w->state != STAGER_IDLE)
@@ -1120,29 +1171,51 @@ static void stager_wait(struct tvpal_stream *s)
     pthread_mutex_unlock(&w->mu);
 }
 
-int tvpal_stream_keep(struct tvpal_stream *s, uint32_t t)
+int tvpal_stream_keep(struct tvpal_stream *s, uint32_t t, int dir)
 {
     struct stager *w = &s->w;
     if (s->incore || !s->around)
         return 0;
     if (!w->started || t >= tvpal_shard_hdr(s->p[0].sh)->steps)
         return TVPAL_E_INVAL;
+    dir = dir < 0 ? -1 : 1;
     int posted = 0;
     pthread_mutex_lock(&w->mu);
-    if (w->state == STAGER_IDLE && !(s->kept && s->keep_t == t)) {
+    if (s->kept && s->keep_t == t && s->keep_dir_neg == (dir < 0)) {
+        /* asked for already */
+    } else if (w->state == STAGER_IDLE) {
         w->keep = 1;
         w->cancel = 0;
         w->t = t;
+        w->keep_dir = dir;
         w->state = STAGER_PENDING;
         pthread_cond_broadcast(&w->cv);
+        posted = 1;
+    } else if (!w->keep && !w->next) {
+        /* A step being staged: after it (the frame's own comes first). */
+        w->keep_after = 1;
+        w->keep_after_t = t;
+        w->keep_after_dir = dir;
         posted = 1;
     }
     pthread_mutex_unlock(&w->mu);
     if (posted) {
         s->kept = 1;
         s->keep_t = t;
+        s->keep_dir_neg = dir < 0;
     }
     return posted;
+}
+
+int tvpal_stream_busy(struct tvpal_stream *s)
+{
+    struct stager *w = &s->w;
+    if (!w->started)
+        return 0;
+    pthread_mutex_lock(&w->mu);
+    const int busy = w->state != STAGER_IDLE;
+    pthread_mutex_unlock(&w->mu);
+    return busy;
 }
 
 unsigned tvpal_stream_around(const struct tvpal_stream *s)
@@ -1154,6 +1227,9 @@ int tvpal_stream_kept(const struct tvpal_stream *s, uint32_t t)
 {
     if (!s->around || !s->kept)
         return 0;
+    if (s->ahead)   /* the steps after keep_t in its direction */
+        return s->keep_dir_neg ? t <= s->keep_t && s->keep_t - t <= s->around
+                               : t >= s->keep_t && t - s->keep_t <= s->around;
     return t <= s->keep_t ? s->keep_t - t <= s->around
                           : t - s->keep_t <= s->around;
 }
@@ -1181,11 +1257,12 @@ int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir,
     if (!w->started || t >= tvpal_shard_hdr(s->p[0].sh)->steps)
         return TVPAL_E_INVAL;
     pthread_mutex_lock(&w->mu);
+    if ((w->state == STAGER_IDLE || (w->keep && !w->next)) && w->have &&
+        w->staged_t == t) {             /* already there (a keep may go on) */
+        pthread_mutex_unlock(&w->mu);
+        return 0;
+    }
     if (w->state == STAGER_IDLE) {
-        if (w->have && w->staged_t == t) {  /* already there */
-            pthread_mutex_unlock(&w->mu);
-            return 0;
-        }
         /* Idle: the staging buffers are the caller's until it posts. */
         pthread_mutex_unlock(&w->mu);
         if (w->have)
@@ -1193,14 +1270,15 @@ int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir,
         stager_post(s, t, dir, alone);
         return 0;
     }
-    if (w->state == STAGER_PENDING) {   /* not begun: take its place */
-        w->keep = 0;
-        w->cancel = 0;
+    if (w->state == STAGER_PENDING && !w->keep) { /* not begun: take its
+                                                  * place */
         w->t = t;
         w->dir = dir;
         w->alone = alone;
         w->next = 0;
-    } else {                            /* running: after it */
+    } else {        /* running, or a keep (which a step staged may
+                     * precede): after it, from the step shown */
+        w->keep_after = 0;
         w->next = 1;
         w->next_t = t;
         w->next_dir = dir;
@@ -1228,7 +1306,8 @@ int tvpal_stream_ready(struct tvpal_stream *s, uint32_t t, double wait_ms)
     /* A job for t still to finish (or t after the job running) is
      * waited for; anything else staged will not become t. */
     int ready;
-    while (!(ready = w->state == STAGER_IDLE && w->have && w->staged_t == t) &&
+    while (!(ready = (w->state == STAGER_IDLE || (w->keep && !w->next)) &&
+                     w->have && w->staged_t == t) &&
            wait_ms > 0 && w->state != STAGER_IDLE && !(w->keep && !w->next) &&
            (w->next ? w->next_t : w->t) == t &&
            pthread_cond_timedwait(&w->cv, &w->mu, &until) == 0)
@@ -1327,7 +1406,8 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
     const uint32_t steps = tvpal_shard_hdr(s->p[0].sh)->steps;
     if (dir != 0 && !w->have && next >= 0 && next < steps && s->n) {
         stager_post(s, (uint32_t)next, dir, 0);
-        s->kept = s->around > 0;    /* its prefetch: the neighbourhood */
+        s->kept = s->around > 0 && !s->ahead; /* its prefetch: the
+                                               * neighbourhood */
         s->keep_t = (uint32_t)next;
     }
     return rc;

@@ -48,6 +48,10 @@ struct tvpal_stream;
 #define TVPAL_STREAM_STRICT_IO 2u     /* io_uring asked for but not
                                        * available is an error */
 #define TVPAL_STREAM_STRICT_DIRECT 4u /* O_DIRECT refused is an error */
+#define TVPAL_STREAM_KEEP_AHEAD 8u    /* keep_bytes: the steps kept lie
+                                       * ahead of the playhead only, in the
+                                       * keep's direction (a read-ahead for
+                                       * a disk slower than playback) */
 
 /* slabs[i] decodes a shard of the axis (borrowed, outlive the stream).
  * The stream owns its I/O backend of the given kind, so reads in flight
@@ -71,18 +75,25 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
                         uint64_t keep_bytes, unsigned policy,
                         struct tvpal_diag *diag);
 
-/* The steps kept on each side of the playhead (keep_bytes), 0: none. */
+/* The steps kept on each side of the playhead (keep_bytes; ahead: on
+ * one), 0: none. */
 unsigned tvpal_stream_around(const struct tvpal_stream *s);
 
 /* With a neighbourhood: the stager reads and checks, off the caller's
- * thread, the records of the steps within tvpal_stream_around of t that
- * are not held yet (nearest first), into buffers not shown or staged;
- * a later seek to any of those steps reads nothing.  Returns at once;
- * posted only when the stager is idle (a frame later is soon enough),
- * and cut short by the next seek, prepare or free.  1 when posted, 0
- * when not (busy, t's asked for already, or no neighbourhood), or
- * TVPAL_E_INVAL (t out of range). */
-int tvpal_stream_keep(struct tvpal_stream *s, uint32_t t);
+ * thread, the records of the steps within tvpal_stream_around of t (with
+ * TVPAL_STREAM_KEEP_AHEAD: t and those after it in direction dir) that
+ * are not held yet, nearest first, into buffers not shown or staged,
+ * a few records in flight at a time; a later seek to any of those steps
+ * reads nothing.  Returns at once: run when the stager is idle, or
+ * after the step it stages (which tvpal_stream_ready then reports
+ * meanwhile); not while a prepared jump waits to run; cut short by the
+ * next seek, prepare or free.  1 when set to run, 0 when not (busy, t's
+ * asked for already, or no neighbourhood), or TVPAL_E_INVAL (t out of
+ * range). */
+int tvpal_stream_keep(struct tvpal_stream *s, uint32_t t, int dir);
+
+/* 1 while the stager works (a step staged, a keep), 0 when idle. */
+int tvpal_stream_busy(struct tvpal_stream *s);
 
 /* 1 when step t lies within the neighbourhood last asked for (a keep or
  * a seek's prefetch): a seek to it reads nothing once that job is done. */
