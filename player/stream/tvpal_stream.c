@@ -43,7 +43,9 @@ struct part {                /* one shard */
     int *bad;                /* in-core, per step: 0, the errno of a failed
                               * read, or (< 0) the code of a failed check */
     struct slot *slots;
-    unsigned nslots;
+    unsigned nslots;         /* in use: nslots_all, or ahead (until a
+                              * keep) those of plain streaming */
+    unsigned nslots_all;
     uint64_t steady_bytes;   /* the largest record after record 0 */
 };
 
@@ -96,7 +98,11 @@ struct tvpal_stream {
                                   * playhead (tvpal_stream_create's
                                   * keep_bytes; 0: none), or with ahead
                                   * beyond it in the keep's direction */
-    int ahead;                   /* TVPAL_STREAM_KEEP_AHEAD */
+    int ahead;                   /* TVPAL_STREAM_KEEP_AHEAD, */
+    int ahead_on;                /* and a keep asked for since: the steps
+                                  * ahead are wanted (set once by the
+                                  * caller, read by the stager too:
+                                  * __atomic, relaxed) */
     unsigned keep_dir_neg;       /* the last keep was backwards (ahead) */
     unsigned keep_cap;           /* a keep job's pieces in flight, most */
     uint32_t *want;              /* scratch: wanted_steps' list */
@@ -379,7 +385,7 @@ static uint64_t steady_record_bytes(const struct tvpal_shard *sh)
  * + 1 (the step staged). */
 static int alloc_slots(struct part *p, unsigned nslots)
 {
-    p->nslots = nslots;
+    p->nslots = p->nslots_all = nslots;
     p->steady_bytes = steady_record_bytes(p->sh);
     if (!(p->slots = calloc(p->nslots, sizeof *p->slots)))
         return TVPAL_E_NOMEM;
@@ -396,7 +402,7 @@ static void register_table(struct tvpal_stream *s)
 {
     unsigned n = 0;
     for (unsigned i = 0; i < s->n; i++)
-        for (unsigned k = 0; k < s->p[i].nslots; k++)
+        for (unsigned k = 0; k < s->p[i].nslots_all; k++)
             s->p[i].slots[k].fx = n++;
     struct tvpal_diag d = {{0}};
     if (n && tvpal_io_register(s->io, n, &d) < 0)
@@ -519,6 +525,11 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
                                          : 2 * s->around + 2 * h->window;
         rc = incore ? load_incore(s, p, diag)
                     : alloc_slots(p, 2 * h->window + 2 * prefetch + 1 + kept);
+        /* Ahead, the read-ahead's buffers are used from its first keep
+         * on: a buffer's first read faults in and pins its pages (see
+         * victim), which jumps would otherwise spread over all of them. */
+        if (rc == 0 && !incore && s->ahead)
+            p->nslots = 2 * h->window + 2 * prefetch + 1;
         /* The slices show their indices where the records are, not a
          * copy: in-core in RAM for as long as the stream; streamed in the
          * record buffers, which are not reused while a slice shows or
@@ -589,7 +600,7 @@ void tvpal_stream_free(struct tvpal_stream *s)
             close(p->fd);
         free(p->all);
         free(p->bad);
-        for (unsigned k = 0; p->slots && k < p->nslots; k++)
+        for (unsigned k = 0; p->slots && k < p->nslots_all; k++)
             free(p->slots[k].buf);
         free(p->slots);
     }
@@ -769,9 +780,13 @@ static void wanted_steps(const struct tvpal_stream *s, const struct part *p,
             }
         return;
     }
-    /* The prefetch window, or ahead the kept steps (the records of the
-     * steps after t: each starts the windows t + k shows new). */
-    const unsigned far = s->around ? s->around : s->prefetch;
+    /* The prefetch window, or ahead, once a keep was asked for, the
+     * kept steps (the records of the steps after t: each starts the
+     * windows t + k shows new).  Until then a stream with a read-ahead
+     * wants what one without it wants. */
+    const int on = __atomic_load_n(&s->ahead_on, __ATOMIC_RELAXED);
+    const unsigned far = on && s->around > s->prefetch ? s->around
+                                                       : s->prefetch;
     for (unsigned k = 1; k <= far && w->n < s->want_cap; k++) {
         int64_t q = (int64_t)t + (dir < 0 ? -(int64_t)k : (int64_t)k);
         if (q < 0 || q >= steps)
@@ -1027,8 +1042,9 @@ static int keep_cancelled(struct stager *w)
 }
 
 /* The stager's keep job (tvpal_stream_keep): the records of the steps
- * within s->around of t read into buffers not shown or staged, then
- * checked, so that a seek to any of them only applies.  Stops early when
+ * within s->around of t (ahead: after t in direction dir) read into
+ * buffers not shown or staged, then (around) checked, so that a seek to
+ * any of them only applies.  Stops early when
  * cancelled; its reads still in flight then land at a later wait.  A
  * failed read or check frees the slot: the seek that needs the record
  * reads it again and reports it, as in plain streaming. */
@@ -1036,6 +1052,8 @@ static void keep_around(struct tvpal_stream *s, uint32_t t, int dir)
 {
     struct tvpal_stream_stats st = {0};
     struct tvpal_diag d = {{0}};
+    for (unsigned pi = 0; pi < s->n; pi++)  /* the stager's thread: */
+        s->p[pi].nslots = s->p[pi].nslots_all; /* no seek runs now */
     for (unsigned pi = 0; pi < s->n && !keep_cancelled(&s->w); pi++) {
         struct want w;
         wanted_steps(s, &s->p[pi], t, dir, &w);
@@ -1065,7 +1083,10 @@ static void keep_around(struct tvpal_stream *s, uint32_t t, int dir)
     while (tvpal_io_inflight(s->io) && !keep_cancelled(&s->w))
         if (reap(s, NULL, &d) < 0)
             return;
-    for (unsigned pi = 0; pi < s->n; pi++) {
+    /* Ahead, a record is checked as it is staged (one pass over it,
+     * stage_checked); around, a jump applies it on the caller's thread,
+     * so it is checked here. */
+    for (unsigned pi = 0; pi < s->n && !s->ahead; pi++) {
         struct part *p = &s->p[pi];
         for (unsigned k = 0; k < p->nslots && !keep_cancelled(&s->w); k++) {
             struct slot *sl = &p->slots[k];
@@ -1180,6 +1201,8 @@ int tvpal_stream_keep(struct tvpal_stream *s, uint32_t t, int dir)
         return TVPAL_E_INVAL;
     dir = dir < 0 ? -1 : 1;
     int posted = 0;
+    if (s->ahead)
+        __atomic_store_n(&s->ahead_on, 1, __ATOMIC_RELAXED);
     pthread_mutex_lock(&w->mu);
     if (s->kept && s->keep_t == t && s->keep_dir_neg == (dir < 0)) {
         /* asked for already */
