@@ -1096,6 +1096,18 @@ static void keep_around(struct tvpal_stream *s, uint32_t t, int dir)
     }
 }
 
+/* With w->mu held: the stager's next job is the keep of t in direction
+ * dir. */
+static void keep_post(struct stager *w, uint32_t t, int dir)
+{
+    w->keep = 1;
+    w->cancel = 0;
+    w->t = t;
+    w->keep_dir = dir;
+    w->state = STAGER_PENDING;
+    pthread_cond_broadcast(&w->cv);
+}
+
 /* After a job, with w->mu held: a step posted meanwhile
  * (tvpal_stream_prepare) is run next, from the step the slabs show. */
 static void run_next(struct tvpal_stream *s)
@@ -1161,12 +1173,7 @@ static void *stager_main(void *arg)
             /* The step is staged (tvpal_stream_ready says so); the keep
              * asked for meanwhile runs now, cut short by the next seek. */
             w->keep_after = 0;
-            w->keep = 1;
-            w->cancel = 0;
-            w->t = w->keep_after_t;
-            w->keep_dir = w->keep_after_dir;
-            w->state = STAGER_PENDING;
-            pthread_cond_broadcast(&w->cv);
+            keep_post(w, w->keep_after_t, w->keep_after_dir);
             continue;
         }
         w->state = STAGER_IDLE;
@@ -1207,12 +1214,7 @@ int tvpal_stream_keep(struct tvpal_stream *s, uint32_t t, int dir)
     if (s->kept && s->keep_t == t && s->keep_dir_neg == (dir < 0)) {
         /* asked for already */
     } else if (w->state == STAGER_IDLE) {
-        w->keep = 1;
-        w->cancel = 0;
-        w->t = t;
-        w->keep_dir = dir;
-        w->state = STAGER_PENDING;
-        pthread_cond_broadcast(&w->cv);
+        keep_post(w, t, dir);
         posted = 1;
     } else if (!w->keep && !w->next) {
         /* A step being staged: after it (the frame's own comes first). */
