@@ -99,7 +99,9 @@ enum tvpal_param {
                                * chunk 16-bit where that costs less than
                                * 1e-4 of its error; default), _FLOAT32, _UINT16 */
     TVPAL_PARAM_REFINE,       /* Lloyd-Max refinement passes, 0..64;
-                               * default 0 */
+                               * default 0 (from the DCT code and from
+                               * k-means++ seeds: the better after two
+                               * passes goes on) */
     TVPAL_PARAM_TRANSFORM,    /* TVPAL_TRANSFORM_DCT (default) or _KLT
                                * (needs a build with LAPACK) */
     TVPAL_PARAM_ALLOC,        /* TVPAL_ALLOC_VARIANCE (default) or

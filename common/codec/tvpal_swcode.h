@@ -63,10 +63,17 @@ int tvpal_swenc_encode(struct tvpal_swenc *e, const float *samples,
 /* --refine: after the DCT/Lloyd-Max code, up to `iterations` (0..
  * TVPAL_REFINE_MAX) of generalized Lloyd (k-means) on the voxels' time
  * series, seeded with the 256 codewords; stops early when no voxel moves.
- * The decoder format is unchanged.  Allocates its scratch here, not per
- * slice. */
+ * It starts from k-means++ seeds too (drawn from an even sample of the
+ * voxels): both starts run two iterations, and the one that errs less
+ * then goes on alone (so the code errs less than the DCT start's after
+ * two; tvpal_swenc_set_kpp(e, 0) asks for the DCT start alone, for
+ * comparisons); tvpal_swenc_kpp_kept counts the slice-windows where the
+ * k-means++ start won.  The decoder format is unchanged.  Allocates its scratch here,
+ * not per slice. */
 #define TVPAL_REFINE_MAX 64
 int tvpal_swenc_set_refine(struct tvpal_swenc *e, unsigned iterations);
+void tvpal_swenc_set_kpp(struct tvpal_swenc *e, int on);
+uint64_t tvpal_swenc_kpp_kept(const struct tvpal_swenc *e);
 
 /* The paper's naive variant, as a floor for comparisons: uniform
  * quantizers instead of Lloyd-Max, and decoder tables holding the inverse
@@ -88,7 +95,8 @@ int tvpal_swenc_set_klt(struct tvpal_swenc *e, int klt);
 int tvpal_swenc_set_alloc_mse(struct tvpal_swenc *e, int on);
 
 /* Squared error (summed over voxels and timesteps) before refinement and
- * after each iteration of the last encode; returns the count (0 without
+ * after each iteration of the last encode, from the start kept (the DCT
+ * code, or the k-means++ seeds); returns the count (0 without
  * refinement). */
 unsigned tvpal_swenc_refine_sse(const struct tvpal_swenc *e, double *sse);
 
