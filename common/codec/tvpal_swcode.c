@@ -101,6 +101,35 @@ static double code_sse(const float *samples, size_t nvox, unsigned len,
 
 static int cmp_cd0(const struct tvpal_swenc *e, unsigned i, unsigned j);
 
+/* e->ord (a permutation of the codewords) sorted by cd[.][0], ties by
+ * index: an insertion sort of 256 entries, mostly ordered already after
+ * refine's first iteration. */
+static void sort_codewords(struct tvpal_swenc *e)
+{
+    for (unsigned a = 1; a < TVPAL_TABLE_ENTRIES; a++) {
+        unsigned key = e->ord[a], b = a;
+        while (b > 0 && cmp_cd0(e, e->ord[b - 1], key) > 0) {
+            e->ord[b] = e->ord[b - 1];
+            b--;
+        }
+        e->ord[b] = key;
+    }
+}
+
+/* The position in e->ord of the first codeword with cd0 >= x0 (256: none). */
+static unsigned first_at_least(const struct tvpal_swenc *e, double x0)
+{
+    unsigned lo = 0, hi = TVPAL_TABLE_ENTRIES;
+    while (lo < hi) {
+        unsigned mid = (lo + hi) / 2;
+        if (e->cd[e->ord[mid]][0] < x0)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
 /* The voxel vectors in the DCT domain, voxel-major, into e->xd (refine's
  * and kpp_seed's input). */
 static void voxel_dcts(struct tvpal_swenc *e, const float *samples,
@@ -166,24 +195,10 @@ static void kpp_seed(struct tvpal_swenc *e, size_t nvox, unsigned L,
      * search at once). */
     for (unsigned i = 0; i < K; i++)
         e->ord[i] = i;
-    for (unsigned a = 1; a < K; a++) {
-        unsigned key = e->ord[a], b = a;
-        while (b > 0 && cmp_cd0(e, e->ord[b - 1], key) > 0) {
-            e->ord[b] = e->ord[b - 1];
-            b--;
-        }
-        e->ord[b] = key;
-    }
+    sort_codewords(e);
     for (size_t v = 0; v < nvox; v++) {
         const double x0 = e->xd[v * L];
-        unsigned lo = 0, hi = K;
-        while (lo < hi) {
-            unsigned mid = (lo + hi) / 2;
-            if (e->cd[e->ord[mid]][0] < x0)
-                lo = mid + 1;
-            else
-                hi = mid;
-        }
+        unsigned lo = first_at_least(e, x0);
         if (lo == K || (lo > 0 && x0 - e->cd[e->ord[lo - 1]][0] <
                                       e->cd[e->ord[lo]][0] - x0))
             lo--;
@@ -222,16 +237,7 @@ static int refine(struct tvpal_swenc *e, const float *samples, size_t nvox,
             tvpal_dct_forward(L, c, e->cd[i]);
             e->ord[i] = i;
         }
-        /* Insertion sort by cd0 (ties by index): 256 entries, mostly
-         * ordered already after the first iteration. */
-        for (unsigned a = 1; a < K; a++) {
-            unsigned key = e->ord[a], b = a;
-            while (b > 0 && cmp_cd0(e, e->ord[b - 1], key) > 0) {
-                e->ord[b] = e->ord[b - 1];
-                b--;
-            }
-            e->ord[b] = key;
-        }
+        sort_codewords(e);
         unsigned changed = 0;
         for (size_t v = 0; v < nvox; v++) {
             const double *x = xd + v * L;
@@ -242,14 +248,7 @@ static int refine(struct tvpal_swenc *e, const float *samples, size_t nvox,
                 bd += d * d;
             }
             /* First codeword with cd0 >= x0, then outward. */
-            unsigned lo = 0, hi = K;
-            while (lo < hi) {
-                unsigned mid = (lo + hi) / 2;
-                if (e->cd[e->ord[mid]][0] < x[0])
-                    lo = mid + 1;
-                else
-                    hi = mid;
-            }
+            const unsigned lo = first_at_least(e, x[0]);
             int up = (int)lo, dn = (int)lo - 1;
             while (up < (int)K || dn >= 0) {
                 int pick;
