@@ -6,8 +6,9 @@
  * step are in memory, or arrive within the frame's slack.  Otherwise (a
  * jump, or reads fallen behind the clock) the frame draws at once the
  * finest coarser level whose reads fit the frame's budget at the read
- * rate measured so far (the coarser levels are in RAM, play_levels.c, so
- * in practice the next coarser one), and the full level's player prepares,
+ * rate measured so far (the coarser levels are in RAM, play_levels.c, or
+ * their steps around the playhead are, play_prog_keep: so in practice the
+ * next coarser one), and the full level's player prepares,
  * off the frame's thread, the step steady playback reaches when those
  * reads are expected done, d frames on.  The frames until then draw the
  * coarser level; the frame at that step the full one, its prepared
