@@ -79,7 +79,7 @@ struct tvpal_player *play_level_player(struct play_session *s, unsigned k)
          * of a quarter of the machine's memory), the levels together
          * within it; an axis that does not fit is streamed, keeping the
          * steps around the playhead within that memory (kept by
-         * play_prog_frame as playback moves): a jump near the slider
+         * play_prog_keep as playback moves): a jump near the slider
          * still reads nothing. */
         const uint64_t all = play_levels_memory(s->o);
         po.keep_ahead = 0;
