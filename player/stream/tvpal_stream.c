@@ -1191,6 +1191,10 @@ static void stager_wait(struct tvpal_stream *s)
     if (!w->started)
         return;
     pthread_mutex_lock(&w->mu);
+    /* A keep not run, or cut short, is asked for again by the next
+     * tvpal_stream_keep of its step (it reads what is missing). */
+    if (w->keep_after || (w->keep && w->state != STAGER_IDLE))
+        s->kept = 0;
     w->keep_after = 0;
     if (w->keep && w->state != STAGER_IDLE)
         w->cancel = 1;
@@ -1303,6 +1307,8 @@ int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir,
         w->next = 0;
     } else {        /* running, or a keep (which a step staged may
                      * precede): after it, from the step shown */
+        if (w->keep_after || w->keep)
+            s->kept = 0;    /* cut short: asked for again later */
         w->keep_after = 0;
         w->next = 1;
         w->next_t = t;
