@@ -56,6 +56,13 @@ static double level_reads_ms(const struct play_prog *p,
     return (double)d[0] * d[1] * d[2] / p->rate;
 }
 
+/* Whether the full level reads ahead once reads have fallen behind
+ * (play_prog_keep): playing, with a clock to fall behind. */
+static int reads_ahead(const struct play_prog *p, int dir)
+{
+    return p->period_ms > 0 && dir != 0;
+}
+
 /* The budget one frame's reads are planned against: the clock's period,
  * else a steady frame's measured time, else --budget-ms. */
 static double frame_budget(const struct play_prog *p)
@@ -146,9 +153,11 @@ static int start_refine(struct play_prog *p, struct play_session *s,
      * last plan missed by: the stager may still be busy with a steady
      * step's reads (and their prefetch) when asked. */
     uint32_t run = jump || dir == 0 ? 0 : s->o->po.prefetch;
-    if (run) {
-        /* The full level reads ahead (play_prog_keep): the run is
-         * planned for what it keeps. */
+    if (run && reads_ahead(p, dir)) {
+        /* The full level reads ahead (play_prog_keep, from this stall
+         * on): the run is planned for what it keeps.  Without a clock
+         * (the window without --fps) it does not, and the run is the
+         * prefetch's. */
         const unsigned ahead = tvpal_player_kept(play_level_player(s, full),
                                                  vf, t, NULL);
         run = ahead > run ? ahead : run;
@@ -289,7 +298,7 @@ void play_prog_keep(struct play_prog *p, struct play_session *s,
     /* The full level reads ahead once reads have fallen behind the
      * clock: from the step a refinement plans for, else from this one. */
     struct tvpal_player *pf = s->lvl[full];
-    if (!pf || !p->stalls || dir == 0 || p->period_ms <= 0)
+    if (!pf || !p->stalls || !reads_ahead(p, dir))
         return;
     play_level_view(s, full, v0, &vk);
     const uint32_t from = p->active ? p->target : t;

@@ -260,11 +260,19 @@ int tvpal_player_keep(struct tvpal_player *p, const struct tvpal_view *v,
     return rc;
 }
 
+/* The stream of view v's data axis when it is open, else NULL (the
+ * queries below open nothing). */
+static struct tvpal_stream *open_stream(const struct tvpal_player *p,
+                                        const struct tvpal_view *v)
+{
+    const int da = v->axis <= 2 ? data_axis(p, v->axis) : -1;
+    return da >= 0 ? p->ax[da].stream : NULL;
+}
+
 unsigned tvpal_player_kept(const struct tvpal_player *p,
                            const struct tvpal_view *v, uint32_t t, int *near)
 {
-    const int da = v->axis <= 2 ? data_axis(p, v->axis) : -1;
-    const struct tvpal_stream *s = da >= 0 ? p->ax[da].stream : NULL;
+    const struct tvpal_stream *s = open_stream(p, v);
     if (near)
         *near = s && tvpal_stream_kept(s, t);
     return s ? tvpal_stream_around(s) : 0;
@@ -272,16 +280,15 @@ unsigned tvpal_player_kept(const struct tvpal_player *p,
 
 int tvpal_player_busy(struct tvpal_player *p, const struct tvpal_view *v)
 {
-    const int da = v->axis <= 2 ? data_axis(p, v->axis) : -1;
-    return da >= 0 && p->ax[da].stream && tvpal_stream_busy(p->ax[da].stream);
+    struct tvpal_stream *s = open_stream(p, v);
+    return s && tvpal_stream_busy(s);
 }
 
 int tvpal_player_ready(struct tvpal_player *p, const struct tvpal_view *v,
                        uint32_t t, double wait_ms)
 {
-    const int da = v->axis <= 2 ? data_axis(p, v->axis) : -1;
-    return da >= 0 && p->ax[da].stream &&
-           tvpal_stream_ready(p->ax[da].stream, t, wait_ms);
+    struct tvpal_stream *s = open_stream(p, v);
+    return s && tvpal_stream_ready(s, t, wait_ms);
 }
 
 uint64_t tvpal_player_io_submits(const struct tvpal_player *p)

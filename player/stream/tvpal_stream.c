@@ -107,7 +107,8 @@ struct tvpal_stream {
     unsigned keep_cap;           /* a keep job's pieces in flight, most */
     uint32_t *want;              /* scratch: wanted_steps' list */
     int kept;                    /* the neighbourhood of keep_t was asked
-                                  * for (tvpal_stream_keep, a seek) */
+                                  * for (tvpal_stream_keep; a seek's
+                                  * prefetch is its P nearest only) */
     uint32_t keep_t;
     unsigned want_cap;
     uint64_t ahead_bytes;        /* a step's reads in flight (read_ahead) */
@@ -434,12 +435,9 @@ static void fill_slot(struct tvpal_stream *s, struct part *p, struct slot *sl)
  * 2N + 2P + 1 of plain streaming and the N shown after a jump away; 0
  * when not even one more step fits. */
 static unsigned around_of(const struct tvpal_stream *s, uint64_t keep_bytes,
-                          int ahead)
+                          uint64_t step_bytes, int ahead)
 {
-    uint64_t step_bytes = 0;
     const struct tvpal_shard_header *h = tvpal_shard_hdr(s->p[0].sh);
-    for (unsigned i = 0; i < s->n; i++)
-        step_bytes += steady_record_bytes(s->p[i].sh);
     if (!keep_bytes || !step_bytes)
         return 0;
     const uint64_t fit = keep_bytes / step_bytes,
@@ -497,15 +495,18 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
     }
     if (!incore && nslabs > 0) {
         const unsigned win = tvpal_shard_hdr(s->p[0].sh)->window;
+        /* A step's records over the shards (the largest after record 0
+         * of each). */
+        uint64_t step_bytes = 0;
+        for (unsigned i = 0; i < nslabs; i++)
+            step_bytes += steady_record_bytes(s->p[i].sh);
         s->ahead = (policy & TVPAL_STREAM_KEEP_AHEAD) != 0;
-        s->around = prefetch > 0 ? around_of(s, keep_bytes, s->ahead) : 0;
+        s->around = prefetch > 0 ? around_of(s, keep_bytes, step_bytes,
+                                             s->ahead) : 0;
         /* A keep job's reads in flight at once: two records of a step
          * (at least 8 MiB).  Queued further, they would be read even when
          * the steps they are for are skipped (a slow disk's catch-up),
          * before what the next plan needs. */
-        uint64_t step_bytes = 0;
-        for (unsigned i = 0; i < nslabs; i++)
-            step_bytes += steady_record_bytes(s->p[i].sh);
         const uint64_t cap = (2 * step_bytes + PIECE - 1) / PIECE;
         s->keep_cap = cap < 8 ? 8 : cap > 192 ? 192 : (unsigned)cap;
         s->want_cap = 16 + prefetch + (s->around ? 2 * s->around + win : 0);
@@ -1108,6 +1109,21 @@ static void keep_post(struct stager *w, uint32_t t, int dir)
     pthread_cond_broadcast(&w->cv);
 }
 
+/* With w->mu held, on the caller's thread: a keep waiting to run after a
+ * staged step is dropped and one running is cut short; either is asked
+ * for again by the next tvpal_stream_keep of its step (which reads what
+ * is missing). */
+static void keep_drop(struct tvpal_stream *s)
+{
+    struct stager *w = &s->w;
+    const int running = w->keep && w->state != STAGER_IDLE;
+    if (w->keep_after || running)
+        s->kept = 0;
+    w->keep_after = 0;
+    if (running)
+        w->cancel = 1;
+}
+
 /* After a job, with w->mu held: a step posted meanwhile
  * (tvpal_stream_prepare) is run next, from the step the slabs show. */
 static void run_next(struct tvpal_stream *s)
@@ -1191,13 +1207,7 @@ static void stager_wait(struct tvpal_stream *s)
     if (!w->started)
         return;
     pthread_mutex_lock(&w->mu);
-    /* A keep not run, or cut short, is asked for again by the next
-     * tvpal_stream_keep of its step (it reads what is missing). */
-    if (w->keep_after || (w->keep && w->state != STAGER_IDLE))
-        s->kept = 0;
-    w->keep_after = 0;
-    if (w->keep && w->state != STAGER_IDLE)
-        w->cancel = 1;
+    keep_drop(s);
     while (w->state != STAGER_IDLE)
         pthread_cond_wait(&w->cv, &w->mu);
     pthread_mutex_unlock(&w->mu);
@@ -1307,9 +1317,7 @@ int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir,
         w->next = 0;
     } else {        /* running, or a keep (which a step staged may
                      * precede): after it, from the step shown */
-        if (w->keep_after || w->keep)
-            s->kept = 0;    /* cut short: asked for again later */
-        w->keep_after = 0;
+        keep_drop(s);
         w->next = 1;
         w->next_t = t;
         w->next_dir = dir;
@@ -1435,12 +1443,8 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
     if (w->have && (int64_t)w->staged_t != next)
         unstage_all(s);
     const uint32_t steps = tvpal_shard_hdr(s->p[0].sh)->steps;
-    if (dir != 0 && !w->have && next >= 0 && next < steps && s->n) {
+    if (dir != 0 && !w->have && next >= 0 && next < steps && s->n)
         stager_post(s, (uint32_t)next, dir, 0);
-        s->kept = s->around > 0 && !s->ahead; /* its prefetch: the
-                                               * neighbourhood */
-        s->keep_t = (uint32_t)next;
-    }
     return rc;
 }
 

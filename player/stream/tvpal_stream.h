@@ -95,8 +95,9 @@ int tvpal_stream_keep(struct tvpal_stream *s, uint32_t t, int dir);
 /* 1 while the stager works (a step staged, a keep), 0 when idle. */
 int tvpal_stream_busy(struct tvpal_stream *s);
 
-/* 1 when step t lies within the neighbourhood last asked for (a keep or
- * a seek's prefetch): a seek to it reads nothing once that job is done. */
+/* 1 when step t lies within the neighbourhood the last tvpal_stream_keep
+ * asked for (not cut short since): a seek to it reads nothing once that
+ * job is done. */
 int tvpal_stream_kept(const struct tvpal_stream *s, uint32_t t);
 
 /* What a stream really does: its backend ("uring" or "pread"), on how
