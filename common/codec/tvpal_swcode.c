@@ -148,8 +148,9 @@ static void voxel_dcts(struct tvpal_swenc *e, const float *samples,
  * KPP_SAMPLE voxel vectors, each next one with probability proportional
  * to its squared distance from those drawn (a sample all drawn or all at
  * distance 0 repeats the last).  Deterministic: xorshift from the
- * slice-window's size.  The codewords go to table (time domain) and every
- * voxel's index to 0: refine's first pass assigns them. */
+ * slice-window's size.  The codewords go to table (time domain), and
+ * each voxel's index to the codeword nearest it in coefficient 0: refine's
+ * first pass finds its nearest from there. */
 static void kpp_seed(struct tvpal_swenc *e, size_t nvox, unsigned L,
                      uint8_t *idx, float *table)
 {
