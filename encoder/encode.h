@@ -51,6 +51,8 @@ struct opts {
                                 * _CHUNK (--table auto, each chunk's own) */
     uint32_t refine;
     int naive, klt, alloc_mse;
+    int index_none;            /* --index-coding none */
+    uint32_t index_level;      /* --index-level (zstd) */
     int has_nan_as;
     double nan_as;
     double missing[TVPAL_MISSING_VALUES_MAX];   /* --missing V */

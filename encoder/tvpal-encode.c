@@ -26,6 +26,7 @@
 #include "encode_say.h"
 #include "encode_source.h"
 #include "tvpal_cli.h"
+#include "tvpal_chunkz.h"
 #include "tvpal_clock.h"
 #include "tvpal_comm.h"
 #include "tvpal_eig.h"
@@ -123,6 +124,14 @@ static void usage(FILE *f)
 "                         code and from k-means++ seeds (the better after 2\n"
 "                         goes on; 0..64, default 0): higher PSNR, same\n"
 "                         format\n"
+"      --index-coding C   zstd (default: each slice-window's table and\n"
+"                         indices stored as a zstd frame where that makes\n"
+"                         it smaller; the player inflates it as it reads\n"
+"                         it; datasets need tvpal 0.4.0 or later) or none\n"
+"                         (every slice-window stored plain, as before)\n"
+"      --index-level L    zstd level of --index-coding zstd, 1..19\n"
+"                         (default 3; higher: smaller files, slower\n"
+"                         encoding, the same reading speed)\n"
 "      --transform T      dct (default) or klt (per slice-window principal\n"
 "                         components, LAPACK)\n"
 "      --alloc A          bit allocation: variance (default, the paper's\n"
@@ -221,6 +230,11 @@ static const struct optspec {
      "1..1024"},
     {"table", OPT_LONG_ONLY + 1, OPT_TABLE, 0, 0, 0, {0},
      "f32, u16 or auto"},
+    {"index-coding", OPT_LONG_ONLY + 24, OPT_CHOICE,
+     offsetof(struct opts, index_none), 0, 0, {"zstd", "none"},
+     "zstd or none"},
+    {"index-level", OPT_LONG_ONLY + 25, OPT_U32,
+     offsetof(struct opts, index_level), 1, 19, {0}, "1..19"},
     {"refine", OPT_LONG_ONLY + 2, OPT_U32, offsetof(struct opts, refine), 0,
      TVPAL_REFINE_MAX, {0}, "0.." STR(TVPAL_REFINE_MAX)},
     {"naive", OPT_LONG_ONLY + 3, OPT_FLAG, offsetof(struct opts, naive), 0,
@@ -384,6 +398,7 @@ static int parse_options(int argc, char **argv, struct opts *o)
     char shortopts[2 * NOPTS + 1], *so = shortopts;
     int have_dims = 0, c;
     *o = (struct opts){.type = TVPAL_F32, .window = 4, .nodes = 1,
+                       .index_level = TVPAL_CHUNKZ_LEVEL,
                        .table_format = TVPAL_TABLE_CHUNK,
                        .checkpoint_every = 10,
                        .axes = ENCODE_AXES_DEFAULT};
@@ -478,12 +493,14 @@ static char *job_params(const struct opts *o, const struct tvpal_input *in)
     char *s = NULL, *t = NULL;
     int n = asprintf(&s, "table=%d refine=%u naive=%d klt=%d alloc=%d "
                      "dims=%ux%ux%u type=%s endian=%s window=%u nodes=%u "
-                     "steps=%u nan_as=%s%.17g", o->table_format, o->refine,
+                     "steps=%u nan_as=%s%.17g coding=%u", o->table_format,
+                     o->refine,
                      o->naive, o->klt, o->alloc_mse, o->dims[0], o->dims[1],
                      o->dims[2], tvpal_type_name(o->type),
                      o->big_endian ? "big" : "little", o->window, o->nodes,
                      o->steps_single, o->has_nan_as ? "" : "none:",
-                     o->has_nan_as ? o->nan_as : 0.0);
+                     o->has_nan_as ? o->nan_as : 0.0,
+                     o->index_none ? 0u : o->index_level);
     if (n < 0)
         return NULL;
     for (unsigned i = 0; i < o->nmissing; i++) {
@@ -964,6 +981,9 @@ static struct tvpal_encoder *open_encoder(struct run *r)
         {TVPAL_PARAM_WINDOW, o->window}, {TVPAL_PARAM_AXES, o->axes},
         {TVPAL_PARAM_NODES, o->nodes}, {TVPAL_PARAM_TABLE, o->table_format},
         {TVPAL_PARAM_REFINE, o->refine}, {TVPAL_PARAM_NAIVE, o->naive},
+        {TVPAL_PARAM_INDEX_LEVEL, o->index_level},
+        {TVPAL_PARAM_INDEX_CODING, o->index_none ? TVPAL_CODING_NONE
+                                                 : TVPAL_CODING_ZSTD},
         {TVPAL_PARAM_TRANSFORM, o->klt ? TVPAL_TRANSFORM_KLT
                                        : TVPAL_TRANSFORM_DCT},
         {TVPAL_PARAM_ALLOC, o->alloc_mse ? TVPAL_ALLOC_GREEDY_MSE

@@ -46,7 +46,7 @@ extern "C" {
 /* ---------------------------------------------------------------- version */
 
 #define TVPAL_VERSION_MAJOR 0
-#define TVPAL_VERSION_MINOR 3
+#define TVPAL_VERSION_MINOR 4
 #define TVPAL_VERSION_RELEASE 0
 /* 100 * (100 * MAJOR + MINOR) + RELEASE: 300 for 0.3.0.  History:
  *  0.1.0  the encoder from memory, the reader (open, info, decode);
@@ -133,12 +133,23 @@ enum tvpal_param {
                                * collective rank 0 encodes every node's
                                * levels and every push is collective (see
                                * there); default 0 */
-    TVPAL_PARAM_PROGRESS      /* seconds, 0.001..3600: the least time
+    TVPAL_PARAM_PROGRESS,     /* seconds, 0.001..3600: the least time
                                * between two calls of an encode's
                                * progress callback within a unit (struct
                                * tvpal_source); default 0.2.  Since
                                * 0.3.0 */
+    TVPAL_PARAM_INDEX_CODING, /* TVPAL_CODING_ZSTD (default): each chunk's
+                               * table and indices stored as a zstd frame
+                               * where that is smaller (a dataset readers
+                               * before 0.4.0 refuse); TVPAL_CODING_NONE:
+                               * plain, as before 0.4.0.  Since 0.4.0 */
+    TVPAL_PARAM_INDEX_LEVEL   /* the zstd level of TVPAL_CODING_ZSTD,
+                               * 1..19; default 3 (higher: smaller, slower
+                               * to encode, as fast to read).  Since
+                               * 0.4.0 */
 };
+#define TVPAL_CODING_NONE 0
+#define TVPAL_CODING_ZSTD 1
 #define TVPAL_TABLE_FLOAT32 0
 #define TVPAL_TABLE_UINT16 1
 #define TVPAL_TABLE_AUTO 4
@@ -645,9 +656,11 @@ TVPAL_API int tvpal_reader_decode(struct tvpal_reader *r, uint32_t t,
                                   struct tvpal_diag *diag);
 
 /* Where the bytes of one level go.  Per axis x, y, z (index 0, 1, 2; all
- * 0 for an axis not stored): its shards' bytes, and of them the 8-bit
- * indices (width * height per slice-window) and the decoder tables as the
- * chunks store them; the chunks by table format. */
+ * 0 for an axis not stored): its shards' bytes, the 8-bit indices (width *
+ * height per slice-window) and the decoder tables as the chunks hold them
+ * plain (with coded chunks, TVPAL_PARAM_INDEX_CODING, the file holds them
+ * in fewer bytes: then they may add up to more than axis_bytes); the
+ * chunks by table format. */
 struct tvpal_sizes {
     uint64_t axis_bytes[3];
     uint64_t index_bytes[3];

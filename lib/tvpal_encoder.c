@@ -12,6 +12,7 @@
  */
 #define _GNU_SOURCE
 #include "tvpal_encoder_impl.h"
+#include "tvpal_chunkz.h"
 
 #include "tvpal_checkpoint.h"
 #include "tvpal_dataset.h"
@@ -98,7 +99,7 @@ int tvpal_encoder_open(struct tvpal_encoder **out, const char *dir,
     e->ep = (struct tvpal_engine_params){
         .dims = {dims[0], dims[1], dims[2]}, .steps = steps, .window = 4,
         .axes = TVPAL_AXIS_Z, .nodes = 1, .node_first = 0, .node_count = 1,
-        .table_format = TVPAL_TABLE_CHUNK};
+        .table_format = TVPAL_TABLE_CHUNK, .index_level = TVPAL_CHUNKZ_LEVEL};
     for (int a = 0; a < 3; a++)
         e->spacing[a] = 1;
     e->coll = (struct tvpal_collective){0, 1, NULL, self_gather, self_bcast,
@@ -288,6 +289,23 @@ int tvpal_encoder_set(struct tvpal_encoder *e, enum tvpal_param param,
             name = "progress", range = "0.001..3600 seconds";
         else
             e->tick_seconds = value;
+        break;
+    case TVPAL_PARAM_INDEX_CODING:
+        if (value != TVPAL_CODING_NONE && value != TVPAL_CODING_ZSTD)
+            name = "index_coding", range = "TVPAL_CODING_NONE or _ZSTD";
+        else
+            p->index_level = value == TVPAL_CODING_NONE ? 0
+                           : e->index_level ? e->index_level
+                                            : TVPAL_CHUNKZ_LEVEL;
+        break;
+    case TVPAL_PARAM_INDEX_LEVEL:
+        if (!whole_in(value, 1, 19))
+            name = "index_level", range = "1..19";
+        else {
+            e->index_level = (int)value;
+            if (p->index_level)
+                p->index_level = (int)value;
+        }
         break;
     case TVPAL_PARAM_CHECKPOINT:
         if (!whole_in(value, 0, UINT32_MAX))
@@ -730,6 +748,8 @@ static int open_writers(struct tvpal_encoder *e, uint64_t done,
                                                    diag)
                       : tvpal_shardw_create_placed(&sj[q].w, path, &sj[q].h,
                                                    diag);
+        if (rc == 0)
+            tvpal_shardw_set_coding(sj[q].w, e->ep.index_level != 0);
         if (rc == 0 && done)
             rc = tvpal_engine_progress_restore(e->eng, q, &e->ckp, diag);
         if (rc < 0 && done && path) {
@@ -868,6 +888,10 @@ int tvpal_enc_open_level(struct tvpal_encoder *e, uint32_t k, int resume,
         {TVPAL_PARAM_WINDOW, p->window}, {TVPAL_PARAM_NODES, p->nodes},
         {TVPAL_PARAM_AXES, p->axes}, {TVPAL_PARAM_THREADS, e->threads},
         {TVPAL_PARAM_TABLE, p->table_format}, {TVPAL_PARAM_REFINE, p->refine},
+        {TVPAL_PARAM_INDEX_LEVEL, p->index_level ? p->index_level
+                                                 : TVPAL_CHUNKZ_LEVEL},
+        {TVPAL_PARAM_INDEX_CODING, p->index_level ? TVPAL_CODING_ZSTD
+                                                  : TVPAL_CODING_NONE},
         {TVPAL_PARAM_NAIVE, p->naive},
         {TVPAL_PARAM_TRANSFORM, p->klt ? TVPAL_TRANSFORM_KLT
                                        : TVPAL_TRANSFORM_DCT},

@@ -111,6 +111,9 @@ struct tvpal_encoder {
      * recount_to again without counting them (they are in st). */
     uint32_t ckpt_every;
     double tick_seconds;             /* TVPAL_PARAM_PROGRESS */
+    int index_level;                 /* TVPAL_PARAM_INDEX_LEVEL, 0: unset
+                                      * (ep.index_level: 0 with
+                                      * TVPAL_CODING_NONE) */
     int resuming;
     uint64_t done_local;             /* SETUP: what this rank's checkpoint
                                       * has done */

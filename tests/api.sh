@@ -15,7 +15,7 @@ R=$W/root
 install_lib || { fail "make install of the library, with tvpal.pc"; finish; }
 pcflags=$(pkg-config --cflags tvpal) && plibs=$(pkg-config --libs tvpal) ||
     { fail "pkg-config --cflags --libs tvpal"; finish; }
-[ "$(pkg-config --modversion tvpal)" = 0.3.0 ] && ok "pkg-config: tvpal 0.3.0" ||
+[ "$(pkg-config --modversion tvpal)" = 0.4.0 ] && ok "pkg-config: tvpal 0.4.0" ||
     fail "pkg-config --modversion: $(pkg-config --modversion tvpal)"
 so=$(ls "$libdir"/libtvpal.so.0* 2>/dev/null | head -n 1)
 [ -n "$so" ] || fail "no libtvpal.so.0 installed in $libdir"
@@ -81,7 +81,7 @@ expect_exit 2 "heat.ds names no source \(encoded from memory\?\): give the origi
     awk -F'psnr=' '{split($2, a, " "); exit !(a[1] + 0 > 30)}' "$W/rep.txt" &&
     ok "tvpal-report against the dumps: $(grep -o 'psnr=[^ ]*' "$W/rep.txt")" ||
     fail "tvpal-report --reference the dumps: $(cat "$W/rep.txt")"
-grep -q "^encoder = libtvpal 0.3.0" "$W/heat.ds/manifest.txt" &&
+grep -q "^encoder = libtvpal 0.4.0" "$W/heat.ds/manifest.txt" &&
     grep -q "^units = K" "$W/heat.ds/manifest.txt" &&
     grep -q "^time_units = seconds" "$W/heat.ds/manifest.txt" &&
     ok "manifest: encoder, units, time units" || fail "manifest: $(head -c 600 "$W/heat.ds/manifest.txt")"

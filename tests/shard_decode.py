@@ -4,7 +4,9 @@ written from common/format/FORMAT.md alone (numpy, no tvpal code): it walks
 every record of a shard by the chunk headers, stores each chunk's decoder
 table as the chunk says it is stored (6.7: float32, or 16-bit decoded as
 float32(tmin + float32(q * tscale)); table_format 4 and 5 by the chunk's
-flags bit 1) and rebuilds the volume of every step.
+flags bit 1), inflates a coded chunk (6.11: flags bit 2, a zstd frame,
+decompressed by the zstd command-line tool, then the delta transform
+undone) and rebuilds the volume of every step.
 
     shard_decode.py DATASET AXIS     prints, per step, the SHA-256 of the
                                      decoded float32 volume (x fastest), as
@@ -16,6 +18,7 @@ checking.
 """
 import hashlib
 import struct
+import subprocess
 import sys
 
 import numpy as np
@@ -36,6 +39,24 @@ def entry_bytes(tf, flags):
     if tf in (1, 3) or (tf in (4, 5) and flags & 2):
         return 2
     return 4
+
+
+def inflate(frame, n, e, wh):
+    """A coded chunk's table bytes (n entries of e bytes, little-endian) and
+    indices (wh bytes) from its zstd frame (FORMAT.md 6.11)."""
+    raw = subprocess.run(["zstd", "-d", "-c", "-q"], input=frame,
+                         stdout=subprocess.PIPE, check=True).stdout
+    assert len(raw) == n * e + wh, (len(raw), n * e + wh)
+    planes = np.frombuffer(raw[:n * e], np.uint8).reshape(e, n).astype(np.uint64)
+    d = sum(planes[b] << np.uint64(8 * b) for b in range(e))
+    mod = np.uint64(1 << (8 * e)) if e < 8 else None
+    d = d.reshape(n // 256, 256)
+    d[0] = np.cumsum(d[0]) % mod               # row 0: along the index
+    ent = np.cumsum(d, axis=0) % mod           # rows: along time
+    table = ent.astype("<u4" if e == 4 else "<u2").tobytes()
+    idx = (np.cumsum(np.frombuffer(raw[n * e:], np.uint8).astype(np.uint64))
+           % 256).astype(np.uint8).tobytes()
+    return table, idx
 
 
 def chunks(ds, axis):
@@ -59,6 +80,11 @@ def chunks(ds, axis):
                 e = entry_bytes(tf, flags)
                 n = wl * 256
                 raw = b[pos + 64:pos + 64 + n * e]
+                ia = pos + 64 + n * e
+                ib = b[ia:ia + w * h]
+                if flags & 4:
+                    coded, = struct.unpack_from("<I", b, pos + 56)
+                    raw, ib = inflate(b[pos + 64:pos + 64 + coded], n, e, w * h)
                 if e == 4:
                     table = np.frombuffer(raw, "<f4").astype(np.float32)
                 else:
@@ -68,12 +94,17 @@ def chunks(ds, axis):
                     table = (np.float32(tmin) + p).astype(np.float32)
                     if tf in (3, 5) and flags & 1:
                         table[q == 65535] = np.float32(np.nan)
-                ia = pos + 64 + n * e
-                idx = np.frombuffer(b[ia:ia + w * h], np.uint8).reshape(h, w)
-                out.append(dict(slice=s, wstart=ws, wlen=wl, flags=flags,
+                idx = np.frombuffer(ib, np.uint8).reshape(h, w)
+                # flags: the plain chunk's (bit 2, coded, cleared); coded:
+                # whether it was stored coded.
+                out.append(dict(slice=s, wstart=ws, wlen=wl, flags=flags & ~4,
+                                coded=bool(flags & 4),
                                 table_format=tf, u16=(e == 2),
                                 table=table.reshape(wl, 256), idx=idx))
-                pos += 64 + n * e + (w * h + 63) // 64 * 64
+                if flags & 4:
+                    pos += 64 + (coded + 63) // 64 * 64
+                else:
+                    pos += 64 + n * e + (w * h + 63) // 64 * 64
     return out
 
 

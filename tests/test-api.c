@@ -969,9 +969,13 @@ static void check_describe_and_sizes(struct tvpal_reader *r, const char *dir)
           "chunks: %llu + %llu on x, %llu expected",
           (unsigned long long)z0.chunks_f32[0],
           (unsigned long long)z0.chunks_u16[0], (unsigned long long)wx);
+    /* Coded chunks (the default): the plain indices and tables are more
+     * than what the file holds of them on x, where they compress enough to
+     * save whole pages (z's 4 records of a page or two each do not). */
     for (unsigned a = 0; a < 3; a += 2)
         CHECK(z0.table_bytes[a] > 0 &&
-                  z0.index_bytes[a] + z0.table_bytes[a] < z0.axis_bytes[a],
+                  (a != 0 || z0.index_bytes[a] + z0.table_bytes[a] >
+                                 z0.axis_bytes[a]),
               "axis %u: %llu index and %llu table bytes in %llu", a,
               (unsigned long long)z0.index_bytes[a],
               (unsigned long long)z0.table_bytes[a],
@@ -1069,7 +1073,7 @@ int main(void)
     snprintf(cmd, sizeof cmd, "rm -rf %s && mkdir -p %s", W, W);
     REQUIRE(system(cmd) == 0, "cannot make %s", W);
     CHECK(tvpal_version_number() == TVPAL_VERSION_NUMBER &&
-              !strcmp(tvpal_version_string(), "0.3.0"),
+              !strcmp(tvpal_version_string(), "0.4.0"),
           "version %u %s", tvpal_version_number(), tvpal_version_string());
     test_params();
     test_identical_and_read();

@@ -826,7 +826,7 @@ int main(void)
     hb[20] ^= 0x40;
     CHECK(tvpal_shard_header_decode(hb, &g, NULL) == TVPAL_E_CHECKSUM, "crc");
     hb[20] ^= 0x40;
-    hb[8] = 2; /* version 2, CRC left stale: version is checked first */
+    hb[8] = 3; /* version 3, CRC left stale: version is checked first */
     CHECK(tvpal_shard_header_decode(hb, &g, NULL) == TVPAL_E_VERSION,
           "version");
     /* A field out of range with a valid CRC. */
@@ -922,11 +922,23 @@ int main(void)
     }
     /* Index entries. */
     struct tvpal_index_entry e = {.offset = 1ull << 40, .bytes = 8192,
-                                  .step = 77, .chunk_count = 5, .crc = 99}, f;
+                                  .step = 77, .chunk_count = 5, .crc = 99,
+                                  .plain_bytes = 8192}, f;
     unsigned char ib[TVPAL_INDEX_ENTRY_BYTES];
     tvpal_index_entry_encode(&e, ib);
     tvpal_index_entry_decode(ib, &f);
-    CHECK(!memcmp(&e, &f, sizeof e), "index entry round trip");
+    CHECK(f.offset == e.offset && f.bytes == e.bytes && f.step == e.step &&
+              f.chunk_count == e.chunk_count && f.crc == e.crc && !f.coded &&
+              f.plain_bytes == e.bytes && ib[28] == 0 && ib[29] == 0,
+          "index entry round trip");
+    /* A coded record's: plain_pages at byte 28 (FORMAT.md 6.9). */
+    e.coded = 1;
+    e.plain_bytes = 5 * 4096;
+    tvpal_index_entry_encode(&e, ib);
+    tvpal_index_entry_decode(ib, &f);
+    CHECK(f.coded && f.plain_bytes == 5 * 4096 && ib[28] == 5,
+          "coded index entry: %d %llu", f.coded,
+          (unsigned long long)f.plain_bytes);
 
     /* 16-bit tables: round trip within half a step, constants exact. */
     {

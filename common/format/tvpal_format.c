@@ -106,10 +106,12 @@ int tvpal_shard_header_decode(const unsigned char *b,
         return tvpal_diag_set(diag, TVPAL_E_MAGIC,
                               "header: magic is not \"" TVPAL_SHARD_MAGIC "\"");
     h->version = get32(b + 8);
-    if (h->version != TVPAL_FORMAT_VERSION)
+    if (h->version != TVPAL_FORMAT_VERSION &&
+        h->version != TVPAL_FORMAT_VERSION_CODED)
         return tvpal_diag_set(diag, TVPAL_E_VERSION,
-                              "header: format version %u, expected %u",
-                              h->version, TVPAL_FORMAT_VERSION);
+                              "header: format version %u, expected %u or %u",
+                              h->version, TVPAL_FORMAT_VERSION,
+                              TVPAL_FORMAT_VERSION_CODED);
     if (get32(b + 4092) != tvpal_crc32c(0, b, 4092))
         return tvpal_diag_set(diag, TVPAL_E_CHECKSUM,
                               "header: CRC-32C mismatch");
@@ -179,7 +181,8 @@ int tvpal_shard_header_decode(const unsigned char *b,
 }
 
 /* Record header: 0 magic 4 step 8 chunk_count 12 axis 16 payload_bytes(u64)
- * 24 payload_crc 28..59 zero 60 header_crc (over bytes 0..59). */
+ * 24 payload_crc 28 zero 32 plain_bytes(u64; 0 in format_version 1)
+ * 40..59 zero 60 header_crc (over bytes 0..59). */
 void tvpal_record_header_encode(const struct tvpal_record_header *h,
                                 unsigned char *b)
 {
@@ -190,6 +193,7 @@ void tvpal_record_header_encode(const struct tvpal_record_header *h,
     put32(b + 12, h->axis);
     put64(b + 16, h->payload_bytes);
     put32(b + 24, h->payload_crc);
+    put64(b + 32, h->plain_bytes);
     put32(b + 60, tvpal_crc32c(0, b, 60));
 }
 
@@ -208,11 +212,14 @@ int tvpal_record_header_decode(const unsigned char *b,
     h->axis = get32(b + 12);
     h->payload_bytes = get64(b + 16);
     h->payload_crc = get32(b + 24);
+    /* 0 (format_version 1): nothing is coded. */
+    h->plain_bytes = get64(b + 32) ? get64(b + 32) : h->payload_bytes;
     return 0;
 }
 
 /* Chunk header: 0 magic 4 slice 8 wstart 12 wlen 16 w 20 h 24 used
- * 28 flags 32 bits[16] 48 tmin(f32) 52 tscale(f32) 56..63 zero. */
+ * 28 flags 32 bits[16] 48 tmin(f32) 52 tscale(f32) 56 coded_bytes
+ * 60..63 zero. */
 void tvpal_chunk_header_encode(const struct tvpal_chunk_header *h,
                                unsigned char *b)
 {
@@ -231,6 +238,7 @@ void tvpal_chunk_header_encode(const struct tvpal_chunk_header *h,
     put32(b + 48, u);
     memcpy(&u, &h->tscale, 4);
     put32(b + 52, u);
+    put32(b + 56, h->coded_bytes);
 }
 
 int tvpal_chunk_header_decode(const unsigned char *b,
@@ -251,11 +259,12 @@ int tvpal_chunk_header_decode(const unsigned char *b,
     memcpy(&h->tmin, &u, 4);
     u = get32(b + 52);
     memcpy(&h->tscale, &u, 4);
+    h->coded_bytes = get32(b + 56);
     return 0;
 }
 
 /* Index entry: 0 offset(u64) 8 bytes(u64) 16 step 20 chunk_count 24 crc
- * 28 zero. */
+ * 28 plain_pages (plain_bytes / 4096; 0 in format_version 1). */
 void tvpal_index_entry_encode(const struct tvpal_index_entry *e,
                               unsigned char *b)
 {
@@ -265,6 +274,7 @@ void tvpal_index_entry_encode(const struct tvpal_index_entry *e,
     put32(b + 16, e->step);
     put32(b + 20, e->chunk_count);
     put32(b + 24, e->crc);
+    put32(b + 28, e->coded ? (uint32_t)(e->plain_bytes / TVPAL_ALIGN) : 0u);
 }
 
 void tvpal_index_entry_decode(const unsigned char *b,
@@ -275,6 +285,9 @@ void tvpal_index_entry_decode(const unsigned char *b,
     e->step = get32(b + 16);
     e->chunk_count = get32(b + 20);
     e->crc = get32(b + 24);
+    e->coded = get32(b + 28) != 0;
+    e->plain_bytes = e->coded ? (uint64_t)get32(b + 28) * TVPAL_ALIGN
+                              : e->bytes;
 }
 
 /* tvpal_record_verify, with (crc = 1) or without the payload CRC. */
@@ -307,6 +320,10 @@ static int record_verify(const unsigned char *buf, uint64_t bytes,
     uint64_t end = pos + rh.payload_bytes;
     uint32_t prev = 0, expect = sh->slice_begin;
     const uint32_t slab_end = sh->slice_begin + sh->slice_count;
+    const uint32_t allowed =
+        tvpal_chunk_flags_allowed(sh->table_format) |
+        (sh->version == TVPAL_FORMAT_VERSION_CODED ? TVPAL_CHUNK_ZSTD : 0u);
+    uint64_t plain = 0;  /* the payload once inflated */
     for (uint32_t k = 0;; k++) {
         /* The chunks are exactly the slab's slices whose window starts at
          * this step, ascending. */
@@ -345,17 +362,36 @@ static int record_verify(const unsigned char *buf, uint64_t bytes,
         /* A flag the shard's format does not define would be misread:
          * bit 1 changes the chunk's size, and a later bit could change
          * its decoding (FORMAT.md 6.6). */
-        if (ch.flags & ~tvpal_chunk_flags_allowed(sh->table_format))
+        if (ch.flags & ~allowed)
             return tvpal_diag_set(diag, TVPAL_E_FORMAT,
                                   "record %u: chunk %u (slice %u): flags "
                                   "0x%x, table_format %u allows 0x%x", step,
                                   k, ch.slice, ch.flags, sh->table_format,
-                                  tvpal_chunk_flags_allowed(sh->table_format));
+                                  allowed);
         prev = ch.slice;
         expect++;
         const uint32_t ctf = tvpal_chunk_table_format(sh->table_format,
                                                       ch.flags);
-        uint64_t cb = tvpal_chunk_bytes(ch.wlen, ch.w, ch.h, ctf);
+        const uint64_t plain_cb = tvpal_chunk_bytes(ch.wlen, ch.w, ch.h, ctf);
+        uint64_t cb = tvpal_chunk_stored_bytes(&ch, ctf);
+        /* A coded chunk's frame is there and claims no more than a zstd
+         * frame can hold; any other chunk has no frame size (6.11). */
+        if ((ch.flags & TVPAL_CHUNK_ZSTD)
+                ? (ch.coded_bytes == 0 || cb >= plain_cb ||
+                   plain_cb / TVPAL_CODED_MAX_RATIO > cb)
+                : ch.coded_bytes != 0)
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                                  "record %u: chunk %u (slice %u): a frame "
+                                  "of %u bytes for %llu bytes %s", step, k,
+                                  ch.slice, ch.coded_bytes,
+                                  (unsigned long long)plain_cb,
+                                  (ch.flags & TVPAL_CHUNK_ZSTD)
+                                      ? "(a coded chunk is smaller than its "
+                                        "plain form, and at most 32768 times "
+                                        "smaller)"
+                                      : "in a chunk not coded (flags bit 2 "
+                                        "clear)");
+        plain += plain_cb;
         if (cb > end - pos)
             return tvpal_diag_set(diag, TVPAL_E_FORMAT,
                                   "record %u: chunk %u (slice %u) overruns "
@@ -372,6 +408,12 @@ static int record_verify(const unsigned char *buf, uint64_t bytes,
                               "record %u: %llu payload bytes after the last "
                               "chunk", step,
                               (unsigned long long)(end - pos));
+    if (plain != rh.plain_bytes)
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                              "record %u: header says %llu bytes inflated, "
+                              "its chunks make %llu", step,
+                              (unsigned long long)rh.plain_bytes,
+                              (unsigned long long)plain);
     /* The alignment padding is outside the CRC: it must be zeros. */
     for (uint64_t i = end; i < bytes; i++)
         if (buf[i])
@@ -409,7 +451,7 @@ int tvpal_record_next_chunk(const unsigned char *buf, uint64_t *pos,
     c->table = buf + *pos + TVPAL_CHUNK_HEADER_BYTES;
     c->indices = c->table + (size_t)c->h.wlen * 256u *
                                 tvpal_table_entry_bytes(c->table_format);
-    *pos += tvpal_chunk_bytes(c->h.wlen, c->h.w, c->h.h, c->table_format);
+    *pos += tvpal_chunk_stored_bytes(&c->h, c->table_format);
     return 1;
 }
 

@@ -20,6 +20,11 @@
 #include "tvpal_error.h"
 
 #define TVPAL_FORMAT_VERSION 1u
+/* Shards with coded chunks (FORMAT.md 6.11): a chunk's table and indices
+ * stored as one zstd frame.  A writer writes 2 exactly when some chunk is
+ * coded, so a reader before specification 1.8 rejects such a shard as an
+ * unknown version instead of misreading it. */
+#define TVPAL_FORMAT_VERSION_CODED 2u
 #define TVPAL_ALIGN 4096u               /* record alignment (O_DIRECT) */
 #define TVPAL_SHARD_HEADER_BYTES 4096u
 #define TVPAL_RECORD_HEADER_BYTES 64u
@@ -48,6 +53,14 @@
  * (table_format 2, 3, 5); the chunk's table is 16-bit scaled (4, 5). */
 #define TVPAL_CHUNK_MISSING 1u
 #define TVPAL_CHUNK_U16 2u
+/* The chunk's table and indices are one zstd frame of coded_bytes
+ * (FORMAT.md 6.11); only in a shard of format_version 2. */
+#define TVPAL_CHUNK_ZSTD 4u
+/* A coded chunk decodes to at most this many times its stored bytes: a
+ * zstd block of up to 128 KiB costs at least 4 bytes, so no real frame
+ * goes beyond it, and a reader refuses a chunk that claims more (FORMAT.md
+ * 8.2): what a record inflates to stays bounded by the file. */
+#define TVPAL_CODED_MAX_RATIO 32768u
 #define TVPAL_U16_MISSING 65535u        /* q of a missing u16 entry */
 
 static inline uint64_t tvpal_round_up(uint64_t x, uint64_t a)
@@ -79,6 +92,10 @@ struct tvpal_record_header {
     uint32_t axis;
     uint64_t payload_bytes;   /* chunks, after the 64-byte header */
     uint32_t payload_crc;
+    /* The payload once its coded chunks are inflated (FORMAT.md 6.11):
+     * stored in a shard of format_version 2; = payload_bytes in one of
+     * version 1 and in a record without coded chunks. */
+    uint64_t plain_bytes;
 };
 
 struct tvpal_chunk_header {
@@ -89,6 +106,7 @@ struct tvpal_chunk_header {
     uint32_t flags;           /* TVPAL_CHUNK_MISSING, TVPAL_CHUNK_U16 */
     uint8_t bits[16];         /* bits per coefficient */
     float tmin, tscale;       /* 16-bit table: value = tmin + q tscale */
+    uint32_t coded_bytes;     /* TVPAL_CHUNK_ZSTD: bytes of its frame */
 };
 
 struct tvpal_index_entry {
@@ -97,6 +115,11 @@ struct tvpal_index_entry {
     uint32_t step;
     uint32_t chunk_count;
     uint32_t crc;             /* payload CRC, as in the record header */
+    /* A record with coded chunks (FORMAT.md 6.11; format_version 2): coded
+     * is 1 and plain_bytes its bytes once inflated (a multiple of
+     * TVPAL_ALIGN); else coded 0 and plain_bytes = bytes. */
+    int coded;
+    uint64_t plain_bytes;
 };
 
 /* Geometry of axis a's slices for volume dims: count, w, h.  In-slice voxel
@@ -168,6 +191,18 @@ static inline uint64_t tvpal_chunk_bytes(uint32_t len, uint32_t w, uint32_t h,
            tvpal_round_up((uint64_t)w * h, TVPAL_CHUNK_ALIGN);
 }
 
+/* Bytes chunk h takes in its record as stored: a coded one (TVPAL_CHUNK_ZSTD)
+ * its header and frame, rounded up to TVPAL_CHUNK_ALIGN; any other
+ * tvpal_chunk_bytes of its own table format (ctf, 0..3). */
+static inline uint64_t tvpal_chunk_stored_bytes(
+    const struct tvpal_chunk_header *h, uint32_t ctf)
+{
+    if (h->flags & TVPAL_CHUNK_ZSTD)
+        return TVPAL_CHUNK_HEADER_BYTES +
+               tvpal_round_up(h->coded_bytes, TVPAL_CHUNK_ALIGN);
+    return tvpal_chunk_bytes(h->wlen, h->w, h->h, ctf);
+}
+
 /* Serialization.  *_encode write exactly the fixed size into buf (CRCs
  * included); *_decode validate magic, version, CRC and field ranges, and
  * describe the first bad field in diag. */
@@ -237,7 +272,9 @@ int tvpal_record_verify_layout(const unsigned char *buf, uint64_t bytes,
                                const struct tvpal_shard_header *sh,
                                struct tvpal_diag *diag);
 
-/* Iterates the chunks of a verified record of a shard with table_format:
+/* Iterates the chunks of a verified record of a shard with table_format
+ * (a coded chunk's table points at its frame and its indices at nothing:
+ * inflate the record first, tvpal_record_inflate):
  * *pos starts at 0; returns 1 and fills c for each chunk (c->table_format
  * the chunk's own, 0..3), 0 at the end. */
 int tvpal_record_next_chunk(const unsigned char *buf, uint64_t *pos,

@@ -1,5 +1,6 @@
 /* tvpal_shard.c: shard file writer, reader and slab decoding state. */
 #include "tvpal_shard.h"
+#include "tvpal_chunkz.h"
 #include "tvpal_crc32c.h"
 #include "tvpal_schedule.h"
 
@@ -68,6 +69,13 @@ struct tvpal_shardw {
     uint32_t *count, *crc;
     uint64_t *first_off;
     int packed;
+    /* Coded chunks (FORMAT.md 6.11): coding, the caller may put them
+     * (tvpal_shardw_set_coding), so finish packs; coded, one was put
+     * (atomic; finish also learns it from the chunks it packs), so the
+     * shard is format_version 2; plain[t], record t's payload inflated. */
+    int coding, coded;
+    uint64_t *plain;
+    uint8_t *rcoded;                  /* record t has a coded chunk */
 };
 
 /* Whether a chunk of the sealed record buf says its table has missing
@@ -247,7 +255,8 @@ int tvpal_shardw_finish(struct tvpal_shardw *w, struct tvpal_diag *diag)
     w->h.index_offset = w->end;
     w->h.file_bytes = w->end + ibytes;
     w->h.index_crc = tvpal_crc32c(0, ib, ibytes);
-    w->h.version = TVPAL_FORMAT_VERSION;
+    w->h.version = w->coded ? TVPAL_FORMAT_VERSION_CODED
+                            : TVPAL_FORMAT_VERSION;
     if (w->missing)
         w->h.table_format = tvpal_table_with_missing(w->h.table_format);
     rc = pwrite_all(w->fd, ib, ibytes, w->end, diag);
@@ -293,6 +302,8 @@ void tvpal_shardw_free(struct tvpal_shardw *w)
     free(w->count);
     free(w->crc);
     free(w->first_off);
+    free(w->plain);
+    free(w->rcoded);
     free(w);
 }
 
@@ -319,8 +330,10 @@ static int placed_layout(struct tvpal_shardw *w)
     w->count = calloc(T, sizeof *w->count);
     w->crc = calloc(T, sizeof *w->crc);
     w->first_off = calloc(h->slice_count, sizeof *w->first_off);
+    w->plain = calloc(T, sizeof *w->plain);
+    w->rcoded = calloc(T, sizeof *w->rcoded);
     if (!w->rec_off || !w->payload || !w->filled || !w->count || !w->crc ||
-        !w->first_off)
+        !w->first_off || !w->plain || !w->rcoded)
         return TVPAL_E_NOMEM;
     uint64_t at = TVPAL_SHARD_HEADER_BYTES;
     for (uint32_t t = 0; t < T; t++) {
@@ -432,9 +445,12 @@ int tvpal_shardw_put_chunk(struct tvpal_shardw *w, uint32_t t, uint32_t s,
                               (unsigned long long)bytes, s, t);
     struct tvpal_chunk_header ch;
     int have = tvpal_chunk_header_decode(chunk, &ch, NULL) == 0;
-    /* The missing flag is what finish adds to the format: allow it. */
+    /* The missing flag is what finish adds to the format: allow it; a
+     * coded chunk makes the shard format_version 2, when the writer takes
+     * them (its room: the chunk, zeros after it). */
+    const uint32_t coded = w->coding ? TVPAL_CHUNK_ZSTD : 0u;
     if (have && (ch.flags & ~(tvpal_chunk_flags_allowed(w->h.table_format) |
-                              TVPAL_CHUNK_MISSING)))
+                              TVPAL_CHUNK_MISSING | coded)))
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "chunk of slice %u in "
                               "record %u: flags 0x%x in a shard of "
                               "table_format %u", s, t, ch.flags,
@@ -446,7 +462,14 @@ int tvpal_shardw_put_chunk(struct tvpal_shardw *w, uint32_t t, uint32_t s,
     *crc = tvpal_crc32c(0, chunk, bytes);
     if (have && (ch.flags & TVPAL_CHUNK_MISSING))
         __atomic_store_n(&w->missing, 1, __ATOMIC_RELAXED);
+    if (have && (ch.flags & TVPAL_CHUNK_ZSTD))
+        __atomic_store_n(&w->coded, 1, __ATOMIC_RELAXED);
     return 0;
+}
+
+void tvpal_shardw_set_coding(struct tvpal_shardw *w, int on)
+{
+    w->coding = on != 0;
 }
 
 int tvpal_shardw_extend(struct tvpal_shardw *w, uint32_t t, uint32_t s,
@@ -536,6 +559,7 @@ static int placed_pack(struct tvpal_shardw *w, struct tvpal_diag *diag)
     uint64_t at = TVPAL_SHARD_HEADER_BYTES; /* record t's packed offset */
     for (uint32_t t = 0; t < h->steps && rc == 0; t++) {
         uint64_t src = w->rec_off[t] + TVPAL_RECORD_HEADER_BYTES, pay = 0;
+        uint64_t plain = 0;
         uint32_t room_crc = 0, crc = 0;
         for (uint32_t k = 0; k < h->slice_count && rc == 0; k++) {
             const uint32_t s = h->slice_begin + k;
@@ -549,14 +573,22 @@ static int placed_pack(struct tvpal_shardw *w, struct tvpal_diag *diag)
                 break;
             }
             room_crc = tvpal_crc32c(room_crc, buf, room);
-            /* The size from the schedule and the chunk's flag; a damaged
-             * room fails the CRC below. */
+            /* The size from the schedule and the chunk's flags (a coded
+             * one: its frame's, within the room); a damaged room fails the
+             * CRC below. */
             struct tvpal_chunk_header ch = {0};
             (void)tvpal_chunk_header_decode(buf, &ch, NULL);
-            const uint64_t n = tvpal_chunk_bytes(
-                tvpal_schedule_len(s, t, h->window, h->steps), h->slice_w,
-                h->slice_h, tvpal_chunk_table_format(h->table_format,
-                                                     ch.flags));
+            ch.wlen = tvpal_schedule_len(s, t, h->window, h->steps);
+            ch.w = h->slice_w;
+            ch.h = h->slice_h;
+            const uint32_t ctf = tvpal_chunk_table_format(h->table_format,
+                                                          ch.flags);
+            uint64_t n = tvpal_chunk_stored_bytes(&ch, ctf);
+            if (n > room)
+                n = room;
+            if (ch.flags & TVPAL_CHUNK_ZSTD)
+                w->coded = w->rcoded[t] = 1;
+            plain += tvpal_chunk_bytes(ch.wlen, ch.w, ch.h, ctf);
             rc = pwrite_all(w->fd, buf, n,
                             at + TVPAL_RECORD_HEADER_BYTES + pay, diag);
             crc = tvpal_crc32c(crc, buf, n);
@@ -576,6 +608,7 @@ static int placed_pack(struct tvpal_shardw *w, struct tvpal_diag *diag)
         w->rec_off[t] = at;
         w->payload[t] = w->filled[t] = pay;
         w->crc[t] = crc;
+        w->plain[t] = plain;
         at += total;
     }
     free(buf);
@@ -597,15 +630,26 @@ static int placed_seal(struct tvpal_shardw *w, struct tvpal_diag *diag)
                                   "%llu payload bytes written", t,
                                   (unsigned long long)w->filled[t],
                                   (unsigned long long)w->payload[t]);
-    if (w->h.table_format >= TVPAL_TABLE_CHUNK) {
+    if (w->h.table_format >= TVPAL_TABLE_CHUNK || w->coding) {
         int rc = placed_pack(w, diag);
         if (rc < 0)
             return rc;
+    } else {
+        for (uint32_t t = 0; t < w->h.steps; t++)
+            w->plain[t] = w->payload[t];
     }
     for (uint32_t t = 0; t < w->h.steps; t++) {
+        /* Format version 1 keeps bytes 32..39 zero (FORMAT.md 6.4). */
         struct tvpal_record_header rh = {
             .step = t, .chunk_count = w->count[t], .axis = w->h.axis,
-            .payload_bytes = w->payload[t], .payload_crc = w->crc[t]};
+            .payload_bytes = w->payload[t], .payload_crc = w->crc[t],
+            .plain_bytes = w->coded ? w->plain[t] : 0};
+        const uint64_t plain_rec = tvpal_round_up(
+            TVPAL_RECORD_HEADER_BYTES + w->plain[t], TVPAL_ALIGN);
+        if (plain_rec / TVPAL_ALIGN > UINT32_MAX)
+            return tvpal_diag_set(diag, TVPAL_E_INVAL, "record %u: %llu "
+                                  "bytes inflated, more than an index entry "
+                                  "holds", t, (unsigned long long)plain_rec);
         unsigned char hb[TVPAL_RECORD_HEADER_BYTES];
         tvpal_record_header_encode(&rh, hb);
         int rc = pwrite_all(w->fd, hb, sizeof hb, w->rec_off[t], diag);
@@ -616,6 +660,8 @@ static int placed_seal(struct tvpal_shardw *w, struct tvpal_diag *diag)
             .bytes = tvpal_round_up(TVPAL_RECORD_HEADER_BYTES +
                                         w->payload[t], TVPAL_ALIGN),
             .step = t, .chunk_count = w->count[t], .crc = w->crc[t]};
+        w->index[t].coded = w->rcoded[t];
+        w->index[t].plain_bytes = w->rcoded[t] ? plain_rec : w->index[t].bytes;
     }
     w->done = w->h.steps;
     return 0;
@@ -643,7 +689,9 @@ struct tvpal_shard {
     char *path;
     struct tvpal_shard_header h;
     struct tvpal_index_entry *index;
-    uint64_t max_record;
+    uint64_t max_record;        /* of the records' buffers */
+    uint64_t ram_bytes;         /* all the records' buffers */
+    struct tvpal_chunkz *z;     /* read_record's inflater, at first need */
 };
 
 /* Smallest record bytes for step t that the header's geometry implies:
@@ -686,7 +734,7 @@ static int check_record_sizes(const struct tvpal_shard *s,
                               struct tvpal_diag *diag)
 {
     for (uint32_t t = 0; t < s->h.steps; t++) {
-        uint64_t have = s->index[t].bytes;
+        uint64_t have = s->index[t].plain_bytes;
         uint64_t need = record_min_bytes(&s->h, t, have);
         if (need > have)
             return tvpal_diag_set(diag, TVPAL_E_FORMAT,
@@ -773,9 +821,23 @@ int tvpal_shard_open(struct tvpal_shard **out, const char *path,
                                 (unsigned long long)e->bytes);
             goto err;
         }
+        /* Inflated, a record is at least what it is stored as and at
+         * most TVPAL_CODED_MAX_RATIO times that (6.11); version 1 has no
+         * coded records. */
+        if (e->coded && (s->h.version == TVPAL_FORMAT_VERSION ||
+                         e->plain_bytes < e->bytes ||
+                         e->plain_bytes / TVPAL_CODED_MAX_RATIO > e->bytes)) {
+            rc = tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                                "record index: entry %u: %llu bytes "
+                                "inflated from %llu (format_version %u)", t,
+                                (unsigned long long)e->plain_bytes,
+                                (unsigned long long)e->bytes, s->h.version);
+            goto err;
+        }
         expect += e->bytes;
-        if (e->bytes > s->max_record)
-            s->max_record = e->bytes;
+        s->ram_bytes += tvpal_record_buffer_bytes(e);
+        if (tvpal_record_buffer_bytes(e) > s->max_record)
+            s->max_record = tvpal_record_buffer_bytes(e);
     }
     if (expect != s->h.index_offset) {
         rc = tvpal_diag_set(diag, TVPAL_E_FORMAT,
@@ -804,6 +866,7 @@ void tvpal_shard_close(struct tvpal_shard *s)
         close(s->fd);
     free(s->path);
     free(s->index);
+    tvpal_chunkz_free(s->z);
     free(s);
 }
 
@@ -833,6 +896,11 @@ uint64_t tvpal_shard_max_record(const struct tvpal_shard *s)
     return s->max_record;
 }
 
+uint64_t tvpal_shard_ram_bytes(const struct tvpal_shard *s)
+{
+    return s->ram_bytes;
+}
+
 int tvpal_shard_read_record(struct tvpal_shard *s, uint32_t step,
                             unsigned char *buf, uint64_t cap,
                             struct tvpal_diag *diag)
@@ -841,13 +909,18 @@ int tvpal_shard_read_record(struct tvpal_shard *s, uint32_t step,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "record %u: no such step "
                               "(%u steps)", step, s->h.steps);
     const struct tvpal_index_entry *e = &s->index[step];
-    if (e->bytes > cap)
+    if (tvpal_record_buffer_bytes(e) > cap)
         return TVPAL_E_INVAL;
-    int rc = pread_all(s->fd, buf, e->bytes, e->offset);
+    const uint64_t at = tvpal_record_stored_at(e);
+    int rc = pread_all(s->fd, buf + at, e->bytes, e->offset);
     if (rc < 0)
         return tvpal_diag_set(diag, rc, "record %u: %s", step,
                               tvpal_strerror(rc));
-    return tvpal_record_verify(buf, e->bytes, step, &s->h, diag);
+    if (!e->coded)
+        return tvpal_record_verify(buf, e->bytes, step, &s->h, diag);
+    if (!s->z && tvpal_chunkz_create(&s->z, tvpal_shard_max_chunk(&s->h)) < 0)
+        return TVPAL_E_NOMEM;
+    return tvpal_record_inflate(s->z, buf, e, step, &s->h, diag);
 }
 
 int tvpal_shard_count_tables(struct tvpal_shard *s,
@@ -855,8 +928,12 @@ int tvpal_shard_count_tables(struct tvpal_shard *s,
                              struct tvpal_diag *diag)
 {
     const struct tvpal_shard_header *h = &s->h;
-    const int per_chunk = h->table_format >= TVPAL_TABLE_CHUNK;
-    *out = (struct tvpal_table_count){{0}, {0}};
+    const int per_chunk = h->table_format >= TVPAL_TABLE_CHUNK ||
+                          h->version == TVPAL_FORMAT_VERSION_CODED;
+    const uint32_t allowed =
+        tvpal_chunk_flags_allowed(h->table_format) |
+        (h->version == TVPAL_FORMAT_VERSION_CODED ? TVPAL_CHUNK_ZSTD : 0u);
+    *out = (struct tvpal_table_count){{0}, {0}, 0, 0};
     for (uint32_t t = 0; t < h->steps; t++) {
         const struct tvpal_index_entry *e = &s->index[t];
         uint64_t pos = e->offset + TVPAL_RECORD_HEADER_BYTES;
@@ -877,15 +954,19 @@ int tvpal_shard_count_tables(struct tvpal_shard *s,
                 if (rc == 0 && (tvpal_chunk_header_decode(b, &ch, NULL) < 0 ||
                                 ch.slice != sl || ch.wlen != len ||
                                 ch.w != h->slice_w || ch.h != h->slice_h ||
-                                (ch.flags &
-                                 ~tvpal_chunk_flags_allowed(h->table_format))))
+                                (ch.flags & ~allowed)))
                     rc = TVPAL_E_FORMAT;
                 if (rc < 0)
                     return tvpal_diag_set(diag, rc, "record %u: no chunk "
                                           "header of slice %u at byte %llu",
                                           t, sl, (unsigned long long)pos);
                 tf = tvpal_chunk_table_format(h->table_format, ch.flags);
-                pos += tvpal_chunk_bytes(len, h->slice_w, h->slice_h, tf);
+                const uint64_t cb = tvpal_chunk_stored_bytes(&ch, tf);
+                if (ch.flags & TVPAL_CHUNK_ZSTD) {
+                    out->coded_chunks++;
+                    out->coded_bytes += cb;
+                }
+                pos += cb;
                 if (pos > end)
                     return tvpal_diag_set(diag, TVPAL_E_FORMAT, "record %u: "
                                           "the chunk of slice %u overruns "

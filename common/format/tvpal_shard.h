@@ -94,6 +94,13 @@ int tvpal_shardw_put_chunk(struct tvpal_shardw *w, uint32_t t, uint32_t s,
                            const unsigned char *chunk, uint64_t bytes,
                            uint32_t *crc, struct tvpal_diag *diag);
 
+/* Coded chunks (FORMAT.md 6.11): with on, put_chunk also takes a coded
+ * chunk (TVPAL_CHUNK_ZSTD, tvpal_chunkz_code) in its room, followed by
+ * zeros, and finish packs the shard; the shard is format_version 2 when
+ * one was put.  Set it before the first put, and again on a writer
+ * reopened to resume a job that set it.  Off at creation. */
+void tvpal_shardw_set_coding(struct tvpal_shardw *w, int on);
+
 /* Adds the chunk of slice s (written, with CRC crc) to record t's payload
  * CRC.  Chunks must be added in ascending slice order: TVPAL_E_INVAL for
  * any other than the next one of the record.  Not thread-safe. */
@@ -136,10 +143,18 @@ const struct tvpal_index_entry *tvpal_shard_entry(const struct tvpal_shard *s,
                                                   uint32_t step);
 const char *tvpal_shard_path(const struct tvpal_shard *s);
 int tvpal_shard_fd(const struct tvpal_shard *s);
-/* Largest record of the shard (buffer size for read_record). */
+/* Largest record of the shard once inflated (FORMAT.md 6.11; buffer size
+ * for read_record). */
 uint64_t tvpal_shard_max_record(const struct tvpal_shard *s);
+/* Bytes every record of the shard takes in RAM, inflated (the sum of
+ * tvpal_record_buffer_bytes: an in-core reader's memory); the records'
+ * region of the file (index_offset - 4096) when nothing is coded. */
+uint64_t tvpal_shard_ram_bytes(const struct tvpal_shard *s);
 
-/* Reads and verifies record `step` into buf (capacity cap). */
+/* Reads and verifies record `step` into buf (capacity cap, at least the
+ * entry's plain_bytes), inflated (tvpal_record_inflate) when it has coded
+ * chunks: buf then holds the plain record.  One thread at a time per
+ * shard (the inflater is the shard's). */
 int tvpal_shard_read_record(struct tvpal_shard *s, uint32_t step,
                             unsigned char *buf, uint64_t cap,
                             struct tvpal_diag *diag);
@@ -148,11 +163,16 @@ int tvpal_shard_read_record(struct tvpal_shard *s, uint32_t step,
  * and [1] 16-bit (FORMAT.md 6.7), and the bytes of those tables. */
 struct tvpal_table_count {
     uint64_t chunks[2];
-    uint64_t bytes[2];
+    uint64_t bytes[2];        /* the tables' bytes, plain */
+    /* Of them, the coded chunks (FORMAT.md 6.11) and what they take in
+     * the file (headers, frames, padding). */
+    uint64_t coded_chunks;
+    uint64_t coded_bytes;
 };
 
-/* Counts what tables the chunks of s have.  For table_format 0..3 from the
- * header alone; for a per-chunk shard (4, 5) from every chunk header (a
+/* Counts what tables the chunks of s have.  For table_format 0..3 of
+ * format_version 1 from the header alone; for a per-chunk shard (4, 5) or
+ * one with coded chunks from every chunk header (a
  * 64-byte read each, walked from the start of each record; the records'
  * CRCs are not checked, tvpal_shard_read_record does that).  0,
  * TVPAL_E_READ, or TVPAL_E_FORMAT naming the record and slice whose chunk

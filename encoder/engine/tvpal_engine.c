@@ -11,6 +11,7 @@
 #include "tvpal_checkpoint.h"
 #include "tvpal_values.h"
 #include "tvpal_format.h"
+#include "tvpal_chunkz.h"
 #include "tvpal_manifest.h"
 #include "tvpal_schedule.h"
 #include "tvpal_swcode.h"
@@ -51,6 +52,8 @@ struct tvpal_engine {
     float **tables;              /* a table, then (--table auto) the
                                   * values its 16-bit form decodes to */
     unsigned char **chunkbuf;    /* one chunk */
+    unsigned char **codedbuf;    /* it coded (index_level > 0) */
+    struct tvpal_chunkz **z;     /* its coder (index_level > 0) */
     uint64_t *dropped;
     struct slicejob *jobs;       /* max_jobs */
     uint32_t *jcrc;              /* CRC of every chunk of a step */
@@ -175,7 +178,10 @@ static int start_thread(struct tvpal_engine *e, unsigned i,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "no LAPACK");
     if (!(e->samples[i] = malloc(e->group_cap * sizeof(float))) ||
         !(e->tables[i] = malloc(2 * N * 256 * sizeof(float))) ||
-        !(e->chunkbuf[i] = malloc(e->max_chunk)))
+        !(e->chunkbuf[i] = malloc(e->max_chunk)) ||
+        (e->p.index_level &&
+         (!(e->codedbuf[i] = malloc(e->max_chunk)) ||
+          tvpal_chunkz_create(&e->z[i], e->max_chunk) < 0)))
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "a thread's workspace");
     return 0;
 }
@@ -192,11 +198,13 @@ int tvpal_engine_start(struct tvpal_engine *e, struct tvpal_pool *pool,
     e->samples = calloc(nt, sizeof *e->samples);
     e->tables = calloc(nt, sizeof *e->tables);
     e->chunkbuf = calloc(nt, sizeof *e->chunkbuf);
+    e->codedbuf = calloc(nt, sizeof *e->codedbuf);
+    e->z = calloc(nt, sizeof *e->z);
     e->jobs = calloc(e->max_jobs, sizeof *e->jobs);
     e->jcrc = calloc(e->max_jobs, sizeof *e->jcrc);
     e->ring = calloc(e->nring, sizeof *e->ring);
     if (!e->enc || !e->dropped || !e->samples || !e->tables || !e->jobs ||
-        !e->ring || !e->chunkbuf || !e->jcrc)
+        !e->ring || !e->chunkbuf || !e->jcrc || !e->codedbuf || !e->z)
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "the job lists");
     for (unsigned i = 0; i < nt; i++) {
         int rc = start_thread(e, i, diag);
@@ -262,6 +270,8 @@ void tvpal_engine_free(struct tvpal_engine *e)
         free(e->samples[i]);
         free(e->tables[i]);
         free(e->chunkbuf[i]);
+        free(e->codedbuf[i]);
+        tvpal_chunkz_free(e->z[i]);
     }
     tvpal_engine_release_ring(e);
     free(e->ring);
@@ -270,6 +280,8 @@ void tvpal_engine_free(struct tvpal_engine *e)
     free(e->samples);
     free(e->tables);
     free(e->chunkbuf);
+    free(e->codedbuf);
+    free(e->z);
     free(e->jobs);
     free(e->jcrc);
     free(e);
@@ -310,6 +322,10 @@ void tvpal_engine_options_line(const struct tvpal_engine_params *p,
         OPTS_ADD(" --transform klt");
     if (p->alloc_mse)
         OPTS_ADD(" --alloc greedy-mse");
+    if (p->index_level == 0)
+        OPTS_ADD(" --index-coding none");
+    else if (p->index_level != TVPAL_CHUNKZ_LEVEL)
+        OPTS_ADD(" --index-level %d", p->index_level);
     if (p->axes != AXES_DEFAULT) {
         char axes[4];
         OPTS_ADD(" --axes %s", tvpal_axes_format(p->axes, axes));
@@ -510,6 +526,28 @@ static void encode_chunk(struct tvpal_swenc *enc, float *table,
     memset(end, 0, (size_t)(chunk + cb - end));
 }
 
+/* Codes thread tid's chunk (e->chunkbuf, in a room of cb bytes) with
+ * zstd where that makes it smaller: the coded chunk, zeros after it, then
+ * takes the buffer's place (a swap).  0, or the coder's error. */
+static int code_chunk(struct tvpal_engine *e, unsigned tid,
+                      const struct tvpal_shard_header *sh, uint64_t cb)
+{
+    struct tvpal_chunk_header ch;
+    (void)tvpal_chunk_header_decode(e->chunkbuf[tid], &ch, NULL);
+    uint64_t stored = 0;
+    int rc = tvpal_chunkz_code(e->z[tid], e->p.index_level, e->chunkbuf[tid],
+                               tvpal_chunk_table_format(sh->table_format,
+                                                        ch.flags),
+                               e->codedbuf[tid], &stored);
+    if (rc <= 0)
+        return rc;
+    memset(e->codedbuf[tid] + stored, 0, (size_t)(cb - stored));
+    unsigned char *b = e->chunkbuf[tid];
+    e->chunkbuf[tid] = e->codedbuf[tid];
+    e->codedbuf[tid] = b;
+    return 0;
+}
+
 /* Lists the slice-windows of the pass that start at step t, shard by
  * shard in slice order (the order their CRCs join), into e->jobs (x slices
  * grouped).  Returns the number of jobs. */
@@ -579,9 +617,14 @@ static void encode_job(void *arg, size_t i, unsigned tid)
                      e->samples[tid] + (size_t)g * jb->len * sv, &j->h,
                      jb->slice + g * N, t, jb->len, e->chunkbuf[tid],
                      &e->dropped[tid]);
-        int rc = tvpal_shardw_put_chunk(j->w, t, jb->slice + g * N,
+        int rc = e->p.index_level ? code_chunk(e, tid, &j->h, cb) : 0;
+        if (rc == 0)
+            rc = tvpal_shardw_put_chunk(j->w, t, jb->slice + g * N,
                                         e->chunkbuf[tid], cb,
                                         &e->jcrc[jb->crc_at + g], &d);
+        else
+            tvpal_diag_set(&d, rc, "coding the chunk of slice %u, step %u",
+                           jb->slice + g * N, t);
         if (rc < 0 && !__atomic_exchange_n(&c->failed, 1, __ATOMIC_RELAXED)) {
             c->fail_rc = rc;
             c->fail_d = d;

@@ -47,6 +47,10 @@ struct tvpal_engine_params {
     uint32_t refine;               /* Lloyd-Max refinement passes, at
                                     * most TVPAL_ENGINE_REFINE_MAX */
     int naive, klt, alloc_mse;     /* coder choices (tvpal_swcode.h) */
+    /* Coded chunks (FORMAT.md 6.11): index_level 0 stores every chunk
+     * plain; 1..19 codes each chunk with zstd at that level where that
+     * makes it smaller (tvpal_chunkz_code). */
+    int index_level;
 };
 
 /* One shard of the job: its header, set by tvpal_engine_create, and its

@@ -358,9 +358,7 @@ uint64_t tvpal_player_axis_bytes(const struct tvpal_player *p)
             continue;
         stored++;
         for (uint32_t k = 0; k < p->ds->nshards; k++) {
-            const struct tvpal_shard_header *h =
-                tvpal_shard_hdr(p->ds->shards[a][k]);
-            b += h->index_offset - TVPAL_SHARD_HEADER_BYTES;
+            b += tvpal_shard_ram_bytes(p->ds->shards[a][k]);
         }
     }
     return stored ? b / stored : 0;
@@ -413,9 +411,7 @@ static int open_axis(struct tvpal_player *p, unsigned a,
     if (incore && p->opts.mem_budget) {
         uint64_t need = 0;
         for (uint32_t k = 0; k < p->ds->nshards; k++) {
-            const struct tvpal_shard_header *h =
-                tvpal_shard_hdr(p->ds->shards[a][k]);
-            need += h->index_offset - TVPAL_SHARD_HEADER_BYTES;
+            need += tvpal_shard_ram_bytes(p->ds->shards[a][k]);
         }
         if (need > p->opts.mem_budget) {
             incore = 0;

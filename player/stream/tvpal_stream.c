@@ -4,6 +4,7 @@
 #include "tvpal_stream.h"
 #include "tvpal_clock.h"
 #include "tvpal_format.h"
+#include "tvpal_chunkz.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -47,6 +48,18 @@ struct part {                /* one shard */
                               * keep) those of plain streaming */
     unsigned nslots_all;
     uint64_t steady_bytes;   /* the largest record after record 0 */
+    /* Coded records (FORMAT.md 6.11): each is read into the tail of a
+     * buffer of its plain bytes and inflated there, once, by whichever
+     * thread checks it first (the stager or the seek's, never both at
+     * once): z is that inflater, created with the part when its shard has
+     * coded records.  In-core, plain_off[t] is record t's place in all
+     * (NULL: its offset in the file less the header, nothing coded) and
+     * why[t] what was wrong with a record that did not inflate. */
+    struct tvpal_chunkz *z;
+    uint64_t *plain_off;
+    uint64_t stored_base;    /* in-core: where in all the file's records
+                              * region is read (0 when nothing is coded) */
+    char **why;
 };
 
 /* The stager: a thread that prepares the next step (reads, verification,
@@ -191,6 +204,7 @@ static int submit(struct tvpal_stream *s, unsigned pi, unsigned si,
     sl->verified = 0;
     sl->result = 0;
     sl->pending = 0;
+    unsigned char *const into = sl->buf + tvpal_record_stored_at(e);
     for (uint64_t off = 0; off < e->bytes; off += PIECE) {
         while (tvpal_io_inflight(s->io) >= tvpal_io_depth(s->io)) {
             int rc = reap(s, wait_ms, diag);
@@ -199,7 +213,7 @@ static int submit(struct tvpal_stream *s, unsigned pi, unsigned si,
         }
         uint64_t len = e->bytes - off < PIECE ? e->bytes - off : PIECE;
         struct tvpal_io_req r = {.fd = p->fd, .off = e->offset + off,
-                                 .len = len, .buf = sl->buf + off,
+                                 .len = len, .buf = into + off,
                                  .tag = (uint64_t)pi << 32 | si};
         int rc = tvpal_io_submit(s->io, &r, diag);
         if (rc < 0)
@@ -207,6 +221,14 @@ static int submit(struct tvpal_stream *s, unsigned pi, unsigned si,
         sl->pending++;
     }
     return 0;
+}
+
+/* In-core: where record t is in p->all, inflated. */
+static unsigned char *incore_rec(const struct part *p, uint32_t t)
+{
+    const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, t);
+    return p->all + (p->plain_off ? p->plain_off[t]
+                                  : e->offset - TVPAL_SHARD_HEADER_BYTES);
 }
 
 /* In-core pieces: the records region is read in pieces of this size. */
@@ -281,7 +303,8 @@ static int incore_reread(struct tvpal_io *io, struct part *p, uint32_t t,
     const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, t);
     struct tvpal_io_req r = {
         .fd = p->fd, .off = e->offset, .len = e->bytes,
-        .buf = p->all + e->offset - TVPAL_SHARD_HEADER_BYTES, .tag = t};
+        .buf = p->all + p->stored_base + e->offset - TVPAL_SHARD_HEADER_BYTES,
+        .tag = t};
     struct tvpal_diag d = {{0}};
     uint64_t tag;
     int64_t res;
@@ -298,6 +321,33 @@ static int incore_reread(struct tvpal_io *io, struct part *p, uint32_t t,
     return 0;
 }
 
+/* In-core, coded records: moves record t, as read, to the tail of its
+ * place and inflates it there (records in step order: a record's plain
+ * form never reaches the stored bytes of the records after it, as inside
+ * a record, FORMAT.md 6.11).  A record that does not inflate is marked,
+ * with what was wrong.  0 or TVPAL_E_NOMEM. */
+static int place_incore(struct part *p, uint32_t t)
+{
+    const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, t);
+    unsigned char *dst = incore_rec(p, t);
+    memmove(dst + tvpal_record_stored_at(e),
+            p->all + p->stored_base + e->offset - TVPAL_SHARD_HEADER_BYTES,
+            e->bytes);
+    struct tvpal_diag d = {{0}};
+    int rc = e->coded
+                 ? tvpal_record_inflate(p->z, dst, e, t, tvpal_shard_hdr(p->sh),
+                                        &d)
+                 : tvpal_record_verify(dst, e->bytes, t,
+                                       tvpal_shard_hdr(p->sh), &d);
+    if (rc == TVPAL_E_NOMEM)
+        return rc;
+    if (rc < 0) {
+        p->bad[t] = rc;
+        p->why[t] = strdup(d.msg);
+    }
+    return 0;
+}
+
 /* In-core: the shard's records region [4096, index) read into RAM, in
  * pieces of at most 64 MiB (aligned), all queued; then every record
  * verified once. */
@@ -308,19 +358,34 @@ static int load_incore(struct tvpal_stream *s, struct part *p,
     struct tvpal_io *io = s->io;
     uint64_t bytes = h->index_offset - TVPAL_SHARD_HEADER_BYTES;
     int rc = 0;
-    if (!(p->all = record_buffer(bytes)))
+    /* Coded records: the records inflated, back to back; the file's
+     * records region is read into the tail and inflated front to back
+     * (place_incore). */
+    uint64_t plain = bytes;
+    if (p->z) {
+        if (!(p->plain_off = calloc(h->steps, sizeof *p->plain_off)) ||
+            !(p->why = calloc(h->steps, sizeof *p->why)))
+            return TVPAL_E_NOMEM;
+        plain = 0;
+        for (uint32_t t = 0; t < h->steps; t++) {
+            p->plain_off[t] = plain;
+            plain += tvpal_record_buffer_bytes(tvpal_shard_entry(p->sh, t));
+        }
+        p->stored_base = plain - bytes;
+    }
+    if (!(p->all = record_buffer(plain)))
         return tvpal_diag_set(diag, TVPAL_E_NOMEM,
                               "in-core: cannot hold %llu bytes of %s",
-                              (unsigned long long)bytes,
+                              (unsigned long long)plain,
                               tvpal_shard_path(p->sh));
-    s->incore_bytes += bytes;
+    s->incore_bytes += plain;
     if (!(p->bad = calloc(h->steps, sizeof *p->bad)))
         return TVPAL_E_NOMEM;
     for (uint64_t off = 0; off < bytes && rc == 0; off += INCORE_PIECE) {
         uint64_t len = bytes - off < INCORE_PIECE ? bytes - off : INCORE_PIECE;
         struct tvpal_io_req r = {
             .fd = p->fd, .off = TVPAL_SHARD_HEADER_BYTES + off,
-            .len = len, .buf = p->all + off, .tag = off};
+            .len = len, .buf = p->all + p->stored_base + off, .tag = off};
         while (rc == 0 && tvpal_io_inflight(io) >= tvpal_io_depth(io))
             rc = incore_reap(io, p, bytes, diag);
         if (rc == 0) {
@@ -342,10 +407,13 @@ static int load_incore(struct tvpal_stream *s, struct part *p,
      * it (the slices keep their previous window), as in stream mode. */
     for (uint32_t t = 0; t < h->steps && rc == 0; t++) {
         const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, t);
-        if (!p->bad[t])
-            p->bad[t] = tvpal_record_verify(
-                p->all + e->offset - TVPAL_SHARD_HEADER_BYTES, e->bytes, t, h,
-                NULL);
+        if (p->bad[t])
+            continue;
+        if (p->plain_off)
+            rc = place_incore(p, t);
+        else
+            p->bad[t] = tvpal_record_verify(incore_rec(p, t), e->bytes, t, h,
+                                            NULL);
     }
     return rc;
 }
@@ -359,14 +427,17 @@ static int incore_error(const struct part *p, uint32_t t,
         return tvpal_diag_set(diag, TVPAL_E_READ, "%s: record %u: %s",
                               tvpal_shard_path(p->sh), t,
                               strerror(p->bad[t]));
+    if (p->why && p->why[t])
+        return tvpal_diag_set(diag, p->bad[t], "%s: %s",
+                              tvpal_shard_path(p->sh), p->why[t]);
     struct tvpal_diag d = {{0}};
-    int rc = tvpal_record_verify(p->all + e->offset - TVPAL_SHARD_HEADER_BYTES,
-                                 e->bytes, t, tvpal_shard_hdr(p->sh), &d);
+    int rc = tvpal_record_verify(incore_rec(p, t), e->bytes, t,
+                                 tvpal_shard_hdr(p->sh), &d);
     return tvpal_diag_set(diag, rc < 0 ? rc : p->bad[t], "%s: %s",
                           tvpal_shard_path(p->sh), d.msg);
 }
 
-/* The most bytes of any record but record 0 (record 0 alone when it is the
+/* The most bytes (inflated: what a buffer holds) of any record but record 0 (record 0 alone when it is the
  * only one).  Record 0 holds the first window of every slice, N times a
  * later record's slices, and is read at a start or a jump to it only. */
 static uint64_t steady_record_bytes(const struct tvpal_shard *sh)
@@ -374,7 +445,7 @@ static uint64_t steady_record_bytes(const struct tvpal_shard *sh)
     const uint32_t steps = tvpal_shard_hdr(sh)->steps;
     uint64_t m = 0;
     for (uint32_t t = steps > 1 ? 1 : 0; t < steps; t++) {
-        uint64_t b = tvpal_shard_entry(sh, t)->bytes;
+        uint64_t b = tvpal_record_buffer_bytes(tvpal_shard_entry(sh, t));
         m = b > m ? b : m;
     }
     return m;
@@ -517,6 +588,8 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
         struct part *p = &s->p[i];
         const struct tvpal_shard_header *h = tvpal_shard_hdr(p->sh);
         rc = open_part(s, p, diag);
+        if (rc == 0 && h->version == TVPAL_FORMAT_VERSION_CODED)
+            rc = tvpal_chunkz_create(&p->z, tvpal_shard_max_chunk(h));
         if (rc < 0)
             break;
         /* The neighbourhood's records beside the others, and the N a
@@ -601,6 +674,11 @@ void tvpal_stream_free(struct tvpal_stream *s)
             close(p->fd);
         free(p->all);
         free(p->bad);
+        tvpal_chunkz_free(p->z);
+        free(p->plain_off);
+        for (uint32_t t = 0; p->why && t < tvpal_shard_hdr(p->sh)->steps; t++)
+            free(p->why[t]);
+        free(p->why);
         for (unsigned k = 0; p->slots && k < p->nslots_all; k++)
             free(p->slots[k].buf);
         free(p->slots);
@@ -735,9 +813,8 @@ static int seek_incore(struct tvpal_stream *s, uint32_t t,
                     err = incore_error(p, need[i], diag);
                 continue;
             }
-            const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, need[i]);
-            int rc = feed_record(p, p->all + e->offset - TVPAL_SHARD_HEADER_BYTES,
-                                 t, need[i], stage, diag);
+            int rc = feed_record(p, incore_rec(p, need[i]), t, need[i], stage,
+                                 diag);
             if (rc < 0)
                 return rc;
             st->records_applied++;
@@ -877,6 +954,9 @@ static int verify_slot(struct part *p, struct slot *sl, uint32_t step,
         rc = tvpal_diag_set(d, TVPAL_E_READ, "record %u: %s", step,
                             sl->result < 0 ? strerror((int)-sl->result)
                                            : "short read (truncated)");
+    else if (e->coded)
+        rc = tvpal_record_inflate(p->z, sl->buf, e, step,
+                                  tvpal_shard_hdr(p->sh), d);
     else
         rc = tvpal_record_verify(sl->buf, e->bytes, step,
                                  tvpal_shard_hdr(p->sh), d);
@@ -899,6 +979,17 @@ static int stage_checked(struct part *p, struct slot *sl, uint32_t t,
                          uint32_t step, struct tvpal_diag *d, int *fatal)
 {
     const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, step);
+    /* A coded record is checked as it is inflated; the plain record it
+     * becomes is consistent by construction, so it is staged as it is. */
+    if (e->coded || sl->verified) {
+        int rc = verify_slot(p, sl, step, d);
+        if (rc < 0)
+            return rc;
+        rc = tvpal_slab_stage(p->slab, sl->buf, t);
+        if (rc < 0)
+            *fatal = rc;
+        return 0;
+    }
     if (sl->result != (int64_t)e->bytes ||
         tvpal_record_verify_layout(sl->buf, e->bytes, step,
                                    tvpal_shard_hdr(p->sh), NULL) < 0)

@@ -53,13 +53,13 @@ good_encode() {
 # f32 tables, one node; N = 2 over T = 3 steps: a short first window
 # (odd slices: [0,1)) and a window cut at T (even slices: [2,3)).  --table
 # f32 is said since the default became auto (table_format 4).
-good good-1-basic blobs 4x3x2 3 --window 2 --table f32 --axes xyz
+good good-1-basic blobs 4x3x2 3 --window 2 --table f32 --axes xyz --index-coding none
 # 16-bit tables, two nodes; node 1 of axis z holds one slice (phase 0), so
 # its record 1 holds no chunk.
-good good-2-u16-nodes turbulence 4x3x3 3 --window 2 --nodes 2 --table u16 --axes xyz
+good good-2-u16-nodes turbulence 4x3x3 3 --window 2 --nodes 2 --table u16 --axes xyz --index-coding none
 # One axis (FORMAT.md 2.2): blobs 4x3x2, T = 3, N = 2, --axes z: node-0 has
 # axis-z.tvps only, the manifest format_version 3 and axes = z.
-good good-4-axis-z blobs 4x3x2 3 --window 2 --table f32 --axes z
+good good-4-axis-z blobs 4x3x2 3 --window 2 --table f32 --axes z --index-coding none
 # Missing values, 16-bit tables (table_format 3): blobs 4x3x2, T = 3, N = 2,
 # voxel (1,1,0) missing at every step and voxel (2,0,1) at step 1 only.
 "$GEN" --field blobs --dims 4x3x2 --steps 3 -o "$tmp/in-good-3-missing" > /dev/null
@@ -74,7 +74,7 @@ for t, f in enumerate(sorted(glob.glob(sys.argv[1] + "/*.f32"))):
             b[4 * i:4 * i + 4] = nan
     open(f, "wb").write(b)
 PY
-good_encode good-3-missing 4x3x2 --window 2 --table u16 --axes xyz
+good_encode good-3-missing 4x3x2 --window 2 --table u16 --axes xyz --index-coding none
 # The table format per chunk (table_format 4, --table auto): 20x16x3, T = 3,
 # N = 2.  Slice z = 0 is smooth (coded with an error: 16-bit table), z = 1
 # holds the integers 0, 1, 2 (coded exactly, which a 16-bit table would
@@ -96,7 +96,11 @@ for t in range(3):
                     v.append(5.0)
     open("%s/t%d.f32" % (sys.argv[1], t), "wb").write(struct.pack("<%df" % len(v), *v))
 PY
-good_encode good-5-auto 20x16x3 --window 2 --table auto --axes xyz
+good_encode good-5-auto 20x16x3 --window 2 --table auto --axes xyz --index-coding none
+# Coded chunks (FORMAT.md 6.11, shard format_version 2, the encoder's default
+# since 1.8): blobs 64x64x4, T = 3, N = 2, axis z; --index-coding none above
+# keeps good-1 to good-5 the plain shards of format_version 1.
+good good-6-coded blobs 64x64x4 3 --window 2 --axes z
 
 # The bad files: each one copy of a good-1-basic file with one fault.
 "$PY" - "$O" <<'PY'
@@ -146,8 +150,8 @@ def write(name, b):
 
 b = bytearray(shard); b[0:4096] = bytes(4096)
 write("bad-shard-unfinished.tvps", b)          # header never written
-b = bytearray(shard); u32(b, 8, 2)             # CRC left stale on purpose
-write("bad-shard-version-2.tvps", b)
+b = bytearray(shard); u32(b, 8, 3)             # CRC left stale on purpose
+write("bad-shard-version-3.tvps", b)
 b = bytearray(shard); b[2000] ^= 0x01          # a reserved byte
 write("bad-shard-header-crc.tvps", b)
 b = bytearray(shard); u32(b, 64, 6); seal_header(b)
@@ -190,7 +194,10 @@ def chunks(t):
         wlen, w, h, flags = struct.unpack_from("<3I4xI", shard, pos + 12)
         e = 2 if tf in (1, 3) or (tf >= 4 and flags & 2) else 4
         out.append(pos)
-        pos += 64 + wlen * 256 * e + (w * h + 63) // 64 * 64
+        if flags & 4:   # coded (FORMAT.md 6.11): header, frame, padding
+            pos += 64 + (struct.unpack_from("<I", shard, pos + 56)[0] + 63) // 64 * 64
+        else:
+            pos += 64 + wlen * 256 * e + (w * h + 63) // 64 * 64
     return out
 # Bad files planted in place of another good dataset's node-0/axis-z.tvps
 # (README.md: bad-u16-* in good-2-u16-nodes, bad-auto-* in good-5-auto).
@@ -204,6 +211,21 @@ b = bytearray(shard); u32(b, c[2] + 28, 0); seal_record(b, 0)
 write("bad-auto-chunk-size.tvps", b)           # a 16-bit chunk said float32
 b = bytearray(shard); u32(b, c[0] + 28, 3); seal_record(b, 0)
 write("bad-auto-chunk-missing.tvps", b)        # missing flag, table_format 4
+# Coded chunks (README.md: bad-coded-* in good-6-coded): record 1's first
+# chunk is coded.
+load(O + "/good-6-coded/node-0/axis-z.tvps")
+assert struct.unpack_from("<I", shard, 8)[0] == 2
+c = chunks(1)[0]
+assert struct.unpack_from("<I", shard, c + 28)[0] & 4
+b = bytearray(shard); b[c + 64] ^= 0x01; seal_record(b, 1)
+write("bad-coded-frame.tvps", b)               # zstd magic broken, CRCs valid
+b = bytearray(shard); u32(b, c + 56, 1 << 20); seal_record(b, 1)
+write("bad-coded-bytes.tvps", b)               # a frame larger than the chunk
+b = bytearray(shard); u32(b, idx + 32 + 28, struct.unpack_from("<I", shard, idx + 32 + 28)[0] + 1)
+seal_index(b)
+write("bad-coded-plain.tvps", b)               # plain_pages one page more
+b = bytearray(shard); u32(b, 8, 1); seal_header(b)
+write("bad-coded-version-1.tvps", b)           # coded records, version 1
 
 # Manifests: good-1-basic's with one change each.
 text = open(base + "manifest.txt").read()
