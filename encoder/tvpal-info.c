@@ -191,6 +191,24 @@ static int print_axis_bytes(struct tvpal_reader *r)
            all ? 100.0 * (double)u16 / (double)all : 0.0);
     printf("tables_f32 = %llu  (chunks with float32 decoder tables)\n",
            (unsigned long long)f32);
+    struct tvpal_coding c;
+    rc = tvpal_reader_coding(r, 0, &c, &d);
+    if (rc < 0) {
+        fprintf(stderr, PROG ": %s\n", d.msg[0] ? d.msg : tvpal_strerror(rc));
+        return rc == TVPAL_E_NOMEM ? TVPAL_EXIT_FAIL : TVPAL_EXIT_USAGE;
+    }
+    uint64_t n = 0, nc = 0, cb = 0, pb = 0;
+    for (unsigned a = 0; a < 3; a++) {
+        n += c.chunks[a];
+        nc += c.chunks_coded[a];
+        cb += c.coded_bytes[a];
+        pb += c.coded_plain_bytes[a];
+    }
+    printf("chunks_coded = %llu  (zstd frames, FORMAT.md 6.11: %.1f%% of the "
+           "chunks, %llu bytes for %llu inflated: %.1f%%)\n",
+           (unsigned long long)nc, n ? 100.0 * (double)nc / (double)n : 0.0,
+           (unsigned long long)cb, (unsigned long long)pb,
+           pb ? 100.0 * (double)cb / (double)pb : 0.0);
     return print_level_bytes(r, z.disk_bytes, vts);
 }
 

@@ -680,6 +680,24 @@ TVPAL_API int tvpal_reader_sizes(struct tvpal_reader *r, uint32_t level,
                                  struct tvpal_sizes *out,
                                  struct tvpal_diag *diag);
 
+/* How the chunks of one level are stored (FORMAT.md 6.11), per axis x, y,
+ * z as in struct tvpal_sizes.  Since 0.4.0. */
+struct tvpal_coding {
+    uint64_t chunks[3];            /* every chunk (slice-window) */
+    uint64_t chunks_coded[3];      /* of them, stored as zstd frames */
+    uint64_t coded_bytes[3];       /* what those take in the files
+                                    * (headers, frames, padding) */
+    uint64_t coded_plain_bytes[3]; /* what those take inflated */
+};
+
+/* The coding of level `level` (0 .. levels) into *out: reads every
+ * chunk's header.  0; TVPAL_E_INVAL (level out of range); the codes of
+ * tvpal_reader_open and TVPAL_E_READ, TVPAL_E_FORMAT (diag names the
+ * file).  Since 0.4.0. */
+TVPAL_API int tvpal_reader_coding(struct tvpal_reader *r, uint32_t level,
+                                  struct tvpal_coding *out,
+                                  struct tvpal_diag *diag);
+
 /* One finding of tvpal_reader_verify, valid during the call it is passed
  * to. */
 struct tvpal_check {

@@ -290,6 +290,40 @@ static int table_sizes(const struct tvpal_dataset *ds, unsigned a,
     return 0;
 }
 
+int tvpal_reader_coding(struct tvpal_reader *r, uint32_t level,
+                        struct tvpal_coding *out, struct tvpal_diag *diag)
+{
+    if (level > r->info.levels)
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "level %u: the dataset "
+                              "has levels 0..%u", level, r->info.levels);
+    int rc = open_level(r, level, diag);
+    if (rc < 0)
+        return rc;
+    const struct tvpal_dataset *ds = r->lv[level].ds;
+    struct tvpal_coding c;
+    memset(&c, 0, sizeof c);
+    for (unsigned a = 0; a < 3; a++) {
+        if (!tvpal_dataset_has_axis(ds, a))
+            continue;
+        for (uint32_t k = 0; k < ds->nshards; k++) {
+            struct tvpal_shard *sh = ds->shards[a][k];
+            struct tvpal_table_count n;
+            struct tvpal_diag d = {{0}};
+            rc = tvpal_shard_count_tables(sh, &n, &d);
+            if (rc < 0)
+                return tvpal_diag_set(diag, rc, "%s: %s",
+                                      tvpal_shard_path(sh),
+                                      d.msg[0] ? d.msg : tvpal_strerror(rc));
+            c.chunks[a] += n.chunks[0] + n.chunks[1];
+            c.chunks_coded[a] += n.coded_chunks;
+            c.coded_bytes[a] += n.coded_bytes;
+            c.coded_plain_bytes[a] += n.coded_plain;
+        }
+    }
+    *out = c;
+    return 0;
+}
+
 int tvpal_reader_sizes(struct tvpal_reader *r, uint32_t level,
                        struct tvpal_sizes *out, struct tvpal_diag *diag)
 {

@@ -12,6 +12,7 @@
 # write the corpus's bytes (tests/files).
 . "$(dirname "$0")/lib.sh"
 $PY -c "import numpy" 2>/dev/null || { echo "numpy missing (scripts/setup-deps installs python3-numpy)"; exit 99; }
+command -v zstd > /dev/null || { echo "zstd missing (scripts/setup-deps installs zstd; tests/shard_decode.py inflates coded chunks with it)"; exit 99; }
 CHK=$TVPAL_BUILDDIR/tests/tvpal-check
 export PYTHONPATH="$TVPAL_SRCDIR/tests${PYTHONPATH:+:$PYTHONPATH}"
 D=40x34x24

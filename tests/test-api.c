@@ -171,6 +171,13 @@ static void test_params(void)
           "axes 8 taken");
     CHECK(tvpal_encoder_set(e, (enum tvpal_param)99, 1, &d) ==
               TVPAL_E_INVAL, "parameter 99 taken");
+    CHECK(tvpal_encoder_set(e, TVPAL_PARAM_INDEX_CODING, 2, &d) ==
+              TVPAL_E_INVAL && strstr(d.msg, "index_coding"),
+          "index coding 2: %s", d.msg);
+    CHECK(tvpal_encoder_set(e, TVPAL_PARAM_INDEX_LEVEL, 20, &d) ==
+              TVPAL_E_INVAL && strstr(d.msg, "1..19"), "level 20: %s", d.msg);
+    CHECK(tvpal_encoder_set(e, TVPAL_PARAM_INDEX_LEVEL, 0, &d) ==
+              TVPAL_E_INVAL, "level 0 taken");
     const double bad_sp[3] = {1, 0, 1}, o[3] = {0, 0, 0};
     CHECK(tvpal_encoder_set_grid(e, bad_sp, o, &d) == TVPAL_E_INVAL &&
               strstr(d.msg, "spacing[1]"), "spacing 0: %s", d.msg);
@@ -980,6 +987,19 @@ static void check_describe_and_sizes(struct tvpal_reader *r, const char *dir)
               (unsigned long long)z0.index_bytes[a],
               (unsigned long long)z0.table_bytes[a],
               (unsigned long long)z0.axis_bytes[a]);
+    struct tvpal_coding c0;
+    REQUIRE(tvpal_reader_coding(r, 0, &c0, &d) == 0, "coding: %s", d.msg);
+    CHECK(c0.chunks[0] == z0.chunks_f32[0] + z0.chunks_u16[0] &&
+              c0.chunks[1] == 0 && c0.chunks_coded[0] > 0 &&
+              c0.chunks_coded[0] <= c0.chunks[0] &&
+              c0.coded_bytes[0] < c0.coded_plain_bytes[0],
+          "coding: %llu of %llu chunks coded, %llu bytes for %llu",
+          (unsigned long long)c0.chunks_coded[0],
+          (unsigned long long)c0.chunks[0],
+          (unsigned long long)c0.coded_bytes[0],
+          (unsigned long long)c0.coded_plain_bytes[0]);
+    CHECK(tvpal_reader_coding(r, 9, &c0, &d) == TVPAL_E_INVAL,
+          "coding of level 9");
     char l1[600];
     snprintf(l1, sizeof l1, "%s/level-1", dir);
     CHECK(z0.disk_bytes == tree_bytes(dir) && z1.disk_bytes == tree_bytes(l1)

@@ -933,7 +933,7 @@ int tvpal_shard_count_tables(struct tvpal_shard *s,
     const uint32_t allowed =
         tvpal_chunk_flags_allowed(h->table_format) |
         (h->version == TVPAL_FORMAT_VERSION_CODED ? TVPAL_CHUNK_ZSTD : 0u);
-    *out = (struct tvpal_table_count){{0}, {0}, 0, 0};
+    *out = (struct tvpal_table_count){{0}, {0}, 0, 0, 0};
     for (uint32_t t = 0; t < h->steps; t++) {
         const struct tvpal_index_entry *e = &s->index[t];
         uint64_t pos = e->offset + TVPAL_RECORD_HEADER_BYTES;
@@ -965,6 +965,8 @@ int tvpal_shard_count_tables(struct tvpal_shard *s,
                 if (ch.flags & TVPAL_CHUNK_ZSTD) {
                     out->coded_chunks++;
                     out->coded_bytes += cb;
+                    out->coded_plain += tvpal_chunk_bytes(len, h->slice_w,
+                                                          h->slice_h, tf);
                 }
                 pos += cb;
                 if (pos > end)

@@ -168,6 +168,7 @@ struct tvpal_table_count {
      * the file (headers, frames, padding). */
     uint64_t coded_chunks;
     uint64_t coded_bytes;
+    uint64_t coded_plain;     /* the same chunks' bytes inflated */
 };
 
 /* Counts what tables the chunks of s have.  For table_format 0..3 of
