@@ -334,6 +334,20 @@ int main(void)
               both[nb - 1], kept, dct[nd - 1]);
         CHECK(fabs(recon_mse(len) * len * NV - both[nb - 1]) <=
                   1e-6 * both[nb - 1], "len %u: the kept code's table", len);
+        /* The refined codewords are numbered by their mean over the
+         * window (so that neighbouring voxels of similar values get near
+         * indices, which coded chunks store in fewer bytes). */
+        int ordered = 1;
+        double prev = -INFINITY;
+        for (unsigned i = 0; i < 256; i++) {
+            double m = 0;
+            for (unsigned j = 0; j < len; j++)
+                m += table[j * 256 + i];
+            ordered &= m >= prev;
+            prev = m;
+        }
+        CHECK(ordered, "len %u: refined codewords not in order of their "
+              "means", len);
     }
     /* A smooth field: not worse than the DCT start alone run to the end
      * (the race only bounds it by that start's error after two
