@@ -270,11 +270,12 @@ static uint64_t index_bytes(const struct tvpal_manifest *m, unsigned a)
     return windows * w * h;
 }
 
-/* Axis a's tables and chunks by table format, over ds's shards.  diag
- * starts with the shard's path. */
-static int table_sizes(const struct tvpal_dataset *ds, unsigned a,
-                       struct tvpal_sizes *out, struct tvpal_diag *diag)
+/* The table counts of axis a's shards (tvpal_shard_count_tables), summed
+ * into *sum.  diag starts with the shard's path. */
+static int count_axis(const struct tvpal_dataset *ds, unsigned a,
+                      struct tvpal_table_count *sum, struct tvpal_diag *diag)
 {
+    memset(sum, 0, sizeof *sum);
     for (uint32_t k = 0; k < ds->nshards; k++) {
         struct tvpal_shard *sh = ds->shards[a][k];
         struct tvpal_table_count c;
@@ -283,42 +284,51 @@ static int table_sizes(const struct tvpal_dataset *ds, unsigned a,
         if (rc < 0)
             return tvpal_diag_set(diag, rc, "%s: %s", tvpal_shard_path(sh),
                                   d.msg[0] ? d.msg : tvpal_strerror(rc));
-        out->table_bytes[a] += c.bytes[0] + c.bytes[1];
-        out->chunks_f32[a] += c.chunks[0];
-        out->chunks_u16[a] += c.chunks[1];
+        for (unsigned u = 0; u < 2; u++) {
+            sum->chunks[u] += c.chunks[u];
+            sum->bytes[u] += c.bytes[u];
+        }
+        sum->coded_chunks += c.coded_chunks;
+        sum->coded_bytes += c.coded_bytes;
+        sum->coded_plain += c.coded_plain;
     }
     return 0;
 }
 
-int tvpal_reader_coding(struct tvpal_reader *r, uint32_t level,
-                        struct tvpal_coding *out, struct tvpal_diag *diag)
+/* Level `level`'s dataset, opened at its first use: 0, TVPAL_E_INVAL
+ * (no such level) or open_level's error. */
+static int level_dataset(struct tvpal_reader *r, uint32_t level,
+                         const struct tvpal_dataset **ds,
+                         struct tvpal_diag *diag)
 {
     if (level > r->info.levels)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "level %u: the dataset "
                               "has levels 0..%u", level, r->info.levels);
     int rc = open_level(r, level, diag);
+    if (rc == 0)
+        *ds = r->lv[level].ds;
+    return rc;
+}
+
+int tvpal_reader_coding(struct tvpal_reader *r, uint32_t level,
+                        struct tvpal_coding *out, struct tvpal_diag *diag)
+{
+    const struct tvpal_dataset *ds = NULL;
+    int rc = level_dataset(r, level, &ds, diag);
     if (rc < 0)
         return rc;
-    const struct tvpal_dataset *ds = r->lv[level].ds;
     struct tvpal_coding c;
     memset(&c, 0, sizeof c);
     for (unsigned a = 0; a < 3; a++) {
+        struct tvpal_table_count n;
         if (!tvpal_dataset_has_axis(ds, a))
             continue;
-        for (uint32_t k = 0; k < ds->nshards; k++) {
-            struct tvpal_shard *sh = ds->shards[a][k];
-            struct tvpal_table_count n;
-            struct tvpal_diag d = {{0}};
-            rc = tvpal_shard_count_tables(sh, &n, &d);
-            if (rc < 0)
-                return tvpal_diag_set(diag, rc, "%s: %s",
-                                      tvpal_shard_path(sh),
-                                      d.msg[0] ? d.msg : tvpal_strerror(rc));
-            c.chunks[a] += n.chunks[0] + n.chunks[1];
-            c.chunks_coded[a] += n.coded_chunks;
-            c.coded_bytes[a] += n.coded_bytes;
-            c.coded_plain_bytes[a] += n.coded_plain;
-        }
+        if ((rc = count_axis(ds, a, &n, diag)) < 0)
+            return rc;
+        c.chunks[a] = n.chunks[0] + n.chunks[1];
+        c.chunks_coded[a] = n.coded_chunks;
+        c.coded_bytes[a] = n.coded_bytes;
+        c.coded_plain_bytes[a] = n.coded_plain;
     }
     *out = c;
     return 0;
@@ -327,22 +337,23 @@ int tvpal_reader_coding(struct tvpal_reader *r, uint32_t level,
 int tvpal_reader_sizes(struct tvpal_reader *r, uint32_t level,
                        struct tvpal_sizes *out, struct tvpal_diag *diag)
 {
-    if (level > r->info.levels)
-        return tvpal_diag_set(diag, TVPAL_E_INVAL, "level %u: the dataset "
-                              "has levels 0..%u", level, r->info.levels);
-    int rc = open_level(r, level, diag);
+    const struct tvpal_dataset *ds = NULL;
+    int rc = level_dataset(r, level, &ds, diag);
     if (rc < 0)
         return rc;
-    const struct tvpal_dataset *ds = r->lv[level].ds;
     struct tvpal_sizes s;
     memset(&s, 0, sizeof s);
     for (unsigned a = 0; a < 3; a++) {
+        struct tvpal_table_count n;
         if (!tvpal_dataset_has_axis(ds, a))
             continue;
         s.axis_bytes[a] = ds->axis_bytes[a];
         s.index_bytes[a] = index_bytes(&ds->m, a);
-        if ((rc = table_sizes(ds, a, &s, diag)) < 0)
+        if ((rc = count_axis(ds, a, &n, diag)) < 0)
             return rc;
+        s.table_bytes[a] = n.bytes[0] + n.bytes[1];
+        s.chunks_f32[a] = n.chunks[0];
+        s.chunks_u16[a] = n.chunks[1];
     }
     char *dir = level_dir(r, level);
     if (!dir)
