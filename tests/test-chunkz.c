@@ -7,10 +7,15 @@
  * overlaps its own frame (the scratch path); the readers' refusals: a
  * broken frame, a frame of the wrong size, an index entry whose plain size
  * is not the record header's, a coded chunk in a format_version 1 shard,
- * a frame that claims more than it may. */
+ * a frame that claims more than it may.  Inflated in waves on a pool
+ * (tvpal_record_inflate_pool: 3 threads, 2 and 5 ways), every record gives
+ * the same bytes and every refusal the same code and message. */
+
+static struct tvpal_pool *g_pool;       /* 3 threads */
 #include "tvpal_chunkz.h"
 #include "tvpal_crc32c.h"
 #include "tvpal_format.h"
+#include "tvpal_pool.h"
 #include "tvpal_schedule.h"
 #include "tvpal_shard.h"
 #include "tvpal_test.h"
@@ -171,11 +176,12 @@ static void make_record(const struct tvpal_shard_header *h, uint32_t t,
 }
 
 /* Stores record e (stored bytes) at the tail of a fresh buffer, inflates
- * it in place; returns the code, the buffer in *out (caller frees). */
-static int inflate_copy(const struct tvpal_shard_header *h, uint32_t t,
-                        const struct tvpal_index_entry *e,
-                        const unsigned char *stored, struct tvpal_chunkz *z,
-                        unsigned char **out, struct tvpal_diag *d)
+ * it in place (on pool with z's ways); returns the code, the buffer in
+ * *out (caller frees). */
+static int inflate_on(struct tvpal_pool *pool, const struct tvpal_shard_header *h,
+                      uint32_t t, const struct tvpal_index_entry *e,
+                      const unsigned char *stored, struct tvpal_chunkz *z,
+                      unsigned char **out, struct tvpal_diag *d)
 {
     const uint64_t bb = tvpal_record_buffer_bytes(e);
     unsigned char *buf = malloc(bb);
@@ -183,7 +189,34 @@ static int inflate_copy(const struct tvpal_shard_header *h, uint32_t t,
     memset(buf, 0xA5, bb);   /* no byte of the result may come from here */
     memcpy(buf + tvpal_record_stored_at(e), stored, e->bytes);
     *out = buf;
-    return tvpal_record_inflate(z, buf, e, t, h, d);
+    return tvpal_record_inflate_pool(z, pool, buf, e, t, h, d);
+}
+
+/* inflate_on serially, then in waves of 2 and of 5 chunks on g_pool: the
+ * same code, message and (when 0) bytes each time. */
+static int inflate_copy(const struct tvpal_shard_header *h, uint32_t t,
+                        const struct tvpal_index_entry *e,
+                        const unsigned char *stored, struct tvpal_chunkz *z,
+                        unsigned char **out, struct tvpal_diag *d)
+{
+    int rc = inflate_on(NULL, h, t, e, stored, z, out, d);
+    for (unsigned ways = 2; ways <= 5; ways += 3) {
+        struct tvpal_chunkz *zw = NULL;
+        unsigned char *b = NULL;
+        struct tvpal_diag dw = {{0}};
+        REQUIRE(tvpal_chunkz_create_ways(&zw, tvpal_shard_max_chunk(h),
+                                         ways) == 0, "ways");
+        int rw = inflate_on(g_pool, h, t, e, stored, zw, &b, &dw);
+        CHECK(rw == rc && (rc != 0 || !strcmp(dw.msg, d->msg)) &&
+                  (rc != 0 || !memcmp(b, *out, e->plain_bytes)),
+              "record %u, %u ways on 3 threads: %d (%s) against %d (%s)", t,
+              ways, rw, dw.msg, rc, d->msg);
+        CHECK(rc == 0 || !strcmp(dw.msg, d->msg), "ways %u: message \"%s\" "
+              "against \"%s\"", ways, dw.msg, d->msg);
+        free(b);
+        tvpal_chunkz_free(zw);
+    }
+    return rc;
 }
 
 static void test_record(const char *what, struct tvpal_shard_header h,
@@ -297,6 +330,7 @@ static void test_frame_size_rules(void)
 
 int main(void)
 {
+    REQUIRE(tvpal_pool_create(&g_pool, 3) == 0, "pool");
     test_chunks();
     /* Record 0 of 37x23 slices, N = 4: every slice, all kinds mixed, so
      * coded and plain chunks alternate. */
@@ -311,5 +345,6 @@ int main(void)
     const enum kind noisy[] = {NOISY};
     test_record("none coded", header(37, 23, 4), 0, noisy, 1, 0);
     test_frame_size_rules();
+    tvpal_pool_free(g_pool);
     return tt_done("test-chunkz");
 }

@@ -11,28 +11,62 @@
 #endif
 
 #include "tvpal_crc32c.h"
+#include "tvpal_pool.h"
 
 /* The largest table: 16 rows of 256 float32 entries. */
 #define TABLE_MAX (16u * 256u * 4u)
 
+/* One chunk of a wave (inflate_waves): where it is and goes, and what its
+ * worker found. */
+struct wave_item {
+    struct tvpal_chunk_header h;
+    uint32_t ctf;
+    const unsigned char *src;
+    unsigned char *dst;
+    uint64_t cb, pb;            /* stored, plain bytes */
+    uint32_t crc;               /* of the plain chunk */
+    int rc;
+    char why[TVPAL_DIAG_MAX];
+};
+
 struct tvpal_chunkz {
     ZSTD_CCtx *cctx;            /* created at the first code */
-    ZSTD_DCtx *dctx;            /* created at the first inflate */
-    unsigned char *scratch;     /* a chunk's transformed table + indices */
+    ZSTD_DCtx **dctx;           /* per way, created at the first inflate */
+    unsigned char **scratch;    /* per way: a chunk's transformed table and
+                                 * indices, or a plain chunk's copy */
+    unsigned ways;
     uint64_t max_chunk;
+    struct wave_item *item;     /* ways of them */
     unsigned char table[TABLE_MAX];   /* a table's planes, moved aside */
 };
 
-int tvpal_chunkz_create(struct tvpal_chunkz **out, uint64_t max_chunk)
+int tvpal_chunkz_create_ways(struct tvpal_chunkz **out, uint64_t max_chunk,
+                             unsigned ways)
 {
+    if (ways < 1 || ways > TVPAL_CHUNKZ_WAYS_MAX || max_chunk > SIZE_MAX)
+        return TVPAL_E_INVAL;
     struct tvpal_chunkz *z = calloc(1, sizeof *z);
-    if (!z || max_chunk > SIZE_MAX || !(z->scratch = malloc(max_chunk))) {
-        free(z);
+    if (!z)
+        return TVPAL_E_NOMEM;
+    z->ways = ways;
+    z->max_chunk = max_chunk;
+    z->dctx = calloc(ways, sizeof *z->dctx);
+    z->scratch = calloc(ways, sizeof *z->scratch);
+    z->item = calloc(ways, sizeof *z->item);
+    int ok = z->dctx && z->scratch && z->item;
+    for (unsigned i = 0; ok && i < ways; i++)
+        ok = (z->scratch[i] = malloc(max_chunk)) != NULL;
+    if (!ok) {
+        tvpal_chunkz_free(z);
         return TVPAL_E_NOMEM;
     }
-    z->max_chunk = max_chunk;
     *out = z;
     return 0;
+}
+
+int tvpal_chunkz_create(struct tvpal_chunkz **out, uint64_t max_chunk)
+{
+    return tvpal_chunkz_create_ways(out, max_chunk, 1);
 }
 
 void tvpal_chunkz_free(struct tvpal_chunkz *z)
@@ -40,9 +74,21 @@ void tvpal_chunkz_free(struct tvpal_chunkz *z)
     if (!z)
         return;
     ZSTD_freeCCtx(z->cctx);
-    ZSTD_freeDCtx(z->dctx);
+    for (unsigned i = 0; i < z->ways; i++) {
+        if (z->dctx)
+            ZSTD_freeDCtx(z->dctx[i]);
+        if (z->scratch)
+            free(z->scratch[i]);
+    }
+    free(z->dctx);
     free(z->scratch);
+    free(z->item);
     free(z);
+}
+
+unsigned tvpal_chunkz_ways(const struct tvpal_chunkz *z)
+{
+    return z->ways;
 }
 
 const char *tvpal_chunkz_library(void)
@@ -158,14 +204,14 @@ int tvpal_chunkz_code(struct tvpal_chunkz *z, int level,
     const uint32_t n = h.wlen * 256u;
     const size_t tb = (size_t)n * E, wh = (size_t)h.w * h.h;
     const unsigned char *table = chunk + TVPAL_CHUNK_HEADER_BYTES;
-    table_forward(table, n, E, z->scratch);
-    index_forward(table + tb, wh, z->scratch + tb);
+    table_forward(table, n, E, z->scratch[0]);
+    index_forward(table + tb, wh, z->scratch[0] + tb);
     /* Room for a frame that makes the chunk smaller by at least 64. */
     if (plain < 2 * TVPAL_CHUNK_HEADER_BYTES)
         return 0;
     const size_t room = (size_t)(plain - 2 * TVPAL_CHUNK_HEADER_BYTES);
     size_t f = ZSTD_compressCCtx(z->cctx, dst + TVPAL_CHUNK_HEADER_BYTES,
-                                 room, z->scratch, tb + wh, level);
+                                 room, z->scratch[0], tb + wh, level);
     if (ZSTD_isError(f))   /* dstSize_tooSmall: coding does not pay */
         return ZSTD_getErrorCode(f) == ZSTD_error_dstSize_tooSmall
                    ? 0 : TVPAL_E_NOMEM;
@@ -180,6 +226,48 @@ int tvpal_chunkz_code(struct tvpal_chunkz *z, int level,
 
 /* ------------------------------------------------------------- inflate */
 
+/* The zstd frame of coded chunk h (at its stored bytes src) into out (tb
+ * + wh bytes: the transformed table and indices).  0, or TVPAL_E_FORMAT
+ * with why (naming record and slice) when the frame does not decode to
+ * exactly that. */
+static int decompress(ZSTD_DCtx *d, const struct tvpal_chunk_header *h,
+                      const unsigned char *src, unsigned char *out,
+                      size_t want, uint32_t step, char *why, size_t cap)
+{
+    size_t got = ZSTD_decompressDCtx(d, out, want,
+                                     src + TVPAL_CHUNK_HEADER_BYTES,
+                                     h->coded_bytes);
+    if (!ZSTD_isError(got) && got == want)
+        return 0;
+    snprintf(why, cap, "record %u: slice %u: coded chunk: %s (its frame "
+             "must decode to %zu bytes of table and indices)", step,
+             h->slice, ZSTD_isError(got) ? ZSTD_getErrorName(got)
+                                         : "wrong size", want);
+    return TVPAL_E_FORMAT;
+}
+
+/* The plain chunk h at dst from its transformed table (planes: n entries
+ * of E bytes, not overlapping the table's place at dst + 64, since
+ * table_inverse reads the planes while it writes the entries) and indices
+ * (wh bytes, possibly already in their place). */
+static void unpack(struct tvpal_chunk_header h, uint32_t ctf,
+                   const unsigned char *planes, const uint8_t *indices,
+                   unsigned char *dst)
+{
+    const unsigned E = tvpal_table_entry_bytes(ctf);
+    const uint32_t n = h.wlen * 256u;
+    const size_t tb = (size_t)n * E, wh = (size_t)h.w * h.h;
+    const uint64_t plain = tvpal_chunk_bytes(h.wlen, h.w, h.h, ctf);
+    unsigned char *table = dst + TVPAL_CHUNK_HEADER_BYTES;
+    table_inverse(planes, n, E, table);
+    index_inverse(indices, wh, table + tb);
+    memset(table + tb + wh, 0,
+           (size_t)(plain - TVPAL_CHUNK_HEADER_BYTES - tb - wh));
+    h.flags &= ~TVPAL_CHUNK_ZSTD;
+    h.coded_bytes = 0;
+    tvpal_chunk_header_encode(&h, dst);
+}
+
 /* Inflates the coded chunk (header h, frame at src) into its plain form at
  * dst (header included, plain bytes): straight into dst when that does
  * not reach src + its frame, else through the scratch. */
@@ -188,42 +276,120 @@ static int inflate_chunk(struct tvpal_chunkz *z, struct tvpal_chunk_header h,
                          unsigned char *dst, uint32_t step,
                          struct tvpal_diag *diag)
 {
-    const unsigned E = tvpal_table_entry_bytes(ctf);
-    const uint32_t n = h.wlen * 256u;
-    const size_t tb = (size_t)n * E, wh = (size_t)h.w * h.h;
+    const size_t tb = (size_t)h.wlen * 256u * tvpal_table_entry_bytes(ctf);
+    const size_t wh = (size_t)h.w * h.h;
     const uint64_t plain = tvpal_chunk_bytes(h.wlen, h.w, h.h, ctf);
-    const unsigned char *frame = src + TVPAL_CHUNK_HEADER_BYTES;
     if (plain > z->max_chunk)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "record %u: slice %u: "
                               "a chunk of %llu bytes, more than the shard's "
                               "largest", step, h.slice,
                               (unsigned long long)plain);
     const int direct = dst + plain <= src;
-    unsigned char *out = direct ? dst + TVPAL_CHUNK_HEADER_BYTES : z->scratch;
-    size_t got = ZSTD_decompressDCtx(z->dctx, out, tb + wh, frame,
-                                     h.coded_bytes);
-    if (ZSTD_isError(got) || got != tb + wh)
-        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "record %u: slice %u: "
-                              "coded chunk: %s (its frame must decode to "
-                              "%zu bytes of table and indices)", step,
-                              h.slice, ZSTD_isError(got)
-                                  ? ZSTD_getErrorName(got)
-                                  : "wrong size", tb + wh);
-    unsigned char *table = dst + TVPAL_CHUNK_HEADER_BYTES;
+    unsigned char *out = direct ? dst + TVPAL_CHUNK_HEADER_BYTES
+                                : z->scratch[0];
+    char why[TVPAL_DIAG_MAX];
+    if (decompress(z->dctx[0], &h, src, out, tb + wh, step, why, sizeof why))
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT, "%s", why);
     if (direct) {
-        /* The planes sit where the entries go: move them aside first. */
+        /* The planes sit where the entries go: moved aside first; the
+         * indices are summed in place. */
         memcpy(z->table, out, tb);
-        table_inverse(z->table, n, E, table);
-        index_inverse(out + tb, wh, table + tb);
+        unpack(h, ctf, z->table, out + tb, dst);
     } else {
-        table_inverse(out, n, E, table);
-        index_inverse(out + tb, wh, table + tb);
+        unpack(h, ctf, out, out + tb, dst);
     }
-    memset(table + tb + wh, 0,
-           (size_t)(plain - TVPAL_CHUNK_HEADER_BYTES - tb - wh));
-    h.flags &= ~TVPAL_CHUNK_ZSTD;
-    h.coded_bytes = 0;
-    tvpal_chunk_header_encode(&h, dst);
+    return 0;
+}
+
+/* A wave of the parallel inflate: its items and where they come from. */
+struct wave_ctx {
+    struct tvpal_chunkz *z;
+    uint32_t step;
+};
+
+/* Phase one of a wave: item i's stored bytes read into scratch i (a coded
+ * chunk's frame decompressed, a plain chunk copied), the record buffer
+ * only read. */
+static void wave_read(void *ctx, size_t i, unsigned tid)
+{
+    const struct wave_ctx *c = ctx;
+    struct wave_item *it = &c->z->item[i];
+    unsigned char *s = c->z->scratch[i];
+    (void)tid;
+    if (!(it->h.flags & TVPAL_CHUNK_ZSTD)) {
+        memcpy(s, it->src, (size_t)it->cb);
+        return;
+    }
+    const size_t want = (size_t)it->h.wlen * 256u *
+                            tvpal_table_entry_bytes(it->ctf) +
+                        (size_t)it->h.w * it->h.h;
+    it->rc = decompress(c->z->dctx[i], &it->h, it->src, s, want, c->step,
+                        it->why, sizeof it->why);
+}
+
+/* Phase two: item i's plain chunk written from scratch i to its place, and
+ * its CRC. */
+static void wave_write(void *ctx, size_t i, unsigned tid)
+{
+    const struct wave_ctx *c = ctx;
+    struct wave_item *it = &c->z->item[i];
+    (void)tid;
+    if (it->rc)
+        return;
+    const unsigned char *s = c->z->scratch[i];
+    const size_t tb = (size_t)it->h.wlen * 256u *
+                      tvpal_table_entry_bytes(it->ctf);
+    if (it->h.flags & TVPAL_CHUNK_ZSTD)
+        unpack(it->h, it->ctf, s, s + tb, it->dst);
+    else
+        memcpy(it->dst, c->z->scratch[i], (size_t)it->cb);
+    it->crc = tvpal_crc32c(0, it->dst, it->pb);
+}
+
+/* The chunks of a checked record (rh; stored from src, plain from dst),
+ * inflated in waves of z->ways chunks on the pool: each wave first reads
+ * all its chunks into the scratches, then writes all their plain forms.
+ * A wave's plain forms end before the stored chunks after it start (as a
+ * chunk's do, 6.11), so once its reads are done its writes clobber
+ * nothing still to be read, whichever thread does which.  *crc: the plain
+ * payload's. */
+static int inflate_waves(struct tvpal_chunkz *z, struct tvpal_pool *pool,
+                         const struct tvpal_record_header *rh,
+                         const unsigned char *src, unsigned char *dst,
+                         uint32_t step, const struct tvpal_shard_header *sh,
+                         uint32_t *crc, struct tvpal_diag *diag)
+{
+    struct wave_ctx c = {z, step};
+    *crc = 0;
+    for (uint32_t k = 0; k < rh->chunk_count;) {
+        unsigned n = 0;
+        for (; n < z->ways && k < rh->chunk_count; n++, k++) {
+            struct wave_item *it = &z->item[n];
+            (void)tvpal_chunk_header_decode(src, &it->h, NULL);
+            it->ctf = tvpal_chunk_table_format(sh->table_format, it->h.flags);
+            it->cb = tvpal_chunk_stored_bytes(&it->h, it->ctf);
+            it->pb = tvpal_chunk_bytes(it->h.wlen, it->h.w, it->h.h, it->ctf);
+            it->src = src;
+            it->dst = dst;
+            it->rc = 0;
+            if (it->pb > z->max_chunk)
+                return tvpal_diag_set(diag, TVPAL_E_INVAL, "record %u: "
+                                      "slice %u: a chunk of %llu bytes, "
+                                      "more than the shard's largest", step,
+                                      it->h.slice,
+                                      (unsigned long long)it->pb);
+            src += it->cb;
+            dst += it->pb;
+        }
+        tvpal_pool_for(pool, n, wave_read, &c);
+        for (unsigned i = 0; i < n; i++)
+            if (z->item[i].rc)
+                return tvpal_diag_set(diag, z->item[i].rc, "%s",
+                                      z->item[i].why);
+        tvpal_pool_for(pool, n, wave_write, &c);
+        for (unsigned i = 0; i < n; i++)
+            *crc = tvpal_crc32c_combine(*crc, z->item[i].crc, z->item[i].pb);
+    }
     return 0;
 }
 
@@ -231,6 +397,15 @@ int tvpal_record_inflate(struct tvpal_chunkz *z, unsigned char *buf,
                          const struct tvpal_index_entry *e, uint32_t step,
                          const struct tvpal_shard_header *sh,
                          struct tvpal_diag *diag)
+{
+    return tvpal_record_inflate_pool(z, NULL, buf, e, step, sh, diag);
+}
+
+int tvpal_record_inflate_pool(struct tvpal_chunkz *z, struct tvpal_pool *pool,
+                              unsigned char *buf,
+                              const struct tvpal_index_entry *e, uint32_t step,
+                              const struct tvpal_shard_header *sh,
+                              struct tvpal_diag *diag)
 {
     const uint64_t at = tvpal_record_stored_at(e);
     if (!e->coded)
@@ -249,15 +424,23 @@ int tvpal_record_inflate(struct tvpal_chunkz *z, unsigned char *buf,
                               "header's plain_bytes make %llu", step,
                               (unsigned long long)e->plain_bytes,
                               (unsigned long long)header_says);
-    if (!z->dctx && !(z->dctx = ZSTD_createDCtx()))
-        return TVPAL_E_NOMEM;
+    const int waves = z->ways > 1 && tvpal_pool_threads(pool) > 1;
+    for (unsigned i = 0; i < (waves ? z->ways : 1u); i++)
+        if (!z->dctx[i] && !(z->dctx[i] = ZSTD_createDCtx()))
+            return TVPAL_E_NOMEM;
     /* Front to back: dst never passes src (every chunk is no larger
      * stored than plain), and a chunk's plain form ends before the stored
      * chunks after it start. */
     const unsigned char *src = rec + TVPAL_RECORD_HEADER_BYTES;
     unsigned char *dst = buf + TVPAL_RECORD_HEADER_BYTES;
     uint32_t crc = 0;
-    for (uint32_t k = 0; k < rh.chunk_count; k++) {
+    if (waves) {
+        rc = inflate_waves(z, pool, &rh, src, dst, step, sh, &crc, diag);
+        if (rc < 0)
+            return rc;
+        dst += rh.plain_bytes;
+    }
+    for (uint32_t k = 0; !waves && k < rh.chunk_count; k++) {
         struct tvpal_chunk_header h;
         (void)tvpal_chunk_header_decode(src, &h, NULL);
         const uint32_t ctf = tvpal_chunk_table_format(sh->table_format,

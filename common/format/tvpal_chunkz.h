@@ -32,10 +32,18 @@
 #define TVPAL_CHUNKZ_LEVEL 3
 
 /* A coder's state: zstd contexts and scratch for chunks of up to max_chunk
- * plain bytes (tvpal_chunk_bytes).  One per thread.  0 or TVPAL_E_NOMEM;
- * *out owned by the caller (tvpal_chunkz_free, NULL a no-op). */
+ * plain bytes (tvpal_chunk_bytes).  One per thread that codes, or
+ * inflates without a pool.  0 or TVPAL_E_NOMEM; *out owned by the caller
+ * (tvpal_chunkz_free, NULL a no-op). */
 struct tvpal_chunkz;
 int tvpal_chunkz_create(struct tvpal_chunkz **out, uint64_t max_chunk);
+/* The same with `ways` (1..TVPAL_CHUNKZ_WAYS_MAX) scratches and contexts,
+ * for tvpal_record_inflate_pool: a wave inflates that many chunks at once.
+ * TVPAL_E_INVAL for ways out of range. */
+#define TVPAL_CHUNKZ_WAYS_MAX 64
+int tvpal_chunkz_create_ways(struct tvpal_chunkz **out, uint64_t max_chunk,
+                             unsigned ways);
+unsigned tvpal_chunkz_ways(const struct tvpal_chunkz *z);
 void tvpal_chunkz_free(struct tvpal_chunkz *z);
 
 /* Codes the plain chunk at chunk (header, table in its own format ctf
@@ -81,6 +89,20 @@ int tvpal_record_inflate(struct tvpal_chunkz *z, unsigned char *buf,
                          const struct tvpal_index_entry *e, uint32_t step,
                          const struct tvpal_shard_header *sh,
                          struct tvpal_diag *diag);
+
+/* tvpal_record_inflate on the threads of pool (tvpal_pool.h; NULL, a pool
+ * of one or z of one way: the same as tvpal_record_inflate): chunks are
+ * inflated in waves of tvpal_chunkz_ways(z), each wave's chunks first all
+ * read into z's scratches, then all written to their places, so no chunk
+ * overwrites what another has still to read.  The same bytes and codes as
+ * tvpal_record_inflate (the first failing chunk's).  Called by one thread
+ * at a time, the pool's driver. */
+struct tvpal_pool;
+int tvpal_record_inflate_pool(struct tvpal_chunkz *z, struct tvpal_pool *pool,
+                              unsigned char *buf,
+                              const struct tvpal_index_entry *e, uint32_t step,
+                              const struct tvpal_shard_header *sh,
+                              struct tvpal_diag *diag);
 
 /* The largest plain chunk of shard sh (the room of a float32 chunk of a
  * full window): what tvpal_chunkz_create needs for any of its chunks. */
