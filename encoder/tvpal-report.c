@@ -79,7 +79,8 @@ static void usage(FILE *f)
 "ratio_f32 (the same with the values as float32, whatever the source),\n"
 "axis_ratio (source bytes / mean bytes of one stored axis), ratio_8bit,\n"
 "bpv (bits on disk per voxel-timestep), index_bpv and table_bpv (theirs\n"
-"for the indices and the decoder tables), bytes, steps, window, missing,\n"
+"for the indices and the decoder tables, plain: coded chunks store them\n"
+"in fewer bytes, which bpv counts), bytes, steps, window, missing,\n"
 "missing_mismatch, tables_u16 and tables_f32 (chunks of the stored axes\n"
 "with 16-bit and float32 decoder tables: tvpal-encode --table).\n"
 "Exit status: 0 success, 1 failure, 2 bad input.\n");
