@@ -462,6 +462,5 @@ int tvpal_record_inflate_pool(struct tvpal_chunkz *z, struct tvpal_pool *pool,
     rh.payload_crc = crc;
     tvpal_record_header_encode(&rh, buf);
     memset(dst, 0, (size_t)(buf + e->plain_bytes - dst));
-    (void)at;
     return 0;
 }
