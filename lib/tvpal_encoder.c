@@ -193,6 +193,31 @@ static int whole_in(double value, double lo, double hi)
     return value >= lo && value <= hi && value == floor(value);
 }
 
+/* TVPAL_PARAM_INDEX_CODING and _INDEX_LEVEL: the level is remembered
+ * (e->index_level) while coding is off, so that the two may be set in
+ * either order; ep.index_level is 0 without coding.  A value out of range
+ * sets *name and *range for the caller's message. */
+static void set_index_coding(struct tvpal_encoder *e, enum tvpal_param param,
+                             double value, const char **name,
+                             const char **range)
+{
+    struct tvpal_engine_params *p = &e->ep;
+    if (param == TVPAL_PARAM_INDEX_CODING) {
+        if (value != TVPAL_CODING_NONE && value != TVPAL_CODING_ZSTD)
+            *name = "index_coding", *range = "TVPAL_CODING_NONE or _ZSTD";
+        else
+            p->index_level = value == TVPAL_CODING_NONE ? 0
+                           : e->index_level ? e->index_level
+                                            : TVPAL_CHUNKZ_LEVEL;
+    } else if (!whole_in(value, 1, 19)) {
+        *name = "index_level", *range = "1..19";
+    } else {
+        e->index_level = (int)value;
+        if (p->index_level)
+            p->index_level = (int)value;
+    }
+}
+
 int tvpal_encoder_set(struct tvpal_encoder *e, enum tvpal_param param,
                       double value, struct tvpal_diag *diag)
 {
@@ -291,21 +316,8 @@ int tvpal_encoder_set(struct tvpal_encoder *e, enum tvpal_param param,
             e->tick_seconds = value;
         break;
     case TVPAL_PARAM_INDEX_CODING:
-        if (value != TVPAL_CODING_NONE && value != TVPAL_CODING_ZSTD)
-            name = "index_coding", range = "TVPAL_CODING_NONE or _ZSTD";
-        else
-            p->index_level = value == TVPAL_CODING_NONE ? 0
-                           : e->index_level ? e->index_level
-                                            : TVPAL_CHUNKZ_LEVEL;
-        break;
     case TVPAL_PARAM_INDEX_LEVEL:
-        if (!whole_in(value, 1, 19))
-            name = "index_level", range = "1..19";
-        else {
-            e->index_level = (int)value;
-            if (p->index_level)
-                p->index_level = (int)value;
-        }
+        set_index_coding(e, param, value, &name, &range);
         break;
     case TVPAL_PARAM_CHECKPOINT:
         if (!whole_in(value, 0, UINT32_MAX))

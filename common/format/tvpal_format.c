@@ -290,6 +290,44 @@ void tvpal_index_entry_decode(const unsigned char *b,
                               : e->bytes;
 }
 
+/* The bytes chunk k of record `step` (header ch) takes as stored (*cb)
+ * and inflated (*plain), checked: a coded chunk's frame is there and
+ * claims no more than a zstd frame can hold, any other has no frame size
+ * (FORMAT.md 6.11), and the chunk fits in the `left` bytes of the
+ * payload.  0 or TVPAL_E_FORMAT naming record, chunk and slice. */
+static int chunk_sizes(const struct tvpal_chunk_header *ch,
+                       const struct tvpal_shard_header *sh, uint32_t step,
+                       uint32_t k, uint64_t left, uint64_t *cb,
+                       uint64_t *plain, struct tvpal_diag *diag)
+{
+    const uint32_t ctf = tvpal_chunk_table_format(sh->table_format,
+                                                  ch->flags);
+    *plain = tvpal_chunk_bytes(ch->wlen, ch->w, ch->h, ctf);
+    *cb = tvpal_chunk_stored_bytes(ch, ctf);
+    const int coded = (ch->flags & TVPAL_CHUNK_ZSTD) != 0;
+    if (coded ? (ch->coded_bytes == 0 || *cb >= *plain ||
+                 *plain / TVPAL_CODED_MAX_RATIO > *cb)
+              : ch->coded_bytes != 0)
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                              "record %u: chunk %u (slice %u): a frame of %u "
+                              "bytes for %llu bytes %s", step, k, ch->slice,
+                              ch->coded_bytes, (unsigned long long)*plain,
+                              coded ? "(a coded chunk is smaller than its "
+                                      "plain form, and at most 32768 times "
+                                      "smaller)"
+                                    : "in a chunk not coded (flags bit 2 "
+                                      "clear)");
+    if (*cb > left)
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                              "record %u: chunk %u (slice %u) overruns the "
+                              "payload: %llu bytes with a %s table (flags "
+                              "0x%x), %llu left", step, k, ch->slice,
+                              (unsigned long long)*cb,
+                              (ctf & TVPAL_TABLE_U16) ? "16-bit" : "float32",
+                              ch->flags, (unsigned long long)left);
+    return 0;
+}
+
 /* tvpal_record_verify, with (crc = 1) or without the payload CRC. */
 static int record_verify(const unsigned char *buf, uint64_t bytes,
                          uint32_t step, const struct tvpal_shard_header *sh,
@@ -370,37 +408,11 @@ static int record_verify(const unsigned char *buf, uint64_t bytes,
                                   allowed);
         prev = ch.slice;
         expect++;
-        const uint32_t ctf = tvpal_chunk_table_format(sh->table_format,
-                                                      ch.flags);
-        const uint64_t plain_cb = tvpal_chunk_bytes(ch.wlen, ch.w, ch.h, ctf);
-        uint64_t cb = tvpal_chunk_stored_bytes(&ch, ctf);
-        /* A coded chunk's frame is there and claims no more than a zstd
-         * frame can hold; any other chunk has no frame size (6.11). */
-        if ((ch.flags & TVPAL_CHUNK_ZSTD)
-                ? (ch.coded_bytes == 0 || cb >= plain_cb ||
-                   plain_cb / TVPAL_CODED_MAX_RATIO > cb)
-                : ch.coded_bytes != 0)
-            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
-                                  "record %u: chunk %u (slice %u): a frame "
-                                  "of %u bytes for %llu bytes %s", step, k,
-                                  ch.slice, ch.coded_bytes,
-                                  (unsigned long long)plain_cb,
-                                  (ch.flags & TVPAL_CHUNK_ZSTD)
-                                      ? "(a coded chunk is smaller than its "
-                                        "plain form, and at most 32768 times "
-                                        "smaller)"
-                                      : "in a chunk not coded (flags bit 2 "
-                                        "clear)");
+        uint64_t cb, plain_cb;
+        rc = chunk_sizes(&ch, sh, step, k, end - pos, &cb, &plain_cb, diag);
+        if (rc < 0)
+            return rc;
         plain += plain_cb;
-        if (cb > end - pos)
-            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
-                                  "record %u: chunk %u (slice %u) overruns "
-                                  "the payload: %llu bytes with a %s table "
-                                  "(flags 0x%x), %llu left", step, k,
-                                  ch.slice, (unsigned long long)cb,
-                                  (ctf & TVPAL_TABLE_U16) ? "16-bit"
-                                                          : "float32",
-                                  ch.flags, (unsigned long long)(end - pos));
         pos += cb;
     }
     if (pos != end)

@@ -447,6 +447,22 @@ static int incore_error(const struct part *p, uint32_t t,
                           tvpal_shard_path(p->sh), d.msg);
 }
 
+/* A part whose shard has coded records: its inflater, and the stream's
+ * pool at the first such part.  Waves of 4 chunks a thread: a 512^3
+ * record (128 chunks of 256 KiB) inflated on 2 threads in 38 ms, against
+ * 64 alone and 86 in waves of 2 (a wave's two hand-offs cost more than
+ * its work).  0 or TVPAL_E_NOMEM. */
+static int open_inflater(struct tvpal_stream *s, struct part *p)
+{
+    const unsigned nt = tvpal_pool_default_threads();
+    if (!s->pool && nt > 1 && tvpal_pool_create(&s->pool, nt) < 0)
+        s->pool = NULL;   /* inflated by one thread: slower, as sound */
+    const unsigned ways = 4 * tvpal_pool_threads(s->pool);
+    return tvpal_chunkz_create_ways(
+        &p->z, tvpal_shard_max_chunk(tvpal_shard_hdr(p->sh)),
+        ways < TVPAL_CHUNKZ_WAYS_MAX ? ways : TVPAL_CHUNKZ_WAYS_MAX);
+}
+
 /* The most bytes (inflated: what a buffer holds) of any record but record 0 (record 0 alone when it is the
  * only one).  Record 0 holds the first window of every slice, N times a
  * later record's slices, and is read at a start or a jump to it only. */
@@ -598,19 +614,8 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
         struct part *p = &s->p[i];
         const struct tvpal_shard_header *h = tvpal_shard_hdr(p->sh);
         rc = open_part(s, p, diag);
-        if (rc == 0 && h->version == TVPAL_FORMAT_VERSION_CODED &&
-            !s->pool && tvpal_pool_default_threads() > 1 &&
-            tvpal_pool_create(&s->pool, tvpal_pool_default_threads()) < 0)
-            s->pool = NULL;   /* inflated by one thread: slower, as sound */
-        /* Waves of 4 chunks a thread: a 512^3 record (128 chunks of
-         * 256 KiB) inflated on 2 threads in 38 ms, against 64 alone and 86
-         * in waves of 2 (a wave's two hand-offs cost more than its
-         * work). */
-        const unsigned ways = 4 * tvpal_pool_threads(s->pool);
         if (rc == 0 && h->version == TVPAL_FORMAT_VERSION_CODED)
-            rc = tvpal_chunkz_create_ways(
-                &p->z, tvpal_shard_max_chunk(h),
-                ways < TVPAL_CHUNKZ_WAYS_MAX ? ways : TVPAL_CHUNKZ_WAYS_MAX);
+            rc = open_inflater(s, p);
         if (rc < 0)
             break;
         /* The neighbourhood's records beside the others, and the N a
