@@ -70,9 +70,9 @@ struct tvpal_shardw {
     uint64_t *first_off;
     int packed;
     /* Coded chunks (FORMAT.md 6.11): coding, the caller may put them
-     * (tvpal_shardw_set_coding), so finish packs; coded, one was put
-     * (atomic; finish also learns it from the chunks it packs), so the
-     * shard is format_version 2; plain[t], record t's payload inflated. */
+     * (tvpal_shardw_set_coding), so finish packs; coded, packing found
+     * one (put_chunk takes them only with coding), so the shard is
+     * format_version 2; plain[t], record t's payload inflated. */
     int coding, coded;
     uint64_t *plain;
     uint8_t *rcoded;                  /* record t has a coded chunk */
@@ -462,8 +462,6 @@ int tvpal_shardw_put_chunk(struct tvpal_shardw *w, uint32_t t, uint32_t s,
     *crc = tvpal_crc32c(0, chunk, bytes);
     if (have && (ch.flags & TVPAL_CHUNK_MISSING))
         __atomic_store_n(&w->missing, 1, __ATOMIC_RELAXED);
-    if (have && (ch.flags & TVPAL_CHUNK_ZSTD))
-        __atomic_store_n(&w->coded, 1, __ATOMIC_RELAXED);
     return 0;
 }
 
