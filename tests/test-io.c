@@ -10,13 +10,20 @@
  *    the plain path; a second table, an entry filled twice or out of
  *    range, and the pread backend are refused with TVPAL_E_SYS, and reads
  *    go on working after a refusal;
- *  - the fault hook fails a fixed read as it fails a plain one.
+ *  - the fault hook fails a fixed read as it fails a plain one;
+ *  - tvpal_io_busy counts the bytes of the reads completed and the time a
+ *    read was with the kernel: on a pipe that has no data yet, a timed
+ *    wait (tvpal_io_wait_timed) returns 1 without a completion, the read
+ *    still counts as busy, and when data comes the read completes with
+ *    it and the busy time covers the wait; the pread backend counts its
+ *    reads too and never times out.
  * O_DIRECT where the file system offers it (the player's path), else the
  * page cache, said.  io_uring missing: its part skipped, said; exit 77
  * when nothing but pread could be checked.  Registration refused to a
  * user without CAP_IPC_LOCK (RLIMIT_MEMLOCK): said, its checks skipped;
  * as root it must work. */
 #define _GNU_SOURCE
+#include "tvpal_clock.h"
 #include "tvpal_io.h"
 #include "tvpal_test.h"
 
@@ -182,6 +189,71 @@ static void check_fault(int fd, unsigned char *b)
     tvpal_io_free(io);
 }
 
+/* tvpal_io_busy and tvpal_io_wait_timed on backend kind: two reads of the
+ * file, then (io_uring) a read of an empty pipe, timed out, then fed. */
+static void check_busy(enum tvpal_io_kind kind, int fd, unsigned char *buf)
+{
+    struct tvpal_io *io;
+    struct tvpal_diag d = {{0}};
+    if (tvpal_io_create(&io, kind, 4, &d) < 0)
+        return; /* io_uring unavailable: said by check_fixed */
+    const char *name = tvpal_io_name(io);
+    uint64_t bytes = 1;
+    double sec = 1;
+    tvpal_io_busy(io, &bytes, &sec);
+    CHECK(bytes == 0 && sec == 0, "%s: busy %llu bytes %.6f s before a read",
+          name, (unsigned long long)bytes, sec);
+    CHECK(read_one(io, fd, 0, MIB, buf, NULL) == MIB &&
+          read_one(io, fd, 3 * MIB, 2 * MIB, buf, NULL) == MIB,
+          "%s: reads", name);
+    tvpal_io_busy(io, &bytes, &sec);
+    CHECK(bytes == 2 * MIB && sec > 0, "%s: busy %llu bytes in %.6f s after "
+          "reading 2 MiB", name, (unsigned long long)bytes, sec);
+    if (kind == TVPAL_IO_PREAD) {
+        uint64_t tag = 0;
+        int64_t res = 0;
+        struct tvpal_io_req r = {.fd = fd, .off = 0, .len = 4096, .buf = buf,
+                                 .tag = 7};
+        REQUIRE(tvpal_io_submit(io, &r, &d) == 0, "submit: %s", d.msg);
+        CHECK(tvpal_io_wait_timed(io, 0, &tag, &res, &d) == 0 && tag == 7 &&
+              res == 4096, "pread: a timed wait did not read");
+        tvpal_io_free(io);
+        return;
+    }
+    int pfd[2];
+    REQUIRE(pipe(pfd) == 0, "pipe: %s", strerror(errno));
+    unsigned char msg[100], got[100] = {0};
+    for (unsigned i = 0; i < sizeof msg; i++)
+        msg[i] = (unsigned char)(i * 3 + 1);
+    struct tvpal_io_req r = {.fd = pfd[0], .off = 0, .len = sizeof got,
+                             .buf = got, .tag = 9};
+    uint64_t tag = 0;
+    int64_t res = 0;
+    double before = 0;
+    tvpal_io_busy(io, &bytes, &before);
+    REQUIRE(tvpal_io_submit(io, &r, &d) == 0, "submit: %s", d.msg);
+    const double t0 = tvpal_now();
+    CHECK(tvpal_io_wait_timed(io, 20, &tag, &res, &d) == 1,
+          "uring: a read of an empty pipe completed");
+    const double waited = tvpal_now() - t0;
+    CHECK(waited >= 0.019, "uring: the timed wait returned after %.4f s",
+          waited);
+    CHECK(tvpal_io_inflight(io) == 1, "uring: %u in flight after the "
+          "timeout", tvpal_io_inflight(io));
+    REQUIRE(write(pfd[1], msg, sizeof msg) == (ssize_t)sizeof msg, "write");
+    CHECK(tvpal_io_wait_timed(io, 5000, &tag, &res, &d) == 0 && tag == 9 &&
+          res == (int64_t)sizeof msg && !memcmp(got, msg, sizeof msg),
+          "uring: the pipe's read after the write: %lld", (long long)res);
+    tvpal_io_busy(io, &bytes, &sec);
+    CHECK(bytes == 2 * MIB + sizeof msg, "uring: busy %llu bytes",
+          (unsigned long long)bytes);
+    CHECK(sec - before >= 0.019, "uring: busy %.4f s over a read that took "
+          "more than 20 ms", sec - before);
+    close(pfd[0]);
+    close(pfd[1]);
+    tvpal_io_free(io);
+}
+
 /* Opens path for the checks: O_DIRECT where offered. */
 static int open_file(const char *path, int say)
 {
@@ -226,6 +298,8 @@ int main(int argc, char **argv)
                   *c = aligned_buf(2 * MIB);
     check_pread(fd, a);
     int uring = check_fixed(fd, a, b, c);
+    check_busy(TVPAL_IO_PREAD, fd, a);
+    check_busy(TVPAL_IO_URING, fd, a);
     close(fd);
     free(a);
     free(b);

@@ -1,5 +1,6 @@
 /* tvpal_io.c: io_uring and pread read backends (see tvpal_io.h). */
 #include "tvpal_io.h"
+#include "tvpal_clock.h"
 
 #include <errno.h>
 #include <inttypes.h>
@@ -22,6 +23,11 @@ struct tvpal_io {
     uint64_t fixed_reads; /* reads queued into registered buffers */
     unsigned nfixed;      /* entries of the fixed-buffer table (0: none), */
     unsigned nfilled;     /* how many of them are filled */
+    /* tvpal_io_busy: the figures other threads read (__atomic, relaxed),
+     * and the start of the interval open now (tvpal_now; 0: none), which
+     * only the reading thread touches. */
+    uint64_t busy_bytes, busy_ns;
+    double busy_since;
 #ifdef HAVE_LIBURING
     struct io_uring ring;
     int ring_ok;
@@ -61,6 +67,35 @@ static int64_t fault_filter(const struct tvpal_io_req *r, int64_t result)
         (uint64_t)g_fault_off < r->off + r->len)
         return -EIO;
     return result;
+}
+
+/* The disk becomes busy with this io's reads (tvpal_io_busy). */
+static void busy_open(struct tvpal_io *io)
+{
+    if (io->busy_since <= 0)
+        io->busy_since = tvpal_now();
+}
+
+/* A read of `bytes` completed; `idle`: none is left with the kernel.
+ * The time since the last mark is counted at every completion, so that
+ * the figures hold up to it even while the disk never idles. */
+static void busy_done(struct tvpal_io *io, int64_t bytes, int idle)
+{
+    const double now = tvpal_now();
+    if (io->busy_since > 0 && now > io->busy_since)
+        __atomic_fetch_add(&io->busy_ns,
+                           (uint64_t)((now - io->busy_since) * 1e9),
+                           __ATOMIC_RELAXED);
+    if (bytes > 0)
+        __atomic_fetch_add(&io->busy_bytes, (uint64_t)bytes, __ATOMIC_RELAXED);
+    io->busy_since = idle ? 0 : now;
+}
+
+void tvpal_io_busy(const struct tvpal_io *io, uint64_t *bytes,
+                   double *seconds)
+{
+    *bytes = __atomic_load_n(&io->busy_bytes, __ATOMIC_RELAXED);
+    *seconds = (double)__atomic_load_n(&io->busy_ns, __ATOMIC_RELAXED) * 1e-9;
 }
 
 int tvpal_io_create(struct tvpal_io **out, enum tvpal_io_kind kind,
@@ -188,6 +223,7 @@ static int uring_flush(struct tvpal_io *io, struct tvpal_diag *diag)
     if (!io_uring_sq_ready(&io->ring))
         return 0;
     io->submits++;
+    busy_open(io);
     int rc = io_uring_submit(&io->ring);
     if (rc < 0)
         return tvpal_diag_set(diag, TVPAL_E_READ, "io_uring_submit: %s",
@@ -311,6 +347,12 @@ int tvpal_io_submit(struct tvpal_io *io, const struct tvpal_io_req *r,
 int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result,
                   struct tvpal_diag *diag)
 {
+    return tvpal_io_wait_timed(io, -1, tag, result, diag);
+}
+
+int tvpal_io_wait_timed(struct tvpal_io *io, double ms, uint64_t *tag,
+                        int64_t *result, struct tvpal_diag *diag)
+{
     if (!io->inflight)
         return TVPAL_E_INVAL;
 #ifdef HAVE_LIBURING
@@ -320,7 +362,16 @@ int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result,
             int rc = uring_flush(io, diag);
             if (rc < 0)
                 return rc;
-            rc = io_uring_wait_cqe(&io->ring, &cqe);
+            if (ms >= 0) {
+                const long long ns = (long long)(ms * 1e6);
+                struct __kernel_timespec ts = {.tv_sec = ns / 1000000000,
+                                               .tv_nsec = ns % 1000000000};
+                rc = io_uring_wait_cqe_timeout(&io->ring, &cqe, &ts);
+                if (rc == -ETIME)
+                    return 1;   /* nothing landed within ms */
+            } else {
+                rc = io_uring_wait_cqe(&io->ring, &cqe);
+            }
             if (rc < 0)
                 return tvpal_diag_set(diag, TVPAL_E_READ,
                                       "io_uring_wait_cqe: %s", strerror(-rc));
@@ -336,6 +387,7 @@ int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result,
             }
             if (res > 0)
                 pd->done += (uint64_t)res;
+            busy_done(io, res < 0 ? 0 : (int64_t)pd->done, io->inflight == 1);
             *tag = pd->r.tag;
             *result = fault_filter(&pd->r, res < 0 ? res : (int64_t)pd->done);
             pd->used = 0;
@@ -349,6 +401,7 @@ int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result,
     io->inflight--;
     uint64_t got = 0;
     int64_t res = 0;
+    busy_open(io);
     while (got < r->len) {
         ssize_t k = pread(r->fd, (char *)r->buf + got, r->len - got,
                           (off_t)(r->off + got));
@@ -362,6 +415,7 @@ int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result,
             break;
         got += (uint64_t)k;
     }
+    busy_done(io, (int64_t)got, 1);
     *tag = r->tag;
     *result = fault_filter(r, res < 0 ? res : (int64_t)got);
     return 0;

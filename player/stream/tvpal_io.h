@@ -55,6 +55,28 @@ uint64_t tvpal_io_submits(const struct tvpal_io *io);
 int tvpal_io_wait(struct tvpal_io *io, uint64_t *tag, int64_t *result,
                   struct tvpal_diag *diag);
 
+/* What the disk gave these reads: the bytes of the reads completed so
+ * far and the seconds during which at least one read was with the kernel
+ * (io_uring: from the submission that found none there to the
+ * completion that left none; pread: inside pread), so that bytes over
+ * seconds is the rate the device served them at, whatever the caller did
+ * between its reads (the rate from a step's own reads and the time to
+ * prepare it counts that work too).  A completion taken late by a busy
+ * caller counts the wait as busy: the rate errs low, never high.  Safe to
+ * call from another thread than the one reading (a snapshot; the two
+ * figures may be one completion apart). */
+void tvpal_io_busy(const struct tvpal_io *io, uint64_t *bytes,
+                   double *seconds);
+
+/* tvpal_io_wait for at most ms milliseconds (ms < 0: as long as it
+ * takes): 1 when no read completed by then (io_uring; a pread backend's
+ * read is done in the call, so it never times out), else as
+ * tvpal_io_wait.  For a waiter that must notice, within ms, that it is
+ * to stop (a slow disk can take a throttle slice, 100 ms or more, to
+ * complete the next read). */
+int tvpal_io_wait_timed(struct tvpal_io *io, double ms, uint64_t *tag,
+                        int64_t *result, struct tvpal_diag *diag);
+
 /* io_uring fixed buffers: a table of n entries, empty at first
  * (tvpal_io_register), each filled once with tvpal_io_register_buffer.
  * The kernel faults a buffer's pages in and pins them when it is filled,
