@@ -178,17 +178,19 @@ static void *record_buffer(uint64_t bytes)
     return p;
 }
 
-/* Runs one completion; marks its slot. */
-static int reap(struct tvpal_stream *s, double *wait_ms,
-                struct tvpal_diag *diag)
+/* Runs one completion, waited for at most ms (< 0: as long as it
+ * takes); marks its slot.  0, 1 when none landed within ms, or an
+ * error. */
+static int reap_for(struct tvpal_stream *s, double ms, double *wait_ms,
+                    struct tvpal_diag *diag)
 {
     uint64_t tag;
     int64_t res;
     double t0 = tvpal_now();
-    int rc = tvpal_io_wait(s->io, &tag, &res, diag);
+    int rc = tvpal_io_wait_timed(s->io, ms, &tag, &res, diag);
     if (wait_ms)
         *wait_ms += (tvpal_now() - t0) * 1e3;
-    if (rc < 0)
+    if (rc != 0)
         return rc;
     struct part *p = &s->p[tag >> 32];
     struct slot *sl = &p->slots[tag & 0xFFFFFFFFu];
@@ -200,6 +202,18 @@ static int reap(struct tvpal_stream *s, double *wait_ms,
         sl->state = SLOT_READY;
     return 0;
 }
+
+static int reap(struct tvpal_stream *s, double *wait_ms,
+                struct tvpal_diag *diag)
+{
+    return reap_for(s, -1, wait_ms, diag);
+}
+
+/* How long a keep job waits for a read before it looks again whether it
+ * is to stop: the seek that stops it waits for it (measured on a disk
+ * throttled to half of 512^3 playback's need: seeks waited 14-166 ms
+ * for a keep job blocked on its next completion, a third of a frame). */
+#define KEEP_POLL_MS 1.0
 
 static int submit(struct tvpal_stream *s, unsigned pi, unsigned si,
                   uint32_t step, double *wait_ms, struct tvpal_diag *diag)
@@ -1191,7 +1205,7 @@ static void keep_around(struct tvpal_stream *s, uint32_t t, int dir)
                     (rc = queue_step(s, pi, &w, i, 0, &st, &d)) == 1) &&
                    tvpal_io_inflight(s->io)) {
                 if (keep_cancelled(&s->w) || tvpal_io_flush(s->io, &d) < 0 ||
-                    reap(s, NULL, &d) < 0)
+                    reap_for(s, KEEP_POLL_MS, NULL, &d) < 0)
                     return;
             }
             if (rc != 0 || keep_cancelled(&s->w))
@@ -1201,7 +1215,7 @@ static void keep_around(struct tvpal_stream *s, uint32_t t, int dir)
     if (tvpal_io_flush(s->io, &d) < 0)
         return;
     while (tvpal_io_inflight(s->io) && !keep_cancelled(&s->w))
-        if (reap(s, NULL, &d) < 0)
+        if (reap_for(s, KEEP_POLL_MS, NULL, &d) < 0)
             return;
     /* Ahead, a record is checked as it is staged (one pass over it,
      * stage_checked); around, a jump applies it on the caller's thread,
