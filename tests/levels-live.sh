@@ -60,6 +60,7 @@ xdotool key --window \$wid space; sleep 0.5
 cp "$W/win.csv" "$W/win-stopped.csv"
 xdotool key --window \$wid End; sleep 0.8
 xdotool key --window \$wid Home; sleep 0.8
+xdotool key --window \$wid End; sleep 0.8
 xdotool key --window \$wid q 2>/dev/null
 wait \$pid
 DRAG
@@ -76,9 +77,12 @@ DRAG
     [ "$steps" -ge 5 ] && ok "playing: $steps steps drawn at level 2" || fail "playing: $steps steps at level 2: $(tail -n 5 "$W/win.csv")"
     tail -n 1 "$W/win.csv" | awk -F, '{ exit !($3 == 0) }' \
         && ok "stopped: refined to level 0" || fail "stopped: $(tail -n 3 "$W/win.csv")"
-    # Jumps (End, Home) with --progressive on, the window's default: the
-    # jump's frame is drawn at once from a coarser level, then the same
-    # step at level 0 with its time from the jump (full_ms).
+    # Jumps (End, Home, End) with --progressive on, the window's default:
+    # the jump's frame is drawn at once from a coarser level, then the same
+    # step at level 0 with its time from the jump (full_ms).  A key that
+    # lands on the step playback comes to next (End from the step before
+    # it; Home from the last, round the loop) finds it prepared and draws
+    # it at level 0 at once: the last End, from step 0, is a jump.
     n1=$(wc -l < "$W/win-stopped.csv")
     tail -n +$((n1 + 1)) "$W/win.csv" > "$W/win-jumps.csv"
     awk -F, 'NR == 1 { prev = -1 } $2 != prev && $3 > 0 { j[$2] = 1; jumps++ }

@@ -5,7 +5,10 @@
  *    playback the same as forward;
  *  - in-core, io_uring (O_DIRECT) and pread give identical images;
  *  - a transfer-function change uploads no slice texture; a forward step
- *    uploads only the slices whose window starts there (about 1/N).
+ *    uploads only the slices whose window starts there (about 1/N);
+ *  - playback round a loop (tvpal_player_loop): the stager prepares the
+ *    loop's first step after its last, and a read-ahead goes round it,
+ *    so the frames there read nothing and draw what playing draws.
  * Exit 0 pass, 1 fail, 99 setup error. */
 #include "tvpal_clock.h"
 #include "tvpal_glr.h"
@@ -42,6 +45,83 @@ static struct tvpal_view view(const struct tvpal_manifest *m, double ax,
     memcpy(v.dims, m->dims, sizeof v.dims);
     tvpal_view_setup(&v);
     return v;
+}
+
+/* Playback round the loop lo..Tm-1 (tvpal_player_loop), frames against
+ * seq (playing 0..Tm-1), both backends:
+ *  - steady: after the frame at its last step, the stager prepares its
+ *    first (ready within 5 s; without the loop no job makes it, and it is
+ *    refused at once), whose frame installs what was staged;
+ *  - a read-ahead (keep_ahead) kept from three steps before its end goes
+ *    round it: its first steps are kept, and the frames up to lo + 2
+ *    read nothing.
+ * lo > N - 1 needs windows begun before lo, which the read-ahead reads
+ * first when it comes round. */
+static void check_loop(const char *dir, const struct tvpal_view *v,
+                       const struct tvpal_renderer *r, float (*seq)[W * H * 4],
+                       uint32_t Tm, uint32_t lo)
+{
+    static float img[W * H * 4];
+    struct tvpal_frame_stats st;
+    struct tvpal_diag d = {{0}};
+    const uint32_t hi = Tm - 1;
+    for (int pass = 0; pass < 4; pass++) {
+        const int looped = pass < 2;
+        struct tvpal_player *j = open_player(dir, 0, pass % 2 ? TVPAL_IO_PREAD
+                                                              : TVPAL_IO_URING, 1);
+        REQUIRE(!looped || tvpal_player_loop(j, lo, hi) == 0, "loop");
+        REQUIRE(tvpal_player_frame(j, v, hi - 1, 1, r, img, &st, &d) == 0 &&
+                    tvpal_player_frame(j, v, hi, 1, r, img, &st, &d) == 0,
+                "%s", d.msg);
+        const double w0 = tvpal_now();
+        const int ready = tvpal_player_ready(j, v, lo, 5000);
+        CHECK(ready == looped && (looped || tvpal_now() - w0 < 1.0),
+              "loop %u..%u (%s): step %u after %u %s", lo, hi,
+              looped ? "set" : "none", lo, hi,
+              ready ? "prepared" : "not prepared");
+        REQUIRE(tvpal_player_frame(j, v, lo, 1, r, img, &st, &d) == 0, "%s",
+                d.msg);
+        CHECK(!memcmp(img, seq[lo], sizeof img) && (st.staged > 0) == looped,
+              "loop %u..%u: step %u after %u: %u records staged, image %s",
+              lo, hi, lo, hi, st.staged,
+              memcmp(img, seq[lo], sizeof img) ? "differs" : "the same");
+        tvpal_player_close(j);
+    }
+    for (int pass = 0; pass < 2; pass++) {
+        struct tvpal_player_opts o = {.io = pass ? TVPAL_IO_PREAD : TVPAL_IO_URING,
+                                      .prefetch = 1, .direct = 1,
+                                      .keep_ahead = (uint64_t)1 << 30};
+        struct tvpal_player *k;
+        REQUIRE(tvpal_player_open(&k, dir, &o, &d) == 0, "%s", d.msg);
+        REQUIRE(tvpal_player_loop(k, lo, hi) == 0 &&
+                tvpal_player_loop(k, lo, Tm + 5) == TVPAL_E_INVAL, "loop");
+        const uint32_t t0 = hi - 3;
+        REQUIRE(tvpal_player_frame(k, v, t0, 1, r, img, &st, &d) == 0, "%s",
+                d.msg);
+        CHECK(tvpal_player_keep(k, v, t0, 1, &d) == 1, "keep from %u", t0);
+        const double k0 = tvpal_now();
+        while (tvpal_player_busy(k, v) && tvpal_now() - k0 < 10)
+            nanosleep(&(struct timespec){0, 2000000}, NULL);
+        int near = 0;
+        (void)tvpal_player_kept(k, v, lo + 1, &near);
+        CHECK(near, "loop %u..%u: step %u not among those kept from %u", lo,
+              hi, lo + 1, t0);
+        uint64_t read = 0;
+        uint32_t t = t0;
+        for (int f = 0; f < 6; f++) {
+            t = t == hi ? lo : t + 1;
+            REQUIRE(tvpal_player_frame(k, v, t, 1, r, img, &st, &d) == 0, "%s",
+                    d.msg);
+            read += f > 0 ? st.bytes_read : 0; /* t0 + 1: staged before */
+            CHECK(!memcmp(img, seq[t], sizeof img), "loop %u..%u read ahead: "
+                  "step %u differs", lo, hi, t);
+        }
+        CHECK(read == 0, "%s: loop %u..%u: the 5 frames from %u on, round "
+              "to %u, after the read-ahead read %llu bytes",
+              pass ? "pread" : "uring", lo, hi, t0 + 2, t,
+              (unsigned long long)read);
+        tvpal_player_close(k);
+    }
 }
 
 int main(int argc, char **argv)
@@ -183,6 +263,11 @@ int main(int argc, char **argv)
         CHECK(read == 0, "%s: steps %u..%u after the read-ahead read %llu bytes",
               pass ? "pread" : "uring", t0 + 2, Tm - 1, (unsigned long long)read);
         tvpal_player_close(k);
+    }
+    if (Tm > 4) {
+        check_loop(dir, &v, &rgl, seq, Tm, 0);
+        if (Tm > N + 5)
+            check_loop(dir, &v, &rgl, seq, Tm, N + 1);
     }
     for (uint32_t t = Tm; t-- > 0;) {
         REQUIRE(tvpal_player_frame(p, &v, t, -1, &rgl, a, &st, &d) == 0, "%s", d.msg);

@@ -128,6 +128,8 @@ struct play_session {
      * player is opened on its first use (play_levels.c); every level gets
      * the same TF, opacity and slice reduction. */
     unsigned nlevels;                   /* 1 + the manifest's levels */
+    int loop_set;                       /* play_levels_loop: the steps */
+    uint32_t loop_first, loop_last;     /* playback goes round */
     struct tvpal_player *lvl[TVPAL_LEVELS_MAX + 1];
     const struct tvpal_tf *tf;
     double tf_opacity;
@@ -164,6 +166,9 @@ void play_levels_preload(struct play_session *s, const struct tvpal_view *v0);
  * RAM (3.2 MiB), level 2 streamed (6 steps each way kept)" into buf. */
 void play_levels_describe(const struct play_session *s,
                           const struct tvpal_view *v0, char *buf, size_t n);
+/* Playback goes round the steps first..last (tvpal_player_loop), on
+ * every level's player, open now or later (both within the series). */
+void play_levels_loop(struct play_session *s, uint32_t first, uint32_t last);
 void play_set_tf(struct play_session *s, const struct tvpal_tf *tf,
                  double opacity);
 void play_set_reduce(struct play_session *s, unsigned reduce);

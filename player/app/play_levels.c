@@ -109,8 +109,20 @@ struct tvpal_player *play_level_player(struct play_session *s, unsigned k)
     if (s->tf)
         tvpal_player_set_tf(p, s->tf, s->tf_opacity);
     tvpal_player_set_reduce(p, s->reduce);
+    if (s->loop_set)
+        (void)tvpal_player_loop(p, s->loop_first, s->loop_last);
     s->lvl[k] = p;
     return p;
+}
+
+void play_levels_loop(struct play_session *s, uint32_t first, uint32_t last)
+{
+    s->loop_set = 1;
+    s->loop_first = first;
+    s->loop_last = last;
+    for (unsigned k = 0; k < s->nlevels; k++)
+        if (s->lvl[k])
+            (void)tvpal_player_loop(s->lvl[k], first, last);
 }
 
 void play_level_view(const struct play_session *s, unsigned k,

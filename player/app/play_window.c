@@ -655,6 +655,7 @@ int play_run_window(struct play_session *s)
     /* The clock (--fps) paces playing with or without --progressive. */
     play_prog_init(&w.prog, s->o->fps_given ? 1000.0 / s->o->fps : 0,
                    s->o->budget_ms, 0, s->m->steps - 1, 0);
+    play_levels_loop(s, 0, s->m->steps - 1); /* playing goes round them */
     w.progressive = s->o->progressive > 0 && !w.multi && s->nlevels > 1;
     preload_levels(&w);
     if (w.leader && s->o->shot_dir) {

@@ -43,6 +43,9 @@ struct tvpal_player {
     uint8_t *ghost_idx[2];
     float *ghost_pal;                /* 2 x 1024 */
     uint32_t ghost_sent[2], ghost_upl[2];
+    /* tvpal_player_loop: the steps playback goes round (set: 1). */
+    int loop_set;
+    uint32_t loop_first, loop_last;
 };
 
 /* Ghost rows are exchanged (a cluster node with an exchange). */
@@ -278,6 +281,19 @@ unsigned tvpal_player_kept(const struct tvpal_player *p,
     return s ? tvpal_stream_around(s) : 0;
 }
 
+int tvpal_player_loop(struct tvpal_player *p, uint32_t first, uint32_t last)
+{
+    if (first >= p->ds->m.steps || last >= p->ds->m.steps)
+        return TVPAL_E_INVAL;
+    p->loop_set = 1;
+    p->loop_first = first;
+    p->loop_last = last;
+    for (unsigned a = 0; a < 3; a++)
+        if (p->ax[a].stream)
+            (void)tvpal_stream_loop(p->ax[a].stream, first, last);
+    return 0;
+}
+
 int tvpal_player_busy(struct tvpal_player *p, const struct tvpal_view *v)
 {
     struct tvpal_stream *s = open_stream(p, v);
@@ -440,11 +456,14 @@ static int open_axis(struct tvpal_player *p, unsigned a,
                           : p->opts.incore && p->opts.keep_around
                               ? p->opts.mem_budget
                               : p->opts.keep_ahead;
-    return tvpal_stream_create(&x->stream, x->slabs, p->ds->nshards,
-                               p->opts.io, incore, p->opts.prefetch,
-                               p->opts.read_ahead ? p->opts.read_ahead
-                                                  : TVPAL_STREAM_READ_AHEAD,
-                               keep, policy, diag);
+    int rc = tvpal_stream_create(&x->stream, x->slabs, p->ds->nshards,
+                                 p->opts.io, incore, p->opts.prefetch,
+                                 p->opts.read_ahead ? p->opts.read_ahead
+                                                    : TVPAL_STREAM_READ_AHEAD,
+                                 keep, policy, diag);
+    if (rc == 0 && p->loop_set)
+        (void)tvpal_stream_loop(x->stream, p->loop_first, p->loop_last);
+    return rc; /* the range was checked by tvpal_player_loop */
 }
 
 /* The renderer is told the slices of the axis when it, its owner or the

@@ -221,6 +221,12 @@ int tvpal_player_keep(struct tvpal_player *p, const struct tvpal_view *v,
                       uint32_t t, int dir, struct tvpal_diag *diag);
 unsigned tvpal_player_kept(const struct tvpal_player *p,
                            const struct tvpal_view *v, uint32_t t, int *near);
+/* Playback goes round the steps first..last (tvpal_stream_loop), on the
+ * axes open now and those opened later: the reads ahead go on from the
+ * last of them to the first.  0, or TVPAL_E_INVAL (a step out of
+ * range). */
+int tvpal_player_loop(struct tvpal_player *p, uint32_t first, uint32_t last);
+
 /* 1 while the stager of view v's data axis works (tvpal_stream_busy). */
 int tvpal_player_busy(struct tvpal_player *p, const struct tvpal_view *v);
 

@@ -135,6 +135,8 @@ struct tvpal_stream {
     uint32_t keep_t;
     unsigned want_cap;
     uint64_t ahead_bytes;        /* a step's reads in flight (read_ahead) */
+    uint32_t steps;              /* the series' T */
+    uint32_t loop_lo, loop_hi;   /* tvpal_stream_loop (lo > hi: none) */
     uint64_t incore_bytes;
     unsigned policy;             /* TVPAL_STREAM_* bits */
     unsigned direct_files;       /* parts opened with O_DIRECT */
@@ -559,6 +561,18 @@ static unsigned around_of(const struct tvpal_stream *s, uint64_t keep_bytes,
     return k < h->steps ? (unsigned)k : h->steps;
 }
 
+int tvpal_stream_loop(struct tvpal_stream *s, uint32_t first, uint32_t last)
+{
+    const uint32_t lo = first < last ? first : last;
+    const uint32_t hi = first < last ? last : first;
+    if (hi >= s->steps)
+        return TVPAL_E_INVAL;
+    stager_wait(s);   /* the stager reads these */
+    s->loop_lo = lo;
+    s->loop_hi = hi;
+    return 0;
+}
+
 int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
                         unsigned nslabs, enum tvpal_io_kind kind, int incore,
                         unsigned prefetch, uint64_t read_ahead,
@@ -653,6 +667,9 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
     }
     if (rc == 0 && !incore)
         register_table(s);
+    s->steps = nslabs ? tvpal_shard_hdr(s->p[0].sh)->steps : 0;
+    s->loop_lo = 1;
+    s->loop_hi = 0;
     if (rc == 0 && prefetch > 0 && nslabs > 0) {
         struct stager *w = &s->w;
         /* The condition on the monotonic clock: tvpal_stream_ready's
@@ -770,13 +787,16 @@ struct want {
     uint32_t *step;
     unsigned n, nn;
     uint32_t lo, hi;
+    int list;       /* the steps ahead wrap round the loop
+                     * (tvpal_stream_loop): they are not one interval, and
+                     * all of step[0..n) are wanted, lo > hi */
 };
 
 static int wanted(const struct want *w, uint32_t step)
 {
     if (w->lo <= step && step <= w->hi)
         return 1;
-    for (unsigned i = 0; i < w->nn; i++)
+    for (unsigned i = 0; i < (w->list ? w->n : w->nn); i++)
         if (w->step[i] == step)
             return 1;
     return 0;
@@ -864,6 +884,21 @@ static int seek_incore(struct tvpal_stream *s, uint32_t t,
     return err;
 }
 
+/* The step steady playback reaches after t in direction dir: round the
+ * loop (tvpal_stream_loop) from its last step to its first, else the
+ * next in the series; -1 past its end. */
+static int64_t step_after(const struct tvpal_stream *s, uint32_t t, int dir)
+{
+    const int64_t q = (int64_t)t + (dir < 0 ? -1 : 1);
+    if (s->loop_lo <= s->loop_hi && t >= s->loop_lo && t <= s->loop_hi) {
+        if (q > s->loop_hi)
+            return s->loop_lo;
+        if (q < s->loop_lo)
+            return s->loop_hi;
+    }
+    return q < 0 || q >= s->steps ? -1 : q;
+}
+
 /* The steps part p wants at t (struct want): those it needs, then,
  * streamed with a neighbourhood (s->around), every record a step within
  * around of t needs, nearest first (the play direction first at equal
@@ -878,6 +913,7 @@ static void wanted_steps(const struct tvpal_stream *s, const struct part *p,
     w->n = w->nn = tvpal_slab_needed(p->slab, t, w->step);
     w->lo = 1;
     w->hi = 0;
+    w->list = 0;
     if (s->around && !s->ahead) {
         /* Step q shows windows that start in [q - N + 1, q] (or at 0,
          * record 0's first windows, when q < N): the records of
@@ -906,13 +942,28 @@ static void wanted_steps(const struct tvpal_stream *s, const struct part *p,
     const int on = __atomic_load_n(&s->ahead_on, __ATOMIC_RELAXED);
     const unsigned far = on && s->around > s->prefetch ? s->around
                                                        : s->prefetch;
+    uint32_t q = t;
     for (unsigned k = 1; k <= far && w->n < s->want_cap; k++) {
-        int64_t q = (int64_t)t + (dir < 0 ? -(int64_t)k : (int64_t)k);
-        if (q < 0 || q >= steps)
+        const int64_t next = step_after(s, q, dir);
+        if (next < 0 || next == t)
             break;
-        w->step[w->n++] = (uint32_t)q;
-        w->lo = k == 1 || (uint32_t)q < w->lo ? (uint32_t)q : w->lo;
-        w->hi = k == 1 || (uint32_t)q > w->hi ? (uint32_t)q : w->hi;
+        if (dir < 0 ? next > q : next < q) {
+            /* Round the loop: the step there needs every window that
+             * covers it, the records begun in (next - N, next]. */
+            w->list = 1;
+            const uint32_t from = (uint32_t)next + 1 > h->window
+                                      ? (uint32_t)next + 1 - h->window : 0;
+            for (uint32_t r = from; r < next && w->n + 1 < s->want_cap; r++)
+                w->step[w->n++] = r;
+        }
+        q = (uint32_t)next;
+        w->step[w->n++] = q;
+        w->lo = k == 1 || q < w->lo ? q : w->lo;
+        w->hi = k == 1 || q > w->hi ? q : w->hi;
+    }
+    if (w->list) {
+        w->lo = 1;
+        w->hi = 0;
     }
 }
 
@@ -1194,11 +1245,11 @@ static void keep_around(struct tvpal_stream *s, uint32_t t, int dir)
         /* Around: the needed lie in [lo, hi], and nothing is needed
          * now.  Ahead: they are kept too, t being the step playback will
          * be at (a plan's target) or is at. */
-        for (unsigned i = 0; i < w.nn; i++) {
+        for (unsigned i = 0; i < w.nn && !w.list; i++) {
             w.lo = w.step[i] < w.lo || w.lo > w.hi ? w.step[i] : w.lo;
             w.hi = w.step[i] > w.hi ? w.step[i] : w.hi;
         }
-        w.nn = 0;
+        w.nn = 0;   /* in the list, wanted still */
         for (unsigned i = 0; i < w.n; i++) {
             int rc;
             while (((rc = tvpal_io_inflight(s->io) >= s->keep_cap) ||
@@ -1399,9 +1450,18 @@ int tvpal_stream_kept(const struct tvpal_stream *s, uint32_t t)
 {
     if (!s->around || !s->kept)
         return 0;
-    if (s->ahead)   /* the steps after keep_t in its direction */
-        return s->keep_dir_neg ? t <= s->keep_t && s->keep_t - t <= s->around
-                               : t >= s->keep_t && t - s->keep_t <= s->around;
+    if (s->ahead) { /* the steps after keep_t in its direction */
+        uint32_t q = s->keep_t;
+        for (unsigned k = 0; k <= s->around; k++) {
+            if (q == t)
+                return 1;
+            const int64_t next = step_after(s, q, s->keep_dir_neg ? -1 : 1);
+            if (next < 0 || next == s->keep_t)
+                return 0;
+            q = (uint32_t)next;
+        }
+        return 0;
+    }
     return t <= s->keep_t ? s->keep_t - t <= s->around
                           : t - s->keep_t <= s->around;
 }
@@ -1572,11 +1632,10 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
     s->have_cur = 1;
     s->cur_t = t;
     detach_stale(s, t);
-    int64_t next = (int64_t)t + (dir < 0 ? -1 : 1);
+    const int64_t next = s->n ? step_after(s, t, dir) : -1;
     if (w->have && (int64_t)w->staged_t != next)
         unstage_all(s);
-    const uint32_t steps = tvpal_shard_hdr(s->p[0].sh)->steps;
-    if (dir != 0 && !w->have && next >= 0 && next < steps && s->n)
+    if (dir != 0 && !w->have && next >= 0)
         stager_post(s, (uint32_t)next, dir, 0);
     return rc;
 }

@@ -158,6 +158,15 @@ int tvpal_stream_ready(struct tvpal_stream *s, uint32_t t, double wait_ms);
  * submits its reads, the records it needs and its prefetch, in one). */
 uint64_t tvpal_stream_submits(const struct tvpal_stream *s);
 
+/* Steady playback goes round the steps first..last (either order; both
+ * within the series): the step after the last of them is the first, in
+ * the play direction, for the prefetch, the step the stager prepares
+ * next and the read-ahead (TVPAL_STREAM_KEEP_AHEAD), so that reads never
+ * stop at the loop's end, where a frame would otherwise wait for a whole
+ * step's records.  None at first: the prefetch stops at the series' ends.
+ * Waits for the stager.  0, or TVPAL_E_INVAL (a step out of range). */
+int tvpal_stream_loop(struct tvpal_stream *s, uint32_t first, uint32_t last);
+
 /* Bytes held in RAM by an in-core stream (0 out-of-core). */
 uint64_t tvpal_stream_incore_bytes(const struct tvpal_stream *s);
 
