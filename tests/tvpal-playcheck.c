@@ -8,7 +8,9 @@
  *    uploads only the slices whose window starts there (about 1/N);
  *  - playback round a loop (tvpal_player_loop): the stager prepares the
  *    loop's first step after its last, and a read-ahead goes round it,
- *    so the frames there read nothing and draw what playing draws.
+ *    so the frames there read nothing and draw what playing draws;
+ *  - the meter (tvpal_player_meter) counts the bytes read and the time
+ *    the disk was busy, and coded records inflated.
  * Exit 0 pass, 1 fail, 99 setup error. */
 #include "tvpal_clock.h"
 #include "tvpal_glr.h"
@@ -17,6 +19,7 @@
 #include "tvpal_render_ref.h"
 #include "tvpal_test.h"
 #include "tvpal_schedule.h"
+#include "tvpal_stream.h"
 
 #include <string.h>
 #include <time.h>
@@ -122,6 +125,30 @@ static void check_loop(const char *dir, const struct tvpal_view *v,
               (unsigned long long)read);
         tvpal_player_close(k);
     }
+}
+
+/* The meter of player p, which has played view v's axis: bytes read with
+ * a busy time, coded records counted as inflated; a step's records from
+ * scratch hold at least a byte per voxel once inflated, and take fewer
+ * stored where they are coded. */
+static void check_meter(struct tvpal_player *p, const struct tvpal_view *v,
+                        const struct tvpal_manifest *m)
+{
+    struct tvpal_stream_meter me;
+    uint64_t stored = 0, plain = 0;
+    tvpal_player_meter(p, v, &me);
+    tvpal_player_step_bytes(p, v, &stored, &plain);
+    const uint64_t voxels = (uint64_t)m->dims[0] * m->dims[1] * m->dims[2];
+    CHECK(me.read_bytes > 0 && me.read_s > 0, "meter: %llu bytes in %.6f s",
+          (unsigned long long)me.read_bytes, me.read_s);
+    CHECK(plain >= voxels && stored > 0 && stored <= plain,
+          "step bytes: %llu stored, %llu plain, %llu voxels",
+          (unsigned long long)stored, (unsigned long long)plain,
+          (unsigned long long)voxels);
+    CHECK((stored < plain) == (me.inflated_bytes > 0 && me.inflate_s > 0),
+          "meter: %llu bytes inflated in %.6f s (step: %llu stored, %llu "
+          "plain)", (unsigned long long)me.inflated_bytes, me.inflate_s,
+          (unsigned long long)stored, (unsigned long long)plain);
 }
 
 int main(int argc, char **argv)
@@ -269,6 +296,7 @@ int main(int argc, char **argv)
         if (Tm > N + 5)
             check_loop(dir, &v, &rgl, seq, Tm, N + 1);
     }
+    check_meter(p, &v, m);
     for (uint32_t t = Tm; t-- > 0;) {
         REQUIRE(tvpal_player_frame(p, &v, t, -1, &rgl, a, &st, &d) == 0, "%s", d.msg);
         CHECK(!memcmp(a, seq[t], sizeof a), "backward step %u differs", t);

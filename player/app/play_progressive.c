@@ -34,26 +34,45 @@ uint32_t play_prog_next(const struct play_prog *p, uint32_t t, int dir,
     return next < 0 || next >= steps ? t : (uint32_t)next;
 }
 
-/* The milliseconds level k's reads of step t from scratch (a byte per
- * voxel: every slice's window) take at the measured rate, under view v0
- * (level 0's): 0 while it is unknown, for a level in RAM, and for a step
- * among the steps a coarser level keeps around the playhead. */
-static double level_reads_ms(const struct play_prog *p,
-                             struct play_session *s, unsigned k,
-                             const struct tvpal_view *v0, uint32_t t)
+/* The milliseconds level k's records of a step take from scratch (the
+ * record of every window that covers it) under view v0 (level 0's), at
+ * what was measured: their stored bytes at the disk's rate, or inflating
+ * their plain bytes where that takes longer (coded records: one is
+ * inflated while the next is read, so the slower of the two sets the
+ * pace).  0 while the rate is unknown, and for a level in RAM. */
+static double step_reads_ms(const struct play_prog *p,
+                            struct play_session *s, unsigned k,
+                            const struct tvpal_view *v0)
 {
     struct tvpal_player *pk = play_level_player(s, k);
     if (p->rate <= 0 || tvpal_player_incore_bytes(pk))
         return 0;
-    if (k > 0 && v0) {
+    uint64_t stored = 0, plain = 0;
+    struct tvpal_view vk;
+    play_level_view(s, k, v0, &vk);
+    tvpal_player_step_bytes(pk, &vk, &stored, &plain);
+    if (!stored) { /* the axis not open yet: a byte per voxel */
+        const uint32_t *d = tvpal_player_manifest(pk)->dims;
+        stored = plain = (uint64_t)d[0] * d[1] * d[2];
+    }
+    return fmax((double)stored / p->rate, (double)plain * p->inflate_ms);
+}
+
+/* step_reads_ms for step t, 0 also for a step among those a coarser level
+ * keeps around the playhead (a frame there reads nothing). */
+static double level_reads_ms(const struct play_prog *p,
+                             struct play_session *s, unsigned k,
+                             const struct tvpal_view *v0, uint32_t t)
+{
+    if (k > 0) {
         struct tvpal_view vk;
         int near = 0;
         play_level_view(s, k, v0, &vk);
-        if (tvpal_player_kept(pk, &vk, t, &near) && near)
+        if (tvpal_player_kept(play_level_player(s, k), &vk, t, &near) &&
+            near)
             return 0;
     }
-    const uint32_t *d = tvpal_player_manifest(pk)->dims;
-    return (double)d[0] * d[1] * d[2] / p->rate;
+    return step_reads_ms(p, s, k, v0);
 }
 
 /* Whether the full level reads ahead once reads have fallen behind
@@ -91,11 +110,63 @@ static double frame_slack(const struct play_prog *p)
 static void measure_rate(struct play_prog *p, double io_ms, double stage_ms,
                          uint64_t bytes)
 {
+    if (p->metered)
+        return; /* the meter's figure is the disk's own */
     const double ms = bytes >= (1u << 20) ? fmax(io_ms, stage_ms)
                       : bytes >= (64u << 10) && io_ms >= 10 ? io_ms : 0;
     if (ms > 0.1) {
         const double r = (double)bytes / ms;
         p->rate = p->rate > 0 ? 0.8 * p->rate + 0.2 * r : r;
+    }
+}
+
+/* The meter's figures count once this many more bytes are read (or
+ * inflated) since the last sample: a few records (a step's at 512^3 are
+ * 34 MB to 136 MB), so that one read's latency is not taken for a
+ * rate. */
+#define METER_MIN ((uint64_t)16 << 20)
+
+/* An estimate moved towards a new measurement x (the first: x). */
+static double ewma(double old, double x)
+{
+    return old > 0 ? 0.7 * old + 0.3 * x : x;
+}
+
+/* The full level's read rate and inflating cost from its stream's meter
+ * (tvpal_player_meter: the disk's busy time, not the frame's waits,
+ * which also count the stager's other work and the reads queued before
+ * the step's own), over what was read since the last sample.  A view of
+ * another level or axis reads through another stream: its meter is
+ * sampled afresh. */
+static void meter_sample(struct play_prog *p, struct play_session *s,
+                         unsigned full, const struct tvpal_view *vf)
+{
+    struct tvpal_stream_meter m;
+    tvpal_player_meter(play_level_player(s, full), vf, &m);
+    const unsigned of = 1 + 4 * full + vf->axis;
+    if (p->meter_of != of || m.read_bytes < p->meter_bytes) {
+        p->meter_of = of;
+        p->meter_bytes = m.read_bytes;
+        p->meter_s = m.read_s;
+        p->meter_plain = m.inflated_bytes;
+        p->meter_inflate_s = m.inflate_s;
+        return;
+    }
+    const double ds = m.read_s - p->meter_s;
+    if (m.read_bytes - p->meter_bytes >= METER_MIN && ds > 1e-3) {
+        p->rate = ewma(p->metered ? p->rate : 0,
+                       (double)(m.read_bytes - p->meter_bytes) / (ds * 1e3));
+        p->metered = 1;
+        p->meter_bytes = m.read_bytes;
+        p->meter_s = m.read_s;
+    }
+    const double di = m.inflate_s - p->meter_inflate_s;
+    if (m.inflated_bytes - p->meter_plain >= METER_MIN && di > 0) {
+        p->inflate_ms = ewma(p->inflate_ms,
+                             di * 1e3 /
+                                 (double)(m.inflated_bytes - p->meter_plain));
+        p->meter_plain = m.inflated_bytes;
+        p->meter_inflate_s = m.inflate_s;
     }
 }
 
@@ -105,10 +176,11 @@ static void measure_rate(struct play_prog *p, double io_ms, double stage_ms,
  * fit d frames' budgets. */
 static uint32_t frames_ahead(const struct play_prog *p,
                              struct play_session *s, unsigned full,
-                             uint32_t lag, uint32_t run)
+                             const struct tvpal_view *v0, uint32_t lag,
+                             uint32_t run)
 {
     const double budget = frame_budget(p);
-    const double all = level_reads_ms(p, s, full, NULL, 0);
+    const double all = step_reads_ms(p, s, full, v0);
     const uint32_t n = s->m->window ? s->m->window : 1;
     const uint32_t most = n + 1 + (uint32_t)fmin(ceil(all / budget) *
                                                  (1 + (double)run / n), 1e6);
@@ -168,10 +240,10 @@ static int start_refine(struct play_prog *p, struct play_session *s,
     const uint32_t lo = p->first < p->last ? p->first : p->last;
     const uint32_t hi = p->first < p->last ? p->last : p->first;
     const uint32_t len = t >= lo && t <= hi ? hi - lo + 1 : s->m->steps;
-    uint32_t d = frames_ahead(p, s, full, lag, run) + p->late;
+    uint32_t d = frames_ahead(p, s, full, v0, lag, run) + p->late;
     while (run > 0 && d >= len) {
         run /= 2;
-        d = frames_ahead(p, s, full, lag, run) + p->late;
+        d = frames_ahead(p, s, full, v0, lag, run) + p->late;
     }
     uint32_t tp = t;
     for (uint32_t i = 0; i < d; i++)
@@ -219,6 +291,7 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
     struct tvpal_view vf;
     struct tvpal_player *pf = play_level_player(s, full);
     play_level_view(s, full, v0, &vf);
+    meter_sample(p, s, full, &vf);
     if (p->active && (jump || p->full != full || p->axis != vf.axis))
         p->active = 0;  /* another step or view: planned again */
     p->since = jump || p->since >= UINT32_MAX / 2 ? UINT32_MAX / 2

@@ -43,7 +43,17 @@ struct play_prog {
                                  * (headless without a clock: the frame
                                  * sequence is reproducible) */
     /* Measured (0: not yet). */
-    double rate;                /* bytes per ms that waited reads gave */
+    double rate;                /* bytes per ms the disk gives the full
+                                 * level's reads (stored bytes) */
+    double inflate_ms;          /* ms per plain byte inflating coded
+                                 * records (wall, on the stream's pool) */
+    int metered;                /* rate from the stream's meter (the
+                                 * disk's busy time), not from a frame's
+                                 * waits */
+    uint64_t meter_bytes, meter_plain;  /* the meter's counts when last */
+    double meter_s, meter_inflate_s;    /* sampled (play_prog_frame), */
+    unsigned meter_of;                  /* of this level and axis (1 + 4
+                                         * level + axis; 0: none) */
     double steady_ms;           /* a steady full-level frame's time */
     double draw_ms;             /* of it, drawing (not waiting for reads) */
     /* The refinement under way. */

@@ -294,6 +294,27 @@ int tvpal_player_loop(struct tvpal_player *p, uint32_t first, uint32_t last)
     return 0;
 }
 
+void tvpal_player_meter(const struct tvpal_player *p,
+                        const struct tvpal_view *v,
+                        struct tvpal_stream_meter *m)
+{
+    const struct tvpal_stream *s = open_stream(p, v);
+    if (s)
+        tvpal_stream_meter(s, m);
+    else
+        memset(m, 0, sizeof *m);
+}
+
+void tvpal_player_step_bytes(const struct tvpal_player *p,
+                             const struct tvpal_view *v, uint64_t *stored,
+                             uint64_t *plain)
+{
+    const struct tvpal_stream *s = open_stream(p, v);
+    *stored = *plain = 0;
+    if (s)
+        tvpal_stream_step_bytes(s, stored, plain);
+}
+
 int tvpal_player_busy(struct tvpal_player *p, const struct tvpal_view *v)
 {
     struct tvpal_stream *s = open_stream(p, v);

@@ -227,6 +227,18 @@ unsigned tvpal_player_kept(const struct tvpal_player *p,
  * range). */
 int tvpal_player_loop(struct tvpal_player *p, uint32_t first, uint32_t last);
 
+/* The cost so far of the reads and inflating of view v's data axis
+ * (tvpal_stream_meter), and the bytes one of its steps takes from
+ * scratch, stored and inflated (tvpal_stream_step_bytes): zeros while
+ * the axis is not open. */
+struct tvpal_stream_meter; /* tvpal_stream.h */
+void tvpal_player_meter(const struct tvpal_player *p,
+                        const struct tvpal_view *v,
+                        struct tvpal_stream_meter *m);
+void tvpal_player_step_bytes(const struct tvpal_player *p,
+                             const struct tvpal_view *v, uint64_t *stored,
+                             uint64_t *plain);
+
 /* 1 while the stager of view v's data axis works (tvpal_stream_busy). */
 int tvpal_player_busy(struct tvpal_player *p, const struct tvpal_view *v);
 

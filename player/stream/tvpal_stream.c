@@ -61,6 +61,10 @@ struct part {                /* one shard */
     uint64_t stored_base;    /* in-core: where in all the file's records
                               * region is read (0 when nothing is coded) */
     char **why;
+    /* Coded records inflated by the stream's threads (not in-core):
+     * their plain bytes and the wall time it took (tvpal_stream_meter;
+     * __atomic, relaxed: read by other threads). */
+    uint64_t inflated_bytes, inflate_ns;
 };
 
 /* The stager: a thread that prepares the next step (reads, verification,
@@ -137,6 +141,8 @@ struct tvpal_stream {
     uint64_t ahead_bytes;        /* a step's reads in flight (read_ahead) */
     uint32_t steps;              /* the series' T */
     uint32_t loop_lo, loop_hi;   /* tvpal_stream_loop (lo > hi: none) */
+    uint64_t step_stored;        /* tvpal_stream_step_bytes */
+    uint64_t step_plain;
     uint64_t incore_bytes;
     unsigned policy;             /* TVPAL_STREAM_* bits */
     unsigned direct_files;       /* parts opened with O_DIRECT */
@@ -561,6 +567,38 @@ static unsigned around_of(const struct tvpal_stream *s, uint64_t keep_bytes,
     return k < h->steps ? (unsigned)k : h->steps;
 }
 
+/* tvpal_stream_step_bytes: the records of one step from scratch, over
+ * the shards.  Step t needs the record of each window that covers it, one
+ * per window start in (t - N, t]: over the series that is N records of
+ * the T, so the mean is the N/T of all the records' bytes. */
+static void step_bytes_of(struct tvpal_stream *s)
+{
+    uint64_t stored = 0, plain = 0;
+    for (unsigned i = 0; i < s->n; i++) {
+        const struct tvpal_shard_header *h = tvpal_shard_hdr(s->p[i].sh);
+        uint64_t a = 0, b = 0;
+        for (uint32_t t = 0; t < h->steps; t++) {
+            const struct tvpal_index_entry *e = tvpal_shard_entry(s->p[i].sh, t);
+            a += e->bytes;
+            b += e->plain_bytes;
+        }
+        const uint32_t n = h->window < h->steps ? h->window : h->steps;
+        if (h->steps) {
+            stored += a / h->steps * n;
+            plain += b / h->steps * n;
+        }
+    }
+    s->step_stored = stored;
+    s->step_plain = plain;
+}
+
+void tvpal_stream_step_bytes(const struct tvpal_stream *s, uint64_t *stored,
+                             uint64_t *plain)
+{
+    *stored = s->step_stored;
+    *plain = s->step_plain;
+}
+
 int tvpal_stream_loop(struct tvpal_stream *s, uint32_t first, uint32_t last)
 {
     const uint32_t lo = first < last ? first : last;
@@ -571,6 +609,19 @@ int tvpal_stream_loop(struct tvpal_stream *s, uint32_t first, uint32_t last)
     s->loop_lo = lo;
     s->loop_hi = hi;
     return 0;
+}
+
+void tvpal_stream_meter(const struct tvpal_stream *s,
+                        struct tvpal_stream_meter *m)
+{
+    memset(m, 0, sizeof *m);
+    tvpal_io_busy(s->io, &m->read_bytes, &m->read_s);
+    for (unsigned i = 0; i < s->n; i++) {
+        m->inflated_bytes += __atomic_load_n(&s->p[i].inflated_bytes,
+                                             __ATOMIC_RELAXED);
+        m->inflate_s += (double)__atomic_load_n(&s->p[i].inflate_ns,
+                                                __ATOMIC_RELAXED) * 1e-9;
+    }
 }
 
 int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
@@ -667,6 +718,8 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
     }
     if (rc == 0 && !incore)
         register_table(s);
+    if (rc == 0)
+        step_bytes_of(s);
     s->steps = nslabs ? tvpal_shard_hdr(s->p[0].sh)->steps : 0;
     s->loop_lo = 1;
     s->loop_hi = 0;
@@ -1033,6 +1086,26 @@ static int queue_part(struct tvpal_stream *s, unsigned pi, uint32_t t,
     return 0;
 }
 
+/* Inflates coded record `step` in place in buf (tvpal_record_inflate_pool),
+ * counting its plain bytes and wall time for tvpal_stream_meter. */
+static int inflate_metered(struct part *p, struct tvpal_pool *pool,
+                           unsigned char *buf,
+                           const struct tvpal_index_entry *e, uint32_t step,
+                           struct tvpal_diag *d)
+{
+    const double t0 = tvpal_now();
+    const int rc = tvpal_record_inflate_pool(p->z, pool, buf, e, step,
+                                             tvpal_shard_hdr(p->sh), d);
+    const double s = tvpal_now() - t0;
+    if (rc == 0) {
+        __atomic_fetch_add(&p->inflated_bytes, e->plain_bytes,
+                           __ATOMIC_RELAXED);
+        __atomic_fetch_add(&p->inflate_ns, (uint64_t)(s > 0 ? s * 1e9 : 0),
+                           __ATOMIC_RELAXED);
+    }
+    return rc;
+}
+
 /* Checks a landed slot holding `step` once: its length and CRCs.  0, or
  * the error in d (the slot is then freed, to be read again later). */
 static int verify_slot(struct part *p, struct slot *sl, uint32_t step,
@@ -1047,8 +1120,7 @@ static int verify_slot(struct part *p, struct slot *sl, uint32_t step,
                             sl->result < 0 ? strerror((int)-sl->result)
                                            : "short read (truncated)");
     else if (e->coded)
-        rc = tvpal_record_inflate_pool(p->z, pool, sl->buf, e, step,
-                                       tvpal_shard_hdr(p->sh), d);
+        rc = inflate_metered(p, pool, sl->buf, e, step, d);
     else
         rc = tvpal_record_verify(sl->buf, e->bytes, step,
                                  tvpal_shard_hdr(p->sh), d);

@@ -167,6 +167,28 @@ uint64_t tvpal_stream_submits(const struct tvpal_stream *s);
  * Waits for the stager.  0, or TVPAL_E_INVAL (a step out of range). */
 int tvpal_stream_loop(struct tvpal_stream *s, uint32_t first, uint32_t last);
 
+/* What the stream's reads and inflating have cost so far, for a planner
+ * that must know how long a step's records take to arrive: the disk's
+ * side (tvpal_io_busy: bytes completed, seconds with a read at the
+ * device) and the CPU's (coded records, out-of-core: plain bytes
+ * inflated, seconds of wall time inflating).  A snapshot, safe to take
+ * from another thread than the one reading. */
+struct tvpal_stream_meter {
+    uint64_t read_bytes;
+    double read_s;
+    uint64_t inflated_bytes;
+    double inflate_s;
+};
+void tvpal_stream_meter(const struct tvpal_stream *s,
+                        struct tvpal_stream_meter *m);
+
+/* The bytes one step's records take from scratch (a jump: the record of
+ * every window that covers it, over the stream's shards; the mean over
+ * the steps), as stored and as inflated (equal where nothing is
+ * coded). */
+void tvpal_stream_step_bytes(const struct tvpal_stream *s, uint64_t *stored,
+                             uint64_t *plain);
+
 /* Bytes held in RAM by an in-core stream (0 out-of-core). */
 uint64_t tvpal_stream_incore_bytes(const struct tvpal_stream *s);
 
