@@ -567,12 +567,16 @@ static unsigned around_of(const struct tvpal_stream *s, uint64_t keep_bytes,
     return k < h->steps ? (unsigned)k : h->steps;
 }
 
-/* tvpal_stream_step_bytes: the records of one step from scratch, over
- * the shards.  Step t needs the record of each window that covers it, one
- * per window start in (t - N, t]: over the series that is N records of
- * the T, so the mean is the N/T of all the records' bytes. */
-static void step_bytes_of(struct tvpal_stream *s)
+/* The series' length, no loop (tvpal_stream_loop) and the bytes of one
+ * step's records from scratch, over the shards (tvpal_stream_step_bytes).
+ * Step t needs the record of each window that covers it, one per window
+ * start in (t - N, t]: over the series that is N records of the T, so the
+ * mean is the N/T of all the records' bytes. */
+static void series_of(struct tvpal_stream *s)
 {
+    s->steps = s->n ? tvpal_shard_hdr(s->p[0].sh)->steps : 0;
+    s->loop_lo = 1;
+    s->loop_hi = 0;
     uint64_t stored = 0, plain = 0;
     for (unsigned i = 0; i < s->n; i++) {
         const struct tvpal_shard_header *h = tvpal_shard_hdr(s->p[i].sh);
@@ -622,6 +626,36 @@ void tvpal_stream_meter(const struct tvpal_stream *s,
         m->inflate_s += (double)__atomic_load_n(&s->p[i].inflate_ns,
                                                 __ATOMIC_RELAXED) * 1e-9;
     }
+}
+
+/* Starts the stager thread of s (its lock and condition first).  0, or
+ * TVPAL_E_SYS with diag saying what could not be created. */
+static int start_stager(struct tvpal_stream *s, struct tvpal_diag *diag)
+{
+    struct stager *w = &s->w;
+    /* The condition on the monotonic clock: tvpal_stream_ready's timed
+     * wait must not move with the wall clock. */
+    pthread_condattr_t ca;
+    int cv_ok = 0;
+    if (pthread_condattr_init(&ca) == 0) {
+        cv_ok = pthread_condattr_setclock(&ca, CLOCK_MONOTONIC) == 0 &&
+                pthread_cond_init(&w->cv, &ca) == 0;
+        pthread_condattr_destroy(&ca);
+    }
+    if (!cv_ok || pthread_mutex_init(&w->mu, NULL)) {
+        if (cv_ok)
+            pthread_cond_destroy(&w->cv);
+        return tvpal_diag_set(diag, TVPAL_E_SYS,
+                              "cannot create the stager's lock");
+    }
+    if (pthread_create(&w->th, NULL, stager_main, s)) {
+        pthread_cond_destroy(&w->cv);
+        pthread_mutex_destroy(&w->mu);
+        return tvpal_diag_set(diag, TVPAL_E_SYS,
+                              "cannot start the stager thread");
+    }
+    w->started = 1;
+    return 0;
 }
 
 int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
@@ -719,33 +753,9 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
     if (rc == 0 && !incore)
         register_table(s);
     if (rc == 0)
-        step_bytes_of(s);
-    s->steps = nslabs ? tvpal_shard_hdr(s->p[0].sh)->steps : 0;
-    s->loop_lo = 1;
-    s->loop_hi = 0;
-    if (rc == 0 && prefetch > 0 && nslabs > 0) {
-        struct stager *w = &s->w;
-        /* The condition on the monotonic clock: tvpal_stream_ready's
-         * timed wait must not move with the wall clock. */
-        pthread_condattr_t ca;
-        int cv_ok = 0;
-        if (pthread_condattr_init(&ca) == 0) {
-            cv_ok = pthread_condattr_setclock(&ca, CLOCK_MONOTONIC) == 0 &&
-                    pthread_cond_init(&w->cv, &ca) == 0;
-            pthread_condattr_destroy(&ca);
-        }
-        if (!cv_ok || pthread_mutex_init(&w->mu, NULL)) {
-            if (cv_ok)
-                pthread_cond_destroy(&w->cv);
-            rc = tvpal_diag_set(diag, TVPAL_E_SYS, "cannot create the stager's lock");
-        } else if (pthread_create(&w->th, NULL, stager_main, s)) {
-            pthread_cond_destroy(&w->cv);
-            pthread_mutex_destroy(&w->mu);
-            rc = tvpal_diag_set(diag, TVPAL_E_SYS, "cannot start the stager thread");
-        } else {
-            w->started = 1;
-        }
-    }
+        series_of(s);
+    if (rc == 0 && prefetch > 0 && nslabs > 0)
+        rc = start_stager(s, diag);
     if (rc < 0) {
         tvpal_stream_free(s);
         return rc;
