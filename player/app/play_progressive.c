@@ -142,31 +142,29 @@ static void meter_sample(struct play_prog *p, struct play_session *s,
                          unsigned full, const struct tvpal_view *vf)
 {
     struct tvpal_stream_meter m;
+    struct tvpal_stream_meter *last = &p->meter;
     tvpal_player_meter(play_level_player(s, full), vf, &m);
     const unsigned of = 1 + 4 * full + vf->axis;
-    if (p->meter_of != of || m.read_bytes < p->meter_bytes) {
+    if (p->meter_of != of || m.read_bytes < last->read_bytes) {
         p->meter_of = of;
-        p->meter_bytes = m.read_bytes;
-        p->meter_s = m.read_s;
-        p->meter_plain = m.inflated_bytes;
-        p->meter_inflate_s = m.inflate_s;
+        *last = m;
         return;
     }
-    const double ds = m.read_s - p->meter_s;
-    if (m.read_bytes - p->meter_bytes >= METER_MIN && ds > 1e-3) {
+    const double ds = m.read_s - last->read_s;
+    if (m.read_bytes - last->read_bytes >= METER_MIN && ds > 1e-3) {
         p->rate = ewma(p->metered ? p->rate : 0,
-                       (double)(m.read_bytes - p->meter_bytes) / (ds * 1e3));
+                       (double)(m.read_bytes - last->read_bytes) / (ds * 1e3));
         p->metered = 1;
-        p->meter_bytes = m.read_bytes;
-        p->meter_s = m.read_s;
+        last->read_bytes = m.read_bytes;
+        last->read_s = m.read_s;
     }
-    const double di = m.inflate_s - p->meter_inflate_s;
-    if (m.inflated_bytes - p->meter_plain >= METER_MIN && di > 0) {
+    const double di = m.inflate_s - last->inflate_s;
+    if (m.inflated_bytes - last->inflated_bytes >= METER_MIN && di > 0) {
         p->inflate_ms = ewma(p->inflate_ms,
-                             di * 1e3 /
-                                 (double)(m.inflated_bytes - p->meter_plain));
-        p->meter_plain = m.inflated_bytes;
-        p->meter_inflate_s = m.inflate_s;
+                             di * 1e3 / (double)(m.inflated_bytes -
+                                                 last->inflated_bytes));
+        last->inflated_bytes = m.inflated_bytes;
+        last->inflate_s = m.inflate_s;
     }
 }
 

@@ -31,6 +31,7 @@
 #include <stdint.h>
 
 #include "play.h"
+#include "tvpal_stream.h"
 
 struct play_prog {
     /* Set by play_prog_init. */
@@ -50,8 +51,10 @@ struct play_prog {
     int metered;                /* rate from the stream's meter (the
                                  * disk's busy time), not from a frame's
                                  * waits */
-    uint64_t meter_bytes, meter_plain;  /* the meter's counts when last */
-    double meter_s, meter_inflate_s;    /* sampled (play_prog_frame), */
+    struct tvpal_stream_meter meter;    /* the meter when last sampled
+                                         * (play_prog_frame): its reads
+                                         * and its inflating each from
+                                         * the sample that counted them, */
     unsigned meter_of;                  /* of this level and axis (1 + 4
                                          * level + axis; 0: none) */
     double steady_ms;           /* a steady full-level frame's time */

@@ -139,7 +139,6 @@ struct tvpal_stream {
     uint32_t keep_t;
     unsigned want_cap;
     uint64_t ahead_bytes;        /* a step's reads in flight (read_ahead) */
-    uint32_t steps;              /* the series' T */
     uint32_t loop_lo, loop_hi;   /* tvpal_stream_loop (lo > hi: none) */
     uint64_t step_stored;        /* tvpal_stream_step_bytes */
     uint64_t step_plain;
@@ -567,14 +566,13 @@ static unsigned around_of(const struct tvpal_stream *s, uint64_t keep_bytes,
     return k < h->steps ? (unsigned)k : h->steps;
 }
 
-/* The series' length, no loop (tvpal_stream_loop) and the bytes of one
+/* No loop (tvpal_stream_loop) yet, and the bytes of one
  * step's records from scratch, over the shards (tvpal_stream_step_bytes).
  * Step t needs the record of each window that covers it, one per window
  * start in (t - N, t]: over the series that is N records of the T, so the
  * mean is the N/T of all the records' bytes. */
 static void series_of(struct tvpal_stream *s)
 {
-    s->steps = s->n ? tvpal_shard_hdr(s->p[0].sh)->steps : 0;
     s->loop_lo = 1;
     s->loop_hi = 0;
     uint64_t stored = 0, plain = 0;
@@ -607,7 +605,7 @@ int tvpal_stream_loop(struct tvpal_stream *s, uint32_t first, uint32_t last)
 {
     const uint32_t lo = first < last ? first : last;
     const uint32_t hi = first < last ? last : first;
-    if (hi >= s->steps)
+    if (!s->n || hi >= tvpal_shard_hdr(s->p[0].sh)->steps)
         return TVPAL_E_INVAL;
     stager_wait(s);   /* the stager reads these */
     s->loop_lo = lo;
@@ -959,7 +957,7 @@ static int64_t step_after(const struct tvpal_stream *s, uint32_t t, int dir)
         if (q < s->loop_lo)
             return s->loop_hi;
     }
-    return q < 0 || q >= s->steps ? -1 : q;
+    return q < 0 || q >= tvpal_shard_hdr(s->p[0].sh)->steps ? -1 : q;
 }
 
 /* The steps part p wants at t (struct want): those it needs, then,
