@@ -62,7 +62,8 @@ def inflate(frame, n, e, wh):
 def chunks(ds, axis):
     """Every chunk of the axis, in file order: dicts with slice, wstart,
     wlen, flags, table_format (the shard's), u16 (bool), table (wlen x 256
-    float32) and idx (h x w uint8)."""
+    float32), idx (h x w uint8) and qmax (a 16-bit table's largest q, else
+    0)."""
     dims, steps, window, nodes = manifest(ds)
     out = []
     for r in range(nodes):
@@ -85,10 +86,12 @@ def chunks(ds, axis):
                 if flags & 4:
                     coded, = struct.unpack_from("<I", b, pos + 56)
                     raw, ib = inflate(b[pos + 64:pos + 64 + coded], n, e, w * h)
+                qmax = 0
                 if e == 4:
                     table = np.frombuffer(raw, "<f4").astype(np.float32)
                 else:
                     q = np.frombuffer(raw, "<u2")
+                    qmax = int(q.max())
                     # Two roundings in binary32, never a fused multiply-add.
                     p = q.astype(np.float32) * np.float32(tscale)
                     table = (np.float32(tmin) + p).astype(np.float32)
@@ -100,7 +103,8 @@ def chunks(ds, axis):
                 out.append(dict(slice=s, wstart=ws, wlen=wl, flags=flags & ~4,
                                 coded=bool(flags & 4),
                                 table_format=tf, u16=(e == 2),
-                                table=table.reshape(wl, 256), idx=idx))
+                                table=table.reshape(wl, 256), idx=idx,
+                                qmax=qmax))
                 if flags & 4:
                     pos += 64 + (coded + 63) // 64 * 64
                 else:

@@ -521,6 +521,13 @@ void tvpal_table_store(const float *table, uint32_t len,
                        uint32_t table_format, unsigned char *dst,
                        struct tvpal_chunk_header *h)
 {
+    tvpal_table_store_steps(table, len, table_format, 0, dst, h);
+}
+
+void tvpal_table_store_steps(const float *table, uint32_t len,
+                             uint32_t table_format, uint32_t steps,
+                             unsigned char *dst, struct tvpal_chunk_header *h)
+{
     const size_t n = (size_t)len * 256;
     float lo, hi;
     const int missing = table_range(table, n, &lo, &hi);
@@ -533,7 +540,8 @@ void tvpal_table_store(const float *table, uint32_t len,
     }
     /* Scale in double so that lo + top * scale reaches hi; with missing
      * entries the top code is theirs. */
-    const double top = missing ? 65534.0 : 65535.0;
+    const uint32_t most = missing ? 65534u : 65535u;
+    const double top = steps && steps < most ? (double)steps : (double)most;
     double scale = ((double)hi - (double)lo) / top;
     h->tmin = lo;
     h->tscale = (float)scale;

@@ -255,6 +255,15 @@ void tvpal_table_store(const float *table, uint32_t len,
                        uint32_t table_format, unsigned char *dst,
                        struct tvpal_chunk_header *h);
 
+/* As tvpal_table_store, with a 16-bit table scaled over `steps` steps
+ * instead of the most its codes allow: tscale = (max - min) / steps, so q
+ * takes steps + 1 values (a coarser table, whose deltas code smaller:
+ * FORMAT.md 6.7).  steps 0, or more than the most (65535; 65534 with
+ * missing entries), means the most.  Ignored for a float32 table. */
+void tvpal_table_store_steps(const float *table, uint32_t len,
+                             uint32_t table_format, uint32_t steps,
+                             unsigned char *dst, struct tvpal_chunk_header *h);
+
 /* Verifies a whole record held in buf[0..bytes): header, payload CRC, the
  * expected step, and that every chunk lies inside the payload with sizes
  * consistent with sh.  Call before tvpal_record_chunk. */

@@ -37,6 +37,20 @@ struct slicejob {
     size_t crc_at;
 };
 
+/* One pass over a slice-window that prices any rounding of its float32
+ * table t32 without another: per entry e = j * 256 + i, held[e] voxels
+ * decode it with a value (sample and entry not missing) and resid[e] is the
+ * sum of their errors x - t32[e]; count[i] voxels hold index i at all.
+ * Then a table t decoding t[e] = t32[e] - d[e] errs by
+ * SSE32 + sum_e (held[e] d[e]^2 + 2 d[e] resid[e]): exactly the sum over
+ * the voxels, up to rounding in double. */
+struct table_fit {
+    double sse32;
+    double resid[TVPAL_NMAX * TVPAL_TABLE_ENTRIES];
+    uint32_t held[TVPAL_NMAX * TVPAL_TABLE_ENTRIES];
+    uint32_t count[TVPAL_TABLE_ENTRIES];
+};
+
 struct tvpal_engine {
     struct tvpal_engine_params p;
     struct tvpal_engine_shard *sj;
@@ -51,6 +65,7 @@ struct tvpal_engine {
     float **samples;
     float **tables;              /* a table, then (--table auto) the
                                   * values its 16-bit form decodes to */
+    struct table_fit **fit;      /* --table auto's measure of a table */
     unsigned char **chunkbuf;    /* one chunk */
     unsigned char **codedbuf;    /* it coded (index_level > 0) */
     struct tvpal_chunkz **z;     /* its coder (index_level > 0) */
@@ -178,6 +193,7 @@ static int start_thread(struct tvpal_engine *e, unsigned i,
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "no LAPACK");
     if (!(e->samples[i] = malloc(e->group_cap * sizeof(float))) ||
         !(e->tables[i] = malloc(2 * N * 256 * sizeof(float))) ||
+        !(e->fit[i] = malloc(sizeof *e->fit[i])) ||
         !(e->chunkbuf[i] = malloc(e->max_chunk)) ||
         (e->p.index_level &&
          (!(e->codedbuf[i] = malloc(e->max_chunk)) ||
@@ -197,13 +213,14 @@ int tvpal_engine_start(struct tvpal_engine *e, struct tvpal_pool *pool,
     e->dropped = calloc(nt, sizeof *e->dropped);
     e->samples = calloc(nt, sizeof *e->samples);
     e->tables = calloc(nt, sizeof *e->tables);
+    e->fit = calloc(nt, sizeof *e->fit);
     e->chunkbuf = calloc(nt, sizeof *e->chunkbuf);
     e->codedbuf = calloc(nt, sizeof *e->codedbuf);
     e->z = calloc(nt, sizeof *e->z);
     e->jobs = calloc(e->max_jobs, sizeof *e->jobs);
     e->jcrc = calloc(e->max_jobs, sizeof *e->jcrc);
     e->ring = calloc(e->nring, sizeof *e->ring);
-    if (!e->enc || !e->dropped || !e->samples || !e->tables || !e->jobs ||
+    if (!e->enc || !e->dropped || !e->samples || !e->tables || !e->fit || !e->jobs ||
         !e->ring || !e->chunkbuf || !e->jcrc || !e->codedbuf || !e->z)
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "the job lists");
     for (unsigned i = 0; i < nt; i++) {
@@ -269,6 +286,7 @@ void tvpal_engine_free(struct tvpal_engine *e)
         tvpal_swenc_free(e->enc[i]);
         free(e->samples[i]);
         free(e->tables[i]);
+        free(e->fit[i]);
         free(e->chunkbuf[i]);
         free(e->codedbuf[i]);
         tvpal_chunkz_free(e->z[i]);
@@ -279,6 +297,7 @@ void tvpal_engine_free(struct tvpal_engine *e)
     free(e->dropped);
     free(e->samples);
     free(e->tables);
+    free(e->fit);
     free(e->chunkbuf);
     free(e->codedbuf);
     free(e->z);
@@ -417,80 +436,149 @@ static void gather(const struct tvpal_engine *e, const struct slicejob *jb,
 }
 
 /* --table auto's criterion (FORMAT.md 6.7).  A 16-bit entry is off by up
- * to half a step, (max - min) / 65535 of its table, adding about step^2 /
+ * to half a step, (max - min) / steps of its table, adding about step^2 /
  * 12 to the squared error of every voxel that holds it.  That is
  * negligible where it stays within TABLE_U16_BUDGET of the slice-window's
  * own coding error: SSE16 - SSE32 <= 1e-4 SSE32, both summed over the
  * voxels and timesteps with a value, so no window's error grows by more
  * than 1e-4 of itself and the PSNR of the whole dataset drops by less than
- * 10 log10(1 + 1e-4) = 0.0005 dB.  The error is measured, not bounded:
- * the encoder has the samples, the indices and both tables at hand, and
- * one pass over them costs little beside coding the window.  So float32
- * stays where 16 bits are coarse against the coding error: a wide range
- * (one outlier widens every step of its window), and an exact window
- * (SSE32 = 0: integer data with few distinct values, whose float32 table
- * holds them exactly) unless the 16-bit table decodes what its voxels
- * hold exactly too. */
+ * 10 log10(1 + 1e-4) = 0.0005 dB.  The error is measured, not bounded
+ * (table_fit below).  So float32 stays where 16 bits are coarse against
+ * the coding error: a wide range (one outlier widens every step of its
+ * window), and an exact window (SSE32 = 0: integer data with few distinct
+ * values, whose float32 table holds them exactly) unless the 16-bit table
+ * decodes what its voxels hold exactly too.
+ *
+ * Within the same budget the table takes the coarsest step that fits:
+ * steps = 2^k - 1 for k = 16 down to TABLE_MIN_BITS, stopping at the first
+ * that errs too much.  The entries are means of thousands of voxels, and
+ * 16 bits of them are mostly noise below the coding error: on the viscous
+ * fingers series k = 11-12 fits, and the coded table shrinks by a third
+ * (FORMAT.md 6.11 codes its deltas).  A decoder sees only tmin and tscale,
+ * as always. */
 #define TABLE_U16_BUDGET 1e-4
+#define TABLE_MIN_BITS 4
 
-/* Whether t16, the values a 16-bit table decodes to, errs negligibly more
- * than t32 on the slice-window (samples[j * nvox + v], indices idx). */
-static int table_u16_negligible(const float *samples, const uint8_t *idx,
-                                size_t nvox, uint32_t len, const float *t32,
-                                const float *t16)
+static void table_fit_measure(struct table_fit *f, const float *samples,
+                              const uint8_t *idx, size_t nvox, uint32_t len,
+                              const float *t32)
 {
-    if (!memcmp(t32, t16, (size_t)len * 256 * sizeof *t32))
-        return 1;
-    double sse32 = 0, sse16 = 0;
+    const size_t n = (size_t)len * TVPAL_TABLE_ENTRIES;
+    memset(f->resid, 0, n * sizeof *f->resid);
+    memset(f->held, 0, n * sizeof *f->held);
+    memset(f->count, 0, sizeof f->count);
+    f->sse32 = 0;
+    for (size_t v = 0; v < nvox; v++)
+        f->count[idx[v]]++;
     for (uint32_t j = 0; j < len; j++) {
         const float *x = samples + (size_t)j * nvox;
-        const float *a = t32 + (size_t)j * 256, *b = t16 + (size_t)j * 256;
+        const float *a = t32 + (size_t)j * TVPAL_TABLE_ENTRIES;
+        double *r = f->resid + (size_t)j * TVPAL_TABLE_ENTRIES;
+        uint32_t *h = f->held + (size_t)j * TVPAL_TABLE_ENTRIES;
         for (size_t v = 0; v < nvox; v++) {
-            /* A missing value (NaN sample or entry, the same in both
-             * tables) has no error. */
-            const double e32 = (double)x[v] - a[idx[v]];
-            const double e16 = (double)x[v] - b[idx[v]];
-            if (e32 == e32 && e16 == e16) {
-                sse32 += e32 * e32;
-                sse16 += e16 * e16;
+            /* A missing value (NaN sample or entry) has no error. */
+            const double e = (double)x[v] - a[idx[v]];
+            if (e == e) {
+                f->sse32 += e * e;
+                r[idx[v]] += e;
+                h[idx[v]]++;
             }
         }
     }
-    return sse16 - sse32 <= TABLE_U16_BUDGET * sse32;
 }
 
-/* --table auto: stores the table of a coded slice-window at dst as 16-bit
- * when that is negligible (table_u16_negligible), setting TVPAL_CHUNK_U16
- * in h->flags, else as float32; returns the chunk's format (TVPAL_TABLE_U16
- * or TVPAL_TABLE_F32).  dec: len * 256 floats of scratch.  dst has a
- * float32 table's room, before the indices. */
-static uint32_t store_table_auto(const float *table, float *dec,
-                                 const float *samples, const uint8_t *idx,
-                                 size_t nvox, uint32_t len,
-                                 unsigned char *dst,
-                                 struct tvpal_chunk_header *h)
+/* Whether t, the values a 16-bit table decodes to, errs within the budget
+ * of t32's error (the fit's). */
+static int table_fit_within(const struct table_fit *f, uint32_t len,
+                            const float *t32, const float *t)
 {
-    tvpal_table_store(table, len, TVPAL_TABLE_U16, dst, h);
+    double added = 0;
+    for (size_t e = 0; e < (size_t)len * TVPAL_TABLE_ENTRIES; e++) {
+        if (!f->held[e])
+            continue;
+        const double d = (double)t32[e] - t[e];
+        added += f->held[e] * d * d + 2 * d * f->resid[e];
+    }
+    return added <= TABLE_U16_BUDGET * f->sse32;
+}
+
+/* Gives the entries of indices no voxel of the window holds (decoded by
+ * none) the value their deltas code in nothing (FORMAT.md 6.11): in row 0
+ * the entry to their left (the first held index's for index 0), in later
+ * rows the row above.  The encoder filled them with inverse transforms
+ * (6.7), which cost as much to store as any entry.  They stay within the
+ * range of the held entries, so they cannot widen a 16-bit step. */
+static void table_fill_unheld(const struct table_fit *f, uint32_t len,
+                              float *table)
+{
+    unsigned first = 0;
+    while (first < TVPAL_TABLE_ENTRIES && !f->count[first])
+        first++;
+    if (first == TVPAL_TABLE_ENTRIES)
+        return;
+    for (unsigned i = 0; i < TVPAL_TABLE_ENTRIES; i++) {
+        if (f->count[i])
+            continue;
+        table[i] = i ? table[i - 1] : table[first];
+        for (uint32_t j = 1; j < len; j++)
+            table[j * TVPAL_TABLE_ENTRIES + i] =
+                table[(j - 1) * TVPAL_TABLE_ENTRIES + i];
+    }
+}
+
+/* Stores the table in 16 bits over `steps` steps at dst (header h) and
+ * decodes it into dec; returns whether it errs within the budget. */
+static int table_try_u16(const struct table_fit *f, const float *table,
+                         uint32_t len, uint32_t steps, float *dec,
+                         unsigned char *dst, struct tvpal_chunk_header *h)
+{
+    tvpal_table_store_steps(table, len, TVPAL_TABLE_U16, steps, dst, h);
     const struct tvpal_chunk c = {
         .h = *h, .table = dst,
         .table_format = TVPAL_TABLE_U16 | ((h->flags & TVPAL_CHUNK_MISSING)
                                                ? TVPAL_TABLE_MISSING : 0u)};
     tvpal_chunk_table(&c, dec);
-    if (table_u16_negligible(samples, idx, nvox, len, table, dec)) {
-        h->flags |= TVPAL_CHUNK_U16;
-        return TVPAL_TABLE_U16;
+    return table_fit_within(f, len, table, dec);
+}
+
+/* --table auto: stores the table of a coded slice-window at dst, its
+ * unheld entries filled (table_fill_unheld), as 16-bit over the fewest
+ * steps within the budget, setting TVPAL_CHUNK_U16 in h->flags, or as
+ * float32 when even 65535 steps err too much; returns the chunk's format
+ * (TVPAL_TABLE_U16 or TVPAL_TABLE_F32).  dec: len * 256 floats of
+ * scratch.  dst has a float32 table's room, before the indices. */
+static uint32_t store_table_auto(struct table_fit *f, float *table,
+                                 float *dec, const float *samples,
+                                 const uint8_t *idx, size_t nvox,
+                                 uint32_t len, unsigned char *dst,
+                                 struct tvpal_chunk_header *h)
+{
+    table_fit_measure(f, samples, idx, nvox, len, table);
+    table_fill_unheld(f, len, table);
+    if (!table_try_u16(f, table, len, 0, dec, dst, h)) {
+        tvpal_table_store(table, len, TVPAL_TABLE_F32, dst, h);
+        return TVPAL_TABLE_F32;
     }
-    tvpal_table_store(table, len, TVPAL_TABLE_F32, dst, h);
-    return TVPAL_TABLE_F32;
+    uint32_t best = 0, last = 0;    /* 0: the most steps */
+    for (unsigned k = 15; k >= TABLE_MIN_BITS; k--) {
+        last = (1u << k) - 1;
+        if (!table_try_u16(f, table, len, last, dec, dst, h))
+            break;
+        best = last;
+    }
+    if (last != best)   /* dst holds the try that failed */
+        (void)table_try_u16(f, table, len, best, dec, dst, h);
+    h->flags |= TVPAL_CHUNK_U16;
+    return TVPAL_TABLE_U16;
 }
 
 /* Encodes one slice-window from samples into the chunk buffer: a chunk of
  * the shard's table format, or in a per-chunk shard (--table auto) one of
  * the format store_table_auto picks, in a float32 chunk's room (the rest
  * zeros: tvpal_shardw_put_chunk).  table: 2 * len * 256 floats of
- * scratch. */
-static void encode_chunk(struct tvpal_swenc *enc, float *table,
-                         const float *samples,
+ * scratch; fit: --table auto's. */
+static void encode_chunk(struct tvpal_swenc *enc, struct table_fit *fit,
+                         float *table, const float *samples,
                          const struct tvpal_shard_header *sh,
                          uint32_t slice, uint32_t t, uint32_t len,
                          unsigned char *chunk, uint64_t *dropped)
@@ -509,8 +597,8 @@ static void encode_chunk(struct tvpal_swenc *enc, float *table,
         .h = sh->slice_h, .used = info.used};
     uint32_t ctf = tf;
     if (tf == TVPAL_TABLE_CHUNK) {
-        ctf = store_table_auto(table, table + (size_t)len * 256, samples, idx,
-                               nvox, len, dst, &ch);
+        ctf = store_table_auto(fit, table, table + (size_t)len * 256,
+                               samples, idx, nvox, len, dst, &ch);
         uint8_t *to = dst + (size_t)len * 256 * tvpal_table_entry_bytes(ctf);
         memmove(to, idx, nvox);
         idx = to;
@@ -613,7 +701,7 @@ static void encode_job(void *arg, size_t i, unsigned tid)
     gather(e, jb, t, e->samples[tid]);
     for (uint32_t g = 0; g < jb->count; g++) {
         struct tvpal_diag d = {{0}};
-        encode_chunk(e->enc[tid], e->tables[tid],
+        encode_chunk(e->enc[tid], e->fit[tid], e->tables[tid],
                      e->samples[tid] + (size_t)g * jb->len * sv, &j->h,
                      jb->slice + g * N, t, jb->len, e->chunkbuf[tid],
                      &e->dropped[tid]);
