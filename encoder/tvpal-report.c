@@ -367,6 +367,9 @@ struct report {
     struct tvpal_sizes sz;        /* where the bytes of m go */
     double bytes_axis;            /* mean shard bytes of a stored axis */
     double idx_bytes, tab_bytes;  /* indices and tables, all stored axes */
+    double coded_saved;           /* bytes coding saves them (FORMAT.md
+                                   * 6.11: plain minus stored size of the
+                                   * coded chunks), all stored axes */
     uint64_t disk_bytes;          /* every file of the directory reported */
     double tables[2];             /* chunks of the stored axes with float32
                                    * and 16-bit tables */
@@ -716,6 +719,14 @@ static int summarize_sizes(struct report *r, struct tvpal_diag *diag)
         r->tables[0] += r->axis[a].tables[0];
         r->tables[1] += r->axis[a].tables[1];
     }
+    struct tvpal_coding c;
+    if ((rc = tvpal_reader_coding(r->rd, 0, &c, diag)) < 0)
+        return rc;
+    r->coded_saved = 0;
+    for (unsigned a = 0; a < 3; a++)
+        if (stored(r, a))
+            r->coded_saved += (double)c.coded_plain_bytes[a] -
+                              (double)c.coded_bytes[a];
     r->ratio = (double)r->src_bytes / (double)r->disk_bytes;
     return 0;
 }
@@ -732,6 +743,25 @@ static const char *table_name(uint32_t table)
 }
 
 /* Text report on stdout (without --quiet). */
+/* The line that splits the bits on disk: the indices and the tables as
+ * plain chunks hold them, what coding saves of them (FORMAT.md 6.11 codes
+ * a chunk's table and indices as one frame, so the saving is not split
+ * between them), and the rest: chunk and record headers, padding, the
+ * record index, manifests (and levels), never negative. */
+static void print_bpv_split(const struct report *r)
+{
+    const double k = 8 / r->vts;
+    const double rest = (double)r->disk_bytes - r->idx_bytes - r->tab_bytes +
+                        r->coded_saved;
+    printf("bits per voxel-timestep on disk: %.4f = indices %.4f + tables "
+           "%.4f", k * (double)r->disk_bytes, k * r->idx_bytes,
+           k * r->tab_bytes);
+    if (r->coded_saved > 0)
+        printf(" - saved by coding them %.4f", k * r->coded_saved);
+    printf(" + headers, padding and manifests%s %.4f\n",
+           r->m->levels ? " and levels" : "", k * rest);
+}
+
 static void print_text(const struct report *r)
 {
     const struct tvpal_info *m = r->m;
@@ -775,11 +805,7 @@ static void print_text(const struct report *r)
            "%.3f\n", (unsigned long long)r->disk_bytes,
            tvpal_axes_format(m->axes, axes), m->levels ? ", levels" : "",
            r->ratio);
-    printf("bits per voxel-timestep on disk: %.4f = indices %.4f + tables "
-           "%.4f + headers, padding and manifests%s %.4f\n",
-           8 * (double)r->disk_bytes / r->vts, 8 * r->idx_bytes / r->vts,
-           8 * r->tab_bytes / r->vts, m->levels ? " and levels" : "",
-           8 * ((double)r->disk_bytes - r->idx_bytes - r->tab_bytes) / r->vts);
+    print_bpv_split(r);
     const double chunks = r->tables[0] + r->tables[1];
     printf("decoder tables: %.0f of %.0f chunks 16-bit (%.1f%%), %.0f "
            "float32 (table = %s)\n", r->tables[1], chunks,

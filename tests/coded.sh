@@ -3,7 +3,8 @@
 # --index-coding).  The same series encoded with the default (zstd) and
 # with none: the coded shards are format_version 2 and smaller, the plain
 # ones version 1; every step of every axis and level decodes to the same
-# bits; tvpal-info counts the coded chunks; tvpal-play draws the same
+# bits; tvpal-info counts the coded chunks; tvpal-report's split of the
+# bits on disk adds up and names what coding saves; tvpal-play draws the same
 # frames streamed and in-core, through jumps, from both, and streaming
 # reads fewer bytes from the coded one; --index-level 19 is no larger;
 # bad option values are refused; a coded frame damaged under a valid CRC
@@ -44,6 +45,24 @@ nc=$("$INFO" "$W/coded" | sed -n 's/^chunks_coded = \([0-9]*\).*/\1/p')
 np=$("$INFO" "$W/plain" | sed -n 's/^chunks_coded = \([0-9]*\).*/\1/p')
 [ "${nc:-0}" -gt 0 ] && [ "$np" = 0 ] && ok "tvpal-info: chunks_coded $nc coded, 0 plain" \
     || fail "tvpal-info chunks_coded: coded '$nc', plain '$np'"
+# tvpal-report's split of the bits on disk: the plain indices and tables
+# (the same in both), minus what coding saves (coded only), plus a rest
+# that is not negative, add up to the total.
+for name in coded plain; do
+    "$REP" "$W/$name" > "$W/rep-$name.txt" 2>&1 || fail "tvpal-report $name: $(tail -n 3 "$W/rep-$name.txt")"
+    sed -n 's/^bits per voxel-timestep on disk: //p' "$W/rep-$name.txt" > "$W/split-$name.txt"
+done
+awk -v c="$(cat "$W/split-coded.txt")" -v p="$(cat "$W/split-plain.txt")" 'BEGIN {
+        nc = split(c, a, " "); np = split(p, b, " ")
+        # coded: T = indices I + tables B - saved by coding them S + headers, padding and manifests and levels R
+        sum = a[4] + a[7] - a[13] + a[nc]
+        psum = b[4] + b[7] + b[np]
+        ok = a[9] == "saved" && a[nc] >= 0 && b[np] >= 0 && p !~ /saved/ && a[13] > 0
+        ok = ok && a[4] == b[4] && a[7] == b[7]
+        ok = ok && sum - a[1] < 5e-4 && a[1] - sum < 5e-4 && psum - b[1] < 5e-4 && b[1] - psum < 5e-4
+        exit !ok }' \
+    && ok "tvpal-report: bits on disk = indices + tables - saved by coding + rest ($(cat "$W/split-coded.txt"))" \
+    || fail "tvpal-report split: coded '$(cat "$W/split-coded.txt")', plain '$(cat "$W/split-plain.txt")'"
 "$INFO" "$W/coded" --verify > "$W/verify.txt" 2>&1 && grep -q "^verify: ok" "$W/verify.txt" \
     && ok "the coded dataset verifies" || fail "verify: $(cat "$W/verify.txt")"
 
