@@ -16,6 +16,7 @@
 #include "tvpal_schedule.h"
 #include "tvpal_swcode.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -450,10 +451,10 @@ static void gather(const struct tvpal_engine *e, const struct slicejob *jb,
  * decodes what its voxels hold exactly too.
  *
  * Within the same budget the table takes the coarsest step that fits:
- * steps = 2^k - 1 for k = 16 down to TABLE_MIN_BITS, stopping at the first
- * that errs too much.  The entries are means of thousands of voxels, and
+ * steps = 2^k - 1, TABLE_MIN_BITS <= k <= 16, searched from a guess
+ * (store_table_auto).  The entries are means of thousands of voxels, and
  * 16 bits of them are mostly noise below the coding error: on the viscous
- * fingers series k = 11-12 fits, and the coded table shrinks by a third
+ * fingers series k = 10-12 fits, and the coded table shrinks by a third
  * (FORMAT.md 6.11 codes its deltas).  A decoder sees only tmin and tscale,
  * as always. */
 #define TABLE_U16_BUDGET 1e-4
@@ -465,7 +466,6 @@ static void table_fit_measure(struct table_fit *f, const float *samples,
 {
     const size_t n = (size_t)len * TVPAL_TABLE_ENTRIES;
     memset(f->resid, 0, n * sizeof *f->resid);
-    memset(f->held, 0, n * sizeof *f->held);
     memset(f->count, 0, sizeof f->count);
     f->sse32 = 0;
     for (size_t v = 0; v < nvox; v++)
@@ -475,15 +475,21 @@ static void table_fit_measure(struct table_fit *f, const float *samples,
         const float *a = t32 + (size_t)j * TVPAL_TABLE_ENTRIES;
         double *r = f->resid + (size_t)j * TVPAL_TABLE_ENTRIES;
         uint32_t *h = f->held + (size_t)j * TVPAL_TABLE_ENTRIES;
+        /* held starts at count; a missing value (NaN sample or entry)
+         * has no error and leaves it (rare: no increment per voxel). */
+        for (unsigned i = 0; i < TVPAL_TABLE_ENTRIES; i++)
+            h[i] = f->count[i];
+        double sse = 0;
         for (size_t v = 0; v < nvox; v++) {
-            /* A missing value (NaN sample or entry) has no error. */
             const double e = (double)x[v] - a[idx[v]];
             if (e == e) {
-                f->sse32 += e * e;
+                sse += e * e;
                 r[idx[v]] += e;
-                h[idx[v]]++;
+            } else {
+                h[idx[v]]--;
             }
         }
+        f->sse32 += sse;
     }
 }
 
@@ -541,6 +547,43 @@ static int table_try_u16(const struct table_fit *f, const float *table,
     return table_fit_within(f, len, table, dec);
 }
 
+/* The steps of a 16-bit table of k bits: 2^k - 1, and 0 (the most) for
+ * 16. */
+static uint32_t table_steps(unsigned k)
+{
+    return k >= 16 ? 0 : (1u << k) - 1;
+}
+
+/* Where the search for the table's bits starts: rounding to a step D adds
+ * about D^2 / 12 per voxel-step with a value, so the budget allows D up
+ * to sqrt(12 budget SSE32 / n) over the table's range.  A guess only:
+ * table_try_u16 measures each step tried. */
+static unsigned table_bits_guess(const struct table_fit *f,
+                                 const float *table, uint32_t len)
+{
+    double n = 0, lo = 0, hi = 0;
+    int any = 0;
+    for (size_t e = 0; e < (size_t)len * TVPAL_TABLE_ENTRIES; e++) {
+        n += f->held[e];
+        const double v = table[e];
+        if (v != v)
+            continue;
+        if (!any || v < lo)
+            lo = v;
+        if (!any || v > hi)
+            hi = v;
+        any = 1;
+    }
+    if (!(n > 0) || !(f->sse32 > 0) || !(hi > lo))
+        return 16;
+    const double d = sqrt(12 * TABLE_U16_BUDGET * f->sse32 / n);
+    const double steps = (hi - lo) / d;
+    unsigned k = TABLE_MIN_BITS;
+    while (k < 16 && (double)((1u << k) - 1) < steps)
+        k++;
+    return k;
+}
+
 /* --table auto: stores the table of a coded slice-window at dst, its
  * unheld entries filled (table_fill_unheld), as 16-bit over the fewest
  * steps within the budget, setting TVPAL_CHUNK_U16 in h->flags, or as
@@ -559,15 +602,23 @@ static uint32_t store_table_auto(struct table_fit *f, float *table,
         tvpal_table_store(table, len, TVPAL_TABLE_F32, dst, h);
         return TVPAL_TABLE_F32;
     }
-    uint32_t best = 0, last = 0;    /* 0: the most steps */
-    for (unsigned k = 15; k >= TABLE_MIN_BITS; k--) {
-        last = (1u << k) - 1;
-        if (!table_try_u16(f, table, len, last, dec, dst, h))
-            break;
-        best = last;
+    /* From the guess, down while the next coarser fits, or up until one
+     * fits (16 bits, the most steps, has).  last: the bits of the table
+     * in dst. */
+    unsigned k = table_bits_guess(f, table, len), last = k;
+    if (table_try_u16(f, table, len, table_steps(k), dec, dst, h)) {
+        while (k > TABLE_MIN_BITS &&
+               table_try_u16(f, table, len, table_steps(last = k - 1), dec,
+                             dst, h))
+            k--;
+    } else {
+        while (k < 16 &&
+               !table_try_u16(f, table, len, table_steps(last = ++k), dec,
+                              dst, h))
+            ;
     }
-    if (last != best)   /* dst holds the try that failed */
-        (void)table_try_u16(f, table, len, best, dec, dst, h);
+    if (last != k)
+        (void)table_try_u16(f, table, len, table_steps(k), dec, dst, h);
     h->flags |= TVPAL_CHUNK_U16;
     return TVPAL_TABLE_U16;
 }
