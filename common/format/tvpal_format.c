@@ -494,9 +494,7 @@ void tvpal_chunk_table(const struct tvpal_chunk *c, float *out)
     }
 }
 
-/* Smallest and largest finite entry; returns 1 when some entry is NaN.
- * An all-NaN table gives lo = hi = 0. */
-static int table_range(const float *table, size_t n, float *lo, float *hi)
+int tvpal_table_range(const float *table, size_t n, float *lo, float *hi)
 {
     int nan = 0, any = 0;
     float a = 0, b = 0;
@@ -530,7 +528,7 @@ void tvpal_table_store_steps(const float *table, uint32_t len,
 {
     const size_t n = (size_t)len * 256;
     float lo, hi;
-    const int missing = table_range(table, n, &lo, &hi);
+    const int missing = tvpal_table_range(table, n, &lo, &hi);
     h->tmin = 0.0f;
     h->tscale = 0.0f;
     h->flags = missing ? TVPAL_CHUNK_MISSING : 0;

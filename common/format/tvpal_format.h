@@ -255,6 +255,11 @@ void tvpal_table_store(const float *table, uint32_t len,
                        uint32_t table_format, unsigned char *dst,
                        struct tvpal_chunk_header *h);
 
+/* The smallest and largest finite entry of table[0..n) into *lo, *hi;
+ * returns 1 when some entry is NaN (missing).  An all-NaN table gives
+ * lo = hi = 0. */
+int tvpal_table_range(const float *table, size_t n, float *lo, float *hi);
+
 /* As tvpal_table_store, with a 16-bit table scaled over `steps` steps
  * instead of the most its codes allow: tscale = (max - min) / steps, so q
  * takes steps + 1 values (a coarser table, whose deltas code smaller:

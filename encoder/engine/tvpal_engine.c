@@ -561,23 +561,16 @@ static uint32_t table_steps(unsigned k)
 static unsigned table_bits_guess(const struct table_fit *f,
                                  const float *table, uint32_t len)
 {
-    double n = 0, lo = 0, hi = 0;
-    int any = 0;
-    for (size_t e = 0; e < (size_t)len * TVPAL_TABLE_ENTRIES; e++) {
+    const size_t entries = (size_t)len * TVPAL_TABLE_ENTRIES;
+    double n = 0;
+    for (size_t e = 0; e < entries; e++)
         n += f->held[e];
-        const double v = table[e];
-        if (v != v)
-            continue;
-        if (!any || v < lo)
-            lo = v;
-        if (!any || v > hi)
-            hi = v;
-        any = 1;
-    }
+    float lo, hi;
+    (void)tvpal_table_range(table, entries, &lo, &hi);
     if (!(n > 0) || !(f->sse32 > 0) || !(hi > lo))
         return 16;
     const double d = sqrt(12 * TABLE_U16_BUDGET * f->sse32 / n);
-    const double steps = (hi - lo) / d;
+    const double steps = ((double)hi - lo) / d;
     unsigned k = TABLE_MIN_BITS;
     while (k < 16 && (double)((1u << k) - 1) < steps)
         k++;
