@@ -5,8 +5,8 @@ every record of a shard by the chunk headers, stores each chunk's decoder
 table as the chunk says it is stored (6.7: float32, or 16-bit decoded as
 float32(tmin + float32(q * tscale)); table_format 4 and 5 by the chunk's
 flags bit 1), inflates a coded chunk (6.11: flags bit 2, a zstd frame,
-decompressed by the zstd command-line tool, then the delta transform
-undone) and rebuilds the volume of every step.
+decompressed by the zstd command-line tool, then the transforms its
+flags name undone) and rebuilds the volume of every step.
 
     shard_decode.py DATASET AXIS     prints, per step, the SHA-256 of the
                                      decoded float32 volume (x fastest), as
@@ -41,21 +41,35 @@ def entry_bytes(tf, flags):
     return 4
 
 
-def inflate(frame, n, e, wh):
+def inflate(frame, n, e, w, h, flags):
     """A coded chunk's table bytes (n entries of e bytes, little-endian) and
-    indices (wh bytes) from its zstd frame (FORMAT.md 6.11)."""
+    indices (w x h bytes) from its zstd frame (FORMAT.md 6.11), undoing
+    the transforms its flags name (bit 3: T2, bit 4: G)."""
+    wh = w * h
     raw = subprocess.run(["zstd", "-d", "-c", "-q"], input=frame,
                          stdout=subprocess.PIPE, check=True).stdout
     assert len(raw) == n * e + wh, (len(raw), n * e + wh)
     planes = np.frombuffer(raw[:n * e], np.uint8).reshape(e, n).astype(np.uint64)
     d = sum(planes[b] << np.uint64(8 * b) for b in range(e))
-    mod = np.uint64(1 << (8 * e)) if e < 8 else None
-    d = d.reshape(n // 256, 256)
+    mod = np.uint64(1 << (8 * e))
+    rows = n // 256
+    if flags & 8:   # T2: zigzagged, index-major
+        z = d.reshape(256, rows).T.copy()
+        d = np.where(z & np.uint64(1), mod - np.uint64(1) - (z >> np.uint64(1)),
+                     z >> np.uint64(1))
+    d = d.reshape(rows, 256)
     d[0] = np.cumsum(d[0]) % mod               # row 0: along the index
     ent = np.cumsum(d, axis=0) % mod           # rows: along time
     table = ent.astype("<u4" if e == 4 else "<u2").tobytes()
-    idx = (np.cumsum(np.frombuffer(raw[n * e:], np.uint8).astype(np.uint64))
-           % 256).astype(np.uint8).tobytes()
+    x = np.frombuffer(raw[n * e:], np.uint8).astype(np.uint64)
+    if flags & 16:  # G: row 0 from the left, later rows gradients
+        x = x.reshape(h, w)
+        x[0] = np.cumsum(x[0]) % 256           # row 0: along the row
+        u = np.cumsum(x[1:], axis=1) % 256     # later rows: u = x - x above
+        x[1:] = np.cumsum(np.vstack([x[:1], u]), axis=0)[1:] % 256
+        idx = x.astype(np.uint8).tobytes()
+    else:
+        idx = (np.cumsum(x) % 256).astype(np.uint8).tobytes()
     return table, idx
 
 
@@ -85,7 +99,8 @@ def chunks(ds, axis):
                 ib = b[ia:ia + w * h]
                 if flags & 4:
                     coded, = struct.unpack_from("<I", b, pos + 56)
-                    raw, ib = inflate(b[pos + 64:pos + 64 + coded], n, e, w * h)
+                    raw, ib = inflate(b[pos + 64:pos + 64 + coded], n, e, w, h,
+                                      flags)
                 qmax = 0
                 if e == 4:
                     table = np.frombuffer(raw, "<f4").astype(np.float32)
@@ -98,9 +113,9 @@ def chunks(ds, axis):
                     if tf in (3, 5) and flags & 1:
                         table[q == 65535] = np.float32(np.nan)
                 idx = np.frombuffer(ib, np.uint8).reshape(h, w)
-                # flags: the plain chunk's (bit 2, coded, cleared); coded:
-                # whether it was stored coded.
-                out.append(dict(slice=s, wstart=ws, wlen=wl, flags=flags & ~4,
+                # flags: the plain chunk's (bits 2-4, coding, cleared);
+                # coded: whether it was stored coded.
+                out.append(dict(slice=s, wstart=ws, wlen=wl, flags=flags & ~28,
                                 coded=bool(flags & 4),
                                 table_format=tf, u16=(e == 2),
                                 table=table.reshape(wl, 256), idx=idx,

@@ -23,7 +23,10 @@ static struct tvpal_pool *g_pool;       /* 3 threads */
 #include <stdlib.h>
 #include <string.h>
 
-enum kind { SMOOTH, NOISY, CONSTANT, NIBBLES };
+/* COLUMNS: each column one random index (edges running down the slice:
+ * transform G codes it, FORMAT.md 6.11); NIBBLES: random indices 0..15
+ * (no row like the one above: G does not pay). */
+enum kind { SMOOTH, NOISY, CONSTANT, NIBBLES, COLUMNS };
 
 /* A plain chunk of slice s starting at t into buf: its table (16-bit when
  * u16, else float32) and indices of the given kind (NOISY: uniform random
@@ -58,6 +61,7 @@ static uint64_t make_chunk(const struct tvpal_shard_header *h, uint32_t s,
         idx[v] = k == SMOOTH ? (uint8_t)((a + 2 * b) / 3 + s)
                : k == NOISY ? (uint8_t)tt_rand64()
                : k == NIBBLES ? (uint8_t)(tt_rand64() & 15)
+               : k == COLUMNS ? (uint8_t)(a * 2654435761u >> 13)
                : (uint8_t)42;
     }
     const uint64_t cb = tvpal_chunk_bytes(len, h->slice_w, h->slice_h, tf);
@@ -87,7 +91,7 @@ static void test_chunks(void)
     struct tvpal_chunkz *z = NULL;
     REQUIRE(plain && coded && tvpal_chunkz_create(&z, max) == 0, "alloc");
     for (int u16 = 0; u16 < 2; u16++)
-        for (int k = SMOOTH; k <= NIBBLES; k++) {
+        for (int k = SMOOTH; k <= COLUMNS; k++) {
             uint64_t pb = make_chunk(&h, 1, 0, u16, (enum kind)k, plain);
             uint64_t stored = 0;
             const uint32_t ctf = u16 || k == NOISY ? TVPAL_TABLE_U16
@@ -111,6 +115,14 @@ static void test_chunks(void)
                   tvpal_chunk_stored_bytes(&ch, ctf) == stored,
                   "header: flags 0x%x coded_bytes %u", ch.flags,
                   ch.coded_bytes);
+            /* Tables always in T2; indices in G where it pays. */
+            CHECK(ch.flags & TVPAL_CHUNK_TABLE_T2, "kind %d: flags 0x%x, "
+                  "no T2", k, ch.flags);
+            if (k == COLUMNS || k == NIBBLES)
+                CHECK(!(ch.flags & TVPAL_CHUNK_INDEX_G) == (k == NIBBLES),
+                      "kind %d: flags 0x%x: G %s", k, ch.flags,
+                      k == COLUMNS ? "not chosen for columns"
+                                   : "chosen for random nibbles");
         }
     CHECK(tvpal_chunkz_code(z, 0, plain, TVPAL_TABLE_F32, coded, &(uint64_t){0})
           == TVPAL_E_INVAL, "level 0 refused");
@@ -334,9 +346,10 @@ int main(void)
     test_chunks();
     /* Record 0 of 37x23 slices, N = 4: every slice, all kinds mixed, so
      * coded and plain chunks alternate. */
-    const enum kind mix[] = {SMOOTH, NOISY, CONSTANT, NIBBLES, NOISY};
-    test_record("mixed", header(37, 23, 9), 0, mix, 5, 3);
-    test_record("mixed, step 3", header(37, 23, 9), 3, mix, 5, 1);
+    const enum kind mix[] = {SMOOTH, NOISY, CONSTANT, NIBBLES, NOISY,
+                             COLUMNS};
+    test_record("mixed", header(37, 23, 9), 0, mix, 6, 3);
+    test_record("mixed, step 3", header(37, 23, 9), 3, mix, 6, 1);
     /* One large chunk coded to about half: its plain form reaches its
      * own frame, so it inflates through the scratch. */
     const enum kind nib[] = {NIBBLES};

@@ -1,6 +1,7 @@
 /* tvpal_chunkz.c: coded chunks (FORMAT.md 6.11) with libzstd. */
 #include "tvpal_chunkz.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -108,24 +109,11 @@ static uint32_t load_le(const unsigned char *p, unsigned E)
                         (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
 }
 
-/* The table's n = rows * 256 entries of E bytes (src) as their
- * differences, the entry of the row before (row 0: the entry before, the
- * first as it is), modulo 2^(8E), in E byte planes (dst, n * E bytes). */
-static void table_forward(const unsigned char *src, uint32_t n, unsigned E,
-                          unsigned char *dst)
-{
-    for (uint32_t k = 0; k < n; k++) {
-        uint32_t e = load_le(src + (size_t)k * E, E);
-        uint32_t p = k >= 256 ? load_le(src + (size_t)(k - 256) * E, E)
-                   : k ? load_le(src + (size_t)(k - 1) * E, E) : 0u;
-        uint32_t d = e - p;
-        for (unsigned b = 0; b < E; b++)
-            dst[(size_t)b * n + k] = (unsigned char)(d >> (8 * b));
-    }
-}
-
-/* The inverse of table_forward: planes (src) to entries (dst); src and
- * dst do not overlap. */
+/* A table of the first transform (flags bit 3 clear: what 0.4.0's first
+ * coded chunks hold) from its planes (src) into its n = rows * 256
+ * entries of E bytes (dst): each plane position k holds the delta of
+ * entry k from the entry of the row before (row 0: the entry before, the
+ * first as it is), modulo 2^(8E).  src and dst do not overlap. */
 static void table_inverse(const unsigned char *src, uint32_t n, unsigned E,
                           unsigned char *dst)
 {
@@ -184,6 +172,141 @@ static void index_inverse(const uint8_t *src, size_t n, uint8_t *dst)
     }
 }
 
+/* A table delta as an unsigned number that is small when the delta is
+ * small either way: the E-byte d read as signed, 2d for d >= 0, -2d - 1
+ * below (zigzag), and back. */
+static uint32_t zigzag(uint32_t d, unsigned E)
+{
+    const uint32_t mask = E == 2 ? 0xFFFFu : 0xFFFFFFFFu;
+    const uint32_t neg = (d >> (8 * E - 1)) & 1u;
+    return ((d << 1) ^ (neg ? mask : 0u)) & mask;
+}
+
+static uint32_t unzigzag(uint32_t z, unsigned E)
+{
+    const uint32_t mask = E == 2 ? 0xFFFFu : 0xFFFFFFFFu;
+    return ((z >> 1) ^ ((z & 1u) ? mask : 0u)) & mask;
+}
+
+/* Transform T2 of a table (flags bit 3): table_inverse's deltas d[k],
+ * zigzagged, in E byte planes ordered index-major: plane position
+ * i * rows + j holds entry k = j * 256 + i, so each index's entries over
+ * the window lie together (an index's value moves smoothly in time; a
+ * row's neighbouring indices need not). */
+static void table_forward_t2(const unsigned char *src, uint32_t rows,
+                             unsigned E, unsigned char *dst)
+{
+    const uint32_t n = rows * 256u;
+    for (uint32_t k = 0; k < n; k++) {
+        uint32_t e = load_le(src + (size_t)k * E, E);
+        uint32_t p = k >= 256 ? load_le(src + (size_t)(k - 256) * E, E)
+                   : k ? load_le(src + (size_t)(k - 1) * E, E) : 0u;
+        uint32_t z = zigzag(e - p, E);
+        size_t at = (size_t)(k % 256u) * rows + k / 256u;
+        for (unsigned b = 0; b < E; b++)
+            dst[(size_t)b * n + at] = (unsigned char)(z >> (8 * b));
+    }
+}
+
+/* The inverse of table_forward_t2; src and dst do not overlap. */
+static void table_inverse_t2(const unsigned char *src, uint32_t rows,
+                             unsigned E, unsigned char *dst)
+{
+    const uint32_t n = rows * 256u;
+    const uint32_t mask = E == 2 ? 0xFFFFu : 0xFFFFFFFFu;
+    for (uint32_t k = 0; k < n; k++) {
+        size_t at = (size_t)(k % 256u) * rows + k / 256u;
+        uint32_t z = 0;
+        for (unsigned b = 0; b < E; b++)
+            z |= (uint32_t)src[(size_t)b * n + at] << (8 * b);
+        uint32_t p = k >= 256 ? load_le(dst + (size_t)(k - 256) * E, E)
+                   : k ? load_le(dst + (size_t)(k - 1) * E, E) : 0u;
+        uint32_t e = (p + unzigzag(z, E)) & mask;
+        for (unsigned b = 0; b < E; b++)
+            dst[(size_t)k * E + b] = (unsigned char)(e >> (8 * b));
+    }
+}
+
+/* Transform G of the indices (flags bit 4), w per row, h rows: row 0 as
+ * index_forward; in a later row each index's difference from the one
+ * above (u), as a difference from its left neighbour's u (the first u as
+ * it is).  Where edges run down the slice, u is smooth along the row. */
+static void index_forward_g(const uint8_t *src, size_t w, size_t h,
+                            uint8_t *dst)
+{
+    index_forward(src, w, dst);
+    for (size_t b = 1; b < h; b++) {
+        const uint8_t *x = src + b * w, *up = x - w;
+        uint8_t *d = dst + b * w;
+        uint8_t prev = 0;
+        for (size_t a = 0; a < w; a++) {
+            uint8_t u = (uint8_t)(x[a] - up[a]);
+            d[a] = (uint8_t)(u - prev);
+            prev = u;
+        }
+    }
+}
+
+/* The inverse of index_forward_g; src and dst may be the same.  Per row
+ * index_inverse's running sum, then the row above added, 16 bytes at a
+ * time where SSE2 is there. */
+static void index_inverse_g(const uint8_t *src, size_t w, size_t h,
+                            uint8_t *dst)
+{
+    index_inverse(src, w, dst);
+    for (size_t b = 1; b < h; b++) {
+        uint8_t *x = dst + b * w;
+        const uint8_t *up = x - w;
+        index_inverse(src + b * w, w, x);
+        size_t a = 0;
+#if defined(__SSE2__)
+        for (; a + 16 <= w; a += 16)
+            _mm_storeu_si128((__m128i *)(x + a),
+                             _mm_add_epi8(_mm_loadu_si128((__m128i *)(x + a)),
+                                          _mm_loadu_si128(
+                                              (const __m128i *)(up + a))));
+#endif
+        for (; a < w; a++)
+            x[a] = (uint8_t)(x[a] + up[a]);
+    }
+}
+
+/* Whether transform G is likely to code the indices (w x h) smaller than
+ * index_forward: the order-0 entropy of the two, from their histograms
+ * (within a percent or two of trying both with zstd, at a fraction of
+ * the cost). */
+static int index_prefers_g(const uint8_t *x, size_t w, size_t h)
+{
+    uint32_t hl[256] = {0}, hg[256] = {0};
+    uint8_t prev = 0;
+    for (size_t m = 0; m < w * h; m++) {
+        hl[(uint8_t)(x[m] - prev)]++;
+        prev = x[m];
+    }
+    for (size_t a = 0, p = 0; a < w; a++) {
+        hg[(uint8_t)(x[a] - p)]++;
+        p = x[a];
+    }
+    for (size_t b = 1; b < h; b++) {
+        const uint8_t *r = x + b * w, *up = r - w;
+        uint8_t pu = 0;
+        for (size_t a = 0; a < w; a++) {
+            uint8_t u = (uint8_t)(r[a] - up[a]);
+            hg[(uint8_t)(u - pu)]++;
+            pu = u;
+        }
+    }
+    /* Bits = n log n - sum c log c: the larger sum codes smaller. */
+    double sl = 0, sg = 0;
+    for (unsigned i = 0; i < 256; i++) {
+        if (hl[i])
+            sl += hl[i] * log2(hl[i]);
+        if (hg[i])
+            sg += hg[i] * log2(hg[i]);
+    }
+    return sg > sl;
+}
+
 /* ---------------------------------------------------------------- code */
 
 int tvpal_chunkz_code(struct tvpal_chunkz *z, int level,
@@ -204,8 +327,14 @@ int tvpal_chunkz_code(struct tvpal_chunkz *z, int level,
     const uint32_t n = h.wlen * 256u;
     const size_t tb = (size_t)n * E, wh = (size_t)h.w * h.h;
     const unsigned char *table = chunk + TVPAL_CHUNK_HEADER_BYTES;
-    table_forward(table, n, E, z->scratch[0]);
-    index_forward(table + tb, wh, z->scratch[0] + tb);
+    /* Transform T2 always (it codes tables smaller on every series
+     * measured), G where it looks smaller (FORMAT.md 6.11). */
+    table_forward_t2(table, h.wlen, E, z->scratch[0]);
+    const int g = index_prefers_g(table + tb, h.w, h.h);
+    if (g)
+        index_forward_g(table + tb, h.w, h.h, z->scratch[0] + tb);
+    else
+        index_forward(table + tb, wh, z->scratch[0] + tb);
     /* Room for a frame that makes the chunk smaller by at least 64. */
     if (plain < 2 * TVPAL_CHUNK_HEADER_BYTES)
         return 0;
@@ -215,7 +344,8 @@ int tvpal_chunkz_code(struct tvpal_chunkz *z, int level,
     if (ZSTD_isError(f))   /* dstSize_tooSmall: coding does not pay */
         return ZSTD_getErrorCode(f) == ZSTD_error_dstSize_tooSmall
                    ? 0 : TVPAL_E_NOMEM;
-    h.flags |= TVPAL_CHUNK_ZSTD;
+    h.flags |= TVPAL_CHUNK_ZSTD | TVPAL_CHUNK_TABLE_T2 |
+               (g ? TVPAL_CHUNK_INDEX_G : 0u);
     h.coded_bytes = (uint32_t)f;
     tvpal_chunk_header_encode(&h, dst);
     *stored = tvpal_chunk_stored_bytes(&h, ctf);
@@ -259,11 +389,17 @@ static void unpack(struct tvpal_chunk_header h, uint32_t ctf,
     const size_t tb = (size_t)n * E, wh = (size_t)h.w * h.h;
     const uint64_t plain = tvpal_chunk_bytes(h.wlen, h.w, h.h, ctf);
     unsigned char *table = dst + TVPAL_CHUNK_HEADER_BYTES;
-    table_inverse(planes, n, E, table);
-    index_inverse(indices, wh, table + tb);
+    if (h.flags & TVPAL_CHUNK_TABLE_T2)
+        table_inverse_t2(planes, h.wlen, E, table);
+    else
+        table_inverse(planes, n, E, table);
+    if (h.flags & TVPAL_CHUNK_INDEX_G)
+        index_inverse_g(indices, h.w, h.h, table + tb);
+    else
+        index_inverse(indices, wh, table + tb);
     memset(table + tb + wh, 0,
            (size_t)(plain - TVPAL_CHUNK_HEADER_BYTES - tb - wh));
-    h.flags &= ~TVPAL_CHUNK_ZSTD;
+    h.flags &= ~TVPAL_CHUNK_CODED_BITS;
     h.coded_bytes = 0;
     tvpal_chunk_header_encode(&h, dst);
 }

@@ -360,7 +360,8 @@ static int record_verify(const unsigned char *buf, uint64_t bytes,
     const uint32_t slab_end = sh->slice_begin + sh->slice_count;
     const uint32_t allowed =
         tvpal_chunk_flags_allowed(sh->table_format) |
-        (sh->version == TVPAL_FORMAT_VERSION_CODED ? TVPAL_CHUNK_ZSTD : 0u);
+        (sh->version == TVPAL_FORMAT_VERSION_CODED ? TVPAL_CHUNK_CODED_BITS
+                                                   : 0u);
     uint64_t plain = 0;  /* the payload once inflated */
     for (uint32_t k = 0;; k++) {
         /* The chunks are exactly the slab's slices whose window starts at
@@ -406,6 +407,15 @@ static int record_verify(const unsigned char *buf, uint64_t bytes,
                                   "0x%x, table_format %u allows 0x%x", step,
                                   k, ch.slice, ch.flags, sh->table_format,
                                   allowed);
+        /* The transform bits say how a frame is laid out: no frame, no
+         * transform. */
+        if ((ch.flags & (TVPAL_CHUNK_TABLE_T2 | TVPAL_CHUNK_INDEX_G)) &&
+            !(ch.flags & TVPAL_CHUNK_ZSTD))
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                                  "record %u: chunk %u (slice %u): flags "
+                                  "0x%x: bits 3 and 4 (a coded chunk's "
+                                  "transform) without bit 2 (coded)", step,
+                                  k, ch.slice, ch.flags);
         prev = ch.slice;
         expect++;
         uint64_t cb, plain_cb;

@@ -56,6 +56,15 @@
 /* The chunk's table and indices are one zstd frame of coded_bytes
  * (FORMAT.md 6.11); only in a shard of format_version 2. */
 #define TVPAL_CHUNK_ZSTD 4u
+/* Of a coded chunk only (with TVPAL_CHUNK_ZSTD, FORMAT.md 6.11, since
+ * specification 1.10): its table's deltas are zigzagged and stored
+ * index-major (each index's entries over the window together), and its
+ * indices are gradients (the difference from the voxel above, from its
+ * left neighbour's). */
+#define TVPAL_CHUNK_TABLE_T2 8u
+#define TVPAL_CHUNK_INDEX_G 16u
+#define TVPAL_CHUNK_CODED_BITS \
+    (TVPAL_CHUNK_ZSTD | TVPAL_CHUNK_TABLE_T2 | TVPAL_CHUNK_INDEX_G)
 /* A coded chunk decodes to at most this many times its stored bytes: a
  * zstd block of up to 128 KiB costs at least 4 bytes, so no real frame
  * goes beyond it, and a reader refuses a chunk that claims more (FORMAT.md

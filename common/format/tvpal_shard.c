@@ -448,7 +448,7 @@ int tvpal_shardw_put_chunk(struct tvpal_shardw *w, uint32_t t, uint32_t s,
     /* The missing flag is what finish adds to the format: allow it; a
      * coded chunk makes the shard format_version 2, when the writer takes
      * them (its room: the chunk, zeros after it). */
-    const uint32_t coded = w->coding ? TVPAL_CHUNK_ZSTD : 0u;
+    const uint32_t coded = w->coding ? TVPAL_CHUNK_CODED_BITS : 0u;
     if (have && (ch.flags & ~(tvpal_chunk_flags_allowed(w->h.table_format) |
                               TVPAL_CHUNK_MISSING | coded)))
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "chunk of slice %u in "
@@ -930,7 +930,8 @@ int tvpal_shard_count_tables(struct tvpal_shard *s,
                           h->version == TVPAL_FORMAT_VERSION_CODED;
     const uint32_t allowed =
         tvpal_chunk_flags_allowed(h->table_format) |
-        (h->version == TVPAL_FORMAT_VERSION_CODED ? TVPAL_CHUNK_ZSTD : 0u);
+        (h->version == TVPAL_FORMAT_VERSION_CODED ? TVPAL_CHUNK_CODED_BITS
+                                                  : 0u);
     *out = (struct tvpal_table_count){{0}, {0}, 0, 0, 0};
     for (uint32_t t = 0; t < h->steps; t++) {
         const struct tvpal_index_entry *e = &s->index[t];

@@ -25,6 +25,10 @@ done
 mkdir -p "$O"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
+# good-6-coded holds the first transform of coded chunks (FORMAT.md 1.8),
+# which the encoder no longer writes (1.10 writes T2 and G): the committed
+# copy is kept, not regenerated, so readers stay tested on it.
+cp -r "$here/good-6-coded" "$tmp/frozen-good-6-coded"
 rm -rf "$O"/good-* "$O"/bad-* "$O/SHA256SUMS"
 
 # good NAME FIELD DIMS STEPS ENCODER-OPTIONS...: a dataset from tvpal-gen.
@@ -98,9 +102,36 @@ for t in range(3):
 PY
 good_encode good-5-auto 20x16x3 --window 2 --table auto --axes xyz --index-coding none
 # Coded chunks (FORMAT.md 6.11, shard format_version 2, the encoder's default
-# since 1.8): blobs 64x64x4, T = 3, N = 2, axis z; --index-coding none above
-# keeps good-1 to good-5 the plain shards of format_version 1.
-good good-6-coded blobs 64x64x4 3 --window 2 --axes z
+# since 1.8): blobs 64x64x4, T = 3, N = 2, axis z, written by the encoder of
+# 1.8 (kept: see above); --index-coding none above keeps good-1 to good-5
+# the plain shards of format_version 1.
+cp -r "$tmp/frozen-good-6-coded" "$O/good-6-coded"
+# Coded chunks of 1.10 (transform T2 of the tables, G of the indices where
+# it codes smaller): 40x32x3, T = 3, N = 2, axis z.  Slice z = 0 is smooth
+# along x with a random phase per row (the indices of neighbouring rows
+# unrelated: G not chosen, flags 0xE), z = 1 a smooth blob (16-bit table, G:
+# 0x1E), z = 2 integers 0, 1, 2 in 8x8 squares (exact: float32 table, G:
+# 0x1C).
+mkdir -p "$tmp/in-good-7-coded-t2"
+"$PY" - "$tmp/in-good-7-coded-t2" <<'PY'
+import math, random, struct, sys
+random.seed(7)
+nx, ny, nz = 40, 32, 3
+r = [random.uniform(0, 6.3) for _ in range(ny)]
+for t in range(3):
+    v = []
+    for z in range(nz):
+        for y in range(ny):
+            for x in range(nx):
+                if z == 0:
+                    v.append(math.sin(x / 6 + t / 3 + r[y]))
+                elif z == 1:
+                    v.append(math.exp(-((x - 20 - t) ** 2 + (y - 16) ** 2) / 60.0))
+                else:
+                    v.append(float((x // 8 + y // 8 + t) % 3))
+    open("%s/t%d.f32" % (sys.argv[1], t), "wb").write(struct.pack("<%df" % len(v), *v))
+PY
+good_encode good-7-coded-t2 40x32x3 --window 2 --axes z
 
 # The bad files: each one copy of a good-1-basic file with one fault.
 "$PY" - "$O" <<'PY'
@@ -226,6 +257,13 @@ seal_index(b)
 write("bad-coded-plain.tvps", b)               # plain_pages one page more
 b = bytearray(shard); u32(b, 8, 1); seal_header(b)
 write("bad-coded-version-1.tvps", b)           # coded records, version 1
+# Transform bits (README.md: bad-coded-t2-* in good-7-coded-t2): record 0's
+# first chunk (slice 0) is coded with T2 and without G.
+load(O + "/good-7-coded-t2/node-0/axis-z.tvps")
+c = chunks(0)[0]
+assert struct.unpack_from("<I", shard, c + 28)[0] == 0xE
+b = bytearray(shard); u32(b, c + 28, 0xA); seal_record(b, 0)
+write("bad-coded-t2-uncoded.tvps", b)          # bit 3 without bit 2
 
 # Manifests: good-1-basic's with one change each.
 text = open(base + "manifest.txt").read()
