@@ -87,12 +87,13 @@ awk -v a="$(kv axis_ratio "$(cat "$W/xyz.out")")" -v r="$(kv ratio "$(cat "$W/xy
     || fail "xyz: axis_ratio / ratio: $(cat "$W/xyz.out")"
 # --axes z's axis_ratio is that of the three-axis encode's z shards (the
 # same files; the axes' sizes differ once chunks are coded, so not xyz's
-# mean), and about its ratio.
+# mean), and above its ratio (which counts the manifests too: how much
+# above depends on the length of the source paths they name).
 zs=$(stat -c %s "$W/xyz"/node-*/axis-z.tvps | awk '{ s += $1 } END { print s + 0 }')
 awk -v a="$(kv axis_ratio "$(cat "$W/z.out")")" -v r="$(kv ratio "$(cat "$W/z.out")")" \
     -v q="$(awk -v s=$SRC -v z="$zs" 'BEGIN { printf "%.3f", s / z }')" \
-    'BEGIN { exit !(a == q && a / r > 1 && a / r < 1.02) }' \
-    && ok "z: axis_ratio = source / the three-axis encode's z shards, about its ratio" \
+    'BEGIN { exit !(a == q && a > r) }' \
+    && ok "z: axis_ratio = source / the three-axis encode's z shards, above its ratio" \
     || fail "z axis_ratio: $(cat "$W/z.out"); z shards of xyz: $zs bytes"
 
 # Two axes of a box that is not a cube: x and z, as the three-axis encode's.
