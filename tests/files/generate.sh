@@ -54,6 +54,21 @@ good_encode() {
     done
     cp -r "$tmp/$name" "$O/$name"
 }
+# slices DIR NX NY EXPR...: a source of T = 3 float32 steps in DIR, NX x NY
+# x (one per EXPR) voxels, slice z holding EXPR number z, a python
+# expression of x, y, t and r (32 phases, random from seed 7).
+slices() {
+    mkdir -p "$1"
+    "$PY" - "$@" <<'PY'
+import math, random, struct, sys
+out, nx, ny, exprs = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4:]
+random.seed(7)
+r = [random.uniform(0, 6.3) for _ in range(32)]
+for t in range(3):
+    v = [eval(e) for e in exprs for y in range(ny) for x in range(nx)]
+    open("%s/t%d.f32" % (out, t), "wb").write(struct.pack("<%df" % len(v), *v))
+PY
+}
 # f32 tables, one node; N = 2 over T = 3 steps: a short first window
 # (odd slices: [0,1)) and a window cut at T (even slices: [2,3)).  --table
 # f32 is said since the default became auto (table_format 4).
@@ -83,23 +98,9 @@ good_encode good-3-missing 4x3x2 --window 2 --table u16 --axes xyz --index-codin
 # N = 2.  Slice z = 0 is smooth (coded with an error: 16-bit table), z = 1
 # holds the integers 0, 1, 2 (coded exactly, which a 16-bit table would
 # not be: float32), z = 2 is constant (exact in 16 bits too: 16-bit).
-mkdir -p "$tmp/in-good-5-auto"
-"$PY" - "$tmp/in-good-5-auto" <<'PY'
-import math, struct, sys
-nx, ny, nz = 20, 16, 3
-for t in range(3):
-    v = []
-    for z in range(nz):
-        for y in range(ny):
-            for x in range(nx):
-                if z == 0:
-                    v.append(10 * math.sin(0.3 * x + 0.5 * t) * math.cos(0.2 * y))
-                elif z == 1:
-                    v.append(float((x + y + t) % 3))
-                else:
-                    v.append(5.0)
-    open("%s/t%d.f32" % (sys.argv[1], t), "wb").write(struct.pack("<%df" % len(v), *v))
-PY
+slices "$tmp/in-good-5-auto" 20 16 \
+    "10 * math.sin(0.3 * x + 0.5 * t) * math.cos(0.2 * y)" \
+    "float((x + y + t) % 3)" "5.0"
 good_encode good-5-auto 20x16x3 --window 2 --table auto --axes xyz --index-coding none
 # Coded chunks (FORMAT.md 6.11, shard format_version 2, the encoder's default
 # since 1.8): blobs 64x64x4, T = 3, N = 2, axis z, written by the encoder of
@@ -112,25 +113,9 @@ cp -r "$tmp/frozen-good-6-coded" "$O/good-6-coded"
 # unrelated: G not chosen, flags 0xE), z = 1 a smooth blob (16-bit table, G:
 # 0x1E), z = 2 integers 0, 1, 2 in 8x8 squares (exact: float32 table, G:
 # 0x1C).
-mkdir -p "$tmp/in-good-7-coded-t2"
-"$PY" - "$tmp/in-good-7-coded-t2" <<'PY'
-import math, random, struct, sys
-random.seed(7)
-nx, ny, nz = 40, 32, 3
-r = [random.uniform(0, 6.3) for _ in range(ny)]
-for t in range(3):
-    v = []
-    for z in range(nz):
-        for y in range(ny):
-            for x in range(nx):
-                if z == 0:
-                    v.append(math.sin(x / 6 + t / 3 + r[y]))
-                elif z == 1:
-                    v.append(math.exp(-((x - 20 - t) ** 2 + (y - 16) ** 2) / 60.0))
-                else:
-                    v.append(float((x // 8 + y // 8 + t) % 3))
-    open("%s/t%d.f32" % (sys.argv[1], t), "wb").write(struct.pack("<%df" % len(v), *v))
-PY
+slices "$tmp/in-good-7-coded-t2" 40 32 "math.sin(x / 6 + t / 3 + r[y])" \
+    "math.exp(-((x - 20 - t) ** 2 + (y - 16) ** 2) / 60.0)" \
+    "float((x // 8 + y // 8 + t) % 3)"
 good_encode good-7-coded-t2 40x32x3 --window 2 --axes z
 
 # The bad files: each one copy of a good-1-basic file with one fault.
