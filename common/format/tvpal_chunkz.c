@@ -316,7 +316,7 @@ int tvpal_chunkz_code(struct tvpal_chunkz *z, int level,
     struct tvpal_chunk_header h;
     if (level < 1 || level > ZSTD_maxCLevel() ||
         tvpal_chunk_header_decode(chunk, &h, NULL) < 0 || h.wlen < 1 ||
-        h.wlen > 16 || (h.flags & TVPAL_CHUNK_ZSTD))
+        h.wlen > 16 || (h.flags & TVPAL_CHUNK_CODED_BITS))
         return TVPAL_E_INVAL;
     const uint64_t plain = tvpal_chunk_bytes(h.wlen, h.w, h.h, ctf);
     if (plain > z->max_chunk)

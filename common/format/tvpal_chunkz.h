@@ -2,9 +2,12 @@
  * adapter of libzstd.
  *
  * A coded chunk keeps its 64-byte header and stores its decoder table and
- * its indices, after a reversible transform, as one zstd frame: the table
- * as differences along time (row 0: along the index), in byte planes; the
- * indices as differences from the voxel before.  A record holding coded
+ * its indices, after reversible transforms, as one zstd frame: the table
+ * as differences along time (row 0: along the index), zigzagged, each
+ * index's entries together, in byte planes (T2); the indices as
+ * differences from the voxel before, or as gradients (G) where that looks
+ * smaller.  Inflating also takes the first transforms (FORMAT.md 1.8: no
+ * zigzag, row-major; no G), which 0.4.0 wrote first.  A record holding coded
  * chunks is inflated once, where it is read, into exactly the record a
  * writer without coding would have written (its CRC recomputed), so
  * everything after the read (the slab, the renderers) sees plain records
@@ -48,11 +51,13 @@ void tvpal_chunkz_free(struct tvpal_chunkz *z);
 
 /* Codes the plain chunk at chunk (header, table in its own format ctf
  * 0..3, indices, padding; at most max_chunk bytes) with zstd at level
- * (1..19) into dst, which has room for the plain chunk.  1: dst holds the
- * coded chunk, *stored its bytes (header, frame, zeros up to a multiple
- * of 64), fewer than the plain chunk's; 0: coding does not make it
- * smaller (dst unspecified: store it plain); TVPAL_E_INVAL (larger than
- * max_chunk, or a level out of range); TVPAL_E_NOMEM. */
+ * (1..19) into dst, which has room for the plain chunk: its table in
+ * transform T2 and its indices in G where that looks smaller (FORMAT.md
+ * 6.11, flags bits 3 and 4).  1: dst holds the coded chunk, *stored its
+ * bytes (header, frame, zeros up to a multiple of 64), fewer than the
+ * plain chunk's; 0: coding does not make it smaller (dst unspecified:
+ * store it plain); TVPAL_E_INVAL (larger than max_chunk, a level out of
+ * range, or flags of a coded chunk already set); TVPAL_E_NOMEM. */
 int tvpal_chunkz_code(struct tvpal_chunkz *z, int level,
                       const unsigned char *chunk, uint32_t ctf,
                       unsigned char *dst, uint64_t *stored);
