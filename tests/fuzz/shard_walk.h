@@ -8,13 +8,17 @@
 
 #include <stdlib.h>
 
-/* Walks the chunks of the verified record rec of a shard with header h. */
+/* Walks the chunks of the verified record rec of a shard with header h,
+ * decoding the tables of the plain ones (a coded chunk's table is its
+ * frame until the record is inflated: tvpal_record_next_chunk). */
 static inline void walk_chunks(const unsigned char *rec,
                         const struct tvpal_shard_header *h)
 {
     uint64_t pos = 0;
     struct tvpal_chunk c;
     while (tvpal_record_next_chunk(rec, &pos, h->table_format, &c)) {
+        if (c.h.flags & TVPAL_CHUNK_ZSTD)
+            continue;
         float *t = malloc((size_t)c.h.wlen * 256 * sizeof *t + 1);
         if (!t)
             abort();
