@@ -221,8 +221,9 @@ int tvpal_engine_start(struct tvpal_engine *e, struct tvpal_pool *pool,
     e->jobs = calloc(e->max_jobs, sizeof *e->jobs);
     e->jcrc = calloc(e->max_jobs, sizeof *e->jcrc);
     e->ring = calloc(e->nring, sizeof *e->ring);
-    if (!e->enc || !e->dropped || !e->samples || !e->tables || !e->fit || !e->jobs ||
-        !e->ring || !e->chunkbuf || !e->jcrc || !e->codedbuf || !e->z)
+    if (!e->enc || !e->dropped || !e->samples || !e->tables || !e->fit ||
+        !e->jobs || !e->ring || !e->chunkbuf || !e->jcrc || !e->codedbuf ||
+        !e->z)
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "the job lists");
     for (unsigned i = 0; i < nt; i++) {
         int rc = start_thread(e, i, diag);
