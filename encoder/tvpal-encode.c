@@ -47,17 +47,11 @@
 #include <unistd.h>
 
 
-static void usage(FILE *f)
+/* --help, in its sections: what the program does, then the options for
+ * the input, the encoding and the output. */
+static void usage_input(FILE *f)
 {
-    fprintf(f,
-"Usage: " PROG " [--dims NXxNYxNZ] [options] -o OUTDIR INPUT...\n"
-"Encode a time series of volumes into a tvpal dataset: for each axis (or\n"
-"those of --axes), 8-bit indexed slices with per-window decoder tables.  INPUT is raw (one file per\n"
-"timestep, in time order, or one file holding all timesteps with --steps),\n"
-"or NetCDF, VTK ImageData (.vti, .pvti, a .pvd collection) or legacy VTK\n"
-"files, which say their own dims, type and steps (a NetCDF file may hold\n"
-"several timesteps: a time dimension; a .pvd lists its files and times).\n"
-"\n"
+    fputs(
 "Input:\n"
 "      --format F         auto (default: from each file's own bytes), raw,\n"
 "                         netcdf, hdf5, vti (also .pvti, .pvd) or vtk\n"
@@ -107,7 +101,12 @@ static void usage(FILE *f)
 "                         and the histogram, and are drawn transparent\n"
 "      --nan-as VALUE     replace NaN, infinite and missing values by VALUE\n"
 "                         instead (default: infinite values are refused,\n"
-"                         naming file, timestep and voxel)\n"
+"                         naming file, timestep and voxel)\n", f);
+}
+
+static void usage_encoding(FILE *f)
+{
+    fputs(
 "Encoding:\n"
 "  -w, --window N         timesteps per DCT window, 1..16 (default 4;\n"
 "                         N = 1 is the plain 8-bit Lloyd-Max baseline)\n"
@@ -150,7 +149,23 @@ static void usage(FILE *f)
 "                         0), each the 2x2x2 average of the one before\n"
 "                         (missing values left out), encoded the same way\n"
 "                         into OUTDIR/level-1 .. level-L; the player draws\n"
-"                         from the finest whose voxels cover about a pixel\n"
+"                         from the finest whose voxels cover about a pixel\n", f);
+}
+
+static void usage(FILE *f)
+{
+    fputs(
+"Usage: " PROG " [--dims NXxNYxNZ] [options] -o OUTDIR INPUT...\n"
+"Encode a time series of volumes into a tvpal dataset: for each axis (or\n"
+"those of --axes), 8-bit indexed slices with per-window decoder tables.  INPUT is raw (one file per\n"
+"timestep, in time order, or one file holding all timesteps with --steps),\n"
+"or NetCDF, VTK ImageData (.vti, .pvti, a .pvd collection) or legacy VTK\n"
+"files, which say their own dims, type and steps (a NetCDF file may hold\n"
+"several timesteps: a time dimension; a .pvd lists its files and times).\n"
+"\n", f);
+    usage_input(f);
+    usage_encoding(f);
+    fprintf(f,
 "Output:\n"
 "  -o, --output OUTDIR    dataset directory (must not exist)\n"
 "  -f, --force            replace an existing OUTDIR\n"
