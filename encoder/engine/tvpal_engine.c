@@ -597,17 +597,18 @@ static uint32_t store_table_auto(struct table_fit *f, float *table,
         return TVPAL_TABLE_F32;
     }
     /* From the guess, down while the next coarser fits, or up until one
-     * fits (16 bits, the most steps, has).  last: the bits of the table
-     * in dst. */
-    unsigned k = table_bits_guess(f, table, len), last = k;
-    if (table_try_u16(f, table, len, table_steps(k), dec, dst, h)) {
+     * fits (16 bits, the most steps, has: the try above).  last: the bits
+     * of the table in dst. */
+    unsigned k = table_bits_guess(f, table, len), last = 16;
+    if (k == 16 || table_try_u16(f, table, len, table_steps(last = k), dec,
+                                 dst, h)) {
         while (k > TABLE_MIN_BITS &&
                table_try_u16(f, table, len, table_steps(last = k - 1), dec,
                              dst, h))
             k--;
     } else {
-        while (k < 16 &&
-               !table_try_u16(f, table, len, table_steps(last = ++k), dec,
+        while (++k < 16 &&
+               !table_try_u16(f, table, len, table_steps(last = k), dec,
                               dst, h))
             ;
     }
