@@ -271,40 +271,20 @@ static void index_inverse_g(const uint8_t *src, size_t w, size_t h,
     }
 }
 
-/* Whether transform G is likely to code the indices (w x h) smaller than
- * index_forward: the order-0 entropy of the two, from their histograms
- * (within a percent or two of trying both with zstd, at a fraction of
- * the cost). */
-static int index_prefers_g(const uint8_t *x, size_t w, size_t h)
+/* The sum of c log2 c over the histogram of v[0..n): order-0 coding
+ * takes n log2 n minus it in bits, so of two transforms of the same
+ * values the larger sum codes smaller (within a percent or two of trying
+ * both with zstd, at a fraction of the cost). */
+static double order0_sum(const uint8_t *v, size_t n)
 {
-    uint32_t hl[256] = {0}, hg[256] = {0};
-    uint8_t prev = 0;
-    for (size_t m = 0; m < w * h; m++) {
-        hl[(uint8_t)(x[m] - prev)]++;
-        prev = x[m];
-    }
-    for (size_t a = 0, p = 0; a < w; a++) {
-        hg[(uint8_t)(x[a] - p)]++;
-        p = x[a];
-    }
-    for (size_t b = 1; b < h; b++) {
-        const uint8_t *r = x + b * w, *up = r - w;
-        uint8_t pu = 0;
-        for (size_t a = 0; a < w; a++) {
-            uint8_t u = (uint8_t)(r[a] - up[a]);
-            hg[(uint8_t)(u - pu)]++;
-            pu = u;
-        }
-    }
-    /* Bits = n log n - sum c log c: the larger sum codes smaller. */
-    double sl = 0, sg = 0;
-    for (unsigned i = 0; i < 256; i++) {
-        if (hl[i])
-            sl += hl[i] * log2(hl[i]);
-        if (hg[i])
-            sg += hg[i] * log2(hg[i]);
-    }
-    return sg > sl;
+    uint32_t hist[256] = {0};
+    for (size_t m = 0; m < n; m++)
+        hist[v[m]]++;
+    double s = 0;
+    for (unsigned i = 0; i < 256; i++)
+        if (hist[i])
+            s += hist[i] * log2(hist[i]);
+    return s;
 }
 
 /* ---------------------------------------------------------------- code */
@@ -330,11 +310,14 @@ int tvpal_chunkz_code(struct tvpal_chunkz *z, int level,
     /* Transform T2 always (it codes tables smaller on every series
      * measured), G where it looks smaller (FORMAT.md 6.11). */
     table_forward_t2(table, h.wlen, E, z->scratch[0]);
-    const int g = index_prefers_g(table + tb, h.w, h.h);
-    if (g)
-        index_forward_g(table + tb, h.w, h.h, z->scratch[0] + tb);
-    else
-        index_forward(table + tb, wh, z->scratch[0] + tb);
+    const uint8_t *x = table + tb;
+    uint8_t *d = z->scratch[0] + tb;
+    index_forward(x, wh, d);
+    const double left = order0_sum(d, wh);
+    index_forward_g(x, h.w, h.h, d);
+    const int g = order0_sum(d, wh) > left;
+    if (!g)
+        index_forward(x, wh, d);
     /* Room for a frame that makes the chunk smaller by at least 64. */
     if (plain < 2 * TVPAL_CHUNK_HEADER_BYTES)
         return 0;
