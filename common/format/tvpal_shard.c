@@ -690,6 +690,8 @@ struct tvpal_shard {
     uint64_t max_record;        /* of the records' buffers */
     uint64_t ram_bytes;         /* all the records' buffers */
     struct tvpal_chunkz *z;     /* read_record's inflater, at first need */
+    struct tvpal_table_count counted;   /* count_tables' result, once */
+    int have_counted;
 };
 
 /* Smallest record bytes for step t that the header's geometry implies:
@@ -932,6 +934,10 @@ int tvpal_shard_count_tables(struct tvpal_shard *s,
         tvpal_chunk_flags_allowed(h->table_format) |
         (h->version == TVPAL_FORMAT_VERSION_CODED ? TVPAL_CHUNK_CODED_BITS
                                                   : 0u);
+    if (s->have_counted) { /* the file is read-only: it stays so */
+        *out = s->counted;
+        return 0;
+    }
     *out = (struct tvpal_table_count){{0}, {0}, 0, 0, 0};
     for (uint32_t t = 0; t < h->steps; t++) {
         const struct tvpal_index_entry *e = &s->index[t];
@@ -978,6 +984,8 @@ int tvpal_shard_count_tables(struct tvpal_shard *s,
             out->bytes[u] += (uint64_t)len * 256 * tvpal_table_entry_bytes(tf);
         }
     }
+    s->counted = *out;
+    s->have_counted = 1;
     return 0;
 }
 

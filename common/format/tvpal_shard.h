@@ -175,7 +175,8 @@ struct tvpal_table_count {
  * format_version 1 from the header alone; for a per-chunk shard (4, 5) or
  * one with coded chunks from every chunk header (a
  * 64-byte read each, walked from the start of each record; the records'
- * CRCs are not checked, tvpal_shard_read_record does that).  0,
+ * CRCs are not checked, tvpal_shard_read_record does that); the walk is
+ * done once per open shard, later calls give its result.  0,
  * TVPAL_E_READ, or TVPAL_E_FORMAT naming the record and slice whose chunk
  * header is not where the layout puts it. */
 int tvpal_shard_count_tables(struct tvpal_shard *s,
