@@ -25,6 +25,8 @@ enum { SLOT_FREE, SLOT_INFLIGHT, SLOT_READY };
  * 1 MiB pieces). */
 #define PIECE (1u << 20)
 
+/* A slot's state and step are written with __atomic: tvpal_stream_ready
+ * reads them on the caller's thread while a keep job may run. */
 struct slot {
     int state;
     uint32_t step;
@@ -206,7 +208,7 @@ static int reap_for(struct tvpal_stream *s, double ms, double *wait_ms,
     else if (sl->result >= 0)
         sl->result += res;
     if (--sl->pending == 0)
-        sl->state = SLOT_READY;
+        __atomic_store_n(&sl->state, SLOT_READY, __ATOMIC_RELEASE);
     return 0;
 }
 
@@ -230,8 +232,8 @@ static int submit(struct tvpal_stream *s, unsigned pi, unsigned si,
     const struct tvpal_index_entry *e = tvpal_shard_entry(p->sh, step);
     fill_slot(s, p, sl);
     sl->touched = 1;
-    sl->state = SLOT_INFLIGHT;
-    sl->step = step;
+    __atomic_store_n(&sl->state, SLOT_INFLIGHT, __ATOMIC_RELAXED);
+    __atomic_store_n(&sl->step, step, __ATOMIC_RELAXED);
     sl->verified = 0;
     sl->result = 0;
     sl->pending = 0;
@@ -848,6 +850,8 @@ struct want {
     uint32_t *step;
     unsigned n, nn;
     uint32_t lo, hi;
+    uint32_t t;     /* the step they are wanted at, */
+    int dir;        /* playing in this direction (0: paused) */
     int list;       /* the steps ahead wrap round the loop
                      * (tvpal_stream_loop): they are not one interval, and
                      * all of step[0..n) are wanted, lo > hi */
@@ -877,8 +881,41 @@ static int wanted(const struct want *w, uint32_t step)
  * of CPU for a 34 MB buffer (512^3, N = 4), and steady playback, which
  * only prefetches, went through all 2N + 2P + 1 buffers in its first 12
  * frames (100-400 ms each) instead of the N + P + 1 it uses. */
-static int victim(const struct part *p, const struct want *w, int need,
-                  int detach)
+/* How far playback from w->t in direction w->dir is from showing
+ * record q again, in steps (q is shown from step q on): round the loop
+ * (tvpal_stream_loop) where t lies in it, the N - 1 records before its
+ * first step being shown there, and records outside it never; otherwise
+ * records behind the playhead after every one ahead, the farthest behind
+ * last.  A neighbourhood around t (no read-ahead): the distance from t.
+ * victim reuses the buffer shown again last, as Belady's rule would: a
+ * loop longer than the buffers then keeps as many of its records as
+ * they hold from one round to the next, where reusing the most recently
+ * read ones first would read every record again each round. */
+static uint64_t next_use(const struct tvpal_stream *s, const struct want *w,
+                         uint32_t q)
+{
+    const uint32_t t = w->t;
+    const uint64_t T = tvpal_shard_hdr(s->p[0].sh)->steps;
+    if (s->around && !s->ahead)
+        return q > t ? q - t : t - q;
+    const uint32_t lo = s->loop_lo, hi = s->loop_hi;
+    if (lo <= hi && t >= lo && t <= hi) {
+        const uint32_t N = tvpal_shard_hdr(s->p[0].sh)->window;
+        if (q < lo && q + N > lo)
+            q = lo;
+        else if (q < lo || q > hi)
+            return 2 * T;
+        const uint64_t L = (uint64_t)hi - lo + 1;
+        return w->dir < 0 ? ((uint64_t)t + L - q) % L
+                          : ((uint64_t)q + L - t) % L;
+    }
+    if (w->dir < 0)
+        return q <= t ? t - q : T + q - t;
+    return q >= t ? q - t : T + t - q;
+}
+
+static int victim(const struct tvpal_stream *s, const struct part *p,
+                  const struct want *w, int need, int detach)
 {
     int fresh = -1; /* a free buffer never read into */
     for (unsigned k = 0; k < p->nslots; k++)
@@ -889,15 +926,34 @@ static int victim(const struct part *p, const struct want *w, int need,
                 fresh = (int)k;
         }
     int borrowed = -1; /* landed, unwanted, but shown or staged */
+    int last = -1;     /* landed, unwanted, shown again last */
+    uint64_t last_use = 0;
     for (unsigned k = 0; k < p->nslots; k++) {
         const struct slot *sl = &p->slots[k];
         if (sl->state != SLOT_READY || wanted(w, sl->step))
             continue;
-        if (!tvpal_slab_borrows(p->slab, sl->step))
-            return (int)k;
-        if (borrowed < 0)
+        if (!tvpal_slab_borrows(p->slab, sl->step)) {
+            const uint64_t u = next_use(s, w, sl->step);
+            if (last < 0 || u > last_use) {
+                last = (int)k;
+                last_use = u;
+            }
+        } else if (borrowed < 0) {
             borrowed = (int)k;
+        }
     }
+    /* Where the stream keeps records (a neighbourhood, or a read-ahead
+     * once asked for: its buffers are there to be filled), a landed
+     * record playback shows again (round a loop) stays while a buffer
+     * never read into is left: its first read costs the page faults
+     * once, reading the record again costs the disk each round.  Plain
+     * streaming keeps to the buffers it has touched (see above). */
+    const int keeps = s->around && (!s->ahead ||
+                                    __atomic_load_n(&s->ahead_on,
+                                                    __ATOMIC_RELAXED));
+    if (last >= 0 && (fresh < 0 || !keeps ||
+                      last_use >= tvpal_shard_hdr(p->sh)->steps))
+        return last;
     if (fresh >= 0)
         return fresh;
     if (detach && borrowed >= 0)
@@ -971,6 +1027,8 @@ static void wanted_steps(const struct tvpal_stream *s, const struct part *p,
     const struct tvpal_shard_header *h = tvpal_shard_hdr(p->sh);
     const uint32_t steps = h->steps;
     w->step = s->want;
+    w->t = t;
+    w->dir = dir;
     w->n = w->nn = tvpal_slab_needed(p->slab, t, w->step);
     w->lo = 1;
     w->hi = 0;
@@ -1043,14 +1101,14 @@ static int queue_step(struct tvpal_stream *s, unsigned pi,
     if (find_slot(p, step) >= 0)
         return 0;
     const int detach = here && i < nn; /* only for a needed record */
-    int v = victim(p, w, i < nn, detach);
+    int v = victim(s, p, w, i < nn, detach);
     /* After a jump the old prefetches may hold every free slot: wait for
      * them to land, then they can be reused. */
     while (v < 0 && i < nn && tvpal_io_inflight(s->io)) {
         int rc = reap(s, &st->io_wait_ms, diag);
         if (rc < 0)
             return rc;
-        v = victim(p, w, i < nn, detach);
+        v = victim(s, p, w, i < nn, detach);
     }
     if (v < 0) {
         if (i < nn) /* cannot happen: 2N + 2P + 1 slots */
@@ -1133,7 +1191,7 @@ static int verify_slot(struct part *p, struct slot *sl, uint32_t step,
         rc = tvpal_record_verify(sl->buf, e->bytes, step,
                                  tvpal_shard_hdr(p->sh), d);
     if (rc < 0) {
-        sl->state = SLOT_FREE;
+        __atomic_store_n(&sl->state, SLOT_FREE, __ATOMIC_RELAXED);
         return rc;
     }
     sl->verified = 1;
@@ -1169,7 +1227,7 @@ static int stage_checked(struct part *p, struct slot *sl, uint32_t t,
         return verify_slot(p, sl, step, NULL, d); /* its message, CRC first */
     int rc = tvpal_slab_stage_verify(p->slab, sl->buf, t);
     if (rc == TVPAL_E_CHECKSUM) {
-        sl->state = SLOT_FREE;
+        __atomic_store_n(&sl->state, SLOT_FREE, __ATOMIC_RELAXED);
         return tvpal_diag_set(d, rc, "record %u: payload CRC-32C mismatch",
                               step);
     }
@@ -1600,6 +1658,28 @@ int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir,
     return 0;
 }
 
+/* Whether every record step t needs in part p's slab (tvpal_slab_needed,
+ * from what the slab shows) has landed in a record buffer, where a seek
+ * to t reads nothing.  The caller's thread, while a keep job may run on
+ * the stager's: a buffer that job takes meanwhile for another step only
+ * makes the seek read that record again. */
+static int part_holds(const struct part *p, uint32_t t)
+{
+    uint32_t need[16];
+    const unsigned nn = tvpal_slab_needed(p->slab, t, need);
+    for (unsigned i = 0; i < nn; i++) {
+        int found = 0;
+        for (unsigned k = 0; k < p->nslots_all && !found; k++)
+            found = __atomic_load_n(&p->slots[k].state, __ATOMIC_ACQUIRE) ==
+                        SLOT_READY &&
+                    __atomic_load_n(&p->slots[k].step, __ATOMIC_RELAXED) ==
+                        need[i];
+        if (!found)
+            return 0;
+    }
+    return 1;
+}
+
 int tvpal_stream_ready(struct tvpal_stream *s, uint32_t t, double wait_ms)
 {
     struct stager *w = &s->w;
@@ -1624,7 +1704,17 @@ int tvpal_stream_ready(struct tvpal_stream *s, uint32_t t, double wait_ms)
            (w->next ? w->next_t : w->t) == t &&
            pthread_cond_timedwait(&w->cv, &w->mu, &until) == 0)
         ;
+    /* Not staged, but in the record buffers (read ahead, or kept from a
+     * round before): a seek reads nothing once the stager is idle or
+     * only keeping (which the seek stops); not while it stages or
+     * prepares a step, which the seek would wait for. */
+    const int quiet = w->state == STAGER_IDLE || (w->keep && !w->next);
     pthread_mutex_unlock(&w->mu);
+    if (!ready && quiet) {
+        ready = 1;
+        for (unsigned pi = 0; pi < s->n && ready; pi++)
+            ready = part_holds(&s->p[pi], t);
+    }
     return ready;
 }
 

@@ -149,7 +149,9 @@ int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir,
                          int prefetch);
 
 /* 1 when a seek to t reads nothing: in-core, the slabs show t already,
- * or the records of t are staged; 0 when it would read.  With wait_ms > 0
+ * the records of t are staged, or they are all in record buffers (read
+ * ahead, or kept from before) while the stager is idle or keeping; 0
+ * when it would read (or wait for the stager's step).  With wait_ms > 0
  * a stager job for t still running is waited for, at most wait_ms (a
  * frame's slack before its deadline); 0 never waits. */
 int tvpal_stream_ready(struct tvpal_stream *s, uint32_t t, double wait_ms);
