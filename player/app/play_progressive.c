@@ -310,6 +310,11 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
             }
             return (int)p->coarse;
         }
+        /* A step whose records are in already (a held loop's, the
+         * read-ahead's) is drawn at full level on the way; the plan is
+         * made again at the next step that is not. */
+        if (!waits && tvpal_player_ready(pf, &vf, t, 0))
+            return draw_full(p, full);
         if (p->frames < p->due)
             return (int)p->coarse;
         /* Past the step planned (late, or the range wrapped): once its
