@@ -222,8 +222,11 @@ static void setup_view(struct headless *h)
     h->progressive = o->progressive > 0 && !play_cluster_multi();
     play_prog_init(&h->prog, o->fps_given ? 1000.0 / o->fps : 0,
                    o->budget_ms, h->s->a, h->s->b, !o->fps_given);
-    /* The reads ahead go round --steps A:B as playback does. */
-    play_levels_loop(h->s, h->s->a, h->s->b);
+    /* The reads ahead go round --steps A:B as playback does (--loop K,
+     * K > 1), and the record buffers keep what the next round shows
+     * again; played once, nothing is read or kept for a round after. */
+    if (o->loops > 1)
+        play_levels_loop(h->s, h->s->a, h->s->b);
 }
 
 /* The level of detail of a frame of view h->v (--level, else the finest
