@@ -25,8 +25,9 @@ enum { SLOT_FREE, SLOT_INFLIGHT, SLOT_READY };
  * 1 MiB pieces). */
 #define PIECE (1u << 20)
 
-/* A slot's state and step are written with __atomic: tvpal_stream_ready
- * reads them on the caller's thread while a keep job may run. */
+/* A slot's state, step and verified are written with __atomic:
+ * tvpal_stream_ready reads them on the caller's thread while a keep job
+ * may run. */
 struct slot {
     int state;
     uint32_t step;
@@ -234,7 +235,7 @@ static int submit(struct tvpal_stream *s, unsigned pi, unsigned si,
     sl->touched = 1;
     __atomic_store_n(&sl->state, SLOT_INFLIGHT, __ATOMIC_RELAXED);
     __atomic_store_n(&sl->step, step, __ATOMIC_RELAXED);
-    sl->verified = 0;
+    __atomic_store_n(&sl->verified, 0, __ATOMIC_RELAXED);
     sl->result = 0;
     sl->pending = 0;
     unsigned char *const into = sl->buf + tvpal_record_stored_at(e);
@@ -1194,7 +1195,7 @@ static int verify_slot(struct part *p, struct slot *sl, uint32_t step,
         __atomic_store_n(&sl->state, SLOT_FREE, __ATOMIC_RELAXED);
         return rc;
     }
-    sl->verified = 1;
+    __atomic_store_n(&sl->verified, 1, __ATOMIC_RELEASE);
     return 0;
 }
 
@@ -1234,7 +1235,7 @@ static int stage_checked(struct part *p, struct slot *sl, uint32_t t,
     if (rc < 0)
         *fatal = rc;
     else
-        sl->verified = 1;
+        __atomic_store_n(&sl->verified, 1, __ATOMIC_RELEASE);
     return 0;
 }
 
@@ -1659,21 +1660,27 @@ int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir,
 }
 
 /* Whether every record step t needs in part p's slab (tvpal_slab_needed,
- * from what the slab shows) has landed in a record buffer, where a seek
- * to t reads nothing.  The caller's thread, while a keep job may run on
- * the stager's: a buffer that job takes meanwhile for another step only
- * makes the seek read that record again. */
+ * from what the slab shows) has landed in a record buffer, and a coded
+ * one been inflated there: a seek to t then reads nothing, and inflates
+ * nothing on the caller's thread (at 512^3, 40-80 ms a record).  The
+ * caller's thread, while a keep job may run on the stager's: a buffer
+ * that job takes meanwhile for another step only makes the seek read
+ * that record again. */
 static int part_holds(const struct part *p, uint32_t t)
 {
     uint32_t need[16];
     const unsigned nn = tvpal_slab_needed(p->slab, t, need);
     for (unsigned i = 0; i < nn; i++) {
+        const int coded = tvpal_shard_entry(p->sh, need[i])->coded != 0;
         int found = 0;
-        for (unsigned k = 0; k < p->nslots_all && !found; k++)
-            found = __atomic_load_n(&p->slots[k].state, __ATOMIC_ACQUIRE) ==
+        for (unsigned k = 0; k < p->nslots_all && !found; k++) {
+            const struct slot *sl = &p->slots[k];
+            found = __atomic_load_n(&sl->state, __ATOMIC_ACQUIRE) ==
                         SLOT_READY &&
-                    __atomic_load_n(&p->slots[k].step, __ATOMIC_RELAXED) ==
-                        need[i];
+                    __atomic_load_n(&sl->step, __ATOMIC_RELAXED) == need[i] &&
+                    (!coded || __atomic_load_n(&sl->verified,
+                                               __ATOMIC_ACQUIRE));
+        }
         if (!found)
             return 0;
     }
@@ -1683,7 +1690,7 @@ static int part_holds(const struct part *p, uint32_t t)
 int tvpal_stream_ready(struct tvpal_stream *s, uint32_t t, double wait_ms)
 {
     struct stager *w = &s->w;
-    if (s->incore || (s->have_cur && s->cur_t == t))
+    if (s->incore || (!w->started && s->have_cur && s->cur_t == t))
         return 1;
     if (!w->started)
         return 0;
@@ -1704,12 +1711,14 @@ int tvpal_stream_ready(struct tvpal_stream *s, uint32_t t, double wait_ms)
            (w->next ? w->next_t : w->t) == t &&
            pthread_cond_timedwait(&w->cv, &w->mu, &until) == 0)
         ;
-    /* Not staged, but in the record buffers (read ahead, or kept from a
-     * round before): a seek reads nothing once the stager is idle or
-     * only keeping (which the seek stops); not while it stages or
-     * prepares a step, which the seek would wait for. */
+    /* Not staged, but shown already, or in the record buffers (read
+     * ahead, or kept from a round before): a seek reads nothing once the
+     * stager is idle or only keeping (which the seek stops); not while
+     * it stages or prepares a step, which the seek would wait for. */
     const int quiet = w->state == STAGER_IDLE || (w->keep && !w->next);
     pthread_mutex_unlock(&w->mu);
+    if (!ready && quiet && s->have_cur && s->cur_t == t)
+        return 1;
     if (!ready && quiet) {
         ready = 1;
         for (unsigned pi = 0; pi < s->n && ready; pi++)
