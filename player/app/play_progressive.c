@@ -310,11 +310,14 @@ int play_prog_frame(struct play_prog *p, struct play_session *s,
             }
             return (int)p->coarse;
         }
-        /* A step whose records are in already (a held loop's, the
-         * read-ahead's) is drawn at full level on the way; the plan is
-         * made again at the next step that is not. */
-        if (!waits && tvpal_player_ready(pf, &vf, t, 0))
+        /* A step whose records are in already (read ahead, or kept
+         * round a loop) is drawn at full level on the way, which ends
+         * the refinement (full_ms); the plan is made again at the next
+         * step that is not. */
+        if (!waits && tvpal_player_ready(pf, &vf, t, 0)) {
+            *refined = (tvpal_now() - p->t0) * 1e3;
             return draw_full(p, full);
+        }
         if (p->frames < p->due)
             return (int)p->coarse;
         /* Past the step planned (late, or the range wrapped): once its
