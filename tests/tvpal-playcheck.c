@@ -127,8 +127,9 @@ static void check_loop(const char *dir, const struct tvpal_view *v,
     }
 }
 
-/* A read-ahead round a loop lo..Tm-1 longer than its record buffers
- * (keep_ahead: about 8 steps), a keep after each frame (as
+/* A read-ahead (keep_ahead: 24 steps or a few more) round a loop
+ * lo..Tm-1 longer than its record buffers, over plain records (coded
+ * ones keep to the buffers already touched), a keep after each frame (as
  * play_prog_keep asks) waited for, two rounds:
  *  - every frame draws what playing draws;
  *  - a frame at a step ready before it (its records in), not staged,
