@@ -868,20 +868,6 @@ static int wanted(const struct want *w, uint32_t step)
     return 0;
 }
 
-/* A slot to reuse: free, or landed, not wanted (w: steps needed
- * now, in the prefetch window or the kept neighbourhood) and not shown or staged by the slab
- * (which borrows the records' indices).  With detach (the caller's
- * thread, while nothing draws), failing that, a landed unwanted slot the
- * slab borrows from, its windows copied into the slab first: cannot
- * happen with the slots alloc_slots counts, unless records failed.
- *
- * A record a step needs now (need) takes a buffer never read into before
- * a landed record: the buffers then keep what jumps have read, for the
- * jumps after.  A prefetched record takes a landed one first: a buffer's
- * first read faults in and pins its pages, on a Firecracker VM 60-80 ms
- * of CPU for a 34 MB buffer (512^3, N = 4), and steady playback, which
- * only prefetches, went through all 2N + 2P + 1 buffers in its first 12
- * frames (100-400 ms each) instead of the N + P + 1 it uses. */
 /* How far playback from w->t in direction w->dir is from showing
  * record q again, in steps (q is shown from step q on): round the loop
  * (tvpal_stream_loop) where t lies in it, the N - 1 records before its
@@ -890,8 +876,9 @@ static int wanted(const struct want *w, uint32_t step)
  * last.  A neighbourhood around t (no read-ahead): the distance from t.
  * victim reuses the buffer shown again last, as Belady's rule would: a
  * loop longer than the buffers then keeps as many of its records as
- * they hold from one round to the next, where reusing the most recently
- * read ones first would read every record again each round. */
+ * they hold from one round to the next (reusing the first landed one
+ * found, as before, kept few: each round read nearly every record
+ * again). */
 static uint64_t next_use(const struct tvpal_stream *s, const struct want *w,
                          uint32_t q)
 {
@@ -915,6 +902,20 @@ static uint64_t next_use(const struct tvpal_stream *s, const struct want *w,
     return q >= t ? q - t : T + t - q;
 }
 
+/* A slot to reuse: free, or landed, not wanted (w: steps needed
+ * now, in the prefetch window or the kept neighbourhood) and not shown or staged by the slab
+ * (which borrows the records' indices).  With detach (the caller's
+ * thread, while nothing draws), failing that, a landed unwanted slot the
+ * slab borrows from, its windows copied into the slab first: cannot
+ * happen with the slots alloc_slots counts, unless records failed.
+ *
+ * A record a step needs now (need) takes a buffer never read into before
+ * a landed record: the buffers then keep what jumps have read, for the
+ * jumps after.  A prefetched record takes a landed one first: a buffer's
+ * first read faults in and pins its pages, on a Firecracker VM 60-80 ms
+ * of CPU for a 34 MB buffer (512^3, N = 4), and steady playback, which
+ * only prefetches, went through all 2N + 2P + 1 buffers in its first 12
+ * frames (100-400 ms each) instead of the N + P + 1 it uses. */
 static int victim(const struct tvpal_stream *s, const struct part *p,
                   const struct want *w, int need, int detach)
 {
