@@ -148,10 +148,12 @@ int tvpal_stream_seek(struct tvpal_stream *s, uint32_t t, int dir,
 int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir,
                          int prefetch);
 
-/* 1 when a seek to t reads nothing: in-core, the slabs show t already,
- * the records of t are staged, or they are all in record buffers (read
- * ahead, or kept from before) while the stager is idle or keeping; 0
- * when it would read (or wait for the stager's step).  With wait_ms > 0
+/* 1 when a seek to t neither reads nor waits for the stager: in-core;
+ * or, while the stager is idle or only keeping, the slabs show t
+ * already, its records are staged, or they are all in record buffers
+ * (read ahead, or kept from before; coded ones inflated there).  0 when
+ * the seek would read, inflate, or wait for a step the stager is
+ * staging or preparing.  With wait_ms > 0
  * a stager job for t still running is waited for, at most wait_ms (a
  * frame's slack before its deadline); 0 never waits. */
 int tvpal_stream_ready(struct tvpal_stream *s, uint32_t t, double wait_ms);
