@@ -833,10 +833,16 @@ void tvpal_stream_path(const struct tvpal_stream *s,
     out->fixed_why = s->fixed_why;
 }
 
+/* The slot holding or reading `step` (at most one: queue_step reads a
+ * step only where none has it), or -1.  Over all the slots, those not in
+ * use yet being free: tvpal_stream_ready asks on the caller's thread
+ * while the stager may widen p->nslots. */
 static int find_slot(const struct part *p, uint32_t step)
 {
-    for (unsigned k = 0; k < p->nslots; k++)
-        if (p->slots[k].state != SLOT_FREE && p->slots[k].step == step)
+    for (unsigned k = 0; k < p->nslots_all; k++)
+        if (__atomic_load_n(&p->slots[k].state, __ATOMIC_ACQUIRE) !=
+                SLOT_FREE &&
+            __atomic_load_n(&p->slots[k].step, __ATOMIC_RELAXED) == step)
             return (int)k;
     return -1;
 }
@@ -1676,17 +1682,12 @@ static int part_holds(const struct part *p, uint32_t t)
     uint32_t need[16];
     const unsigned nn = tvpal_slab_needed(p->slab, t, need);
     for (unsigned i = 0; i < nn; i++) {
-        const int coded = tvpal_shard_entry(p->sh, need[i])->coded != 0;
-        int found = 0;
-        for (unsigned k = 0; k < p->nslots_all && !found; k++) {
-            const struct slot *sl = &p->slots[k];
-            found = __atomic_load_n(&sl->state, __ATOMIC_ACQUIRE) ==
-                        SLOT_READY &&
-                    __atomic_load_n(&sl->step, __ATOMIC_RELAXED) == need[i] &&
-                    (!coded || __atomic_load_n(&sl->verified,
-                                               __ATOMIC_ACQUIRE));
-        }
-        if (!found)
+        const int k = find_slot(p, need[i]);
+        if (k < 0 ||
+            __atomic_load_n(&p->slots[k].state, __ATOMIC_ACQUIRE) !=
+                SLOT_READY ||
+            (tvpal_shard_entry(p->sh, need[i])->coded &&
+             !__atomic_load_n(&p->slots[k].verified, __ATOMIC_ACQUIRE)))
             return 0;
     }
     return 1;
