@@ -52,6 +52,7 @@ struct opts {
     uint32_t refine;
     int naive, klt, alloc_mse;
     int index_none;            /* --index-coding none */
+    int staggered;             /* --schedule staggered */
     uint32_t index_level;      /* --index-level (zstd) */
     int has_nan_as;
     double nan_as;

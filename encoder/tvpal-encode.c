@@ -110,6 +110,12 @@ static void usage_encoding(FILE *f)
 "Encoding:\n"
 "  -w, --window N         timesteps per DCT window, 1..16 (default 4;\n"
 "                         N = 1 is the plain 8-bit Lloyd-Max baseline)\n"
+"      --schedule S       joined (default: a slice's short first window\n"
+"                         joins the next, so the indices take 8/N bits\n"
+"                         per voxel-step at any length; first windows of\n"
+"                         N..2N-1 steps, 2N-1 steps held in memory; needs\n"
+"                         tvpal 0.4.0 to read) or staggered (the paper's:\n"
+"                         windows of 1..N steps, N steps held, as before)\n"
 "  -k, --nodes K          split every axis into K slabs, one per node,\n"
 "                         written to OUTDIR/node-R/ (default 1)\n"
 "      --axes LIST        the axes to encode: x, y and z, each at most\n"
@@ -236,8 +242,11 @@ static const struct optspec {
      "a finite number"},
     {"missing", OPT_LONG_ONLY + 14, OPT_MISSING, 0, 0, 0, {0},
      "a finite number (at most 16 of them)"},
-    {"window", 'w', OPT_U32, offsetof(struct opts, window), 1, TVPAL_NMAX,
-     {0}, "a whole number from 1 to " STR(TVPAL_NMAX)},
+    {"window", 'w', OPT_U32, offsetof(struct opts, window), 1, 16,
+     {0}, "a whole number from 1 to 16"},
+    {"schedule", OPT_LONG_ONLY + 26, OPT_CHOICE,
+     offsetof(struct opts, staggered), 0, 0, {"joined", "staggered"},
+     "joined or staggered"},
     {"nodes", 'k', OPT_U32, offsetof(struct opts, nodes), 1, UINT32_MAX,
      {0}, "a whole number >= 1"},
     {"axes", OPT_LONG_ONLY + 19, OPT_AXES, 0, 0, 0, {0},
@@ -509,14 +518,15 @@ static char *job_params(const struct opts *o, const struct tvpal_input *in)
     char *s = NULL, *t = NULL;
     int n = asprintf(&s, "table=%d refine=%u naive=%d klt=%d alloc=%d "
                      "dims=%ux%ux%u type=%s endian=%s window=%u nodes=%u "
-                     "steps=%u nan_as=%s%.17g coding=%u", o->table_format,
+                     "steps=%u nan_as=%s%.17g coding=%u schedule=%d",
+                     o->table_format,
                      o->refine,
                      o->naive, o->klt, o->alloc_mse, o->dims[0], o->dims[1],
                      o->dims[2], tvpal_type_name(o->type),
                      o->big_endian ? "big" : "little", o->window, o->nodes,
                      o->steps_single, o->has_nan_as ? "" : "none:",
                      o->has_nan_as ? o->nan_as : 0.0,
-                     o->index_none ? 0u : o->index_level);
+                     o->index_none ? 0u : o->index_level, o->staggered);
     if (n < 0)
         return NULL;
     for (unsigned i = 0; i < o->nmissing; i++) {
@@ -634,11 +644,12 @@ static void print_size(char *buf, size_t cap, uint64_t b)
         snprintf(buf, cap, "%.1f MiB", (double)b / (1u << 20));
 }
 
-/* Boxes in the ring: N, or T when the series is shorter than a window
- * (step t is at t mod N, and t < T then). */
+/* Boxes in the ring: the longest window's steps (2N - 1 joined, N
+ * staggered, or T when the series is shorter). */
 static uint32_t ring_slots(const struct run *r)
 {
-    return r->T < r->N ? r->T : r->N;
+    const uint32_t N = r->N, T = r->T, L = r->o.staggered ? N : 2 * N - 1;
+    return T < L ? T : L;
 }
 
 /* Ranks of this job on this machine, from what the launchers set (Open
@@ -995,6 +1006,8 @@ static struct tvpal_encoder *open_encoder(struct run *r)
     int rc = tvpal_encoder_open(&e, o->outdir, o->dims, r->T, &d);
     const struct { enum tvpal_param p; double v; } set[] = {
         {TVPAL_PARAM_WINDOW, o->window}, {TVPAL_PARAM_AXES, o->axes},
+        {TVPAL_PARAM_SCHEDULE, o->staggered ? TVPAL_SCHEDULE_STAGGERED
+                                            : TVPAL_SCHEDULE_JOINED},
         {TVPAL_PARAM_NODES, o->nodes}, {TVPAL_PARAM_TABLE, o->table_format},
         {TVPAL_PARAM_REFINE, o->refine}, {TVPAL_PARAM_NAIVE, o->naive},
         {TVPAL_PARAM_INDEX_LEVEL, o->index_level},
@@ -1143,7 +1156,7 @@ static void say_plan(const struct run *r, const struct tvpal_plan *pl,
             cluster_size(r), desc, read_factor, need, lim, r->limit_why);
     else
         msg("plan: %s, reading the input %.2f times: one ring of all %u "
-            "timesteps of a window would need %s, over the memory limit %s "
+            "timesteps of the longest window would need %s, over the memory limit %s "
             "(%s); each pass needs about %s", desc, read_factor,
             ring_slots(r), ring, lim, r->limit_why, need);
 }

@@ -109,9 +109,11 @@ enum tvpal_param {
     TVPAL_PARAM_THREADS,      /* worker threads; 0 (default): every CPU
                                * this process may run on */
     TVPAL_PARAM_MEM_LIMIT,    /* bytes the encoder may hold, 0 (default):
-                               * no limit of its own.  It holds N steps of
-                               * float32 and its workspaces; a job over the
-                               * limit is refused at the first push */
+                               * no limit of its own.  It holds the
+                               * longest window's steps of float32 (2N - 1,
+                               * N staggered) and its workspaces; a job
+                               * over the limit is refused at the first
+                               * push */
     TVPAL_PARAM_NAN_AS,       /* missing values become this value (and
                                * count as replaced) instead of missing */
     TVPAL_PARAM_NAIVE,        /* 1: the paper's naive variant (uniform
@@ -143,11 +145,23 @@ enum tvpal_param {
                                * where that is smaller (a dataset readers
                                * before 0.4.0 refuse); TVPAL_CODING_NONE:
                                * plain, as before 0.4.0.  Since 0.4.0 */
-    TVPAL_PARAM_INDEX_LEVEL   /* the zstd level of TVPAL_CODING_ZSTD,
+    TVPAL_PARAM_INDEX_LEVEL,  /* the zstd level of TVPAL_CODING_ZSTD,
                                * 1..19; default 3 (higher: smaller, slower
                                * to encode, as fast to read).  Since
                                * 0.4.0 */
+    TVPAL_PARAM_SCHEDULE      /* TVPAL_SCHEDULE_JOINED (default): a
+                               * slice's short first window joins the
+                               * next (first windows of N..2N - 1 steps),
+                               * so the indices cost 8/N bits per
+                               * voxel-step at any T >= N; the encoder
+                               * holds 2N - 1 steps instead of N, and
+                               * readers before 0.4.0 refuse it.
+                               * TVPAL_SCHEDULE_STAGGERED: the paper's,
+                               * windows of 1..N steps, as before 0.4.0.
+                               * Since 0.4.0 */
 };
+#define TVPAL_SCHEDULE_STAGGERED 0
+#define TVPAL_SCHEDULE_JOINED 1
 #define TVPAL_CODING_NONE 0
 #define TVPAL_CODING_ZSTD 1
 #define TVPAL_TABLE_FLOAT32 0
@@ -611,6 +625,8 @@ struct tvpal_info {
                                * file per step) */
     const char *const *sources;    /* nsources paths, as given */
     uint32_t nsources;
+    /* Since 0.4.0. */
+    uint32_t schedule;        /* TVPAL_SCHEDULE_STAGGERED or _WHOLE */
 };
 
 struct tvpal_reader;

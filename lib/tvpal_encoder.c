@@ -1,10 +1,11 @@
 /* tvpal_encoder.c: the encoder of tvpal.h, timesteps from memory into a
  * dataset, in one pass.
  *
- * The steps pushed go, converted, into the engine's ring of N whole
- * volumes (tvpal_engine.h); once step p is in, every slice-window that
- * starts at p - N + 1 has its steps and is encoded, so the encoder holds N
- * steps and its workspaces whatever T is.  The shards are written in
+ * The steps pushed go, converted, into the engine's ring of L whole
+ * volumes (tvpal_engine.h; L the longest window, tvpal_engine_span: 2N - 1
+ * in the joined schedule, N staggered); once step p is in, every
+ * slice-window that starts at p - L + 1 has its steps and is encoded, so
+ * the encoder holds L steps and its workspaces whatever T is.  The shards are written in
  * place under DIR.partial as they are coded, the manifest at the end, and
  * the dataset is read back before DIR.partial becomes DIR (the order of
  * tvpal-encode: no file at DIR looks complete before it is).  The shards
@@ -99,7 +100,8 @@ int tvpal_encoder_open(struct tvpal_encoder **out, const char *dir,
     e->ep = (struct tvpal_engine_params){
         .dims = {dims[0], dims[1], dims[2]}, .steps = steps, .window = 4,
         .axes = TVPAL_AXIS_Z, .nodes = 1, .node_first = 0, .node_count = 1,
-        .table_format = TVPAL_TABLE_CHUNK, .index_level = TVPAL_CHUNKZ_LEVEL};
+        .table_format = TVPAL_TABLE_CHUNK, .index_level = TVPAL_CHUNKZ_LEVEL,
+        .schedule = TVPAL_SCHEDULE_JOINED};
     for (int a = 0; a < 3; a++)
         e->spacing[a] = 1;
     e->coll = (struct tvpal_collective){0, 1, NULL, self_gather, self_bcast,
@@ -318,6 +320,12 @@ int tvpal_encoder_set(struct tvpal_encoder *e, enum tvpal_param param,
     case TVPAL_PARAM_INDEX_CODING:
     case TVPAL_PARAM_INDEX_LEVEL:
         set_index_coding(e, param, value, &name, &range);
+        break;
+    case TVPAL_PARAM_SCHEDULE:
+        if (value != TVPAL_SCHEDULE_STAGGERED && value != TVPAL_SCHEDULE_JOINED)
+            name = "schedule", range = "TVPAL_SCHEDULE_STAGGERED or _WHOLE";
+        else
+            p->schedule = (uint32_t)value;
         break;
     case TVPAL_PARAM_CHECKPOINT:
         if (!whole_in(value, 0, UINT32_MAX))
@@ -715,8 +723,8 @@ static int prepare_output(struct tvpal_encoder *e, struct tvpal_diag *diag)
 static uint64_t job_bytes(const struct tvpal_encoder *e, unsigned nthreads,
                           uint64_t nvox)
 {
-    const uint32_t T = e->ep.steps, N = e->ep.window;
-    const uint64_t ring = (uint64_t)(T < N ? T : N) * nvox * sizeof(float);
+    const uint64_t span = tvpal_engine_span(&e->ep);
+    const uint64_t ring = span * nvox * sizeof(float);
     const uint64_t per_thread = tvpal_engine_thread_bytes(e->eng) +
                                 TVPAL_CHECKPOINT_BINS * sizeof(uint64_t) +
                                 (uint64_t)e->ep.dims[0] * 8;
@@ -727,8 +735,7 @@ static uint64_t job_bytes(const struct tvpal_encoder *e, unsigned nthreads,
     for (uint32_t k = 1; is_root(e) && k <= e->levels; k++) {
         uint32_t dk[3];
         tvpal_level_dims(e->ep.dims, k, dk);
-        levels += (uint64_t)((T < N ? T : N) + 1) * dk[0] * dk[1] * dk[2] *
-                  sizeof(float);
+        levels += (span + 1) * dk[0] * dk[1] * dk[2] * sizeof(float);
     }
     return ring + levels + nthreads * per_thread +
            tvpal_engine_table_bytes(e->eng);
@@ -832,7 +839,7 @@ static int setup(struct tvpal_encoder *e, struct tvpal_diag *diag)
                               "workspaces of %u threads), over the memory "
                               "limit of %llu", d[0], d[1], e->slab_n,
                               e->ep.window, (unsigned long long)need,
-                              e->ep.window, nt,
+                              tvpal_engine_span(&e->ep), nt,
                               (unsigned long long)e->mem_limit);
     if ((rc = tvpal_pool_create(&e->pool, nt)) < 0)
         return tvpal_diag_set(diag, rc, "cannot start %u threads", nt);
@@ -898,6 +905,7 @@ int tvpal_enc_open_level(struct tvpal_encoder *e, uint32_t k, int resume,
     const struct tvpal_engine_params *p = &e->ep;
     const struct { enum tvpal_param p; double v; } set[] = {
         {TVPAL_PARAM_WINDOW, p->window}, {TVPAL_PARAM_NODES, p->nodes},
+        {TVPAL_PARAM_SCHEDULE, p->schedule},
         {TVPAL_PARAM_AXES, p->axes}, {TVPAL_PARAM_THREADS, e->threads},
         {TVPAL_PARAM_TABLE, p->table_format}, {TVPAL_PARAM_REFINE, p->refine},
         {TVPAL_PARAM_INDEX_LEVEL, p->index_level ? p->index_level
@@ -1333,9 +1341,9 @@ int tvpal_enc_save_checkpoint(struct tvpal_encoder *e, uint64_t unit,
 /* Encodes every step whose windows' steps are all in. */
 static int encode_ready(struct tvpal_encoder *e, struct tvpal_diag *diag)
 {
-    const uint32_t T = e->ep.steps, N = e->ep.window;
+    const uint32_t T = e->ep.steps, L = tvpal_engine_span(&e->ep);
     while (e->encoded < T &&
-           (e->pushed == T || e->encoded + N <= e->pushed)) {
+           (e->pushed == T || e->encoded + L <= e->pushed)) {
         uint32_t q = 0, n;
         struct tvpal_diag d = {{0}};
         int rc = tvpal_engine_encode_step(e->eng, e->encoded, &d, &q);

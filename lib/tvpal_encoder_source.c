@@ -74,9 +74,10 @@ struct pull {
 
 /* ------------------------------------------------------------------ plan */
 
+/* The steps the ring holds: the longest window's. */
 static uint32_t ring_slots(const struct tvpal_encoder *e)
 {
-    return e->ep.steps < e->ep.window ? e->ep.steps : e->ep.window;
+    return tvpal_engine_span(&e->ep);
 }
 
 static uint64_t scratch_bytes(const struct tvpal_encoder *e)
@@ -718,12 +719,13 @@ static int encode_step(struct tvpal_encoder *e, uint32_t t,
 }
 
 /* Every pass of the plan, from the unit after pl->start: each step read
- * when the windows that need it are next (step t + N - 1 at most), each
+ * when the windows that need it are next (step t + L - 1 at most, L the
+ * longest window: tvpal_engine_span), each
  * step's windows encoded, each unit ended (progress, checkpoint). */
 static int encode_passes(struct tvpal_encoder *e, struct tvpal_diag *diag)
 {
     struct pull *pl = e->pull;
-    const uint32_t T = e->ep.steps, N = e->ep.window;
+    const uint32_t T = e->ep.steps, N = tvpal_engine_span(&e->ep);
     uint64_t u = pl->start;
     for (uint32_t pi = (uint32_t)(u / T); pi < pl->plan.npasses; pi++) {
         pl->pass = &pl->plan.pass[pi];

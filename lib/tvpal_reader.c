@@ -64,6 +64,7 @@ static void fill_info(struct tvpal_reader *r)
     memcpy(in->dims, m->dims, sizeof in->dims);
     in->steps = m->steps;
     in->window = m->window;
+    in->schedule = m->schedule;
     in->nodes = m->nodes;
     in->axes = m->axes_mask;
     in->levels = m->levels;
@@ -263,10 +264,12 @@ static uint64_t index_bytes(const struct tvpal_manifest *m, unsigned a)
 {
     uint32_t n, w, h;
     uint64_t windows = 0;
+    const struct tvpal_schedule sc =
+        tvpal_schedule_of(m->window, m->steps, m->schedule);
     tvpal_axis_geometry(m->dims, a, &n, &w, &h);
     for (uint32_t s = 0; s < n; s++)
         for (uint32_t t = 0; t < m->steps; t++)
-            windows += (uint64_t)tvpal_schedule_starts(s, t, m->window);
+            windows += (uint64_t)tvpal_schedule_starts(&sc, s, t);
     return windows * w * h;
 }
 
@@ -437,12 +440,13 @@ static int verify_shard(struct verdict *v, const char *path,
     }
     const struct tvpal_shard_header *h = tvpal_shard_hdr(s);
     if (memcmp(h->dims, m->dims, sizeof h->dims) || h->steps != m->steps ||
-        h->window != m->window || h->nodes != m->nodes || h->rank != k ||
-        h->axis != a)
+        h->window != m->window || h->schedule != m->schedule ||
+        h->nodes != m->nodes || h->rank != k || h->axis != a)
         found(v, path, TVPAL_E_MISMATCH, -1, 0, "%s: header (dims %ux%ux%u, "
-              "steps %u, window %u, node %u of %u, axis %u) does not match "
-              "the manifest", path, h->dims[0], h->dims[1], h->dims[2],
-              h->steps, h->window, h->rank, h->nodes, h->axis);
+              "steps %u, window %u, schedule %u, node %u of %u, axis %u) "
+              "does not match the manifest", path, h->dims[0], h->dims[1],
+              h->dims[2], h->steps, h->window, h->schedule, h->rank,
+              h->nodes, h->axis);
     else if ((rc = tvpal_shard_check_table(path, h, m, &d)) < 0)
         found(v, path, rc, -1, 0, "%s", d.msg);
     else

@@ -1,8 +1,9 @@
 #!/bin/sh
 # coded: coded chunks end to end (FORMAT.md 6.11, tvpal-encode
 # --index-coding).  The same series encoded with the default (zstd) and
-# with none: the coded shards are format_version 2 and smaller, the plain
-# ones version 1; every step of every axis and level decodes to the same
+# with none, in the staggered schedule: the coded shards are format_version
+# 2 and smaller, the plain ones version 1 (in the joined schedule, the
+# default, both are version 3); every step of every axis and level decodes to the same
 # bits; tvpal-info counts the coded chunks; tvpal-report's split of the
 # bits on disk adds up and names what coding saves; tvpal-play draws the same
 # frames streamed and in-core, through jumps, from both, and streaming
@@ -17,7 +18,8 @@ T=10
 "$GEN" --field turbulence --dims $D --steps $T -o "$W/in" > /dev/null || fail gen
 enc() { # NAME OPTIONS...
     name=$1; shift
-    "$ENC" -q --dims $D --window 4 --axes xyz --nodes 2 --levels 1 "$@" -o "$W/$name" "$W"/in/*.f32 \
+    "$ENC" -q --dims $D --window 4 --axes xyz --nodes 2 --levels 1 --schedule staggered "$@" \
+        -o "$W/$name" "$W"/in/*.f32 \
         > "$W/enc-$name.txt" 2>&1 || fail "encode $name: $(cat "$W/enc-$name.txt")"
 }
 enc coded
@@ -33,6 +35,14 @@ for f in "$W"/plain/node-*/axis-*.tvps "$W"/plain/level-1/node-*/axis-*.tvps; do
 done
 [ $v2 = 12 ] && [ $v1 = 12 ] && ok "12 coded shards of format_version 2, 12 plain of 1" \
     || fail "format versions: $v2 coded shards of version 2, $v1 plain of 1 (12 each expected)"
+"$ENC" -q --dims $D --window 4 --axes xyz --levels 1 -o "$W/joined" "$W"/in/*.f32 > /dev/null \
+    || fail "encode joined"
+v3=0
+for f in "$W"/joined/node-*/axis-*.tvps "$W"/joined/level-1/node-*/axis-*.tvps; do
+    [ "$(ver "$f")" = 3 ] && v3=$((v3 + 1))
+done
+[ $v3 = 6 ] && "$INFO" "$W/joined" --verify > /dev/null && ok "joined schedule (the default): 6 shards of format_version 3, coded, verify" \
+    || fail "joined: $v3 shards of version 3 (6 expected)"
 bytes() { du -b -c "$1"/node-*/*.tvps | tail -n 1 | cut -f1; }
 bc=$(bytes "$W/coded") bp=$(bytes "$W/plain") b19=$(bytes "$W/l19")
 [ "$bc" -lt "$bp" ] && [ "$b19" -le "$bc" ] \

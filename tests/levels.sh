@@ -4,7 +4,7 @@
 # block is shorter), missing values left out of each mean and a block all
 # missing decoding as NaN; each level decodes within a stated PSNR of that
 # average (floor 30 dB, the level-0 encode's own figure is printed beside
-# it); the manifest says format_version 2 and levels; a run stopped during
+# it); the manifest says format_version 4 (levels, joined) and levels; a run stopped during
 # the levels resumes without redoing level 0 and gives the same bytes;
 # impossible level counts are refused up front.  Player: the level chosen
 # for given zooms and sizes matches the rule computed here (the finest
@@ -32,8 +32,10 @@ PY
 "$ENC" --axes xyz -q --dims $D --window 4 --levels 2 -o "$W/ds" "$W"/in/*.f32 > "$W/enc.txt" 2>&1 || fail "encode: $(cat "$W/enc.txt")"
 grep -q "levels=2 levels_bytes=[1-9]" "$W/enc.txt" && ok "summary: $(grep -o 'levels=.*' "$W/enc.txt")" \
     || fail "summary: $(cat "$W/enc.txt")"
-grep -q "^format_version = 2$" "$W/ds/manifest.txt" && grep -q "^levels = 2$" "$W/ds/manifest.txt" \
-    && ok "manifest: format_version 2, levels = 2" || fail "manifest: $(head -n 15 "$W/ds/manifest.txt")"
+grep -q "^format_version = 4$" "$W/ds/manifest.txt" && grep -q "^levels = 2$" "$W/ds/manifest.txt" \
+    && grep -q "^schedule = joined$" "$W/ds/manifest.txt" \
+    && ok "manifest: format_version 4 (levels and the joined schedule), levels = 2" \
+    || fail "manifest: $(head -n 15 "$W/ds/manifest.txt")"
 grep -q "^dims = 21x18x15$" "$W/ds/level-1/manifest.txt" && grep -q "^dims = 11x9x8$" "$W/ds/level-2/manifest.txt" \
     && ok "level dims 21x18x15, 11x9x8" || fail "level dims"
 [ ! -e "$W/ds/levels.job" ] && [ -z "$(ls -d "$W"/ds/level-*.src 2>/dev/null)" ] \

@@ -60,8 +60,10 @@ if [ "$uring" = yes ] && [ "${URING_BUILT:-yes}" = yes ]; then
     [ -n "$n1" ] && [ "$n1" -gt "$n" ] \
         && ok "--read-ahead 1: 16 jumps in $n1 submissions (records in turn), against $n" \
         || fail "--read-ahead 1: ${n1:-?} submissions, not more than $n: $line $(cat "$W/e.txt")"
-    # A jump reads only the records its frame needs (at most the N that
-    # hold step t): the prefetch goes to the device after them, from the
+    # A jump reads only the records its frame needs (at most the N whose
+    # windows hold step t, FORMAT.md 5: with the joined schedule, the
+    # shard's header field at 68, record 0 for t < 2N - 1): the prefetch
+    # goes to the device after them, from the
     # stager, so that it does not share the device with the reads the
     # frame waits for.
     "$PLAY" "$W/dsb" --headless -q --size 32x32 --rotate 0,0 --jumps 3 --renderer none \
@@ -70,6 +72,10 @@ if [ "$uring" = yes ] && [ "${URING_BUILT:-yes}" = yes ]; then
 import csv, struct, sys
 b = open(sys.argv[1], "rb").read()
 idx, n = struct.unpack_from("<Q", b, 72)[0], int(sys.argv[3])
+joined = struct.unpack_from("<I", b, 68)[0] == 1
+def start(r, t):  # the window of a slice of phase r holding t
+    first = n + r if joined else r
+    return 0 if t < first else t - (t - r) % n
 sizes = []
 while idx + 32 * (len(sizes) + 1) <= len(b):
     size = struct.unpack_from("<Q", b, idx + 32 * len(sizes) + 8)[0]
@@ -81,7 +87,7 @@ for row in csv.DictReader(open(sys.argv[2])):
     if row["jump"] == "1":
         jumps += 1
         t = int(row["step"])
-        bound = sum(sizes[max(0, t - n + 1):t + 1])
+        bound = sum(sizes[q] for q in set(start(r, t) for r in range(n)))
         if int(row["bytes_read"]) > bound:
             over.append("step %d: %s > %d" % (t, row["bytes_read"], bound))
 print(jumps, len(over), "; ".join(over[:3]))

@@ -74,7 +74,7 @@ ls "$W"/bad/node-0/axis-*.tvps | while read -r f; do
 import struct, sys
 p = sys.argv[1]; b = bytearray(open(p, "rb").read())
 idx = struct.unpack_from("<Q", b, 72)[0]
-for r in (3, 9):
+for r in (5, 9):
     off = struct.unpack_from("<Q", b, idx + 32 * r)[0]
     b[off + 64 + 10] ^= 0x40
 open(p, "wb").write(b)

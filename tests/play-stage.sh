@@ -10,7 +10,10 @@ PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
 D=32x28x24
 "$GEN" --field turbulence --dims $D --steps 12 -o "$W/in" || fail gen
-"$ENC" --axes xyz -q --dims $D --window 4 -o "$W/ds" "$W"/in/*.f32 > /dev/null || fail encode
+# The staggered schedule, so that every step after the first has records to
+# stage (the joined one starts no window at steps 1..3).
+"$ENC" --axes xyz -q --dims $D --window 4 --schedule staggered -o "$W/ds" \
+    "$W"/in/*.f32 > /dev/null || fail encode
 col() { # col CSV NAME: the column's values, one per line
     awk -F, -v n="$2" 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == n) c = i; next } { print $c }' "$1"
 }

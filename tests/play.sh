@@ -42,23 +42,24 @@ line=$("$PLAY" "$W/ds" --headless -q --size 64x64 --mode incore --mem 1 --spin 4
 mib=$(kv incore_mib "$line")
 awk -v m="$mib" 'BEGIN { exit !(m <= 1.0) }' && ok "in-core with --mem 1 holds $mib MiB (axis ${axis_kib} KiB)" \
     || fail "in-core holds $mib MiB over the 1 MiB budget"
-# Corrupt record 3 of every axis.
+# Corrupt record 5 of every axis (one with chunks in either schedule: at
+# N = 4 the joined one starts no window at steps 1..3).
 cp -r "$W/ds" "$W/bad"
 for a in x y z; do
     $PY - "$W/bad/node-0/axis-$a.tvps" <<'PY'
 import struct, sys
 p = sys.argv[1]; b = bytearray(open(p, "rb").read())
 idx = struct.unpack_from("<Q", b, 72)[0]
-off = struct.unpack_from("<Q", b, idx + 32 * 3)[0]
+off = struct.unpack_from("<Q", b, idx + 32 * 5)[0]
 b[off + 64 + 10] ^= 0x40
 open(p, "wb").write(b)
 PY
 done
-expect_exit 1 "axis-.\.tvps: record 3: payload CRC-32C mismatch \(keeping the last good data\)" \
+expect_exit 1 "axis-.\.tvps: record 5: payload CRC-32C mismatch \(keeping the last good data\)" \
     "$PLAY" "$W/bad" --headless -q --size 96x80 -o "$W/f-bad"
 [ "$(ls "$W/f-bad"/t*.png | wc -l)" -eq 9 ] && ok "playback went on after the bad record" || fail "frames missing"
 grep -q "errors=1" "$W/out.txt" && ok "summary counts the error" || fail "errors not counted"
-expect_exit 2 "record 3: payload CRC-32C mismatch" "$PLAY" "$W/bad" --headless -q --size 96x80 --strict
+expect_exit 2 "record 5: payload CRC-32C mismatch" "$PLAY" "$W/bad" --headless -q --size 96x80 --strict
 # A transfer-function change every frame (--tf-cycle) gives each frame the
 # image a run with that TF alone gives, for both renderers.
 TF2=$TVPAL_SRCDIR/samples/tf/band.tf

@@ -2,7 +2,7 @@
 # stored-axes: tvpal-encode --axes LIST (FORMAT.md 2.2).  --axes z writes
 # only node-R/axis-z.tvps in every node directory, each byte for byte the
 # z shard of the encode of all three axes, so it decodes to the same bits;
-# its manifest says axes = z and format_version 3; on a cube the dataset
+# its manifest says axes = z and format_version 4 (3 staggered); on a cube the dataset
 # is a third of the three-axis one (0.32 .. 0.35 of its bytes on disk).
 # --axes xz stores two axes, decoding as the three-axis encode's x and z.
 # A bad list is refused naming --axes.  A resume with other axes starts
@@ -31,14 +31,25 @@ for r in 0 1; do
     cmp -s "$W/z/node-$r/axis-z.tvps" "$W/xyz/node-$r/axis-z.tvps" \
         && ok "node-$r/axis-z.tvps is the three-axis encode's" || fail "node-$r/axis-z.tvps differs"
 done
-grep -q "^axes = z$" "$W/z/manifest.txt" && grep -q "^format_version = 3$" "$W/z/manifest.txt" \
+# format_version: 4 with the joined schedule (the default), axes or not;
+# staggered, 3 with a subset of the axes and 1 with all three.
+grep -q "^axes = z$" "$W/z/manifest.txt" && grep -q "^format_version = 4$" "$W/z/manifest.txt" \
     && ! grep -q -- "--axes" "$W/z/manifest.txt" \
-    && ok "manifest: axes = z, format_version 3, no --axes in options (z is the default)" \
+    && ok "manifest: axes = z, format_version 4, no --axes in options (z is the default)" \
     || fail "manifest: $(head -n 13 "$W/z/manifest.txt")"
-! grep -q "^axes" "$W/xyz/manifest.txt" && grep -q "^format_version = 1$" "$W/xyz/manifest.txt" \
+! grep -q "^axes" "$W/xyz/manifest.txt" && grep -q "^format_version = 4$" "$W/xyz/manifest.txt" \
     && grep -q "^options = .* --axes xyz$" "$W/xyz/manifest.txt" \
-    && ok "three axes: no axes key, format_version 1, options --axes xyz" \
+    && ok "three axes: no axes key, format_version 4, options --axes xyz" \
     || fail "xyz manifest: $(head -n 13 "$W/xyz/manifest.txt")"
+for a in z xyz; do
+    "$ENC" -q --dims $C --window 4 --axes $a --schedule staggered -o "$W/st-$a" $CUBE > /dev/null \
+        || fail "encode --axes $a --schedule staggered"
+done
+grep -q "^axes = z$" "$W/st-z/manifest.txt" && grep -q "^format_version = 3$" "$W/st-z/manifest.txt" \
+    && ! grep -q "^axes" "$W/st-xyz/manifest.txt" && grep -q "^format_version = 1$" "$W/st-xyz/manifest.txt" \
+    && ! grep -q "^schedule" "$W/st-z/manifest.txt" \
+    && ok "staggered: axes = z format_version 3, all three 1, no schedule key" \
+    || fail "staggered manifests: $(head -n 13 "$W/st-z/manifest.txt")"
 # The default is one copy: no --axes gives the --axes z dataset, byte for byte.
 "$ENC" -q --dims $C --window 4 --nodes 2 -o "$W/def" $CUBE > /dev/null || fail "encode, default axes"
 cmp -s "$W/def/manifest.txt" "$W/z/manifest.txt" && cmp -s "$W/def/node-1/axis-z.tvps" "$W/z/node-1/axis-z.tvps" \
@@ -143,9 +154,9 @@ TVPAL_ENCODE_FAULT_AFTER=3 "$ENC" -q --dims $D --window 3 --axes z -o "$W/r2" $B
 "$ENC" -q --dims $D --window 3 --levels 1 --axes z -o "$W/lv" $BOX > "$W/lv.out" || fail "encode --levels 1 --axes z"
 [ "$(ls "$W/lv/node-0" | tr '\n' ' ')" = "axis-z.tvps manifest.txt " ] \
     && [ "$(ls "$W/lv/level-1/node-0" | tr '\n' ' ')" = "axis-z.tvps manifest.txt " ] \
-    && grep -q "^axes = z$" "$W/lv/level-1/manifest.txt" && grep -q "^format_version = 3$" "$W/lv/level-1/manifest.txt" \
-    && grep -q "^levels = 1$" "$W/lv/manifest.txt" && grep -q "^format_version = 3$" "$W/lv/manifest.txt" \
-    && ok "--levels 1 --axes z: both levels store z only, format_version 3" \
+    && grep -q "^axes = z$" "$W/lv/level-1/manifest.txt" && grep -q "^format_version = 4$" "$W/lv/level-1/manifest.txt" \
+    && grep -q "^levels = 1$" "$W/lv/manifest.txt" && grep -q "^format_version = 4$" "$W/lv/manifest.txt" \
+    && ok "--levels 1 --axes z: both levels store z only, format_version 4" \
     || fail "levels: $(ls -R "$W/lv")"
 "$INFO" "$W/lv/level-1" --verify > /dev/null && ok "level 1 verifies" || fail "level 1 verify"
 line=$(cat "$W/lv.out")

@@ -153,7 +153,8 @@ for t in range(8):
     v.astype("<f4").tofile("%s/out_t%d.f32" % (w, t))
 PY
 for tf in f32 u16 auto; do
-    "$ENC" --axes xyz -q --dims 24x20x16 --window 4 --table $tf -o "$W/out-$tf" "$W"/out_t*.f32 > /dev/null \
+    "$ENC" --axes xyz -q --dims 24x20x16 --window 4 --table $tf --schedule staggered \
+        -o "$W/out-$tf" "$W"/out_t*.f32 > /dev/null \
         || fail "encode outlier $tf"
 done
 $PY - "$W/out-auto" > "$W/out.txt" <<'PY' || fail "outlier chunks: $(cat "$W/out.txt")"
@@ -238,12 +239,13 @@ fi
 
 # --table f32 and --table u16 write what they wrote before the table format
 # per chunk: the shards of tests/files/good-1-basic and good-2-u16-nodes
-# (plain chunks, --index-coding none, as the corpus was written).
+# (plain chunks, --index-coding none, the staggered schedule, as the corpus
+# was written).
 F=$TVPAL_SRCDIR/tests/files
 "$GEN" --field blobs --dims 4x3x2 --steps 3 -o "$W/g1" > /dev/null \
-    && "$ENC" --axes xyz -q -j 1 --dims 4x3x2 --window 2 --table f32 --index-coding none -o "$W/g1ds" "$W"/g1/*.f32 > /dev/null || fail "good-1"
+    && "$ENC" --axes xyz -q -j 1 --dims 4x3x2 --window 2 --table f32 --index-coding none --schedule staggered -o "$W/g1ds" "$W"/g1/*.f32 > /dev/null || fail "good-1"
 "$GEN" --field turbulence --dims 4x3x3 --steps 3 -o "$W/g2" > /dev/null \
-    && "$ENC" --axes xyz -q -j 1 --dims 4x3x3 --window 2 --nodes 2 --table u16 --index-coding none -o "$W/g2ds" "$W"/g2/*.f32 > /dev/null || fail "good-2"
+    && "$ENC" --axes xyz -q -j 1 --dims 4x3x3 --window 2 --nodes 2 --table u16 --index-coding none --schedule staggered -o "$W/g2ds" "$W"/g2/*.f32 > /dev/null || fail "good-2"
 same=1
 for s in node-0/axis-x node-0/axis-y node-0/axis-z; do
     cmp -s "$W/g1ds/$s.tvps" "$F/good-1-basic/$s.tvps" || { same=0; fail "--table f32: $s.tvps differs from the corpus"; }

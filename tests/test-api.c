@@ -417,6 +417,9 @@ static void *rank_main(void *arg)
     if (tvpal_encoder_open(&e, j->dir, dj, T, d) < 0)
         return NULL;
     tvpal_encoder_set(e, TVPAL_PARAM_WINDOW, 3, d);
+    /* Staggered: a step is encoded once the N = 3 after it are in (the
+     * steps the kills below count on). */
+    tvpal_encoder_set(e, TVPAL_PARAM_SCHEDULE, TVPAL_SCHEDULE_STAGGERED, d);
     tvpal_encoder_set(e, TVPAL_PARAM_THREADS, 1, d);
     tvpal_encoder_set(e, TVPAL_PARAM_LEVELS, j->levels, d);
     j->set_rc = tvpal_encoder_set_collective(e, &c, z0, nz, d);
@@ -535,6 +538,7 @@ static void test_collective(void)
     REQUIRE(tvpal_encoder_open(&e, path("%s/one%s", ""), dims, T, &d) == 0,
             "open");
     tvpal_encoder_set(e, TVPAL_PARAM_WINDOW, 3, &d);
+    tvpal_encoder_set(e, TVPAL_PARAM_SCHEDULE, TVPAL_SCHEDULE_STAGGERED, &d);
     tvpal_encoder_set(e, TVPAL_PARAM_NODES, RANKS, &d);
     float v[NV];
     for (unsigned t = 0; t < T; t++) {
@@ -657,6 +661,7 @@ static void test_collective_levels(void)
     REQUIRE(tvpal_encoder_open(&e, path("%s/lone%s", ""), dl, T, &d) == 0,
             "open");
     tvpal_encoder_set(e, TVPAL_PARAM_WINDOW, 3, &d);
+    tvpal_encoder_set(e, TVPAL_PARAM_SCHEDULE, TVPAL_SCHEDULE_STAGGERED, &d);
     tvpal_encoder_set(e, TVPAL_PARAM_NODES, RANKS, &d);
     tvpal_encoder_set(e, TVPAL_PARAM_LEVELS, 1, &d);
     static float v[NX * NY * LNZ];
@@ -772,8 +777,10 @@ static void test_resume(void)
     REQUIRE(open_series(&e, dir, 3, &d) == 0, "open: %s", d.msg);
     REQUIRE(tvpal_encoder_resume(e, TVPAL_FLOAT32, &next, &d) == 0,
             "resume: %s", d.msg);
-    /* Window 3: 5 steps in, steps 0..2 encoded, the checkpoint at 3. */
-    CHECK(next == 3, "resumed at step %u, 3 expected", next);
+    /* Window 3, the joined schedule (the default): a step is encoded once
+     * the 5 steps of its longest window are in: 5 steps in, step 0
+     * encoded, the checkpoint at 1. */
+    CHECK(next == 1, "resumed at step %u, 1 expected", next);
     CHECK(tvpal_encoder_resume(e, TVPAL_FLOAT32, &next, &d) == TVPAL_E_INVAL,
           "a second resume taken");
     CHECK(push_steps(e, next, T, &d) == 0, "push: %s", d.msg);
@@ -901,14 +908,15 @@ static uint64_t tree_bytes(const char *p)
     return nftw(p, add_file, 16, FTW_PHYS) == 0 ? walked : 0;
 }
 
-/* Slice-windows of an axis of n slices over T steps, window N: one per
- * slice at step 0, then one at each t with t mod N == s mod N. */
+/* Slice-windows of an axis of n slices over T steps, window N, in the
+ * joined schedule (the default, FORMAT.md 5): one per slice at step 0,
+ * then one at each t >= N with t mod N == s mod N. */
 static uint64_t windows_of(unsigned n, unsigned N)
 {
     uint64_t w = 0;
     for (unsigned s = 0; s < n; s++)
         for (unsigned t = 0; t < T; t++)
-            w += t == 0 || t % N == s % N;
+            w += t == 0 || (t >= N && t % N == s % N);
     return w;
 }
 

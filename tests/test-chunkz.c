@@ -17,6 +17,10 @@ static struct tvpal_pool *g_pool;       /* 3 threads */
 #include "tvpal_format.h"
 #include "tvpal_pool.h"
 #include "tvpal_schedule.h"
+
+/* The schedule of shard header h (tvpal_shard_schedule), as a pointer. */
+#define SCHED(h)                                                              \
+    (&(struct tvpal_schedule){(h)->window, (h)->steps, (h)->schedule})
 #include "tvpal_shard.h"
 #include "tvpal_test.h"
 
@@ -36,7 +40,7 @@ static uint64_t make_chunk(const struct tvpal_shard_header *h, uint32_t s,
                            uint32_t t, int u16, enum kind k,
                            unsigned char *buf)
 {
-    const uint32_t len = tvpal_schedule_len(s, t, h->window, h->steps);
+    const uint32_t len = tvpal_schedule_len(SCHED(h), s, t);
     if (k == NOISY)
         u16 = 1;
     struct tvpal_chunk_header ch = {
@@ -147,7 +151,7 @@ static void make_record(const struct tvpal_shard_header *h, uint32_t t,
     uint32_t n = 0;
     *ncoded = 0;
     for (uint32_t s = h->slice_begin; s < h->slice_begin + h->slice_count; s++) {
-        if (!tvpal_schedule_starts(s, t, h->window))
+        if (!tvpal_schedule_starts(SCHED(h), s, t))
             continue;
         const enum kind k = kinds[n % nk];
         const int u16 = s % 2 || k == NOISY;

@@ -51,7 +51,9 @@ int main(void)
                           fout[u * 5 + v], out[u] * (v + 1));
         }
     }
-    CHECK(tvpal_dct_matrix(0) == NULL && tvpal_dct_matrix(17) == NULL,
+    CHECK(tvpal_dct_matrix(0) == NULL &&
+              tvpal_dct_matrix(TVPAL_NMAX + 1) == NULL &&
+              tvpal_dct_matrix(TVPAL_NMAX) != NULL,
           "out-of-range n");
     return tt_done("test-dct");
 }

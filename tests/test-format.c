@@ -13,6 +13,10 @@
 #include "tvpal_test.h"
 #include "tvpal_schedule.h"
 
+/* The schedule of shard header h (tvpal_shard_schedule), as a pointer. */
+#define SCHED(h)                                                              \
+    (&(struct tvpal_schedule){(h)->window, (h)->steps, (h)->schedule})
+
 #include <fcntl.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -49,11 +53,11 @@ static uint64_t build_record(const struct tvpal_shard_header *h, uint32_t step,
     uint64_t off = TVPAL_RECORD_HEADER_BYTES;
     uint32_t n = 0;
     for (uint32_t s = h->slice_begin; s < h->slice_begin + h->slice_count; s++) {
-        if (!tvpal_schedule_starts(s, step, h->window))
+        if (!tvpal_schedule_starts(SCHED(h), s, step))
             continue;
         struct tvpal_chunk_header ch = {
             .slice = s, .wstart = step,
-            .wlen = tvpal_schedule_len(s, step, h->window, h->steps),
+            .wlen = tvpal_schedule_len(SCHED(h), s, step),
             .w = h->slice_w, .h = h->slice_h, .used = 7, .bits = {5, 3},
             .flags = test_flags(h, s)};
         tvpal_chunk_header_encode(&ch, buf + off);
@@ -138,12 +142,12 @@ static void test_placed(void)
             uint64_t pos = TVPAL_RECORD_HEADER_BYTES;
             for (uint32_t s = h.slice_begin; s < h.slice_begin + h.slice_count;
                  s++) {
-                if (!tvpal_schedule_starts(s, t, h.window))
+                if (!tvpal_schedule_starts(SCHED(&h), s, t))
                     continue;
                 off[k] = pos;
                 sl[k++] = s;
                 pos += tvpal_chunk_bytes(
-                    tvpal_schedule_len(s, t, h.window, h.steps), h.slice_w,
+                    tvpal_schedule_len(SCHED(&h), s, t), h.slice_w,
                     h.slice_h,
                     tvpal_chunk_table_format(h.table_format,
                                              test_flags(&h, s)));
@@ -153,7 +157,7 @@ static void test_placed(void)
                  * shard), zeros after it. */
                 uint64_t cb = (i + 1 < k ? off[i + 1] : pos) - off[i];
                 uint64_t rb = tvpal_chunk_bytes(
-                    tvpal_schedule_len(sl[i], t, h.window, h.steps),
+                    tvpal_schedule_len(SCHED(&h), sl[i], t),
                     h.slice_w, h.slice_h, h.table_format);
                 REQUIRE(rb <= sizeof room && cb <= rb, "room %llu",
                         (unsigned long long)rb);
@@ -416,8 +420,7 @@ static void test_per_chunk(void)
         build_record(&g, 0, rec);
         set_first_flags(rec, 0, &g, TVPAL_CHUNK_U16);
         uint32_t crc;
-        uint64_t cb = tvpal_chunk_bytes(tvpal_schedule_len(g.slice_begin, 0,
-                                                           g.window, g.steps),
+        uint64_t cb = tvpal_chunk_bytes(tvpal_schedule_len(SCHED(&g), g.slice_begin, 0),
                                         g.slice_w, g.slice_h, g.table_format);
         CHECK(tvpal_shardw_put_chunk(w, 0, g.slice_begin, rec + 64, cb, &crc,
                                      &d) == TVPAL_E_INVAL &&
@@ -662,7 +665,7 @@ static void test_stage_verify(void)
          * [0, 1), not staged at t = 1: refused; record 1 goes in. */
         uint32_t s1 = 0;
         while (s1 < h->slice_count &&
-               tvpal_schedule_len(s1, 0, h->window, h->steps) != 1)
+               tvpal_schedule_len(SCHED(h), s1, 0) != 1)
             s1++;
         REQUIRE(s1 < h->slice_count, "no slice with a first window of 1");
         stage_both(sh, ref, chk, 1, 0, chunk_data_offset(sh, 0, s1), &refused);
@@ -750,7 +753,7 @@ static void test_borrow(void)
         for (uint32_t r = 0; r < h->steps; r++) {
             int holds = 0;
             for (uint32_t k = 0; k < h->slice_count && !holds; k++)
-                holds = tvpal_schedule_start(h->slice_begin + k, t, h->window) == r;
+                holds = tvpal_schedule_start(SCHED(h), h->slice_begin + k, t) == r;
             CHECK(tvpal_slab_borrows(bw, r) == holds, "t %u: record %u borrowed %d, "
                   "holds a window at t %d", t, r, tvpal_slab_borrows(bw, r), holds);
         }
@@ -826,9 +829,26 @@ int main(void)
     hb[20] ^= 0x40;
     CHECK(tvpal_shard_header_decode(hb, &g, NULL) == TVPAL_E_CHECKSUM, "crc");
     hb[20] ^= 0x40;
-    hb[8] = 3; /* version 3, CRC left stale: version is checked first */
+    hb[8] = 4; /* version 4, CRC left stale: version is checked first */
     CHECK(tvpal_shard_header_decode(hb, &g, NULL) == TVPAL_E_VERSION,
           "version");
+    /* The schedule field goes with the version: 1 (joined) in version 3,
+     * 0 before it. */
+    {
+        struct tvpal_shard_header j = h;
+        const uint32_t pairs[4][3] = {{3, 1, 0}, {1, 0, 0}, {3, 0, 1},
+                                      {2, 1, 1}};
+        for (int i = 0; i < 4; i++) {
+            j.version = pairs[i][0];
+            j.schedule = pairs[i][1];
+            tvpal_shard_header_encode(&j, hb);
+            const int rc = tvpal_shard_header_decode(hb, &g, &d);
+            CHECK(pairs[i][2] ? rc == TVPAL_E_FORMAT && strstr(d.msg, "schedule")
+                              : rc == 0 && g.schedule == j.schedule,
+                  "version %u schedule %u: %d %s", j.version, j.schedule, rc,
+                  d.msg);
+        }
+    }
     /* A field out of range with a valid CRC. */
     h.window = 17;
     tvpal_shard_header_encode(&h, hb);
@@ -900,7 +920,7 @@ int main(void)
         uint64_t bytes = build_record(&h, 0, rec);
         struct tvpal_record_header rh;
         tvpal_record_header_decode(rec, &rh, NULL);
-        uint64_t first = tvpal_chunk_bytes(tvpal_schedule_len(h.slice_begin, 0, 4, 9),
+        uint64_t first = tvpal_chunk_bytes(tvpal_schedule_len(&(struct tvpal_schedule){4, 9, TVPAL_SCHEDULE_STAGGERED}, h.slice_begin, 0),
                                            h.slice_w, h.slice_h, 0);
         memmove(rec + 64, rec + 64 + first, rh.payload_bytes - first);
         tvpal_record_seal(rec, 0, 0, rh.chunk_count - 1, rh.payload_bytes - first);
@@ -912,7 +932,7 @@ int main(void)
         uint64_t bytes = build_record(&h, 0, rec);
         struct tvpal_record_header rh;
         tvpal_record_header_decode(rec, &rh, NULL);
-        uint64_t first = tvpal_chunk_bytes(tvpal_schedule_len(h.slice_begin, 0, 4, 9),
+        uint64_t first = tvpal_chunk_bytes(tvpal_schedule_len(&(struct tvpal_schedule){4, 9, TVPAL_SCHEDULE_STAGGERED}, h.slice_begin, 0),
                                            h.slice_w, h.slice_h, 0);
         rec[64 + first] ^= 1; /* magic of chunk 1 */
         tvpal_record_seal(rec, 0, 0, rh.chunk_count, rh.payload_bytes);

@@ -2,8 +2,9 @@
  *   tvpal-check seqjump DIR   decoding by random jumps equals sequential
  *                             decoding, bit for bit, on every stored axis
  *                             (the others refused); forward
- *                             playback reads one record per step and shard,
- *                             a jump at most N.
+ *                             playback reads one record per step and shard
+ *                             (none where no window starts: the joined
+ *                             schedule's steps 1..N-1), a jump at most N.
  *   tvpal-check cmp A B       RMSE, max |A-B| and PSNR (peak of A) of two raw
  *                             float32 files, as key=value.
  *   tvpal-check peakrss CMD...  runs CMD, prints its peak resident memory
@@ -42,8 +43,11 @@ static int seqjump(const char *dir)
             uint64_t before = tvpal_volreader_bytes_read(r), rec = 0;
             CHECK(tvpal_volreader_read(r, t, seq + nvox * t, &d) == 0,
                   "axis %u step %u: %s", a, t, d.msg);
-            for (uint32_t k = 0; k < ds->m.nodes; k++)
-                rec += tvpal_shard_entry(ds->shards[a][k], t)->bytes;
+            for (uint32_t k = 0; k < ds->m.nodes; k++) {
+                const struct tvpal_index_entry *e =
+                    tvpal_shard_entry(ds->shards[a][k], t);
+                rec += e->chunk_count ? e->bytes : 0;
+            }
             if (t > 0)
                 CHECK(tvpal_volreader_bytes_read(r) - before == rec,
                       "axis %u step %u: forward step read %llu bytes, its "

@@ -303,8 +303,10 @@ int main(int argc, char **argv)
             /* Only slices whose window starts at t change. */
             uint32_t n = v.axis == 0 ? m->dims[0] : v.axis == 1 ? m->dims[1] : m->dims[2];
             uint32_t starting = 0;
+            const struct tvpal_schedule sc =
+                tvpal_schedule_of(N, m->steps, m->schedule);
             for (uint32_t s = 0; s < n; s++)
-                starting += tvpal_schedule_starts(s, t, N);
+                starting += tvpal_schedule_starts(&sc, s, t);
             CHECK(st.uploads <= starting, "step %u: %u uploads, %u windows "
                   "start", t, st.uploads, starting);
         }

@@ -11,7 +11,9 @@
 
 #include <stddef.h>
 
-#define TVPAL_NMAX 16
+/* The longest window: 2N - 1 for N = 16, the joined schedule's first
+ * windows (TVPAL_SCHEDULE_LEN_MAX, common/format/tvpal_schedule.h). */
+#define TVPAL_NMAX 31
 
 /* Basis matrix for length n (1 <= n <= TVPAL_NMAX), row u = basis function u:
  * m[u * n + x] = a(u) cos((2x+1) u pi / 2n).  Tables are computed in double

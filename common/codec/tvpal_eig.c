@@ -1,6 +1,7 @@
 /* tvpal_eig.c: LAPACK dsyev behind a small C interface (see tvpal_eig.h).
  * Only this file knows LAPACK's Fortran calling convention. */
 #include "tvpal_eig.h"
+#include "tvpal_dct.h"
 #include "tvpal_error.h"
 
 #include <math.h>
@@ -24,9 +25,10 @@ int tvpal_eig_available(void)
 int tvpal_eig_sym(int n, double *a, double *w)
 {
 #ifdef HAVE_LAPACK
-    double work[16 * 16 * 4], ev[16], vec[16 * 16];
+    double work[TVPAL_NMAX * TVPAL_NMAX * 4], ev[TVPAL_NMAX],
+        vec[TVPAL_NMAX * TVPAL_NMAX];
     int lwork = (int)(sizeof work / sizeof *work), info = 0;
-    if (n < 1 || n > 16)
+    if (n < 1 || n > TVPAL_NMAX)
         return TVPAL_E_INVAL;
     /* Row-major symmetric = column-major symmetric: pass as is; on return
      * column k of the column-major array (= row k here) is eigenvector k. */

@@ -14,8 +14,9 @@
 #include "tvpal_crc32c.h"
 #include "tvpal_pool.h"
 
-/* The largest table: 16 rows of 256 float32 entries. */
-#define TABLE_MAX (16u * 256u * 4u)
+/* The largest table: a row of 256 float32 entries per step of the longest
+ * window. */
+#define TABLE_MAX (TVPAL_SCHEDULE_LEN_MAX * 256u * 4u)
 
 /* One chunk of a wave (inflate_waves): where it is and goes, and what its
  * worker found. */
@@ -296,7 +297,8 @@ int tvpal_chunkz_code(struct tvpal_chunkz *z, int level,
     struct tvpal_chunk_header h;
     if (level < 1 || level > ZSTD_maxCLevel() ||
         tvpal_chunk_header_decode(chunk, &h, NULL) < 0 || h.wlen < 1 ||
-        h.wlen > 16 || (h.flags & TVPAL_CHUNK_CODED_BITS))
+        h.wlen > TVPAL_SCHEDULE_LEN_MAX ||
+        (h.flags & TVPAL_CHUNK_CODED_BITS))
         return TVPAL_E_INVAL;
     const uint64_t plain = tvpal_chunk_bytes(h.wlen, h.w, h.h, ctf);
     if (plain > z->max_chunk)

@@ -109,12 +109,13 @@ int tvpal_record_inflate_pool(struct tvpal_chunkz *z, struct tvpal_pool *pool,
                               const struct tvpal_shard_header *sh,
                               struct tvpal_diag *diag);
 
-/* The largest plain chunk of shard sh (the room of a float32 chunk of a
- * full window): what tvpal_chunkz_create needs for any of its chunks. */
+/* The largest plain chunk of shard sh (the room of a float32 chunk of its
+ * longest window): what tvpal_chunkz_create needs for any of its chunks. */
 static inline uint64_t tvpal_shard_max_chunk(const struct tvpal_shard_header *sh)
 {
-    return tvpal_chunk_bytes(sh->window, sh->slice_w, sh->slice_h,
-                             TVPAL_TABLE_F32);
+    const struct tvpal_schedule sc = tvpal_shard_schedule(sh);
+    return tvpal_chunk_bytes(tvpal_schedule_max_len(&sc), sh->slice_w,
+                             sh->slice_h, TVPAL_TABLE_F32);
 }
 
 /* The name and version of the zstd library in use, e.g. "zstd 1.5.4". */

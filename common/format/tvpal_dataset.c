@@ -111,8 +111,8 @@ static int open_shard(struct tvpal_shard **out, const char *path,
                               d.msg[0] ? ": " : "", d.msg);
     const struct tvpal_shard_header *h = tvpal_shard_hdr(*out);
     if (memcmp(h->dims, m->dims, sizeof h->dims) || h->steps != m->steps ||
-        h->window != m->window || h->nodes != nodes || h->rank != rank ||
-        h->axis != axis) {
+        h->window != m->window || h->schedule != m->schedule ||
+        h->nodes != nodes || h->rank != rank || h->axis != axis) {
         if (node_msg)
             return tvpal_diag_set(diag, TVPAL_E_MISMATCH,
                                   "%s: header says node %u of %u (axis %u); "
@@ -120,10 +120,10 @@ static int open_shard(struct tvpal_shard **out, const char *path,
                                   h->nodes, h->axis, rank, nodes);
         return tvpal_diag_set(diag, TVPAL_E_MISMATCH,
                               "%s: header (dims %ux%ux%u, steps %u, window "
-                              "%u, node %u of %u, axis %u) does not match "
-                              "the manifest", path, h->dims[0], h->dims[1],
-                              h->dims[2], h->steps, h->window, h->rank,
-                              h->nodes, h->axis);
+                              "%u, schedule %u, node %u of %u, axis %u) does "
+                              "not match the manifest", path, h->dims[0],
+                              h->dims[1], h->dims[2], h->steps, h->window,
+                              h->schedule, h->rank, h->nodes, h->axis);
     }
     return tvpal_shard_check_table(path, h, m, diag);
 }

@@ -67,7 +67,7 @@ void tvpal_slab_range(uint32_t n, uint32_t k, uint32_t r, uint32_t *begin,
 /* Shard header layout (offsets in bytes):
  *   0 magic[8]  8 version  12 header_bytes  16 nx 20 ny 24 nz  28 steps
  *  32 window  36 nodes  40 rank  44 axis  48 slice_begin  52 slice_count
- *  56 slice_w  60 slice_h  64 table_format  68 reserved(0)
+ *  56 slice_w  60 slice_h  64 table_format  68 schedule (version 3; 0 before)
  *  72 index_offset(u64)  80 file_bytes(u64)  88 index_crc  92 reserved(0)
  *  96 value_min(f64)  104 value_max(f64)  112..4091 zero  4092 header_crc */
 void tvpal_shard_header_encode(const struct tvpal_shard_header *h,
@@ -90,6 +90,7 @@ void tvpal_shard_header_encode(const struct tvpal_shard_header *h,
     put32(b + 56, h->slice_w);
     put32(b + 60, h->slice_h);
     put32(b + 64, h->table_format);
+    put32(b + 68, h->schedule);
     put64(b + 72, h->index_offset);
     put64(b + 80, h->file_bytes);
     put32(b + 88, h->index_crc);
@@ -106,12 +107,12 @@ int tvpal_shard_header_decode(const unsigned char *b,
         return tvpal_diag_set(diag, TVPAL_E_MAGIC,
                               "header: magic is not \"" TVPAL_SHARD_MAGIC "\"");
     h->version = get32(b + 8);
-    if (h->version != TVPAL_FORMAT_VERSION &&
-        h->version != TVPAL_FORMAT_VERSION_CODED)
+    if (h->version < TVPAL_FORMAT_VERSION ||
+        h->version > TVPAL_FORMAT_VERSION_JOINED)
         return tvpal_diag_set(diag, TVPAL_E_VERSION,
-                              "header: format version %u, expected %u or %u",
+                              "header: format version %u, expected %u..%u",
                               h->version, TVPAL_FORMAT_VERSION,
-                              TVPAL_FORMAT_VERSION_CODED);
+                              TVPAL_FORMAT_VERSION_JOINED);
     if (get32(b + 4092) != tvpal_crc32c(0, b, 4092))
         return tvpal_diag_set(diag, TVPAL_E_CHECKSUM,
                               "header: CRC-32C mismatch");
@@ -131,6 +132,7 @@ int tvpal_shard_header_decode(const unsigned char *b,
     h->slice_w = get32(b + 56);
     h->slice_h = get32(b + 60);
     h->table_format = get32(b + 64);
+    h->schedule = get32(b + 68);
     h->index_offset = get64(b + 72);
     h->file_bytes = get64(b + 80);
     h->index_crc = get32(b + 88);
@@ -167,6 +169,15 @@ int tvpal_shard_header_decode(const unsigned char *b,
                               "1 (16-bit scaled), 4 (per chunk), or 2, 3, 5 "
                               "(the same with missing values)",
                               h->table_format);
+    /* Version 3 is the joined schedule; before it the field was a
+     * reserved 0. */
+    if (h->schedule != (h->version == TVPAL_FORMAT_VERSION_JOINED
+                            ? TVPAL_SCHEDULE_JOINED
+                            : TVPAL_SCHEDULE_STAGGERED))
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                              "header: schedule %u with format version %u, "
+                              "expected 1 with version 3, 0 before",
+                              h->schedule, h->version);
     if (h->index_offset % TVPAL_ALIGN || h->index_offset < TVPAL_ALIGN ||
         h->index_offset > ((uint64_t)1 << 62) ||
         h->file_bytes != h->index_offset + tvpal_round_up(
@@ -360,14 +371,15 @@ static int record_verify(const unsigned char *buf, uint64_t bytes,
     const uint32_t slab_end = sh->slice_begin + sh->slice_count;
     const uint32_t allowed =
         tvpal_chunk_flags_allowed(sh->table_format) |
-        (sh->version == TVPAL_FORMAT_VERSION_CODED ? TVPAL_CHUNK_CODED_BITS
+        (sh->version >= TVPAL_FORMAT_VERSION_CODED ? TVPAL_CHUNK_CODED_BITS
                                                    : 0u);
+    const struct tvpal_schedule sc = tvpal_shard_schedule(sh);
     uint64_t plain = 0;  /* the payload once inflated */
     for (uint32_t k = 0;; k++) {
         /* The chunks are exactly the slab's slices whose window starts at
          * this step, ascending. */
         while (expect < slab_end &&
-               !tvpal_schedule_starts(expect, step, sh->window))
+               !tvpal_schedule_starts(&sc, expect, step))
             expect++;
         if (k == rh.chunk_count) {
             if (expect < slab_end)
@@ -388,11 +400,10 @@ static int record_verify(const unsigned char *buf, uint64_t bytes,
         if (ch.slice < sh->slice_begin ||
             ch.slice >= sh->slice_begin + sh->slice_count ||
             (k > 0 && ch.slice <= prev) || ch.wstart != step ||
-            ch.wlen < 1 || ch.wlen > sh->window ||
+            ch.wlen < 1 || ch.wlen > tvpal_schedule_max_len(&sc) ||
             ch.wstart + ch.wlen > sh->steps || ch.w != sh->slice_w ||
             ch.h != sh->slice_h || ch.slice != expect ||
-            ch.wlen != tvpal_schedule_len(ch.slice, step, sh->window,
-                                        sh->steps))
+            ch.wlen != tvpal_schedule_len(&sc, ch.slice, step))
             return tvpal_diag_set(diag, TVPAL_E_FORMAT,
                                   "record %u: chunk %u (slice %u, window "
                                   "%u+%u, %ux%u) inconsistent with the shard",

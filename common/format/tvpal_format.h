@@ -18,6 +18,7 @@
 #include <stdint.h>
 
 #include "tvpal_error.h"
+#include "tvpal_schedule.h"
 
 #define TVPAL_FORMAT_VERSION 1u
 /* Shards with coded chunks (FORMAT.md 6.11): a chunk's table and indices
@@ -25,6 +26,11 @@
  * coded, so a reader before specification 1.8 rejects such a shard as an
  * unknown version instead of misreading it. */
 #define TVPAL_FORMAT_VERSION_CODED 2u
+/* Shards of the joined window schedule (FORMAT.md 5, 6.2: header field
+ * "schedule" 1; since specification 1.11), coded chunks or not: a reader
+ * before 1.11 rejects them as an unknown version instead of misreading
+ * their windows. */
+#define TVPAL_FORMAT_VERSION_JOINED 3u
 #define TVPAL_ALIGN 4096u               /* record alignment (O_DIRECT) */
 #define TVPAL_SHARD_HEADER_BYTES 4096u
 #define TVPAL_RECORD_HEADER_BYTES 64u
@@ -89,6 +95,7 @@ struct tvpal_shard_header {
     uint32_t slice_count;     /* slices in the slab (>= 1) */
     uint32_t slice_w, slice_h;/* slice size: in-slice index = a + w * b */
     uint32_t table_format;    /* TVPAL_TABLE_F32 .. TVPAL_TABLE_MAX */
+    uint32_t schedule;        /* TVPAL_SCHEDULE_*: 1 iff version 3 */
     uint64_t index_offset;    /* aligned; index of `steps` entries */
     uint64_t file_bytes;      /* total file size */
     uint32_t index_crc;
@@ -210,6 +217,13 @@ static inline uint64_t tvpal_chunk_stored_bytes(
         return TVPAL_CHUNK_HEADER_BYTES +
                tvpal_round_up(h->coded_bytes, TVPAL_CHUNK_ALIGN);
     return tvpal_chunk_bytes(h->wlen, h->w, h->h, ctf);
+}
+
+/* The window schedule of shard h's series (FORMAT.md 5). */
+static inline struct tvpal_schedule
+tvpal_shard_schedule(const struct tvpal_shard_header *h)
+{
+    return tvpal_schedule_of(h->window, h->steps, h->schedule);
 }
 
 /* Serialization.  *_encode write exactly the fixed size into buf (CRCs

@@ -1,5 +1,6 @@
 /* tvpal_manifest.c: manifest text format (see tvpal_manifest.h). */
 #include "tvpal_manifest.h"
+#include "tvpal_schedule.h"
 #include "tvpal_cli.h"
 #include "tvpal_format.h"
 #include "tvpal_fs.h"
@@ -45,7 +46,10 @@ int tvpal_manifest_add_source(struct tvpal_manifest *m, const char *src)
 /* The lowest format_version that describes m (FORMAT.md 3.2, 10.3). */
 static unsigned format_version_of(const struct tvpal_manifest *m)
 {
-    return m->axes_mask != TVPAL_AXES_ALL ? 3 : m->levels ? 2 : 1;
+    return m->schedule == TVPAL_SCHEDULE_JOINED ? 4
+           : m->axes_mask != TVPAL_AXES_ALL    ? 3
+           : m->levels                         ? 2
+                                               : 1;
 }
 
 int tvpal_manifest_format(const struct tvpal_manifest *m, char **out)
@@ -71,6 +75,9 @@ int tvpal_manifest_format(const struct tvpal_manifest *m, char **out)
     fprintf(f, "endian = %s\n", m->big_endian ? "big" : "little");
     fprintf(f, "steps = %u\nwindow = %u\nnodes = %u\n", m->steps, m->window,
             m->nodes);
+    /* Absent means staggered (every dataset before the key). */
+    if (m->schedule == TVPAL_SCHEDULE_JOINED)
+        fprintf(f, "schedule = joined\n");
     /* Absent means all three (datasets as before the key had a rule). */
     if (m->axes_mask != TVPAL_AXES_ALL)
         fprintf(f, "axes = %s\n", tvpal_axes_format(m->axes_mask, axes));
@@ -296,10 +303,14 @@ static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
         bad = strcmp(v, "tvpal-dataset") != 0;
         *seen |= K_FORMAT;
     } else if (!strcmp(k, "format_version")) {
-        if (parse_u32(v, version) || *version < 1 || *version > 3)
+        if (parse_u32(v, version) || *version < 1 || *version > 4)
             return tvpal_diag_set(diag, TVPAL_E_VERSION,
                                   "line %u: format_version %s, expected 1 "
-                                  "to 3", lineno, v);
+                                  "to 4", lineno, v);
+    } else if (!strcmp(k, "schedule")) {
+        bad = strcmp(v, "joined") && strcmp(v, "staggered");
+        m->schedule = !strcmp(v, "joined") ? TVPAL_SCHEDULE_JOINED
+                                          : TVPAL_SCHEDULE_STAGGERED;
     } else if (!strcmp(k, "axes")) {
         bad = tvpal_axes_parse(v, &m->axes_mask) < 0;
     } else if (!strcmp(k, "dims")) {
@@ -422,6 +433,11 @@ static int manifest_check(const struct tvpal_manifest *m, unsigned seen,
                               "axes = %s (a subset of the axes) needs "
                               "format_version 3, not %u",
                               tvpal_axes_format(m->axes_mask, axes), version);
+    /* Its windows are not the ones a reader of versions 1 to 3 knows. */
+    if (m->schedule == TVPAL_SCHEDULE_JOINED && version < 4)
+        return tvpal_diag_set(diag, TVPAL_E_MANIFEST,
+                              "schedule = joined needs format_version 4, "
+                              "not %u", version);
     if (m->value_min > m->value_max)
         return tvpal_diag_set(diag, TVPAL_E_MANIFEST,
                               "value_min %.9g exceeds value_max %.9g",

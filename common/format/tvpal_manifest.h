@@ -25,6 +25,8 @@ struct tvpal_manifest {
     enum tvpal_type type;
     int big_endian;
     uint32_t steps, window, nodes;
+    uint32_t schedule;                    /* TVPAL_SCHEDULE_* (FORMAT.md 5):
+                                           * key "schedule", absent = 0 */
     double value_min, value_max;          /* of the source, after NaN policy */
     uint64_t histogram[TVPAL_HIST_BINS];  /* linear bins over [min, max] */
     int has_nan_as;
@@ -82,8 +84,9 @@ const char *tvpal_manifest_table_name(uint32_t table_format);
 void tvpal_manifest_clear(struct tvpal_manifest *m);
 
 /* Renders m as text into a malloc'ed string (*out owned by the caller).
- * format_version is the lowest that describes m (FORMAT.md 3.2): 3 when
- * m->axes_mask is not TVPAL_AXES_ALL, else 2 with levels, else 1.
+ * format_version is the lowest that describes m (FORMAT.md 3.2): 4 with
+ * the whole-window schedule, else 3 when m->axes_mask is not
+ * TVPAL_AXES_ALL, else 2 with levels, else 1.
  * TVPAL_E_INVAL when m->axes_mask is not in 1..7, TVPAL_E_NOMEM. */
 int tvpal_manifest_format(const struct tvpal_manifest *m, char **out);
 

@@ -255,8 +255,10 @@ int tvpal_shardw_finish(struct tvpal_shardw *w, struct tvpal_diag *diag)
     w->h.index_offset = w->end;
     w->h.file_bytes = w->end + ibytes;
     w->h.index_crc = tvpal_crc32c(0, ib, ibytes);
-    w->h.version = w->coded ? TVPAL_FORMAT_VERSION_CODED
-                            : TVPAL_FORMAT_VERSION;
+    w->h.version = w->h.schedule == TVPAL_SCHEDULE_JOINED
+                       ? TVPAL_FORMAT_VERSION_JOINED
+                   : w->coded ? TVPAL_FORMAT_VERSION_CODED
+                              : TVPAL_FORMAT_VERSION;
     if (w->missing)
         w->h.table_format = tvpal_table_with_missing(w->h.table_format);
     rc = pwrite_all(w->fd, ib, ibytes, w->end, diag);
@@ -315,15 +317,17 @@ static uint64_t placed_chunk_bytes(const struct tvpal_shardw *w, uint32_t s,
                                    uint32_t t)
 {
     const struct tvpal_shard_header *h = &w->h;
-    return tvpal_chunk_bytes(tvpal_schedule_len(s, t, h->window, h->steps),
-                             h->slice_w, h->slice_h, h->table_format);
+    const struct tvpal_schedule sc = tvpal_shard_schedule(h);
+    return tvpal_chunk_bytes(tvpal_schedule_len(&sc, s, t), h->slice_w,
+                             h->slice_h, h->table_format);
 }
 
 /* The layout of every record (FORMAT.md 6.3) from the header alone. */
 static int placed_layout(struct tvpal_shardw *w)
 {
     const struct tvpal_shard_header *h = &w->h;
-    const uint32_t T = h->steps, N = h->window;
+    const uint32_t T = h->steps;
+    const struct tvpal_schedule sc = tvpal_shard_schedule(h);
     w->rec_off = calloc(T, sizeof *w->rec_off);
     w->payload = calloc(T, sizeof *w->payload);
     w->filled = calloc(T, sizeof *w->filled);
@@ -341,7 +345,7 @@ static int placed_layout(struct tvpal_shardw *w)
         uint32_t n = 0;
         for (uint32_t k = 0; k < h->slice_count; k++) {
             uint32_t s = h->slice_begin + k;
-            if (!tvpal_schedule_starts(s, t, N))
+            if (!tvpal_schedule_starts(&sc, s, t))
                 continue;
             if (t == 0)
                 w->first_off[k] = pay;
@@ -364,16 +368,16 @@ static uint64_t placed_offset(const struct tvpal_shardw *w, uint32_t t,
                               uint32_t s)
 {
     const struct tvpal_shard_header *h = &w->h;
-    const uint32_t N = h->window;
+    const struct tvpal_schedule sc = tvpal_shard_schedule(h);
     if (t >= h->steps || s < h->slice_begin ||
         s - h->slice_begin >= h->slice_count ||
-        !tvpal_schedule_starts(s, t, N))
+        !tvpal_schedule_starts(&sc, s, t))
         return UINT64_MAX;
     if (t == 0)
         return w->first_off[s - h->slice_begin];
     /* The slab's first slice of phase t mod N, then every N-th. */
-    uint32_t first = h->slice_begin +
-                     (t % N + N - h->slice_begin % N) % N;
+    const uint32_t N = h->window;
+    const uint32_t first = h->slice_begin + (t % N + N - h->slice_begin % N) % N;
     return (uint64_t)((s - first) / N) * placed_chunk_bytes(w, s, t);
 }
 
@@ -549,8 +553,9 @@ static int placed_pack(struct tvpal_shardw *w, struct tvpal_diag *diag)
 {
     static const unsigned char zero[TVPAL_ALIGN];
     const struct tvpal_shard_header *h = &w->h;
-    unsigned char *buf = malloc(tvpal_chunk_bytes(h->window, h->slice_w,
-                                                  h->slice_h, h->table_format));
+    const struct tvpal_schedule sc = tvpal_shard_schedule(h);
+    unsigned char *buf = malloc(tvpal_chunk_bytes(
+        tvpal_schedule_max_len(&sc), h->slice_w, h->slice_h, h->table_format));
     if (!buf)
         return TVPAL_E_NOMEM;
     int rc = 0;
@@ -561,7 +566,7 @@ static int placed_pack(struct tvpal_shardw *w, struct tvpal_diag *diag)
         uint32_t room_crc = 0, crc = 0;
         for (uint32_t k = 0; k < h->slice_count && rc == 0; k++) {
             const uint32_t s = h->slice_begin + k;
-            if (!tvpal_schedule_starts(s, t, h->window))
+            if (!tvpal_schedule_starts(&sc, s, t))
                 continue;
             const uint64_t room = placed_chunk_bytes(w, s, t);
             rc = pread_all(w->fd, buf, room, src);
@@ -576,7 +581,7 @@ static int placed_pack(struct tvpal_shardw *w, struct tvpal_diag *diag)
              * CRC below. */
             struct tvpal_chunk_header ch = {0};
             (void)tvpal_chunk_header_decode(buf, &ch, NULL);
-            ch.wlen = tvpal_schedule_len(s, t, h->window, h->steps);
+            ch.wlen = tvpal_schedule_len(&sc, s, t);
             ch.w = h->slice_w;
             ch.h = h->slice_h;
             const uint32_t ctf = tvpal_chunk_table_format(h->table_format,
@@ -688,6 +693,7 @@ struct tvpal_shard {
     struct tvpal_shard_header h;
     struct tvpal_index_entry *index;
     uint64_t max_record;        /* of the records' buffers */
+    int coded;                  /* some record has coded chunks */
     uint64_t ram_bytes;         /* all the records' buffers */
     struct tvpal_chunkz *z;     /* read_record's inflater, at first need */
     struct tvpal_table_count counted;   /* count_tables' result, once */
@@ -703,19 +709,22 @@ static uint64_t record_min_bytes(const struct tvpal_shard_header *h,
                                  uint32_t t, uint64_t cap)
 {
     uint64_t need = TVPAL_RECORD_HEADER_BYTES;
-    const uint32_t end = h->slice_begin + h->slice_count;
-    /* Slices with starts(s, t): all at t == 0, else s % N == t % N. */
-    uint32_t s = h->slice_begin, stride = 1;
+    const struct tvpal_schedule sc = tvpal_shard_schedule(h);
+    const uint32_t N = h->window, end = h->slice_begin + h->slice_count;
+    /* Slices with starts(s, t): all at t == 0, else every N-th from the
+     * first of tvpal_schedule_phase's phase (none: an empty record). */
+    uint32_t s = h->slice_begin, stride = 1, r;
     if (t > 0) {
-        uint32_t r = t % h->window;
-        stride = h->window;
-        s += (r + h->window - s % h->window) % h->window;
+        if (!tvpal_schedule_phase(&sc, t, &r))
+            return need;
+        stride = N;
+        s += (r + N - s % N) % N;
     }
     /* In a per-chunk shard a chunk is at least a 16-bit one. */
     const uint32_t tf = h->table_format >= TVPAL_TABLE_CHUNK ? TVPAL_TABLE_U16
                                                              : h->table_format;
     for (; s < end; s += stride) {
-        uint32_t len = tvpal_schedule_len(s, t, h->window, h->steps);
+        uint32_t len = tvpal_schedule_len(&sc, s, t);
         uint64_t cb = tvpal_chunk_bytes(len, h->slice_w, h->slice_h, tf);
         if (cb > cap - need)
             return cap + 1;
@@ -838,6 +847,7 @@ int tvpal_shard_open(struct tvpal_shard **out, const char *path,
         s->ram_bytes += tvpal_record_buffer_bytes(e);
         if (tvpal_record_buffer_bytes(e) > s->max_record)
             s->max_record = tvpal_record_buffer_bytes(e);
+        s->coded |= e->coded != 0;
     }
     if (expect != s->h.index_offset) {
         rc = tvpal_diag_set(diag, TVPAL_E_FORMAT,
@@ -896,6 +906,11 @@ uint64_t tvpal_shard_max_record(const struct tvpal_shard *s)
     return s->max_record;
 }
 
+int tvpal_shard_coded(const struct tvpal_shard *s)
+{
+    return s->coded;
+}
+
 uint64_t tvpal_shard_ram_bytes(const struct tvpal_shard *s)
 {
     return s->ram_bytes;
@@ -929,26 +944,26 @@ int tvpal_shard_count_tables(struct tvpal_shard *s,
 {
     const struct tvpal_shard_header *h = &s->h;
     const int per_chunk = h->table_format >= TVPAL_TABLE_CHUNK ||
-                          h->version == TVPAL_FORMAT_VERSION_CODED;
+                          h->version >= TVPAL_FORMAT_VERSION_CODED;
     const uint32_t allowed =
         tvpal_chunk_flags_allowed(h->table_format) |
-        (h->version == TVPAL_FORMAT_VERSION_CODED ? TVPAL_CHUNK_CODED_BITS
+        (h->version >= TVPAL_FORMAT_VERSION_CODED ? TVPAL_CHUNK_CODED_BITS
                                                   : 0u);
     if (s->have_counted) { /* the file is read-only: it stays so */
         *out = s->counted;
         return 0;
     }
     *out = (struct tvpal_table_count){{0}, {0}, 0, 0, 0};
+    const struct tvpal_schedule sc = tvpal_shard_schedule(h);
     for (uint32_t t = 0; t < h->steps; t++) {
         const struct tvpal_index_entry *e = &s->index[t];
         uint64_t pos = e->offset + TVPAL_RECORD_HEADER_BYTES;
         const uint64_t end = e->offset + e->bytes;
         for (uint32_t k = 0; k < h->slice_count; k++) {
             const uint32_t sl = h->slice_begin + k;
-            if (!tvpal_schedule_starts(sl, t, h->window))
+            if (!tvpal_schedule_starts(&sc, sl, t))
                 continue;
-            const uint32_t len = tvpal_schedule_len(sl, t, h->window,
-                                                    h->steps);
+            const uint32_t len = tvpal_schedule_len(&sc, sl, t);
             uint32_t tf = h->table_format;
             if (per_chunk) {
                 unsigned char b[TVPAL_CHUNK_HEADER_BYTES];
@@ -1033,7 +1048,8 @@ static int slice_buffers(const struct tvpal_shard_header *h, float **table,
                          uint8_t **idx)
 {
     size_t nvox = (size_t)h->slice_w * h->slice_h;
-    *table = malloc((size_t)h->window * 256 * sizeof(float));
+    const struct tvpal_schedule sc = tvpal_shard_schedule(h);
+    *table = malloc((size_t)tvpal_schedule_max_len(&sc) * 256 * sizeof(float));
     *idx = malloc(nvox ? nvox : 1);
     if (*table && *idx)
         return 0;
@@ -1095,15 +1111,17 @@ unsigned tvpal_slab_needed(const struct tvpal_slab *s, uint32_t t,
 {
     const struct tvpal_shard_header *h = &s->sh->h;
     unsigned n = 0;
-    uint32_t need_mask = 0; /* bit d: record t - d is needed (d < N) */
+    const struct tvpal_schedule sc = tvpal_shard_schedule(h);
+    /* bit d: record t - d is needed (d < max_len <= 31) */
+    uint32_t need_mask = 0;
     for (uint32_t k = 0; k < h->slice_count; k++) {
-        uint32_t ws = tvpal_schedule_start(h->slice_begin + k, t, h->window);
+        uint32_t ws = tvpal_schedule_start(&sc, h->slice_begin + k, t);
         const struct slab_slice *sl = &s->sl[k];
         if (sl->wlen && sl->wstart == ws)
             continue;
         need_mask |= 1u << (t - ws);
     }
-    for (int d = 15; d >= 0; d--)
+    for (int d = 31; d >= 0; d--)
         if (need_mask & (1u << d))
             steps[n++] = t - (uint32_t)d;
     return n;
@@ -1115,7 +1133,8 @@ unsigned tvpal_slab_needed(const struct tvpal_slab *s, uint32_t t,
 static int chunk_holds(const struct tvpal_slab *s, const struct tvpal_chunk *c,
                        uint32_t t)
 {
-    return tvpal_schedule_start(c->h.slice, t, s->sh->h.window) == c->h.wstart;
+    const struct tvpal_schedule sc = tvpal_shard_schedule(&s->sh->h);
+    return tvpal_schedule_start(&sc, c->h.slice, t) == c->h.wstart;
 }
 
 /* The next chunk of rec (from *pos) that holds t: 1 with c, 0 at the end. */
@@ -1360,11 +1379,12 @@ int tvpal_slab_borrows(const struct tvpal_slab *s, uint32_t step)
 void tvpal_slab_detach_stale(struct tvpal_slab *s, uint32_t t)
 {
     const struct tvpal_shard_header *h = &s->sh->h;
+    const struct tvpal_schedule sc = tvpal_shard_schedule(h);
     const size_t nvox = (size_t)h->slice_w * h->slice_h;
     for (uint32_t k = 0; k < h->slice_count; k++) {
         struct slab_slice *sl = &s->sl[k];
         if (sl->view != sl->idx &&
-            tvpal_schedule_start(h->slice_begin + k, t, h->window) != sl->wstart) {
+            tvpal_schedule_start(&sc, h->slice_begin + k, t) != sl->wstart) {
             memcpy(sl->idx, sl->view, nvox);
             sl->view = sl->idx;
         }

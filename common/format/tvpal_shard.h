@@ -146,6 +146,9 @@ int tvpal_shard_fd(const struct tvpal_shard *s);
 /* Largest record of the shard once inflated (FORMAT.md 6.11; buffer size
  * for read_record). */
 uint64_t tvpal_shard_max_record(const struct tvpal_shard *s);
+/* 1 when some record has coded chunks (its index entry says so; FORMAT.md
+ * 6.9, 6.11): a shard of format_version 2, or 3 with coded chunks. */
+int tvpal_shard_coded(const struct tvpal_shard *s);
 /* Bytes every record of the shard takes in RAM, inflated (the sum of
  * tvpal_record_buffer_bytes: an in-core reader's memory); the records'
  * region of the file (index_offset - 4096) when nothing is coded. */

@@ -85,7 +85,7 @@ struct tvpal_engine {
  * 8 MiB (a group never exceeds GROUP_SPAN slices). */
 static size_t group_floats(const struct tvpal_engine *e)
 {
-    const size_t sw = e->max_slice_vox * e->p.window;
+    const size_t sw = e->max_slice_vox * tvpal_engine_span(&e->p);
     if (sw >= (size_t)2 << 20)
         return sw;
     return (size_t)2 << 20 < sw * GROUP_SPAN ? (size_t)2 << 20
@@ -95,7 +95,10 @@ static size_t group_floats(const struct tvpal_engine *e)
 static int params_ok(const struct tvpal_engine_params *p)
 {
     return p->dims[0] && p->dims[1] && p->dims[2] && p->steps &&
-           p->window >= 1 && p->window <= TVPAL_NMAX && p->axes >= 1 &&
+           p->window >= 1 && p->window <= 16 &&
+           tvpal_engine_span(p) <= TVPAL_NMAX &&
+           (p->schedule == TVPAL_SCHEDULE_STAGGERED ||
+            p->schedule == TVPAL_SCHEDULE_JOINED) && p->axes >= 1 &&
            p->axes <= 7 && p->nodes >= 1 && p->node_count >= 1 &&
            p->node_first < p->nodes &&
            p->node_count <= p->nodes - p->node_first &&
@@ -128,7 +131,8 @@ int tvpal_engine_create(struct tvpal_engine **out,
         if ((size_t)w * h > e->max_slice_vox)
             e->max_slice_vox = (size_t)w * h;
         e->max_jobs += n;
-        uint64_t cb = tvpal_chunk_bytes(p->window, w, h, p->table_format);
+        uint64_t cb = tvpal_chunk_bytes(tvpal_engine_span(p), w, h,
+                                        p->table_format);
         if (cb > e->max_chunk)
             e->max_chunk = cb;
         for (uint32_t k = k0; k < k0 + nk; k++) {
@@ -136,8 +140,12 @@ int tvpal_engine_create(struct tvpal_engine **out,
             j->axis = a;
             j->rank = k;
             j->h = (struct tvpal_shard_header){
-                .version = TVPAL_FORMAT_VERSION, .steps = p->steps,
-                .window = p->window, .nodes = p->nodes, .rank = k,
+                .version = p->schedule == TVPAL_SCHEDULE_JOINED
+                               ? TVPAL_FORMAT_VERSION_JOINED
+                               : TVPAL_FORMAT_VERSION,
+                .steps = p->steps,
+                .window = p->window, .schedule = p->schedule,
+                .nodes = p->nodes, .rank = k,
                 .axis = a, .slice_w = w, .slice_h = h,
                 .table_format = p->table_format};
             memcpy(j->h.dims, p->dims, sizeof p->dims);
@@ -160,7 +168,7 @@ struct tvpal_engine_shard *tvpal_engine_shards(struct tvpal_engine *e,
 
 uint64_t tvpal_engine_thread_bytes(const struct tvpal_engine *e)
 {
-    const uint64_t sv = e->max_slice_vox, N = e->p.window;
+    const uint64_t sv = e->max_slice_vox, N = tvpal_engine_span(&e->p);
     const uint64_t codec = sv * (16 * N + 64) + N * 256 * 16 + (1u << 16);
     return codec + e->group_cap * sizeof(float) +
            2 * N * 256 * sizeof(float) + e->max_chunk;
@@ -178,13 +186,13 @@ uint64_t tvpal_engine_table_bytes(const struct tvpal_engine *e)
 
 static uint32_t ring_slots(const struct tvpal_engine *e)
 {
-    return e->p.steps < e->p.window ? e->p.steps : e->p.window;
+    return tvpal_engine_span(&e->p);
 }
 
 static int start_thread(struct tvpal_engine *e, unsigned i,
                         struct tvpal_diag *diag)
 {
-    const uint32_t N = e->p.window;
+    const uint32_t N = tvpal_engine_span(&e->p);
     if (tvpal_swenc_create(&e->enc[i], e->max_slice_vox, N) < 0 ||
         tvpal_swenc_set_refine(e->enc[i], e->p.refine) < 0 ||
         (tvpal_swenc_set_naive(e->enc[i], e->p.naive),
@@ -232,19 +240,19 @@ int tvpal_engine_start(struct tvpal_engine *e, struct tvpal_pool *pool,
     }
     if (box_voxels > SIZE_MAX / sizeof(float))
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "%u timesteps of %llu "
-                              "voxels", e->p.window,
+                              "voxels", e->nring,
                               (unsigned long long)box_voxels);
     for (uint32_t i = 0; i < e->nring; i++)
         if (!(e->ring[i] = malloc(box_voxels * sizeof(float))))
             return tvpal_diag_set(diag, TVPAL_E_NOMEM, "%u timesteps of %llu "
-                                  "voxels", e->p.window,
+                                  "voxels", e->nring,
                                   (unsigned long long)box_voxels);
     return 0;
 }
 
 float *tvpal_engine_slot(struct tvpal_engine *e, uint32_t t)
 {
-    return e->ring ? e->ring[t % e->p.window] : NULL;
+    return e->ring ? e->ring[t % e->nring] : NULL;
 }
 
 void tvpal_engine_release_ring(struct tvpal_engine *e)
@@ -343,6 +351,8 @@ void tvpal_engine_options_line(const struct tvpal_engine_params *p,
         OPTS_ADD(" --transform klt");
     if (p->alloc_mse)
         OPTS_ADD(" --alloc greedy-mse");
+    if (p->schedule == TVPAL_SCHEDULE_STAGGERED)
+        OPTS_ADD(" --schedule staggered");
     if (p->index_level == 0)
         OPTS_ADD(" --index-coding none");
     else if (p->index_level != TVPAL_CHUNKZ_LEVEL)
@@ -368,6 +378,7 @@ int tvpal_engine_manifest(const struct tvpal_engine_params *p,
     m->big_endian = src->big_endian;
     m->steps = p->steps;
     m->window = p->window;
+    m->schedule = p->schedule;
     m->nodes = p->nodes;
     m->axes_mask = p->axes;
     m->table_format = p->table_format;
@@ -413,7 +424,7 @@ static void gather(const struct tvpal_engine *e, const struct slicejob *jb,
     const uint32_t s = jb->slice - b->lo[axis], len = jb->len,
                    N = e->p.window;
     for (uint32_t j = 0; j < len; j++) {
-        const float *vol = e->ring[(t + j) % N];
+        const float *vol = e->ring[(t + j) % e->nring];
         float *out = samples + (size_t)j * sv;
         switch (axis) {
         case 0:
@@ -688,6 +699,7 @@ static int code_chunk(struct tvpal_engine *e, unsigned tid,
 static size_t plan_step(struct tvpal_engine *e, uint32_t t)
 {
     const uint32_t N = e->p.window;
+    const struct tvpal_schedule sc = tvpal_engine_schedule(&e->p);
     const struct encode_pass *ps = e->pass;
     struct slicejob *jobs = e->jobs;
     size_t njobs = 0, chunks = 0;
@@ -701,9 +713,9 @@ static size_t plan_step(struct tvpal_engine *e, uint32_t t)
         lo = lo > ps->s0[a] ? lo : ps->s0[a];
         hi = hi < ps->s1[a] ? hi : ps->s1[a];
         for (uint32_t s = lo; s < hi; s++) {
-            if (!tvpal_schedule_starts(s, t, N))
+            if (!tvpal_schedule_starts(&sc, s, t))
                 continue;
-            uint32_t len = tvpal_schedule_len(s, t, N, e->p.steps);
+            uint32_t len = tvpal_schedule_len(&sc, s, t);
             struct slicejob *prev = njobs ? &jobs[njobs - 1] : NULL;
             /* Extend the previous x group when this slice is the next of
              * its phase, in the same line, with the same window, and the

@@ -51,7 +51,21 @@ struct tvpal_engine_params {
      * plain; 1..19 codes each chunk with zstd at that level where that
      * makes it smaller (tvpal_chunkz_code). */
     int index_level;
+    uint32_t schedule;             /* TVPAL_SCHEDULE_* (FORMAT.md 5) */
 };
+
+/* The schedule of p's series, and its longest window: the steps the ring
+ * holds (tvpal_engine_slot) and a step is encoded after. */
+static inline struct tvpal_schedule
+tvpal_engine_schedule(const struct tvpal_engine_params *p)
+{
+    return tvpal_schedule_of(p->window, p->steps, p->schedule);
+}
+static inline uint32_t tvpal_engine_span(const struct tvpal_engine_params *p)
+{
+    const struct tvpal_schedule sc = tvpal_engine_schedule(p);
+    return tvpal_schedule_max_len(&sc);
+}
 
 /* One shard of the job: its header, set by tvpal_engine_create, and its
  * writer, the caller's (NULL until it opens one). */

@@ -29,7 +29,7 @@ uint64_t tvpal_passes_levels_bytes(const struct tvpal_engine_params *p,
                                    uint64_t slab_voxels)
 {
     const uint64_t plane = (uint64_t)p->dims[0] * p->dims[1];
-    const uint64_t ring = p->steps < p->window ? p->steps : p->window;
+    const uint64_t ring = tvpal_engine_span(p);
     uint64_t b = slab_voxels ? slab_voxels * sizeof(float) + 2 * plane * 4
                              : 0;
     for (unsigned k = 1; k <= levels; k++) {

@@ -705,7 +705,9 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
         p->fd = -1;
     }
     if (!incore && nslabs > 0) {
-        const unsigned win = tvpal_shard_hdr(s->p[0].sh)->window;
+        const struct tvpal_schedule sc =
+            tvpal_shard_schedule(tvpal_shard_hdr(s->p[0].sh));
+        const unsigned win = tvpal_schedule_max_len(&sc);
         /* A step's records over the shards (the largest after record 0
          * of each). */
         uint64_t step_bytes = 0;
@@ -728,7 +730,7 @@ int tvpal_stream_create(struct tvpal_stream **out, struct tvpal_slab **slabs,
         struct part *p = &s->p[i];
         const struct tvpal_shard_header *h = tvpal_shard_hdr(p->sh);
         rc = open_part(s, p, diag);
-        if (rc == 0 && h->version == TVPAL_FORMAT_VERSION_CODED)
+        if (rc == 0 && tvpal_shard_coded(p->sh))
             rc = open_inflater(s, p);
         if (rc < 0)
             break;
@@ -894,8 +896,9 @@ static uint64_t next_use(const struct tvpal_stream *s, const struct want *w,
         return q > t ? q - t : t - q;
     const uint32_t lo = s->loop_lo, hi = s->loop_hi;
     if (lo <= hi && t >= lo && t <= hi) {
-        const uint32_t N = tvpal_shard_hdr(s->p[0].sh)->window;
-        if (q < lo && q + N > lo)
+        const struct tvpal_schedule sc =
+            tvpal_shard_schedule(tvpal_shard_hdr(s->p[0].sh));
+        if (q < lo && q + tvpal_schedule_max_len(&sc) > lo)
             q = lo;
         else if (q < lo || q > hi)
             return 2 * T;
@@ -1046,10 +1049,12 @@ static void wanted_steps(const struct tvpal_stream *s, const struct part *p,
     w->hi = 0;
     w->list = 0;
     if (s->around && !s->ahead) {
-        /* Step q shows windows that start in [q - N + 1, q] (or at 0,
-         * record 0's first windows, when q < N): the records of
-         * [t - around - N + 1, t + around]. */
-        const uint32_t back = s->around + h->window - 1, fwd = s->around;
+        /* Step q shows windows that start in [q - L + 1, q], L the
+         * longest window (or at 0, record 0's first windows, when
+         * q < L): the records of [t - around - L + 1, t + around]. */
+        const struct tvpal_schedule sc = tvpal_shard_schedule(h);
+        const uint32_t back = s->around + tvpal_schedule_max_len(&sc) - 1,
+                       fwd = s->around;
         w->lo = t > back ? t - back : 0;
         w->hi = steps - 1 - t > fwd ? t + fwd : steps - 1;
         const int64_t sgn = dir < 0 ? -1 : 1;
@@ -1080,12 +1085,15 @@ static void wanted_steps(const struct tvpal_stream *s, const struct part *p,
             break;
         if (dir < 0 ? next > q : next < q) {
             /* Round the loop: the step there needs every window that
-             * covers it, the records begun in (next - N, next]. */
+             * covers it, the records of its windows' starts. */
             w->list = 1;
-            const uint32_t from = (uint32_t)next + 1 > h->window
-                                      ? (uint32_t)next + 1 - h->window : 0;
-            for (uint32_t r = from; r < next && w->n + 1 < s->want_cap; r++)
-                w->step[w->n++] = r;
+            const struct tvpal_schedule sc = tvpal_shard_schedule(h);
+            uint32_t rec[TVPAL_SCHEDULE_RECORDS_MAX];
+            const unsigned nrec =
+                tvpal_schedule_records(&sc, (uint32_t)next, rec);
+            for (unsigned i = 0; i < nrec && rec[i] < next &&
+                                 w->n + 1 < s->want_cap; i++)
+                w->step[w->n++] = rec[i];
         }
         q = (uint32_t)next;
         w->step[w->n++] = q;

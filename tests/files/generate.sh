@@ -72,13 +72,16 @@ PY
 # f32 tables, one node; N = 2 over T = 3 steps: a short first window
 # (odd slices: [0,1)) and a window cut at T (even slices: [2,3)).  --table
 # f32 is said since the default became auto (table_format 4).
-good good-1-basic blobs 4x3x2 3 --window 2 --table f32 --axes xyz --index-coding none
+good good-1-basic blobs 4x3x2 3 --window 2 --table f32 --axes xyz --index-coding none \
+    --schedule staggered
 # 16-bit tables, two nodes; node 1 of axis z holds one slice (phase 0), so
 # its record 1 holds no chunk.
-good good-2-u16-nodes turbulence 4x3x3 3 --window 2 --nodes 2 --table u16 --axes xyz --index-coding none
+good good-2-u16-nodes turbulence 4x3x3 3 --window 2 --nodes 2 --table u16 --axes xyz --index-coding none \
+    --schedule staggered
 # One axis (FORMAT.md 2.2): blobs 4x3x2, T = 3, N = 2, --axes z: node-0 has
 # axis-z.tvps only, the manifest format_version 3 and axes = z.
-good good-4-axis-z blobs 4x3x2 3 --window 2 --table f32 --axes z --index-coding none
+good good-4-axis-z blobs 4x3x2 3 --window 2 --table f32 --axes z --index-coding none \
+    --schedule staggered
 # Missing values, 16-bit tables (table_format 3): blobs 4x3x2, T = 3, N = 2,
 # voxel (1,1,0) missing at every step and voxel (2,0,1) at step 1 only.
 "$GEN" --field blobs --dims 4x3x2 --steps 3 -o "$tmp/in-good-3-missing" > /dev/null
@@ -93,7 +96,8 @@ for t, f in enumerate(sorted(glob.glob(sys.argv[1] + "/*.f32"))):
             b[4 * i:4 * i + 4] = nan
     open(f, "wb").write(b)
 PY
-good_encode good-3-missing 4x3x2 --window 2 --table u16 --axes xyz --index-coding none
+good_encode good-3-missing 4x3x2 --window 2 --table u16 --axes xyz --index-coding none \
+    --schedule staggered
 # The table format per chunk (table_format 4, --table auto): 20x16x3, T = 3,
 # N = 2.  Slice z = 0 is smooth (coded with an error: 16-bit table), z = 1
 # holds the integers 0, 1, 2 (coded exactly, which a 16-bit table would
@@ -101,7 +105,8 @@ good_encode good-3-missing 4x3x2 --window 2 --table u16 --axes xyz --index-codin
 slices "$tmp/in-good-5-auto" 20 16 \
     "10 * math.sin(0.3 * x + 0.5 * t) * math.cos(0.2 * y)" \
     "float((x + y + t) % 3)" "5.0"
-good_encode good-5-auto 20x16x3 --window 2 --table auto --axes xyz --index-coding none
+good_encode good-5-auto 20x16x3 --window 2 --table auto --axes xyz --index-coding none \
+    --schedule staggered
 # Coded chunks (FORMAT.md 6.11, shard format_version 2, the encoder's default
 # since 1.8): blobs 64x64x4, T = 3, N = 2, axis z, written by the encoder of
 # 1.8 (kept: see above); --index-coding none above keeps good-1 to good-5
@@ -116,7 +121,12 @@ cp -r "$tmp/frozen-good-6-coded" "$O/good-6-coded"
 slices "$tmp/in-good-7-coded-t2" 40 32 "math.sin(x / 6 + t / 3 + r[y])" \
     "math.exp(-((x - 20 - t) ** 2 + (y - 16) ** 2) / 60.0)" \
     "float((x // 8 + y // 8 + t) % 3)"
-good_encode good-7-coded-t2 40x32x3 --window 2 --axes z
+good_encode good-7-coded-t2 40x32x3 --window 2 --axes z --schedule staggered
+# The joined window schedule (FORMAT.md 5, shard format_version 3, manifest
+# format_version 4, the encoder's default since 1.11): blobs 4x3x5, T = 5,
+# N = 2, all axes, plain: slices of phase 1 have the first window [0, 3)
+# (wlen 3 > N), record 1 holds no chunk, every other record one phase.
+good good-8-joined blobs 4x3x5 5 --window 2 --table f32 --axes xyz --index-coding none
 
 # The bad files: each one copy of a good-1-basic file with one fault.
 "$PY" - "$O" <<'PY'
@@ -166,8 +176,10 @@ def write(name, b):
 
 b = bytearray(shard); b[0:4096] = bytes(4096)
 write("bad-shard-unfinished.tvps", b)          # header never written
-b = bytearray(shard); u32(b, 8, 3)             # CRC left stale on purpose
-write("bad-shard-version-3.tvps", b)
+b = bytearray(shard); u32(b, 8, 4)             # CRC left stale on purpose
+write("bad-shard-version-4.tvps", b)
+b = bytearray(shard); u32(b, 8, 3); seal_header(b)   # joined, schedule 0
+write("bad-shard-schedule.tvps", b)
 b = bytearray(shard); b[2000] ^= 0x01          # a reserved byte
 write("bad-shard-header-crc.tvps", b)
 b = bytearray(shard); u32(b, 64, 6); seal_header(b)
@@ -267,7 +279,11 @@ def mwrite(name, t):
     open(O + "/" + name, "w", newline="").write(t)
 mwrite("bad-manifest-no-window.txt", edit("window", None))
 mwrite("bad-manifest-format.txt", edit("format", "tvpal-dataset-2"))
-mwrite("bad-manifest-version-4.txt", edit("format_version", "4"))
+mwrite("bad-manifest-version-5.txt", edit("format_version", "5"))
+mwrite("bad-manifest-schedule-version.txt", edit("window", "2\nschedule = joined"))
+mwrite("bad-manifest-schedule-mismatch.txt",
+       edit("format_version", "4").replace("window = 2", "window = 2\nschedule = joined"))
+mwrite("bad-manifest-schedule.txt", edit("window", "2\nschedule = aligned"))
 mwrite("bad-manifest-levels-9.txt", edit("table", "f32\nlevels = 9"))
 mwrite("bad-manifest-window-17.txt", edit("window", "17"))
 mwrite("bad-manifest-dims.txt", edit("dims", "4x3"))
