@@ -117,13 +117,13 @@ $PY - "$W/k3c/node-2/axis-z.tvps" <<'PY'
 import struct, sys
 p = sys.argv[1]; b = bytearray(open(p, "rb").read())
 idx = struct.unpack_from("<Q", b, 72)[0]
-off = struct.unpack_from("<Q", b, idx + 32 * 1)[0]
+off = struct.unpack_from("<Q", b, idx + 32 * 2)[0]  # (N = 2, joined: record 1 is empty)
 b[off + 64 + 5] ^= 0x40
 open(p, "wb").write(b)
 PY
-expect_exit 2 "rank 2: step 1: .*axis-z.tvps: record 1: payload CRC-32C mismatch" \
+expect_exit 2 "rank 2: step 2: .*axis-z.tvps: record 2: payload CRC-32C mismatch" \
     $MPI -np 3 "$PLAY" "$W/k3c" --headless -q $GLR --rotate 0,0 --strict
-expect_exit 1 "rank 2: step 1: .*record 1: payload CRC-32C mismatch \(keeping" \
+expect_exit 1 "rank 2: step 2: .*record 2: payload CRC-32C mismatch \(keeping" \
     $MPI -np 3 "$PLAY" "$W/k3c" --headless -q $GLR --rotate 0,0
 # A rank that dies (SIGKILL mid-playback) ends the job instead of hanging.
 $MPI -np 3 "$PLAY" "$W/k3" --headless -q $GLR --size 64x56 --spin 3 --steps 0:2 --repeat 20000 \
