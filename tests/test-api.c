@@ -167,6 +167,8 @@ static void test_params(void)
               strstr(d.msg, "window"), "window 17: %s", d.msg);
     CHECK(tvpal_encoder_set(e, TVPAL_PARAM_WINDOW, 2.5, &d) == TVPAL_E_INVAL,
           "window 2.5 taken");
+    CHECK(tvpal_encoder_set(e, TVPAL_PARAM_SCHEDULE, 2, &d) == TVPAL_E_INVAL &&
+              strstr(d.msg, "schedule"), "schedule 2: %s", d.msg);
     CHECK(tvpal_encoder_set(e, TVPAL_PARAM_AXES, 8, &d) == TVPAL_E_INVAL,
           "axes 8 taken");
     CHECK(tvpal_encoder_set(e, (enum tvpal_param)99, 1, &d) ==
@@ -244,9 +246,11 @@ static void test_identical_and_read(void)
     const struct tvpal_info *in = tvpal_reader_info(r);
     CHECK(in->dims[0] == NX && in->dims[1] == NY && in->dims[2] == NZ &&
               in->steps == T && in->window == 3 &&
-              in->axes == (TVPAL_AXIS_X | TVPAL_AXIS_Z) && in->levels == 0,
-          "info: %ux%ux%u steps %u window %u axes %u", in->dims[0],
-          in->dims[1], in->dims[2], in->steps, in->window, in->axes);
+              in->axes == (TVPAL_AXIS_X | TVPAL_AXIS_Z) && in->levels == 0 &&
+              in->schedule == TVPAL_SCHEDULE_JOINED,
+          "info: %ux%ux%u steps %u window %u axes %u schedule %u",
+          in->dims[0], in->dims[1], in->dims[2], in->steps, in->window,
+          in->axes, in->schedule);
     CHECK(in->spacing[0] == 0.5 && in->spacing[2] == 2 &&
               in->origin[0] == -1 && in->origin[2] == 3,
           "grid: %g %g, %g %g", in->spacing[0], in->spacing[2],
@@ -547,6 +551,11 @@ static void test_collective(void)
                 "push: %s", d.msg);
     }
     REQUIRE(tvpal_encoder_finish(e, &d) == 0, "finish: %s", d.msg);
+    struct tvpal_reader *r = NULL;
+    CHECK(tvpal_reader_open(&r, path("%s/one%s", ""), &d) == 0 &&
+              tvpal_reader_info(r)->schedule == TVPAL_SCHEDULE_STAGGERED,
+          "TVPAL_SCHEDULE_STAGGERED: %s", d.msg);
+    tvpal_reader_close(r);
 
     struct rank_job j[RANKS];
     run_ranks(j, path("%s/ranks%s", ""), -1, "");
