@@ -1156,8 +1156,9 @@ static void say_plan(const struct run *r, const struct tvpal_plan *pl,
             cluster_size(r), desc, read_factor, need, lim, r->limit_why);
     else
         msg("plan: %s, reading the input %.2f times: one ring of all %u "
-            "timesteps of the longest window would need %s, over the memory limit %s "
-            "(%s); each pass needs about %s", desc, read_factor,
+            "timesteps of the longest window would need %s, over the "
+            "memory limit %s (%s); each pass needs about %s", desc,
+            read_factor,
             ring_slots(r), ring, lim, r->limit_why, need);
 }
 

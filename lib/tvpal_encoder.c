@@ -5,11 +5,12 @@
  * volumes (tvpal_engine.h; L the longest window, tvpal_engine_span: 2N - 1
  * in the joined schedule, N staggered); once step p is in, every
  * slice-window that starts at p - L + 1 has its steps and is encoded, so
- * the encoder holds L steps and its workspaces whatever T is.  The shards are written in
- * place under DIR.partial as they are coded, the manifest at the end, and
- * the dataset is read back before DIR.partial becomes DIR (the order of
- * tvpal-encode: no file at DIR looks complete before it is).  The shards
- * are those tvpal-encode writes from the same values in files.
+ * the encoder holds L steps and its workspaces whatever T is.  The shards
+ * are written in place under DIR.partial as they are coded, the manifest
+ * at the end, and the dataset is read back before DIR.partial becomes DIR
+ * (the order of tvpal-encode: no file at DIR looks complete before it
+ * is).  The shards are those tvpal-encode writes from the same values in
+ * files.
  */
 #define _GNU_SOURCE
 #include "tvpal_encoder_impl.h"

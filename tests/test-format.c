@@ -16,6 +16,8 @@
 /* The schedule of shard header h (tvpal_shard_schedule), as a pointer. */
 #define SCHED(h)                                                              \
     (&(struct tvpal_schedule){(h)->window, (h)->steps, (h)->schedule})
+/* N = 4, T = 9, staggered. */
+#define STAGGERED_4_9 (&(struct tvpal_schedule){4, 9, TVPAL_SCHEDULE_STAGGERED})
 
 #include <fcntl.h>
 #include <stdio.h>
@@ -843,8 +845,9 @@ int main(void)
             j.schedule = pairs[i][1];
             tvpal_shard_header_encode(&j, hb);
             const int rc = tvpal_shard_header_decode(hb, &g, &d);
-            CHECK(pairs[i][2] ? rc == TVPAL_E_FORMAT && strstr(d.msg, "schedule")
-                              : rc == 0 && g.schedule == j.schedule,
+            CHECK(pairs[i][2]
+                      ? rc == TVPAL_E_FORMAT && strstr(d.msg, "schedule")
+                      : rc == 0 && g.schedule == j.schedule,
                   "version %u schedule %u: %d %s", j.version, j.schedule, rc,
                   d.msg);
         }
@@ -920,7 +923,7 @@ int main(void)
         uint64_t bytes = build_record(&h, 0, rec);
         struct tvpal_record_header rh;
         tvpal_record_header_decode(rec, &rh, NULL);
-        uint64_t first = tvpal_chunk_bytes(tvpal_schedule_len(&(struct tvpal_schedule){4, 9, TVPAL_SCHEDULE_STAGGERED}, h.slice_begin, 0),
+        uint64_t first = tvpal_chunk_bytes(tvpal_schedule_len(STAGGERED_4_9, h.slice_begin, 0),
                                            h.slice_w, h.slice_h, 0);
         memmove(rec + 64, rec + 64 + first, rh.payload_bytes - first);
         tvpal_record_seal(rec, 0, 0, rh.chunk_count - 1, rh.payload_bytes - first);
@@ -932,7 +935,7 @@ int main(void)
         uint64_t bytes = build_record(&h, 0, rec);
         struct tvpal_record_header rh;
         tvpal_record_header_decode(rec, &rh, NULL);
-        uint64_t first = tvpal_chunk_bytes(tvpal_schedule_len(&(struct tvpal_schedule){4, 9, TVPAL_SCHEDULE_STAGGERED}, h.slice_begin, 0),
+        uint64_t first = tvpal_chunk_bytes(tvpal_schedule_len(STAGGERED_4_9, h.slice_begin, 0),
                                            h.slice_w, h.slice_h, 0);
         rec[64 + first] ^= 1; /* magic of chunk 1 */
         tvpal_record_seal(rec, 0, 0, rh.chunk_count, rh.payload_bytes);

@@ -377,7 +377,8 @@ static uint64_t placed_offset(const struct tvpal_shardw *w, uint32_t t,
         return w->first_off[s - h->slice_begin];
     /* The slab's first slice of phase t mod N, then every N-th. */
     const uint32_t N = h->window;
-    const uint32_t first = h->slice_begin + (t % N + N - h->slice_begin % N) % N;
+    const uint32_t first =
+        h->slice_begin + (t % N + N - h->slice_begin % N) % N;
     return (uint64_t)((s - first) / N) * placed_chunk_bytes(w, s, t);
 }
 
