@@ -766,10 +766,11 @@ static void print_text(const struct report *r)
 {
     const struct tvpal_info *m = r->m;
     const uint64_t *ab = r->sz.axis_bytes;
-    printf("dataset %s: %ux%ux%u %s, %u steps, window %u, %u node%s\n",
+    printf("dataset %s: %ux%ux%u %s, %u steps, window %u (%s), %u node%s\n",
            r->dir, m->dims[0], m->dims[1], m->dims[2], m->source_type,
-           r->steps, m->window, m->nodes,
-           m->nodes == 1 ? "" : "s");
+           r->steps, m->window,
+           m->schedule == TVPAL_SCHEDULE_JOINED ? "joined" : "staggered",
+           m->nodes, m->nodes == 1 ? "" : "s");
     printf("peak (max - min of the original) = %.9g  [%.9g, %.9g]\n",
            r->peak, r->vmin, r->vmax);
     printf("%6s", "step");
@@ -969,9 +970,11 @@ static void write_json_doc(FILE *f, const struct report *r)
     fprintf(f, "{\n  \"dataset\": ");
     jstr(f, r->dir);
     fprintf(f, ",\n  \"dims\": [%u, %u, %u],\n"
-            "  \"steps\": %u,\n  \"window\": %u,\n  \"nodes\": %u,\n"
-            "  \"peak\": ", m->dims[0], m->dims[1], m->dims[2], r->steps,
-            m->window, m->nodes);
+            "  \"steps\": %u,\n  \"window\": %u,\n  \"schedule\": \"%s\",\n"
+            "  \"nodes\": %u,\n  \"peak\": ", m->dims[0], m->dims[1],
+            m->dims[2], r->steps, m->window,
+            m->schedule == TVPAL_SCHEDULE_JOINED ? "joined" : "staggered",
+            m->nodes);
     jnum(f, r->peak);
     write_json_axes(f, r);
     write_json_steps(f, r);
