@@ -626,7 +626,7 @@ struct tvpal_info {
     const char *const *sources;    /* nsources paths, as given */
     uint32_t nsources;
     /* Since 0.4.0. */
-    uint32_t schedule;        /* TVPAL_SCHEDULE_STAGGERED or _WHOLE */
+    uint32_t schedule;        /* TVPAL_SCHEDULE_STAGGERED or _JOINED */
 };
 
 struct tvpal_reader;

@@ -221,6 +221,42 @@ static void set_index_coding(struct tvpal_encoder *e, enum tvpal_param param,
     }
 }
 
+/* The coder's two-way choices: TVPAL_PARAM_TRANSFORM, _ALLOC, _NAIVE and
+ * _SCHEDULE.  A value that is neither sets *name and *range for the
+ * caller's message. */
+static void set_coder_choice(struct tvpal_engine_params *p,
+                             enum tvpal_param param, double value,
+                             const char **name, const char **range)
+{
+    switch (param) {
+    case TVPAL_PARAM_TRANSFORM:
+        if (value != TVPAL_TRANSFORM_DCT && value != TVPAL_TRANSFORM_KLT)
+            *name = "transform", *range = "TVPAL_TRANSFORM_DCT or _KLT";
+        else
+            p->klt = value == TVPAL_TRANSFORM_KLT;
+        break;
+    case TVPAL_PARAM_ALLOC:
+        if (value != TVPAL_ALLOC_VARIANCE && value != TVPAL_ALLOC_GREEDY_MSE)
+            *name = "alloc", *range = "TVPAL_ALLOC_VARIANCE or _GREEDY_MSE";
+        else
+            p->alloc_mse = value == TVPAL_ALLOC_GREEDY_MSE;
+        break;
+    case TVPAL_PARAM_NAIVE:
+        if (value != 0 && value != 1)
+            *name = "naive", *range = "0 or 1";
+        else
+            p->naive = value == 1;
+        break;
+    default: /* TVPAL_PARAM_SCHEDULE */
+        if (value != TVPAL_SCHEDULE_STAGGERED &&
+            value != TVPAL_SCHEDULE_JOINED)
+            *name = "schedule", *range = "TVPAL_SCHEDULE_STAGGERED or _JOINED";
+        else
+            p->schedule = (uint32_t)value;
+        break;
+    }
+}
+
 int tvpal_encoder_set(struct tvpal_encoder *e, enum tvpal_param param,
                       double value, struct tvpal_diag *diag)
 {
@@ -265,16 +301,10 @@ int tvpal_encoder_set(struct tvpal_encoder *e, enum tvpal_param param,
             p->refine = (uint32_t)value;
         break;
     case TVPAL_PARAM_TRANSFORM:
-        if (value != TVPAL_TRANSFORM_DCT && value != TVPAL_TRANSFORM_KLT)
-            name = "transform", range = "TVPAL_TRANSFORM_DCT or _KLT";
-        else
-            p->klt = value == TVPAL_TRANSFORM_KLT;
-        break;
     case TVPAL_PARAM_ALLOC:
-        if (value != TVPAL_ALLOC_VARIANCE && value != TVPAL_ALLOC_GREEDY_MSE)
-            name = "alloc", range = "TVPAL_ALLOC_VARIANCE or _GREEDY_MSE";
-        else
-            p->alloc_mse = value == TVPAL_ALLOC_GREEDY_MSE;
+    case TVPAL_PARAM_NAIVE:
+    case TVPAL_PARAM_SCHEDULE:
+        set_coder_choice(p, param, value, &name, &range);
         break;
     case TVPAL_PARAM_THREADS:
         if (!whole_in(value, 0, 1024))
@@ -293,12 +323,6 @@ int tvpal_encoder_set(struct tvpal_encoder *e, enum tvpal_param param,
             name = "nan_as", range = "a finite value within 1e37";
         else
             e->has_nan_as = 1, e->nan_as = value;
-        break;
-    case TVPAL_PARAM_NAIVE:
-        if (value != 0 && value != 1)
-            name = "naive", range = "0 or 1";
-        else
-            p->naive = value == 1;
         break;
     case TVPAL_PARAM_FORCE:
         if (value != 0 && value != 1)
@@ -321,12 +345,6 @@ int tvpal_encoder_set(struct tvpal_encoder *e, enum tvpal_param param,
     case TVPAL_PARAM_INDEX_CODING:
     case TVPAL_PARAM_INDEX_LEVEL:
         set_index_coding(e, param, value, &name, &range);
-        break;
-    case TVPAL_PARAM_SCHEDULE:
-        if (value != TVPAL_SCHEDULE_STAGGERED && value != TVPAL_SCHEDULE_JOINED)
-            name = "schedule", range = "TVPAL_SCHEDULE_STAGGERED or _WHOLE";
-        else
-            p->schedule = (uint32_t)value;
         break;
     case TVPAL_PARAM_CHECKPOINT:
         if (!whole_in(value, 0, UINT32_MAX))
