@@ -122,6 +122,8 @@ fi
 expect_exit 2 "index-coding.*zstd or none" "$ENC" -q --dims $D --index-coding lz4 -o "$W/bad" "$W"/in/*.f32
 expect_exit 2 "index-level.*1\.\.19" "$ENC" -q --dims $D --index-level 20 -o "$W/bad" "$W"/in/*.f32
 expect_exit 2 "index-level.*1\.\.19" "$ENC" -q --dims $D --index-level 0 -o "$W/bad" "$W"/in/*.f32
+expect_exit 2 "schedule \"aligned\": expected joined or staggered" \
+    "$ENC" -q --dims $D --schedule aligned -o "$W/bad" "$W"/in/*.f32
 
 # A coded frame damaged, the record's CRCs made valid again (a forger's or
 # a bug's, not the disk's): record 2 of node-0's z shard, its first coded
