@@ -805,8 +805,9 @@ static int open_writers(struct tvpal_encoder *e, uint64_t done,
     return 0;
 }
 
-/* The job's identity in its checkpoints: the options that make its shards,
- * and the rank. */
+/* The job's identity in its checkpoints: the options that make its shards
+ * (the schedule said outright: the options line names only staggered, and
+ * a partial output of the other schedule must start over), and the rank. */
 static int make_fingerprint(struct tvpal_encoder *e)
 {
     const struct tvpal_engine_source src = {
@@ -814,8 +815,8 @@ static int make_fingerprint(struct tvpal_encoder *e)
         .missing = e->missing, .nmissing = e->nmissing};
     char opts[1024], params[1200];
     tvpal_engine_options_line(&e->ep, &src, opts, sizeof opts);
-    snprintf(params, sizeof params, "libtvpal %s rank=%d/%d", opts,
-             e->coll.rank, e->coll.size);
+    snprintf(params, sizeof params, "libtvpal %s schedule=%u rank=%d/%d",
+             opts, e->ep.schedule, e->coll.rank, e->coll.size);
     return tvpal_checkpoint_fingerprint(params, NULL, 0, 0, &e->fp);
 }
 

@@ -281,8 +281,8 @@ int tvpal_enc_source_plan(struct tvpal_encoder *e, unsigned nt,
 }
 
 /* The job's identity in its checkpoints: the options that make its
- * shards, the plan (a resumed job must find the same passes) and the
- * source's identity. */
+ * shards (the schedule said outright, as in tvpal_encoder.c), the plan (a
+ * resumed job must find the same passes) and the source's identity. */
 static int make_fingerprint(struct tvpal_encoder *e)
 {
     const struct tvpal_engine_source src = {
@@ -292,9 +292,10 @@ static int make_fingerprint(struct tvpal_encoder *e)
     char opts[1024], key[96], *params = NULL;
     tvpal_engine_options_line(&e->ep, &src, opts, sizeof opts);
     encode_plan_key(&e->pull->plan, key, sizeof key);
-    if (asprintf(&params, "libtvpal source %s %s levels=%u rank=%d/%d "
-                 "identity=%s", opts, key, e->levels, e->coll.rank,
-                 e->coll.size, e->src->identity) < 0)
+    if (asprintf(&params, "libtvpal source %s schedule=%u %s levels=%u "
+                 "rank=%d/%d identity=%s", opts, e->ep.schedule, key,
+                 e->levels, e->coll.rank, e->coll.size,
+                 e->src->identity) < 0)
         return TVPAL_E_NOMEM;
     int rc = tvpal_checkpoint_fingerprint(params, NULL, 0, 0, &e->fp);
     free(params);

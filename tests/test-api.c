@@ -825,6 +825,22 @@ static void test_resume(void)
     CHECK(tvpal_reader_open(&r, dir, &d) == 0 &&
               tvpal_reader_info(r)->window == 4, "the started-over dataset");
     tvpal_reader_close(r);
+    /* A checkpoint of the other schedule (joined, the same window):
+     * started over too, its shards' layout being another. */
+    dir = path("%s/othersched%s", "");
+    crash_after(dir, 6);
+    REQUIRE(open_series(&e, dir, 3, &d) == 0 &&
+                tvpal_encoder_set(e, TVPAL_PARAM_SCHEDULE,
+                                  TVPAL_SCHEDULE_STAGGERED, &d) == 0,
+            "open: %s", d.msg);
+    CHECK(tvpal_encoder_resume(e, TVPAL_FLOAT32, &next, &d) == 0 && next == 0,
+          "the other schedule's checkpoint resumed at %u", next);
+    CHECK(push_steps(e, 0, T, &d) == 0 && tvpal_encoder_finish(e, &d) == 0,
+          "started over: %s", d.msg);
+    CHECK(tvpal_reader_open(&r, dir, &d) == 0 &&
+              tvpal_reader_info(r)->schedule == TVPAL_SCHEDULE_STAGGERED,
+          "the started-over dataset's schedule");
+    tvpal_reader_close(r);
     /* A shard changed since its checkpoint: refused, naming the file. */
     dir = path("%s/changed%s", "");
     crash_after(dir, 6);
