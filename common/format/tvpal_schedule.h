@@ -102,6 +102,8 @@ static inline unsigned tvpal_schedule_records(const struct tvpal_schedule *sc,
                                               uint32_t t, uint32_t *steps)
 {
     uint32_t mask = 0;   /* bit d: record t - d; d < max_len <= 31 */
+    /* Phases r >= T (T < N) hold t < T <= r in their first window, at 0,
+     * as phase 0 does. */
     const uint32_t n = sc->N < sc->T ? sc->N : sc->T;
     for (uint32_t r = 0; r < n; r++)
         mask |= 1u << (t - tvpal_schedule_start(sc, r, t));
