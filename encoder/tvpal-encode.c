@@ -26,6 +26,7 @@
 #include "encode_say.h"
 #include "encode_source.h"
 #include "tvpal_cli.h"
+#include "tvpal_schedule.h"
 #include "tvpal_chunkz.h"
 #include "tvpal_clock.h"
 #include "tvpal_comm.h"
@@ -644,12 +645,13 @@ static void print_size(char *buf, size_t cap, uint64_t b)
         snprintf(buf, cap, "%.1f MiB", (double)b / (1u << 20));
 }
 
-/* Boxes in the ring: the longest window's steps (2N - 1 joined, N
- * staggered, or T when the series is shorter). */
+/* Boxes in the ring: the longest window's steps. */
 static uint32_t ring_slots(const struct run *r)
 {
-    const uint32_t N = r->N, T = r->T, L = r->o.staggered ? N : 2 * N - 1;
-    return T < L ? T : L;
+    const struct tvpal_schedule sc = tvpal_schedule_of(
+        r->N, r->T, r->o.staggered ? TVPAL_SCHEDULE_STAGGERED
+                                   : TVPAL_SCHEDULE_JOINED);
+    return tvpal_schedule_max_len(&sc);
 }
 
 /* Ranks of this job on this machine, from what the launchers set (Open

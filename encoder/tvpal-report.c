@@ -30,6 +30,7 @@
 #include "tvpal_levels.h"
 #include "tvpal_pool.h"
 #include "tvpal_raw.h"
+#include "tvpal_schedule.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -769,7 +770,7 @@ static void print_text(const struct report *r)
     printf("dataset %s: %ux%ux%u %s, %u steps, window %u (%s), %u node%s\n",
            r->dir, m->dims[0], m->dims[1], m->dims[2], m->source_type,
            r->steps, m->window,
-           m->schedule == TVPAL_SCHEDULE_JOINED ? "joined" : "staggered",
+           tvpal_schedule_name(m->schedule),
            m->nodes, m->nodes == 1 ? "" : "s");
     printf("peak (max - min of the original) = %.9g  [%.9g, %.9g]\n",
            r->peak, r->vmin, r->vmax);
@@ -973,7 +974,7 @@ static void write_json_doc(FILE *f, const struct report *r)
             "  \"steps\": %u,\n  \"window\": %u,\n  \"schedule\": \"%s\",\n"
             "  \"nodes\": %u,\n  \"peak\": ", m->dims[0], m->dims[1],
             m->dims[2], r->steps, m->window,
-            m->schedule == TVPAL_SCHEDULE_JOINED ? "joined" : "staggered",
+            tvpal_schedule_name(m->schedule),
             m->nodes);
     jnum(f, r->peak);
     write_json_axes(f, r);

@@ -726,7 +726,7 @@ static int encode_step(struct tvpal_encoder *e, uint32_t t,
 static int encode_passes(struct tvpal_encoder *e, struct tvpal_diag *diag)
 {
     struct pull *pl = e->pull;
-    const uint32_t T = e->ep.steps, N = tvpal_engine_span(&e->ep);
+    const uint32_t T = e->ep.steps, L = tvpal_engine_span(&e->ep);
     uint64_t u = pl->start;
     for (uint32_t pi = (uint32_t)(u / T); pi < pl->plan.npasses; pi++) {
         pl->pass = &pl->plan.pass[pi];
@@ -734,7 +734,7 @@ static int encode_passes(struct tvpal_encoder *e, struct tvpal_diag *diag)
         tvpal_engine_set_pass(e->eng, pl->pass);
         uint32_t loaded = (uint32_t)(u - (uint64_t)pi * T);
         for (uint32_t t = loaded; t < T; t++) {
-            const uint32_t need = t + N < T ? t + N : T;
+            const uint32_t need = t + L < T ? t + L : T;
             for (; loaded < need; loaded++) {
                 int rc = load_step(e, loaded, diag);
                 if (rc < 0)

@@ -77,7 +77,7 @@ int tvpal_manifest_format(const struct tvpal_manifest *m, char **out)
             m->nodes);
     /* Absent means staggered (every dataset before the key). */
     if (m->schedule == TVPAL_SCHEDULE_JOINED)
-        fprintf(f, "schedule = joined\n");
+        fprintf(f, "schedule = %s\n", tvpal_schedule_name(m->schedule));
     /* Absent means all three (datasets as before the key had a rule). */
     if (m->axes_mask != TVPAL_AXES_ALL)
         fprintf(f, "axes = %s\n", tvpal_axes_format(m->axes_mask, axes));
@@ -308,9 +308,11 @@ static int manifest_set(struct tvpal_manifest *m, const char *k, char *v,
                                   "line %u: format_version %s, expected 1 "
                                   "to 4", lineno, v);
     } else if (!strcmp(k, "schedule")) {
-        bad = strcmp(v, "joined") && strcmp(v, "staggered");
-        m->schedule = !strcmp(v, "joined") ? TVPAL_SCHEDULE_JOINED
-                                          : TVPAL_SCHEDULE_STAGGERED;
+        const char *joined = tvpal_schedule_name(TVPAL_SCHEDULE_JOINED);
+        bad = strcmp(v, joined) &&
+              strcmp(v, tvpal_schedule_name(TVPAL_SCHEDULE_STAGGERED));
+        m->schedule = !strcmp(v, joined) ? TVPAL_SCHEDULE_JOINED
+                                         : TVPAL_SCHEDULE_STAGGERED;
     } else if (!strcmp(k, "axes")) {
         bad = tvpal_axes_parse(v, &m->axes_mask) < 0;
     } else if (!strcmp(k, "dims")) {

@@ -95,6 +95,25 @@ static inline uint32_t tvpal_schedule_max_len(const struct tvpal_schedule *sc)
     return sc->T < L ? sc->T : L;
 }
 
+/* The name of a kind, as the manifest key and the tools write it. */
+static inline const char *tvpal_schedule_name(uint32_t kind)
+{
+    return kind == TVPAL_SCHEDULE_JOINED ? "joined" : "staggered";
+}
+
+/* Records t - d for the bits d set in mask (d <= 31), ascending into
+ * steps; returns how many: the tail of tvpal_schedule_records and of a
+ * slab's own count of what it needs (tvpal_slab_needed). */
+static inline unsigned tvpal_schedule_mask_steps(uint32_t t, uint32_t mask,
+                                                 uint32_t *steps)
+{
+    unsigned k = 0;
+    for (int d = 31; d >= 0; d--)
+        if (mask & (1u << d))
+            steps[k++] = t - (uint32_t)d;
+    return k;
+}
+
 /* The records step t (< T) needs, one per window start of any slice
  * (every phase's), ascending into steps: at most N, all in
  * (t - max_len, t].  Returns how many. */
@@ -107,11 +126,7 @@ static inline unsigned tvpal_schedule_records(const struct tvpal_schedule *sc,
     const uint32_t n = sc->N < sc->T ? sc->N : sc->T;
     for (uint32_t r = 0; r < n; r++)
         mask |= 1u << (t - tvpal_schedule_start(sc, r, t));
-    unsigned k = 0;
-    for (int d = 31; d >= 0; d--)
-        if (mask & (1u << d))
-            steps[k++] = t - (uint32_t)d;
-    return k;
+    return tvpal_schedule_mask_steps(t, mask, steps);
 }
 
 /* The phase whose slices start a window at t, 0 < t < T, in *r; 0 when

@@ -944,8 +944,9 @@ int tvpal_shard_count_tables(struct tvpal_shard *s,
                              struct tvpal_diag *diag)
 {
     const struct tvpal_shard_header *h = &s->h;
-    const int per_chunk = h->table_format >= TVPAL_TABLE_CHUNK ||
-                          h->version >= TVPAL_FORMAT_VERSION_CODED;
+    /* Each chunk's header is read where the table format varies by chunk
+     * or some record is coded (its chunks' stored sizes vary). */
+    const int per_chunk = h->table_format >= TVPAL_TABLE_CHUNK || s->coded;
     const uint32_t allowed =
         tvpal_chunk_flags_allowed(h->table_format) |
         (h->version >= TVPAL_FORMAT_VERSION_CODED ? TVPAL_CHUNK_CODED_BITS
@@ -1108,10 +1109,9 @@ void tvpal_slab_free(struct tvpal_slab *s)
 }
 
 unsigned tvpal_slab_needed(const struct tvpal_slab *s, uint32_t t,
-                           uint32_t steps[16])
+                           uint32_t steps[TVPAL_SCHEDULE_RECORDS_MAX])
 {
     const struct tvpal_shard_header *h = &s->sh->h;
-    unsigned n = 0;
     const struct tvpal_schedule sc = tvpal_shard_schedule(h);
     /* bit d: record t - d is needed (d < max_len <= 31) */
     uint32_t need_mask = 0;
@@ -1122,10 +1122,7 @@ unsigned tvpal_slab_needed(const struct tvpal_slab *s, uint32_t t,
             continue;
         need_mask |= 1u << (t - ws);
     }
-    for (int d = 31; d >= 0; d--)
-        if (need_mask & (1u << d))
-            steps[n++] = t - (uint32_t)d;
-    return n;
+    return tvpal_schedule_mask_steps(t, need_mask, steps);
 }
 
 /* Whether chunk c is the window of its slice that holds t.  Record 0,
@@ -1327,7 +1324,7 @@ void tvpal_slab_unstage(struct tvpal_slab *s)
 
 int tvpal_slab_seek(struct tvpal_slab *s, uint32_t t, struct tvpal_diag *diag)
 {
-    uint32_t steps[16];
+    uint32_t steps[TVPAL_SCHEDULE_RECORDS_MAX];
     if (t >= s->sh->h.steps)
         return tvpal_diag_set(diag, TVPAL_E_INVAL,
                               "step %u out of range (0..%u)", t,

@@ -200,7 +200,7 @@ void tvpal_slab_free(struct tvpal_slab *slab);   /* NULL is a no-op */
 /* Steps of the records needed to hold timestep t (ascending, at most N),
  * given what is loaded now; writes them to steps and returns the count. */
 unsigned tvpal_slab_needed(const struct tvpal_slab *slab, uint32_t t,
-                           uint32_t steps[16]);
+                           uint32_t steps[TVPAL_SCHEDULE_RECORDS_MAX]);
 
 /* Installs, from a verified record (read by any I/O backend), the chunks of
  * the slices whose window holding timestep t starts at that record's step.

@@ -293,10 +293,10 @@ static void print_start_line(const struct headless *h)
         snprintf(fx, sizeof fx, ", fixed buffers %s%s%s%s", ip.fixed,
                  ip.fixed_why[0] ? " (" : "", ip.fixed_why,
                  ip.fixed_why[0] ? ")" : "");
-    fprintf(stderr, PROG ": %s: %ux%ux%u, %u steps, window %u%s%s; axis %c, "
+    fprintf(stderr, PROG ": %s: %ux%ux%u, %u steps, window %u %s%s; axis %c, "
             "data %s (%s, O_DIRECT %s%s), renderer %s (%s%s)\n", h->o->dir,
             m->dims[0], m->dims[1], m->dims[2], m->steps, m->window,
-            m->schedule == TVPAL_SCHEDULE_JOINED ? " joined" : "", lv,
+            tvpal_schedule_name(m->schedule), lv,
             "xyz"[h->vl.axis], h->o->po.incore ? "in-core" : "streamed",
             ip.io, ip.direct, fx, h->pr.r.name,
             play_renderer_describe(&h->pr, desc, sizeof desc),

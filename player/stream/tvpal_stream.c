@@ -998,7 +998,7 @@ static int seek_incore(struct tvpal_stream *s, uint32_t t,
     int err = 0;
     for (unsigned pi = 0; pi < s->n; pi++) {
         struct part *p = &s->p[pi];
-        uint32_t need[16];
+        uint32_t need[TVPAL_SCHEDULE_RECORDS_MAX];
         unsigned nn = tvpal_slab_needed(p->slab, t, need);
         for (unsigned i = 0; i < nn; i++) {
             if (p->bad[need[i]]) {
@@ -1687,7 +1687,7 @@ int tvpal_stream_prepare(struct tvpal_stream *s, uint32_t t, int dir,
  * that record again. */
 static int part_holds(const struct part *p, uint32_t t)
 {
-    uint32_t need[16];
+    uint32_t need[TVPAL_SCHEDULE_RECORDS_MAX];
     const unsigned nn = tvpal_slab_needed(p->slab, t, need);
     for (unsigned i = 0; i < nn; i++) {
         const int k = find_slot(p, need[i]);
