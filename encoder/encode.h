@@ -53,6 +53,7 @@ struct opts {
     int naive, klt, alloc_mse;
     int index_none;            /* --index-coding none */
     int staggered;             /* --schedule staggered */
+    uint32_t group;            /* --group G: palette groups (1: none) */
     uint32_t index_level;      /* --index-level (zstd) */
     int has_nan_as;
     double nan_as;

@@ -117,6 +117,13 @@ static void usage_encoding(FILE *f)
 "                         N..2N-1 steps, 2N-1 steps held in memory; needs\n"
 "                         tvpal 0.4.0 to read) or staggered (the paper's:\n"
 "                         windows of 1..N steps, N steps held, as before)\n"
+"      --group G          palette groups: the G slices gG..gG+G-1 of an\n"
+"                         axis share one decoder table per window (at most\n"
+"                         262144 voxels: fewer slices where they are\n"
+"                         larger).  Default 1, a table per slice-window.\n"
+"                         Small slices' tables are most of the bits: 64^2\n"
+"                         slices at N = 4, G = 8 store half the bits for\n"
+"                         1 dB less (needs tvpal 0.4.0 to read)\n"
 "  -k, --nodes K          split every axis into K slabs, one per node,\n"
 "                         written to OUTDIR/node-R/ (default 1)\n"
 "      --axes LIST        the axes to encode: x, y and z, each at most\n"
@@ -248,6 +255,8 @@ static const struct optspec {
     {"schedule", OPT_LONG_ONLY + 26, OPT_CHOICE,
      offsetof(struct opts, staggered), 0, 0, {"joined", "staggered"},
      "joined or staggered"},
+    {"group", OPT_LONG_ONLY + 27, OPT_U32, offsetof(struct opts, group), 1,
+     TVPAL_GROUP_MAX, {0}, "a whole number from 1 to 1024"},
     {"nodes", 'k', OPT_U32, offsetof(struct opts, nodes), 1, UINT32_MAX,
      {0}, "a whole number >= 1"},
     {"axes", OPT_LONG_ONLY + 19, OPT_AXES, 0, 0, 0, {0},
@@ -424,7 +433,7 @@ static int parse_options(int argc, char **argv, struct opts *o)
     char shortopts[2 * NOPTS + 1], *so = shortopts;
     int have_dims = 0, c;
     *o = (struct opts){.type = TVPAL_F32, .window = 4, .nodes = 1,
-                       .index_level = TVPAL_CHUNKZ_LEVEL,
+                       .group = 1, .index_level = TVPAL_CHUNKZ_LEVEL,
                        .table_format = TVPAL_TABLE_CHUNK,
                        .checkpoint_every = 10,
                        .axes = ENCODE_AXES_DEFAULT};
@@ -519,7 +528,8 @@ static char *job_params(const struct opts *o, const struct tvpal_input *in)
     char *s = NULL, *t = NULL;
     int n = asprintf(&s, "table=%d refine=%u naive=%d klt=%d alloc=%d "
                      "dims=%ux%ux%u type=%s endian=%s window=%u nodes=%u "
-                     "steps=%u nan_as=%s%.17g coding=%u schedule=%d",
+                     "steps=%u nan_as=%s%.17g coding=%u schedule=%d "
+                     "group=%u",
                      o->table_format,
                      o->refine,
                      o->naive, o->klt, o->alloc_mse, o->dims[0], o->dims[1],
@@ -527,7 +537,8 @@ static char *job_params(const struct opts *o, const struct tvpal_input *in)
                      o->big_endian ? "big" : "little", o->window, o->nodes,
                      o->steps_single, o->has_nan_as ? "" : "none:",
                      o->has_nan_as ? o->nan_as : 0.0,
-                     o->index_none ? 0u : o->index_level, o->staggered);
+                     o->index_none ? 0u : o->index_level, o->staggered,
+                     o->group);
     if (n < 0)
         return NULL;
     for (unsigned i = 0; i < o->nmissing; i++) {
@@ -650,7 +661,7 @@ static uint32_t ring_slots(const struct run *r)
 {
     const struct tvpal_schedule sc = tvpal_schedule_of(
         r->N, r->T, r->o.staggered ? TVPAL_SCHEDULE_STAGGERED
-                                   : TVPAL_SCHEDULE_JOINED);
+                                   : TVPAL_SCHEDULE_JOINED, 1);
     return tvpal_schedule_max_len(&sc);
 }
 
@@ -1010,6 +1021,7 @@ static struct tvpal_encoder *open_encoder(struct run *r)
         {TVPAL_PARAM_WINDOW, o->window}, {TVPAL_PARAM_AXES, o->axes},
         {TVPAL_PARAM_SCHEDULE, o->staggered ? TVPAL_SCHEDULE_STAGGERED
                                             : TVPAL_SCHEDULE_JOINED},
+        {TVPAL_PARAM_GROUP, o->group},
         {TVPAL_PARAM_NODES, o->nodes}, {TVPAL_PARAM_TABLE, o->table_format},
         {TVPAL_PARAM_REFINE, o->refine}, {TVPAL_PARAM_NAIVE, o->naive},
         {TVPAL_PARAM_INDEX_LEVEL, o->index_level},

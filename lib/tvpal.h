@@ -149,7 +149,7 @@ enum tvpal_param {
                                * 1..19; default 3 (higher: smaller, slower
                                * to encode, as fast to read).  Since
                                * 0.4.0 */
-    TVPAL_PARAM_SCHEDULE      /* TVPAL_SCHEDULE_JOINED (default): a
+    TVPAL_PARAM_SCHEDULE,     /* TVPAL_SCHEDULE_JOINED (default): a
                                * slice's short first window joins the
                                * next (first windows of N..2N - 1 steps),
                                * so the indices cost 8/N bits per
@@ -159,6 +159,16 @@ enum tvpal_param {
                                * TVPAL_SCHEDULE_STAGGERED: the paper's,
                                * windows of 1..N steps, as before 0.4.0.
                                * Since 0.4.0 */
+    TVPAL_PARAM_GROUP         /* palette groups: 1 (default) a decoder
+                               * table per slice-window, the paper's; G in
+                               * 2..1024 one table per window for the G
+                               * slices gG .. gG + G - 1 of an axis (at
+                               * most 262144 voxels together: fewer
+                               * slices where they are larger), which
+                               * share a phase of the schedule.  Fewer
+                               * bits (the tables of small slices are
+                               * most of them) for some error; readers
+                               * before 0.4.0 refuse it.  Since 0.4.0 */
 };
 #define TVPAL_SCHEDULE_STAGGERED 0
 #define TVPAL_SCHEDULE_JOINED 1

@@ -306,6 +306,12 @@ int tvpal_encoder_set(struct tvpal_encoder *e, enum tvpal_param param,
     case TVPAL_PARAM_SCHEDULE:
         set_coder_choice(p, param, value, &name, &range);
         break;
+    case TVPAL_PARAM_GROUP:
+        if (!whole_in(value, 1, TVPAL_GROUP_MAX))
+            name = "group", range = "1..1024";
+        else
+            p->group = (uint32_t)value;
+        break;
     case TVPAL_PARAM_THREADS:
         if (!whole_in(value, 0, 1024))
             name = "threads", range = "0..1024";
@@ -926,6 +932,7 @@ int tvpal_enc_open_level(struct tvpal_encoder *e, uint32_t k, int resume,
     const struct { enum tvpal_param p; double v; } set[] = {
         {TVPAL_PARAM_WINDOW, p->window}, {TVPAL_PARAM_NODES, p->nodes},
         {TVPAL_PARAM_SCHEDULE, p->schedule},
+        {TVPAL_PARAM_GROUP, p->group ? p->group : 1},
         {TVPAL_PARAM_AXES, p->axes}, {TVPAL_PARAM_THREADS, e->threads},
         {TVPAL_PARAM_TABLE, p->table_format}, {TVPAL_PARAM_REFINE, p->refine},
         {TVPAL_PARAM_INDEX_LEVEL, p->index_level ? p->index_level

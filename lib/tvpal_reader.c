@@ -260,12 +260,14 @@ static char *level_dir(const struct tvpal_reader *r, uint32_t k)
 /* The indices of axis a in a dataset ds: width * height bytes per
  * slice-window, one starting at step t of slice s as the schedule says
  * (FORMAT.md 5). */
-static uint64_t index_bytes(const struct tvpal_manifest *m, unsigned a)
+static uint64_t index_bytes(const struct tvpal_dataset *ds, unsigned a)
 {
+    const struct tvpal_manifest *m = &ds->m;
     uint32_t n, w, h;
     uint64_t windows = 0;
+    /* The phases follow the axis' palette groups (its shards' G). */
     const struct tvpal_schedule sc =
-        tvpal_schedule_of(m->window, m->steps, m->schedule);
+        tvpal_shard_schedule(tvpal_shard_hdr(ds->shards[a][0]));
     tvpal_axis_geometry(m->dims, a, &n, &w, &h);
     for (uint32_t s = 0; s < n; s++)
         for (uint32_t t = 0; t < m->steps; t++)
@@ -351,7 +353,7 @@ int tvpal_reader_sizes(struct tvpal_reader *r, uint32_t level,
         if (!tvpal_dataset_has_axis(ds, a))
             continue;
         s.axis_bytes[a] = ds->axis_bytes[a];
-        s.index_bytes[a] = index_bytes(&ds->m, a);
+        s.index_bytes[a] = index_bytes(ds, a);
         if ((rc = count_axis(ds, a, &n, diag)) < 0)
             return rc;
         s.table_bytes[a] = n.bytes[0] + n.bytes[1];

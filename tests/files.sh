@@ -4,6 +4,7 @@
 # axis by axis, to the SHA-256 in SHA256SUMS; good-manifest-variants.txt
 # decodes as good-1-basic; every bad-* file, planted in a copy of
 # good-1-basic (bad-u16-*: of good-2-u16-nodes, bad-auto-*: of good-5-auto,
+# bad-group-*: of good-9-group,
 # bad-coded-t2-*: of good-7-coded-t2, other bad-coded-*: of good-6-coded),
 # is refused by tvpal-info --verify and tvpal-decode with the exit code and
 # the message that the README's table gives.
@@ -77,6 +78,7 @@ while read -r file vrc step drc pat; do
     case $file in
     bad-u16-*) base=good-2-u16-nodes ;;
     bad-auto-*) base=good-5-auto ;;
+    bad-group-*) base=good-9-group ;;
     bad-coded-t2-*) base=good-7-coded-t2 ;;
     bad-coded-*) base=good-6-coded ;;
     *) base=good-1-basic ;;

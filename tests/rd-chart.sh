@@ -7,7 +7,7 @@ command -v zfp > /dev/null || { echo "zfp missing (scripts/setup-deps installs i
 "$GEN" --field blobs --dims 20x18x16 --steps 8 -o "$W/in" || fail gen
 "$TVPAL_SRCDIR/scripts/rd-chart" -o "$W/rd" --dims 20x18x16 "$W"/in/*.f32 > "$W/o.txt" 2>&1 \
     || { fail "rd-chart: $(tail -n 5 "$W/o.txt")"; finish; }
-for m in tvpal-f32 tvpal-u16 tvpal-auto tvpal-staggered tvpal-refine tvpal-best tvpal-naive \
+for m in tvpal-f32 tvpal-u16 tvpal-auto tvpal-staggered tvpal-group tvpal-refine tvpal-best tvpal-naive \
          zfp-3d zfp-4d; do
     grep -q "^$m," "$W/rd/rd.csv" && ok "$m rows" || fail "no $m rows"
 done

@@ -77,7 +77,8 @@ def chunks(ds, axis):
     """Every chunk of the axis, in file order: dicts with slice, wstart,
     wlen, flags, table_format (the shard's), u16 (bool), table (wlen x 256
     float32), idx (h x w uint8) and qmax (a 16-bit table's largest q, else
-    0)."""
+    0); a chunk of k slices of a palette group (FORMAT.md 5.1) as k dicts,
+    one per slice, with slices = k and part = 0 .. k - 1."""
     dims, steps, window, nodes = manifest(ds)
     out = []
     for r in range(nodes):
@@ -96,10 +97,12 @@ def chunks(ds, axis):
                 n = wl * 256
                 raw = b[pos + 64:pos + 64 + n * e]
                 ia = pos + 64 + n * e
-                ib = b[ia:ia + w * h]
+                # A chunk of k slices of a palette group (FORMAT.md 6.5):
+                # ch = k h rows of indices under one table.
+                ib = b[ia:ia + w * ch]
                 if flags & 4:
                     coded, = struct.unpack_from("<I", b, pos + 56)
-                    raw, ib = inflate(b[pos + 64:pos + 64 + coded], n, e, w, h,
+                    raw, ib = inflate(b[pos + 64:pos + 64 + coded], n, e, w, ch,
                                       flags)
                 qmax = 0
                 if e == 4:
@@ -112,18 +115,22 @@ def chunks(ds, axis):
                     table = (np.float32(tmin) + p).astype(np.float32)
                     if tf in (3, 5) and flags & 1:
                         table[q == 65535] = np.float32(np.nan)
-                idx = np.frombuffer(ib, np.uint8).reshape(h, w)
+                idx = np.frombuffer(ib, np.uint8).reshape(ch, w)
                 # flags: the plain chunk's (bits 2-4, coding, cleared);
-                # coded: whether it was stored coded.
-                out.append(dict(slice=s, wstart=ws, wlen=wl, flags=flags & ~28,
-                                coded=bool(flags & 4),
-                                table_format=tf, u16=(e == 2),
-                                table=table.reshape(wl, 256), idx=idx,
-                                qmax=qmax))
+                # coded: whether it was stored coded; slices: the k
+                # slices of the chunk (one entry each, sharing the table;
+                # part: which of them).
+                for j in range(ch // h):
+                    out.append(dict(slice=s + j, wstart=ws, wlen=wl,
+                                    flags=flags & ~28, coded=bool(flags & 4),
+                                    table_format=tf, u16=(e == 2),
+                                    table=table.reshape(wl, 256),
+                                    idx=idx[j * h:(j + 1) * h], qmax=qmax,
+                                    slices=ch // h, part=j))
                 if flags & 4:
                     pos += 64 + (coded + 63) // 64 * 64
                 else:
-                    pos += 64 + n * e + (w * h + 63) // 64 * 64
+                    pos += 64 + n * e + (w * ch + 63) // 64 * 64
     return out
 
 

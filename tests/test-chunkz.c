@@ -20,7 +20,7 @@ static struct tvpal_pool *g_pool;       /* 3 threads */
 
 /* The schedule of shard header h (tvpal_shard_schedule), as a pointer. */
 #define SCHED(h)                                                              \
-    (&(struct tvpal_schedule){(h)->window, (h)->steps, (h)->schedule})
+    (&(struct tvpal_schedule){(h)->window, (h)->steps, (h)->schedule, 1})
 #include "tvpal_shard.h"
 #include "tvpal_test.h"
 

@@ -15,9 +15,10 @@
 
 /* The schedule of shard header h (tvpal_shard_schedule), as a pointer. */
 #define SCHED(h)                                                              \
-    (&(struct tvpal_schedule){(h)->window, (h)->steps, (h)->schedule})
+    (&(struct tvpal_schedule){(h)->window, (h)->steps, (h)->schedule, 1})
 /* N = 4, T = 9, staggered. */
-#define STAGGERED_4_9 (&(struct tvpal_schedule){4, 9, TVPAL_SCHEDULE_STAGGERED})
+#define STAGGERED_4_9                                                         \
+    (&(struct tvpal_schedule){4, 9, TVPAL_SCHEDULE_STAGGERED, 1})
 
 #include <fcntl.h>
 #include <stdio.h>
@@ -173,10 +174,10 @@ static void test_placed(void)
                           TVPAL_E_INVAL, "wrong size refused");
             }
             if (k > 1)
-                CHECK(tvpal_shardw_extend(p, t, sl[1], crc[1]) ==
+                CHECK(tvpal_shardw_extend(p, t, sl[1], 1, crc[1]) ==
                           TVPAL_E_INVAL, "out of order join refused");
             for (uint32_t i = 0; i < k; i++)
-                CHECK(tvpal_shardw_extend(p, t, sl[i], crc[i]) == 0, "join");
+                CHECK(tvpal_shardw_extend(p, t, sl[i], 1, crc[i]) == 0, "join");
         }
         uint32_t foreign = h.slice_begin + h.slice_count;
         uint32_t c0;
@@ -405,7 +406,7 @@ static void test_per_chunk(void)
                 uint32_t crc;
                 CHECK(tvpal_shardw_put_chunk(w, t, c.h.slice, room, rb, &crc,
                                              &d) == 0 &&
-                          tvpal_shardw_extend(w, t, c.h.slice, crc) == 0,
+                          tvpal_shardw_extend(w, t, c.h.slice, 1, crc) == 0,
                       "put: %s", d.msg);
             }
         }
@@ -831,7 +832,7 @@ int main(void)
     hb[20] ^= 0x40;
     CHECK(tvpal_shard_header_decode(hb, &g, NULL) == TVPAL_E_CHECKSUM, "crc");
     hb[20] ^= 0x40;
-    hb[8] = 4; /* version 4, CRC left stale: version is checked first */
+    hb[8] = 5; /* version 5, CRC left stale: version is checked first */
     CHECK(tvpal_shard_header_decode(hb, &g, NULL) == TVPAL_E_VERSION,
           "version");
     /* The schedule field goes with the version: 1 (joined) in version 3,
@@ -851,6 +852,39 @@ int main(void)
                   "version %u schedule %u: %d %s", j.version, j.schedule, rc,
                   d.msg);
         }
+    }
+    /* Palette groups (FORMAT.md 5.1): version 4 with G in 2 .. n (x:
+     * n = 10 slices of 7x5), either schedule; the field is 0 before. */
+    {
+        const uint32_t cases[][4] = {/* version, schedule, group, ok */
+                                     {4, 0, 2, 1}, {4, 1, 10, 1},
+                                     {4, 1, 1, 0}, {4, 0, 11, 0},
+                                     {4, 2, 2, 0}, {3, 1, 2, 0},
+                                     {1, 0, 3, 0}};
+        for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
+            struct tvpal_shard_header j = h;
+            j.version = cases[i][0];
+            j.schedule = cases[i][1];
+            j.group = cases[i][2];
+            tvpal_shard_header_encode(&j, hb);
+            /* The writer keeps the field 0 before version 4: set it. */
+            hb[92] = (unsigned char)j.group;
+            const uint32_t crc = tvpal_crc32c(0, hb, 4092);
+            for (int b = 0; b < 4; b++)
+                hb[4092 + b] = (unsigned char)(crc >> (8 * b));
+            d.msg[0] = 0;
+            const int rc = tvpal_shard_header_decode(hb, &g, &d);
+            CHECK(cases[i][3] ? rc == 0 && g.group == j.group
+                              : rc == TVPAL_E_FORMAT &&
+                                    (strstr(d.msg, "group") ||
+                                     strstr(d.msg, "schedule")),
+                  "version %u schedule %u group %u: %d %s", j.version,
+                  j.schedule, j.group, rc, d.msg);
+        }
+        /* A version 1 header decodes with G = 1. */
+        tvpal_shard_header_encode(&h, hb);
+        CHECK(tvpal_shard_header_decode(hb, &g, NULL) == 0 && g.group == 1,
+              "no group: G = 1");
     }
     /* A field out of range with a valid CRC. */
     h.window = 17;

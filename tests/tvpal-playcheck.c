@@ -19,8 +19,10 @@
 #include "tvpal_render_ref.h"
 #include "tvpal_test.h"
 #include "tvpal_schedule.h"
+#include "tvpal_shard.h"
 #include "tvpal_stream.h"
 
+#include <stdio.h>
 #include <string.h>
 #include <time.h>
 
@@ -28,6 +30,19 @@
 #define H 112
 
 static struct tvpal_glr *glr;
+
+/* The palette group size of axis a's shards (node 0's; 1: none). */
+static uint32_t axis_group(const char *dir, unsigned a)
+{
+    char path[4096];
+    snprintf(path, sizeof path, "%s/node-0/axis-%c.tvps", dir, "xyz"[a]);
+    struct tvpal_shard *sh = NULL;
+    struct tvpal_diag d = {{0}};
+    REQUIRE(tvpal_shard_open(&sh, path, &d) == 0, "%s: %s", path, d.msg);
+    const uint32_t G = tvpal_shard_hdr(sh)->group;
+    tvpal_shard_close(sh);
+    return G;
+}
 
 static struct tvpal_player *open_player(const char *dir, int incore,
                                         enum tvpal_io_kind io, int direct)
@@ -303,8 +318,8 @@ int main(int argc, char **argv)
             /* Only slices whose window starts at t change. */
             uint32_t n = v.axis == 0 ? m->dims[0] : v.axis == 1 ? m->dims[1] : m->dims[2];
             uint32_t starting = 0;
-            const struct tvpal_schedule sc =
-                tvpal_schedule_of(N, m->steps, m->schedule);
+            const struct tvpal_schedule sc = tvpal_schedule_of(
+                N, m->steps, m->schedule, axis_group(dir, v.axis));
             for (uint32_t s = 0; s < n; s++)
                 starting += tvpal_schedule_starts(&sc, s, t);
             CHECK(st.uploads <= starting, "step %u: %u uploads, %u windows "

@@ -115,7 +115,7 @@ static inline uint64_t tvpal_shard_max_chunk(const struct tvpal_shard_header *sh
 {
     const struct tvpal_schedule sc = tvpal_shard_schedule(sh);
     return tvpal_chunk_bytes(tvpal_schedule_max_len(&sc), sh->slice_w,
-                             sh->slice_h, TVPAL_TABLE_F32);
+                             sh->slice_h * sc.G, TVPAL_TABLE_F32);
 }
 
 /* The name and version of the zstd library in use, e.g. "zstd 1.5.4". */

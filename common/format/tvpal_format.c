@@ -68,7 +68,8 @@ void tvpal_slab_range(uint32_t n, uint32_t k, uint32_t r, uint32_t *begin,
  *   0 magic[8]  8 version  12 header_bytes  16 nx 20 ny 24 nz  28 steps
  *  32 window  36 nodes  40 rank  44 axis  48 slice_begin  52 slice_count
  *  56 slice_w  60 slice_h  64 table_format  68 schedule (version 3; 0 before)
- *  72 index_offset(u64)  80 file_bytes(u64)  88 index_crc  92 reserved(0)
+ *  72 index_offset(u64)  80 file_bytes(u64)  88 index_crc
+ *  92 group (version 4; 0 before)
  *  96 value_min(f64)  104 value_max(f64)  112..4091 zero  4092 header_crc */
 void tvpal_shard_header_encode(const struct tvpal_shard_header *h,
                                unsigned char *b)
@@ -94,6 +95,7 @@ void tvpal_shard_header_encode(const struct tvpal_shard_header *h,
     put64(b + 72, h->index_offset);
     put64(b + 80, h->file_bytes);
     put32(b + 88, h->index_crc);
+    put32(b + 92, h->version == TVPAL_FORMAT_VERSION_GROUPED ? h->group : 0);
     putd(b + 96, h->value_min);
     putd(b + 104, h->value_max);
     put32(b + 4092, tvpal_crc32c(0, b, 4092));
@@ -108,11 +110,11 @@ int tvpal_shard_header_decode(const unsigned char *b,
                               "header: magic is not \"" TVPAL_SHARD_MAGIC "\"");
     h->version = get32(b + 8);
     if (h->version < TVPAL_FORMAT_VERSION ||
-        h->version > TVPAL_FORMAT_VERSION_JOINED)
+        h->version > TVPAL_FORMAT_VERSION_GROUPED)
         return tvpal_diag_set(diag, TVPAL_E_VERSION,
                               "header: format version %u, expected %u..%u",
                               h->version, TVPAL_FORMAT_VERSION,
-                              TVPAL_FORMAT_VERSION_JOINED);
+                              TVPAL_FORMAT_VERSION_GROUPED);
     if (get32(b + 4092) != tvpal_crc32c(0, b, 4092))
         return tvpal_diag_set(diag, TVPAL_E_CHECKSUM,
                               "header: CRC-32C mismatch");
@@ -136,6 +138,7 @@ int tvpal_shard_header_decode(const unsigned char *b,
     h->index_offset = get64(b + 72);
     h->file_bytes = get64(b + 80);
     h->index_crc = get32(b + 88);
+    h->group = get32(b + 92);
     h->value_min = getd(b + 96);
     h->value_max = getd(b + 104);
 
@@ -169,15 +172,33 @@ int tvpal_shard_header_decode(const unsigned char *b,
                               "1 (16-bit scaled), 4 (per chunk), or 2, 3, 5 "
                               "(the same with missing values)",
                               h->table_format);
-    /* Version 3 is the joined schedule; before it the field was a
-     * reserved 0. */
-    if (h->schedule != (h->version == TVPAL_FORMAT_VERSION_JOINED
-                            ? TVPAL_SCHEDULE_JOINED
-                            : TVPAL_SCHEDULE_STAGGERED))
+    /* Version 3 is the joined schedule, version 4 either; before them
+     * the field was a reserved 0. */
+    if (h->version == TVPAL_FORMAT_VERSION_GROUPED
+            ? h->schedule > TVPAL_SCHEDULE_JOINED
+            : h->schedule != (h->version == TVPAL_FORMAT_VERSION_JOINED
+                                  ? TVPAL_SCHEDULE_JOINED
+                                  : TVPAL_SCHEDULE_STAGGERED))
         return tvpal_diag_set(diag, TVPAL_E_FORMAT,
                               "header: schedule %u with format version %u, "
-                              "expected 1 with version 3, 0 before",
-                              h->schedule, h->version);
+                              "expected 1 with version 3, 0 or 1 with 4, 0 "
+                              "before", h->schedule, h->version);
+    /* Version 4 has palette groups of G >= 2 slices, no more than the
+     * axis has, and at most TVPAL_GROUP_VOXELS_MAX voxels; before it the
+     * field was a reserved 0 (G = 1). */
+    if (h->version == TVPAL_FORMAT_VERSION_GROUPED
+            ? h->group < 2 || h->group > n || h->group > TVPAL_GROUP_MAX ||
+                  (uint64_t)h->group * w * hh > TVPAL_GROUP_VOXELS_MAX
+            : h->group != 0)
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                              "header: group %u with format version %u, "
+                              "expected 2..%u slices of %ux%u (at most %u "
+                              "voxels) with version 4, 0 before", h->group,
+                              h->version,
+                              n < TVPAL_GROUP_MAX ? n : TVPAL_GROUP_MAX, w, hh,
+                              TVPAL_GROUP_VOXELS_MAX);
+    if (!h->group)
+        h->group = 1;
     if (h->index_offset % TVPAL_ALIGN || h->index_offset < TVPAL_ALIGN ||
         h->index_offset > ((uint64_t)1 << 62) ||
         h->file_bytes != h->index_offset + tvpal_round_up(
@@ -402,13 +423,25 @@ static int record_verify(const unsigned char *buf, uint64_t bytes,
             (k > 0 && ch.slice <= prev) || ch.wstart != step ||
             ch.wlen < 1 || ch.wlen > tvpal_schedule_max_len(&sc) ||
             ch.wstart + ch.wlen > sh->steps || ch.w != sh->slice_w ||
-            ch.h != sh->slice_h || ch.slice != expect ||
+            ch.slice != expect ||
             ch.wlen != tvpal_schedule_len(&sc, ch.slice, step))
             return tvpal_diag_set(diag, TVPAL_E_FORMAT,
                                   "record %u: chunk %u (slice %u, window "
                                   "%u+%u, %ux%u) inconsistent with the shard",
                                   step, k, ch.slice, ch.wstart, ch.wlen, ch.w,
                                   ch.h);
+        /* Its rows are those of k slices of one palette group and of the
+         * slab (FORMAT.md 6.5): k = 1 without groups. */
+        const uint32_t nsl = tvpal_chunk_slices(&ch, sh);
+        if (ch.h != nsl * sh->slice_h || nsl < 1 || nsl > sc.G ||
+            nsl > slab_end - ch.slice ||
+            ch.slice / sc.G != (ch.slice + nsl - 1) / sc.G)
+            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                                  "record %u: chunk %u (slice %u): %u rows, "
+                                  "expected those of 1 to %u slices of %u "
+                                  "rows within one palette group of the "
+                                  "slab", step, k, ch.slice, ch.h, sc.G,
+                                  sh->slice_h);
         /* A flag the shard's format does not define would be misread:
          * bit 1 changes the chunk's size, and a later bit could change
          * its decoding (FORMAT.md 6.6). */
@@ -428,7 +461,7 @@ static int record_verify(const unsigned char *buf, uint64_t bytes,
                                   "transform) without bit 2 (coded)", step,
                                   k, ch.slice, ch.flags);
         prev = ch.slice;
-        expect++;
+        expect += nsl;
         uint64_t cb, plain_cb;
         rc = chunk_sizes(&ch, sh, step, k, end - pos, &cb, &plain_cb, diag);
         if (rc < 0)

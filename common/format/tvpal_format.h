@@ -31,6 +31,16 @@
  * before 1.11 rejects them as an unknown version instead of misreading
  * their windows. */
 #define TVPAL_FORMAT_VERSION_JOINED 3u
+/* Shards with palette groups (FORMAT.md 5.1, 6.3: header field "group"
+ * G >= 2; since specification 1.12), either schedule: a chunk may hold
+ * up to G slices under one table, which a reader before 1.12 would
+ * misread. */
+#define TVPAL_FORMAT_VERSION_GROUPED 4u
+/* The most slices of a palette group, and the most voxels one chunk's
+ * slices may have together (FORMAT.md 6.2): bounds the encoder's
+ * workspace, which codes a group as one slice. */
+#define TVPAL_GROUP_MAX 1024u
+#define TVPAL_GROUP_VOXELS_MAX (1u << 18)
 #define TVPAL_ALIGN 4096u               /* record alignment (O_DIRECT) */
 #define TVPAL_SHARD_HEADER_BYTES 4096u
 #define TVPAL_RECORD_HEADER_BYTES 64u
@@ -95,7 +105,10 @@ struct tvpal_shard_header {
     uint32_t slice_count;     /* slices in the slab (>= 1) */
     uint32_t slice_w, slice_h;/* slice size: in-slice index = a + w * b */
     uint32_t table_format;    /* TVPAL_TABLE_F32 .. TVPAL_TABLE_MAX */
-    uint32_t schedule;        /* TVPAL_SCHEDULE_*: 1 iff version 3 */
+    uint32_t schedule;        /* TVPAL_SCHEDULE_*: 1 in version 3; either
+                               * in version 4 */
+    uint32_t group;           /* G, slices of a palette group: >= 2 iff
+                               * version 4, else 1 (0 on disk) */
     uint64_t index_offset;    /* aligned; index of `steps` entries */
     uint64_t file_bytes;      /* total file size */
     uint32_t index_crc;
@@ -223,7 +236,15 @@ static inline uint64_t tvpal_chunk_stored_bytes(
 static inline struct tvpal_schedule
 tvpal_shard_schedule(const struct tvpal_shard_header *h)
 {
-    return tvpal_schedule_of(h->window, h->steps, h->schedule);
+    return tvpal_schedule_of(h->window, h->steps, h->schedule, h->group);
+}
+
+/* The slices chunk header c holds (FORMAT.md 6.5): its rows are theirs,
+ * h = k * slice_h; 1 in shards without palette groups. */
+static inline uint32_t tvpal_chunk_slices(const struct tvpal_chunk_header *c,
+                                          const struct tvpal_shard_header *sh)
+{
+    return sh->slice_h ? c->h / sh->slice_h : 1;
 }
 
 /* Serialization.  *_encode write exactly the fixed size into buf (CRCs

@@ -1,7 +1,8 @@
 /* tvpal_schedule.h: the interleaved window schedule (paper, Fig. 2;
  * FORMAT.md Section 5).
  *
- * Slice s of an axis has phase r = s mod N.  Its windows start at time 0
+ * Slice s of an axis has phase r = s mod N (with palette groups of G
+ * slices, r = (s / G) mod N).  Its windows start at time 0
  * and at times t with t mod N == r, so at each timestep only the slices of
  * one phase (about 1/N of them) get a new window, and the window-boundary
  * jumps are spread across slices instead of hitting the whole volume at
@@ -43,16 +44,27 @@
 #define TVPAL_SCHEDULE_RECORDS_MAX 16
 
 /* A series' schedule: N (1..16) the window, T >= 1 the steps, kind one of
- * the above. */
+ * the above, G >= 1 the slices of a palette group (FORMAT.md 5.1): the G
+ * slices gG .. gG + G - 1 share a phase, r = (s / G) mod N, so that one
+ * chunk may hold them all under one decoder table.  G = 1 is the paper's
+ * r = s mod N. */
 struct tvpal_schedule {
-    uint32_t N, T, kind;
+    uint32_t N, T, kind, G;
 };
 
 static inline struct tvpal_schedule tvpal_schedule_of(uint32_t N, uint32_t T,
-                                                      uint32_t kind)
+                                                      uint32_t kind,
+                                                      uint32_t G)
 {
-    struct tvpal_schedule sc = {N, T, kind};
+    struct tvpal_schedule sc = {N, T, kind, G ? G : 1};
     return sc;
+}
+
+/* The phase of slice s. */
+static inline uint32_t tvpal_schedule_slice_phase(
+    const struct tvpal_schedule *sc, uint32_t s)
+{
+    return s / sc->G % sc->N;
 }
 
 /* Does a window of slice s start at time t (t < T)? */
@@ -64,14 +76,14 @@ static inline int tvpal_schedule_starts(const struct tvpal_schedule *sc,
         return 1;
     if (sc->kind == TVPAL_SCHEDULE_JOINED && t < N)
         return 0;
-    return t % N == s % N;
+    return t % N == tvpal_schedule_slice_phase(sc, s);
 }
 
 /* Start of the window of slice s that holds time t (t < T). */
 static inline uint32_t tvpal_schedule_start(const struct tvpal_schedule *sc,
                                             uint32_t s, uint32_t t)
 {
-    const uint32_t N = sc->N, r = s % N;
+    const uint32_t N = sc->N, r = tvpal_schedule_slice_phase(sc, s);
     const uint32_t first = sc->kind == TVPAL_SCHEDULE_JOINED ? N + r : r;
     return t < first ? 0 : t - (t - r) % N;
 }
@@ -80,7 +92,8 @@ static inline uint32_t tvpal_schedule_start(const struct tvpal_schedule *sc,
 static inline uint32_t tvpal_schedule_len(const struct tvpal_schedule *sc,
                                           uint32_t s, uint32_t ws)
 {
-    const uint32_t N = sc->N, T = sc->T, r = s % N;
+    const uint32_t N = sc->N, T = sc->T,
+                   r = tvpal_schedule_slice_phase(sc, s);
     const uint32_t first = sc->kind == TVPAL_SCHEDULE_JOINED ? N + r : r;
     const uint32_t end = ws < first ? first : ws + N;
     return (end < T ? end : T) - ws;
@@ -124,8 +137,8 @@ static inline unsigned tvpal_schedule_records(const struct tvpal_schedule *sc,
     /* Phases r >= T (T < N) hold t < T <= r in their first window, at 0,
      * as phase 0 does. */
     const uint32_t n = sc->N < sc->T ? sc->N : sc->T;
-    for (uint32_t r = 0; r < n; r++)
-        mask |= 1u << (t - tvpal_schedule_start(sc, r, t));
+    for (uint32_t r = 0; r < n; r++) /* slice r G has phase r */
+        mask |= 1u << (t - tvpal_schedule_start(sc, r * sc->G, t));
     return tvpal_schedule_mask_steps(t, mask, steps);
 }
 

@@ -255,7 +255,8 @@ int tvpal_shardw_finish(struct tvpal_shardw *w, struct tvpal_diag *diag)
     w->h.index_offset = w->end;
     w->h.file_bytes = w->end + ibytes;
     w->h.index_crc = tvpal_crc32c(0, ib, ibytes);
-    w->h.version = w->h.schedule == TVPAL_SCHEDULE_JOINED
+    w->h.version = w->h.group > 1 ? TVPAL_FORMAT_VERSION_GROUPED
+                   : w->h.schedule == TVPAL_SCHEDULE_JOINED
                        ? TVPAL_FORMAT_VERSION_JOINED
                    : w->coded ? TVPAL_FORMAT_VERSION_CODED
                               : TVPAL_FORMAT_VERSION;
@@ -361,9 +362,25 @@ static int placed_layout(struct tvpal_shardw *w)
     return 0;
 }
 
+/* Slices of [lo, hi) in the palette groups of phase r. */
+static uint64_t phase_slices(const struct tvpal_schedule *sc, uint32_t lo,
+                             uint32_t hi, uint32_t r)
+{
+    const uint64_t G = sc->G, N = sc->N;
+    uint64_t n = 0, g = lo / G;
+    g += (r + N - g % N) % N;
+    for (; g * G < hi; g += N) {
+        const uint64_t a = g * G < lo ? lo : g * G;
+        const uint64_t b = g * G + G < hi ? g * G + G : hi;
+        n += b - a;
+    }
+    return n;
+}
+
 /* Offset of slice s's chunk (its room) inside record t's payload, or
  * UINT64_MAX when s has no window starting at t or is not in the slab.
- * After record 0 every chunk of a record has the same room. */
+ * After record 0 every chunk of a record has the same room, one per
+ * slice: a chunk of k slices of a palette group takes their k rooms. */
 static uint64_t placed_offset(const struct tvpal_shardw *w, uint32_t t,
                               uint32_t s)
 {
@@ -375,11 +392,22 @@ static uint64_t placed_offset(const struct tvpal_shardw *w, uint32_t t,
         return UINT64_MAX;
     if (t == 0)
         return w->first_off[s - h->slice_begin];
-    /* The slab's first slice of phase t mod N, then every N-th. */
-    const uint32_t N = h->window;
-    const uint32_t first =
-        h->slice_begin + (t % N + N - h->slice_begin % N) % N;
-    return (uint64_t)((s - first) / N) * placed_chunk_bytes(w, s, t);
+    /* The slab's slices of phase t mod N before s. */
+    return phase_slices(&sc, h->slice_begin, s, t % h->window) *
+           placed_chunk_bytes(w, s, t);
+}
+
+/* The rooms of the k slices from s in record t: 0 unless all k are in
+ * the slab and in s's palette group (they then start together). */
+static uint64_t placed_rooms(const struct tvpal_shardw *w, uint32_t t,
+                             uint32_t s, uint32_t k)
+{
+    const struct tvpal_shard_header *h = &w->h;
+    const uint32_t G = h->group ? h->group : 1;
+    if (k < 1 || k > G || s < h->slice_begin ||
+        k > h->slice_begin + h->slice_count - s || s / G != (s + k - 1) / G)
+        return 0;
+    return k * placed_chunk_bytes(w, s, t);
 }
 
 static int placed_open(struct tvpal_shardw **out, const char *path,
@@ -444,12 +472,13 @@ int tvpal_shardw_put_chunk(struct tvpal_shardw *w, uint32_t t, uint32_t s,
                            uint32_t *crc, struct tvpal_diag *diag)
 {
     uint64_t off = w->rec_off ? placed_offset(w, t, s) : UINT64_MAX;
-    if (off == UINT64_MAX || bytes != placed_chunk_bytes(w, s, t))
-        return tvpal_diag_set(diag, TVPAL_E_INVAL, "no chunk of %llu bytes "
-                              "for slice %u in record %u",
-                              (unsigned long long)bytes, s, t);
     struct tvpal_chunk_header ch;
     int have = tvpal_chunk_header_decode(chunk, &ch, NULL) == 0;
+    const uint32_t k = have ? tvpal_chunk_slices(&ch, &w->h) : 1;
+    if (off == UINT64_MAX || bytes != placed_rooms(w, t, s, k))
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "no chunk of %llu bytes "
+                              "for %u slices from %u in record %u",
+                              (unsigned long long)bytes, k, s, t);
     /* The missing flag is what finish adds to the format: allow it; a
      * coded chunk makes the shard format_version 2, when the writer takes
      * them (its room: the chunk, zeros after it). */
@@ -476,12 +505,13 @@ void tvpal_shardw_set_coding(struct tvpal_shardw *w, int on)
 }
 
 int tvpal_shardw_extend(struct tvpal_shardw *w, uint32_t t, uint32_t s,
-                        uint32_t crc)
+                        uint32_t slices, uint32_t crc)
 {
     uint64_t off = w->rec_off ? placed_offset(w, t, s) : UINT64_MAX;
-    if (off == UINT64_MAX || off != w->filled[t])
+    const uint64_t bytes = off == UINT64_MAX ? 0
+                                             : placed_rooms(w, t, s, slices);
+    if (!bytes || off != w->filled[t])
         return TVPAL_E_INVAL;
-    uint64_t bytes = placed_chunk_bytes(w, s, t);
     w->crc[t] = tvpal_crc32c_combine(w->crc[t], crc, bytes);
     w->filled[t] += bytes;
     return 0;
@@ -555,8 +585,10 @@ static int placed_pack(struct tvpal_shardw *w, struct tvpal_diag *diag)
     static const unsigned char zero[TVPAL_ALIGN];
     const struct tvpal_shard_header *h = &w->h;
     const struct tvpal_schedule sc = tvpal_shard_schedule(h);
+    const uint32_t G = sc.G;
     unsigned char *buf = malloc(tvpal_chunk_bytes(
-        tvpal_schedule_max_len(&sc), h->slice_w, h->slice_h, h->table_format));
+        tvpal_schedule_max_len(&sc), h->slice_w, h->slice_h,
+        h->table_format) * G);
     if (!buf)
         return TVPAL_E_NOMEM;
     int rc = 0;
@@ -564,13 +596,24 @@ static int placed_pack(struct tvpal_shardw *w, struct tvpal_diag *diag)
     for (uint32_t t = 0; t < h->steps && rc == 0; t++) {
         uint64_t src = w->rec_off[t] + TVPAL_RECORD_HEADER_BYTES, pay = 0;
         uint64_t plain = 0;
-        uint32_t room_crc = 0, crc = 0;
+        uint32_t room_crc = 0, crc = 0, chunks = 0;
         for (uint32_t k = 0; k < h->slice_count && rc == 0; k++) {
             const uint32_t s = h->slice_begin + k;
             if (!tvpal_schedule_starts(&sc, s, t))
                 continue;
-            const uint64_t room = placed_chunk_bytes(w, s, t);
+            /* A chunk of a palette group's slices takes their rooms. */
+            struct tvpal_chunk_header ch = {0};
+            uint64_t room = placed_chunk_bytes(w, s, t);
             rc = pread_all(w->fd, buf, room, src);
+            (void)tvpal_chunk_header_decode(buf, &ch, NULL);
+            uint32_t nsl = tvpal_chunk_slices(&ch, h);
+            const uint64_t rooms = placed_rooms(w, t, s, nsl);
+            if (rc == 0 && rooms > room) {
+                rc = pread_all(w->fd, buf + room, rooms - room, src + room);
+                room = rooms;
+            } else if (rooms < room) {
+                nsl = 1;
+            }
             if (rc < 0) {
                 tvpal_diag_set(diag, rc, "record %u: cannot read back the "
                                "chunk of slice %u", t, s);
@@ -580,11 +623,11 @@ static int placed_pack(struct tvpal_shardw *w, struct tvpal_diag *diag)
             /* The size from the schedule and the chunk's flags (a coded
              * one: its frame's, within the room); a damaged room fails the
              * CRC below. */
-            struct tvpal_chunk_header ch = {0};
-            (void)tvpal_chunk_header_decode(buf, &ch, NULL);
             ch.wlen = tvpal_schedule_len(&sc, s, t);
             ch.w = h->slice_w;
-            ch.h = h->slice_h;
+            ch.h = h->slice_h * nsl;
+            k += nsl - 1;
+            chunks++;
             const uint32_t ctf = tvpal_chunk_table_format(h->table_format,
                                                           ch.flags);
             uint64_t n = tvpal_chunk_stored_bytes(&ch, ctf);
@@ -613,6 +656,7 @@ static int placed_pack(struct tvpal_shardw *w, struct tvpal_diag *diag)
         w->payload[t] = w->filled[t] = pay;
         w->crc[t] = crc;
         w->plain[t] = plain;
+        w->count[t] = chunks;
         at += total;
     }
     free(buf);
@@ -634,7 +678,8 @@ static int placed_seal(struct tvpal_shardw *w, struct tvpal_diag *diag)
                                   "%llu payload bytes written", t,
                                   (unsigned long long)w->filled[t],
                                   (unsigned long long)w->payload[t]);
-    if (w->h.table_format >= TVPAL_TABLE_CHUNK || w->coding) {
+    if (w->h.table_format >= TVPAL_TABLE_CHUNK || w->coding ||
+        w->h.group > 1) {
         int rc = placed_pack(w, diag);
         if (rc < 0)
             return rc;
@@ -702,36 +747,41 @@ struct tvpal_shard {
 };
 
 /* Smallest record bytes for step t that the header's geometry implies:
- * the 64-byte record header plus one chunk (tvpal_chunk_bytes) for every
- * slab slice whose window starts at t.  Stops counting once the sum
- * exceeds cap (returning a value > cap), so the work is bounded by cap
- * and not by a forged slice_count, and the sum never overflows. */
+ * the 64-byte record header plus, for every palette group (a slice
+ * without groups) whose window starts at t, one chunk (tvpal_chunk_bytes)
+ * of its slab slices: a group's slices may share one (FORMAT.md 6.3).
+ * Stops counting once the sum exceeds cap (returning a value > cap), so
+ * the work is bounded by cap and not by a forged slice_count, and the sum
+ * never overflows. */
 static uint64_t record_min_bytes(const struct tvpal_shard_header *h,
                                  uint32_t t, uint64_t cap)
 {
     uint64_t need = TVPAL_RECORD_HEADER_BYTES;
     const struct tvpal_schedule sc = tvpal_shard_schedule(h);
-    const uint32_t N = h->window, end = h->slice_begin + h->slice_count;
-    /* Slices with starts(s, t): all at t == 0, else every N-th from the
+    const uint64_t N = h->window, G = sc.G, begin = h->slice_begin,
+                   end = begin + h->slice_count;
+    /* Groups with starts(s, t): all at t == 0, else every N-th from the
      * first of tvpal_schedule_phase's phase (none: an empty record). */
-    uint32_t s = h->slice_begin, stride = 1, r;
+    uint64_t g = begin / G, stride = 1;
+    uint32_t r;
     if (t > 0) {
         if (!tvpal_schedule_phase(&sc, t, &r))
             return need;
         stride = N;
-        s += (r + N - s % N) % N;
+        g += (r + N - g % N) % N;
     }
     /* In a per-chunk shard a chunk is at least a 16-bit one. */
     const uint32_t tf = h->table_format >= TVPAL_TABLE_CHUNK ? TVPAL_TABLE_U16
                                                              : h->table_format;
-    for (; s < end; s += stride) {
-        uint32_t len = tvpal_schedule_len(&sc, s, t);
-        uint64_t cb = tvpal_chunk_bytes(len, h->slice_w, h->slice_h, tf);
+    for (; g * G < end; g += stride) {
+        const uint64_t lo = g * G < begin ? begin : g * G;
+        const uint64_t hi = g * G + G < end ? g * G + G : end;
+        uint32_t len = tvpal_schedule_len(&sc, (uint32_t)lo, t);
+        uint64_t cb = tvpal_chunk_bytes(len, h->slice_w,
+                                        h->slice_h * (uint32_t)(hi - lo), tf);
         if (cb > cap - need)
             return cap + 1;
         need += cb;
-        if (end - s <= stride)
-            break;
     }
     return need;
 }
@@ -944,9 +994,11 @@ int tvpal_shard_count_tables(struct tvpal_shard *s,
                              struct tvpal_diag *diag)
 {
     const struct tvpal_shard_header *h = &s->h;
-    /* Each chunk's header is read where the table format varies by chunk
-     * or some record is coded (its chunks' stored sizes vary). */
-    const int per_chunk = h->table_format >= TVPAL_TABLE_CHUNK || s->coded;
+    /* Each chunk's header is read where the table format varies by chunk,
+     * some record is coded (its chunks' stored sizes vary) or a chunk may
+     * hold a palette group's slices. */
+    const int per_chunk = h->table_format >= TVPAL_TABLE_CHUNK || s->coded ||
+                          h->group > 1;
     const uint32_t allowed =
         tvpal_chunk_flags_allowed(h->table_format) |
         (h->version >= TVPAL_FORMAT_VERSION_CODED ? TVPAL_CHUNK_CODED_BITS
@@ -973,9 +1025,13 @@ int tvpal_shard_count_tables(struct tvpal_shard *s,
                 int rc = end - pos < sizeof b ? TVPAL_E_FORMAT
                                               : pread_all(s->fd, b, sizeof b,
                                                           pos);
-                if (rc == 0 && (tvpal_chunk_header_decode(b, &ch, NULL) < 0 ||
-                                ch.slice != sl || ch.wlen != len ||
-                                ch.w != h->slice_w || ch.h != h->slice_h ||
+                uint32_t nsl = 0;
+                if (rc == 0 && tvpal_chunk_header_decode(b, &ch, NULL) == 0)
+                    nsl = tvpal_chunk_slices(&ch, h);
+                if (rc == 0 && (!nsl || ch.slice != sl || ch.wlen != len ||
+                                ch.w != h->slice_w ||
+                                ch.h != nsl * h->slice_h ||
+                                nsl > h->slice_count - k ||
                                 (ch.flags & ~allowed)))
                     rc = TVPAL_E_FORMAT;
                 if (rc < 0)
@@ -988,9 +1044,10 @@ int tvpal_shard_count_tables(struct tvpal_shard *s,
                     out->coded_chunks++;
                     out->coded_bytes += cb;
                     out->coded_plain += tvpal_chunk_bytes(len, h->slice_w,
-                                                          h->slice_h, tf);
+                                                          ch.h, tf);
                 }
                 pos += cb;
+                k += nsl - 1;
                 if (pos > end)
                     return tvpal_diag_set(diag, TVPAL_E_FORMAT, "record %u: "
                                           "the chunk of slice %u overruns "
@@ -1154,16 +1211,20 @@ static void apply_record(struct tvpal_slab *s, const unsigned char *rec,
     uint64_t pos = 0;
     struct tvpal_chunk c;
     while (next_chunk_at(s, rec, &pos, t, &c)) {
-        struct slab_slice *sl = &s->sl[c.h.slice - h->slice_begin];
-        sl->wstart = c.h.wstart;
-        sl->wlen = c.h.wlen;
-        sl->gen++;
-        tvpal_chunk_table(&c, sl->table);
-        if (borrow) {
-            sl->view = c.indices;
-        } else {
-            memcpy(sl->idx, c.indices, nvox);
-            sl->view = sl->idx;
+        const uint32_t nsl = tvpal_chunk_slices(&c.h, h);
+        for (uint32_t j = 0; j < nsl; j++) {
+            struct slab_slice *sl = &s->sl[c.h.slice + j - h->slice_begin];
+            const uint8_t *idx = c.indices + (size_t)j * nvox;
+            sl->wstart = c.h.wstart;
+            sl->wlen = c.h.wlen;
+            sl->gen++;
+            tvpal_chunk_table(&c, sl->table);
+            if (borrow) {
+                sl->view = idx;
+            } else {
+                memcpy(sl->idx, idx, nvox);
+                sl->view = sl->idx;
+            }
         }
     }
 }
@@ -1197,34 +1258,39 @@ static void unstage_slice(struct tvpal_slab *s, struct slab_slice *sl)
     sl->st_view = NULL;
 }
 
-/* Stages chunk c into its slice's staging buffers.  With crc, the
- * indices are copied with their CRC summed on the way, onto *crc. */
+/* Stages chunk c into the staging buffers of its slices (k of a palette
+ * group share its table).  With crc, the indices are copied with their
+ * CRC summed on the way, onto *crc. */
 static int stage_chunk(struct tvpal_slab *s, const struct tvpal_chunk *c,
                        uint32_t *crc)
 {
     const struct tvpal_shard_header *h = &s->sh->h;
-    uint32_t k = c->h.slice - h->slice_begin;
-    struct slab_slice *sl = &s->sl[k];
-    if (!sl->st_idx) {
-        int rc = stage_buffers(s, sl);
-        if (rc < 0)
-            return rc;
-        s->staged[s->nstaged++] = k;
-    }
-    sl->st_wstart = c->h.wstart;
-    sl->st_wlen = c->h.wlen;
-    tvpal_chunk_table(c, sl->st_table);
     const size_t nvox = (size_t)h->slice_w * h->slice_h;
-    if (s->borrow) {
-        if (crc)
-            *crc = tvpal_crc32c(*crc, c->indices, nvox);
-        sl->st_view = c->indices;
-    } else {
-        if (crc)
-            *crc = tvpal_crc32c_copy(*crc, sl->st_idx, c->indices, nvox);
-        else
-            memcpy(sl->st_idx, c->indices, nvox);
-        sl->st_view = sl->st_idx;
+    const uint32_t nsl = tvpal_chunk_slices(&c->h, h);
+    for (uint32_t j = 0; j < nsl; j++) {
+        const uint32_t k = c->h.slice + j - h->slice_begin;
+        const uint8_t *idx = c->indices + (size_t)j * nvox;
+        struct slab_slice *sl = &s->sl[k];
+        if (!sl->st_idx) {
+            int rc = stage_buffers(s, sl);
+            if (rc < 0)
+                return rc;
+            s->staged[s->nstaged++] = k;
+        }
+        sl->st_wstart = c->h.wstart;
+        sl->st_wlen = c->h.wlen;
+        tvpal_chunk_table(c, sl->st_table);
+        if (s->borrow) {
+            if (crc)
+                *crc = tvpal_crc32c(*crc, idx, nvox);
+            sl->st_view = idx;
+        } else {
+            if (crc)
+                *crc = tvpal_crc32c_copy(*crc, sl->st_idx, idx, nvox);
+            else
+                memcpy(sl->st_idx, idx, nvox);
+            sl->st_view = sl->st_idx;
+        }
     }
     return 0;
 }
@@ -1238,15 +1304,18 @@ static void unstage_record(struct tvpal_slab *s, const unsigned char *rec,
     uint64_t pos = 0;
     struct tvpal_chunk c;
     while (next_chunk_at(s, rec, &pos, t, &c)) {
-        uint32_t k = c.h.slice - h->slice_begin;
-        if (!s->sl[k].st_idx)
-            continue;
-        unstage_slice(s, &s->sl[k]);
-        for (uint32_t n = 0; n < s->nstaged; n++)
-            if (s->staged[n] == k) {
-                s->staged[n] = s->staged[--s->nstaged];
-                break;
-            }
+        const uint32_t nsl = tvpal_chunk_slices(&c.h, h);
+        for (uint32_t j = 0; j < nsl; j++) {
+            uint32_t k = c.h.slice + j - h->slice_begin;
+            if (!s->sl[k].st_idx)
+                continue;
+            unstage_slice(s, &s->sl[k]);
+            for (uint32_t n = 0; n < s->nstaged; n++)
+                if (s->staged[n] == k) {
+                    s->staged[n] = s->staged[--s->nstaged];
+                    break;
+                }
+        }
     }
 }
 
@@ -1285,7 +1354,7 @@ int tvpal_slab_stage_verify(struct tvpal_slab *s, const unsigned char *rec,
         int rc = stage_chunk(s, &c, &crc);
         if (rc < 0)
             return rc;
-        summed = at + nvox;
+        summed = at + nvox * tvpal_chunk_slices(&c.h, h);
     }
     crc = tvpal_crc32c(crc, rec + summed,
                        TVPAL_RECORD_HEADER_BYTES + rh.payload_bytes - summed);

@@ -82,7 +82,9 @@ int tvpal_shardw_reopen_placed(struct tvpal_shardw **out, const char *path,
                                struct tvpal_diag *diag);
 
 /* Writes the chunk of slice s in record t (bytes = tvpal_chunk_bytes of
- * its window with the shard's table_format) at its place and sets *crc to
+ * its window with the shard's table_format; a chunk of k slices of a
+ * palette group, FORMAT.md 6.5, takes the k rooms of its slices, zeros
+ * after it, and finish packs the shard) at its place and sets *crc to
  * the chunk's CRC-32C.  In a per-chunk shard (table_format 4) that is the
  * room of a float32 chunk: a 16-bit chunk (TVPAL_CHUNK_U16) comes first,
  * followed by zeros, and finish packs it (FORMAT.md 9.1).  Safe to call
@@ -101,11 +103,12 @@ int tvpal_shardw_put_chunk(struct tvpal_shardw *w, uint32_t t, uint32_t s,
  * reopened to resume a job that set it.  Off at creation. */
 void tvpal_shardw_set_coding(struct tvpal_shardw *w, int on);
 
-/* Adds the chunk of slice s (written, with CRC crc) to record t's payload
- * CRC.  Chunks must be added in ascending slice order: TVPAL_E_INVAL for
- * any other than the next one of the record.  Not thread-safe. */
+/* Adds the chunk of slice s, holding `slices` slices (1 without palette
+ * groups), written with CRC crc, to record t's payload CRC.  Chunks must
+ * be added in ascending slice order: TVPAL_E_INVAL for any other than the
+ * next one of the record.  Not thread-safe. */
 int tvpal_shardw_extend(struct tvpal_shardw *w, uint32_t t, uint32_t s,
-                        uint32_t crc);
+                        uint32_t slices, uint32_t crc);
 
 /* A record's progress (bytes of payload added, their CRC) and whether a
  * chunk had missing entries: what a checkpoint keeps to resume.

@@ -27,15 +27,19 @@ _Static_assert(TVPAL_ENGINE_REFINE_MAX == TVPAL_REFINE_MAX,
 /* Most slices per group: those of one 64-byte line of x (16 floats). */
 #define GROUP_SPAN 16u
 
-/* A group of `count` slices slice, slice + N, ... of one shard, all with
- * windows of length len starting at the current step; their chunks' CRCs
- * go to jcrc[crc_at ..]. */
+/* A job of `count` slices slice, slice + stride, ... of one shard, all
+ * with windows of length len starting at the current step: x slices of
+ * one phase (stride N), or the slices of one palette group in the slab
+ * and the pass (stride 1, shared when there are several: one chunk under
+ * one table).  Their chunks' CRCs go to jcrc[crc_at ..]. */
 struct slicejob {
     struct tvpal_engine_shard *sj;
     uint32_t slice;
     uint32_t count;
+    uint32_t stride;
     uint32_t len;
     size_t crc_at;
+    int shared;
 };
 
 /* One pass over a slice-window that prices any rounding of its float32
@@ -56,7 +60,8 @@ struct tvpal_engine {
     struct tvpal_engine_params p;
     struct tvpal_engine_shard *sj;
     uint32_t nshard;
-    size_t max_slice_vox, max_jobs;
+    size_t max_slice_vox, max_jobs;  /* voxels of a group's slices */
+    uint32_t max_group;          /* the largest G of the axes */
     uint64_t max_chunk;          /* bytes of the largest chunk */
     size_t group_cap;            /* floats of samples per thread */
     /* Started: */
@@ -64,6 +69,8 @@ struct tvpal_engine {
     unsigned nthreads;
     struct tvpal_swenc **enc;
     float **samples;
+    float **gsamples;            /* a palette group's samples as one
+                                  * slice (groups only) */
     float **tables;              /* a table, then (--table auto) the
                                   * values its 16-bit form decodes to */
     struct table_fit **fit;      /* --table auto's measure of a table */
@@ -92,6 +99,17 @@ static size_t group_floats(const struct tvpal_engine *e)
                                              : sw * GROUP_SPAN;
 }
 
+uint32_t tvpal_engine_group(const struct tvpal_engine_params *p,
+                            unsigned a)
+{
+    uint32_t n, w, h;
+    tvpal_axis_geometry(p->dims, a, &n, &w, &h);
+    uint64_t G = p->group < n ? p->group : n;
+    if (G * w * h > TVPAL_GROUP_VOXELS_MAX)
+        G = TVPAL_GROUP_VOXELS_MAX / ((uint64_t)w * h);
+    return G >= 2 ? (uint32_t)G : 1;
+}
+
 static int params_ok(const struct tvpal_engine_params *p)
 {
     return p->dims[0] && p->dims[1] && p->dims[2] && p->steps &&
@@ -102,6 +120,7 @@ static int params_ok(const struct tvpal_engine_params *p)
            p->axes <= 7 && p->nodes >= 1 && p->node_count >= 1 &&
            p->node_first < p->nodes &&
            p->node_count <= p->nodes - p->node_first &&
+           p->group <= TVPAL_GROUP_MAX &&
            (p->table_format == TVPAL_TABLE_F32 ||
             p->table_format == TVPAL_TABLE_U16 ||
             p->table_format == TVPAL_TABLE_CHUNK);
@@ -128,11 +147,15 @@ int tvpal_engine_create(struct tvpal_engine **out,
             continue;
         uint32_t n, w, h;
         tvpal_axis_geometry(p->dims, a, &n, &w, &h);
-        if ((size_t)w * h > e->max_slice_vox)
-            e->max_slice_vox = (size_t)w * h;
+        const uint32_t G = tvpal_engine_group(p, a);
+        if ((size_t)G * w * h > e->max_slice_vox)
+            e->max_slice_vox = (size_t)G * w * h;
+        if (G > e->max_group)
+            e->max_group = G;
         e->max_jobs += n;
-        uint64_t cb = tvpal_chunk_bytes(tvpal_engine_span(p), w, h,
-                                        p->table_format);
+        /* A group's chunk takes the rooms of its slices. */
+        uint64_t cb = G * tvpal_chunk_bytes(tvpal_engine_span(p), w, h,
+                                            p->table_format);
         if (cb > e->max_chunk)
             e->max_chunk = cb;
         for (uint32_t k = k0; k < k0 + nk; k++) {
@@ -140,10 +163,11 @@ int tvpal_engine_create(struct tvpal_engine **out,
             j->axis = a;
             j->rank = k;
             j->h = (struct tvpal_shard_header){
-                .version = p->schedule == TVPAL_SCHEDULE_JOINED
+                .version = G > 1 ? TVPAL_FORMAT_VERSION_GROUPED
+                           : p->schedule == TVPAL_SCHEDULE_JOINED
                                ? TVPAL_FORMAT_VERSION_JOINED
                                : TVPAL_FORMAT_VERSION,
-                .steps = p->steps,
+                .steps = p->steps, .group = G,
                 .window = p->window, .schedule = p->schedule,
                 .nodes = p->nodes, .rank = k,
                 .axis = a, .slice_w = w, .slice_h = h,
@@ -170,8 +194,10 @@ uint64_t tvpal_engine_thread_bytes(const struct tvpal_engine *e)
 {
     const uint64_t sv = e->max_slice_vox, N = tvpal_engine_span(&e->p);
     const uint64_t codec = sv * (16 * N + 64) + N * 256 * 16 + (1u << 16);
+    const uint64_t groups = e->max_group > 1 ? e->group_cap * sizeof(float)
+                                             : 0;
     return codec + e->group_cap * sizeof(float) +
-           2 * N * 256 * sizeof(float) + e->max_chunk;
+           2 * N * 256 * sizeof(float) + e->max_chunk + groups;
 }
 
 uint64_t tvpal_engine_max_chunk(const struct tvpal_engine *e)
@@ -208,6 +234,9 @@ static int start_thread(struct tvpal_engine *e, unsigned i,
          (!(e->codedbuf[i] = malloc(e->max_chunk)) ||
           tvpal_chunkz_create(&e->z[i], e->max_chunk) < 0)))
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "a thread's workspace");
+    if (e->max_group > 1 &&
+        !(e->gsamples[i] = malloc(e->group_cap * sizeof(float))))
+        return tvpal_diag_set(diag, TVPAL_E_NOMEM, "a thread's workspace");
     return 0;
 }
 
@@ -221,6 +250,7 @@ int tvpal_engine_start(struct tvpal_engine *e, struct tvpal_pool *pool,
     e->enc = calloc(nt, sizeof *e->enc);
     e->dropped = calloc(nt, sizeof *e->dropped);
     e->samples = calloc(nt, sizeof *e->samples);
+    e->gsamples = calloc(nt, sizeof *e->gsamples);
     e->tables = calloc(nt, sizeof *e->tables);
     e->fit = calloc(nt, sizeof *e->fit);
     e->chunkbuf = calloc(nt, sizeof *e->chunkbuf);
@@ -230,6 +260,7 @@ int tvpal_engine_start(struct tvpal_engine *e, struct tvpal_pool *pool,
     e->jcrc = calloc(e->max_jobs, sizeof *e->jcrc);
     e->ring = calloc(e->nring, sizeof *e->ring);
     if (!e->enc || !e->dropped || !e->samples || !e->tables || !e->fit ||
+        !e->gsamples ||
         !e->jobs || !e->ring || !e->chunkbuf || !e->jcrc || !e->codedbuf ||
         !e->z)
         return tvpal_diag_set(diag, TVPAL_E_NOMEM, "the job lists");
@@ -295,6 +326,7 @@ void tvpal_engine_free(struct tvpal_engine *e)
     for (unsigned i = 0; i < e->nthreads && e->enc; i++) {
         tvpal_swenc_free(e->enc[i]);
         free(e->samples[i]);
+        free(e->gsamples[i]);
         free(e->tables[i]);
         free(e->fit[i]);
         free(e->chunkbuf[i]);
@@ -306,6 +338,7 @@ void tvpal_engine_free(struct tvpal_engine *e)
     free(e->enc);
     free(e->dropped);
     free(e->samples);
+    free(e->gsamples);
     free(e->tables);
     free(e->fit);
     free(e->chunkbuf);
@@ -353,6 +386,8 @@ void tvpal_engine_options_line(const struct tvpal_engine_params *p,
         OPTS_ADD(" --alloc greedy-mse");
     if (p->schedule == TVPAL_SCHEDULE_STAGGERED)
         OPTS_ADD(" --schedule staggered");
+    if (p->group > 1)
+        OPTS_ADD(" --group %u", p->group);
     if (p->index_level == 0)
         OPTS_ADD(" --index-coding none");
     else if (p->index_level != TVPAL_CHUNKZ_LEVEL)
@@ -421,29 +456,30 @@ static void gather(const struct tvpal_engine *e, const struct slicejob *jb,
     const size_t bx = b->n[0], by = b->n[1], bz = b->n[2];
     const unsigned axis = jb->sj->axis;
     const size_t sv = (size_t)jb->sj->h.slice_w * jb->sj->h.slice_h;
-    const uint32_t s = jb->slice - b->lo[axis], len = jb->len,
-                   N = e->p.window;
+    const uint32_t s0 = jb->slice - b->lo[axis], len = jb->len,
+                   stride = jb->stride;
     for (uint32_t j = 0; j < len; j++) {
         const float *vol = e->ring[(t + j) % e->nring];
         float *out = samples + (size_t)j * sv;
-        switch (axis) {
-        case 0:
+        if (axis == 0) {
             for (size_t z = 0; z < bz; z++)
                 for (size_t y = 0; y < by; y++) {
-                    const float *row = vol + bx * (y + by * z) + s;
+                    const float *row = vol + bx * (y + by * z) + s0;
                     float *dst = out + y + by * z;
                     for (uint32_t g = 0; g < jb->count; g++)
-                        dst[(size_t)g * len * sv] = row[(size_t)g * N];
+                        dst[(size_t)g * len * sv] = row[(size_t)g * stride];
                 }
-            break;
-        case 1:
-            for (size_t z = 0; z < bz; z++)
-                memcpy(out + bx * z, vol + bx * (s + by * z),
-                       bx * sizeof *out);
-            break;
-        default:
-            memcpy(out, vol + bx * by * (size_t)s, bx * by * sizeof *out);
-            break;
+            continue;
+        }
+        for (uint32_t g = 0; g < jb->count; g++) {
+            const size_t s = s0 + (size_t)g * stride;
+            float *dst = out + (size_t)g * len * sv;
+            if (axis == 1)
+                for (size_t z = 0; z < bz; z++)
+                    memcpy(dst + bx * z, vol + bx * (s + by * z),
+                           bx * sizeof *out);
+            else
+                memcpy(dst, vol + bx * by * s, bx * by * sizeof *out);
         }
     }
 }
@@ -699,13 +735,13 @@ static int code_chunk(struct tvpal_engine *e, unsigned tid,
 static size_t plan_step(struct tvpal_engine *e, uint32_t t)
 {
     const uint32_t N = e->p.window;
-    const struct tvpal_schedule sc = tvpal_engine_schedule(&e->p);
     const struct encode_pass *ps = e->pass;
     struct slicejob *jobs = e->jobs;
     size_t njobs = 0, chunks = 0;
     for (uint32_t q = 0; q < e->nshard; q++) {
         struct tvpal_engine_shard *j = &e->sj[q];
         const unsigned a = j->axis;
+        const struct tvpal_schedule sc = tvpal_shard_schedule(&j->h);
         if (!(ps->axes & (1u << a)))
             continue;
         const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
@@ -716,6 +752,17 @@ static size_t plan_step(struct tvpal_engine *e, uint32_t t)
             if (!tvpal_schedule_starts(&sc, s, t))
                 continue;
             uint32_t len = tvpal_schedule_len(&sc, s, t);
+            if (sc.G > 1) {
+                /* The group's slices in the slab and the pass. */
+                uint32_t end = (s / sc.G + 1) * sc.G;
+                end = end < hi ? end : hi;
+                jobs[njobs++] = (struct slicejob){
+                    .sj = j, .slice = s, .count = end - s, .stride = 1,
+                    .len = len, .crc_at = chunks, .shared = end - s > 1};
+                chunks += end - s;
+                s = end - 1;
+                continue;
+            }
             struct slicejob *prev = njobs ? &jobs[njobs - 1] : NULL;
             /* Extend the previous x group when this slice is the next of
              * its phase, in the same line, with the same window, and the
@@ -726,7 +773,9 @@ static size_t plan_step(struct tvpal_engine *e, uint32_t t)
                 (uint64_t)(prev->count + 1) * len * sv <= e->group_cap)
                 prev->count++;
             else
-                jobs[njobs++] = (struct slicejob){j, s, 1, len, chunks};
+                jobs[njobs++] = (struct slicejob){
+                    .sj = j, .slice = s, .count = 1, .stride = N, .len = len,
+                    .crc_at = chunks};
             chunks++;
         }
     }
@@ -743,39 +792,102 @@ struct step_ctx {
     uint32_t fail_q;
 };
 
-/* Job i of the step: gathers its slices, encodes each slice-window and
- * writes its chunk in place.  Thread 0 (the caller's) ticks between jobs,
- * so a progress line comes within a long step too. */
+/* Records the first failure of the step (c->fail_*). */
+static void step_failed(struct step_ctx *c, int rc,
+                        const struct tvpal_diag *d,
+                        const struct tvpal_engine_shard *j)
+{
+    if (!__atomic_exchange_n(&c->failed, 1, __ATOMIC_RELAXED)) {
+        c->fail_rc = rc;
+        c->fail_d = *d;
+        c->fail_q = (uint32_t)(j - c->e->sj);
+    }
+}
+
+/* Codes slice-window samples (header sh: a group's as one slice of
+ * k * slice_h rows) into thread tid's chunk buffer, in a room of cb bytes
+ * (zeros after the chunk), with zstd where that pays.  0 or the coder's
+ * error. */
+static int code_window(struct tvpal_engine *e, unsigned tid,
+                       const float *samples,
+                       const struct tvpal_shard_header *sh, uint32_t slice,
+                       uint32_t t, uint32_t len, uint64_t cb)
+{
+    unsigned char *chunk = e->chunkbuf[tid];
+    encode_chunk(e->enc[tid], e->fit[tid], e->tables[tid], samples, sh, slice,
+                 t, len, chunk, &e->dropped[tid]);
+    const uint64_t own = tvpal_chunk_bytes(len, sh->slice_w, sh->slice_h,
+                                           sh->table_format);
+    memset(chunk + own, 0, (size_t)(cb - own));
+    return e->p.index_level ? code_chunk(e, tid, sh, cb) : 0;
+}
+
+/* A palette group's slices, gathered in samples (slice g at g len w h),
+ * as one slice of k h rows, time-major, into gs. */
+static void group_samples(const struct slicejob *jb, const float *in,
+                          float *gs)
+{
+    const size_t sv = (size_t)jb->sj->h.slice_w * jb->sj->h.slice_h;
+    for (uint32_t jt = 0; jt < jb->len; jt++)
+        for (uint32_t g = 0; g < jb->count; g++)
+            memcpy(gs + ((size_t)jt * jb->count + g) * sv,
+                   in + ((size_t)g * jb->len + jt) * sv, sv * sizeof *gs);
+}
+
+/* The header of a chunk of a group's k slices: k slice_h rows. */
+static struct tvpal_shard_header group_header(const struct slicejob *jb)
+{
+    struct tvpal_shard_header gh = jb->sj->h;
+    gh.slice_h *= jb->count;
+    return gh;
+}
+
+/* Job i of the step: gathers its slices, encodes each slice-window (a
+ * palette group's as one, under one table) and writes its chunks in
+ * place.  Thread 0 (the caller's) ticks between jobs, so a progress line
+ * comes within a long step too. */
 static void encode_job(void *arg, size_t i, unsigned tid)
 {
     struct step_ctx *c = arg;
     struct tvpal_engine *e = c->e;
-    const uint32_t t = c->t, N = e->p.window;
+    const uint32_t t = c->t;
     const struct slicejob *jb = &e->jobs[i];
     const struct tvpal_engine_shard *j = jb->sj;
     const size_t sv = (size_t)j->h.slice_w * j->h.slice_h;
     const uint64_t cb = tvpal_chunk_bytes(jb->len, j->h.slice_w,
                                           j->h.slice_h, j->h.table_format);
     gather(e, jb, t, e->samples[tid]);
-    for (uint32_t g = 0; g < jb->count; g++) {
+    if (jb->shared) {
         struct tvpal_diag d = {{0}};
+        const struct tvpal_shard_header gh = group_header(jb);
+        group_samples(jb, e->samples[tid], e->gsamples[tid]);
+        int rc = code_window(e, tid, e->gsamples[tid], &gh, jb->slice, t,
+                             jb->len, jb->count * cb);
+        if (rc == 0)
+            rc = tvpal_shardw_put_chunk(j->w, t, jb->slice, e->chunkbuf[tid],
+                                        jb->count * cb, &e->jcrc[jb->crc_at],
+                                        &d);
+        else
+            tvpal_diag_set(&d, rc, "coding the chunk of slices %u..%u, step "
+                           "%u", jb->slice, jb->slice + jb->count - 1, t);
+        if (rc < 0)
+            step_failed(c, rc, &d, j);
+    }
+    for (uint32_t g = 0; !jb->shared && g < jb->count; g++) {
+        struct tvpal_diag d = {{0}};
+        const uint32_t s = jb->slice + g * jb->stride;
         encode_chunk(e->enc[tid], e->fit[tid], e->tables[tid],
-                     e->samples[tid] + (size_t)g * jb->len * sv, &j->h,
-                     jb->slice + g * N, t, jb->len, e->chunkbuf[tid],
-                     &e->dropped[tid]);
+                     e->samples[tid] + (size_t)g * jb->len * sv, &j->h, s, t,
+                     jb->len, e->chunkbuf[tid], &e->dropped[tid]);
         int rc = e->p.index_level ? code_chunk(e, tid, &j->h, cb) : 0;
         if (rc == 0)
-            rc = tvpal_shardw_put_chunk(j->w, t, jb->slice + g * N,
-                                        e->chunkbuf[tid], cb,
+            rc = tvpal_shardw_put_chunk(j->w, t, s, e->chunkbuf[tid], cb,
                                         &e->jcrc[jb->crc_at + g], &d);
         else
             tvpal_diag_set(&d, rc, "coding the chunk of slice %u, step %u",
-                           jb->slice + g * N, t);
-        if (rc < 0 && !__atomic_exchange_n(&c->failed, 1, __ATOMIC_RELAXED)) {
-            c->fail_rc = rc;
-            c->fail_d = d;
-            c->fail_q = (uint32_t)(j - e->sj);
-        }
+                           s, t);
+        if (rc < 0)
+            step_failed(c, rc, &d, j);
     }
     if (e->work)
         __atomic_add_fetch(e->work, (uint64_t)sv * jb->len * jb->count,
@@ -799,12 +911,14 @@ int tvpal_engine_encode_step(struct tvpal_engine *e, uint32_t t,
     }
     for (size_t i = 0; i < njobs; i++) {
         const struct slicejob *jb = &e->jobs[i];
-        for (uint32_t g = 0; g < jb->count; g++)
-            if (tvpal_shardw_extend(jb->sj->w, t, jb->slice + g * e->p.window,
-                                    e->jcrc[jb->crc_at + g]) < 0)
+        const uint32_t nchunks = jb->shared ? 1 : jb->count,
+                       slices = jb->shared ? jb->count : 1;
+        for (uint32_t g = 0; g < nchunks; g++)
+            if (tvpal_shardw_extend(jb->sj->w, t, jb->slice + g * jb->stride,
+                                    slices, e->jcrc[jb->crc_at + g]) < 0)
                 return tvpal_diag_set(diag, TVPAL_E_INVAL, "chunk of slice "
                                       "%u, step %u out of order",
-                                      jb->slice + g * e->p.window, t);
+                                      jb->slice + g * jb->stride, t);
     }
     return 0;
 }

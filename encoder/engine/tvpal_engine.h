@@ -52,14 +52,24 @@ struct tvpal_engine_params {
      * makes it smaller (tvpal_chunkz_code). */
     int index_level;
     uint32_t schedule;             /* TVPAL_SCHEDULE_* (FORMAT.md 5) */
+    /* Palette groups (FORMAT.md 5.1): 0 or 1 none (the paper's table per
+     * slice-window); G >= 2 the slices gG .. gG + G - 1 of an axis share
+     * one table per window (fewer where the axis has fewer slices, or G
+     * slices would exceed TVPAL_GROUP_VOXELS_MAX voxels:
+     * tvpal_engine_group). */
+    uint32_t group;
 };
+
+/* The palette group size of axis a for p: 1 (none) or 2 .. p->group. */
+uint32_t tvpal_engine_group(const struct tvpal_engine_params *p,
+                            unsigned a);
 
 /* The schedule of p's series, and its longest window: the steps the ring
  * holds (tvpal_engine_slot) and a step is encoded after. */
 static inline struct tvpal_schedule
 tvpal_engine_schedule(const struct tvpal_engine_params *p)
 {
-    return tvpal_schedule_of(p->window, p->steps, p->schedule);
+    return tvpal_schedule_of(p->window, p->steps, p->schedule, 1);
 }
 static inline uint32_t tvpal_engine_span(const struct tvpal_engine_params *p)
 {

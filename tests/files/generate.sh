@@ -127,6 +127,14 @@ good_encode good-7-coded-t2 40x32x3 --window 2 --axes z --schedule staggered
 # N = 2, all axes, plain: slices of phase 1 have the first window [0, 3)
 # (wlen 3 > N), record 1 holds no chunk, every other record one phase.
 good good-8-joined blobs 4x3x5 5 --window 2 --table f32 --axes xyz --index-coding none
+# Palette groups (FORMAT.md 5.1, shard format_version 4, since 1.12): blobs
+# 4x3x6, T = 5, N = 2, groups of G = 2, two nodes, all axes, plain float32
+# tables.  z: groups {0,1} {2,3} {4,5} (phases 0, 1, 0); node 0 holds
+# slices 0..2, so group {2,3} is cut by the slabs (one chunk per slice)
+# and group {0,1} is one chunk of two slices (h = 6).  y: n = 3, the last
+# group one slice.
+good good-9-group blobs 4x3x6 5 --window 2 --group 2 --nodes 2 --table f32 --axes xyz \
+    --index-coding none
 
 # The bad files: each one copy of a good-1-basic file with one fault.
 "$PY" - "$O" <<'PY'
@@ -176,8 +184,10 @@ def write(name, b):
 
 b = bytearray(shard); b[0:4096] = bytes(4096)
 write("bad-shard-unfinished.tvps", b)          # header never written
-b = bytearray(shard); u32(b, 8, 4)             # CRC left stale on purpose
-write("bad-shard-version-4.tvps", b)
+b = bytearray(shard); u32(b, 8, 5)             # CRC left stale on purpose
+write("bad-shard-version-5.tvps", b)
+b = bytearray(shard); u32(b, 92, 2); seal_header(b)  # a group in version 1
+write("bad-shard-group-version.tvps", b)
 b = bytearray(shard); u32(b, 8, 3); seal_header(b)   # joined, schedule 0
 write("bad-shard-schedule.tvps", b)
 b = bytearray(shard); b[2000] ^= 0x01          # a reserved byte
@@ -232,6 +242,13 @@ def chunks(t):
 load(O + "/good-2-u16-nodes/node-0/axis-z.tvps")
 b = bytearray(shard); u32(b, chunks(1)[0] + 28, 2); seal_record(b, 1)
 write("bad-u16-chunk-flag.tvps", b)            # flags bit 1, table_format 1
+load(O + "/good-9-group/node-0/axis-z.tvps")
+b = bytearray(shard); u32(b, 92, 1); seal_header(b)  # version 4, group 1
+write("bad-group-shard-1.tvps", b)
+c = chunks(0)                                  # slices 0-1 (h 6), 2 (h 3)
+assert [struct.unpack_from("<I", shard, o + 20)[0] for o in c] == [6, 3]
+b = bytearray(shard); u32(b, c[0] + 20, 9); seal_record(b, 0)
+write("bad-group-chunk-rows.tvps", b)          # 3 slices, G = 2
 load(O + "/good-5-auto/node-0/axis-z.tvps")
 c = chunks(0)                                  # slices 0 (u16), 1 (f32), 2 (u16)
 assert [struct.unpack_from("<I", shard, o + 28)[0] for o in c] == [2, 0, 2]
