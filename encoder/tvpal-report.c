@@ -767,11 +767,18 @@ static void print_text(const struct report *r)
 {
     const struct tvpal_info *m = r->m;
     const uint64_t *ab = r->sz.axis_bytes;
-    printf("dataset %s: %ux%ux%u %s, %u steps, window %u (%s), %u node%s\n",
+    printf("dataset %s: %ux%ux%u %s, %u steps, window %u (%s), %u node%s",
            r->dir, m->dims[0], m->dims[1], m->dims[2], m->source_type,
            r->steps, m->window,
            tvpal_schedule_name(m->schedule),
            m->nodes, m->nodes == 1 ? "" : "s");
+    for (unsigned a = 0, first = 1; a < 3; a++)
+        if (m->group[a] > 1) {
+            printf("%s %c %u", first ? ", palette groups:" : ",",
+                   "xyz"[a], m->group[a]);
+            first = 0;
+        }
+    printf("\n");
     printf("peak (max - min of the original) = %.9g  [%.9g, %.9g]\n",
            r->peak, r->vmin, r->vmax);
     printf("%6s", "step");
@@ -972,10 +979,11 @@ static void write_json_doc(FILE *f, const struct report *r)
     jstr(f, r->dir);
     fprintf(f, ",\n  \"dims\": [%u, %u, %u],\n"
             "  \"steps\": %u,\n  \"window\": %u,\n  \"schedule\": \"%s\",\n"
+            "  \"groups\": [%u, %u, %u],\n"
             "  \"nodes\": %u,\n  \"peak\": ", m->dims[0], m->dims[1],
             m->dims[2], r->steps, m->window,
-            tvpal_schedule_name(m->schedule),
-            m->nodes);
+            tvpal_schedule_name(m->schedule), m->group[0], m->group[1],
+            m->group[2], m->nodes);
     jnum(f, r->peak);
     write_json_axes(f, r);
     write_json_steps(f, r);

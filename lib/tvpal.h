@@ -637,6 +637,10 @@ struct tvpal_info {
     uint32_t nsources;
     /* Since 0.4.0. */
     uint32_t schedule;        /* TVPAL_SCHEDULE_STAGGERED or _JOINED */
+    uint32_t group[3];        /* palette group size G of each axis (1:
+                               * none; TVPAL_PARAM_GROUP), from its shards;
+                               * 0 for an axis not stored, and for every
+                               * axis from tvpal_reader_open_manifest */
 };
 
 struct tvpal_reader;

@@ -65,6 +65,10 @@ static void fill_info(struct tvpal_reader *r)
     in->steps = m->steps;
     in->window = m->window;
     in->schedule = m->schedule;
+    for (unsigned a = 0; a < 3; a++)
+        in->group[a] = r->lv[0].ds && tvpal_dataset_has_axis(r->lv[0].ds, a)
+                           ? tvpal_shard_hdr(r->lv[0].ds->shards[a][0])->group
+                           : 0;
     in->nodes = m->nodes;
     in->axes = m->axes_mask;
     in->levels = m->levels;

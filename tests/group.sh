@@ -53,6 +53,9 @@ s=$W/g/node-0/axis-z.tvps
     || fail "header: version $(u32 "$s" 8) group $(u32 "$s" 92)"
 grep -q -- '^options = .* --group 4' "$W/g/manifest.txt" && ok "manifest options say --group 4" \
     || fail "options: $(grep '^options' "$W/g/manifest.txt")"
+"$REPORT" "$W/g" --json "$W/g.json" > "$W/report.txt" || fail "tvpal-report"
+head -n 1 "$W/report.txt" | grep -q ', palette groups: z 4$' && grep -q '"groups": \[0, 0, 4\]' "$W/g.json" \
+    && ok "tvpal-report names the groups (text and JSON)" || fail "report: $(head -n 1 "$W/report.txt")"
 "$ENC" -q --dims 40x34x24 --axes z -o "$W/g0" "$W"/in/*.f32 > /dev/null || fail encode
 "$ENC" -q --dims 40x34x24 --axes z --group 1 -o "$W/g1" "$W"/in/*.f32 > /dev/null || fail encode
 cmp -s "$W/g0/node-0/axis-z.tvps" "$W/g1/node-0/axis-z.tvps" && [ "$(u32 "$W/g1/node-0/axis-z.tvps" 92)" = 0 ] \
