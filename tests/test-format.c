@@ -807,6 +807,46 @@ static void test_borrow(void)
     unlink(path);
 }
 
+/* Palette groups (FORMAT.md 5.1) in the shard header: version 4 with G
+ * in 2 .. n (x: n = 10 slices of 7x5), either schedule; the field is 0
+ * before. */
+static void test_group_header(void)
+{
+    const struct tvpal_shard_header h = sample_header();
+    struct tvpal_shard_header g;
+    struct tvpal_diag d = {{0}};
+    unsigned char hb[TVPAL_SHARD_HEADER_BYTES];
+    const uint32_t cases[][4] = {/* version, schedule, group, ok */
+                                 {4, 0, 2, 1}, {4, 1, 10, 1},
+                                 {4, 1, 1, 0}, {4, 0, 11, 0},
+                                 {4, 2, 2, 0}, {3, 1, 2, 0},
+                                 {1, 0, 3, 0}};
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
+        struct tvpal_shard_header j = h;
+        j.version = cases[i][0];
+        j.schedule = cases[i][1];
+        j.group = cases[i][2];
+        tvpal_shard_header_encode(&j, hb);
+        /* The writer keeps the field 0 before version 4: set it. */
+        hb[92] = (unsigned char)j.group;
+        const uint32_t crc = tvpal_crc32c(0, hb, 4092);
+        for (int b = 0; b < 4; b++)
+            hb[4092 + b] = (unsigned char)(crc >> (8 * b));
+        d.msg[0] = 0;
+        const int rc = tvpal_shard_header_decode(hb, &g, &d);
+        CHECK(cases[i][3] ? rc == 0 && g.group == j.group
+                          : rc == TVPAL_E_FORMAT &&
+                                (strstr(d.msg, "group") ||
+                                 strstr(d.msg, "schedule")),
+              "version %u schedule %u group %u: %d %s", j.version,
+              j.schedule, j.group, rc, d.msg);
+    }
+    /* A version 1 header decodes with G = 1. */
+    tvpal_shard_header_encode(&h, hb);
+    CHECK(tvpal_shard_header_decode(hb, &g, NULL) == 0 && g.group == 1,
+          "no group: G = 1");
+}
+
 int main(void)
 {
     test_placed();
@@ -853,39 +893,7 @@ int main(void)
                   d.msg);
         }
     }
-    /* Palette groups (FORMAT.md 5.1): version 4 with G in 2 .. n (x:
-     * n = 10 slices of 7x5), either schedule; the field is 0 before. */
-    {
-        const uint32_t cases[][4] = {/* version, schedule, group, ok */
-                                     {4, 0, 2, 1}, {4, 1, 10, 1},
-                                     {4, 1, 1, 0}, {4, 0, 11, 0},
-                                     {4, 2, 2, 0}, {3, 1, 2, 0},
-                                     {1, 0, 3, 0}};
-        for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
-            struct tvpal_shard_header j = h;
-            j.version = cases[i][0];
-            j.schedule = cases[i][1];
-            j.group = cases[i][2];
-            tvpal_shard_header_encode(&j, hb);
-            /* The writer keeps the field 0 before version 4: set it. */
-            hb[92] = (unsigned char)j.group;
-            const uint32_t crc = tvpal_crc32c(0, hb, 4092);
-            for (int b = 0; b < 4; b++)
-                hb[4092 + b] = (unsigned char)(crc >> (8 * b));
-            d.msg[0] = 0;
-            const int rc = tvpal_shard_header_decode(hb, &g, &d);
-            CHECK(cases[i][3] ? rc == 0 && g.group == j.group
-                              : rc == TVPAL_E_FORMAT &&
-                                    (strstr(d.msg, "group") ||
-                                     strstr(d.msg, "schedule")),
-                  "version %u schedule %u group %u: %d %s", j.version,
-                  j.schedule, j.group, rc, d.msg);
-        }
-        /* A version 1 header decodes with G = 1. */
-        tvpal_shard_header_encode(&h, hb);
-        CHECK(tvpal_shard_header_decode(hb, &g, NULL) == 0 && g.group == 1,
-              "no group: G = 1");
-    }
+    test_group_header();
     /* A field out of range with a valid CRC. */
     h.window = 17;
     tvpal_shard_header_encode(&h, hb);

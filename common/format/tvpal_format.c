@@ -360,6 +360,63 @@ static int chunk_sizes(const struct tvpal_chunk_header *ch,
     return 0;
 }
 
+/* The checks of FORMAT.md 8.2 item 7 on chunk k of record `step`, whose
+ * header ch was read where slice `expect` was due after slice prev:
+ * position, window, geometry and flags; *nsl gets the slices it holds.
+ * 0 or TVPAL_E_FORMAT naming record, chunk and slice. */
+static int check_chunk(const struct tvpal_chunk_header *ch,
+                       const struct tvpal_shard_header *sh,
+                       const struct tvpal_schedule *sc, uint32_t step,
+                       uint32_t k, uint32_t prev, uint32_t expect,
+                       uint32_t allowed, uint32_t *nsl,
+                       struct tvpal_diag *diag)
+{
+    const uint32_t slab_end = sh->slice_begin + sh->slice_count;
+    if (ch->slice < sh->slice_begin ||
+        ch->slice >= sh->slice_begin + sh->slice_count ||
+        (k > 0 && ch->slice <= prev) || ch->wstart != step ||
+        ch->wlen < 1 || ch->wlen > tvpal_schedule_max_len(sc) ||
+        ch->wstart + ch->wlen > sh->steps || ch->w != sh->slice_w ||
+        ch->slice != expect ||
+        ch->wlen != tvpal_schedule_len(sc, ch->slice, step))
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                              "record %u: chunk %u (slice %u, window "
+                              "%u+%u, %ux%u) inconsistent with the shard",
+                              step, k, ch->slice, ch->wstart, ch->wlen, ch->w,
+                              ch->h);
+    /* Its rows are those of k slices of one palette group and of the
+     * slab (FORMAT.md 6.5): k = 1 without groups. */
+    *nsl = tvpal_chunk_slices(ch, sh);
+    if (ch->h != *nsl * sh->slice_h || *nsl < 1 || *nsl > sc->G ||
+        *nsl > slab_end - ch->slice ||
+        ch->slice / sc->G != (ch->slice + *nsl - 1) / sc->G)
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                              "record %u: chunk %u (slice %u): %u rows, "
+                              "expected those of 1 to %u slices of %u "
+                              "rows within one palette group of the "
+                              "slab", step, k, ch->slice, ch->h, sc->G,
+                              sh->slice_h);
+    /* A flag the shard's format does not define would be misread:
+     * bit 1 changes the chunk's size, and a later bit could change
+     * its decoding (FORMAT.md 6.6). */
+    if (ch->flags & ~allowed)
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                              "record %u: chunk %u (slice %u): flags "
+                              "0x%x, table_format %u allows 0x%x", step,
+                              k, ch->slice, ch->flags, sh->table_format,
+                              allowed);
+    /* The transform bits say how a frame is laid out: no frame, no
+     * transform. */
+    if ((ch->flags & (TVPAL_CHUNK_TABLE_T2 | TVPAL_CHUNK_INDEX_G)) &&
+        !(ch->flags & TVPAL_CHUNK_ZSTD))
+        return tvpal_diag_set(diag, TVPAL_E_FORMAT,
+                              "record %u: chunk %u (slice %u): flags "
+                              "0x%x: bits 3 and 4 (a coded chunk's "
+                              "transform) without bit 2 (coded)", step,
+                              k, ch->slice, ch->flags);
+    return 0;
+}
+
 /* tvpal_record_verify, with (crc = 1) or without the payload CRC. */
 static int record_verify(const unsigned char *buf, uint64_t bytes,
                          uint32_t step, const struct tvpal_shard_header *sh,
@@ -396,6 +453,7 @@ static int record_verify(const unsigned char *buf, uint64_t bytes,
                                                    : 0u);
     const struct tvpal_schedule sc = tvpal_shard_schedule(sh);
     uint64_t plain = 0;  /* the payload once inflated */
+    uint32_t nsl = 1;    /* slices of the chunk */
     for (uint32_t k = 0;; k++) {
         /* The chunks are exactly the slab's slices whose window starts at
          * this step, ascending. */
@@ -418,48 +476,10 @@ static int record_verify(const unsigned char *buf, uint64_t bytes,
         if (rc < 0)
             return tvpal_diag_set(diag, rc, "record %u: chunk %u: bad magic",
                                   step, k);
-        if (ch.slice < sh->slice_begin ||
-            ch.slice >= sh->slice_begin + sh->slice_count ||
-            (k > 0 && ch.slice <= prev) || ch.wstart != step ||
-            ch.wlen < 1 || ch.wlen > tvpal_schedule_max_len(&sc) ||
-            ch.wstart + ch.wlen > sh->steps || ch.w != sh->slice_w ||
-            ch.slice != expect ||
-            ch.wlen != tvpal_schedule_len(&sc, ch.slice, step))
-            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
-                                  "record %u: chunk %u (slice %u, window "
-                                  "%u+%u, %ux%u) inconsistent with the shard",
-                                  step, k, ch.slice, ch.wstart, ch.wlen, ch.w,
-                                  ch.h);
-        /* Its rows are those of k slices of one palette group and of the
-         * slab (FORMAT.md 6.5): k = 1 without groups. */
-        const uint32_t nsl = tvpal_chunk_slices(&ch, sh);
-        if (ch.h != nsl * sh->slice_h || nsl < 1 || nsl > sc.G ||
-            nsl > slab_end - ch.slice ||
-            ch.slice / sc.G != (ch.slice + nsl - 1) / sc.G)
-            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
-                                  "record %u: chunk %u (slice %u): %u rows, "
-                                  "expected those of 1 to %u slices of %u "
-                                  "rows within one palette group of the "
-                                  "slab", step, k, ch.slice, ch.h, sc.G,
-                                  sh->slice_h);
-        /* A flag the shard's format does not define would be misread:
-         * bit 1 changes the chunk's size, and a later bit could change
-         * its decoding (FORMAT.md 6.6). */
-        if (ch.flags & ~allowed)
-            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
-                                  "record %u: chunk %u (slice %u): flags "
-                                  "0x%x, table_format %u allows 0x%x", step,
-                                  k, ch.slice, ch.flags, sh->table_format,
-                                  allowed);
-        /* The transform bits say how a frame is laid out: no frame, no
-         * transform. */
-        if ((ch.flags & (TVPAL_CHUNK_TABLE_T2 | TVPAL_CHUNK_INDEX_G)) &&
-            !(ch.flags & TVPAL_CHUNK_ZSTD))
-            return tvpal_diag_set(diag, TVPAL_E_FORMAT,
-                                  "record %u: chunk %u (slice %u): flags "
-                                  "0x%x: bits 3 and 4 (a coded chunk's "
-                                  "transform) without bit 2 (coded)", step,
-                                  k, ch.slice, ch.flags);
+        rc = check_chunk(&ch, sh, &sc, step, k, prev, expect, allowed, &nsl,
+                         diag);
+        if (rc < 0)
+            return rc;
         prev = ch.slice;
         expect += nsl;
         uint64_t cb, plain_cb;
