@@ -1,7 +1,8 @@
 #!/bin/sh
 # encode-mpi: mpirun -np K tvpal-encode --nodes K (rank r encodes node r's
 # shards, reading only its slabs' boxes) gives output byte-identical to the
-# one-process --nodes K encode for K = 1, 2, 3, also with --shard-dir
+# one-process --nodes K encode for K = 1, 2, 3 (also with palette groups
+# cut by the slabs), also with --shard-dir
 # and --levels (rank 0 encodes the levels; a failure there resumes)
 # (node-local directories) and under a memory limit (several passes per
 # rank); kill -9 of one rank leaves nothing that looks valid and the rerun
@@ -26,6 +27,13 @@ for K in 1 2 3; do
     diff -r "$W/ref$K" "$W/mpi$K" > /dev/null && ok "K=$K: MPI output byte-identical" \
         || fail "K=$K: MPI output differs"
 done
+# Palette groups of 3 (FORMAT.md 5.1), cut by the slabs of 3 ranks.
+"$ENC" --axes xyz -q --dims $D --window 4 --nodes 3 --group 3 -o "$W/refg" $IN > /dev/null \
+    || fail "reference --group 3"
+$MPI -np 3 "$ENC" --axes xyz -q --dims $D --window 4 --nodes 3 --group 3 -o "$W/mpig" $IN \
+    > /dev/null 2> "$W/mpig.err" || fail "mpirun --group 3: $(cat "$W/mpig.err")"
+diff -r "$W/refg" "$W/mpig" > /dev/null && ok "K=3, --group 3: MPI output byte-identical" \
+    || fail "K=3, --group 3: MPI output differs"
 grep -q "nodes=3 .*threads=" "$W/mpi3.out" && [ "$(wc -l < "$W/mpi3.out")" -eq 1 ] \
     && ok "one summary line, from rank 0" || fail "summary: $(cat "$W/mpi3.out")"
 
