@@ -108,6 +108,10 @@ if [ -x "$PC" ]; then
     "$ENC" -q --dims 40x34x28 --group 4 -o "$W/p" "$W"/blobs/*.f32 > /dev/null || fail encode
     "$PC" "$W/p" > "$W/pc.txt" 2>&1 && ok "player: $(tail -n 1 "$W/pc.txt")" \
         || { fail "tvpal-playcheck on groups"; cat "$W/pc.txt" >&2; }
+    "$TVPAL_BUILDDIR/player/app/tvpal-play" "$W/p" --headless --size 64x64 --steps 0:1 \
+        > /dev/null 2> "$W/start.txt" || fail "tvpal-play"
+    grep -q 'window 4 joined, palette groups of 4[;,]' "$W/start.txt" \
+        && ok "tvpal-play's start-up line names the groups" || fail "start-up line: $(cat "$W/start.txt")"
 else
     echo "built without OSMesa/libpng: the player's part skipped"
 fi

@@ -293,10 +293,16 @@ static void print_start_line(const struct headless *h)
         snprintf(fx, sizeof fx, ", fixed buffers %s%s%s%s", ip.fixed,
                  ip.fixed_why[0] ? " (" : "", ip.fixed_why,
                  ip.fixed_why[0] ? ")" : "");
-    fprintf(stderr, PROG ": %s: %ux%ux%u, %u steps, window %u %s%s; axis %c, "
-            "data %s (%s, O_DIRECT %s%s), renderer %s (%s%s)\n", h->o->dir,
-            m->dims[0], m->dims[1], m->dims[2], m->steps, m->window,
-            tvpal_schedule_name(m->schedule), lv,
+    /* The data axis' palette groups, where it has them. */
+    char gr[48] = "";
+    const int da = tvpal_player_data_axis(h->s->pl, h->vl.axis);
+    const uint32_t G = da < 0 ? 0 : tvpal_player_group(h->s->pl, (unsigned)da);
+    if (G > 1)
+        snprintf(gr, sizeof gr, ", palette groups of %u", G);
+    fprintf(stderr, PROG ": %s: %ux%ux%u, %u steps, window %u %s%s%s; axis "
+            "%c, data %s (%s, O_DIRECT %s%s), renderer %s (%s%s)\n",
+            h->o->dir, m->dims[0], m->dims[1], m->dims[2], m->steps,
+            m->window, tvpal_schedule_name(m->schedule), gr, lv,
             "xyz"[h->vl.axis], h->o->po.incore ? "in-core" : "streamed",
             ip.io, ip.direct, fx, h->pr.r.name,
             play_renderer_describe(&h->pr, desc, sizeof desc),

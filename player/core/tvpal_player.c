@@ -429,6 +429,13 @@ int tvpal_player_data_axis(const struct tvpal_player *p, unsigned view_axis)
     return view_axis > 2 ? -1 : data_axis(p, view_axis);
 }
 
+uint32_t tvpal_player_group(const struct tvpal_player *p, unsigned a)
+{
+    if (a > 2 || !tvpal_dataset_has_axis(p->ds, a))
+        return 0;
+    return tvpal_shard_hdr(p->ds->shards[a][0])->group;
+}
+
 int tvpal_player_slabs_descending(const struct tvpal_player *p,
                                   const struct tvpal_view *v)
 {

@@ -152,6 +152,10 @@ int tvpal_player_open_axis(struct tvpal_player *p, unsigned axis,
  * stored (tvpal_player_frame then fails with TVPAL_E_INVAL). */
 int tvpal_player_data_axis(const struct tvpal_player *p, unsigned view_axis);
 
+/* The palette group size G of axis a's shards (FORMAT.md 5.1; 1: none),
+ * 0 for an axis the dataset does not store. */
+uint32_t tvpal_player_group(const struct tvpal_player *p, unsigned a);
+
 /* 1 when this node's slabs lie in depth order from the highest to the
  * lowest slice of the data axis (the order of sort-last compositing):
  * v->descending for the view's own axis, the sign of the view direction's
