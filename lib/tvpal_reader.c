@@ -262,21 +262,21 @@ static char *level_dir(const struct tvpal_reader *r, uint32_t k)
 }
 
 /* The indices of axis a in a dataset ds: width * height bytes per
- * slice-window, one starting at step t of slice s as the schedule says
- * (FORMAT.md 5). */
+ * slice-window, one starting at step t of slice s as each shard's
+ * schedule says (FORMAT.md 5; its palette groups, 5.1, set the phases). */
 static uint64_t index_bytes(const struct tvpal_dataset *ds, unsigned a)
 {
-    const struct tvpal_manifest *m = &ds->m;
-    uint32_t n, w, h;
     uint64_t windows = 0;
-    /* The phases follow the axis' palette groups (its shards' G). */
-    const struct tvpal_schedule sc =
-        tvpal_shard_schedule(tvpal_shard_hdr(ds->shards[a][0]));
-    tvpal_axis_geometry(m->dims, a, &n, &w, &h);
-    for (uint32_t s = 0; s < n; s++)
-        for (uint32_t t = 0; t < m->steps; t++)
-            windows += (uint64_t)tvpal_schedule_starts(&sc, s, t);
-    return windows * w * h;
+    for (uint32_t k = 0; k < ds->nshards; k++) {
+        const struct tvpal_shard_header *h = tvpal_shard_hdr(ds->shards[a][k]);
+        const struct tvpal_schedule sc = tvpal_shard_schedule(h);
+        for (uint32_t s = h->slice_begin; s < h->slice_begin + h->slice_count;
+             s++)
+            for (uint32_t t = 0; t < h->steps; t++)
+                windows += (uint64_t)tvpal_schedule_starts(&sc, s, t);
+    }
+    const struct tvpal_shard_header *h0 = tvpal_shard_hdr(ds->shards[a][0]);
+    return windows * h0->slice_w * h0->slice_h;
 }
 
 /* The table counts of axis a's shards (tvpal_shard_count_tables), summed

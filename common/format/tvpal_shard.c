@@ -1202,6 +1202,17 @@ static int next_chunk_at(const struct tvpal_slab *s, const unsigned char *rec,
     return 0;
 }
 
+/* Slice j of chunk c's table into dst: decoded for the first (into
+ * first, then = dst), copied from it for the others of a palette group. */
+static void copy_table(const struct tvpal_chunk *c, uint32_t j,
+                       const float *first, float *dst)
+{
+    if (j == 0)
+        tvpal_chunk_table(c, dst);
+    else
+        memcpy(dst, first, (size_t)c->h.wlen * 256 * sizeof *dst);
+}
+
 /* apply, borrowing the record's indices or (borrow = 0) copying them */
 static void apply_record(struct tvpal_slab *s, const unsigned char *rec,
                          uint32_t t, int borrow)
@@ -1218,7 +1229,8 @@ static void apply_record(struct tvpal_slab *s, const unsigned char *rec,
             sl->wstart = c.h.wstart;
             sl->wlen = c.h.wlen;
             sl->gen++;
-            tvpal_chunk_table(&c, sl->table);
+            copy_table(&c, j, s->sl[c.h.slice - h->slice_begin].table,
+                       sl->table);
             if (borrow) {
                 sl->view = idx;
             } else {
@@ -1279,7 +1291,8 @@ static int stage_chunk(struct tvpal_slab *s, const struct tvpal_chunk *c,
         }
         sl->st_wstart = c->h.wstart;
         sl->st_wlen = c->h.wlen;
-        tvpal_chunk_table(c, sl->st_table);
+        copy_table(c, j, s->sl[c->h.slice - h->slice_begin].st_table,
+                   sl->st_table);
         if (s->borrow) {
             if (crc)
                 *crc = tvpal_crc32c(*crc, idx, nvox);

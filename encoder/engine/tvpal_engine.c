@@ -822,6 +822,28 @@ static int code_window(struct tvpal_engine *e, unsigned tid,
     return e->p.index_level ? code_chunk(e, tid, sh, cb) : 0;
 }
 
+/* Codes one chunk of job jb (code_window: slice-window samples under
+ * header sh, from slice, in a room of cb bytes) and writes it in place,
+ * its CRC to *crc; a failure is the step's (step_failed). */
+static void write_window(struct step_ctx *c, unsigned tid,
+                         const struct slicejob *jb, const float *samples,
+                         const struct tvpal_shard_header *sh, uint32_t slice,
+                         uint64_t cb, uint32_t *crc)
+{
+    struct tvpal_engine *e = c->e;
+    struct tvpal_diag d = {{0}};
+    int rc = code_window(e, tid, samples, sh, slice, c->t, jb->len, cb);
+    if (rc == 0)
+        rc = tvpal_shardw_put_chunk(jb->sj->w, c->t, slice, e->chunkbuf[tid],
+                                    cb, crc, &d);
+    else
+        tvpal_diag_set(&d, rc, "coding the chunk of slices %u..%u, step %u",
+                       slice, slice + (sh->slice_h / jb->sj->h.slice_h) - 1,
+                       c->t);
+    if (rc < 0)
+        step_failed(c, rc, &d, jb->sj);
+}
+
 /* A palette group's slices, gathered in samples (slice g at g len w h),
  * as one slice of k h rows, time-major, into gs. */
 static void group_samples(const struct slicejob *jb, const float *in,
@@ -858,37 +880,15 @@ static void encode_job(void *arg, size_t i, unsigned tid)
                                           j->h.slice_h, j->h.table_format);
     gather(e, jb, t, e->samples[tid]);
     if (jb->shared) {
-        struct tvpal_diag d = {{0}};
         const struct tvpal_shard_header gh = group_header(jb);
         group_samples(jb, e->samples[tid], e->gsamples[tid]);
-        int rc = code_window(e, tid, e->gsamples[tid], &gh, jb->slice, t,
-                             jb->len, jb->count * cb);
-        if (rc == 0)
-            rc = tvpal_shardw_put_chunk(j->w, t, jb->slice, e->chunkbuf[tid],
-                                        jb->count * cb, &e->jcrc[jb->crc_at],
-                                        &d);
-        else
-            tvpal_diag_set(&d, rc, "coding the chunk of slices %u..%u, step "
-                           "%u", jb->slice, jb->slice + jb->count - 1, t);
-        if (rc < 0)
-            step_failed(c, rc, &d, j);
+        write_window(c, tid, jb, e->gsamples[tid], &gh, jb->slice,
+                     jb->count * cb, &e->jcrc[jb->crc_at]);
     }
-    for (uint32_t g = 0; !jb->shared && g < jb->count; g++) {
-        struct tvpal_diag d = {{0}};
-        const uint32_t s = jb->slice + g * jb->stride;
-        encode_chunk(e->enc[tid], e->fit[tid], e->tables[tid],
-                     e->samples[tid] + (size_t)g * jb->len * sv, &j->h, s, t,
-                     jb->len, e->chunkbuf[tid], &e->dropped[tid]);
-        int rc = e->p.index_level ? code_chunk(e, tid, &j->h, cb) : 0;
-        if (rc == 0)
-            rc = tvpal_shardw_put_chunk(j->w, t, s, e->chunkbuf[tid], cb,
-                                        &e->jcrc[jb->crc_at + g], &d);
-        else
-            tvpal_diag_set(&d, rc, "coding the chunk of slice %u, step %u",
-                           s, t);
-        if (rc < 0)
-            step_failed(c, rc, &d, j);
-    }
+    for (uint32_t g = 0; !jb->shared && g < jb->count; g++)
+        write_window(c, tid, jb, e->samples[tid] + (size_t)g * jb->len * sv,
+                     &j->h, jb->slice + g * jb->stride, cb,
+                     &e->jcrc[jb->crc_at + g]);
     if (e->work)
         __atomic_add_fetch(e->work, (uint64_t)sv * jb->len * jb->count,
                            __ATOMIC_RELAXED);
