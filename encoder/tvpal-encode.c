@@ -1103,9 +1103,10 @@ static void library_plan(struct run *r, struct tvpal_encoder *e,
     if (rc == TVPAL_E_RANGE)
         die_usage("memory limit %s (%s) is too small for %ux%ux%u at "
                   "--window %u with %d thread%s: one slice per pass needs "
-                  "%s; give --mem-limit %lluK or more (or fewer --threads)",
+                  "%s%s; give --mem-limit %lluK or more (or fewer --threads)",
                   lim, r->limit_why, o->dims[0], o->dims[1], o->dims[2],
                   r->N, r->nthreads, r->nthreads == 1 ? "" : "s", need,
+                  o->group > 1 ? " (a palette group's slices together)" : "",
                   (unsigned long long)((pl->min_limit + 1023) >> 10));
     if (rc == TVPAL_E_NOMEM)
         die_fail("out of memory");

@@ -114,6 +114,8 @@ static int make_plan(const struct tvpal_encoder *e, unsigned nt,
         .box_bytes_per_voxel = (uint32_t)(4 * ring_slots(e) +
                                           (e->src->concurrent ? 0
                                                               : 2 * esize))};
+    for (unsigned a = 0; a < 3; a++)
+        j.group[a] = tvpal_engine_group(&e->ep, a);
     /* A rank of a collective encodes its node's slabs of every axis, in
      * passes per axis; rank 0 makes the levels after level 0. */
     const int ranks = e->coll.size > 1;
@@ -141,10 +143,14 @@ static int make_plan(const struct tvpal_encoder *e, unsigned nt,
     if (rc == TVPAL_E_RANGE)
         return tvpal_diag_set(diag, rc, "memory limit of %llu bytes is too "
                               "small for %ux%ux%u at window %u with %u "
-                              "thread%s: one slice per pass needs %llu",
+                              "thread%s: one slice per pass needs %llu%s",
                               (unsigned long long)limit, d[0], d[1], d[2],
                               e->ep.window, nt, nt == 1 ? "" : "s",
-                              (unsigned long long)plan->min_limit);
+                              (unsigned long long)plan->min_limit,
+                              j.group[0] > 1 || j.group[1] > 1 ||
+                                      j.group[2] > 1
+                                  ? " (a palette group's slices together)"
+                                  : "");
     if (rc < 0 || !levels || *levels_inline)
         return rc;
     /* After level 0, with its ring freed, the levels are encoded in one

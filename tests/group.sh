@@ -7,7 +7,8 @@
 # coded and plain chunks, 16-bit and auto tables.  Groups cut by slabs
 # and the end of an axis (G = 3, two nodes, all axes) verify, decode as
 # the FORMAT.md reader (tests/shard_decode.py) does, jump as they play and
-# store fewer bits than no groups; the player draws them (GL = reference,
+# store fewer bits than no groups; a memory limit's passes write the
+# bytes of one pass; the player draws them (GL = reference,
 # jumps = playing, in-core = io_uring = pread, about 1/N uploads a step);
 # --group 1 writes what no --group writes; bad values are refused.
 . "$(dirname "$0")/lib.sh"
@@ -98,6 +99,18 @@ b1=$("$REPORT" -q "$W/c1" | tr ' ' '\n' | sed -n 's/^bpv=//p')
 b3=$("$REPORT" -q "$W/c" | tr ' ' '\n' | sed -n 's/^bpv=//p')
 awk -v a="$b3" -v b="$b1" 'BEGIN { exit !(a < b) }' && ok "bits per voxel-step: $b3 with groups of 3, $b1 without" \
     || fail "groups of 3 store $b3 bits per voxel-step, not fewer than $b1"
+
+# Under a memory limit that makes passes, each pass holds whole groups:
+# the bytes of one pass (a group cut by a pass was two chunks, two tables).
+m=$("$ENC" --axes xyz -j 1 --mem-limit 1M --dims 40x34x24 --group 4 -o "$W/none" "$W"/in/*.f32 2>&1 |
+    sed -n 's/.*give --mem-limit \([0-9]*\)K.*/\1/p')
+"$ENC" -q --axes xyz -j 1 --dims 40x34x24 --group 4 -o "$W/one" "$W"/in/*.f32 > /dev/null || fail "encode one pass"
+"$ENC" --axes xyz -j 1 --mem-limit "$((${m:-0} + 256))K" --dims 40x34x24 --group 4 -o "$W/lim" "$W"/in/*.f32 \
+    > "$W/lim.out" 2> "$W/lim.err" || fail "encode under the limit: $(cat "$W/lim.err")"
+p=$(sed -n 's/.* passes=\([0-9]*\).*/\1/p' "$W/lim.out")
+[ "${p:-1}" -gt 3 ] && diff -r "$W/one" "$W/lim" > /dev/null \
+    && ok "$p passes under --mem-limit $((${m:-0} + 256))K: the one-pass dataset" \
+    || fail "under the limit: ${p:-?} passes, $(diff -rq "$W/one" "$W/lim" | head -n 2)"
 
 # 4. The player on groups (GL vs reference, jumps, backward, I/O paths,
 #    uploads per step; on

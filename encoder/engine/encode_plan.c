@@ -17,6 +17,21 @@ static uint64_t slice_voxels(const uint32_t dims[3], unsigned a)
     return (uint64_t)dims[(a + 1) % 3] * dims[(a + 2) % 3];
 }
 
+/* The slices a pass of axis a holds at the least: one, or a palette
+ * group (within the axis). */
+static uint64_t unit_slices(const struct encode_job *j, unsigned a)
+{
+    const uint32_t G = j->group[a] > 1 ? j->group[a] : 1;
+    return G < j->dims[a] ? G : j->dims[a];
+}
+
+/* The palette groups the slab of axis a meets (1 slice each without). */
+static uint32_t slab_groups(const struct encode_job *j, unsigned a)
+{
+    const uint32_t G = (uint32_t)unit_slices(j, a);
+    return (j->slab_lo[a] + j->slab_n[a] - 1) / G - j->slab_lo[a] / G + 1;
+}
+
 /* stats: the pass's box goes into the statistics (its axis's slabs
  * partition the part once). */
 static void add_pass(struct encode_plan *p, const struct encode_job *j,
@@ -38,11 +53,12 @@ int encode_plan_make(const struct encode_job *j, struct encode_plan *p)
     memset(p, 0, sizeof *p);
     const uint64_t bpv = j->box_bytes_per_voxel;
     const uint64_t nvox = (uint64_t)j->dims[0] * j->dims[1] * j->dims[2];
+    /* The least a pass holds: one slice, or one palette group. */
     uint64_t most_slice = 0;
     for (unsigned a = 0; a < 3; a++)
         if ((j->axes & (1u << a)) && j->slab_n[a] &&
-            slice_voxels(j->dims, a) > most_slice)
-            most_slice = slice_voxels(j->dims, a);
+            unit_slices(j, a) * slice_voxels(j->dims, a) > most_slice)
+            most_slice = unit_slices(j, a) * slice_voxels(j->dims, a);
     p->min_limit = j->fixed + most_slice * bpv;
     const int whole = j->slab_n[0] == j->dims[0] &&
                       j->slab_n[1] == j->dims[1] && j->slab_n[2] == j->dims[2];
@@ -64,16 +80,20 @@ int encode_plan_make(const struct encode_job *j, struct encode_plan *p)
     }
     if (j->limit < p->min_limit)
         return TVPAL_E_RANGE;
-    /* Slices per pass of each axis, then as equal passes as that allows. */
+    /* Groups per pass of each axis (the slab's groups: whole ones, and
+     * the parts of those it cuts), then as equal passes as that allows. */
     uint32_t passes[3] = {0};
     uint64_t total = 0;
     for (unsigned a = 0; a < 3; a++) {
         if (!j->slab_n[a] || !(j->axes & (1u << a)))
             continue;
-        uint64_t per = (j->limit - j->fixed) / (slice_voxels(j->dims, a) * bpv);
-        if (per > j->slab_n[a])
-            per = j->slab_n[a];
-        passes[a] = (uint32_t)((j->slab_n[a] + per - 1) / per);
+        const uint64_t G = unit_slices(j, a);
+        uint64_t per = (j->limit - j->fixed) /
+                       (G * slice_voxels(j->dims, a) * bpv);
+        const uint32_t ng = slab_groups(j, a);
+        if (per > ng)
+            per = ng;
+        passes[a] = (uint32_t)((ng + per - 1) / per);
         total += passes[a];
     }
     if (!(p->pass = calloc(total ? total : 1, sizeof *p->pass)))
@@ -88,10 +108,17 @@ int encode_plan_make(const struct encode_job *j, struct encode_plan *p)
         p->per_axis[a] = P;
         if (P && stats_axis < 0)
             stats_axis = (int)a;
+        const uint32_t G = (uint32_t)unit_slices(j, a), ng = slab_groups(j, a),
+                       g0 = j->slab_lo[a] / G, lo = j->slab_lo[a],
+                       hi = lo + n;
         for (uint32_t q = 0; q < P; q++) {
-            uint32_t s = j->slab_lo[a] + q * (n / P) + (q < n % P ? q : n % P);
-            uint32_t k = n / P + (q < n % P);
-            add_pass(p, j, a, s, k, stats_axis == (int)a);
+            /* Groups g0 + first .. g0 + first + count - 1, within the slab. */
+            const uint32_t first = q * (ng / P) + (q < ng % P ? q : ng % P);
+            const uint32_t count = ng / P + (q < ng % P);
+            uint32_t s = (g0 + first) * G, e = (g0 + first + count) * G;
+            s = s > lo ? s : lo;
+            e = e < hi ? e : hi;
+            add_pass(p, j, a, s, e - s, stats_axis == (int)a);
             const struct encode_box *b = &p->pass[p->npasses - 1].box;
             uint64_t v = encode_box_voxels(b);
             if (v > p->box_voxels_max)

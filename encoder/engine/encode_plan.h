@@ -58,6 +58,10 @@ struct encode_job {
                               * program, threads' workspaces, scratch */
     uint32_t box_bytes_per_voxel; /* ring and read buffers: 4 N, plus 4
                               * for a self-describing input's read-ahead */
+    uint32_t group[3];       /* palette group size of each axis (0 or 1:
+                              * none): a pass holds whole groups, cut only
+                              * where the slab cuts them (FORMAT.md 5.1),
+                              * so that the plan never changes the bytes */
 };
 
 struct encode_plan {
