@@ -168,8 +168,17 @@ enum tvpal_param {
                                * share a phase of the schedule.  Fewer
                                * bits (the tables of small slices are
                                * most of them) for some error; readers
-                               * before 0.4.0 refuse it.  Since 0.4.0 */
+                               * before 0.4.0 refuse it.
+                               * TVPAL_GROUP_AUTO: each axis' G (1, 2, 4
+                               * .. 32) measured on sample windows of the
+                               * source before anything is written, the
+                               * least error + 2 ln 2 error(1) x bits
+                               * (tvpal-encode(1), --group auto); only an
+                               * encode from a source (a push is refused:
+                               * TVPAL_E_INVAL); the levels take level 0's.
+                               * Since 0.4.0 */
 };
+#define TVPAL_GROUP_AUTO 0
 #define TVPAL_SCHEDULE_STAGGERED 0
 #define TVPAL_SCHEDULE_JOINED 1
 #define TVPAL_CODING_NONE 0

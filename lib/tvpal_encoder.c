@@ -307,10 +307,12 @@ int tvpal_encoder_set(struct tvpal_encoder *e, enum tvpal_param param,
         set_coder_choice(p, param, value, &name, &range);
         break;
     case TVPAL_PARAM_GROUP:
-        if (!whole_in(value, 1, TVPAL_GROUP_MAX))
-            name = "group", range = "1..1024";
-        else
+        if (!whole_in(value, TVPAL_GROUP_AUTO, TVPAL_GROUP_MAX))
+            name = "group", range = "0 (auto)..1024";
+        else {
             p->group = (uint32_t)value;
+            p->group_auto = value == TVPAL_GROUP_AUTO;
+        }
         break;
     case TVPAL_PARAM_THREADS:
         if (!whole_in(value, 0, 1024))
@@ -708,6 +710,12 @@ static int check_job(const struct tvpal_encoder *e, struct tvpal_diag *diag)
                               "without a collective: for ranks on machines "
                               "of their own (one process writes "
                               "DIR/node-R)");
+    if (e->ep.group_auto && !e->src && !e->ep.group_axis[0])
+        return tvpal_diag_set(diag, TVPAL_E_INVAL, "TVPAL_PARAM_GROUP "
+                              "TVPAL_GROUP_AUTO with pushes: the groups are "
+                              "measured before the first window is written, "
+                              "which only an encode from a source "
+                              "(tvpal_encoder_encode) can read ahead");
     if (e->coll.size > 1 && e->ep.nodes != (uint32_t)e->coll.size)
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "nodes %u with %d ranks: "
                               "one node shard per rank", e->ep.nodes,
@@ -811,6 +819,15 @@ static int open_writers(struct tvpal_encoder *e, uint64_t done,
     return 0;
 }
 
+void tvpal_enc_groups_said(const struct tvpal_engine_params *p, char *opts,
+                           size_t cap)
+{
+    const size_t n = strlen(opts);
+    if (p->group_auto && n < cap)
+        snprintf(opts + n, cap - n, " groups=%u,%u,%u", p->group_axis[0],
+                 p->group_axis[1], p->group_axis[2]);
+}
+
 /* The job's identity in its checkpoints: the options that make its shards
  * (the schedule said outright: the options line names only staggered, and
  * a partial output of the other schedule must start over), and the rank. */
@@ -819,8 +836,9 @@ static int make_fingerprint(struct tvpal_encoder *e)
     const struct tvpal_engine_source src = {
         .type = e->type, .nan_as = e->has_nan_as ? &e->nan_as : NULL,
         .missing = e->missing, .nmissing = e->nmissing};
-    char opts[1024], params[1200];
-    tvpal_engine_options_line(&e->ep, &src, opts, sizeof opts);
+    char opts[1100], params[1300];
+    tvpal_engine_options_line(&e->ep, &src, opts, sizeof opts - 64);
+    tvpal_enc_groups_said(&e->ep, opts, sizeof opts);
     snprintf(params, sizeof params, "libtvpal %s schedule=%u rank=%d/%d",
              opts, e->ep.schedule, e->coll.rank, e->coll.size);
     return tvpal_checkpoint_fingerprint(params, NULL, 0, 0, &e->fp);
@@ -932,7 +950,7 @@ int tvpal_enc_open_level(struct tvpal_encoder *e, uint32_t k, int resume,
     const struct { enum tvpal_param p; double v; } set[] = {
         {TVPAL_PARAM_WINDOW, p->window}, {TVPAL_PARAM_NODES, p->nodes},
         {TVPAL_PARAM_SCHEDULE, p->schedule},
-        {TVPAL_PARAM_GROUP, p->group ? p->group : 1},
+        {TVPAL_PARAM_GROUP, p->group_auto ? 1 : p->group ? p->group : 1},
         {TVPAL_PARAM_AXES, p->axes}, {TVPAL_PARAM_THREADS, e->threads},
         {TVPAL_PARAM_TABLE, p->table_format}, {TVPAL_PARAM_REFINE, p->refine},
         {TVPAL_PARAM_INDEX_LEVEL, p->index_level ? p->index_level
@@ -949,6 +967,10 @@ int tvpal_enc_open_level(struct tvpal_encoder *e, uint32_t k, int resume,
         {TVPAL_PARAM_FORCE, 1}};
     for (size_t i = 0; rc == 0 && i < sizeof set / sizeof *set; i++)
         rc = tvpal_encoder_set(c, set[i].p, set[i].v, diag);
+    if (p->group_auto) { /* level 0's measured groups, per axis */
+        c->ep.group_auto = 1;
+        memcpy(c->ep.group_axis, p->group_axis, sizeof p->group_axis);
+    }
     double sk[3], ok[3];
     tvpal_level_grid(e->spacing, e->origin, e->ep.dims, dk, sk, ok);
     if (rc == 0)
@@ -1202,11 +1224,15 @@ int tvpal_enc_start(struct tvpal_encoder *e, enum tvpal_type type,
         /* Rank 0 alone touches DIR and DIR.partial, and says how it went. */
         memset(&v, 0, sizeof v);
         v.code = rc == 0 ? prepare_output(e, &d) : rc;
+        if (v.code == 0 && e->src && e->ep.group_auto)
+            v.code = tvpal_enc_source_groups(e, v.groups, &d);
         snprintf(v.msg, sizeof v.msg, "%s%.1000s",
                  e->coll.size > 1 ? "rank 0: " : "", d.msg);
     }
     if (tell(e, &v) < 0)
         return report(0, &v, diag);
+    if (e->src && e->ep.group_auto) /* rank 0's measure, every rank's */
+        memcpy(e->ep.group_axis, v.groups, sizeof v.groups);
     rc = rc == 0 ? setup(e, &d) : rc;
     if (agree(e, R_SETUP, rc, d.msg, &v) < 0)
         return report(rc, &v, diag);

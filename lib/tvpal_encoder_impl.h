@@ -58,6 +58,8 @@ struct verdict {
     uint64_t done;           /* SETUP: the earliest step a rank resumes
                               * from: the caller's first push */
     uint32_t text_len;       /* R_STATS: the manifest's bytes that follow */
+    uint32_t groups[3];      /* START: the palette groups rank 0 measured
+                              * (TVPAL_GROUP_AUTO) */
     double vmin, vmax;
     uint64_t nonfinite, missing, counted;
     char msg[TVPAL_DIAG_MAX];
@@ -232,6 +234,16 @@ int tvpal_enc_source_plan(struct tvpal_encoder *e, unsigned nthreads,
                           uint64_t *ring_voxels, struct tvpal_diag *diag);
 int tvpal_enc_source_ready(struct tvpal_encoder *e, struct tvpal_diag *diag);
 int tvpal_enc_source_levels_inline(const struct tvpal_encoder *e);
+/* With TVPAL_GROUP_AUTO, " groups=GX,GY,GZ" (the sizes measured) after
+ * the options line at opts (cap bytes): a checkpoint's fingerprint names
+ * them, so that a resume never mixes two choices. */
+void tvpal_enc_groups_said(const struct tvpal_engine_params *p, char *opts,
+                           size_t cap);
+/* TVPAL_GROUP_AUTO (rank 0, before setup): each axis' palette group size
+ * measured on the source (tvpal_groupauto.h) into G (1 for an axis not
+ * stored).  0, or the source's code or TVPAL_E_NOMEM with diag set. */
+int tvpal_enc_source_groups(struct tvpal_encoder *e, uint32_t G[3],
+                            struct tvpal_diag *diag);
 /* The partial output of this rank (its writers, DIR.partial or its node
  * directory, the statistics) forgotten: the encode starts at unit 0, and
  * its first progress call says it started over. */

@@ -30,6 +30,7 @@
 
 #include "tvpal_clock.h"
 #include "tvpal_fs.h"
+#include "tvpal_groupauto.h"
 #include "tvpal_levels.h"
 #include "tvpal_passes.h"
 #include "tvpal_pool.h"
@@ -295,8 +296,9 @@ static int make_fingerprint(struct tvpal_encoder *e)
         .type = e->type, .big_endian = e->src->big_endian,
         .nan_as = e->has_nan_as ? &e->nan_as : NULL,
         .missing = e->missing, .nmissing = e->nmissing};
-    char opts[1024], key[96], *params = NULL;
-    tvpal_engine_options_line(&e->ep, &src, opts, sizeof opts);
+    char opts[1100], key[96], *params = NULL;
+    tvpal_engine_options_line(&e->ep, &src, opts, sizeof opts - 64);
+    tvpal_enc_groups_said(&e->ep, opts, sizeof opts);
     encode_plan_key(&e->pull->plan, key, sizeof key);
     if (asprintf(&params, "libtvpal source %s schedule=%u %s levels=%u "
                  "rank=%d/%d identity=%s", opts, e->ep.schedule, key,
@@ -643,6 +645,74 @@ static int read_box(struct tvpal_encoder *e, uint32_t t, int64_t next,
         e->st.loaded = t + 1;
     }
     return 0;
+}
+
+/* ------------------------------------- palette groups (TVPAL_GROUP_AUTO) */
+
+/* The sample reader of tvpal_groupauto: a box read as whole rows of one
+ * plane at a time, as the source's contract has it (rows of at most
+ * 8 MiB), converted as the encode converts (not counted). */
+struct group_read {
+    struct tvpal_encoder *e;
+    unsigned char *rows;
+    size_t nrows;
+};
+
+static int read_group_box(void *ctx, uint32_t t, const uint32_t lo[3],
+                          const uint32_t n[3], float *dst,
+                          struct tvpal_diag *diag)
+{
+    struct group_read *g = ctx;
+    struct tvpal_encoder *e = g->e;
+    const struct tvpal_values_rules rules = {
+        e->missing, e->nmissing, e->has_nan_as ? &e->nan_as : NULL};
+    const size_t nx = e->ep.dims[0], ny = e->ep.dims[1];
+    const size_t esize = tvpal_type_size(e->type);
+    for (uint32_t z = lo[2]; z < lo[2] + n[2]; z++)
+        for (uint32_t y0 = lo[1]; y0 < lo[1] + n[1];) {
+            uint32_t yn = lo[1] + n[1] - y0;
+            yn = yn < g->nrows ? yn : (uint32_t)g->nrows;
+            const uint32_t rlo[3] = {0, y0, z}, rn[3] = {(uint32_t)nx, yn, 1};
+            int rc = e->src->read(e->src->ctx, t, rlo, rn, g->rows, diag);
+            if (rc < 0)
+                return rc;
+            for (uint32_t k = 0; k < yn; k++) {
+                const size_t yb = y0 + k - lo[1], zb = z - lo[2];
+                struct tvpal_found f = tvpal_found_empty(0, 0);
+                tvpal_values_convert(&rules, g->rows + (k * nx + lo[0]) * esize,
+                                     e->type, e->src->big_endian, n[0],
+                                     dst + n[0] * (yb + (size_t)n[1] * zb),
+                                     lo[0] + nx * (y0 + k + ny * z), NULL, &f);
+            }
+            y0 += yn;
+        }
+    return 0;
+}
+
+int tvpal_enc_source_groups(struct tvpal_encoder *e, uint32_t G[3],
+                            struct tvpal_diag *diag)
+{
+    const size_t row = (size_t)e->ep.dims[0] * tvpal_type_size(e->type);
+    struct group_read g = {.e = e,
+                           .nrows = tvpal_passes_read_rows(row,
+                                                           e->ep.dims[1])};
+    const struct tvpal_groupauto_reader rd = {read_group_box, &g};
+    struct tvpal_pool *pool = NULL;
+    int rc = tvpal_pool_create(&pool, thread_count(e));
+    if (rc < 0)
+        return tvpal_diag_set(diag, rc, "cannot start %u threads",
+                              thread_count(e));
+    if (!(g.rows = malloc(g.nrows * row)))
+        rc = tvpal_diag_set(diag, TVPAL_E_NOMEM, "the group sample's rows");
+    for (unsigned a = 0; a < 3; a++) {
+        G[a] = 1;
+        if (rc == 0 && (e->ep.axes & TVPAL_AXIS_BIT(a)))
+            rc = tvpal_groupauto_choose(&e->ep, a, e->mem_limit, pool, &rd,
+                                        &G[a], NULL, diag);
+    }
+    free(g.rows);
+    tvpal_pool_free(pool);
+    return rc;
 }
 
 /* ------------------------------------------------------------- encoding */

@@ -34,6 +34,13 @@ $MPI -np 3 "$ENC" --axes xyz -q --dims $D --window 4 --nodes 3 --group 3 -o "$W/
     > /dev/null 2> "$W/mpig.err" || fail "mpirun --group 3: $(cat "$W/mpig.err")"
 diff -r "$W/refg" "$W/mpig" > /dev/null && ok "K=3, --group 3: MPI output byte-identical" \
     || fail "K=3, --group 3: MPI output differs"
+# --group auto: rank 0 measures, every rank encodes with its choice.
+"$ENC" --axes xyz -q --dims $D --window 4 --nodes 3 --group auto -o "$W/refa" $IN > /dev/null \
+    || fail "reference --group auto"
+$MPI -np 3 "$ENC" --axes xyz -q --dims $D --window 4 --nodes 3 --group auto -o "$W/mpia" $IN \
+    > /dev/null 2> "$W/mpia.err" || fail "mpirun --group auto: $(cat "$W/mpia.err")"
+diff -r "$W/refa" "$W/mpia" > /dev/null && ok "K=3, --group auto: MPI output byte-identical" \
+    || fail "K=3, --group auto: MPI output differs"
 grep -q "nodes=3 .*threads=" "$W/mpi3.out" && [ "$(wc -l < "$W/mpi3.out")" -eq 1 ] \
     && ok "one summary line, from rank 0" || fail "summary: $(cat "$W/mpi3.out")"
 

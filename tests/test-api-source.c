@@ -204,6 +204,8 @@ struct job {
     unsigned window, levels, axes;
     uint64_t limit;
     unsigned nodes;          /* 0: 1 (a collective sets its own) */
+    unsigned group;          /* 0: the default; else TVPAL_PARAM_GROUP */
+    int group_auto;          /* TVPAL_PARAM_GROUP TVPAL_GROUP_AUTO */
 };
 
 static int open_job(struct tvpal_encoder **out, const char *dir,
@@ -223,6 +225,10 @@ static int open_job(struct tvpal_encoder **out, const char *dir,
         (rc = tvpal_encoder_set(e, TVPAL_PARAM_THREADS, 2, d)) < 0 ||
         (j->nodes && (rc = tvpal_encoder_set(e, TVPAL_PARAM_NODES, j->nodes,
                                              d)) < 0) ||
+        ((j->group || j->group_auto) &&
+         (rc = tvpal_encoder_set(e, TVPAL_PARAM_GROUP,
+                                 j->group_auto ? TVPAL_GROUP_AUTO : j->group,
+                                 d)) < 0) ||
         (rc = tvpal_encoder_set_grid(e, sp, or, d)) < 0 ||
         (rc = tvpal_encoder_set_units(e, "K", d)) < 0) {
         tvpal_encoder_abort(e);
@@ -374,6 +380,55 @@ static void test_same_as_pushed(void)
               some.passes, conc);
         CHECK(s.ends == some.passes * T, "%u unit ends, %u expected",
               s.ends, some.passes * T);
+    }
+}
+
+/* TVPAL_GROUP_AUTO: refused with pushes; from a source each axis' G is
+ * measured (small slices here: groups on some axis), the same from a
+ * whole or a concurrent source, and each axis' shard is the one an encode
+ * with that G writes (passes: tests/group-auto.sh, on a larger volume). */
+static void test_group_auto(void)
+{
+    struct tvpal_diag d = {{0}};
+    struct job j = base;
+    j.group_auto = 1;
+    int rc = push_all(path("%s/ga-pushed%s", ""), &j, TVPAL_FLOAT32, &d);
+    CHECK(rc == TVPAL_E_INVAL && strstr(d.msg, "TVPAL_GROUP_AUTO"),
+          "auto with pushes: %s %s", tvpal_strerror(rc), d.msg);
+    CHECK(!exists(path("%s/ga-pushed%s", "")), "a refused push wrote");
+    struct src s = plain(TVPAL_FLOAT32);
+    struct tvpal_source so = source_of(&s, 0, NULL);
+    rc = pull_all(path("%s/ga%s", ""), &j, &so, &d);
+    REQUIRE(rc == 0, "encode auto: %s %s", tvpal_strerror(rc), d.msg);
+    struct tvpal_reader *r = NULL;
+    REQUIRE(tvpal_reader_open(&r, path("%s/ga%s", ""), &d) == 0, "%s",
+            d.msg);
+    uint32_t G[3];
+    memcpy(G, tvpal_reader_info(r)->group, sizeof G);
+    tvpal_reader_close(r);
+    CHECK(G[0] * G[1] * G[2] > 1 && G[0] <= 16 && G[1] <= 16 && G[2] <= 16,
+          "groups chosen %u %u %u", G[0], G[1], G[2]);
+    struct src sc = plain(TVPAL_FLOAT32);
+    so = source_of(&sc, 1, NULL);
+    rc = pull_all(path("%s/ga-conc%s", ""), &j, &so, &d);
+    CHECK(rc == 0 && same_dataset(path("%s/ga%s", ""),
+                                  path("%s/ga-conc%s", ""), 0, 7),
+          "auto from a concurrent source: %s", d.msg);
+    for (unsigned a = 0; a < 3; a++) {
+        struct job ja = base;
+        ja.axes = 1u << a;
+        ja.group = G[a];
+        struct src sa = plain(TVPAL_FLOAT32);
+        so = source_of(&sa, 0, NULL);
+        char *dir = path("%s/ga-axis%s", "");
+        rc = pull_all(dir, &ja, &so, &d);
+        char cmd[1200];
+        snprintf(cmd, sizeof cmd, "cmp -s %s/ga/node-0/axis-%c.tvps "
+                 "%s/node-0/axis-%c.tvps", W, "xyz"[a], dir, "xyz"[a]);
+        CHECK(rc == 0 && system(cmd) == 0, "axis %c: not the shard of "
+              "group %u", "xyz"[a], G[a]);
+        snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+        CHECK(system(cmd) == 0, "%s", cmd);
     }
 }
 
@@ -1078,6 +1133,7 @@ int main(void)
     REQUIRE(system(cmd) == 0, "cannot make %s", W);
     make_series();
     test_same_as_pushed();
+    test_group_auto();
     test_integers();
     test_levels();
     test_stop_and_continue();

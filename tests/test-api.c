@@ -169,9 +169,12 @@ static void test_params(void)
           "window 2.5 taken");
     CHECK(tvpal_encoder_set(e, TVPAL_PARAM_SCHEDULE, 2, &d) == TVPAL_E_INVAL &&
               strstr(d.msg, "schedule"), "schedule 2: %s", d.msg);
-    CHECK(tvpal_encoder_set(e, TVPAL_PARAM_GROUP, 0, &d) == TVPAL_E_INVAL &&
-              strstr(d.msg, "group") && strstr(d.msg, "1..1024"),
-          "group 0: %s", d.msg);
+    CHECK(tvpal_encoder_set(e, TVPAL_PARAM_GROUP, -1, &d) == TVPAL_E_INVAL &&
+              strstr(d.msg, "group") && strstr(d.msg, "0 (auto)..1024"),
+          "group -1: %s", d.msg);
+    CHECK(tvpal_encoder_set(e, TVPAL_PARAM_GROUP, TVPAL_GROUP_AUTO, &d) == 0 &&
+              tvpal_encoder_set(e, TVPAL_PARAM_GROUP, 1, &d) == 0,
+          "group auto, then 1: %s", d.msg);
     CHECK(tvpal_encoder_set(e, TVPAL_PARAM_GROUP, 1025, &d) ==
               TVPAL_E_INVAL, "group 1025 taken");
     CHECK(tvpal_encoder_set(e, TVPAL_PARAM_GROUP, 2.5, &d) == TVPAL_E_INVAL,

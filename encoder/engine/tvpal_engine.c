@@ -104,7 +104,10 @@ uint32_t tvpal_engine_group(const struct tvpal_engine_params *p,
 {
     uint32_t n, w, h;
     tvpal_axis_geometry(p->dims, a, &n, &w, &h);
-    uint64_t G = p->group < n ? p->group : n;
+    const uint32_t want = p->group_axis[a] ? p->group_axis[a]
+                          : p->group_auto ? TVPAL_ENGINE_GROUP_AUTO_MAX
+                                          : p->group;
+    uint64_t G = want < n ? want : n;
     if (G * w * h > TVPAL_GROUP_VOXELS_MAX)
         G = TVPAL_GROUP_VOXELS_MAX / ((uint64_t)w * h);
     return G >= 2 ? (uint32_t)G : 1;
@@ -121,6 +124,9 @@ static int params_ok(const struct tvpal_engine_params *p)
            p->node_first < p->nodes &&
            p->node_count <= p->nodes - p->node_first &&
            p->group <= TVPAL_GROUP_MAX &&
+           p->group_axis[0] <= TVPAL_GROUP_MAX &&
+           p->group_axis[1] <= TVPAL_GROUP_MAX &&
+           p->group_axis[2] <= TVPAL_GROUP_MAX &&
            (p->table_format == TVPAL_TABLE_F32 ||
             p->table_format == TVPAL_TABLE_U16 ||
             p->table_format == TVPAL_TABLE_CHUNK);
@@ -386,7 +392,9 @@ void tvpal_engine_options_line(const struct tvpal_engine_params *p,
         OPTS_ADD(" --alloc greedy-mse");
     if (p->schedule == TVPAL_SCHEDULE_STAGGERED)
         OPTS_ADD(" --schedule staggered");
-    if (p->group > 1)
+    if (p->group_auto)
+        OPTS_ADD(" --group auto");
+    else if (p->group > 1)
         OPTS_ADD(" --group %u", p->group);
     if (p->index_level == 0)
         OPTS_ADD(" --index-coding none");
@@ -920,6 +928,61 @@ int tvpal_engine_encode_step(struct tvpal_engine *e, uint32_t t,
                                       "%u, step %u out of order",
                                       jb->slice + g * jb->stride, t);
     }
+    return 0;
+}
+
+/* The squared error of samples (len steps of nvox) against their decoder
+ * table (len x 256 floats) through idx, over the values present (a
+ * missing sample or entry has none). */
+static double window_sse(const float *samples, const float *table,
+                         const uint8_t *idx, size_t nvox, uint32_t len,
+                         uint64_t *present)
+{
+    double sse = 0;
+    uint64_t n = 0;
+    for (uint32_t j = 0; j < len; j++) {
+        const float *x = samples + (size_t)j * nvox;
+        const float *t = table + (size_t)j * TVPAL_TABLE_ENTRIES;
+        for (size_t v = 0; v < nvox; v++) {
+            const double d = (double)x[v] - t[idx[v]];
+            if (d == d) { /* neither is NaN */
+                sse += d * d;
+                n++;
+            }
+        }
+    }
+    *present = n;
+    return sse;
+}
+
+int tvpal_engine_price(struct tvpal_engine *e, unsigned tid,
+                       const float *samples, uint32_t k, uint32_t len,
+                       uint64_t *bytes, double *sse, uint64_t *present)
+{
+    const struct tvpal_shard_header *sh = &e->sj[0].h;
+    struct tvpal_shard_header gh = *sh;
+    gh.slice_h *= k;
+    const size_t nvox = (size_t)gh.slice_w * gh.slice_h;
+    if (tid >= e->nthreads || !k || !len || nvox > e->max_slice_vox ||
+        len > tvpal_engine_span(&e->p))
+        return TVPAL_E_INVAL;
+    const uint64_t cb = tvpal_chunk_bytes(len, gh.slice_w, gh.slice_h,
+                                          gh.table_format);
+    uint64_t dropped = 0;
+    unsigned char *chunk = e->chunkbuf[tid];
+    encode_chunk(e->enc[tid], e->fit[tid], e->tables[tid], samples, &gh, 0, 0,
+                 len, chunk, &dropped);
+    struct tvpal_chunk_header ch;
+    (void)tvpal_chunk_header_decode(chunk, &ch, NULL);
+    const uint32_t ctf = tvpal_chunk_table_format(gh.table_format, ch.flags);
+    const uint8_t *idx = chunk + TVPAL_CHUNK_HEADER_BYTES +
+                         (size_t)len * 256 * tvpal_table_entry_bytes(ctf);
+    *sse = window_sse(samples, e->tables[tid], idx, nvox, len, present);
+    int rc = e->p.index_level ? code_chunk(e, tid, &gh, cb) : 0;
+    if (rc < 0)
+        return rc;
+    (void)tvpal_chunk_header_decode(e->chunkbuf[tid], &ch, NULL);
+    *bytes = tvpal_chunk_stored_bytes(&ch, ctf);
     return 0;
 }
 

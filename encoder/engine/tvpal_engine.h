@@ -58,9 +58,20 @@ struct tvpal_engine_params {
      * slices would exceed TVPAL_GROUP_VOXELS_MAX voxels:
      * tvpal_engine_group). */
     uint32_t group;
+    /* Per axis, where nonzero, G in place of `group` (so capped too):
+     * the sizes --group auto measured (tvpal_groupauto.h), which the
+     * options line then calls `--group auto` (group_auto). */
+    uint32_t group_axis[3];
+    int group_auto;
 };
 
-/* The palette group size of axis a for p: 1 (none) or 2 .. p->group. */
+/* The largest G --group auto tries (tvpal_groupauto.h). */
+#define TVPAL_ENGINE_GROUP_AUTO_MAX 16u
+
+/* The palette group size of axis a for p: 1 (none) or 2 .. G, G its
+ * group_axis[a] where set, else p->group; with group_auto before the
+ * measure has set group_axis, the largest it may choose (so that a plan
+ * made before it holds whatever it chooses). */
 uint32_t tvpal_engine_group(const struct tvpal_engine_params *p,
                             unsigned a);
 
@@ -145,6 +156,18 @@ void tvpal_engine_set_progress(struct tvpal_engine *e, uint64_t *work,
  * shards stay as written. */
 int tvpal_engine_encode_step(struct tvpal_engine *e, uint32_t t,
                              struct tvpal_diag *diag, uint32_t *fail_shard);
+
+/* What one slice-window of k slices of the engine's first shard costs as
+ * the encoder would store it, for --group auto (tvpal_groupauto.h):
+ * samples holds its len steps (len <= the span, k slices each, x fastest,
+ * the chunk of k * slice_h rows a palette group stores), coded on thread
+ * tid's workspace (the engine started, k * slice_w * slice_h at most its
+ * largest group).  *bytes: the stored chunk (coded where that pays);
+ * *sse: the squared error of the values present against the decoder table;
+ * *present: how many there are.  0, or the coder's error. */
+int tvpal_engine_price(struct tvpal_engine *e, unsigned tid,
+                       const float *samples, uint32_t k, uint32_t len,
+                       uint64_t *bytes, double *sse, uint64_t *present);
 
 /* How the source of a job came, for the manifest's options line. */
 struct tvpal_engine_source {
