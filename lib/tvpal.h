@@ -170,7 +170,7 @@ enum tvpal_param {
                                * most of them) for some error; readers
                                * before 0.4.0 refuse it.
                                * TVPAL_GROUP_AUTO: each axis' G (1, 2, 4
-                               * .. 32) measured on sample windows of the
+                               * .. 16) measured on sample windows of the
                                * source before anything is written, the
                                * least error + 2 ln 2 error(1) x bits
                                * (tvpal-encode(1), --group auto); only an
@@ -486,9 +486,11 @@ struct tvpal_progress {
                                * is saved when due), or with levels a
                                * level is complete (level: which; see
                                * below); 0: a tick, once before the
-                               * first read (unit: where the encode
-                               * starts, 0 or the checkpoint's) and at
-                               * most 5 times a second within a unit */
+                               * first read of a step (unit: where the
+                               * encode starts, 0 or the checkpoint's;
+                               * TVPAL_GROUP_AUTO's sample is read
+                               * before it) and at most 5 times a
+                               * second within a unit */
     /* Set from the first tick on. */
     int resumed;              /* 1: the encode continues an earlier one
                                * of the job in DIR.partial (from `unit`) */
