@@ -30,6 +30,7 @@
 #include "tvpal_chunkz.h"
 #include "tvpal_clock.h"
 #include "tvpal_comm.h"
+#include "tvpal_engine.h"
 #include "tvpal_eig.h"
 #include "tvpal_error.h"
 #include "tvpal_fs.h"
@@ -1197,6 +1198,11 @@ static void say_plan(const struct run *r, const struct tvpal_plan *pl,
             "memory limit %s (%s); each pass needs about %s", desc,
             read_factor,
             ring_slots(r), ring, lim, r->limit_why, need);
+    if (r->o.group == 0) /* --group auto: the plan before the measure */
+        msg("plan: for palette groups of up to %u slices; the groups are "
+            "measured first (their sample is read before the encode), and "
+            "the encode plans again for the groups chosen",
+            TVPAL_ENGINE_GROUP_AUTO_MAX);
 }
 
 /* A failed encode or finish: e released (the library keeps the partial
