@@ -125,7 +125,7 @@ static void usage_encoding(FILE *f)
 "                         Small slices' tables are most of the bits: 64^2\n"
 "                         slices at N = 4, G = 8 store half the bits for\n"
 "                         1 dB less (needs tvpal 0.4.0 to read).  auto:\n"
-"                         each axis' G of 1, 2, 4 .. 32 measured on sample\n"
+"                         each axis' G of 1, 2, 4 .. 16 measured on sample\n"
 "                         windows (the least error + 2 ln 2 error(G=1) x\n"
 "                         bits)\n"
 "  -k, --nodes K          split every axis into K slabs, one per node,\n"
@@ -1044,7 +1044,7 @@ static struct tvpal_encoder *open_encoder(struct run *r)
         {TVPAL_PARAM_WINDOW, o->window}, {TVPAL_PARAM_AXES, o->axes},
         {TVPAL_PARAM_SCHEDULE, o->staggered ? TVPAL_SCHEDULE_STAGGERED
                                             : TVPAL_SCHEDULE_JOINED},
-        {TVPAL_PARAM_GROUP, o->group ? o->group : TVPAL_GROUP_AUTO},
+        {TVPAL_PARAM_GROUP, o->group},  /* 0: auto, TVPAL_GROUP_AUTO */
         {TVPAL_PARAM_NODES, o->nodes}, {TVPAL_PARAM_TABLE, o->table_format},
         {TVPAL_PARAM_REFINE, o->refine}, {TVPAL_PARAM_NAIVE, o->naive},
         {TVPAL_PARAM_INDEX_LEVEL, o->index_level},

@@ -710,7 +710,7 @@ static int check_job(const struct tvpal_encoder *e, struct tvpal_diag *diag)
                               "without a collective: for ranks on machines "
                               "of their own (one process writes "
                               "DIR/node-R)");
-    if (e->ep.group_auto && !e->src && !e->ep.group_axis[0])
+    if (!e->src && tvpal_engine_groups_unmeasured(&e->ep))
         return tvpal_diag_set(diag, TVPAL_E_INVAL, "TVPAL_PARAM_GROUP "
                               "TVPAL_GROUP_AUTO with pushes: the groups are "
                               "measured before the first window is written, "

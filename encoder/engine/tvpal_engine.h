@@ -68,6 +68,14 @@ struct tvpal_engine_params {
 /* The largest G --group auto tries (tvpal_groupauto.h). */
 #define TVPAL_ENGINE_GROUP_AUTO_MAX 16u
 
+/* 1 while --group auto has not yet set the groups it measured. */
+static inline int tvpal_engine_groups_unmeasured(
+    const struct tvpal_engine_params *p)
+{
+    return p->group_auto && !p->group_axis[0] && !p->group_axis[1] &&
+           !p->group_axis[2];
+}
+
 /* The palette group size of axis a for p: 1 (none) or 2 .. G, G its
  * group_axis[a] where set, else p->group; with group_auto before the
  * measure has set group_axis, the largest it may choose (so that a plan

@@ -8,6 +8,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* decide() and the report hold a candidate per power of two up to the
+ * largest. */
+_Static_assert(TVPAL_GROUPAUTO_MAX <= 128,
+               "at most 8 candidates (struct tvpal_groupauto_report)");
+
 /* The sample: `windows` group-windows of S slices (S the largest
  * candidate) and L steps, window i at samples + i * L * S * w * h, step
  * by step, each step's S slices one after the other (a group's chunk
@@ -189,7 +194,8 @@ static struct tvpal_engine_params price_params(
 }
 
 /* Bytes the measure holds with S slices and m windows on nt threads: the
- * sample, and per thread a window and the pricing engine's workspace. */
+ * sample, the box one step of it is read through, and per thread a
+ * window and the pricing engine's workspace. */
 static uint64_t measure_bytes(const struct tvpal_engine_params *p,
                               unsigned a, const struct sample *s,
                               uint32_t m, unsigned nt)
@@ -199,7 +205,8 @@ static uint64_t measure_bytes(const struct tvpal_engine_params *p,
     if (tvpal_engine_create(&e, &q) < 0)
         return UINT64_MAX;
     const uint64_t win = (uint64_t)s->S * s->w * s->h * s->L * sizeof(float);
-    const uint64_t b = m * win + nt * (win + tvpal_engine_thread_bytes(e));
+    const uint64_t b = m * win + win / s->L +
+                       nt * (win + tvpal_engine_thread_bytes(e));
     tvpal_engine_free(e);
     return b;
 }
