@@ -50,6 +50,11 @@ struct win_state {
     double ax, ay, zoom, opacity, scale_z;
     int view;                       /* the named view the angles turn */
     unsigned tfi, shots;
+    /* S saves the frame drawn after the keys pressed before it: the keys
+     * of a poll are taken up to S, the shot after the next frame is shown,
+     * and the keys after S (held) in the next round. */
+    int shot_pending;
+    int held[16], nheld;
     uint32_t t;
     int dir, playing, redraw, reduced, status;
     uint32_t frames;
@@ -184,6 +189,21 @@ static int save_shot(struct win_state *w, const char *path)
     return rc;
 }
 
+/* Rank 0: S's screenshot of the frame just shown (read into w->rgb
+ * before its buffers were swapped), as tvpal-shot-NNNN.png in
+ * --shot-dir. */
+static void save_key_shot(struct win_state *w)
+{
+    char *name;
+    w->shot_pending = 0;
+    if (asprintf(&name, "%s/tvpal-shot-%04u.png",
+                 w->o->shot_dir ? w->o->shot_dir : ".", w->shots++) < 0)
+        play_die(1, "out of memory");
+    if (save_shot(w, name) == 0 && !w->o->quiet)
+        fprintf(stderr, PROG ": saved %s\n", name);
+    free(name);
+}
+
 /* One key pressed on rank 0. */
 static void handle_key(struct win_state *w, int key, struct win_cmd *cmd)
 {
@@ -212,17 +232,7 @@ static void handle_key(struct win_state *w, int key, struct win_cmd *cmd)
     case TVPAL_KEY_ZOOM_OUT: w->zoom /= 1.15; break;
     case TVPAL_KEY_SCALE_Z_UP: w->scale_z = fmin(w->scale_z * 1.25, 1000); break;
     case TVPAL_KEY_SCALE_Z_DOWN: w->scale_z = fmax(w->scale_z * 0.8, 1e-3); break;
-    case TVPAL_KEY_SHOT: {
-        char *name;
-        if (asprintf(&name, "%s/tvpal-shot-%04u.png",
-                     w->o->shot_dir ? w->o->shot_dir : ".", w->shots++) < 0)
-            play_die(1, "out of memory");
-        tvpal_win_read(w->win, w->rgb);
-        if (save_shot(w, name) == 0 && !w->o->quiet)
-            fprintf(stderr, PROG ": saved %s\n", name);
-        free(name);
-        break;
-    }
+    case TVPAL_KEY_SHOT: w->shot_pending = 1; break;
     case TVPAL_KEY_HUD: w->hud = w->pa.a && !w->hud; break;
     case TVPAL_KEY_QUIT: cmd->quit = 1; break;
     default:
@@ -276,16 +286,34 @@ static void choose_level(struct win_state *w, struct win_cmd *cmd, int moving)
     cmd->level = k;
 }
 
+/* Rank 0: the keys held from the last round, then this poll's, in the
+ * order pressed, up to the first S (whose shot needs the frame they make);
+ * the rest are held for the next round. */
+static void take_keys(struct win_state *w, const struct tvpal_input *in,
+                      struct win_cmd *cmd)
+{
+    int keys[32], n = 0, i = 0;
+    for (int k = 0; k < w->nheld; k++)
+        keys[n++] = w->held[k];
+    for (int k = 0; k < in->nkeys; k++)
+        keys[n++] = in->keys[k];
+    w->nheld = 0;
+    while (i < n && !w->shot_pending)
+        handle_key(w, keys[i++], cmd);
+    for (; i < n && w->nheld < (int)(sizeof w->held / sizeof w->held[0]); i++)
+        w->held[w->nheld++] = keys[i];
+}
+
 /* Rank 0: this frame's input, and the command for every rank. */
 static void read_input(struct win_state *w, struct win_cmd *cmd)
 {
     const uint32_t T = w->s->m->steps;
     struct tvpal_input in;
-    tvpal_win_poll(w->win, !w->playing && !w->redraw && !w->multi, &in);
+    tvpal_win_poll(w->win, !w->playing && !w->redraw && !w->multi &&
+                   !w->nheld, &in);
     if (tvpal_win_should_close(w->win))
         cmd->quit = 1;
-    for (int i = 0; i < in.nkeys; i++)
-        handle_key(w, in.keys[i], cmd);
+    take_keys(w, &in, cmd);
     if (in.dragging) {
         w->ay += in.drag_dx * 0.4;
         w->ax += in.drag_dy * 0.4;
@@ -568,9 +596,11 @@ static void present(struct win_state *w, const struct win_cmd *cmd,
         show_final(w, cmd, v, when);
     else
         tvpal_glr_blit(w->pr.glr, 0, TVPAL_SLIDER_HEIGHT);
-    if (w->o->shot)
-        tvpal_win_read(w->win, w->rgb);
+    if (w->o->shot || w->shot_pending)
+        tvpal_win_read(w->win, w->rgb);   /* the back buffer, before swap */
     tvpal_win_present(w->win, T > 1 ? (double)cmd->t / (T - 1) : 0.0);
+    if (w->shot_pending)
+        save_key_shot(w);
     char lv[64] = "";
     if (w->s->nlevels > 1)
         snprintf(lv, sizeof lv, " - level %u/%u (%ux%ux%u)", w->level,
