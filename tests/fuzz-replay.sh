@@ -9,7 +9,7 @@
 . "${TVPAL_SRCDIR:-.}/tests/lib.sh"
 S=$TVPAL_SRCDIR/tests/fuzz
 for name in manifest shard record dataset tf_text tf_paraview raw vti vti_set vtk \
-            netcdf hdf5; do
+            netcdf hdf5 checkpoint; do
     bin=$TVPAL_BUILDDIR/tests/fuzz/replay-$name
     if [ ! -x "$bin" ]; then fail "$bin not built"; continue; fi
     set --

@@ -8,6 +8,7 @@
  * (input_common.h, check_grid). */
 #include "input_common.h"
 
+#include <stdio.h>
 #include <sys/stat.h>
 
 #define SET_MAX 16
