@@ -5,66 +5,71 @@
 # itself fails on a planted violation of each kind.
 . "$(dirname "$0")/lib.sh"
 
-# check_tree ROOT: prints one line per violation; exit 0 when none.
+# check_tree ROOT: prints one line per violation; exit 0 when none.  One
+# awk pass over LAYERS.md's three blocks, the file list and every file
+# (it ran a few processes per include, and took minutes of CPU a suite).
 check_tree() {
     root=$1
-    rules=$(sed -n '/<!-- rules begin/,/<!-- rules end/p' "$root/LAYERS.md" | grep -v '^<!--\|^```')
-    adapters=$(sed -n '/<!-- adapters begin/,/<!-- adapters end/p' "$root/LAYERS.md" | grep -v '^<!--\|^```')
-    [ -n "$rules" ] && [ -n "$adapters" ] || { echo "LAYERS.md: no rules block"; return 1; }
-    folders=$(echo "$rules" | awk '{print $1}')
+    sed -n '/<!-- rules begin/,/<!-- rules end/p' "$root/LAYERS.md" | grep -v '^<!--\|^```' > "$W/rules"
+    sed -n '/<!-- adapters begin/,/<!-- adapters end/p' "$root/LAYERS.md" | grep -v '^<!--\|^```' > "$W/adapters"
+    sed -n '/<!-- modules begin/,/<!-- modules end/p' "$root/LAYERS.md" | grep -v '^<!--\|^```' > "$W/modules"
+    [ -s "$W/rules" ] && [ -s "$W/adapters" ] || { echo "LAYERS.md: no rules block"; return 1; }
+    folders=$(awk '{print $1}' "$W/rules")
     (cd "$root" && find $folders tests -maxdepth 1 -type f \( -name '*.c' -o -name '*.h' \)) \
         | sort > "$W/files"
-    # file name -> folder; names must be unique
-    awk -F/ '{n=$NF; d=$0; sub("/[^/]*$", "", d); print n, d}' "$W/files" | sort > "$W/names"
-    awk '{print $1}' "$W/names" | uniq -d | sed 's/^/not unique: /'
-    bad=0
-    while read -r f; do
-        dir=${f%/*}
-        allowed=$(echo "$rules" | awk -v d="$dir" '$1 == d {$1 = ""; print}')
-        # quoted includes: a file of the tree, in an allowed folder
-        sed -n 's/^[ \t]*#[ \t]*include[ \t]*"\([^"]*\)".*/\1/p' "$root/$f" | while read -r h; do
-            [ "$h" = config.h ] && continue
-            hd=$(awk -v n="$h" '$1 == n {print $2}' "$W/names")
-            if [ -z "$hd" ]; then
-                echo "$f: includes \"$h\", which is not a file of the tree"
-                continue
-            fi
-            [ "$hd" = "$dir" ] && continue
-            [ "$dir" = tests ] && continue
-            case " $allowed " in
-            *" $hd "*) ;;
-            *) echo "$f: includes $hd/$h; $dir may include only:${allowed:- nothing}" ;;
-            esac
-        done
-        # angle includes of external libraries: only in their adapters
-        sed -n 's/^[ \t]*#[ \t]*include[ \t]*<\([^>]*\)>.*/\1/p' "$root/$f" | while read -r h; do
-            echo "$adapters" | while read -r pre who; do
-                case "$h" in
-                "$pre"*)
-                    case " $who " in
-                    *" $f "*) ;;
-                    *) echo "$f: includes <$h>; only the adapter may (${who})" ;;
-                    esac ;;
-                esac
-            done
-        done
-    done < "$W/files"
-    # encoder/: tvpal-encode's modules include only those below them
-    modules=$(sed -n '/<!-- modules begin/,/<!-- modules end/p' "$root/LAYERS.md" | grep -v '^<!--\|^```')
-    grep '^encoder/[^/]*$' "$W/files" | while read -r f; do
-        base=$(basename "$f"); base=${base%.*}
-        mine=$(echo "$modules" | awk -v m="$base" '$1 == m {print NR}')
-        sed -n 's/^[ \t]*#[ \t]*include[ \t]*"\([^"]*\)\.h".*/\1/p' "$root/$f" | while read -r h; do
-            theirs=$(echo "$modules" | awk -v m="$h" '$1 == m {print NR}')
-            [ -z "$theirs" ] && continue
-            [ "$h" = "$base" ] && continue
-            if [ -z "$mine" ]; then
-                echo "$f: includes $h.h, a module of tvpal-encode (LAYERS.md)"
-            elif [ "$theirs" -ge "$mine" ]; then
-                echo "$f: includes $h.h, a module above $base (LAYERS.md: modules)"
-            fi
-        done
-    done
+    (cd "$root" && awk -v RF="$W/rules" -v AF="$W/adapters" -v MF="$W/modules" \
+                       -v LF="$W/files" -f - "$W/rules" "$W/adapters" "$W/modules" \
+                       "$W/files" $(cat "$W/files")) <<'AWK'
+# The folder of a path, and its name.
+function dirname(p) { sub("/[^/]*$", "", p); return p }
+function basename(p) { sub(".*/", "", p); return p }
+FILENAME == RF { if (NF) { d = $1; $1 = ""; allowed[d] = $0 } next }
+FILENAME == AF { if (NF) { na++; pre[na] = $1; w = $0; sub(/^[^ \t]+[ \t]+/, "", w); who[na] = w } next }
+FILENAME == MF { if (NF) { nm++; module[$1] = nm } next }
+FILENAME == LF {
+    n = basename($0)
+    if (n in dirof) dup[n] = 1
+    dirof[n] = dirname($0)
+    next
+}
+FNR == 1 {
+    f = FILENAME; dir = dirname(f)
+    base = basename(f); sub(/\.[^.]*$/, "", base)
+    # encoder/'s own files are tvpal-encode's modules, in their order
+    enc = f ~ /^encoder\/[^\/]*$/
+    mine = (base in module) ? module[base] : 0
+}
+# quoted includes: a file of the tree, in an allowed folder
+/^[ \t]*#[ \t]*include[ \t]*"[^"]*"/ {
+    h = $0; sub(/^[^"]*"/, "", h); sub(/".*/, "", h)
+    if (h != "config.h" && !(h in dup)) {   # a name twice: said at the end
+        if (!(h in dirof))
+            print f ": includes \"" h "\", which is not a file of the tree"
+        else if (dirof[h] != dir && dir != "tests" &&
+                 index(" " allowed[dir] " ", " " dirof[h] " ") == 0)
+            print f ": includes " dirof[h] "/" h "; " dir " may include only:" \
+                  (allowed[dir] == "" ? " nothing" : allowed[dir])
+    }
+    if (enc && h ~ /\.h$/) {
+        m = h; sub(/\.h$/, "", m)
+        if ((m in module) && m != base) {
+            if (!mine)
+                print f ": includes " m ".h, a module of tvpal-encode (LAYERS.md)"
+            else if (module[m] >= mine)
+                print f ": includes " m ".h, a module above " base " (LAYERS.md: modules)"
+        }
+    }
+    next
+}
+# angle includes of external libraries: only in their adapters
+/^[ \t]*#[ \t]*include[ \t]*<[^>]*>/ {
+    h = $0; sub(/^[^<]*</, "", h); sub(/>.*/, "", h)
+    for (i = 1; i <= na; i++)
+        if (index(h, pre[i]) == 1 && index(" " who[i] " ", " " f " ") == 0)
+            print f ": includes <" h ">; only the adapter may (" who[i] ")"
+}
+END { for (n in dup) print "not unique: " n }
+AWK
 }
 
 out=$(check_tree "$TVPAL_SRCDIR")
