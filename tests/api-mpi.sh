@@ -17,6 +17,7 @@
 # files (tests/api-files.c) on 3 ranks writes tvpal-encode --nodes 3 --axes
 # xyz --levels 1's shards.
 . "$(dirname "$0")/lib.sh"
+third_party_leaks
 "$ENC" --version | grep -q "mpi: yes" ||
     { echo "built without MPI (libopenmpi-dev): skipped"; exit 77; }
 command -v mpirun > /dev/null || { echo "no mpirun (scripts/setup-deps installs openmpi-bin)"; exit 99; }

@@ -8,6 +8,7 @@
 # The exact comparisons use the GL renderer (per-pixel compositing of the
 # slabs is exact there); the CPU shear-warp renderer gets its own tolerance.
 . "$(dirname "$0")/lib.sh"
+third_party_leaks
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
 command -v mpirun > /dev/null || { echo "no mpirun (scripts/setup-deps installs openmpi-bin)"; exit 99; }

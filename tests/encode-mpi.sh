@@ -10,6 +10,7 @@
 # message (no hang), and the rerun resumes; a rank count other than
 # --nodes is refused.
 . "$(dirname "$0")/lib.sh"
+third_party_leaks
 command -v mpirun > /dev/null || { echo "no mpirun (scripts/setup-deps installs openmpi-bin)"; exit 99; }
 "$ENC" --axes xyz --version | grep -q "mpi: yes" || { echo "built without MPI: skipped (an MPI launch is refused)"; \
     TVPAL_COMM=mpi "$ENC" --axes xyz --dims 2x2x2 -o "$W/x" /dev/null > /dev/null 2> "$W/nompi.txt"; \

@@ -6,6 +6,7 @@
 # to a coarser level while the view is dragged or the steps play faster than
 # the budget, and refines when still (its CSV and title show it).
 . "$(dirname "$0")/lib.sh"
+third_party_leaks
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
 D=41x36x30

@@ -16,6 +16,7 @@
 # Without cairo, --annotate full is refused naming the package, and after
 # the checks of --annotate none and --background the rest skips (77).
 . "$(dirname "$0")/lib.sh"
+third_party_leaks
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 FC=$TVPAL_BUILDDIR/tests/tvpal-framecheck
 [ -x "$PLAY" ] || { echo "built without libpng (no tvpal-play): skipped"; exit 77; }

@@ -8,6 +8,7 @@
 # can tell); --nan-color 1,0,0 draws them red; a ParaView preset's
 # NanColor is honoured and --nan-color none overrides it.
 . "$(dirname "$0")/lib.sh"
+third_party_leaks
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
 D=24x20x16

@@ -18,6 +18,7 @@
 #    axes, and for x and y views within the stated seam tolerance below.
 #  - Old three-copy datasets still play every view from their own axes.
 . "$(dirname "$0")/lib.sh"
+third_party_leaks
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
 "$ENC" --help | grep -q -- "--axes" || fail "tvpal-encode has no --axes"

@@ -7,6 +7,7 @@
 # cycles the transfer function, Q quits; --view -z --up x in the window
 # draws what it draws headless.
 . "$(dirname "$0")/lib.sh"
+third_party_leaks
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
 "$PLAY" --version | grep -q "window: yes" || { echo "built without the window (GLFW and OSMesa): skipped"; exit 77; }

@@ -5,6 +5,7 @@
 # is the sum of the files' sizes, also with --shard-dir; skipped (77)
 # without mpirun or an MPI build.
 . "$(dirname "$0")/lib.sh"
+third_party_leaks
 command -v mpirun > /dev/null || { echo "no mpirun: skipped"; exit 77; }
 "$ENC" --version | grep -q "mpi: yes" || { echo "built without MPI: skipped"; exit 77; }
 MPI="timeout 120 mpirun --allow-run-as-root --oversubscribe"
