@@ -14,6 +14,12 @@ W=$TVPAL_BUILDDIR/tests/work/$test_name
 rm -rf "$W" && mkdir -p "$W" || exit 99
 failures=0
 
+# Open MPI on one machine: the shared-memory transport only.  Otherwise
+# every rank probes UCX and the network in MPI_Init, a quarter of the time
+# an mpirun of a few ranks takes here; no test depends on the transport.
+# Settings the caller has made win.
+export OMPI_MCA_pml="${OMPI_MCA_pml:-ob1}" OMPI_MCA_btl="${OMPI_MCA_btl:-self,vader}"
+
 # third_party_leaks: called by a test that starts Open MPI or a window
 # (GLFW and X11 under Xvfb).  Those libraries unload the plugins that
 # allocated before LeakSanitizer runs at exit, so it can neither name nor
