@@ -1,5 +1,6 @@
-# pngdiff.py A B: the largest per-channel difference of two 8-bit RGB/RGBA
-# PNG files (no third-party modules) and the share of differing pixels.
+# pngdiff.py A B [A2 B2 ...]: the largest per-channel difference of two
+# 8-bit RGB/RGBA PNG files (no third-party modules) and the share of
+# differing pixels, one line per pair (one start for many frames).
 import struct, sys, zlib
 
 def load(path):
@@ -34,13 +35,19 @@ def load(path):
         prev = line
     return w, h, bpp, out
 
-wa, ha, ba, A = load(sys.argv[1])
-wb, hb, bb, B = load(sys.argv[2])
-assert (wa, ha, ba) == (wb, hb, bb), "sizes differ"
-mx, diff = 0, 0
-for ra, rb in zip(A, B):
-    for p in range(wa):
-        d = max(abs(ra[p * ba + k] - rb[p * ba + k]) for k in range(3))
-        mx = max(mx, d)
-        diff += d > 0
-print("max=%d differing=%.5f" % (mx, diff / (wa * ha)))
+def compare(a, b):
+    wa, ha, ba, A = load(a)
+    wb, hb, bb, B = load(b)
+    assert (wa, ha, ba) == (wb, hb, bb), "sizes differ"
+    mx, diff = 0, 0
+    for ra, rb in zip(A, B):
+        for p in range(wa):
+            d = max(abs(ra[p * ba + k] - rb[p * ba + k]) for k in range(3))
+            mx = max(mx, d)
+            diff += d > 0
+    print("max=%d differing=%.5f" % (mx, diff / (wa * ha)))
+
+args = sys.argv[1:]
+assert len(args) >= 2 and len(args) % 2 == 0, "usage: pngdiff.py A B [A2 B2 ...]"
+for i in range(0, len(args), 2):
+    compare(args[i], args[i + 1])
