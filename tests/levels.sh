@@ -212,15 +212,17 @@ for k in 0 1 2; do
     "$PLAY" "$W/ds" --headless -q --renderer cpu --size 96x96 --level $k --steps 2:2 -o "$W/img$k" > /dev/null 2>&1 || fail "play level $k"
 done
 $PY - "$W" <<'PY' > "$W/bright.txt" || fail "brightness"
-import sys
-exec(open(sys.argv[0] if False else "%s/tests/pngdiff.py" % __import__("os").environ["TVPAL_SRCDIR"]).read().split("wa, ha, ba, A = load")[0])
+import os, sys
+sys.dont_write_bytecode = True
+sys.path.insert(0, os.path.join(os.environ["TVPAL_SRCDIR"], "tests"))
+from pngdiff import load
 m = []
 for k in range(3):
     w, h, b, A = load("%s/img%d/t0002.png" % (sys.argv[1], k))
     m.append(sum(sum(r) for r in A) / (w * h * b))
 print(" ".join("%.2f" % x for x in m))
 PY
-awk '{ exit !($1 > 0 && ($2 - $1) / $1 < 0.05 && ($1 - $2) / $1 < 0.05 && ($3 - $1) / $1 < 0.05 && ($1 - $3) / $1 < 0.05) }' "$W/bright.txt" \
+[ "$(wc -w < "$W/bright.txt")" -eq 3 ] && awk '{ exit !($1 > 0 && ($2 - $1) / $1 < 0.05 && ($1 - $2) / $1 < 0.05 && ($3 - $1) / $1 < 0.05 && ($1 - $3) / $1 < 0.05) }' "$W/bright.txt" \
     && ok "mean brightness of levels 0, 1, 2: $(cat "$W/bright.txt")" || fail "brightness: $(cat "$W/bright.txt")"
 # Streaming reads only the level drawn.
 b0=$("$PLAY" "$W/ds" --headless -q --renderer cpu --size 64x64 --level 0 | sed 's/.*bytes_read=\([0-9]*\).*/\1/')

@@ -46,7 +46,10 @@ cmp -s "$W/white/t0001.png" "$W/fc-white.png" && ok "--background white = 1,1,1"
 # img.py: pngdiff.py's reader, with whole images as bytes (flat).  Run by
 # py SCRIPT-ON-STDIN ARGS... (the script's first line: exec(IMG)).
 cat > "$W/img.py" <<PY
-exec(open("$TVPAL_SRCDIR/tests/pngdiff.py").read().split("wa, ha, ba, A = load")[0])
+import sys
+sys.dont_write_bytecode = True
+sys.path.insert(0, "$TVPAL_SRCDIR/tests")
+from pngdiff import load
 def flat(path):
     w, h, b, rows = load(path)
     return w, h, b, b"".join(rows)

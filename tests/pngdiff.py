@@ -1,6 +1,7 @@
 # pngdiff.py A B [A2 B2 ...]: the largest per-channel difference of two
 # 8-bit RGB/RGBA PNG files (no third-party modules) and the share of
-# differing pixels, one line per pair (one start for many frames).
+# differing pixels, one line per pair (one start for many frames).  Other
+# tests' scripts import its PNG reader: from pngdiff import load.
 import struct, sys, zlib
 
 def load(path):
@@ -47,7 +48,8 @@ def compare(a, b):
             diff += d > 0
     print("max=%d differing=%.5f" % (mx, diff / (wa * ha)))
 
-args = sys.argv[1:]
-assert len(args) >= 2 and len(args) % 2 == 0, "usage: pngdiff.py A B [A2 B2 ...]"
-for i in range(0, len(args), 2):
-    compare(args[i], args[i + 1])
+if __name__ == "__main__":
+    args = sys.argv[1:]
+    assert len(args) >= 2 and len(args) % 2 == 0, "usage: pngdiff.py A B [A2 B2 ...]"
+    for i in range(0, len(args), 2):
+        compare(args[i], args[i + 1])

@@ -27,9 +27,10 @@ grep -q "^spacing = 1 1 4$" "$W/phys/manifest.txt" && grep -q "^origin = 10 20 -
 printf 'domain normalized\n0 0 0 0 0\n0.4 0 0 0 0\n0.6 1 1 1 1\n1 1 1 1 1\n' > "$W/solid.tf"
 aspect() { # PNG: height / width of the non-black pixels' bounding box
     "$PY" - "$1" "$TVPAL_SRCDIR/tests/pngdiff.py" <<'PY'
-import sys
-src = open(sys.argv[2]).read().split("\nwa, ha, ba, A = load")[0]
-exec(src)
+import os, sys
+sys.dont_write_bytecode = True
+sys.path.insert(0, os.path.dirname(sys.argv[2]))
+from pngdiff import load
 w, h, bpp, rows = load(sys.argv[1])
 xs, ys = [], []
 for y, r in enumerate(rows):
