@@ -64,6 +64,29 @@ expect_exit() {
     fi
 }
 
+# sweep_opts SWEEP: tvpal-play's options for a sweep of views written
+# AX,AY/SPIN/A:B: --rotate AX,AY, then --spin SPIN degrees about the
+# screen's y each frame, over steps A..B (a view per frame: one start of
+# the player, or of mpirun, draws them all).
+sweep_opts() { echo "$1" | awk -F/ '{ printf "--rotate %s --spin %s --steps %s", $1, $2, $3 }'; }
+
+# pngdiff_dirs REF OUT: tests/pngdiff.py's line (max=M differing=S) for
+# every frame of REF against OUT's frame of the same name, in one start
+# of python.  Non-zero, with nothing printed, when REF has no frame, OUT
+# lacks one or a comparison fails.
+pngdiff_dirs() {
+    local ref=$1 out=$2 f n=0 res
+    set --
+    for f in "$ref"/*.png; do
+        [ -f "$f" ] && [ -f "$out/${f##*/}" ] || return 1
+        set -- "$@" "$f" "$out/${f##*/}"
+        n=$((n + 1))
+    done
+    res=$("$PY" "$TVPAL_SRCDIR/tests/pngdiff.py" "$@") || return 1
+    [ "$(printf '%s\n' "$res" | grep -c '^max=')" -eq "$n" ] || return 1
+    printf '%s\n' "$res"
+}
+
 # kv KEY LINE: value of key=value in LINE.
 kv() { printf '%s\n' "$2" | tr ' ' '\n' | sed -n "s/^$1=//p"; }
 

@@ -4,9 +4,9 @@
 # (a pixel stops at transmittance 1/272) and with --exact differ by at most
 # one 8-bit level in every pixel, for views along and between the axes
 # (eight, in three sweeps), dense and opaque transfer functions, opacity
-# scaled up to saturate pixels, K = 1..4, 1 and 2 threads; on the saturated cases the frames
-# really differ somewhere (termination is on); and --exact draws the same
-# bits for 1 and 2 threads.
+# scaled up to saturate pixels, K = 1..4, 1 and 2 threads; on the
+# saturated cases the frames really differ somewhere (termination is on);
+# and --exact draws the same bits for 1 and 2 threads.
 . "$(dirname "$0")/lib.sh"
 PLAY=$TVPAL_BUILDDIR/player/app/tvpal-play
 [ -x "$PLAY" ] || { echo "built without OSMesa/libpng: skipped"; exit 77; }
@@ -24,7 +24,7 @@ SWEEPS="0,0/90/0:2 90,0/180/0:1 20,30/120/0:2"
 n=0 frames=0
 : > "$W/pairs"
 for sw in $SWEEPS; do
-    view=$(echo "$sw" | awk -F/ '{ printf "--rotate %s --spin %s --steps %s", $1, $2, $3 }')
+    view=$(sweep_opts "$sw")
     for case in "" "--opacity 8" "--tf $TFW --opacity 30" "--tf $TFB --opacity 4" \
         "--tf $TFC --opacity 100" "--zoom 4 --opacity 20"; do
         n=$((n + 1)) frames=$((frames + $(echo "$sw" | awk -F/ '{ split($3, s, ":"); print s[2] - s[1] + 1 }')))

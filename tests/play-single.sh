@@ -109,8 +109,8 @@ x3=$("$PLAY" "$W/xyz" --headless -q --renderer cpu --size 64x64 --prefetch 0 --s
 # where two nodes' warped images abut, and "over" of two bilinearly
 # warped images that each half cover a pixel is not their sum (measured:
 # at most 21 levels, at K = 3 in a view near y, and at most 0.6% of the
-# pixels; 0 at K = 2, whose boundary falls between pixels here).  Stated tolerance there: 24 levels
-# on at most 2% of the pixels.
+# pixels; 0 at K = 2, whose boundary falls between pixels here).  Stated
+# tolerance there: 24 levels on at most 2% of the pixels.
 if command -v mpirun > /dev/null && "$PLAY" --version | grep -q "mpi: yes"; then
     MPI="timeout 300 mpirun --allow-run-as-root --oversubscribe"
     export LP_NUM_THREADS=1 OMPI_MCA_rmaps_base_oversubscribe=1
@@ -128,7 +128,6 @@ if command -v mpirun > /dev/null && "$PLAY" --version | grep -q "mpi: yes"; then
     # from 90,0 along +y, x and -y, from -80,20 three views near y (the
     # seam tolerance).
     SWEEPS="0,0/180/0:1 30,40/180/0:1 90,0/90/0:2 -80,20/120/0:2"
-    sweep_opts() { echo "$1" | awk -F/ '{ printf "--rotate %s --spin %s --steps %s", $1, $2, $3 }'; }
     for r in $RS; do
         for sw in $SWEEPS; do
             "$PLAY" "$W/k1" --headless -q --renderer $r --size 64x56 $(sweep_opts $sw) --tf "$TF" \
@@ -146,12 +145,8 @@ if command -v mpirun > /dev/null && "$PLAY" --version | grep -q "mpi: yes"; then
                 cpu-0,0|cpu-30,40) lim=6 share=0.05 ;;
                 *) lim=24 share=0.02 ;;
                 esac
-                set --
-                for f in "$W/cref-$r-$view"/*.png; do
-                    set -- "$@" "$f" "$W/c$K-$r-$view/$(basename "$f")"
-                done
-                $PY "$TVPAL_SRCDIR/tests/pngdiff.py" "$@" > "$W/d.txt" \
-                    && [ "$(wc -l < "$W/d.txt")" -eq $(($# / 2)) ] || fail "$r K=$K sweep $sw: frames missing"
+                pngdiff_dirs "$W/cref-$r-$view" "$W/c$K-$r-$view" > "$W/d.txt" \
+                    || fail "$r K=$K sweep $sw: frames missing or not comparable"
                 frames=$((frames + $(wc -l < "$W/d.txt")))
                 while read -r res; do
                     m=$(echo "$res" | sed 's/max=\([0-9]*\).*/\1/') d=$(echo "$res" | sed 's/.*differing=//')
